@@ -1,0 +1,48 @@
+"""Longitudinal speed controller producing the tractor drive force."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass
+class SpeedController:
+    """PI speed controller with a force limit and conditional-integration anti-windup.
+
+    ``F = m·(k_p·e + k_i·∫e dt)``, ``e = u_ref − u``, clipped to ``±max_force``; the integral is
+    frozen while the output saturates in the direction of the error.
+
+    Parameters
+    ----------
+    mass
+        Mass the gains are scaled by [kg] (the combination's total mass).
+    kp
+        Proportional gain [1/s] (acceleration per speed error).
+    ki
+        Integral gain [1/s²].
+    max_force
+        Force limit [N] (positive); the vehicle model also caps drive force at its traction limit.
+    """
+
+    mass: float
+    kp: float = 1.0
+    ki: float = 0.3
+    max_force: float = 60_000.0
+    integral: float = field(default=0.0, init=False)
+
+    def __post_init__(self) -> None:
+        if self.mass <= 0 or self.kp < 0 or self.ki < 0 or self.max_force <= 0:
+            raise ValueError("SpeedController needs mass > 0, kp ≥ 0, ki ≥ 0 and max_force > 0")
+
+    def reset(self) -> None:
+        """Clear the integral."""
+        self.integral = 0.0
+
+    def __call__(self, speed_ref: float, speed: float, dt: float) -> float:
+        """Drive force [N] for the next control period of length ``dt``."""
+        error = speed_ref - speed
+        unsat = self.mass * (self.kp * error + self.ki * (self.integral + error * dt))
+        force = min(max(unsat, -self.max_force), self.max_force)
+        if force == unsat or (force > 0) != (error > 0):
+            self.integral += error * dt
+        return force

@@ -1,0 +1,107 @@
+"""Parameter objects, presets and validation."""
+
+from __future__ import annotations
+
+import pytest
+from pydantic import ValidationError
+
+from vehicle_model.parameters import GRAVITY, AxleParams, TractorParams, VehicleParams
+from vehicle_model.presets import TRACTOR_6X2, VEHICLE_PRESETS, reference_laden, vehicle_preset
+from vehicle_model.surface import FrictionPatch, RadialCamber, UniformFriction, friction_preset
+
+
+def test_reference_static_loads_match_reference_notes(reference):
+    # Reference notes §4.1: steer 7.32 t, drive 8.50 t, tag 8.50 t, trailer 3 × 6.21 t, kingpin 14.47 t.
+    loads_t = reference.axle_table.static_load / GRAVITY / 1000.0
+    assert loads_t == pytest.approx([7.32, 8.50, 8.50, 6.21, 6.21, 6.21], abs=0.006)
+    assert reference.kingpin_load / GRAVITY / 1000.0 == pytest.approx(14.47, abs=0.005)
+    # Loads balance the weight of the combination.
+    total = (reference.tractor.mass + reference.trailer.mass) * GRAVITY
+    assert reference.axle_table.static_load.sum() == pytest.approx(total, rel=1e-12)
+
+
+def test_reference_geometry(reference):
+    # Reference notes §4.1: h1 = 2.0353 m, h2 = 4.3344 m, L_eq = 7.846 m.
+    assert reference.h1 == pytest.approx(2.0353, abs=1e-4)
+    assert reference.h2 == pytest.approx(4.3344, abs=1e-4)
+    assert reference.equivalent_wheelbase() == pytest.approx(7.846, abs=5e-4)
+    assert reference.follow_point_offset == pytest.approx(12.0)
+
+
+@pytest.mark.parametrize("name", sorted(VEHICLE_PRESETS))
+def test_presets_are_valid_and_consistent(name):
+    p = vehicle_preset(name)
+    assert p.kingpin_load > 0
+    assert (p.axle_table.static_load > 0).all()
+    assert p.trailer.follow_point_offset == -p.trailer.rear_x
+
+
+def test_lst_dimensions():
+    lst = vehicle_preset("lst")
+    assert lst.trailer.length == pytest.approx(15.65)
+    assert -lst.trailer.rear_x == pytest.approx(14.05)
+    assert any(a.steerable for a in lst.trailer.axles)
+
+
+def test_unknown_preset_names_the_choices():
+    with pytest.raises(ValueError, match="choose one of"):
+        vehicle_preset("road-train")
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        ({"mass": -1.0}, "mass"),
+        ({"yaw_inertia": 0.0}, "yaw_inertia"),
+        ({"width": -2.0}, "width"),
+        ({"fifth_wheel_x": -9.0}, "fifth_wheel_x"),
+    ],
+)
+def test_invalid_tractor_values_name_the_field(change, field):
+    data = TRACTOR_6X2.model_dump() | change
+    with pytest.raises(ValidationError, match=field):
+        TractorParams(**data)
+
+
+def test_axle_behind_the_body_is_rejected():
+    data = TRACTOR_6X2.model_dump()
+    data["axles"][2]["x"] = -7.0
+    with pytest.raises(ValidationError, match=r"axles\[2\]\.x .*off the body"):
+        TractorParams(**data)
+
+
+def test_bad_tyre_count_names_the_field():
+    with pytest.raises(ValidationError, match="n_tyres"):
+        AxleParams(name="a", x=0.0, n_tyres=0)
+
+
+def test_duplicate_axle_names_are_rejected(reference):
+    data = reference.model_dump()
+    data["trailer"]["axles"][0]["name"] = "steer"
+    with pytest.raises(ValidationError, match="unique"):
+        VehicleParams(**data)
+
+
+def test_parameters_are_immutable(reference):
+    with pytest.raises(ValidationError):
+        reference.tractor.mass = 1.0
+
+
+@pytest.mark.parametrize("mu", [0.0, -0.3, float("nan"), 3.0])
+def test_invalid_friction_is_rejected(mu):
+    with pytest.raises(ValueError, match="mu"):
+        UniformFriction(mu)
+    with pytest.raises(ValueError, match="mu"):
+        FrictionPatch(0, 1, 0, 1, mu)
+
+
+def test_surface_presets():
+    assert friction_preset("ice") < friction_preset("snow") < friction_preset("wet") < friction_preset("dry")
+    with pytest.raises(ValueError, match="unknown surface"):
+        friction_preset("gravel")
+    with pytest.raises(ValueError, match="direction"):
+        RadialCamber((0, 0), 5.0, direction="sideways")  # type: ignore[arg-type]
+
+
+def test_reference_preset_is_default_like_design():
+    assert reference_laden().name == "reference"

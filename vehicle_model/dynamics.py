@@ -1,0 +1,266 @@
+"""The nonlinear yaw-plane tractor–semi-trailer model, defined once in casadi.
+
+Two rigid bodies, tractor (unit 1) and semi-trailer (unit 2), joined at the kingpin; any number of
+axles per unit, lumped on the centre line; any axle may be steered. Each right-hand-side
+evaluation solves the six Newton–Euler equations, linear in ``[u̇, v̇1, ṙ1, ṙ2, F_hx, F_hy]``
+(reference notes §1.1 and §1.4, extended with the tractor longitudinal equation so that the
+forward speed follows from the drive force instead of being prescribed); the hitch force is
+eliminated first, leaving a symmetric 4×4 mass matrix.
+
+From this one definition :class:`VehicleModel` derives the right-hand side, a fixed-step RK4
+step, the multi-step integrator, the outputs and the Jacobians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from . import tyre as tyre_model
+from .codegen import compile_functions
+from .layout import Layout
+from .parameters import GRAVITY, VehicleParams
+
+AIR_DENSITY = 1.2
+"""Air density for aerodynamic drag [kg/m³]."""
+
+TRACTION_MARGIN = 0.95
+"""Drive force per axle is capped at this fraction of μ·Fz (no wheel spin is modelled)."""
+
+OUTPUT_GROUPS = ("fy", "fx", "fz", "slip", "mu_used")
+"""Per-axle outputs, each one entry per axle in layout order (wheel-frame forces)."""
+
+
+@dataclass(frozen=True)
+class SymbolicModel:
+    """Symbols and expressions of the model."""
+
+    x: ca.SX
+    u: ca.SX
+    xdot: ca.SX
+    outputs: dict[str, ca.SX]
+
+
+def define_model(params: VehicleParams) -> SymbolicModel:
+    """Build the symbolic right-hand side ``ẋ = f(x, u)`` and the named outputs."""
+    layout = Layout.for_vehicle(params)
+    table = params.axle_table
+    x = ca.SX.sym("x", layout.n_states)
+    u_in = ca.SX.sym("u", layout.n_inputs)
+
+    _, _, psi1, u, v1, r1, gamma, r2 = (x[i] for i in range(8))
+    slip_state = x[8:]
+    steer_in = u_in[layout.steer_slice]
+    drive_force = u_in[layout.drive_index]
+    mu = u_in[layout.mu_slice]
+    slope = u_in[layout.slope_slice]
+
+    m1, i1, m2, i2 = params.tractor.mass, params.tractor.yaw_inertia, params.trailer.mass, params.trailer.yaw_inertia
+    h1, h2 = params.h1, params.h2
+    psi2 = psi1 - gamma
+    cg, sg = ca.cos(gamma), ca.sin(gamma)
+
+    # Hitch kinematics (reference notes §1.1): kingpin velocity in the tractor frame, rotated into the trailer frame.
+    v_h1 = v1 - h1 * r1
+    u2 = u * cg - v_h1 * sg
+    v2 = u * sg + v_h1 * cg - h2 * r2
+    gamma_dot = r1 - r2
+
+    # In-plane gravity per body (reference notes §1.3), from the global slope vector.
+    def body_gravity(sx: ca.SX, sy: ca.SX, psi: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+        gx = GRAVITY * (sx * ca.cos(psi) + sy * ca.sin(psi))
+        gy = GRAVITY * (-sx * ca.sin(psi) + sy * ca.cos(psi))
+        cos_theta = ca.sqrt(ca.fmax(1.0 - sx * sx - sy * sy, 0.0))
+        return gx, gy, cos_theta
+
+    gx1, gy1, cos1 = body_gravity(slope[0], slope[1], psi1)
+    gx2, gy2, cos2 = body_gravity(slope[2], slope[3], psi2)
+
+    # Drive force shared among driven axles in proportion to their static load.
+    driven_load = float(np.sum(table.static_load[table.driven]))
+
+    steer_iter = iter(range(len(layout.steerable_axles)))
+    fx_body = [ca.SX(0.0), ca.SX(0.0)]
+    fy_body = [ca.SX(0.0), ca.SX(0.0)]
+    mz_body = [ca.SX(0.0), ca.SX(0.0)]
+    slip_dot, out_fy, out_fx, out_fz, out_slip = [], [], [], [], []
+    for k, _name in enumerate(table.names):
+        unit = int(table.unit[k])
+        tyre = table.tyres[k]
+        n = float(table.n_tyres[k])
+        a = float(table.x_cg[k])
+        delta = steer_in[next(steer_iter)] if table.steerable[k] else ca.SX(0.0)
+        ub, vb, rb = (u, v1, r1) if unit == 0 else (u2, v2, r2)
+        fz_static = float(table.static_load[k]) / n
+        fz = table.static_load[k] * (cos1 if unit == 0 else cos2)
+        fz_tyre = fz / n
+        # Cornering stiffness and relaxation length at the static load: on a slope θ the load falls by
+        # cos θ ≥ 0.995 (θ ≤ 10 %), which moves them by < 0.5 %; the peak force uses the actual load.
+        stiffness = float(tyre.cornering_stiffness(fz_static))
+        sigma = float(tyre.relaxation_length(fz_static))
+        # Contact-point velocity in wheel axes (reference notes §1.2).
+        vy_body = vb + a * rb
+        cd, sd = ca.cos(delta), ca.sin(delta)
+        v_cx = cd * ub + sd * vy_body
+        v_cy = -sd * ub + cd * vy_body
+        # Longitudinal wheel force: drive share (traction-limited) and rolling resistance.
+        fx_w = -tyre.rolling_resistance * fz * ca.tanh(v_cx / 0.1)
+        if table.driven[k]:
+            limit = TRACTION_MARGIN * mu[k] * fz
+            fx_w = fx_w + ca.fmin(ca.fmax(drive_force * table.static_load[k] / driven_load, -limit), limit)
+        # Transient slip with low-speed carcass damping (see tyre.relaxation_rate).
+        alpha_dot = tyre_model.relaxation_rate(slip_state[k], v_cx, v_cy, sigma)
+        alpha_eff = ca.atan(slip_state[k] + tyre_model.low_speed_damping_time(tyre, v_cx) * alpha_dot)
+        fy_w = (
+            n
+            * tyre_model.pure_lateral_force(tyre, alpha_eff, fz_tyre, mu[k], stiffness)
+            * tyre_model.combined_slip_factor(fx_w, fz, mu[k])
+        )
+        fx_b = fx_w * cd - fy_w * sd
+        fy_b = fx_w * sd + fy_w * cd
+        fx_body[unit] += fx_b
+        fy_body[unit] += fy_b
+        mz_body[unit] += a * fy_b
+        slip_dot.append(alpha_dot)
+        out_fy.append(fy_w)
+        out_fx.append(fx_w)
+        out_fz.append(fz)
+        out_slip.append(ca.atan(slip_state[k]))
+
+    f_aero = -0.5 * AIR_DENSITY * params.tractor.drag_area * u * ca.fabs(u)
+
+    # Newton–Euler with the hitch constraint (reference notes §1.4, extended with the tractor longitudinal
+    # equation). F_h is the hitch force on the trailer in trailer axes; the tractor receives −R(−Γ)·F_h.
+    # Writing the trailer equations as F_h = m2·a2 − (trailer forces) and substituting leaves four equations
+    # in [u̇, v̇1, ṙ1, ṙ2] with a symmetric mass matrix (at Γ = 0 it is the matrix of reference notes §2.1).
+    q_u = -gamma_dot * (u * sg + v_h1 * cg)  # velocity-product part of u̇2 (§1.1)
+    q_v = gamma_dot * (u * cg - v_h1 * sg)  # velocity-product part of v̇2 (§1.1)
+    b_tractor_x = fx_body[0] + m1 * gx1 + m1 * v1 * r1 + f_aero
+    b_tractor_y = fy_body[0] + m1 * gy1 - m1 * u * r1
+    b_trailer_x = fx_body[1] + m2 * gx2 + m2 * v2 * r2 - m2 * q_u  # F_hx = m2·(u̇2 − q_u) − this
+    b_trailer_y = fy_body[1] + m2 * gy2 - m2 * u2 * r2 - m2 * q_v  # F_hy = m2·(v̇2 − q_v) − this
+    # The trailer-side force rotated into tractor axes.
+    b_rot_x = cg * b_trailer_x + sg * b_trailer_y
+    b_rot_y = -sg * b_trailer_x + cg * b_trailer_y
+    m_tot = m1 + m2
+    mass_matrix = ca.vertcat(
+        ca.horzcat(m_tot, 0.0, 0.0, -m2 * h2 * sg),
+        ca.horzcat(0.0, m_tot, -m2 * h1, -m2 * h2 * cg),
+        ca.horzcat(0.0, -m2 * h1, i1 + m2 * h1**2, m2 * h1 * h2 * cg),
+        ca.horzcat(-m2 * h2 * sg, -m2 * h2 * cg, m2 * h1 * h2 * cg, i2 + m2 * h2**2),
+    )
+    generalised_force = ca.vertcat(
+        b_tractor_x + b_rot_x,
+        b_tractor_y + b_rot_y,
+        mz_body[0] - h1 * b_rot_y,
+        mz_body[1] - h2 * b_trailer_y,
+    )
+    acc = ca.solve(mass_matrix, generalised_force)
+    u_dot, v1_dot, r1_dot, r2_dot = acc[0], acc[1], acc[2], acc[3]
+    w_dot = v1_dot - h1 * r1_dot  # kingpin lateral acceleration term, tractor axes
+    hitch_x = m2 * (cg * u_dot - sg * w_dot) - b_trailer_x
+    hitch_y = m2 * (sg * u_dot + cg * w_dot - h2 * r2_dot) - b_trailer_y
+
+    xdot = ca.vertcat(
+        u * ca.cos(psi1) - v1 * ca.sin(psi1),
+        u * ca.sin(psi1) + v1 * ca.cos(psi1),
+        r1,
+        u_dot,
+        v1_dot,
+        r1_dot,
+        gamma_dot,
+        r2_dot,
+        ca.vertcat(*slip_dot),
+    )
+    outputs = {
+        "fy": ca.vertcat(*out_fy),
+        "fx": ca.vertcat(*out_fx),
+        "fz": ca.vertcat(*out_fz),
+        "slip": ca.vertcat(*out_slip),
+        "mu_used": mu,
+        "hitch_force": ca.vertcat(hitch_x, hitch_y),
+        "trailer_velocity": ca.vertcat(u2, v2),
+    }
+    return SymbolicModel(x=x, u=u_in, xdot=xdot, outputs=outputs)
+
+
+def rk4_step_expr(f: ca.Function, x: ca.SX, u: ca.SX, h: ca.SX) -> ca.SX:
+    """One classical Runge–Kutta 4 step of ``ẋ = f(x, u)`` with inputs held."""
+    k1 = f(x, u)
+    k2 = f(x + 0.5 * h * k1, u)
+    k3 = f(x + 0.5 * h * k2, u)
+    k4 = f(x + h * k3, u)
+    return x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+class VehicleModel:
+    """Numeric functions of one vehicle, all generated from :func:`define_model`.
+
+    Parameters
+    ----------
+    params
+        The vehicle.
+    compile
+        Generate C code and compile it with the system C compiler (cached on disk) for speed;
+        falls back to casadi's virtual machine when no compiler is found.
+
+    Attributes
+    ----------
+    rhs : casadi.Function
+        ``(x, u) → ẋ``.
+    rhs_symbolic : casadi.Function
+        The same, uncompiled, for use inside other symbolic expressions.
+    rk4_step : casadi.Function
+        ``(x, u, h) → x⁺``, one RK4 step of length ``h``.
+    outputs : casadi.Function
+        ``(x, u) → (fy, fx, fz, slip, mu_used, hitch_force, trailer_velocity)``.
+    jac_x, jac_u : casadi.Function
+        ``(x, u) → ∂ẋ/∂x``, ``∂ẋ/∂u``.
+    """
+
+    def __init__(self, params: VehicleParams, compile: bool = True) -> None:
+        self.params = params
+        self.layout = Layout.for_vehicle(params)
+        sym = define_model(params)
+        self.symbolic = sym
+        rhs = ca.Function("rhs", [sym.x, sym.u], [sym.xdot], ["x", "u"], ["xdot"])
+        h = ca.SX.sym("h")
+        step = ca.Function(
+            "rk4_step", [sym.x, sym.u, h], [rk4_step_expr(rhs, sym.x, sym.u, h)], ["x", "u", "h"], ["x_next"]
+        )
+        out_names = list(sym.outputs)
+        outputs = ca.Function("outputs", [sym.x, sym.u], list(sym.outputs.values()), ["x", "u"], out_names)
+        jac_x = ca.Function("jac_x", [sym.x, sym.u], [ca.jacobian(sym.xdot, sym.x)], ["x", "u"], ["A"])
+        jac_u = ca.Function("jac_u", [sym.x, sym.u], [ca.jacobian(sym.xdot, sym.u)], ["x", "u"], ["B"])
+        self.rhs_symbolic = rhs  # callable on casadi symbols (a compiled library is not)
+        funcs = [rhs, step, outputs, jac_x, jac_u]
+        compiled = compile_functions(funcs, tag=f"vehicle_{params.name}") if compile else None
+        self.compiled = compiled is not None
+        self.rhs, self.rk4_step, self.outputs, self.jac_x, self.jac_u = compiled if compiled is not None else funcs
+        self.output_names = tuple(out_names)
+
+    @cached_property
+    def _integrators(self) -> dict[int, ca.Function]:
+        return {}
+
+    def integrator(self, substeps: int) -> ca.Function:
+        """``(x, u, h) → x`` after ``substeps`` RK4 steps of length ``h`` with inputs held.
+
+        Also returns every intermediate state as a second output ``(n_states, substeps)``.
+        """
+        if substeps < 1:
+            raise ValueError(f"substeps = {substeps} must be at least 1")
+        cache = self._integrators
+        if substeps not in cache:
+            x = ca.MX.sym("x", self.layout.n_states)
+            u = ca.MX.sym("u", self.layout.n_inputs)
+            h = ca.MX.sym("h")
+            acc = self.rk4_step.mapaccum("rk4_acc", substeps, [0], [0])
+            traj = acc(x, ca.repmat(u, 1, substeps), ca.repmat(h, 1, substeps))
+            cache[substeps] = ca.Function(
+                f"advance_{substeps}", [x, u, h], [traj[:, -1], traj], ["x", "u", "h"], ["x_end", "trajectory"]
+            )
+        return cache[substeps]

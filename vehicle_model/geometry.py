@@ -1,0 +1,97 @@
+"""Vehicle geometry in the ground plane: kingpin, follow point, axle ground points and body outlines.
+
+Every function is vectorised over time: pose arguments may be scalars or arrays of the same
+shape ``S``; points come back with shape ``S + (2,)`` (global X, Y).
+
+Reference notes §1.4::
+
+    P5 = P_cg1 − h1·(cos ψ1, sin ψ1),   ψ2 = ψ1 − Γ,   P_f = P5 − L_fp·(cos ψ2, sin ψ2)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .parameters import VehicleParams
+
+
+def _place(origin: np.ndarray, psi, local: np.ndarray) -> np.ndarray:
+    """Points ``local (n, 2)`` (forward, left) of a body at ``origin`` heading ``psi`` → ``S + (n, 2)``."""
+    psi = np.asarray(psi, dtype=float)[..., None]
+    c, s = np.cos(psi), np.sin(psi)
+    local = np.asarray(local, dtype=float)
+    lx, ly = local[:, 0], local[:, 1]
+    px = origin[..., 0:1] + lx * c - ly * s
+    py = origin[..., 1:2] + lx * s + ly * c
+    return np.stack([px, py], axis=-1)
+
+
+def tractor_points(params: VehicleParams, x, y, psi1, local: np.ndarray) -> np.ndarray:
+    """Global positions of tractor points ``local (n, 2)`` = (station from the steer axle, lateral left +)."""
+    cg = np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)], axis=-1)
+    rel = np.asarray(local, dtype=float) - [params.tractor.cg_x, 0.0]
+    return _place(cg, psi1, rel)
+
+
+def kingpin_position(params: VehicleParams, x, y, psi1) -> np.ndarray:
+    """Global kingpin (fifth-wheel) position, ``S + (2,)``."""
+    return tractor_points(params, x, y, psi1, np.array([[params.tractor.fifth_wheel_x, 0.0]]))[..., 0, :]
+
+
+def trailer_points(params: VehicleParams, x, y, psi1, gamma, local: np.ndarray) -> np.ndarray:
+    """Global positions of trailer points ``local (n, 2)`` = (station from the kingpin, lateral left +)."""
+    psi2 = np.asarray(psi1, dtype=float) - np.asarray(gamma, dtype=float)
+    return _place(kingpin_position(params, x, y, psi1), psi2, local)
+
+
+def follow_point_position(params: VehicleParams, x, y, psi1, gamma) -> np.ndarray:
+    """Global follow-point position, ``L_fp`` behind the kingpin on the trailer centre line, ``S + (2,)``."""
+    return trailer_points(params, x, y, psi1, gamma, np.array([[-params.follow_point_offset, 0.0]]))[..., 0, :]
+
+
+def axle_ground_points(params: VehicleParams, x, y, psi1, gamma) -> np.ndarray:
+    """Ground points of every axle centre, layout order, shape ``S + (n_axles, 2)``."""
+    tractor = tractor_points(params, x, y, psi1, np.array([[a.x, 0.0] for a in params.tractor.axles]))
+    trailer = trailer_points(params, x, y, psi1, gamma, np.array([[a.x, 0.0] for a in params.trailer.axles]))
+    return np.concatenate([tractor, trailer], axis=-2)
+
+
+def unit_cg_positions(params: VehicleParams, x, y, psi1, gamma) -> np.ndarray:
+    """Tractor and trailer CG positions, shape ``S + (2, 2)``."""
+    tractor = np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)], axis=-1)
+    trailer = trailer_points(params, x, y, psi1, gamma, np.array([[params.trailer.cg_x, 0.0]]))[..., 0, :]
+    return np.stack([tractor, trailer], axis=-2)
+
+
+def _rectangle(front: float, rear: float, width: float) -> np.ndarray:
+    w = 0.5 * width
+    return np.array([[front, w], [front, -w], [rear, -w], [rear, w]])
+
+
+def tractor_outline(params: VehicleParams, x, y, psi1) -> np.ndarray:
+    """Tractor body rectangle corners (front-left, front-right, rear-right, rear-left), ``S + (4, 2)``."""
+    t = params.tractor
+    return tractor_points(params, x, y, psi1, _rectangle(t.front_x, t.rear_x, t.width))
+
+
+def trailer_outline(params: VehicleParams, x, y, psi1, gamma) -> np.ndarray:
+    """Trailer body rectangle corners (front-left, front-right, rear-right, rear-left), ``S + (4, 2)``."""
+    t = params.trailer
+    return trailer_points(params, x, y, psi1, gamma, _rectangle(t.front_x, t.rear_x, t.width))
+
+
+def radial_extent(polygons: np.ndarray, centre: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Largest and smallest distance from ``centre`` to closed polygons ``(..., n, 2)``.
+
+    The largest distance is reached at a vertex; the smallest may lie on an edge, so each edge is
+    projected onto. Returns arrays of shape ``...``.
+    """
+    p = np.asarray(polygons, dtype=float) - np.asarray(centre, dtype=float)
+    r_max = np.linalg.norm(p, axis=-1).max(axis=-1)
+    a = p
+    b = np.roll(p, -1, axis=-2)
+    ab = b - a
+    t = np.clip(-np.sum(a * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-300), 0.0, 1.0)
+    closest = a + t[..., None] * ab
+    r_min = np.linalg.norm(closest, axis=-1).min(axis=-1)
+    return r_max, r_min

@@ -1,0 +1,379 @@
+"""Typed, validated parameters of a tractor–semi-trailer.
+
+Coordinates
+-----------
+All lengths are metres, masses kilograms, inertias kg·m², angles radians.
+
+* Tractor stations are measured from the **steer (front) axle**, positive forward (ISO 8855 x).
+* Trailer stations are measured from the **kingpin**, positive forward, so trailer axles, the trailer
+  CG and the follow point have negative stations.
+
+Static axle loads follow from statics with *load groups*: axles that share one load-sharing
+suspension carry equal loads, and the group load acts at the group's mean station. The trailer
+must then have exactly one load group (the kingpin is the other support) and the tractor exactly
+two (front and rear); any other layout needs explicit ``static_load`` on every axle of that unit.
+There is no dynamic load transfer: the model is single-track (yaw plane) and normal loads stay
+static apart from the ``cos θ`` factor of a sloped road.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+GRAVITY = 9.81
+"""Standard gravity used throughout [m/s²]."""
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid", validate_default=True)
+
+
+class TyreParams(_Frozen):
+    """Lateral Magic Formula tyre (PAC2002 pure-slip subset, zero camber, shifts dropped).
+
+    Defaults are the 315/80 R22.5 truck tyre of Pacejka's book as shipped in Project Chrono's
+    ``CityBus_Pac02Tire.tir`` (reference notes §3.1), with the sign of ``PKY1`` flipped to this
+    project's positive-force slip convention.
+
+    Parameters
+    ----------
+    fz_nominal
+        FNOMIN, nominal tyre load [N].
+    unloaded_radius
+        Free tyre radius [m], used by the relaxation length.
+    pcy1, pdy1, pdy2, pey1, pey2, pky1, pky2
+        Magic Formula shape, peak, curvature and cornering-stiffness coefficients [-].
+    pty1, pty2
+        Relaxation-length coefficients: ``σ = PTY1·sin(2·atan(Fz/(PTY2·FNOMIN)))·R0`` [-].
+    rolling_resistance
+        Rolling-resistance coefficient ``f_r`` [-] (force ``f_r·Fz`` opposing the wheel's roll).
+    low_speed_damping_time
+        Time constant ``τ0`` [s] of the carcass damping that keeps the relaxation model damped at
+        walking pace and standstill; faded out linearly between ``low_speed_fade`` and twice it.
+    low_speed_fade
+        Speed [m/s] below which the carcass damping acts fully.
+    """
+
+    fz_nominal: float = Field(35_000.0, gt=0)
+    unloaded_radius: float = Field(0.548, gt=0)
+    pcy1: float = Field(1.5874, gt=0, lt=2)
+    pdy1: float = Field(0.73957, gt=0)
+    pdy2: float = -0.075004
+    pey1: float = Field(0.37562, le=1)
+    pey2: float = -0.069325
+    pky1: float = Field(10.289, gt=0)
+    pky2: float = Field(3.3343, gt=0)
+    pty1: float = Field(1.2, gt=0)
+    pty2: float = Field(2.5, gt=0)
+    rolling_resistance: float = Field(0.006, ge=0, lt=0.1)
+    low_speed_damping_time: float = Field(0.05, ge=0)
+    low_speed_fade: float = Field(2.0, gt=0)
+
+    def cornering_stiffness(self, fz: float | np.ndarray) -> float | np.ndarray:
+        """Cornering stiffness ``K_y`` of one tyre at load ``fz`` [N/rad] (reference §3.1)."""
+        return self.pky1 * self.fz_nominal * np.sin(2.0 * np.arctan(fz / (self.pky2 * self.fz_nominal)))
+
+    def relaxation_length(self, fz: float | np.ndarray) -> float | np.ndarray:
+        """Lateral relaxation length ``σ`` of one tyre at load ``fz`` [m] (PAC2002 PTY1/PTY2)."""
+        return self.pty1 * np.sin(2.0 * np.arctan(fz / (self.pty2 * self.fz_nominal))) * self.unloaded_radius
+
+
+class AxleParams(_Frozen):
+    """One axle of a unit, lumped on the centre line (single-track).
+
+    Parameters
+    ----------
+    name
+        Unique name within the vehicle, used in input and output layouts.
+    x
+        Station [m] in the unit's coordinates (see module docstring).
+    n_tyres
+        Tyres on the axle; the axle force is ``n_tyres · f_tyre(α, Fz/n_tyres)``.
+    steerable
+        Whether the axle has a steer-angle input.
+    driven
+        Whether the axle carries drive force.
+    load_group
+        Axles with the same group share their load equally (load-sharing suspension).
+    static_load
+        Explicit static vertical load [N]; overrides statics when given on every axle of a unit.
+    tyre
+        Tyre of this axle.
+    """
+
+    name: str = Field(min_length=1)
+    x: float
+    n_tyres: int = Field(2, ge=1, le=8)
+    steerable: bool = False
+    driven: bool = False
+    load_group: str = "main"
+    static_load: float | None = Field(None, gt=0)
+    tyre: TyreParams = TyreParams()
+
+
+class _UnitParams(_Frozen):
+    mass: float = Field(gt=0)
+    yaw_inertia: float = Field(gt=0)
+    cg_x: float
+    front_x: float
+    rear_x: float
+    width: float = Field(gt=0, le=4.0)
+    axles: tuple[AxleParams, ...] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _check_body(self) -> _UnitParams:
+        if self.front_x <= self.rear_x:
+            raise ValueError(f"front_x ({self.front_x} m) must lie ahead of rear_x ({self.rear_x} m)")
+        if not self.rear_x <= self.cg_x <= self.front_x:
+            raise ValueError(f"cg_x ({self.cg_x} m) must lie on the body, between rear_x and front_x")
+        for i, axle in enumerate(self.axles):
+            if not self.rear_x <= axle.x <= self.front_x:
+                raise ValueError(
+                    f"axles[{i}].x ({axle.x} m, axle {axle.name!r}) lies off the body "
+                    f"[{self.rear_x}, {self.front_x}] m; move the axle or extend the body"
+                )
+        explicit = [a.static_load is not None for a in self.axles]
+        if any(explicit) and not all(explicit):
+            raise ValueError("static_load must be given on every axle of a unit or on none")
+        return self
+
+    @property
+    def length(self) -> float:
+        """Body length [m]."""
+        return self.front_x - self.rear_x
+
+
+class TractorParams(_UnitParams):
+    """Tractor unit. Stations from the steer axle, positive forward.
+
+    Parameters
+    ----------
+    mass, yaw_inertia
+        Mass [kg] and yaw inertia about the CG [kg·m²].
+    cg_x
+        CG station [m].
+    fifth_wheel_x
+        Fifth-wheel (kingpin) station [m].
+    front_x, rear_x
+        Front bumper and rear chassis stations [m]; the front corners are the outermost points in
+        the roundabout test.
+    width
+        Overall width [m].
+    axles
+        Axles, front to rear.
+    drag_area
+        Aerodynamic ``C_d·A`` of the combination [m²], acting on the tractor.
+    """
+
+    fifth_wheel_x: float
+    drag_area: float = Field(6.0, ge=0)
+
+    @model_validator(mode="after")
+    def _check_tractor(self) -> TractorParams:
+        if not self.rear_x <= self.fifth_wheel_x <= self.front_x:
+            raise ValueError(f"fifth_wheel_x ({self.fifth_wheel_x} m) must lie on the tractor body")
+        if not any(a.driven for a in self.axles):
+            raise ValueError("axles: the tractor needs at least one driven axle (driven=True)")
+        return self
+
+
+class TrailerParams(_UnitParams):
+    """Semi-trailer. Stations from the kingpin, positive forward (axles negative).
+
+    Parameters
+    ----------
+    mass, yaw_inertia
+        Mass [kg] and yaw inertia about the CG [kg·m²].
+    cg_x
+        CG station [m] (negative: behind the kingpin).
+    front_x, rear_x
+        Front and rear of the body [m]; ``-rear_x`` is the kingpin-to-rear length.
+    width
+        Body width [m].
+    axles
+        Axles, front to rear.
+    follow_point_x
+        Station of the follow point whose off-tracking is measured and controlled [m]; defaults
+        to the rear of the body.
+    """
+
+    follow_point_x: float | None = None
+
+    @model_validator(mode="after")
+    def _check_trailer(self) -> TrailerParams:
+        if self.cg_x >= 0:
+            raise ValueError(f"cg_x ({self.cg_x} m) must be behind the kingpin (negative)")
+        if any(a.driven for a in self.axles):
+            raise ValueError("axles: a semi-trailer axle cannot be driven")
+        if self.follow_point_x is not None and not self.rear_x <= self.follow_point_x < 0:
+            raise ValueError(
+                f"follow_point_x ({self.follow_point_x} m) must lie behind the kingpin and on the body "
+                f"[{self.rear_x}, 0) m"
+            )
+        return self
+
+    @property
+    def follow_point_offset(self) -> float:
+        """Distance ``L_fp`` from the kingpin back to the follow point [m]."""
+        return -(self.follow_point_x if self.follow_point_x is not None else self.rear_x)
+
+
+@dataclass(frozen=True)
+class AxleTable:
+    """Per-axle arrays of a whole vehicle, tractor axles first (the order of every layout)."""
+
+    names: tuple[str, ...]
+    unit: np.ndarray  # 0 tractor, 1 trailer
+    x_cg: np.ndarray  # station relative to the unit CG [m]
+    n_tyres: np.ndarray
+    steerable: np.ndarray
+    driven: np.ndarray
+    static_load: np.ndarray  # [N]
+    tyres: tuple[TyreParams, ...]
+
+
+class VehicleParams(_Frozen):
+    """A tractor–semi-trailer combination.
+
+    Parameters
+    ----------
+    name
+        Preset or user name.
+    tractor, trailer
+        The two units.
+    """
+
+    name: str = "custom"
+    tractor: TractorParams
+    trailer: TrailerParams
+
+    @model_validator(mode="after")
+    def _check_names(self) -> VehicleParams:
+        names = [a.name for a in self.tractor.axles + self.trailer.axles]
+        dupes = sorted({n for n in names if names.count(n) > 1})
+        if dupes:
+            raise ValueError(f"axle names must be unique; repeated: {dupes}")
+        self._loads()  # raise early on an unsolvable load layout
+        return self
+
+    # -- derived geometry -------------------------------------------------------------------
+    @property
+    def h1(self) -> float:
+        """Tractor CG to fifth wheel, positive when the fifth wheel is behind the CG [m]."""
+        return self.tractor.cg_x - self.tractor.fifth_wheel_x
+
+    @property
+    def h2(self) -> float:
+        """Kingpin to trailer CG, positive when the CG is behind the kingpin [m]."""
+        return -self.trailer.cg_x
+
+    @property
+    def follow_point_offset(self) -> float:
+        """Kingpin to follow point ``L_fp`` [m]."""
+        return self.trailer.follow_point_offset
+
+    @property
+    def kingpin_load(self) -> float:
+        """Static vertical load on the fifth wheel [N]."""
+        return self._loads()[2]
+
+    def _loads(self) -> tuple[np.ndarray, np.ndarray, float]:
+        tr, tl = self.tractor, self.trailer
+        if all(a.static_load is not None for a in tl.axles):
+            trailer_loads = np.array([a.static_load for a in tl.axles], dtype=float)
+            kingpin = tl.mass * GRAVITY - trailer_loads.sum()
+            if kingpin < 0:
+                raise ValueError("trailer.axles: explicit static loads exceed the trailer weight")
+        else:
+            groups = _groups(tl.axles)
+            if len(groups) != 1:
+                raise ValueError(
+                    "trailer.axles: statics need exactly one load group on a semi-trailer "
+                    f"(found {sorted(groups)}); give static_load on every trailer axle instead"
+                )
+            x_group = float(np.mean([a.x for a in tl.axles]))
+            if x_group >= tl.cg_x:
+                raise ValueError("trailer.cg_x must lie ahead of the axle group for a positive kingpin load")
+            # Moments about the axle-group centre: W·(cg − x_g) = K·(0 − x_g)
+            kingpin = tl.mass * GRAVITY * (tl.cg_x - x_group) / (0.0 - x_group)
+            trailer_loads = np.full(len(tl.axles), (tl.mass * GRAVITY - kingpin) / len(tl.axles))
+        if all(a.static_load is not None for a in tr.axles):
+            tractor_loads = np.array([a.static_load for a in tr.axles], dtype=float)
+        else:
+            groups = _groups(tr.axles)
+            if len(groups) != 2:
+                raise ValueError(
+                    "tractor.axles: statics need exactly two load groups on a tractor "
+                    f"(found {sorted(groups)}); give static_load on every tractor axle instead"
+                )
+            (_ga, ia), (_gb, ib) = sorted(groups.items(), key=lambda kv: -np.mean([tr.axles[i].x for i in kv[1]]))
+            xa = float(np.mean([tr.axles[i].x for i in ia]))
+            xb = float(np.mean([tr.axles[i].x for i in ib]))
+            w = tr.mass * GRAVITY
+            # Two supports at xa (front group) and xb (rear group): weight at cg_x, kingpin at fifth_wheel_x.
+            load_b = (w * (xa - tr.cg_x) + kingpin * (xa - tr.fifth_wheel_x)) / (xa - xb)
+            load_a = w + kingpin - load_b
+            if load_a <= 0 or load_b <= 0:
+                raise ValueError("tractor: CG and fifth wheel give a non-positive axle-group load")
+            tractor_loads = np.zeros(len(tr.axles))
+            tractor_loads[ia] = load_a / len(ia)
+            tractor_loads[ib] = load_b / len(ib)
+        return tractor_loads, trailer_loads, float(kingpin)
+
+    @property
+    def axle_table(self) -> AxleTable:
+        """Per-axle arrays, tractor axles first."""
+        tr, tl = self.tractor, self.trailer
+        tractor_loads, trailer_loads, _ = self._loads()
+        axles = tr.axles + tl.axles
+        return AxleTable(
+            names=tuple(a.name for a in axles),
+            unit=np.array([0] * len(tr.axles) + [1] * len(tl.axles)),
+            x_cg=np.array([a.x - tr.cg_x for a in tr.axles] + [a.x - tl.cg_x for a in tl.axles]),
+            n_tyres=np.array([a.n_tyres for a in axles], dtype=float),
+            steerable=np.array([a.steerable for a in axles]),
+            driven=np.array([a.driven for a in axles]),
+            static_load=np.concatenate([tractor_loads, trailer_loads]),
+            tyres=tuple(a.tyre for a in axles),
+        )
+
+    def trailer_axle_distances(self) -> np.ndarray:
+        """Distances ``L_j`` of the trailer axles behind the kingpin [m]."""
+        return -np.array([a.x for a in self.trailer.axles])
+
+    def equivalent_wheelbase(self, fixed_only: bool = False) -> float:
+        """Trailer equivalent wheelbase ``L_eq = ΣC_j L_j² / ΣC_j L_j`` [m] (reference notes §2.3).
+
+        Uses the static cornering stiffness of each trailer axle. With ``fixed_only`` only the
+        unsteerable axles count (the zero-slip point of a trailer whose steerable axles are
+        held straight still includes them; use ``False`` for an unsteered trailer).
+        """
+        table = self.axle_table
+        mask = table.unit == 1
+        if fixed_only:
+            mask &= ~table.steerable
+        stiff = np.array(
+            [
+                t.cornering_stiffness(fz / n) * n
+                for t, fz, n in zip(table.tyres, table.static_load, table.n_tyres, strict=True)
+            ]
+        )[mask]
+        lengths = -(table.x_cg[mask] + self.trailer.cg_x)
+        return float(np.sum(stiff * lengths**2) / np.sum(stiff * lengths))
+
+    def tractor_wheelbase(self) -> float:
+        """Steer axle to the mean station of the rear load group [m]."""
+        tr = self.tractor
+        rear = [a.x for a in tr.axles if a.x < 0]
+        return -float(np.mean(rear)) if rear else math.nan
+
+
+def _groups(axles: tuple[AxleParams, ...]) -> dict[str, list[int]]:
+    groups: dict[str, list[int]] = {}
+    for i, a in enumerate(axles):
+        groups.setdefault(a.load_group, []).append(i)
+    return groups
