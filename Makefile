@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 
 ## Set up and run the main job on defaults.
 run: setup
-	$(BIN)/offtrack demo
+	$(BIN)/offtrack run roundabout-test
 
 ## Set up, lint and run the default test suite (slow tests excluded).
 test: setup

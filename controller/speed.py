@@ -38,11 +38,24 @@ class SpeedController:
         """Clear the integral."""
         self.integral = 0.0
 
-    def __call__(self, speed_ref: float, speed: float, dt: float) -> float:
-        """Drive force [N] for the next control period of length ``dt``."""
+    def __call__(self, speed_ref: float, speed: float, dt: float, force_limit: float | None = None) -> float:
+        """Drive force [N] for the next control period of length ``dt``.
+
+        ``force_limit`` lowers the limit for this period (traction control: see :func:`traction_limit`).
+        """
         error = speed_ref - speed
+        limit = self.max_force if force_limit is None else min(self.max_force, force_limit)
         unsat = self.mass * (self.kp * error + self.ki * (self.integral + error * dt))
-        force = min(max(unsat, -self.max_force), self.max_force)
+        force = min(max(unsat, -limit), limit)
         if force == unsat or (force > 0) != (error > 0):
             self.integral += error * dt
         return force
+
+
+def traction_limit(mu: float, drive_axle_load: float, fraction: float = 0.6) -> float:
+    """Drive force allowed by traction control [N]: ``fraction·μ·F_z`` of the driven axles.
+
+    A traction-control system keeps the drive wheels' longitudinal slip small, which by the
+    friction ellipse leaves them ``sqrt(1 − fraction²)`` of their lateral grip (80 % at 0.6).
+    """
+    return fraction * mu * drive_axle_load

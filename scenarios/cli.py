@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -21,9 +22,17 @@ console = Console()
 
 @app.command("list")
 def list_presets() -> None:
-    """List vehicle and surface presets."""
+    """List scenarios, vehicle presets and surface presets."""
+    from scenarios.config import catalogue_names, load_scenario_data
     from vehicle_model.presets import VEHICLE_PRESETS
     from vehicle_model.surface import FRICTION_PRESETS
+
+    table = Table(title="Scenarios (offtrack run NAME)")
+    table.add_column("name")
+    table.add_column("description")
+    for name in catalogue_names():
+        table.add_row(name, " ".join(str(load_scenario_data(name).get("description", "")).split()))
+    console.print(table)
 
     table = Table(title="Vehicle presets")
     table.add_column("name")
@@ -40,22 +49,93 @@ def list_presets() -> None:
 
 
 @app.command()
-def demo(
-    out: Annotated[Path, typer.Option(help="Output directory.")] = Path("runs/demo"),
-    vehicle: Annotated[str, typer.Option(help="Vehicle preset (see `offtrack list`).")] = "reference",
-    surface: Annotated[str, typer.Option(help="Surface preset: dry, wet, snow, ice.")] = "dry",
-    speed: Annotated[float, typer.Option(help="Speed [km/h].", min=1.0, max=60.0)] = 15.0,
+def run(
+    scenario: Annotated[str, typer.Argument(help="Catalogue name (see `offtrack list`) or a YAML file.")],
+    surface: Annotated[str | None, typer.Option(help="Surface preset: dry, wet, snow, ice.")] = None,
+    mu: Annotated[float | None, typer.Option(help="Friction coefficient (overrides --surface).")] = None,
+    camber: Annotated[float | None, typer.Option(help="Camber [%] of the carriageway.")] = None,
+    camber_direction: Annotated[
+        str | None, typer.Option(help="outward (falls away from the loop centre; adverse) or inward.")
+    ] = None,
+    speed: Annotated[float | None, typer.Option(help="Cornering speed [km/h].")] = None,
+    vehicle: Annotated[str | None, typer.Option(help="Vehicle preset (see `offtrack list`).")] = None,
+    direction: Annotated[str | None, typer.Option(help="left or right.")] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of every random choice.")] = None,
+    duration: Annotated[float | None, typer.Option(help="Stop after this many simulated seconds.")] = None,
+    set_: Annotated[
+        list[str] | None, typer.Option("--set", help="Any config field, e.g. --set rates.control_hz=100.")
+    ] = None,
+    out: Annotated[Path | None, typer.Option(help="Run directory (default runs/SCENARIO/TIMESTAMP).")] = None,
+    force: Annotated[bool, typer.Option(help="Allow writing into a non-empty --out.")] = False,
+    plots: Annotated[bool, typer.Option(help="Write the plots.")] = True,
 ) -> None:
-    """Model demo: a full circle at roundabout size, with a plan-view plot."""
-    from scenarios.demo import run_demo
+    """Run a scenario: time series, metrics.json and plots in a run directory."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    summary = run_demo(out, vehicle=vehicle, surface=surface, speed_kmh=speed)
-    table = Table(title=f"Demo written to {out}")
-    table.add_column("quantity")
-    table.add_column("value", justify="right")
-    for key, value in summary.items():
-        table.add_row(key, f"{value:.3f}" if isinstance(value, float) else str(value))
+    from scenarios.config import load_scenario, parse_assignment
+    from scenarios.results import new_run_dir
+    from scenarios.runner import run_scenario
+
+    overrides: dict[str, object] = {}
+    for key, value in (
+        ("surface.preset", surface),
+        ("surface.mu", mu),
+        ("camber.percent", camber),
+        ("camber.direction", camber_direction),
+        ("speed.cornering_kmh", speed),
+        ("vehicle", vehicle),
+        ("direction", direction),
+        ("seed", seed),
+        ("duration_s", duration),
+    ):
+        if value is not None:
+            overrides[key] = value
+    if surface is not None and mu is None:
+        overrides["surface.mu"] = None  # a named surface replaces an explicit μ from the file
+    for item in set_ or []:
+        key, value = parse_assignment(item)
+        overrides[key] = value
+    config = load_scenario(scenario, overrides)
+    run_dir = new_run_dir(out, config.name, force=force)
+    with Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.percentage:>5.1f} %  t = {task.fields[sim_t]:.1f} s"),
+        TimeElapsedColumn(),
+        console=console,
+        transient=False,
+    ) as bar:
+        task = bar.add_task(config.name, total=1.0, sim_t=0.0)
+        metrics = run_scenario(
+            config, run_dir, progress=lambda t, frac: bar.update(task, completed=frac, sim_t=t), plots=plots
+        )
+    _print_summary(metrics, run_dir)
+    if metrics["status"] != "completed":
+        console.print(f"[bold yellow]run {metrics['status']}:[/] {metrics['message']}")
+        raise typer.Exit(3)
+
+
+def _print_summary(metrics: dict, run_dir: Path) -> None:
+    table = Table(title=f"{metrics['scenario']} — {metrics['status']} — {run_dir}")
+    table.add_column("off-tracking")
+    table.add_column("RMS [m]", justify="right")
+    table.add_column("max |·| [m]", justify="right")
+    table.add_column("valid", justify="right")
+    truth = metrics["offtracking"]["truth"]
+    table.add_row("truth", f"{truth['rms']:.3f}", f"{truth['max_abs']:.3f}", f"{truth['valid_fraction']:.0%}")
+    for name, err in metrics["offtracking"]["estimators"].items():
+        table.add_row(
+            f"{name} error", f"{err['rms_error']:.3f}", f"{err['max_abs_error']:.3f}", f"{err['valid_fraction']:.0%}"
+        )
     console.print(table)
+    test = metrics.get("roundabout_test")
+    if test:
+        verdict = "[green]PASS[/]" if test["pass"] else "[red]FAIL[/]"
+        console.print(
+            f"roundabout test {verdict}: outer radius max {test['outer_radius_max']:.3f} m (limit 12.50), "
+            f"inner radius min {test['inner_radius_min']:.3f} m (limit 5.30)"
+        )
+    console.print(f"simulated {metrics['simulated_s']:.1f} s in {metrics['wall_time_s']:.1f} s wall time")
 
 
 @bench_app.command("model")
@@ -83,7 +163,7 @@ def main() -> None:
     try:
         app(standalone_mode=False)
     except (OfftrackError, ValueError, ValidationError) as exc:
-        console.print(f"[bold red]error:[/] {exc}")
+        print(f"error: {exc}", file=sys.stderr)
         raise SystemExit(2) from None
     except typer.Exit as exc:
         raise SystemExit(exc.exit_code) from None

@@ -1,4 +1,4 @@
-"""Command line: demo, list, benchmark and clean errors."""
+"""Command line end to end."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 
+import pandas as pd
 import pytest
 
 
@@ -14,26 +15,42 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
         [sys.executable, "-c", "from scenarios.cli import main; main()", *args],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=600,
     )
 
 
-def test_list_shows_presets():
+def test_list_shows_scenarios_and_presets():
     out = run_cli("list")
     assert out.returncode == 0
-    assert "reference" in out.stdout and "ice" in out.stdout
+    for name in ("roundabout-test", "roundabout-3", "figure-eight", "constant-slip", "reference", "lst", "ice"):
+        assert name in out.stdout
 
 
-def test_demo_writes_plot(tmp_path):
-    out = run_cli("demo", "--out", str(tmp_path))
-    assert out.returncode == 0, out.stderr
-    assert (tmp_path / "plan.png").stat().st_size > 10_000
+def test_run_writes_the_run_directory(tmp_path):
+    out = run_cli("run", "roundabout-test", "--surface", "dry", "--duration", "25", "--out", str(tmp_path / "r"))
+    assert out.returncode == 0, out.stdout + out.stderr
+    run_dir = tmp_path / "r"
+    for name in ("config.yaml", "timeseries.parquet", "metrics.json", "plan_view.png", "offtracking.png"):
+        assert (run_dir / name).stat().st_size > 0, name
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    assert metrics["scenario"] == "roundabout-test" and metrics["feedback"] == "none"
+    assert set(metrics["offtracking"]["truth"]) >= {"rms", "max_abs"}
+    assert set(metrics["offtracking"]["estimators"]["zero_slip"]) >= {"rms_error", "max_abs_error", "valid_fraction"}
+    assert metrics["wall_time_s"] > 0 and metrics["status"] == "completed"
+    assert metrics["roundabout_test"] is None or set(metrics["roundabout_test"]) >= {"pass", "outer_radius_max"}
+    frame = pd.read_parquet(run_dir / "timeseries.parquet")
+    assert len(frame) == metrics["rows"] and frame["time"].iloc[-1] == pytest.approx(25.0, abs=0.05)
+    # A second run into the same directory is refused, not silently overwritten.
+    again = run_cli("run", "roundabout-test", "--duration", "5", "--out", str(run_dir))
+    assert again.returncode == 2 and "already holds files" in again.stderr
 
 
-def test_unknown_preset_is_a_clear_error(tmp_path):
-    out = run_cli("demo", "--vehicle", "nope", "--out", str(tmp_path))
+def test_bad_values_are_clear_errors(tmp_path):
+    out = run_cli("run", "roundabout-test", "--mu", "-0.2", "--camber", "40", "--out", str(tmp_path / "x"))
     assert out.returncode == 2
-    assert "unknown vehicle preset" in out.stdout and "Traceback" not in out.stderr
+    assert "surface.mu" in out.stderr and "camber.percent" in out.stderr and "Traceback" not in out.stderr
+    out = run_cli("run", "roundabout-7")
+    assert out.returncode == 2 and "unknown scenario" in out.stderr
 
 
 def test_bench_model_prints_json():

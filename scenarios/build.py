@@ -1,0 +1,212 @@
+"""Turn a :class:`~scenarios.config.ScenarioConfig` into the objects a run needs."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import root_scalar
+
+from controller.driver import SpeedProfile, kinematic_feedforward
+from vehicle_model.dynamics import VehicleModel
+from vehicle_model.errors import InputError
+from vehicle_model.parameters import VehicleParams
+from vehicle_model.presets import vehicle_preset
+from vehicle_model.simulator import VehicleState
+from vehicle_model.surface import (
+    FlatRoad,
+    FrictionPatch,
+    PatchyFriction,
+    RadialCamber,
+    SlopeField,
+    Surface,
+    UniformCrossfall,
+    UniformFriction,
+)
+from vehicle_model.trim import trim
+
+from .config import ScenarioConfig
+from .paths import ReferencePath, figure_eight_path, roundabout_path, straight_path
+
+CARRIAGEWAY_HALF_WIDTH = 8.0
+"""Radial camber extends this far beyond a loop's path radius [m]; the approaches are flat."""
+CAMBER_FADE = 3.0
+"""Distance over which the camber fades out beyond the carriageway [m]."""
+
+
+@dataclass(frozen=True)
+class LoopCamber:
+    """Radial camber of the circulatory carriageway around whichever of ``centres`` is nearest.
+
+    Full camber out to ``outer_radius``, fading linearly to flat over :data:`CAMBER_FADE` beyond it,
+    so the approach straights are not tilted along the direction of travel.
+    """
+
+    centres: tuple[tuple[float, float], ...]
+    grade_percent: float
+    direction: str
+    outer_radius: float
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        pts = np.asarray(points, dtype=float)
+        c = np.asarray(self.centres, dtype=float)
+        d2 = ((pts[:, None, :] - c[None, :, :]) ** 2).sum(axis=-1)
+        nearest = np.argmin(d2, axis=1)
+        out = np.zeros_like(pts)
+        for i, centre in enumerate(self.centres):
+            mask = nearest == i
+            if mask.any():
+                out[mask] = RadialCamber(centre, self.grade_percent, self.direction)(pts[mask])  # type: ignore[arg-type]
+        r = np.sqrt(d2[np.arange(len(pts)), nearest])
+        return out * np.clip((self.outer_radius + CAMBER_FADE - r) / CAMBER_FADE, 0.0, 1.0)[:, None]
+
+
+@dataclass(frozen=True)
+class ScenarioSetup:
+    """Everything a run needs, built from one configuration."""
+
+    config: ScenarioConfig
+    params: VehicleParams
+    model: VehicleModel
+    path: ReferencePath
+    surface: Surface
+    control_point: tuple[float, float]
+    speed_profile: SpeedProfile
+    feedforward: Callable[[float], float]
+    initial_state: VehicleState
+    annulus_centre: tuple[float, float] | None
+    kinematic_slip: float | None
+
+    @property
+    def direction_sign(self) -> int:
+        return 1 if self.config.direction == "left" else -1
+
+
+def _path(config: ScenarioConfig, sign: int) -> ReferencePath:
+    p = config.path
+    radius = p.radius - p.driver_margin
+    if p.kind == "roundabout":
+        return roundabout_path(radius, p.turns, sign, p.entry_length, p.exit_length, p.settle_turns)
+    if p.kind == "figure_eight":
+        return figure_eight_path(radius, p.gap, p.entry_length, p.exit_length, sign)
+    return straight_path(p.length, p.entry_length)
+
+
+def _slope(config: ScenarioConfig, path: ReferencePath, sign: int) -> SlopeField:
+    camber = config.camber
+    if camber.percent == 0.0:
+        return FlatRoad()
+    if len(path.centres):
+        return LoopCamber(
+            tuple(map(tuple, path.centres)),
+            camber.percent,
+            camber.direction,
+            config.path.radius + CARRIAGEWAY_HALF_WIDTH,
+        )
+    # A straight: "outward" falls to the right of the direction of travel, "inward" to the left.
+    return UniformCrossfall(camber.percent, -math.pi / 2 if camber.direction == "outward" else math.pi / 2)
+
+
+def control_point_radius(params: VehicleParams, op, station: float, lateral: float) -> float:
+    """Steady-state radius of the tractor point ``(station, lateral)`` in a trim ``op``."""
+    r = op.get("r1")
+    centre = np.array([-op.get("v1") / r, op.get("u") / r])  # turn centre, tractor axes, from the CG
+    point = np.array([station - params.tractor.cg_x, lateral])
+    return float(np.hypot(*(point - centre)))
+
+
+def steady_feedforward(
+    params: VehicleParams,
+    model: VehicleModel,
+    curvatures: np.ndarray,
+    speed: float,
+    mu: float,
+    control_point: tuple[float, float],
+) -> Callable[[float], float]:
+    """Steady-state front steer for each path curvature, from the vehicle model's trim.
+
+    For every distinct curvature of the path, finds the steady turn at ``speed`` in which the
+    control point runs on radius ``1/|κ|``; other curvatures fall back to the kinematic steer
+    plus the nearest table entry's slip correction. Turns beyond the friction limit keep the
+    kinematic steer.
+    """
+    kinematic = kinematic_feedforward(params, *control_point)
+    table: dict[float, float] = {}
+    for kappa in np.unique(np.round(curvatures[curvatures != 0.0], 9)):
+        radius = 1.0 / abs(kappa)
+
+        def residual(k5: float, radius: float = radius) -> float:
+            op = trim(params, speed, kingpin_curvature=k5, mu=mu, model=model)
+            return control_point_radius(params, op, *control_point) - radius
+
+        guess = math.copysign(1.0 / max(radius - 2.0, 1.0), kappa)
+        try:
+            sol = root_scalar(residual, x0=guess, x1=guess * 1.05, method="secant", xtol=1e-9, maxiter=30)
+            op = trim(params, speed, kingpin_curvature=sol.root, mu=mu, model=model)
+            table[float(kappa)] = op.get(f"steer_{params.tractor.axles[0].name}") - kinematic(float(kappa))
+        except (InputError, ValueError, ZeroDivisionError):
+            continue
+    keys = np.array(sorted(table))
+
+    def feedforward(kappa: float) -> float:
+        base = kinematic(kappa)
+        if kappa == 0.0 or not len(keys):
+            return base
+        nearest = keys[np.argmin(np.abs(keys - kappa))]
+        return base + table[float(nearest)] * (kappa / nearest if nearest * kappa > 0 else 0.0)
+
+    return feedforward
+
+
+def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) -> ScenarioSetup:
+    """Vehicle, path, surface, driver feed-forward and initial state of a scenario."""
+    params = vehicle_preset(config.vehicle)
+    model = model if model is not None else VehicleModel(params)
+    sign = 1 if config.direction == "left" else -1
+    path = _path(config, sign)
+    base_mu = config.surface.base_mu
+    friction = (
+        PatchyFriction(base_mu, tuple(FrictionPatch(**p.model_dump()) for p in config.surface.patches))
+        if config.surface.patches
+        else UniformFriction(base_mu)
+    )
+    surface = Surface(friction, _slope(config, path, sign))
+    if config.path.control_point == "outer_front_corner":
+        control_point = (params.tractor.front_x, -sign * 0.5 * params.tractor.width)
+    else:
+        control_point = (0.0, 0.0)
+    cornering = config.speed.cornering_kmh / 3.6
+    straight = (config.speed.straight_kmh or config.speed.cornering_kmh) / 3.6
+    profile = SpeedProfile(cornering, straight, path.turn_span[0], path.turn_span[1], config.speed.acceleration)
+    kinematic_slip = math.radians(config.path.slip_deg) if config.path.slip_deg is not None else None
+    if kinematic_slip is None and config.path.kind != "straight":
+        feedforward = steady_feedforward(params, model, path.curvature, cornering, base_mu, control_point)
+    else:
+        feedforward = kinematic_feedforward(params, *control_point)
+    # Start with the control point at the path start, straight, at the profile's speed.
+    x0, y0, h0, _ = path.at(0.0)
+    heading = h0 - (kinematic_slip or 0.0)
+    rel = np.array([control_point[0] - params.tractor.cg_x, control_point[1]])
+    c, s = math.cos(heading), math.sin(heading)
+    cg = np.array([x0, y0]) - np.array([c * rel[0] - s * rel[1], s * rel[0] + c * rel[1]])
+    v0 = profile(0.0)
+    u0, v10 = (v0 * math.cos(kinematic_slip), v0 * math.sin(kinematic_slip)) if kinematic_slip else (v0, 0.0)
+    state = VehicleState(
+        0.0, float(cg[0]), float(cg[1]), heading, u0, v10, 0.0, 0.0, 0.0, slip=np.zeros(len(model.layout.axles))
+    )
+    annulus = tuple(path.centres[0]) if config.roundabout_test else None
+    return ScenarioSetup(
+        config=config,
+        params=params,
+        model=model,
+        path=path,
+        surface=surface,
+        control_point=control_point,
+        speed_profile=profile,
+        feedforward=feedforward,
+        initial_state=state,
+        annulus_centre=annulus,  # type: ignore[arg-type]
+        kinematic_slip=kinematic_slip,
+    )

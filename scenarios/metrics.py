@@ -1,0 +1,115 @@
+"""Run metrics: off-tracking of the truth, estimator errors against it, and the roundabout-test verdict."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from vehicle_model.geometry import radial_extent, tractor_outline, trailer_outline
+from vehicle_model.parameters import VehicleParams
+
+ROUNDABOUT_OUTER_RADIUS = 12.50
+"""97/27/EC Annex I §7.6.1 / UK C&U regs 13A: outer circle [m]."""
+ROUNDABOUT_INNER_RADIUS = 5.30
+"""Inner circle [m]."""
+
+
+def rms(values: np.ndarray) -> float:
+    """Root mean square of the finite values (NaN when there are none)."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return float(np.sqrt(np.mean(v**2))) if v.size else float("nan")
+
+
+def max_abs(values: np.ndarray) -> float:
+    """Largest magnitude of the finite values (NaN when there are none)."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return float(np.max(np.abs(v))) if v.size else float("nan")
+
+
+def estimator_errors(truth: np.ndarray, estimate: np.ndarray) -> dict[str, float]:
+    """RMS and largest error of ``estimate`` against ``truth`` where both exist, and the fraction of the
+    truth's valid samples on which the estimator had an estimate."""
+    truth = np.asarray(truth, dtype=float)
+    estimate = np.asarray(estimate, dtype=float)
+    valid_truth = np.isfinite(truth)
+    both = valid_truth & np.isfinite(estimate)
+    err = estimate[both] - truth[both]
+    return {
+        "rms_error": rms(err),
+        "max_abs_error": max_abs(err),
+        "mean_error": float(np.mean(err)) if err.size else float("nan"),
+        "valid_fraction": float(both.sum() / valid_truth.sum()) if valid_truth.any() else 0.0,
+    }
+
+
+def roundabout_verdict(
+    params: VehicleParams,
+    x: np.ndarray,
+    y: np.ndarray,
+    psi1: np.ndarray,
+    gamma: np.ndarray,
+    centre: tuple[float, float],
+    outer: float = ROUNDABOUT_OUTER_RADIUS,
+    inner: float = ROUNDABOUT_INNER_RADIUS,
+) -> dict[str, Any]:
+    """Verdict of the roundabout test over the given poses.
+
+    Pass if no outermost point of the towing vehicle leaves the ``outer`` circle and no point of the
+    trailer enters the ``inner`` circle: the wording of 97/27/EC Annex I §7.6.1 for a combination
+    (reference notes §5.1). The radii are measured from ``centre``; the nearest point of an outline
+    may lie on an edge, not a corner.
+    """
+    tractor = tractor_outline(params, x, y, psi1)
+    trailer = trailer_outline(params, x, y, psi1, gamma)
+    tractor_out, _ = radial_extent(tractor, centre)
+    _, trailer_in = radial_extent(trailer, centre)
+    outer_max = float(tractor_out.max())
+    inner_min = float(trailer_in.min())
+    return {
+        "pass": bool(outer_max <= outer and inner_min >= inner),
+        "outer_radius_max": outer_max,
+        "inner_radius_min": inner_min,
+        "outer_margin": outer - outer_max,
+        "inner_margin": inner_min - inner,
+    }
+
+
+def compute_metrics(
+    scenario: str,
+    feedback: str,
+    params: VehicleParams,
+    columns: dict[str, np.ndarray],
+    estimator_names: list[str],
+    annulus_centre: tuple[float, float] | None,
+    turn_span: tuple[float, float],
+) -> dict[str, Any]:
+    """The ``metrics.json`` content of a run (without timing and status)."""
+    truth = columns["offtracking_truth"]
+    geometric = columns["offtracking_truth_geometric"]
+    both = np.isfinite(truth) & np.isfinite(geometric)
+    metrics: dict[str, Any] = {
+        "scenario": scenario,
+        "feedback": feedback,
+        "offtracking": {
+            "truth": {"rms": rms(truth), "max_abs": max_abs(truth), "valid_fraction": float(np.isfinite(truth).mean())},
+            "truth_methods_max_disagreement": max_abs(truth[both] - geometric[both]) if both.any() else float("nan"),
+            "estimators": {name: estimator_errors(truth, columns[f"offtracking_{name}"]) for name in estimator_names},
+        },
+        "roundabout_test": None,
+    }
+    if annulus_centre is not None:
+        s = columns["path_progress"]
+        in_turn = (s >= turn_span[0]) & (s <= turn_span[1])
+        if in_turn.any():
+            metrics["roundabout_test"] = roundabout_verdict(
+                params,
+                columns["X"][in_turn],
+                columns["Y"][in_turn],
+                columns["psi1"][in_turn],
+                columns["gamma"][in_turn],
+                annulus_centre,
+            )
+    return metrics

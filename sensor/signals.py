@@ -1,0 +1,86 @@
+"""On-board signals of the tractor–semi-trailer: what a real vehicle's sensors would report.
+
+Each channel samples the true value at its own rate (zero-order hold between samples), adds a
+constant bias and white Gaussian noise. All randomness comes from the one generator passed in.
+
+Channels (SI units):
+
+==================  ===============================================================
+wheel_speed         tractor forward speed from the wheel-speed sensors [m/s]
+front_steer         tractor steer-axle angle [rad]
+tractor_yaw_rate    tractor gyro [rad/s]
+articulation        articulation angle Γ = ψ1 − ψ2 from the fifth-wheel sensor [rad]
+trailer_yaw_rate    trailer gyro [rad/s]
+trailer_steer       steer angle of every steerable trailer axle [rad] (one value per axle)
+==================  ===============================================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+CHANNELS: tuple[str, ...] = (
+    "wheel_speed",
+    "front_steer",
+    "tractor_yaw_rate",
+    "articulation",
+    "trailer_yaw_rate",
+    "trailer_steer",
+)
+
+
+@dataclass(frozen=True)
+class ChannelSpec:
+    """Noise standard deviation, bias and sample rate [Hz] of one channel."""
+
+    noise_std: float = 0.0
+    bias: float = 0.0
+    rate_hz: float = 50.0
+
+    def __post_init__(self) -> None:
+        if not (self.noise_std >= 0 and math.isfinite(self.bias) and self.rate_hz > 0):
+            raise ValueError(f"invalid signal channel {self}: need noise_std ≥ 0, finite bias, rate_hz > 0")
+
+
+class OnboardSignals:
+    """Sampled, biased, noisy measurements of the true vehicle state.
+
+    Parameters
+    ----------
+    specs
+        One :class:`ChannelSpec` per channel name in :data:`CHANNELS` (missing: ideal at 50 Hz).
+    rng
+        The run's random generator.
+    """
+
+    def __init__(self, specs: dict[str, ChannelSpec], rng: np.random.Generator) -> None:
+        unknown = set(specs) - set(CHANNELS)
+        if unknown:
+            raise ValueError(f"unknown signal channels {sorted(unknown)}; channels are {list(CHANNELS)}")
+        self.specs = {name: specs.get(name, ChannelSpec()) for name in CHANNELS}
+        self.rng = rng
+        self._held: dict[str, np.ndarray] = {}
+        self._next_sample: dict[str, float] = dict.fromkeys(CHANNELS, -math.inf)
+
+    def measure(self, time: float, truth: dict[str, float | np.ndarray]) -> dict[str, np.ndarray]:
+        """Measurements at ``time`` of the true values ``truth`` (one entry per channel).
+
+        A channel whose next sample time has come takes a new sample; otherwise it holds the last.
+        """
+        out: dict[str, np.ndarray] = {}
+        for name in CHANNELS:
+            spec = self.specs[name]
+            if time + 1e-12 >= self._next_sample[name]:
+                value = np.atleast_1d(np.asarray(truth[name], dtype=float))
+                noise = self.rng.standard_normal(value.shape) * spec.noise_std if spec.noise_std > 0 else 0.0
+                self._held[name] = value + spec.bias + noise
+                period = 1.0 / spec.rate_hz
+                previous = self._next_sample[name]
+                self._next_sample[name] = (previous + period) if math.isfinite(previous) else time + period
+                if self._next_sample[name] <= time:  # fell behind: resynchronise
+                    self._next_sample[name] = time + period
+            out[name] = self._held[name].copy()
+        return out

@@ -1,0 +1,96 @@
+"""Cheng's zero-slip estimator against exact zero-slip kinematics."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from controller.zero_slip import ZeroSlipEstimator
+from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses
+
+
+def kinematic_run(params, steer_of_s, speed=2.0, duration=40.0, dt=1e-3, every=20):
+    """Tractor whose rear point never slips and a trailer whose zero-slip point sits at L_eq (reference §2.3)."""
+    wheelbase = params.tractor_wheelbase()
+    e = -wheelbase - params.tractor.fifth_wheel_x  # fifth wheel behind the rear point
+    l_eq = params.equivalent_wheelbase()
+
+    def rates(state):
+        _x, _y, psi1, gamma, s = state
+        delta = steer_of_s(s)
+        r1 = speed * math.tan(delta) / wheelbase
+        vk1 = np.array([speed, -e * r1])
+        vk2 = np.array(
+            [math.cos(gamma) * vk1[0] - math.sin(gamma) * vk1[1], math.sin(gamma) * vk1[0] + math.cos(gamma) * vk1[1]]
+        )
+        r2 = vk2[1] / l_eq
+        return np.array([speed * math.cos(psi1), speed * math.sin(psi1), r1, r1 - r2, speed]), r1, delta
+
+    state = np.zeros(5)
+    samples = []
+    n = round(duration / dt)
+    for k in range(n + 1):
+        if k % every == 0:
+            _, r1, delta = rates(state)
+            x, y, psi1, gamma, _ = state
+            # the fifth wheel is e behind the rear point: P5 = P_r − e·(cos ψ1, sin ψ1)
+            kingpin = np.array([x, y]) - e * np.array([math.cos(psi1), math.sin(psi1)])
+            samples.append((k * dt, kingpin, psi1 - gamma, r1, delta, gamma))
+        k1, _, _ = rates(state)
+        k2, _, _ = rates(state + 0.5 * dt * k1)
+        k3, _, _ = rates(state + 0.5 * dt * k2)
+        k4, _, _ = rates(state + dt * k3)
+        state = state + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return samples, speed
+
+
+@pytest.mark.parametrize("variant", ["yaw_rate", "steer_angle"])
+def test_exact_when_nothing_slips(reference, variant):
+    # An S-shaped drive: left, then right. Without slip the estimate equals the truth up to the
+    # trapezoidal integration of the 20 ms increments (< 1 mm).
+    samples, speed = kinematic_run(reference, lambda s: 0.25 * math.sin(2 * math.pi * s / 60.0))
+    est = ZeroSlipEstimator(reference, variant)
+    truth = OfftrackingBuffer(reference.follow_point_offset)
+    dt = samples[1][0] - samples[0][0]
+    errors, values = [], []
+    prev = None
+    for _t, kingpin, psi2, r1, delta, gamma in samples:
+        signals = {
+            "wheel_speed": np.array([speed]),
+            "front_steer": np.array([delta]),
+            "tractor_yaw_rate": np.array([r1]),
+            "articulation": np.array([gamma]),
+        }
+        e_est = est.update(signals, dt)
+        if prev is not None:
+            truth.push(*increments_from_poses(np.vstack([prev[0], kingpin]), np.array([prev[1], psi2]))[0])
+        prev = (kingpin, psi2)
+        e_true = truth.offtracking()
+        if e_true is not None and e_est is not None:
+            errors.append(e_est - e_true)
+            values.append(e_true)
+    assert len(errors) > 1000
+    assert np.max(np.abs(values)) > 1.0  # a real manoeuvre with metres of off-tracking
+    assert np.max(np.abs(errors)) < 1e-3
+
+
+def test_blind_to_a_pure_crab(reference):
+    # Both units crab sideways (e.g. on a crossfall): the tractor signals show straight running, so the
+    # estimate stays zero while the true off-tracking is −L_fp·tan β (the phenomenon of reference §6.5).
+    est = ZeroSlipEstimator(reference)
+    signals = {
+        "wheel_speed": np.array([5.0]),
+        "front_steer": np.array([0.0]),
+        "tractor_yaw_rate": np.array([0.0]),
+        "articulation": np.array([0.0]),
+    }
+    for _ in range(200):
+        value = est.update(signals, 0.02)
+    assert value == pytest.approx(0.0, abs=1e-12)
+
+
+def test_bad_variant(reference):
+    with pytest.raises(ValueError, match="variant"):
+        ZeroSlipEstimator(reference, "gps")  # type: ignore[arg-type]
