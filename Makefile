@@ -4,9 +4,19 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup run test test-all lint bench clean
+.PHONY: setup sysdeps run test test-all lint bench clean
 
-setup: $(STAMP)
+setup: sysdeps $(STAMP)
+
+# Headless OpenGL for the camera renderer (EGL on Mesa's llvmpipe) and a C compiler for the model.
+sysdeps:
+	@if ! ldconfig -p 2>/dev/null | grep -q libEGL_mesa || ! command -v gcc >/dev/null; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    apt-get update -qq && apt-get install -y -qq libegl1 libegl-mesa0 libgl1-mesa-dri gcc; \
+	  else \
+	    echo "offtrack needs EGL and gcc: sudo apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri gcc"; \
+	  fi; \
+	fi
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
