@@ -40,7 +40,7 @@ def bench_model(
     t0 = time.perf_counter()
     for k in range(n_steps):
         steer = 0.25 * math.sin(2.0 * math.pi * k * period / 8.0)
-        sim.step(Controls([steer], sc(speed, sim.state.u, period)))
+        sim.step(Controls([steer], sc(speed, sim.speed, period)))
     loop_s = time.perf_counter() - t0
 
     # Integrator alone: the same number of RK4 steps in calls of 1 s each, inputs held.

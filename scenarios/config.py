@@ -135,13 +135,41 @@ class SignalsConfig(_Strict):
     trailer_steer: ChannelConfig = ChannelConfig()
 
 
+class CameraConfig(_Strict):
+    """The trailer's stereo camera (defaults: the paper's simulation, §3.1).
+
+    ``station`` is measured from the kingpin (negative behind it; default: the trailer's rear),
+    ``lateral`` is positive to the left, ``psi_c2v_deg`` is the paper's camera-to-vehicle angle,
+    clockwise from the trailer's forward axis (180 rear-facing, 90 right, 270 left).
+    ``right_misalignment_deg`` rotates the right camera (roll, pitch, yaw; paper §4.4) and
+    ``right_correction_deg`` is the rotation correction applied to the right images before
+    odometry (paper eqs (8)–(9)).
+    """
+
+    width: int = Field(1344, ge=64, le=4096)
+    height: int = Field(391, ge=48, le=4096)
+    hfov_deg: float = Field(100.0, gt=10.0, lt=170.0)
+    baseline: float = Field(0.5, gt=0.0, le=5.0)
+    mount_height: float = Field(3.0, gt=0.2, le=6.0)
+    station: float | None = Field(None, ge=-20.0, le=2.0)
+    lateral: float = Field(0.0, ge=-2.0, le=2.0)
+    psi_c2v_deg: float = Field(180.0, ge=0.0, lt=360.0)
+    right_misalignment_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    right_correction_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    noise_std: float = Field(0.0, ge=0.0, le=50.0)
+    brightness_jitter: float = Field(0.0, ge=0.0, le=0.5)
+    scenery_density: float = Field(1.0, ge=0.0, le=1.0)
+
+
 class EstimatorsConfig(_Strict):
     """Which estimators run and how. ``zero_slip_variant``: Cheng's zero-slip dead-reckoning with the
     tractor yaw rate taken from the gyro (``yaw_rate``, default) or from the front steer angle
-    (``steer_angle``)."""
+    (``steer_angle``). ``viso_ot``: render the trailer's stereo camera at the camera rate and run
+    visual odometry and VISO-OT (needs headless OpenGL)."""
 
     zero_slip: bool = True
     zero_slip_variant: Literal["yaw_rate", "steer_angle"] = "yaw_rate"
+    viso_ot: bool = False
 
 
 class ScenarioConfig(_Strict):
@@ -158,6 +186,7 @@ class ScenarioConfig(_Strict):
     rates: RatesConfig = RatesConfig()
     signals: SignalsConfig = SignalsConfig()
     estimators: EstimatorsConfig = EstimatorsConfig()
+    camera: CameraConfig = CameraConfig()
     feedback: Literal["none"] = "none"
     roundabout_test: bool = False
     seed: int = Field(0, ge=0, le=2**32 - 1)

@@ -136,7 +136,7 @@ def test_bad_simulator_arguments(reference, reference_model, kwargs, match):
 
 def test_bad_controls(reference, reference_model):
     sim = Simulator(reference, model=reference_model)
-    with pytest.raises(InputError, match="one per steerable axle"):
+    with pytest.raises(InputError, match="one angle per steerable axle"):
         sim.step(Controls([0.0, 0.1], 0.0))
     with pytest.raises(InputError, match="non-finite"):
         sim.step(Controls([float("nan")], 0.0))

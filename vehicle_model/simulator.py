@@ -67,7 +67,7 @@ class VehicleState:
     def from_vector(cls, vector: np.ndarray, time: float = 0.0) -> VehicleState:
         """State from a vector in :class:`Layout` order."""
         v = np.asarray(vector, dtype=float)
-        return cls(time, *(float(s) for s in v[:8]), slip=v[8:].copy())
+        return cls(time, *v[:8].tolist(), slip=v[8:].copy())
 
 
 @dataclass(frozen=True)
@@ -160,7 +160,8 @@ class Simulator:
         # Ground points looked up on the surface: every axle, then the unit's CG.
         self._tractor_local = np.array([[a.x, 0.0] for a in params.tractor.axles] + [[params.tractor.cg_x, 0.0]])
         self._trailer_local = np.array([[a.x, 0.0] for a in params.trailer.axles] + [[params.trailer.cg_x, 0.0]])
-        self._limits = [(self.layout.state_index(n), n, lim) for n, lim in STATE_LIMITS.items()]
+        self._limit_index = np.array([self.layout.state_index(n) for n in STATE_LIMITS])
+        self._limit_value = np.array(list(STATE_LIMITS.values()))
         self.time = 0.0
         self._surface_filled = False  # uniform surfaces are looked up once
         self.reset(state)
@@ -174,6 +175,11 @@ class Simulator:
     def state(self) -> VehicleState:
         """Current state."""
         return VehicleState.from_vector(self._x, self.time)
+
+    @property
+    def speed(self) -> float:
+        """Tractor CG forward speed ``u`` [m/s] (cheaper than building :attr:`state`)."""
+        return float(self._x[3])
 
     @property
     def state_vector(self) -> np.ndarray:
@@ -211,24 +217,26 @@ class Simulator:
     def fill_inputs(self, controls: Controls) -> None:
         """Write ``controls`` and the surface at the current state into the input vector."""
         layout = self.layout
-        steer = np.asarray(controls.steer, dtype=float)
-        if steer.shape != (len(layout.steerable_axles),):
+        u = self._u
+        try:
+            u[layout.steer_slice] = controls.steer
+        except (ValueError, TypeError):
             raise InputError(
-                f"controls.steer has {steer.size} values; give one per steerable axle {list(layout.steerable_axles)}"
-            )
-        if not (np.all(np.isfinite(steer)) and math.isfinite(controls.drive_force)):
+                f"controls.steer = {controls.steer!r}; give one angle per steerable axle {list(layout.steerable_axles)}"
+            ) from None
+        u[layout.drive_index] = controls.drive_force
+        if not math.isfinite(float(u[: layout.drive_index + 1].sum())):
             raise InputError(
-                f"non-finite controls at t = {self.time:.3f} s: steer {steer}, drive force {controls.drive_force}"
+                f"non-finite controls at t = {self.time:.3f} s: steer {controls.steer}, "
+                f"drive force {controls.drive_force}"
             )
         if not (self._surface_filled and self.surface.is_uniform):
             mu, slope = self.surface_inputs(self._x)
             if not np.all(mu > 0):
                 raise InputError(f"the surface gives μ ≤ 0 at t = {self.time:.3f} s: {mu}")
-            self._u[layout.mu_slice] = mu
-            self._u[layout.slope_slice] = slope
+            u[layout.mu_slice] = mu
+            u[layout.slope_slice] = slope
             self._surface_filled = True
-        self._u[layout.steer_slice] = steer
-        self._u[layout.drive_index] = controls.drive_force
 
     def step(self, controls: Controls) -> VehicleState:
         """Advance one control period with ``controls`` held; return the new state.
@@ -256,6 +264,8 @@ class Simulator:
         return {name: np.asarray(v).ravel() for name, v in zip(self.model.output_names, values, strict=True)}
 
     def _check(self, x_new: np.ndarray) -> None:
+        if math.isfinite(float(x_new.sum())) and not (np.abs(x_new[self._limit_index]) > self._limit_value).any():
+            return  # the common case, checked cheaply
         t_end = self.time + self.control_period
         if not np.all(np.isfinite(x_new)):
             bad = [self.layout.states[i] for i in np.flatnonzero(~np.isfinite(x_new))]
@@ -265,7 +275,7 @@ class Simulator:
                 time=self.time,
                 state=self.state,
             )
-        for i, name, limit in self._limits:
+        for i, name, limit in zip(self._limit_index, STATE_LIMITS, self._limit_value, strict=True):
             if abs(x_new[i]) > limit:
                 raise SimulationDivergedError(
                     f"the simulation diverged at t = {t_end:.3f} s: {name} = {x_new[i]:.4g} exceeds ±{limit} "
