@@ -10,6 +10,7 @@ import numpy as np
 from scipy.optimize import root_scalar
 
 from controller.driver import SpeedProfile, kinematic_feedforward
+from controller.path_following import PathFollowingConfig, PathFollowingGains, TrailerSteeringController
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
@@ -210,3 +211,25 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
         annulus_centre=annulus,  # type: ignore[arg-type]
         kinematic_slip=kinematic_slip,
     )
+
+
+def trailer_controller(setup: ScenarioSetup) -> TrailerSteeringController | None:
+    """The configured trailer path-following controller, or ``None`` for an unsteered trailer."""
+    cfg = setup.config
+    if cfg.feedback == "none":
+        return None
+    c = cfg.controller
+    gains = None
+    if c.kp is not None or c.ki is not None or c.kd is not None:
+        gains = PathFollowingGains(kp=c.kp or 0.0, ki=c.ki or 0.0, kd=c.kd or 0.0)
+    config = PathFollowingConfig(
+        gains=gains,
+        natural_frequency=c.natural_frequency,
+        damping=c.damping,
+        max_steer=math.radians(c.max_steer_deg),
+        max_steer_rate=math.radians(c.max_steer_rate_deg_s),
+        feedforward=c.feedforward,
+        bandwidth_speed=None if c.bandwidth_speed_kmh is None else c.bandwidth_speed_kmh / 3.6,
+        control_period=1.0 / cfg.rates.control_hz,
+    )
+    return TrailerSteeringController(setup.params, config, feedback=cfg.feedback)

@@ -60,6 +60,9 @@ def run(
     speed: Annotated[float | None, typer.Option(help="Cornering speed [km/h].")] = None,
     vehicle: Annotated[str | None, typer.Option(help="Vehicle preset (see `offtrack list`).")] = None,
     direction: Annotated[str | None, typer.Option(help="left or right.")] = None,
+    feedback: Annotated[
+        str | None, typer.Option(help="Trailer steering fed by: none, truth, zero_slip or viso_ot.")
+    ] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of every random choice.")] = None,
     duration: Annotated[float | None, typer.Option(help="Stop after this many simulated seconds.")] = None,
     set_: Annotated[
@@ -86,6 +89,7 @@ def run(
         ("vehicle", vehicle),
         ("direction", direction),
         ("seed", seed),
+        ("feedback", feedback),
         ("duration_s", duration),
     ):
         if value is not None:

@@ -172,6 +172,24 @@ class EstimatorsConfig(_Strict):
     viso_ot: bool = False
 
 
+class ControllerConfig(_Strict):
+    """Trailer path-following controller (``controller.path_following``); degrees and km/h at this edge.
+
+    Gains ``kp`` [rad/m], ``ki`` [rad/m²], ``kd`` [rad] are per metre travelled; leave them out to place
+    the poles at ``natural_frequency`` [1/m] and ``damping``.
+    """
+
+    kp: float | None = Field(None, ge=0.0, le=10.0)
+    ki: float | None = Field(None, ge=0.0, le=10.0)
+    kd: float | None = Field(None, ge=0.0, le=10.0)
+    natural_frequency: float = Field(1.0 / 3.0, gt=0.0, le=5.0)
+    damping: float = Field(0.8, gt=0.0, le=5.0)
+    max_steer_deg: float = Field(25.0, gt=0.0, le=60.0)
+    max_steer_rate_deg_s: float = Field(20.0, gt=0.0, le=500.0)
+    feedforward: Literal["path", "steady", "none"] = "path"
+    bandwidth_speed_kmh: float | None = Field(15.0, gt=0.0, le=150.0)
+
+
 class ScenarioConfig(_Strict):
     """A complete, resolved scenario."""
 
@@ -187,7 +205,8 @@ class ScenarioConfig(_Strict):
     signals: SignalsConfig = SignalsConfig()
     estimators: EstimatorsConfig = EstimatorsConfig()
     camera: CameraConfig = CameraConfig()
-    feedback: Literal["none"] = "none"
+    feedback: Literal["none", "truth", "zero_slip", "viso_ot"] = "none"
+    controller: ControllerConfig = ControllerConfig()
     roundabout_test: bool = False
     seed: int = Field(0, ge=0, le=2**32 - 1)
     duration_s: float | None = Field(None, gt=0.0, le=3600.0)
@@ -198,6 +217,18 @@ class ScenarioConfig(_Strict):
             raise ValueError(f"vehicle {self.vehicle!r} is not a preset; choose one of {sorted(VEHICLE_PRESETS)}")
         if self.roundabout_test and self.path.kind != "roundabout":
             raise ValueError("roundabout_test needs path.kind = roundabout")
+        if self.feedback == "zero_slip" and not self.estimators.zero_slip:
+            raise ValueError("feedback zero_slip needs estimators.zero_slip = true")
+        if self.feedback == "viso_ot" and not self.estimators.viso_ot:
+            raise ValueError("feedback viso_ot needs estimators.viso_ot = true")
+        if self.feedback != "none" and not any(a.steerable for a in VEHICLE_PRESETS[self.vehicle]().trailer.axles):
+            steerable = sorted(n for n, f in VEHICLE_PRESETS.items() if any(a.steerable for a in f().trailer.axles))
+            raise ValueError(
+                f"feedback {self.feedback!r} steers the trailer, but vehicle {self.vehicle!r} has no steerable "
+                f"trailer axle; use one of {steerable}"
+            )
+        if self.path.slip_deg is not None and self.feedback != "none":
+            raise ValueError("a kinematic constant-slip run cannot be steered; use feedback none")
         return self
 
 

@@ -150,6 +150,10 @@ def run_cosimulation(
     n_trailer_steer = sum(1 for n in layout.steerable_axles if n in {a.name for a in params.trailer.axles})
     steer_names = [f"steer_{n}" for n in layout.steerable_axles]
     signal_names = ["wheel_speed", "front_steer", "tractor_yaw_rate", "articulation", "trailer_yaw_rate"]
+    telemetry = getattr(trailer_steer_source, "telemetry", None)
+    if hasattr(trailer_steer_source, "reset"):
+        trailer_steer_source.reset()  # type: ignore[union-attr]
+    telemetry_names = list(telemetry()) if callable(telemetry) else []
     columns = (
         ["time", *layout.states[:8], "psi2", "kingpin_x", "kingpin_y", "follow_x", "follow_y"]
         + steer_names
@@ -157,6 +161,7 @@ def run_cosimulation(
         + [f"signal_{n}" for n in signal_names]
         + ["offtracking_truth", "offtracking_truth_geometric"]
         + [f"offtracking_{n}" for n in estimators]
+        + telemetry_names
     )
     recorded: dict[str, list[float]] = {c: [] for c in columns}
     if writer is not None:
@@ -236,6 +241,8 @@ def run_cosimulation(
                 "offtracking_truth_geometric": np.nan if truth_geo is None else truth_geo,
                 **{f"offtracking_{n}": np.nan if v is None else v for n, v in estimates.items()},
             }
+            if telemetry_names:
+                row.update(telemetry())  # type: ignore[misc]
             for key, value in row.items():
                 recorded[key].append(float(value))
             if writer is not None:

@@ -77,6 +77,33 @@ def roundabout_verdict(
     }
 
 
+def after_warmup(columns: dict[str, np.ndarray], follow_point_offset: float) -> np.ndarray:
+    """Mask of the samples after warm-up: the truth is valid and one more trailer length has been driven."""
+    truth = columns["offtracking_truth"]
+    valid = np.isfinite(truth)
+    if not valid.any():
+        return valid
+    kp = np.column_stack([columns["kingpin_x"], columns["kingpin_y"]])
+    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(kp, axis=0).T))])
+    start = travelled[np.flatnonzero(valid)[0]] + follow_point_offset
+    return valid & (travelled >= start)
+
+
+def trailer_steering_metrics(columns: dict[str, np.ndarray], steerable_trailer_axles: list[str]) -> dict[str, Any]:
+    """Largest steer angle [deg] and fraction of time saturated of every steerable trailer axle."""
+    out: dict[str, Any] = {}
+    for name in steerable_trailer_axles:
+        steer = columns.get(f"steer_{name}")
+        if steer is None:
+            continue
+        saturated = columns.get(f"saturated_{name}")
+        out[name] = {
+            "max_abs_steer_deg": float(np.degrees(np.max(np.abs(steer)))) if steer.size else 0.0,
+            "saturated_fraction": float(np.mean(saturated > 0.5)) if saturated is not None and saturated.size else 0.0,
+        }
+    return out
+
+
 def compute_metrics(
     scenario: str,
     feedback: str,
@@ -90,15 +117,19 @@ def compute_metrics(
     truth = columns["offtracking_truth"]
     geometric = columns["offtracking_truth_geometric"]
     both = np.isfinite(truth) & np.isfinite(geometric)
+    settled = after_warmup(columns, params.follow_point_offset)
+    steerable = [a.name for a in params.trailer.axles if a.steerable]
     metrics: dict[str, Any] = {
         "scenario": scenario,
         "feedback": feedback,
         "offtracking": {
             "truth": {"rms": rms(truth), "max_abs": max_abs(truth), "valid_fraction": float(np.isfinite(truth).mean())},
+            "truth_after_warmup": {"rms": rms(truth[settled]), "max_abs": max_abs(truth[settled])},
             "truth_methods_max_disagreement": max_abs(truth[both] - geometric[both]) if both.any() else float("nan"),
             "estimators": {name: estimator_errors(truth, columns[f"offtracking_{name}"]) for name in estimator_names},
         },
         "roundabout_test": None,
+        "trailer_steering": trailer_steering_metrics(columns, steerable),
     }
     if annulus_centre is not None:
         s = columns["path_progress"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .build import build_scenario
+from .build import build_scenario, trailer_controller
 from .config import ScenarioConfig
 from .cosim import ProgressCallback, TrailerSteerSource, run_cosimulation
 from .metrics import compute_metrics
@@ -27,6 +27,8 @@ def run_scenario(
     """
     write_config(run_dir, config)
     setup = build_scenario(config)
+    if trailer_steer_source is None:
+        trailer_steer_source = trailer_controller(setup)
     writer = TimeSeriesWriter(run_dir / TIMESERIES_FILE, columns=[])
     outcome, columns = run_cosimulation(
         setup, writer=writer, trailer_steer_source=trailer_steer_source, progress=progress

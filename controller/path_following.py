@@ -1,0 +1,744 @@
+"""Path-following trailer steering: a PID on the off-tracking error with curvature feed-forward.
+
+The law (reference notes §6.2, §7.3; Cheng 2009, Jujnovich & Cebon 2013; Miao & Cebon 2014 feed the same
+law an independent off-tracking measurement, here the caller picks the estimate by name)::
+
+    δ_v = δ_ff(κ5) + f_hs(u)·[k_p·e + k_i·∫e ds + k_d·de/ds]          (virtual-axle steer)
+    tan δ_j = tan δ_v + (L_v − L_j)·κ_c,   κ_c = (tan β_k − tan δ_v)/L_v   (common instantaneous centre)
+    δ_j ← f(u) · δ_j,  then per-axle saturation ±δ_max, then rate limit ±δ̇_max
+
+Sign convention (DESIGN §3)
+---------------------------
+``e = e_tr`` is the off-tracking: the y coordinate (left positive), in the current trailer frame, of the
+kingpin's past path at the follow-point station. An unsteered trailer in a left turn cuts in, so ``e < 0``:
+the follow point lies left of (inside) the kingpin path and the trailer's rear must move **right**, which
+a **negative** (rightward) steer of the rear axles does. Linearised on a straight path with the trailer
+heading ψ2 relative to the kingpin path, ``e ≈ L_fp·ψ2`` and the virtual axle gives
+``ψ̇2 = −(u/L_v)(ψ2 + δ_v)``, so
+
+    de/ds = −e/L_v − (L_fp/L_v)·δ_v                                  (reference notes §7.3 with e = −e_§7.3)
+
+The notes write the same equation for the follow point's left-positive deviation ``−e_tr``; their
+``δ_v = δ_ff − PID(e_§7.3)`` therefore reads ``δ_v = δ_ff + PID(e_tr)`` here, with **positive** gains.
+A left turn with ``e_tr < 0`` gives a rightward (negative) correction; the mirrored right turn gives the
+mirrored command.
+
+Virtual axle and distribution
+-----------------------------
+The trailer is controlled as if it had one steered axle at ``L_v`` behind the kingpin (default: the
+equivalent wheelbase ``L_eq = ΣC_j L_j²/ΣC_j L_j`` of all trailer axles, so ``δ_v = 0`` behaves like the
+unsteered trailer). For a given ``δ_v`` and kingpin velocity the zero-slip trailer turns about the centre
+where the virtual axle's axis meets the normal to the kingpin velocity; its curvature abreast of the trailer
+is ``κ_c = 1/y_c = (tan β_k − tan δ_v)/L_v`` (reference notes §2.3: ``r2 = (v_k2y − v_k2x tan δ_v)/L_v`` and
+``y_c = v_k2x/r2``), with ``tan β_k = v_k2y/v_k2x`` the direction of the kingpin velocity in the trailer
+frame. Every steerable axle is steered to that centre (reference notes §7.3, exact form)::
+
+    tan δ_j = tan δ_v + (L_v − L_j)·κ_c
+
+*Fixed axles.* An unsteerable axle cannot point at the centre unless it lies abreast of it; it then slips
+by ``α_f = −atan(t_f)`` (``t_f`` the tangent it would need) and its force turns the trailer about another
+centre. With ``fixed_axle_compensation`` the steerable axles get a common extra angle ``Δ`` chosen so that
+the low-speed yaw-moment balance about the kingpin, ``Σ C_j L_j α_j = 0`` (linear tyres, negligible trailer
+inertia), again puts the centre where ``δ_v`` says: ``Δ = Σ_fixed C_f L_f atan(t_f) / Σ_steered C_s L_s``.
+With every axle steerable ``Δ = 0`` and the distribution is the exact kinematic one.
+
+Feed-forward
+------------
+*Steady law* (``feedforward = "steady"``). In a steady turn of kingpin radius ``R5 = 1/|κ5|`` the follow
+point runs on the kingpin's circle when the trailer turns about the centre abreast of the midpoint between
+kingpin and follow point (reference notes §6.2)::
+
+    y_c = sign(κ5)·sqrt(R5² − L_fp²/4),   tan δ_ff = (L_fp/2 − L_v)/y_c
+        = κ5·(L_fp/2 − L_v) / sqrt(1 − κ5²L_fp²/4)        (→ atan(κ5·(L_fp/2 − L_v)) for R5 ≫ L_fp)
+
+The exact form is used: at the roundabout test's R5 ≈ 10 m the small-curvature form is 2° short. On the
+current ``κ5`` this law is right only once the kingpin has driven one trailer length on the same curvature;
+at the entry to and exit from a turn it steers too early (1.5 m of transient off-tracking on the roundabout
+test without feedback).
+
+*Chord law* (``feedforward = "path"``, default). The controller dead-reckons the kingpin path of the last
+trailer length from the tractor's signals (heading from the yaw rate, kingpin velocity as below). The trailer
+that tracks perfectly lies on the chord from the path point ``L_fp`` behind the kingpin (straight-line
+distance) to the kingpin, heading ``ψ2*``; its kingpin moves along the path direction ``θ_k`` and its follow
+point along the path direction ``θ_f`` at the chord's end. The rigid trailer's yaw rate is then
+``r2 = v_k2x·(tan β_k* − tan φ_f*)/L_fp`` (velocity of the point ``(−L_fp, 0)``), and the virtual axle's
+zero-slip angle (reference notes §2.3)::
+
+    tan δ_ff = tan β_k* − (L_v/L_fp)·(tan β_k* − tan φ_f*),    β_k* = θ_k − ψ2*,  φ_f* = θ_f − ψ2*
+
+It depends on the kingpin path only (not on the trailer's actual state, so the open loop keeps the trailer's
+own decay ``1/L_v``), and in a steady turn (``β_k* = −φ_f* = asin(L_fp/2R5)``) it equals the steady law.
+Before one trailer length has been recorded the path is taken as straight behind its oldest point.
+
+Kinematics source: ``κ5``, the path direction and ``β_k`` come from the tractor's on-board quantities by
+zero-slip kinematics (``kinematics = "signals"``: wheel speed ``u``, tractor yaw rate ``r1`` and articulation
+``Γ``; the kingpin moves at ``(u, −e5·r1)`` in tractor axes with ``e5`` its offset behind the tractor's rear
+point, reference notes §2.3, §7.2), read noise-free from the state the co-simulation passes; or from the true
+state (``kinematics = "truth"``: kingpin velocity ``(u, v1 − h1·r1)``). ``κ5 = r1/|v_k|``. Either way the
+feed-forward is blind to the trailer's own tyre slip; the feedback removes what it misses.
+
+Gains and speed
+---------------
+Gains are per unit distance travelled: ``k_p`` [rad/m], ``k_i`` [rad/m²] on ``∫e ds``, ``k_d`` [rad] on
+``de/ds``, so the kinematic closed loop has the same poles in distance at every speed. In time they are
+``k_p``, ``u·k_i``, ``k_d/u``, and the loop's bandwidth in time grows with ``u``. With the camera's hold and
+latency and the trailer's yaw mode (≈ 2.5 rad/s, ζ ≈ 0.5 at 80 km/h) the loop would lose its margins above
+about 25 km/h and go unstable by 30–50 km/h (``docs/controller_design.md`` §5.2), so above ``bandwidth_speed``
+(15 km/h)
+the feedback is scaled by ``f_hs = (bandwidth_speed/u)²``. That holds the natural frequency of the kinematic
+loop in time, ``u·sqrt(f_hs·k_i·L_fp/L_v)``, at its value at ``bandwidth_speed`` (the loop becomes integral
+dominated); phase margin ≥ 41° and gain margin ≥ 8.5 dB from 15 to 90 km/h with a 0.16 s dead time. The whole
+command is faded in with speed, ``f(u) = clip((u − u0)/(u1 − u0), 0, 1)``, default zero below 0.3 m/s and
+full above 1 m/s (and zero when reversing). The integral is over distance, so it stops by itself at
+standstill. No high-speed fade-out is needed with the schedule.
+
+Measurement timing: HOLD
+------------------------
+The controller runs every control period; an estimate may arrive less often (the camera rate) and late.
+The controller holds the last estimate (zero-order hold). A new sample is recognised by a change of value
+(or the first value after none); the derivative ``de/ds`` is computed from consecutive samples, over the
+distance driven between them, only when a new sample arrives, and held in between. The hold and the latency
+are treated as a dead time in the gain design (latency + half a camera period + half a control period), not
+predicted away. A
+missing estimate (``None``: not yet one trailer length driven, or the estimator lost track) sets the
+feedback to zero and freezes the integrator: the trailer is steered by the feed-forward alone until
+estimates return.
+
+Anti-windup
+-----------
+Conditional integration: the integral is not advanced when that would push the command further into a
+limit that every steerable axle has reached (magnitude saturation or rate limit, in the direction of the
+push; the distribution is monotone in ``δ_v``, so one direction serves all axles), nor while the virtual
+angle is clamped. Without an integrator (``k_i = 0``) nothing winds up; the output leaves saturation as
+soon as the proportional term does, at the rate limit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Literal, NamedTuple
+
+import numpy as np
+
+from vehicle_model.errors import InputError
+from vehicle_model.layout import Layout
+from vehicle_model.parameters import VehicleParams
+from vehicle_model.simulator import VehicleState
+
+__all__ = [
+    "FEEDBACK_SOURCES",
+    "AxleSteerDistribution",
+    "PathFollowingConfig",
+    "PathFollowingGains",
+    "TrailerSteeringController",
+    "bandwidth_schedule",
+    "kinematic_pole_placement",
+    "path_following_steer",
+]
+
+PATH_SPACING = 0.05
+"""Spacing [m] of the stored points of the dead-reckoned kingpin path (chord feed-forward)."""
+
+FEEDBACK_SOURCES: tuple[str, ...] = ("truth", "zero_slip", "viso_ot")
+"""Names of the off-tracking estimates the controller can feed back (keys of the co-simulation's dict)."""
+
+FeedbackSource = Literal["truth", "zero_slip", "viso_ot"]
+Kinematics = Literal["signals", "truth"]
+FeedForward = Literal["path", "steady", "none"]
+
+
+@dataclass(frozen=True)
+class PathFollowingGains:
+    """PID gains on the off-tracking error, per unit distance travelled.
+
+    Parameters
+    ----------
+    kp : float
+        Proportional gain [rad/m] (virtual-axle steer per metre of off-tracking).
+    ki : float
+        Integral gain [rad/m²] on ``∫e_tr ds`` (``s`` the distance travelled); ``u·ki`` in time.
+    kd : float
+        Derivative gain [rad] on ``de_tr/ds``; ``kd/u`` in time.
+    """
+
+    kp: float
+    ki: float = 0.0
+    kd: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("kp", "ki", "kd"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise InputError(f"PathFollowingGains.{name} = {value!r} must be a finite number ≥ 0")
+
+    def in_time(self, speed: float) -> tuple[float, float, float]:
+        """Time-domain equivalents ``(k_p, u·k_i, k_d/u)`` at forward speed ``speed`` [m/s] > 0."""
+        if not speed > 0:
+            raise InputError(f"speed = {speed!r} must be > 0")
+        return self.kp, self.ki * speed, self.kd / speed
+
+
+def kinematic_pole_placement(
+    virtual_axle_distance: float, follow_point_offset: float, natural_frequency: float, damping: float
+) -> PathFollowingGains:
+    """PI gains placing the poles of the kinematic off-tracking loop in the distance domain.
+
+    With ``de/ds = −e/L_v − (L_fp/L_v)·δ_v`` and ``δ_v = k_p·e + k_i·∫e ds`` the closed loop is
+    ``σ² + ((1 + k_p L_fp)/L_v)·σ + k_i L_fp/L_v = 0`` (reference notes §7.3), so::
+
+        k_p = (2ζω_n L_v − 1)/L_fp,   k_i = ω_n² L_v/L_fp
+
+    ``k_p`` is clipped at zero when the open loop (pole ``1/L_v``) is already faster than asked.
+
+    Parameters
+    ----------
+    virtual_axle_distance
+        ``L_v`` [m].
+    follow_point_offset
+        ``L_fp`` [m].
+    natural_frequency
+        ``ω_n`` [1/m] (per metre travelled).
+    damping
+        ``ζ`` [-].
+
+    Returns
+    -------
+    PathFollowingGains
+        ``kd = 0``.
+    """
+    lv, lfp, wn, zeta = (float(x) for x in (virtual_axle_distance, follow_point_offset, natural_frequency, damping))
+    if not (lv > 0 and lfp > 0 and wn > 0 and zeta > 0):
+        raise InputError("kinematic_pole_placement needs L_v, L_fp, natural_frequency and damping all > 0")
+    return PathFollowingGains(kp=max((2.0 * zeta * wn * lv - 1.0) / lfp, 0.0), ki=wn**2 * lv / lfp, kd=0.0)
+
+
+@dataclass(frozen=True)
+class PathFollowingConfig:
+    """Settings of :class:`TrailerSteeringController` (SI units, angles in radians).
+
+    Parameters
+    ----------
+    gains : PathFollowingGains or None
+        PID gains per unit distance; ``None`` places the kinematic poles at ``natural_frequency`` and
+        ``damping`` for the vehicle (:func:`kinematic_pole_placement`).
+    natural_frequency : float
+        ``ω_n`` [1/m] of the default design (reference notes §7.3 example: 1/3 m⁻¹).
+    damping : float
+        ``ζ`` of the default design.
+    max_steer : float
+        Per-axle steer limit [rad] (±25°; the roundabout test needs ±20–25°, reference notes §5.3).
+    max_steer_rate : float
+        Per-axle rate limit [rad/s] (20°/s).
+    virtual_axle_distance : float or None
+        ``L_v`` [m] behind the kingpin; ``None``: the trailer's equivalent wheelbase (all axles).
+    fade_speeds : tuple of float
+        ``(u0, u1)`` [m/s]: the command is zero below ``u0``, full above ``u1``, linear in between.
+    bandwidth_speed : float or None
+        Above this speed [m/s] the feedback is scaled by ``(bandwidth_speed/u)²`` (holds the loop's natural
+        frequency in time; module docstring); ``None`` disables the schedule.
+    feedforward : {"path", "steady", "none"}
+        ``path``: the chord law on the kingpin path of the last trailer length (exact in transients, equal to
+        the steady law in a steady turn); ``steady``: the steady law of reference notes §6.2 on the current
+        ``κ5``; ``none``: feedback only.
+    kinematics : {"signals", "truth"}
+        Where ``κ5`` and the kingpin velocity direction come from (see the module docstring).
+    fixed_axle_compensation : bool
+        Offset the steerable axles to cancel the yaw moment of unsteerable ones (module docstring).
+    max_virtual_steer : float
+        Clamp of the virtual-axle angle [rad] (keeps ``tan δ_v`` finite).
+    derivative_min_distance : float
+        Distance [m] that must separate two samples for a new derivative ``de/ds``.
+    control_period : float
+        Period [s] assumed on the first call (later ones use the difference of ``state.time``).
+    """
+
+    gains: PathFollowingGains | None = None
+    natural_frequency: float = 1.0 / 3.0
+    damping: float = 0.8
+    max_steer: float = math.radians(25.0)
+    max_steer_rate: float = math.radians(20.0)
+    virtual_axle_distance: float | None = None
+    fade_speeds: tuple[float, float] = (0.3, 1.0)
+    bandwidth_speed: float | None = 15.0 / 3.6
+    feedforward: FeedForward = "path"
+    kinematics: Kinematics = "signals"
+    fixed_axle_compensation: bool = True
+    max_virtual_steer: float = math.radians(45.0)
+    derivative_min_distance: float = 0.05
+    control_period: float = 0.02
+
+    def __post_init__(self) -> None:
+        def positive(name: str, upper: float = math.inf) -> None:
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and 0 < value <= upper):
+                raise InputError(f"PathFollowingConfig.{name} = {value!r} must be in (0, {upper}]")
+
+        positive("natural_frequency")
+        positive("damping")
+        positive("max_steer", math.radians(60.0))
+        positive("max_steer_rate")
+        positive("max_virtual_steer", math.radians(80.0))
+        positive("control_period", 1.0)
+        if self.virtual_axle_distance is not None:
+            positive("virtual_axle_distance", 50.0)
+        if self.bandwidth_speed is not None:
+            positive("bandwidth_speed")
+        lo, hi = self.fade_speeds
+        if not (0 <= lo < hi < math.inf):
+            raise InputError(f"PathFollowingConfig.fade_speeds = {self.fade_speeds!r} must satisfy 0 ≤ u0 < u1")
+        if not (math.isfinite(self.derivative_min_distance) and self.derivative_min_distance >= 0):
+            raise InputError("PathFollowingConfig.derivative_min_distance must be finite and ≥ 0")
+        if self.feedforward not in ("path", "steady", "none"):
+            raise InputError(
+                f"PathFollowingConfig.feedforward = {self.feedforward!r} must be 'path', 'steady' or 'none'"
+            )
+        if self.kinematics not in ("signals", "truth"):
+            raise InputError(f"PathFollowingConfig.kinematics = {self.kinematics!r} must be 'signals' or 'truth'")
+        if self.gains is not None and not isinstance(self.gains, PathFollowingGains):
+            raise InputError("PathFollowingConfig.gains must be a PathFollowingGains or None")
+
+
+@dataclass(frozen=True)
+class AxleSteerDistribution:
+    """Steer of every steerable trailer axle from the virtual-axle angle (module docstring).
+
+    Parameters
+    ----------
+    distances : numpy.ndarray
+        ``L_j`` of every trailer axle behind the kingpin [m], trailer layout order.
+    steerable : numpy.ndarray
+        Boolean mask of the steerable trailer axles.
+    stiffness : numpy.ndarray
+        Cornering stiffness of every trailer axle at its static load [N/rad].
+    virtual_axle_distance : float
+        ``L_v`` [m].
+    fixed_axle_compensation : bool
+        Cancel the yaw moment of the unsteerable axles.
+    """
+
+    distances: np.ndarray
+    steerable: np.ndarray
+    stiffness: np.ndarray
+    virtual_axle_distance: float
+    fixed_axle_compensation: bool = True
+    _weights: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not np.any(self.steerable):
+            raise InputError("AxleSteerDistribution needs at least one steerable trailer axle")
+        cl = self.stiffness * self.distances
+        # Δ = Σ_fixed C_f L_f atan(t_f) / Σ_steered C_s L_s (low-speed yaw-moment balance about the kingpin).
+        weights = np.where(self.steerable, 0.0, cl) / float(np.sum(cl[self.steerable]))
+        object.__setattr__(self, "_weights", weights if self.fixed_axle_compensation else np.zeros_like(cl))
+
+    @classmethod
+    def for_vehicle(
+        cls, params: VehicleParams, virtual_axle_distance: float | None = None, fixed_axle_compensation: bool = True
+    ) -> AxleSteerDistribution:
+        """Distribution for the trailer of ``params`` (``L_v`` defaults to its equivalent wheelbase)."""
+        table = params.axle_table
+        trailer = table.unit == 1
+        stiffness = np.array(
+            [
+                ty.cornering_stiffness(fz / n) * n
+                for ty, fz, n in zip(table.tyres, table.static_load, table.n_tyres, strict=True)
+            ]
+        )[trailer]
+        lv = params.equivalent_wheelbase() if virtual_axle_distance is None else float(virtual_axle_distance)
+        return cls(
+            distances=params.trailer_axle_distances(),
+            steerable=np.asarray(table.steerable[trailer], dtype=bool),
+            stiffness=stiffness,
+            virtual_axle_distance=lv,
+            fixed_axle_compensation=fixed_axle_compensation,
+        )
+
+    def centre_curvature(self, tan_virtual: float, tan_kingpin: float) -> float:
+        """``κ_c = 1/y_c = (tan β_k − tan δ_v)/L_v`` [1/m] of the centre implied by ``δ_v`` (reference §2.3)."""
+        return (tan_kingpin - tan_virtual) / self.virtual_axle_distance
+
+    def __call__(self, tan_virtual: float, tan_kingpin: float) -> np.ndarray:
+        """Steer angles [rad] of the steerable axles, trailer layout order.
+
+        Parameters
+        ----------
+        tan_virtual
+            ``tan δ_v`` of the virtual axle.
+        tan_kingpin
+            ``tan β_k = v_k2y/v_k2x``: direction of the kingpin velocity in the trailer frame.
+        """
+        kappa_c = self.centre_curvature(tan_virtual, tan_kingpin)
+        # reference notes §7.3: tan δ_j = tan δ_v + (L_v − L_j)·κ_c for every axle (what each would need)
+        needed = np.arctan(tan_virtual + (self.virtual_axle_distance - self.distances) * kappa_c)
+        offset = float(self._weights @ needed)
+        return needed[self.steerable] + offset
+
+
+def path_following_steer(
+    distribution: AxleSteerDistribution, kingpin_curvature: float, follow_point_offset: float
+) -> tuple[float, np.ndarray]:
+    """Steady zero-slip path-following steer: virtual angle and axle angles (reference notes §6.2).
+
+    Parameters
+    ----------
+    distribution
+        Axle distribution (gives ``L_v`` and the axles).
+    kingpin_curvature
+        ``κ5`` [1/m], positive in a left turn.
+    follow_point_offset
+        ``L_fp`` [m].
+
+    Returns
+    -------
+    tuple
+        ``(δ_ff, δ_j)`` [rad]: the virtual-axle angle and the steerable axles' angles in a steady turn, the
+        kingpin moving at ``tan β_k = (L_fp/2)/y_c``.
+    """
+    tan_ff, tan_kingpin = _steady_tangents(kingpin_curvature, follow_point_offset, distribution.virtual_axle_distance)
+    return math.atan(tan_ff), distribution(tan_ff, tan_kingpin)
+
+
+def bandwidth_schedule(speed: float, bandwidth_speed: float | None) -> float:
+    """Feedback gain factor ``f_hs = min(1, (u_b/u)²)`` of the high-speed schedule (module docstring)."""
+    if bandwidth_speed is None or speed <= bandwidth_speed:
+        return 1.0
+    return (bandwidth_speed / speed) ** 2
+
+
+def _wrap(angle: float) -> float:
+    """Angle wrapped to (−π, π], then clipped to ±1.4 rad (keeps tangents finite)."""
+    wrapped = math.atan2(math.sin(angle), math.cos(angle))
+    return min(max(wrapped, -1.4), 1.4)
+
+
+def _steady_tangents(kappa: float, l_fp: float, l_v: float) -> tuple[float, float]:
+    """``(tan δ_ff, tan β_k)`` of the steady path-following turn of kingpin curvature ``kappa`` (§6.2)."""
+    half = 0.5 * l_fp
+    # κ/sqrt(1 − κ²L_fp²/4) = 1/y_c; clipped where the follow point cannot reach the circle (R5 ≤ L_fp/2).
+    q = min((kappa * half) ** 2, 0.99)
+    inv_yc = kappa / math.sqrt(1.0 - q)
+    return (half - l_v) * inv_yc, half * inv_yc
+
+
+class _Step(NamedTuple):
+    feedback: float
+    virtual: float
+    target: np.ndarray
+    limited: np.ndarray
+    output: np.ndarray
+    blocked_up: bool
+    blocked_down: bool
+
+
+class TrailerSteeringController:
+    """Per-tick path-following trailer steering in the co-simulation's ``TrailerSteerSource`` shape.
+
+    Parameters
+    ----------
+    params : VehicleParams
+        Vehicle; needs at least one steerable trailer axle.
+    config : PathFollowingConfig, optional
+        Gains, limits, fades; defaults as documented there.
+    feedback : {"truth", "zero_slip", "viso_ot"} or None
+        Which off-tracking estimate to feed back (key of the estimates dict); ``None``: feed-forward only.
+
+    Raises
+    ------
+    InputError
+        When the vehicle has no steerable trailer axle (the ``reference`` preset), or on a bad argument.
+
+    Attributes
+    ----------
+    axle_names : tuple of str
+        Steerable trailer axles, in the order of the returned commands (the model's layout order).
+    gains : PathFollowingGains
+        Gains in use.
+    virtual_steer : float
+        Last virtual-axle angle ``δ_v`` [rad] before the speed fade (feed-forward + feedback).
+    feedforward_steer, feedback_steer : float
+        Its two parts [rad].
+    commands : numpy.ndarray
+        Last per-axle commands [rad] (after fade, saturation and rate limit).
+    saturated : numpy.ndarray
+        Per axle: the magnitude limit clipped the command on the last tick.
+    rate_limited : numpy.ndarray
+        Per axle: the rate limit clipped the command on the last tick.
+    integral : float
+        ``∫e ds`` [m²].
+    fade : float
+        Last speed fade factor ``f(u)`` in [0, 1].
+    estimate : float or None
+        The held off-tracking sample in use [m] (``None``: no estimate).
+    new_sample : bool
+        Whether the last tick received a new sample.
+    kingpin_curvature : float
+        Last ``κ5`` [1/m].
+
+    Examples
+    --------
+    >>> from scenarios.cosim import run_cosimulation  # doctest: +SKIP
+    >>> ctrl = TrailerSteeringController(setup.params, feedback="truth")  # doctest: +SKIP
+    >>> outcome, columns = run_cosimulation(setup, trailer_steer_source=ctrl)  # doctest: +SKIP
+    """
+
+    def __init__(
+        self,
+        params: VehicleParams,
+        config: PathFollowingConfig | None = None,
+        feedback: FeedbackSource | None = "truth",
+    ) -> None:
+        self.params = params
+        self.config = config if config is not None else PathFollowingConfig()
+        if feedback is not None and feedback not in FEEDBACK_SOURCES:
+            raise InputError(f"feedback = {feedback!r} must be one of {list(FEEDBACK_SOURCES)} or None")
+        self.feedback = feedback
+        layout = Layout.for_vehicle(params)
+        trailer_names = {a.name for a in params.trailer.axles}
+        self.axle_names: tuple[str, ...] = tuple(n for n in layout.steerable_axles if n in trailer_names)
+        if not self.axle_names:
+            raise InputError(
+                f"vehicle {params.name!r} has no steerable trailer axle; path-following trailer steering needs "
+                "at least one (use the 'lst' preset, or set steerable=True on trailer axles)"
+            )
+        cfg = self.config
+        self.distribution = AxleSteerDistribution.for_vehicle(
+            params, cfg.virtual_axle_distance, cfg.fixed_axle_compensation
+        )
+        self.follow_point_offset = params.follow_point_offset
+        self.virtual_axle_distance = self.distribution.virtual_axle_distance
+        self.gains = (
+            cfg.gains
+            if cfg.gains is not None
+            else kinematic_pole_placement(
+                self.virtual_axle_distance, self.follow_point_offset, cfg.natural_frequency, cfg.damping
+            )
+        )
+        # Kingpin offset behind the tractor's rear point (reference notes §2.3), as in the zero-slip estimator.
+        self._fifth_wheel_offset = -params.tractor_wheelbase() - params.tractor.fifth_wheel_x
+        self._h1 = params.h1
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+
+    def reset(self) -> None:
+        """Straight axles, empty integrator, no held sample."""
+        n = len(self.axle_names)
+        self.commands = np.zeros(n)
+        self.saturated = np.zeros(n, dtype=bool)
+        self.rate_limited = np.zeros(n, dtype=bool)
+        self.virtual_steer = 0.0
+        self.feedforward_steer = 0.0
+        self.feedback_steer = 0.0
+        self.integral = 0.0
+        self.fade = 0.0
+        self.estimate: float | None = None
+        self.new_sample = False
+        self.kingpin_curvature = 0.0
+        self.distance = 0.0
+        self._derivative = 0.0
+        self._last_sample: tuple[float, float] | None = None  # (value, distance) of the previous new sample
+        self._time: float | None = None
+        self._heading = 0.0  # dead-reckoned tractor heading ψ̂1 [rad]
+        self._position = np.zeros(2)  # dead-reckoned kingpin position [m]
+        self._path: deque[tuple[float, float, float]] = deque()  # (x, y, θ) of the kingpin path, oldest first
+        self._path_direction = 0.0
+        self._last_motion: tuple[float, float, float] | None = None  # (r1, v_kx, v_ky) of the previous tick
+
+    def telemetry(self) -> dict[str, float]:
+        """Last tick's internals as floats, for recording (``trailer_`` prefixed names; NaN = no estimate)."""
+        out = {
+            "trailer_virtual_steer": self.virtual_steer,
+            "trailer_feedforward_steer": self.feedforward_steer,
+            "trailer_feedback_steer": self.feedback_steer,
+            "trailer_integral": self.integral,
+            "trailer_fade": self.fade,
+            "trailer_estimate_used": math.nan if self.estimate is None else self.estimate,
+        }
+        for name, sat, rate in zip(self.axle_names, self.saturated, self.rate_limited, strict=True):
+            out[f"saturated_{name}"] = float(sat)
+            out[f"rate_limited_{name}"] = float(rate)
+        return out
+
+    # ------------------------------------------------------------------ the law
+
+    def _fade(self, speed: float) -> float:
+        lo, hi = self.config.fade_speeds
+        return min(max((speed - lo) / (hi - lo), 0.0), 1.0)
+
+    def _kingpin_velocity(self, state: VehicleState) -> tuple[float, float]:
+        """Kingpin velocity in tractor axes (zero-slip from signals, or true)."""
+        if self.config.kinematics == "truth":
+            return state.u, state.v1 - self._h1 * state.r1
+        return state.u, -self._fifth_wheel_offset * state.r1  # reference notes §2.3
+
+    def __call__(self, state: VehicleState, estimates: dict[str, float | None]) -> np.ndarray:
+        """Steer of every steerable trailer axle [rad] for the next control period.
+
+        Parameters
+        ----------
+        state
+            Current (true) state.
+        estimates
+            Off-tracking estimates by name [m] (``None``: no estimate); must hold the ``feedback`` key.
+
+        Returns
+        -------
+        numpy.ndarray
+            One angle per steerable trailer axle, in :attr:`axle_names` (layout) order.
+        """
+        cfg = self.config
+        dt = cfg.control_period if self._time is None else state.time - self._time
+        if not dt > 0:
+            dt = cfg.control_period
+        self._time = state.time
+
+        # Kingpin motion: curvature κ5 and direction β_k in the trailer frame (reference notes §1.1, §2.3).
+        vx, vy = self._kingpin_velocity(state)
+        speed = math.hypot(vx, vy)
+        forward = state.u > 0.0
+        self.kingpin_curvature = state.r1 / speed if speed > 1e-6 else 0.0
+        cg, sg = math.cos(state.gamma), math.sin(state.gamma)
+        vk2x, vk2y = cg * vx - sg * vy, sg * vx + cg * vy
+        tan_kingpin = vk2y / vk2x if vk2x > 1e-6 else 0.0
+        ds = speed * dt if forward else 0.0
+        self.distance += ds
+        self.fade = self._fade(state.u) if forward else 0.0
+
+        # Feed-forward (reference notes §6.2, exact form).
+        self._record_path(state, vx, vy, dt, forward)
+        if cfg.feedforward == "steady":
+            tan_ff, _ = _steady_tangents(self.kingpin_curvature, self.follow_point_offset, self.virtual_axle_distance)
+            self.feedforward_steer = math.atan(tan_ff)
+        elif cfg.feedforward == "path":
+            self.feedforward_steer = math.atan(self._chord_feedforward()) if self._path else 0.0
+        else:
+            self.feedforward_steer = 0.0
+
+        # Feedback on the held sample.
+        error = self._sample(estimates)
+        ki = self.gains.ki
+        schedule = bandwidth_schedule(state.u, cfg.bandwidth_speed)
+        integral_new = self.integral
+        if error is not None and ki > 0 and self.fade > 0:
+            integral_new = self.integral + error * ds
+
+        step = self._command(integral_new, error, schedule, tan_kingpin, dt)
+        push = ki * (integral_new - self.integral)
+        if (push > 0 and step.blocked_up) or (push < 0 and step.blocked_down):
+            integral_new = self.integral  # conditional integration: do not wind up
+            step = self._command(integral_new, error, schedule, tan_kingpin, dt)
+        self.integral = integral_new
+        self.feedback_steer = step.feedback
+        self.virtual_steer = step.virtual
+        self.saturated = np.abs(step.target) > cfg.max_steer
+        self.rate_limited = np.abs(step.output - step.limited) > 1e-12
+        self.commands = step.output
+        return step.output.copy()
+
+    def _command(self, integral: float, error: float | None, schedule: float, tan_kingpin: float, dt: float) -> _Step:
+        """Virtual angle, distribution, fade, saturation and rate limit for a given integral."""
+        cfg = self.config
+        gains = self.gains
+        fb = 0.0 if error is None else schedule * (gains.kp * error + gains.ki * integral + gains.kd * self._derivative)
+        unclamped = self.feedforward_steer + fb
+        virtual = min(max(unclamped, -cfg.max_virtual_steer), cfg.max_virtual_steer)
+        target = self.fade * self.distribution(math.tan(virtual), tan_kingpin)
+        limited = np.clip(target, -cfg.max_steer, cfg.max_steer)
+        rate_step = cfg.max_steer_rate * dt
+        output = np.clip(limited, self.commands - rate_step, self.commands + rate_step)
+        # Blocked: every axle held below (above) its target by a limit, or the virtual angle clamped.
+        blocked_up = bool(np.all(output < target - 1e-12)) or unclamped > virtual
+        blocked_down = bool(np.all(output > target + 1e-12)) or unclamped < virtual
+        return _Step(fb, virtual, target, limited, output, blocked_up, blocked_down)
+
+    def _record_path(self, state: VehicleState, vx: float, vy: float, dt: float, forward: bool) -> None:
+        """Dead-reckon the kingpin path (tractor yaw rate, kingpin velocity) over about one trailer length.
+
+        Heading and position are integrated every tick (trapezoidal rule); a point is stored every
+        :data:`PATH_SPACING` metres and points more than one trailer length back are dropped but one.
+        """
+        if not forward:
+            self._path.clear()
+            self._last_motion = None
+            return
+        if self._last_motion is not None:
+            r1_prev, vx_prev, vy_prev = self._last_motion
+            mid = self._heading + 0.25 * (r1_prev + state.r1) * dt
+            self._heading += 0.5 * (r1_prev + state.r1) * dt
+            c, s = math.cos(mid), math.sin(mid)
+            mx, my = 0.5 * (vx + vx_prev), 0.5 * (vy + vy_prev)
+            self._position += dt * np.array([c * mx - s * my, s * mx + c * my])
+        self._last_motion = (state.r1, vx, vy)
+        self._path_direction = self._heading + math.atan2(vy, vx)  # direction θ_k of the kingpin path
+        px, py = float(self._position[0]), float(self._position[1])
+        if not self._path or math.hypot(px - self._path[-1][0], py - self._path[-1][1]) >= PATH_SPACING:
+            self._path.append((px, py, self._path_direction))
+        while len(self._path) > 2 and math.hypot(self._path[1][0] - px, self._path[1][1] - py) >= (
+            self.follow_point_offset
+        ):
+            self._path.popleft()
+
+    def _chord_feedforward(self) -> float:
+        """``tan δ_ff`` of the chord law on the dead-reckoned kingpin path (module docstring).
+
+        The trailer is placed on the chord from the path point ``L_fp`` behind the kingpin (in straight-line
+        distance) to the kingpin; the kingpin moves along the path direction ``θ_k`` and the follow point along
+        the path direction ``θ_f`` at the chord point, so in the chord's frame ``tan δ_ff = tan β_k* −
+        (L_v/L_fp)(tan β_k* − tan φ_f*)`` with ``β_k* = θ_k − ψ2*``, ``φ_f* = θ_f − ψ2*``.
+        """
+        lfp = self.follow_point_offset
+        px, py = float(self._position[0]), float(self._position[1])
+        theta_k = self._path_direction
+        x0, y0, t0 = self._path[0]
+        d0 = math.hypot(x0 - px, y0 - py)
+        if len(self._path) >= 2 and d0 >= lfp:
+            # The oldest point is the last one at least L_fp away (pruning keeps one): interpolate to L_fp.
+            x1, y1, t1 = self._path[1]
+            d1 = math.hypot(x1 - px, y1 - py)
+            w = (d0 - lfp) / (d0 - d1) if d0 > d1 else 0.0
+            cx, cy, theta_f = x0 + w * (x1 - x0), y0 + w * (y1 - y0), t0 + w * (t1 - t0)
+        else:
+            # Less than one trailer length recorded: the path ran straight before the oldest point.
+            dx, dy = math.cos(t0), math.sin(t0)
+            wx, wy = x0 - px, y0 - py
+            along = wx * dx + wy * dy
+            t = along + math.sqrt(max(along * along - (wx * wx + wy * wy) + lfp * lfp, 0.0))
+            cx, cy, theta_f = x0 - t * dx, y0 - t * dy, t0
+        psi_chord = math.atan2(py - cy, px - cx)
+        tan_k = math.tan(_wrap(theta_k - psi_chord))
+        tan_f = math.tan(_wrap(theta_f - psi_chord))
+        return tan_k - (self.virtual_axle_distance / lfp) * (tan_k - tan_f)
+
+    def _sample(self, estimates: dict[str, float | None]) -> float | None:
+        """Zero-order hold of the chosen estimate; derivative on new samples only. ``None`` if missing."""
+        self.new_sample = False
+        if self.feedback is None:
+            self.estimate = None
+            return None
+        if self.feedback not in estimates:
+            raise InputError(
+                f"no off-tracking estimate named {self.feedback!r} was passed; available: {sorted(estimates)} "
+                "(enable the estimator, or choose another feedback)"
+            )
+        value = estimates[self.feedback]
+        if value is None or not math.isfinite(value):
+            # Missing: feedback off, integrator frozen, derivative restarts when samples return.
+            self.estimate = None
+            self._last_sample = None
+            self._derivative = 0.0
+            return None
+        value = float(value)
+        if self.estimate is None or value != self.estimate:
+            self.new_sample = True
+            if self._last_sample is not None:
+                prev_value, prev_distance = self._last_sample
+                travelled = self.distance - prev_distance
+                if travelled > self.config.derivative_min_distance:
+                    self._derivative = (value - prev_value) / travelled
+                    self._last_sample = (value, self.distance)
+            else:
+                self._last_sample = (value, self.distance)
+            self.estimate = value
+        return self.estimate

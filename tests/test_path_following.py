@@ -1,0 +1,348 @@
+"""Path-following trailer steering: signs, limits, anti-windup, hold, feed-forward and the closed loop."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from controller.path_following import (
+    AxleSteerDistribution,
+    PathFollowingConfig,
+    PathFollowingGains,
+    TrailerSteeringController,
+    path_following_steer,
+)
+from scenarios.build import build_scenario
+from scenarios.config import load_scenario
+from scenarios.cosim import run_cosimulation
+from vehicle_model.dynamics import VehicleModel
+from vehicle_model.errors import InputError
+from vehicle_model.parameters import VehicleParams
+from vehicle_model.presets import lst_laden, reference_laden
+from vehicle_model.simulator import VehicleState
+
+DT = 0.02
+FAST = math.radians(1e4)  # a rate limit that never acts
+
+
+def all_steer(params: VehicleParams) -> VehicleParams:
+    """The vehicle with every trailer axle steerable."""
+    data = params.model_dump()
+    for axle in data["trailer"]["axles"]:
+        axle["steerable"] = True
+    data["name"] = f"{params.name}-all-steer"
+    return VehicleParams(**data)
+
+
+@pytest.fixture(scope="module")
+def all_steer_reference() -> VehicleParams:
+    return all_steer(reference_laden())
+
+
+@pytest.fixture(scope="module")
+def all_steer_model(all_steer_reference) -> VehicleModel:
+    return VehicleModel(all_steer_reference)
+
+
+def state(speed=2.0, r1=0.0, gamma=0.0, v1=0.0, time=0.0) -> VehicleState:
+    return VehicleState(time, 0.0, 0.0, 0.0, speed, v1, r1, gamma, r1, slip=np.zeros(6))
+
+
+def steady_turn(params: VehicleParams, kingpin_radius: float, speed: float = 1.0, sign: int = 1) -> VehicleState:
+    """Zero-slip steady turn of the kingpin on ``kingpin_radius`` with the follow point on the kingpin's circle.
+
+    Reference notes §2.3 and §6.2: the kingpin moves at ``(u, −e5·r1)`` in tractor axes and the articulation is
+    ``Γ = atan2(L_fp/2, y_c) − atan2(v_k1y, u)`` with ``y_c = sqrt(R5² − L_fp²/4)``.
+    """
+    e5 = -params.tractor_wheelbase() - params.tractor.fifth_wheel_x
+    r1 = speed / math.sqrt(kingpin_radius**2 - e5**2)  # |v_k| = R5·r1 with v_k = (u, −e5·r1)
+    half = 0.5 * params.follow_point_offset
+    y_c = math.sqrt(kingpin_radius**2 - half**2)
+    gamma = math.atan2(half, y_c) - math.atan2(-e5 * r1, speed)
+    return state(speed, sign * r1, sign * gamma)
+
+
+def run_ticks(ctrl, states_and_estimates):
+    out = []
+    for st, est in states_and_estimates:
+        out.append(ctrl(st, est))
+    return np.array(out)
+
+
+def constant(ctrl, st: VehicleState, estimate, n: int, t0: float = 0.0) -> np.ndarray:
+    """``n`` ticks of the same state (time advancing) and the same estimate; returns every command."""
+    return run_ticks(ctrl, ((dataclasses.replace(st, time=t0 + k * DT), {"truth": estimate}) for k in range(n)))
+
+
+# ----------------------------------------------------------------------------- signs
+
+
+def test_feedback_steers_the_rear_out_of_a_cut_in_left_turn_and_mirrors_in_a_right_turn(all_steer_reference):
+    cfg = PathFollowingConfig(max_steer_rate=FAST)
+    left = steady_turn(all_steer_reference, 20.0, sign=1)
+    right = steady_turn(all_steer_reference, 20.0, sign=-1)
+    on_path = TrailerSteeringController(all_steer_reference, cfg)(left, {"truth": 0.0})
+    # Left turn, unsteered-like cut-in: e_tr < 0, the follow point is inside (left of) the kingpin path. The rear
+    # must move right: every axle steers further right (negative) than on the path.
+    ctrl_left = TrailerSteeringController(all_steer_reference, cfg)
+    cut_in = ctrl_left(left, {"truth": -0.3})
+    assert ctrl_left.feedback_steer < 0
+    assert np.all(cut_in < on_path - 1e-3)
+    # The virtual axle steered right turns the zero-slip trailer left faster (reference notes §2.3:
+    # r2 = (v_k2y − v_k2x tan δ_v)/L_v), so its heading catches up with the path and e_tr rises towards 0.
+    assert ctrl_left.virtual_steer < ctrl_left.feedforward_steer
+    # The mirrored right turn with the mirrored error gives the mirrored command.
+    ctrl_right = TrailerSteeringController(all_steer_reference, cfg)
+    mirrored = ctrl_right(right, {"truth": +0.3})
+    assert mirrored == pytest.approx(-cut_in, abs=1e-12)
+    assert ctrl_right.feedback_steer > 0
+
+
+def test_on_a_straight_a_follow_point_left_of_the_path_steers_every_axle_right():
+    params = lst_laden()
+    ctrl = TrailerSteeringController(params, PathFollowingConfig(max_steer_rate=FAST))
+    cmd = ctrl(state(), {"truth": -0.2})
+    assert cmd.shape == (2,) and ctrl.axle_names == ("trailer2", "trailer3")
+    assert np.all(cmd < 0)
+    cmd_right = TrailerSteeringController(params, PathFollowingConfig(max_steer_rate=FAST))(state(), {"truth": 0.2})
+    assert cmd_right == pytest.approx(-cmd, abs=1e-12)
+
+
+# ----------------------------------------------------------------------------- limits and anti-windup
+
+
+def test_each_axle_saturates_at_25_degrees(all_steer_reference):
+    ctrl = TrailerSteeringController(all_steer_reference, PathFollowingConfig(feedforward="none"))
+    cmds = constant(ctrl, state(), -5.0, 200)
+    limit = math.radians(25.0)
+    assert np.abs(cmds).max() <= limit + 1e-12
+    assert cmds[-1] == pytest.approx(np.full(3, -limit), abs=1e-12)
+    assert ctrl.saturated.all()
+    assert ctrl.telemetry()["saturated_trailer3"] == 1.0
+
+
+def test_rate_limit_of_20_degrees_per_second(all_steer_reference):
+    ctrl = TrailerSteeringController(all_steer_reference, PathFollowingConfig(feedforward="none"))
+    cmds = constant(ctrl, state(), -5.0, 60)
+    steps = np.abs(np.diff(np.vstack([np.zeros(3), cmds]), axis=0))
+    assert steps.max() <= math.radians(20.0) * DT + 1e-12
+    assert steps[0] == pytest.approx(np.full(3, math.radians(20.0) * DT))
+    assert ctrl.rate_limited.all() or ctrl.saturated.all()
+
+
+@pytest.mark.parametrize("ki", [0.1, 0.0], ids=["PI", "P-only"])
+def test_no_windup_while_saturated_and_prompt_recovery(all_steer_reference, ki):
+    cfg = PathFollowingConfig(gains=PathFollowingGains(kp=0.3, ki=ki), feedforward="none")
+    ctrl = TrailerSteeringController(all_steer_reference, cfg)
+    st = state(speed=4.0)
+    constant(ctrl, st, -0.05, 250)  # 5 s of a small error: not saturated, the integral may grow
+    assert not ctrl.saturated.any()
+    before = ctrl.integral
+    if ki > 0:
+        assert before == pytest.approx(-0.05 * 20.0, rel=0.02)  # ∫e ds over 20 m
+    else:
+        assert before == 0.0
+    cmds = constant(ctrl, st, -5.0, 500, t0=5.0)  # 10 s saturated
+    assert ctrl.saturated.all() and np.allclose(cmds[-1], -math.radians(25.0))
+    assert ctrl.integral == pytest.approx(before, abs=1e-12)  # did not wind up
+    after = constant(ctrl, st, 0.2, 100, t0=15.0)  # the error reverses
+    assert np.all(np.abs(after[0]) < math.radians(25.0) - 1e-6)  # leaves saturation on the first tick
+    assert not ctrl.saturated.any()
+    # After the slew at the rate limit (at most 25° at 20°/s = 1.25 s) the output is its unlimited target
+    # again; a wound-up integral (−5 m over 40 m) would have held it at −25° for minutes.
+    after_slew = constant(ctrl, st, 0.2, 1, t0=17.0)
+    assert not ctrl.rate_limited.any() and not ctrl.saturated.any()
+    assert np.all(after_slew > after[0])
+    if ki == 0:
+        assert np.all(after_slew > 0)  # P-only: the sign of the new error
+
+
+def test_missing_estimate_freezes_the_integrator_and_leaves_the_feedforward(all_steer_reference):
+    cfg = PathFollowingConfig(max_steer_rate=FAST)
+    turn = steady_turn(all_steer_reference, 30.0, speed=3.0)
+    ctrl = TrailerSteeringController(all_steer_reference, cfg)
+    constant(ctrl, turn, -0.1, 200)
+    frozen = ctrl.integral
+    assert frozen < 0
+    ff_only = TrailerSteeringController(all_steer_reference, cfg, feedback=None)
+    reference = constant(ff_only, turn, None, 400)[-1]
+    cmd = constant(ctrl, turn, None, 200, t0=4.0)[-1]
+    assert ctrl.feedback_steer == 0.0 and ctrl.estimate is None
+    assert ctrl.integral == frozen
+    assert cmd == pytest.approx(reference, abs=1e-12)
+    assert math.isnan(ctrl.telemetry()["trailer_estimate_used"])
+
+
+def test_hold_recognises_new_samples_and_differentiates_only_on_them():
+    params = lst_laden()
+    cfg = PathFollowingConfig(gains=PathFollowingGains(kp=0.2, ki=0.0, kd=0.5), feedforward="none")
+    ctrl = TrailerSteeringController(params, cfg, feedback="viso_ot")
+    st = state(speed=4.0)  # 0.08 m per tick
+    derivative = []
+    new = []
+    for k in range(20):
+        sample = -0.01 * (k // 5)  # a camera sample every 5 ticks (10 Hz at 50 Hz), held in between
+        ctrl(dataclasses.replace(st, time=k * DT), {"truth": 0.0, "viso_ot": sample})
+        new.append(ctrl.new_sample)
+        derivative.append((ctrl.feedback_steer - 0.2 * ctrl.estimate) / 0.5)
+    assert new == [k % 5 == 0 for k in range(20)]
+    # de/ds = −0.01 m over 0.4 m travelled, constant between samples, zero before the second sample.
+    assert derivative[:5] == pytest.approx([0.0] * 5, abs=1e-12)
+    assert derivative[5:] == pytest.approx([-0.025] * 15, abs=1e-9)
+
+
+def test_speed_fade(all_steer_reference):
+    cfg = PathFollowingConfig(PathFollowingGains(kp=0.3), feedforward="none", max_steer_rate=FAST)
+
+    def command(speed):
+        return TrailerSteeringController(all_steer_reference, cfg)(state(speed=speed), {"truth": -0.1})
+
+    full = command(2.0)
+    assert np.all(full < 0)
+    assert command(0.2) == pytest.approx(np.zeros(3), abs=1e-15)
+    assert command(0.65) == pytest.approx(0.5 * full)
+    assert command(-1.0) == pytest.approx(np.zeros(3), abs=1e-15)  # reversing
+
+
+# ----------------------------------------------------------------------------- feed-forward and distribution
+
+
+EXPECTED = np.radians([-2.8, -11.8, -20.2])  # reference notes §5.3: front, middle, rear; L_fp 12 m, R5 10.13 m
+
+
+def test_steady_feedforward_gives_the_kinematic_steer_angles(all_steer_reference):
+    assert all_steer_reference.follow_point_offset == 12.0
+    distribution = AxleSteerDistribution.for_vehicle(all_steer_reference)
+    _, angles = path_following_steer(distribution, 1.0 / 10.13, 12.0)
+    assert angles == pytest.approx(EXPECTED, abs=math.radians(0.2))
+    # Any virtual axle gives the same axle angles when every axle is steered (reference notes §2.3).
+    _, other = path_following_steer(AxleSteerDistribution.for_vehicle(all_steer_reference, 5.0), 1.0 / 10.13, 12.0)
+    assert other == pytest.approx(angles, abs=1e-12)
+    # The controller in the steady turn, feed-forward alone (no estimate yet).
+    turn = steady_turn(all_steer_reference, 10.13)
+    ctrl = TrailerSteeringController(
+        all_steer_reference, PathFollowingConfig(feedforward="steady", max_steer_rate=FAST)
+    )
+    cmd = ctrl(turn, {"truth": None})
+    assert ctrl.kingpin_curvature == pytest.approx(1.0 / 10.13, rel=1e-12)
+    assert cmd == pytest.approx(EXPECTED, abs=math.radians(0.2))
+
+
+def test_chord_feedforward_equals_the_steady_law_once_a_trailer_length_is_driven(all_steer_reference):
+    turn = steady_turn(all_steer_reference, 10.13)
+    ctrl = TrailerSteeringController(all_steer_reference, PathFollowingConfig(feedforward="path"), feedback=None)
+    cmds = constant(ctrl, turn, None, 900)  # 18 m at 1 m/s
+    assert cmds[-1] == pytest.approx(EXPECTED, abs=math.radians(0.2))
+    # Entering the turn from a straight, it steers less than the steady law at first (the follow point is
+    # still on the straight).
+    early = cmds[round(2.0 / DT)]
+    assert abs(early[2]) < abs(EXPECTED[2]) - math.radians(5.0)
+    # Mirror.
+    mirrored = TrailerSteeringController(all_steer_reference, PathFollowingConfig(), feedback=None)
+    right = constant(mirrored, steady_turn(all_steer_reference, 10.13, sign=-1), None, 900)
+    assert right == pytest.approx(-cmds, abs=1e-9)
+
+
+def test_fixed_axle_compensation_balances_the_yaw_moment_about_the_kingpin():
+    params = lst_laden()  # front trailer axle fixed, rear two steerable
+    dist = AxleSteerDistribution.for_vehicle(params)
+    tan_v, tan_k = math.tan(-0.2), math.tan(0.3)
+    kappa_c = dist.centre_curvature(tan_v, tan_k)
+    needed = np.arctan(tan_v + (dist.virtual_axle_distance - dist.distances) * kappa_c)
+    steer = np.zeros(3)
+    steer[dist.steerable] = dist(tan_v, tan_k)
+    slip = steer - needed  # slip of each axle when the trailer turns about the commanded centre
+    assert np.sum(dist.stiffness * dist.distances * slip) == pytest.approx(0.0, abs=1e-6 * dist.stiffness[0])
+    assert slip[dist.steerable] == pytest.approx(np.full(2, slip[2]))  # a common offset on the steered axles
+    plain = AxleSteerDistribution.for_vehicle(params, fixed_axle_compensation=False)
+    assert plain(tan_v, tan_k) == pytest.approx(needed[1:])
+
+
+# ----------------------------------------------------------------------------- errors
+
+
+def test_errors_are_clear():
+    with pytest.raises(InputError, match="no steerable trailer axle"):
+        TrailerSteeringController(reference_laden())
+    with pytest.raises(InputError, match="feedback"):
+        TrailerSteeringController(lst_laden(), feedback="gps")  # type: ignore[arg-type]
+    ctrl = TrailerSteeringController(lst_laden(), feedback="viso_ot")
+    with pytest.raises(InputError, match="no off-tracking estimate named 'viso_ot'"):
+        ctrl(state(), {"truth": 0.0, "zero_slip": 0.0})
+    with pytest.raises(InputError, match="max_steer"):
+        PathFollowingConfig(max_steer=-0.1)
+    with pytest.raises(InputError, match="kp"):
+        PathFollowingGains(kp=-1.0)
+
+
+# ----------------------------------------------------------------------------- closed loop
+
+
+def after_warm_up(setup, cols) -> np.ndarray:
+    """True off-tracking once the truth is valid plus one more trailer length (``L_fp``) of kingpin travel."""
+    kingpin = np.column_stack([cols["kingpin_x"], cols["kingpin_y"]])
+    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(kingpin, axis=0).T))])
+    truth = cols["offtracking_truth"]
+    first = np.flatnonzero(np.isfinite(truth))[0]
+    keep = (travelled >= travelled[first] + setup.params.follow_point_offset) & np.isfinite(truth)
+    return truth[keep]
+
+
+def closed_loop(name, model=None, feedback="truth", **overrides):
+    setup = build_scenario(load_scenario(name, overrides))
+    if model is not None:
+        setup = dataclasses.replace(setup, params=model.params, model=model)
+    ctrl = TrailerSteeringController(setup.params, feedback=feedback) if feedback != "none" else None
+    outcome, cols = run_cosimulation(setup, trailer_steer_source=ctrl)
+    assert outcome.status == "completed"
+    return setup, cols, ctrl
+
+
+HALF_TURN = {"path.turns": 0.5}  # half of the dry, flat 50 m roundabout at 15 km/h
+
+
+@pytest.fixture(scope="module")
+def lst_runs():
+    return {d: closed_loop("roundabout-3", vehicle="lst", direction=d, **HALF_TURN) for d in ("left", "right")}
+
+
+def test_closed_loop_on_truth_tracks_within_10_cm_rms_and_15_cm_max(lst_runs):
+    setup, cols, ctrl = lst_runs["left"]
+    e = after_warm_up(setup, cols)
+    assert e.size > 1500
+    assert np.sqrt(np.mean(e**2)) <= 0.10
+    assert np.abs(e).max() <= 0.15
+    assert np.nanmax(np.abs(cols["steer_trailer3"])) > math.radians(2.0)  # it does steer
+    assert len(ctrl.axle_names) == 2
+
+
+def test_closed_loop_mirror(lst_runs):
+    left, right = lst_runs["left"][1], lst_runs["right"][1]
+    for column in ("steer_trailer2", "steer_trailer3", "offtracking_truth", "Y"):
+        assert np.nanmax(np.abs(left[column] + right[column])) < 1e-6
+
+
+def test_closed_loop_all_steer_reference_truth_and_zero_slip(all_steer_model):
+    for feedback in ("truth", "zero_slip"):
+        setup, cols, _ = closed_loop("roundabout-3", all_steer_model, feedback, **HALF_TURN)
+        e = after_warm_up(setup, cols)
+        assert np.sqrt(np.mean(e**2)) <= 0.10, feedback
+        assert np.abs(e).max() <= 0.15, feedback
+
+
+def test_unsteered_trailer_offtracks_by_metres_on_the_roundabout_test_and_the_controller_removes_it(
+    all_steer_model,
+):
+    setup, cols, _ = closed_loop("roundabout-test", all_steer_model, "none")
+    unsteered = after_warm_up(setup, cols)
+    assert unsteered.min() < -2.5  # left turn: cuts in by metres (≈ 3 m at R5 ≈ 10 m)
+    setup, cols, ctrl = closed_loop("roundabout-test", all_steer_model, "truth")
+    steered = after_warm_up(setup, cols)
+    assert np.abs(steered).max() <= 0.15
+    assert np.sqrt(np.mean(steered**2)) <= 0.10
+    # The rear axle works near −20° (reference notes §5.3) without reaching the ±25° limit.
+    assert np.nanmin(cols["steer_trailer3"]) == pytest.approx(math.radians(-20.2), abs=math.radians(1.5))
+    assert not ctrl.saturated.any()
