@@ -119,6 +119,63 @@ def run(
         raise typer.Exit(3)
 
 
+@app.command()
+def compare(
+    scenario: Annotated[str, typer.Argument(help="Catalogue name (see `offtrack list`) or a YAML file.")],
+    surface: Annotated[str | None, typer.Option(help="Surface preset: dry, wet, snow, ice.")] = None,
+    mu: Annotated[float | None, typer.Option(help="Friction coefficient (overrides --surface).")] = None,
+    camber: Annotated[float | None, typer.Option(help="Camber [%].")] = None,
+    camber_direction: Annotated[str | None, typer.Option(help="outward or inward.")] = None,
+    vehicle: Annotated[str, typer.Option(help="Vehicle preset with steerable trailer axles.")] = "lst",
+    feedbacks: Annotated[
+        str, typer.Option(help="Comma-separated feedback sources to compare.")
+    ] = "none,zero_slip,viso_ot,truth",
+    set_: Annotated[list[str] | None, typer.Option("--set", help="Any config field, e.g. --set path.turns=1.")] = None,
+    out: Annotated[Path | None, typer.Option(help="Output directory (default runs/compare-SCENARIO/…).")] = None,
+    force: Annotated[bool, typer.Option(help="Allow writing into a non-empty --out.")] = False,
+) -> None:
+    """Run every feedback source on the same scenario; write a table and one overlay figure."""
+    from scenarios.compare import compare_feedback, comparison_rows_as_text
+    from scenarios.config import load_scenario, parse_assignment
+    from scenarios.results import new_run_dir
+
+    overrides: dict[str, object] = {"vehicle": vehicle}
+    for key, value in (
+        ("surface.preset", surface),
+        ("surface.mu", mu),
+        ("camber.percent", camber),
+        ("camber.direction", camber_direction),
+    ):
+        if value is not None:
+            overrides[key] = value
+    if surface is not None and mu is None:
+        overrides["surface.mu"] = None
+    for item in set_ or []:
+        key, value = parse_assignment(item)
+        overrides[key] = value
+    config = load_scenario(scenario, overrides)
+    chosen = tuple(f.strip() for f in feedbacks.split(",") if f.strip())
+    run_dir = new_run_dir(out, f"compare-{config.name}", force=force)
+    table = compare_feedback(config, run_dir, chosen)
+    view = Table(title=f"{config.name}: feedback comparison — {run_dir}")
+    headers = [
+        "feedback",
+        "status",
+        "true RMS [m]",
+        "true max [m]",
+        "max steer [°]",
+        "saturated",
+        "roundabout",
+        "R out [m]",
+        "R in [m]",
+    ]
+    for column in headers:
+        view.add_column(column, justify="left" if column in ("feedback", "status") else "right")
+    for cells in comparison_rows_as_text(table):
+        view.add_row(*cells)
+    console.print(view)
+
+
 def _print_summary(metrics: dict, run_dir: Path) -> None:
     table = Table(title=f"{metrics['scenario']} — {metrics['status']} — {run_dir}")
     table.add_column("off-tracking")
