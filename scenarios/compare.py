@@ -46,12 +46,14 @@ def compare_feedback(
     Writes ``comparison.csv``, ``comparison.md`` and ``comparison.png`` (true off-tracking of every run
     against time, and their swept follow-point paths).
     """
-    rows, traces = [], {}
-    for feedback in feedbacks:
+    configs = {}
+    for feedback in feedbacks:  # validate every variant before the first run starts
         data = config.model_dump()
         data["feedback"] = feedback
         data["estimators"]["viso_ot"] = config.estimators.viso_ot or feedback == "viso_ot"
-        cfg = validate_config(data)
+        configs[feedback] = validate_config(data)
+    rows, traces = [], {}
+    for feedback, cfg in configs.items():
         run_dir = out_dir / feedback
         run_dir.mkdir(parents=True, exist_ok=True)
         metrics = run_scenario(cfg, run_dir, progress=progress, plots=False)
