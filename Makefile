@@ -44,6 +44,7 @@ lint: setup
 ## Benchmarks, one JSON object per line.
 bench: setup
 	$(BIN)/offtrack bench model --json
+	$(BIN)/offtrack bench render --json
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

@@ -176,6 +176,75 @@ def compare(
     console.print(view)
 
 
+@app.command()
+def render(
+    scenario: Annotated[str, typer.Argument(help="Catalogue name (see `offtrack list`) or a YAML file.")],
+    out: Annotated[Path, typer.Option(help="Dataset directory (KITTI odometry layout).")],
+    frames: Annotated[int | None, typer.Option(help="Render at most this many camera frames.", min=1)] = None,
+    density: Annotated[float | None, typer.Option(help="Scenery density in [0, 1].")] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of the world and the run.")] = None,
+    duration: Annotated[float | None, typer.Option(help="Simulated seconds.")] = None,
+    set_: Annotated[
+        list[str] | None, typer.Option("--set", help="Any config field, e.g. --set camera.baseline=1.5.")
+    ] = None,
+    video: Annotated[bool, typer.Option(help="Also write a side-by-side stereo video.")] = False,
+    antialias: Annotated[bool, typer.Option(help="4× multisampling (slower).")] = False,
+    force: Annotated[bool, typer.Option(help="Overwrite an existing dataset in --out.")] = False,
+) -> None:
+    """Export the scenario's rendered stereo sequence as a KITTI-odometry-style dataset."""
+    from rich.progress import Progress
+
+    from scenarios.config import load_scenario, parse_assignment
+    from scenarios.rendering import export_kitti
+
+    overrides: dict[str, object] = {}
+    if seed is not None:
+        overrides["seed"] = seed
+    if duration is not None:
+        overrides["duration_s"] = duration
+    for item in set_ or []:
+        key, value = parse_assignment(item)
+        overrides[key] = value
+    config = load_scenario(scenario, overrides)
+    with Progress(console=console) as bar:
+        task = bar.add_task(f"rendering {config.name}", total=None)
+        summary = export_kitti(
+            config,
+            out,
+            max_frames=frames,
+            scenery_density=density,
+            video=video,
+            overwrite=force,
+            antialias=antialias,
+            progress=lambda done, total: bar.update(task, completed=done, total=total),
+        )
+    console.print({k: v for k, v in summary.items() if not isinstance(v, list | dict)})
+
+
+@bench_app.command("render")
+def bench_render_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    frames: Annotated[int, typer.Option(help="Stereo pairs to render.", min=5)] = 50,
+    antialias: Annotated[bool, typer.Option(help="4× multisampling.")] = False,
+) -> None:
+    """Rendering speed: stereo pairs per second at 1344×391 on the default world."""
+    from scenarios.rendering import bench_render
+
+    _print_bench(bench_render(frames, antialias=antialias), as_json, "Render benchmark")
+
+
+def _print_bench(result: dict, as_json: bool, title: str) -> None:
+    if as_json:
+        print(json.dumps(result))
+        return
+    table = Table(title=title)
+    table.add_column("figure")
+    table.add_column("value", justify="right")
+    for key, value in result.items():
+        table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
+    console.print(table)
+
+
 def _print_summary(metrics: dict, run_dir: Path) -> None:
     table = Table(title=f"{metrics['scenario']} — {metrics['status']} — {run_dir}")
     table.add_column("off-tracking")
@@ -207,16 +276,7 @@ def bench_model_cmd(
     """Model-only speed: real-time factor of 60 s of a turning manoeuvre at the default step."""
     from scenarios.bench import bench_model
 
-    result = bench_model(duration=duration)
-    if as_json:
-        print(json.dumps(result))
-    else:
-        table = Table(title="Model benchmark")
-        table.add_column("figure")
-        table.add_column("value", justify="right")
-        for key, value in result.items():
-            table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
-        console.print(table)
+    _print_bench(bench_model(duration=duration), as_json, "Model benchmark")
 
 
 def main() -> None:

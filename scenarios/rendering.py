@@ -44,9 +44,45 @@ RenderProgress = Callable[[int, int], None]
 """``(frames done, frames in total)``."""
 
 
+def rig_from_config(config: ScenarioConfig | Any) -> StereoRig:
+    """The stereo rig of a scenario's ``camera`` section (degrees at this edge, SI inside).
+
+    Parameters
+    ----------
+    config : ScenarioConfig or CameraConfig
+        A scenario configuration (its ``camera``) or the camera section itself; a configuration
+        without one gives the default rig (paper §3.1).
+    """
+    camera = getattr(config, "camera", config)
+    if camera is None or not hasattr(camera, "psi_c2v_deg"):
+        return StereoRig()
+    roll, pitch, yaw = getattr(camera, "right_misalignment_deg", (0.0, 0.0, 0.0))
+    return StereoRig.from_degrees(
+        hfov_deg=camera.hfov_deg,
+        psi_c2v_deg=camera.psi_c2v_deg,
+        roll_deg=roll,
+        pitch_deg=pitch,
+        yaw_deg=yaw,
+        width=camera.width,
+        height=camera.height,
+        baseline=camera.baseline,
+        station=camera.station,
+        lateral=camera.lateral,
+        mount_height=camera.mount_height,
+        noise_std=getattr(camera, "noise_std", 0.0),
+        exposure_std=getattr(camera, "brightness_jitter", 0.0),
+    )
+
+
+def _density(config: ScenarioConfig, scenery_density: float | None) -> float:
+    if scenery_density is not None:
+        return float(scenery_density)
+    return float(getattr(getattr(config, "camera", None), "scenery_density", 1.0))
+
+
 def world_for_scenario(
     setup_or_config: ScenarioSetup | ScenarioConfig,
-    scenery_density: float = 1.0,
+    scenery_density: float | None = None,
     seed: int | None = None,
     **world_settings: Any,
 ) -> World:
@@ -56,8 +92,9 @@ def world_for_scenario(
     ----------
     setup_or_config : ScenarioSetup or ScenarioConfig
         A built scenario (its ``path`` and ``config.seed`` are used) or a configuration (built here).
-    scenery_density : float
-        Fraction of roadside objects, in [0, 1] (paper §3.2.3: 1.0, 0.5, 0.0).
+    scenery_density : float, optional
+        Fraction of roadside objects, in [0, 1] (paper §3.2.3: 1.0, 0.5, 0.0); default: the
+        scenario's ``camera.scenery_density`` (1.0 unless set).
     seed : int, optional
         Seed of the world (default: the scenario's ``seed``).
     **world_settings
@@ -65,7 +102,8 @@ def world_for_scenario(
     """
     setup = setup_or_config if isinstance(setup_or_config, ScenarioSetup) else build_scenario(setup_or_config)
     seed = setup.config.seed if seed is None else seed
-    return build_world(setup.path, scenery_density=scenery_density, seed=int(seed), **world_settings)
+    density = _density(setup.config, scenery_density)
+    return build_world(setup.path, scenery_density=density, seed=int(seed), **world_settings)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -111,7 +149,7 @@ def export_kitti(
     config: ScenarioConfig | str,
     out_dir: str | Path,
     rig: StereoRig | None = None,
-    scenery_density: float = 1.0,
+    scenery_density: float | None = None,
     max_frames: int | None = None,
     progress: RenderProgress | None = None,
     *,
@@ -128,9 +166,10 @@ def export_kitti(
     out_dir : str or Path
         Output directory (created).
     rig : StereoRig, optional
-        The cameras (default: paper §3.1, rear-facing at the trailer's rear, 0.5 m baseline).
-    scenery_density : float
-        Fraction of roadside objects, in [0, 1].
+        The cameras (default: the scenario's ``camera`` section, :func:`rig_from_config`; its
+        defaults are paper §3.1: rear-facing at the trailer's rear, 0.5 m baseline).
+    scenery_density : float, optional
+        Fraction of roadside objects, in [0, 1] (default: the scenario's ``camera.scenery_density``).
     max_frames : int, optional
         Render at most this many camera frames (from the start).
     progress : callable, optional
@@ -158,7 +197,8 @@ def export_kitti(
     markers = [out / "poses.txt", out / "image_0", out / "image_1", out / "calib.txt"]
     if any(m.exists() for m in markers) and not overwrite:
         raise InputError(f"{out} already holds a dataset; choose another directory or pass overwrite=True")
-    rig = rig if rig is not None else StereoRig()
+    rig = rig if rig is not None else rig_from_config(config)
+    scenery_density = _density(config, scenery_density)
     t0 = time.perf_counter()
     setup = build_scenario(config)
     from .cosim import run_cosimulation
@@ -373,7 +413,9 @@ def bench_render(
         and llvmpipe's vertex work while issuing draw calls), ``ms_draw`` (waiting for llvmpipe's
         rasteriser to finish), ``ms_readback`` (resolve and ``glReadPixels``), ``ms_grey`` (RGBA →
         grey and row flip), plus ``world_build_s``, ``first_pair_s`` (context creation and
-        texture upload) and the OpenGL renderer string.
+        texture upload), ``cpu_ms_per_pair`` (CPU time of all threads: llvmpipe rasterises on
+        every core, so on a busy machine the wall time grows while this stays) and the OpenGL
+        renderer string.
     """
     from sensor.renderer import StereoRenderer
 
@@ -394,10 +436,12 @@ def bench_render(
     first_s = time.perf_counter() - t1
     renderer.reset_timings()
     times = []
+    cpu0 = time.process_time()
     for k in range(1, duration_frames + 1):
         t = time.perf_counter()
         renderer.render(x[k], y[k], h[k], 0.0, frame=k)
         times.append(time.perf_counter() - t)
+    cpu_s = time.process_time() - cpu0
     times_a = np.array(times)
     tm = renderer.timings
     n = max(len(times), 1)
@@ -410,6 +454,7 @@ def bench_render(
         "ms_per_pair": float(1000.0 * times_a.mean()),
         "ms_per_pair_median": float(1000.0 * np.median(times_a)),
         "ms_per_pair_p90": float(1000.0 * np.percentile(times_a, 90)),
+        "cpu_ms_per_pair": 1000.0 * cpu_s / max(len(times), 1),
         "width": rig.width,
         "height": rig.height,
         "triangles": world.triangle_count,
