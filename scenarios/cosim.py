@@ -146,6 +146,11 @@ def run_cosimulation(
     estimators: dict[str, ZeroSlipEstimator] = {}
     if cfg.estimators.zero_slip:
         estimators["zero_slip"] = ZeroSlipEstimator(params, cfg.estimators.zero_slip_variant)
+    camera = None
+    if cfg.estimators.viso_ot:
+        from .camera_pipeline import CameraPipeline  # rendering and OpenGL only when asked for
+
+        camera = CameraPipeline(setup)
     layout = setup.model.layout
     n_trailer_steer = sum(1 for n in layout.steerable_axles if n in {a.name for a in params.trailer.axles})
     steer_names = [f"steer_{n}" for n in layout.steerable_axles]
@@ -161,6 +166,7 @@ def run_cosimulation(
         + [f"signal_{n}" for n in signal_names]
         + ["offtracking_truth", "offtracking_truth_geometric"]
         + [f"offtracking_{n}" for n in estimators]
+        + (["offtracking_viso_ot", "vo_valid", "vo_matches", "vo_inliers", "render_ms", "vo_ms"] if camera else [])
         + telemetry_names
     )
     recorded: dict[str, list[float]] = {c: [] for c in columns}
@@ -198,6 +204,21 @@ def run_cosimulation(
             prev_pose = (kp, psi2)
             truth = truth_buffer.offtracking()
             truth_geo = offtracking_from_path(dense.array(), kp, psi2, l_fp)
+            camera_frame = t + 1e-9 >= next_camera
+            if camera_frame:
+                next_camera += camera_period
+            camera_row: dict[str, float] = {}
+            if camera is not None:
+                if camera_frame:
+                    shot = camera.frame(state)
+                    camera_row = {
+                        "vo_valid": float(shot.vo.valid),
+                        "vo_matches": float(shot.vo.n_matches),
+                        "vo_inliers": float(shot.vo.n_inliers),
+                        "render_ms": 1e3 * shot.render_s,
+                        "vo_ms": 1e3 * shot.vo_s,
+                    }
+                estimates["viso_ot"] = camera.estimate  # held between camera frames
             # 3. commands
             if kinematic:
                 front = 0.0
@@ -217,9 +238,6 @@ def run_cosimulation(
                 else np.zeros(n_trailer_steer)
             )
             steer = np.concatenate([[front], trailer_steer])
-            camera_frame = t + 1e-9 >= next_camera
-            if camera_frame:
-                next_camera += camera_period
             # 4. record
             follow = kp - l_fp * np.array([math.cos(psi2), math.sin(psi2)])
             row = {
@@ -241,6 +259,7 @@ def run_cosimulation(
                 "offtracking_truth_geometric": np.nan if truth_geo is None else truth_geo,
                 **{f"offtracking_{n}": np.nan if v is None else v for n, v in estimates.items()},
             }
+            row.update(camera_row)
             if telemetry_names:
                 row.update(telemetry())  # type: ignore[misc]
             for key, value in row.items():
