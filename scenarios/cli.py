@@ -245,6 +245,34 @@ def _print_bench(result: dict, as_json: bool, title: str) -> None:
     console.print(table)
 
 
+@app.command()
+def study(
+    name: Annotated[str, typer.Argument(help="paper-section3 or estimators-under-slip.")],
+    full: Annotated[bool, typer.Option(help="Run the whole study (default: a small subset).")] = False,
+    out: Annotated[Path | None, typer.Option(help="Output directory (default runs/study-NAME/…).")] = None,
+    force: Annotated[bool, typer.Option(help="Allow writing into a non-empty --out.")] = False,
+) -> None:
+    """Run a study: every case into its own directory, then one table and the figures."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from scenarios.results import new_run_dir
+    from scenarios.studies import STUDIES, run_study
+
+    if name not in STUDIES:
+        raise ValueError(f"unknown study {name!r}; choose one of {sorted(STUDIES)}")
+    run_dir = new_run_dir(out, f"study-{name}", force=force)
+    columns = (TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+    with Progress(*columns, console=console) as bar:
+        task = bar.add_task(name, total=None)
+
+        def progress(done: int, total: int, spec) -> None:
+            bar.update(task, completed=done, total=total, description=f"{name}: {spec.name}")
+
+        table = run_study(name, run_dir, full=full, progress=progress)
+    console.print(f"{len(table)} cases → {run_dir / 'table.md'}")
+    console.print((run_dir / "table.md").read_text())
+
+
 def _print_summary(metrics: dict, run_dir: Path) -> None:
     table = Table(title=f"{metrics['scenario']} — {metrics['status']} — {run_dir}")
     table.add_column("off-tracking")

@@ -262,8 +262,8 @@ def run_cosimulation(
             row.update(camera_row)
             if telemetry_names:
                 row.update(telemetry())  # type: ignore[misc]
-            for key, value in row.items():
-                recorded[key].append(float(value))
+            for key in columns:
+                recorded[key].append(float(row.get(key, np.nan)))
             if writer is not None:
                 writer.append(row)
             outcome.rows += 1
