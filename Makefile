@@ -45,6 +45,7 @@ lint: setup
 bench: setup
 	$(BIN)/offtrack bench model --json
 	$(BIN)/offtrack bench render --json
+	$(BIN)/offtrack bench vo --json
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

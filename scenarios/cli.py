@@ -233,6 +233,17 @@ def bench_render_cmd(
     _print_bench(bench_render(frames, antialias=antialias), as_json, "Render benchmark")
 
 
+@bench_app.command("vo")
+def bench_vo_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    frames: Annotated[int, typer.Option(help="Rendered frames to process.", min=5)] = 30,
+) -> None:
+    """Visual odometry alone at 1344×391, one thread, on rendered frames."""
+    from scenarios.bench import bench_vo
+
+    _print_bench(bench_vo(frames), as_json, "Visual odometry benchmark")
+
+
 def _print_bench(result: dict, as_json: bool, title: str) -> None:
     if as_json:
         print(json.dumps(result))

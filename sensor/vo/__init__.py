@@ -1,0 +1,30 @@
+"""Stereo visual odometry in the manner of VISO2-S (Geiger, Ziegler & Stiller 2011, libviso2).
+
+Public API: :class:`VOConfig` (parameters, libviso2 defaults), :class:`StereoOdometry`
+(``process(left, right) -> VOResult``, ``reset()``) and :class:`VOResult`. The building blocks live in
+:mod:`sensor.vo.features`, :mod:`sensor.vo.matching`, :mod:`sensor.vo.motion` and
+:mod:`sensor.vo.kalman`; :mod:`sensor.vo.synthetic` makes test data with exact ground truth and
+:mod:`sensor.vo.benchmark` measures the speed (``python -m sensor.vo.benchmark``).
+
+This is a re-implementation from the algorithm's description (``shared/reference/viso2s-algorithm.md``),
+not a port: no libviso2 code is used. Where it knowingly differs from libviso2:
+
+* A failed frame returns ``valid=False`` and no motion; libviso2 keeps returning the stale previous
+  motion. After a failure the next frame is matched without the motion prior.
+* Non-maximum suppression keeps strict local extrema (ties broken by a fixed pattern) instead of
+  reproducing the block algorithm's tie behaviour.
+* Stereo steps only consider candidates with u_left ≥ u_right (libviso2 checks the sign after the
+  circle closes).
+* The Delaunay outlier check of the dense pass sees pixel-grid positions (it runs before the
+  refinement; libviso2 refines first); an edge must be consistent in both disparities and the flow.
+  Bucketing precedes the refinement, which gives the same result as refining first.
+* The refinement's 16-byte descriptor (du at 12, dv at 4 offsets of the 5×5 window) follows the
+  description, not libviso2's exact layout; OpenCV rounds the Sobel scaling where libviso2 shifts.
+* Random choices (bucketing, RANSAC samples) come from the run's ``numpy.random.Generator``.
+* The optional constant-acceleration Kalman smoothing (StereoScan paper) is not in libviso2.
+"""
+
+from sensor.vo.config import VOConfig
+from sensor.vo.odometry import StereoOdometry, VOResult
+
+__all__ = ["StereoOdometry", "VOConfig", "VOResult"]

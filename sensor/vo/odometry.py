@@ -1,0 +1,195 @@
+"""Stereo visual odometry in the manner of VISO2-S (Geiger, Ziegler & Stiller 2011; libviso2).
+
+:class:`StereoOdometry` keeps the features of the previous stereo pair; each call of
+:meth:`StereoOdometry.process` detects the features of the new pair, matches the four images in a
+circle, buckets the matches and estimates the frame-to-frame motion by 3-point RANSAC and
+Gauss–Newton on the stereo reprojection error (viso2s reference §1; de Saxe & Cebon 2018 §2.1).
+
+Output convention (reference §1.6): ``motion`` is libviso2's Tr_delta, p_t = Tr_delta·p_{t−1}, which
+maps a point from the previous left-camera frame into the current left-camera frame (OpenCV axes:
+x right, y down, z forward; metres). ``camera_motion`` = inv(Tr_delta) is the current left camera's
+pose in the previous left camera's frame; chaining ``pose = pose @ camera_motion`` integrates the
+trajectory.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sensor.vo.config import VOConfig
+from sensor.vo.features import ImageFeatures, extract_features
+from sensor.vo.kalman import MotionKalmanFilter
+from sensor.vo.matching import match_frames
+from sensor.vo.motion import estimate_motion, params_to_transform
+
+__all__ = ["StereoOdometry", "VOResult"]
+
+
+@dataclass(frozen=True, eq=False)
+class VOResult:
+    """Result of one :meth:`StereoOdometry.process` call.
+
+    Attributes
+    ----------
+    valid : bool
+        True when a motion was estimated. False on the first frame, after a reset and for any failed
+        frame (too few matches or inliers, no convergence); then ``motion`` is None — unlike
+        libviso2, no stale motion is returned.
+    motion : numpy.ndarray | None
+        4×4 Tr_delta [m]: previous-left-camera coordinates → current-left-camera coordinates.
+    n_matches : int
+        Matches after outlier removal and bucketing (the input of the motion estimation).
+    n_inliers : int
+        RANSAC inliers among them (0 when the estimation was not reached).
+    time_features, time_matching, time_motion, time_total : float
+        Wall-clock time [s] of detection/description, matching (incl. bucketing), motion estimation
+        and the whole call.
+    matches : numpy.ndarray
+        (n_matches, 8) positions (u1p, v1p, u2p, v2p, u1c, v1c, u2c, v2c) [px].
+    inliers : numpy.ndarray
+        Boolean inlier mask over ``matches``.
+    reason : str
+        Why the frame is not valid ("" when valid).
+    """
+
+    valid: bool
+    motion: np.ndarray | None
+    n_matches: int
+    n_inliers: int
+    time_features: float
+    time_matching: float
+    time_motion: float
+    time_total: float
+    matches: np.ndarray = field(default_factory=lambda: np.empty((0, 8)), repr=False)
+    inliers: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=bool), repr=False)
+    reason: str = ""
+
+    @property
+    def camera_motion(self) -> np.ndarray | None:
+        """inv(Tr_delta): the current left camera's pose in the previous left camera's frame."""
+        if self.motion is None:
+            return None
+        r, t = self.motion[:3, :3], self.motion[:3, 3]
+        out = np.eye(4)
+        out[:3, :3] = r.T
+        out[:3, 3] = -r.T @ t
+        return out
+
+
+class StereoOdometry:
+    """Frame-to-frame stereo visual odometry (VISO2-S).
+
+    Parameters
+    ----------
+    config : VOConfig
+        Calibration and parameters.
+    seed : int | numpy.random.Generator
+        Seed of the run's random generator (bucketing and RANSAC samples), or a generator to draw
+        from. With an int seed, :meth:`reset` restarts the same random stream, so a reprocessed
+        sequence gives identical output.
+
+    Examples
+    --------
+    >>> vo = StereoOdometry(config, seed=0)          # doctest: +SKIP
+    >>> for left, right in pairs:                    # doctest: +SKIP
+    ...     result = vo.process(left, right)
+    ...     if result.valid:
+    ...         pose = pose @ result.camera_motion
+    """
+
+    def __init__(self, config: VOConfig, seed: int | np.random.Generator = 0) -> None:
+        if not isinstance(config, VOConfig):
+            raise TypeError(f"config must be a VOConfig, got {type(config).__name__}")
+        self.config = config
+        self._seed = seed
+        self._kalman = MotionKalmanFilter(config) if config.kalman_smoothing else None
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the previous pair, the motion prior and the Kalman state; restart the random stream."""
+        self._rng = self._seed if isinstance(self._seed, np.random.Generator) else np.random.default_rng(self._seed)
+        self._previous: tuple[ImageFeatures, ImageFeatures] | None = None
+        self._prior: np.ndarray | None = None
+        if self._kalman is not None:
+            self._kalman.reset()
+
+    def process(self, left: np.ndarray, right: np.ndarray) -> VOResult:
+        """Estimate the motion from the previous stereo pair to this one.
+
+        Parameters
+        ----------
+        left, right : numpy.ndarray
+            Rectified (H, W) uint8 images of the left and right camera.
+
+        Returns
+        -------
+        VOResult
+            ``valid=False`` with ``motion=None`` on the first frame and for failed frames (too few
+            matches or inliers, no convergence). Unlike libviso2, which returns the stale previous
+            motion after a failure, nothing is guessed; the caller decides how to bridge the gap.
+        """
+        if left.shape != right.shape:
+            raise ValueError(f"left and right images differ in shape: {left.shape} vs {right.shape}")
+        cfg = self.config
+        t0 = time.perf_counter()
+        current = (extract_features(left, cfg), extract_features(right, cfg))
+        t1 = time.perf_counter()
+        previous, self._previous = self._previous, current
+        if previous is None or previous[0].shape != current[0].shape:
+            self._prior = None
+            return self._failed("no previous stereo pair (of this image size)", t0, t1, t1)
+
+        xy = match_frames(previous, current, cfg, self._rng, self._prior).matches
+        t2 = time.perf_counter()
+        estimate = estimate_motion(xy, cfg, self._rng)
+        if not estimate.valid:
+            self._prior = None
+            if self._kalman is not None:
+                self._kalman.predict()
+            return self._failed(estimate.reason, t0, t1, t2, xy, estimate.inliers)
+        motion = estimate.motion
+        self._prior = motion  # constant-velocity prior of the next frame's matching (reference §1.4)
+        if self._kalman is not None and estimate.params is not None:
+            motion = params_to_transform(self._kalman.update(estimate.params))
+        t3 = time.perf_counter()
+        return VOResult(
+            valid=True,
+            motion=motion,
+            n_matches=xy.shape[0],
+            n_inliers=estimate.n_inliers,
+            time_features=t1 - t0,
+            time_matching=t2 - t1,
+            time_motion=t3 - t2,
+            time_total=t3 - t0,
+            matches=xy,
+            inliers=estimate.inliers,
+        )
+
+    @staticmethod
+    def _failed(
+        reason: str,
+        t0: float,
+        t1: float,
+        t2: float,
+        xy: np.ndarray | None = None,
+        inliers: np.ndarray | None = None,
+    ) -> VOResult:
+        t3 = time.perf_counter()
+        xy = np.empty((0, 8)) if xy is None else xy
+        inliers = np.zeros(xy.shape[0], dtype=bool) if inliers is None else inliers
+        return VOResult(
+            valid=False,
+            motion=None,
+            n_matches=xy.shape[0],
+            n_inliers=int(inliers.sum()),
+            time_features=t1 - t0,
+            time_matching=t2 - t1,
+            time_motion=t3 - t2,
+            time_total=t3 - t0,
+            matches=xy,
+            inliers=inliers,
+            reason=reason,
+        )

@@ -1,0 +1,163 @@
+"""Visual odometry, features: filters, non-maximum suppression, Sobel responses and descriptors."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from sensor.vo.features import (
+    BLOB_KERNEL,
+    BORDER_MARGIN,
+    CORNER_KERNEL,
+    CORNER_MAX,
+    CORNER_MIN,
+    compute_descriptors,
+    extract_features,
+    filter_responses,
+    half_resolution,
+    non_maximum_suppression,
+    sobel_responses,
+)
+from sensor.vo.synthetic import StereoRig, make_texture
+
+BLOB_MIN, BLOB_MAX = 0, 1
+
+
+def textured(shape: tuple[int, int], seed: int = 0) -> np.ndarray:
+    return make_texture(512, np.random.default_rng(seed))[: shape[0], : shape[1]].copy()
+
+
+def test_filter_responses_equal_the_5x5_kernels():
+    img = textured((60, 90))
+    blob, corner = filter_responses(img)
+    for response, kernel in ((blob, BLOB_KERNEL), (corner, CORNER_KERNEL)):
+        expected = cv2.filter2D(img, cv2.CV_32F, kernel, borderType=cv2.BORDER_REPLICATE)
+        assert np.array_equal(response, expected)
+
+
+def test_isolated_dots_are_blob_extrema_at_their_pixels():
+    img = np.full((120, 200), 100, dtype=np.uint8)
+    bright = [(30, 20), (60, 50), (100, 90), (150, 30)]  # (u, v)
+    dark = [(40, 80), (90, 20), (170, 70)]
+    for u, v in bright:
+        img[v, u] = 200
+    for u, v in dark:
+        img[v, u] = 0
+    blob, corner = filter_responses(img)
+    # Centre weight 8: a ±100 dot gives ±800 at its pixel and at most 100 in magnitude elsewhere.
+    assert blob[20, 30] == 800 and blob[20, 90] == -800
+    u, v, cls = non_maximum_suppression(blob, corner, n=3, tau=150)
+    found = {(int(a), int(b), int(c)) for a, b, c in zip(u, v, cls, strict=True)}
+    assert found == {(a, b, BLOB_MAX) for a, b in bright} | {(a, b, BLOB_MIN) for a, b in dark}
+
+
+def test_checkerboard_junctions_are_corner_extrema():
+    img = np.full((80, 120), 128, dtype=np.uint8)
+    # X-junction centred at (u, v) = (40, 30): dark top-left/bottom-right, bright top-right/bottom-left.
+    img[10:30, 20:40] = 40
+    img[31:50, 41:60] = 40
+    img[10:30, 41:60] = 220
+    img[31:50, 20:40] = 220
+    # The inverted junction at (90, 40).
+    img[20:40, 70:90] = 220
+    img[41:60, 91:110] = 220
+    img[20:40, 91:110] = 40
+    img[41:60, 70:90] = 40
+    blob, corner = filter_responses(img)
+    assert corner[30, 40] == 8 * (220 - 40) and corner[40, 90] == -8 * (220 - 40)
+    u, v, cls = non_maximum_suppression(blob, corner, n=3, tau=1000)
+    found = {(int(a), int(b), int(c)) for a, b, c in zip(u, v, cls, strict=True)}
+    assert found == {(40, 30, CORNER_MAX), (90, 40, CORNER_MIN)}
+
+
+@pytest.mark.parametrize("n", [2, 3, 9])
+def test_nms_gives_separated_thresholded_local_extrema(n):
+    img = textured((150, 220))
+    blob, corner = filter_responses(img)
+    tau = 50
+    u, v, cls = non_maximum_suppression(blob, corner, n=n, tau=tau)
+    assert len(u) > 50
+    assert (u >= BORDER_MARGIN).all() and (u < 220 - BORDER_MARGIN).all() and (v >= BORDER_MARGIN).all()
+    is_blob = cls < 2
+    value = np.where(is_blob, blob[v, u], corner[v, u])
+    maxima = cls % 2 == 1
+    assert (value[maxima] >= tau).all() and (value[~maxima] <= -tau).all()
+    # Each is an extremum of its (2n+1)² window (oracle: scipy.ndimage rank filters).
+    size = 2 * n + 1
+    for response, mask in ((blob, is_blob), (corner, ~is_blob)):
+        hi = ndimage.maximum_filter(response, size=size, mode="nearest")[v, u]
+        lo = ndimage.minimum_filter(response, size=size, mode="nearest")[v, u]
+        assert np.array_equal(value[mask & maxima], hi[mask & maxima])
+        assert np.array_equal(value[mask & ~maxima], lo[mask & ~maxima])
+    for c in range(4):  # same-class features are more than n px apart (Chebyshev)
+        pu, pv = u[cls == c], v[cls == c]
+        gap = np.maximum(np.abs(pu[:, None] - pu[None]), np.abs(pv[:, None] - pv[None]))
+        np.fill_diagonal(gap, 10**6)
+        assert gap.min() > n
+
+
+def test_sobel_scaling_on_a_ramp():
+    # I = 4·u + 2·v: the 5×5 Sobel (smoothing sum 16, derivative moment 8) gives 128·slope → /128 + 128.
+    uu, vv = np.meshgrid(np.arange(40), np.arange(30))
+    img = (4 * uu + 2 * vv).astype(np.uint8)
+    du, dv = sobel_responses(img)
+    assert np.all(du[5:-5, 5:-5] == 128 + 4) and np.all(dv[5:-5, 5:-5] == 128 + 2)
+    # The strongest response, a black/white step: 255·(2+1)·16/128 = 95.6 → 128 + 96 (inside uint8).
+    step = np.zeros((20, 20), dtype=np.uint8)
+    step[:, 10:] = 255
+    du, _ = sobel_responses(step)
+    assert du[10, 10] == 224 and du[10, 9] == 224 and du[10, 5] == 128 and du[10, 14] == 128
+
+
+def test_half_resolution_is_the_2x2_mean():
+    img = np.arange(6 * 8, dtype=np.uint8).reshape(6, 8) * 5
+    half = half_resolution(img)
+    expected = img.reshape(3, 2, 4, 2).astype(float).mean(axis=(1, 3))
+    assert half.shape == (3, 4) and np.abs(half - expected).max() <= 0.5
+
+
+def test_descriptor_follows_a_shift():
+    img = textured((160, 200), seed=1)
+    dx, dy = 7, -4
+    shifted = np.roll(img, (dy, dx), axis=(0, 1))
+    sob, sob_shift = sobel_responses(img), sobel_responses(shifted)
+    rng = np.random.default_rng(0)
+    u = rng.integers(20, 170, 50)
+    v = rng.integers(20, 130, 50)
+    d = compute_descriptors(sob, u, v)
+    assert d.shape == (50, 32) and d.dtype == np.uint8
+    assert np.array_equal(compute_descriptors(sob_shift, u + dx, v + dy), d)
+    # ... and differs from the descriptor one pixel off (SAD on the 32 bytes).
+    off = compute_descriptors(sob_shift, u + dx + 1, v + dy)
+    assert cv2.norm(off, d, cv2.NORM_L1) > 32 * 50
+
+
+def test_features_of_a_shifted_image_are_shifted():
+    config = StereoRig().vo_config()
+    img = textured((200, 300), seed=2)
+    dx, dy = 10, 6  # even: the half-resolution grid is preserved
+    shifted = np.roll(img, (dy, dx), axis=(0, 1))
+    a = extract_features(img, config)
+    b = extract_features(shifted, config)
+    assert a.sobel_full is not None and a.sobel_full.shape == (2, 200, 300)
+    for fa, fb in ((a.dense, b.dense), (a.sparse, b.sparse)):
+        key_b = {(int(u), int(v), int(c)): i for i, (u, v, c) in enumerate(zip(fb.u, fb.v, fb.cls, strict=True))}
+        inner = (fa.u > 40) & (fa.u < 240) & (fa.v > 40) & (fa.v < 150)
+        assert inner.sum() > 20
+        for i in np.flatnonzero(inner):
+            j = key_b[(int(fa.u[i]) + dx, int(fa.v[i]) + dy, int(fa.cls[i]))]
+            assert np.array_equal(fa.desc[i], fb.desc[j])
+    # The sparse set is a subset of the dense set.
+    dense = set(zip(a.dense.u.tolist(), a.dense.v.tolist(), a.dense.cls.tolist(), strict=True))
+    assert set(zip(a.sparse.u.tolist(), a.sparse.v.tolist(), a.sparse.cls.tolist(), strict=True)) <= dense
+    assert len(a.sparse) < len(a.dense) / 3
+
+
+def test_extract_rejects_colour_and_float_images():
+    config = StereoRig().vo_config()
+    with pytest.raises(ValueError, match="uint8"):
+        extract_features(np.zeros((50, 60, 3), dtype=np.uint8), config)
+    with pytest.raises(ValueError, match="uint8"):
+        extract_features(np.zeros((50, 60)), config)
