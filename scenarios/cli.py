@@ -318,6 +318,48 @@ def bench_model_cmd(
     _print_bench(bench_model(duration=duration), as_json, "Model benchmark")
 
 
+@bench_app.command("env")
+def bench_env_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    feedback: Annotated[str, typer.Option(help="Model-based feedback source: truth or zero_slip.")] = "truth",
+) -> None:
+    """Gymnasium steering env: steps per second against the bare co-simulation loop on the same scenario."""
+    from scenarios.envs.bench import bench_env
+
+    _print_bench(bench_env(feedback=feedback), as_json, "Environment benchmark")
+
+
+@app.command()
+def tune(
+    trials: Annotated[int, typer.Option(help="Optuna trials (the first is the designed gains).", min=1)] = 30,
+    draws: Annotated[int, typer.Option(help="Training draws of the randomised roads per trial.", min=1)] = 3,
+    seed: Annotated[int, typer.Option(help="Seed of the draws and of the sampler.", min=0)] = 0,
+    feedback: Annotated[str, typer.Option(help="Feedback source: truth, zero_slip or viso_ot.")] = "truth",
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Tune the trailer PID gains with Optuna (offtrack/GainTuning-v0); compare them on held-out roads."""
+    from rich.progress import Progress
+
+    from scenarios.envs.tuning import tune_gains
+
+    with Progress(console=console, transient=True, disable=as_json) as bar:
+        task = bar.add_task("tuning", total=trials)
+
+        def progress(done: int, total: int, best: float) -> None:
+            bar.update(task, completed=done, description=f"tuning: best training cost {best:.5f}")
+
+        result = tune_gains(
+            n_trials=trials, train_draws=draws, seed=seed, env_kwargs={"feedback": feedback}, progress=progress
+        )
+    if as_json:
+        print(json.dumps({"benchmark": "tune_gains", **result.to_dict()}))
+        return
+    print(result.table())
+    for condition, better in result.verdicts().items():
+        print(f"{condition}: {'tuned' if better else 'designed'} gains better")
+    console.print(f"{result.trials} trials, {result.evaluations} scenario runs, {result.wall_s:.0f} s wall time")
+
+
 def main() -> None:
     """Entry point: run the app and turn known errors into one clear line and exit code 2."""
     try:

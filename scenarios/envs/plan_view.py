@@ -1,0 +1,138 @@
+"""Fast plan-view frames for ``render_mode="rgb_array"``: OpenCV drawing on a NumPy canvas (about 1 ms).
+
+North-up (global x to the right, y up), drawn around a centre point with a given span in metres: the
+reference path of the driver's control point, the kingpin's and the follow point's tracks, the tractor
+and trailer outlines, the trailer axles with their steer, and a few lines of text.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+
+from vehicle_model.geometry import kingpin_position, tractor_outline, trailer_outline, trailer_points
+from vehicle_model.parameters import VehicleParams
+from vehicle_model.simulator import VehicleState
+
+__all__ = ["camera_strip", "draw_plan_view"]
+
+_SHIFT = 3  # fractional bits of OpenCV's sub-pixel coordinates
+_BACKGROUND = (236, 236, 228)
+_PATH = (150, 150, 150)
+_KINGPIN_TRACK = (40, 90, 200)
+_FOLLOW_TRACK = (220, 110, 20)
+_TRACTOR = (60, 80, 140)
+_TRAILER = (200, 140, 60)
+_AXLE = (200, 30, 30)
+_TEXT = (20, 20, 20)
+
+
+class _Canvas:
+    def __init__(self, size: tuple[int, int], centre: np.ndarray, span: float) -> None:
+        self.height, self.width = size
+        self.image = np.empty((self.height, self.width, 3), dtype=np.uint8)
+        self.image[:] = _BACKGROUND
+        self.scale = self.width / span
+        self.centre = centre
+
+    def pixels(self, points: np.ndarray) -> np.ndarray:
+        """World points ``(N, 2)`` [m] → OpenCV sub-pixel coordinates ``(N, 1, 2)`` int32."""
+        p = np.asarray(points, dtype=float).reshape(-1, 2)
+        col = (p[:, 0] - self.centre[0]) * self.scale + 0.5 * self.width
+        row = 0.5 * self.height - (p[:, 1] - self.centre[1]) * self.scale
+        fixed = np.column_stack([col, row]) * (1 << _SHIFT)
+        return np.clip(np.round(fixed), -(2**28), 2**28).astype(np.int32).reshape(-1, 1, 2)
+
+    def line(self, points: np.ndarray, colour: tuple[int, int, int], thickness: int = 1) -> None:
+        if len(points) >= 2:
+            cv2.polylines(self.image, [self.pixels(points)], False, colour, thickness, cv2.LINE_AA, _SHIFT)
+
+    def polygon(self, points: np.ndarray, colour: tuple[int, int, int]) -> None:
+        pts = self.pixels(points)
+        cv2.fillPoly(self.image, [pts], colour, cv2.LINE_AA, _SHIFT)
+        cv2.polylines(self.image, [pts], True, (30, 30, 30), 1, cv2.LINE_AA, _SHIFT)
+
+    def dot(self, point: np.ndarray, colour: tuple[int, int, int], radius: int = 3) -> None:
+        centre = tuple(int(v) for v in self.pixels(point)[0, 0])
+        cv2.circle(self.image, centre, radius << _SHIFT, colour, -1, cv2.LINE_AA, _SHIFT)
+
+    def text(self, lines: Sequence[str]) -> None:
+        for i, line in enumerate(lines):
+            cv2.putText(self.image, line, (6, 16 + 15 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.42, _TEXT, 1, cv2.LINE_AA)
+
+
+def draw_plan_view(
+    params: VehicleParams,
+    state: VehicleState,
+    path_points: np.ndarray,
+    *,
+    kingpin_track: np.ndarray | None = None,
+    follow_track: np.ndarray | None = None,
+    trailer_steer: Sequence[float] = (),
+    trailer_axles: Sequence[str] = (),
+    centre: np.ndarray | None = None,
+    span: float = 50.0,
+    size: tuple[int, int] = (400, 400),
+    text: Sequence[str] = (),
+) -> np.ndarray:
+    """Plan view of the combination as an ``(height, width, 3)`` uint8 RGB image.
+
+    Parameters
+    ----------
+    params
+        The combination.
+    state
+        Its state.
+    path_points
+        The reference path ``(N, 2)`` [m].
+    kingpin_track, follow_track
+        Past positions ``(M, 2)`` [m] of the kingpin and of the follow point.
+    trailer_steer, trailer_axles
+        Steer [rad] of the named steerable trailer axles (drawn as short red lines).
+    centre
+        World point [m] at the image centre (default: the middle of the trailer).
+    span
+        Width of the view [m].
+    size
+        ``(height, width)`` [px].
+    text
+        Lines written at the top left.
+    """
+    kingpin = kingpin_position(params, state.X, state.Y, state.psi1)
+    psi2 = state.psi1 - state.gamma
+    if centre is None:
+        l_fp = params.follow_point_offset
+        centre = kingpin - 0.5 * l_fp * np.array([math.cos(psi2), math.sin(psi2)])
+    canvas = _Canvas(size, np.asarray(centre, dtype=float), span)
+    canvas.line(path_points, _PATH, 2)
+    if kingpin_track is not None:
+        canvas.line(kingpin_track, _KINGPIN_TRACK)
+    if follow_track is not None:
+        canvas.line(follow_track, _FOLLOW_TRACK)
+    canvas.polygon(trailer_outline(params, state.X, state.Y, state.psi1, state.gamma), _TRAILER)
+    canvas.polygon(tractor_outline(params, state.X, state.Y, state.psi1), _TRACTOR)
+    axles = {a.name: a for a in params.trailer.axles}
+    half = 0.5 * params.trailer.width
+    for name, steer in zip(trailer_axles, trailer_steer, strict=False):
+        axle = axles[name]
+        heading = psi2 + float(steer)
+        dx, dy = 0.6 * math.cos(heading), 0.6 * math.sin(heading)
+        for side in (-half, half):
+            p = trailer_points(params, state.X, state.Y, state.psi1, state.gamma, np.array([[axle.x, side]]))[0]
+            canvas.line(np.array([[p[0] - dx, p[1] - dy], [p[0] + dx, p[1] + dy]]), _AXLE, 2)
+    canvas.dot(kingpin, _KINGPIN_TRACK)
+    if follow_track is not None and len(follow_track):
+        canvas.dot(follow_track[-1], _FOLLOW_TRACK)
+    canvas.text(text)
+    return canvas.image
+
+
+def camera_strip(grey: np.ndarray, width: int) -> np.ndarray:
+    """A grey camera image scaled to ``width`` pixels as RGB uint8 (to stack under a plan view)."""
+    h, w = grey.shape[:2]
+    height = max(1, round(h * width / w))
+    small = cv2.resize(grey, (width, height), interpolation=cv2.INTER_AREA)
+    return cv2.cvtColor(small, cv2.COLOR_GRAY2RGB)

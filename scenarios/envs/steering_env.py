@@ -1,0 +1,391 @@
+"""``offtrack/TrailerSteering-v0``: steer the trailer's axles one control period at a time."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any, ClassVar, Literal
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from controller.path_following import TrailerSteeringController
+from vehicle_model.errors import InputError, SimulationDivergedError
+
+from ..build import trailer_controller
+from .actuator import TrailerSteerActuator
+from .episode import EpisodeLimits
+from .plan_view import camera_strip, draw_plan_view
+from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, ScenarioChoice
+from .stepper import CoSimulation, cached_setup
+
+__all__ = ["OBSERVATION_NAMES", "REWARD_WEIGHTS", "TrailerSteeringEnv"]
+
+PREVIEW_DISTANCES: tuple[float, ...] = (0.0, 10.0, 20.0, 30.0)
+"""Default path-curvature preview distances ahead of the driver's control point [m]."""
+
+REWARD_WEIGHTS: dict[str, float] = {"offtracking": 1.0, "effort": 0.01, "rate": 0.01}
+"""Default weights of the per-step cost terms."""
+
+_BASE_OBSERVATION: tuple[tuple[str, float], ...] = (
+    ("offtracking_estimate", 5.0),
+    ("estimate_valid", 1.0),
+    ("articulation", math.pi),
+    ("wheel_speed", 30.0),
+    ("tractor_yaw_rate", 6.0),
+    ("trailer_yaw_rate", 6.0),
+    ("previous_virtual_steer", math.pi / 2),
+    ("previous_action", 1.0),
+    ("pid_virtual_steer", math.pi / 2),
+)
+_CURVATURE_BOUND = 0.25  # [1/m]: the configuration's smallest path radius is 5 m
+
+OBSERVATION_NAMES: tuple[str, ...] = tuple(name for name, _ in _BASE_OBSERVATION)
+"""Names of the leading observation entries; ``curvature_ahead_<d>m`` entries follow, one per preview distance."""
+
+
+class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
+    """Steer the trailer of a tractor–semi-trailer so that its rear follows the tractor's kingpin path.
+
+    ## Description
+
+    A tractor drives a scenario of the offtrack catalogue (default: a quarter of a 50 m roundabout at
+    15 km/h with the ``lst`` longer semi-trailer, entry and exit straights included) under its own driver
+    and speed controller. Every step is one control period (20 ms) of the co-simulation
+    (:class:`~scenarios.envs.stepper.CoSimulation`, the loop of ``offtrack run``): the agent steers the
+    trailer's *virtual axle* and the controller's distribution points every steerable trailer axle at the
+    same instantaneous centre, with the speed fade, ±25° saturation and 20°/s rate limit of the
+    path-following controller. The goal is zero off-tracking ``e_tr``: the follow point at the trailer's
+    rear on the kingpin's past path (README, "Off-tracking and the estimators").
+
+    ## Action Space
+
+    ``Box(-1, 1, (1,), float32)``, normalised:
+
+    * ``action_mode="direct"``: the virtual-axle steer ``δ_v = a·δ_max`` (``δ_max`` = ``controller.max_steer_deg``,
+      25° by default);
+    * ``action_mode="residual"``: a correction added to the PID's virtual-axle steer
+      (:class:`~controller.path_following.TrailerSteeringController` fed by ``feedback``),
+      ``δ_v = δ_PID + a·residual_scale_deg``; ``a = 0`` reproduces the PID exactly.
+
+    ## Observation Space
+
+    ``Box(float32)`` of ``9 + len(preview_distances)`` entries, what the vehicle can know (measured signals,
+    the chosen estimate, the map), clipped to finite bounds:
+
+    | # | name | unit | bound |
+    |---|---|---|---|
+    | 0 | ``offtracking_estimate`` (``feedback`` source, held between camera frames; 0 when invalid) | m | ±5 |
+    | 1 | ``estimate_valid`` (1: the estimate exists) | - | 0..1 |
+    | 2 | ``articulation`` Γ (fifth-wheel sensor) | rad | ±π |
+    | 3 | ``wheel_speed`` | m/s | ±30 |
+    | 4 | ``tractor_yaw_rate`` | rad/s | ±6 |
+    | 5 | ``trailer_yaw_rate`` | rad/s | ±6 |
+    | 6 | ``previous_virtual_steer`` (applied, after the clamp) | rad | ±π/2 |
+    | 7 | ``previous_action`` | - | ±1 |
+    | 8 | ``pid_virtual_steer`` (residual mode; 0 in direct mode) | rad | ±π/2 |
+    | 9… | ``curvature_ahead_<d>m``: path curvature ``d`` metres ahead of the driver's control point | 1/m | ±0.25 |
+
+    ## Rewards
+
+    From the **true** off-tracking ``e`` after the step and the applied axle commands ``δ_j``, per step::
+
+        r = −w_e·min((e/e_scale)², 1) − w_u·mean_j (δ_j/δ_max)² − w_du·mean_j (Δδ_j/(δ̇_max·Δt))²
+
+    (the first term is 0 during the first trailer length, before ``e`` exists). On termination the
+    agent is also charged ``(w_e + w_u + w_du)`` for every control period left to the end of the path at the
+    target speed, plus ``termination_penalty``, so ending an episode early never pays. Default weights
+    :data:`REWARD_WEIGHTS` (``w_e = 1``, ``w_u = w_du = 0.01``), ``e_scale = 1 m``. The parts are in
+    ``info`` as ``reward_offtracking``, ``reward_effort``, ``reward_rate``, ``reward_termination``.
+
+    ## Starting State
+
+    The scenario's: the driver's control point at the start of the path, straight, at the profile's speed,
+    trailer axles straight. Domain randomisation (``randomise``) draws friction, camber, speed, trailer
+    load (``lst`` / ``lst-unladen``) and turn direction at every reset from ``np_random``, which also seeds
+    the run (signal noise, camera noise and scenery).
+
+    ## Episode End
+
+    *Terminated*: jackknife (``|Γ| > max_articulation_deg``, or the model diverges), the driver's control
+    point more than ``max_lateral_error`` from its path, or ``|e| > max_offtracking`` (the trailer leaves
+    the road); ``info["termination_reason"]`` says which. *Truncated*: the driver reaches the end of the path
+    (or the scenario's duration is up): about 1700 steps by default.
+
+    ## Arguments
+
+    ```python
+    gymnasium.make("offtrack/TrailerSteering-v0", scenario="roundabout-3", overrides={"path.turns": 0.25},
+                   feedback="truth", vehicle="lst", action_mode="direct",
+                   randomise={"mu": (0.1, 0.8), "camber_percent": (0, 5), "vehicle": ("lst", "lst-unladen")})
+    ```
+
+    * ``scenario``, ``overrides``: catalogue scenario and dotted configuration fields (``offtrack run --set``).
+    * ``feedback``: ``truth``, ``zero_slip`` (Cheng, blind to slip) or ``viso_ot`` (renders the trailer's
+      stereo camera and runs visual odometry: about 10× slower).
+    * ``vehicle``, ``mu``, ``camber_percent``, ``camber_direction``, ``speed_kmh``, ``direction``: fixed settings
+      (``None``: the scenario's).
+    * ``randomise``: :class:`~scenarios.envs.scenario.DomainRandomisation` ranges.
+    * ``action_mode``, ``residual_scale_deg``, ``preview_distances``.
+    * ``reward_weights`` (keys ``offtracking``, ``effort``, ``rate``), ``offtracking_scale`` [m],
+      ``termination_penalty``.
+    * ``max_articulation_deg``, ``max_lateral_error`` [m], ``max_offtracking`` [m or None].
+    * ``render_mode``: ``"rgb_array"``: a plan view around the trailer (``render_size`` pixels, ``render_span``
+      metres wide), with the trailer camera's left image beneath it when ``viso_ot`` renders.
+
+    Every setting except the reward and action settings can also be given for one episode in
+    ``reset(options=...)`` (:data:`~scenarios.envs.scenario.OPTION_KEYS`).
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50}
+
+    def __init__(
+        self,
+        scenario: str = DEFAULT_SCENARIO,
+        overrides: Mapping[str, Any] | None = None,
+        feedback: Literal["truth", "zero_slip", "viso_ot"] = "truth",
+        vehicle: str | None = "lst",
+        mu: float | None = None,
+        camber_percent: float | None = None,
+        camber_direction: Literal["outward", "inward"] | None = None,
+        speed_kmh: float | None = None,
+        direction: Literal["left", "right"] | None = None,
+        randomise: DomainRandomisation | Mapping[str, Any] | None = None,
+        action_mode: Literal["direct", "residual"] = "direct",
+        residual_scale_deg: float = 5.0,
+        preview_distances: Sequence[float] = PREVIEW_DISTANCES,
+        reward_weights: Mapping[str, float] | None = None,
+        offtracking_scale: float = 1.0,
+        termination_penalty: float = 10.0,
+        max_articulation_deg: float = 80.0,
+        max_lateral_error: float = 2.0,
+        max_offtracking: float | None = 3.5,
+        render_mode: str | None = None,
+        render_size: tuple[int, int] = (400, 400),
+        render_span: float = 50.0,
+    ) -> None:
+        self.choice = ScenarioChoice(
+            scenario=scenario,
+            overrides=dict(DEFAULT_OVERRIDES) if overrides is None else dict(overrides),
+            feedback=feedback,
+            vehicle=vehicle,
+            mu=mu,
+            camber_percent=camber_percent,
+            camber_direction=camber_direction,
+            speed_kmh=speed_kmh,
+            direction=direction,
+            randomise=DomainRandomisation.coerce(randomise),
+        )
+        if action_mode not in ("direct", "residual"):
+            raise InputError(f"action_mode = {action_mode!r} must be 'direct' or 'residual'")
+        self.action_mode = action_mode
+        if not (residual_scale_deg > 0 and math.isfinite(residual_scale_deg)):
+            raise InputError(f"residual_scale_deg = {residual_scale_deg!r} must be a finite number > 0")
+        self.residual_scale = math.radians(residual_scale_deg)
+        self.preview_distances = np.asarray(preview_distances, dtype=float)
+        if self.preview_distances.ndim != 1 or not np.all(np.isfinite(self.preview_distances)):
+            raise InputError(f"preview_distances = {preview_distances!r} must be a sequence of distances [m]")
+        weights = {**REWARD_WEIGHTS, **(reward_weights or {})}
+        if set(weights) != set(REWARD_WEIGHTS) or not all(w >= 0 and math.isfinite(w) for w in weights.values()):
+            raise InputError(f"reward_weights = {reward_weights!r}: non-negative values for {list(REWARD_WEIGHTS)}")
+        self.reward_weights = weights
+        if not (offtracking_scale > 0 and termination_penalty >= 0):
+            raise InputError("offtracking_scale must be > 0 and termination_penalty ≥ 0")
+        self.offtracking_scale = float(offtracking_scale)
+        self.termination_penalty = float(termination_penalty)
+        self.limits = EpisodeLimits(max_articulation_deg, max_lateral_error, max_offtracking)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise InputError(f"render_mode = {render_mode!r} must be one of {self.metadata['render_modes']} or None")
+        self.render_mode = render_mode
+        self.render_size = (int(render_size[0]), int(render_size[1]))
+        self.render_span = float(render_span)
+
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+        bounds = [b for _, b in _BASE_OBSERVATION] + [_CURVATURE_BOUND] * len(self.preview_distances)
+        high = np.array(bounds, dtype=np.float32)
+        low = -high
+        low[1] = 0.0
+        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        self.observation_names = OBSERVATION_NAMES + tuple(f"curvature_ahead_{d:g}m" for d in self.preview_distances)
+
+        self._cosim: CoSimulation | None = None
+        self._controller: TrailerSteeringController | None = None
+        self._actuator: TrailerSteerActuator | None = None
+        self._done = False
+        self._tracks: tuple[list[np.ndarray], list[np.ndarray]] = ([], [])
+        self.episode_settings: dict[str, Any] = {}
+
+    # ------------------------------------------------------------------ Gymnasium API
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+        """Start an episode; ``options`` override the environment's scenario settings for this episode."""
+        super().reset(seed=seed)
+        choice = self.choice.with_options(options)
+        config, settings = choice.resolve(self.np_random)
+        setup = cached_setup(config)
+        controller = trailer_controller(setup)
+        assert controller is not None  # the feedback is always a source here
+        self._cosim = CoSimulation(setup)
+        self._controller = controller if self.action_mode == "residual" else None
+        self._actuator = TrailerSteerActuator(setup.params, controller.config)
+        self._max_steer = controller.config.max_steer
+        self._max_rate = controller.config.max_steer_rate
+        self._previous_action = 0.0
+        self._pid_virtual = 0.0
+        self._done = False
+        self.episode_settings = settings
+        self._tracks = ([], [])
+        self._after_tick()
+        return self._observation(), dict(settings)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Steer for one control period."""
+        cosim, actuator = self._cosim, self._actuator
+        if cosim is None or actuator is None:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        if self._done:
+            raise gym.error.ResetNeeded("the episode has ended; call reset()")
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.size != 1 or not np.isfinite(a[0]):
+            raise InputError(f"action = {action!r} must be one finite number in [-1, 1]")
+        a_value = float(np.clip(a[0], -1.0, 1.0))
+        tick = cosim.tick
+        if self.action_mode == "residual":
+            virtual = self._pid_virtual + a_value * self.residual_scale
+        else:
+            virtual = a_value * self._max_steer
+        previous = actuator.commands.copy()
+        commands = actuator(virtual, tick.state)
+        reason = ""
+        try:
+            tick = cosim.advance(commands)
+        except SimulationDivergedError:
+            reason = "diverged"
+        if not reason:
+            reason = self.limits.check(cosim)
+        terminated = bool(reason)
+        truncated = not terminated and cosim.finished
+        self._done = terminated or truncated
+        self._previous_action = a_value
+
+        w = self.reward_weights
+        truth = tick.estimates["truth"]
+        if reason == "diverged":
+            offtracking_cost = 1.0
+        else:
+            offtracking_cost = 0.0 if truth is None else min((truth / self.offtracking_scale) ** 2, 1.0)
+        effort_cost = float(np.mean((commands / self._max_steer) ** 2))
+        rate_cost = float(np.mean(((commands - previous) / (self._max_rate * cosim.period)) ** 2))
+        termination = 0.0
+        if terminated:
+            remaining = max(cosim.setup.path.length - cosim.driver.progress, 0.0)
+            steps_left = remaining / max(tick.speed_target, 0.5) / cosim.period
+            termination = -(sum(w.values()) * steps_left + self.termination_penalty)
+        parts = {
+            "reward_offtracking": -w["offtracking"] * offtracking_cost,
+            "reward_effort": -w["effort"] * effort_cost,
+            "reward_rate": -w["rate"] * rate_cost,
+            "reward_termination": termination,
+        }
+        reward = float(sum(parts.values()))
+        if not terminated:
+            self._after_tick()
+        estimate = tick.estimates.get(self.choice.feedback)
+        info: dict[str, Any] = {
+            "time": float(tick.time),
+            "offtracking_true": truth,
+            "offtracking_estimate": estimate,
+            "virtual_steer": actuator.virtual_steer,
+            "trailer_steer": commands,
+            "path_progress": float(cosim.driver.progress),
+            "lateral_error": float(cosim.driver.lateral_error),
+            "termination_reason": reason,
+            **parts,
+        }
+        return self._observation(), reward, terminated, truncated, info
+
+    def render(self) -> np.ndarray | None:
+        """The plan view (and the trailer camera's view when ``viso_ot`` renders) as uint8 ``H×W×3``."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; create the env with render_mode='rgb_array'")
+            return None
+        cosim = self._cosim
+        if cosim is None:
+            raise gym.error.ResetNeeded("call reset() before render()")
+        setup, tick = cosim.setup, cosim.tick
+        truth = tick.estimates["truth"]
+        kingpins, follows = self._tracks
+        image = draw_plan_view(
+            setup.params,
+            tick.state,
+            setup.path.points,
+            kingpin_track=np.array(kingpins),
+            follow_track=np.array(follows),
+            trailer_steer=self._actuator.commands if self._actuator is not None else (),
+            trailer_axles=cosim.trailer_axles,
+            span=self.render_span,
+            size=self.render_size,
+            text=(
+                f"t {tick.time:5.1f} s  u {tick.state.u * 3.6:4.1f} km/h",
+                "e_tr " + ("  n/a" if truth is None else f"{truth:+.3f} m"),
+                f"steer {math.degrees(self._actuator.virtual_steer if self._actuator else 0.0):+.1f} deg",
+            ),
+        )
+        camera = cosim.camera
+        if camera is not None:
+            s = tick.state
+            pose = camera.rig.camera_in_world(setup.params, s.X, s.Y, s.psi1, s.gamma, "left")
+            grey, _ = camera.renderer.render_view(pose)
+            image = np.vstack([image, camera_strip(grey, image.shape[1])])
+        return image
+
+    def close(self) -> None:
+        """Drop the run (and its camera pipeline, if any)."""
+        self._cosim = None
+        self._controller = None
+
+    # ------------------------------------------------------------------ internals
+
+    def _after_tick(self) -> None:
+        """What the agent sees with a new tick: the PID's proposal (residual mode) and the render tracks."""
+        cosim = self._cosim
+        assert cosim is not None
+        tick = cosim.tick
+        if self._controller is not None:
+            self._controller(tick.state, dict(tick.estimates))
+            self._pid_virtual = self._controller.virtual_steer
+        if self.render_mode is not None:
+            kp = cosim.kingpin
+            psi2 = tick.state.psi1 - tick.state.gamma
+            l_fp = cosim.setup.params.follow_point_offset
+            self._tracks[0].append(kp)
+            self._tracks[1].append(kp - l_fp * np.array([math.cos(psi2), math.sin(psi2)]))
+
+    def _observation(self) -> np.ndarray:
+        cosim, actuator = self._cosim, self._actuator
+        assert cosim is not None and actuator is not None
+        tick = cosim.tick
+        m = tick.measured
+        estimate = tick.estimates.get(self.choice.feedback)
+        valid = estimate is not None and math.isfinite(estimate)
+        path = cosim.setup.path
+        ahead = np.clip(cosim.driver.progress + self.preview_distances, 0.0, path.length)
+        curvature = np.interp(ahead, path.s, path.curvature)
+        obs = np.concatenate(
+            [
+                [
+                    estimate if valid else 0.0,
+                    1.0 if valid else 0.0,
+                    m["articulation"][0],
+                    m["wheel_speed"][0],
+                    m["tractor_yaw_rate"][0],
+                    m["trailer_yaw_rate"][0],
+                    actuator.virtual_steer,
+                    self._previous_action,
+                    self._pid_virtual,
+                ],
+                curvature,
+            ]
+        ).astype(np.float32)
+        return np.clip(obs, self.observation_space.low, self.observation_space.high)
