@@ -34,7 +34,7 @@ def kernel_name(tmp_path_factory):
 
 def test_there_are_notebooks():
     names = {p.stem for p in NOTEBOOKS}
-    assert {"roundabout_test", "estimators_under_slip", "paper_section3"} <= names
+    assert {"roundabout_test", "estimators_under_slip", "controller_design_and_tuning", "paper_section3"} <= names
 
 
 @pytest.mark.rendering
