@@ -47,6 +47,7 @@ bench: setup
 	$(BIN)/offtrack bench render --json
 	$(BIN)/offtrack bench vo --json
 	$(BIN)/offtrack bench env --json
+	$(BIN)/offtrack bench sweep --json
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

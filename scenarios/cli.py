@@ -262,26 +262,53 @@ def study(
     full: Annotated[bool, typer.Option(help="Run the whole study (default: a small subset).")] = False,
     out: Annotated[Path | None, typer.Option(help="Output directory (default runs/study-NAME/…).")] = None,
     force: Annotated[bool, typer.Option(help="Allow writing into a non-empty --out.")] = False,
+    workers: Annotated[
+        int, typer.Option(help="Local worker processes (1: one case after another in this process).", min=1)
+    ] = 1,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Dask scheduler address (e.g. tcp://HOST:8786): run the cases on that cluster.")
+    ] = None,
+    resume: Annotated[
+        bool, typer.Option(help="Skip the cases already finished in --out; failed ones run again.")
+    ] = True,
 ) -> None:
     """Run a study: every case into its own directory, then one table and the figures."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
     from scenarios.results import new_run_dir
     from scenarios.studies import STUDIES, run_study
+    from scenarios.sweep import CASES_DIR, rich_progress
 
     if name not in STUDIES:
         raise ValueError(f"unknown study {name!r}; choose one of {sorted(STUDIES)}")
-    run_dir = new_run_dir(out, f"study-{name}", force=force)
-    columns = (TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
-    with Progress(*columns, console=console) as bar:
-        task = bar.add_task(name, total=None)
-
-        def progress(done: int, total: int, spec) -> None:
-            bar.update(task, completed=done, total=total, description=f"{name}: {spec.name}")
-
-        table = run_study(name, run_dir, full=full, progress=progress)
+    if out is not None and resume and (out / CASES_DIR).is_dir():
+        run_dir = out  # an earlier run of the study: finish it
+    else:
+        run_dir = new_run_dir(out, f"study-{name}", force=force)
+    with rich_progress(name, console=console) as progress:
+        table = run_study(
+            name, run_dir, full=full, workers=workers, scheduler=scheduler, resume=resume, on_progress=progress
+        )
     console.print(f"{len(table)} cases → {run_dir / 'table.md'}")
     console.print((run_dir / "table.md").read_text())
+    failed = int((table["status"] == "failed").sum()) if "status" in table.columns else 0
+    if failed:
+        console.print(
+            f"[bold yellow]{failed} case(s) failed[/] (error and traceback in {run_dir / CASES_DIR}/); "
+            f"run the same command with --out {run_dir} to retry them"
+        )
+        raise typer.Exit(3)
+
+
+@bench_app.command("sweep")
+def bench_sweep_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    workers: Annotated[int, typer.Option(help="Worker processes to compare with one.", min=2)] = 2,
+    cases: Annotated[int, typer.Option(help="Model-only roundabout-3 cases in the sweep.", min=2)] = 8,
+    duration: Annotated[float, typer.Option(help="Simulated seconds per case.", min=1.0)] = 20.0,
+) -> None:
+    """Sweep speed-up: N local worker processes over one on a small model-only study."""
+    from scenarios.sweep import bench_sweep
+
+    _print_bench(bench_sweep(workers, cases, duration), as_json, "Sweep benchmark")
 
 
 def _print_summary(metrics: dict, run_dir: Path) -> None:

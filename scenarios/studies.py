@@ -1,4 +1,4 @@
-"""Studies: lists of small, picklable cases run one after another, gathered into a table and figures.
+"""Studies: lists of small, picklable cases run by the sweep runner, gathered into a table and figures.
 
 * ``paper-section3`` — de Saxe & Cebon 2018 §3: the constant-slip straight (5 m/s, 10 fps, 100 m, the
   14.05 m LST as the paper's 14 m trailer) over the baseline sweep for rear and side cameras at 14°
@@ -8,6 +8,11 @@
   roundabout, figure-of-eight} × feedback ∈ {none, zero_slip, viso_ot, truth}.
 
 The default run of each is a small subset that finishes in minutes; ``full`` runs all of it.
+
+:func:`run_study` runs the cases with :func:`scenarios.sweep.run_sweep`: serially, on local worker
+processes (``workers``) or on a Dask cluster (``scheduler``); every finished case is recorded in
+``OUT/cases/`` as it completes, so running the study again into the same directory only runs what is
+missing or failed.
 """
 
 from __future__ import annotations
@@ -22,8 +27,8 @@ import pandas as pd
 
 from .config import load_scenario
 from .metrics import estimator_errors, rms
-from .results import write_atomic
 from .runner import run_scenario
+from .sweep import ProgressCallback, SweepProgress, run_sweep
 
 # de Saxe & Cebon 2018 §3.2, values stated in the text (the figures themselves are not reproduced there).
 PAPER_SECTION3 = {
@@ -165,21 +170,61 @@ def run_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
 
 
 def run_study(
-    name: str, out_dir: Path, full: bool = False, progress: Callable[[int, int, CaseSpec], None] | None = None
+    name: str,
+    out_dir: Path,
+    full: bool = False,
+    progress: Callable[[int, int, CaseSpec], None] | None = None,
+    *,
+    workers: int = 1,
+    scheduler: str | Any | None = None,
+    resume: bool = True,
+    on_progress: ProgressCallback | None = None,
 ) -> pd.DataFrame:
-    """Run every case of a study sequentially; write ``table.csv``, ``table.md`` and the figures."""
+    """Run every case of a study; write ``table.parquet``, ``table.csv``, ``table.md`` and the figures.
+
+    Parameters
+    ----------
+    name
+        A key of :data:`STUDIES`.
+    out_dir
+        The study directory: a run directory and a ``cases/<name>.json`` record per case, the table and
+        the figures.
+    full
+        Run the whole study instead of its default subset.
+    progress
+        ``progress(ended, total, spec)``, called at the start and whenever a case ends (finished or
+        failed) with the number of ended cases and that case's spec.
+    workers
+        Local worker processes (1: one case after another in this process).
+    scheduler
+        Address of a Dask scheduler (or a ``distributed.Client``) to run the cases on instead.
+    resume
+        Skip cases already finished in ``out_dir`` (failed ones run again).
+    on_progress
+        Called with a :class:`~scenarios.sweep.SweepProgress` (finished, failed, remaining, ETA).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per case in the study's order; a failed case has ``status`` ``failed`` and its ``error``.
+        The figures are drawn from the cases that did not fail.
+    """
     if name not in STUDIES:
         raise ValueError(f"unknown study {name!r}; choose one of {sorted(STUDIES)}")
     cases = STUDIES[name](full)
-    rows = []
-    for i, spec in enumerate(cases):
-        if progress is not None:
-            progress(i, len(cases), spec)
-        rows.append(run_case(spec, out_dir))
-    table = pd.DataFrame(rows)
-    write_atomic(out_dir / "table.csv", table.to_csv(index=False))
-    write_atomic(out_dir / "table.md", table.to_markdown(index=False, floatfmt=".3f"))
-    FIGURES[name](table, out_dir)
+    by_name = {spec.name: spec for spec in cases}
+
+    def report(p: SweepProgress) -> None:
+        if progress is not None and cases:
+            progress(p.ended, p.total, by_name[p.last.name] if p.last is not None else cases[0])
+        if on_progress is not None:
+            on_progress(p)
+
+    result = run_sweep(cases, out_dir, run_case, workers=workers, scheduler=scheduler, resume=resume, progress=report)
+    table = result.table
+    ok = table[table["status"] != "failed"] if "status" in table.columns else table
+    if not ok.empty:
+        FIGURES[name](ok.reset_index(drop=True), out_dir)
     return table
 
 

@@ -1,0 +1,222 @@
+"""The sweep runner: parallel = serial, resume after a kill, recorded failures, Dask, the study wrapper.
+
+Every sweep here runs a few seconds of ``roundabout-3`` per case, model only (no rendering).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import multiprocessing
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from scenarios import studies
+from scenarios.studies import CaseSpec, run_case
+from scenarios.sweep import (
+    CASES_DIR,
+    SweepProgress,
+    gather_table,
+    local_executor,
+    model_only_cases,
+    read_record,
+    run_sweep,
+    worker_info,
+)
+
+CASES = model_only_cases(6, duration_s=3.0, study="test-sweep")
+BAD = CaseSpec("test-sweep", "roundabout-3", (("duration_s", 3.0), ("surface.mu", -1.0)), (("case", 99),))
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _numbers(table: pd.DataFrame) -> pd.DataFrame:
+    """The table without the wall-clock column (the only one that differs from run to run)."""
+    return table.drop(columns=["wall_time_s"], errors="ignore")
+
+
+def _case_files(out: Path) -> list[Path]:
+    return sorted((out / CASES_DIR).glob("*.json"))
+
+
+def crash_on_label(spec: CaseSpec, out_dir: Path) -> dict:
+    """A run function whose worker process dies (as in a segfault) on the case labelled ``crash``."""
+    if dict(spec.labels).get("crash"):
+        os._exit(13)
+    return run_case(spec, out_dir)
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory: pytest.TempPathFactory) -> pd.DataFrame:
+    """The reference: the small sweep run serially in this process."""
+    out = tmp_path_factory.mktemp("serial")
+    result = run_sweep(CASES, out, workers=1)
+    assert result.executed == len(CASES) and not result.failures
+    return result.table
+
+
+def test_serial_sweep_writes_one_record_per_case_and_the_tables(serial: pd.DataFrame, tmp_path: Path) -> None:
+    assert list(serial["case"]) == list(range(len(CASES)))
+    assert (serial["status"] == "completed").all()
+    assert serial["zero_slip_rms_error_m"].notna().any()
+    updates: list[SweepProgress] = []
+    result = run_sweep(CASES[:2], tmp_path, workers=1, progress=updates.append)
+    assert [(p.finished, p.failed, p.remaining) for p in updates] == [(0, 0, 2), (1, 0, 1), (2, 0, 0)]
+    assert updates[0].eta_s is None and updates[1].eta_s is not None and updates[-1].eta_s == 0.0
+    for name in ("table.parquet", "table.csv", "table.md"):
+        assert (tmp_path / name).is_file()
+    pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "table.parquet"), result.table)
+    record = json.loads((tmp_path / CASES_DIR / f"{CASES[0].name}.json").read_text())
+    assert record["status"] == "done" and record["row"]["case"] == 0 and record["spec"]["scenario"] == "roundabout-3"
+    assert not list((tmp_path / CASES_DIR).glob(".*")), "no temporary or running-marker files left behind"
+
+
+def test_two_local_workers_give_the_serial_table(serial: pd.DataFrame, tmp_path: Path) -> None:
+    result = run_sweep(CASES, tmp_path, workers=2)
+    assert result.executed == len(CASES)
+    pd.testing.assert_frame_equal(_numbers(result.table), _numbers(serial))
+    assert len({r.worker["pid"] for r in result.records}) == 2
+    assert os.getpid() not in {r.worker["pid"] for r in result.records}
+    pd.testing.assert_frame_equal(_numbers(gather_table(CASES, tmp_path)), _numbers(serial))
+
+
+def test_a_worker_has_one_thread_per_library_and_builds_the_model_once(tmp_path: Path) -> None:
+    before = {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    with local_executor(1) as pool:
+        result = run_sweep(CASES[:3], tmp_path, executor=pool)
+        info = pool.submit(worker_info).result()
+    assert not result.failures and {r.worker["pid"] for r in result.records} == {info["pid"]}
+    assert info["models_built"] == 1, "three cases of one vehicle share its casadi functions"
+    assert info["pid"] != os.getpid()
+    assert info["OMP_NUM_THREADS"] == info["OPENBLAS_NUM_THREADS"] == info["MKL_NUM_THREADS"] == "1"
+    assert info["cv2_threads"] == 1
+    assert info["numpy_preloaded"] is False, "the thread limits must be set before numpy is imported"
+    assert {k: os.environ.get(k) for k in before} == before, "this process's environment is restored"
+
+
+def test_interrupted_sweep_resumes_only_the_missing_cases(serial: pd.DataFrame, tmp_path: Path) -> None:
+    def stop_after_two(p: SweepProgress) -> None:
+        if p.ended >= 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(CASES, tmp_path, workers=2, progress=stop_after_two)
+    assert not multiprocessing.active_children(), "the workers are stopped at once"
+    assert not list((tmp_path / CASES_DIR).glob(".*")), "no running markers left behind"
+    kept = {path.name: path.read_text() for path in _case_files(tmp_path)}
+    assert 2 <= len(kept) < len(CASES)
+    result = run_sweep(CASES, tmp_path, workers=1)
+    assert result.skipped == len(kept)
+    assert result.executed == len(CASES) - len(kept)
+    assert {path.name: path.read_text() for path in _case_files(tmp_path) if path.name in kept} == kept
+    pd.testing.assert_frame_equal(_numbers(result.table), _numbers(serial))
+    again = run_sweep(CASES, tmp_path, workers=2)
+    assert again.executed == 0 and again.skipped == len(CASES)
+
+
+def test_killed_sweep_process_resumes_without_losing_cases(tmp_path: Path) -> None:
+    psutil = pytest.importorskip("psutil")
+    cases = model_only_cases(10, duration_s=8.0, study="test-sweep-kill")
+    script = textwrap.dedent(
+        f"""
+        from pathlib import Path
+        from scenarios.sweep import model_only_cases, run_sweep
+        run_sweep(model_only_cases(10, duration_s=8.0, study="test-sweep-kill"), Path({str(tmp_path)!r}), workers=2)
+        """
+    )
+    proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO)
+    try:
+        deadline = time.monotonic() + 60.0
+        while len(_case_files(tmp_path)) < 2:
+            assert proc.poll() is None, "the sweep ended before it could be killed"
+            assert time.monotonic() < deadline, "no case finished in time"
+            time.sleep(0.02)
+        workers = psutil.Process(proc.pid).children(recursive=True)
+        proc.send_signal(signal.SIGKILL)  # no clean-up at all
+        proc.wait(10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    _, alive = psutil.wait_procs(workers, timeout=10)  # orphaned workers notice and exit
+    for process in alive:
+        with pytest.raises(psutil.NoSuchProcess) if not process.is_running() else contextlib.nullcontext():
+            assert process.status() == psutil.STATUS_ZOMBIE, f"worker {process.pid} outlived its sweep"
+    files = _case_files(tmp_path)
+    assert 2 <= len(files) < len(cases)
+    for path in files:  # every record is complete JSON
+        assert read_record(tmp_path, path.stem) is not None
+    first_session = {path.stem: json.loads(path.read_text())["session"] for path in files}
+    result = run_sweep(cases, tmp_path, workers=1)
+    assert result.executed == len(cases) - len(files)
+    assert not result.failures
+    assert {r.name: r.session for r in result.records if r.name in first_session} == first_session
+    assert len(result.table) == len(cases)
+
+
+def test_failing_case_is_recorded_and_the_rest_finish(serial: pd.DataFrame, tmp_path: Path) -> None:
+    cases = [*CASES[:2], BAD, *CASES[2:3]]
+    result = run_sweep(cases, tmp_path, workers=1)
+    assert [r.status for r in result.records] == ["done", "done", "failed", "done"]
+    record = read_record(tmp_path, BAD.name)
+    assert record is not None and record.status == "failed"
+    assert "surface.mu" in record.error["message"]
+    assert "Traceback" in record.error["traceback"] and "load_scenario" in record.error["traceback"]
+    table = result.table
+    assert list(table["status"]) == ["completed", "completed", "failed", "completed"]
+    assert "surface.mu" in table.loc[2, "error"] and table.columns[-1] == "error"
+    assert table.loc[2, ["truth_rms_m"]].isna().all()
+    good = table.drop(index=2).drop(columns="error").reset_index(drop=True)
+    pd.testing.assert_frame_equal(_numbers(good), _numbers(serial.iloc[:3].reset_index(drop=True)))
+    again = run_sweep(cases, tmp_path, workers=1)  # resume re-runs the failed case only
+    assert again.executed == 1 and again.skipped == 3 and len(again.failures) == 1
+
+
+def test_crashed_worker_is_isolated_and_recorded(serial: pd.DataFrame, tmp_path: Path) -> None:
+    crash = CaseSpec("test-sweep", "roundabout-3", (("duration_s", 3.0),), (("case", 98), ("crash", True)))
+    cases = [*CASES[:2], crash, *CASES[2:4]]
+    result = run_sweep(cases, tmp_path, crash_on_label, workers=2)
+    assert [r.status for r in result.records] == ["done", "done", "failed", "done", "done"]
+    assert result.records[2].error["type"] == "BrokenProcessPool"
+    good = result.table.drop(index=2).drop(columns=["error", "crash"]).reset_index(drop=True)
+    pd.testing.assert_frame_equal(_numbers(good), _numbers(serial.iloc[:4].reset_index(drop=True)))
+
+
+def test_dask_local_cluster_gives_the_local_table(serial: pd.DataFrame, tmp_path: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None
+    ) as cluster:
+        result = run_sweep(CASES, tmp_path, scheduler=cluster.scheduler_address)
+        assert result.executed == len(CASES)
+        pd.testing.assert_frame_equal(_numbers(result.table), _numbers(serial))
+        with distributed.Client(cluster) as client:  # resume through an existing client
+            again = run_sweep(CASES, tmp_path, scheduler=client)
+            assert again.executed == 0 and again.skipped == len(CASES)
+
+
+def test_run_study_writes_tables_and_figures_from_the_sweep(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    drawn: list[pd.DataFrame] = []
+    monkeypatch.setitem(studies.STUDIES, "tiny", lambda full: [*model_only_cases(2, 2.0, study="tiny"), BAD])
+    monkeypatch.setitem(studies.FIGURES, "tiny", lambda table, out: drawn.append(table))
+    calls: list[tuple[int, int, str]] = []
+    table = studies.run_study("tiny", tmp_path, progress=lambda i, n, spec: calls.append((i, n, spec.name)))
+    assert list(table["status"]) == ["completed", "completed", "failed"]
+    assert [c[:2] for c in calls] == [(0, 3), (1, 3), (2, 3), (3, 3)]
+    assert len(drawn) == 1 and len(drawn[0]) == 2  # the figures see the cases that did not fail
+    for name in ("table.parquet", "table.csv", "table.md"):
+        assert (tmp_path / name).is_file()
+    assert len(pd.read_csv(tmp_path / "table.csv")) == 3
+    with pytest.raises(ValueError, match="unknown study"):
+        studies.run_study("no-such-study", tmp_path)
+
+
+def test_duplicate_case_names_are_refused(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="distinct"):
+        run_sweep([CASES[0], CASES[0]], tmp_path)
