@@ -22,7 +22,6 @@ import time as wallclock
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -31,7 +30,7 @@ from controller.driver import PathFollowingDriver
 from controller.speed import SpeedController, traction_limit
 from controller.zero_slip import ZeroSlipEstimator
 from sensor.signals import ChannelSpec, OnboardSignals
-from vehicle_model.errors import SimulationDivergedError
+from vehicle_model.errors import InputError, SimulationDivergedError
 from vehicle_model.geometry import kingpin_position
 from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses, offtracking_from_path
 from vehicle_model.simulator import Controls, Simulator, VehicleState
@@ -113,153 +112,323 @@ def true_signals(setup: ScenarioSetup, state: VehicleState, steer: np.ndarray) -
     }
 
 
+@dataclass(frozen=True)
+class Tick:
+    """What one control tick computed before the trailer steer is chosen.
+
+    Attributes
+    ----------
+    time : float
+        Simulation time ``t_k`` [s].
+    state : VehicleState
+        True state at ``t_k``.
+    measured : dict
+        On-board signals (:mod:`sensor.signals` channels, each a 1-D array).
+    estimates : dict
+        Off-tracking [m] by source: ``truth`` and every configured estimator (``None``: no estimate yet).
+    front_steer : float
+        The driver's steer-axle command [rad].
+    drive_force : float
+        The speed controller's drive force [N].
+    speed_target : float
+        The speed profile's target [m/s].
+    camera_frame : bool
+        Whether the camera clock ticked (a frame was rendered if ``viso_ot`` runs).
+    camera : CameraFrame or None
+        What the camera pipeline produced on this tick (``None`` between frames or without a camera).
+    geometric_truth : float or None
+        The geometric second truth (only when the simulation keeps the dense kingpin path).
+    """
+
+    time: float
+    state: VehicleState
+    measured: dict[str, np.ndarray]
+    estimates: dict[str, float | None]
+    front_steer: float
+    drive_force: float
+    speed_target: float
+    camera_frame: bool
+    camera: Any = None
+    geometric_truth: float | None = None
+
+
+class CoSimulation:
+    """One scenario run, advanced one control period per call: the single implementation of the loop.
+
+    :meth:`reset` gives tick 0 and every :meth:`advance` the next (module docstring, steps 1–3); the
+    caller chooses the trailer steer between ticks. :func:`run_cosimulation` drives it to the end with
+    a trailer-steer callback and records every tick; the Gymnasium environments step it from actions.
+
+    Parameters
+    ----------
+    setup : ScenarioSetup
+        The built scenario; its ``config.seed`` seeds the on-board signals and the camera.
+    geometric_truth : bool
+        Keep the dense kingpin path and compute the geometric second truth each tick (a check of the
+        first; :func:`run_cosimulation` records it, the environments skip it).
+
+    Attributes
+    ----------
+    tick : Tick
+        The current tick.
+    period : float
+        Control period [s].
+    max_time : float
+        Time [s] at which the run ends even if the driver has not reached the end of the path.
+    trailer_axles : tuple of str
+        Steerable trailer axles, in the order :meth:`advance` expects their steer.
+    """
+
+    def __init__(self, setup: ScenarioSetup, geometric_truth: bool = False) -> None:
+        self.geometric_truth = geometric_truth
+        self._build(setup)
+        self.reset()
+
+    def _build(self, setup: ScenarioSetup) -> None:
+        """The parts that depend on the setup only."""
+        self.setup = setup
+        cfg = setup.config
+        rates = cfg.rates
+        substeps = round(1.0 / (rates.control_hz * rates.dynamics_step_s))
+        self.sim = Simulator(
+            setup.params, setup.surface, dt=rates.dynamics_step_s, substeps=substeps, model=setup.model
+        )
+        self.period = self.sim.control_period
+        layout = setup.model.layout
+        trailer = {a.name for a in setup.params.trailer.axles}
+        self.trailer_axles: tuple[str, ...] = tuple(n for n in layout.steerable_axles if n in trailer)
+        driven = np.flatnonzero(setup.params.axle_table.driven)
+        self._driven = driven
+        self._driven_load = float(setup.params.axle_table.static_load[driven].sum())
+        self.max_time = (
+            cfg.duration_s
+            if cfg.duration_s is not None
+            else 2.0 * setup.path.length / max(setup.speed_profile.cornering, 0.5) + 60.0
+        )
+
+    @property
+    def kinematic(self) -> bool:
+        """The scenario prescribes the motion (paper §3 constant slip): nothing to steer or integrate."""
+        return self.setup.kinematic_slip is not None
+
+    def reset(self) -> Tick:
+        """Back to the scenario's initial state; return tick 0."""
+        setup, cfg, params = self.setup, self.setup.config, self.setup.params
+        self.sim.reset(setup.initial_state)
+        self.sensors = OnboardSignals(signal_specs(setup), np.random.default_rng(cfg.seed))
+        self.driver = PathFollowingDriver(params, setup.path, setup.control_point, feedforward=setup.feedforward)
+        self.driver.reset(setup.initial_state)
+        self.speed_control = SpeedController(params.tractor.mass + params.trailer.mass)
+        self.truth_buffer = OfftrackingBuffer(params.follow_point_offset)
+        self.dense = _DensePath(keep_length=2.0 * params.follow_point_offset + 10.0) if self.geometric_truth else None
+        if self.dense is not None:
+            s = setup.initial_state
+            self.dense.extend(kingpin_position(params, s.X, s.Y, s.psi1)[None, :])
+        self.estimators: dict[str, ZeroSlipEstimator] = {}
+        if cfg.estimators.zero_slip:
+            self.estimators["zero_slip"] = ZeroSlipEstimator(params, cfg.estimators.zero_slip_variant)
+        self.camera = None
+        if cfg.estimators.viso_ot:
+            from .camera_pipeline import CameraPipeline  # rendering and OpenGL only when asked for
+
+            self.camera = CameraPipeline(setup)
+        self.steer = np.zeros(len(setup.model.layout.steerable_axles))
+        self._prev_pose: tuple[np.ndarray, float] | None = None
+        self._next_camera = 0.0
+        self.tick = self._observe(self.sim.state)
+        return self.tick
+
+    @property
+    def finished(self) -> bool:
+        """The driver reached the end of the path or the run's time is up."""
+        return self.driver.finished or self.tick.time + 0.5 * self.period >= self.max_time
+
+    @property
+    def kingpin(self) -> np.ndarray:
+        """Kingpin position [m] at the current tick."""
+        s = self.tick.state
+        return kingpin_position(self.setup.params, s.X, s.Y, s.psi1)
+
+    def advance(self, trailer_steer: np.ndarray) -> Tick:
+        """Integrate one control period with the driver's commands and ``trailer_steer``; return the next tick.
+
+        Parameters
+        ----------
+        trailer_steer
+            Steer [rad] of every steerable trailer axle, in :attr:`trailer_axles` order (ignored, and
+            may be empty, in a kinematic scenario).
+
+        Raises
+        ------
+        SimulationDivergedError
+            The model left its valid region; the simulator keeps the last good state and :attr:`tick` is
+            unchanged.
+        """
+        tick, params = self.tick, self.setup.params
+        if self.kinematic:
+            state = _kinematic_step(self.setup, tick.state, self.period)
+            self.sim.reset(state)
+            if self.dense is not None:
+                self.dense.extend(kingpin_position(params, state.X, state.Y, state.psi1)[None, :])
+        else:
+            trailer = np.asarray(trailer_steer, dtype=float).reshape(-1)
+            if trailer.size != len(self.trailer_axles):
+                raise InputError(
+                    f"trailer steer needs {len(self.trailer_axles)} angles {self.trailer_axles}, got {trailer}"
+                )
+            steer = np.concatenate([[tick.front_steer], trailer])
+            state = self.sim.step(Controls(steer, tick.drive_force))
+            self.steer = steer
+            if self.dense is not None:
+                traj = self.sim.trajectory()
+                self.dense.extend(kingpin_position(params, traj[:, 0], traj[:, 1], traj[:, 2]))
+        self.tick = self._observe(state)
+        return self.tick
+
+    def _observe(self, state: VehicleState) -> Tick:
+        """Steps 1–3 of a tick (module docstring)."""
+        setup, params, period = self.setup, self.setup.params, self.period
+        t = self.sim.time
+        kp = kingpin_position(params, state.X, state.Y, state.psi1)
+        psi2 = state.psi1 - state.gamma
+        # 1. signals; 2. estimators and truth
+        measured = self.sensors.measure(t, true_signals(setup, state, self.steer))
+        estimates: dict[str, float | None] = {
+            name: est.update(measured, period) if self._prev_pose is not None else None
+            for name, est in self.estimators.items()
+        }
+        if self._prev_pose is not None:
+            prev_kp, prev_psi2 = self._prev_pose
+            inc = increments_from_poses(np.vstack([prev_kp, kp]), np.array([prev_psi2, psi2]))[0]
+            self.truth_buffer.push(*inc)
+        self._prev_pose = (kp, psi2)
+        geometric = (
+            offtracking_from_path(self.dense.array(), kp, psi2, params.follow_point_offset)
+            if self.dense is not None
+            else None
+        )
+        camera_frame = t + 1e-9 >= self._next_camera
+        if camera_frame:
+            self._next_camera += 1.0 / setup.config.rates.camera_hz
+        shot = None
+        if self.camera is not None:
+            if camera_frame:
+                shot = self.camera.frame(state)
+            estimates["viso_ot"] = self.camera.estimate  # held between camera frames
+        # 3. the tractor's commands
+        if self.kinematic:
+            self.driver.progress, self.driver.lateral_error = setup.path.project(
+                self.driver.control_point_position(state), self.driver.progress
+            )
+            front, drive = 0.0, 0.0
+            target = setup.speed_profile(self.driver.progress)
+        else:
+            front = self.driver.steer(state, period)
+            target = setup.speed_profile(self.driver.progress)
+            mu_drive = float(np.min(self.sim.surface_inputs(self.sim.state_vector)[0][self._driven]))
+            drive = self.speed_control(target, state.u, period, traction_limit(mu_drive, self._driven_load))
+        return Tick(
+            time=t,
+            state=state,
+            measured=measured,
+            estimates={"truth": self.truth_buffer.offtracking(), **estimates},
+            front_steer=front,
+            drive_force=drive,
+            speed_target=target,
+            camera_frame=camera_frame,
+            camera=shot,
+            geometric_truth=geometric,
+        )
+
+
+def _nan(value: float | None) -> float:
+    return math.nan if value is None else float(value)
+
+
 def run_cosimulation(
     setup: ScenarioSetup,
     writer: TimeSeriesWriter | None = None,
     trailer_steer_source: TrailerSteerSource | None = None,
     progress: ProgressCallback | None = None,
 ) -> tuple[RunOutcome, dict[str, np.ndarray]]:
-    """Run a scenario; return the outcome and the recorded columns.
+    """Run a scenario to its end; return the outcome and the recorded columns (one row per tick).
 
     Rows are also streamed to ``writer`` (if given) as they are made, so an interrupted or diverged
     run keeps what it did. A diverging simulation or Ctrl-C ends the loop cleanly with the status
     set accordingly.
     """
-    cfg = setup.config
     params = setup.params
-    rates = cfg.rates
-    substeps = round(1.0 / (rates.control_hz * rates.dynamics_step_s))
-    sim = Simulator(params, setup.surface, dt=rates.dynamics_step_s, substeps=substeps, model=setup.model)
-    sim.reset(setup.initial_state)
-    period = sim.control_period
-    rng = np.random.default_rng(cfg.seed)
-    sensors = OnboardSignals(signal_specs(setup), rng)
-    driver = PathFollowingDriver(params, setup.path, setup.control_point, feedforward=setup.feedforward)
-    driver.reset(setup.initial_state)
-    speed_control = SpeedController(params.tractor.mass + params.trailer.mass)
-    table = params.axle_table
-    driven = np.flatnonzero(table.driven)
-    driven_load = float(table.static_load[driven].sum())
     l_fp = params.follow_point_offset
-    truth_buffer = OfftrackingBuffer(l_fp)
-    dense = _DensePath(keep_length=2.0 * l_fp + 10.0)
-    estimators: dict[str, ZeroSlipEstimator] = {}
-    if cfg.estimators.zero_slip:
-        estimators["zero_slip"] = ZeroSlipEstimator(params, cfg.estimators.zero_slip_variant)
-    camera = None
-    if cfg.estimators.viso_ot:
-        from .camera_pipeline import CameraPipeline  # rendering and OpenGL only when asked for
-
-        camera = CameraPipeline(setup)
-    layout = setup.model.layout
-    n_trailer_steer = sum(1 for n in layout.steerable_axles if n in {a.name for a in params.trailer.axles})
-    steer_names = [f"steer_{n}" for n in layout.steerable_axles]
-    signal_names = ["wheel_speed", "front_steer", "tractor_yaw_rate", "articulation", "trailer_yaw_rate"]
     telemetry = getattr(trailer_steer_source, "telemetry", None)
     if hasattr(trailer_steer_source, "reset"):
         trailer_steer_source.reset()  # type: ignore[union-attr]
     telemetry_names = list(telemetry()) if callable(telemetry) else []
-    columns = (
-        ["time", *layout.states[:8], "psi2", "kingpin_x", "kingpin_y", "follow_x", "follow_y"]
-        + steer_names
-        + ["drive_force", "speed_target", "path_progress", "lateral_error", "camera_frame"]
-        + [f"signal_{n}" for n in signal_names]
-        + ["offtracking_truth", "offtracking_truth_geometric"]
-        + [f"offtracking_{n}" for n in estimators]
-        + (["offtracking_viso_ot", "vo_valid", "vo_matches", "vo_inliers", "render_ms", "vo_ms"] if camera else [])
-        + telemetry_names
-    )
-    recorded: dict[str, list[float]] = {c: [] for c in columns}
-    if writer is not None:
-        writer.columns = columns
-    kinematic = setup.kinematic_slip is not None
-    max_time = (
-        cfg.duration_s
-        if cfg.duration_s is not None
-        else 2.0 * setup.path.length / max(setup.speed_profile.cornering, 0.5) + 60.0
-    )
-    camera_period = 1.0 / rates.camera_hz
-    next_camera = 0.0
-    state = sim.state
-    steer = np.zeros(len(layout.steerable_axles))
-    prev_pose: tuple[np.ndarray, float] | None = None
-    kp0 = kingpin_position(params, state.X, state.Y, state.psi1)
-    dense.extend(kp0[None, :])
-    outcome = RunOutcome(columns=columns)
+    outcome = RunOutcome()
     t_start = wallclock.perf_counter()
+    recorded: dict[str, list[float]] = {}
+    columns: list[str] = []
     try:
+        cosim = CoSimulation(setup, geometric_truth=True)
+        layout = setup.model.layout
+        estimator_names = [n for n in cosim.tick.estimates if n != "truth"]
+        steer_names = [f"steer_{n}" for n in layout.steerable_axles]
+        signal_names = ["wheel_speed", "front_steer", "tractor_yaw_rate", "articulation", "trailer_yaw_rate"]
+        columns = (
+            ["time", *layout.states[:8], "psi2", "kingpin_x", "kingpin_y", "follow_x", "follow_y"]
+            + steer_names
+            + ["drive_force", "speed_target", "path_progress", "lateral_error", "camera_frame"]
+            + [f"signal_{n}" for n in signal_names]
+            + ["offtracking_truth", "offtracking_truth_geometric"]
+            + [f"offtracking_{n}" for n in estimator_names]
+            + (["vo_valid", "vo_matches", "vo_inliers", "render_ms", "vo_ms"] if cosim.camera else [])
+            + telemetry_names
+        )
+        outcome.columns = columns
+        recorded = {c: [] for c in columns}
+        if writer is not None:
+            writer.columns = columns
+        n_trailer = len(cosim.trailer_axles)
         while True:
-            t = sim.time
-            kp = kingpin_position(params, state.X, state.Y, state.psi1)
-            psi2 = state.psi1 - state.gamma
-            # 1. signals; 2. estimators and truth
-            measured = sensors.measure(t, true_signals(setup, state, steer))
-            estimates = {
-                name: est.update(measured, period) if prev_pose is not None else None
-                for name, est in estimators.items()
-            }
-            if prev_pose is not None:
-                inc = increments_from_poses(np.vstack([prev_pose[0], kp]), np.array([prev_pose[1], psi2]))[0]
-                truth_buffer.push(*inc)
-            prev_pose = (kp, psi2)
-            truth = truth_buffer.offtracking()
-            truth_geo = offtracking_from_path(dense.array(), kp, psi2, l_fp)
-            camera_frame = t + 1e-9 >= next_camera
-            if camera_frame:
-                next_camera += camera_period
-            camera_row: dict[str, float] = {}
-            if camera is not None:
-                if camera_frame:
-                    shot = camera.frame(state)
-                    camera_row = {
-                        "vo_valid": float(shot.vo.valid),
-                        "vo_matches": float(shot.vo.n_matches),
-                        "vo_inliers": float(shot.vo.n_inliers),
-                        "render_ms": 1e3 * shot.render_s,
-                        "vo_ms": 1e3 * shot.vo_s,
-                    }
-                estimates["viso_ot"] = camera.estimate  # held between camera frames
-            # 3. commands
-            if kinematic:
-                front = 0.0
-                drive = 0.0
-                target = setup.speed_profile(driver.progress)
-                driver.progress, driver.lateral_error = setup.path.project(
-                    driver.control_point_position(state), driver.progress
-                )
-            else:
-                front = driver.steer(state, period)
-                target = setup.speed_profile(driver.progress)
-                mu_drive = float(np.min(sim.surface_inputs(sim.state_vector)[0][driven]))
-                drive = speed_control(target, state.u, period, traction_limit(mu_drive, driven_load))
+            tick = cosim.tick
+            state = tick.state
             trailer_steer = (
-                np.asarray(trailer_steer_source(state, {"truth": truth, **estimates}), dtype=float)
-                if trailer_steer_source is not None
-                else np.zeros(n_trailer_steer)
+                np.asarray(trailer_steer_source(state, tick.estimates), dtype=float)
+                if trailer_steer_source is not None and not cosim.kinematic
+                else np.zeros(n_trailer)
             )
-            steer = np.concatenate([[front], trailer_steer])
-            # 4. record
+            kp = cosim.kingpin
+            psi2 = state.psi1 - state.gamma
             follow = kp - l_fp * np.array([math.cos(psi2), math.sin(psi2)])
             row = {
-                "time": t,
+                "time": tick.time,
                 **{name: getattr(state, name) for name in layout.states[:8]},
                 "psi2": psi2,
                 "kingpin_x": kp[0],
                 "kingpin_y": kp[1],
                 "follow_x": follow[0],
                 "follow_y": follow[1],
-                **dict(zip(steer_names, steer, strict=True)),
-                "drive_force": drive,
-                "speed_target": target,
-                "path_progress": driver.progress,
-                "lateral_error": driver.lateral_error,
-                "camera_frame": float(camera_frame),
-                **{f"signal_{n}": float(measured[n][0]) for n in signal_names},
-                "offtracking_truth": np.nan if truth is None else truth,
-                "offtracking_truth_geometric": np.nan if truth_geo is None else truth_geo,
-                **{f"offtracking_{n}": np.nan if v is None else v for n, v in estimates.items()},
+                **dict(zip(steer_names, np.concatenate([[tick.front_steer], trailer_steer]), strict=True)),
+                "drive_force": tick.drive_force,
+                "speed_target": tick.speed_target,
+                "path_progress": cosim.driver.progress,
+                "lateral_error": cosim.driver.lateral_error,
+                "camera_frame": float(tick.camera_frame),
+                **{f"signal_{n}": float(tick.measured[n][0]) for n in signal_names},
+                "offtracking_truth": _nan(tick.estimates["truth"]),
+                "offtracking_truth_geometric": _nan(tick.geometric_truth),
+                **{f"offtracking_{n}": _nan(tick.estimates[n]) for n in estimator_names},
             }
-            row.update(camera_row)
+            if tick.camera is not None:
+                shot = tick.camera
+                row.update(
+                    {
+                        "vo_valid": float(shot.vo.valid),
+                        "vo_matches": float(shot.vo.n_matches),
+                        "vo_inliers": float(shot.vo.n_inliers),
+                        "render_ms": 1e3 * shot.render_s,
+                        "vo_ms": 1e3 * shot.vo_s,
+                    }
+                )
             if telemetry_names:
                 row.update(telemetry())  # type: ignore[misc]
             for key in columns:
@@ -268,18 +437,10 @@ def run_cosimulation(
                 writer.append(row)
             outcome.rows += 1
             if progress is not None:
-                progress(t, min(driver.progress / setup.path.length, 1.0))
-            if driver.finished or t + 0.5 * period >= max_time:
+                progress(tick.time, min(cosim.driver.progress / setup.path.length, 1.0))
+            if cosim.finished:
                 break
-            # advance
-            if kinematic:
-                state = _kinematic_step(setup, state, period)
-                sim.reset(state)
-                dense.extend(kingpin_position(params, state.X, state.Y, state.psi1)[None, :])
-            else:
-                state = sim.step(Controls(steer, drive))
-                traj = sim.trajectory()
-                dense.extend(kingpin_position(params, traj[:, 0], traj[:, 1], traj[:, 2]))
+            cosim.advance(trailer_steer)
     except SimulationDivergedError as exc:
         outcome.status, outcome.message = "diverged", str(exc)
     except KeyboardInterrupt:
@@ -295,13 +456,12 @@ def _kinematic_step(setup: ScenarioSetup, state: VehicleState, period: float) ->
     """Constant-slip straight (paper §3): both units crab at the slip angle, moving along the path."""
     beta = setup.kinematic_slip or 0.0
     speed = setup.speed_profile(0.0)
-    heading = state.psi1
-    direction = heading + beta
+    direction = state.psi1 + beta
     return VehicleState(
         state.time + period,
         state.X + speed * period * math.cos(direction),
         state.Y + speed * period * math.sin(direction),
-        heading,
+        state.psi1,
         state.u,
         state.v1,
         0.0,
@@ -309,11 +469,3 @@ def _kinematic_step(setup: ScenarioSetup, state: VehicleState, period: float) ->
         0.0,
         slip=state.slip,
     )
-
-
-def run_to_files(setup: ScenarioSetup, run_dir: Path, **kwargs: Any) -> tuple[RunOutcome, dict[str, np.ndarray]]:
-    """:func:`run_cosimulation` streaming the time series into ``run_dir``."""
-    from .results import TIMESERIES_FILE
-
-    writer = TimeSeriesWriter(run_dir / TIMESERIES_FILE, columns=[])
-    return run_cosimulation(setup, writer=writer, **kwargs)

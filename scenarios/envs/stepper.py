@@ -29,25 +29,17 @@ from __future__ import annotations
 import io
 import pickle
 from collections import OrderedDict
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
-import numpy as np
-
-from controller.driver import PathFollowingDriver
-from controller.speed import SpeedController, traction_limit
-from controller.zero_slip import ZeroSlipEstimator
-from sensor.signals import OnboardSignals
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import kingpin_position
-from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses
 from vehicle_model.presets import vehicle_preset
-from vehicle_model.simulator import Controls, Simulator, VehicleState
 
 from ..build import ScenarioSetup, build_scenario
 from ..config import ScenarioConfig
-from ..cosim import signal_specs, true_signals
+from ..cosim import CoSimulation as _CoSimulationCore
+from ..cosim import Tick
 
 __all__ = ["CoSimulation", "Tick", "cached_setup", "vehicle_model"]
 
@@ -82,190 +74,16 @@ def cached_setup(config: ScenarioConfig) -> ScenarioSetup:
     return setup if setup.config == config else replace(setup, config=config)
 
 
-@dataclass(frozen=True)
-class Tick:
-    """What one control tick computed before the trailer steer is chosen.
+class CoSimulation(_CoSimulationCore):
+    """:class:`scenarios.cosim.CoSimulation` that pickles (module docstring); the loop itself lives there.
 
-    Attributes
-    ----------
-    time : float
-        Simulation time ``t_k`` [s].
-    state : VehicleState
-        True state at ``t_k``.
-    measured : dict
-        On-board signals (:mod:`sensor.signals` channels, each a 1-D array).
-    estimates : dict
-        Off-tracking [m] by source: ``truth`` and every configured estimator (``None``: no estimate yet).
-    front_steer : float
-        The driver's steer-axle command [rad].
-    drive_force : float
-        The speed controller's drive force [N].
-    speed_target : float
-        The speed profile's target [m/s].
-    camera_frame : bool
-        Whether the camera clock ticked (a frame was rendered if ``viso_ot`` runs).
-    """
-
-    time: float
-    state: VehicleState
-    measured: dict[str, np.ndarray]
-    estimates: dict[str, float | None]
-    front_steer: float
-    drive_force: float
-    speed_target: float
-    camera_frame: bool
-
-
-class CoSimulation:
-    """One scenario run, advanced one control period per call (module docstring).
-
-    Parameters
-    ----------
-    setup : ScenarioSetup
-        The built scenario; its ``config.seed`` seeds the on-board signals (as in ``run_cosimulation``).
-
-    Attributes
-    ----------
-    tick : Tick
-        The current tick.
-    period : float
-        Control period [s].
-    max_time : float
-        Time [s] at which the run ends even if the driver has not reached the end of the path.
-    trailer_axles : tuple of str
-        Steerable trailer axles, in the order :meth:`advance` expects their steer.
-
-    Raises
-    ------
-    InputError
-        For a kinematic constant-slip scenario (nothing to steer).
+    A kinematic constant-slip scenario is refused: there is nothing to steer.
     """
 
     def __init__(self, setup: ScenarioSetup) -> None:
         if setup.kinematic_slip is not None:
             raise InputError("a kinematic constant-slip scenario (path.slip_deg) cannot be stepped with trailer steer")
-        self._build(setup)
-        self.reset()
-
-    def _build(self, setup: ScenarioSetup) -> None:
-        """The parts that depend on the setup only (rebuilt after unpickling)."""
-        self.setup = setup
-        cfg = setup.config
-        rates = cfg.rates
-        substeps = round(1.0 / (rates.control_hz * rates.dynamics_step_s))
-        self.sim = Simulator(
-            setup.params, setup.surface, dt=rates.dynamics_step_s, substeps=substeps, model=setup.model
-        )
-        self.period = self.sim.control_period
-        layout = setup.model.layout
-        trailer = {a.name for a in setup.params.trailer.axles}
-        self.trailer_axles: tuple[str, ...] = tuple(n for n in layout.steerable_axles if n in trailer)
-        driven = np.flatnonzero(setup.params.axle_table.driven)
-        self._driven = driven
-        self._driven_load = float(setup.params.axle_table.static_load[driven].sum())
-        self.max_time = (
-            cfg.duration_s
-            if cfg.duration_s is not None
-            else 2.0 * setup.path.length / max(setup.speed_profile.cornering, 0.5) + 60.0
-        )
-
-    def reset(self) -> Tick:
-        """Back to the scenario's initial state; return tick 0."""
-        setup, cfg, params = self.setup, self.setup.config, self.setup.params
-        self.sim.reset(setup.initial_state)
-        self.sensors = OnboardSignals(signal_specs(setup), np.random.default_rng(cfg.seed))
-        self.driver = PathFollowingDriver(params, setup.path, setup.control_point, feedforward=setup.feedforward)
-        self.driver.reset(setup.initial_state)
-        self.speed_control = SpeedController(params.tractor.mass + params.trailer.mass)
-        self.truth_buffer = OfftrackingBuffer(params.follow_point_offset)
-        self.estimators: dict[str, ZeroSlipEstimator] = {}
-        if cfg.estimators.zero_slip:
-            self.estimators["zero_slip"] = ZeroSlipEstimator(params, cfg.estimators.zero_slip_variant)
-        self.camera = None
-        if cfg.estimators.viso_ot:
-            from ..camera_pipeline import CameraPipeline  # rendering and OpenGL only when asked for
-
-            self.camera = CameraPipeline(setup)
-        self.steer = np.zeros(len(setup.model.layout.steerable_axles))
-        self._prev_pose: tuple[np.ndarray, float] | None = None
-        self._next_camera = 0.0
-        self.tick = self._observe(self.sim.state)
-        return self.tick
-
-    @property
-    def finished(self) -> bool:
-        """The driver reached the end of the path or the run's time is up (``run_cosimulation``'s end)."""
-        return self.driver.finished or self.tick.time + 0.5 * self.period >= self.max_time
-
-    @property
-    def kingpin(self) -> np.ndarray:
-        """Kingpin position [m] at the current tick."""
-        s = self.tick.state
-        return kingpin_position(self.setup.params, s.X, s.Y, s.psi1)
-
-    def advance(self, trailer_steer: np.ndarray) -> Tick:
-        """Integrate one control period with the driver's commands and ``trailer_steer``; return the next tick.
-
-        Parameters
-        ----------
-        trailer_steer
-            Steer [rad] of every steerable trailer axle, in :attr:`trailer_axles` order.
-
-        Raises
-        ------
-        SimulationDivergedError
-            The model left its valid region; the simulator keeps the last good state and :attr:`tick` is
-            unchanged.
-        """
-        tick = self.tick
-        trailer = np.asarray(trailer_steer, dtype=float).reshape(-1)
-        if trailer.size != len(self.trailer_axles):
-            raise InputError(
-                f"trailer steer needs {len(self.trailer_axles)} angles {self.trailer_axles}, got {trailer}"
-            )
-        steer = np.concatenate([[tick.front_steer], trailer])
-        state = self.sim.step(Controls(steer, tick.drive_force))
-        self.steer = steer
-        self.tick = self._observe(state)
-        return self.tick
-
-    def _observe(self, state: VehicleState) -> Tick:
-        """Steps 1–3 of a tick, exactly as in ``run_cosimulation``."""
-        setup, params, period = self.setup, self.setup.params, self.period
-        t = self.sim.time
-        kp = kingpin_position(params, state.X, state.Y, state.psi1)
-        psi2 = state.psi1 - state.gamma
-        measured = self.sensors.measure(t, true_signals(setup, state, self.steer))
-        estimates: dict[str, float | None] = {
-            name: est.update(measured, period) if self._prev_pose is not None else None
-            for name, est in self.estimators.items()
-        }
-        if self._prev_pose is not None:
-            prev_kp, prev_psi2 = self._prev_pose
-            inc = increments_from_poses(np.vstack([prev_kp, kp]), np.array([prev_psi2, psi2]))[0]
-            self.truth_buffer.push(*inc)
-        self._prev_pose = (kp, psi2)
-        camera_frame = t + 1e-9 >= self._next_camera
-        if camera_frame:
-            self._next_camera += 1.0 / setup.config.rates.camera_hz
-        if self.camera is not None:
-            if camera_frame:
-                self.camera.frame(state)
-            estimates["viso_ot"] = self.camera.estimate  # held between camera frames
-        front = self.driver.steer(state, period)
-        target = setup.speed_profile(self.driver.progress)
-        mu_drive = float(np.min(self.sim.surface_inputs(self.sim.state_vector)[0][self._driven]))
-        drive = self.speed_control(target, state.u, period, traction_limit(mu_drive, self._driven_load))
-        return Tick(
-            time=t,
-            state=state,
-            measured=measured,
-            estimates={"truth": self.truth_buffer.offtracking(), **estimates},
-            front_steer=front,
-            drive_force=drive,
-            speed_target=target,
-            camera_frame=camera_frame,
-        )
+        super().__init__(setup, geometric_truth=False)
 
     # ------------------------------------------------------------------ pickling
 
