@@ -432,6 +432,22 @@ class _Step(NamedTuple):
     blocked_down: bool
 
 
+def tan_kingpin_direction(gamma: float, vx: float, vy: float) -> float:
+    """``tan β_k``: direction of the kingpin velocity ``(vx, vy)`` (tractor axes) in the trailer frame, ``R(Γ)``."""
+    cg, sg = math.cos(gamma), math.sin(gamma)
+    vk2x, vk2y = cg * vx - sg * vy, sg * vx + cg * vy
+    return vk2y / vk2x if vk2x > 1e-6 else 0.0
+
+
+def limit_axle_commands(
+    target: np.ndarray, previous: np.ndarray, max_steer: float, max_steer_rate: float, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-axle saturation then rate limit: ``(limited, output)`` [rad]."""
+    limited = np.clip(target, -max_steer, max_steer)
+    step = max_steer_rate * dt
+    return limited, np.clip(limited, previous - step, previous + step)
+
+
 class TrailerSteeringController:
     """Per-tick path-following trailer steering in the co-simulation's ``TrailerSteerSource`` shape.
 
@@ -599,9 +615,7 @@ class TrailerSteeringController:
         speed = math.hypot(vx, vy)
         forward = state.u > 0.0
         self.kingpin_curvature = state.r1 / speed if speed > 1e-6 else 0.0
-        cg, sg = math.cos(state.gamma), math.sin(state.gamma)
-        vk2x, vk2y = cg * vx - sg * vy, sg * vx + cg * vy
-        tan_kingpin = vk2y / vk2x if vk2x > 1e-6 else 0.0
+        tan_kingpin = tan_kingpin_direction(state.gamma, vx, vy)
         ds = speed * dt if forward else 0.0
         self.distance += ds
         self.fade = self._fade(state.u) if forward else 0.0
@@ -645,9 +659,7 @@ class TrailerSteeringController:
         unclamped = self.feedforward_steer + fb
         virtual = min(max(unclamped, -cfg.max_virtual_steer), cfg.max_virtual_steer)
         target = self.fade * self.distribution(math.tan(virtual), tan_kingpin)
-        limited = np.clip(target, -cfg.max_steer, cfg.max_steer)
-        rate_step = cfg.max_steer_rate * dt
-        output = np.clip(limited, self.commands - rate_step, self.commands + rate_step)
+        limited, output = limit_axle_commands(target, self.commands, cfg.max_steer, cfg.max_steer_rate, dt)
         # Blocked: every axle held below (above) its target by a limit, or the virtual angle clamped.
         blocked_up = bool(np.all(output < target - 1e-12)) or unclamped > virtual
         blocked_down = bool(np.all(output > target + 1e-12)) or unclamped < virtual

@@ -14,7 +14,12 @@ import math
 
 import numpy as np
 
-from controller.path_following import AxleSteerDistribution, PathFollowingConfig
+from controller.path_following import (
+    AxleSteerDistribution,
+    PathFollowingConfig,
+    limit_axle_commands,
+    tan_kingpin_direction,
+)
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import VehicleState
 
@@ -70,9 +75,7 @@ class TrailerSteerActuator:
             vx, vy = state.u, state.v1 - self._h1 * state.r1
         else:
             vx, vy = state.u, -self._fifth_wheel_offset * state.r1
-        cg, sg = math.cos(state.gamma), math.sin(state.gamma)
-        vk2x, vk2y = cg * vx - sg * vy, sg * vx + cg * vy
-        return vk2y / vk2x if vk2x > 1e-6 else 0.0
+        return tan_kingpin_direction(state.gamma, vx, vy)
 
     def __call__(self, virtual_steer: float, state: VehicleState) -> np.ndarray:
         """Per-axle commands [rad] for the virtual-axle angle ``virtual_steer`` [rad] at ``state``."""
@@ -85,9 +88,7 @@ class TrailerSteerActuator:
         fade = min(max((state.u - lo) / (hi - lo), 0.0), 1.0) if state.u > 0.0 else 0.0
         virtual = min(max(float(virtual_steer), -cfg.max_virtual_steer), cfg.max_virtual_steer)
         target = fade * self.distribution(math.tan(virtual), self.kingpin_direction(state))
-        limited = np.clip(target, -cfg.max_steer, cfg.max_steer)
-        rate_step = cfg.max_steer_rate * dt
-        output = np.clip(limited, self.commands - rate_step, self.commands + rate_step)
+        limited, output = limit_axle_commands(target, self.commands, cfg.max_steer, cfg.max_steer_rate, dt)
         self.virtual_steer = virtual
         self.saturated = np.abs(target) > cfg.max_steer
         self.rate_limited = np.abs(output - limited) > 1e-12
