@@ -267,12 +267,26 @@ def kerb(rng: np.random.Generator, size: int = 256, blocks: int = 4) -> np.ndarr
     return _to_rgb(g * shade, (1.0, 1.0, 0.98))
 
 
+def _grain(
+    rng: np.random.Generator,
+    size: int,
+    scale: float,
+    streak: tuple[int, int],
+    level: float,
+    contrast: float,
+    fine: float,
+    tint: tuple[float, float, float],
+) -> np.ndarray:
+    """Noise streaked along one axis by a ``streak`` box blur (wrapped, so the texture tiles)."""
+    s = (size, size)
+    n = cv2.blur(np.pad(fractal_noise(rng, s, scale), 16, mode="wrap"), streak)[16:-16, 16:-16]
+    g = level + contrast * n / max(float(n.std()), 1e-6) + fine * fractal_noise(rng, s, 0.0)
+    return _to_rgb(g, tint)
+
+
 def bark(rng: np.random.Generator, size: int = 256) -> np.ndarray:
     """Tree bark: vertical fissures."""
-    s = (size, size)
-    n = cv2.blur(np.pad(fractal_noise(rng, s, 0.3), 16, mode="wrap"), (3, 31))[16:-16, 16:-16]
-    g = 0.35 + 0.12 * n / max(float(n.std()), 1e-6) + 0.05 * fractal_noise(rng, s, 0.0)
-    return _to_rgb(g, (0.62, 0.5, 0.4))
+    return _grain(rng, size, 0.3, (3, 31), 0.35, 0.12, 0.05, (0.62, 0.5, 0.4))
 
 
 def foliage(rng: np.random.Generator, size: int = 512) -> np.ndarray:
@@ -287,10 +301,7 @@ def foliage(rng: np.random.Generator, size: int = 512) -> np.ndarray:
 
 def wood(rng: np.random.Generator, size: int = 256) -> np.ndarray:
     """Weathered timber (fence rails and posts): grain along u."""
-    s = (size, size)
-    n = cv2.blur(np.pad(fractal_noise(rng, s, 0.5), 16, mode="wrap"), (31, 1))[16:-16, 16:-16]
-    g = 0.55 + 0.1 * n / max(float(n.std()), 1e-6) + 0.04 * fractal_noise(rng, s, 0.0)
-    return _to_rgb(g, (0.78, 0.68, 0.55))
+    return _grain(rng, size, 0.5, (31, 1), 0.55, 0.1, 0.04, (0.78, 0.68, 0.55))
 
 
 def brick(rng: np.random.Generator, size: int = 512) -> np.ndarray:
