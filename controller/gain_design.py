@@ -18,7 +18,7 @@ unaccelerated, the tractor states stay at zero, ``Y_k ≡ 0``, ``ψ1 = 0`` and `
 plant keeps the trailer's rows (Γ, r2 and the trailer axles' transient slips). The controller's axle
 distribution is part of the plant: it feeds back the kingpin velocity direction ``β_k ≈ Γ``; its Jacobian
 ``δ_j = a_j·δ_v + b_j·tan β_k`` is taken by central differences of
-:class:`~controller.path_following.AxleSteerDistribution` itself, so the plant is the one the controller
+:class:`~controller.axle_steer_distribution.AxleSteerDistribution` itself, so the plant is the one the controller
 steers. At walking pace the dynamic plant tends to the kinematic one.
 
 Loop: ``δ_v = C(s)·e_tr`` with ``C(s) = g·(k_p + u·k_i/s + (k_d/u)·s/(1 + s·T_f))`` (gains per unit
@@ -28,16 +28,16 @@ distance, ``g = min(1, (u_b/u)²)`` the controller's high-speed schedule), a dea
 ``control.stability_margins`` and the closed loop ``T = L/(1 + L)`` (follow point's response to a step in
 the off-tracking set-point) from ``control.step_info``.
 
-Design: pole placement in the distance domain (:func:`~controller.path_following.kinematic_pole_placement`,
+Design: pole placement in the distance domain (:func:`~controller.path_following_config.kinematic_pole_placement`,
 reference notes §7.3); if the loop at the given speed misses the required margins, ``ω_n`` is lowered
-(bisection) until it meets them. ``docs/controller_design.md`` documents the figures.
+(bisection) until it meets them. ``docs/controller_design.md`` documents the figures; :mod:`controller.gain_report`
+prints the tables and plots the step responses.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Literal
 
 import control
@@ -49,8 +49,8 @@ from vehicle_model.linearise import linearise
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.trim import trim
 
-from .path_following import (
-    AxleSteerDistribution,
+from .axle_steer_distribution import AxleSteerDistribution
+from .path_following_config import (
     PathFollowingConfig,
     PathFollowingGains,
     bandwidth_schedule,
@@ -61,13 +61,11 @@ __all__ = [
     "DEFAULT_DELAY",
     "DesignResult",
     "design_gains",
-    "design_table",
     "dynamic_plant",
     "kinematic_plant",
     "loop_margins",
     "measurement_delay",
     "pid_controller",
-    "plot_step_responses",
 ]
 
 PlantKind = Literal["kinematic", "dynamic"]
@@ -251,7 +249,7 @@ class DesignResult:
     speed : float
         Design speed [m/s].
     gains : PathFollowingGains
-        Gains per unit distance (give these to :class:`~controller.path_following.PathFollowingConfig`).
+        Gains per unit distance (give these to :class:`~controller.path_following_config.PathFollowingConfig`).
     time_gains : tuple of float
         ``g·(k_p, u·k_i, k_d/u)``: the same gains in time at ``speed`` with the bandwidth schedule.
     natural_frequency, damping : float
@@ -462,99 +460,6 @@ def design_gains(
     return best
 
 
-def plot_step_responses(results: list[DesignResult], path: str | Path, distance: float = 150.0) -> Path:
-    """Save the closed-loop step responses of ``results`` against distance travelled as a PNG.
-
-    Parameters
-    ----------
-    results
-        Designs to plot (e.g. both plants at 15 and 80 km/h).
-    path
-        Output file.
-    distance
-        Distance axis length [m].
-
-    Returns
-    -------
-    pathlib.Path
-        The file written.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7.5, 4.0), dpi=120)
-    for res in results:
-        if not res.stable:
-            continue
-        t = np.linspace(0.0, distance / res.speed, 2001)
-        resp = control.step_response(res.closed_loop, timepts=t)
-        label = (
-            f"{res.speed * 3.6:.0f} km/h, {res.plant_kind}: PM {res.phase_margin_deg:.0f}°, "
-            f"GM {res.gain_margin_db:.1f} dB"
-        )
-        ax.plot(t * res.speed, np.squeeze(resp.outputs), label=label)
-    ax.axhline(1.0, color="0.6", lw=0.8, ls="--")
-    ax.set_xlabel("distance travelled [m]")
-    ax.set_ylabel("off-tracking / set-point step [-]")
-    ax.set_title(f"Path-following loop, step in the off-tracking set-point (dead time {results[0].delay:.2f} s)")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8, loc="lower right")
-    fig.tight_layout()
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out)
-    plt.close(fig)
-    return out
-
-
 def _check_speed(speed: float) -> None:
     if not (isinstance(speed, int | float) and math.isfinite(speed) and speed > 0):
         raise InputError(f"speed = {speed!r} must be a finite number > 0 [m/s]")
-
-
-def design_table(
-    params: VehicleParams,
-    speeds: tuple[float, ...] = (15.0 / 3.6, 80.0 / 3.6),
-    delays: tuple[float, ...] = (measurement_delay(0.0, 0.02, 0.02), DEFAULT_DELAY),
-) -> list[DesignResult]:
-    """Designs for both plants at every speed and dead time (the tables of ``docs/controller_design.md``)."""
-    return [
-        design_gains(params, speed, plant=kind, delay=delay)  # type: ignore[arg-type]
-        for delay in delays
-        for speed in speeds
-        for kind in ("kinematic", "dynamic")
-    ]
-
-
-def main(argv: list[str] | None = None) -> None:
-    """``python -m controller.gain_design [FIGURE.png]``: print the design tables, save the step figure."""
-    import sys
-
-    from vehicle_model.presets import lst_laden, reference_laden
-
-    args = sys.argv[1:] if argv is None else argv
-    data = reference_laden().model_dump()
-    for axle in data["trailer"]["axles"]:
-        axle["steerable"] = True
-    data["name"] = "reference-all-steer"
-    vehicles = [lst_laden(), VehicleParams(**data)]
-    print("| vehicle | speed | plant | dead time | kp | ki | GM | PM | ω_c | rise | settle | overshoot | settle dist |")
-    print("|" + "---|" * 13)
-    for vehicle in vehicles:
-        for r in design_table(vehicle):
-            print(
-                f"| {vehicle.name} | {r.speed * 3.6:.0f} km/h | {r.plant_kind} | {r.delay:.2f} s | {r.gains.kp:.3f} "
-                f"| {r.gains.ki:.4f} | {r.gain_margin_db:.1f} dB | {r.phase_margin_deg:.1f}° | "
-                f"{r.gain_crossover:.2f} rad/s | {r.step.get('RiseTime', math.nan):.2f} s | "
-                f"{r.step.get('SettlingTime', math.nan):.2f} s | {r.step.get('Overshoot', math.nan):.1f} % | "
-                f"{r.step.get('SettlingDistance', math.nan):.1f} m |"
-            )
-    if args:
-        results = design_table(vehicles[0], delays=(DEFAULT_DELAY,))
-        print(f"figure: {plot_step_responses(results, args[0])}")
-
-
-if __name__ == "__main__":
-    main()

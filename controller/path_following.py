@@ -7,6 +7,11 @@ law an independent off-tracking measurement, here the caller picks the estimate 
     tan δ_j = tan δ_v + (L_v − L_j)·κ_c,   κ_c = (tan β_k − tan δ_v)/L_v   (common instantaneous centre)
     δ_j ← f(u) · δ_j,  then per-axle saturation ±δ_max, then rate limit ±δ̇_max
 
+This module holds the per-tick controller (:class:`TrailerSteeringController`: hold, feed-forward, PID,
+anti-windup). Its settings, gains, kinematic pole placement and speed schedule are in
+:mod:`controller.path_following_config`; the virtual-axle distribution, the steady-turn steer and the per-axle
+limits are in :mod:`controller.axle_steer_distribution`.
+
 Sign convention (DESIGN §3)
 ---------------------------
 ``e = e_tr`` is the off-tracking: the y coordinate (left positive), in the current trailer frame, of the
@@ -117,8 +122,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
-from typing import Literal, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -127,299 +131,30 @@ from vehicle_model.layout import Layout
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import VehicleState
 
-__all__ = [
-    "FEEDBACK_SOURCES",
-    "AxleSteerDistribution",
-    "PathFollowingConfig",
-    "PathFollowingGains",
-    "TrailerSteeringController",
-    "bandwidth_schedule",
-    "kinematic_pole_placement",
-    "path_following_steer",
-]
+from .axle_steer_distribution import (
+    AxleSteerDistribution,
+    limit_axle_commands,
+    steady_turn_tangents,
+    tan_kingpin_direction,
+)
+from .path_following_config import (
+    FEEDBACK_SOURCES,
+    FeedbackSource,
+    PathFollowingConfig,
+    bandwidth_schedule,
+    kinematic_pole_placement,
+)
+
+__all__ = ["TrailerSteeringController"]
 
 PATH_SPACING = 0.05
 """Spacing [m] of the stored points of the dead-reckoned kingpin path (chord feed-forward)."""
-
-FEEDBACK_SOURCES: tuple[str, ...] = ("truth", "zero_slip", "viso_ot")
-"""Names of the off-tracking estimates the controller can feed back (keys of the co-simulation's dict)."""
-
-FeedbackSource = Literal["truth", "zero_slip", "viso_ot"]
-Kinematics = Literal["signals", "truth"]
-FeedForward = Literal["path", "steady", "none"]
-
-
-@dataclass(frozen=True)
-class PathFollowingGains:
-    """PID gains on the off-tracking error, per unit distance travelled.
-
-    Parameters
-    ----------
-    kp : float
-        Proportional gain [rad/m] (virtual-axle steer per metre of off-tracking).
-    ki : float
-        Integral gain [rad/m²] on ``∫e_tr ds`` (``s`` the distance travelled); ``u·ki`` in time.
-    kd : float
-        Derivative gain [rad] on ``de_tr/ds``; ``kd/u`` in time.
-    """
-
-    kp: float
-    ki: float = 0.0
-    kd: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("kp", "ki", "kd"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise InputError(f"PathFollowingGains.{name} = {value!r} must be a finite number ≥ 0")
-
-    def in_time(self, speed: float) -> tuple[float, float, float]:
-        """Time-domain equivalents ``(k_p, u·k_i, k_d/u)`` at forward speed ``speed`` [m/s] > 0."""
-        if not speed > 0:
-            raise InputError(f"speed = {speed!r} must be > 0")
-        return self.kp, self.ki * speed, self.kd / speed
-
-
-def kinematic_pole_placement(
-    virtual_axle_distance: float, follow_point_offset: float, natural_frequency: float, damping: float
-) -> PathFollowingGains:
-    """PI gains placing the poles of the kinematic off-tracking loop in the distance domain.
-
-    With ``de/ds = −e/L_v − (L_fp/L_v)·δ_v`` and ``δ_v = k_p·e + k_i·∫e ds`` the closed loop is
-    ``σ² + ((1 + k_p L_fp)/L_v)·σ + k_i L_fp/L_v = 0`` (reference notes §7.3), so::
-
-        k_p = (2ζω_n L_v − 1)/L_fp,   k_i = ω_n² L_v/L_fp
-
-    ``k_p`` is clipped at zero when the open loop (pole ``1/L_v``) is already faster than asked.
-
-    Parameters
-    ----------
-    virtual_axle_distance
-        ``L_v`` [m].
-    follow_point_offset
-        ``L_fp`` [m].
-    natural_frequency
-        ``ω_n`` [1/m] (per metre travelled).
-    damping
-        ``ζ`` [-].
-
-    Returns
-    -------
-    PathFollowingGains
-        ``kd = 0``.
-    """
-    lv, lfp, wn, zeta = (float(x) for x in (virtual_axle_distance, follow_point_offset, natural_frequency, damping))
-    if not (lv > 0 and lfp > 0 and wn > 0 and zeta > 0):
-        raise InputError("kinematic_pole_placement needs L_v, L_fp, natural_frequency and damping all > 0")
-    return PathFollowingGains(kp=max((2.0 * zeta * wn * lv - 1.0) / lfp, 0.0), ki=wn**2 * lv / lfp, kd=0.0)
-
-
-@dataclass(frozen=True)
-class PathFollowingConfig:
-    """Settings of :class:`TrailerSteeringController` (SI units, angles in radians).
-
-    Parameters
-    ----------
-    gains : PathFollowingGains or None
-        PID gains per unit distance; ``None`` places the kinematic poles at ``natural_frequency`` and
-        ``damping`` for the vehicle (:func:`kinematic_pole_placement`).
-    natural_frequency : float
-        ``ω_n`` [1/m] of the default design (reference notes §7.3 example: 1/3 m⁻¹).
-    damping : float
-        ``ζ`` of the default design.
-    max_steer : float
-        Per-axle steer limit [rad] (±25°; the roundabout test needs ±20–25°, reference notes §5.3).
-    max_steer_rate : float
-        Per-axle rate limit [rad/s] (20°/s).
-    virtual_axle_distance : float or None
-        ``L_v`` [m] behind the kingpin; ``None``: the trailer's equivalent wheelbase (all axles).
-    fade_speeds : tuple of float
-        ``(u0, u1)`` [m/s]: the command is zero below ``u0``, full above ``u1``, linear in between.
-    bandwidth_speed : float or None
-        Above this speed [m/s] the feedback is scaled by ``(bandwidth_speed/u)²`` (holds the loop's natural
-        frequency in time; module docstring); ``None`` disables the schedule.
-    feedforward : {"path", "steady", "none"}
-        ``path``: the chord law on the kingpin path of the last trailer length (exact in transients, equal to
-        the steady law in a steady turn); ``steady``: the steady law of reference notes §6.2 on the current
-        ``κ5``; ``none``: feedback only.
-    kinematics : {"signals", "truth"}
-        Where ``κ5`` and the kingpin velocity direction come from (see the module docstring).
-    fixed_axle_compensation : bool
-        Offset the steerable axles to cancel the yaw moment of unsteerable ones (module docstring).
-    max_virtual_steer : float
-        Clamp of the virtual-axle angle [rad] (keeps ``tan δ_v`` finite).
-    derivative_min_distance : float
-        Distance [m] that must separate two samples for a new derivative ``de/ds``.
-    control_period : float
-        Period [s] assumed on the first call (later ones use the difference of ``state.time``).
-    """
-
-    gains: PathFollowingGains | None = None
-    natural_frequency: float = 1.0 / 3.0
-    damping: float = 0.8
-    max_steer: float = math.radians(25.0)
-    max_steer_rate: float = math.radians(20.0)
-    virtual_axle_distance: float | None = None
-    fade_speeds: tuple[float, float] = (0.3, 1.0)
-    bandwidth_speed: float | None = 15.0 / 3.6
-    feedforward: FeedForward = "path"
-    kinematics: Kinematics = "signals"
-    fixed_axle_compensation: bool = True
-    max_virtual_steer: float = math.radians(45.0)
-    derivative_min_distance: float = 0.05
-    control_period: float = 0.02
-
-    def __post_init__(self) -> None:
-        def positive(name: str, upper: float = math.inf) -> None:
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and 0 < value <= upper):
-                raise InputError(f"PathFollowingConfig.{name} = {value!r} must be in (0, {upper}]")
-
-        positive("natural_frequency")
-        positive("damping")
-        positive("max_steer", math.radians(60.0))
-        positive("max_steer_rate")
-        positive("max_virtual_steer", math.radians(80.0))
-        positive("control_period", 1.0)
-        if self.virtual_axle_distance is not None:
-            positive("virtual_axle_distance", 50.0)
-        if self.bandwidth_speed is not None:
-            positive("bandwidth_speed")
-        lo, hi = self.fade_speeds
-        if not (0 <= lo < hi < math.inf):
-            raise InputError(f"PathFollowingConfig.fade_speeds = {self.fade_speeds!r} must satisfy 0 ≤ u0 < u1")
-        if not (math.isfinite(self.derivative_min_distance) and self.derivative_min_distance >= 0):
-            raise InputError("PathFollowingConfig.derivative_min_distance must be finite and ≥ 0")
-        if self.feedforward not in ("path", "steady", "none"):
-            raise InputError(
-                f"PathFollowingConfig.feedforward = {self.feedforward!r} must be 'path', 'steady' or 'none'"
-            )
-        if self.kinematics not in ("signals", "truth"):
-            raise InputError(f"PathFollowingConfig.kinematics = {self.kinematics!r} must be 'signals' or 'truth'")
-        if self.gains is not None and not isinstance(self.gains, PathFollowingGains):
-            raise InputError("PathFollowingConfig.gains must be a PathFollowingGains or None")
-
-
-@dataclass(frozen=True)
-class AxleSteerDistribution:
-    """Steer of every steerable trailer axle from the virtual-axle angle (module docstring).
-
-    Parameters
-    ----------
-    distances : numpy.ndarray
-        ``L_j`` of every trailer axle behind the kingpin [m], trailer layout order.
-    steerable : numpy.ndarray
-        Boolean mask of the steerable trailer axles.
-    stiffness : numpy.ndarray
-        Cornering stiffness of every trailer axle at its static load [N/rad].
-    virtual_axle_distance : float
-        ``L_v`` [m].
-    fixed_axle_compensation : bool
-        Cancel the yaw moment of the unsteerable axles.
-    """
-
-    distances: np.ndarray
-    steerable: np.ndarray
-    stiffness: np.ndarray
-    virtual_axle_distance: float
-    fixed_axle_compensation: bool = True
-    _weights: np.ndarray = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        if not np.any(self.steerable):
-            raise InputError("AxleSteerDistribution needs at least one steerable trailer axle")
-        cl = self.stiffness * self.distances
-        # Δ = Σ_fixed C_f L_f atan(t_f) / Σ_steered C_s L_s (low-speed yaw-moment balance about the kingpin).
-        weights = np.where(self.steerable, 0.0, cl) / float(np.sum(cl[self.steerable]))
-        object.__setattr__(self, "_weights", weights if self.fixed_axle_compensation else np.zeros_like(cl))
-
-    @classmethod
-    def for_vehicle(
-        cls, params: VehicleParams, virtual_axle_distance: float | None = None, fixed_axle_compensation: bool = True
-    ) -> AxleSteerDistribution:
-        """Distribution for the trailer of ``params`` (``L_v`` defaults to its equivalent wheelbase)."""
-        table = params.axle_table
-        trailer = table.unit == 1
-        stiffness = np.array(
-            [
-                ty.cornering_stiffness(fz / n) * n
-                for ty, fz, n in zip(table.tyres, table.static_load, table.n_tyres, strict=True)
-            ]
-        )[trailer]
-        lv = params.equivalent_wheelbase() if virtual_axle_distance is None else float(virtual_axle_distance)
-        return cls(
-            distances=params.trailer_axle_distances(),
-            steerable=np.asarray(table.steerable[trailer], dtype=bool),
-            stiffness=stiffness,
-            virtual_axle_distance=lv,
-            fixed_axle_compensation=fixed_axle_compensation,
-        )
-
-    def centre_curvature(self, tan_virtual: float, tan_kingpin: float) -> float:
-        """``κ_c = 1/y_c = (tan β_k − tan δ_v)/L_v`` [1/m] of the centre implied by ``δ_v`` (reference §2.3)."""
-        return (tan_kingpin - tan_virtual) / self.virtual_axle_distance
-
-    def __call__(self, tan_virtual: float, tan_kingpin: float) -> np.ndarray:
-        """Steer angles [rad] of the steerable axles, trailer layout order.
-
-        Parameters
-        ----------
-        tan_virtual
-            ``tan δ_v`` of the virtual axle.
-        tan_kingpin
-            ``tan β_k = v_k2y/v_k2x``: direction of the kingpin velocity in the trailer frame.
-        """
-        kappa_c = self.centre_curvature(tan_virtual, tan_kingpin)
-        # reference notes §7.3: tan δ_j = tan δ_v + (L_v − L_j)·κ_c for every axle (what each would need)
-        needed = np.arctan(tan_virtual + (self.virtual_axle_distance - self.distances) * kappa_c)
-        offset = float(self._weights @ needed)
-        return needed[self.steerable] + offset
-
-
-def path_following_steer(
-    distribution: AxleSteerDistribution, kingpin_curvature: float, follow_point_offset: float
-) -> tuple[float, np.ndarray]:
-    """Steady zero-slip path-following steer: virtual angle and axle angles (reference notes §6.2).
-
-    Parameters
-    ----------
-    distribution
-        Axle distribution (gives ``L_v`` and the axles).
-    kingpin_curvature
-        ``κ5`` [1/m], positive in a left turn.
-    follow_point_offset
-        ``L_fp`` [m].
-
-    Returns
-    -------
-    tuple
-        ``(δ_ff, δ_j)`` [rad]: the virtual-axle angle and the steerable axles' angles in a steady turn, the
-        kingpin moving at ``tan β_k = (L_fp/2)/y_c``.
-    """
-    tan_ff, tan_kingpin = _steady_tangents(kingpin_curvature, follow_point_offset, distribution.virtual_axle_distance)
-    return math.atan(tan_ff), distribution(tan_ff, tan_kingpin)
-
-
-def bandwidth_schedule(speed: float, bandwidth_speed: float | None) -> float:
-    """Feedback gain factor ``f_hs = min(1, (u_b/u)²)`` of the high-speed schedule (module docstring)."""
-    if bandwidth_speed is None or speed <= bandwidth_speed:
-        return 1.0
-    return (bandwidth_speed / speed) ** 2
 
 
 def _wrap(angle: float) -> float:
     """Angle wrapped to (−π, π], then clipped to ±1.4 rad (keeps tangents finite)."""
     wrapped = math.atan2(math.sin(angle), math.cos(angle))
     return min(max(wrapped, -1.4), 1.4)
-
-
-def _steady_tangents(kappa: float, l_fp: float, l_v: float) -> tuple[float, float]:
-    """``(tan δ_ff, tan β_k)`` of the steady path-following turn of kingpin curvature ``kappa`` (§6.2)."""
-    half = 0.5 * l_fp
-    # κ/sqrt(1 − κ²L_fp²/4) = 1/y_c; clipped where the follow point cannot reach the circle (R5 ≤ L_fp/2).
-    q = min((kappa * half) ** 2, 0.99)
-    inv_yc = kappa / math.sqrt(1.0 - q)
-    return (half - l_v) * inv_yc, half * inv_yc
 
 
 class _Step(NamedTuple):
@@ -430,22 +165,6 @@ class _Step(NamedTuple):
     output: np.ndarray
     blocked_up: bool
     blocked_down: bool
-
-
-def tan_kingpin_direction(gamma: float, vx: float, vy: float) -> float:
-    """``tan β_k``: direction of the kingpin velocity ``(vx, vy)`` (tractor axes) in the trailer frame, ``R(Γ)``."""
-    cg, sg = math.cos(gamma), math.sin(gamma)
-    vk2x, vk2y = cg * vx - sg * vy, sg * vx + cg * vy
-    return vk2y / vk2x if vk2x > 1e-6 else 0.0
-
-
-def limit_axle_commands(
-    target: np.ndarray, previous: np.ndarray, max_steer: float, max_steer_rate: float, dt: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Per-axle saturation then rate limit: ``(limited, output)`` [rad]."""
-    limited = np.clip(target, -max_steer, max_steer)
-    step = max_steer_rate * dt
-    return limited, np.clip(limited, previous - step, previous + step)
 
 
 class TrailerSteeringController:
@@ -623,7 +342,9 @@ class TrailerSteeringController:
         # Feed-forward (reference notes §6.2, exact form).
         self._record_path(state, vx, vy, dt, forward)
         if cfg.feedforward == "steady":
-            tan_ff, _ = _steady_tangents(self.kingpin_curvature, self.follow_point_offset, self.virtual_axle_distance)
+            tan_ff, _ = steady_turn_tangents(
+                self.kingpin_curvature, self.follow_point_offset, self.virtual_axle_distance
+            )
             self.feedforward_steer = math.atan(tan_ff)
         elif cfg.feedforward == "path":
             self.feedforward_steer = math.atan(self._chord_feedforward()) if self._path else 0.0

@@ -76,8 +76,8 @@ def run(
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from scenarios.config import load_scenario, parse_assignment
-    from scenarios.results import new_run_dir
-    from scenarios.runner import run_scenario
+    from scenarios.run.results import new_run_dir
+    from scenarios.run.runner import run_scenario
 
     overrides: dict[str, object] = {}
     for key, value in (
@@ -135,9 +135,9 @@ def compare(
     force: Annotated[bool, typer.Option(help="Allow writing into a non-empty --out.")] = False,
 ) -> None:
     """Run every feedback source on the same scenario; write a table and one overlay figure."""
-    from scenarios.compare import compare_feedback, comparison_rows_as_text
     from scenarios.config import load_scenario, parse_assignment
-    from scenarios.results import new_run_dir
+    from scenarios.run.results import new_run_dir
+    from scenarios.studies.compare import compare_feedback, comparison_rows_as_text
 
     overrides: dict[str, object] = {"vehicle": vehicle}
     for key, value in (
@@ -195,7 +195,7 @@ def render(
     from rich.progress import Progress
 
     from scenarios.config import load_scenario, parse_assignment
-    from scenarios.rendering import export_kitti
+    from scenarios.export.kitti import export_kitti
 
     overrides: dict[str, object] = {}
     if seed is not None:
@@ -228,7 +228,7 @@ def bench_render_cmd(
     antialias: Annotated[bool, typer.Option(help="4× multisampling.")] = False,
 ) -> None:
     """Rendering speed: stereo pairs per second at 1344×391 on the default world."""
-    from scenarios.rendering import bench_render
+    from scenarios.bench.render import bench_render
 
     _print_bench(bench_render(frames, antialias=antialias), as_json, "Render benchmark")
 
@@ -239,7 +239,7 @@ def bench_vo_cmd(
     frames: Annotated[int, typer.Option(help="Rendered frames to process.", min=5)] = 30,
 ) -> None:
     """Visual odometry alone at 1344×391, one thread, on rendered frames."""
-    from scenarios.bench import bench_vo
+    from scenarios.bench.vo import bench_vo
 
     _print_bench(bench_vo(frames), as_json, "Visual odometry benchmark")
 
@@ -273,9 +273,10 @@ def study(
     ] = True,
 ) -> None:
     """Run a study: every case into its own directory, then one table and the figures."""
-    from scenarios.results import new_run_dir
-    from scenarios.studies import STUDIES, run_study
-    from scenarios.sweep import CASES_DIR, rich_progress
+    from scenarios.run.results import new_run_dir
+    from scenarios.studies.definitions import STUDIES, run_study
+    from scenarios.studies.progress import rich_progress
+    from scenarios.studies.records import CASES_DIR
 
     if name not in STUDIES:
         raise ValueError(f"unknown study {name!r}; choose one of {sorted(STUDIES)}")
@@ -306,7 +307,7 @@ def bench_sweep_cmd(
     duration: Annotated[float, typer.Option(help="Simulated seconds per case.", min=1.0)] = 20.0,
 ) -> None:
     """Sweep speed-up: N local worker processes over one on a small model-only study."""
-    from scenarios.sweep import bench_sweep
+    from scenarios.bench.sweep import bench_sweep
 
     _print_bench(bench_sweep(workers, cases, duration), as_json, "Sweep benchmark")
 
@@ -340,7 +341,7 @@ def bench_model_cmd(
     duration: Annotated[float, typer.Option(help="Simulated seconds.", min=1.0)] = 60.0,
 ) -> None:
     """Model-only speed: real-time factor of 60 s of a turning manoeuvre at the default step."""
-    from scenarios.bench import bench_model
+    from scenarios.bench.model import bench_model
 
     _print_bench(bench_model(duration=duration), as_json, "Model benchmark")
 
@@ -351,7 +352,7 @@ def bench_env_cmd(
     feedback: Annotated[str, typer.Option(help="Model-based feedback source: truth or zero_slip.")] = "truth",
 ) -> None:
     """Gymnasium steering env: steps per second against the bare co-simulation loop on the same scenario."""
-    from scenarios.envs.bench import bench_env
+    from scenarios.bench.env import bench_env
 
     _print_bench(bench_env(feedback=feedback), as_json, "Environment benchmark")
 

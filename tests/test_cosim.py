@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from scenarios.build import build_scenario
 from scenarios.config import load_scenario
-from scenarios.cosim import run_cosimulation
-from scenarios.metrics import estimator_errors
+from scenarios.run.cosim import run_cosimulation
+from scenarios.run.metrics import estimator_errors
+from scenarios.setup.build import build_scenario
 
 
 def run(name, **overrides):
@@ -115,8 +115,8 @@ def test_same_seed_same_numbers_with_noisy_signals():
 def test_truth_fed_steering_removes_the_offtracking_on_the_dry_roundabout():
     # Issue figure: dry, flat, truth feedback → true off-tracking RMS ≤ 0.10 m and max ≤ 0.15 m after warm-up,
     # where the unsteered trailer shows about half a metre on this 50 m roundabout.
-    from scenarios.build import trailer_controller
-    from scenarios.metrics import after_warmup
+    from scenarios.run.metrics import after_warmup
+    from scenarios.setup.build import trailer_controller
 
     results = {}
     for feedback in ("none", "truth"):

@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env, data_equivalence
 
-from controller.path_following import PathFollowingGains
-from scenarios.build import build_scenario, trailer_controller
-from scenarios.cosim import run_cosimulation
+from controller.path_following_config import PathFollowingGains
 from scenarios.envs import ENV_IDS, register_envs
 from scenarios.envs.gain_tuning_env import GAIN_RANGES, action_to_gains, gains_to_action
 from scenarios.envs.scenario import DomainRandomisation
+from scenarios.run.cosim import run_cosimulation
+from scenarios.setup.build import build_scenario, trailer_controller
 from vehicle_model.errors import InputError
 
 SHORT = {"path.turns": 0.1, "path.entry_length": 10.0, "path.exit_length": 5.0}
@@ -317,7 +317,7 @@ def test_tune_gains_runs_end_to_end_on_a_tiny_budget() -> None:
 
 
 def test_bench_env_reports_env_and_bare_loop_rates() -> None:
-    from scenarios.envs.bench import bench_env
+    from scenarios.bench.env import bench_env
 
     figures = bench_env(turns=0.05)
     for key in ("steps_per_s", "steps_per_s_residual", "bare_loop_steps_per_s", "bare_loop_pid_steps_per_s"):

@@ -16,9 +16,10 @@ from controller.gain_design import (
     loop_margins,
     measurement_delay,
     pid_controller,
-    plot_step_responses,
 )
-from controller.path_following import PathFollowingConfig, PathFollowingGains, TrailerSteeringController
+from controller.gain_report import plot_step_responses
+from controller.path_following import TrailerSteeringController
+from controller.path_following_config import PathFollowingConfig, PathFollowingGains
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.presets import lst_laden, reference_laden

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from scenarios.metrics import estimator_errors, rms, roundabout_verdict
+from scenarios.run.metrics import estimator_errors, rms, roundabout_verdict
 from vehicle_model.geometry import tractor_outline, trailer_outline
 
 

@@ -8,16 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from controller.path_following import (
-    AxleSteerDistribution,
-    PathFollowingConfig,
-    PathFollowingGains,
-    TrailerSteeringController,
-    path_following_steer,
-)
-from scenarios.build import build_scenario
+from controller.axle_steer_distribution import AxleSteerDistribution, path_following_steer
+from controller.path_following import TrailerSteeringController
+from controller.path_following_config import PathFollowingConfig, PathFollowingGains
 from scenarios.config import load_scenario
-from scenarios.cosim import run_cosimulation
+from scenarios.run.cosim import run_cosimulation
+from scenarios.setup.build import build_scenario
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from scenarios.config import ConfigError, catalogue_names, load_scenario, parse_assignment, validate_config
-from scenarios.paths import figure_eight_path, roundabout_path, straight_path
+from scenarios.setup.paths import figure_eight_path, roundabout_path, straight_path
 
 
 @pytest.mark.parametrize("direction", [1, -1])

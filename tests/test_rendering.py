@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 import pytest
 
-from scenarios.paths import roundabout_path
+from scenarios.setup.paths import roundabout_path
 from sensor.camera import StereoRig, project
 from sensor.world import RoadPath, World, WorldConfig, build_world
 from vehicle_model.errors import InputError, OfftrackError
@@ -131,7 +131,8 @@ def test_rendering_unavailable_names_the_fix() -> None:
         """
         import numpy as np
         from sensor.camera import StereoRig
-        from sensor.renderer import RenderingUnavailableError, StereoRenderer
+        from sensor.renderer import StereoRenderer
+        from sensor.rendering_errors import RenderingUnavailableError
         from sensor.world import RoadPath, build_world
         from vehicle_model.errors import OfftrackError
         world = build_world(RoadPath.straight(50.0), scenery_density=0.0)
@@ -296,7 +297,9 @@ def test_side_camera_sees_the_central_island(default_world: World, roundabout) -
 
 @rendering
 def test_renderer_pickles_and_refuses_a_fork(flat_world: World, monkeypatch) -> None:
+    from sensor import gl_context
     from sensor import renderer as rmod
+    from sensor.rendering_errors import RenderingUnavailableError
 
     rig = StereoRig(station=-12.0)
     r = rmod.StereoRenderer(flat_world, rig)
@@ -310,15 +313,15 @@ def test_renderer_pickles_and_refuses_a_fork(flat_world: World, monkeypatch) -> 
     np.testing.assert_array_equal(first.left, again.left)
     np.testing.assert_array_equal(first.right, r.render_poses(pose_l, pose_r).right)
     # A context created in another process (a fork) is refused, not used.
-    monkeypatch.setattr(rmod.os, "getpid", lambda: -1)
-    with pytest.raises(rmod.RenderingUnavailableError, match="fork"):
+    monkeypatch.setattr(gl_context.os, "getpid", lambda: -1)
+    with pytest.raises(RenderingUnavailableError, match="fork"):
         r.render_poses(pose_l, pose_r)
 
 
 @rendering
 def test_kitti_export_loads_back(tmp_path) -> None:
     from scenarios.config import load_scenario
-    from scenarios.rendering import export_kitti, read_calib, read_poses
+    from scenarios.export.kitti import export_kitti, read_calib, read_poses
 
     config = load_scenario("constant-slip", {"duration_s": 0.6})
     calls = []
@@ -357,7 +360,7 @@ def test_kitti_export_loads_back(tmp_path) -> None:
 def test_write_video(tmp_path) -> None:
     import imageio.v2 as imageio
 
-    from scenarios.rendering import write_video
+    from scenarios.export.video import write_video
 
     rng = np.random.default_rng(0)
     frames = [rng.integers(0, 255, (391, 300), dtype=np.uint8) for _ in range(4)]
@@ -374,7 +377,7 @@ def test_write_video(tmp_path) -> None:
 
 @rendering
 def test_bench_render_reports() -> None:
-    from scenarios.rendering import bench_render
+    from scenarios.bench.render import bench_render
 
     result = bench_render(duration_frames=3)
     for key in ("pairs_per_s", "ms_per_pair", "width", "height", "triangles", "ms_draw", "ms_readback", "ms_grey"):
@@ -384,8 +387,8 @@ def test_bench_render_reports() -> None:
 
 
 def test_rig_from_scenario_camera_section() -> None:
+    from scenarios.camera.rig import rig_from_config
     from scenarios.config import load_scenario
-    from scenarios.rendering import rig_from_config
 
     assert rig_from_config(load_scenario("roundabout-3")) == StereoRig()
     overrides = {

@@ -19,18 +19,13 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from scenarios import studies
-from scenarios.studies import CaseSpec, run_case
-from scenarios.sweep import (
-    CASES_DIR,
-    SweepProgress,
-    gather_table,
-    local_executor,
-    model_only_cases,
-    read_record,
-    run_sweep,
-    worker_info,
-)
+from scenarios.studies import definitions, figures
+from scenarios.studies.cases import model_only_cases, run_case
+from scenarios.studies.executors import local_executor
+from scenarios.studies.progress import SweepProgress
+from scenarios.studies.records import CASES_DIR, CaseSpec, read_record
+from scenarios.studies.sweep import gather_table, run_sweep
+from scenarios.studies.workers import worker_info
 
 CASES = model_only_cases(6, duration_s=3.0, study="test-sweep")
 BAD = CaseSpec("test-sweep", "roundabout-3", (("duration_s", 3.0), ("surface.mu", -1.0)), (("case", 99),))
@@ -127,7 +122,8 @@ def test_killed_sweep_process_resumes_without_losing_cases(tmp_path: Path) -> No
     script = textwrap.dedent(
         f"""
         from pathlib import Path
-        from scenarios.sweep import model_only_cases, run_sweep
+        from scenarios.studies.cases import model_only_cases
+        from scenarios.studies.sweep import run_sweep
         run_sweep(model_only_cases(10, duration_s=8.0, study="test-sweep-kill"), Path({str(tmp_path)!r}), workers=2)
         """
     )
@@ -203,10 +199,10 @@ def test_dask_local_cluster_gives_the_local_table(serial: pd.DataFrame, tmp_path
 
 def test_run_study_writes_tables_and_figures_from_the_sweep(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     drawn: list[pd.DataFrame] = []
-    monkeypatch.setitem(studies.STUDIES, "tiny", lambda full: [*model_only_cases(2, 2.0, study="tiny"), BAD])
-    monkeypatch.setitem(studies.FIGURES, "tiny", lambda table, out: drawn.append(table))
+    monkeypatch.setitem(definitions.STUDIES, "tiny", lambda full: [*model_only_cases(2, 2.0, study="tiny"), BAD])
+    monkeypatch.setitem(figures.FIGURES, "tiny", lambda table, out: drawn.append(table))
     calls: list[tuple[int, int, str]] = []
-    table = studies.run_study("tiny", tmp_path, progress=lambda i, n, spec: calls.append((i, n, spec.name)))
+    table = definitions.run_study("tiny", tmp_path, progress=lambda i, n, spec: calls.append((i, n, spec.name)))
     assert list(table["status"]) == ["completed", "completed", "failed"]
     assert [c[:2] for c in calls] == [(0, 3), (1, 3), (2, 3), (3, 3)]
     assert len(drawn) == 1 and len(drawn[0]) == 2  # the figures see the cases that did not fail
@@ -214,7 +210,7 @@ def test_run_study_writes_tables_and_figures_from_the_sweep(monkeypatch: pytest.
         assert (tmp_path / name).is_file()
     assert len(pd.read_csv(tmp_path / "table.csv")) == 3
     with pytest.raises(ValueError, match="unknown study"):
-        studies.run_study("no-such-study", tmp_path)
+        definitions.run_study("no-such-study", tmp_path)
 
 
 def test_duplicate_case_names_are_refused(tmp_path: Path) -> None:

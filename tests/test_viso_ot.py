@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from scenarios.build import build_scenario
 from scenarios.config import load_scenario
-from scenarios.cosim import run_cosimulation
+from scenarios.run.cosim import run_cosimulation
+from scenarios.setup.build import build_scenario
 from sensor.viso_ot import VisoOtEstimator
 from vehicle_model.errors import InputError
 from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from scenarios.build import build_scenario
-from scenarios.camera_pipeline import right_correction_homography
+from scenarios.camera.pipeline import right_correction_homography
 from scenarios.config import load_scenario
-from scenarios.cosim import run_cosimulation
-from scenarios.metrics import estimator_errors
+from scenarios.run.cosim import run_cosimulation
+from scenarios.run.metrics import estimator_errors
+from scenarios.setup.build import build_scenario
 from sensor.camera import StereoRig
 
 pytestmark = pytest.mark.rendering

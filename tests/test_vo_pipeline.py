@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from sensor.vo import StereoOdometry, VOConfig, VOResult
+from sensor.vo.bucketing import bucket_matches
 from sensor.vo.features import extract_features
-from sensor.vo.matching import COLUMNS, bucket_matches, match_frames
+from sensor.vo.match_columns import COLUMNS
+from sensor.vo.matching import match_frames
 from sensor.vo.synthetic import (
     PlanarSequence,
     StereoRig,

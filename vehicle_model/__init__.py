@@ -1,0 +1,4 @@
+"""The tractor–semi-trailer: parameters, presets, tyres, surfaces, the casadi model, simulation, geometry, off-tracking.
+
+Imports none of the project's other packages (DESIGN §2).
+"""

@@ -2,7 +2,7 @@
 
 The steering environment's action is a virtual-axle angle ``δ_v`` (directly, or as a correction added to the
 PID's). :class:`TrailerSteerActuator` turns it into per-axle commands with the controller's own distribution
-(:class:`~controller.path_following.AxleSteerDistribution`: every steerable axle pointed at the centre that
+(:class:`~controller.axle_steer_distribution.AxleSteerDistribution`: every steerable axle pointed at the centre that
 ``δ_v`` implies), speed fade, saturation ``±δ_max`` and rate limit ``±δ̇_max`` — the tail of
 :meth:`TrailerSteeringController._command <controller.path_following.TrailerSteeringController>`, so a zero
 correction reproduces the controller's commands exactly.
@@ -14,12 +14,8 @@ import math
 
 import numpy as np
 
-from controller.path_following import (
-    AxleSteerDistribution,
-    PathFollowingConfig,
-    limit_axle_commands,
-    tan_kingpin_direction,
-)
+from controller.axle_steer_distribution import AxleSteerDistribution, limit_axle_commands, tan_kingpin_direction
+from controller.path_following_config import PathFollowingConfig
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import VehicleState
 

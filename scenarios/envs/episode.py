@@ -16,9 +16,9 @@ import numpy as np
 
 from vehicle_model.errors import InputError, SimulationDivergedError
 
-from ..build import ScenarioSetup
-from ..cosim import TrailerSteerSource
-from ..metrics import after_warmup, max_abs, rms
+from ..run.cosim import TrailerSteerSource
+from ..run.metrics import after_warmup, max_abs, rms
+from ..setup.build import ScenarioSetup
 from .stepper import CoSimulation, Tick
 
 __all__ = ["TERMINATION_REASONS", "EpisodeLimits", "EpisodeRecord", "run_episode"]
@@ -88,7 +88,7 @@ class EpisodeRecord:
     def summary(self, follow_point_offset: float) -> dict[str, float]:
         """RMS and largest true off-tracking after warm-up [m], RMS feedback steer [rad], saturated fraction.
 
-        Warm-up (:func:`scenarios.metrics.after_warmup`): until one trailer length after the truth exists.
+        Warm-up (:func:`scenarios.run.metrics.after_warmup`): until one trailer length after the truth exists.
         Missing figures are 0.0 (no settled sample: the run ended during warm-up).
         """
         cols = self.columns
@@ -130,7 +130,7 @@ def run_episode(
 ) -> tuple[EpisodeRecord, CoSimulation]:
     """Run ``setup`` to its end with ``source`` steering the trailer, stopping early at a :class:`EpisodeLimits`.
 
-    The loop of :func:`scenarios.cosim.run_cosimulation` (source called once per tick, row recorded, end
+    The loop of :func:`scenarios.run.cosim.run_cosimulation` (source called once per tick, row recorded, end
     checked, then one control period integrated) on :class:`CoSimulation`, plus the termination checks.
 
     Returns

@@ -11,10 +11,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from controller.path_following import PathFollowingGains, TrailerSteeringController
+from controller.path_following import TrailerSteeringController
+from controller.path_following_config import PathFollowingGains
 from vehicle_model.errors import InputError
 
-from ..build import ScenarioSetup, trailer_controller
+from ..setup.build import ScenarioSetup, trailer_controller
 from .episode import EpisodeLimits, EpisodeRecord, run_episode
 from .plan_view import draw_plan_view
 from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, ScenarioChoice
@@ -24,7 +25,7 @@ __all__ = ["GAIN_RANGES", "GainTuningEnv", "action_to_gains", "gains_to_action"]
 
 GAIN_RANGES: dict[str, tuple[float, float]] = {"kp": (0.01, 3.0), "ki": (0.001, 1.0), "kd": (0.001, 3.0)}
 """Ranges of the gains the action spans (log-scaled): ``kp`` [rad/m], ``ki`` [rad/m²], ``kd`` [rad], per metre
-travelled (:class:`~controller.path_following.PathFollowingGains`). The designed defaults of the ``lst``
+travelled (:class:`~controller.path_following_config.PathFollowingGains`). The designed defaults of the ``lst``
 (``kp`` 0.286, ``ki`` 0.0745, ``kd`` 0) lie inside, ``kd`` at the lower end."""
 
 CONTEXT_NAMES: tuple[str, ...] = ("mu", "camber_signed_percent", "speed", "laden")
@@ -84,7 +85,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
                + failure_cost·(run terminated)
 
     ``e_tr`` the **true** off-tracking, warm-up one trailer length after it first exists
-    (:func:`scenarios.metrics.after_warmup`), ``δ_fb`` the PID's part of the virtual-axle steer, the
+    (:func:`scenarios.run.metrics.after_warmup`), ``δ_fb`` the PID's part of the virtual-axle steer, the
     saturated fraction the share of settled ticks on which an axle hit ±δ_max. Defaults
     ``w_effort = 0.1 m/rad``, ``w_sat = 0.5 m``, ``failure_cost = 5 m``. The parts and the run's figures are in
     ``info`` (``cost_*``, ``rms_offtracking``, ``max_offtracking``, ``saturated_fraction``, ``status``, the gains).

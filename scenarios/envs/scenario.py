@@ -22,7 +22,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from controller.path_following import FEEDBACK_SOURCES
+from controller.path_following_config import FEEDBACK_SOURCES
 from vehicle_model.errors import InputError
 
 from ..config import ScenarioConfig, load_scenario

@@ -13,7 +13,7 @@ from gymnasium import spaces
 from controller.path_following import TrailerSteeringController
 from vehicle_model.errors import InputError, SimulationDivergedError
 
-from ..build import trailer_controller
+from ..setup.build import trailer_controller
 from .actuator import TrailerSteerActuator
 from .episode import EpisodeLimits
 from .plan_view import camera_strip, draw_plan_view

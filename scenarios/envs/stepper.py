@@ -1,12 +1,12 @@
 """The co-simulation loop one control tick at a time, for environments that decide between ticks.
 
-:func:`scenarios.cosim.run_cosimulation` runs a scenario to its end with a trailer-steer callback; a
+:func:`scenarios.run.cosim.run_cosimulation` runs a scenario to its end with a trailer-steer callback; a
 Gymnasium environment needs the same loop turned inside out: it returns after every tick and gets the
 trailer steer from ``step(action)``. :class:`CoSimulation` is that loop, built from the same parts in the
 same order (:class:`~vehicle_model.simulator.Simulator`, :class:`~controller.driver.PathFollowingDriver`,
 :class:`~controller.speed.SpeedController`, :class:`~sensor.signals.OnboardSignals`, the estimators, the
 ground-truth :class:`~vehicle_model.offtracking.OfftrackingBuffer` and, for ``viso_ot``, the
-:class:`~scenarios.camera_pipeline.CameraPipeline`), so a run steered through it matches
+:class:`~scenarios.camera.pipeline.CameraPipeline`), so a run steered through it matches
 ``run_cosimulation`` tick for tick (``tests/test_envs.py`` checks this). It records nothing and skips the
 geometric second truth, which only serves as a check of the first.
 
@@ -32,28 +32,21 @@ from collections import OrderedDict
 from dataclasses import replace
 from typing import Any
 
-from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
-from vehicle_model.presets import vehicle_preset
 
-from ..build import ScenarioSetup, build_scenario
 from ..config import ScenarioConfig
-from ..cosim import CoSimulation as _CoSimulationCore
-from ..cosim import Tick
+from ..run.cosim import CoSimulation as _CoSimulationCore
+from ..run.cosim import Tick
+from ..setup.build import ScenarioSetup, build_scenario
+from ..setup.models import ModelRegistry
 
-__all__ = ["CoSimulation", "Tick", "cached_setup", "vehicle_model"]
+__all__ = ["ENV_MODELS", "CoSimulation", "Tick", "cached_setup"]
 
-_MODELS: dict[str, VehicleModel] = {}
+ENV_MODELS = ModelRegistry()
+"""The vehicle models of this process's environments: every episode and environment of a vehicle shares one."""
+
 _SETUPS: OrderedDict[str, ScenarioSetup] = OrderedDict()
 _SETUP_CACHE_SIZE = 16
-
-
-def vehicle_model(vehicle: str) -> VehicleModel:
-    """The process's :class:`VehicleModel` of a vehicle preset (built, or loaded compiled, once)."""
-    model = _MODELS.get(vehicle)
-    if model is None:
-        model = _MODELS[vehicle] = VehicleModel(vehicle_preset(vehicle))
-    return model
 
 
 def cached_setup(config: ScenarioConfig) -> ScenarioSetup:
@@ -65,7 +58,7 @@ def cached_setup(config: ScenarioConfig) -> ScenarioSetup:
     key = config.model_copy(update={"seed": 0}).model_dump_json()
     setup = _SETUPS.get(key)
     if setup is None:
-        setup = build_scenario(config, model=vehicle_model(config.vehicle))
+        setup = build_scenario(config, model=ENV_MODELS.preset(config.vehicle))
         _SETUPS[key] = setup
         while len(_SETUPS) > _SETUP_CACHE_SIZE:
             _SETUPS.popitem(last=False)
@@ -75,7 +68,7 @@ def cached_setup(config: ScenarioConfig) -> ScenarioSetup:
 
 
 class CoSimulation(_CoSimulationCore):
-    """:class:`scenarios.cosim.CoSimulation` that pickles (module docstring); the loop itself lives there.
+    """:class:`scenarios.run.cosim.CoSimulation` that pickles (module docstring); the loop itself lives there.
 
     A kinematic constant-slip scenario is refused: there is nothing to steer.
     """

@@ -18,7 +18,7 @@ import gymnasium as gym
 import numpy as np
 
 from controller.gain_design import design_gains
-from controller.path_following import PathFollowingGains
+from controller.path_following_config import PathFollowingGains
 from vehicle_model.errors import InputError
 
 from . import register_envs

@@ -2,9 +2,12 @@
 
 Public API: :class:`VOConfig` (parameters, libviso2 defaults), :class:`StereoOdometry`
 (``process(left, right) -> VOResult``, ``reset()``) and :class:`VOResult`. The building blocks live in
-:mod:`sensor.vo.features`, :mod:`sensor.vo.matching`, :mod:`sensor.vo.motion` and
-:mod:`sensor.vo.kalman`; :mod:`sensor.vo.synthetic` makes test data with exact ground truth and
-:mod:`sensor.vo.benchmark` measures the speed (``python -m sensor.vo.benchmark``).
+:mod:`sensor.vo.features` (detection, descriptors), :mod:`sensor.vo.matching` (circular matching of two
+stereo pairs) with its stages :mod:`sensor.vo.search`, :mod:`sensor.vo.prior_ranges`,
+:mod:`sensor.vo.outliers`, :mod:`sensor.vo.bucketing` and :mod:`sensor.vo.refinement` (match array
+columns in :mod:`sensor.vo.match_columns`), :mod:`sensor.vo.motion` and :mod:`sensor.vo.kalman`;
+:mod:`sensor.vo.synthetic` makes test data with exact ground truth and :mod:`sensor.vo.benchmark`
+measures the speed (``python -m sensor.vo.benchmark``).
 
 This is a re-implementation from the algorithm's description (``shared/reference/viso2s-algorithm.md``),
 not a port: no libviso2 code is used. Where it knowingly differs from libviso2:

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import datetime as dt
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +13,8 @@ import pyarrow.parquet as pq
 import yaml
 
 from vehicle_model.errors import InputError
+
+from .files import jsonable, write_atomic
 
 TIMESERIES_FILE = "timeseries.parquet"
 METRICS_FILE = "metrics.json"
@@ -40,41 +40,14 @@ def new_run_dir(out: Path | None, scenario: str, root: Path = Path("runs"), forc
     return out
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename (never a half-written file)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
-
-
 def write_config(run_dir: Path, config: Any) -> None:
     """The resolved configuration as YAML."""
     write_atomic(run_dir / CONFIG_FILE, yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False))
 
 
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    raise TypeError(f"not JSON serialisable: {type(obj)}")
-
-
 def write_metrics(run_dir: Path, metrics: dict[str, Any]) -> None:
     """``metrics.json``, NaN written as null."""
-
-    def clean(value: Any) -> Any:
-        if isinstance(value, dict):
-            return {k: clean(v) for k, v in value.items()}
-        if isinstance(value, list | tuple):
-            return [clean(v) for v in value]
-        if isinstance(value, float | np.floating) and not np.isfinite(value):
-            return None
-        return value
-
-    write_atomic(run_dir / METRICS_FILE, json.dumps(clean(metrics), indent=2, default=_json_default))
+    write_atomic(run_dir / METRICS_FILE, json.dumps(jsonable(metrics), indent=2, allow_nan=False))
 
 
 class TimeSeriesWriter:

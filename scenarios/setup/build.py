@@ -10,7 +10,8 @@ import numpy as np
 from scipy.optimize import root_scalar
 
 from controller.driver import SpeedProfile, kinematic_feedforward
-from controller.path_following import PathFollowingConfig, PathFollowingGains, TrailerSteeringController
+from controller.path_following import TrailerSteeringController
+from controller.path_following_config import PathFollowingConfig, PathFollowingGains
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
@@ -28,7 +29,7 @@ from vehicle_model.surface import (
 )
 from vehicle_model.trim import trim
 
-from .config import ScenarioConfig
+from ..config import ScenarioConfig
 from .paths import ReferencePath, figure_eight_path, roundabout_path, straight_path
 
 CARRIAGEWAY_HALF_WIDTH = 8.0
@@ -162,8 +163,24 @@ def steady_feedforward(
 
 
 def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) -> ScenarioSetup:
-    """Vehicle, path, surface, driver feed-forward and initial state of a scenario."""
+    """Vehicle, path, surface, driver feed-forward and initial state of a scenario.
+
+    Parameters
+    ----------
+    config
+        The scenario.
+    model
+        A built model of the scenario's vehicle to use instead of building one (models hold no run
+        state and can be shared, :class:`~scenarios.setup.models.ModelRegistry`).
+
+    Raises
+    ------
+    InputError
+        ``model`` is the model of another vehicle.
+    """
     params = vehicle_preset(config.vehicle)
+    if model is not None and model.params != params:
+        raise InputError(f"the model given is of vehicle {model.params.name!r}, the scenario's is {config.vehicle!r}")
     model = model if model is not None else VehicleModel(params)
     sign = 1 if config.direction == "left" else -1
     path = _path(config, sign)

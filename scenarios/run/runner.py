@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from .build import build_scenario, trailer_controller
-from .config import ScenarioConfig
+from ..config import ScenarioConfig
+from ..setup.build import build_scenario, trailer_controller
 from .cosim import ProgressCallback, TrailerSteerSource, run_cosimulation
 from .metrics import compute_metrics
 from .plots import plot_offtracking, plot_plan_view
 from .results import TIMESERIES_FILE, TimeSeriesWriter, write_config, write_metrics
+
+if TYPE_CHECKING:
+    from vehicle_model.dynamics import VehicleModel
 
 
 def run_scenario(
@@ -19,14 +22,31 @@ def run_scenario(
     progress: ProgressCallback | None = None,
     trailer_steer_source: TrailerSteerSource | None = None,
     plots: bool = True,
+    model: VehicleModel | None = None,
 ) -> dict[str, Any]:
     """Simulate ``config`` and write ``config.yaml``, ``timeseries.parquet``, ``metrics.json`` and the plots.
 
     The time series is flushed as the run goes and the metrics are written even when the run
     diverges or is interrupted (``status`` says which), so partial results are never lost.
+
+    Parameters
+    ----------
+    config
+        The scenario.
+    run_dir
+        The run directory (created by the caller).
+    progress
+        ``progress(simulated time, fraction done)`` after every control tick.
+    trailer_steer_source
+        Steers the trailer instead of the configured controller (``config.feedback``).
+    plots
+        Write ``plan_view.png`` and ``offtracking.png``.
+    model
+        A built vehicle model of ``config.vehicle`` to use (e.g. one shared by many runs through a
+        :class:`~scenarios.setup.models.ModelRegistry`); default: build one.
     """
     write_config(run_dir, config)
-    setup = build_scenario(config)
+    setup = build_scenario(config, model=model)
     if trailer_steer_source is None:
         trailer_steer_source = trailer_controller(setup)
     writer = TimeSeriesWriter(run_dir / TIMESERIES_FILE, columns=[])

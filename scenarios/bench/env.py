@@ -1,4 +1,4 @@
-"""Speed of the steering environment against the bare co-simulation loop (``offtrack bench env``)."""
+"""``offtrack bench env``: the steering environment's speed against the bare co-simulation loop."""
 
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ..build import trailer_controller
 from ..config import load_scenario
-from ..cosim import run_cosimulation
-from . import register_envs
-from .stepper import CoSimulation, cached_setup
+from ..envs import register_envs
+from ..envs.stepper import CoSimulation, cached_setup
+from ..run.cosim import run_cosimulation
+from ..setup.build import trailer_controller
 
 __all__ = ["bench_env"]
 
@@ -49,7 +49,7 @@ def bench_env(
     * ``steps_per_s_residual``: the same with ``action_mode="residual"`` (the PID runs every step);
     * ``stepper_steps_per_s``: :class:`~scenarios.envs.stepper.CoSimulation` alone, trailer unsteered (the
       environment's core);
-    * ``bare_loop_steps_per_s``: :func:`scenarios.cosim.run_cosimulation` without a trailer-steer source;
+    * ``bare_loop_steps_per_s``: :func:`scenarios.run.cosim.run_cosimulation` without a trailer-steer source;
     * ``bare_loop_pid_steps_per_s``: the same with the configured
       :class:`~controller.path_following.TrailerSteeringController`.
 

@@ -35,7 +35,7 @@ from vehicle_model.geometry import kingpin_position
 from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses, offtracking_from_path
 from vehicle_model.simulator import Controls, Simulator, VehicleState
 
-from .build import ScenarioSetup
+from ..setup.build import ScenarioSetup
 from .results import TimeSeriesWriter
 
 TrailerSteerSource = Callable[[VehicleState, dict[str, float]], np.ndarray]
@@ -229,7 +229,7 @@ class CoSimulation:
             self.estimators["zero_slip"] = ZeroSlipEstimator(params, cfg.estimators.zero_slip_variant)
         self.camera = None
         if cfg.estimators.viso_ot:
-            from .camera_pipeline import CameraPipeline  # rendering and OpenGL only when asked for
+            from ..camera.pipeline import CameraPipeline  # rendering and OpenGL only when asked for
 
             self.camera = CameraPipeline(setup)
         self.steer = np.zeros(len(setup.model.layout.steerable_axles))

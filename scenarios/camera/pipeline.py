@@ -14,8 +14,9 @@ from sensor.viso_ot import VisoOtEstimator
 from sensor.vo import StereoOdometry, VOConfig, VOResult
 from vehicle_model.simulator import VehicleState
 
-from .build import ScenarioSetup
-from .rendering import rig_from_config, world_for_scenario
+from ..setup.build import ScenarioSetup
+from .rig import rig_from_config
+from .world import world_for_scenario
 
 
 def right_correction_homography(rig, estimated_misalignment_deg: tuple[float, float, float]) -> np.ndarray | None:

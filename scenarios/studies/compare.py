@@ -8,10 +8,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .config import ScenarioConfig, validate_config
-from .cosim import ProgressCallback
-from .results import TIMESERIES_FILE, write_atomic
-from .runner import run_scenario
+from ..config import ScenarioConfig, validate_config
+from ..run.cosim import ProgressCallback
+from ..run.files import write_atomic
+from ..run.results import TIMESERIES_FILE
+from ..run.runner import run_scenario
 
 FEEDBACK_ORDER = ("none", "zero_slip", "viso_ot", "truth")
 COLOURS = {"none": "0.4", "zero_slip": "tab:orange", "viso_ot": "tab:green", "truth": "k"}

@@ -1,0 +1,198 @@
+"""Trailer axle steer geometry: virtual-axle angle to per-axle angles, steady-turn steer, kingpin direction, limits."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vehicle_model.errors import InputError
+from vehicle_model.parameters import VehicleParams
+
+__all__ = [
+    "AxleSteerDistribution",
+    "limit_axle_commands",
+    "path_following_steer",
+    "steady_turn_tangents",
+    "tan_kingpin_direction",
+]
+
+
+@dataclass(frozen=True)
+class AxleSteerDistribution:
+    """Steer of every steerable trailer axle from the virtual-axle angle (:mod:`controller.path_following`).
+
+    Parameters
+    ----------
+    distances : numpy.ndarray
+        ``L_j`` of every trailer axle behind the kingpin [m], trailer layout order.
+    steerable : numpy.ndarray
+        Boolean mask of the steerable trailer axles.
+    stiffness : numpy.ndarray
+        Cornering stiffness of every trailer axle at its static load [N/rad].
+    virtual_axle_distance : float
+        ``L_v`` [m].
+    fixed_axle_compensation : bool
+        Cancel the yaw moment of the unsteerable axles.
+    """
+
+    distances: np.ndarray
+    steerable: np.ndarray
+    stiffness: np.ndarray
+    virtual_axle_distance: float
+    fixed_axle_compensation: bool = True
+    _weights: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not np.any(self.steerable):
+            raise InputError("AxleSteerDistribution needs at least one steerable trailer axle")
+        cl = self.stiffness * self.distances
+        # Δ = Σ_fixed C_f L_f atan(t_f) / Σ_steered C_s L_s (low-speed yaw-moment balance about the kingpin).
+        weights = np.where(self.steerable, 0.0, cl) / float(np.sum(cl[self.steerable]))
+        object.__setattr__(self, "_weights", weights if self.fixed_axle_compensation else np.zeros_like(cl))
+
+    @classmethod
+    def for_vehicle(
+        cls, params: VehicleParams, virtual_axle_distance: float | None = None, fixed_axle_compensation: bool = True
+    ) -> AxleSteerDistribution:
+        """Distribution for the trailer of ``params`` (``L_v`` defaults to its equivalent wheelbase)."""
+        table = params.axle_table
+        trailer = table.unit == 1
+        stiffness = np.array(
+            [
+                ty.cornering_stiffness(fz / n) * n
+                for ty, fz, n in zip(table.tyres, table.static_load, table.n_tyres, strict=True)
+            ]
+        )[trailer]
+        lv = params.equivalent_wheelbase() if virtual_axle_distance is None else float(virtual_axle_distance)
+        return cls(
+            distances=params.trailer_axle_distances(),
+            steerable=np.asarray(table.steerable[trailer], dtype=bool),
+            stiffness=stiffness,
+            virtual_axle_distance=lv,
+            fixed_axle_compensation=fixed_axle_compensation,
+        )
+
+    def centre_curvature(self, tan_virtual: float, tan_kingpin: float) -> float:
+        """``κ_c = 1/y_c = (tan β_k − tan δ_v)/L_v`` [1/m] of the centre implied by ``δ_v`` (reference §2.3)."""
+        return (tan_kingpin - tan_virtual) / self.virtual_axle_distance
+
+    def __call__(self, tan_virtual: float, tan_kingpin: float) -> np.ndarray:
+        """Steer angles [rad] of the steerable axles, trailer layout order.
+
+        Parameters
+        ----------
+        tan_virtual
+            ``tan δ_v`` of the virtual axle.
+        tan_kingpin
+            ``tan β_k = v_k2y/v_k2x``: direction of the kingpin velocity in the trailer frame.
+        """
+        kappa_c = self.centre_curvature(tan_virtual, tan_kingpin)
+        # reference notes §7.3: tan δ_j = tan δ_v + (L_v − L_j)·κ_c for every axle (what each would need)
+        needed = np.arctan(tan_virtual + (self.virtual_axle_distance - self.distances) * kappa_c)
+        offset = float(self._weights @ needed)
+        return needed[self.steerable] + offset
+
+
+def path_following_steer(
+    distribution: AxleSteerDistribution, kingpin_curvature: float, follow_point_offset: float
+) -> tuple[float, np.ndarray]:
+    """Steady zero-slip path-following steer: virtual angle and axle angles (reference notes §6.2).
+
+    Parameters
+    ----------
+    distribution
+        Axle distribution (gives ``L_v`` and the axles).
+    kingpin_curvature
+        ``κ5`` [1/m], positive in a left turn.
+    follow_point_offset
+        ``L_fp`` [m].
+
+    Returns
+    -------
+    tuple
+        ``(δ_ff, δ_j)`` [rad]: the virtual-axle angle and the steerable axles' angles in a steady turn, the
+        kingpin moving at ``tan β_k = (L_fp/2)/y_c``.
+    """
+    tan_ff, tan_kingpin = steady_turn_tangents(
+        kingpin_curvature, follow_point_offset, distribution.virtual_axle_distance
+    )
+    return math.atan(tan_ff), distribution(tan_ff, tan_kingpin)
+
+
+def steady_turn_tangents(kappa: float, l_fp: float, l_v: float) -> tuple[float, float]:
+    """``(tan δ_ff, tan β_k)`` of the steady path-following turn of kingpin curvature ``kappa`` (§6.2).
+
+    ``tan δ_ff = (L_fp/2 − L_v)/y_c`` and ``tan β_k = (L_fp/2)/y_c`` with ``1/y_c = κ5/sqrt(1 − κ5²L_fp²/4)``
+    (reference notes §6.2, exact form).
+
+    Parameters
+    ----------
+    kappa
+        Kingpin curvature ``κ5`` [1/m], positive in a left turn.
+    l_fp
+        Follow-point offset ``L_fp`` [m].
+    l_v
+        Virtual-axle distance ``L_v`` [m].
+
+    Returns
+    -------
+    tuple of float
+        ``(tan δ_ff, tan β_k)``: the virtual axle's steady steer and the kingpin velocity direction in the trailer
+        frame.
+    """
+    half = 0.5 * l_fp
+    # κ/sqrt(1 − κ²L_fp²/4) = 1/y_c; clipped where the follow point cannot reach the circle (R5 ≤ L_fp/2).
+    q = min((kappa * half) ** 2, 0.99)
+    inv_yc = kappa / math.sqrt(1.0 - q)
+    return (half - l_v) * inv_yc, half * inv_yc
+
+
+def tan_kingpin_direction(gamma: float, vx: float, vy: float) -> float:
+    """``tan β_k``: direction of the kingpin velocity ``(vx, vy)`` (tractor axes) in the trailer frame, ``R(Γ)``.
+
+    Parameters
+    ----------
+    gamma
+        Articulation angle ``Γ`` [rad].
+    vx, vy
+        Kingpin velocity in tractor axes [m/s].
+
+    Returns
+    -------
+    float
+        ``v_k2y/v_k2x`` (zero when the kingpin does not move forward in the trailer frame).
+    """
+    cg, sg = math.cos(gamma), math.sin(gamma)
+    vk2x, vk2y = cg * vx - sg * vy, sg * vx + cg * vy
+    return vk2y / vk2x if vk2x > 1e-6 else 0.0
+
+
+def limit_axle_commands(
+    target: np.ndarray, previous: np.ndarray, max_steer: float, max_steer_rate: float, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-axle saturation then rate limit: ``(limited, output)`` [rad].
+
+    Parameters
+    ----------
+    target
+        Commanded angles [rad], one per steerable axle.
+    previous
+        Last tick's output [rad].
+    max_steer
+        Magnitude limit ``δ_max`` [rad].
+    max_steer_rate
+        Rate limit ``δ̇_max`` [rad/s].
+    dt
+        Control period [s].
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(limited, output)``: the target clipped to ``±δ_max``, then that clipped to ``±δ̇_max·dt`` of
+        ``previous``.
+    """
+    limited = np.clip(target, -max_steer, max_steer)
+    step = max_steer_rate * dt
+    return limited, np.clip(limited, previous - step, previous + step)

@@ -1,0 +1,206 @@
+"""Settings of the path-following trailer steering: PID gains, their pole placement and speed schedule, the config."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from vehicle_model.errors import InputError
+
+__all__ = [
+    "FEEDBACK_SOURCES",
+    "FeedForward",
+    "FeedbackSource",
+    "Kinematics",
+    "PathFollowingConfig",
+    "PathFollowingGains",
+    "bandwidth_schedule",
+    "kinematic_pole_placement",
+]
+
+FEEDBACK_SOURCES: tuple[str, ...] = ("truth", "zero_slip", "viso_ot")
+"""Names of the off-tracking estimates the controller can feed back (keys of the co-simulation's dict)."""
+
+FeedbackSource = Literal["truth", "zero_slip", "viso_ot"]
+"""Type of the ``feedback`` argument of the controller (one of :data:`FEEDBACK_SOURCES`)."""
+
+Kinematics = Literal["signals", "truth"]
+"""Type of :attr:`PathFollowingConfig.kinematics`."""
+
+FeedForward = Literal["path", "steady", "none"]
+"""Type of :attr:`PathFollowingConfig.feedforward`."""
+
+
+@dataclass(frozen=True)
+class PathFollowingGains:
+    """PID gains on the off-tracking error, per unit distance travelled.
+
+    Parameters
+    ----------
+    kp : float
+        Proportional gain [rad/m] (virtual-axle steer per metre of off-tracking).
+    ki : float
+        Integral gain [rad/m²] on ``∫e_tr ds`` (``s`` the distance travelled); ``u·ki`` in time.
+    kd : float
+        Derivative gain [rad] on ``de_tr/ds``; ``kd/u`` in time.
+    """
+
+    kp: float
+    ki: float = 0.0
+    kd: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("kp", "ki", "kd"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise InputError(f"PathFollowingGains.{name} = {value!r} must be a finite number ≥ 0")
+
+    def in_time(self, speed: float) -> tuple[float, float, float]:
+        """Time-domain equivalents ``(k_p, u·k_i, k_d/u)`` at forward speed ``speed`` [m/s] > 0."""
+        if not speed > 0:
+            raise InputError(f"speed = {speed!r} must be > 0")
+        return self.kp, self.ki * speed, self.kd / speed
+
+
+def kinematic_pole_placement(
+    virtual_axle_distance: float, follow_point_offset: float, natural_frequency: float, damping: float
+) -> PathFollowingGains:
+    """PI gains placing the poles of the kinematic off-tracking loop in the distance domain.
+
+    With ``de/ds = −e/L_v − (L_fp/L_v)·δ_v`` and ``δ_v = k_p·e + k_i·∫e ds`` the closed loop is
+    ``σ² + ((1 + k_p L_fp)/L_v)·σ + k_i L_fp/L_v = 0`` (reference notes §7.3), so::
+
+        k_p = (2ζω_n L_v − 1)/L_fp,   k_i = ω_n² L_v/L_fp
+
+    ``k_p`` is clipped at zero when the open loop (pole ``1/L_v``) is already faster than asked.
+
+    Parameters
+    ----------
+    virtual_axle_distance
+        ``L_v`` [m].
+    follow_point_offset
+        ``L_fp`` [m].
+    natural_frequency
+        ``ω_n`` [1/m] (per metre travelled).
+    damping
+        ``ζ`` [-].
+
+    Returns
+    -------
+    PathFollowingGains
+        ``kd = 0``.
+    """
+    lv, lfp, wn, zeta = (float(x) for x in (virtual_axle_distance, follow_point_offset, natural_frequency, damping))
+    if not (lv > 0 and lfp > 0 and wn > 0 and zeta > 0):
+        raise InputError("kinematic_pole_placement needs L_v, L_fp, natural_frequency and damping all > 0")
+    return PathFollowingGains(kp=max((2.0 * zeta * wn * lv - 1.0) / lfp, 0.0), ki=wn**2 * lv / lfp, kd=0.0)
+
+
+def bandwidth_schedule(speed: float, bandwidth_speed: float | None) -> float:
+    """Feedback gain factor ``f_hs = min(1, (u_b/u)²)`` of the high-speed schedule.
+
+    Holds the kinematic loop's natural frequency in time above ``u_b`` (:mod:`controller.path_following`,
+    *Gains and speed*).
+
+    Parameters
+    ----------
+    speed
+        Forward speed ``u`` [m/s].
+    bandwidth_speed
+        ``u_b`` [m/s]; ``None`` disables the schedule.
+
+    Returns
+    -------
+    float
+        ``f_hs`` in (0, 1].
+    """
+    if bandwidth_speed is None or speed <= bandwidth_speed:
+        return 1.0
+    return (bandwidth_speed / speed) ** 2
+
+
+@dataclass(frozen=True)
+class PathFollowingConfig:
+    """Settings of :class:`~controller.path_following.TrailerSteeringController` (SI units, angles in radians).
+
+    Parameters
+    ----------
+    gains : PathFollowingGains or None
+        PID gains per unit distance; ``None`` places the kinematic poles at ``natural_frequency`` and
+        ``damping`` for the vehicle (:func:`kinematic_pole_placement`).
+    natural_frequency : float
+        ``ω_n`` [1/m] of the default design (reference notes §7.3 example: 1/3 m⁻¹).
+    damping : float
+        ``ζ`` of the default design.
+    max_steer : float
+        Per-axle steer limit [rad] (±25°; the roundabout test needs ±20–25°, reference notes §5.3).
+    max_steer_rate : float
+        Per-axle rate limit [rad/s] (20°/s).
+    virtual_axle_distance : float or None
+        ``L_v`` [m] behind the kingpin; ``None``: the trailer's equivalent wheelbase (all axles).
+    fade_speeds : tuple of float
+        ``(u0, u1)`` [m/s]: the command is zero below ``u0``, full above ``u1``, linear in between.
+    bandwidth_speed : float or None
+        Above this speed [m/s] the feedback is scaled by ``(bandwidth_speed/u)²`` (holds the loop's natural
+        frequency in time; :mod:`controller.path_following`); ``None`` disables the schedule.
+    feedforward : {"path", "steady", "none"}
+        ``path``: the chord law on the kingpin path of the last trailer length (exact in transients, equal to
+        the steady law in a steady turn); ``steady``: the steady law of reference notes §6.2 on the current
+        ``κ5``; ``none``: feedback only.
+    kinematics : {"signals", "truth"}
+        Where ``κ5`` and the kingpin velocity direction come from (see :mod:`controller.path_following`).
+    fixed_axle_compensation : bool
+        Offset the steerable axles to cancel the yaw moment of unsteerable ones (:mod:`controller.path_following`).
+    max_virtual_steer : float
+        Clamp of the virtual-axle angle [rad] (keeps ``tan δ_v`` finite).
+    derivative_min_distance : float
+        Distance [m] that must separate two samples for a new derivative ``de/ds``.
+    control_period : float
+        Period [s] assumed on the first call (later ones use the difference of ``state.time``).
+    """
+
+    gains: PathFollowingGains | None = None
+    natural_frequency: float = 1.0 / 3.0
+    damping: float = 0.8
+    max_steer: float = math.radians(25.0)
+    max_steer_rate: float = math.radians(20.0)
+    virtual_axle_distance: float | None = None
+    fade_speeds: tuple[float, float] = (0.3, 1.0)
+    bandwidth_speed: float | None = 15.0 / 3.6
+    feedforward: FeedForward = "path"
+    kinematics: Kinematics = "signals"
+    fixed_axle_compensation: bool = True
+    max_virtual_steer: float = math.radians(45.0)
+    derivative_min_distance: float = 0.05
+    control_period: float = 0.02
+
+    def __post_init__(self) -> None:
+        def positive(name: str, upper: float = math.inf) -> None:
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and 0 < value <= upper):
+                raise InputError(f"PathFollowingConfig.{name} = {value!r} must be in (0, {upper}]")
+
+        positive("natural_frequency")
+        positive("damping")
+        positive("max_steer", math.radians(60.0))
+        positive("max_steer_rate")
+        positive("max_virtual_steer", math.radians(80.0))
+        positive("control_period", 1.0)
+        if self.virtual_axle_distance is not None:
+            positive("virtual_axle_distance", 50.0)
+        if self.bandwidth_speed is not None:
+            positive("bandwidth_speed")
+        lo, hi = self.fade_speeds
+        if not (0 <= lo < hi < math.inf):
+            raise InputError(f"PathFollowingConfig.fade_speeds = {self.fade_speeds!r} must satisfy 0 ≤ u0 < u1")
+        if not (math.isfinite(self.derivative_min_distance) and self.derivative_min_distance >= 0):
+            raise InputError("PathFollowingConfig.derivative_min_distance must be finite and ≥ 0")
+        if self.feedforward not in ("path", "steady", "none"):
+            raise InputError(
+                f"PathFollowingConfig.feedforward = {self.feedforward!r} must be 'path', 'steady' or 'none'"
+            )
+        if self.kinematics not in ("signals", "truth"):
+            raise InputError(f"PathFollowingConfig.kinematics = {self.kinematics!r} must be 'signals' or 'truth'")
+        if self.gains is not None and not isinstance(self.gains, PathFollowingGains):
+            raise InputError("PathFollowingConfig.gains must be a PathFollowingGains or None")

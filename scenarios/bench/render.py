@@ -1,0 +1,97 @@
+"""``offtrack bench render``: stereo rendering speed on a scenario's default world."""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+from typing import Any
+
+import numpy as np
+
+from sensor.camera import StereoRig
+
+from ..camera.world import world_for_scenario
+from ..config import load_scenario
+from ..setup.build import build_scenario
+
+
+def bench_render(
+    duration_frames: int = 50, scenario: str = "roundabout-3", antialias: bool = False, scenery_density: float = 1.0
+) -> dict[str, Any]:
+    """Rendering speed of stereo pairs on a scenario's default world, at the default 1344 × 391.
+
+    The cameras ride the reference path at the scenario's cornering speed and camera rate, from
+    the start of the manoeuvre (the tractor's CG on the path, the trailer in line): the same
+    world and viewpoints a run would render, without paying for the simulation.
+
+    Returns
+    -------
+    dict
+        ``pairs_per_s``, ``ms_per_pair`` (mean) and ``ms_per_pair_median``, ``width``, ``height``,
+        ``triangles`` (in the world; instanced objects outside the view are skipped), the per-pair
+        breakdown ``ms_cull`` (instance culling and scene upkeep), ``ms_submit`` (Python/pyrender
+        and llvmpipe's vertex work while issuing draw calls), ``ms_draw`` (waiting for llvmpipe's
+        rasteriser to finish), ``ms_readback`` (resolve and ``glReadPixels``), ``ms_grey`` (RGBA →
+        grey and row flip), plus ``world_build_s``, ``first_pair_s`` (context creation and
+        texture upload), ``cpu_ms_per_pair`` (CPU time of all threads: llvmpipe rasterises on
+        every core, so on a busy machine the wall time grows while this stays) and the OpenGL
+        renderer string.
+    """
+    from sensor.renderer import StereoRenderer
+
+    config = load_scenario(scenario)
+    setup = build_scenario(config)
+    t0 = time.perf_counter()
+    world = world_for_scenario(setup, scenery_density)
+    build_s = time.perf_counter() - t0
+    rig = StereoRig()
+    renderer = StereoRenderer(world, rig, setup.params, seed=config.seed, antialias=antialias)
+    path = setup.path
+    step = config.speed.cornering_kmh / 3.6 / config.rates.camera_hz
+    s = path.turn_span[0] + step * np.arange(duration_frames + 1)
+    x, y = np.interp(s, path.s, path.x), np.interp(s, path.s, path.y)
+    h = np.interp(s, path.s, path.heading)
+    t1 = time.perf_counter()
+    renderer.render(x[0], y[0], h[0], 0.0, frame=0)
+    first_s = time.perf_counter() - t1
+    renderer.reset_timings()
+    times = []
+    cpu0 = time.process_time()
+    for k in range(1, duration_frames + 1):
+        t = time.perf_counter()
+        renderer.render(x[k], y[k], h[k], 0.0, frame=k)
+        times.append(time.perf_counter() - t)
+    cpu_s = time.process_time() - cpu0
+    times_a = np.array(times)
+    tm = renderer.timings
+    n = max(len(times), 1)
+    info = renderer.gl_info
+    return {
+        "benchmark": "render",
+        "scenario": scenario,
+        "pairs": len(times),
+        "pairs_per_s": float(len(times) / times_a.sum()),
+        "ms_per_pair": float(1000.0 * times_a.mean()),
+        "ms_per_pair_median": float(1000.0 * np.median(times_a)),
+        "ms_per_pair_p90": float(1000.0 * np.percentile(times_a, 90)),
+        "cpu_ms_per_pair": 1000.0 * cpu_s / max(len(times), 1),
+        "width": rig.width,
+        "height": rig.height,
+        "triangles": world.triangle_count,
+        "scenery_density": scenery_density,
+        "antialias": antialias,
+        "ms_cull": 1000.0 * tm.get("cull_s", 0.0) / n,
+        "ms_submit": 1000.0 * tm.get("submit_s", 0.0) / n,
+        "ms_draw": 1000.0 * tm.get("draw_s", 0.0) / n,
+        "ms_readback": 1000.0 * tm.get("readback_s", 0.0) / n,
+        "ms_grey": 1000.0 * tm.get("grey_s", 0.0) / n,
+        "ms_effects": 1000.0 * tm.get("effects_s", 0.0) / n,
+        "world_build_s": build_s,
+        "first_pair_s": first_s,
+        "gl_renderer": info["renderer"],
+        "gl_version": info["version"],
+        "pyopengl_platform": os.environ.get("PYOPENGL_PLATFORM", ""),
+        "python": platform.python_version(),
+        "cpu_count": os.cpu_count(),
+    }

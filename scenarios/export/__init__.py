@@ -1,0 +1,1 @@
+"""Rendered data for other tools: KITTI-odometry-style datasets and stereo videos."""

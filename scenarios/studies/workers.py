@@ -1,0 +1,187 @@
+"""Sweep worker processes: one thread per library, the vehicle models they share, and running one case.
+
+Standard library only at import time: a spawned worker imports this module to run its initializer
+(:func:`init_worker`), which sets the thread limits before numpy (and its BLAS) is first imported.
+Each worker process owns a :class:`~scenarios.setup.models.ModelRegistry` (:func:`worker_models`), so its
+cases build each vehicle's casadi functions once; a model holds no run state, so sharing it changes no
+result. The process that starts a sweep runs its serial cases through the same code and registry.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import json
+import os
+import signal
+import socket
+import sys
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from ..run.files import jsonable, write_atomic
+from .records import CaseRecord, CaseSpec, case_path, fingerprint, marker_path, spec_dict
+
+if TYPE_CHECKING:
+    from ..setup.models import ModelRegistry
+
+THREAD_LIMITS = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "LP_NUM_THREADS": "1"}
+"""Environment of every worker process: one BLAS/OpenMP/llvmpipe thread each."""
+
+RunFunction = Callable[[CaseSpec, Path], dict[str, Any]]
+"""``run(spec, out_dir) -> table row``; must be a module-level function (it is pickled by reference)."""
+
+_WORKER: dict[str, Any] = {"ready": False, "numpy_preloaded": None, "models": None}
+_CASE_LOCK = threading.Lock()  # one case at a time per process: a process has one GL context
+
+
+def whoami() -> tuple[str, int]:
+    """Host name and process id of this process."""
+    return socket.gethostname(), os.getpid()
+
+
+def worker_models() -> ModelRegistry:
+    """The vehicle models this process's cases share (one registry per process, made on first use)."""
+    if _WORKER["models"] is None:
+        from ..setup.models import ModelRegistry
+
+        _WORKER["models"] = ModelRegistry()
+    return _WORKER["models"]
+
+
+def setup_process() -> None:
+    """Limit this worker process to one thread per library (once per process)."""
+    if _WORKER["ready"]:
+        return
+    if _WORKER["numpy_preloaded"] is None:
+        _WORKER["numpy_preloaded"] = "numpy" in sys.modules
+    os.environ.update(THREAD_LIMITS)  # for whatever loads from now on
+    try:
+        import cv2
+
+        cv2.setNumThreads(1)
+    except Exception:  # OpenCV missing or broken: the cases that need it will say so
+        pass
+    if _WORKER["numpy_preloaded"]:
+        with contextlib.suppress(Exception):  # BLAS already loaded (e.g. a Dask worker): limit it at run time
+            from threadpoolctl import threadpool_limits
+
+            threadpool_limits(1)
+    _WORKER["ready"] = True
+
+
+def _watch_parent(ppid: int) -> None:
+    """End this worker if the sweep process that spawned it dies (no orphans computing for nobody)."""
+    while True:
+        time.sleep(0.5)
+        if os.getppid() != ppid:
+            os._exit(1)
+
+
+def init_worker() -> None:
+    """Initializer of a local worker process (spawned: nothing heavy has been imported yet)."""
+    _WORKER["numpy_preloaded"] = "numpy" in sys.modules
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the sweep's to handle: it terminates the workers
+    threading.Thread(target=_watch_parent, args=(os.getppid(),), daemon=True, name="offtrack-parent-watch").start()
+    setup_process()
+    import scenarios.run.runner  # noqa: F401  (pay the imports once, at start-up)
+
+
+def worker_info() -> dict[str, Any]:
+    """Thread limits and identity of the process this runs in (submit it to a worker to check its setup).
+
+    Returns
+    -------
+    dict
+        ``host``, ``pid``, the thread environment variables, ``cv2_threads``, ``numpy_preloaded``
+        (True if numpy was imported before the worker's thread limits were set), ``ready`` (the worker
+        set-up ran) and ``models_built`` (vehicle models this process has built for its cases).
+    """
+    import cv2
+
+    models = _WORKER["models"]
+    return {
+        "host": socket.gethostname(),
+        "pid": os.getpid(),
+        **{k: os.environ.get(k) for k in THREAD_LIMITS},
+        "cv2_threads": cv2.getNumThreads(),
+        "numpy_preloaded": _WORKER["numpy_preloaded"],
+        "ready": _WORKER["ready"],
+        "models_built": 0 if models is None else models.built,
+    }
+
+
+@dataclass(frozen=True)
+class Task:
+    """One case to run: everything a worker needs, picklable."""
+
+    run: RunFunction
+    spec: CaseSpec
+    index: int
+    out_dir: str
+    session: str
+    origin: tuple[str, int]
+
+
+def failure_record(
+    task: Task, exc: BaseException, wall_s: float = 0.0, worker: dict[str, Any] | None = None
+) -> CaseRecord:
+    """The record of a case that failed with ``exc`` (its type, message and traceback)."""
+    tb = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+    return CaseRecord(
+        name=task.spec.name,
+        index=task.index,
+        status="failed",
+        row=None,
+        error={"type": type(exc).__name__, "message": str(exc), "traceback": tb},
+        spec=spec_dict(task.spec),
+        fingerprint=fingerprint(task.spec),
+        session=task.session,
+        wall_s=wall_s,
+        worker=worker or {},
+        finished_at=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+    )
+
+
+def execute(task: Task) -> dict[str, Any]:
+    """Run one case in whatever process this is, write its record atomically and return it."""
+    if whoami() != task.origin:  # a worker (never the caller's own process)
+        setup_process()
+    out_dir = Path(task.out_dir)
+    host, pid = whoami()
+    worker = {"host": host, "pid": pid}
+    marker = marker_path(out_dir, task.spec.name)
+    with _CASE_LOCK:
+        write_atomic(marker, json.dumps({**worker, "session": task.session, "started": time.time()}))
+        t0 = time.perf_counter()
+        try:
+            row = task.run(task.spec, out_dir)
+            if isinstance(row, dict) and row.get("status") == "interrupted":
+                # the co-simulation caught a Ctrl-C: not a result; the case is run again on resume
+                raise KeyboardInterrupt(f"case {task.spec.name} interrupted")
+            record = CaseRecord(
+                name=task.spec.name,
+                index=task.index,
+                status="done",
+                row=jsonable(dict(row)),
+                error=None,
+                spec=spec_dict(task.spec),
+                fingerprint=fingerprint(task.spec),
+                session=task.session,
+                wall_s=time.perf_counter() - t0,
+                worker=worker,
+                finished_at=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+            )
+        except Exception as exc:
+            record = failure_record(task, exc, time.perf_counter() - t0, worker)
+        finally:
+            with contextlib.suppress(OSError):
+                marker.unlink()
+        text = record.to_json()
+        write_atomic(case_path(out_dir, task.spec.name), text)
+    return json.loads(text)

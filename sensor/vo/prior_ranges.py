@@ -1,0 +1,115 @@
+"""Search ranges of the circle steps: the first-pass defaults and the per-bin second-pass ranges."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sensor.vo.config import VOConfig
+from sensor.vo.match_columns import U1C, U1P, U2C, U2P, V1P
+
+__all__ = ["PriorRanges", "compute_prior_ranges", "default_ranges"]
+
+_MIN_PRIOR_SPAN = 20  # [px] minimum width of a second-pass search range (reference §1.4)
+
+
+@dataclass(frozen=True, eq=False)
+class PriorRanges:
+    """Per-bin search ranges of the four circle steps (libviso2 ``computePriorStatistics``).
+
+    Attributes
+    ----------
+    binsize : int
+        Bin size [px]; bins are indexed by the start feature's (1p) position.
+    lo, hi : numpy.ndarray
+        (n_bins_v, n_bins_u, 4, 2) int64 lower/upper offsets (du, dv) [px] per step.
+    """
+
+    binsize: int
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def lookup(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Ranges (N, 4, 2) for start features at (u, v)."""
+        bu = np.clip(u // self.binsize, 0, self.lo.shape[1] - 1)
+        bv = np.clip(v // self.binsize, 0, self.lo.shape[0] - 1)
+        return self.lo[bv, bu], self.hi[bv, bu]
+
+
+def _step_deltas(xy: np.ndarray) -> np.ndarray:
+    """(N, 4, 2) displacement (du, dv) of each circle step."""
+    pairs = ((U1P, U2P), (U2P, U2C), (U2C, U1C), (U1C, U1P))
+    return np.stack([np.stack([xy[:, b] - xy[:, a], xy[:, b + 1] - xy[:, a + 1]], axis=1) for a, b in pairs], axis=1)
+
+
+def default_ranges(config: VOConfig) -> tuple[np.ndarray, np.ndarray]:
+    """First-pass search ranges of the four circle steps (reference §1.4).
+
+    Stereo steps (0: 1p→2p, 2: 2c→1c) search ± ``search_radius`` in u on the side of non-negative
+    disparity and ± ``match_disp_tolerance`` in v; flow steps (1: 2p→2c, 3: 1c→1p) search
+    ± ``search_radius`` in both.
+
+    Parameters
+    ----------
+    config : VOConfig
+        ``search_radius`` and ``match_disp_tolerance``.
+
+    Returns
+    -------
+    lo, hi : numpy.ndarray
+        (4, 2) int64 lower/upper offsets (du, dv) [px] per step.
+    """
+    r, tol = config.search_radius, config.match_disp_tolerance
+    lo = np.array([[-r, -tol], [-r, -r], [0, -tol], [-r, -r]], dtype=np.int64)
+    hi = np.array([[0, tol], [r, r], [r, tol], [r, r]], dtype=np.int64)
+    return lo, hi
+
+
+def compute_prior_ranges(xy: np.ndarray, shape: tuple[int, int], config: VOConfig) -> PriorRanges:
+    """Second-pass search ranges from first-pass matches (reference §1.4, ``computePriorStatistics``).
+
+    Per ``match_binsize`` bin, the min and max of each step's (du, dv) over the matches starting in
+    the 3×3 neighbouring bins, widened to a span of at least 20 px; bins without
+    observations keep the full first-pass range.
+
+    Parameters
+    ----------
+    xy : numpy.ndarray
+        (N, 8) first-pass matches (columns :data:`~sensor.vo.match_columns.COLUMNS`).
+    shape : tuple[int, int]
+        Image shape (H, W) [px].
+    config : VOConfig
+        Parameters.
+
+    Returns
+    -------
+    PriorRanges
+    """
+    b = config.match_binsize
+    n_bv, n_bu = -(-shape[0] // b), -(-shape[1] // b)
+    lo = np.full((n_bv + 2, n_bu + 2, 8), np.inf)
+    hi = np.full((n_bv + 2, n_bu + 2, 8), -np.inf)
+    if xy.shape[0]:
+        deltas = _step_deltas(xy).reshape(-1, 8)
+        bu = np.clip(xy[:, U1P] // b, 0, n_bu - 1).astype(np.int64) + 1
+        bv = np.clip(xy[:, V1P] // b, 0, n_bv - 1).astype(np.int64) + 1
+        np.minimum.at(lo, (bv, bu), deltas)
+        np.maximum.at(hi, (bv, bu), deltas)
+    # Pool over the 3×3 neighbourhood (padded border bins are empty).
+    pooled_lo = np.full((n_bv, n_bu, 8), np.inf)
+    pooled_hi = np.full((n_bv, n_bu, 8), -np.inf)
+    for dy in range(3):
+        for dx in range(3):
+            np.minimum(pooled_lo, lo[dy : dy + n_bv, dx : dx + n_bu], out=pooled_lo)
+            np.maximum(pooled_hi, hi[dy : dy + n_bv, dx : dx + n_bu], out=pooled_hi)
+    pooled_lo = pooled_lo.reshape(n_bv, n_bu, 4, 2)
+    pooled_hi = pooled_hi.reshape(n_bv, n_bu, 4, 2)
+    default_lo, default_hi = default_ranges(config)
+    empty = ~np.isfinite(pooled_lo)
+    pooled_lo = np.where(empty, default_lo, np.floor(pooled_lo))
+    pooled_hi = np.where(empty, default_hi, np.ceil(pooled_hi))
+    span = pooled_hi - pooled_lo
+    min_span = _MIN_PRIOR_SPAN
+    pad = np.where(span < min_span, np.ceil((min_span - span) / 2), 0)
+    return PriorRanges(binsize=b, lo=(pooled_lo - pad).astype(np.int64), hi=(pooled_hi + pad).astype(np.int64))

@@ -1,0 +1,59 @@
+"""build_world: lays out the road and assembles road, roundabouts, ground and scenery into a World."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from vehicle_model.errors import InputError
+
+from .. import textures as tx
+from .ground import ground_parts
+from .layout import build_layout
+from .road import road_parts
+from .roundabout import roundabout_parts
+from .scenery import horizon_part, scenery_parts
+from .types import PathLike, RoadPath, World, WorldConfig
+
+
+def build_world(path: PathLike | RoadPath, config: WorldConfig | None = None, **overrides: object) -> World:
+    """Build the procedural world around a road path.
+
+    Parameters
+    ----------
+    path : RoadPath or path-like
+        The road's centre line (e.g. a scenario's reference path: ``x``, ``y``, ``heading``,
+        ``centres`` and optionally ``curvature``).
+    config : WorldConfig, optional
+        Settings (default :class:`WorldConfig()`); keyword ``overrides`` replace its fields,
+        e.g. ``build_world(path, scenery_density=0.5, seed=3)``.
+
+    Returns
+    -------
+    World
+        Same inputs → identical world (arrays and textures).
+    """
+    cfg = config if config is not None else WorldConfig()
+    if overrides:
+        try:
+            cfg = dataclasses.replace(cfg, **overrides)
+        except TypeError as exc:
+            raise InputError(f"unknown world setting: {exc}") from None
+    road = path if isinstance(path, RoadPath) else RoadPath.from_path(path)
+    streams = [np.random.default_rng(s) for s in np.random.SeedSequence([int(cfg.seed), 0x57]).spawn(4)]
+    lay = build_layout(road, cfg)
+    parts = road_parts(lay)
+    rb_parts, sites = roundabout_parts(lay, streams[0])
+    ground, xs, ys = ground_parts(lay, streams[1])
+    scenery, counts = scenery_parts(lay, streams[2], sites, xs, ys)
+    extra = [horizon_part(lay, streams[3])] if cfg.horizon and cfg.scenery_density > 0 else []
+    counts["horizon"] = len(extra)
+    return World(
+        config=cfg,
+        road=road,
+        parts=tuple(ground + parts + rb_parts + scenery + extra),
+        textures=tx.texture_set(int(cfg.seed)),
+        loops=tuple(lay.loops),
+        object_counts=counts,
+    )
