@@ -213,7 +213,7 @@ class TrailerSteeringController:
 
     Examples
     --------
-    >>> from scenarios.cosim import run_cosimulation  # doctest: +SKIP
+    >>> from scenarios.run.cosim import run_cosimulation  # doctest: +SKIP
     >>> ctrl = TrailerSteeringController(setup.params, feedback="truth")  # doctest: +SKIP
     >>> outcome, columns = run_cosimulation(setup, trailer_steer_source=ctrl)  # doctest: +SKIP
     """

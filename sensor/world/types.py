@@ -35,7 +35,7 @@ SUN = np.array([0.45, 0.3, 0.84]) / np.linalg.norm([0.45, 0.3, 0.84])
 
 
 class PathLike(Protocol):
-    """Anything with the sampled arrays of a planar path (e.g. ``scenarios.paths.ReferencePath``)."""
+    """Anything with the sampled arrays of a planar path (e.g. ``scenarios.setup.paths.ReferencePath``)."""
 
     x: np.ndarray
     y: np.ndarray
