@@ -23,6 +23,11 @@ class ModelRegistry:
     ----------
     capacity
         Models kept at most (each holds its compiled functions in memory).
+
+    Attributes
+    ----------
+    built : int
+        Models this registry has built (a measure of how well it shares them).
     """
 
     def __init__(self, capacity: int = 8) -> None:
@@ -30,7 +35,6 @@ class ModelRegistry:
             raise ValueError(f"capacity = {capacity} must be at least 1")
         self.capacity = capacity
         self.built = 0
-        """Models this registry has built (a measure of how well it shares them)."""
         self._models: OrderedDict[tuple[str, bool], VehicleModel] = OrderedDict()
 
     def model(self, params: VehicleParams, compile: bool = True) -> VehicleModel:
