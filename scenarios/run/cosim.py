@@ -52,9 +52,13 @@ class RunOutcome:
     Attributes
     ----------
     status : str
-        ``completed``, ``diverged`` or ``interrupted``.
+        ``completed``, ``diverged``, ``lost_control`` or ``interrupted``.
     message : str
-        Why a run stopped early.
+        Why a run stopped early, in words.
+    stop_time : float or None
+        Simulation time [s] at which a run that did not complete stopped.
+    stop_signal : str or None
+        ``SIGINT`` or ``SIGTERM`` for an interrupted run.
     rows : int
         Rows written to the time series.
     wall_time_s : float
@@ -66,6 +70,8 @@ class RunOutcome:
     rows: int = 0
     wall_time_s: float = 0.0
     columns: list[str] = field(default_factory=list)
+    stop_time: float | None = None
+    stop_signal: str | None = None
 
 
 class _DensePath:
