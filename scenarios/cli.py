@@ -1,26 +1,94 @@
-"""The ``offtrack`` command line."""
+"""The ``offtrack`` command line.
+
+Exit codes (README, "Exit codes"): 0 done; 2 bad input (a usage error, or a value out of range — one line per
+bad field, never a traceback); 3 a run that diverged or lost control, or a study with a failed case; 130
+Ctrl-C; 143 SIGTERM. Usage errors are typer's own (standalone mode: message and exit code 2); every command
+body runs under :func:`_command`, which turns offtrack's input errors into exit 2 and a stop into 130/143.
+Nothing here depends on typer's vendored click: only ``typer.Exit`` and typer's standalone handling, both
+tested end to end in ``tests/test_faults.py``.
+"""
 
 from __future__ import annotations
 
+import functools
 import json
-import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any, TypeVar
 
 import typer
 from pydantic import ValidationError
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
+from scenarios.bench.cli import bench_app
+from scenarios.run.stopping import exit_code_for_signal, handle_sigterm, stop_message, stop_signal_name
 from vehicle_model.errors import OfftrackError
 
-app = typer.Typer(help="Tractor–semi-trailer off-tracking co-simulation.", no_args_is_help=True, add_completion=False)
-bench_app = typer.Typer(help="Benchmarks printing machine-readable results.", no_args_is_help=True)
+EXIT_BAD_INPUT = 2
+"""Exit code for bad input."""
+EXIT_FAILED = 3
+"""Exit code for a run that diverged or lost control, or a study with a failed case."""
+
+app = typer.Typer(
+    help="Tractor–semi-trailer off-tracking co-simulation.",
+    no_args_is_help=True,
+    add_completion=False,
+    rich_markup_mode=None,  # help texts are plain: "[km/h]" is a unit, not markup
+    pretty_exceptions_enable=False,
+)
 app.add_typer(bench_app, name="bench")
 console = Console()
+errors = Console(stderr=True, highlight=False)
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _command(func: F) -> F:
+    """Run a command body: offtrack's input errors → one line and exit 2; Ctrl-C → 130, SIGTERM → 143."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except (OfftrackError, ValidationError, ValueError) as exc:
+            errors.print(f"error: {exc}", markup=False)
+            raise typer.Exit(EXIT_BAD_INPUT) from None
+        except KeyboardInterrupt as exc:
+            errors.print(stop_message(exc), markup=False)
+            raise typer.Exit(exit_code_for_signal(stop_signal_name(exc))) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+def _overrides(pairs: tuple[tuple[str, object], ...], surface: str | None, mu: float | None, set_: list[str] | None):
+    """Dotted overrides from the options (``None``: not given) and the ``--set`` items."""
+    from scenarios.config import parse_assignment
+
+    overrides: dict[str, object] = {key: value for key, value in pairs if value is not None}
+    if surface is not None and mu is None:
+        overrides["surface.mu"] = None  # a named surface replaces an explicit μ from the file
+    for item in set_ or []:
+        key, value = parse_assignment(item)
+        overrides[key] = value
+    return overrides
+
+
+def _load(scenario: str, overrides: dict[str, object]):
+    """The validated scenario, with a camera that can work (refused up front otherwise)."""
+    from scenarios.config import load_scenario
+
+    config = load_scenario(scenario, overrides)
+    if config.estimators.viso_ot:
+        from scenarios.camera.feasibility import check_camera_feasible
+
+        check_camera_feasible(config)
+    return config
 
 
 @app.command("list")
+@_command
 def list_presets() -> None:
     """List scenarios, vehicle presets and surface presets."""
     from scenarios.config import catalogue_names, load_scenario_data
@@ -31,14 +99,14 @@ def list_presets() -> None:
     table.add_column("name")
     table.add_column("description")
     for name in catalogue_names():
-        table.add_row(name, " ".join(str(load_scenario_data(name).get("description", "")).split()))
+        table.add_row(name, escape(" ".join(str(load_scenario_data(name).get("description", "")).split())))
     console.print(table)
 
     table = Table(title="Vehicle presets")
     table.add_column("name")
     table.add_column("description")
     for name, factory in VEHICLE_PRESETS.items():
-        table.add_row(name, (factory.__doc__ or "").strip().splitlines()[0])
+        table.add_row(name, escape((factory.__doc__ or "").strip().splitlines()[0]))
     console.print(table)
     table = Table(title="Surface presets")
     table.add_column("name")
@@ -49,6 +117,7 @@ def list_presets() -> None:
 
 
 @app.command()
+@_command
 def run(
     scenario: Annotated[str, typer.Argument(help="Catalogue name (see `offtrack list`) or a YAML file.")],
     surface: Annotated[str | None, typer.Option(help="Surface preset: dry, wet, snow, ice.")] = None,
@@ -69,18 +138,16 @@ def run(
         list[str] | None, typer.Option("--set", help="Any config field, e.g. --set rates.control_hz=100.")
     ] = None,
     out: Annotated[Path | None, typer.Option(help="Run directory (default runs/SCENARIO/TIMESTAMP).")] = None,
-    force: Annotated[bool, typer.Option(help="Allow writing into a non-empty --out.")] = False,
+    force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous run's files are removed.")] = False,
     plots: Annotated[bool, typer.Option(help="Write the plots.")] = True,
 ) -> None:
     """Run a scenario: time series, metrics.json and plots in a run directory."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from scenarios.config import load_scenario, parse_assignment
     from scenarios.run.results import new_run_dir
     from scenarios.run.runner import run_scenario
 
-    overrides: dict[str, object] = {}
-    for key, value in (
+    pairs = (
         ("surface.preset", surface),
         ("surface.mu", mu),
         ("camber.percent", camber),
@@ -91,15 +158,8 @@ def run(
         ("seed", seed),
         ("feedback", feedback),
         ("duration_s", duration),
-    ):
-        if value is not None:
-            overrides[key] = value
-    if surface is not None and mu is None:
-        overrides["surface.mu"] = None  # a named surface replaces an explicit μ from the file
-    for item in set_ or []:
-        key, value = parse_assignment(item)
-        overrides[key] = value
-    config = load_scenario(scenario, overrides)
+    )
+    config = _load(scenario, _overrides(pairs, surface, mu, set_))
     run_dir = new_run_dir(out, config.name, force=force)
     with Progress(
         TextColumn("[bold]{task.description}"),
@@ -109,17 +169,40 @@ def run(
         console=console,
         transient=False,
     ) as bar:
-        task = bar.add_task(config.name, total=1.0, sim_t=0.0)
+        task = bar.add_task(escape(config.name), total=1.0, sim_t=0.0)
         metrics = run_scenario(
             config, run_dir, progress=lambda t, frac: bar.update(task, completed=frac, sim_t=t), plots=plots
         )
     _print_summary(metrics, run_dir)
-    if metrics["status"] != "completed":
-        console.print(f"[bold yellow]run {metrics['status']}:[/] {metrics['message']}")
-        raise typer.Exit(3)
+    _exit_for_status(metrics)
+
+
+def _exit_for_status(metrics: dict) -> None:
+    """Say why a run did not complete and exit with its code (3 failed, 130/143 stopped)."""
+    status = metrics["status"]
+    if status == "completed":
+        return
+    errors.print(f"run {status}: {metrics['message']}", markup=False)
+    if status == "interrupted":
+        raise typer.Exit(exit_code_for_signal(metrics.get("stop_signal")))
+    raise typer.Exit(EXIT_FAILED)
 
 
 @app.command()
+@_command
+def report(
+    run_dir: Annotated[Path, typer.Argument(help="A run directory (config.yaml and timeseries.parquet).")],
+    plots: Annotated[bool, typer.Option(help="Redraw the plots.")] = True,
+) -> None:
+    """Rebuild metrics.json and the plots of a run from its config and time series (e.g. after a kill)."""
+    from scenarios.run.report import rebuild_report
+
+    metrics = rebuild_report(run_dir, plots=plots)
+    _print_summary(metrics, run_dir)
+
+
+@app.command()
+@_command
 def compare(
     scenario: Annotated[str, typer.Argument(help="Catalogue name (see `offtrack list`) or a YAML file.")],
     surface: Annotated[str | None, typer.Option(help="Surface preset: dry, wet, snow, ice.")] = None,
@@ -128,36 +211,37 @@ def compare(
     camber_direction: Annotated[str | None, typer.Option(help="outward or inward.")] = None,
     vehicle: Annotated[str, typer.Option(help="Vehicle preset with steerable trailer axles.")] = "lst",
     feedbacks: Annotated[
-        str, typer.Option(help="Comma-separated feedback sources to compare.")
+        str, typer.Option(help="Comma-separated feedback sources to compare: none, zero_slip, viso_ot, truth.")
     ] = "none,zero_slip,viso_ot,truth",
     set_: Annotated[list[str] | None, typer.Option("--set", help="Any config field, e.g. --set path.turns=1.")] = None,
     out: Annotated[Path | None, typer.Option(help="Output directory (default runs/compare-SCENARIO/…).")] = None,
-    force: Annotated[bool, typer.Option(help="Allow writing into a non-empty --out.")] = False,
+    force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous files are removed.")] = False,
 ) -> None:
     """Run every feedback source on the same scenario; write a table and one overlay figure."""
-    from scenarios.config import load_scenario, parse_assignment
     from scenarios.run.results import new_run_dir
-    from scenarios.studies.compare import compare_feedback, comparison_rows_as_text
+    from scenarios.studies.compare import FEEDBACK_ORDER, compare_feedback, comparison_rows_as_text
+    from vehicle_model.errors import InputError
 
-    overrides: dict[str, object] = {"vehicle": vehicle}
-    for key, value in (
+    chosen = tuple(f.strip() for f in feedbacks.split(",") if f.strip())
+    unknown = [f for f in chosen if f not in FEEDBACK_ORDER]
+    if not chosen or unknown:
+        raise InputError(
+            f"--feedbacks {feedbacks!r}: give one or more of {', '.join(FEEDBACK_ORDER)}, separated by commas"
+        )
+    pairs = (
+        ("vehicle", vehicle),
         ("surface.preset", surface),
         ("surface.mu", mu),
         ("camber.percent", camber),
         ("camber.direction", camber_direction),
-    ):
-        if value is not None:
-            overrides[key] = value
-    if surface is not None and mu is None:
-        overrides["surface.mu"] = None
-    for item in set_ or []:
-        key, value = parse_assignment(item)
-        overrides[key] = value
-    config = load_scenario(scenario, overrides)
-    chosen = tuple(f.strip() for f in feedbacks.split(",") if f.strip())
+    )
+    overrides = _overrides(pairs, surface, mu, set_)
+    config = _load(scenario, overrides)
+    if "viso_ot" in chosen and not config.estimators.viso_ot:
+        _load(scenario, {**overrides, "estimators.viso_ot": True})  # the camera run must be able to work
     run_dir = new_run_dir(out, f"compare-{config.name}", force=force)
     table = compare_feedback(config, run_dir, chosen)
-    view = Table(title=f"{config.name}: feedback comparison — {run_dir}")
+    view = Table(title=escape(f"{config.name}: feedback comparison — {run_dir}"))
     headers = [
         "feedback",
         "status",
@@ -170,19 +254,20 @@ def compare(
         "R in [m]",
     ]
     for column in headers:
-        view.add_column(column, justify="left" if column in ("feedback", "status") else "right")
+        view.add_column(escape(column), justify="left" if column in ("feedback", "status") else "right")
     for cells in comparison_rows_as_text(table):
-        view.add_row(*cells)
+        view.add_row(*(escape(str(c)) for c in cells))
     console.print(view)
 
 
 @app.command()
+@_command
 def render(
     scenario: Annotated[str, typer.Argument(help="Catalogue name (see `offtrack list`) or a YAML file.")],
     out: Annotated[Path, typer.Option(help="Dataset directory (KITTI odometry layout).")],
     frames: Annotated[int | None, typer.Option(help="Render at most this many camera frames.", min=1)] = None,
-    density: Annotated[float | None, typer.Option(help="Scenery density in [0, 1].")] = None,
-    seed: Annotated[int | None, typer.Option(help="Seed of the world and the run.")] = None,
+    density: Annotated[float | None, typer.Option(help="Scenery density in [0, 1].", min=0.0, max=1.0)] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of the world and the run.", min=0)] = None,
     duration: Annotated[float | None, typer.Option(help="Simulated seconds.")] = None,
     set_: Annotated[
         list[str] | None, typer.Option("--set", help="Any config field, e.g. --set camera.baseline=1.5.")
@@ -194,20 +279,12 @@ def render(
     """Export the scenario's rendered stereo sequence as a KITTI-odometry-style dataset."""
     from rich.progress import Progress
 
-    from scenarios.config import load_scenario, parse_assignment
     from scenarios.export.kitti import export_kitti
 
-    overrides: dict[str, object] = {}
-    if seed is not None:
-        overrides["seed"] = seed
-    if duration is not None:
-        overrides["duration_s"] = duration
-    for item in set_ or []:
-        key, value = parse_assignment(item)
-        overrides[key] = value
-    config = load_scenario(scenario, overrides)
+    pairs = (("seed", seed), ("duration_s", duration), ("camera.scenery_density", density))
+    config = _load(scenario, _overrides(pairs, None, None, set_))
     with Progress(console=console) as bar:
-        task = bar.add_task(f"rendering {config.name}", total=None)
+        task = bar.add_task(escape(f"rendering {config.name}"), total=None)
         summary = export_kitti(
             config,
             out,
@@ -221,47 +298,13 @@ def render(
     console.print({k: v for k, v in summary.items() if not isinstance(v, list | dict)})
 
 
-@bench_app.command("render")
-def bench_render_cmd(
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    frames: Annotated[int, typer.Option(help="Stereo pairs to render.", min=5)] = 50,
-    antialias: Annotated[bool, typer.Option(help="4× multisampling.")] = False,
-) -> None:
-    """Rendering speed: stereo pairs per second at 1344×391 on the default world."""
-    from scenarios.bench.render import bench_render
-
-    _print_bench(bench_render(frames, antialias=antialias), as_json, "Render benchmark")
-
-
-@bench_app.command("vo")
-def bench_vo_cmd(
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    frames: Annotated[int, typer.Option(help="Rendered frames to process.", min=5)] = 30,
-) -> None:
-    """Visual odometry alone at 1344×391, one thread, on rendered frames."""
-    from scenarios.bench.vo import bench_vo
-
-    _print_bench(bench_vo(frames), as_json, "Visual odometry benchmark")
-
-
-def _print_bench(result: dict, as_json: bool, title: str) -> None:
-    if as_json:
-        print(json.dumps(result))
-        return
-    table = Table(title=title)
-    table.add_column("figure")
-    table.add_column("value", justify="right")
-    for key, value in result.items():
-        table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
-    console.print(table)
-
-
 @app.command()
+@_command
 def study(
     name: Annotated[str, typer.Argument(help="paper-section3 or estimators-under-slip.")],
     full: Annotated[bool, typer.Option(help="Run the whole study (default: a small subset).")] = False,
     out: Annotated[Path | None, typer.Option(help="Output directory (default runs/study-NAME/…).")] = None,
-    force: Annotated[bool, typer.Option(help="Allow writing into a non-empty --out.")] = False,
+    force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous files are removed.")] = False,
     workers: Annotated[
         int, typer.Option(help="Local worker processes (1: one case after another in this process).", min=1)
     ] = 1,
@@ -277,9 +320,10 @@ def study(
     from scenarios.studies.definitions import STUDIES, run_study
     from scenarios.studies.progress import rich_progress
     from scenarios.studies.records import CASES_DIR
+    from vehicle_model.errors import InputError
 
     if name not in STUDIES:
-        raise ValueError(f"unknown study {name!r}; choose one of {sorted(STUDIES)}")
+        raise InputError(f"unknown study {name!r}; choose one of {', '.join(sorted(STUDIES))}")
     if out is not None and resume and (out / CASES_DIR).is_dir():
         run_dir = out  # an earlier run of the study: finish it
     else:
@@ -288,43 +332,44 @@ def study(
         table = run_study(
             name, run_dir, full=full, workers=workers, scheduler=scheduler, resume=resume, on_progress=progress
         )
-    console.print(f"{len(table)} cases → {run_dir / 'table.md'}")
-    console.print((run_dir / "table.md").read_text())
+    _print_study_summary(table, run_dir)
     failed = int((table["status"] == "failed").sum()) if "status" in table.columns else 0
     if failed:
-        console.print(
-            f"[bold yellow]{failed} case(s) failed[/] (error and traceback in {run_dir / CASES_DIR}/); "
-            f"run the same command with --out {run_dir} to retry them"
+        errors.print(
+            f"{failed} case(s) failed (error and traceback in {run_dir / CASES_DIR}/); "
+            f"run the same command with --out {run_dir} to retry them",
+            markup=False,
         )
-        raise typer.Exit(3)
+        raise typer.Exit(EXIT_FAILED)
 
 
-@bench_app.command("sweep")
-def bench_sweep_cmd(
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    workers: Annotated[int, typer.Option(help="Worker processes to compare with one.", min=2)] = 2,
-    cases: Annotated[int, typer.Option(help="Model-only roundabout-3 cases in the sweep.", min=2)] = 8,
-    duration: Annotated[float, typer.Option(help="Simulated seconds per case.", min=1.0)] = 20.0,
-) -> None:
-    """Sweep speed-up: N local worker processes over one on a small model-only study."""
-    from scenarios.bench.sweep import bench_sweep
-
-    _print_bench(bench_sweep(workers, cases, duration), as_json, "Sweep benchmark")
+def _print_study_summary(table, run_dir: Path) -> None:
+    console.print(escape(f"{len(table)} cases → {run_dir / 'table.md'}"))
+    console.print((run_dir / "table.md").read_text(), markup=False)
 
 
 def _print_summary(metrics: dict, run_dir: Path) -> None:
-    table = Table(title=f"{metrics['scenario']} — {metrics['status']} — {run_dir}")
+    """The closing table of a run: off-tracking of the truth and each estimator's error."""
+    table = Table(title=escape(f"{metrics['scenario']} — {metrics['status']} — {run_dir}"))
     table.add_column("off-tracking")
-    table.add_column("RMS [m]", justify="right")
-    table.add_column("max |·| [m]", justify="right")
+    table.add_column(escape("RMS [m]"), justify="right")
+    table.add_column(escape("max |·| [m]"), justify="right")
     table.add_column("valid", justify="right")
     truth = metrics["offtracking"]["truth"]
-    table.add_row("truth", f"{truth['rms']:.3f}", f"{truth['max_abs']:.3f}", f"{truth['valid_fraction']:.0%}")
+    defined = truth.get("defined_fraction", truth["valid_fraction"])
+    table.add_row("truth", f"{truth['rms']:.3f}", f"{truth['max_abs']:.3f}", f"(defined on {defined:.0%} of ticks)")
     for name, err in metrics["offtracking"]["estimators"].items():
         table.add_row(
             f"{name} error", f"{err['rms_error']:.3f}", f"{err['max_abs_error']:.3f}", f"{err['valid_fraction']:.0%}"
         )
     console.print(table)
+    console.print("valid: share of the ticks with a truth on which the estimator had an estimate")
+    camera = metrics.get("camera")
+    if camera:
+        console.print(
+            f"camera: {camera['valid_frames']} of {camera['frames']} frames gave an accepted motion"
+            + (f"; {escape(camera['message'])}" if camera.get("message") else "")
+        )
     test = metrics.get("roundabout_test")
     if test:
         verdict = "[green]PASS[/]" if test["pass"] else "[red]FAIL[/]"
@@ -335,29 +380,8 @@ def _print_summary(metrics: dict, run_dir: Path) -> None:
     console.print(f"simulated {metrics['simulated_s']:.1f} s in {metrics['wall_time_s']:.1f} s wall time")
 
 
-@bench_app.command("model")
-def bench_model_cmd(
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    duration: Annotated[float, typer.Option(help="Simulated seconds.", min=1.0)] = 60.0,
-) -> None:
-    """Model-only speed: real-time factor of 60 s of a turning manoeuvre at the default step."""
-    from scenarios.bench.model import bench_model
-
-    _print_bench(bench_model(duration=duration), as_json, "Model benchmark")
-
-
-@bench_app.command("env")
-def bench_env_cmd(
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    feedback: Annotated[str, typer.Option(help="Model-based feedback source: truth or zero_slip.")] = "truth",
-) -> None:
-    """Gymnasium steering env: steps per second against the bare co-simulation loop on the same scenario."""
-    from scenarios.bench.env import bench_env
-
-    _print_bench(bench_env(feedback=feedback), as_json, "Environment benchmark")
-
-
 @app.command()
+@_command
 def tune(
     trials: Annotated[int, typer.Option(help="Optuna trials (the first is the designed gains).", min=1)] = 30,
     draws: Annotated[int, typer.Option(help="Training draws of the randomised roads per trial.", min=1)] = 3,
@@ -389,20 +413,10 @@ def tune(
 
 
 def main() -> None:
-    """Entry point: run the app and turn known errors into one clear line and exit code 2."""
-    try:
-        app(standalone_mode=False)
-    except (OfftrackError, ValueError, ValidationError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        raise SystemExit(2) from None
-    except typer.Exit as exc:
-        raise SystemExit(exc.exit_code) from None
-    except typer.Abort:
-        raise SystemExit(130) from None
-    except Exception as exc:  # click usage errors
-        import click
+    """Entry point of ``offtrack``: SIGTERM is handled like Ctrl-C, then typer runs the command.
 
-        if isinstance(exc, click.ClickException):
-            exc.show()
-            raise SystemExit(exc.exit_code) from None
-        raise
+    Typer's standalone mode prints usage errors (unknown option or command, a value of the wrong type or out
+    of an option's range) with exit code 2 and turns ``typer.Exit`` into the process's exit code.
+    """
+    handle_sigterm()
+    app()

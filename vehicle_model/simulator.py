@@ -271,7 +271,7 @@ class Simulator:
             bad = [self.layout.states[i] for i in np.flatnonzero(~np.isfinite(x_new))]
             raise SimulationDivergedError(
                 f"the simulation diverged between t = {self.time:.3f} s and {t_end:.3f} s: states {bad} became "
-                "non-finite; reduce dt or check the inputs",
+                "non-finite (a numerical blow-up: try a smaller rates.dynamics_step_s)",
                 time=self.time,
                 state=self.state,
             )
@@ -279,7 +279,7 @@ class Simulator:
             if abs(x_new[i]) > limit:
                 raise SimulationDivergedError(
                     f"the simulation diverged at t = {t_end:.3f} s: {name} = {x_new[i]:.4g} exceeds ±{limit} "
-                    "(loss of control or numerical blow-up); reduce dt, speed or steer input",
+                    "(the combination spun or jackknifed, or the integration blew up)",
                     time=self.time,
                     state=self.state,
                 )

@@ -36,7 +36,9 @@ from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses, 
 from vehicle_model.simulator import Controls, Simulator, VehicleState
 
 from ..setup.build import ScenarioSetup
+from .control_loss import loss_of_control
 from .results import TimeSeriesWriter
+from .stopping import stop_message, stop_signal_name
 
 TrailerSteerSource = Callable[[VehicleState, dict[str, float]], np.ndarray]
 """``(true state, off-tracking estimates by name) → steer of each steerable trailer axle [rad]``."""
@@ -250,6 +252,20 @@ class CoSimulation:
         return self.driver.finished or self.tick.time + 0.5 * self.period >= self.max_time
 
     @property
+    def progress_fraction(self) -> float:
+        """How far the run is, 0..1: along the path or through its time, whichever ends it first."""
+        along = self.driver.progress / self.setup.path.length if self.setup.path.length > 0 else 0.0
+        through = self.tick.time / self.max_time if self.max_time > 0 else 0.0
+        return min(max(along, through), 1.0)
+
+    @property
+    def lost_control(self) -> str:
+        """Why the combination is out of control at this tick, in words (:mod:`.control_loss`), or ``""``."""
+        if self.kinematic:
+            return ""
+        return loss_of_control(self.tick.state.gamma, self.driver.lateral_error)
+
+    @property
     def kingpin(self) -> np.ndarray:
         """Kingpin position [m] at the current tick."""
         s = self.tick.state
@@ -361,7 +377,7 @@ def run_cosimulation(
 
     Rows are also streamed to ``writer`` (if given) as they are made, so an interrupted or diverged
     run keeps what it did. A diverging simulation or Ctrl-C ends the loop cleanly with the status
-    set accordingly.
+    set accordingly; so does a loss of control (:mod:`.control_loss`), checked every tick.
     """
     params = setup.params
     l_fp = params.follow_point_offset
@@ -443,14 +459,20 @@ def run_cosimulation(
                 writer.append(row)
             outcome.rows += 1
             if progress is not None:
-                progress(tick.time, min(cosim.driver.progress / setup.path.length, 1.0))
+                progress(tick.time, cosim.progress_fraction)
+            if reason := cosim.lost_control:
+                outcome.status, outcome.stop_time = "lost_control", tick.time
+                outcome.message = f"lost control at t = {tick.time:.2f} s: {reason}"
+                break
             if cosim.finished:
                 break
             cosim.advance(trailer_steer)
     except SimulationDivergedError as exc:
-        outcome.status, outcome.message = "diverged", str(exc)
-    except KeyboardInterrupt:
-        outcome.status, outcome.message = "interrupted", "interrupted by the user (Ctrl-C); partial results kept"
+        outcome.status, outcome.message, outcome.stop_time = "diverged", str(exc), exc.time
+    except KeyboardInterrupt as exc:
+        outcome.status, outcome.message = "interrupted", stop_message(exc)
+        outcome.stop_signal = stop_signal_name(exc)
+        outcome.stop_time = float(recorded["time"][-1]) if recorded.get("time") else 0.0
     finally:
         outcome.wall_time_s = wallclock.perf_counter() - t_start
         if writer is not None:

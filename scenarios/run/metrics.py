@@ -113,7 +113,15 @@ def compute_metrics(
     annulus_centre: tuple[float, float] | None,
     turn_span: tuple[float, float],
 ) -> dict[str, Any]:
-    """The ``metrics.json`` content of a run (without timing and status)."""
+    """The ``metrics.json`` content of a run (without timing and status).
+
+    ``valid_fraction`` means one thing everywhere: the share of the ticks *on which the truth exists* (it
+    starts once the kingpin has driven one trailer length) on which that source had a value; for the truth
+    it is therefore 1 whenever it exists at all, and ``truth.defined_fraction`` is the share of all ticks
+    with a truth. A run that stopped before its first tick (interrupted during set-up) has empty columns:
+    every figure is then NaN.
+    """
+    columns = _with_required_columns(columns, estimator_names)
     truth = columns["offtracking_truth"]
     geometric = columns["offtracking_truth_geometric"]
     both = np.isfinite(truth) & np.isfinite(geometric)
@@ -123,7 +131,12 @@ def compute_metrics(
         "scenario": scenario,
         "feedback": feedback,
         "offtracking": {
-            "truth": {"rms": rms(truth), "max_abs": max_abs(truth), "valid_fraction": float(np.isfinite(truth).mean())},
+            "truth": {
+                "rms": rms(truth),
+                "max_abs": max_abs(truth),
+                "valid_fraction": 1.0 if np.isfinite(truth).any() else 0.0,
+                "defined_fraction": float(np.isfinite(truth).mean()) if truth.size else 0.0,
+            },
             "truth_after_warmup": {"rms": rms(truth[settled]), "max_abs": max_abs(truth[settled])},
             "truth_methods_max_disagreement": max_abs(truth[both] - geometric[both]) if both.any() else float("nan"),
             "estimators": {name: estimator_errors(truth, columns[f"offtracking_{name}"]) for name in estimator_names},
@@ -131,7 +144,10 @@ def compute_metrics(
         "roundabout_test": None,
         "trailer_steering": trailer_steering_metrics(columns, steerable),
     }
-    if annulus_centre is not None:
+    camera = camera_frame_metrics(columns)
+    if camera is not None:
+        metrics["camera"] = camera
+    if annulus_centre is not None and truth.size:
         s = columns["path_progress"]
         in_turn = (s >= turn_span[0]) & (s <= turn_span[1])
         if in_turn.any():
@@ -144,3 +160,54 @@ def compute_metrics(
                 annulus_centre,
             )
     return metrics
+
+
+_REQUIRED = ("time", "X", "Y", "psi1", "gamma", "kingpin_x", "kingpin_y", "path_progress")
+
+
+def _with_required_columns(columns: dict[str, np.ndarray], estimator_names: list[str]) -> dict[str, np.ndarray]:
+    """``columns`` with every column the metrics read (empty arrays for a run that recorded nothing)."""
+    estimators = (f"offtracking_{n}" for n in estimator_names)
+    names = (*_REQUIRED, "offtracking_truth", "offtracking_truth_geometric", *estimators)
+    empty = np.zeros(0)
+    return {**{name: empty for name in names}, **columns}
+
+
+def camera_frame_metrics(columns: dict[str, np.ndarray]) -> dict[str, Any] | None:
+    """Visual-odometry frame statistics of a camera run (``None`` without a camera).
+
+    ``frames`` counts the camera frames after the first (which has no previous pair), ``valid_fraction`` the
+    share whose motion was accepted, ``rejections`` how many were refused for each reason (the codes of
+    :data:`sensor.vo.quality.REJECTION_REASONS`), and ``message`` says in words why there was no valid
+    estimate at all when that happened.
+    """
+    valid = columns.get("vo_valid")
+    if valid is None:
+        return None
+    from sensor.vo.quality import REJECTION_REASONS  # light: a table of words
+
+    frame = np.isfinite(valid)
+    if frame.any():
+        frame[np.flatnonzero(frame)[0]] = False  # the first frame has nothing to compare with
+    n = int(frame.sum())
+    accepted = int((valid[frame] > 0.5).sum())
+    codes = list(REJECTION_REASONS)
+    reason = columns.get("vo_reason", np.full(valid.shape, np.nan))
+    counts: dict[str, int] = {}
+    for value in reason[frame & (valid < 0.5)]:
+        code = codes[int(value)] if np.isfinite(value) and 0 <= int(value) < len(codes) else "unknown"
+        counts[code] = counts.get(code, 0) + 1
+    message = ""
+    if n and not accepted:
+        worst = max(counts, key=counts.__getitem__) if counts else "unknown"
+        words = REJECTION_REASONS.get(worst, "the visual odometry gave no accepted motion")
+        message = f"no valid estimate: all {n} camera frames were rejected, most because {words}"
+    elif not n:
+        message = "no camera frame was processed"
+    return {
+        "frames": n,
+        "valid_frames": accepted,
+        "valid_fraction": accepted / n if n else 0.0,
+        "rejections": dict(sorted(counts.items(), key=lambda kv: -kv[1])),
+        "message": message,
+    }

@@ -20,7 +20,7 @@ EXIT_TERMINATED = 143
 """Exit code after SIGTERM (128 + SIGTERM)."""
 
 
-class Terminated(KeyboardInterrupt):  # noqa: N818 — it is a stop request, named like KeyboardInterrupt
+class Terminated(KeyboardInterrupt):
     """SIGTERM arrived; handled like Ctrl-C (a :class:`KeyboardInterrupt`), reported with exit code 143."""
 
 

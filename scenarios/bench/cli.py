@@ -1,0 +1,86 @@
+"""The ``offtrack bench`` commands: each prints one JSON object with ``--json``, a table otherwise."""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+bench_app = typer.Typer(
+    help="Benchmarks printing machine-readable results.", no_args_is_help=True, rich_markup_mode=None
+)
+console = Console()
+
+
+@bench_app.command("render")
+def bench_render_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    frames: Annotated[int, typer.Option(help="Stereo pairs to render.", min=5)] = 50,
+    antialias: Annotated[bool, typer.Option(help="4× multisampling.")] = False,
+) -> None:
+    """Rendering speed: stereo pairs per second at 1344×391 on the default world."""
+    from scenarios.bench.render import bench_render
+
+    _print_bench(bench_render(frames, antialias=antialias), as_json, "Render benchmark")
+
+
+@bench_app.command("vo")
+def bench_vo_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    frames: Annotated[int, typer.Option(help="Rendered frames to process.", min=5)] = 30,
+) -> None:
+    """Visual odometry alone at 1344×391, one thread, on rendered frames."""
+    from scenarios.bench.vo import bench_vo
+
+    _print_bench(bench_vo(frames), as_json, "Visual odometry benchmark")
+
+
+@bench_app.command("sweep")
+def bench_sweep_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    workers: Annotated[int, typer.Option(help="Worker processes to compare with one.", min=2)] = 2,
+    cases: Annotated[int, typer.Option(help="Model-only roundabout-3 cases in the sweep.", min=2)] = 8,
+    duration: Annotated[float, typer.Option(help="Simulated seconds per case.", min=1.0)] = 20.0,
+) -> None:
+    """Sweep speed-up: N local worker processes over one on a small model-only study."""
+    from scenarios.bench.sweep import bench_sweep
+
+    _print_bench(bench_sweep(workers, cases, duration), as_json, "Sweep benchmark")
+
+
+@bench_app.command("model")
+def bench_model_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    duration: Annotated[float, typer.Option(help="Simulated seconds.", min=1.0)] = 60.0,
+) -> None:
+    """Model-only speed: real-time factor of 60 s of a turning manoeuvre at the default step."""
+    from scenarios.bench.model import bench_model
+
+    _print_bench(bench_model(duration=duration), as_json, "Model benchmark")
+
+
+@bench_app.command("env")
+def bench_env_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    feedback: Annotated[str, typer.Option(help="Model-based feedback source: truth or zero_slip.")] = "truth",
+) -> None:
+    """Gymnasium steering env: steps per second against the bare co-simulation loop on the same scenario."""
+    from scenarios.bench.env import bench_env
+
+    _print_bench(bench_env(feedback=feedback), as_json, "Environment benchmark")
+
+
+def _print_bench(result: dict, as_json: bool, title: str) -> None:
+    if as_json:
+        print(json.dumps(result))
+        return
+    table = Table(title=title)
+    table.add_column("figure")
+    table.add_column("value", justify="right")
+    for key, value in result.items():
+        table.add_row(escape(key), f"{value:.4g}" if isinstance(value, float) else escape(str(value)))
+    console.print(table)

@@ -1,0 +1,233 @@
+"""Fault injection, end to end through the ``offtrack`` command in a subprocess (issue 13).
+
+Each test injects one fault a script, a scheduler or a user would meet — a bad option, a bad field, a signal,
+a run that loses control, an output path that cannot be used — and checks what the README promises: the exit
+code, one line naming the field instead of a traceback, and the data a stopped run keeps. Finer faults are
+tested where they are handled: the configuration bounds in ``test_config_validation.py``, the run directory
+and SIGKILL in ``test_run_files.py``, visual-odometry quality in ``test_vo_quality.py``, studies in
+``test_sweep.py``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SLOW_RUN = [  # ~1× real time on this machine: long enough to be stopped mid-run
+    "run",
+    "roundabout-3",
+    "--set",
+    "rates.control_hz=500",
+    "--set",
+    "rates.dynamics_step_s=0.0002",
+    "--duration",
+    "300",
+]
+
+
+def offtrack(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+    """Run ``offtrack ARGS`` the way the console script does."""
+    return subprocess.run(
+        [sys.executable, "-c", "from scenarios.cli import main; main()", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=REPO,
+    )
+
+
+def start(*args: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-c", "from scenarios.cli import main; main()", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=REPO,
+    )
+
+
+def wait_for_rows(run_dir: Path, proc: subprocess.Popen, timeout: float = 120.0) -> None:
+    """Until the run has flushed part of its time series (it is mid-run)."""
+    t0 = time.monotonic()
+    series = run_dir / "timeseries.parquet"
+    while time.monotonic() - t0 < timeout:
+        if proc.poll() is not None:
+            raise AssertionError(f"the run ended early: {proc.communicate()}")
+        if series.is_dir() and any(series.glob("*.parquet")):
+            return
+        time.sleep(0.1)
+    raise AssertionError("no rows were flushed")
+
+
+def assert_one_line_error(result: subprocess.CompletedProcess, *words: str) -> None:
+    assert result.returncode == 2, (result.returncode, result.stdout, result.stderr)
+    assert "Traceback" not in result.stderr + result.stdout
+    for word in words:
+        assert word in result.stderr, (word, result.stderr)
+
+
+# --- bad input: exit 2, the option or field named, no traceback -----------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (["run", "roundabout-test", "--mu", "abc"], "--mu"),
+        (["run", "roundabout-test", "--seed", "1.5"], "--seed"),
+        (["run", "roundabout-test", "--no-such-option"], "--no-such-option"),
+        (["run"], "SCENARIO"),
+        (["frobnicate"], "frobnicate"),
+        (["render", "roundabout-test", "--out", "/tmp/x", "--frames", "0"], "--frames"),
+        (["render", "roundabout-test", "--out", "/tmp/x", "--density", "2"], "--density"),
+        (["study", "paper-section3", "--workers", "0"], "--workers"),
+        (["study", "no-such-study"], "no-such-study"),
+        (["compare", "roundabout-test", "--feedbacks", ""], "--feedbacks"),
+        (["compare", "roundabout-test", "--feedbacks", "truth,gps"], "--feedbacks"),
+        (["run", "roundabout-7"], "unknown scenario"),
+        (["run", "no-such-file.yaml"], "does not exist"),
+        (["run", "roundabout-test", "--mu", "-0.2", "--camber", "40"], "camber.percent"),
+        (["run", "roundabout-test", "--set", "rates.dynamics_step_s=1e-9"], "rates.dynamics_step_s"),
+        (["run", "roundabout-test", "--set", "rates.camera_hz=15"], "rates.camera_hz"),
+        (["run", "roundabout-test", "--set", "signals.wheel_speed.noise_std=.inf"], "signals.wheel_speed.noise_std"),
+        (["run", "roundabout-test", "--set", "signals.articulation.bias=.nan"], "signals.articulation.bias"),
+        (["run", "roundabout-test", "--set", "camera.right_misalignment_deg=[0,25,0]"], "right_misalignment_deg"),
+        (["run", "roundabout-test", "--set", "nosuch.field=1"], "nosuch"),
+        (
+            ["run", "roundabout-test", "--set", "estimators.viso_ot=true", "--set", "camera.baseline=0.01"],
+            "camera.baseline",
+        ),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(args: list[str], named: str) -> None:
+    result = offtrack(*args)
+    assert_one_line_error(result, named)
+
+
+def test_bad_input_is_refused_before_any_work(tmp_path: Path) -> None:
+    # The 1 ns step once ate 23 GB; refused at once now, and nothing is written.
+    t0 = time.monotonic()
+    result = offtrack("run", "roundabout-test", "--set", "rates.dynamics_step_s=1e-9", "--out", str(tmp_path / "r"))
+    assert_one_line_error(result, "rates.dynamics_step_s")
+    assert time.monotonic() - t0 < 30 and not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("where", ["file", "under_file"])
+def test_an_unusable_out_is_named(tmp_path: Path, where: str) -> None:
+    blocker = tmp_path / "blocker"
+    blocker.write_text("not a directory")
+    out = blocker if where == "file" else blocker / "run"
+    assert_one_line_error(offtrack("run", "roundabout-test", "--duration", "2", "--out", str(out)), "--out")
+    assert_one_line_error(offtrack("render", "roundabout-test", "--frames", "2", "--out", str(out)), "--out")
+
+
+def test_an_unreachable_scheduler_is_named_quickly(tmp_path: Path) -> None:
+    t0 = time.monotonic()
+    result = offtrack("study", "paper-section3", "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "s"))
+    assert_one_line_error(result, "--scheduler")
+    assert time.monotonic() - t0 < 25
+
+
+# --- failures: exit 3, the reason in words, the data kept -----------------------------------------------------
+
+
+def test_loss_of_control_is_a_status_with_exit_3(tmp_path: Path) -> None:
+    # Spiralled 414 m off the 50 m ring and was reported "completed" before.
+    out = tmp_path / "r"
+    result = offtrack("run", "roundabout-3", "--surface", "ice", "--camber", "8", "--speed", "40", "--out", str(out))
+    assert result.returncode == 3, result.stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "lost_control"
+    assert "lost control" in metrics["message"] and metrics["stop_time"] > 0
+    assert "lost control" in result.stderr
+    frame = pd.read_parquet(out / "timeseries.parquet")
+    assert len(frame) == metrics["rows"] > 10
+    # The run stopped when the limit was crossed, not hundreds of metres later.
+    assert frame["lateral_error"].abs().max() < 3.5
+    assert (out / "plan_view.png").is_file()
+
+
+# --- stopped runs: 130 / 143, the data kept, metrics say interrupted ------------------------------------------
+
+
+@pytest.mark.parametrize(("sig", "code", "name"), [(signal.SIGTERM, 143, "SIGTERM"), (signal.SIGINT, 130, "SIGINT")])
+def test_a_stopped_run_keeps_its_data(tmp_path: Path, sig: signal.Signals, code: int, name: str) -> None:
+    out = tmp_path / "r"
+    proc = start(*SLOW_RUN, "--no-plots", "--out", str(out))
+    wait_for_rows(out, proc)
+    proc.send_signal(sig)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == code, stderr
+    assert "Traceback" not in stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "interrupted" and metrics["stop_signal"] == name
+    frame = pd.read_parquet(out / "timeseries.parquet")
+    assert len(frame) == metrics["rows"] > 0
+    assert frame["time"].is_monotonic_increasing
+
+
+@pytest.mark.parametrize("delay", [0.2, 1.5])
+def test_ctrl_c_during_set_up_exits_130_without_a_traceback(tmp_path: Path, delay: float) -> None:
+    # A camera run's set-up once gave KeyError: 'offtracking_truth'.
+    proc = start("run", "roundabout-test", "--set", "estimators.viso_ot=true", "--out", str(tmp_path / "r"))
+    time.sleep(delay)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr
+
+
+# --- the README's table ---------------------------------------------------------------------------------------
+
+
+def readme_exit_codes() -> dict[int, str]:
+    text = (REPO / "README.md").read_text()
+    section = text[text.index("### Exit codes") :]
+    section = section[: section.index("\n#", 1)]
+    return {int(m.group(1)): m.group(2).strip() for m in re.finditer(r"^\| `?(\d+)`? \| (.+?) \|", section, re.M)}
+
+
+def test_the_readme_exit_code_table_is_what_the_command_does(tmp_path: Path) -> None:
+    table = readme_exit_codes()
+    assert set(table) == {0, 2, 3, 130, 143}
+    assert offtrack("list").returncode == 0
+    assert offtrack("run", "roundabout-test", "--mu", "abc").returncode == 2
+    lost = offtrack(
+        "run", "roundabout-3", "--surface", "ice", "--camber", "8", "--speed", "40", "--out", str(tmp_path / "a")
+    )
+    assert lost.returncode == 3
+    for sig, code in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
+        out = tmp_path / f"s{code}"
+        proc = start(*SLOW_RUN, "--no-plots", "--out", str(out))
+        wait_for_rows(out, proc)
+        proc.send_signal(sig)
+        proc.communicate(timeout=120)
+        assert proc.returncode == code
+
+
+# --- files others can read; --force owns the directory --------------------------------------------------------
+
+
+def test_run_files_are_readable_by_others_and_force_clears_the_old_run(tmp_path: Path) -> None:
+    out = tmp_path / "r"
+    first = offtrack("run", "roundabout-test", "--duration", "8", "--out", str(out))
+    assert first.returncode == 0, first.stderr
+    assert (out / "plan_view.png").is_file()
+    umask = os.umask(0)
+    os.umask(umask)
+    for path in [out / "config.yaml", out / "metrics.json", out / "plan_view.png", *out.rglob("*.parquet")]:
+        if path.is_file():
+            assert path.stat().st_mode & 0o777 == 0o666 & ~umask, path
+    again = offtrack("run", "roundabout-test", "--duration", "4", "--no-plots", "--force", "--out", str(out))
+    assert again.returncode == 0, again.stderr
+    assert not (out / "plan_view.png").exists()  # the previous run's plot is gone, not left beside new metrics
+    assert json.loads((out / "metrics.json").read_text())["simulated_s"] == pytest.approx(4.0, abs=0.05)
