@@ -40,7 +40,7 @@ app = typer.Typer(
 )
 app.add_typer(bench_app, name="bench")
 console = Console()
-errors = Console(stderr=True, highlight=False)
+errors = Console(stderr=True, highlight=False, soft_wrap=True)  # a message stays on one line
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -274,15 +274,20 @@ def render(
     ] = None,
     video: Annotated[bool, typer.Option(help="Also write a side-by-side stereo video.")] = False,
     antialias: Annotated[bool, typer.Option(help="4× multisampling (slower).")] = False,
-    force: Annotated[bool, typer.Option(help="Overwrite an existing dataset in --out.")] = False,
+    force: Annotated[
+        bool, typer.Option(help="Replace an earlier dataset in --out (offtrack's files only).")
+    ] = False,
 ) -> None:
     """Export the scenario's rendered stereo sequence as a KITTI-odometry-style dataset."""
     from rich.progress import Progress
 
     from scenarios.export.kitti import export_kitti
 
+    from scenarios.run.results import check_output_dir
+
     pairs = (("seed", seed), ("duration_s", duration), ("camera.scenery_density", density))
     config = _load(scenario, _overrides(pairs, None, None, set_))
+    check_output_dir(out)
     with Progress(console=console) as bar:
         task = bar.add_task(escape(f"rendering {config.name}"), total=None)
         summary = export_kitti(

@@ -34,6 +34,7 @@ from ..camera.rig import rig_from_config, rig_summary
 from ..camera.world import resolve_scenery_density, world_for_scenario
 from ..config import ScenarioConfig, load_scenario
 from ..run.cosim import run_cosimulation
+from ..run.results import check_output_dir, clear_run_dir
 from ..setup.build import build_scenario
 from .video import StereoVideoWriter
 
@@ -76,6 +77,18 @@ def read_poses(path: Path) -> np.ndarray:
     return poses
 
 
+def _enough_for(config: ScenarioConfig, frames: int) -> ScenarioConfig:
+    """``config`` simulated only as long as its first ``frames`` camera frames need.
+
+    Frame ``k`` is taken at ``k / camera_hz``; the run stops two control periods after the last one (or
+    earlier, if the scenario's own duration is shorter).
+    """
+    needed = (frames - 1) / config.rates.camera_hz + 2.0 / config.rates.control_hz
+    if config.duration_s is not None and config.duration_s <= needed:
+        return config
+    return config.model_copy(update={"duration_s": needed})
+
+
 def export_kitti(
     config: ScenarioConfig | str,
     out_dir: str | Path,
@@ -102,13 +115,16 @@ def export_kitti(
     scenery_density : float, optional
         Fraction of roadside objects, in [0, 1] (default: the scenario's ``camera.scenery_density``).
     max_frames : int, optional
-        Render at most this many camera frames (from the start).
+        Render at most this many camera frames (from the start); the scenario is simulated only as long
+        as they need.
     progress : callable, optional
         ``progress(done, total)`` after each frame.
     video : bool
         Also write ``stereo.mp4`` (side by side, at the camera rate).
     overwrite : bool
-        Replace an earlier export in ``out_dir`` (otherwise refused).
+        Replace an earlier export in ``out_dir`` (``--force``; otherwise refused): everything offtrack
+        wrote there is removed first, and a directory that also holds other files is refused
+        (:func:`~scenarios.run.results.clear_run_dir`).
     antialias : bool
         Render with 4× multisampling (about 2.5× slower).
 
@@ -117,6 +133,12 @@ def export_kitti(
     dict
         ``frames``, ``status`` (of the simulation), ``out_dir``, ``render_s``, ``simulate_s``,
         ``ms_per_pair``.
+
+    Raises
+    ------
+    InputError
+        ``out_dir`` is a file, under a file or not writable, or already holds a dataset and not
+        ``overwrite`` — all before anything is simulated.
     """
     from sensor.renderer import StereoRenderer
 
@@ -125,11 +147,16 @@ def export_kitti(
     if max_frames is not None and max_frames < 1:
         raise InputError(f"max_frames = {max_frames} must be at least 1")
     out = Path(out_dir)
+    check_output_dir(out)
     markers = [out / "poses.txt", out / "image_0", out / "image_1", out / "calib.txt"]
-    if any(m.exists() for m in markers) and not overwrite:
-        raise InputError(f"{out} already holds a dataset; choose another directory or pass overwrite=True")
+    if any(m.exists() for m in markers):
+        if not overwrite:
+            raise InputError(f"--out {out} already holds a dataset; choose another --out or pass --force")
+        clear_run_dir(out)
     rig = rig if rig is not None else rig_from_config(config)
     scenery_density = resolve_scenery_density(config, scenery_density)
+    if max_frames is not None:
+        config = _enough_for(config, max_frames)
     t0 = time.perf_counter()
     setup = build_scenario(config)
     outcome, cols = run_cosimulation(setup)
@@ -144,8 +171,6 @@ def export_kitti(
     renderer = StereoRenderer(world, rig, setup.params, seed=config.seed, antialias=antialias)
     for sub in ("image_0", "image_1"):
         (out / sub).mkdir(parents=True, exist_ok=True)
-        for old in (out / sub).glob("*.png"):
-            old.unlink()
     import cv2
 
     x, y, psi1, gamma = (np.asarray(cols[k])[frames] for k in ("X", "Y", "psi1", "gamma"))

@@ -3,6 +3,11 @@
 Run directories (:mod:`scenarios.run.results`) and sweep records (:mod:`scenarios.studies.records`) write
 through here. Only the standard library is imported, so a spawned sweep worker can use it before its
 thread limits are set and numpy is first imported.
+
+Modes: a file written here gets the mode an ordinary ``open(path, "w")`` would give it, ``0o666 & ~umask``
+(0644 under the usual umask 022), not the 0600 of :func:`tempfile.mkstemp`: Dask workers running as
+another user and colleagues must be able to read a run's ``config.yaml``, ``metrics.json`` and
+``cases/*.json``.
 """
 
 from __future__ import annotations
@@ -19,17 +24,43 @@ TEMPORARY_SUFFIX = ".tmp"
 """Suffix of the temporary file :func:`write_atomic` writes first (``.<name>.<random>.tmp``)."""
 
 
+def current_umask() -> int:
+    """The process's file-mode creation mask.
+
+    Read from ``/proc/self/status`` where Linux provides it; elsewhere set and restored with
+    :func:`os.umask` (the only portable way to read it).
+    """
+    with contextlib.suppress(OSError, ValueError):
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def file_mode() -> int:
+    """Mode of a new regular file under the current umask: ``0o666 & ~umask`` (0644 under umask 022)."""
+    return 0o666 & ~current_umask()
+
+
 @contextlib.contextmanager
 def atomic_path(path: Path) -> Iterator[Path]:
     """A temporary path next to ``path`` to write to; it replaces ``path`` when the block ends without an error.
 
     A reader sees the old file or the new one, never a part; if the block raises, the temporary file is
-    removed. The temporary file is ``.<name>.<random>.tmp`` in the same directory (so the rename is atomic).
+    removed. The temporary file is ``.<name>.<random>.tmp`` in the same directory (so the rename is atomic;
+    its leading dot hides it from Parquet dataset readers). It is given :func:`file_mode` (not
+    :func:`tempfile.mkstemp`'s 0600), so the file that replaces ``path`` is readable like any other.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX)
-    os.close(fd)
+    try:
+        os.fchmod(fd, file_mode())
+    finally:
+        os.close(fd)
     try:
         yield Path(tmp)
         os.replace(tmp, path)

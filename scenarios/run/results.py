@@ -1,9 +1,35 @@
-"""Run directories: resolved config, a Parquet time series written as the run goes, metrics and plots."""
+"""Run directories: where they go, what ``--force`` clears, the config, the metrics and a crash-safe time series.
+
+Output directories
+------------------
+:func:`check_output_dir` refuses, with one line naming the option, an output path that is a file, lies
+under a file or cannot be written, before anything is simulated. :func:`new_run_dir` creates a run
+directory; an explicit one that already holds files is refused unless ``force``, which means "this
+directory is mine": :func:`clear_run_dir` first removes everything an earlier offtrack run, study,
+comparison or KITTI export wrote there (:data:`RUN_FILES`, ``*.png``, ``timeseries.parquet``,
+``cases/``, ``image_0/``, ``image_1/``, the run directories of a study's cases, temporary files of
+atomic writes). If the directory also holds anything offtrack does not write, nothing is removed and
+the run is refused with a message naming it: a user's files are never deleted.
+
+The time series
+---------------
+``timeseries.parquet`` is a Parquet *dataset directory* of part files ``part-000000.parquet``,
+``part-000001.parquet``, … (:class:`TimeSeriesWriter`). A single Parquet file has its footer written only
+when it is closed, so a run killed by SIGKILL (the out-of-memory killer, a walltime's second signal, a
+node failure) would leave an unreadable file; whole part files, each written under a hidden temporary
+name and renamed when complete, leave everything up to the last flush readable at any moment, and
+``pandas.read_parquet(run_dir / "timeseries.parquet")`` reads the parts in name order (the zero-padded
+numbers keep that the row order) and skips the hidden temporary files.
+"""
 
 from __future__ import annotations
 
 import datetime as dt
 import json
+import os
+import re
+import shutil
+import time
 from pathlib import Path
 from typing import Any
 
@@ -14,18 +40,102 @@ import yaml
 
 from vehicle_model.errors import InputError
 
-from .files import jsonable, write_atomic
+from ..config import ScenarioConfig, validate_config
+from .files import TEMPORARY_SUFFIX, atomic_path, jsonable, write_atomic
 
 TIMESERIES_FILE = "timeseries.parquet"
 METRICS_FILE = "metrics.json"
 CONFIG_FILE = "config.yaml"
+PLOT_FILES = ("plan_view.png", "offtracking.png")
+"""The plots of a run (:mod:`scenarios.run.report`)."""
+
+FLUSH_ROWS = 500
+"""A :class:`TimeSeriesWriter` writes a part file at least every this many rows …"""
+FLUSH_INTERVAL_S = 2.0
+"""… and as soon as its oldest unwritten row is this many wall-clock seconds old (rendered runs are slow).
+
+Both are read when a writer is made, so a test (or a user who wants finer crash granularity) can set them
+on this module before a run starts."""
+
+PART_NAME = "part-{:06d}.parquet"
+"""Name of the ``k``-th part file of the time series (six digits: names sort in row order)."""
+
+RUN_FILES = frozenset(
+    {
+        CONFIG_FILE,
+        METRICS_FILE,
+        TIMESERIES_FILE,  # a single file, as written before the dataset directory
+        "table.parquet",
+        "table.csv",
+        "table.md",
+        "comparison.csv",
+        "comparison.md",
+        "calib.txt",
+        "poses.txt",
+        "times.txt",
+        "offtrack.json",
+        "stereo.mp4",
+    }
+)
+"""Files offtrack writes into an output directory (besides ``*.png`` and the directories below)."""
+
+_PART = re.compile(r"part-\d+\.parquet")
+_CASE_FILE = re.compile(r"[^/]+\.json|\..+\.running")
+_FRAME = re.compile(r"\d{6}\.png")
+_OWNED_DIRS: dict[str, re.Pattern[str]] = {
+    TIMESERIES_FILE: _PART,
+    "cases": _CASE_FILE,
+    "image_0": _FRAME,
+    "image_1": _FRAME,
+}
+"""Directories offtrack writes, with the names of the files it puts in them."""
+_RUN_MARKERS = (CONFIG_FILE, METRICS_FILE, TIMESERIES_FILE)
+"""A subdirectory holding one of these is the run directory of a study's case or of a compared feedback."""
+
+
+# --------------------------------------------------------------------------------- output directories
+
+
+def check_output_dir(path: Path, option: str = "--out") -> None:
+    """Refuse an output directory that cannot be one, before any work is done.
+
+    Parameters
+    ----------
+    path
+        The directory (it may not exist yet).
+    option
+        The command-line option that named it, for the message.
+
+    Raises
+    ------
+    InputError
+        One line naming ``option``: ``path`` is a file, lies under a file, or its nearest existing
+        directory is not writable.
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{option} {path} is a file, not a directory")
+    existing = path
+    while not existing.exists() and existing.parent != existing:
+        existing = existing.parent
+    if existing.exists() and not existing.is_dir():
+        raise InputError(f"{option} {path} lies under {existing}, which is a file, not a directory")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"{option} {path} cannot be written: {existing} is not writable")
 
 
 def new_run_dir(out: Path | None, scenario: str, root: Path = Path("runs"), force: bool = False) -> Path:
     """Create the directory of a run.
 
     Without ``out`` a fresh ``runs/<scenario>/<timestamp>`` is made. An explicit ``out`` that already
-    holds files is refused unless ``force`` (a run never silently overwrites an earlier one).
+    holds files is refused unless ``force`` (a run never silently overwrites an earlier one); with
+    ``force`` the earlier run's files are removed first (:func:`clear_run_dir`).
+
+    Raises
+    ------
+    InputError
+        ``out`` cannot be a directory (:func:`check_output_dir`), holds files and not ``force``, or
+        holds files offtrack did not write.
     """
     if out is None:
         stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
@@ -34,10 +144,72 @@ def new_run_dir(out: Path | None, scenario: str, root: Path = Path("runs"), forc
         while out.exists():
             out = base.with_name(f"{stamp}-{n}")
             n += 1
-    elif out.exists() and any(out.iterdir()) and not force:
-        raise InputError(f"output directory {out} already holds files; choose another --out or pass --force")
-    out.mkdir(parents=True, exist_ok=True)
+    check_output_dir(out)
+    if out.is_dir() and any(out.iterdir()):
+        if not force:
+            raise InputError(f"output directory {out} already holds files; choose another --out or pass --force")
+        clear_run_dir(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {out} cannot be created: {exc.strerror}") from None
     return out
+
+
+def _owned(entry: Path, top: bool) -> bool:
+    """Whether offtrack writes ``entry`` (a file or directory in an output directory, ``top`` level or a case's)."""
+    name = entry.name
+    if name.startswith(".") and name.endswith(TEMPORARY_SUFFIX):  # left by an interrupted atomic write
+        return not entry.is_symlink() and entry.is_file()
+    if entry.is_symlink():
+        return False
+    if entry.is_file():
+        return name in RUN_FILES or name.endswith(".png")
+    if not entry.is_dir():
+        return False
+    children = list(entry.iterdir())
+    if name in _OWNED_DIRS:
+        pattern = _OWNED_DIRS[name]
+        return all(
+            not c.is_symlink() and c.is_file() and (pattern.fullmatch(c.name) or c.name.endswith(TEMPORARY_SUFFIX))
+            for c in children
+        )
+    if not top:
+        return False
+    # A study case's (or a compared feedback's) run directory; an empty one (a case killed at once) holds nothing.
+    names = {c.name for c in children}
+    return (not children or any(m in names for m in _RUN_MARKERS)) and all(_owned(c, top=False) for c in children)
+
+
+def clear_run_dir(directory: Path, option: str = "--out") -> list[Path]:
+    """Remove what an earlier offtrack run left in ``directory`` (``--force``); return what was removed.
+
+    Every entry is checked before anything is removed: if one was not written by offtrack (a file of another
+    name, a directory of other files, a symbolic link), nothing is removed.
+
+    Raises
+    ------
+    InputError
+        ``directory`` holds something offtrack did not write (the message names it).
+    """
+    directory = Path(directory)
+    entries = sorted(directory.iterdir())
+    foreign = [e for e in entries if not _owned(e, top=True)]
+    if foreign:
+        more = f" (and {len(foreign) - 1} more)" if len(foreign) > 1 else ""
+        raise InputError(
+            f"{option} {directory} holds {foreign[0].name}{more}, which offtrack did not write; --force only "
+            "replaces an earlier offtrack run: move it away or choose another " + option
+        )
+    for entry in entries:
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry)
+        else:
+            entry.unlink()
+    return entries
+
+
+# ------------------------------------------------------------------------------------- config, metrics
 
 
 def write_config(run_dir: Path, config: Any) -> None:
@@ -45,46 +217,127 @@ def write_config(run_dir: Path, config: Any) -> None:
     write_atomic(run_dir / CONFIG_FILE, yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False))
 
 
+def read_config(run_dir: Path) -> ScenarioConfig:
+    """The resolved configuration a run wrote (validated again).
+
+    Raises
+    ------
+    InputError
+        ``run_dir`` has no ``config.yaml`` (it is not a run directory), or it is not a valid configuration.
+    """
+    path = Path(run_dir) / CONFIG_FILE
+    if not path.is_file():
+        raise InputError(f"{run_dir} is not a run directory: it has no {CONFIG_FILE}")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise InputError(f"{path} is not valid YAML: {exc}") from None
+    if not isinstance(data, dict):
+        raise InputError(f"{path} does not hold a configuration")
+    return validate_config(data)
+
+
 def write_metrics(run_dir: Path, metrics: dict[str, Any]) -> None:
     """``metrics.json``, NaN written as null."""
     write_atomic(run_dir / METRICS_FILE, json.dumps(jsonable(metrics), indent=2, allow_nan=False))
 
 
-class TimeSeriesWriter:
-    """Rows of named floats, flushed to Parquet row groups every ``flush_every`` rows.
+def read_metrics(run_dir: Path) -> dict[str, Any] | None:
+    """The ``metrics.json`` of a run, or None if it has none (or an unreadable one)."""
+    try:
+        data = json.loads((Path(run_dir) / METRICS_FILE).read_text())
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
 
-    The file is valid after every flush, so an interrupted run keeps everything written so far.
+
+# ----------------------------------------------------------------------------------------- time series
+
+
+class TimeSeriesWriter:
+    """Rows of named floats, written as whole Parquet part files into the dataset directory ``path``.
+
+    Why part files (module docstring): a Parquet file is readable only once its footer is written at
+    close, so a run killed with SIGKILL would lose its whole series. Each flush here writes one complete
+    part file under a hidden temporary name, syncs it and renames it to ``part-NNNNNN.parquet``; a reader
+    (``pandas.read_parquet(path)``) sees only whole parts, in row order, at any moment. A flush happens
+    every ``flush_every`` rows, and at the first row that arrives ``flush_interval_s`` seconds of wall time
+    or more after the oldest unflushed one (a rendered run makes a few rows a second), so a killed run
+    loses at most about that much of its work.
+    :meth:`close` writes an empty part with the columns if no row was written, so an empty run still
+    leaves a readable, empty series with its columns.
+
+    Parameters
+    ----------
+    path
+        The dataset directory (an earlier series there, file or directory, is replaced).
+    columns
+        Column names (every column is float64); may be set later through :attr:`columns`, before the
+        first row.
+    flush_every
+        Rows per part (default :data:`FLUSH_ROWS`).
+    flush_interval_s
+        Longest wall time between flushes while rows arrive [s] (default :data:`FLUSH_INTERVAL_S`).
     """
 
-    def __init__(self, path: Path, columns: list[str], flush_every: int = 500) -> None:
-        self.path = path
+    def __init__(
+        self,
+        path: Path,
+        columns: list[str],
+        flush_every: int | None = None,
+        flush_interval_s: float | None = None,
+    ) -> None:
+        self.path = Path(path)
         self.columns = list(columns)
-        self.flush_every = flush_every
+        self.flush_every = FLUSH_ROWS if flush_every is None else int(flush_every)
+        self.flush_interval_s = FLUSH_INTERVAL_S if flush_interval_s is None else float(flush_interval_s)
         self._rows: list[list[float]] = []
-        self._writer: pq.ParquetWriter | None = None
         self.rows_written = 0
+        self.parts = 0
+        self._oldest = 0.0  # wall time at which the oldest buffered row arrived
+        if self.path.is_symlink() or self.path.is_file():
+            self.path.unlink()
+        elif self.path.is_dir():
+            shutil.rmtree(self.path)
+        self.path.mkdir(parents=True)
 
     def append(self, row: dict[str, float]) -> None:
+        """Add one row (missing columns are NaN); flush if enough rows or time have gone by since the oldest."""
+        now = time.monotonic()
+        if not self._rows:
+            self._oldest = now
         self._rows.append([float(row.get(c, np.nan)) for c in self.columns])
-        if len(self._rows) >= self.flush_every:
+        if len(self._rows) >= self.flush_every or now - self._oldest >= self.flush_interval_s:
             self.flush()
 
     def flush(self) -> None:
-        if not self._rows:
-            return
-        data = np.array(self._rows, dtype=float)
-        table = pa.table({c: data[:, i] for i, c in enumerate(self.columns)}, schema=self._schema())
-        if self._writer is None:
-            self._writer = pq.ParquetWriter(self.path, self._schema())
-        self._writer.write_table(table)
-        self.rows_written += len(self._rows)
-        self._rows = []
+        """Write the buffered rows as the next part file (nothing if there are none)."""
+        if self._rows:
+            data = np.array(self._rows, dtype=float).reshape(len(self._rows), len(self.columns))
+            self._write_part({c: data[:, i] for i, c in enumerate(self.columns)})
+            self.rows_written += len(self._rows)
+            self._rows = []
 
     def close(self) -> None:
+        """Flush the last rows; leave an empty part with the columns if there were no rows at all."""
         self.flush()
-        if self._writer is None:  # no rows at all: still leave a valid, empty file
-            self._writer = pq.ParquetWriter(self.path, self._schema())
-        self._writer.close()
+        if self.parts == 0:
+            self._write_part({c: np.zeros(0) for c in self.columns})
 
-    def _schema(self) -> pa.Schema:
-        return pa.schema([(c, pa.float64()) for c in self.columns])
+    def _write_part(self, data: dict[str, np.ndarray]) -> None:
+        schema = pa.schema([(c, pa.float64()) for c in self.columns])
+        table = pa.table(data, schema=schema)
+        with atomic_path(self.path / PART_NAME.format(self.parts)) as tmp, open(tmp, "wb") as fh:
+            pq.write_table(table, fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        self.parts += 1
+
+
+def read_timeseries(run_dir: Path) -> dict[str, np.ndarray]:
+    """The time series a run wrote, as float64 columns (empty if it has none or no row yet)."""
+    path = Path(run_dir) / TIMESERIES_FILE
+    if not path.exists():
+        return {}
+    table = pq.read_table(path)
+    return {name: np.array(table.column(name).to_numpy(), dtype=float) for name in table.column_names}

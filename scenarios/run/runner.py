@@ -8,9 +8,8 @@ from typing import TYPE_CHECKING, Any
 from ..config import ScenarioConfig
 from ..setup.build import build_scenario, trailer_controller
 from .cosim import ProgressCallback, TrailerSteerSource, run_cosimulation
-from .metrics import compute_metrics
-from .plots import plot_offtracking, plot_plan_view
-from .results import TIMESERIES_FILE, TimeSeriesWriter, write_config, write_metrics
+from .report import mark_interrupted, mark_running, write_report
+from .results import PLOT_FILES, TIMESERIES_FILE, TimeSeriesWriter, write_config
 
 if TYPE_CHECKING:
     from vehicle_model.dynamics import VehicleModel
@@ -26,15 +25,18 @@ def run_scenario(
 ) -> dict[str, Any]:
     """Simulate ``config`` and write ``config.yaml``, ``timeseries.parquet``, ``metrics.json`` and the plots.
 
-    The time series is flushed as the run goes and the metrics are written even when the run
-    diverges or is interrupted (``status`` says which), so partial results are never lost.
+    ``metrics.json`` says ``running`` from the start (:func:`~scenarios.run.report.mark_running`); the time
+    series is flushed as the run goes (:class:`~scenarios.run.results.TimeSeriesWriter`), and the metrics
+    (:func:`~scenarios.run.report.write_report`) are written even when the run diverges or is interrupted
+    (``status`` says which), so partial results are never lost. A run killed outright keeps its series up
+    to the last flush; :func:`~scenarios.run.report.rebuild_report` makes its metrics afterwards.
 
     Parameters
     ----------
     config
         The scenario.
     run_dir
-        The run directory (created by the caller).
+        The run directory (created by the caller). Plots an earlier run left there are removed.
     progress
         ``progress(simulated time, fraction done)`` after every control tick.
     trailer_steer_source
@@ -44,46 +46,34 @@ def run_scenario(
     model
         A built vehicle model of ``config.vehicle`` to use (e.g. one shared by many runs through a
         :class:`~scenarios.setup.models.ModelRegistry`); default: build one.
+
+    Returns
+    -------
+    dict
+        The content of ``metrics.json``.
     """
+    for name in PLOT_FILES:  # never leave an earlier run's plots beside this run's metrics
+        (run_dir / name).unlink(missing_ok=True)
+    # First of all, so that a run killed at any moment leaves a readable (perhaps empty) series.
+    writer = TimeSeriesWriter(run_dir / TIMESERIES_FILE, columns=[])
     write_config(run_dir, config)
-    setup = build_scenario(config, model=model)
+    mark_running(run_dir, config)
+    try:
+        setup = build_scenario(config, model=model)
+    except KeyboardInterrupt as exc:  # stopped while building: say so, then stop
+        mark_interrupted(run_dir, config, exc)
+        raise
     if trailer_steer_source is None:
         trailer_steer_source = trailer_controller(setup)
-    writer = TimeSeriesWriter(run_dir / TIMESERIES_FILE, columns=[])
     outcome, columns = run_cosimulation(
         setup, writer=writer, trailer_steer_source=trailer_steer_source, progress=progress
     )
-    estimator_names = [
-        c.removeprefix("offtracking_")
-        for c in columns
-        if c.startswith("offtracking_") and not c.startswith("offtracking_truth")
-    ]
-    metrics = compute_metrics(
-        config.name,
-        config.feedback,
-        setup.params,
-        columns,
-        estimator_names,
-        setup.annulus_centre,
-        setup.path.turn_span,
-    )
-    metrics.update(
-        {
-            "status": outcome.status,
-            "message": outcome.message,
-            "simulated_s": float(columns["time"][-1]) if len(columns["time"]) else 0.0,
-            "rows": outcome.rows,
-            "wall_time_s": outcome.wall_time_s,
-            "vehicle": config.vehicle,
-            "seed": config.seed,
-        }
-    )
-    write_metrics(run_dir, metrics)
-    if plots and outcome.rows > 1:
-        title = (
-            f"{config.name} ({config.direction}), {config.vehicle}, μ = {config.surface.base_mu:.2f}, "
-            f"camber {config.camber.percent:g} % {config.camber.direction}, {config.speed.cornering_kmh:g} km/h"
-        )
-        plot_plan_view(run_dir / "plan_view.png", setup.params, columns, setup.path.points, setup.annulus_centre, title)
-        plot_offtracking(run_dir / "offtracking.png", columns, estimator_names, title)
-    return metrics
+    run = {
+        "status": outcome.status,
+        "message": outcome.message,
+        "rows": outcome.rows,
+        "wall_time_s": outcome.wall_time_s,
+        "stop_time": outcome.stop_time,
+        "stop_signal": outcome.stop_signal,
+    }
+    return write_report(run_dir, setup, columns, run, plots)

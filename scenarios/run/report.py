@@ -1,0 +1,187 @@
+"""A run's report: ``metrics.json`` and the plots, assembled in one place from the configuration and the time series.
+
+:func:`write_report` is the only code that turns a run's columns into ``metrics.json`` and its plots; it is
+used by :func:`~scenarios.run.runner.run_scenario` at the end of a run and by :func:`rebuild_report`
+(``offtrack report RUN_DIR``), which rebuilds both from ``config.yaml`` and ``timeseries.parquet`` alone:
+for a run that was killed before it wrote its metrics (SIGKILL, the out-of-memory killer, a node failure),
+or to redraw the plots of a run made with ``--no-plots``.
+
+Every run writes a ``metrics.json`` with status ``running`` when it starts (:func:`mark_running`), so a
+directory whose run was killed is recognisable; :func:`rebuild_report` reports such a run as
+``incomplete``.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+import socket
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..config import ScenarioConfig
+from .metrics import compute_metrics
+from .results import PLOT_FILES, read_config, read_metrics, read_timeseries, write_metrics
+from .stopping import stop_message, stop_signal_name
+
+if TYPE_CHECKING:
+    from ..setup.build import ScenarioSetup
+
+STATUS_RUNNING = "running"
+"""``status`` of a run that has started and not yet written its metrics."""
+STATUS_INCOMPLETE = "incomplete"
+"""``status`` :func:`rebuild_report` gives a run that stopped without writing its metrics."""
+INCOMPLETE_MESSAGE = (
+    "the run stopped without writing its metrics (killed, e.g. by SIGKILL, the out-of-memory killer or a "
+    "node failure); metrics rebuilt from the time series written up to its last flush"
+)
+RUN_FIELDS = ("status", "message", "rows", "wall_time_s", "stop_time", "stop_signal")
+"""What a run adds to :func:`~scenarios.run.metrics.compute_metrics`' content in ``metrics.json``."""
+
+
+def estimator_names(columns: dict[str, np.ndarray]) -> list[str]:
+    """The estimators recorded in a run's columns (``offtracking_<name>`` other than the two truths)."""
+    return [
+        c.removeprefix("offtracking_")
+        for c in columns
+        if c.startswith("offtracking_") and not c.startswith("offtracking_truth")
+    ]
+
+
+def _identity(config: ScenarioConfig) -> dict[str, Any]:
+    return {"scenario": config.name, "feedback": config.feedback, "vehicle": config.vehicle, "seed": config.seed}
+
+
+def mark_running(run_dir: Path, config: ScenarioConfig) -> None:
+    """Write the ``metrics.json`` of a run that has just started: status ``running``, who runs it, since when."""
+    write_metrics(
+        run_dir,
+        {
+            **_identity(config),
+            "status": STATUS_RUNNING,
+            "message": "the run has started and not yet written its metrics",
+            "started_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+            "host": socket.gethostname(),
+            "pid": os.getpid(),
+        },
+    )
+
+
+def mark_interrupted(run_dir: Path, config: ScenarioConfig, exc: BaseException) -> None:
+    """Write the ``metrics.json`` of a run stopped (Ctrl-C, SIGTERM: ``exc``) before it simulated anything."""
+    write_metrics(
+        run_dir,
+        {
+            **_identity(config),
+            "status": "interrupted",
+            "message": stop_message(exc),
+            "rows": 0,
+            "simulated_s": 0.0,
+            "stop_time": 0.0,
+            "stop_signal": stop_signal_name(exc),
+        },
+    )
+
+
+def write_report(
+    run_dir: Path,
+    setup: ScenarioSetup,
+    columns: dict[str, np.ndarray],
+    run: dict[str, Any],
+    plots: bool = True,
+) -> dict[str, Any]:
+    """Compute a run's metrics, write ``metrics.json`` and (``plots``, two rows or more) the plots.
+
+    Parameters
+    ----------
+    run_dir
+        The run directory.
+    setup
+        The built scenario (its configuration, vehicle, path and roundabout-test annulus).
+    columns
+        The run's columns, one row per control tick (may be empty, even without column names: a run
+        stopped during its setup).
+    run
+        How the run went: :data:`RUN_FIELDS` (``status``, ``message``, ``rows``, ``wall_time_s``,
+        ``stop_time``, ``stop_signal``) and anything else to record; ``rows`` defaults to the rows in
+        ``columns``.
+    plots
+        Draw ``plan_view.png`` and ``offtracking.png``.
+
+    Returns
+    -------
+    dict
+        The content of ``metrics.json``.
+    """
+    from .plots import plot_offtracking, plot_plan_view, run_title  # matplotlib only when a report is made
+
+    config = setup.config
+    time = np.asarray(columns.get("time", np.zeros(0)), dtype=float)
+    names = estimator_names(columns)
+    metrics = compute_metrics(
+        config.name, config.feedback, setup.params, columns, names, setup.annulus_centre, setup.path.turn_span
+    )
+    metrics.update({key: None for key in RUN_FIELDS})
+    metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})
+    metrics.update({"vehicle": config.vehicle, "seed": config.seed})
+    write_metrics(run_dir, metrics)
+    if plots and len(time) > 1:
+        title = run_title(config)
+        plot_plan_view(
+            run_dir / PLOT_FILES[0],
+            setup.params,
+            columns,
+            setup.path.points,
+            setup.annulus_centre,
+            title,
+            roundabout_test=metrics.get("roundabout_test"),
+            turn_span=setup.path.turn_span,
+        )
+        plot_offtracking(run_dir / PLOT_FILES[1], columns, names, title)
+    return metrics
+
+
+def rebuild_report(run_dir: Path, plots: bool = True) -> dict[str, Any]:
+    """Rebuild ``metrics.json`` and the plots of a run from its ``config.yaml`` and time series alone.
+
+    A run that wrote its metrics keeps the status, message, wall time and stop it recorded; one that did
+    not (no ``metrics.json``, or the ``running`` one it wrote when it started: it was killed) is
+    ``incomplete``, with :data:`INCOMPLETE_MESSAGE`, and ``stop_time`` the last time in its series.
+
+    Parameters
+    ----------
+    run_dir
+        The run directory.
+    plots
+        Also redraw the plots (with two rows or more).
+
+    Returns
+    -------
+    dict
+        The content of the new ``metrics.json``.
+
+    Raises
+    ------
+    InputError
+        ``run_dir`` has no (valid) ``config.yaml``.
+    """
+    from ..setup.build import build_scenario
+
+    run_dir = Path(run_dir)
+    config = read_config(run_dir)
+    recorded = read_metrics(run_dir) or {}
+    columns = read_timeseries(run_dir)
+    time = columns.get("time", np.zeros(0))
+    if recorded.get("status") in (None, STATUS_RUNNING):
+        run: dict[str, Any] = {
+            "status": STATUS_INCOMPLETE,
+            "message": INCOMPLETE_MESSAGE,
+            "stop_time": float(time[-1]) if len(time) else None,
+            **{key: recorded[key] for key in ("started_at", "host", "pid") if key in recorded},
+        }
+    else:
+        run = {key: recorded.get(key) for key in RUN_FIELDS if key != "rows"}
+    run["rebuilt_at"] = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+    return write_report(run_dir, build_scenario(config), columns, run, plots)
