@@ -1,18 +1,30 @@
 """Validated scenario configuration: YAML files in a catalogue, overridable from the command line.
 
-Every field has a type and an allowed range; a bad value is reported with its dotted field name,
-the value and what is allowed (:class:`ConfigError`). Angles and speeds are given in degrees and
-km/h here, at the edge, and converted to SI where the configuration is used.
+Every field has a type and an allowed range, with the reason for the range in its description; every
+number must be finite (no ``.inf`` or ``.nan``, also inside tuples and optional fields). A bad value is
+reported with its dotted field name, the value and what is allowed (:class:`ConfigError`), before
+anything is simulated. Angles and speeds are given in degrees and km/h here, at the edge, and converted
+to SI where the configuration is used. :func:`load_scenario` and :func:`validate_config` are the one way
+in for the command line, the studies and the environments.
 """
 
 from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
 
 from vehicle_model.errors import InputError
 from vehicle_model.presets import VEHICLE_PRESETS
@@ -26,7 +38,41 @@ class ConfigError(InputError):
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+    # allow_inf_nan=False: every float (plain, optional, inside a tuple) must be finite.
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False)
+
+
+COORDINATE_LIMIT_M = 10_000.0
+"""Largest |coordinate| of a friction patch [m]: beyond any path the schema allows (5 km straight + 2 × 1 km)."""
+
+MAX_RIG_ROTATION_DEG = 20.0
+"""Largest right-camera misalignment or correction per axis [°] (:class:`sensor.camera.Misalignment`)."""
+
+RigRotationDeg = Annotated[
+    float,
+    Field(
+        ge=-MAX_RIG_ROTATION_DEG,
+        le=MAX_RIG_ROTATION_DEG,
+        description="[°] per axis, the range the rig accepts (sensor.camera.Misalignment); paper §4.4 needs a few",
+    ),
+]
+
+_COORDINATE = "[m]; ±10 km holds every path the schema allows (5 km straight, 1 km entry and exit)"
+_MU = "friction coefficient; 0 cannot be driven on and 1.5 is above any real road"
+
+_SPEED = "[km/h]; 90 km/h is a truck's speed limiter"
+_GAIN = "per metre travelled; 10 is far above any designed gain"
+
+_CAMERA_RATE_TOLERANCE = 1e-3
+"""A camera rate within this relative distance of ``control_hz / n`` is taken as exactly that."""
+
+
+def _nearest(value: float, allowed: list[float], low: float, high: float) -> str:
+    """The allowed values in ``[low, high]`` next below and above ``value``, as ``'a or b'``."""
+    usable = sorted(a for a in allowed if low <= a <= high)
+    below = [a for a in usable if a < value][-1:]
+    above = [a for a in usable if a > value][:1]
+    return " or ".join(f"{a:.4g}" for a in below + above) or "none"
 
 
 class PathConfig(_Strict):
@@ -43,26 +89,32 @@ class PathConfig(_Strict):
     kind: Literal["roundabout", "figure_eight", "straight"] = "roundabout"
     # settle_turns: circles driven before the assessed ``turns`` (the roundabout test assesses a full
     # 360° once the combination is on the circle, not its entry from the approach).
-    radius: float = Field(15.0, ge=5.0, le=500.0)
-    turns: float = Field(1.0, gt=0.0, le=10.0)
-    settle_turns: float = Field(0.0, ge=0.0, le=2.0)
-    gap: float = Field(10.0, ge=0.0, le=200.0)
-    length: float = Field(100.0, gt=0.0, le=5000.0)
-    slip_deg: float | None = Field(None, ge=-80.0, le=80.0)
-    entry_length: float = Field(30.0, ge=0.0, le=1000.0)
-    exit_length: float = Field(30.0, ge=0.0, le=1000.0)
+    radius: float = Field(
+        15.0, ge=5.0, le=500.0, description="[m]; below 5 m no combination can turn, above 500 m it is a straight"
+    )
+    turns: float = Field(1.0, gt=0.0, le=10.0, description="assessed circles; more adds run time, not information")
+    settle_turns: float = Field(0.0, ge=0.0, le=2.0, description="circles before assessment; one settles any entry")
+    gap: float = Field(10.0, ge=0.0, le=200.0, description="[m] straight between the figure-of-eight's loops")
+    length: float = Field(100.0, gt=0.0, le=5000.0, description="[m] straight length; 5 km is an hour at 5 km/h")
+    slip_deg: float | None = Field(
+        None, ge=-80.0, le=80.0, description="[°] constant crab angle; at ±90° the combination moves sideways"
+    )
+    entry_length: float = Field(30.0, ge=0.0, le=1000.0, description="[m] approach straight")
+    exit_length: float = Field(30.0, ge=0.0, le=1000.0, description="[m] departure straight")
     control_point: Literal["outer_front_corner", "front_axle"] = "front_axle"
-    driver_margin: float = Field(0.0, ge=0.0, le=0.5)
+    driver_margin: float = Field(
+        0.0, ge=0.0, le=0.5, description="[m] the driver keeps inside the test circle; more is not the test"
+    )
 
 
 class PatchConfig(_Strict):
     """A rectangle of different friction, in path-aligned global coordinates [m]."""
 
-    x_min: float
-    x_max: float
-    y_min: float
-    y_max: float
-    mu: float = Field(gt=0.0, le=1.5)
+    x_min: float = Field(ge=-COORDINATE_LIMIT_M, le=COORDINATE_LIMIT_M, description=_COORDINATE)
+    x_max: float = Field(ge=-COORDINATE_LIMIT_M, le=COORDINATE_LIMIT_M, description=_COORDINATE)
+    y_min: float = Field(ge=-COORDINATE_LIMIT_M, le=COORDINATE_LIMIT_M, description=_COORDINATE)
+    y_max: float = Field(ge=-COORDINATE_LIMIT_M, le=COORDINATE_LIMIT_M, description=_COORDINATE)
+    mu: float = Field(gt=0.0, le=1.5, description=_MU)
 
     @model_validator(mode="after")
     def _extent(self) -> PatchConfig:
@@ -75,8 +127,10 @@ class SurfaceConfig(_Strict):
     """Road friction: a named preset or an explicit ``mu`` (which wins), plus low-μ patches."""
 
     preset: Literal["dry", "wet", "snow", "ice"] = "dry"
-    mu: float | None = Field(None, gt=0.0, le=1.5)
-    patches: tuple[PatchConfig, ...] = ()
+    mu: float | None = Field(None, gt=0.0, le=1.5, description=_MU)
+    patches: tuple[PatchConfig, ...] = Field(
+        (), max_length=1000, description="at most 1000: every patch is tested at every tyre on every dynamics step"
+    )
 
     @property
     def base_mu(self) -> float:
@@ -86,42 +140,93 @@ class SurfaceConfig(_Strict):
 class CamberConfig(_Strict):
     """Cross-slope: radial about the nearest loop centre (``outward`` falls away from it), or across a straight."""
 
-    percent: float = Field(0.0, ge=0.0, le=10.0)
+    percent: float = Field(0.0, ge=0.0, le=10.0, description="[%] cross-slope; 10 % is beyond any carriageway")
     direction: Literal["outward", "inward"] = "outward"
 
 
 class SpeedConfig(_Strict):
     """Speed profile: ``cornering_kmh`` on the manoeuvre, ``straight_kmh`` on entry and exit (default: the same)."""
 
-    cornering_kmh: float = Field(15.0, gt=0.0, le=90.0)
-    straight_kmh: float | None = Field(None, gt=0.0, le=90.0)
-    acceleration: float = Field(0.5, gt=0.0, le=3.0)
+    cornering_kmh: float = Field(15.0, gt=0.0, le=90.0, description=_SPEED)
+    straight_kmh: float | None = Field(None, gt=0.0, le=90.0, description=_SPEED)
+    acceleration: float = Field(
+        0.5, gt=0.0, le=3.0, description="[m/s²]; 3 m/s² is beyond what a laden combination can do"
+    )
 
 
 class RatesConfig(_Strict):
     """Clocks of the co-simulation: dynamics step, control rate, camera rate."""
 
-    dynamics_step_s: float = Field(0.002, gt=0.0, le=0.005)
-    control_hz: float = Field(50.0, ge=5.0, le=500.0)
-    camera_hz: float = Field(10.0, ge=1.0, le=60.0)
+    dynamics_step_s: float = Field(
+        0.002,
+        ge=1e-4,
+        le=0.005,
+        description="[s] RK4 step; below 0.1 ms a run costs only time and memory (1e-9 s took 23 GB), above 5 ms "
+        "RK4 leaves its stability region for the tyre relaxation dynamics",
+    )
+    control_hz: float = Field(
+        50.0,
+        ge=5.0,
+        le=500.0,
+        description="[Hz]; a whole number of dynamics steps per control period; 5–500 Hz spans real controllers",
+    )
+    camera_hz: float = Field(
+        10.0,
+        ge=1.0,
+        le=60.0,
+        description="[Hz]; frames are taken on control ticks, so control_hz / camera_hz must be a whole number "
+        "(within 0.1 % of control_hz / n is taken as exactly that); 60 Hz is the fastest stereo camera modelled",
+    )
 
-    @model_validator(mode="after")
-    def _commensurate(self) -> RatesConfig:
-        ratio = 1.0 / (self.control_hz * self.dynamics_step_s)
-        if abs(ratio - round(ratio)) > 1e-6:
-            raise ValueError(
-                f"control period 1/{self.control_hz} s must be a whole number of dynamics steps "
-                f"of {self.dynamics_step_s} s"
+    @field_validator("control_hz")
+    @classmethod
+    def _whole_dynamics_steps(cls, control_hz: float, info: ValidationInfo) -> float:
+        step = info.data.get("dynamics_step_s")
+        if step is None:  # the step itself is invalid and reported
+            return control_hz
+        ratio = 1.0 / (control_hz * step)
+        if round(ratio) < 1 or abs(ratio - round(ratio)) > 1e-6:
+            allowed = [1.0 / (n * step) for n in range(1, int(1.0 / (5.0 * step)) + 1)]
+            raise PydanticCustomError(
+                "control_rate",
+                "control period 1/{control} s must be a whole number of dynamics steps of {step} s; nearest "
+                "allowed {nearest}",
+                {
+                    "control": f"{control_hz:g}",
+                    "step": f"{step:g}",
+                    "nearest": _nearest(control_hz, allowed, 5.0, 500.0),
+                },
             )
-        return self
+        return control_hz
+
+    @field_validator("camera_hz")
+    @classmethod
+    def _whole_control_periods(cls, camera_hz: float, info: ValidationInfo) -> float:
+        control_hz = info.data.get("control_hz")
+        if control_hz is None:  # the control rate is invalid and reported
+            return camera_hz
+        n = max(round(control_hz / camera_hz), 1)
+        exact = control_hz / n
+        if abs(camera_hz - exact) <= _CAMERA_RATE_TOLERANCE * exact:
+            return exact  # e.g. 16.67 → 50 / 3, so the frames stay on every third control tick
+        allowed = [control_hz / n for n in range(1, int(control_hz) + 1)]
+        raise PydanticCustomError(
+            "camera_rate",
+            "must divide rates.control_hz = {control} into whole control periods; nearest allowed {nearest}",
+            {"control": f"{control_hz:g}", "nearest": _nearest(camera_hz, allowed, 1.0, 60.0)},
+        )
 
 
 class ChannelConfig(_Strict):
     """One on-board signal: white noise (standard deviation), constant bias and sample rate."""
 
-    noise_std: float = Field(0.0, ge=0.0)
-    bias: float = 0.0
-    rate_hz: float = Field(50.0, gt=0.0, le=1000.0)
+    noise_std: float = Field(
+        0.0, ge=0.0, le=1.0, description="[m/s, rad or rad/s]; 1 (57°, 3.6 km/h) is beyond any working sensor"
+    )
+    bias: float = Field(
+        0.0, ge=-1.0, le=1.0, description="[m/s, rad or rad/s]; ±1 (57°, 3.6 km/h) is beyond any working sensor"
+    )
+    rate_hz: float = Field(50.0, gt=0.0, le=1000.0, description="[Hz]; sampled on control ticks, held in between")
 
 
 class SignalsConfig(_Strict):
@@ -146,19 +251,29 @@ class CameraConfig(_Strict):
     odometry (paper eqs (8)–(9)).
     """
 
-    width: int = Field(1344, ge=64, le=4096)
-    height: int = Field(391, ge=48, le=4096)
-    hfov_deg: float = Field(100.0, gt=10.0, lt=170.0)
-    baseline: float = Field(0.5, gt=0.0, le=5.0)
-    mount_height: float = Field(3.0, gt=0.2, le=6.0)
-    station: float | None = Field(None, ge=-20.0, le=2.0)
-    lateral: float = Field(0.0, ge=-2.0, le=2.0)
-    psi_c2v_deg: float = Field(180.0, ge=0.0, lt=360.0)
-    right_misalignment_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    right_correction_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    noise_std: float = Field(0.0, ge=0.0, le=50.0)
-    brightness_jitter: float = Field(0.0, ge=0.0, le=0.5)
-    scenery_density: float = Field(1.0, ge=0.0, le=1.0)
+    width: int = Field(1344, ge=64, le=4096, description="[px]; too few features below 64, 4096 fills the GPU")
+    height: int = Field(391, ge=48, le=4096, description="[px]; too few features below 48, 4096 fills the GPU")
+    hfov_deg: float = Field(
+        100.0, gt=10.0, lt=170.0, description="[°]; a pinhole camera cannot reach 180°, below 10° it sees no ground"
+    )
+    baseline: float = Field(0.5, gt=0.0, le=5.0, description="[m] stereo baseline; the paper sweeps up to 5 m")
+    mount_height: float = Field(
+        3.0, gt=0.2, le=6.0, description="[m] above the road; between the ground and above the tallest trailer"
+    )
+    station: float | None = Field(
+        None, ge=-20.0, le=2.0, description="[m] from the kingpin; no trailer is longer than 20 m behind it"
+    )
+    lateral: float = Field(0.0, ge=-2.0, le=2.0, description="[m]; the trailer is 2.55 m wide")
+    psi_c2v_deg: float = Field(180.0, ge=0.0, lt=360.0, description="[°] one full turn")
+    right_misalignment_deg: tuple[RigRotationDeg, RigRotationDeg, RigRotationDeg] = (0.0, 0.0, 0.0)
+    right_correction_deg: tuple[RigRotationDeg, RigRotationDeg, RigRotationDeg] = (0.0, 0.0, 0.0)
+    noise_std: float = Field(
+        0.0, ge=0.0, le=50.0, description="[grey levels] image noise; above 50 the images are mostly noise"
+    )
+    brightness_jitter: float = Field(
+        0.0, ge=0.0, le=0.5, description="relative std of the per-frame brightness gain; at 0.5 it swings by half"
+    )
+    scenery_density: float = Field(1.0, ge=0.0, le=1.0, description="fraction of the scenery placed")
 
 
 class EstimatorsConfig(_Strict):
@@ -179,15 +294,21 @@ class ControllerConfig(_Strict):
     the poles at ``natural_frequency`` [1/m] and ``damping``.
     """
 
-    kp: float | None = Field(None, ge=0.0, le=10.0)
-    ki: float | None = Field(None, ge=0.0, le=10.0)
-    kd: float | None = Field(None, ge=0.0, le=10.0)
-    natural_frequency: float = Field(1.0 / 3.0, gt=0.0, le=5.0)
-    damping: float = Field(0.8, gt=0.0, le=5.0)
-    max_steer_deg: float = Field(25.0, gt=0.0, le=60.0)
-    max_steer_rate_deg_s: float = Field(20.0, gt=0.0, le=500.0)
+    kp: float | None = Field(None, ge=0.0, le=10.0, description=_GAIN)
+    ki: float | None = Field(None, ge=0.0, le=10.0, description=_GAIN)
+    kd: float | None = Field(None, ge=0.0, le=10.0, description=_GAIN)
+    natural_frequency: float = Field(
+        1.0 / 3.0, gt=0.0, le=5.0, description="[1/m]; 5 per metre is far beyond the steering actuator's bandwidth"
+    )
+    damping: float = Field(0.8, gt=0.0, le=5.0, description="damping ratio; above 5 it only slows the loop")
+    max_steer_deg: float = Field(25.0, gt=0.0, le=60.0, description="[°] trailer wheel lock; 60° is beyond any axle")
+    max_steer_rate_deg_s: float = Field(
+        20.0, gt=0.0, le=500.0, description="[°/s]; 500 °/s is beyond any steering actuator"
+    )
     feedforward: Literal["path", "steady", "none"] = "path"
-    bandwidth_speed_kmh: float | None = Field(15.0, gt=0.0, le=150.0)
+    bandwidth_speed_kmh: float | None = Field(
+        15.0, gt=0.0, le=150.0, description="[km/h] speed the gains are designed for; above any truck's speed"
+    )
 
 
 class ScenarioConfig(_Strict):
@@ -208,8 +329,10 @@ class ScenarioConfig(_Strict):
     feedback: Literal["none", "truth", "zero_slip", "viso_ot"] = "none"
     controller: ControllerConfig = ControllerConfig()
     roundabout_test: bool = False
-    seed: int = Field(0, ge=0, le=2**32 - 1)
-    duration_s: float | None = Field(None, gt=0.0, le=3600.0)
+    seed: int = Field(0, ge=0, le=2**32 - 1, description="numpy's seed range")
+    duration_s: float | None = Field(
+        None, gt=0.0, le=3600.0, description="[s] simulated; an hour bounds the memory of the recorded time series"
+    )
 
     @model_validator(mode="after")
     def _check(self) -> ScenarioConfig:
@@ -232,13 +355,41 @@ class ScenarioConfig(_Strict):
         return self
 
 
-def _format_errors(exc: ValidationError, data: dict[str, Any]) -> str:
+_RANGE_ERRORS = {"greater_than", "greater_than_equal", "less_than", "less_than_equal", "finite_number", "too_long"}
+
+
+def _field_reason(loc: tuple[int | str, ...]) -> str | None:
+    """The description (the reason for its range) of the field at ``loc``, if it has one."""
+    model: Any = ScenarioConfig
+    description = None
+    for part in loc:
+        if isinstance(part, int):  # an item of a tuple: the same field (its items may say more)
+            continue
+        fields = getattr(model, "model_fields", None)
+        if not fields or part not in fields:
+            return None
+        info = fields[part]
+        description = info.description
+        types, model = [info.annotation], None
+        while types:  # the model nested in e.g. ``tuple[PatchConfig, ...] | None``, or an item's own Field
+            kind = types.pop()
+            if isinstance(kind, type) and issubclass(kind, BaseModel):
+                model = kind
+            for meta in getattr(kind, "__metadata__", ()):
+                description = getattr(meta, "description", None) or description
+            types += [a for a in get_args(kind) if a is not Ellipsis]
+    return description
+
+
+def _format_errors(exc: ValidationError) -> str:
     lines = []
     for err in exc.errors():
         loc = ".".join(str(p) for p in err["loc"]) or "(config)"
         value = err.get("input")
         shown = "" if isinstance(value, dict) else f" = {value!r}"
-        lines.append(f"  {loc}{shown}: {err['msg']}")
+        message = err["msg"].removeprefix("Value error, ")
+        reason = _field_reason(err["loc"]) if err["type"] in _RANGE_ERRORS else None
+        lines.append(f"  {loc}{shown}: {message}" + (f" — {reason}" if reason else ""))
     return "invalid scenario configuration:\n" + "\n".join(lines)
 
 
@@ -247,7 +398,7 @@ def validate_config(data: dict[str, Any]) -> ScenarioConfig:
     try:
         return ScenarioConfig.model_validate(data)
     except ValidationError as exc:
-        raise ConfigError(_format_errors(exc, data)) from None
+        raise ConfigError(_format_errors(exc)) from None
 
 
 def catalogue_names() -> list[str]:
@@ -259,7 +410,9 @@ def catalogue_names() -> list[str]:
 def load_scenario_data(name_or_path: str) -> dict[str, Any]:
     """Raw configuration of a catalogue scenario or a YAML file."""
     path = Path(name_or_path)
-    if path.suffix in (".yaml", ".yml") and path.exists():
+    if path.suffix in (".yaml", ".yml"):
+        if not path.is_file():
+            raise ConfigError(f"scenario file {name_or_path} does not exist")
         text = path.read_text()
     else:
         entry = resources.files(CATALOGUE_PACKAGE) / f"{name_or_path}.yaml"

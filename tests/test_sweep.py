@@ -1,4 +1,4 @@
-"""The sweep runner: parallel = serial, resume after a kill, recorded failures, Dask, the study wrapper.
+"""The sweep runner: parallel = serial, resume after a kill, recorded failures, stops, Dask, the study wrapper.
 
 Every sweep here runs a few seconds of ``roundabout-3`` per case, model only (no rendering).
 """
@@ -19,13 +19,16 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from scenarios.studies import definitions, figures
+from scenarios.run import cosim
+from scenarios.run.stopping import Terminated, handle_sigterm
+from scenarios.studies import definitions, executors, figures
 from scenarios.studies.cases import model_only_cases, run_case
 from scenarios.studies.executors import local_executor
 from scenarios.studies.progress import SweepProgress
 from scenarios.studies.records import CASES_DIR, CaseSpec, read_record
 from scenarios.studies.sweep import gather_table, run_sweep
 from scenarios.studies.workers import worker_info
+from vehicle_model.errors import InputError
 
 CASES = model_only_cases(6, duration_s=3.0, study="test-sweep")
 BAD = CaseSpec("test-sweep", "roundabout-3", (("duration_s", 3.0), ("surface.mu", -1.0)), (("case", 99),))
@@ -46,6 +49,51 @@ def crash_on_label(spec: CaseSpec, out_dir: Path) -> dict:
     if dict(spec.labels).get("crash"):
         os._exit(13)
     return run_case(spec, out_dir)
+
+
+STOPS = {"KeyboardInterrupt": KeyboardInterrupt, "Terminated": Terminated}
+
+
+def stop_on_label(spec: CaseSpec, out_dir: Path) -> dict:
+    """A run function that raises the stop labelled ``stop`` once another case is recorded; else runs the case."""
+    stop = dict(spec.labels).get("stop")
+    if stop is None:
+        return run_case(spec, out_dir)
+    deadline = time.monotonic() + 60.0
+    while not _case_files(out_dir) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    raise STOPS[stop](f"{stop} raised in case {spec.name}")
+
+
+def signal_then_fail(spec: CaseSpec, out_dir: Path) -> dict:
+    """A run function that gets a real stop signal during its set-up, catches it and then fails otherwise."""
+    if dict(spec.labels).get("signal") is None:
+        return run_case(spec, out_dir)
+    try:
+        os.kill(os.getpid(), getattr(signal, dict(spec.labels)["signal"]))
+        time.sleep(10.0)
+    except KeyboardInterrupt:
+        pass  # swallowed, as set-up code catching too much would
+    raise RuntimeError("set-up failed after the stop")
+
+
+@pytest.fixture
+def sigterm_raises() -> object:
+    """SIGTERM raises :class:`Terminated` in this process (as the CLI sets up), restored afterwards."""
+    previous = signal.getsignal(signal.SIGTERM)
+    handle_sigterm()
+    yield
+    signal.signal(signal.SIGTERM, previous)
+
+
+def _assert_stopped_cleanly(out: Path, stopped: CaseSpec) -> dict[str, str]:
+    """No record of the stopped case, only finished ones, no markers or workers left; the records by name."""
+    assert not multiprocessing.active_children(), "the workers are stopped"
+    assert not list((out / CASES_DIR).glob(".*")), "no running markers or temporary files left behind"
+    records = {path.stem: read_record(out, path.stem) for path in _case_files(out)}
+    assert stopped.name not in records, "a stopped case is not a failure: it runs again on resume"
+    assert records and all(r is not None and r.status == "done" for r in records.values())
+    return {name: r.session for name, r in records.items()}
 
 
 @pytest.fixture(scope="module")
@@ -114,6 +162,104 @@ def test_interrupted_sweep_resumes_only_the_missing_cases(serial: pd.DataFrame, 
     pd.testing.assert_frame_equal(_numbers(result.table), _numbers(serial))
     again = run_sweep(CASES, tmp_path, workers=2)
     assert again.executed == 0 and again.skipped == len(CASES)
+
+
+@pytest.mark.parametrize(("workers", "stop"), [(1, "KeyboardInterrupt"), (1, "Terminated"), (2, "Terminated")])
+def test_a_stop_raised_in_a_case_stops_the_sweep(tmp_path: Path, workers: int, stop: str) -> None:
+    stopper = CaseSpec("test-sweep", "roundabout-3", (("duration_s", 3.0),), (("case", 97), ("stop", stop)))
+    cases = [*CASES[:2], stopper, *CASES[2:4]]
+    t0 = time.monotonic()
+    with pytest.raises(KeyboardInterrupt) as info:
+        run_sweep(cases, tmp_path, stop_on_label, workers=workers)
+    assert type(info.value) is STOPS[stop], "the same class propagates (the CLI maps Terminated to 143)"
+    assert time.monotonic() - t0 < 60.0
+    kept = _assert_stopped_cleanly(tmp_path, stopper)
+    if workers == 1:
+        assert set(kept) == {CASES[0].name, CASES[1].name}, "the cases after the stop do not run"
+    result = run_sweep(cases, tmp_path, workers=1)  # resume: run_case runs the stopped case too
+    assert result.skipped == len(kept) and result.executed == len(cases) - len(kept) and not result.failures
+    assert {r.name: r.session for r in result.records if r.name in kept} == kept
+
+
+@pytest.mark.parametrize(("signame", "stop"), [("SIGINT", KeyboardInterrupt), ("SIGTERM", Terminated)])
+def test_a_stop_signal_during_a_case_set_up_stops_the_sweep(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, sigterm_raises: object, signame: str, stop: type
+) -> None:
+    # Ctrl-C while the co-simulation is set up: it is caught there and the run ends "interrupted" with no row;
+    # this was once recorded as the case failed ('offtracking_truth') and the study went on.
+    built: list[int] = []
+    setup = cosim.CoSimulation.__init__
+
+    def interrupted_setup(self: cosim.CoSimulation, *args: object, **kwargs: object) -> None:
+        built.append(1)
+        if len(built) == 2:
+            os.kill(os.getpid(), getattr(signal, signame))
+            time.sleep(10.0)
+        setup(self, *args, **kwargs)
+
+    monkeypatch.setattr(cosim.CoSimulation, "__init__", interrupted_setup)
+    with pytest.raises(KeyboardInterrupt) as info:
+        run_sweep(CASES[:3], tmp_path, workers=1)
+    assert type(info.value) is stop and len(built) == 2
+    assert set(_assert_stopped_cleanly(tmp_path, CASES[1])) == {CASES[0].name}
+
+
+@pytest.mark.parametrize(("signame", "stop"), [("SIGINT", KeyboardInterrupt), ("SIGTERM", Terminated)])
+def test_a_stop_swallowed_in_a_case_and_followed_by_an_error_is_still_a_stop(
+    tmp_path: Path, sigterm_raises: object, signame: str, stop: type
+) -> None:
+    stopped = CaseSpec("test-sweep", "roundabout-3", (("duration_s", 3.0),), (("case", 96), ("signal", signame)))
+    with pytest.raises(KeyboardInterrupt) as info:
+        run_sweep([CASES[0], stopped, CASES[1]], tmp_path, signal_then_fail, workers=1)
+    assert type(info.value) is stop and isinstance(info.value.__cause__, RuntimeError)
+    assert set(_assert_stopped_cleanly(tmp_path, stopped)) == {CASES[0].name}
+
+
+def test_ctrl_c_to_the_process_group_stops_a_parallel_sweep_without_failed_records(tmp_path: Path) -> None:
+    # A Ctrl-C at the terminal reaches the sweep process and its workers (one process group): the workers
+    # ignore it, the sweep process stops them; nothing is recorded as failed.
+    script = textwrap.dedent(
+        f"""
+        import sys
+        from pathlib import Path
+        from scenarios.studies.cases import model_only_cases
+        from scenarios.studies.sweep import run_sweep
+        cases = model_only_cases(8, duration_s=6.0, study="test-sweep-sigint")
+        try:
+            run_sweep(cases, Path({str(tmp_path)!r}), workers=2)
+        except KeyboardInterrupt:
+            sys.exit(130)
+        """
+    )
+    proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60.0
+        while not _case_files(tmp_path):
+            assert proc.poll() is None, "the sweep ended before it could be interrupted"
+            assert time.monotonic() < deadline, "no case finished in time"
+            time.sleep(0.02)
+        os.killpg(proc.pid, signal.SIGINT)
+        assert proc.wait(30) == 130, "KeyboardInterrupt propagates out of run_sweep"
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    records = [read_record(tmp_path, path.stem) for path in _case_files(tmp_path)]
+    assert 1 <= len(records) < 8
+    assert all(r is not None and r.status == "done" for r in records)
+    assert not list((tmp_path / CASES_DIR).glob(".*"))
+
+
+def test_an_unreachable_scheduler_is_a_one_line_input_error(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    pytest.importorskip("distributed")
+    assert executors.CONNECT_TIMEOUT_S <= 10.0, "an unreachable scheduler fails within seconds, not Dask's 30 s"
+    monkeypatch.setattr(executors, "CONNECT_TIMEOUT_S", 1.0)
+    t0 = time.monotonic()
+    with pytest.raises(InputError) as info:
+        run_sweep(CASES[:1], tmp_path, scheduler="tcp://127.0.0.1:1")
+    assert time.monotonic() - t0 < 10.0
+    message = str(info.value)
+    assert "--scheduler tcp://127.0.0.1:1" in message and "\n" not in message
+    assert not _case_files(tmp_path)
 
 
 def test_killed_sweep_process_resumes_without_losing_cases(tmp_path: Path) -> None:

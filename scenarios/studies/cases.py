@@ -18,16 +18,21 @@ def run_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     """Run one case into ``out_dir/<case name>/`` and return its table row.
 
     The vehicle model comes from this process's :func:`~scenarios.studies.workers.worker_models`, so the
-    cases a process runs share each vehicle's casadi functions.
+    cases a process runs share each vehicle's casadi functions. A run stopped by Ctrl-C or SIGTERM returns
+    only its labels, ``status`` ``interrupted`` and ``stop_signal``, which
+    :func:`~scenarios.studies.workers.execute` turns back into the stop.
     """
     config = load_scenario(spec.scenario, dict(spec.overrides))
     run_dir = out_dir / spec.name
     run_dir.mkdir(parents=True, exist_ok=True)
     metrics = run_scenario(config, run_dir, plots=False, model=worker_models().preset(config.vehicle))
-    frame = pd.read_parquet(run_dir / "timeseries.parquet")
-    columns = {c: frame[c].to_numpy() for c in frame.columns}
     row: dict[str, Any] = dict(spec.labels)
     row["status"] = metrics["status"]
+    if metrics["status"] == "interrupted":  # stopped (perhaps before the first row): no result, run again on resume
+        row["stop_signal"] = metrics.get("stop_signal")
+        return row
+    frame = pd.read_parquet(run_dir / "timeseries.parquet")
+    columns = {c: frame[c].to_numpy() for c in frame.columns}
     truth = columns["offtracking_truth"]
     row["truth_rms_m"] = rms(truth)
     if "offtracking_viso_ot" in columns:

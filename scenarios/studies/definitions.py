@@ -155,6 +155,14 @@ def run_study(
     pandas.DataFrame
         One row per case in the study's order; a failed case has ``status`` ``failed`` and its ``error``.
         The figures are drawn from the cases that did not fail.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        Ctrl-C, or :class:`~scenarios.run.stopping.Terminated` on SIGTERM, anywhere in the study (also in a
+        case or a worker): the study stops at once, the finished cases stay recorded, no table or figure
+        is written, and running it again into ``out_dir`` runs the rest
+        (:func:`~scenarios.studies.sweep.run_sweep`).
     """
     if name not in STUDIES:
         raise ValueError(f"unknown study {name!r}; choose one of {sorted(STUDIES)}")

@@ -2,8 +2,13 @@
 
 Local workers come from :func:`local_executor` (``spawn`` start method, :func:`~scenarios.studies.workers.init_worker`
 as initializer); a local worker that dies is replaced and the cases it was running are retried one at a
-time to find the culprit. On Dask, :func:`dask_client` connects and one task is submitted per case.
-:class:`SweepState` counts what ended and reports progress.
+time to find the culprit. On Dask, :func:`dask_client` connects (or says within :data:`CONNECT_TIMEOUT_S`
+that it cannot) and one task is submitted per case. :class:`SweepState` counts what ended and reports progress.
+
+A stop (Ctrl-C, or :class:`~scenarios.run.stopping.Terminated` on SIGTERM) raised here or in a case propagates
+unchanged: a local pool's workers are terminated, Dask futures cancelled, and the stopped cases leave no record.
+Local workers are started with SIGINT blocked (:func:`sigint_blocked`) and then ignore it, so a Ctrl-C at the
+terminal, which reaches the whole process group, reaches only the sweep process.
 """
 
 from __future__ import annotations
@@ -12,12 +17,16 @@ import contextlib
 import glob
 import json
 import os
+import signal
+import threading
 import time
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
+
+from vehicle_model.errors import InputError
 
 from ..run.files import TEMPORARY_SUFFIX, write_atomic
 from .progress import ProgressCallback, SweepProgress
@@ -84,7 +93,30 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
     pool.shutdown(wait=True)
 
 
-def dask_client(scheduler: str | Any) -> tuple[Any, bool]:
+@contextlib.contextmanager
+def sigint_blocked() -> Iterator[None]:
+    """Block SIGINT in this thread while the block runs, e.g. while it starts local worker processes.
+
+    A process started meanwhile inherits the blocked signal (and Python then installs no Ctrl-C handler in it),
+    so a Ctrl-C at the terminal cannot kill a worker that is still importing, before its initializer ignores
+    SIGINT. This process still gets the Ctrl-C: at once if another of its threads takes it, else when the block
+    ends. A no-op outside the main thread or without ``signal.pthread_sigmask``.
+    """
+    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+CONNECT_TIMEOUT_S = 5.0
+"""How long :func:`dask_client` tries to reach a scheduler address [s] (Dask's default is 30 s)."""
+
+
+def dask_client(scheduler: str | Any, timeout: float | None = None) -> tuple[Any, bool]:
     """A ``distributed.Client`` for ``scheduler`` and whether the caller owns (must close) it.
 
     Parameters
@@ -92,6 +124,13 @@ def dask_client(scheduler: str | Any) -> tuple[Any, bool]:
     scheduler
         A scheduler address (``tcp://host:8786``, a ``dask-jobqueue`` cluster's ``scheduler_address``),
         a cluster object, or an existing ``Client`` (used as is).
+    timeout
+        Seconds to try to connect; default :data:`CONNECT_TIMEOUT_S`.
+
+    Raises
+    ------
+    vehicle_model.errors.InputError
+        The scheduler cannot be reached in time (or the address is not one), naming ``--scheduler`` and it.
     """
     try:
         from distributed import Client
@@ -99,7 +138,15 @@ def dask_client(scheduler: str | Any) -> tuple[Any, bool]:
         raise ImportError('running on a Dask cluster needs dask.distributed: pip install "dask[distributed]"') from exc
     if isinstance(scheduler, Client):
         return scheduler, False
-    return Client(scheduler), True
+    timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
+    try:
+        return Client(scheduler, timeout=timeout), True
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(
+            f"--scheduler {scheduler}: cannot connect to a Dask scheduler there within {timeout:g} s ({reason}); "
+            "check the address and that `dask scheduler` runs there"
+        ) from None
 
 
 class SweepState:
@@ -144,7 +191,8 @@ class SweepState:
 
 def drain(pool: Executor, tasks: Sequence[Task], sweep: SweepState) -> list[Task]:
     """Run ``tasks`` on ``pool``; return the ones lost to a broken pool (a worker died)."""
-    futures: dict[Future, Task] = {pool.submit(execute, task): task for task in tasks}
+    with sigint_blocked():  # a local pool starts its workers as the tasks are submitted
+        futures: dict[Future, Task] = {pool.submit(execute, task): task for task in tasks}
     lost: list[Task] = []
     for future in as_completed(futures):
         task = futures[future]

@@ -46,8 +46,12 @@ and changed ones (a case whose spec no longer matches its file). A case that rai
 its error and the sweep goes on; a local worker that dies (a crash in native code) is replaced and the
 cases it was running are retried one at a time to find the culprit, which is recorded as failed. At the
 end the cases are gathered, in the study's order, into ``table.parquet``, ``table.csv`` and
-``table.md``. Ctrl-C stops the sweep at once (local workers are terminated; their running cases are
-re-run on resume).
+``table.md``. Ctrl-C stops the sweep at once, and so does SIGTERM once
+:func:`scenarios.run.stopping.handle_sigterm` made it raise :class:`~scenarios.run.stopping.Terminated`; so
+does either raised inside a case, in this process or in a worker, during its set-up or its run (also when
+the case caught it and ended ``interrupted``). The stopped cases leave no record and are re-run on resume,
+the finished ones stay recorded, local workers are terminated (Dask futures cancelled), and the same
+:class:`KeyboardInterrupt` propagates, so a caller can tell SIGTERM from Ctrl-C.
 
 Progress goes to a callback with a :class:`SweepProgress` (finished / failed / remaining, ETA) after
 every case; :func:`rich_progress` makes one that draws a rich progress bar.
@@ -155,7 +159,11 @@ def run_sweep(
     ValueError
         Duplicate or unusable case names, ``workers < 1``, or both ``scheduler`` and ``executor``.
     KeyboardInterrupt
-        On Ctrl-C, after cancelling what had not started; finished cases stay recorded.
+        On Ctrl-C, or :class:`~scenarios.run.stopping.Terminated` on SIGTERM (after
+        :func:`~scenarios.run.stopping.handle_sigterm`), also when raised in a case: after stopping the
+        workers and cancelling what had not started; finished cases stay recorded.
+    vehicle_model.errors.InputError
+        ``scheduler`` cannot be reached (:func:`~scenarios.studies.executors.dask_client`).
     """
     if run is None:
         from .cases import run_case as run

@@ -5,12 +5,18 @@ Standard library only at import time: a spawned worker imports this module to ru
 Each worker process owns a :class:`~scenarios.setup.models.ModelRegistry` (:func:`worker_models`), so its
 cases build each vehicle's casadi functions once; a model holds no run state, so sharing it changes no
 result. The process that starts a sweep runs its serial cases through the same code and registry.
+
+A stop request is never a case's failure: a :class:`KeyboardInterrupt` (Ctrl-C, or
+:class:`~scenarios.run.stopping.Terminated` on SIGTERM) raised in a case, or an ``interrupted`` result, leaves
+no record and propagates out of :func:`execute` (the case runs again on resume). A local worker ignores
+SIGINT: a Ctrl-C at the terminal reaches its whole process group, and it is the sweep process's to handle.
 """
 
 from __future__ import annotations
 
 import contextlib
 import datetime as dt
+import functools
 import json
 import os
 import signal
@@ -19,12 +25,13 @@ import sys
 import threading
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..run.files import jsonable, write_atomic
+from ..run.stopping import Terminated
 from .records import CaseRecord, CaseSpec, case_path, fingerprint, marker_path, spec_dict
 
 if TYPE_CHECKING:
@@ -148,22 +155,73 @@ def failure_record(
     )
 
 
+def _note_stop(previous: Callable[[int, Any], Any], seen: list[KeyboardInterrupt], signum: int, frame: Any) -> None:
+    """Signal handler: run ``previous`` and note the :class:`KeyboardInterrupt` it raises in ``seen``."""
+    try:
+        previous(signum, frame)
+    except KeyboardInterrupt as exc:
+        seen.append(exc)
+        raise
+
+
+@contextlib.contextmanager
+def stop_watch() -> Iterator[list[KeyboardInterrupt]]:
+    """Note the stops (Ctrl-C, SIGTERM) that this process's signal handlers raise while the block runs.
+
+    Yields
+    ------
+    list of KeyboardInterrupt
+        Filled with every :class:`KeyboardInterrupt` (or :class:`~scenarios.run.stopping.Terminated`) a
+        Python-level SIGINT or SIGTERM handler raised meanwhile. Code inside a case may catch one and fail
+        later with another error (a Ctrl-C during a case's set-up); this list tells the two apart. Only in
+        the main thread (elsewhere signal handlers cannot be changed, and the list stays empty).
+    """
+    seen: list[KeyboardInterrupt] = []
+    saved: dict[int, Any] = {}
+    if threading.current_thread() is threading.main_thread():
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            previous = signal.getsignal(signum)
+            if callable(previous):  # not SIG_IGN / SIG_DFL (a worker's SIGINT, an unhandled SIGTERM)
+                saved[signum] = previous
+                signal.signal(signum, functools.partial(_note_stop, previous, seen))
+    try:
+        yield seen
+    finally:
+        for signum, previous in saved.items():
+            signal.signal(signum, previous)
+
+
+def _stop_request(task: Task, row: dict[str, Any], seen: list[KeyboardInterrupt]) -> KeyboardInterrupt:
+    """The stop to raise for a case whose run ended ``interrupted`` (the co-simulation caught it)."""
+    if seen:
+        return seen[0]
+    kind = Terminated if row.get("stop_signal") == "SIGTERM" else KeyboardInterrupt
+    return kind(f"case {task.spec.name} interrupted")
+
+
 def execute(task: Task) -> dict[str, Any]:
-    """Run one case in whatever process this is, write its record atomically and return it."""
+    """Run one case in whatever process this is, write its record atomically and return it.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        The case was stopped (Ctrl-C, or :class:`~scenarios.run.stopping.Terminated` on SIGTERM), also when it
+        caught the stop and ended ``interrupted`` or failed afterwards: no record is written.
+    """
     if whoami() != task.origin:  # a worker (never the caller's own process)
         setup_process()
     out_dir = Path(task.out_dir)
     host, pid = whoami()
     worker = {"host": host, "pid": pid}
     marker = marker_path(out_dir, task.spec.name)
-    with _CASE_LOCK:
+    with _CASE_LOCK, stop_watch() as stops:
         write_atomic(marker, json.dumps({**worker, "session": task.session, "started": time.time()}))
         t0 = time.perf_counter()
         try:
             row = task.run(task.spec, out_dir)
             if isinstance(row, dict) and row.get("status") == "interrupted":
-                # the co-simulation caught a Ctrl-C: not a result; the case is run again on resume
-                raise KeyboardInterrupt(f"case {task.spec.name} interrupted")
+                # the co-simulation caught a Ctrl-C or SIGTERM: not a result; the case is run again on resume
+                raise _stop_request(task, row, stops)
             record = CaseRecord(
                 name=task.spec.name,
                 index=task.index,
@@ -178,6 +236,8 @@ def execute(task: Task) -> dict[str, Any]:
                 finished_at=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
             )
         except Exception as exc:
+            if stops:  # stopped, then failed because of it (e.g. a Ctrl-C caught during set-up): a stop
+                raise stops[0] from exc
             record = failure_record(task, exc, time.perf_counter() - t0, worker)
         finally:
             with contextlib.suppress(OSError):
