@@ -89,12 +89,37 @@ def test_constant_slip_straight_has_the_analytic_offtracking():
     assert np.nanmax(np.abs(zs)) < 1e-9  # the zero-slip estimator sees straight running
 
 
-def test_divergence_is_reported_and_the_run_kept():
-    # 15 km/h on ice with adverse camber on a 25 m roundabout exceeds the available friction: jackknife.
+def test_a_jackknife_is_lost_control_and_the_run_kept():
+    # 15 km/h on ice with adverse camber on a 25 m roundabout exceeds the available friction: jackknife. The run
+    # stops when the articulation passes the physical limit, before the model blows up.
+    from scenarios.run.control_loss import MAX_ARTICULATION_DEG
+
     _setup, outcome, cols = run("roundabout-3", **{"surface.preset": "ice", "camber.percent": 5.0, "path.radius": 25.0})
-    assert outcome.status == "diverged"
-    assert "gamma" in outcome.message and "t = " in outcome.message
+    assert outcome.status == "lost_control"
+    assert "jackknife" in outcome.message and "t = " in outcome.message
+    assert outcome.stop_time == pytest.approx(cols["time"][-1])
     assert outcome.rows == len(cols["time"]) > 100
+    assert abs(math.degrees(cols["gamma"][-1])) > MAX_ARTICULATION_DEG > abs(math.degrees(cols["gamma"][-2]))
+
+
+def test_a_divergence_is_reported_and_the_run_kept(monkeypatch):
+    # Injected: the integrator blows up on the 200th control step.
+    from vehicle_model.errors import SimulationDivergedError
+    from vehicle_model.simulator import Simulator
+
+    real_step, calls = Simulator.step, []
+
+    def failing_step(self, controls):
+        calls.append(1)
+        if len(calls) == 200:
+            raise SimulationDivergedError("the simulation diverged at t = 4.000 s: injected", self.time, self.state)
+        return real_step(self, controls)
+
+    monkeypatch.setattr(Simulator, "step", failing_step)
+    _setup, outcome, cols = run("roundabout-3", duration_s=30.0)
+    assert outcome.status == "diverged" and "injected" in outcome.message
+    assert outcome.rows == len(cols["time"]) == 200
+    assert outcome.stop_time == pytest.approx(cols["time"][-1])
 
 
 def test_same_seed_same_numbers_with_noisy_signals():

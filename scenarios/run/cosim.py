@@ -202,6 +202,7 @@ class CoSimulation:
             setup.params, setup.surface, dt=rates.dynamics_step_s, substeps=substeps, model=setup.model
         )
         self.period = self.sim.control_period
+        self._camera_every = max(1, round(rates.control_hz / rates.camera_hz))
         layout = setup.model.layout
         trailer = {a.name for a in setup.params.trailer.axles}
         self.trailer_axles: tuple[str, ...] = tuple(n for n in layout.steerable_axles if n in trailer)
@@ -242,7 +243,7 @@ class CoSimulation:
             self.camera = CameraPipeline(setup)
         self.steer = np.zeros(len(setup.model.layout.steerable_axles))
         self._prev_pose: tuple[np.ndarray, float] | None = None
-        self._next_camera = 0.0
+        self._ticks = 0  # control ticks observed since reset
         self.tick = self._observe(self.sim.state)
         return self.tick
 
@@ -329,9 +330,9 @@ class CoSimulation:
             if self.dense is not None
             else None
         )
-        camera_frame = t + 1e-9 >= self._next_camera
-        if camera_frame:
-            self._next_camera += 1.0 / setup.config.rates.camera_hz
+        # the camera rate divides the control rate (validated): a frame on every n-th control tick
+        camera_frame = self._ticks % self._camera_every == 0
+        self._ticks += 1
         shot = None
         if self.camera is not None:
             if camera_frame:
