@@ -12,22 +12,110 @@ Each camera frame the visual odometry gives the left camera's motion since the p
    kingpin on the centre line this is the paper's ``a·[cos Δψ − 1, sin Δψ]`` in ISO order), and
 4. feeds the shared :class:`~vehicle_model.offtracking.OfftrackingBuffer` (eqs (3)–(7)).
 
-Failed frames: a frame without a valid motion is bridged with the last valid motion (a
-constant-velocity prediction over one camera period); after ``max_consecutive_failures`` failed
-frames in a row the path can no longer be trusted and the buffer is cleared, so the estimator
-reports no estimate until one trailer length has again been driven. The buffer is never fed a
-guess beyond that.
+Plausibility (when the frame interval is known): each frame's step is checked against what a
+trailer on a road can do (:class:`MotionBounds`) before it enters the buffer; a step that fails is
+treated as a failed frame, with a reason code (:data:`PLAUSIBILITY_REASONS`).
+
+Failed frames and lost track: a frame without an accepted motion is bridged with the last accepted
+kingpin increment (a constant-velocity prediction over one camera period), at most
+``max_consecutive_failures`` frames in a row (3, i.e. 0.3 s at 10 Hz) and at most
+``max_bridged_distance`` metres of bridged travel (default a quarter of the trailer length: 3 m on
+the reference trailer). A longer gap means the kingpin path has a hole the prediction cannot be
+trusted to fill: the buffer is cleared and the estimator reports **no estimate** (``None``, reason
+``lost_track``) until the buffer has been rebuilt over one trailer length from accepted motions. The
+estimate itself is refused (``None``) when it is not finite or when ``|e_tr| > L_fp`` — no trailer
+off-tracks by more than its own length; such a number can only come from a corrupt path, which
+flushes out of the buffer within one trailer length. The reason for a missing estimate is
+:attr:`VisoOtEstimator.estimate_reason` (:data:`ESTIMATE_REASONS`). No guess is ever fed to the
+buffer beyond the bridge.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from vehicle_model.errors import InputError
 from vehicle_model.offtracking import OfftrackingBuffer
 from vehicle_model.parameters import VehicleParams
+
+__all__ = ["ESTIMATE_REASONS", "PLAUSIBILITY_REASONS", "STEP_COLUMNS", "MotionBounds", "VisoOtEstimator"]
+
+#: Names of the step measures of :meth:`VisoOtEstimator.step_measures` (SI units).
+STEP_COLUMNS: tuple[str, ...] = ("step_speed_m_s", "step_yaw_rate_rad_s", "step_tilt_rate_rad_s", "step_vertical_m_s")
+
+
+@dataclass(frozen=True)
+class MotionBounds:
+    """What a trailer on a road can do between two camera frames.
+
+    Parameters
+    ----------
+    max_speed : float
+        Kingpin speed [m/s]. 30 m/s (108 km/h) is above any speed an articulated HGV reaches
+        (EU speed limiters: 90 km/h = 25 m/s); the VO's speed noise on ideal frames is ~0.1 m/s.
+    max_yaw_rate : float
+        Trailer yaw rate [rad/s]. With r = a_y/u and r = u/R the largest yaw rate is
+        sqrt(a_y,max/R_min): a_y ≤ μg ≤ 9.81 m/s² and a kingpin path radius ≥ 4.4 m (tighter than
+        the 5.30 m inner circle of the UK roundabout test) give 1.5 rad/s (86°/s).
+    max_tilt_rate : float
+        Rate of pitch and roll combined [rad/s] (the angle between the trailer's vertical before and
+        after the step, over the interval). The road vehicle is level to within suspension motion:
+        body roll and pitch rates stay below ~0.2 rad/s short of a rollover; 0.5 rad/s (2.9° per
+        10 Hz frame) is two orders of magnitude above the VO's rotation noise (~0.03° per frame).
+    max_grade : float
+        Vertical speed allowed per unit horizontal speed: road grades stay below 15 %.
+    max_heave_speed : float
+        Vertical speed [m/s] allowed on top of the grade: suspension heave and a camera mount's
+        vibration, 0.5 m/s.
+    """
+
+    max_speed: float = 30.0
+    max_yaw_rate: float = 1.5
+    max_tilt_rate: float = 0.5
+    max_grade: float = 0.15
+    max_heave_speed: float = 0.5
+
+    def violation(self, step: dict[str, float]) -> str:
+        """The first bound ``step`` (:data:`STEP_COLUMNS`) breaks, as a :data:`PLAUSIBILITY_REASONS` code, or ""."""
+        speed = step["step_speed_m_s"]
+        if not abs(speed) <= self.max_speed:
+            return "implausible_speed"
+        if not abs(step["step_yaw_rate_rad_s"]) <= self.max_yaw_rate:
+            return "implausible_yaw_rate"
+        if not abs(step["step_tilt_rate_rad_s"]) <= self.max_tilt_rate:
+            return "implausible_tilt"
+        if not abs(step["step_vertical_m_s"]) <= self.max_grade * abs(speed) + self.max_heave_speed:
+            return "implausible_vertical"
+        return ""
+
+
+_BOUNDS = MotionBounds()
+
+#: Why a frame's motion was not fed to the buffer (the camera motion's own failures are the VO's).
+PLAUSIBILITY_REASONS: dict[str, str] = {
+    "non_finite_motion": "the camera motion contains NaN or infinite values",
+    "implausible_speed": f"the step implies a kingpin speed above {_BOUNDS.max_speed:g} m/s",
+    "implausible_yaw_rate": f"the step implies a trailer yaw rate above {_BOUNDS.max_yaw_rate:g} rad/s",
+    "implausible_tilt": f"the step implies a pitch or roll rate above {_BOUNDS.max_tilt_rate:g} rad/s",
+    "implausible_vertical": (
+        f"the step implies a vertical speed above {_BOUNDS.max_grade:.0%} of the horizontal speed "
+        f"+ {_BOUNDS.max_heave_speed:g} m/s"
+    ),
+}
+
+#: Why there is no estimate although frames arrive.
+ESTIMATE_REASONS: dict[str, str] = {
+    "buffer_filling": "less than one trailer length of kingpin path has been measured yet",
+    "lost_track": (
+        "too many consecutive camera frames (or too much travel) had no accepted motion; the kingpin path "
+        "buffer was cleared and is being rebuilt over one trailer length"
+    ),
+    "estimate_out_of_range": "the off-tracking read from the path exceeds the trailer length",
+    "non_finite_estimate": "the off-tracking read from the path is not a finite number",
+}
 
 
 class VisoOtEstimator:
@@ -43,28 +131,68 @@ class VisoOtEstimator:
         z up), camera axes OpenCV.
     max_consecutive_failures
         Failed frames bridged by prediction before the buffer is cleared.
+    frame_interval
+        Time between camera frames [s]; ``None`` disables the plausibility check (no rates without it).
+    bounds
+        Physical limits of a step (default :class:`MotionBounds`).
+    max_bridged_distance
+        Kingpin travel [m] that may be bridged by prediction in one gap (default ``L_fp/4``).
+
+    Attributes
+    ----------
+    last_reason : str
+        Why the last frame's motion was not fed to the buffer ("" when it was): a key of
+        :data:`PLAUSIBILITY_REASONS` or ``"no_motion"`` for a frame without a motion.
+    last_step : dict[str, float]
+        The last frame's :data:`STEP_COLUMNS` (NaN without a motion).
+    estimate_reason : str
+        Why the last estimate is ``None`` ("" when it is a number): a key of :data:`ESTIMATE_REASONS`.
     """
 
-    def __init__(self, params: VehicleParams, camera_in_trailer: np.ndarray, max_consecutive_failures: int = 3) -> None:
+    def __init__(
+        self,
+        params: VehicleParams,
+        camera_in_trailer: np.ndarray,
+        max_consecutive_failures: int = 3,
+        frame_interval: float | None = None,
+        bounds: MotionBounds | None = None,
+        max_bridged_distance: float | None = None,
+    ) -> None:
         t = np.asarray(camera_in_trailer, dtype=float)
         if t.shape != (4, 4) or not np.allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-9):
             raise InputError("camera_in_trailer must be a 4×4 rigid transform (orthonormal rotation)")
         if max_consecutive_failures < 0:
             raise InputError("max_consecutive_failures must be ≥ 0")
+        if frame_interval is not None and not (math.isfinite(frame_interval) and frame_interval > 0.0):
+            raise InputError(f"frame_interval = {frame_interval!r} must be a finite time > 0 s")
         self.mount_rotation = t[:3, :3]
         self.camera_position = t[:2, 3].copy()  # camera in trailer axes, kingpin at the origin
         self.buffer = OfftrackingBuffer(params.follow_point_offset)
         self.max_consecutive_failures = max_consecutive_failures
+        self.frame_interval = frame_interval
+        self.bounds = bounds if bounds is not None else MotionBounds()
+        l_fp = params.follow_point_offset
+        self.max_bridged_distance = 0.25 * l_fp if max_bridged_distance is None else float(max_bridged_distance)
+        if not self.max_bridged_distance >= 0.0:
+            raise InputError(f"max_bridged_distance = {max_bridged_distance!r} must be ≥ 0 m")
         self.failures_in_a_row = 0
         self.frames = 0
         self.failed_frames = 0
+        self.last_reason = ""
+        self.last_step = dict.fromkeys(STEP_COLUMNS, math.nan)
+        self.estimate_reason = "buffer_filling"
         self._last_increment: tuple[float, float, float] | None = None
+        self._bridged = 0.0
+        self._lost = False
 
     def reset(self) -> None:
         """Forget the path and the failure history."""
         self.buffer.reset()
         self.failures_in_a_row = 0
         self._last_increment = None
+        self._bridged = 0.0
+        self._lost = False
+        self.estimate_reason = "buffer_filling"
 
     def kingpin_increment(self, camera_motion: np.ndarray) -> tuple[float, float, float]:
         """Kingpin increment ``(dx, dy, dψ)`` in the previous trailer frame from one camera motion."""
@@ -81,19 +209,85 @@ class VisoOtEstimator:
         d_kingpin = d_camera + np.array([c * lever[0] - s * lever[1], s * lever[0] + c * lever[1]]) - lever
         return float(d_kingpin[0]), float(d_kingpin[1]), dpsi
 
+    def step_measures(self, camera_motion: np.ndarray, dt: float) -> dict[str, float]:
+        """Rates implied by one camera motion over ``dt`` seconds (:data:`STEP_COLUMNS`).
+
+        Kingpin speed (horizontal), trailer yaw rate, tilt rate (the angle between the trailer's
+        vertical axis before and after the step: pitch and roll together) and the camera's vertical
+        speed (trailer z).
+        """
+        m = np.asarray(camera_motion, dtype=float)
+        dx, dy, dpsi = self.kingpin_increment(m)
+        rot = self.mount_rotation @ m[:3, :3] @ self.mount_rotation.T
+        tilt = math.acos(min(1.0, max(-1.0, float(rot[2, 2]))))
+        dz = float((self.mount_rotation @ m[:3, 3])[2])
+        return {
+            "step_speed_m_s": math.hypot(dx, dy) / dt,
+            "step_yaw_rate_rad_s": dpsi / dt,
+            "step_tilt_rate_rad_s": tilt / dt,
+            "step_vertical_m_s": dz / dt,
+        }
+
     def update(self, camera_motion: np.ndarray | None) -> float | None:
-        """Feed one camera frame's motion (``None`` for a failed frame); return the estimate or ``None``."""
+        """Feed one camera frame's motion (``None`` for a failed frame); return the estimate or ``None``.
+
+        The motion is checked for plausibility (when ``frame_interval`` is set); a refused or missing
+        motion is bridged or, after too long a gap, clears the buffer (module notes). The reasons are
+        in :attr:`last_reason` and :attr:`estimate_reason`.
+        """
         self.frames += 1
-        if camera_motion is None or not np.all(np.isfinite(camera_motion)):
-            self.failed_frames += 1
-            self.failures_in_a_row += 1
-            if self._last_increment is None or self.failures_in_a_row > self.max_consecutive_failures:
-                self.reset()
-                return None
-            self.buffer.push(*self._last_increment)  # constant-velocity bridge over one frame
-            return self.buffer.offtracking()
+        self.last_step = dict.fromkeys(STEP_COLUMNS, math.nan)
+        if camera_motion is None:
+            return self._bridge("no_motion")
+        m = np.asarray(camera_motion, dtype=float)
+        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+            return self._bridge("non_finite_motion")
+        increment = self.kingpin_increment(m)
+        if self.frame_interval is not None:
+            self.last_step = self.step_measures(m, self.frame_interval)
+            violation = self.bounds.violation(self.last_step)
+            if violation:
+                return self._bridge(violation)
+        self.last_reason = ""
         self.failures_in_a_row = 0
-        increment = self.kingpin_increment(camera_motion)
+        self._bridged = 0.0
         self._last_increment = increment
         self.buffer.push(*increment)
-        return self.buffer.offtracking()
+        return self._read()
+
+    def _bridge(self, reason: str) -> float | None:
+        """A frame without an accepted motion: predict over it, or clear the buffer after too long a gap."""
+        self.last_reason = reason
+        self.failed_frames += 1
+        self.failures_in_a_row += 1
+        last = self._last_increment
+        step = math.hypot(last[0], last[1]) if last is not None else math.inf
+        if (
+            last is None
+            or self.failures_in_a_row > self.max_consecutive_failures
+            or self._bridged + step > self.max_bridged_distance
+        ):
+            lost = self._lost or last is not None or len(self.buffer) > 1
+            self.reset()
+            self._lost = lost
+            self.estimate_reason = "lost_track" if self._lost else "buffer_filling"
+            return None
+        self._bridged += step
+        self.buffer.push(*last)  # constant-velocity bridge over one frame
+        return self._read()
+
+    def _read(self) -> float | None:
+        """The buffer's off-tracking if it is a plausible number, else ``None`` with :attr:`estimate_reason`."""
+        value = self.buffer.offtracking()
+        if value is None:
+            self.estimate_reason = "lost_track" if self._lost else "buffer_filling"
+            return None
+        if not math.isfinite(value):
+            self.estimate_reason = "non_finite_estimate"
+            return None
+        if abs(value) > self.buffer.follow_point_offset:
+            self.estimate_reason = "estimate_out_of_range"
+            return None
+        self._lost = False
+        self.estimate_reason = ""
+        return float(value)

@@ -1,22 +1,48 @@
-"""The camera-based estimator in the loop: render the stereo pair, run visual odometry, update VISO-OT."""
+"""The camera-based estimator in the loop: render the stereo pair, run visual odometry, update VISO-OT.
+
+Every :class:`CameraFrame` says whether its motion was accepted (``valid``), why not (``reason``, a
+key of :data:`REJECTION_REASONS`) and how well it was supported (``quality``, exactly the keys of
+:data:`QUALITY_COLUMNS`, NaN where a measure does not apply). A motion is accepted when the odometry
+found one that is well supported (:mod:`sensor.vo.quality`) and VISO-OT finds it physically
+plausible for a trailer over the frame interval (:class:`sensor.viso_ot.MotionBounds`). Why the
+estimate is missing (``None``) is ``estimate_reason``, also a key of :data:`REJECTION_REASONS`.
+Infeasible cameras are refused before anything is built (:mod:`.feasibility`).
+"""
 
 from __future__ import annotations
 
+import math
 import time as wallclock
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
 from sensor.camera import Misalignment
 from sensor.renderer import StereoRenderer
-from sensor.viso_ot import VisoOtEstimator
+from sensor.viso_ot import STEP_COLUMNS, VisoOtEstimator
 from sensor.vo import StereoOdometry, VOConfig, VOResult
+from sensor.vo.quality import QUALITY_COLUMNS, REJECTION_REASONS
 from vehicle_model.simulator import VehicleState
 
 from ..setup.build import ScenarioSetup
+from .feasibility import check_camera_feasible
 from .rig import rig_from_config
 from .world import world_for_scenario
+
+__all__ = [
+    "QUALITY_COLUMNS",
+    "REJECTION_REASONS",
+    "CameraFrame",
+    "CameraPipeline",
+    "frame_interval",
+    "frame_quality",
+    "right_correction_homography",
+]
+
+# QUALITY_COLUMNS (the keys of CameraFrame.quality) and REJECTION_REASONS (every code of CameraFrame.reason
+# and CameraFrame.estimate_reason, with a sentence each) live in the light sensor.vo.quality so that result
+# writers can read them without OpenGL; they are this module's interface too.
 
 
 def right_correction_homography(rig, estimated_misalignment_deg: tuple[float, float, float]) -> np.ndarray | None:
@@ -36,12 +62,61 @@ def right_correction_homography(rig, estimated_misalignment_deg: tuple[float, fl
 
 @dataclass
 class CameraFrame:
-    """What one camera frame produced."""
+    """What one camera frame produced.
+
+    Attributes
+    ----------
+    estimate : float | None
+        VISO-OT off-tracking [m] after this frame (``None``: no estimate, see ``estimate_reason``).
+    vo : VOResult
+        The odometry's result.
+    render_s, vo_s : float
+        Wall-clock time of rendering and odometry [s].
+    valid : bool
+        This frame's motion was accepted and fed to the kingpin path.
+    reason : str
+        Why it was not (a key of :data:`REJECTION_REASONS`; "" when valid).
+    quality : dict[str, float]
+        Exactly the keys of :data:`QUALITY_COLUMNS` (NaN where not applicable).
+    estimate_reason : str
+        Why ``estimate`` is ``None`` (a key of :data:`REJECTION_REASONS`; "" when there is an estimate).
+    """
 
     estimate: float | None
     vo: VOResult
     render_s: float
     vo_s: float
+    valid: bool = False
+    reason: str = ""
+    quality: dict[str, float] = field(default_factory=lambda: dict.fromkeys(QUALITY_COLUMNS, math.nan))
+    estimate_reason: str = ""
+
+
+def frame_interval(camera_hz: float, control_hz: float) -> float:
+    """Time [s] between two camera frames of the co-simulation loop.
+
+    Frames are taken on every n-th control tick, n = control_hz/camera_hz (the configuration requires
+    the camera rate to divide the control rate). Should it not divide, the shorter of the two possible
+    spacings (``floor``) is used, so that no real motion is judged too fast by the plausibility rates.
+    """
+    ticks = max(1, math.floor(control_hz / camera_hz + 1e-9))
+    return ticks / control_hz
+
+
+def frame_quality(result: VOResult, step: dict[str, float]) -> dict[str, float]:
+    """The :data:`QUALITY_COLUMNS` of one frame from the odometry result and VISO-OT's step measures."""
+    matches = float(result.n_matches)
+    inliers = float(result.n_inliers)
+    refined = math.isfinite(result.residual_px)
+    return {
+        "matches": matches,
+        "inliers": inliers,
+        "inlier_ratio": inliers / matches if matches > 0 else math.nan,
+        "residual_px": float(result.residual_px),
+        "translation_sigma_m": result.translation_sigma_m if refined else math.nan,
+        "rotation_sigma_rad": result.rotation_sigma_rad if refined else math.nan,
+        **{name: float(step.get(name, math.nan)) for name in STEP_COLUMNS},
+    }
 
 
 class CameraPipeline:
@@ -55,6 +130,7 @@ class CameraPipeline:
 
     def __init__(self, setup: ScenarioSetup) -> None:
         cfg = setup.config
+        check_camera_feasible(cfg)
         self.params = setup.params
         self.rig = rig_from_config(cfg)
         self.world = world_for_scenario(setup)
@@ -63,13 +139,17 @@ class CameraPipeline:
             VOConfig.from_horizontal_fov(self.rig.width, self.rig.height, self.rig.hfov, self.rig.baseline),
             seed=cfg.seed,
         )
-        self.estimator = VisoOtEstimator(setup.params, self.rig.camera_in_trailer("left", setup.params))
+        self.estimator = VisoOtEstimator(
+            setup.params,
+            self.rig.camera_in_trailer("left", setup.params),
+            frame_interval=frame_interval(cfg.rates.camera_hz, cfg.rates.control_hz),
+        )
         self.correction = right_correction_homography(self.rig, cfg.camera.right_correction_deg)
         self.frames = 0
         self.estimate: float | None = None
 
     def frame(self, state: VehicleState) -> CameraFrame:
-        """Render and process the pair at ``state``; update and return the held estimate."""
+        """Render and process the pair at ``state``; update the estimate; say whether the motion was accepted."""
         t0 = wallclock.perf_counter()
         pair = self.renderer.render(state.X, state.Y, state.psi1, state.gamma, frame=self.frames)
         right = pair.right
@@ -80,7 +160,21 @@ class CameraPipeline:
         t1 = wallclock.perf_counter()
         result = self.vo.process(pair.left, right)
         t2 = wallclock.perf_counter()
+        step = dict.fromkeys(STEP_COLUMNS, math.nan)
         if self.frames > 0:  # the first frame has no previous pair: nothing to estimate, nothing failed
             self.estimate = self.estimator.update(result.camera_motion if result.valid else None)
+            step = self.estimator.last_step
+            reason = (result.code or "vo_failed") if not result.valid else self.estimator.last_reason
+        else:
+            reason = result.code or "no_previous_frame"
         self.frames += 1
-        return CameraFrame(self.estimate, result, t1 - t0, t2 - t1)
+        return CameraFrame(
+            self.estimate,
+            result,
+            t1 - t0,
+            t2 - t1,
+            valid=not reason,
+            reason=reason,
+            quality=frame_quality(result, step),
+            estimate_reason="" if self.estimate is not None else (self.estimator.estimate_reason or "buffer_filling"),
+        )

@@ -30,6 +30,7 @@ from controller.driver import PathFollowingDriver
 from controller.speed import SpeedController, traction_limit
 from controller.zero_slip import ZeroSlipEstimator
 from sensor.signals import ChannelSpec, OnboardSignals
+from sensor.vo.quality import QUALITY_COLUMNS, REJECTION_REASONS
 from vehicle_model.errors import InputError, SimulationDivergedError
 from vehicle_model.geometry import kingpin_position
 from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses, offtracking_from_path
@@ -364,6 +365,24 @@ class CoSimulation:
         )
 
 
+CAMERA_COLUMNS: list[str] = [
+    "vo_valid",
+    "vo_reason",
+    "vo_estimate_reason",
+    *(f"vo_{name}" for name in QUALITY_COLUMNS),
+    "render_ms",
+    "vo_ms",
+]
+"""Per camera frame (NaN between frames): whether its motion was accepted, why not and why there is no
+estimate (indices into :data:`sensor.vo.quality.REJECTION_REASONS`, NaN when none), its quality figures."""
+_REASON_CODES = {code: float(i) for i, code in enumerate(REJECTION_REASONS)}
+
+
+def _reason_code(reason: str | None) -> float:
+    """Index of a rejection reason in :data:`~sensor.vo.quality.REJECTION_REASONS` (NaN: no reason)."""
+    return _REASON_CODES.get(reason, float(_REASON_CODES["vo_failed"])) if reason else math.nan
+
+
 def _nan(value: float | None) -> float:
     return math.nan if value is None else float(value)
 
@@ -403,7 +422,7 @@ def run_cosimulation(
             + [f"signal_{n}" for n in signal_names]
             + ["offtracking_truth", "offtracking_truth_geometric"]
             + [f"offtracking_{n}" for n in estimator_names]
-            + (["vo_valid", "vo_matches", "vo_inliers", "render_ms", "vo_ms"] if cosim.camera else [])
+            + (CAMERA_COLUMNS if cosim.camera else [])
             + telemetry_names
         )
         outcome.columns = columns
@@ -445,9 +464,10 @@ def run_cosimulation(
                 shot = tick.camera
                 row.update(
                     {
-                        "vo_valid": float(shot.vo.valid),
-                        "vo_matches": float(shot.vo.n_matches),
-                        "vo_inliers": float(shot.vo.n_inliers),
+                        "vo_valid": float(shot.valid),
+                        "vo_reason": _reason_code(shot.reason),
+                        "vo_estimate_reason": _reason_code(shot.estimate_reason),
+                        **{f"vo_{name}": float(shot.quality[name]) for name in QUALITY_COLUMNS},
                         "render_ms": 1e3 * shot.render_s,
                         "vo_ms": 1e3 * shot.vo_s,
                     }

@@ -25,9 +25,29 @@ not a port: no libviso2 code is used. Where it knowingly differs from libviso2:
   description, not libviso2's exact layout; OpenCV rounds the Sobel scaling where libviso2 shifts.
 * Random choices (bucketing, RANSAC samples) come from the run's ``numpy.random.Generator``.
 * The optional constant-acceleration Kalman smoothing (StereoScan paper) is not in libviso2.
+* A motion libviso2 would accept is refused when it is poorly supported (too few inliers, large
+  residual or covariance; :mod:`sensor.vo.quality`).
+
+:class:`StereoOdometry` and :class:`VOResult` are loaded on first access (they pull in OpenCV), so that
+``sensor.vo.quality``'s tables and ``sensor.vo.config`` import without it.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
 from sensor.vo.config import VOConfig
-from sensor.vo.odometry import StereoOdometry, VOResult
+
+if TYPE_CHECKING:
+    from sensor.vo.odometry import StereoOdometry, VOResult
 
 __all__ = ["StereoOdometry", "VOConfig", "VOResult"]
+
+
+def __getattr__(name: str) -> Any:
+    """Load the odometry (OpenCV, SciPy) on first use, so that light submodules stay light to import."""
+    if name in ("StereoOdometry", "VOResult"):
+        from sensor.vo import odometry
+
+        return getattr(odometry, name)
+    raise AttributeError(f"module 'sensor.vo' has no attribute {name!r}")

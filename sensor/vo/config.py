@@ -65,6 +65,28 @@ class VOConfig:
         libviso2: on.
     min_inliers : int
         Fewer inliers than this is a failed frame. libviso2: 6.
+    quality_min_inliers : int
+        Fewer inliers than this is a motion too poorly supported to use (not in libviso2; see
+        :mod:`sensor.vo.quality`). Default 30: ideal rendered frames have 130–300 inliers (50–140
+        with side-facing cameras on a 2.5 m baseline), while with fewer than about 30 a few wrong
+        matches that pass the 2 px test pull the motion visibly (``noise_std`` = 50: 10–31
+        inliers and a 0.5 m off-tracking error).
+    quality_max_residual : float
+        Largest RMS unweighted 4-D reprojection error [px] of the inliers. Default 1.75 px: ideal
+        frames show 0.9–1.3 px (pixel refinement on the half-resolution grid), at most 1.55 px on a
+        2.5 m side-camera baseline; errors spread uniformly over the 2 px inlier ball give 1.63 px,
+        so a set near 2 px is the tail of a spread of bad matches, not a motion.
+    quality_max_translation_sigma : float
+        Largest translation standard deviation [m per frame] from the Gauss–Newton covariance
+        σ̂²·(JᵀJ)⁻¹ (worst direction). Default 0.03 m: the ~24 frames (10 Hz, 5 m/s) over a 12 m
+        trailer add up as a random walk to ``σ·√24``, which must stay within the 0.15 m maximum
+        off-tracking error. Ideal frames: 1.5–5 mm (14 mm with a 2.5 m side baseline); a 0.01 m
+        baseline gives 17–160 m.
+    quality_max_rotation_sigma : float
+        Largest rotation standard deviation [rad per frame] from the covariance (worst axis).
+        Default 0.004 rad (0.23°): a heading random walk over N frames of a trailer length L
+        moves the far end of the path by ``σ·L·√(N/3)`` ≈ 34·σ for L = 12 m, N = 24, again
+        against 0.15 m. Ideal frames: 0.1–0.6 mrad.
     kalman_smoothing : bool
         Constant-acceleration Kalman filter on the six per-frame motion parameters (mentioned in the
         StereoScan paper, absent from libviso2). Default off.
@@ -96,6 +118,10 @@ class VOConfig:
     inlier_threshold: float = 2.0
     reweighting: bool = True
     min_inliers: int = 6
+    quality_min_inliers: int = 30
+    quality_max_residual: float = 1.75
+    quality_max_translation_sigma: float = 0.03
+    quality_max_rotation_sigma: float = 0.004
     kalman_smoothing: bool = False
     kalman_rotation_process_std: float = 1e-4
     kalman_translation_process_std: float = 1e-3
@@ -147,7 +173,11 @@ class VOConfig:
         check(self.ransac_iters >= 1, f"ransac_iters must be ≥ 1, got {self.ransac_iters}")
         check(self.inlier_threshold > 0, f"inlier_threshold must be > 0 px, got {self.inlier_threshold}")
         check(self.min_inliers >= 3, f"min_inliers must be ≥ 3 (a 6-DoF motion needs 3 points), got {self.min_inliers}")
+        check(self.quality_min_inliers >= 0, f"quality_min_inliers must be ≥ 0, got {self.quality_min_inliers}")
         for name in (
+            "quality_max_residual",
+            "quality_max_translation_sigma",
+            "quality_max_rotation_sigma",
             "kalman_rotation_process_std",
             "kalman_translation_process_std",
             "kalman_rotation_measurement_std",

@@ -341,6 +341,9 @@ class MotionEstimate:
         Boolean mask over the input matches (the RANSAC consensus set used for the final refinement).
     reason : str
         Why the frame failed ("" when valid).
+    code : str
+        Short code of the failure ("" when valid): ``too_few_matches``, ``too_few_inliers`` or
+        ``not_converged`` (keys of :data:`sensor.vo.quality.VO_REASONS`).
     """
 
     valid: bool
@@ -348,6 +351,7 @@ class MotionEstimate:
     params: np.ndarray | None
     inliers: np.ndarray
     reason: str = ""
+    code: str = ""
 
     @property
     def n_inliers(self) -> int:
@@ -377,7 +381,8 @@ def estimate_motion(xy: np.ndarray, config: VOConfig, rng: np.random.Generator) 
     n = xy.shape[0]
     none = np.zeros(n, dtype=bool)
     if n < max(_MIN_MATCHES, 3):
-        return MotionEstimate(False, None, None, none, f"too few matches ({n} < {_MIN_MATCHES})")
+        reason = f"too few matches ({n} < {_MIN_MATCHES})"
+        return MotionEstimate(False, None, None, none, reason, "too_few_matches")
     points = triangulate(xy, config)
     obs = xy[:, 4:8]
     if config.reweighting:
@@ -399,7 +404,8 @@ def estimate_motion(xy: np.ndarray, config: VOConfig, rng: np.random.Generator) 
     inliers = is_inlier[best]
     n_in = int(counts[best])
     if n_in < config.min_inliers:
-        return MotionEstimate(False, None, None, inliers, f"too few inliers ({n_in} < {config.min_inliers})")
+        reason = f"too few inliers ({n_in} < {config.min_inliers})"
+        return MotionEstimate(False, None, None, inliers, reason, "too_few_inliers")
 
     # Final refinement on all inliers from the best hypothesis.
     sel = np.flatnonzero(inliers)
@@ -413,6 +419,8 @@ def estimate_motion(xy: np.ndarray, config: VOConfig, rng: np.random.Generator) 
         _FINAL_EPS,
     )
     if failed[0] or not converged[0]:
-        return MotionEstimate(False, None, None, inliers, "final Gauss-Newton refinement did not converge")
+        return MotionEstimate(
+            False, None, None, inliers, "final Gauss-Newton refinement did not converge", "not_converged"
+        )
     theta = final[0]
     return MotionEstimate(True, params_to_transform(theta), theta, inliers)

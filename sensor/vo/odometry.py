@@ -10,6 +10,12 @@ maps a point from the previous left-camera frame into the current left-camera fr
 x right, y down, z forward; metres). ``camera_motion`` = inv(Tr_delta) is the current left camera's
 pose in the previous left camera's frame; chaining ``pose = pose @ camera_motion`` integrates the
 trajectory.
+
+Quality (:mod:`sensor.vo.quality`): a motion that libviso2 would accept is still refused
+(``valid=False``, ``code`` saying why) when it has fewer than ``quality_min_inliers`` inliers, an RMS
+reprojection error above ``quality_max_residual`` or a Gauss–Newton covariance above
+``quality_max_translation_sigma`` / ``quality_max_rotation_sigma``. The measured values travel with
+every result that reached the motion estimation (``residual_px``, ``covariance``), refused or not.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from sensor.vo.features import ImageFeatures, extract_features
 from sensor.vo.kalman import MotionKalmanFilter
 from sensor.vo.matching import match_frames
 from sensor.vo.motion import estimate_motion, params_to_transform
+from sensor.vo.quality import MotionQuality, motion_quality, quality_failure
 
 __all__ = ["StereoOdometry", "VOResult"]
 
@@ -52,7 +59,15 @@ class VOResult:
     inliers : numpy.ndarray
         Boolean inlier mask over ``matches``.
     reason : str
-        Why the frame is not valid ("" when valid).
+        Why the frame is not valid ("" when valid), in words with the measured value.
+    code : str
+        Short code of the failure, a key of :data:`sensor.vo.quality.VO_REASONS` ("" when valid;
+        also "" for a failure made by hand without one).
+    residual_px : float
+        RMS unweighted 4-D reprojection error of the inliers [px] (NaN when no motion was refined).
+    covariance : numpy.ndarray | None
+        6×6 Gauss–Newton covariance of (rx, ry, rz, tx, ty, tz) of Tr_delta [rad², m²] (None when no
+        motion was refined).
     """
 
     valid: bool
@@ -66,6 +81,19 @@ class VOResult:
     matches: np.ndarray = field(default_factory=lambda: np.empty((0, 8)), repr=False)
     inliers: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=bool), repr=False)
     reason: str = ""
+    code: str = ""
+    residual_px: float = float("nan")
+    covariance: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def translation_sigma_m(self) -> float:
+        """Translation standard deviation in its worst direction [m per frame] (NaN if unknown)."""
+        return MotionQuality(self.n_inliers, self.residual_px, self.covariance).translation_sigma_m
+
+    @property
+    def rotation_sigma_rad(self) -> float:
+        """Rotation standard deviation about its worst axis [rad per frame] (NaN if unknown)."""
+        return MotionQuality(self.n_inliers, self.residual_px, self.covariance).rotation_sigma_rad
 
     @property
     def camera_motion(self) -> np.ndarray | None:
@@ -127,9 +155,10 @@ class StereoOdometry:
         Returns
         -------
         VOResult
-            ``valid=False`` with ``motion=None`` on the first frame and for failed frames (too few
-            matches or inliers, no convergence). Unlike libviso2, which returns the stale previous
-            motion after a failure, nothing is guessed; the caller decides how to bridge the gap.
+            ``valid=False`` with ``motion=None`` on the first frame and for failed or refused frames
+            (too few matches or inliers, no convergence, residual or covariance too large). Unlike
+            libviso2, which returns the stale previous motion after a failure, nothing is guessed; the
+            caller decides how to bridge the gap.
         """
         if left.shape != right.shape:
             raise ValueError(f"left and right images differ in shape: {left.shape} vs {right.shape}")
@@ -140,16 +169,21 @@ class StereoOdometry:
         previous, self._previous = self._previous, current
         if previous is None or previous[0].shape != current[0].shape:
             self._prior = None
-            return self._failed("no previous stereo pair (of this image size)", t0, t1, t1)
+            return self._failed("no previous stereo pair (of this image size)", t0, t1, t1, code="no_previous_frame")
 
         xy = match_frames(previous, current, cfg, self._rng, self._prior).matches
         t2 = time.perf_counter()
         estimate = estimate_motion(xy, cfg, self._rng)
-        if not estimate.valid:
+        quality = MotionQuality(estimate.n_inliers)
+        code, reason = estimate.code or "vo_failed", estimate.reason
+        if estimate.valid and estimate.params is not None:
+            quality = motion_quality(estimate.params, xy, estimate.inliers, cfg)
+            code, reason = quality_failure(quality, cfg)
+        if code:
             self._prior = None
             if self._kalman is not None:
                 self._kalman.predict()
-            return self._failed(estimate.reason, t0, t1, t2, xy, estimate.inliers)
+            return self._failed(reason, t0, t1, t2, xy, estimate.inliers, code, quality)
         motion = estimate.motion
         self._prior = motion  # constant-velocity prior of the next frame's matching (reference §1.4)
         if self._kalman is not None and estimate.params is not None:
@@ -166,6 +200,8 @@ class StereoOdometry:
             time_total=t3 - t0,
             matches=xy,
             inliers=estimate.inliers,
+            residual_px=quality.residual_px,
+            covariance=quality.covariance,
         )
 
     @staticmethod
@@ -176,6 +212,8 @@ class StereoOdometry:
         t2: float,
         xy: np.ndarray | None = None,
         inliers: np.ndarray | None = None,
+        code: str = "",
+        quality: MotionQuality | None = None,
     ) -> VOResult:
         t3 = time.perf_counter()
         xy = np.empty((0, 8)) if xy is None else xy
@@ -192,4 +230,7 @@ class StereoOdometry:
             matches=xy,
             inliers=inliers,
             reason=reason,
+            code=code,
+            residual_px=quality.residual_px if quality is not None else float("nan"),
+            covariance=quality.covariance if quality is not None else None,
         )

@@ -32,7 +32,14 @@ def _delaunay(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     Points are inserted in Z order (coherent order keeps Subdiv2D's point-location walks short);
     the triangles, returned as coordinates, are mapped back to indices through a look-up image.
     OpenCV does not return the triangles that touch its virtual outer vertices.
+
+    Degenerate input — fewer than 3 points, or all points on one line — has no triangle: the result
+    is then an empty (0, 3) array (``getTriangleList`` returns an empty tuple, not an array, when it
+    finds none; that is normalised here).
     """
+    none = np.empty((0, 3), dtype=np.int64)
+    if u.shape[0] < 3:
+        return none
     ui = u.astype(np.int64)
     vi = v.astype(np.int64)
     x0, y0 = int(ui.min()), int(vi.min())
@@ -43,9 +50,10 @@ def _delaunay(u: np.ndarray, v: np.ndarray) -> np.ndarray:
         subdiv.insert(np.stack([ui[order], vi[order]], axis=1).astype(np.float32))
         corners = subdiv.getTriangleList()
     except cv2.error:
-        return np.empty((0, 3), dtype=np.int64)
-    if corners is None or corners.shape[0] == 0:
-        return np.empty((0, 3), dtype=np.int64)
+        return none
+    corners = np.asarray(corners if corners is not None else (), dtype=np.float64).reshape(-1, 6)
+    if corners.shape[0] == 0:
+        return none
     corners = np.rint(corners).astype(np.int64)
     cols = np.clip(corners[:, 0::2] - x0, 0, width - 1)
     rows = np.clip(corners[:, 1::2] - y0, 0, height - 1)
