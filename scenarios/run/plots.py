@@ -1,22 +1,43 @@
-"""Plots of a run: plan view with the swept path, and off-tracking of every estimator against the truth."""
+"""Plots of a run: the swept-path plan view, and off-tracking of every estimator against the truth.
+
+The plan view is the swept-path figure of :mod:`scenarios.run.swept_path`. :func:`load_run` rebuilds what a
+figure needs (vehicle, reference path, test circles, columns, metrics) from a run directory alone, for the
+comparison figure and the animation (:mod:`scenarios.export.animation`).
+"""
 
 from __future__ import annotations
 
+import json
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.collections import PolyCollection
+import pandas as pd
+import yaml
+from matplotlib.figure import Figure
 
-from vehicle_model.geometry import tractor_outline, trailer_outline
 from vehicle_model.parameters import VehicleParams
 
-from .metrics import ROUNDABOUT_INNER_RADIUS, ROUNDABOUT_OUTER_RADIUS
+from ..config import ScenarioConfig, validate_config
+from ..setup.build import ScenarioSetup, build_scenario
+from .results import CONFIG_FILE, METRICS_FILE, TIMESERIES_FILE
+from .swept_path import swept_path_figure
 
 ESTIMATOR_COLOURS = {"zero_slip": "tab:orange", "viso_ot": "tab:green"}
+
+
+def run_title(config: ScenarioConfig) -> str:
+    """The one-line description of a run that heads its figures."""
+    return (
+        f"{config.name} ({config.direction}), {config.vehicle}, μ = {config.surface.base_mu:.2f}, "
+        f"camber {config.camber.percent:g} % {config.camber.direction}, {config.speed.cornering_kmh:g} km/h, "
+        f"feedback {config.feedback}"
+    )
 
 
 def plot_plan_view(
@@ -26,37 +47,119 @@ def plot_plan_view(
     reference: np.ndarray,
     annulus_centre: tuple[float, float] | None,
     title: str,
-    outline_every_s: float = 2.0,
-) -> None:
-    """Plan view: the swept path (union of body outlines at every sample), outlines at intervals,
-    the reference path, the kingpin and follow-point tracks and, for the roundabout test, the
-    12.50/5.30 m annulus."""
-    x, y, psi1, gamma = columns["X"], columns["Y"], columns["psi1"], columns["gamma"]
-    tractor = tractor_outline(params, x, y, psi1)
-    trailer = trailer_outline(params, x, y, psi1, gamma)
-    fig, ax = plt.subplots(figsize=(8, 8))
-    ax.add_collection(PolyCollection(np.concatenate([tractor, trailer]), facecolors="0.85", edgecolors="none"))
-    t = columns["time"]
-    step = max(1, round(outline_every_s / max(np.median(np.diff(t)) if len(t) > 1 else 1.0, 1e-9)))
-    for k in range(0, len(t), step):
-        for poly, colour in ((tractor[k], "tab:red"), (trailer[k], "tab:blue")):
-            closed = np.vstack([poly, poly[:1]])
-            ax.plot(closed[:, 0], closed[:, 1], color=colour, lw=0.6, alpha=0.7)
-    ax.plot(reference[:, 0], reference[:, 1], "k--", lw=0.8, label="reference path (control point)")
-    ax.plot(columns["kingpin_x"], columns["kingpin_y"], color="tab:purple", lw=1.0, label="kingpin")
-    ax.plot(columns["follow_x"], columns["follow_y"], color="tab:green", lw=1.0, label="follow point")
-    if annulus_centre is not None:
-        a = np.linspace(0.0, 2.0 * np.pi, 361)
-        for radius, style in ((ROUNDABOUT_OUTER_RADIUS, "k-"), (ROUNDABOUT_INNER_RADIUS, "k-")):
-            ax.plot(annulus_centre[0] + radius * np.cos(a), annulus_centre[1] + radius * np.sin(a), style, lw=1.5)
-    ax.autoscale_view()
-    ax.set_aspect("equal")
-    ax.set_xlabel("X [m]")
-    ax.set_ylabel("Y [m]")
-    ax.set_title(title)
-    ax.legend(loc="best", fontsize=8)
-    fig.savefig(path, dpi=130, bbox_inches="tight")
+    outline_every_s: float | None = None,
+    *,
+    roundabout_test: dict[str, Any] | None = None,
+    turn_span: tuple[float, float] | None = None,
+    instants: int = 6,
+    dpi: int = 130,
+) -> Figure:
+    """Write the swept-path plan view of a run (:func:`~scenarios.run.swept_path.swept_path_figure`) to ``path``.
+
+    Parameters
+    ----------
+    path
+        The image file (``plan_view.png``).
+    params, columns, reference, annulus_centre, title
+        As :func:`~scenarios.run.swept_path.swept_path_figure`.
+    outline_every_s
+        Draw the combination every so many seconds instead of at ``instants`` instants (older callers).
+    roundabout_test
+        ``metrics.json["roundabout_test"]``: its radii, margins and verdict are marked; computed from the
+        columns (over ``turn_span``) when None and ``annulus_centre`` is given.
+    turn_span
+        Arc-length interval of the assessed turn (``setup.path.turn_span``).
+    instants
+        How many evenly spaced instants the combination is drawn at.
+    dpi
+        Resolution of the image.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure, already saved and closed (its artists can still be inspected).
+    """
+    if outline_every_s is not None and len(columns["time"]) > 1:
+        span = float(columns["time"][-1] - columns["time"][0])
+        instants = int(span // max(outline_every_s, 1e-9)) + 1
+    fig = swept_path_figure(
+        params,
+        columns,
+        reference,
+        annulus_centre,
+        title,
+        roundabout_test=roundabout_test,
+        turn_span=turn_span,
+        instants=instants,
+    )
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
+    return fig
+
+
+@dataclass(frozen=True)
+class SavedRun:
+    """A run rebuilt from its directory: configuration, scenario, columns and metrics.
+
+    Attributes
+    ----------
+    run_dir
+        The run directory.
+    config
+        ``config.yaml``, validated.
+    setup
+        The scenario built from it (vehicle, reference path, test circles; the model is not compiled).
+    columns
+        ``timeseries.parquet`` (a file or a directory of part files) as numpy arrays.
+    metrics
+        ``metrics.json`` (empty if the run wrote none).
+    """
+
+    run_dir: Path
+    config: ScenarioConfig
+    setup: ScenarioSetup
+    columns: dict[str, np.ndarray]
+    metrics: dict[str, Any]
+
+    @property
+    def params(self) -> VehicleParams:
+        return self.setup.params
+
+    @property
+    def title(self) -> str:
+        return run_title(self.config)
+
+    def estimator_names(self) -> list[str]:
+        """The estimators that ran (columns ``offtracking_<name>`` other than the truth)."""
+        return [
+            c.removeprefix("offtracking_")
+            for c in self.columns
+            if c.startswith("offtracking_") and not c.startswith("offtracking_truth")
+        ]
+
+    def swept_path_figure(self, instants: int = 6) -> Figure:
+        """The run's swept-path figure (:func:`~scenarios.run.swept_path.swept_path_figure`)."""
+        return swept_path_figure(
+            self.params,
+            self.columns,
+            self.setup.path.points,
+            self.setup.annulus_centre,
+            self.title,
+            roundabout_test=self.metrics.get("roundabout_test"),
+            turn_span=self.setup.path.turn_span,
+            instants=instants,
+        )
+
+
+def load_run(run_dir: Path) -> SavedRun:
+    """Read a run directory (``config.yaml``, ``timeseries.parquet``, ``metrics.json``) into a :class:`SavedRun`."""
+    run_dir = Path(run_dir)
+    config = validate_config(yaml.safe_load((run_dir / CONFIG_FILE).read_text()))
+    frame = pd.read_parquet(run_dir / TIMESERIES_FILE)
+    columns = {c: frame[c].to_numpy(dtype=float) for c in frame.columns}
+    metrics_file = run_dir / METRICS_FILE
+    metrics = json.loads(metrics_file.read_text()) if metrics_file.exists() else {}
+    return SavedRun(run_dir, config, build_scenario(config), columns, metrics)
 
 
 def plot_offtracking(path: Path, columns: dict[str, np.ndarray], estimator_names: list[str], title: str) -> None:

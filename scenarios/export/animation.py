@@ -1,0 +1,369 @@
+"""An animation of a run, rebuilt from its run directory alone (``config.yaml``, ``timeseries.parquet``).
+
+Each frame shows
+
+* a plan view that follows the combination: the reference path, the swept envelopes so far (tractor red,
+  trailer blue), the outer front corner and follow-point paths, the combination with its steered wheels
+  and, for the roundabout test, the 12.50/5.30 m circles;
+* when the camera ran (``estimators.viso_ot``), the left camera image with its matched features (as de Saxe
+  & Cebon 2018, Figs 5 and 13): the pair is re-rendered from the recorded state with the project's renderer
+  and the visual odometry is run again on it, so the features are those the estimator saw (up to the
+  random bucketing); inliers green with their flow since the previous frame, outliers red. Without the
+  camera the panel is an overview of the whole run with the current position;
+* beneath, the off-tracking of the truth and of every estimator (columns ``offtracking_*``) scrolling with
+  time, with a cursor at the current instant.
+
+Frames are written as an H.264 mp4 through imageio-ffmpeg (or a GIF, by the file's suffix). One renderer per
+process: it is kept between calls and replaced only for a run of another world or rig.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import PathPatch, Polygon
+
+from vehicle_model.errors import InputError
+from vehicle_model.geometry import tractor_outline, trailer_outline
+
+from ..run.plots import ESTIMATOR_COLOURS, SavedRun, load_run
+from ..run.swept_path import (
+    TRACTOR_COLOUR,
+    TRAILER_COLOUR,
+    draw_circles,
+    draw_envelopes,
+    envelope_path,
+    envelope_samples,
+    outer_front_corner_path,
+    turn_sign,
+    vehicle_polygons,
+)
+
+ANIMATION_FILE = "animation.mp4"
+"""Default output file in the run directory."""
+
+ANIMATION_ENVELOPE_SPACING = 0.25
+"""Corner movement [m] between the outlines that make up the envelopes of a frame (coarser than a figure's)."""
+
+_RENDERER: dict[str, Any] = {}
+"""The process's one renderer, ``{"key": …, "renderer": StereoRenderer, "vo": StereoOdometry, …}``."""
+
+
+def frame_times(time: np.ndarray, fps: float, speed: float, max_frames: int | None = None) -> np.ndarray:
+    """Simulated times of the frames: every ``speed / fps`` seconds from the first to the last sample.
+
+    With ``max_frames`` and more frames than that, ``max_frames`` times evenly spread over the run instead
+    (the animation plays faster but still shows all of it).
+    """
+    time = np.asarray(time, dtype=float)
+    if time.size == 0:
+        return np.zeros(0)
+    t0, t1 = float(time[0]), float(time[-1])
+    step = speed / fps
+    n = int(np.floor((t1 - t0) / step + 1e-9)) + 1
+    if max_frames is not None and n > max_frames:
+        return np.linspace(t0, t1, max(int(max_frames), 1))
+    return t0 + step * np.arange(n)
+
+
+class _Camera:
+    """Re-renders the recorded camera frames and reruns the visual odometry to draw the matched features."""
+
+    def __init__(self, run: SavedRun) -> None:
+        from sensor.vo import StereoOdometry, VOConfig
+
+        from ..camera.pipeline import right_correction_homography
+        from ..camera.rig import rig_from_config
+        from ..camera.world import world_for_scenario
+
+        config = run.config
+        key = config.model_dump_json(include={"path", "camera", "seed", "direction", "vehicle"})
+        if _RENDERER.get("key") != key:
+            from sensor.renderer import StereoRenderer
+
+            _RENDERER.clear()  # drop the previous run's renderer before making this one
+            rig = rig_from_config(config)
+            world = world_for_scenario(run.setup)
+            _RENDERER.update(key=key, renderer=StereoRenderer(world, rig, run.params, seed=config.seed), rig=rig)
+        self.renderer = _RENDERER["renderer"]
+        rig = _RENDERER["rig"]
+        self.vo = StereoOdometry(
+            VOConfig.from_horizontal_fov(rig.width, rig.height, rig.hfov, rig.baseline), config.seed
+        )
+        self.correction = right_correction_homography(rig, config.camera.right_correction_deg)
+        self.columns = run.columns
+        self.rows = np.flatnonzero(np.asarray(run.columns.get("camera_frame", np.zeros(0))) > 0.5)
+        self.shape = (rig.height, rig.width)
+        self._last: int | None = None
+        self._image: np.ndarray | None = None
+        self.info = ""
+
+    def _process(self, j: int) -> Any:
+        import cv2
+
+        c, r = self.columns, int(self.rows[j])
+        pair = self.renderer.render(c["X"][r], c["Y"][r], c["psi1"][r], c["gamma"][r], frame=j)
+        right = pair.right
+        if self.correction is not None:
+            right = cv2.warpPerspective(right, self.correction, (right.shape[1], right.shape[0]))
+        return pair.left, self.vo.process(pair.left, right)
+
+    def image(self, k: int) -> np.ndarray:
+        """The left image (RGB) of the latest camera frame at or before sample ``k``, features drawn."""
+        import cv2
+
+        j = int(np.searchsorted(self.rows, k, side="right")) - 1
+        if j < 0:
+            return np.zeros((*self.shape, 3), np.uint8)
+        if j == self._last and self._image is not None:
+            return self._image
+        if self._last is None or j != self._last + 1:
+            self.vo.reset()
+            if j > 0:
+                self._process(j - 1)
+        left, result = self._process(j)
+        image = cv2.cvtColor(left, cv2.COLOR_GRAY2RGB)
+        inliers = np.asarray(result.inliers, dtype=bool)
+        points = np.rint(np.asarray(result.matches, dtype=float).reshape(-1, 8)).astype(int)
+        for i, m in enumerate(points.tolist()):
+            colour = (40, 220, 40) if i < inliers.size and inliers[i] else (230, 40, 40)
+            cv2.line(image, (m[0], m[1]), (m[4], m[5]), colour, 1, cv2.LINE_AA)
+            cv2.circle(image, (m[4], m[5]), 2, colour, -1, cv2.LINE_AA)
+        self.info = f"camera frame {j}: {len(result.matches)} matches, {int(inliers.sum())} inliers" + (
+            "" if result.valid else f" ({result.reason or 'failed'})"
+        )
+        self._last, self._image = j, image
+        return image
+
+
+def _fit(frame: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Crop or pad (black) an RGB frame to exactly ``height × width``."""
+    frame = frame[:height, :width]
+    if frame.shape[:2] != (height, width):
+        frame = np.pad(frame, ((0, height - frame.shape[0]), (0, width - frame.shape[1]), (0, 0)))
+    return frame
+
+
+def _writer(out: Path, fps: float, size: tuple[int, int]) -> tuple[Callable[[np.ndarray], None], Callable[[], None]]:
+    """``(append(frame), close())`` for an mp4 (H.264, streamed) or a GIF (frames kept until closed)."""
+    if out.suffix.lower() == ".gif":
+        import imageio.v3 as iio
+
+        frames: list[np.ndarray] = []
+
+        def close_gif() -> None:
+            iio.imwrite(out, np.stack(frames), duration=1000.0 / fps, loop=0)
+
+        return (lambda frame: frames.append(np.array(frame))), close_gif  # a copy: the canvas is reused
+    import imageio_ffmpeg
+
+    gen = imageio_ffmpeg.write_frames(
+        str(out),
+        size,
+        fps=fps,
+        codec="libx264",
+        pix_fmt_in="rgb24",
+        pix_fmt_out="yuv420p",
+        quality=7,
+        macro_block_size=1,
+        ffmpeg_log_level="error",
+    )
+    gen.send(None)
+    return (lambda frame: gen.send(np.ascontiguousarray(frame))), gen.close
+
+
+def animate_run(
+    run_dir: Path,
+    out: Path | None = None,
+    fps: float = 10.0,
+    max_frames: int | None = None,
+    *,
+    speed: float = 4.0,
+    camera: bool | None = None,
+    size: tuple[int, int] = (1280, 720),
+    view_half_width: float = 20.0,
+    window_s: float = 30.0,
+    progress: Callable[[int, int], None] | None = None,
+) -> Path:
+    """Animate a run from its directory (module docstring) into an mp4 (or a GIF); return the file.
+
+    Parameters
+    ----------
+    run_dir
+        The run directory (``config.yaml``, ``timeseries.parquet``; ``metrics.json`` if there is one).
+    out
+        The output file, ``.mp4`` or ``.gif`` (default ``run_dir/animation.mp4``).
+    fps
+        Frames per second of the video.
+    max_frames
+        At most this many frames, spread evenly over the run (default: every ``speed / fps`` s).
+    speed
+        Simulated seconds per second of video.
+    camera
+        Show the left camera image with its matched features (re-rendered; needs headless OpenGL). Default:
+        when the camera ran (``estimators.viso_ot``). Costs about two renders and two VO frames per video
+        frame, one of each when the frames follow the camera rate (``speed / fps`` = 1 / camera rate).
+    size
+        Frame size (width, height) [px]; rounded down to even numbers for H.264.
+    view_half_width
+        Half the side of the following plan view [m].
+    window_s
+        Width of the scrolling off-tracking window [s].
+    progress
+        ``progress(frames written, frames in all)`` after every frame.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Raises
+    ------
+    InputError
+        The run has fewer than two samples, or ``fps``, ``speed`` or ``size`` are not positive.
+    """
+    if fps <= 0 or speed <= 0 or min(size) < 16:
+        raise InputError(
+            f"animation needs fps > 0, speed > 0 and a size of at least 16 px (got {fps}, {speed}, {size})"
+        )
+    run = load_run(Path(run_dir))
+    cols, params = run.columns, run.params
+    time = np.asarray(cols.get("time", np.zeros(0)), dtype=float)
+    if time.size < 2:
+        raise InputError(f"{run_dir}: the run has {time.size} samples; an animation needs two or more")
+    out = Path(out) if out is not None else Path(run_dir) / ANIMATION_FILE
+    out.parent.mkdir(parents=True, exist_ok=True)
+    width, height = int(size[0]) // 2 * 2, int(size[1]) // 2 * 2
+    use_camera = bool(run.config.estimators.viso_ot) if camera is None else bool(camera)
+    cam = _Camera(run) if use_camera else None
+    times = frame_times(time, fps, speed, max_frames)
+    samples = np.clip(np.searchsorted(time, times + 1e-9, side="right") - 1, 0, time.size - 1)
+
+    fig = plt.figure(figsize=(width / 100.0, height / 100.0), dpi=100)
+    grid = fig.add_gridspec(2, 2, height_ratios=[1.9, 1], width_ratios=[1, 2.1 if cam else 1.4])
+    grid.update(left=0.06, right=0.99, bottom=0.08, top=0.93, wspace=0.12, hspace=0.25)
+    plan, side, trace = fig.add_subplot(grid[0, 0]), fig.add_subplot(grid[0, 1]), fig.add_subplot(grid[1, :])
+    centre = run.setup.annulus_centre
+    ref = run.setup.path.points
+    outlines = {
+        "tractor": tractor_outline(params, cols["X"], cols["Y"], cols["psi1"]),
+        "trailer": trailer_outline(params, cols["X"], cols["Y"], cols["psi1"], cols["gamma"]),
+    }
+    kept = {unit: envelope_samples(polys, ANIMATION_ENVELOPE_SPACING) for unit, polys in outlines.items()}
+    corner = outer_front_corner_path(params, cols, turn_sign(cols))
+    plan.plot(ref[:, 0], ref[:, 1], "k--", lw=0.7)
+    if centre is not None:
+        draw_circles(plan, centre)
+    envelopes = {}
+    for unit, colour in (("trailer", TRAILER_COLOUR), ("tractor", TRACTOR_COLOUR)):
+        envelopes[unit] = PathPatch(envelope_path(outlines[unit][:1]), facecolor=colour, edgecolor="none", alpha=0.22)
+        plan.add_patch(envelopes[unit])
+    (corner_line,) = plan.plot([], [], color=TRACTOR_COLOUR, lw=1.2)
+    (follow_line,) = plan.plot([], [], color="tab:green", lw=1.0)
+    steer_names = [c for c in cols if c.startswith("steer_")]
+
+    def polygons(k: int) -> list[tuple[str, np.ndarray]]:
+        steer = {c.removeprefix("steer_"): float(cols[c][k]) for c in steer_names}
+        return vehicle_polygons(params, cols["X"][k], cols["Y"][k], cols["psi1"][k], cols["gamma"][k], steer)
+
+    body = []
+    for unit, poly in polygons(0):
+        tyre = unit.endswith("tyre")
+        edge = TRACTOR_COLOUR if unit.startswith("tractor") else TRAILER_COLOUR
+        patch = Polygon(poly, closed=True, fc="0.25" if tyre else "white", ec="none" if tyre else edge, alpha=0.85)
+        body.append(plan.add_patch(patch))
+    plan.set_aspect("equal")
+    plan.set_xlabel("X [m]", fontsize=8)
+    plan.tick_params(labelsize=7)
+    status = plan.text(
+        0.02,
+        0.98,
+        "",
+        transform=plan.transAxes,
+        ha="left",
+        va="top",
+        fontsize=8,
+        zorder=10,
+        bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "0.6", "alpha": 0.85},
+    )
+
+    if cam is not None:
+        picture = side.imshow(np.zeros((*cam.shape, 3), np.uint8))
+        side.set_axis_off()
+        side_title = side.set_title("", fontsize=9)
+        marker = None
+    else:
+        draw_envelopes(side, params, cols, alpha=0.18, spacing=ANIMATION_ENVELOPE_SPACING)
+        side.plot(ref[:, 0], ref[:, 1], "k--", lw=0.6)
+        if centre is not None:
+            draw_circles(side, centre)
+        (marker,) = side.plot([], [], "o", color="k", ms=6)
+        side.set_aspect("equal", adjustable="datalim")
+        side.autoscale_view()
+        side.tick_params(labelsize=7)
+        side_title = side.set_title("whole run", fontsize=9)
+
+    names = ["truth", *run.estimator_names()]
+    lines = []
+    for name in names:
+        colour = "k" if name == "truth" else ESTIMATOR_COLOURS.get(name)
+        (line,) = trace.plot(time, cols[f"offtracking_{name}"], lw=1.6 if name == "truth" else 1.0, color=colour)
+        lines.append(line)
+    values = np.concatenate([cols[f"offtracking_{n}"] for n in names])
+    values = values[np.isfinite(values)]
+    lo, hi = (float(values.min()), float(values.max())) if values.size else (-0.2, 0.2)
+    pad = max(0.05, 0.1 * (hi - lo))
+    trace.set_ylim(lo - pad, hi + pad)
+    trace.axhline(0.0, color="k", lw=0.5)
+    cursor = trace.axvline(time[0], color="0.3", lw=0.8)
+    legend = trace.legend(lines, names, loc="upper left", fontsize=7, ncols=len(names))
+    trace.set_xlabel("time [s]", fontsize=8)
+    trace.set_ylabel("off-tracking e_tr [m]", fontsize=8)
+    trace.tick_params(labelsize=7)
+    fig.text(0.01, 0.995, run.title, ha="left", va="top", fontsize=9)
+
+    append, close = _writer(out, fps, (width, height))
+    try:
+        for i, k in enumerate(samples):
+            k = int(k)
+            for unit, patch in envelopes.items():
+                upto = np.append(kept[unit][kept[unit] < k], k)
+                patch.set_path(envelope_path(outlines[unit][upto], spacing=0.0))
+            corner_line.set_data(corner[: k + 1, 0], corner[: k + 1, 1])
+            follow_line.set_data(cols["follow_x"][: k + 1], cols["follow_y"][: k + 1])
+            for patch, (_, poly) in zip(body, polygons(k), strict=True):
+                patch.set_xy(poly)
+            mid = 0.5 * np.array([cols["kingpin_x"][k] + cols["X"][k], cols["kingpin_y"][k] + cols["Y"][k]])
+            plan.set_xlim(mid[0] - view_half_width, mid[0] + view_half_width)
+            plan.set_ylim(mid[1] - view_half_width, mid[1] + view_half_width)
+            status.set_text(
+                f"t = {time[k]:5.1f} s   u = {3.6 * cols['u'][k]:4.1f} km/h   Γ = {np.degrees(cols['gamma'][k]):+5.1f}°"
+                if "u" in cols
+                else f"t = {time[k]:5.1f} s"
+            )
+            if cam is not None:
+                picture.set_data(cam.image(k))
+                side_title.set_text(cam.info)
+            elif marker is not None:
+                marker.set_data([cols["X"][k]], [cols["Y"][k]])
+            start = time[k] - 0.75 * window_s
+            trace.set_xlim(start, start + window_s)
+            cursor.set_xdata([time[k], time[k]])
+            for text, name in zip(legend.get_texts(), names, strict=True):
+                v = cols[f"offtracking_{name}"][k]
+                text.set_text(f"{name} {v:+.3f} m" if np.isfinite(v) else f"{name} —")
+            fig.canvas.draw()
+            append(_fit(np.asarray(fig.canvas.buffer_rgba())[..., :3], width, height))
+            if progress is not None:
+                progress(i + 1, len(samples))
+    finally:
+        close()
+        plt.close(fig)
+    return out

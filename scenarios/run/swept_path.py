@@ -1,0 +1,450 @@
+"""The swept-path figure of a run: shaded envelopes, corner paths, the vehicle at a few instants, the verdict.
+
+What a vehicle engineer reads in an AutoTURN-style swept-path drawing:
+
+* the swept envelope of each unit (the union of its body outlines over the run), shaded in the unit's
+  colour (tractor red, trailer blue);
+* the path of the tractor's outer front corner and the trailer's inner path as lines;
+* the combination drawn at a handful of evenly spaced instants, wheels steered as they were;
+* the reference path and, for the UK roundabout test, the 12.50/5.30 m circles with the extreme points
+  marked and labelled with their radii and margins, and the verdict (PASS/FAIL) in the title;
+* a zoom panel on each critical point (roundabout test: the tractor's outermost and the trailer's
+  innermost point; other runs: the follow point where the true off-tracking is largest).
+
+Every artist a test looks for carries a ``gid`` (``envelope:tractor``, ``envelope:trailer``,
+``extreme:outer``, ``extreme:inner``, ``instant``), so a figure is checked by what it shows, not by pixels.
+The drawing primitives (:func:`draw_envelopes`, :func:`draw_vehicle`) are shared by the comparison figure and
+the animation.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.patches import PathPatch, Polygon
+from matplotlib.path import Path as MplPath
+
+from vehicle_model.geometry import tractor_outline, tractor_points, trailer_outline, trailer_points
+from vehicle_model.parameters import VehicleParams
+
+from .metrics import ROUNDABOUT_INNER_RADIUS, ROUNDABOUT_OUTER_RADIUS, roundabout_verdict
+
+TRACTOR_COLOUR = "tab:red"
+TRAILER_COLOUR = "tab:blue"
+ZOOM_HALF_WIDTH = 2.5
+"""Half the side of a zoom panel [m]."""
+
+
+# ----------------------------------------------------------------------------------------------- geometry
+ENVELOPE_SPACING = 0.05
+"""Outlines closer than this [m] (largest corner movement) to the last one kept add nothing visible to an envelope."""
+
+
+def envelope_samples(polygons: np.ndarray, spacing: float = ENVELOPE_SPACING) -> np.ndarray:
+    """Indices of the outlines ``(n, k, 2)`` to keep: a new one each time some corner has moved ``spacing``.
+
+    The union of the kept outlines differs from the union of all by far less than ``spacing`` (a scallop
+    of depth ``spacing² / 8R`` on a radius ``R``), for a fraction of the drawing time. First and last kept.
+    """
+    polys = np.asarray(polygons, dtype=float)
+    n = polys.shape[0]
+    if n <= 2 or spacing <= 0.0:
+        return np.arange(n)
+    step = np.nan_to_num(np.linalg.norm(np.diff(polys, axis=0), axis=-1).max(axis=-1), nan=0.0)
+    bucket = np.floor(np.concatenate([[0.0], np.cumsum(step)]) / spacing)
+    keep = np.concatenate([[True], np.diff(bucket) > 0])
+    keep[-1] = True
+    return np.flatnonzero(keep)
+
+
+def envelope_path(polygons: np.ndarray, spacing: float = ENVELOPE_SPACING) -> MplPath:
+    """One compound path of closed polygons ``(n, k, 2)``; filled (non-zero rule) it shades their union.
+
+    Rigid motions keep every outline's winding, so the non-zero fill of the compound path is the union: a
+    translucent face is shaded once, however many outlines overlap. Outlines that barely moved are left out
+    (:func:`envelope_samples` with ``spacing``; 0 keeps all).
+    """
+    polys = np.asarray(polygons, dtype=float)
+    polys = polys[np.all(np.isfinite(polys), axis=(1, 2))]
+    polys = polys[envelope_samples(polys, spacing)] if len(polys) else polys
+    n, k = polys.shape[:2]
+    if n == 0:
+        return MplPath(np.zeros((0, 2)))
+    verts = np.concatenate([polys, polys[:, :1]], axis=1).reshape(-1, 2)
+    codes = np.full((n, k + 1), MplPath.LINETO, dtype=np.uint8)
+    codes[:, 0], codes[:, -1] = MplPath.MOVETO, MplPath.CLOSEPOLY
+    return MplPath(verts, codes.reshape(-1))
+
+
+def radial_extreme_points(
+    polygons: np.ndarray, centre: tuple[float, float]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Farthest and nearest points of polygons ``(n, k, 2)`` from ``centre``, with their distances.
+
+    The farthest point is a vertex; the nearest may lie on an edge (as in
+    :func:`vehicle_model.geometry.radial_extent`). Returns ``far (n, 2), r_far (n,), near (n, 2), r_near (n,)``.
+    """
+    c = np.asarray(centre, dtype=float)
+    p = np.asarray(polygons, dtype=float) - c
+    r = np.linalg.norm(p, axis=-1)
+    i_far = np.argmax(r, axis=-1)
+    rows = np.arange(p.shape[0])
+    far = p[rows, i_far]
+    ab = np.roll(p, -1, axis=-2) - p
+    t = np.clip(-np.sum(p * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-300), 0.0, 1.0)
+    closest = p + t[..., None] * ab
+    rc = np.linalg.norm(closest, axis=-1)
+    i_near = np.argmin(rc, axis=-1)
+    near = closest[rows, i_near]
+    return far + c, r[rows, i_far], near + c, rc[rows, i_near]
+
+
+def turn_sign(columns: dict[str, np.ndarray]) -> int:
+    """+1 if the run turns left on the whole (tractor heading grows), −1 if right."""
+    psi = np.asarray(columns["psi1"], dtype=float)
+    return 1 if psi.size < 2 or psi[-1] >= psi[0] else -1
+
+
+def outer_front_corner_path(params: VehicleParams, columns: dict[str, np.ndarray], sign: int) -> np.ndarray:
+    """Path ``(n, 2)`` of the tractor's front corner on the outside of a turn of ``sign`` (+1 left)."""
+    t = params.tractor
+    local = np.array([[t.front_x, -sign * 0.5 * t.width]])
+    return tractor_points(params, columns["X"], columns["Y"], columns["psi1"], local)[:, 0, :]
+
+
+def inner_trailer_path(
+    params: VehicleParams, columns: dict[str, np.ndarray], sign: int, centre: tuple[float, float] | None = None
+) -> np.ndarray:
+    """Path ``(n, 2)`` of the trailer's innermost point.
+
+    With a turn ``centre`` (roundabout test) the point of the trailer outline nearest to it at each sample;
+    otherwise the inner side of the body at the middle of the trailer's axle group (the inner rear wheels).
+    """
+    x, y, psi1, gamma = columns["X"], columns["Y"], columns["psi1"], columns["gamma"]
+    if centre is not None:
+        return radial_extreme_points(trailer_outline(params, x, y, psi1, gamma), centre)[2]
+    tr = params.trailer
+    station = float(np.mean([a.x for a in tr.axles]))
+    return trailer_points(params, x, y, psi1, gamma, np.array([[station, sign * 0.5 * tr.width]]))[:, 0, :]
+
+
+def instant_indices(n: int, instants: int) -> np.ndarray:
+    """``instants`` sample indices evenly spaced over ``n`` samples, first and last included."""
+    if n <= 0 or instants <= 0:
+        return np.zeros(0, dtype=int)
+    return np.unique(np.round(np.linspace(0, n - 1, min(instants, n))).astype(int))
+
+
+def extreme_points(
+    params: VehicleParams,
+    columns: dict[str, np.ndarray],
+    centre: tuple[float, float],
+    roundabout_test: dict[str, Any] | None = None,
+    turn_span: tuple[float, float] | None = None,
+) -> dict[str, Any]:
+    """The tractor's outermost and the trailer's innermost point of the roundabout test, with the verdict.
+
+    Parameters
+    ----------
+    params, columns
+        The combination and the run's columns (``X``, ``Y``, ``psi1``, ``gamma``, ``path_progress``).
+    centre
+        Centre of the test circles.
+    roundabout_test
+        The verdict of ``metrics.json`` (``pass``, ``outer_radius_max``, ``inner_radius_min``, ``outer_margin``,
+        ``inner_margin``); its radii are used and the points located where the run reaches them. Without it
+        the verdict is computed here over the assessed turn (``turn_span`` of ``path_progress``), or over the
+        whole run if no span is given.
+    turn_span
+        Arc-length interval of the assessed turn.
+
+    Returns
+    -------
+    dict
+        The verdict's keys plus ``outer_point``, ``inner_point`` (X, Y) and ``outer_index``, ``inner_index``.
+    """
+    x, y, psi1, gamma = (np.asarray(columns[k], dtype=float) for k in ("X", "Y", "psi1", "gamma"))
+    mask = np.ones(x.shape, dtype=bool)
+    if turn_span is not None and "path_progress" in columns:
+        s = np.asarray(columns["path_progress"], dtype=float)
+        in_turn = (s >= turn_span[0]) & (s <= turn_span[1])
+        mask = in_turn if in_turn.any() else mask
+    keys = ("pass", "outer_radius_max", "inner_radius_min", "outer_margin", "inner_margin")
+    recorded = roundabout_test is not None and all(roundabout_test.get(k) is not None for k in keys)
+    verdict = (
+        dict(roundabout_test)  # type: ignore[arg-type]
+        if recorded
+        else roundabout_verdict(params, x[mask], y[mask], psi1[mask], gamma[mask], centre)
+    )
+    far, r_far, _, _ = radial_extreme_points(tractor_outline(params, x, y, psi1), centre)
+    _, _, near, r_near = radial_extreme_points(trailer_outline(params, x, y, psi1, gamma), centre)
+    idx = np.flatnonzero(mask)
+    outer = int(idx[np.argmin(np.abs(r_far[mask] - verdict["outer_radius_max"]))])
+    inner = int(idx[np.argmin(np.abs(r_near[mask] - verdict["inner_radius_min"]))])
+    verdict.update(outer_point=far[outer], inner_point=near[inner], outer_index=outer, inner_index=inner)
+    return verdict
+
+
+# ---------------------------------------------------------------------------------------------- drawing
+def draw_envelopes(
+    ax: Axes,
+    params: VehicleParams,
+    columns: dict[str, np.ndarray],
+    *,
+    units: tuple[str, ...] = ("trailer", "tractor"),
+    colours: dict[str, str] | None = None,
+    alpha: float = 0.22,
+    label: str = "{unit} swept envelope",
+    gid: str = "envelope:{unit}",
+    spacing: float = ENVELOPE_SPACING,
+) -> dict[str, PathPatch]:
+    """Shade the swept envelope of each unit (``tractor``, ``trailer``) in its own colour; return the patches.
+
+    ``spacing`` is the outline spacing of :func:`envelope_samples`; the patches carry ``gid`` (``{unit}``
+    filled in) for tests.
+    """
+    colours = {"tractor": TRACTOR_COLOUR, "trailer": TRAILER_COLOUR, **(colours or {})}
+    x, y, psi1, gamma = columns["X"], columns["Y"], columns["psi1"], columns["gamma"]
+    outlines = {
+        "tractor": lambda: tractor_outline(params, x, y, psi1),
+        "trailer": lambda: trailer_outline(params, x, y, psi1, gamma),
+    }
+    patches = {}
+    for unit in units:
+        patch = PathPatch(
+            envelope_path(outlines[unit](), spacing),
+            facecolor=colours[unit],
+            edgecolor="none",
+            alpha=alpha,
+            label=label.format(unit=unit),
+            zorder=1,
+        )
+        patch.set_gid(gid.format(unit=unit))
+        ax.add_patch(patch)
+        patches[unit] = patch
+    return patches
+
+
+def vehicle_polygons(
+    params: VehicleParams, x: float, y: float, psi1: float, gamma: float, steer: dict[str, float] | None = None
+) -> list[tuple[str, np.ndarray]]:
+    """Body outlines and tyre footprints of the combination at one pose: ``[(unit, polygon (k, 2)), …]``.
+
+    ``steer`` maps axle names to steer angles [rad] (columns ``steer_<axle>``); unnamed axles are straight.
+    """
+    steer = steer or {}
+    out = [("tractor", tractor_outline(params, x, y, psi1)), ("trailer", trailer_outline(params, x, y, psi1, gamma))]
+    for unit, body, place in (
+        ("tractor", params.tractor, lambda local: tractor_points(params, x, y, psi1, local)),
+        ("trailer", params.trailer, lambda local: trailer_points(params, x, y, psi1, gamma, local)),
+    ):
+        for axle in body.axles:
+            half_len, half_w = axle.tyre.unloaded_radius, 0.14 * max(axle.n_tyres // 2, 1)
+            lateral = 0.5 * body.width - half_w - 0.05
+            delta = float(steer.get(axle.name, 0.0))
+            c, s = np.cos(delta), np.sin(delta)
+            shape = np.array([[half_len, half_w], [-half_len, half_w], [-half_len, -half_w], [half_len, -half_w]])
+            turned = shape @ np.array([[c, s], [-s, c]])
+            for side in (1.0, -1.0):
+                out.append((unit + " tyre", place(turned + np.array([axle.x, side * lateral]))))
+    return out
+
+
+def draw_vehicle(
+    ax: Axes,
+    params: VehicleParams,
+    columns: dict[str, np.ndarray],
+    k: int,
+    *,
+    label: str | None = None,
+    linestyle: str = "-",
+    gid: str = "instant",
+) -> list[Polygon]:
+    """Draw the combination at sample ``k`` (bodies white with their unit's edge colour, tyres black)."""
+    steer = {c.removeprefix("steer_"): float(columns[c][k]) for c in columns if c.startswith("steer_")}
+    patches = []
+    for unit, poly in vehicle_polygons(
+        params, columns["X"][k], columns["Y"][k], columns["psi1"][k], columns["gamma"][k], steer
+    ):
+        tyre = unit.endswith("tyre")
+        colour = TRACTOR_COLOUR if unit.startswith("tractor") else TRAILER_COLOUR
+        patch = Polygon(
+            poly,
+            closed=True,
+            facecolor="0.3" if tyre else "white",
+            edgecolor="none" if tyre else colour,
+            lw=1.0,
+            ls=linestyle,
+            alpha=0.8 if tyre else 0.55,
+            zorder=4 if tyre else 3,
+        )
+        patch.set_gid(gid)
+        ax.add_patch(patch)
+        patches.append(patch)
+    if label:
+        front = tractor_points(params, columns["X"][k], columns["Y"][k], columns["psi1"][k], [[0.0, 0.0]])[0]
+        ax.annotate(label, front, xytext=(3, 3), textcoords="offset points", fontsize=7, color="0.2", zorder=6)
+    return patches
+
+
+def draw_circles(ax: Axes, centre: tuple[float, float]) -> None:
+    """The roundabout test's 12.50 m and 5.30 m circles."""
+    a = np.linspace(0.0, 2.0 * np.pi, 721)
+    for radius, label in ((ROUNDABOUT_OUTER_RADIUS, "12.50 m circle"), (ROUNDABOUT_INNER_RADIUS, "5.30 m circle")):
+        ax.plot(centre[0] + radius * np.cos(a), centre[1] + radius * np.sin(a), "k-", lw=1.3, zorder=2, label=label)
+    ax.plot(*centre, "k+", ms=8, zorder=2)
+
+
+def _draw_paths(ax: Axes, params: VehicleParams, columns: dict, reference: np.ndarray, centre, sign: int) -> None:
+    ax.plot(reference[:, 0], reference[:, 1], "k--", lw=0.8, label="reference path (control point)", zorder=2)
+    corner = outer_front_corner_path(params, columns, sign)
+    ax.plot(corner[:, 0], corner[:, 1], color=TRACTOR_COLOUR, lw=1.4, label="tractor outer front corner", zorder=2)
+    inner = inner_trailer_path(params, columns, sign, centre)
+    ax.plot(inner[:, 0], inner[:, 1], color=TRAILER_COLOUR, lw=1.4, label="trailer innermost point", zorder=2)
+    ax.plot(columns["follow_x"], columns["follow_y"], color="tab:green", lw=0.7, ls=":", label="follow point")
+
+
+def _mark_extremes(ax: Axes, centre: tuple[float, float], ext: dict[str, Any], zoom: str | None = None) -> None:
+    """Mark both extreme points; label them outside the outer circle (main panel) or in the corner (``zoom``)."""
+    for key, limit, colour, unit, word in (
+        ("outer", ROUNDABOUT_OUTER_RADIUS, TRACTOR_COLOUR, "tractor", "max"),
+        ("inner", ROUNDABOUT_INNER_RADIUS, TRAILER_COLOUR, "trailer", "min"),
+    ):
+        point = np.asarray(ext[f"{key}_point"], dtype=float)
+        radius = ext["outer_radius_max" if key == "outer" else "inner_radius_min"]
+        margin = ext[f"{key}_margin"]
+        ok = margin >= 0.0
+        ax.plot([centre[0], point[0]], [centre[1], point[1]], color=colour, lw=0.6, ls="-.", zorder=5)
+        (marker,) = ax.plot(*point, marker="o", ms=7, mfc="none" if ok else colour, mec=colour, mew=1.8, zorder=7)
+        marker.set_gid(f"extreme:{key}")
+        if zoom is not None and zoom != key:
+            continue
+        label = (
+            f"{unit} {word} r = {radius:.3f} m\nlimit {limit:.2f} m, margin {margin:+.3f} m {'ok' if ok else 'FAIL'}"
+        )
+        style = {
+            "fontsize": 8,
+            "color": colour,
+            "fontweight": "normal" if ok else "bold",
+            "bbox": {"boxstyle": "round,pad=0.25", "fc": "white", "ec": colour, "alpha": 0.9},
+            "zorder": 8,
+        }
+        if zoom is not None:
+            text = ax.text(0.03, 0.97, label, transform=ax.transAxes, ha="left", va="top", **style)
+        else:
+            direction = (point - centre) / max(float(np.hypot(*(point - centre))), 1e-9)
+            anchor = np.asarray(centre) + (ROUNDABOUT_OUTER_RADIUS + 1.5) * direction
+            ha = "left" if direction[0] > 0.3 else "right" if direction[0] < -0.3 else "center"
+            va = "bottom" if direction[1] > 0.3 else "top" if direction[1] < -0.3 else "center"
+            text = ax.annotate(
+                label,
+                point,
+                xytext=anchor,
+                ha=ha,
+                va=va,
+                arrowprops={"arrowstyle": "->", "color": colour, "lw": 0.8},
+                **style,
+            )
+        text.set_gid(f"extreme:{key}:label")
+
+
+def verdict_line(ext: dict[str, Any]) -> str:
+    """One line with the roundabout-test verdict and both radii."""
+    return (
+        f"UK roundabout test {'PASS' if ext['pass'] else 'FAIL'}: tractor max r {ext['outer_radius_max']:.3f} m "
+        f"(≤ {ROUNDABOUT_OUTER_RADIUS:.2f}, margin {ext['outer_margin']:+.3f}), trailer min r "
+        f"{ext['inner_radius_min']:.3f} m (≥ {ROUNDABOUT_INNER_RADIUS:.2f}, margin {ext['inner_margin']:+.3f})"
+    )
+
+
+def swept_path_figure(
+    params: VehicleParams,
+    columns: dict[str, np.ndarray],
+    reference: np.ndarray,
+    annulus_centre: tuple[float, float] | None = None,
+    title: str = "",
+    *,
+    roundabout_test: dict[str, Any] | None = None,
+    turn_span: tuple[float, float] | None = None,
+    instants: int = 6,
+) -> Figure:
+    """The swept-path figure of a run (module docstring); the caller saves and closes it.
+
+    Parameters
+    ----------
+    params
+        The combination.
+    columns
+        The run's columns (:func:`scenarios.run.cosim.run_cosimulation`): ``time``, ``X``, ``Y``, ``psi1``,
+        ``gamma``, ``follow_x``/``follow_y``, ``steer_*``, ``offtracking_truth``, ``path_progress``.
+    reference
+        Reference path of the control point ``(n, 2)``.
+    annulus_centre
+        Centre of the roundabout test's circles, or None for other scenarios.
+    title
+        First line of the title.
+    roundabout_test
+        ``metrics.json["roundabout_test"]`` (see :func:`extreme_points`; computed here when None).
+    turn_span
+        Arc-length interval of the assessed turn (used when ``roundabout_test`` is None).
+    instants
+        How many evenly spaced instants the combination is drawn at (0: none).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Main plan view on the left, one (off-tracking) or two (roundabout test) zoom panels on the right.
+    """
+    n = len(columns["time"])
+    sign = turn_sign(columns)
+    ext = extreme_points(params, columns, annulus_centre, roundabout_test, turn_span) if annulus_centre else None
+    fig = plt.figure(figsize=(13, 8), layout="constrained")
+    grid = fig.add_gridspec(2, 2, width_ratios=[2.1, 1])
+    main = fig.add_subplot(grid[:, 0])
+    zooms = [fig.add_subplot(grid[0, 1]), fig.add_subplot(grid[1, 1])] if ext else [fig.add_subplot(grid[:, 1])]
+    if ext is not None:
+        focus = [("outer", ext["outer_index"], ext["outer_point"]), ("inner", ext["inner_index"], ext["inner_point"])]
+    else:
+        truth = np.abs(np.nan_to_num(np.asarray(columns["offtracking_truth"], dtype=float)))
+        k = int(np.argmax(truth)) if n else 0
+        focus = [("offtracking", k, np.array([columns["follow_x"][k], columns["follow_y"][k]]))]
+    for ax in (main, *zooms):
+        draw_envelopes(ax, params, columns)
+        _draw_paths(ax, params, columns, reference, annulus_centre, sign)
+        if annulus_centre is not None:
+            draw_circles(ax, annulus_centre)
+    times = np.asarray(columns["time"], dtype=float)
+    for k in instant_indices(n, instants):
+        draw_vehicle(main, params, columns, int(k), label=f"t = {times[k]:.0f} s")
+    for ax, (kind, k, point) in zip(zooms, focus, strict=True):
+        draw_vehicle(ax, params, columns, int(k), label=f"t = {times[k]:.1f} s", gid="critical")
+        if kind == "offtracking":
+            ax.plot(columns["kingpin_x"], columns["kingpin_y"], color="tab:purple", lw=1.0, label="kingpin path")
+            ax.plot(*point, "o", color="tab:green", ms=6)
+            ax.set_title(f"largest true off-tracking: {columns['offtracking_truth'][k]:+.3f} m at t = {times[k]:.1f} s")
+        else:
+            ax.set_title(f"{'tractor outermost' if kind == 'outer' else 'trailer innermost'} point", fontsize=10)
+        ax.set_xlim(point[0] - ZOOM_HALF_WIDTH, point[0] + ZOOM_HALF_WIDTH)
+        ax.set_ylim(point[1] - ZOOM_HALF_WIDTH, point[1] + ZOOM_HALF_WIDTH)
+    if ext is not None:
+        for ax in (main, *zooms):
+            _mark_extremes(ax, annulus_centre, ext, zoom=None if ax is main else focus[zooms.index(ax)][0])
+        verdict = verdict_line(ext)
+        fig.suptitle(f"{title}\n{verdict}" if title else verdict, color="k" if ext["pass"] else "darkred")
+    elif title:
+        fig.suptitle(title)
+    main.autoscale_view()
+    for ax in (main, *zooms):
+        ax.set_aspect("equal", adjustable="datalim" if ax is main else "box")
+        ax.set_xlabel("X [m]")
+        ax.set_ylabel("Y [m]")
+        ax.grid(alpha=0.25)
+    main.legend(loc="best", fontsize=7, ncols=2)
+    return fig

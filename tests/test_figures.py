@@ -1,0 +1,240 @@
+"""Figures a vehicle engineer reads at a glance: the swept-path plan view, the comparison, the animation and
+the study summary that fits a terminal.
+
+Checked by what they show (the figure's artists, the video's frame count and size, the rendered text), never
+pixel by pixel. One model-only UK roundabout test with the reference trailer (5 km/h, a few seconds) feeds
+them all; the reference trailer fails the test (its innermost point enters the 5.30 m circle).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import imageio.v2 as imageio
+import imageio.v3 as iio
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+import pytest
+from matplotlib.patches import PathPatch
+from rich.console import Console
+
+from scenarios.config import load_scenario
+from scenarios.export.animation import animate_run, frame_times
+from scenarios.run.plots import load_run, plot_plan_view
+from scenarios.run.runner import run_scenario
+from scenarios.run.swept_path import envelope_samples, swept_path_figure, vehicle_polygons
+from scenarios.studies.compare import comparison_figure
+from scenarios.studies.summary import summary_table
+
+
+@pytest.fixture(scope="module")
+def roundabout_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A model-only UK roundabout test of the reference combination (unsteered trailer)."""
+    run_dir = tmp_path_factory.mktemp("roundabout-test")
+    config = load_scenario("roundabout-test", {"estimators.zero_slip": True, "estimators.viso_ot": False})
+    metrics = run_scenario(config, run_dir, plots=False)
+    assert metrics["status"] == "completed"
+    return run_dir
+
+
+def _texts(fig) -> list[str]:
+    return [t.get_text() for ax in fig.axes for t in ax.texts] + [fig._suptitle.get_text() if fig._suptitle else ""]
+
+
+def _gids(fig, prefix: str) -> list:
+    return [a for ax in fig.axes for a in ax.get_children() if str(a.get_gid() or "").startswith(prefix)]
+
+
+def test_swept_path_figure_shows_verdict_radii_envelopes_and_instants(roundabout_run: Path) -> None:
+    run = load_run(roundabout_run)
+    test = run.metrics["roundabout_test"]
+    assert test["pass"] is False  # the reference trailer's innermost point enters the 5.30 m circle
+    fig = swept_path_figure(
+        run.params,
+        run.columns,
+        run.setup.path.points,
+        run.setup.annulus_centre,
+        run.title,
+        roundabout_test=test,
+        turn_span=run.setup.path.turn_span,
+        instants=4,
+    )
+    try:
+        texts = _texts(fig)
+        assert "FAIL" in fig._suptitle.get_text()
+        inner, outer = f"{test['inner_radius_min']:.3f} m", f"{test['outer_radius_max']:.3f} m"
+        assert any(inner in t and "5.30" in t and f"{test['inner_margin']:+.3f}" in t for t in texts)
+        assert any(outer in t and "12.50" in t for t in texts)
+        centre = np.asarray(run.setup.annulus_centre)
+        for key, radius in (("inner", test["inner_radius_min"]), ("outer", test["outer_radius_max"])):
+            markers = _gids(fig, f"extreme:{key}")
+            markers = [m for m in markers if hasattr(m, "get_xydata")]
+            assert markers, key
+            for m in markers:  # each marked point lies on the reported radius
+                assert np.hypot(*(m.get_xydata()[0] - centre)) == pytest.approx(radius, abs=1e-9)
+        main = fig.axes[0]
+        envelopes = {a.get_gid(): a for a in main.patches if str(a.get_gid()).startswith("envelope:")}
+        assert set(envelopes) == {"envelope:tractor", "envelope:trailer"}
+        for patch in envelopes.values():
+            assert isinstance(patch, PathPatch) and len(patch.get_path().vertices) > 100
+        assert envelopes["envelope:tractor"].get_facecolor() != envelopes["envelope:trailer"].get_facecolor()
+        per_vehicle = len(vehicle_polygons(run.params, 0.0, 0.0, 0.0, 0.0))
+        assert len([p for p in main.patches if p.get_gid() == "instant"]) == 4 * per_vehicle
+        assert len(fig.axes) == 3  # main panel and a zoom on each extreme point
+    finally:
+        plt.close(fig)
+
+
+def test_verdict_computed_without_metrics_matches_the_metrics(roundabout_run: Path) -> None:
+    run = load_run(roundabout_run)
+    test = run.metrics["roundabout_test"]
+    fig = swept_path_figure(
+        run.params, run.columns, run.setup.path.points, run.setup.annulus_centre, turn_span=run.setup.path.turn_span
+    )
+    try:
+        assert f"{test['inner_radius_min']:.3f}" in fig._suptitle.get_text()
+        assert f"{test['outer_radius_max']:.3f}" in fig._suptitle.get_text()
+    finally:
+        plt.close(fig)
+
+
+def test_plan_view_keeps_its_positional_signature(roundabout_run: Path, tmp_path: Path) -> None:
+    run = load_run(roundabout_run)
+    out = tmp_path / "plan_view.png"
+    fig = plot_plan_view(out, run.params, run.columns, run.setup.path.points, None, "no test circles")
+    assert out.stat().st_size > 10_000
+    assert not _gids(fig, "extreme:")  # no roundabout test: no radii, one zoom on the largest off-tracking
+    assert len(fig.axes) == 2 and "largest true off-tracking" in fig.axes[1].get_title()
+
+
+def test_envelope_samples_keep_the_ends_and_thin_the_rest(roundabout_run: Path) -> None:
+    from vehicle_model.geometry import trailer_outline
+
+    c = load_run(roundabout_run).columns
+    params = load_run(roundabout_run).params
+    polys = trailer_outline(params, c["X"], c["Y"], c["psi1"], c["gamma"])
+    kept = envelope_samples(polys, 0.1)
+    assert kept[0] == 0 and kept[-1] == len(polys) - 1 and len(kept) < len(polys)
+    assert np.all(np.linalg.norm(np.diff(polys[kept], axis=0), axis=-1).max(axis=-1) < 0.2)
+
+
+def test_comparison_figure_overlays_trailer_envelopes(roundabout_run: Path) -> None:
+    run = load_run(roundabout_run)
+    frame = pd.read_parquet(roundabout_run / "timeseries.parquet")
+    shifted = frame.copy()
+    shifted["X"] += 0.3  # a second, distinguishable run
+    traces = {"none": frame, "truth": shifted}
+    fig = comparison_figure(run.config, traces, {"none": run.metrics["roundabout_test"], "truth": None})
+    try:
+        gids = {a.get_gid() for a in _gids(fig, "envelope:trailer:")}
+        assert {"envelope:trailer:none", "envelope:trailer:truth"} <= gids
+        assert "FAIL" in fig._suptitle.get_text()
+        assert _gids(fig, "extreme:inner:none") and _gids(fig, "extreme:inner:truth")
+    finally:
+        plt.close(fig)
+
+
+def test_animation_has_the_expected_frames_and_size(roundabout_run: Path, tmp_path: Path) -> None:
+    out = animate_run(roundabout_run, tmp_path / "run.mp4", fps=5.0, max_frames=6, size=(320, 240))
+    reader = imageio.get_reader(out)
+    try:
+        assert reader.get_meta_data()["size"] == (320, 240)
+        assert reader.count_frames() == 6
+        assert reader.get_data(0).shape == (240, 320, 3)
+    finally:
+        reader.close()
+    gif = animate_run(roundabout_run, tmp_path / "run.gif", fps=5.0, max_frames=3, size=(160, 120))
+    assert iio.imread(gif).shape[:3] == (3, 120, 160)
+
+
+def test_frame_times_follow_fps_and_speed() -> None:
+    time = np.arange(0.0, 10.001, 0.02)
+    assert len(frame_times(time, fps=10.0, speed=2.0)) == 51  # a frame every 0.2 s of the 10 s run
+    capped = frame_times(time, fps=10.0, speed=2.0, max_frames=7)
+    assert len(capped) == 7 and capped[0] == 0.0 and capped[-1] == pytest.approx(10.0)
+
+
+def _study_table() -> pd.DataFrame:
+    """A table shaped like estimators-under-slip's (labels, status, metrics, a failed case with its error)."""
+    rng = np.random.default_rng(1)
+    rows = []
+    for scenario in ("roundabout-3", "figure-eight"):
+        for surface in ("dry", "wet", "snow", "ice"):
+            for camber in (0.0, 2.5, 5.0):
+                for feedback in ("none", "zero_slip", "viso_ot", "truth"):
+                    row = {"scenario": scenario, "surface": surface, "camber": camber, "feedback": feedback}
+                    row.update(status="completed", truth_rms_m=rng.random())
+                    if feedback == "viso_ot":
+                        row.update(
+                            viso_ot_rms_error_m=0.03,
+                            viso_ot_mean_error_m=0.01,
+                            viso_ot_max_abs_error_m=0.1,
+                            viso_ot_valid_fraction=0.97,
+                            mean_matches=312.5,
+                            mean_inliers=280.1,
+                            inlier_percent=89.6,
+                            failed_frames=1,
+                        )
+                    row.update(
+                        zero_slip_rms_error_m=0.2 * rng.random(),
+                        true_offtracking_rms_after_warmup_m=0.1 * rng.random(),
+                        true_offtracking_max_after_warmup_m=0.3 * rng.random(),
+                        saturated_fraction=0.05,
+                        wall_time_s=321.0,
+                    )
+                    rows.append(row)
+    rows[5] = {**{k: rows[5][k] for k in ("scenario", "surface", "camber", "feedback")}, "status": "failed"}
+    rows[5]["error"] = "SimulationDivergedError: the model left its valid region at t = 41.2 s (jackknife)"
+    return pd.DataFrame(rows)
+
+
+@pytest.mark.parametrize("width", [100, 80])
+def test_summary_table_fits_the_terminal_and_keeps_units(width: int) -> None:
+    table = _study_table()
+    console = Console(width=width, record=True, color_system=None)
+    console.print(summary_table(table, width, files=("OUT/table.md", "OUT/table.csv"), title="estimators-under-slip"))
+    text = console.export_text()
+    lines = text.splitlines()
+    assert max(len(line) for line in lines) <= width
+    assert "[m]" in text and "[%]" in text  # units survive rich's markup
+    assert "status" in text and "failed" in text and "RMS" in text
+    assert "OUT/table.md" in " ".join(text.split()) and "OUT/table.csv" in " ".join(text.split())
+    assert sum("│" in line for line in lines) == len(table)  # one line per case: no cell wraps
+
+
+def test_summary_table_names_the_columns_it_leaves_out() -> None:
+    table = _study_table()
+    console = Console(width=60, record=True, color_system=None)
+    console.print(summary_table(table, 60))
+    text = " ".join(console.export_text().split())
+    assert "more columns" in text and "table.md" in text
+
+
+@pytest.mark.rendering
+def test_animation_of_a_camera_run_shows_the_left_image(tmp_path: Path) -> None:
+    """A 1 s VISO-OT run (made in a child process, which owns its renderer), animated here with the camera."""
+    import subprocess
+    import sys
+
+    run_dir = tmp_path / "viso"
+    run_dir.mkdir()
+    code = (
+        "from pathlib import Path; from scenarios.config import load_scenario; "
+        "from scenarios.run.runner import run_scenario; "
+        "c = load_scenario('roundabout-3', {'estimators.viso_ot': True, 'duration_s': 1.0}); "
+        f"run_scenario(c, Path({str(run_dir)!r}), plots=False)"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=300)
+    out = animate_run(run_dir, fps=10.0, speed=1.0, max_frames=4, size=(640, 360))
+    assert out == run_dir / "animation.mp4"
+    reader = imageio.get_reader(out)
+    try:
+        assert reader.get_meta_data()["size"] == (640, 360) and reader.count_frames() == 4
+        last = reader.get_data(3)
+    finally:
+        reader.close()
+    # The camera panel (upper right) holds a grey image with coloured feature marks, not an empty axes.
+    panel = last[40:200, 260:630].astype(int)
+    assert panel.std() > 20
+    assert np.any((panel[..., 1] - panel[..., 0] > 80) & (panel[..., 1] - panel[..., 2] > 80))  # green inliers
