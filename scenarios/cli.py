@@ -274,15 +274,12 @@ def render(
     ] = None,
     video: Annotated[bool, typer.Option(help="Also write a side-by-side stereo video.")] = False,
     antialias: Annotated[bool, typer.Option(help="4× multisampling (slower).")] = False,
-    force: Annotated[
-        bool, typer.Option(help="Replace an earlier dataset in --out (offtrack's files only).")
-    ] = False,
+    force: Annotated[bool, typer.Option(help="Replace an earlier dataset in --out (offtrack's files only).")] = False,
 ) -> None:
     """Export the scenario's rendered stereo sequence as a KITTI-odometry-style dataset."""
     from rich.progress import Progress
 
     from scenarios.export.kitti import export_kitti
-
     from scenarios.run.results import check_output_dir
 
     pairs = (("seed", seed), ("duration_s", duration), ("camera.scenery_density", density))
@@ -337,7 +334,7 @@ def study(
         table = run_study(
             name, run_dir, full=full, workers=workers, scheduler=scheduler, resume=resume, on_progress=progress
         )
-    _print_study_summary(table, run_dir)
+    _print_study_summary(table, run_dir, name)
     failed = int((table["status"] == "failed").sum()) if "status" in table.columns else 0
     if failed:
         errors.print(
@@ -348,9 +345,12 @@ def study(
         raise typer.Exit(EXIT_FAILED)
 
 
-def _print_study_summary(table, run_dir: Path) -> None:
-    console.print(escape(f"{len(table)} cases → {run_dir / 'table.md'}"))
-    console.print((run_dir / "table.md").read_text(), markup=False)
+def _print_study_summary(table, run_dir: Path, name: str) -> None:
+    """The columns that matter, to the terminal's width; the rest is in table.md / table.csv."""
+    from scenarios.studies.summary import summary_table
+
+    files = (str(run_dir / "table.md"), str(run_dir / "table.csv"))
+    console.print(summary_table(table, console.width, files=files, title=f"{name}: {len(table)} cases"))
 
 
 def _print_summary(metrics: dict, run_dir: Path) -> None:
@@ -383,6 +383,43 @@ def _print_summary(metrics: dict, run_dir: Path) -> None:
             f"inner radius min {test['inner_radius_min']:.3f} m (limit 5.30)"
         )
     console.print(f"simulated {metrics['simulated_s']:.1f} s in {metrics['wall_time_s']:.1f} s wall time")
+
+
+@app.command()
+@_command
+def animate(
+    run_dir: Annotated[Path, typer.Argument(help="A run directory (config.yaml and timeseries.parquet).")],
+    out: Annotated[Path | None, typer.Option(help="Video file (.mp4 or .gif; default RUN_DIR/animation.mp4).")] = None,
+    fps: Annotated[float, typer.Option(help="Video frames per second.", min=1.0, max=60.0)] = 10.0,
+    speed: Annotated[float, typer.Option(help="Simulated seconds per video second.", min=0.1, max=100.0)] = 4.0,
+    max_frames: Annotated[
+        int | None, typer.Option(help="At most this many frames, spread over the run.", min=2)
+    ] = None,
+    camera: Annotated[
+        bool | None, typer.Option(help="Show the left camera with its matched features (default: if it ran).")
+    ] = None,
+) -> None:
+    """Animate a run from its directory: plan view, off-tracking traces and, for camera runs, the camera image."""
+    from rich.progress import Progress
+
+    from scenarios.export.animation import animate_run
+
+    if not (run_dir / "config.yaml").is_file():
+        from vehicle_model.errors import InputError
+
+        raise InputError(f"RUN_DIR {run_dir} holds no config.yaml: give the directory of an offtrack run")
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task("animating", total=None)
+        path = animate_run(
+            run_dir,
+            out,
+            fps=fps,
+            max_frames=max_frames,
+            speed=speed,
+            camera=camera,
+            progress=lambda done, total: bar.update(task, completed=done, total=total),
+        )
+    console.print(escape(f"animation → {path}"))
 
 
 @app.command()
@@ -424,4 +461,4 @@ def main() -> None:
     of an option's range) with exit code 2 and turns ``typer.Exit`` into the process's exit code.
     """
     handle_sigterm()
-    app()
+    app(prog_name="offtrack")

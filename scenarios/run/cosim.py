@@ -30,13 +30,13 @@ from controller.driver import PathFollowingDriver
 from controller.speed import SpeedController, traction_limit
 from controller.zero_slip import ZeroSlipEstimator
 from sensor.signals import ChannelSpec, OnboardSignals
-from sensor.vo.quality import QUALITY_COLUMNS, REJECTION_REASONS
 from vehicle_model.errors import InputError, SimulationDivergedError
 from vehicle_model.geometry import kingpin_position
 from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses, offtracking_from_path
 from vehicle_model.simulator import Controls, Simulator, VehicleState
 
 from ..setup.build import ScenarioSetup
+from .camera_columns import CAMERA_COLUMNS, camera_row
 from .control_loss import loss_of_control
 from .results import TimeSeriesWriter
 from .stopping import stop_message, stop_signal_name
@@ -365,24 +365,6 @@ class CoSimulation:
         )
 
 
-CAMERA_COLUMNS: list[str] = [
-    "vo_valid",
-    "vo_reason",
-    "vo_estimate_reason",
-    *(f"vo_{name}" for name in QUALITY_COLUMNS),
-    "render_ms",
-    "vo_ms",
-]
-"""Per camera frame (NaN between frames): whether its motion was accepted, why not and why there is no
-estimate (indices into :data:`sensor.vo.quality.REJECTION_REASONS`, NaN when none), its quality figures."""
-_REASON_CODES = {code: float(i) for i, code in enumerate(REJECTION_REASONS)}
-
-
-def _reason_code(reason: str | None) -> float:
-    """Index of a rejection reason in :data:`~sensor.vo.quality.REJECTION_REASONS` (NaN: no reason)."""
-    return _REASON_CODES.get(reason, float(_REASON_CODES["vo_failed"])) if reason else math.nan
-
-
 def _nan(value: float | None) -> float:
     return math.nan if value is None else float(value)
 
@@ -461,17 +443,7 @@ def run_cosimulation(
                 **{f"offtracking_{n}": _nan(tick.estimates[n]) for n in estimator_names},
             }
             if tick.camera is not None:
-                shot = tick.camera
-                row.update(
-                    {
-                        "vo_valid": float(shot.valid),
-                        "vo_reason": _reason_code(shot.reason),
-                        "vo_estimate_reason": _reason_code(shot.estimate_reason),
-                        **{f"vo_{name}": float(shot.quality[name]) for name in QUALITY_COLUMNS},
-                        "render_ms": 1e3 * shot.render_s,
-                        "vo_ms": 1e3 * shot.vo_s,
-                    }
-                )
+                row.update(camera_row(tick.camera))
             if telemetry_names:
                 row.update(telemetry())  # type: ignore[misc]
             for key in columns:
