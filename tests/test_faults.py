@@ -165,7 +165,7 @@ def test_a_stopped_run_keeps_its_data(tmp_path: Path, sig: signal.Signals, code:
     proc = start(*SLOW_RUN, "--no-plots", "--out", str(out))
     wait_for_rows(out, proc)
     proc.send_signal(sig)
-    stdout, stderr = proc.communicate(timeout=120)
+    _stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == code, stderr
     assert "Traceback" not in stderr
     metrics = json.loads((out / "metrics.json").read_text())

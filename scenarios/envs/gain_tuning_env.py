@@ -17,9 +17,11 @@ from vehicle_model.errors import InputError
 
 from ..setup.build import ScenarioSetup, trailer_controller
 from .episode import EpisodeLimits, EpisodeRecord, run_episode
-from .plan_view import draw_plan_view
+from .plan_view import check_render_mode, draw_plan_view
 from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, ScenarioChoice
+from .sensors import SensorMode
 from .stepper import CoSimulation, cached_setup
+from .validation import check_choice
 
 __all__ = ["GAIN_RANGES", "GainTuningEnv", "action_to_gains", "gains_to_action"]
 
@@ -103,10 +105,12 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
     ## Arguments
 
     The scenario arguments of ``offtrack/TrailerSteering-v0`` (``scenario``, ``overrides``, ``feedback``, ``vehicle``,
-    ``mu``, ``camber_percent``, ``camber_direction``, ``speed_kmh``, ``direction``, ``randomise``, the limits), and
+    ``mu``, ``camber_percent``, ``camber_direction``, ``speed_kmh``, ``direction``, ``randomise``, ``sensors``, the
+    limits, all validated at construction), and
     ``effort_weight``, ``saturation_weight``, ``failure_cost``, ``render_mode="rgb_array"`` (plan view of the whole
-    path with the last run's kingpin and follow-point tracks). ``reset(options=...)`` takes the scenario
-    arguments for one episode.
+    path with the last run's kingpin and follow-point tracks; ``"human"`` is refused). ``reset(options=...)``
+    takes the scenario arguments for one episode. The spec has no ``max_episode_steps``: every episode is one
+    step, ended by ``terminated=True`` (a one-step time limit would also mark it truncated).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 1}
@@ -123,6 +127,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         speed_kmh: float | None = None,
         direction: Literal["left", "right"] | None = None,
         randomise: DomainRandomisation | Mapping[str, Any] | None = None,
+        sensors: SensorMode = "datasheet",
         effort_weight: float = 0.1,
         saturation_weight: float = 0.5,
         failure_cost: float = 5.0,
@@ -143,7 +148,9 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
             speed_kmh=speed_kmh,
             direction=direction,
             randomise=DomainRandomisation.coerce(randomise),
+            sensors=sensors,
         )
+        check_choice(self.choice)
         for name, value in (("effort_weight", effort_weight), ("saturation_weight", saturation_weight)):
             if not (value >= 0 and math.isfinite(value)):
                 raise InputError(f"{name} = {value!r} must be a finite number ≥ 0")
@@ -153,8 +160,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         self.saturation_weight = float(saturation_weight)
         self.failure_cost = float(failure_cost)
         self.limits = EpisodeLimits(max_articulation_deg, max_lateral_error, max_offtracking)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise InputError(f"render_mode = {render_mode!r} must be one of {self.metadata['render_modes']} or None")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.render_size = (int(render_size[0]), int(render_size[1]))
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
@@ -170,7 +176,10 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
         """Draw the episode's scenario; ``options`` override the environment's settings for this episode."""
         super().reset(seed=seed)
-        config, settings = self.choice.with_options(options).resolve(self.np_random)
+        choice = self.choice.with_options(options)
+        if options:
+            check_choice(choice)
+        config, settings = choice.resolve(self.np_random)
         self._setup = cached_setup(config)
         self._last = None
         self.episode_settings = settings

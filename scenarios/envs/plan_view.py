@@ -2,22 +2,28 @@
 
 North-up (global x to the right, y up), drawn around a centre point with a given span in metres: the
 reference path of the driver's control point, the kingpin's and the follow point's tracks, the tractor
-and trailer outlines, the trailer axles with their steer, and a few lines of text.
+and trailer outlines, the trailer axles with their steer, a scale bar at the bottom left and a few lines of
+text.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import cv2
 import numpy as np
 
+from vehicle_model.errors import InputError
 from vehicle_model.geometry import kingpin_position, tractor_outline, trailer_outline, trailer_points
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import VehicleState
 
-__all__ = ["camera_strip", "draw_plan_view"]
+__all__ = ["SCALE_BAR_STEPS", "camera_strip", "check_render_mode", "draw_plan_view", "scale_bar_length"]
+
+SCALE_BAR_STEPS: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0)
+"""Lengths a scale bar can show [m]: the longest that fits in a quarter of the view's width is drawn."""
 
 _SHIFT = 3  # fractional bits of OpenCV's sub-pixel coordinates
 _BACKGROUND = (236, 236, 228)
@@ -59,6 +65,18 @@ class _Canvas:
         centre = tuple(int(v) for v in self.pixels(point)[0, 0])
         cv2.circle(self.image, centre, radius << _SHIFT, colour, -1, cv2.LINE_AA, _SHIFT)
 
+    def scale_bar(self) -> None:
+        """A bar of a round length at the bottom left, labelled in metres."""
+        length = scale_bar_length(self.width / self.scale)
+        px = length * self.scale
+        x0, y = 10, self.height - 12
+        x1 = round(x0 + px)
+        cv2.line(self.image, (x0, y), (x1, y), _TEXT, 2, cv2.LINE_AA)
+        for x in (x0, x1):
+            cv2.line(self.image, (x, y - 4), (x, y + 4), _TEXT, 1, cv2.LINE_AA)
+        label = f"{length:g} m"
+        cv2.putText(self.image, label, (x0, y - 7), cv2.FONT_HERSHEY_SIMPLEX, 0.4, _TEXT, 1, cv2.LINE_AA)
+
     def text(self, lines: Sequence[str]) -> None:
         for i, line in enumerate(lines):
             cv2.putText(self.image, line, (6, 16 + 15 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.42, _TEXT, 1, cv2.LINE_AA)
@@ -77,6 +95,7 @@ def draw_plan_view(
     span: float = 50.0,
     size: tuple[int, int] = (400, 400),
     text: Sequence[str] = (),
+    scale_bar: bool = True,
 ) -> np.ndarray:
     """Plan view of the combination as an ``(height, width, 3)`` uint8 RGB image.
 
@@ -100,6 +119,8 @@ def draw_plan_view(
         ``(height, width)`` [px].
     text
         Lines written at the top left.
+    scale_bar
+        Draw a scale bar (:func:`scale_bar_length`) at the bottom left.
     """
     kingpin = kingpin_position(params, state.X, state.Y, state.psi1)
     psi2 = state.psi1 - state.gamma
@@ -127,7 +148,34 @@ def draw_plan_view(
     if follow_track is not None and len(follow_track):
         canvas.dot(follow_track[-1], _FOLLOW_TRACK)
     canvas.text(text)
+    if scale_bar:
+        canvas.scale_bar()
     return canvas.image
+
+
+def scale_bar_length(span: float) -> float:
+    """The longest of :data:`SCALE_BAR_STEPS` [m] that fits in a quarter of a view ``span`` metres wide."""
+    fitting = [s for s in SCALE_BAR_STEPS if s <= 0.25 * span]
+    return fitting[-1] if fitting else SCALE_BAR_STEPS[0]
+
+
+def check_render_mode(render_mode: Any, supported: Sequence[str]) -> None:
+    """Refuse a render mode the environments do not have, ``"human"`` with what to do instead.
+
+    Raises
+    ------
+    InputError
+        ``render_mode`` neither ``None`` nor in ``supported``.
+    """
+    if render_mode is None or render_mode in supported:
+        return
+    if render_mode == "human":
+        raise InputError(
+            "render_mode = 'human' is not supported: the co-simulation runs headless and opens no window; use "
+            "render_mode='rgb_array' and show the frames yourself (e.g. matplotlib's imshow, or wrap the env "
+            "in gymnasium.wrappers.HumanRendering, which needs pygame)"
+        )
+    raise InputError(f"render_mode = {render_mode!r} must be one of {list(supported)} or None")
 
 
 def camera_strip(grey: np.ndarray, width: int) -> np.ndarray:

@@ -3,15 +3,21 @@
 Precedence, lowest first:
 
 1. the catalogue scenario (or YAML file) ``scenario``;
-2. ``overrides``, dotted configuration fields as in ``offtrack run --set`` (``{"path.turns": 0.25}``);
-3. the named settings ``feedback``, ``vehicle``, ``mu``, ``camber_percent``, ``camber_direction``,
+2. the sensor errors of ``sensors`` (:mod:`scenarios.envs.sensors`: data-sheet noise and a bias drawn per
+   episode, by default; ``"scenario"``: the scenario's own signals);
+3. ``overrides``, dotted configuration fields as in ``offtrack run --set`` (``{"path.turns": 0.25}``);
+4. the named settings ``feedback``, ``vehicle``, ``mu``, ``camber_percent``, ``camber_direction``,
    ``speed_kmh``, ``direction`` (``None``: the scenario's own);
-4. draws from the :class:`DomainRandomisation` ranges (a range replaces the fixed setting);
-5. ``reset(options=...)``: any of the keys above for this episode only; a named setting given there is not
+5. draws from the :class:`DomainRandomisation` ranges (a range replaces the fixed setting);
+6. ``reset(options=...)``: any of the keys above for this episode only; a named setting given there is not
    drawn, ``overrides`` are merged over the environment's, ``randomise`` replaces the ranges.
 
-Every draw comes from the generator passed in (the environment's ``np_random``), in a fixed order, and so
-does the run's ``seed`` (signal noise, camera noise and scenery) unless ``overrides`` fix it.
+Every draw comes from the generator passed in (the environment's ``np_random``), in a fixed order (the
+ranges, the sensor biases, then the run's ``seed``, which seeds the signal noise, camera noise and scenery),
+unless ``overrides`` fix them.
+
+Every setting is validated when the choice is made (:func:`scenarios.envs.validation.check_choice`), with the
+configuration schema's messages, so that a bad argument fails at ``gymnasium.make`` and not at ``reset``.
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ from controller.path_following_config import FEEDBACK_SOURCES
 from vehicle_model.errors import InputError
 
 from ..config import ScenarioConfig, load_scenario
+from .sensors import SensorMode, check_mode, draw_biases, sensor_fields
 
 __all__ = ["DEFAULT_OVERRIDES", "DEFAULT_SCENARIO", "OPTION_KEYS", "DomainRandomisation", "ScenarioChoice"]
 
@@ -43,7 +50,7 @@ NAMED_FIELDS: dict[str, str] = {
 }
 """Named settings and the configuration fields they set."""
 
-OPTION_KEYS: tuple[str, ...] = ("scenario", "overrides", "feedback", *NAMED_FIELDS, "randomise")
+OPTION_KEYS: tuple[str, ...] = ("scenario", "overrides", "feedback", "sensors", *NAMED_FIELDS, "randomise")
 """Keys accepted in ``reset(options=...)``."""
 
 SEED_LIMIT = 2**32 - 1
@@ -161,6 +168,8 @@ class ScenarioChoice:
         Named settings (``None``: the scenario's own).
     randomise : DomainRandomisation
         Ranges drawn at every reset.
+    sensors : {"datasheet", "scenario"}
+        On-board sensor errors (:mod:`scenarios.envs.sensors`).
     """
 
     scenario: str = DEFAULT_SCENARIO
@@ -173,8 +182,12 @@ class ScenarioChoice:
     speed_kmh: float | None = None
     direction: Literal["left", "right"] | None = None
     randomise: DomainRandomisation = field(default_factory=DomainRandomisation)
+    sensors: SensorMode = "datasheet"
 
     def __post_init__(self) -> None:
+        check_mode(self.sensors)
+        if not isinstance(self.scenario, str):
+            raise InputError(f"scenario = {self.scenario!r} must be a catalogue name or a YAML file")
         if self.feedback not in FEEDBACK_SOURCES:
             raise InputError(f"feedback = {self.feedback!r} must be one of {list(FEEDBACK_SOURCES)}")
         if not isinstance(self.overrides, Mapping):
@@ -212,15 +225,35 @@ class ScenarioChoice:
         """
         values = {name: getattr(self, name) for name in NAMED_FIELDS}
         values.update(self.randomise.draw(rng))
+        biases = draw_biases(rng)
         seed = int(rng.integers(0, SEED_LIMIT))
-        data: dict[str, Any] = {"seed": seed, **self.overrides, "feedback": self.feedback}
+        data = self.config_data(values, seed, biases)
+        config = load_scenario(self.scenario, data)
+        return config, episode_summary(config)
+
+    def config_data(
+        self, values: Mapping[str, Any], seed: int = 0, biases: Mapping[str, float] | None = None
+    ) -> dict[str, Any]:
+        """The dotted configuration fields over the scenario for the named-setting ``values``, in precedence order.
+
+        Parameters
+        ----------
+        values
+            Named settings (:data:`NAMED_FIELDS` keys; ``None`` or missing: the scenario's own).
+        seed
+            The run's seed.
+        biases
+            Sensor bias per channel (:func:`~scenarios.envs.sensors.draw_biases`; default none).
+        """
+        data: dict[str, Any] = {"seed": seed, **sensor_fields(self.sensors, dict(biases or {}))}
+        data.update(self.overrides)
+        data["feedback"] = self.feedback
         if self.feedback != "truth":
             data[f"estimators.{self.feedback}"] = True
         for name, dotted in NAMED_FIELDS.items():
-            if values[name] is not None:
+            if values.get(name) is not None:
                 data[dotted] = values[name]
-        config = load_scenario(self.scenario, data)
-        return config, episode_summary(config)
+        return data
 
 
 def episode_summary(config: ScenarioConfig) -> dict[str, Any]:

@@ -16,17 +16,20 @@ from vehicle_model.errors import InputError, SimulationDivergedError
 from ..setup.build import trailer_controller
 from .actuator import TrailerSteerActuator
 from .episode import EpisodeLimits
-from .plan_view import camera_strip, draw_plan_view
+from .plan_view import camera_strip, check_render_mode, draw_plan_view
+from .reward import OFFTRACKING_CLIP, OFFTRACKING_TOLERANCE, REWARD_WEIGHTS, EpisodeLog, SteeringReward
 from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, ScenarioChoice
+from .sensors import SensorMode
 from .stepper import CoSimulation, cached_setup
+from .validation import check_choice
 
-__all__ = ["OBSERVATION_NAMES", "REWARD_WEIGHTS", "TrailerSteeringEnv"]
+__all__ = ["MAX_EPISODE_STEPS", "OBSERVATION_NAMES", "REWARD_WEIGHTS", "TrailerSteeringEnv"]
+
+MAX_EPISODE_STEPS = 5000
+"""``max_episode_steps`` of the registered spec: 100 s simulated (the default episode is about 1700 steps)."""
 
 PREVIEW_DISTANCES: tuple[float, ...] = (0.0, 10.0, 20.0, 30.0)
 """Default path-curvature preview distances ahead of the driver's control point [m]."""
-
-REWARD_WEIGHTS: dict[str, float] = {"offtracking": 1.0, "effort": 0.01, "rate": 0.01}
-"""Default weights of the per-step cost terms."""
 
 _BASE_OBSERVATION: tuple[tuple[str, float], ...] = (
     ("offtracking_estimate", 5.0),
@@ -91,27 +94,33 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
 
     From the **true** off-tracking ``e`` after the step and the applied axle commands ``δ_j``, per step::
 
-        r = −w_e·min((e/e_scale)², 1) − w_u·mean_j (δ_j/δ_max)² − w_du·mean_j (Δδ_j/(δ̇_max·Δt))²
+        r = −w_e·min(|e|/e_tol, c_max) − w_u·mean_j (δ_j/δ_max)² − w_du·mean_j (Δδ_j/(δ̇_max·Δt))²
 
-    (the first term is 0 during the first trailer length, before ``e`` exists). On termination the
-    agent is also charged ``(w_e + w_u + w_du)`` for every control period left to the end of the path at the
-    target speed, plus ``termination_penalty``, so ending an episode early never pays. Default weights
-    :data:`REWARD_WEIGHTS` (``w_e = 1``, ``w_u = w_du = 0.01``), ``e_scale = 1 m``. The parts are in
-    ``info`` as ``reward_offtracking``, ``reward_effort``, ``reward_rate``, ``reward_termination``.
+    ``e_tol = 0.10 m`` (the off-tracking target), ``c_max = 10``, weights :data:`REWARD_WEIGHTS` (``w_e = 1``,
+    ``w_u = w_du = 0.01``): the off-tracking term is about 99 % of the designed PID's return. On termination
+    the worst per-step cost for every step left, plus ``termination_penalty``, is charged as well
+    (:mod:`scenarios.envs.reward`). The parts are in ``info`` as ``reward_offtracking``, ``reward_effort``,
+    ``reward_rate``, ``reward_termination``; the final step's ``info["episode_summary"]`` holds the episode in
+    the figures of ``metrics.json`` (true off-tracking RMS and largest after warm-up, saturated fraction,
+    termination reason, the return and its parts) and ``info["config"]`` the configuration it ran.
 
     ## Starting State
 
     The scenario's: the driver's control point at the start of the path, straight, at the profile's speed,
     trailer axles straight. Domain randomisation (``randomise``) draws friction, camber, speed, trailer
-    load (``lst`` / ``lst-unladen``) and turn direction at every reset from ``np_random``, which also seeds
-    the run (signal noise, camera noise and scenery).
+    load (``lst`` / ``lst-unladen``) and turn direction at every reset from ``np_random``, which also draws
+    the sensor biases and seeds the run (signal noise, camera noise and scenery): by default the on-board
+    signals carry data-sheet noise and a per-episode bias (:mod:`scenarios.envs.sensors`), so every seed
+    gives a different episode.
 
     ## Episode End
 
     *Terminated*: jackknife (``|Γ| > max_articulation_deg``, or the model diverges), the driver's control
     point more than ``max_lateral_error`` from its path, or ``|e| > max_offtracking`` (the trailer leaves
     the road); ``info["termination_reason"]`` says which. *Truncated*: the driver reaches the end of the path
-    (or the scenario's duration is up): about 1700 steps by default.
+    (or the scenario's duration is up): about 1700 steps by default. The registered spec also truncates at
+    ``max_episode_steps`` = :data:`MAX_EPISODE_STEPS` (100 s simulated): for a longer scenario pass a larger
+    ``max_episode_steps`` to ``gymnasium.make`` (an episode cut by the time limit has no ``episode_summary``).
 
     ## Arguments
 
@@ -127,12 +136,18 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
     * ``vehicle``, ``mu``, ``camber_percent``, ``camber_direction``, ``speed_kmh``, ``direction``: fixed settings
       (``None``: the scenario's).
     * ``randomise``: :class:`~scenarios.envs.scenario.DomainRandomisation` ranges.
+    * ``sensors``: ``datasheet`` (default: noise and bias of production sensors) or ``scenario`` (its own signals).
     * ``action_mode``, ``residual_scale_deg``, ``preview_distances``.
-    * ``reward_weights`` (keys ``offtracking``, ``effort``, ``rate``), ``offtracking_scale`` [m],
-      ``termination_penalty``.
+    * ``reward_weights`` (keys ``offtracking``, ``effort``, ``rate``), ``offtracking_tolerance`` [m],
+      ``offtracking_clip``, ``termination_penalty``.
     * ``max_articulation_deg``, ``max_lateral_error`` [m], ``max_offtracking`` [m or None].
     * ``render_mode``: ``"rgb_array"``: a plan view around the trailer (``render_size`` pixels, ``render_span``
-      metres wide), with the trailer camera's left image beneath it when ``viso_ot`` renders.
+      metres wide, with a scale bar), with the trailer camera's left image beneath it when ``viso_ot`` renders.
+      ``"human"`` is refused (a headless co-simulation has no window: show the ``rgb_array`` frames yourself).
+
+    Every argument is validated at construction (``gymnasium.make``) with the configuration schema's messages
+    (:func:`~scenarios.envs.validation.check_choice`; :class:`~vehicle_model.errors.InputError` or
+    :class:`~scenarios.config.ConfigError` naming the argument), randomisation ranges at both ends.
 
     Every setting except the reward and action settings can also be given for one episode in
     ``reset(options=...)`` (:data:`~scenarios.envs.scenario.OPTION_KEYS`).
@@ -152,11 +167,13 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         speed_kmh: float | None = None,
         direction: Literal["left", "right"] | None = None,
         randomise: DomainRandomisation | Mapping[str, Any] | None = None,
+        sensors: SensorMode = "datasheet",
         action_mode: Literal["direct", "residual"] = "direct",
         residual_scale_deg: float = 5.0,
         preview_distances: Sequence[float] = PREVIEW_DISTANCES,
         reward_weights: Mapping[str, float] | None = None,
-        offtracking_scale: float = 1.0,
+        offtracking_tolerance: float = OFFTRACKING_TOLERANCE,
+        offtracking_clip: float = OFFTRACKING_CLIP,
         termination_penalty: float = 10.0,
         max_articulation_deg: float = 80.0,
         max_lateral_error: float = 2.0,
@@ -176,7 +193,9 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
             speed_kmh=speed_kmh,
             direction=direction,
             randomise=DomainRandomisation.coerce(randomise),
+            sensors=sensors,
         )
+        check_choice(self.choice)
         if action_mode not in ("direct", "residual"):
             raise InputError(f"action_mode = {action_mode!r} must be 'direct' or 'residual'")
         self.action_mode = action_mode
@@ -186,17 +205,12 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         self.preview_distances = np.asarray(preview_distances, dtype=float)
         if self.preview_distances.ndim != 1 or not np.all(np.isfinite(self.preview_distances)):
             raise InputError(f"preview_distances = {preview_distances!r} must be a sequence of distances [m]")
-        weights = {**REWARD_WEIGHTS, **(reward_weights or {})}
-        if set(weights) != set(REWARD_WEIGHTS) or not all(w >= 0 and math.isfinite(w) for w in weights.values()):
-            raise InputError(f"reward_weights = {reward_weights!r}: non-negative values for {list(REWARD_WEIGHTS)}")
-        self.reward_weights = weights
-        if not (offtracking_scale > 0 and termination_penalty >= 0):
-            raise InputError("offtracking_scale must be > 0 and termination_penalty ≥ 0")
-        self.offtracking_scale = float(offtracking_scale)
-        self.termination_penalty = float(termination_penalty)
+        self.reward = SteeringReward(
+            dict(reward_weights or {}), offtracking_tolerance, offtracking_clip, termination_penalty
+        )
+        self.reward_weights = dict(self.reward.weights)
         self.limits = EpisodeLimits(max_articulation_deg, max_lateral_error, max_offtracking)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise InputError(f"render_mode = {render_mode!r} must be one of {self.metadata['render_modes']} or None")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.render_size = (int(render_size[0]), int(render_size[1]))
         self.render_span = float(render_span)
@@ -214,6 +228,7 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         self._actuator: TrailerSteerActuator | None = None
         self._done = False
         self._tracks: tuple[list[np.ndarray], list[np.ndarray]] = ([], [])
+        self._log: EpisodeLog | None = None
         self.episode_settings: dict[str, Any] = {}
 
     # ------------------------------------------------------------------ Gymnasium API
@@ -222,6 +237,8 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         """Start an episode; ``options`` override the environment's scenario settings for this episode."""
         super().reset(seed=seed)
         choice = self.choice.with_options(options)
+        if options:
+            check_choice(choice)
         config, settings = choice.resolve(self.np_random)
         setup = cached_setup(config)
         controller = trailer_controller(setup)
@@ -236,6 +253,7 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         self._done = False
         self.episode_settings = settings
         self._tracks = ([], [])
+        self._log = EpisodeLog(self._cosim)
         self._after_tick()
         return self._observation(), dict(settings)
 
@@ -269,32 +287,14 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         self._done = terminated or truncated
         self._previous_action = a_value
 
-        w = self.reward_weights
-        truth = tick.estimates["truth"]
-        if reason == "diverged":
-            offtracking_cost = 1.0
-        else:
-            offtracking_cost = 0.0 if truth is None else min((truth / self.offtracking_scale) ** 2, 1.0)
-        effort_cost = float(np.mean((commands / self._max_steer) ** 2))
-        rate_cost = float(np.mean(((commands - previous) / (self._max_rate * cosim.period)) ** 2))
-        termination = 0.0
-        if terminated:
-            remaining = max(cosim.setup.path.length - cosim.driver.progress, 0.0)
-            steps_left = remaining / max(tick.speed_target, 0.5) / cosim.period
-            termination = -(sum(w.values()) * steps_left + self.termination_penalty)
-        parts = {
-            "reward_offtracking": -w["offtracking"] * offtracking_cost,
-            "reward_effort": -w["effort"] * effort_cost,
-            "reward_rate": -w["rate"] * rate_cost,
-            "reward_termination": termination,
-        }
+        parts = self.reward.parts(cosim, commands, previous, self._max_steer, self._max_rate, reason)
         reward = float(sum(parts.values()))
         if not terminated:
             self._after_tick()
         estimate = tick.estimates.get(self.choice.feedback)
         info: dict[str, Any] = {
             "time": float(tick.time),
-            "offtracking_true": truth,
+            "offtracking_true": tick.estimates["truth"],
             "offtracking_estimate": estimate,
             "virtual_steer": actuator.virtual_steer,
             "trailer_steer": commands,
@@ -303,6 +303,11 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
             "termination_reason": reason,
             **parts,
         }
+        assert self._log is not None
+        self._log.record(cosim, commands, actuator.saturated, parts)
+        if self._done:
+            info["episode_summary"] = self._log.summary(cosim, reason)
+            info["config"] = cosim.setup.config.model_dump(mode="json")
         return self._observation(), reward, terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
@@ -344,6 +349,7 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         """Drop the run (and its camera pipeline, if any)."""
         self._cosim = None
         self._controller = None
+        self._log = None
 
     # ------------------------------------------------------------------ internals
 

@@ -1,0 +1,221 @@
+"""The steering environment's reward, and the episode summary that matches ``metrics.json`` of the same run.
+
+Reward, per step, from the **true** off-tracking ``e`` after the step and the applied axle commands ``δ_j``::
+
+    r = −w_e·min(|e|/e_tol, c_max) − w_u·mean_j (δ_j/δ_max)² − w_du·mean_j (Δδ_j/(δ̇_max·Δt))²
+
+``e_tol`` is a tolerance, by default the 0.10 m off-tracking RMS target of the closed loop (DESIGN §7), so the
+first term is the off-tracking in units of that target; it is linear (an absolute error) so that it still
+pulls at the millimetre errors a good controller reaches, where a squared error would vanish under the effort
+terms. ``c_max`` (default 10, i.e. 1 m) bounds it; the term is 0 during the first trailer length, before ``e``
+exists, and ``c_max`` when the model diverges. With the default weights (:data:`REWARD_WEIGHTS`) and the
+designed PID on the default scenario (about 1.3 mm mean ``|e|``, 4.7° largest steer) the off-tracking term is
+about 99 % of the return; a policy whose steer chatters at the full rate limit pays 0.01 per step, what
+1 mm of off-tracking costs.
+
+On termination the agent is also charged the worst per-step cost ``w_e·c_max + w_u + w_du`` for every control
+period left to the end of the path at the target speed, plus ``termination_penalty``, so ending an episode
+early never pays.
+
+The summary (:meth:`EpisodeLog.summary`) is computed by :func:`scenarios.run.metrics.compute_metrics` from
+the episode's recorded ticks, the function that writes ``metrics.json``, so its figures equal that file's for
+the same run (``offtrack run`` of the configuration in ``info["config"]``, steered the same way).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from vehicle_model.errors import InputError
+
+from ..run.metrics import compute_metrics
+from .stepper import CoSimulation
+
+__all__ = ["OFFTRACKING_TOLERANCE", "REWARD_WEIGHTS", "EpisodeLog", "SteeringReward"]
+
+REWARD_WEIGHTS: dict[str, float] = {"offtracking": 1.0, "effort": 0.01, "rate": 0.01}
+"""Default weights ``w_e``, ``w_u``, ``w_du`` of the per-step cost terms."""
+
+OFFTRACKING_TOLERANCE = 0.10
+"""Default ``e_tol`` [m]: the closed loop's off-tracking RMS target (DESIGN §7)."""
+
+OFFTRACKING_CLIP = 10.0
+"""Default ``c_max``: the off-tracking term saturates at ``c_max·e_tol`` (1 m by default)."""
+
+
+@dataclass(frozen=True)
+class SteeringReward:
+    """Weights and scales of the reward (module docstring).
+
+    Parameters
+    ----------
+    weights : mapping
+        ``offtracking``, ``effort``, ``rate`` (missing keys: :data:`REWARD_WEIGHTS`).
+    tolerance : float
+        ``e_tol`` [m].
+    clip : float
+        ``c_max`` [-].
+    termination_penalty : float
+        Charged once on termination.
+    """
+
+    weights: Mapping[str, float] = field(default_factory=lambda: dict(REWARD_WEIGHTS))
+    tolerance: float = OFFTRACKING_TOLERANCE
+    clip: float = OFFTRACKING_CLIP
+    termination_penalty: float = 10.0
+
+    def __post_init__(self) -> None:
+        weights = {**REWARD_WEIGHTS, **dict(self.weights or {})}
+        if set(weights) != set(REWARD_WEIGHTS) or not all(
+            isinstance(w, int | float) and w >= 0 and math.isfinite(w) for w in weights.values()
+        ):
+            raise InputError(f"reward_weights = {self.weights!r}: non-negative values for {list(REWARD_WEIGHTS)}")
+        object.__setattr__(self, "weights", weights)
+        if not (self.tolerance > 0 and math.isfinite(self.tolerance)):
+            raise InputError(f"offtracking_tolerance = {self.tolerance!r} must be a finite number > 0 [m]")
+        if not (self.clip > 0 and math.isfinite(self.clip)):
+            raise InputError(f"offtracking_clip = {self.clip!r} must be a finite number > 0")
+        if not (self.termination_penalty >= 0 and math.isfinite(self.termination_penalty)):
+            raise InputError(f"termination_penalty = {self.termination_penalty!r} must be a finite number ≥ 0")
+
+    def parts(
+        self,
+        cosim: CoSimulation,
+        commands: np.ndarray,
+        previous: np.ndarray,
+        max_steer: float,
+        max_rate: float,
+        reason: str,
+    ) -> dict[str, float]:
+        """The reward's parts for one step (``reward_offtracking``, ``_effort``, ``_rate``, ``_termination``).
+
+        Parameters
+        ----------
+        cosim
+            After the step.
+        commands, previous
+            Axle commands applied in this step and in the one before [rad].
+        max_steer, max_rate
+            ``δ_max`` [rad] and ``δ̇_max`` [rad/s].
+        reason
+            Why the step terminated the episode (``""``: it did not).
+        """
+        w = self.weights
+        tick = cosim.tick
+        truth = tick.estimates["truth"]
+        if reason == "diverged":
+            offtracking = self.clip
+        else:
+            offtracking = 0.0 if truth is None else min(abs(truth) / self.tolerance, self.clip)
+        effort = float(np.mean((commands / max_steer) ** 2))
+        rate = float(np.mean(((commands - previous) / (max_rate * cosim.period)) ** 2))
+        termination = 0.0
+        if reason:
+            remaining = max(cosim.setup.path.length - cosim.driver.progress, 0.0)
+            steps_left = remaining / max(tick.speed_target, 0.5) / cosim.period
+            worst = w["offtracking"] * self.clip + w["effort"] + w["rate"]
+            termination = -(worst * steps_left + self.termination_penalty)
+        return {
+            "reward_offtracking": -w["offtracking"] * offtracking,
+            "reward_effort": -w["effort"] * effort,
+            "reward_rate": -w["rate"] * rate,
+            "reward_termination": termination,
+        }
+
+
+class EpisodeLog:
+    """The columns of an episode that ``metrics.json`` reads, one row per tick, and the reward's running sums.
+
+    Row ``k`` is tick ``k`` (row 0 at ``reset``); the steer and saturation of row ``k`` are those applied from
+    tick ``k`` on, as ``offtrack run`` records them (:meth:`arrays` for the last row).
+    """
+
+    _STATE = ("X", "Y", "psi1", "gamma")
+
+    def __init__(self, cosim: CoSimulation) -> None:
+        self.axles = tuple(cosim.trailer_axles)
+        self.columns: dict[str, list[float]] = {}
+        self.returns: dict[str, float] = {}
+        self.steps = 0
+        self._tick(cosim)
+
+    def _tick(self, cosim: CoSimulation) -> None:
+        tick = cosim.tick
+        kp = cosim.kingpin
+        truth = tick.estimates["truth"]
+        row = {
+            "time": tick.time,
+            **{name: float(getattr(tick.state, name)) for name in self._STATE},
+            "kingpin_x": float(kp[0]),
+            "kingpin_y": float(kp[1]),
+            "path_progress": float(cosim.driver.progress),
+            "offtracking_truth": math.nan if truth is None else float(truth),
+        }
+        for key, value in row.items():
+            self.columns.setdefault(key, []).append(value)
+
+    def record(
+        self, cosim: CoSimulation, commands: np.ndarray, saturated: np.ndarray, parts: Mapping[str, float]
+    ) -> None:
+        """One step: the commands applied from the previous tick, then the new tick, and the reward's parts."""
+        for name, steer, sat in zip(self.axles, commands, saturated, strict=True):
+            self.columns.setdefault(f"steer_{name}", []).append(float(steer))
+            self.columns.setdefault(f"saturated_{name}", []).append(float(sat))
+        self._tick(cosim)
+        for key, value in parts.items():
+            self.returns[key] = self.returns.get(key, 0.0) + float(value)
+        self.steps += 1
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The columns as arrays of one length.
+
+        The per-step columns hold their last value on the last tick, for which no step was taken (``offtrack
+        run`` records there what the controller would command next: the one figure that can differ, by at
+        most one tick in the saturated fraction). The geometric second truth is not computed (NaN).
+        """
+        n = len(self.columns["time"])
+        out = {}
+        for key, values in self.columns.items():
+            pad = [values[-1] if values else 0.0] * (n - len(values))
+            out[key] = np.array(values + pad, dtype=float)
+        out["offtracking_truth_geometric"] = np.full(n, math.nan)
+        return out
+
+    def summary(self, cosim: CoSimulation, termination_reason: str) -> dict[str, Any]:
+        """The episode in figures, as ``metrics.json`` gives them (module docstring).
+
+        Returns
+        -------
+        dict
+            ``rms_offtracking`` and ``max_offtracking`` (true, after warm-up [m]: ``offtracking.truth_after_warmup``
+            of ``metrics.json``; NaN when the episode ended during warm-up), ``rms_offtracking_all`` and
+            ``max_offtracking_all`` (``offtracking.truth``), ``saturated_fraction`` (largest of the axles'
+            ``trailer_steering.<axle>.saturated_fraction``) and ``trailer_steering`` (per axle),
+            ``termination_reason`` (``""``: the episode reached its end), ``steps``, ``simulated_s``, ``return``
+            and the sum of every reward part (``return_offtracking``, …).
+        """
+        setup = cosim.setup
+        metrics = compute_metrics(
+            setup.config.name, setup.config.feedback, setup.params, self.arrays(), [], None, (0.0, 0.0)
+        )
+        truth, settled = metrics["offtracking"]["truth"], metrics["offtracking"]["truth_after_warmup"]
+        steering = metrics["trailer_steering"]
+        total = float(sum(self.returns.values()))
+        return {
+            "rms_offtracking": settled["rms"],
+            "max_offtracking": settled["max_abs"],
+            "rms_offtracking_all": truth["rms"],
+            "max_offtracking_all": truth["max_abs"],
+            "saturated_fraction": max((a["saturated_fraction"] for a in steering.values()), default=0.0),
+            "trailer_steering": steering,
+            "termination_reason": termination_reason,
+            "steps": self.steps,
+            "simulated_s": float(self.columns["time"][-1]),
+            "return": total,
+            **{k.replace("reward_", "return_"): v for k, v in self.returns.items()},
+        }
