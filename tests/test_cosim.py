@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -154,3 +155,13 @@ def test_truth_fed_steering_removes_the_offtracking_on_the_dry_roundabout():
     steered = results["truth"]
     assert np.sqrt(np.mean(steered**2)) <= 0.10 and np.abs(steered).max() <= 0.15
     assert np.abs(results["none"]).max() > 0.4
+
+
+def test_progress_reaches_the_end_when_the_duration_ends_the_run():
+    # With --duration the run ends long before the path does; the progress bar once stopped at 4 %.
+    setup = build_scenario(load_scenario("roundabout-3", {"duration_s": 5.0}))
+    fractions: list[float] = []
+    outcome, _ = run_cosimulation(setup, progress=lambda t, frac: fractions.append(frac))
+    assert outcome.status == "completed"
+    assert fractions[-1] == pytest.approx(1.0, abs=0.01)
+    assert all(b >= a for a, b in itertools.pairwise(fractions))
