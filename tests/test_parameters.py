@@ -105,3 +105,20 @@ def test_surface_presets():
 
 def test_reference_preset_is_default_like_design():
     assert reference_laden().name == "reference"
+
+
+def test_field_combination_is_a_4x2_tractor_with_a_2_axle_trailer():
+    # de Saxe & Cebon 2018 §4.1: a 6x2 tractor with its tag axle lifted and a tri-axle semi-trailer with its
+    # front axle lifted, i.e. a 4x2 tractor and a 2-axle semi-trailer; unladen (lift axles up).
+    p = vehicle_preset("field")
+    assert [a.name for a in p.tractor.axles] == ["steer", "drive"]
+    assert [a.x for a in p.trailer.axles] == [-7.7, -9.0]
+    assert not any(a.steerable for a in p.trailer.axles)
+    assert p.tractor_wheelbase() == pytest.approx(3.0)
+    assert p.follow_point_offset == pytest.approx(12.0)
+    # Equal loads on the two trailer axles: L_eq = (7.7² + 9.0²)/(7.7 + 9.0).
+    assert p.equivalent_wheelbase() == pytest.approx((7.7**2 + 9.0**2) / (7.7 + 9.0), rel=1e-9)
+    loads_t = p.axle_table.static_load / GRAVITY / 1000.0
+    assert loads_t.sum() == pytest.approx((9841.0 + 7500.0) / 1000.0, rel=1e-12)
+    # Moments about the axle-group centre, 8.35 m behind the kingpin, with the CG 4.0 m behind it.
+    assert p.kingpin_load / (p.trailer.mass * GRAVITY) == pytest.approx(4.35 / 8.35, rel=1e-9)

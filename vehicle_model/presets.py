@@ -1,5 +1,5 @@
 """Vehicle presets: the reference 6x2 tractor with a UK 13.6 m tri-axle trailer and the UK longer
-semi-trailer (LST), each laden and unladen.
+semi-trailer (LST), each laden and unladen, and the paper's field-test combination (:func:`field`).
 
 Sources (see ``shared/reference/vehicle-dynamics.md`` §4–5):
 
@@ -14,6 +14,7 @@ Sources (see ``shared/reference/vehicle-dynamics.md`` §4–5):
   uniform-box estimate ``m(L_b² + W²)/12 + m·d²`` (reference §4.2).
 * Unladen trailers: tare 7.5 t (13.6 m) and 8.5 t (LST) with the CG placed for a ~48 % kingpin
   share, inertia from the box estimate (reference §4.2: 1.2–1.5e5 kg·m² for an empty 13.6 m box).
+* Field combination: de Saxe & Cebon 2018 §4.1, every number and its source in :func:`field`.
 """
 
 from __future__ import annotations
@@ -102,11 +103,68 @@ def lst_unladen() -> VehicleParams:
     return VehicleParams(name="lst-unladen", tractor=TRACTOR_6X2, trailer=_trailer_lst(8_500.0, -4.9))
 
 
+TRACTOR_4X2_TAG_LIFTED = TractorParams.model_validate(
+    TRACTOR_6X2.model_dump() | {"axles": TRACTOR_6X2.model_dump()["axles"][:2]}
+)
+"""The 6x2 tractor with its tag axle lifted: a 4x2 (steer and drive axles only)."""
+
+
+def field() -> VehicleParams:
+    """The paper's field-test combination (de Saxe & Cebon 2018, §4.1, Fig 10), unladen.
+
+    "A 3-axle 'B-link' semi-trailer and a Volvo FH12 6×2 tractor. The tag axle of the tractor was
+    permanently lifted during testing, as well as the front axle of the semi-trailer, making the
+    combination effectively a 4×2 tractor with a 2-axle semi-trailer." The dimensions of Fig 10 are
+    not in the text available to this project (the figure is an image), so every number below is a
+    documented estimate:
+
+    ========================  =====================  ================================================
+    quantity                  value                  source
+    ========================  =====================  ================================================
+    tractor axles             steer 0, drive −3.0 m  OpenPBS ``TractorSemitrailer6x2`` (reference
+                                                     §4.1), the tag axle (−4.37 m) lifted: removed,
+                                                     as a lifted axle carries no load or side force
+    tractor CG, fifth wheel   −1.3647 m, −3.4 m      OpenPBS (fifth wheel 0.40 m behind the drive
+                                                     axle, between drive and lifted tag)
+    tractor mass, inertia     9841 kg, 2.991e4 kg·m²  OpenPBS (a lifted axle stays on the chassis)
+    tractor body              +1.4 / −5.2 m, 2.5 m   as the reference tractor (reference §5.3)
+    trailer body              +1.6 / −12.0 m, 2.55 m  a 13.6 m-class box (reference §4.2); the
+                                                     follow point at its rear, L_fp = 12.0 m
+    trailer axles             −7.7, −9.0 m           the tri-axle group 6.4/7.7/9.0 m behind the
+                                                     kingpin (OpenPBS, reference §4.1) with its
+                                                     front axle lifted; L_eq ≈ 8.4 m
+    trailer mass              7.5 t                  unladen: lift axles are raised only when the
+                                                     vehicle runs empty or lightly laden, and the
+                                                     test trailer carried only its instruments; tare
+                                                     as ``reference-unladen``
+    trailer CG                4.0 m behind kingpin   as ``reference-unladen`` (same body; the
+                                                     kingpin then carries 52 % of the tare)
+    trailer yaw inertia       box estimate           ``m(L_b² + W²)/12 + m·d²`` (reference §4.2)
+    ========================  =====================  ================================================
+
+    Cameras (not vehicle parameters; set in the scenario's ``camera:`` section): 4.2 m above the
+    ground on the trailer roof (§4.1), rear (ψ_c2v = 180°) or left side (270°), baselines 0.5, 0.7
+    and 0.9 m (§4.1).
+    """
+    mass, cg = 7_500.0, -4.0
+    trailer = TrailerParams(
+        mass=mass,
+        yaw_inertia=_box_inertia(mass, 1.6, -12.0, 2.55, cg),
+        cg_x=cg,
+        front_x=1.6,
+        rear_x=-12.0,
+        width=2.55,
+        axles=(AxleParams(name="trailer2", x=-7.7), AxleParams(name="trailer3", x=-9.0)),
+    )
+    return VehicleParams(name="field", tractor=TRACTOR_4X2_TAG_LIFTED, trailer=trailer)
+
+
 VEHICLE_PRESETS: dict[str, Callable[[], VehicleParams]] = {
     "reference": reference_laden,
     "reference-unladen": reference_unladen,
     "lst": lst_laden,
     "lst-unladen": lst_unladen,
+    "field": field,
 }
 
 

@@ -1,0 +1,98 @@
+"""Rigid-body kinematics of the trailer from the model state: point velocities and lateral acceleration.
+
+Hitch kinematics (reference notes §1.1, as in :func:`vehicle_model.dynamics.define_model`): the
+kingpin, ``h1`` behind the tractor CG, moves with ``(u, v1 − h1·r1)`` in tractor axes; rotated by the
+articulation Γ into trailer axes, and with the trailer yaw rate ``r2`` about the kingpin, a trailer
+centre-line point at station ``x`` (from the kingpin, negative behind it) moves with::
+
+    v_x = u·cos Γ − (v1 − h1·r1)·sin Γ
+    v_y = u·sin Γ + (v1 − h1·r1)·cos Γ + r2·x
+
+Its lateral acceleration in trailer axes (ISO 8855, left positive, so positive in a left turn) is
+``a_y = v̇_y + r2·v_x`` (the body-frame derivative plus the transport term). The state holds no
+derivatives, so :func:`trailer_lateral_acceleration` differentiates the point's *global* velocity
+between two states and expresses it in the trailer axes at the mean heading (central difference,
+second-order accurate at the midpoint); :func:`steady_lateral_acceleration` gives the centripetal
+part ``r2·v_x`` alone, exact in a steady turn.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import InputError
+from .parameters import VehicleParams
+from .simulator import VehicleState
+
+
+def _station(params: VehicleParams, station: float | None) -> float:
+    """The station [m]: ``station``, or the trailer CG when None."""
+    return float(params.trailer.cg_x if station is None else station)
+
+
+def trailer_point_velocity(params: VehicleParams, state: VehicleState, station: float | None = None) -> np.ndarray:
+    """Velocity ``(v_x, v_y)`` [m/s] of a trailer centre-line point in trailer axes (reference notes §1.1).
+
+    Parameters
+    ----------
+    params
+        The combination (``h1``).
+    state
+        The model state.
+    station
+        Station of the point from the kingpin [m], negative behind it; None: the trailer CG.
+    """
+    v_kingpin = state.v1 - params.h1 * state.r1
+    c, s = math.cos(state.gamma), math.sin(state.gamma)
+    vx = state.u * c - v_kingpin * s
+    vy = state.u * s + v_kingpin * c + state.r2 * _station(params, station)
+    return np.array([vx, vy])
+
+
+def steady_lateral_acceleration(params: VehicleParams, state: VehicleState, station: float | None = None) -> float:
+    """Centripetal lateral acceleration ``r2·v_x`` [m/s²] of a trailer point, exact in a steady turn.
+
+    Parameters are those of :func:`trailer_point_velocity`.
+    """
+    return float(state.r2 * trailer_point_velocity(params, state, station)[0])
+
+
+def trailer_lateral_acceleration(
+    params: VehicleParams, previous: VehicleState, current: VehicleState, station: float | None = None
+) -> float:
+    """Lateral acceleration ``a_y = v̇_y + r2·v_x`` [m/s²] of a trailer point between two states.
+
+    The point's global velocity is differenced over ``current.time − previous.time`` and expressed in
+    the trailer axes at the mean trailer heading; positive to the left (a left turn).
+
+    Parameters
+    ----------
+    params
+        The combination.
+    previous, current
+        Two states of one run, ``current`` later (e.g. consecutive camera frames).
+    station
+        Station of the point from the kingpin [m], negative behind it; None: the trailer CG.
+
+    Raises
+    ------
+    InputError
+        When ``current`` is not later than ``previous``.
+    """
+    dt = current.time - previous.time
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise InputError(f"trailer_lateral_acceleration needs a later current state; got dt = {dt!r} s")
+
+    def global_velocity(state: VehicleState) -> np.ndarray:
+        vx, vy = trailer_point_velocity(params, state, station)
+        c, s = math.cos(state.psi2), math.sin(state.psi2)
+        return np.array([c * vx - s * vy, s * vx + c * vy])
+
+    accel = (global_velocity(current) - global_velocity(previous)) / dt
+    # Mean heading as the direction of the summed unit vectors: safe for wrapped headings too.
+    heading = math.atan2(
+        math.sin(previous.psi2) + math.sin(current.psi2), math.cos(previous.psi2) + math.cos(current.psi2)
+    )
+    return float(-math.sin(heading) * accel[0] + math.cos(heading) * accel[1])
