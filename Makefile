@@ -46,6 +46,7 @@ bench: setup
 	$(BIN)/offtrack bench model --json
 	$(BIN)/offtrack bench render --json
 	$(BIN)/offtrack bench vo --json
+	$(BIN)/offtrack bench loop --json
 	$(BIN)/offtrack bench env --json
 	$(BIN)/offtrack bench sweep --json
 

@@ -12,12 +12,11 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal, get_args
+from typing import Any, Literal, get_args
 
 import yaml
 from pydantic import (
     BaseModel,
-    ConfigDict,
     Field,
     ValidationError,
     ValidationInfo,
@@ -30,6 +29,8 @@ from vehicle_model.errors import InputError
 from vehicle_model.presets import VEHICLE_PRESETS
 from vehicle_model.surface import FRICTION_PRESETS
 
+from .field_schema import CalibrationConfig, FlexConfig, LensConfig, RigRotationDeg, StrictModel
+
 CATALOGUE_PACKAGE = "scenarios.catalogue"
 
 
@@ -37,25 +38,12 @@ class ConfigError(InputError):
     """An invalid scenario configuration; the message lists every bad field with its allowed range."""
 
 
-class _Strict(BaseModel):
-    # allow_inf_nan=False: every float (plain, optional, inside a tuple) must be finite.
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False)
+_Strict = StrictModel  # every float (plain, optional, inside a tuple) must be finite
 
 
 COORDINATE_LIMIT_M = 10_000.0
 """Largest |coordinate| of a friction patch [m]: beyond any path the schema allows (5 km straight + 2 × 1 km)."""
 
-MAX_RIG_ROTATION_DEG = 20.0
-"""Largest right-camera misalignment or correction per axis [°] (:class:`sensor.camera.Misalignment`)."""
-
-RigRotationDeg = Annotated[
-    float,
-    Field(
-        ge=-MAX_RIG_ROTATION_DEG,
-        le=MAX_RIG_ROTATION_DEG,
-        description="[°] per axis, the range the rig accepts (sensor.camera.Misalignment); paper §4.4 needs a few",
-    ),
-]
 
 _COORDINATE = "[m]; ±10 km holds every path the schema allows (5 km straight, 1 km entry and exit)"
 _MU = "friction coefficient; 0 cannot be driven on and 1.5 is above any real road"
@@ -248,7 +236,8 @@ class CameraConfig(_Strict):
     clockwise from the trailer's forward axis (180 rear-facing, 90 right, 270 left).
     ``right_misalignment_deg`` rotates the right camera (roll, pitch, yaw; paper §4.4) and
     ``right_correction_deg`` is the rotation correction applied to the right images before
-    odometry (paper eqs (8)–(9)).
+    odometry (paper eqs (8)–(9)). ``latency_s`` delays each frame's estimate before the controller sees
+    it (default: one frame period).
     """
 
     width: int = Field(1344, ge=64, le=4096, description="[px]; too few features below 64, 4096 fills the GPU")
@@ -274,6 +263,18 @@ class CameraConfig(_Strict):
         0.0, ge=0.0, le=0.5, description="relative std of the per-frame brightness gain; at 0.5 it swings by half"
     )
     scenery_density: float = Field(1.0, ge=0.0, le=1.0, description="fraction of the scenery placed")
+    lens: LensConfig = LensConfig()
+    right_lens: LensConfig | None = Field(None, description="the right camera's lens; None: the same as lens")
+    calibration: CalibrationConfig = CalibrationConfig()
+    flex: FlexConfig = FlexConfig()
+    latency_s: float | None = Field(
+        None,
+        ge=0.0,
+        le=1.0,
+        description="[s] from taking a frame to its estimate reaching the controller (released on the first "
+        "control tick at or after it); None: one frame period 1/rates.camera_hz, as a camera computer that "
+        "processes each frame while the next is taken; a camera estimate a second old is useless for steering",
+    )
 
 
 class EstimatorsConfig(_Strict):

@@ -26,6 +26,7 @@ ALLOWED_PACKAGE_IMPORTS: dict[str, set[str]] = {
 """DESIGN §2: which of the four packages each may import."""
 
 SCENARIO_ROOMS: tuple[str, ...] = (
+    "field_schema",
     "config",
     "catalogue",
     "setup",

@@ -231,3 +231,31 @@ def test_run_files_are_readable_by_others_and_force_clears_the_old_run(tmp_path:
     assert again.returncode == 0, again.stderr
     assert not (out / "plan_view.png").exists()  # the previous run's plot is gone, not left beside new metrics
     assert json.loads((out / "metrics.json").read_text())["simulated_s"] == pytest.approx(4.0, abs=0.05)
+
+
+def test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Issue 16: the camera rendered by spawned worker processes; SIGTERM stops them and keeps the rows.
+    monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", "2")
+    out = tmp_path / "r"
+    proc = start(
+        "run", "roundabout-3", "--set", "estimators.viso_ot=true", "--duration", "120", "--no-plots", "--out", str(out)
+    )
+    wait_for_rows(out, proc, timeout=240.0)
+    listed = subprocess.run(["ps", "-o", "pid=", "--ppid", str(proc.pid)], capture_output=True, text=True).stdout
+    workers = [int(p) for p in listed.split()]
+    assert len(workers) >= 2  # the render workers
+    proc.send_signal(signal.SIGTERM)
+    _stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 143, stderr
+    assert "Traceback" not in stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "interrupted" and metrics["stop_signal"] == "SIGTERM"
+    frame = pd.read_parquet(out / "timeseries.parquet")
+    assert len(frame) == metrics["rows"] > 0
+    assert frame["time"].is_monotonic_increasing
+    assert (frame["vo_valid"][frame["camera_frame"] > 0.5].notna()).sum() > 0  # camera rows were kept
+    for pid in workers:  # the workers are gone (reaped, or at worst reparented zombies on the way out)
+        state = Path(f"/proc/{pid}/stat")
+        assert not state.exists() or state.read_text().split()[2] == "Z"

@@ -67,7 +67,22 @@ class VehicleState:
     def from_vector(cls, vector: np.ndarray, time: float = 0.0) -> VehicleState:
         """State from a vector in :class:`Layout` order."""
         v = np.asarray(vector, dtype=float)
-        return cls(time, *v[:8].tolist(), slip=v[8:].copy())
+        return _state(cls, time, v[:8].tolist(), v[8:].copy())
+
+
+_STATE_FIELDS = ("time", *BODY_STATES)
+_new_object = object.__new__
+
+
+def _state(cls: type[VehicleState], time: float, body: list[float], slip: np.ndarray) -> VehicleState:
+    """A :class:`VehicleState` from its time, the 8 body states and the slip array, without the checks of
+    the frozen dataclass's ``__init__`` (the simulator makes one every control tick: this is half the cost)."""
+    state = _new_object(cls)
+    fields = state.__dict__
+    fields["time"] = time
+    fields.update(zip(BODY_STATES, body, strict=True))
+    fields["slip"] = slip
+    return state
 
 
 @dataclass(frozen=True)
@@ -162,6 +177,7 @@ class Simulator:
         self._trailer_local = np.array([[a.x, 0.0] for a in params.trailer.axles] + [[params.trailer.cg_x, 0.0]])
         self._limit_index = np.array([self.layout.state_index(n) for n in STATE_LIMITS])
         self._limit_value = np.array(list(STATE_LIMITS.values()))
+        self._limits = tuple(zip(self._limit_index.tolist(), STATE_LIMITS.values(), strict=True))
         self.time = 0.0
         self._surface_filled = False  # uniform surfaces are looked up once
         self.reset(state)
@@ -225,7 +241,7 @@ class Simulator:
                 f"controls.steer = {controls.steer!r}; give one angle per steerable axle {list(layout.steerable_axles)}"
             ) from None
         u[layout.drive_index] = controls.drive_force
-        if not math.isfinite(float(u[: layout.drive_index + 1].sum())):
+        if not math.isfinite(sum(u[: layout.drive_index + 1].tolist())):
             raise InputError(
                 f"non-finite controls at t = {self.time:.3f} s: steer {controls.steer}, "
                 f"drive force {controls.drive_force}"
@@ -249,10 +265,22 @@ class Simulator:
         """
         self.fill_inputs(controls)
         self._eval()
-        self._check(self._x_end)
-        self._x[:] = self._x_end
+        x_end = self._x_end
+        values = x_end.tolist()
+        if not self._plausible(values):
+            self._check(x_end)  # raises, naming the state
+        self._x[:] = x_end
         self.time += self.control_period
-        return self.state
+        return _state(VehicleState, self.time, values[:8], x_end[8:].copy())
+
+    def _plausible(self, values: list[float]) -> bool:
+        """Every state finite and inside :data:`STATE_LIMITS` (the cheap check of every step)."""
+        if not math.isfinite(sum(values)):
+            return False
+        for i, limit in self._limits:
+            if abs(values[i]) > limit:
+                return False
+        return True
 
     def trajectory(self) -> np.ndarray:
         """States at every RK4 substep of the last :meth:`step`, shape ``(substeps, n_states)``."""

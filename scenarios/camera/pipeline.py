@@ -35,6 +35,8 @@ __all__ = [
     "REJECTION_REASONS",
     "CameraFrame",
     "CameraPipeline",
+    "PairOdometry",
+    "PairRenderer",
     "frame_interval",
     "frame_quality",
     "right_correction_homography",
@@ -80,6 +82,9 @@ class CameraFrame:
         Exactly the keys of :data:`QUALITY_COLUMNS` (NaN where not applicable).
     estimate_reason : str
         Why ``estimate`` is ``None`` (a key of :data:`REJECTION_REASONS`; "" when there is an estimate).
+    render_cpu_s, vo_cpu_s : float
+        CPU time of rendering (every thread of the rendering process, llvmpipe's included) and of the
+        odometry (its thread) [s]; NaN when not measured.
     """
 
     estimate: float | None
@@ -90,6 +95,8 @@ class CameraFrame:
     reason: str = ""
     quality: dict[str, float] = field(default_factory=lambda: dict.fromkeys(QUALITY_COLUMNS, math.nan))
     estimate_reason: str = ""
+    render_cpu_s: float = math.nan
+    vo_cpu_s: float = math.nan
 
 
 def frame_interval(camera_hz: float, control_hz: float) -> float:
@@ -119,8 +126,13 @@ def frame_quality(result: VOResult, step: dict[str, float]) -> dict[str, float]:
     }
 
 
-class CameraPipeline:
-    """Stereo camera on the trailer → VISO2-S-style odometry → VISO-OT off-tracking.
+class PairRenderer:
+    """The render stage: the stereo pair at a tractor state, the right image corrected (paper eqs (8)–(9)).
+
+    Owns the world and the OpenGL renderer, so it lives in the process that renders: the co-simulation's
+    own in a serial run, a spawned worker in a pipelined one (:mod:`.workers`). Frame ``k``'s images
+    depend only on the state and ``k`` (:class:`sensor.renderer.StereoRenderer` seeds its noise per frame),
+    not on the process or the order of rendering.
 
     Parameters
     ----------
@@ -130,11 +142,37 @@ class CameraPipeline:
 
     def __init__(self, setup: ScenarioSetup) -> None:
         cfg = setup.config
-        check_camera_feasible(cfg)
-        self.params = setup.params
         self.rig = rig_from_config(cfg)
         self.world = world_for_scenario(setup)
         self.renderer = StereoRenderer(self.world, self.rig, setup.params, seed=cfg.seed)
+        self.correction = right_correction_homography(self.rig, cfg.camera.right_correction_deg)
+
+    def render(self, x: float, y: float, psi1: float, gamma: float, frame: int) -> tuple[np.ndarray, np.ndarray]:
+        """Left and corrected right grey images of frame ``frame`` at the tractor pose ``(x, y, ψ1, Γ)``."""
+        pair = self.renderer.render(x, y, psi1, gamma, frame=frame)
+        right = pair.right
+        if self.correction is not None:
+            right = cv2.warpPerspective(
+                right, self.correction, (right.shape[1], right.shape[0]), flags=cv2.INTER_LINEAR
+            )
+        return pair.left, right
+
+
+class PairOdometry:
+    """The odometry stage: visual odometry and VISO-OT on the pairs in frame order, with quality and reasons.
+
+    Its state (the previous pair's features, the kingpin path) depends on the order of the frames only,
+    so it gives the same :class:`CameraFrame` whichever process rendered the images.
+
+    Parameters
+    ----------
+    setup
+        The built scenario (vehicle, ``camera`` configuration, camera and control rates, seed).
+    """
+
+    def __init__(self, setup: ScenarioSetup) -> None:
+        cfg = setup.config
+        self.rig = rig_from_config(cfg)
         self.vo = StereoOdometry(
             VOConfig.from_horizontal_fov(self.rig.width, self.rig.height, self.rig.hfov, self.rig.baseline),
             seed=cfg.seed,
@@ -144,22 +182,16 @@ class CameraPipeline:
             self.rig.camera_in_trailer("left", setup.params),
             frame_interval=frame_interval(cfg.rates.camera_hz, cfg.rates.control_hz),
         )
-        self.correction = right_correction_homography(self.rig, cfg.camera.right_correction_deg)
         self.frames = 0
         self.estimate: float | None = None
 
-    def frame(self, state: VehicleState) -> CameraFrame:
-        """Render and process the pair at ``state``; update the estimate; say whether the motion was accepted."""
-        t0 = wallclock.perf_counter()
-        pair = self.renderer.render(state.X, state.Y, state.psi1, state.gamma, frame=self.frames)
-        right = pair.right
-        if self.correction is not None:
-            right = cv2.warpPerspective(
-                right, self.correction, (right.shape[1], right.shape[0]), flags=cv2.INTER_LINEAR
-            )
+    def process(self, left: np.ndarray, right: np.ndarray, render_s: float = math.nan) -> CameraFrame:
+        """Odometry and VISO-OT on the next pair; ``render_s`` is what rendering it took [s] (for the record)."""
         t1 = wallclock.perf_counter()
-        result = self.vo.process(pair.left, right)
+        cpu1 = wallclock.thread_time()
+        result = self.vo.process(left, right)
         t2 = wallclock.perf_counter()
+        cpu2 = wallclock.thread_time()
         step = dict.fromkeys(STEP_COLUMNS, math.nan)
         if self.frames > 0:  # the first frame has no previous pair: nothing to estimate, nothing failed
             self.estimate = self.estimator.update(result.camera_motion if result.valid else None)
@@ -171,10 +203,57 @@ class CameraPipeline:
         return CameraFrame(
             self.estimate,
             result,
-            t1 - t0,
+            render_s,
             t2 - t1,
             valid=not reason,
             reason=reason,
             quality=frame_quality(result, step),
             estimate_reason="" if self.estimate is not None else (self.estimator.estimate_reason or "buffer_filling"),
+            vo_cpu_s=cpu2 - cpu1,
         )
+
+
+class CameraPipeline:
+    """Stereo camera on the trailer → VISO2-S-style odometry → VISO-OT off-tracking, in one process.
+
+    :class:`PairRenderer` then :class:`PairOdometry`; :mod:`.workers` runs the first in other processes
+    and :mod:`.delivery` holds each frame's estimate for the configured camera latency.
+
+    Parameters
+    ----------
+    setup
+        The built scenario (vehicle, path, ``camera`` configuration, seed).
+    """
+
+    def __init__(self, setup: ScenarioSetup) -> None:
+        check_camera_feasible(setup.config)
+        self.params = setup.params
+        self.stage_render = PairRenderer(setup)
+        self.stage_odometry = PairOdometry(setup)
+        self.rig = self.stage_render.rig
+        self.world = self.stage_render.world
+        self.renderer = self.stage_render.renderer
+        self.correction = self.stage_render.correction
+        self.vo = self.stage_odometry.vo
+        self.estimator = self.stage_odometry.estimator
+
+    @property
+    def frames(self) -> int:
+        """Frames processed so far."""
+        return self.stage_odometry.frames
+
+    @property
+    def estimate(self) -> float | None:
+        """VISO-OT off-tracking [m] after the latest frame (``None``: no estimate)."""
+        return self.stage_odometry.estimate
+
+    def frame(self, state: VehicleState) -> CameraFrame:
+        """Render and process the pair at ``state``; update the estimate; say whether the motion was accepted."""
+        t0 = wallclock.perf_counter()
+        cpu0 = wallclock.process_time()
+        left, right = self.stage_render.render(state.X, state.Y, state.psi1, state.gamma, self.frames)
+        render_s = wallclock.perf_counter() - t0
+        render_cpu_s = wallclock.process_time() - cpu0
+        shot = self.stage_odometry.process(left, right, render_s)
+        shot.render_cpu_s = render_cpu_s
+        return shot

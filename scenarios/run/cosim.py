@@ -13,13 +13,16 @@ Each control tick ``k`` (time ``t_k``):
 3. the driver and the speed controller compute the tractor inputs, the trailer-steer source the
    trailer axles' (unsteered until a controller is plugged in);
 4. the row for ``t_k`` is recorded, then the model advances one control period.
+
+The camera (``viso_ot``) takes a frame on every camera tick; its estimate reaches step 3 only
+``camera.latency_s`` later (:mod:`scenarios.camera.delivery`), whether the frames are rendered here
+or, pipelined, by worker processes (``camera_workers``) — the two give identical runs.
 """
 
 from __future__ import annotations
 
 import math
 import time as wallclock
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -29,15 +32,18 @@ import numpy as np
 from controller.driver import PathFollowingDriver
 from controller.speed import SpeedController, traction_limit
 from controller.zero_slip import ZeroSlipEstimator
-from sensor.signals import ChannelSpec, OnboardSignals
+from sensor.signals import OnboardSignals
 from vehicle_model.errors import InputError, SimulationDivergedError
 from vehicle_model.geometry import kingpin_position
 from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses, offtracking_from_path
 from vehicle_model.simulator import Controls, Simulator, VehicleState
 
+from ..camera.workers import CameraWorkerError, default_workers
 from ..setup.build import ScenarioSetup
-from .camera_columns import CAMERA_COLUMNS, camera_row
+from .camera_columns import CAMERA_COLUMNS
 from .control_loss import loss_of_control
+from .loop_parts import DensePath, kinematic_step, run_duration, signal_specs, true_signals
+from .recording import RowRecorder
 from .results import TimeSeriesWriter
 from .stopping import stop_message, stop_signal_name
 
@@ -66,6 +72,8 @@ class RunOutcome:
         Rows written to the time series.
     wall_time_s : float
         Wall-clock time of the loop.
+    camera : dict
+        Where a camera run's time went (:meth:`scenarios.camera.delivery.CameraFeed.timings`); empty without one.
     """
 
     status: str = "completed"
@@ -73,52 +81,9 @@ class RunOutcome:
     rows: int = 0
     wall_time_s: float = 0.0
     columns: list[str] = field(default_factory=list)
+    camera: dict[str, float] = field(default_factory=dict)
     stop_time: float | None = None
     stop_signal: str | None = None
-
-
-class _DensePath:
-    """The recent kingpin path at dynamics-step resolution, trimmed to a little over one trailer length."""
-
-    def __init__(self, keep_length: float) -> None:
-        self.keep_length = keep_length
-        self.chunks: deque[np.ndarray] = deque()
-        self.lengths: deque[float] = deque()
-
-    def extend(self, points: np.ndarray) -> None:
-        if self.chunks:
-            joined = np.vstack([self.chunks[-1][-1:], points])
-        else:
-            joined = points
-        self.chunks.append(points)
-        self.lengths.append(float(np.hypot(*np.diff(joined, axis=0).T).sum()) if len(joined) > 1 else 0.0)
-        total = sum(self.lengths)
-        while len(self.chunks) > 2 and total - self.lengths[0] > self.keep_length:
-            total -= self.lengths.popleft()
-            self.chunks.popleft()
-
-    def array(self) -> np.ndarray:
-        return np.vstack(self.chunks)
-
-
-def signal_specs(setup: ScenarioSetup) -> dict[str, ChannelSpec]:
-    """Channel specs from the configuration."""
-    cfg = setup.config.signals
-    return {name: ChannelSpec(**getattr(cfg, name).model_dump()) for name in type(cfg).model_fields}
-
-
-def true_signals(setup: ScenarioSetup, state: VehicleState, steer: np.ndarray) -> dict[str, Any]:
-    """The true values of the on-board signals."""
-    layout = setup.model.layout
-    trailer = [i for i, n in enumerate(layout.steerable_axles) if n in {a.name for a in setup.params.trailer.axles}]
-    return {
-        "wheel_speed": state.u,
-        "front_steer": steer[0],
-        "tractor_yaw_rate": state.r1,
-        "articulation": state.gamma,
-        "trailer_yaw_rate": state.r2,
-        "trailer_steer": steer[trailer] if trailer else np.zeros(0),
-    }
 
 
 @dataclass(frozen=True)
@@ -143,8 +108,10 @@ class Tick:
         The speed profile's target [m/s].
     camera_frame : bool
         Whether the camera clock ticked (a frame was rendered if ``viso_ot`` runs).
-    camera : CameraFrame or None
-        What the camera pipeline produced on this tick (``None`` between frames or without a camera).
+    camera : CapturedFrame or None
+        The frame taken on this tick (``None`` between frames or without a camera); its ``frame``, the
+        :class:`~scenarios.camera.pipeline.CameraFrame`, is ``None`` while a worker still renders it.
+        ``estimates["viso_ot"]`` is that of the latest frame released by the camera latency.
     geometric_truth : float or None
         The geometric second truth (only when the simulation keeps the dense kingpin path).
     """
@@ -175,6 +142,9 @@ class CoSimulation:
     geometric_truth : bool
         Keep the dense kingpin path and compute the geometric second truth each tick (a check of the
         first; :func:`run_cosimulation` records it, the environments skip it).
+    camera_workers : int
+        Render worker processes for ``viso_ot`` (:mod:`scenarios.camera.workers`); 0 renders here. The
+        results do not depend on it; call :meth:`close` to stop the workers.
 
     Attributes
     ----------
@@ -188,10 +158,27 @@ class CoSimulation:
         Steerable trailer axles, in the order :meth:`advance` expects their steer.
     """
 
-    def __init__(self, setup: ScenarioSetup, geometric_truth: bool = False) -> None:
+    def __init__(self, setup: ScenarioSetup, geometric_truth: bool = False, camera_workers: int = 0) -> None:
         self.geometric_truth = geometric_truth
+        self.camera_workers = camera_workers
+        self.camera: Any = None
         self._build(setup)
-        self.reset()
+        try:
+            self.reset()
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        """Stop the camera's render workers, if any (safe to call twice)."""
+        if self.camera is not None:
+            self.camera.close()
+
+    def __enter__(self) -> CoSimulation:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     def _build(self, setup: ScenarioSetup) -> None:
         """The parts that depend on the setup only."""
@@ -210,11 +197,7 @@ class CoSimulation:
         driven = np.flatnonzero(setup.params.axle_table.driven)
         self._driven = driven
         self._driven_load = float(setup.params.axle_table.static_load[driven].sum())
-        self.max_time = (
-            cfg.duration_s
-            if cfg.duration_s is not None
-            else 2.0 * setup.path.length / max(setup.speed_profile.cornering, 0.5) + 60.0
-        )
+        self.max_time = run_duration(setup)
 
     @property
     def kinematic(self) -> bool:
@@ -230,18 +213,20 @@ class CoSimulation:
         self.driver.reset(setup.initial_state)
         self.speed_control = SpeedController(params.tractor.mass + params.trailer.mass)
         self.truth_buffer = OfftrackingBuffer(params.follow_point_offset)
-        self.dense = _DensePath(keep_length=2.0 * params.follow_point_offset + 10.0) if self.geometric_truth else None
+        self.dense = DensePath(keep_length=2.0 * params.follow_point_offset + 10.0) if self.geometric_truth else None
         if self.dense is not None:
             s = setup.initial_state
             self.dense.extend(kingpin_position(params, s.X, s.Y, s.psi1)[None, :])
         self.estimators: dict[str, ZeroSlipEstimator] = {}
         if cfg.estimators.zero_slip:
             self.estimators["zero_slip"] = ZeroSlipEstimator(params, cfg.estimators.zero_slip_variant)
+        self.close()
         self.camera = None
         if cfg.estimators.viso_ot:
-            from ..camera.pipeline import CameraPipeline  # rendering and OpenGL only when asked for
+            from ..camera.delivery import CameraFeed  # rendering and OpenGL only when asked for
+            from ..camera.pipeline import CameraPipeline  # noqa: F401  (the serial pipeline CameraFeed runs)
 
-            self.camera = CameraPipeline(setup)
+            self.camera = CameraFeed(setup, workers=self.camera_workers)
         self.steer = np.zeros(len(setup.model.layout.steerable_axles))
         self._prev_pose: tuple[np.ndarray, float] | None = None
         self._ticks = 0  # control ticks observed since reset
@@ -290,7 +275,7 @@ class CoSimulation:
         """
         tick, params = self.tick, self.setup.params
         if self.kinematic:
-            state = _kinematic_step(self.setup, tick.state, self.period)
+            state = kinematic_step(self.setup, tick.state, self.period)
             self.sim.reset(state)
             if self.dense is not None:
                 self.dense.extend(kingpin_position(params, state.X, state.Y, state.psi1)[None, :])
@@ -332,13 +317,14 @@ class CoSimulation:
             else None
         )
         # the camera rate divides the control rate (validated): a frame on every n-th control tick
-        camera_frame = self._ticks % self._camera_every == 0
+        tick_index = self._ticks
+        camera_frame = tick_index % self._camera_every == 0
         self._ticks += 1
         shot = None
         if self.camera is not None:
             if camera_frame:
-                shot = self.camera.frame(state)
-            estimates["viso_ot"] = self.camera.estimate  # held between camera frames
+                shot = self.camera.capture(tick_index, state)
+            estimates["viso_ot"] = self.camera.deliver(tick_index)  # released by the latency, then held
         # 3. the tractor's commands
         if self.kinematic:
             self.driver.progress, self.driver.lateral_error = setup.path.project(
@@ -374,12 +360,16 @@ def run_cosimulation(
     writer: TimeSeriesWriter | None = None,
     trailer_steer_source: TrailerSteerSource | None = None,
     progress: ProgressCallback | None = None,
+    camera_workers: int | None = None,
 ) -> tuple[RunOutcome, dict[str, np.ndarray]]:
     """Run a scenario to its end; return the outcome and the recorded columns (one row per tick).
 
-    Rows are also streamed to ``writer`` (if given) as they are made, so an interrupted or diverged
-    run keeps what it did. A diverging simulation or Ctrl-C ends the loop cleanly with the status
-    set accordingly; so does a loss of control (:mod:`.control_loss`), checked every tick.
+    Rows are also streamed to ``writer`` (if given) as they are made (:mod:`.recording`; in a pipelined
+    camera run each waits for its frame), so an interrupted or diverged run keeps what it did. A
+    diverging simulation or Ctrl-C ends the loop cleanly with the status set accordingly; so does a loss
+    of control (:mod:`.control_loss`), checked every tick, and a failed camera worker (``failed``).
+    ``camera_workers``: render worker processes of a ``viso_ot`` run (default
+    :func:`scenarios.camera.workers.default_workers`); the results do not depend on it.
     """
     params = setup.params
     l_fp = params.follow_point_offset
@@ -389,16 +379,21 @@ def run_cosimulation(
     telemetry_names = list(telemetry()) if callable(telemetry) else []
     outcome = RunOutcome()
     t_start = wallclock.perf_counter()
-    recorded: dict[str, list[float]] = {}
-    columns: list[str] = []
+    recorder = RowRecorder([])
+    cosim: CoSimulation | None = None
     try:
-        cosim = CoSimulation(setup, geometric_truth=True)
+        if camera_workers is None:
+            cfg = setup.config
+            frames = run_duration(setup) * cfg.rates.camera_hz if cfg.estimators.viso_ot else 0.0
+            camera_workers = default_workers(frames)
+        cosim = CoSimulation(setup, geometric_truth=True, camera_workers=camera_workers)
         layout = setup.model.layout
         estimator_names = [n for n in cosim.tick.estimates if n != "truth"]
         steer_names = [f"steer_{n}" for n in layout.steerable_axles]
         signal_names = ["wheel_speed", "front_steer", "tractor_yaw_rate", "articulation", "trailer_yaw_rate"]
+        state_names = layout.states[:8]
         columns = (
-            ["time", *layout.states[:8], "psi2", "kingpin_x", "kingpin_y", "follow_x", "follow_y"]
+            ["time", *state_names, "psi2", "kingpin_x", "kingpin_y", "follow_x", "follow_y"]
             + steer_names
             + ["drive_force", "speed_target", "path_progress", "lateral_error", "camera_frame"]
             + [f"signal_{n}" for n in signal_names]
@@ -408,85 +403,73 @@ def run_cosimulation(
             + telemetry_names
         )
         outcome.columns = columns
-        recorded = {c: [] for c in columns}
+        recorder = RowRecorder(columns, writer)
         if writer is not None:
             writer.columns = columns
         n_trailer = len(cosim.trailer_axles)
-        while True:
-            tick = cosim.tick
-            state = tick.state
-            trailer_steer = (
-                np.asarray(trailer_steer_source(state, tick.estimates), dtype=float)
-                if trailer_steer_source is not None and not cosim.kinematic
-                else np.zeros(n_trailer)
-            )
-            kp = cosim.kingpin
-            psi2 = state.psi1 - state.gamma
-            follow = kp - l_fp * np.array([math.cos(psi2), math.sin(psi2)])
-            row = {
-                "time": tick.time,
-                **{name: getattr(state, name) for name in layout.states[:8]},
-                "psi2": psi2,
-                "kingpin_x": kp[0],
-                "kingpin_y": kp[1],
-                "follow_x": follow[0],
-                "follow_y": follow[1],
-                **dict(zip(steer_names, np.concatenate([[tick.front_steer], trailer_steer]), strict=True)),
-                "drive_force": tick.drive_force,
-                "speed_target": tick.speed_target,
-                "path_progress": cosim.driver.progress,
-                "lateral_error": cosim.driver.lateral_error,
-                "camera_frame": float(tick.camera_frame),
-                **{f"signal_{n}": float(tick.measured[n][0]) for n in signal_names},
-                "offtracking_truth": _nan(tick.estimates["truth"]),
-                "offtracking_truth_geometric": _nan(tick.geometric_truth),
-                **{f"offtracking_{n}": _nan(tick.estimates[n]) for n in estimator_names},
-            }
-            if tick.camera is not None:
-                row.update(camera_row(tick.camera))
-            if telemetry_names:
-                row.update(telemetry())  # type: ignore[misc]
-            for key in columns:
-                recorded[key].append(float(row.get(key, np.nan)))
-            if writer is not None:
-                writer.append(row)
-            outcome.rows += 1
-            if progress is not None:
-                progress(tick.time, cosim.progress_fraction)
-            if reason := cosim.lost_control:
-                outcome.status, outcome.stop_time = "lost_control", tick.time
-                outcome.message = f"lost control at t = {tick.time:.2f} s: {reason}"
-                break
-            if cosim.finished:
-                break
-            cosim.advance(trailer_steer)
-    except SimulationDivergedError as exc:
-        outcome.status, outcome.message, outcome.stop_time = "diverged", str(exc), exc.time
+        try:
+            while True:
+                tick = cosim.tick
+                state = tick.state
+                trailer_steer = (
+                    np.asarray(trailer_steer_source(state, tick.estimates), dtype=float)
+                    if trailer_steer_source is not None and not cosim.kinematic
+                    else np.zeros(n_trailer)
+                )
+                kp = cosim.kingpin
+                psi2 = state.psi1 - state.gamma
+                row = {
+                    "time": tick.time,
+                    **{name: getattr(state, name) for name in state_names},
+                    "psi2": psi2,
+                    "kingpin_x": kp[0],
+                    "kingpin_y": kp[1],
+                    "follow_x": kp[0] - l_fp * math.cos(psi2),
+                    "follow_y": kp[1] - l_fp * math.sin(psi2),
+                    **dict(zip(steer_names, [tick.front_steer, *trailer_steer.tolist()], strict=True)),
+                    "drive_force": tick.drive_force,
+                    "speed_target": tick.speed_target,
+                    "path_progress": cosim.driver.progress,
+                    "lateral_error": cosim.driver.lateral_error,
+                    "camera_frame": float(tick.camera_frame),
+                    **{f"signal_{n}": float(tick.measured[n][0]) for n in signal_names},
+                    "offtracking_truth": _nan(tick.estimates["truth"]),
+                    "offtracking_truth_geometric": _nan(tick.geometric_truth),
+                    **{f"offtracking_{n}": _nan(tick.estimates[n]) for n in estimator_names},
+                }
+                if telemetry_names:
+                    row.update(telemetry())  # type: ignore[misc]
+                recorder.add(row, tick.camera)
+                if progress is not None:
+                    progress(tick.time, cosim.progress_fraction)
+                if reason := cosim.lost_control:
+                    outcome.status, outcome.stop_time = "lost_control", tick.time
+                    outcome.message = f"lost control at t = {tick.time:.2f} s: {reason}"
+                    break
+                if cosim.finished:
+                    break
+                cosim.advance(trailer_steer)
+        except SimulationDivergedError as exc:
+            outcome.status, outcome.message, outcome.stop_time = "diverged", str(exc), exc.time
+        if cosim.camera is not None:
+            cosim.camera.finish()  # the frames in flight, so that their rows are complete
+    except CameraWorkerError as exc:
+        outcome.status, outcome.message = "failed", str(exc)
+        outcome.stop_time = recorder.last_time or 0.0
     except KeyboardInterrupt as exc:
         outcome.status, outcome.message = "interrupted", stop_message(exc)
         outcome.stop_signal = stop_signal_name(exc)
-        outcome.stop_time = float(recorded["time"][-1]) if recorded.get("time") else 0.0
+        outcome.stop_time = recorder.last_time or 0.0
     finally:
-        outcome.wall_time_s = wallclock.perf_counter() - t_start
-        if writer is not None:
-            writer.close()
-    return outcome, {k: np.asarray(v) for k, v in recorded.items()}
-
-
-def _kinematic_step(setup: ScenarioSetup, state: VehicleState, period: float) -> VehicleState:
-    """Constant-slip straight (paper §3): both units crab at the slip angle, moving along the path."""
-    beta = setup.kinematic_slip or 0.0
-    speed = setup.speed_profile(0.0)
-    direction = state.psi1 + beta
-    return VehicleState(
-        state.time + period,
-        state.X + speed * period * math.cos(direction),
-        state.Y + speed * period * math.sin(direction),
-        state.psi1,
-        state.u,
-        state.v1,
-        0.0,
-        0.0,
-        0.0,
-        slip=state.slip,
-    )
+        try:
+            recorder.close()
+            if cosim is not None and cosim.camera is not None:
+                outcome.camera = cosim.camera.timings()
+        finally:
+            if cosim is not None:
+                cosim.close()
+            outcome.rows = recorder.rows
+            outcome.wall_time_s = wallclock.perf_counter() - t_start
+            if writer is not None:
+                writer.close()
+    return outcome, recorder.arrays()

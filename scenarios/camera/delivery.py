@@ -1,0 +1,200 @@
+"""The camera as the controller sees it: frames taken on camera ticks, their estimates delivered a latency later.
+
+A real camera computer needs time to turn an image into an estimate. ``camera.latency_s`` (default: one
+frame period, ``1/rates.camera_hz``) says how long: the estimate of a frame taken on control tick ``k`` at
+time ``t_k`` reaches the controller on the first control tick at or after ``t_k + latency`` (tick
+``k + ceil(latency / control period)``) and is held until the next one arrives. That rule alone decides what
+the controller sees, so *how* the frames are computed cannot change a run:
+
+- **serial** (``workers = 0``): the frame is rendered and processed on the tick it is taken
+  (:class:`~.pipeline.CameraPipeline`) and its result waits for its release tick;
+- **pipelined** (``workers ≥ 1``): the pair is rendered by a spawned worker (:mod:`.workers`) while the
+  co-simulation goes on; the odometry and VISO-OT (:class:`~.pipeline.PairOdometry`) run in this process on
+  the pairs in frame order, as soon as a pair is there and at the latest on its release tick, which waits
+  for it. The latency bounds how many frames are in flight (``ceil(latency / frame period) + 1``).
+
+Both give the same estimates on the same ticks and the same per-frame records (``tests/test_loop_pipelining.py``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+from vehicle_model.simulator import VehicleState
+
+from ..setup.build import ScenarioSetup
+from .feasibility import check_camera_feasible
+from .pipeline import CameraFrame, CameraPipeline, PairOdometry
+from .workers import CameraWorkerError, RenderWorkers
+
+__all__ = ["CameraFeed", "CameraWorkerError", "CapturedFrame", "latency_ticks"]
+
+
+def latency_ticks(setup: ScenarioSetup) -> int:
+    """Control ticks from taking a frame to its estimate reaching the controller (``camera.latency_s`` rounded up)."""
+    cfg = setup.config
+    every = max(1, round(cfg.rates.control_hz / cfg.rates.camera_hz))
+    if cfg.camera.latency_s is None:
+        return every  # one frame period
+    return max(0, math.ceil(cfg.camera.latency_s * cfg.rates.control_hz - 1e-6))
+
+
+@dataclass
+class CapturedFrame:
+    """A frame taken on a camera tick.
+
+    Attributes
+    ----------
+    index : int
+        Frame number since the start of the run.
+    tick : int
+        Control tick it was taken on.
+    release_tick : int
+        Control tick its estimate reaches the controller on.
+    frame : CameraFrame or None
+        What the pipeline made of it; ``None`` while it is still being rendered or processed. Its fields
+        read through this object too (``shot.valid``), so serial callers can treat it as the frame.
+    """
+
+    index: int
+    tick: int
+    release_tick: int
+    frame: CameraFrame | None = None
+
+    def __getattr__(self, name: str) -> Any:
+        """The :class:`~.pipeline.CameraFrame`'s fields (``estimate``, ``valid``, …) once it is processed."""
+        if name.startswith("__") or name == "frame":
+            raise AttributeError(name)
+        frame = self.__dict__.get("frame")
+        if frame is None:
+            raise AttributeError(f"frame {self.__dict__.get('index')} is not processed yet: no {name!r}")
+        return getattr(frame, name)
+
+
+class CameraFeed:
+    """The trailer camera of a run, its estimates held back by the camera latency.
+
+    Parameters
+    ----------
+    setup
+        The built scenario.
+    workers
+        Render worker processes; 0 renders and processes each frame in this process on the tick it is taken.
+
+    Attributes
+    ----------
+    estimate : float or None
+        The VISO-OT off-tracking [m] the controller may use now: that of the latest released frame.
+    latency_ticks : int
+        Control ticks between taking a frame and releasing its estimate.
+    """
+
+    def __init__(self, setup: ScenarioSetup, workers: int = 0) -> None:
+        check_camera_feasible(setup.config)
+        self.latency_ticks = latency_ticks(setup)
+        self.estimate: float | None = None
+        self._pipeline: CameraPipeline | None = None
+        self._workers: RenderWorkers | None = None
+        if workers > 0:
+            self._workers = RenderWorkers(setup.config, workers)  # start them first: they take a while
+            self._odometry = PairOdometry(setup)
+        else:
+            self._pipeline = CameraPipeline(setup)
+            self._odometry = self._pipeline.stage_odometry
+        self.rig = self._odometry.rig
+        self._captured: deque[CapturedFrame] = deque()  # taken, not yet released
+        self._unprocessed: deque[CapturedFrame] = deque()  # taken, not yet processed (pipelined)
+        self._count = 0
+        self.render_cpu_s = 0.0
+        self.vo_cpu_s = 0.0
+
+    @property
+    def pipelined(self) -> bool:
+        """Pairs are rendered by worker processes."""
+        return self._workers is not None
+
+    @property
+    def renderer(self) -> Any:
+        """This process's :class:`~sensor.renderer.StereoRenderer` (``None`` when the workers render)."""
+        return self._pipeline.renderer if self._pipeline is not None else None
+
+    @property
+    def worker_pids(self) -> list[int]:
+        """Process ids of the render workers (empty when serial)."""
+        return self._workers.pids if self._workers is not None else []
+
+    @property
+    def wait_s(self) -> float:
+        """Wall time spent waiting for the render workers [s]."""
+        return self._workers.wait_s if self._workers is not None else 0.0
+
+    def capture(self, tick: int, state: VehicleState) -> CapturedFrame:
+        """Take a frame at ``state`` on control tick ``tick``."""
+        shot = CapturedFrame(self._count, tick, tick + self.latency_ticks)
+        self._count += 1
+        if self._workers is None:
+            assert self._pipeline is not None
+            shot.frame = self._pipeline.frame(state)
+            self._account(shot.frame)
+        else:
+            self._workers.submit(shot.index, state.X, state.Y, state.psi1, state.gamma)
+            self._unprocessed.append(shot)
+        self._captured.append(shot)
+        return shot
+
+    def deliver(self, tick: int) -> float | None:
+        """Release the estimates due by control tick ``tick`` (waiting for them if need be); return :attr:`estimate`.
+
+        Pairs that are already rendered are processed now even if their release is later (keeps the
+        workers busy; the release rule alone decides what the controller sees).
+        """
+        while self._unprocessed and self._workers is not None and self._workers.ready(self._unprocessed[0].index):
+            self._process_next()
+        while self._captured and self._captured[0].release_tick <= tick:
+            shot = self._captured.popleft()
+            while shot.frame is None:
+                self._process_next()
+            assert shot.frame is not None
+            self.estimate = shot.frame.estimate
+        return self.estimate
+
+    def finish(self) -> None:
+        """Process every frame still in flight (their estimates stay unreleased): the end of a run."""
+        while self._unprocessed:
+            self._process_next()
+
+    def timings(self) -> dict[str, float]:
+        """Where the camera's time went so far: ``frames``, ``workers``, ``latency_ticks``, ``render_cpu_s``
+        (all rendering threads, in whichever process), ``vo_cpu_s`` (odometry and VISO-OT, thread CPU time)
+        and ``wait_s`` (this process waiting for the render workers)."""
+        return {
+            "frames": float(self._count),
+            "workers": float(len(self._workers) if self._workers is not None else 0),
+            "latency_ticks": float(self.latency_ticks),
+            "render_cpu_s": self.render_cpu_s,
+            "vo_cpu_s": self.vo_cpu_s,
+            "wait_s": self.wait_s,
+        }
+
+    def close(self) -> None:
+        """Stop the render workers (if any). Safe to call twice."""
+        if self._workers is not None:
+            self._workers.close()
+
+    def _process_next(self) -> None:
+        assert self._workers is not None
+        shot = self._unprocessed.popleft()
+        left, right, render_s, render_cpu_s = self._workers.result(shot.index)
+        frame = self._odometry.process(left, right, render_s)
+        frame.render_cpu_s = render_cpu_s
+        shot.frame = frame
+        self._account(frame)
+
+    def _account(self, frame: CameraFrame) -> None:
+        if math.isfinite(frame.render_cpu_s):
+            self.render_cpu_s += frame.render_cpu_s
+        if math.isfinite(frame.vo_cpu_s):
+            self.vo_cpu_s += frame.vo_cpu_s

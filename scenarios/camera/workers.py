@@ -1,0 +1,252 @@
+"""Render workers: spawned processes that render the stereo pairs while the co-simulation runs the odometry.
+
+A pipelined camera run renders frame ``n + 1`` in one worker while the co-simulation process runs the
+visual odometry and VISO-OT on frame ``n``, so both cores work (:mod:`.delivery` says when each estimate may
+reach the controller). Workers take the frames in turn (frame ``n`` goes to worker ``n mod workers``): with
+the default latency of one frame period two frames are in flight, and the second worker renders the next
+one while the first one's pair waits for the odometry.
+
+Each worker is a ``spawn``-ed process (never a fork: OpenGL contexts do not survive one) that rebuilds the
+scenario from its configuration and owns one :class:`~.pipeline.PairRenderer`, hence one renderer, as the
+rendering rules demand. The co-simulation sends ``(frame, X, Y, ψ1, Γ)`` down a pipe; the worker answers
+with the render time and CPU time, then the left and right images as raw bytes (1 MB a pair at 1344×391,
+well under a millisecond to copy). A worker ignores Ctrl-C (the co-simulation process stops it, keeping
+the data) and exits when its pipe closes, so it never outlives the run even after a SIGKILL of the run.
+A worker that raises sends the traceback back; one that dies or stops answering is a
+:class:`CameraWorkerError` naming the worker, the frame and the exit code, never a hang.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import signal
+import threading
+import time
+import traceback
+from multiprocessing.connection import Connection, wait
+from typing import Any
+
+import numpy as np
+
+from vehicle_model.errors import OfftrackError
+
+DEFAULT_WORKERS = 2
+"""Render workers of a pipelined run (two frames in flight at the default latency of one frame period)."""
+ANSWER_TIMEOUT_S = 300.0
+"""Longest wait for one worker's answer [s]; the first includes building the world and the OpenGL context."""
+MIN_PIPELINED_FRAMES = 150
+"""Shortest run (camera frames) pipelined by default: below it the workers' start-up costs more than they save."""
+STOP_TIMEOUT_S = 2.0
+"""How long a worker gets to exit on request before it is terminated [s]."""
+
+
+class CameraWorkerError(OfftrackError, RuntimeError):
+    """A render worker died, raised, or stopped answering: the run cannot go on."""
+
+
+def _worker_main(config: Any, conn: Connection) -> None:
+    """Body of one render worker (runs in the spawned process)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the co-simulation process handles Ctrl-C and stops us
+    try:
+        from ..setup.build import build_scenario
+        from .pipeline import PairRenderer
+
+        setup = build_scenario(config)
+        renderer = PairRenderer(setup)
+    except BaseException:
+        _send_error(conn, traceback.format_exc())
+        return
+    while True:
+        try:
+            job = conn.recv()
+        except (EOFError, OSError):
+            return  # the co-simulation is gone
+        if job is None:
+            return
+        frame, x, y, psi1, gamma = job
+        try:
+            t0, cpu0 = time.perf_counter(), time.process_time()
+            left, right = renderer.render(x, y, psi1, gamma, frame)
+            answer = (frame, time.perf_counter() - t0, time.process_time() - cpu0, left.shape)
+            conn.send(answer)
+            conn.send_bytes(np.ascontiguousarray(left, dtype=np.uint8).reshape(-1))
+            conn.send_bytes(np.ascontiguousarray(right, dtype=np.uint8).reshape(-1))
+        except (BrokenPipeError, EOFError, OSError):
+            return
+        except BaseException:
+            _send_error(conn, traceback.format_exc())
+            return
+
+
+def _receive_image(conn: Connection, shape: tuple[int, int]) -> np.ndarray:
+    """One grey image sent as raw bytes, in a writable array of its own."""
+    image = np.empty(shape, dtype=np.uint8)
+    conn.recv_bytes_into(memoryview(image.reshape(-1)))
+    return image
+
+
+def _send_error(conn: Connection, text: str) -> None:
+    try:
+        conn.send(("error", text))
+    except (BrokenPipeError, EOFError, OSError):
+        pass
+
+
+class RenderWorkers:
+    """A few spawned render workers, frames dealt round-robin, answers read in frame order.
+
+    Parameters
+    ----------
+    config
+        The scenario configuration (:class:`~scenarios.config.ScenarioConfig`); each worker rebuilds the
+        scenario from it.
+    workers
+        Number of worker processes.
+
+    Attributes
+    ----------
+    cpu_s : float
+        CPU time the workers spent rendering the frames answered so far (all their threads) [s].
+    wait_s : float
+        Wall time the co-simulation spent waiting for the workers' answers [s].
+    """
+
+    def __init__(self, config: Any, workers: int = DEFAULT_WORKERS) -> None:
+        if workers < 1:
+            raise ValueError(f"workers = {workers} must be at least 1")
+        ctx = multiprocessing.get_context("spawn")
+        self._procs: list[Any] = []
+        self._conns: list[Connection] = []
+        self.cpu_s = 0.0
+        self.wait_s = 0.0
+        self._outstanding: dict[int, int] = {}  # frame → worker
+        # Start the workers with Ctrl-C ignored (inherited through exec), so that a Ctrl-C at the terminal
+        # reaches only this process even while a worker is still importing.
+        main_thread = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
+        try:
+            for i in range(workers):
+                here, there = ctx.Pipe(duplex=True)
+                proc = ctx.Process(target=_worker_main, args=(config, there), name=f"offtrack-render-{i}", daemon=True)
+                proc.start()
+                there.close()  # so that the worker's death reads as end-of-file here
+                self._procs.append(proc)
+                self._conns.append(here)
+        except BaseException:
+            self.close()
+            raise
+        finally:
+            if main_thread:
+                signal.signal(signal.SIGINT, previous)
+
+    @property
+    def pids(self) -> list[int]:
+        """Process ids of the workers."""
+        return [p.pid for p in self._procs]
+
+    def __len__(self) -> int:
+        return len(self._procs)
+
+    def submit(self, frame: int, x: float, y: float, psi1: float, gamma: float) -> None:
+        """Have worker ``frame mod workers`` render frame ``frame`` at the tractor pose ``(x, y, ψ1, Γ)``."""
+        i = frame % len(self._conns)
+        try:
+            self._conns[i].send((frame, float(x), float(y), float(psi1), float(gamma)))
+        except (BrokenPipeError, EOFError, OSError):
+            raise self._failure(i, frame, "") from None
+        self._outstanding[frame] = i
+
+    def ready(self, frame: int) -> bool:
+        """Whether frame ``frame``'s answer can be read without waiting."""
+        i = self._outstanding.get(frame)
+        return i is not None and self._conns[i].poll()
+
+    def result(self, frame: int) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """Left and right images, render wall time and CPU time [s] of ``frame`` (waits for them).
+
+        Frames of one worker must be read in the order they were submitted.
+
+        Raises
+        ------
+        CameraWorkerError
+            The worker died, raised, or gave no answer within :data:`ANSWER_TIMEOUT_S`.
+        """
+        i = self._outstanding.pop(frame)
+        conn, proc = self._conns[i], self._procs[i]
+        t0 = time.perf_counter()
+        while not conn.poll():
+            ready = wait([conn, proc.sentinel], timeout=max(ANSWER_TIMEOUT_S - (time.perf_counter() - t0), 0.0))
+            if not ready:
+                raise CameraWorkerError(
+                    f"camera render worker {i} (pid {proc.pid}) gave no answer for frame {frame} "
+                    f"within {ANSWER_TIMEOUT_S:g} s"
+                )
+            if conn not in ready and proc.sentinel in ready:
+                proc.join(0.1)
+                raise self._failure(i, frame, "")
+        try:
+            answer = conn.recv()
+            if answer[0] == "error":
+                raise self._failure(i, frame, answer[1])
+            got, render_s, cpu_s, shape = answer
+            left, right = _receive_image(conn, shape), _receive_image(conn, shape)
+        except (EOFError, OSError):
+            proc.join(0.5)
+            raise self._failure(i, frame, "") from None
+        self.wait_s += time.perf_counter() - t0
+        if got != frame:  # cannot happen while frames are read in order
+            raise CameraWorkerError(f"camera render worker {i} answered frame {got} for frame {frame}")
+        self.cpu_s += cpu_s
+        return left, right, render_s, cpu_s
+
+    def _failure(self, i: int, frame: int, worker_traceback: str) -> CameraWorkerError:
+        proc = self._procs[i]
+        if worker_traceback:
+            last = worker_traceback.strip().splitlines()[-1]
+            return CameraWorkerError(
+                f"camera render worker {i} (pid {proc.pid}) failed at frame {frame}: {last}\n{worker_traceback}"
+            )
+        code = proc.exitcode
+        how = "is gone" if code is None else f"died with exit code {code}"
+        if code is not None and code < 0:
+            how += f" ({signal.Signals(-code).name})"
+        return CameraWorkerError(f"camera render worker {i} (pid {proc.pid}) {how} at frame {frame}")
+
+    def close(self) -> None:
+        """Stop every worker: close the pipes (a worker exits on end-of-file or a broken pipe), wait
+        :data:`STOP_TIMEOUT_S`, then terminate and kill. Safe to call twice."""
+        for conn in self._conns:
+            conn.close()
+        deadline = time.monotonic() + STOP_TIMEOUT_S
+        for proc in self._procs:
+            proc.join(max(deadline - time.monotonic(), 0.0))
+            if proc.is_alive():
+                proc.terminate()
+                proc.join(1.0)
+            if proc.is_alive():
+                proc.kill()
+                proc.join(1.0)
+        self._procs, self._conns, self._outstanding = [], [], {}
+
+
+def default_workers(frames: float = math.inf) -> int:
+    """Render workers a run of about ``frames`` camera frames uses when not told.
+
+    ``OFFTRACK_CAMERA_WORKERS`` if set (0: serial); else :data:`DEFAULT_WORKERS` on a machine with two or
+    more cores, in the main process (a study's worker process shares the cores with its siblings and
+    renders in-process) and for runs of :data:`MIN_PIPELINED_FRAMES` frames or more (the workers take a
+    few seconds to start); else 0.
+    """
+    value = os.environ.get("OFFTRACK_CAMERA_WORKERS", "").strip()
+    if value:
+        try:
+            return max(0, int(value))
+        except ValueError:
+            raise ValueError(f"OFFTRACK_CAMERA_WORKERS = {value!r} must be a whole number (0: serial)") from None
+    if frames <= 0:
+        return 0
+    if (os.cpu_count() or 1) >= 2 and multiprocessing.parent_process() is None and frames >= MIN_PIPELINED_FRAMES:
+        return DEFAULT_WORKERS
+    return 0

@@ -1,0 +1,118 @@
+"""The camera's field conditions in the scenario schema: lens, calibration, mount flex, lighting, world.
+
+All of them are off by default, so the paper's §3 ideal simulation is unchanged; paper §4 (the field tests)
+needs them. This module holds the strict base model every schema section shares, and sits below
+:mod:`scenarios.config`, which includes these sections in ``camera``. Degrees at this edge; the camera
+pipeline converts to SI.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+
+class StrictModel(BaseModel):
+    """A schema section: unknown fields refused, frozen, every float finite (also in tuples and options)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False)
+
+
+MAX_RIG_ROTATION_DEG = 20.0
+"""Largest right-camera misalignment or correction per axis [°] (:class:`sensor.camera.Misalignment`)."""
+
+RigRotationDeg = Annotated[
+    float,
+    Field(
+        ge=-MAX_RIG_ROTATION_DEG,
+        le=MAX_RIG_ROTATION_DEG,
+        description="[°] per axis, the range the rig accepts (sensor.camera.Misalignment); paper §4.4 needs a few",
+    ),
+]
+
+_RADIAL = "Brown–Conrady radial coefficient; |k| ≤ 1 covers wide-angle automotive lenses (not fisheyes)"
+_TANGENTIAL = "Brown–Conrady tangential coefficient; |p| ≤ 0.05 is a lens glued crooked by several degrees"
+
+
+class LensConfig(StrictModel):
+    """A Brown–Conrady lens (OpenCV's k1, k2, p1, p2, k3 on normalised coordinates; :class:`sensor.lens.Lens`).
+
+    The renderer draws a slightly wider pinhole image and ``cv2.remap`` turns it into the distorted one.
+    """
+
+    k1: float = Field(0.0, ge=-1.0, le=1.0, description=_RADIAL)
+    k2: float = Field(0.0, ge=-1.0, le=1.0, description=_RADIAL)
+    p1: float = Field(0.0, ge=-0.05, le=0.05, description=_TANGENTIAL)
+    p2: float = Field(0.0, ge=-0.05, le=0.05, description=_TANGENTIAL)
+    k3: float = Field(0.0, ge=-1.0, le=1.0, description=_RADIAL)
+
+    @property
+    def is_zero(self) -> bool:
+        """A pinhole camera: no distortion."""
+        return not any((self.k1, self.k2, self.p1, self.p2, self.k3))
+
+
+class CalibrationConfig(StrictModel):
+    """How the visual odometry knows the rig (paper §4.1: the field rig was calibrated with a checkerboard).
+
+    ``ideal``: the true intrinsics and the ideal stereo geometry (today's behaviour). ``estimated``: a
+    checkerboard of ``target_cols × target_rows`` inner corners with ``square_size`` squares is imaged in
+    ``views`` seeded poses, its corners detected (plus ``corner_noise_px`` of detection noise), and OpenCV's
+    ``calibrateCamera``/``stereoCalibrate``/``stereoRectify`` give the calibration the VO rectifies with — so
+    calibration error reaches the estimate as on a truck. ``file``: an OpenCV YAML written by
+    ``offtrack calibrate``. ``misalignment_deg`` is the right camera's rotation when it was calibrated: a
+    calibration removes the rotation it sees, so only a change after it (``camera.right_misalignment_deg``
+    minus this, plus the mount flex) biases the run.
+    """
+
+    mode: Literal["ideal", "estimated", "file"] = "ideal"
+    file: str | None = Field(None, description="OpenCV YAML of `offtrack calibrate` (mode file)")
+    views: int = Field(15, ge=5, le=100, description="target poses; OpenCV needs a few, 100 is far beyond use")
+    target_cols: int = Field(17, ge=3, le=30, description="inner corners across; a wide board suits a 3.4:1 image")
+    target_rows: int = Field(6, ge=3, le=30, description="inner corners down; must differ from target_cols")
+    square_size: float = Field(0.05, ge=0.005, le=1.0, description="[m] printed square size")
+    corner_noise_px: float = Field(0.1, ge=0.0, le=5.0, description="[px] corner-detection noise (std)")
+    misalignment_deg: tuple[RigRotationDeg, RigRotationDeg, RigRotationDeg] = (0.0, 0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> CalibrationConfig:
+        if self.mode == "file" and not self.file:
+            raise ValueError("calibration mode file needs camera.calibration.file (an `offtrack calibrate` YAML)")
+        if self.target_cols == self.target_rows:
+            raise ValueError("target_cols and target_rows must differ (a square board's orientation is ambiguous)")
+        return self
+
+
+_TWIST = "[°/(m/s²)] per axis (roll, pitch, yaw); paper §4.4 saw ~0.1–0.2° at ~1–2 m/s², so ±1 is generous"
+
+
+class FlexConfig(StrictModel):
+    """Mount flex of the right camera relative to the left (:class:`sensor.mount_flex.MountFlex`).
+
+    Added to the static ``camera.right_misalignment_deg`` every frame: a frame twist proportional to the
+    trailer's lateral acceleration (signed: left and right turns twist opposite ways, paper §4.4) and seeded
+    band-limited vibration.
+    """
+
+    twist_deg_per_mps2: tuple[float, float, float] = Field((0.0, 0.0, 0.0), description=_TWIST)
+    vibration_rms_deg: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0), description="[°] RMS per axis; 2° would shake any stereo rig apart"
+    )
+    vibration_bandwidth_hz: float = Field(5.0, ge=0.01, le=100.0, description="[Hz] corner of the vibration")
+
+    @model_validator(mode="after")
+    def _ranges(self) -> FlexConfig:
+        for axis, twist, rms in zip(
+            ("roll", "pitch", "yaw"), self.twist_deg_per_mps2, self.vibration_rms_deg, strict=True
+        ):
+            if abs(twist) > 1.0:
+                raise ValueError(f"twist_deg_per_mps2 {axis} = {twist}: allowed ±1 °/(m/s²)")
+            if not 0.0 <= rms <= 2.0:
+                raise ValueError(f"vibration_rms_deg {axis} = {rms}: allowed 0 to 2°")
+        return self
+
+    @property
+    def is_zero(self) -> bool:
+        """No flex at all."""
+        return not any(self.twist_deg_per_mps2) and not any(self.vibration_rms_deg)
