@@ -12,6 +12,26 @@ from .rendering_errors import INSTALL_HINT, RenderingUnavailableError
 __all__ = ["make_fast_renderer"]
 
 
+def _upload_mipmaps(tex: Any) -> None:
+    """Replace the box-filtered mipmap levels of a freshly uploaded texture by its ``offtrack_mipmaps``.
+
+    The levels are in the row order of the texture's source; pyrender flips rows on upload, so they
+    are flipped the same way here.
+    """
+    levels = getattr(tex, "offtrack_mipmaps", None)
+    if not levels or tex._texid is None:
+        return
+    from OpenGL import GL
+
+    fmt = GL.GL_RGBA if levels[0].shape[2] == 4 else GL.GL_RGB
+    GL.glBindTexture(tex.tex_type, tex._texid)
+    GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
+    for k, level in enumerate(levels, start=1):
+        data = np.ascontiguousarray(level[::-1])
+        GL.glTexSubImage2D(tex.tex_type, k, 0, 0, level.shape[1], level.shape[0], fmt, GL.GL_UNSIGNED_BYTE, data)
+    GL.glBindTexture(tex.tex_type, 0)
+
+
 def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
     """Swap the offscreen renderer's pyrender ``Renderer`` for one that reads back only what is needed.
 
@@ -73,6 +93,8 @@ def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
                 GL.glTexParameterf(tex.tex_type, GL.GL_TEXTURE_LOD_BIAS, self.lod_bias)
                 GL.glBindTexture(tex.tex_type, 0)
             self._tex_key = key
+            for tex in self._mesh_textures - before:
+                _upload_mipmaps(tex)
 
         def _forward_pass(self, scene, flags, seg_node_map=None):
             """A lean forward pass for offtrack's scenes: FLAT shading, one texture per primitive,
@@ -100,6 +122,7 @@ def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
                 if not mesh.is_visible:
                     continue
                 pose = scene.get_pose(node)
+                alpha_only = getattr(node, "offtrack_alpha_only", False)
                 for prim in mesh.primitives:
                     prog = self._get_primitive_program(prim, flags, pyrender.constants.ProgramFlags.USE_MATERIAL)
                     if prog is not program:
@@ -118,10 +141,17 @@ def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
                         locs["material.base_color_factor"], 1, np.asarray(material.baseColorFactor, np.float32)
                     )
                     GL.glBindTexture(GL.GL_TEXTURE_2D, material.baseColorTexture._texid)
-                    want = material.alphaMode == "BLEND"
+                    want = "alpha" if alpha_only else material.alphaMode == "BLEND"
                     if want != blend:
-                        if want:
-                            GL.glBlendFunc(GL.GL_SRC_ALPHA, GL.GL_ONE_MINUS_SRC_ALPHA)
+                        if blend == "alpha":
+                            GL.glColorMask(GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE)
+                            GL.glDepthMask(GL.GL_TRUE)
+                        if want == "alpha":  # shadow decals: alpha only, no depth write (no double shade)
+                            GL.glColorMask(GL.GL_FALSE, GL.GL_FALSE, GL.GL_FALSE, GL.GL_TRUE)
+                            GL.glDepthMask(GL.GL_FALSE)
+                            GL.glBlendFunc(GL.GL_ONE, GL.GL_ZERO)
+                        elif want:  # road lines over the asphalt; the alpha (sky/shade mask) is kept
+                            GL.glBlendFuncSeparate(GL.GL_SRC_ALPHA, GL.GL_ONE_MINUS_SRC_ALPHA, GL.GL_ZERO, GL.GL_ONE)
                         else:
                             GL.glBlendFunc(GL.GL_ONE, GL.GL_ZERO)
                         blend = want
@@ -130,6 +160,9 @@ def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
                     GL.glDrawElementsInstanced(GL.GL_TRIANGLES, prim.indices.size, GL.GL_UNSIGNED_INT, None, n)
             GL.glBindVertexArray(0)
             GL.glUseProgram(0)
+            if blend == "alpha":
+                GL.glColorMask(GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE)
+                GL.glDepthMask(GL.GL_TRUE)
             GL.glFlush()
             return self._read_main_framebuffer(scene, flags)
 

@@ -50,7 +50,9 @@ from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
 
 from .camera import StereoRig, opencv_to_opengl
+from .exposure import AutoExposure, FrameLight
 from .gl_context import GLContext, import_pyrender
+from .lighting import Lighting, light_world
 from .scene import scene_for
 from .world import World
 
@@ -103,6 +105,12 @@ class StereoRenderer:
         Skip instanced objects outside the view frustum (no effect on the image).
     cull_distance : float
         ... and those farther than this along the optical axis [m] (they would cover a pixel or two).
+    lighting : Lighting, optional
+        Sun, shadows, sky and auto-exposure (:mod:`sensor.lighting`, :mod:`sensor.exposure`); default
+        (None or ``Lighting()``) the flat lighting of the ideal study, images unchanged. With a sun
+        the light and shadows are baked into a copy of the world once, and each pair gets the sky,
+        the glare and one lagging exposure gain (carried from frame ``k − 1`` to ``k`` when frames
+        come in order).
 
     Notes
     -----
@@ -122,6 +130,7 @@ class StereoRenderer:
         lod_bias: float = -0.5,
         cull: bool = True,
         cull_distance: float = 600.0,
+        lighting: Lighting | None = None,
     ) -> None:
         self.world = world
         self.rig = rig if rig is not None else StereoRig()
@@ -132,20 +141,40 @@ class StereoRenderer:
         self.lod_bias = float(lod_bias)
         self.cull = bool(cull)
         self.cull_distance = float(cull_distance)
+        self.lighting = lighting if lighting is not None else Lighting()
         self.frame = 0
         self.timings: dict[str, float] = {}
         self._scene: Any = None
         self._camera_node: Any = None
+        self._lit: tuple[World, FrameLight, AutoExposure] | None = None
+        self._alpha: np.ndarray | None = None
+        self.last_gain = 1.0
 
     # -- pickling: the world and the rig only -------------------------------------------------------
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         state["_scene"] = None
         state["_camera_node"] = None
+        state["_lit"] = None
+        state["_alpha"] = None
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
+        state.setdefault("lighting", Lighting())
+        state.setdefault("_lit", None)
+        state.setdefault("_alpha", None)
+        state.setdefault("last_gain", 1.0)
         self.__dict__.update(state)
+
+    def _lit_parts(self) -> tuple[World, FrameLight, AutoExposure] | None:
+        """The lit world, the sky/glare model and the exposure state (None under flat lighting)."""
+        if not self.lighting.sun:
+            return None
+        if self._lit is None:
+            rig = self.rig
+            light = FrameLight(self.lighting, rig.intrinsics(), rig.width, rig.height, self.world.sky_rgb)
+            self._lit = (light_world(self.world, self.lighting), light, AutoExposure(self.lighting))
+        return self._lit
 
     # -- rendering ----------------------------------------------------------------------------------
     def _context(self) -> GLContext:
@@ -154,7 +183,8 @@ class StereoRenderer:
         ctx.renderer.anisotropy = self.anisotropy
         ctx.renderer.lod_bias = self.lod_bias
         if self._scene is None:
-            self._scene, self._camera_node = scene_for(self.world)
+            lit = self._lit_parts()
+            self._scene, self._camera_node = scene_for(self.world if lit is None else lit[0])
         if ctx.scene is not self._scene:
             # pyrender frees the previous scene's meshes and uploads this one's on the next render:
             # make sure it uploads every instance, then cut again.
@@ -201,6 +231,7 @@ class StereoRenderer:
         t2 = time.perf_counter()
         grey = cv2.cvtColor(rgba, cv2.COLOR_RGBA2GRAY)
         grey = np.ascontiguousarray(grey[::-1])  # OpenGL rows run bottom-up
+        self._alpha = np.ascontiguousarray(rgba[::-1, :, 3]) if self.lighting.sun else None
         t3 = time.perf_counter()
         gl = r.timings
         for key, value in (
@@ -224,8 +255,17 @@ class StereoRenderer:
         k = self.frame if frame is None else int(frame)
         self.frame = k + 1
         left, dl = self.render_view(pose_left, depth=depth)
+        alpha_left = self._alpha
         right, dr = self.render_view(pose_right, depth=depth)
         t0 = time.perf_counter()
+        lit = self._lit_parts()
+        if lit is not None:  # sky, shade, glare, then one lagging exposure for the pair (sensor.exposure)
+            _, light, exposure = lit
+            rad_l = light.radiance(left, alpha_left, np.asarray(pose_left)[:3, :3])
+            rad_r = light.radiance(right, self._alpha, np.asarray(pose_right)[:3, :3])
+            gain = exposure.update(float(cv2.mean(rad_l)[0]), k)
+            left, right = exposure.apply(rad_l, gain), exposure.apply(rad_r, gain)
+            self.last_gain = gain
         left, right = self._effects(left, right, k)
         self.timings["effects_s"] = self.timings.get("effects_s", 0.0) + time.perf_counter() - t0
         self.timings["pairs"] = self.timings.get("pairs", 0.0) + 1

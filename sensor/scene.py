@@ -17,7 +17,7 @@ __all__ = ["BAKE_MAX_INSTANCES", "InstanceCuller", "build_scene", "scene_for"]
 BAKE_MAX_INSTANCES = 32
 """Instanced parts with at most this many copies are baked into static geometry (fewer draw calls)."""
 
-_RANK = {"scenery": 0, "roundabout": 1, "road": 2, "ground": 3}
+_RANK = {"scenery": 0, "roundabout": 1, "road": 2, "ground": 3, "shadow": 4}
 
 
 def _draw_groups(world: World) -> list[tuple[float, str, Any]]:
@@ -84,10 +84,12 @@ def build_scene(world: World) -> tuple[Any, Any]:
     for name, img in world.textures.items():
         rgba = img.shape[2] == 4  # road lines: soft-edged, blended onto the asphalt
         tex = pyrender.Texture(source=img, source_channels="RGBA" if rgba else "RGB", sampler=sampler)
+        tex.offtrack_mipmaps = world.mipmaps.get(name)  # uploaded by the fast renderer (sensor.fast_renderer)
         materials[name] = pyrender.MetallicRoughnessMaterial(
             baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=1.0, alphaMode="BLEND" if rgba else "OPAQUE"
         )
-    scene = pyrender.Scene(bg_color=[*world.sky_rgb, 1.0], ambient_light=[1.0, 1.0, 1.0])
+    # Clear alpha 0 marks the sky (surfaces write alpha 1; the grey image ignores alpha).
+    scene = pyrender.Scene(bg_color=[*world.sky_rgb, 0.0], ambient_light=[1.0, 1.0, 1.0])
     nodes, instanced = [], []
     for _, texture, part in _draw_groups(world):
         prim = pyrender.Primitive(
@@ -98,7 +100,9 @@ def build_scene(world: World) -> tuple[Any, Any]:
             material=materials[texture],
             poses=part.poses,
         )
-        nodes.append(scene.add(pyrender.Mesh([prim], name=part.name)))
+        node = scene.add(pyrender.Mesh([prim], name=part.name))
+        node.offtrack_alpha_only = part.category == "shadow"  # shadow decals: written to alpha only
+        nodes.append(node)
         if part.poses is not None:
             instanced.append((prim, part))
     scene.offtrack_draw_order = nodes

@@ -17,7 +17,11 @@ from ..setup.build import build_scenario
 
 
 def bench_render(
-    duration_frames: int = 50, scenario: str = "roundabout-3", antialias: bool = False, scenery_density: float = 1.0
+    duration_frames: int = 50,
+    scenario: str = "roundabout-3",
+    antialias: bool = False,
+    scenery_density: float = 1.0,
+    field: bool = True,
 ) -> dict[str, Any]:
     """Rendering speed of stereo pairs on a scenario's default world, at the default 1344 × 391.
 
@@ -36,7 +40,12 @@ def bench_render(
         grey and row flip), plus ``world_build_s``, ``first_pair_s`` (context creation and
         texture upload), ``cpu_ms_per_pair`` (CPU time of all threads: llvmpipe rasterises on
         every core, so on a busy machine the wall time grows while this stays) and the OpenGL
-        renderer string.
+        renderer string. With ``field``, the same poses are rendered again under field conditions
+        (a low sun with baked shadows, sky, glare and the lagging auto-exposure,
+        :meth:`sensor.lighting.Lighting.field`) between two blocks of ideal pairs (the process has
+        one GL context; switching scenes re-uploads them, so pairs are not interleaved):
+        ``field_ms_per_pair`` (mean), ``field_ms_per_pair_median``, ``ideal_ms_per_pair_both_blocks``
+        (median over both ideal blocks) and ``field_ratio`` (field over ideal, medians).
     """
     from sensor.renderer import StereoRenderer
 
@@ -64,7 +73,8 @@ def bench_render(
         times.append(time.perf_counter() - t)
     cpu_s = time.process_time() - cpu0
     times_a = np.array(times)
-    tm = renderer.timings
+    tm = dict(renderer.timings)
+    field_figures = _bench_field(renderer, world, rig, setup.params, config.seed, (x, y, h), times) if field else {}
     n = max(len(times), 1)
     info = renderer.gl_info
     return {
@@ -94,4 +104,45 @@ def bench_render(
         "pyopengl_platform": os.environ.get("PYOPENGL_PLATFORM", ""),
         "python": platform.python_version(),
         "cpu_count": os.cpu_count(),
+        **field_figures,
+    }
+
+
+def _bench_field(
+    renderer: Any, world: Any, rig: StereoRig, params: Any, seed: int, xyh: tuple, ideal_before: list[float]
+) -> dict[str, Any]:
+    """Field-conditions pairs against ideal ones on the same poses, interleaved (see :func:`bench_render`)."""
+    from sensor.lighting import Lighting
+    from sensor.renderer import StereoRenderer
+
+    x, y, h = xyh
+    lighting = Lighting.field()
+    field = StereoRenderer(world, rig, params, seed=seed, antialias=renderer.antialias, lighting=lighting)
+    t0 = time.perf_counter()
+    field.render(x[0], y[0], h[0], 0.0, frame=0)  # bakes the light, uploads the lit scene
+    first_s = time.perf_counter() - t0
+    # One scene per renderer in the context: switching scenes re-uploads them, so time blocks, not
+    # alternate pairs: field, then ideal again (its median with the first ideal block's, before).
+    field_t = []
+    for k in range(1, len(x)):
+        t = time.perf_counter()
+        field.render(x[k], y[k], h[k], 0.0, frame=k)
+        field_t.append(time.perf_counter() - t)
+    renderer.render(x[0], y[0], h[0], 0.0, frame=0)  # switch back (re-upload), untimed
+    ideal_t = list(ideal_before)
+    for k in range(1, len(x)):
+        t = time.perf_counter()
+        renderer.render(x[k], y[k], h[k], 0.0, frame=k)
+        ideal_t.append(time.perf_counter() - t)
+    ideal_m, field_m = float(np.median(ideal_t)), float(np.median(field_t))
+    return {
+        "field_lighting": {
+            "sun_azimuth_deg": lighting.sun_azimuth_deg,
+            "sun_elevation_deg": lighting.sun_elevation_deg,
+        },
+        "field_first_pair_s": first_s,
+        "field_ms_per_pair": float(1000.0 * np.mean(field_t)),
+        "field_ms_per_pair_median": 1000.0 * field_m,
+        "ideal_ms_per_pair_both_blocks": 1000.0 * ideal_m,
+        "field_ratio": field_m / ideal_m,
     }

@@ -35,7 +35,8 @@ def world_for_scenario(
     seed : int, optional
         Seed of the world (default: the scenario's ``seed``).
     **world_settings
-        Other :class:`sensor.world.WorldConfig` fields (``road_width``, ``apron_width``, …).
+        Other :class:`sensor.world.WorldConfig` fields (``road_width``, ``apron_width``,
+        ``kind="airfield"`` for the Bourn-like airfield of paper §4, ``ground_detail``, …).
     """
     setup = setup_or_config if isinstance(setup_or_config, ScenarioSetup) else build_scenario(setup_or_config)
     seed = setup.config.seed if seed is None else seed

@@ -9,6 +9,8 @@ import numpy as np
 from vehicle_model.errors import InputError
 
 from .. import textures as tx
+from .airfield import airfield_world
+from .detail import ground_mipmaps
 from .ground import ground_parts
 from .layout import build_layout
 from .road import road_parts
@@ -27,7 +29,8 @@ def build_world(path: PathLike | RoadPath, config: WorldConfig | None = None, **
         ``centres`` and optionally ``curvature``).
     config : WorldConfig, optional
         Settings (default :class:`WorldConfig()`); keyword ``overrides`` replace its fields,
-        e.g. ``build_world(path, scenery_density=0.5, seed=3)``.
+        e.g. ``build_world(path, scenery_density=0.5, seed=3)`` or ``build_world(path, kind="airfield")``
+        (:mod:`sensor.world.airfield`).
 
     Returns
     -------
@@ -41,6 +44,8 @@ def build_world(path: PathLike | RoadPath, config: WorldConfig | None = None, **
         except TypeError as exc:
             raise InputError(f"unknown world setting: {exc}") from None
     road = path if isinstance(path, RoadPath) else RoadPath.from_path(path)
+    if cfg.kind == "airfield":
+        return airfield_world(road, cfg)
     streams = [np.random.default_rng(s) for s in np.random.SeedSequence([int(cfg.seed), 0x57]).spawn(4)]
     lay = build_layout(road, cfg)
     parts = road_parts(lay)
@@ -56,4 +61,5 @@ def build_world(path: PathLike | RoadPath, config: WorldConfig | None = None, **
         textures=tx.texture_set(int(cfg.seed)),
         loops=tuple(lay.loops),
         object_counts=counts,
+        mipmaps=ground_mipmaps(int(cfg.seed)) if cfg.detailed_ground else {},
     )

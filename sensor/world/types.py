@@ -127,6 +127,18 @@ class WorldConfig:
     road_extension : float
         The road continues this far straight on beyond each open end of the path [m], so the rear
         cameras never look at a dead end.
+    ground_detail : bool or None
+        Ground textures keep their contrast at every distance (contrast-preserving mipmaps,
+        :mod:`sensor.world.detail`); False gives ordinary box-filtered mipmaps, whose far field is
+        flat. None (default): False for the roadside world (the ideal study's images), True for the
+        airfield.
+    kind : str
+        ``roadside`` (road, roundabout, verges, fields and roadside scenery) or ``airfield`` (a tarmac
+        apron in grain fields with distant hedges and buildings, :mod:`sensor.world.airfield`).
+    airfield_width : float
+        Width of the airfield's tarmac apron [m] (Bourn: 40 m).
+    airfield_field_size : float
+        Side of the airfield's grain fields [m].
     """
 
     road_width: float = 7.0
@@ -138,10 +150,14 @@ class WorldConfig:
     field_size: float = 50.0
     horizon: bool = True
     road_extension: float = 200.0
+    ground_detail: bool | None = None
+    kind: str = "roadside"
+    airfield_width: float = 40.0
+    airfield_field_size: float = 200.0
 
     def __post_init__(self) -> None:
         checks = [
-            ("road_width", 2.0 <= self.road_width <= 30.0, "[2, 30] m"),
+            ("road_width", 2.0 <= self.road_width <= 100.0, "[2, 100] m"),
             ("scenery_density", 0.0 <= self.scenery_density <= 1.0, "[0, 1]"),
             ("seed", 0 <= int(self.seed) < 2**63, "a non-negative integer"),
             ("apron_width", 0.0 <= self.apron_width <= 20.0, "[0, 20] m"),
@@ -149,10 +165,18 @@ class WorldConfig:
             ("ground_reach", 50.0 <= self.ground_reach <= 5000.0, "[50, 5000] m"),
             ("field_size", 5.0 <= self.field_size <= 500.0, "[5, 500] m"),
             ("road_extension", 0.0 <= self.road_extension <= 5000.0, "[0, 5000] m"),
+            ("kind", self.kind in ("roadside", "airfield"), "roadside or airfield"),
+            ("airfield_width", 10.0 <= self.airfield_width <= 100.0, "[10, 100] m"),
+            ("airfield_field_size", 20.0 <= self.airfield_field_size <= 1000.0, "[20, 1000] m"),
         ]
         for name, ok, allowed in checks:
             if not ok:
                 raise InputError(f"world.{name} = {getattr(self, name)!r} is out of range; allowed: {allowed}")
+
+    @property
+    def detailed_ground(self) -> bool:
+        """Whether the ground gets contrast-preserving mipmaps (``ground_detail``, or the kind's default)."""
+        return self.kind == "airfield" if self.ground_detail is None else bool(self.ground_detail)
 
 
 @dataclass(frozen=True)
@@ -257,6 +281,9 @@ class World:
         Scenery objects by kind (after the density selection).
     sky_rgb : tuple of float
         Background colour.
+    mipmaps : dict of str to tuple of numpy.ndarray
+        Mipmap levels 1, 2, … to upload instead of OpenGL's box-filtered ones, by texture name
+        (:func:`sensor.world.detail.detail_mipmaps`); textures not listed get ``glGenerateMipmap``'s.
     """
 
     config: WorldConfig
@@ -266,6 +293,7 @@ class World:
     loops: tuple[Loop, ...] = ()
     object_counts: dict[str, int] = field(default_factory=dict)
     sky_rgb: tuple[float, float, float] = SKY_RGB
+    mipmaps: dict[str, tuple[np.ndarray, ...]] = field(default_factory=dict)
 
     @property
     def triangle_count(self) -> int:

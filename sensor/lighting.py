@@ -1,0 +1,234 @@
+"""Sun, shadows and sky of a rendered world (paper §4.2: feature counts rose and fell as the cameras faced the low sun).
+
+The scene is static, so the light is **baked once** into the world (:func:`light_world`):
+
+* every static surface's vertex colours get Lambert shading from the sun at its azimuth and elevation
+  plus sky light (ambient); horizontal ground in sun keeps today's brightness, so the texture range is
+  unchanged; instanced objects keep their object-frame shading (their faces turn with each copy);
+* shadows of the roadside objects on the ground are *decals*: per object part and copy, the convex hull
+  of its vertices projected along the sun onto the ground, drawn after the ground into the alpha channel
+  only (so overlapping shadows do not darken twice). The renderer multiplies the image by that alpha:
+  shadowed ground receives sky light only.
+
+pyrender's own directional shadow maps are no use here: one 2048² map spans the whole scene (our
+worlds are 1–2 km across, so ~1 m per shadow texel, coarser than a post), they need pyrender's lit
+PBR shader instead of the FLAT pass, and they are redrawn every frame on llvmpipe's CPU rasteriser.
+
+What changes per frame — the sky, the glare of a sun in or near the field of view and the lagging
+auto-exposure — is in :mod:`sensor.exposure`. :class:`Lighting` holds every setting; its default is
+the flat lighting of the ideal study (``sun=False``), which leaves the images unchanged byte for byte.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from vehicle_model.errors import InputError
+
+from .world import World
+from .world.types import LEVELS, make_part
+
+__all__ = ["SHADOW_TEXTURE", "Lighting", "light_world", "shadow_part", "sun_direction"]
+
+SHADOW_TEXTURE = "shadow"
+"""Texture name of the shadow decals (a 1 × 1 white texel; the shade is in the vertex alpha)."""
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """Sun, shadows, sky and auto-exposure of the rendered images.
+
+    Parameters
+    ----------
+    sun : bool
+        A directional sun; False (the default) is the flat ambient lighting of the ideal study and
+        every other setting is ignored.
+    sun_azimuth_deg : float
+        Direction *towards* the sun in the world's ground plane, anticlockwise from +X [deg] (the
+        convention of the path heading).
+    sun_elevation_deg : float
+        Height of the sun above the horizon [deg] (paper §4.2: a low, setting sun).
+    shadows : bool
+        Bake object shadows onto the ground.
+    sky : bool
+        A sky brightening towards the horizon and around the sun instead of the flat background.
+    auto_exposure : bool
+        Exposure follows the image brightness with a lag; False keeps a fixed gain of 1.
+    exposure_lag_s : float
+        Time constant of the auto-exposure [s].
+    frame_interval_s : float
+        Time between consecutive frames [s], for the lag (1 / camera rate).
+    target_level : float
+        Mean grey level [0–255] the auto-exposure aims at.
+    gain_range : tuple of float
+        Smallest and largest exposure gain.
+    sky_light : float
+        Share of the horizontal ground's illumination that comes from the sky (what a shadow keeps).
+    glare : float
+        Veiling glare with the sun in the field of view, as grey levels added at gain 1 [0–255].
+    sun_radiance : float
+        Brightness of the solar halo's core at gain 1, in grey levels (far above white: it saturates).
+    """
+
+    sun: bool = False
+    sun_azimuth_deg: float = 270.0
+    sun_elevation_deg: float = 12.0
+    shadows: bool = True
+    sky: bool = True
+    auto_exposure: bool = True
+    exposure_lag_s: float = 0.5
+    frame_interval_s: float = 0.1
+    target_level: float = 110.0
+    gain_range: tuple[float, float] = (0.25, 4.0)
+    sky_light: float = 0.35
+    glare: float = 100.0
+    sun_radiance: float = 3000.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "gain_range", tuple(float(g) for g in self.gain_range))
+        lo, hi = self.gain_range
+        checks = [
+            ("sun_azimuth_deg", -360.0 <= self.sun_azimuth_deg <= 360.0, "[-360, 360] deg"),
+            ("sun_elevation_deg", 0.5 <= self.sun_elevation_deg <= 90.0, "[0.5, 90] deg"),
+            ("exposure_lag_s", 0.0 <= self.exposure_lag_s <= 60.0, "[0, 60] s"),
+            ("frame_interval_s", 0.0 < self.frame_interval_s <= 10.0, "(0, 10] s"),
+            ("target_level", 10.0 <= self.target_level <= 245.0, "[10, 245] grey levels"),
+            ("gain_range", 0.01 <= lo <= 1.0 <= hi <= 100.0, "lo in [0.01, 1], hi in [1, 100]"),
+            ("sky_light", 0.0 < self.sky_light < 1.0, "(0, 1)"),
+            ("glare", 0.0 <= self.glare <= 255.0, "[0, 255] grey levels"),
+            ("sun_radiance", 0.0 <= self.sun_radiance <= 1e6, "[0, 1e6] grey levels"),
+        ]
+        for name, ok, allowed in checks:
+            if not ok:
+                raise InputError(f"lighting.{name} = {getattr(self, name)!r} is out of range; allowed: {allowed}")
+
+    @classmethod
+    def field(cls, **changes: object) -> Lighting:
+        """A low sun with shadows, sky and auto-exposure (the field conditions of paper §4), with ``changes``."""
+        return dataclasses.replace(cls(sun=True), **changes)
+
+    @property
+    def shadow_level(self) -> float:
+        """Brightness of shadowed horizontal ground relative to sunlit ground (sky light only)."""
+        return self.sky_light
+
+
+def sun_direction(lighting: Lighting) -> np.ndarray:
+    """Unit vector towards the sun in the world frame (X, Y ground plane, Z up)."""
+    az, el = math.radians(lighting.sun_azimuth_deg), math.radians(lighting.sun_elevation_deg)
+    return np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+
+
+def _vertex_normals(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals of a triangle mesh (unit, zero where undefined)."""
+    p = positions.astype(np.float64)
+    tri = p[indices]
+    face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n = np.zeros_like(p)
+    for k in range(3):
+        np.add.at(n, indices[:, k], face)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+
+
+def _shade(normals: np.ndarray, sun: np.ndarray, lighting: Lighting) -> np.ndarray:
+    """Vertex-colour factor (before the shader's gamma) of surfaces with ``normals``.
+
+    Illumination ``E = sky·(1 + n_z)/2 + (1 − sky)·max(0, n·s)/s_z``, normalised so that horizontal
+    sunlit ground is 1 (today's flat brightness), clipped at 1; the shader raises vertex colours to
+    the power 1/2.2, so the factor stored is ``E^2.2``.
+    """
+    sky = lighting.sky_light
+    direct = np.clip(normals @ sun, 0.0, None) / max(sun[2], 1e-3)
+    e = sky * 0.5 * (1.0 + normals[:, 2]) + (1.0 - sky) * direct
+    return np.clip(e, 0.02, 1.0) ** 2.2
+
+
+def shadow_part(world: World, lighting: Lighting, z: float | None = None):
+    """The shadow decals of the world's scenery: one convex polygon per object part and copy.
+
+    Parameters
+    ----------
+    world : World
+        The world whose ``scenery`` parts cast shadows.
+    lighting : Lighting
+        The sun.
+    z : float, optional
+        Height of the decals (default just above the road paint).
+
+    Returns
+    -------
+    Part or None
+        Category ``shadow``, texture :data:`SHADOW_TEXTURE`, vertex alpha = the shadow level; None
+        when nothing casts a shadow.
+    """
+    sun = sun_direction(lighting)
+    z = LEVELS["paint"] + 0.004 if z is None else z
+    shift = sun[:2] / sun[2]
+    pos_all, idx_all, n = [], [], 0
+    for part in world.parts:
+        if part.category != "scenery" or part.name == "horizon":
+            continue
+        local = part.positions.astype(np.float64)
+        poses = [np.eye(4)] if part.poses is None else part.poses
+        for pose in poses:
+            p = local @ pose[:3, :3].T + pose[:3, 3]
+            height = np.clip(p[:, 2], 0.0, None)
+            flat = p[:, :2] - height[:, None] * shift
+            try:
+                hull = ConvexHull(flat)
+            except (QhullError, ValueError):
+                continue
+            ring = flat[hull.vertices]
+            m = len(ring)
+            pos_all.append(np.column_stack([ring, np.full(m, z)]))
+            fan = np.column_stack([np.zeros(m - 2, int), np.arange(1, m - 1), np.arange(2, m)]) + n
+            idx_all.append(fan)
+            n += m
+    if not pos_all:
+        return None
+    pos = np.vstack(pos_all)
+    colours = np.ones((len(pos), 4))
+    colours[:, 3] = lighting.shadow_level
+    return make_part("shadows", "shadow", SHADOW_TEXTURE, pos, np.zeros((len(pos), 2)), np.vstack(idx_all), colours)
+
+
+def light_world(world: World, lighting: Lighting) -> World:
+    """The world with the sun's light and shadows baked in (unchanged when ``lighting.sun`` is False).
+
+    Parameters
+    ----------
+    world : World
+        A world from :func:`sensor.world.build_world`.
+    lighting : Lighting
+        Sun and shadows.
+
+    Returns
+    -------
+    World
+        Static scenery parts re-shaded from their world-frame normals; a ``shadows`` part (category
+        ``shadow``) added when ``lighting.shadows``; the sky colour set to white (the renderer paints
+        the sky itself, :mod:`sensor.exposure`).
+    """
+    if not lighting.sun:
+        return world
+    sun = sun_direction(lighting)
+    parts = []
+    for part in world.parts:
+        if part.category == "scenery" and part.poses is None and part.name != "horizon":
+            col = part.colors.copy()
+            col[:, :3] = _shade(_vertex_normals(part.positions, part.indices), sun, lighting)[:, None]
+            part = dataclasses.replace(part, colors=col.astype(np.float32))
+        parts.append(part)
+    textures = dict(world.textures)
+    if lighting.shadows:
+        shadows = shadow_part(world, lighting)
+        if shadows is not None:
+            parts.append(shadows)
+            textures[SHADOW_TEXTURE] = np.full((1, 1, 3), 255, np.uint8)
+    return dataclasses.replace(world, parts=tuple(parts), textures=textures)
