@@ -21,22 +21,25 @@ def bench_render_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     frames: Annotated[int, typer.Option(help="Stereo pairs to render.", min=5)] = 50,
     antialias: Annotated[bool, typer.Option(help="4× multisampling.")] = False,
+    field: Annotated[bool, typer.Option(help="Also time field-conditions pairs (sun, shadows, exposure).")] = True,
 ) -> None:
-    """Rendering speed: stereo pairs per second at 1344×391 on the default world."""
+    """Rendering speed: stereo pairs per second at 1344×391 on the default world, ideal and field conditions."""
     from scenarios.bench.render import bench_render
 
-    _print_bench(bench_render(frames, antialias=antialias), as_json, "Render benchmark")
+    _print_bench(bench_render(frames, antialias=antialias, field=field), as_json, "Render benchmark")
 
 
 @bench_app.command("vo")
 def bench_vo_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    frames: Annotated[int, typer.Option(help="Rendered frames to process.", min=5)] = 30,
+    frames: Annotated[int, typer.Option(help="Rendered frames to process (cached after the first run).", min=5)] = 30,
+    seed: Annotated[int, typer.Option(help="Scenario seed of the rendered sequence.")] = 0,
+    passes: Annotated[int, typer.Option(help="Timed passes; per frame the fastest counts.", min=1)] = 3,
 ) -> None:
-    """Visual odometry alone at 1344×391, one thread, on rendered frames."""
+    """Visual odometry alone at 1344×391, one thread: thread CPU ms per frame (median, p90), wall ms, stages."""
     from scenarios.bench.vo import bench_vo
 
-    _print_bench(bench_vo(frames), as_json, "Visual odometry benchmark")
+    _print_bench(bench_vo(frames, seed=seed, passes=passes), as_json, "Visual odometry benchmark")
 
 
 @bench_app.command("sweep")
@@ -61,6 +64,19 @@ def bench_model_cmd(
     from scenarios.bench.model import bench_model
 
     _print_bench(bench_model(duration=duration), as_json, "Model benchmark")
+
+
+@bench_app.command("loop")
+def bench_loop_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    duration: Annotated[float, typer.Option(help="Simulated seconds per run.", min=4.0)] = 15.0,
+    workers: Annotated[int, typer.Option(help="Render worker processes of the pipelined run.", min=1)] = 2,
+    serial: Annotated[bool, typer.Option(help="Also run it serial, for the speed-up in the same call.")] = True,
+) -> None:
+    """Rendered closed loop (render + VO + VISO-OT + control): simulated seconds per wall second, CPU shares."""
+    from scenarios.bench.loop import bench_loop
+
+    _print_bench(bench_loop(duration, workers, compare_serial=serial), as_json, "Closed-loop benchmark")
 
 
 @bench_app.command("env")

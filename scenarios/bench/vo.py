@@ -1,9 +1,24 @@
-"""``offtrack bench vo``: the stereo visual odometry alone, one thread, on rendered frames of a scenario."""
+"""``offtrack bench vo``: the stereo visual odometry alone, one thread, on a fixed rendered sequence.
+
+:func:`rendered_sequence` simulates a scenario (default ``roundabout-3``, seeded) long enough for its
+first camera frames, renders them and caches the pairs with the left camera's true poses (an ``.npz``
+under ``$OFFTRACK_CACHE_DIR`` or ``~/.cache/offtrack``, ``vo_bench/``), so that every benchmark run —
+and ``benchmarks/vo_speed_vs_ccc8e1e.py``, which compares with the VO of commit ``ccc8e1e`` — sees the
+same frames. :func:`bench_vo` times :meth:`sensor.vo.StereoOdometry.process` on them with OpenCV
+limited to one thread: thread CPU time per frame (median and p90, robust to other processes on a
+shared machine), wall time, and the stage breakdown (features; matching with bucketing and
+refinement; motion).
+"""
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
 import platform
 import time
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -14,56 +29,182 @@ from ..config import load_scenario
 from ..run.cosim import run_cosimulation
 from ..setup.build import build_scenario
 
+__all__ = ["RenderedSequence", "bench_vo", "relative_motions", "rendered_sequence", "vo_calibration"]
 
-def bench_vo(frames: int = 30, scenario: str = "roundabout-3") -> dict[str, Any]:
-    """Visual odometry alone, one thread, on rendered 1344×391 frames of a scenario's default world.
+_CACHE_VERSION = 1  # bump when the rendering of the sequence changes
 
-    Renders ``frames`` stereo pairs along the scenario's run at its camera rate first, then times
-    :meth:`sensor.vo.StereoOdometry.process` on them with OpenCV limited to one thread; ``fps`` is
-    one over the median per-frame thread CPU time (robust to other processes on the machine),
-    ``fps_wall`` the same in wall-clock time.
+
+@dataclass(frozen=True, eq=False)
+class RenderedSequence:
+    """Rendered stereo frames with their ground truth.
+
+    Attributes
+    ----------
+    left, right : numpy.ndarray
+        (n, H, W) uint8 rectified grey images.
+    poses : numpy.ndarray
+        (n, 4, 4) true left-camera poses ``T_world←camera`` (OpenCV axes) [m].
+    calibration : dict
+        ``width``, ``height``, ``hfov`` [rad] and ``baseline`` [m] of the rig.
+    scenario : str
+        Scenario name.
+    seed : int
+        Scenario seed (world, image noise).
     """
-    import cv2
 
+    left: np.ndarray
+    right: np.ndarray
+    poses: np.ndarray
+    calibration: dict[str, float]
+    scenario: str
+    seed: int
+
+    def __len__(self) -> int:
+        return int(self.left.shape[0])
+
+
+def _cache_dir() -> Path:
+    root = os.environ.get("OFFTRACK_CACHE_DIR")
+    return (Path(root) if root else Path.home() / ".cache" / "offtrack") / "vo_bench"
+
+
+def rendered_sequence(frames: int = 30, seed: int = 0, scenario: str = "roundabout-3") -> RenderedSequence:
+    """The first ``frames`` camera frames of a scenario's run, rendered once and then read from the cache.
+
+    Parameters
+    ----------
+    frames : int
+        Stereo pairs (≥ 2).
+    seed : int
+        Scenario seed (``seed`` of the configuration: world, image noise).
+    scenario : str
+        Catalogue name.
+
+    Returns
+    -------
+    RenderedSequence
+    """
+    if frames < 2:
+        raise ValueError(f"frames must be at least 2, got {frames}")
+    config = load_scenario(scenario, {"seed": seed, "estimators.zero_slip": False})
+    needed = (frames - 1) / config.rates.camera_hz + 2.0 / config.rates.control_hz
+    config = config.model_copy(update={"duration_s": needed})
+    key = json.dumps([_CACHE_VERSION, scenario, seed, frames, config.model_dump(mode="json")], sort_keys=True)
+    path = _cache_dir() / f"{scenario}-s{seed}-{frames}-{hashlib.sha256(key.encode()).hexdigest()[:12]}.npz"
+    if path.exists():
+        with np.load(path) as data:
+            cal = json.loads(str(data["calibration"]))
+            return RenderedSequence(data["left"], data["right"], data["poses"], cal, scenario, seed)
     from sensor.renderer import StereoRenderer
-    from sensor.vo import StereoOdometry, VOConfig
 
-    config = load_scenario(scenario, {"duration_s": frames / 10.0 + 1.0, "estimators.zero_slip": False})
     setup = build_scenario(config)
     _, cols = run_cosimulation(setup)
     rig = rig_from_config(config)
     renderer = StereoRenderer(world_for_scenario(setup), rig, setup.params, seed=config.seed)
-    ticks = np.flatnonzero(cols["camera_frame"] > 0.5)[:frames]
-    pairs = [renderer.render(cols["X"][k], cols["Y"][k], cols["psi1"][k], cols["gamma"][k]) for k in ticks]
+    ticks = np.flatnonzero(np.asarray(cols["camera_frame"]) > 0.5)[:frames]
+    x, y, psi1, gamma = (np.asarray(cols[k])[ticks] for k in ("X", "Y", "psi1", "gamma"))
+    poses = rig.camera_in_world(setup.params, x, y, psi1, gamma, "left")
+    right_poses = rig.camera_in_world(setup.params, x, y, psi1, gamma, "right")
+    pairs = [renderer.render_poses(poses[k], right_poses[k], frame=k) for k in range(len(ticks))]
+    left = np.stack([p.left for p in pairs])
+    right = np.stack([p.right for p in pairs])
+    cal = {"width": rig.width, "height": rig.height, "hfov": float(rig.hfov), "baseline": float(rig.baseline)}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez_compressed(tmp, left=left, right=right, poses=poses, calibration=json.dumps(cal))
+    tmp.replace(path)
+    return RenderedSequence(left, right, poses, cal, scenario, seed)
+
+
+def vo_calibration(sequence: RenderedSequence) -> tuple[int, int, float, float]:
+    """``(width, height, hfov, baseline)``: the arguments of ``VOConfig.from_horizontal_fov``."""
+    cal = sequence.calibration
+    return int(cal["width"]), int(cal["height"]), float(cal["hfov"]), float(cal["baseline"])
+
+
+def relative_motions(poses: np.ndarray) -> np.ndarray:
+    """True Tr_delta of each frame after the first: inv(T_k)·T_{k−1}, (n − 1, 4, 4)."""
+    return np.linalg.solve(poses[1:], poses[:-1])
+
+
+def bench_vo(frames: int = 30, scenario: str = "roundabout-3", seed: int = 0, passes: int = 3) -> dict[str, Any]:
+    """Visual odometry alone, one thread, on a scenario's cached rendered frames (1344×391 by default).
+
+    Parameters
+    ----------
+    frames : int
+        Stereo pairs of the sequence.
+    scenario : str
+        Catalogue name of the scenario rendered.
+    seed : int
+        Scenario seed; the odometry runs with seed 0.
+    passes : int
+        Timed passes over the sequence after one warm-up pass (JIT compilation, caches); per frame the
+        fastest pass counts.
+
+    Returns
+    -------
+    dict
+        ``cpu_ms_median`` and ``cpu_ms_p90`` (thread CPU time per frame, frames after the first),
+        ``wall_ms_median``, the stage medians ``cpu_ms_features``, ``cpu_ms_matching`` (matching,
+        bucketing and refinement) and ``cpu_ms_motion`` (thread CPU time), ``first_call_s`` (the
+        warm-up pass's first two frames: import-time compilation or cache load), ``fps`` (one over the
+        median CPU time), matches, inliers and the valid fraction.
+    """
+    import cv2
+
+    from sensor.vo import StereoOdometry, VOConfig
+
+    if passes < 1:
+        raise ValueError(f"passes must be at least 1, got {passes}")
+    sequence = rendered_sequence(frames, seed, scenario)
+    config = VOConfig.from_horizontal_fov(*vo_calibration(sequence))
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)
     try:
-        vo = StereoOdometry(VOConfig.from_horizontal_fov(rig.width, rig.height, rig.hfov, rig.baseline), seed=0)
-        cpu, wall, inliers, matches, valid = [], [], [], [], []
-        for pair in pairs:
-            c0, w0 = time.thread_time(), time.perf_counter()
-            result = vo.process(pair.left, pair.right)
-            cpu.append(time.thread_time() - c0)
-            wall.append(time.perf_counter() - w0)
-            inliers.append(result.n_inliers)
-            matches.append(result.n_matches)
-            valid.append(result.valid)
+        vo = StereoOdometry(config, seed=0)
+        n = len(sequence)
+        cpu = np.full(n, np.inf)
+        wall = np.full(n, np.inf)
+        stages = np.full((n, 3), np.inf)
+        first_call = 0.0
+        for k in range(passes + 1):
+            vo.reset()
+            results = []
+            for i in range(n):
+                c0, w0 = time.thread_time(), time.perf_counter()
+                results.append(vo.process(sequence.left[i], sequence.right[i]))
+                c1, w1 = time.thread_time(), time.perf_counter()
+                if k == 0:
+                    first_call += (w1 - w0) if i < 2 else 0.0
+                    continue
+                cpu[i] = min(cpu[i], c1 - c0)
+                wall[i] = min(wall[i], w1 - w0)
+                r = results[-1]
+                stages[i] = np.minimum(stages[i], [r.cpu_features, r.cpu_matching, r.cpu_motion])
     finally:
         cv2.setNumThreads(threads)
-    steady_cpu, steady_wall = np.median(cpu[1:]), np.median(wall[1:])
+    steady = slice(1, None)
+    med = float(np.median(cpu[steady]))
     return {
         "benchmark": "vo",
         "scenario": scenario,
-        "frames": len(pairs),
-        "width": rig.width,
-        "height": rig.height,
-        "fps": 1.0 / steady_cpu,
-        "ms_per_frame": 1e3 * steady_cpu,
-        "fps_wall": 1.0 / steady_wall,
-        "ms_per_frame_wall": 1e3 * steady_wall,
-        "mean_matches": float(np.mean(matches[1:])),
-        "mean_inliers": float(np.mean(inliers[1:])),
-        "valid_fraction": float(np.mean(valid[1:])),
+        "seed": seed,
+        "frames": n,
+        "width": int(sequence.calibration["width"]),
+        "height": int(sequence.calibration["height"]),
+        "passes": passes,
+        "cpu_ms_median": 1e3 * med,
+        "cpu_ms_p90": 1e3 * float(np.percentile(cpu[steady], 90)),
+        "wall_ms_median": 1e3 * float(np.median(wall[steady])),
+        "cpu_ms_features": 1e3 * float(np.median(stages[steady, 0])),
+        "cpu_ms_matching": 1e3 * float(np.median(stages[steady, 1])),
+        "cpu_ms_motion": 1e3 * float(np.median(stages[steady, 2])),
+        "first_call_s": first_call,
+        "fps": 1.0 / med,
+        "mean_matches": float(np.mean([r.n_matches for r in results[1:]])),
+        "mean_inliers": float(np.mean([r.n_inliers for r in results[1:]])),
+        "valid_fraction": float(np.mean([r.valid for r in results[1:]])),
         "opencv_threads": 1,
         "python": platform.python_version(),
     }

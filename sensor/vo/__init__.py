@@ -3,11 +3,15 @@
 Public API: :class:`VOConfig` (parameters, libviso2 defaults), :class:`StereoOdometry`
 (``process(left, right) -> VOResult``, ``reset()``) and :class:`VOResult`. The building blocks live in
 :mod:`sensor.vo.features` (detection, descriptors), :mod:`sensor.vo.matching` (circular matching of two
-stereo pairs) with its stages :mod:`sensor.vo.search`, :mod:`sensor.vo.prior_ranges`,
-:mod:`sensor.vo.outliers`, :mod:`sensor.vo.bucketing` and :mod:`sensor.vo.refinement` (match array
-columns in :mod:`sensor.vo.match_columns`), :mod:`sensor.vo.motion` and :mod:`sensor.vo.kalman`;
-:mod:`sensor.vo.synthetic` makes test data with exact ground truth and :mod:`sensor.vo.benchmark`
-measures the speed (``python -m sensor.vo.benchmark``).
+stereo pairs) with its stages :mod:`sensor.vo.prior_ranges`, :mod:`sensor.vo.outliers`,
+:mod:`sensor.vo.bucketing` and :mod:`sensor.vo.refinement` (match array columns in
+:mod:`sensor.vo.match_columns`), :mod:`sensor.vo.motion` and :mod:`sensor.vo.kalman`;
+:mod:`sensor.vo.synthetic` makes test data with exact ground truth. The hot loops are compiled with
+numba (:mod:`sensor.vo.jit`, cached on disk): :mod:`sensor.vo.kernels_features`,
+:mod:`sensor.vo.kernels_search` and :mod:`sensor.vo.kernels_circle` (the candidate search and the
+circle), :mod:`sensor.vo.kernels_match` (positions, Delaunay support, refinement) and
+:mod:`sensor.vo.kernels_motion` (Gauss–Newton, RANSAC). The speed is measured by ``offtrack bench vo``
+(:mod:`scenarios.bench.vo`).
 
 This is a re-implementation from the algorithm's description (``shared/reference/viso2s-algorithm.md``),
 not a port: no libviso2 code is used. Where it knowingly differs from libviso2:

@@ -7,14 +7,14 @@
   by 1/128, offset by 128 and saturated to uint8; the horizontal and vertical responses sampled at
   16 sparse offsets of the 11×11 window give 32 bytes, compared by SAD (reference §1.3).
 
-Everything is vectorised with OpenCV and numpy. The extrema are found with rectangular
-``cv2.dilate``/``cv2.erode``: a pixel is an extremum when it equals the extremum of its (2n+1)²
-neighbourhood. Filter responses are integers; ties are broken by a fixed sub-integer offset pattern
-that is unique inside any window, so detected extrema are strict and at least n+1 px apart
-(Chebyshev) — the result of Neubeck & Van Gool's block algorithm, not its exact tie behaviour. The
-sparse first-pass set (radius 3n, capped) is the subset of the dense extrema that are also extrema of
-the larger window, read from the dense dilation at a few offsets (a (2R+1)² window is the union of
-(2r+1)² windows on a small grid). The border margin is 9 px at detection resolution (libviso2 2018).
+The filters and the (2n+1)² erosion/dilation are OpenCV's; picking the extrema and gathering the
+descriptors is compiled (:mod:`sensor.vo.kernels_features`): a pixel is an extremum when it equals
+the extremum of its (2n+1)² neighbourhood. Filter responses are integers; ties are broken by a fixed sub-integer
+offset pattern that is unique inside any window, so detected extrema are strict and at least n+1 px
+apart (Chebyshev) — the result of Neubeck & Van Gool's block algorithm, not its exact tie behaviour.
+The sparse first-pass set (radius 3n, capped) is the subset of the dense extrema that are also
+extrema of the larger window (clipped to the image). The border margin is 9 px at detection
+resolution (libviso2 2018).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from sensor.vo.config import MAX_NMS_N, VOConfig
+from sensor.vo.kernels_features import describe, extrema
 
 __all__ = [
     "BLOB_KERNEL",
@@ -195,50 +196,37 @@ def _tie_breaker(shape: tuple[int, int]) -> np.ndarray:
 def _detect(
     blob: np.ndarray, corner: np.ndarray, radii: tuple[int, ...], tau: float, margin: int
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Extrema for several NMS radii (ascending) at once: (flat pixel index, class) per radius.
+    """Extrema for one or two NMS radii (ascending): (flat pixel index, class) per radius.
 
-    An extremum for a larger radius is also one for a smaller radius, so the larger radii only test
-    the candidates of the first.
+    An extremum for the larger radius is also one for the smaller, so the larger radius only tests
+    the candidates of the first (:func:`sensor.vo.kernels_features.extrema`).
     """
+    if not 1 <= len(radii) <= 2:
+        raise ValueError(f"one or two NMS radii, got {radii}")
     h, w = blob.shape
     if h <= 2 * margin or w <= 2 * margin:
         return [(np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int8)) for _ in radii]
-    inner = (slice(margin, h - margin), slice(margin, w - margin))
-    inner_w = w - 2 * margin
     jitter = _tie_breaker((h, w))
-    kernels = [cv2.getStructuringElement(cv2.MORPH_RECT, (2 * n + 1, 2 * n + 1)) for n in radii]
-    found: list[list[tuple[np.ndarray, int]]] = [[] for _ in radii]
-    # A (2R+1)² window is the union of (2r+1)² windows centred on an m×m grid of offsets within
-    # ±(R − r): the larger radii only look up the first radius's extreme image around the candidates,
-    # dropping a candidate as soon as one tile holds a more extreme value.
+    big = radii[1] if len(radii) == 2 else 0
     r = radii[0]
-    tiles: list[np.ndarray | None] = []
-    for big in radii[1:]:
+    window = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * r + 1, 2 * r + 1))
+    tiles = np.empty(0, dtype=np.int64)
+    if big:
+        # A (2R+1)² window is the union of (2r+1)² windows centred on an m×m grid of offsets within
+        # ±(R − r) when the grid step is at most 2r + 1 (and the grid stays inside the border margin).
         m = -(-(2 * big + 1) // (2 * r + 1))
         grid = np.linspace(-(big - r), big - r, m).round().astype(np.int64)
-        exact = m == 1 or np.diff(grid).max() <= 2 * r + 1
-        offsets = (grid[:, None] * w + grid[None, :]).ravel()
-        tiles.append(offsets[offsets != 0] if exact and big - r <= margin else None)
+        if (m == 1 or np.diff(grid).max() <= 2 * r + 1) and big - r <= margin:
+            offsets = (grid[:, None] * w + grid[None, :]).ravel()
+            tiles = offsets[offsets != 0]
+    found: list[list[tuple[np.ndarray, int]]] = [[] for _ in radii]
     for base, response in ((BLOB_MIN, blob), (CORNER_MIN, corner)):
         unique = cv2.add(response, jitter)
-        flat = unique.ravel()
-        core, raw = unique[inner], response[inner]
-        for cls, morph, strong, sign in ((base, cv2.erode, raw <= -tau, -1), (base + 1, cv2.dilate, raw >= tau, 1)):
-            extreme = morph(unique, kernels[0])
-            hits = np.flatnonzero((core == extreme[inner]) & strong)
-            candidates = (hits // inner_w + margin) * w + hits % inner_w + margin  # flat index in the image
-            found[0].append((candidates, cls))
-            ext = extreme.ravel()
-            for level, (kernel, tile) in enumerate(zip(kernels[1:], tiles, strict=True), start=1):
-                if tile is None:
-                    keep = candidates[flat[candidates] == morph(unique, kernel).ravel()[candidates]]
-                else:
-                    keep = candidates
-                    for offset in tile:
-                        value = flat[keep]
-                        beyond = ext[keep + offset]
-                        keep = keep[value >= beyond] if sign > 0 else keep[value <= beyond]
-                found[level].append((keep, cls))
+        lowest, highest = cv2.erode(unique, window), cv2.dilate(unique, window)
+        lo, hi, sparse_lo, sparse_hi = extrema(response, unique, lowest, highest, float(tau), margin, big, tiles)
+        found[0] += [(lo, base), (hi, base + 1)]
+        if big:
+            found[1] += [(sparse_lo, base), (sparse_hi, base + 1)]
     return [
         (
             np.concatenate([idx for idx, _ in level]),
@@ -292,20 +280,15 @@ def compute_descriptors(sobel: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.n
     numpy.ndarray
         (N, 32) uint8: (du, dv) pairs at the 16 offsets of :data:`DESCRIPTOR_OFFSETS`.
     """
-    pairs = cv2.merge([sobel[0], sobel[1]]).view(np.uint16)[..., 0]
-    flat = v.astype(np.int64) * sobel.shape[2] + u
-    return _feature_set(pairs, flat, np.zeros(flat.shape[0], dtype=np.int8), 1).desc
+    return describe(np.ascontiguousarray(sobel), np.asarray(u, np.int64), np.asarray(v, np.int64), DESCRIPTOR_OFFSETS)
 
 
-def _feature_set(pairs: np.ndarray, flat: np.ndarray, cls: np.ndarray, scale: int) -> FeatureSet:
-    """Features at flat pixel indices of the (H, W) uint16 image of interleaved (du, dv) bytes."""
-    w = pairs.shape[1]
-    offsets = DESCRIPTOR_OFFSETS[:, 1] * w + DESCRIPTOR_OFFSETS[:, 0]
-    # One uint16 gather fetches du and dv together: 32 bytes = 16 interleaved (du, dv) pairs.
-    desc = np.take(pairs.reshape(-1), flat[:, None] + offsets[None, :]).view(np.uint8)
-    u = (flat % w).astype(np.int32) * scale
-    v = (flat // w).astype(np.int32) * scale
-    return FeatureSet(u=u, v=v, cls=cls, desc=desc)
+def _feature_set(sobel: np.ndarray, flat: np.ndarray, cls: np.ndarray, scale: int) -> FeatureSet:
+    """Features at flat pixel indices of the (2, H, W) Sobel responses, positions scaled to full resolution."""
+    w = sobel.shape[2]
+    u, v = flat % w, flat // w
+    desc = describe(sobel, u, v, DESCRIPTOR_OFFSETS)
+    return FeatureSet(u=u.astype(np.int32) * scale, v=v.astype(np.int32) * scale, cls=cls, desc=desc)
 
 
 def extract_features(image: np.ndarray, config: VOConfig) -> ImageFeatures:
@@ -330,11 +313,10 @@ def extract_features(image: np.ndarray, config: VOConfig) -> ImageFeatures:
     work = half_resolution(image) if config.half_resolution else image
     scale = config.scale
     sobel = sobel_responses(work)
-    pairs = cv2.merge([sobel[0], sobel[1]]).view(np.uint16)[..., 0]
     blob, corner = filter_responses(work)
     radii = (config.nms_n, config.nms_n_sparse) if config.multi_stage else (config.nms_n,)
     detected = _detect(blob, corner, radii, config.nms_tau, BORDER_MARGIN)
-    levels = [_feature_set(pairs, flat, cls, scale) for flat, cls in detected]
+    levels = [_feature_set(sobel, flat, cls, scale) for flat, cls in detected]
     dense = levels[0]
     sparse = levels[1] if config.multi_stage else None
     if config.refinement > 0:

@@ -35,6 +35,29 @@ from sensor.vo.quality import MotionQuality, motion_quality, quality_failure
 __all__ = ["StereoOdometry", "VOResult"]
 
 
+class _Clock:
+    """Wall-clock and thread CPU time of one instant [s]."""
+
+    __slots__ = ("cpu", "wall")
+
+    def __init__(self) -> None:
+        self.wall = time.perf_counter()
+        self.cpu = time.thread_time()
+
+
+def _timings(t0: _Clock, t1: _Clock, t2: _Clock, t3: _Clock) -> dict[str, float]:
+    """The stage times of a :class:`VOResult` from the instants between its stages."""
+    return {
+        "time_features": t1.wall - t0.wall,
+        "time_matching": t2.wall - t1.wall,
+        "time_motion": t3.wall - t2.wall,
+        "time_total": t3.wall - t0.wall,
+        "cpu_features": t1.cpu - t0.cpu,
+        "cpu_matching": t2.cpu - t1.cpu,
+        "cpu_motion": t3.cpu - t2.cpu,
+    }
+
+
 @dataclass(frozen=True, eq=False)
 class VOResult:
     """Result of one :meth:`StereoOdometry.process` call.
@@ -52,8 +75,10 @@ class VOResult:
     n_inliers : int
         RANSAC inliers among them (0 when the estimation was not reached).
     time_features, time_matching, time_motion, time_total : float
-        Wall-clock time [s] of detection/description, matching (incl. bucketing), motion estimation
-        and the whole call.
+        Wall-clock time [s] of detection/description, matching (incl. bucketing and refinement),
+        motion estimation (incl. the quality checks) and the whole call.
+    cpu_features, cpu_matching, cpu_motion : float
+        The same stages in CPU time of the calling thread [s] (``time.thread_time``).
     matches : numpy.ndarray
         (n_matches, 8) positions (u1p, v1p, u2p, v2p, u1c, v1c, u2c, v2c) [px].
     inliers : numpy.ndarray
@@ -78,6 +103,9 @@ class VOResult:
     time_matching: float
     time_motion: float
     time_total: float
+    cpu_features: float = 0.0
+    cpu_matching: float = 0.0
+    cpu_motion: float = 0.0
     matches: np.ndarray = field(default_factory=lambda: np.empty((0, 8)), repr=False)
     inliers: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=bool), repr=False)
     reason: str = ""
@@ -163,16 +191,16 @@ class StereoOdometry:
         if left.shape != right.shape:
             raise ValueError(f"left and right images differ in shape: {left.shape} vs {right.shape}")
         cfg = self.config
-        t0 = time.perf_counter()
+        t0 = _Clock()
         current = (extract_features(left, cfg), extract_features(right, cfg))
-        t1 = time.perf_counter()
+        t1 = _Clock()
         previous, self._previous = self._previous, current
         if previous is None or previous[0].shape != current[0].shape:
             self._prior = None
             return self._failed("no previous stereo pair (of this image size)", t0, t1, t1, code="no_previous_frame")
 
         xy = match_frames(previous, current, cfg, self._rng, self._prior).matches
-        t2 = time.perf_counter()
+        t2 = _Clock()
         estimate = estimate_motion(xy, cfg, self._rng)
         quality = MotionQuality(estimate.n_inliers)
         code, reason = estimate.code or "vo_failed", estimate.reason
@@ -188,16 +216,13 @@ class StereoOdometry:
         self._prior = motion  # constant-velocity prior of the next frame's matching (reference §1.4)
         if self._kalman is not None and estimate.params is not None:
             motion = params_to_transform(self._kalman.update(estimate.params))
-        t3 = time.perf_counter()
+        t3 = _Clock()
         return VOResult(
             valid=True,
             motion=motion,
             n_matches=xy.shape[0],
             n_inliers=estimate.n_inliers,
-            time_features=t1 - t0,
-            time_matching=t2 - t1,
-            time_motion=t3 - t2,
-            time_total=t3 - t0,
+            **_timings(t0, t1, t2, t3),
             matches=xy,
             inliers=estimate.inliers,
             residual_px=quality.residual_px,
@@ -207,15 +232,15 @@ class StereoOdometry:
     @staticmethod
     def _failed(
         reason: str,
-        t0: float,
-        t1: float,
-        t2: float,
+        t0: _Clock,
+        t1: _Clock,
+        t2: _Clock,
         xy: np.ndarray | None = None,
         inliers: np.ndarray | None = None,
         code: str = "",
         quality: MotionQuality | None = None,
     ) -> VOResult:
-        t3 = time.perf_counter()
+        t3 = _Clock()
         xy = np.empty((0, 8)) if xy is None else xy
         inliers = np.zeros(xy.shape[0], dtype=bool) if inliers is None else inliers
         return VOResult(
@@ -223,10 +248,7 @@ class StereoOdometry:
             motion=None,
             n_matches=xy.shape[0],
             n_inliers=int(inliers.sum()),
-            time_features=t1 - t0,
-            time_matching=t2 - t1,
-            time_motion=t3 - t2,
-            time_total=t3 - t0,
+            **_timings(t0, t1, t2, t3),
             matches=xy,
             inliers=inliers,
             reason=reason,

@@ -1,4 +1,4 @@
-"""Search ranges of the circle steps: the first-pass defaults and the per-bin second-pass ranges."""
+"""Search ranges of the circle steps: the first-pass defaults and the per-bin second-pass ranges (binning compiled)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sensor.vo.config import VOConfig
+from sensor.vo.jit import kernel
 from sensor.vo.match_columns import U1C, U1P, U2C, U2P, V1P
 
 __all__ = ["PriorRanges", "compute_prior_ranges", "default_ranges"]
@@ -37,10 +38,35 @@ class PriorRanges:
         return self.lo[bv, bu], self.hi[bv, bu]
 
 
-def _step_deltas(xy: np.ndarray) -> np.ndarray:
-    """(N, 4, 2) displacement (du, dv) of each circle step."""
-    pairs = ((U1P, U2P), (U2P, U2C), (U2C, U1C), (U1C, U1P))
-    return np.stack([np.stack([xy[:, b] - xy[:, a], xy[:, b + 1] - xy[:, a + 1]], axis=1) for a, b in pairs], axis=1)
+@kernel
+def _bin_extremes(xy: np.ndarray, binsize: int, n_bv: int, n_bu: int) -> tuple[np.ndarray, np.ndarray]:
+    """Min and max of every circle step's (du, dv) per start-feature bin, pooled over the 3×3 bins.
+
+    Returns (n_bv, n_bu, 8) arrays (steps 0–3 × (du, dv)), ±inf where no match starts in the
+    neighbourhood.
+    """
+    lo = np.full((n_bv + 2, n_bu + 2, 8), np.inf)
+    hi = np.full((n_bv + 2, n_bu + 2, 8), -np.inf)
+    delta = np.empty(8)
+    for m in range(xy.shape[0]):
+        for k, (a, b) in enumerate(((U1P, U2P), (U2P, U2C), (U2C, U1C), (U1C, U1P))):
+            delta[2 * k] = xy[m, b] - xy[m, a]
+            delta[2 * k + 1] = xy[m, b + 1] - xy[m, a + 1]
+        bu = int(min(max(xy[m, U1P] // binsize, 0), n_bu - 1)) + 1
+        bv = int(min(max(xy[m, V1P] // binsize, 0), n_bv - 1)) + 1
+        for c in range(8):
+            lo[bv, bu, c] = min(lo[bv, bu, c], delta[c])
+            hi[bv, bu, c] = max(hi[bv, bu, c], delta[c])
+    pooled_lo = np.full((n_bv, n_bu, 8), np.inf)
+    pooled_hi = np.full((n_bv, n_bu, 8), -np.inf)
+    for y in range(n_bv):
+        for x in range(n_bu):
+            for dy in range(3):
+                for dx in range(3):
+                    for c in range(8):
+                        pooled_lo[y, x, c] = min(pooled_lo[y, x, c], lo[y + dy, x + dx, c])
+                        pooled_hi[y, x, c] = max(pooled_hi[y, x, c], hi[y + dy, x + dx, c])
+    return pooled_lo, pooled_hi
 
 
 def default_ranges(config: VOConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -88,21 +114,7 @@ def compute_prior_ranges(xy: np.ndarray, shape: tuple[int, int], config: VOConfi
     """
     b = config.match_binsize
     n_bv, n_bu = -(-shape[0] // b), -(-shape[1] // b)
-    lo = np.full((n_bv + 2, n_bu + 2, 8), np.inf)
-    hi = np.full((n_bv + 2, n_bu + 2, 8), -np.inf)
-    if xy.shape[0]:
-        deltas = _step_deltas(xy).reshape(-1, 8)
-        bu = np.clip(xy[:, U1P] // b, 0, n_bu - 1).astype(np.int64) + 1
-        bv = np.clip(xy[:, V1P] // b, 0, n_bv - 1).astype(np.int64) + 1
-        np.minimum.at(lo, (bv, bu), deltas)
-        np.maximum.at(hi, (bv, bu), deltas)
-    # Pool over the 3×3 neighbourhood (padded border bins are empty).
-    pooled_lo = np.full((n_bv, n_bu, 8), np.inf)
-    pooled_hi = np.full((n_bv, n_bu, 8), -np.inf)
-    for dy in range(3):
-        for dx in range(3):
-            np.minimum(pooled_lo, lo[dy : dy + n_bv, dx : dx + n_bu], out=pooled_lo)
-            np.maximum(pooled_hi, hi[dy : dy + n_bv, dx : dx + n_bu], out=pooled_hi)
+    pooled_lo, pooled_hi = _bin_extremes(np.ascontiguousarray(xy, dtype=np.float64), b, n_bv, n_bu)
     pooled_lo = pooled_lo.reshape(n_bv, n_bu, 4, 2)
     pooled_hi = pooled_hi.reshape(n_bv, n_bu, 4, 2)
     default_lo, default_hi = default_ranges(config)

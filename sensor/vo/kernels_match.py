@@ -1,0 +1,218 @@
+"""Compiled kernels of the match post-processing: positions, Delaunay support, refinement.
+
+* :func:`positions` turns index quadruples into (N, 8) positions and keeps the first match of every
+  current-left pixel (libviso2 keeps the first).
+* :func:`morton_order` orders points along the Z curve, :func:`corner_triangles` maps the triangles
+  of ``cv2.Subdiv2D`` (as coordinates) back to match indices through a look-up image and
+  :func:`triangle_support` counts every match's consistent incident edges (viso2s reference §1.4,
+  ``removeOutliers``; :mod:`sensor.vo.outliers`).
+* :func:`refine` moves the 1p, 2p and 2c positions to the SAD minimum of the 16-byte small
+  descriptor within ± radius px of full-resolution pixels, with sub-pixel parabolas for radius 3
+  (:mod:`sensor.vo.refinement`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sensor.vo.jit import kernel
+
+__all__ = ["REFINEMENT_TAPS", "corner_triangles", "morton_order", "positions", "refine", "triangle_support"]
+
+_KEY_U = 1 << 16  # column stride of pixel keys (images narrower than 65536 px)
+
+
+@kernel
+def positions(
+    u1p: np.ndarray, v1p: np.ndarray, u2p: np.ndarray, v2p: np.ndarray,
+    u1c: np.ndarray, v1c: np.ndarray, u2c: np.ndarray, v2c: np.ndarray, idx: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """(M, 8) float64 positions of the index quadruples (i1p, i2p, i2c, i1c), first match per 1c pixel."""
+    n = idx.shape[0]
+    key = np.empty(n, dtype=np.int64)
+    for k in range(n):
+        key[k] = np.int64(v1c[idx[k, 3]]) * _KEY_U + u1c[idx[k, 3]]
+    order = np.argsort(key, kind="mergesort")
+    keep = np.ones(n, dtype=np.bool_)
+    for k in range(1, n):
+        if key[order[k]] == key[order[k - 1]]:
+            keep[order[k]] = False
+    out = np.empty((keep.sum(), 8))
+    m = 0
+    for k in range(n):
+        if not keep[k]:
+            continue
+        a, b, c, d = idx[k, 0], idx[k, 1], idx[k, 2], idx[k, 3]
+        out[m, 0], out[m, 1], out[m, 2], out[m, 3] = u1p[a], v1p[a], u2p[b], v2p[b]
+        out[m, 4], out[m, 5], out[m, 6], out[m, 7] = u1c[d], v1c[d], u2c[c], v2c[c]
+        m += 1
+    return out
+
+
+@kernel
+def _spread(n: np.uint64) -> np.uint64:
+    n = n & np.uint64(0xFFFF)
+    n = (n | (n << np.uint64(8))) & np.uint64(0x00FF00FF)
+    n = (n | (n << np.uint64(4))) & np.uint64(0x0F0F0F0F)
+    n = (n | (n << np.uint64(2))) & np.uint64(0x33333333)
+    n = (n | (n << np.uint64(1))) & np.uint64(0x55555555)
+    return n
+
+
+@kernel
+def morton_order(u: np.ndarray, v: np.ndarray, u0: int, v0: int) -> np.ndarray:
+    """Order of distinct non-negative integer points (u − u0, v − v0) along the Z curve."""
+    n = u.shape[0]
+    code = np.empty(n, dtype=np.uint64)
+    for i in range(n):
+        code[i] = _spread(np.uint64(u[i] - u0)) | (_spread(np.uint64(v[i] - v0)) << np.uint64(1))
+    return np.argsort(code)
+
+
+@kernel
+def corner_triangles(corners: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Vertex indices (T', 3) of triangles given by corners (T, 6) (x0, y0, x1, y1, x2, y2) [px].
+
+    Corners are looked up among the distinct integer points (u, v) in a look-up image of their
+    bounding box (left uninitialised: an entry counts only if the point it names is at that pixel);
+    a triangle with a corner that is none of them is dropped.
+    """
+    n = u.shape[0]
+    x0, y0 = u.min(), v.min()
+    width, height = u.max() - x0 + 1, v.max() - y0 + 1
+    lookup = np.empty(width * height, dtype=np.int32)
+    for i in range(n):
+        lookup[(v[i] - y0) * width + u[i] - x0] = i
+    out = np.empty((corners.shape[0], 3), dtype=np.int64)
+    m = 0
+    for t in range(corners.shape[0]):
+        ok = True
+        for c in range(3):
+            x = np.int64(np.rint(corners[t, 2 * c])) - x0
+            y = np.int64(np.rint(corners[t, 2 * c + 1])) - y0
+            if x < 0 or x >= width or y < 0 or y >= height:
+                ok = False
+                break
+            i = lookup[y * width + x]
+            if i < 0 or i >= n or u[i] - x0 != x or v[i] - y0 != y:
+                ok = False
+                break
+            out[m, c] = i
+        if ok:
+            m += 1
+    return out[:m]
+
+
+@kernel
+def triangle_support(triangles: np.ndarray, xy: np.ndarray, tol_disp: float, tol_flow: float) -> np.ndarray:
+    """Consistent incident edges of every match, counted per triangle (shared edges count twice).
+
+    Parameters
+    ----------
+    triangles : numpy.ndarray
+        (T, 3) int64 vertex indices into ``xy``.
+    xy : numpy.ndarray
+        (N, 8) matches.
+    tol_disp, tol_flow : float
+        Disparity and L1 flow tolerances [px]: an edge is consistent when the disparities of its end
+        points differ by less than ``tol_disp`` in both pairs and their left flows by less than
+        ``tol_flow``.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N,) int64 support.
+    """
+    support = np.zeros(xy.shape[0], dtype=np.int64)
+    for t in range(triangles.shape[0]):
+        for c in range(3):
+            i, j = triangles[t, c], triangles[t, (c + 1) % 3]
+            disp_c = abs((xy[i, 4] - xy[i, 6]) - (xy[j, 4] - xy[j, 6]))
+            disp_p = abs((xy[i, 0] - xy[i, 2]) - (xy[j, 0] - xy[j, 2]))
+            flow_u = abs((xy[i, 4] - xy[i, 0]) - (xy[j, 4] - xy[j, 0]))
+            flow = flow_u + abs((xy[i, 5] - xy[i, 1]) - (xy[j, 5] - xy[j, 1]))
+            if disp_c < tol_disp and disp_p < tol_disp and flow < tol_flow:
+                support[i] += 1
+                support[j] += 1
+    return support
+
+
+# Small 16-byte descriptor inside 5×5 (ELAS-style): du at 12 offsets, dv at 4; (plane, dx, dy).
+REFINEMENT_TAPS = np.array(
+    [(0, 0, -2), (0, -1, -1), (0, 0, -1), (0, 1, -1), (0, -2, 0), (0, -1, 0), (0, 1, 0), (0, 2, 0),
+     (0, -1, 1), (0, 0, 1), (0, 1, 1), (0, 0, 2), (1, 0, -1), (1, -1, 0), (1, 1, 0), (1, 0, 1)],
+    dtype=np.int64,
+)  # fmt: skip
+
+
+@kernel
+def _parabola(left: float, centre: float, right: float) -> float:
+    """Vertex offset of the parabola through (−1, left), (0, centre), (1, right), within ±0.5."""
+    denom = left - 2.0 * centre + right
+    offset = 0.5 * (left - right) / denom if denom > 0 else 0.0
+    return min(max(offset, -0.5), 0.5)
+
+
+@kernel
+def refine(xy: np.ndarray, sobel: tuple, radius: int, taps: np.ndarray) -> np.ndarray:
+    """Refined copy of the (N, 8) matches; ``sobel`` holds the (2, H, W) uint8 planes of 1p, 2p, 1c, 2c.
+
+    The reference is the small descriptor at the (rounded, clamped) 1c position; each other image is
+    searched at the (2·radius + 1)² integer offsets around its rounded, clamped position, the first
+    minimum in row-major order winning (radius 2), or the minimum of the inner (2·radius − 1)² offsets
+    with parabolas through its neighbours (radius 3).
+    """
+    n = xy.shape[0]
+    height, width = sobel[2].shape[1], sobel[2].shape[2]
+    reach = radius + 2
+    side = 2 * radius + 1
+    n_taps = taps.shape[0]
+    offset = np.empty(n_taps, dtype=np.int64)  # of each tap in the flattened (2, H, W) planes
+    for k in range(n_taps):
+        offset[k] = taps[k, 0] * height * width + taps[k, 2] * width + taps[k, 1]
+    out = xy.copy()
+    ref = np.empty(n_taps, dtype=np.int32)
+    cost = np.empty((side, side), dtype=np.int64)
+    s1c = sobel[2].ravel()
+    for m in range(n):
+        uc = min(max(np.int64(np.rint(xy[m, 4])), reach), width - 1 - reach)
+        vc = min(max(np.int64(np.rint(xy[m, 5])), reach), height - 1 - reach)
+        for k in range(n_taps):
+            ref[k] = s1c[vc * width + uc + offset[k]]
+        for image, col in ((0, 0), (1, 2), (3, 6)):
+            plane = sobel[image].ravel()
+            u = min(max(np.int64(np.rint(xy[m, col])), reach), width - 1 - reach)
+            v = min(max(np.int64(np.rint(xy[m, col + 1])), reach), height - 1 - reach)
+            if radius == 2:  # the first minimum in row-major order; a sum stops once it cannot win
+                best, by, bx = np.int64(1) << 40, 0, 0
+                for iy in range(side):
+                    for ix in range(side):
+                        base = (v + iy - radius) * width + u + ix - radius
+                        total = 0
+                        for k in range(n_taps):
+                            d = np.int32(plane[base + offset[k]]) - ref[k]
+                            total += d if d >= 0 else -d
+                            if k % 4 == 3 and total >= best:
+                                break
+                        if total < best:
+                            best, by, bx = total, iy, ix
+                out[m, col] = u + (bx - radius)
+                out[m, col + 1] = v + (by - radius)
+                continue
+            for dy in range(-radius, radius + 1):
+                for dx in range(-radius, radius + 1):
+                    base = (v + dy) * width + u + dx
+                    total = 0
+                    for k in range(n_taps):
+                        d = np.int32(plane[base + offset[k]]) - ref[k]
+                        total += d if d >= 0 else -d
+                    cost[dy + radius, dx + radius] = total
+            best, by, bx = cost[1, 1], 1, 1
+            for iy in range(1, side - 1):
+                for ix in range(1, side - 1):
+                    if cost[iy, ix] < best:
+                        best, by, bx = cost[iy, ix], iy, ix
+            c0 = float(cost[by, bx])
+            out[m, col] = u + (bx - radius) + _parabola(float(cost[by, bx - 1]), c0, float(cost[by, bx + 1]))
+            out[m, col + 1] = v + (by - radius) + _parabola(float(cost[by - 1, bx]), c0, float(cost[by + 1, bx]))
+    return out

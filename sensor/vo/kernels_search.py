@@ -1,0 +1,179 @@
+"""Compiled kernels of the candidate search: the feature grid index and one step of the circle.
+
+The index buckets an image's features by (class, row band, column cell) with CSR pointers
+(a stable counting sort), so the candidates of a search window in one row band are one contiguous
+run. :func:`search_step` walks the runs of every query's window in ascending (band, cell, feature)
+order and keeps the first strict minimum of the cost — the 32-byte SAD plus, with a motion prior,
+``rint(weight · distance)`` to the predicted position — which is the candidate of the lowest
+sorted position among equal costs (viso2s reference §1.4; :mod:`sensor.vo.kernels_circle`). The SAD
+stops early, 8 bytes at a time, once it cannot beat the best so far (an equal cost never wins).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sensor.vo.jit import kernel
+
+__all__ = ["build_index", "search_step"]
+
+#: Window modes of a circle step: stereo left → right (u ≤ source u), flow, stereo right → left (u ≥ source u).
+STEREO_TO_RIGHT, FLOW, STEREO_TO_LEFT = 0, 1, 2
+
+
+@kernel
+def build_index(
+    u: np.ndarray, v: np.ndarray, cls: np.ndarray, desc: np.ndarray, band_height: int, col_cell: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, int]:
+    """CSR index of features by key (class · n_bands + v // band_height) · n_cells + u // col_cell.
+
+    Returns
+    -------
+    ptr, order, su, sv, sdesc, n_bands, n_cells
+        (4·n_bands·n_cells + 1) int64 pointers, the int64 stable sort order of the features by key,
+        the positions and descriptors in that order (contiguous runs for the search) and the grid
+        size.
+    """
+    n = u.shape[0]
+    n_cells = 1
+    n_bands = 1
+    for i in range(n):
+        n_cells = max(n_cells, u[i] // col_cell + 1)
+        n_bands = max(n_bands, v[i] // band_height + 1)
+    n_keys = 4 * n_bands * n_cells
+    ptr = np.zeros(n_keys + 1, dtype=np.int64)
+    key = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        k = (np.int64(cls[i]) * n_bands + v[i] // band_height) * n_cells + u[i] // col_cell
+        key[i] = k
+        ptr[k + 1] += 1
+    for k in range(n_keys):
+        ptr[k + 1] += ptr[k]
+    fill = ptr[:-1].copy()
+    order = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        order[fill[key[i]]] = i
+        fill[key[i]] += 1
+    su = np.empty(n, dtype=np.int64)
+    sv = np.empty(n, dtype=np.int64)
+    sdesc = np.empty((n, desc.shape[1]), dtype=np.uint8)
+    for pos in range(n):
+        i = order[pos]
+        su[pos] = u[i]
+        sv[pos] = v[i]
+        sdesc[pos] = desc[i]
+    return ptr, order, su, sv, sdesc, n_bands, n_cells
+
+
+@kernel
+def _sad_below(a: np.ndarray, ia: int, b: np.ndarray, ib: int, start: int, best: int) -> int:
+    """``start`` + SAD of the 32-byte rows a[ia], b[ib]; stops early (returning ≥ best) once ≥ ``best``."""
+    total = start
+    for chunk in range(4):
+        base = 8 * chunk
+        for k in range(base, base + 8):
+            d = np.int32(a[ia, k]) - np.int32(b[ib, k])
+            total += d if d >= 0 else -d
+        if total >= best:
+            return total
+    return total
+
+
+@kernel
+def search_step(
+    src_u: np.ndarray,
+    src_v: np.ndarray,
+    src_cls: np.ndarray,
+    src_desc: np.ndarray,
+    src_idx: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    mode: int,
+    tolerance: int,
+    ptr: np.ndarray,
+    order: np.ndarray,
+    tgt_u: np.ndarray,
+    tgt_v: np.ndarray,
+    tgt_desc: np.ndarray,
+    n_bands: int,
+    n_cells: int,
+    band_height: int,
+    col_cell: int,
+    pred_u: np.ndarray,
+    pred_v: np.ndarray,
+    pred_w: np.ndarray,
+) -> np.ndarray:
+    """Best same-class match in the target image of each source feature ``src_idx[q]``.
+
+    Parameters
+    ----------
+    src_u, src_v, src_cls, src_desc : numpy.ndarray
+        Features of the source image (positions [px], class, (N, 32) uint8 descriptors).
+    src_idx : numpy.ndarray
+        (Q,) int64 source features queried.
+    lo, hi : numpy.ndarray
+        (Q, 2) int64 inclusive offset ranges (du, dv) [px] of each query's window.
+    mode : int
+        :data:`STEREO_TO_RIGHT`, :data:`FLOW` or :data:`STEREO_TO_LEFT`; stereo windows span
+        ± ``tolerance`` rows and stay on the side of non-negative disparity.
+    ptr, order, tgt_u, tgt_v, tgt_desc : numpy.ndarray
+        :func:`build_index` of the target image's features for ``band_height`` and ``col_cell``
+        (positions and descriptors in index order), with ``n_bands`` and ``n_cells``.
+    pred_u, pred_v, pred_w : numpy.ndarray
+        (Q,) predicted position [px] and cost per px of distance to it; empty arrays for no prior.
+
+    Returns
+    -------
+    numpy.ndarray
+        (Q,) int64 target feature per query, −1 where the window holds no candidate.
+    """
+    n_query = src_idx.shape[0]
+    best = np.full(n_query, -1, dtype=np.int64)
+    has_prior = pred_w.shape[0] > 0
+    big = np.int64(1) << 40
+    for q in range(n_query):
+        s = src_idx[q]
+        su = np.int64(src_u[s])
+        sv = np.int64(src_v[s])
+        u_lo = su + lo[q, 0]
+        u_hi = su + hi[q, 0]
+        if mode == FLOW:
+            v_lo = sv + lo[q, 1]
+            v_hi = sv + hi[q, 1]
+        else:
+            v_lo = sv - tolerance
+            v_hi = sv + tolerance
+            if mode == STEREO_TO_RIGHT:
+                u_hi = min(u_hi, su)
+            else:
+                u_lo = max(u_lo, su)
+        band_lo = max(v_lo, 0) // band_height
+        band_hi = min(v_hi // band_height, n_bands - 1)
+        cell_lo = min(max(u_lo // col_cell, 0), n_cells)
+        cell_hi = min(max(u_hi // col_cell + 1, 0), n_cells)
+        if cell_lo >= cell_hi or band_hi < band_lo:
+            continue
+        cls = np.int64(src_cls[s])
+        best_cost = big
+        best_pos = -1
+        for band in range(band_lo, band_hi + 1):
+            base = (cls * n_bands + band) * n_cells
+            for pos in range(ptr[base + cell_lo], ptr[base + cell_hi]):
+                tu = tgt_u[pos]
+                tv = tgt_v[pos]
+                if tv < v_lo or tv > v_hi or tu < u_lo or tu > u_hi:
+                    continue
+                penalty = np.int64(0)
+                if has_prior:
+                    du = tu - pred_u[q]
+                    dv = tv - pred_v[q]
+                    penalty = np.int64(np.rint(pred_w[q] * np.sqrt(du * du + dv * dv)))
+                    if penalty >= best_cost:
+                        continue
+                cost = _sad_below(src_desc, s, tgt_desc, pos, penalty, best_cost)
+                if cost < best_cost:
+                    best_cost = cost
+                    best_pos = pos
+        if best_pos >= 0:
+            best[q] = order[best_pos]
+    return best
