@@ -82,8 +82,10 @@ def _load(scenario: str, overrides: dict[str, object]):
     config = load_scenario(scenario, overrides)
     if config.estimators.viso_ot:
         from scenarios.camera.feasibility import check_camera_feasible
+        from scenarios.camera.optics import check_lenses
 
         check_camera_feasible(config)
+        check_lenses(config)
     return config
 
 
@@ -354,35 +356,49 @@ def _print_study_summary(table, run_dir: Path, name: str) -> None:
 
 
 def _print_summary(metrics: dict, run_dir: Path) -> None:
-    """The closing table of a run: off-tracking of the truth and each estimator's error."""
-    table = Table(title=escape(f"{metrics['scenario']} — {metrics['status']} — {run_dir}"))
-    table.add_column("off-tracking")
-    table.add_column(escape("RMS [m]"), justify="right")
-    table.add_column(escape("max |·| [m]"), justify="right")
-    table.add_column("valid", justify="right")
-    truth = metrics["offtracking"]["truth"]
-    defined = truth.get("defined_fraction", truth["valid_fraction"])
-    table.add_row("truth", f"{truth['rms']:.3f}", f"{truth['max_abs']:.3f}", f"(defined on {defined:.0%} of ticks)")
-    for name, err in metrics["offtracking"]["estimators"].items():
-        table.add_row(
-            f"{name} error", f"{err['rms_error']:.3f}", f"{err['max_abs_error']:.3f}", f"{err['valid_fraction']:.0%}"
-        )
-    console.print(table)
-    console.print("valid: share of the ticks with a truth on which the estimator had an estimate")
-    camera = metrics.get("camera")
-    if camera:
-        console.print(
-            f"camera: {camera['valid_frames']} of {camera['frames']} frames gave an accepted motion"
-            + (f"; {escape(camera['message'])}" if camera.get("message") else "")
-        )
-    test = metrics.get("roundabout_test")
-    if test:
-        verdict = "[green]PASS[/]" if test["pass"] else "[red]FAIL[/]"
-        console.print(
-            f"roundabout test {verdict}: outer radius max {test['outer_radius_max']:.3f} m (limit 12.50), "
-            f"inner radius min {test['inner_radius_min']:.3f} m (limit 5.30)"
-        )
-    console.print(f"simulated {metrics['simulated_s']:.1f} s in {metrics['wall_time_s']:.1f} s wall time")
+    """The closing table of a run and its verdicts (:func:`scenarios.run.summary.run_summary`)."""
+    from scenarios.run.summary import run_summary
+
+    for item in run_summary(metrics, run_dir):
+        console.print(item)
+
+
+@app.command()
+@_command
+def calibrate(
+    scenario: Annotated[str, typer.Argument(help="Catalogue name or YAML file: its camera is calibrated.")],
+    out: Annotated[Path, typer.Option(help="Directory for calibration.yaml and residuals.json.")],
+    set_: Annotated[
+        list[str] | None, typer.Option("--set", help="Any config field, e.g. --set camera.calibration.views=30.")
+    ] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of the target poses and the noise.", min=0)] = None,
+    force: Annotated[bool, typer.Option(help="Reuse a non-empty --out (offtrack's files only).")] = False,
+) -> None:
+    """Calibrate the scenario's stereo camera on a rendered checkerboard (OpenCV); write the YAML and residuals.
+
+    A run uses the file with --set camera.calibration.mode=file --set camera.calibration.file=OUT/calibration.yaml.
+    """
+    from scenarios.camera.optics import calibration_target_rig, lenses, run_calibration
+    from scenarios.camera.rig import rig_from_config
+    from scenarios.run.files import write_atomic
+    from scenarios.run.results import new_run_dir
+    from sensor.calibration_report import calibration_summary
+
+    config = _load(scenario, _overrides((("seed", seed),), None, None, set_))
+    run_dir = new_run_dir(out, "calibration", force=force)
+    rig = rig_from_config(config)
+    with console.status("calibrating: imaging the target and solving"):
+        result = run_calibration(rig, config)
+    path = result.write(run_dir / "calibration.yaml")
+    summary = calibration_summary(result, calibration_target_rig(rig, config), *lenses(config))
+    write_atomic(run_dir / "residuals.json", json.dumps(summary, indent=2, default=float))
+    rms, rotation = summary["rms_px"], summary["rotation_deg"]
+    console.print(escape(f"calibration → {path}; residuals → {run_dir / 'residuals.json'}"))
+    console.print(
+        f"reprojection RMS left {rms['left']:.3f} px, right {rms['right']:.3f} px, stereo {rms['stereo']:.3f} px; "
+        f"baseline error {1e3 * summary['baseline_m']['error']:+.2f} mm; rotation error "
+        + ", ".join(f"{axis} {rotation[axis]['error']:+.3f}°" for axis in ("roll", "pitch", "yaw"))
+    )
 
 
 @app.command()

@@ -29,7 +29,7 @@ from vehicle_model.errors import InputError
 from vehicle_model.presets import VEHICLE_PRESETS
 from vehicle_model.surface import FRICTION_PRESETS
 
-from .field_schema import CalibrationConfig, FlexConfig, LensConfig, RigRotationDeg, StrictModel
+from .field_schema import CalibrationConfig, FlexConfig, LensConfig, LightingConfig, RigRotationDeg, StrictModel
 
 CATALOGUE_PACKAGE = "scenarios.catalogue"
 
@@ -267,6 +267,8 @@ class CameraConfig(_Strict):
     right_lens: LensConfig | None = Field(None, description="the right camera's lens; None: the same as lens")
     calibration: CalibrationConfig = CalibrationConfig()
     flex: FlexConfig = FlexConfig()
+    lighting: LightingConfig = LightingConfig()
+    world: Literal["roadside", "airfield"] = "roadside"
     latency_s: float | None = Field(
         None,
         ge=0.0,

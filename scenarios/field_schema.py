@@ -68,7 +68,7 @@ class CalibrationConfig(StrictModel):
 
     mode: Literal["ideal", "estimated", "file"] = "ideal"
     file: str | None = Field(None, description="OpenCV YAML of `offtrack calibrate` (mode file)")
-    views: int = Field(15, ge=5, le=100, description="target poses; OpenCV needs a few, 100 is far beyond use")
+    views: int = Field(40, ge=5, le=100, description="target poses; 15 left 5 % depth error with a lens, 40 about 1 %")
     target_cols: int = Field(17, ge=3, le=30, description="inner corners across; a wide board suits a 3.4:1 image")
     target_rows: int = Field(6, ge=3, le=30, description="inner corners down; must differ from target_cols")
     square_size: float = Field(0.05, ge=0.005, le=1.0, description="[m] printed square size")
@@ -116,3 +116,22 @@ class FlexConfig(StrictModel):
     def is_zero(self) -> bool:
         """No flex at all."""
         return not any(self.twist_deg_per_mps2) and not any(self.vibration_rms_deg)
+
+
+class LightingConfig(StrictModel):
+    """Sun, shadows, sky and auto-exposure (:class:`sensor.lighting.Lighting`); ``sun: false`` is flat lighting.
+
+    Light and shadows are baked once into the static world; per frame the sky, the glare of a sun in or near
+    the view and one lagging exposure gain for the pair change (paper §4.3: feature counts rose and fell as the
+    cameras faced the low sun). The exposure lag is counted in frames of ``rates.camera_hz``.
+    """
+
+    sun: bool = False
+    sun_azimuth_deg: float = Field(270.0, ge=0.0, lt=360.0, description="[°] towards the sun, anticlockwise from +X")
+    sun_elevation_deg: float = Field(12.0, ge=1.0, le=90.0, description="[°] above the horizon; below 1° no light")
+    shadows: bool = True
+    sky: bool = True
+    auto_exposure: bool = True
+    exposure_lag_s: float = Field(0.5, ge=0.0, le=10.0, description="[s] time constant of the auto-exposure")
+    target_level: float = Field(110.0, ge=10.0, le=245.0, description="[grey levels] mean the exposure aims at")
+    glare: float = Field(100.0, ge=0.0, le=1000.0, description="[grey levels] veiling glare with the sun in view")

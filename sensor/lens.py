@@ -162,8 +162,14 @@ def undistort_pixels(
     return out.reshape(-1, 2)
 
 
-def _check_invertible(k: np.ndarray, lens: Lens, width: int, height: int) -> None:
-    """Refuse a lens whose model folds over inside the image (the distortion would not be one-to-one)."""
+def check_invertible(k: np.ndarray, lens: Lens, width: int, height: int) -> None:
+    """Refuse a lens whose model folds over inside the image (the distortion would not be one-to-one).
+
+    Raises
+    ------
+    InputError
+        Naming the lens (its ``name``, e.g. ``camera.lens``), where it folds and the image's corner radius.
+    """
     limit = lens.radial_limit()
     if math.isinf(limit):
         return
@@ -183,7 +189,7 @@ def _check_invertible(k: np.ndarray, lens: Lens, width: int, height: int) -> Non
 
 def ideal_extent(k: np.ndarray, lens: Lens, width: int, height: int) -> tuple[float, float, float, float]:
     """Bounding box ``(u_min, v_min, u_max, v_max)`` [px, same K] of the ideal positions of all distorted pixels."""
-    _check_invertible(k, lens, width, height)
+    check_invertible(k, lens, width, height)
     # the extremes lie on the border: sample every border pixel (plus a coarse interior grid for safety)
     u = np.arange(width, dtype=np.float64)
     v = np.arange(height, dtype=np.float64)

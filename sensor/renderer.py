@@ -245,12 +245,20 @@ class StereoRenderer:
         return grey, dep
 
     def render_poses(
-        self, pose_left: np.ndarray, pose_right: np.ndarray, *, depth: bool = False, frame: int | None = None
+        self,
+        pose_left: np.ndarray,
+        pose_right: np.ndarray,
+        *,
+        depth: bool = False,
+        frame: int | None = None,
+        expose: bool = True,
     ) -> StereoPair:
         """Render the pair from two camera poses (``T_world←camera``, OpenCV axes).
 
         Image noise and exposure variation of the rig are applied (frame ``frame``, default the
-        renderer's running frame counter).
+        renderer's running frame counter). With a sun and ``expose=False`` the pair is the radiance before
+        the auto-exposure (float32, grey levels at gain 1) without sensor effects: for a caller that exposes
+        the frames in their order itself (the exposure lags, so it depends on the frames before).
         """
         k = self.frame if frame is None else int(frame)
         self.frame = k + 1
@@ -263,6 +271,9 @@ class StereoRenderer:
             _, light, exposure = lit
             rad_l = light.radiance(left, alpha_left, np.asarray(pose_left)[:3, :3])
             rad_r = light.radiance(right, self._alpha, np.asarray(pose_right)[:3, :3])
+            if not expose:
+                self.timings["pairs"] = self.timings.get("pairs", 0.0) + 1
+                return StereoPair(rad_l.astype(np.float32), rad_r.astype(np.float32), dl, dr)
             gain = exposure.update(float(cv2.mean(rad_l)[0]), k)
             left, right = exposure.apply(rad_l, gain), exposure.apply(rad_r, gain)
             self.last_gain = gain
@@ -281,28 +292,20 @@ class StereoRenderer:
         depth: bool = False,
         frame: int | None = None,
         params: VehicleParams | None = None,
+        expose: bool = True,
     ) -> StereoPair:
-        """Render the pair for a tractor state (CG position [m], tractor heading ψ1 and articulation Γ [rad])."""
+        """Render the pair for a tractor state (CG position [m], tractor heading ψ1 and articulation Γ [rad]).
+
+        ``expose``: see :meth:`render_poses`."""
         params = params if params is not None else self.params
         if params is None:
             raise InputError("StereoRenderer.render needs the vehicle params (StereoRenderer(..., params=...))")
         pl = self.rig.camera_in_world(params, x, y, psi1, gamma, "left")
         pr = self.rig.camera_in_world(params, x, y, psi1, gamma, "right")
-        return self.render_poses(pl, pr, depth=depth, frame=frame)
+        return self.render_poses(pl, pr, depth=depth, frame=frame, expose=expose)
 
     def _effects(self, left: np.ndarray, right: np.ndarray, frame: int) -> tuple[np.ndarray, np.ndarray]:
-        rig = self.rig
-        if rig.noise_std <= 0.0 and rig.exposure_std <= 0.0:
-            return left, right
-        rng = np.random.default_rng([self.seed, 0xCA3E, frame])
-        gains = 1.0 + rig.exposure_std * rng.standard_normal(2) if rig.exposure_std > 0 else np.ones(2)
-        out = []
-        for img, g in zip((left, right), gains, strict=True):
-            f = img.astype(np.float32) * np.float32(max(g, 0.0))
-            if rig.noise_std > 0:
-                f += rng.standard_normal(img.shape, dtype=np.float32) * np.float32(rig.noise_std)
-            out.append(np.clip(f + 0.5, 0, 255).astype(np.uint8))
-        return out[0], out[1]
+        return apply_sensor_effects(left, right, self.rig, self.seed, frame)
 
     def reset_timings(self) -> None:
         """Zero the accumulated stage timings."""
@@ -313,3 +316,25 @@ class StereoRenderer:
         """OpenGL version and renderer string of the process's context (creates it if needed)."""
         ctx = self._context()
         return {"version": ctx.gl_version, "renderer": ctx.gl_renderer}
+
+
+def apply_sensor_effects(
+    left: np.ndarray, right: np.ndarray, rig: StereoRig, seed: int, frame: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The image sensor's gain jitter and noise of frame ``frame`` (``rig.exposure_std``, ``rig.noise_std``).
+
+    Seeded by ``(seed, frame)`` alone, so a frame's noise does not depend on the process or the order of
+    rendering. Applied by the renderer to the images it returns, and by a lens model after distorting a
+    noise-free render (the noise of a real sensor is not interpolated by the lens).
+    """
+    if rig.noise_std <= 0.0 and rig.exposure_std <= 0.0:
+        return left, right
+    rng = np.random.default_rng([seed, 0xCA3E, frame])
+    gains = 1.0 + rig.exposure_std * rng.standard_normal(2) if rig.exposure_std > 0 else np.ones(2)
+    out = []
+    for img, g in zip((left, right), gains, strict=True):
+        f = img.astype(np.float32) * np.float32(max(g, 0.0))
+        if rig.noise_std > 0:
+            f += rng.standard_normal(img.shape, dtype=np.float32) * np.float32(rig.noise_std)
+        out.append(np.clip(f + 0.5, 0, 255).astype(np.uint8))
+    return out[0], out[1]

@@ -106,6 +106,8 @@ def assert_one_line_error(result: subprocess.CompletedProcess, *words: str) -> N
             ["run", "roundabout-test", "--set", "estimators.viso_ot=true", "--set", "camera.baseline=0.01"],
             "camera.baseline",
         ),
+        (["run", "roundabout-3", "--set", "estimators.viso_ot=true", "--set", "camera.lens.k1=-0.2"], "camera.lens"),
+        (["run", "roundabout-3", "--set", "camera.calibration.mode=file"], "camera.calibration"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(args: list[str], named: str) -> None:

@@ -27,7 +27,8 @@ from vehicle_model.simulator import VehicleState
 
 from ..setup.build import ScenarioSetup
 from .feasibility import check_camera_feasible
-from .pipeline import CameraFrame, CameraPipeline, PairOdometry
+from .optics import FlexSchedule
+from .pipeline import CameraFrame, CameraPipeline, PairFinish, PairOdometry, frame_interval
 from .workers import CameraWorkerError, RenderWorkers
 
 __all__ = ["CameraFeed", "CameraWorkerError", "CapturedFrame", "latency_ticks"]
@@ -101,10 +102,14 @@ class CameraFeed:
         if workers > 0:
             self._workers = RenderWorkers(setup.config, workers)  # start them first: they take a while
             self._odometry = PairOdometry(setup)
+            self._finish = PairFinish(setup.config)
         else:
             self._pipeline = CameraPipeline(setup)
             self._odometry = self._pipeline.stage_odometry
         self.rig = self._odometry.rig
+        self._flex = FlexSchedule(
+            setup.config, setup.params, frame_interval(setup.config.rates.camera_hz, setup.config.rates.control_hz)
+        )
         self._captured: deque[CapturedFrame] = deque()  # taken, not yet released
         self._unprocessed: deque[CapturedFrame] = deque()  # taken, not yet processed (pipelined)
         self._count = 0
@@ -135,12 +140,13 @@ class CameraFeed:
         """Take a frame at ``state`` on control tick ``tick``."""
         shot = CapturedFrame(self._count, tick, tick + self.latency_ticks)
         self._count += 1
+        flex = self._flex.rotation(state)  # in frame order, in this process: the twist and the seeded vibration
         if self._workers is None:
             assert self._pipeline is not None
-            shot.frame = self._pipeline.frame(state)
+            shot.frame = self._pipeline.frame(state, right_rotation=flex)
             self._account(shot.frame)
         else:
-            self._workers.submit(shot.index, state.X, state.Y, state.psi1, state.gamma)
+            self._workers.submit(shot.index, state.X, state.Y, state.psi1, state.gamma, right_rotation=flex)
             self._unprocessed.append(shot)
         self._captured.append(shot)
         return shot
@@ -188,6 +194,7 @@ class CameraFeed:
         assert self._workers is not None
         shot = self._unprocessed.popleft()
         left, right, render_s, render_cpu_s = self._workers.result(shot.index)
+        left, right = self._finish.finish(left, right, shot.index)  # the in-order exposure, if any
         frame = self._odometry.process(left, right, render_s)
         frame.render_cpu_s = render_cpu_s
         shot.frame = frame

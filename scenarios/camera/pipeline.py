@@ -18,15 +18,19 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from sensor.camera import Misalignment
+from sensor.camera import Misalignment, StereoRig
+from sensor.exposure import AutoExposure
+from sensor.lighting import Lighting
 from sensor.renderer import StereoRenderer
 from sensor.viso_ot import STEP_COLUMNS, VisoOtEstimator
-from sensor.vo import StereoOdometry, VOConfig, VOResult
+from sensor.vo import StereoOdometry, VOResult
 from sensor.vo.quality import QUALITY_COLUMNS, REJECTION_REASONS
 from vehicle_model.simulator import VehicleState
 
+from ..config import ScenarioConfig
 from ..setup.build import ScenarioSetup
 from .feasibility import check_camera_feasible
+from .optics import FieldOptics, field_optics
 from .rig import rig_from_config
 from .world import world_for_scenario
 
@@ -47,18 +51,21 @@ __all__ = [
 # writers can read them without OpenGL; they are this module's interface too.
 
 
-def right_correction_homography(rig, estimated_misalignment_deg: tuple[float, float, float]) -> np.ndarray | None:
+def right_correction_homography(
+    rig: StereoRig | np.ndarray, estimated_misalignment_deg: tuple[float, float, float]
+) -> np.ndarray | None:
     """Homography that removes an estimated right-camera rotation from the right image.
 
     de Saxe & Cebon 2018, eqs (8)–(9): a rotation ``R`` of the right camera about its optical
     centre moves image points by ``K·Rᵀ·K⁻¹`` (:meth:`sensor.camera.StereoRig.misalignment_homography`);
     warping the right image with the inverse, ``K·R·K⁻¹``, restores the ideal image. The angles are
-    the estimated misalignment (roll, pitch, yaw) in degrees; ``None`` when they are all zero.
+    the estimated misalignment (roll, pitch, yaw) in degrees; ``None`` when they are all zero. ``rig`` is the
+    rig whose right images are corrected, or directly their camera matrix (e.g. of rectified images).
     """
     if not any(estimated_misalignment_deg):
         return None
     rotation = Misalignment.from_degrees(*estimated_misalignment_deg).rotation
-    k = rig.intrinsics()
+    k = rig if isinstance(rig, np.ndarray) else rig.intrinsics()
     return k @ rotation @ np.linalg.inv(k)
 
 
@@ -126,13 +133,60 @@ def frame_quality(result: VOResult, step: dict[str, float]) -> dict[str, float]:
     }
 
 
+class PairFinish:
+    """What must happen to the pairs in frame order: the auto-exposure, then the sensor and the rectification.
+
+    The exposure gain of frame ``k`` lags behind the brightness of the frames before it
+    (:class:`sensor.exposure.AutoExposure`), so it is applied where the frames arrive in order — the
+    co-simulation's process — to the radiance the render stage leaves unexposed; a pipelined run then records
+    exactly what a serial one does. Without auto-exposure there is nothing to do in order (:attr:`needed` is
+    false) and the render stage finishes the pair itself.
+
+    Parameters
+    ----------
+    config
+        The scenario (``camera``, ``rates``, ``seed``).
+    """
+
+    def __init__(self, config: ScenarioConfig) -> None:
+        self.seed = config.seed
+        self.rig = rig_from_config(config)
+        self.optics: FieldOptics = field_optics(self.rig, config)
+        lighting = lighting_from_config(config)
+        self.exposure = AutoExposure(lighting) if lighting is not None and lighting.auto_exposure else None
+        self.correction = right_correction_homography(self.optics.vo_k(), config.camera.right_correction_deg)
+        self.last_gain = 1.0
+
+    @property
+    def needed(self) -> bool:
+        """Whether the render stage leaves the radiance unexposed for :meth:`finish`."""
+        return self.exposure is not None
+
+    def finish(self, left: np.ndarray, right: np.ndarray, frame: int) -> tuple[np.ndarray, np.ndarray]:
+        """Expose (in order), add the sensor's noise, rectify and correct a pair (a no-op if not :attr:`needed`)."""
+        if self.exposure is None:
+            return left, right
+        gain = self.exposure.update(float(cv2.mean(left)[0]), frame)
+        self.last_gain = gain
+        left, right = AutoExposure.apply(left, gain), AutoExposure.apply(right, gain)
+        left, right = self.optics.electronic(left, right, seed=self.seed, frame=frame)
+        return left, self.correct(right)
+
+    def correct(self, right: np.ndarray) -> np.ndarray:
+        """The right image with the eq (8)–(9) correction applied (unchanged without one)."""
+        if self.correction is None:
+            return right
+        return cv2.warpPerspective(right, self.correction, (right.shape[1], right.shape[0]), flags=cv2.INTER_LINEAR)
+
+
 class PairRenderer:
-    """The render stage: the stereo pair at a tractor state, the right image corrected (paper eqs (8)–(9)).
+    """The render stage: the stereo pair at a tractor state, through the field optics, the right image corrected.
 
     Owns the world and the OpenGL renderer, so it lives in the process that renders: the co-simulation's
     own in a serial run, a spawned worker in a pipelined one (:mod:`.workers`). Frame ``k``'s images
-    depend only on the state and ``k`` (:class:`sensor.renderer.StereoRenderer` seeds its noise per frame),
-    not on the process or the order of rendering.
+    depend only on the state, ``k`` and the frame's mount flex (:class:`sensor.renderer.StereoRenderer` seeds
+    its noise per frame), not on the process or the order of rendering; what depends on the order (the
+    auto-exposure) is left to :class:`PairFinish`.
 
     Parameters
     ----------
@@ -142,20 +196,64 @@ class PairRenderer:
 
     def __init__(self, setup: ScenarioSetup) -> None:
         cfg = setup.config
-        self.rig = rig_from_config(cfg)
-        self.world = world_for_scenario(setup)
-        self.renderer = StereoRenderer(self.world, self.rig, setup.params, seed=cfg.seed)
-        self.correction = right_correction_homography(self.rig, cfg.camera.right_correction_deg)
+        self.seed = cfg.seed
+        self.in_order = PairFinish(cfg)
+        self.rig = self.in_order.rig
+        self.optics = self.in_order.optics
+        kind = cfg.camera.world
+        self.world = world_for_scenario(setup) if kind == "roadside" else world_for_scenario(setup, kind=kind)
+        self.renderer = StereoRenderer(
+            self.world, self.optics.render_rig, setup.params, seed=cfg.seed, lighting=lighting_from_config(cfg)
+        )
+        self.correction = self.in_order.correction
 
-    def render(self, x: float, y: float, psi1: float, gamma: float, frame: int) -> tuple[np.ndarray, np.ndarray]:
-        """Left and corrected right grey images of frame ``frame`` at the tractor pose ``(x, y, ψ1, Γ)``."""
-        pair = self.renderer.render(x, y, psi1, gamma, frame=frame)
-        right = pair.right
-        if self.correction is not None:
-            right = cv2.warpPerspective(
-                right, self.correction, (right.shape[1], right.shape[0]), flags=cv2.INTER_LINEAR
-            )
-        return pair.left, right
+    def render_stage(
+        self,
+        x: float,
+        y: float,
+        psi1: float,
+        gamma: float,
+        frame: int,
+        right_rotation: Misalignment | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Frame ``frame`` as far as it can be made out of order: finished grey images, or — with auto-exposure —
+        the unexposed radiance (float32) for :meth:`PairFinish.finish`.
+
+        ``right_rotation`` is the right camera's mount flex of this frame (:class:`.optics.FlexSchedule`), on top
+        of its static misalignment; lens, calibration and flex follow :mod:`.optics`.
+        """
+        expose = not self.in_order.needed
+        pair = self.renderer.render(x, y, psi1, gamma, frame=frame, expose=expose)
+        left, right = pair.left, pair.right
+        if not expose:
+            return self.optics.optical(left, right, right_rotation=right_rotation)
+        if self.optics.active:
+            left, right = self.optics.prepare(left, right, right_rotation=right_rotation, seed=self.seed, frame=frame)
+        return left, self.in_order.correct(right)
+
+    def render(
+        self,
+        x: float,
+        y: float,
+        psi1: float,
+        gamma: float,
+        frame: int,
+        right_rotation: Misalignment | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Left and corrected right grey images of frame ``frame`` at the tractor pose ``(x, y, ψ1, Γ)``, in order.
+
+        :meth:`render_stage` then :meth:`PairFinish.finish`: call it with the frames in order (a serial run).
+        """
+        left, right = self.render_stage(x, y, psi1, gamma, frame, right_rotation=right_rotation)
+        return self.in_order.finish(left, right, frame)
+
+
+def lighting_from_config(config: ScenarioConfig) -> Lighting | None:
+    """The renderer's lighting (``None``: today's flat lighting) from ``camera.lighting``."""
+    light = config.camera.lighting
+    if not light.sun:
+        return None
+    return Lighting(**light.model_dump(), frame_interval_s=1.0 / config.rates.camera_hz)
 
 
 class PairOdometry:
@@ -173,13 +271,11 @@ class PairOdometry:
     def __init__(self, setup: ScenarioSetup) -> None:
         cfg = setup.config
         self.rig = rig_from_config(cfg)
-        self.vo = StereoOdometry(
-            VOConfig.from_horizontal_fov(self.rig.width, self.rig.height, self.rig.hfov, self.rig.baseline),
-            seed=cfg.seed,
-        )
+        self.optics = field_optics(self.rig, cfg)
+        self.vo = StereoOdometry(self.optics.vo_config(), seed=cfg.seed)
         self.estimator = VisoOtEstimator(
             setup.params,
-            self.rig.camera_in_trailer("left", setup.params),
+            self.optics.left_in_trailer(setup.params),
             frame_interval=frame_interval(cfg.rates.camera_hz, cfg.rates.control_hz),
         )
         self.frames = 0
@@ -247,11 +343,16 @@ class CameraPipeline:
         """VISO-OT off-tracking [m] after the latest frame (``None``: no estimate)."""
         return self.stage_odometry.estimate
 
-    def frame(self, state: VehicleState) -> CameraFrame:
-        """Render and process the pair at ``state``; update the estimate; say whether the motion was accepted."""
+    def frame(self, state: VehicleState, right_rotation: Misalignment | None = None) -> CameraFrame:
+        """Render and process the pair at ``state``; update the estimate; say whether the motion was accepted.
+
+        ``right_rotation``: this frame's mount flex of the right camera (:class:`.optics.FlexSchedule`).
+        """
         t0 = wallclock.perf_counter()
         cpu0 = wallclock.process_time()
-        left, right = self.stage_render.render(state.X, state.Y, state.psi1, state.gamma, self.frames)
+        left, right = self.stage_render.render(
+            state.X, state.Y, state.psi1, state.gamma, self.frames, right_rotation=right_rotation
+        )
         render_s = wallclock.perf_counter() - t0
         render_cpu_s = wallclock.process_time() - cpu0
         shot = self.stage_odometry.process(left, right, render_s)

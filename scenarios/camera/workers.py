@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from sensor.camera import Misalignment
 from vehicle_model.errors import OfftrackError
 
 DEFAULT_WORKERS = 2
@@ -65,14 +66,15 @@ def _worker_main(config: Any, conn: Connection) -> None:
             return  # the co-simulation is gone
         if job is None:
             return
-        frame, x, y, psi1, gamma = job
+        frame, x, y, psi1, gamma, flex = job
         try:
             t0, cpu0 = time.perf_counter(), time.process_time()
-            left, right = renderer.render(x, y, psi1, gamma, frame)
-            answer = (frame, time.perf_counter() - t0, time.process_time() - cpu0, left.shape)
+            rotation = None if flex is None else Misalignment(*flex)
+            left, right = renderer.render_stage(x, y, psi1, gamma, frame, right_rotation=rotation)
+            answer = (frame, time.perf_counter() - t0, time.process_time() - cpu0, (left.shape, left.dtype.str))
             conn.send(answer)
-            conn.send_bytes(np.ascontiguousarray(left, dtype=np.uint8).reshape(-1))
-            conn.send_bytes(np.ascontiguousarray(right, dtype=np.uint8).reshape(-1))
+            conn.send_bytes(np.ascontiguousarray(left).reshape(-1))
+            conn.send_bytes(np.ascontiguousarray(right).reshape(-1))
         except (BrokenPipeError, EOFError, OSError):
             return
         except BaseException:
@@ -80,9 +82,10 @@ def _worker_main(config: Any, conn: Connection) -> None:
             return
 
 
-def _receive_image(conn: Connection, shape: tuple[int, int]) -> np.ndarray:
-    """One grey image sent as raw bytes, in a writable array of its own."""
-    image = np.empty(shape, dtype=np.uint8)
+def _receive_image(conn: Connection, layout: tuple[tuple[int, int], str]) -> np.ndarray:
+    """One image sent as raw bytes (grey levels, or radiance before the in-order exposure), in its own array."""
+    shape, dtype = layout
+    image = np.empty(shape, dtype=np.dtype(dtype))
     conn.recv_bytes_into(memoryview(image.reshape(-1)))
     return image
 
@@ -149,11 +152,15 @@ class RenderWorkers:
     def __len__(self) -> int:
         return len(self._procs)
 
-    def submit(self, frame: int, x: float, y: float, psi1: float, gamma: float) -> None:
-        """Have worker ``frame mod workers`` render frame ``frame`` at the tractor pose ``(x, y, ψ1, Γ)``."""
+    def submit(self, frame: int, x: float, y: float, psi1: float, gamma: float, right_rotation: Any = None) -> None:
+        """Have worker ``frame mod workers`` render frame ``frame`` at the tractor pose ``(x, y, ψ1, Γ)``.
+
+        ``right_rotation``: the frame's mount flex (a :class:`sensor.camera.Misalignment`, or ``None``).
+        """
         i = frame % len(self._conns)
+        flex = None if right_rotation is None else (right_rotation.roll, right_rotation.pitch, right_rotation.yaw)
         try:
-            self._conns[i].send((frame, float(x), float(y), float(psi1), float(gamma)))
+            self._conns[i].send((frame, float(x), float(y), float(psi1), float(gamma), flex))
         except (BrokenPipeError, EOFError, OSError):
             raise self._failure(i, frame, "") from None
         self._outstanding[frame] = i

@@ -75,6 +75,10 @@ RUN_FILES = frozenset(
         "times.txt",
         "offtrack.json",
         "stereo.mp4",
+        "animation.mp4",
+        "animation.gif",
+        "calibration.yaml",
+        "residuals.json",
     }
 )
 """Files offtrack writes into an output directory (besides ``*.png`` and the directories below)."""
