@@ -135,3 +135,37 @@ class LightingConfig(StrictModel):
     exposure_lag_s: float = Field(0.5, ge=0.0, le=10.0, description="[s] time constant of the auto-exposure")
     target_level: float = Field(110.0, ge=10.0, le=245.0, description="[grey levels] mean the exposure aims at")
     glare: float = Field(100.0, ge=0.0, le=1000.0, description="[grey levels] veiling glare with the sun in view")
+
+
+class SelfCalibrationConfig(StrictModel):
+    """Online stereo self-calibration of the right camera's rotation (:mod:`sensor.vo.self_calibration`).
+
+    Runs on the odometry's own stereo matches in frame order: roll and pitch from vertical disparities, yaw
+    from the disparity offset of road points scaled by the mounting height (``scale: mount_height``) or only
+    from vertical disparities (``vertical_only``); recursive least squares with forgetting and Huber weights.
+    Each frame's right image is warped by the estimate of the frames before it (paper eqs (8)–(9)), on top of
+    ``camera.right_correction_deg``. Off by default.
+    """
+
+    enabled: bool = False
+    forgetting: float = Field(
+        0.98, ge=0.8, le=1.0, description="RLS forgetting per frame; memory 1/(1−λ) frames: 5 at 0.8, none at 1"
+    )
+    scale: Literal["mount_height", "vertical_only"] = "mount_height"
+    noise_px: float = Field(
+        0.3, ge=0.01, le=5.0, description="[px] floor of the robust residual scale; matches are at best ~0.3 px"
+    )
+    huber_k: float = Field(1.345, ge=0.5, le=10.0, description="Huber threshold in scales; 1.345 is 95 % efficient")
+    reject_sigma: float = Field(4.0, ge=2.0, le=50.0, description="rows beyond this many scales are dropped")
+    ground_tolerance: float = Field(
+        0.1, gt=0.0, le=0.5, description="relative height tolerance of a road point; 0.5 takes kerbs for road"
+    )
+    min_ground_disparity_px: float = Field(
+        4.0, ge=0.5, le=100.0, description="[px] far road points below this are too uncertain to classify"
+    )
+    min_rows: int = Field(20, ge=6, le=2000, description="fewer matches: no update (3 angles need a spread)")
+    prior_std_deg: float = Field(1.0, gt=0.0, le=10.0, description="[°] std of the zero start")
+    max_angle_deg: float = Field(3.0, gt=0.0, le=10.0, description="[°] estimate clipped per axis; a first order model")
+    road_half_width: float = Field(
+        2.5, gt=0.0, le=20.0, description="[m] road points within this of the trailer's centreline; 20 takes fields"
+    )

@@ -25,6 +25,12 @@ from sensor.renderer import StereoRenderer
 from sensor.viso_ot import STEP_COLUMNS, VisoOtEstimator
 from sensor.vo import StereoOdometry, VOResult
 from sensor.vo.quality import QUALITY_COLUMNS, REJECTION_REASONS
+from sensor.vo.self_calibration import (
+    SELF_CALIBRATION_COLUMNS,
+    RoadPlane,
+    SelfCalibrationSettings,
+    StereoSelfCalibration,
+)
 from vehicle_model.simulator import VehicleState
 
 from ..config import ScenarioConfig
@@ -92,6 +98,9 @@ class CameraFrame:
     render_cpu_s, vo_cpu_s : float
         CPU time of rendering (every thread of the rendering process, llvmpipe's included) and of the
         odometry (its thread) [s]; NaN when not measured.
+    self_calibration : dict[str, float]
+        Exactly the keys of :data:`sensor.vo.self_calibration.SELF_CALIBRATION_COLUMNS`: the online estimate of
+        the right camera's residual rotation after this frame (NaN when ``camera.self_calibration`` is off).
     """
 
     estimate: float | None
@@ -104,6 +113,9 @@ class CameraFrame:
     estimate_reason: str = ""
     render_cpu_s: float = math.nan
     vo_cpu_s: float = math.nan
+    self_calibration: dict[str, float] = field(
+        default_factory=lambda: dict.fromkeys(SELF_CALIBRATION_COLUMNS, math.nan)
+    )
 
 
 def frame_interval(camera_hz: float, control_hz: float) -> float:
@@ -259,8 +271,10 @@ def lighting_from_config(config: ScenarioConfig) -> Lighting | None:
 class PairOdometry:
     """The odometry stage: visual odometry and VISO-OT on the pairs in frame order, with quality and reasons.
 
-    Its state (the previous pair's features, the kingpin path) depends on the order of the frames only,
-    so it gives the same :class:`CameraFrame` whichever process rendered the images.
+    Its state (the previous pair's features, the kingpin path, the self-calibration) depends on the order of
+    the frames only, so it gives the same :class:`CameraFrame` whichever process rendered the images. With
+    ``camera.self_calibration.enabled`` the right image is first warped by ``K·R̂·K⁻¹`` of the rotation estimated
+    from the frames before (paper eqs (8)–(9); causal), and the frame's stereo matches update the estimate.
 
     Parameters
     ----------
@@ -280,12 +294,24 @@ class PairOdometry:
         )
         self.frames = 0
         self.estimate: float | None = None
+        self.self_calibration = self_calibration_for(self.optics, setup)
 
     def process(self, left: np.ndarray, right: np.ndarray, render_s: float = math.nan) -> CameraFrame:
         """Odometry and VISO-OT on the next pair; ``render_s`` is what rendering it took [s] (for the record)."""
         t1 = wallclock.perf_counter()
         cpu1 = wallclock.thread_time()
+        calibration = self.self_calibration
+        if calibration is not None:
+            used = calibration.angles
+            warp = calibration.correction_homography()
+            if warp is not None:  # the estimate of the frames before this one (causal)
+                size = (right.shape[1], right.shape[0])
+                right = cv2.warpPerspective(right, warp, size, flags=cv2.INTER_LINEAR)
         result = self.vo.process(left, right)
+        calibrated = dict.fromkeys(SELF_CALIBRATION_COLUMNS, math.nan)
+        if calibration is not None:
+            inliers = result.inliers if result.n_inliers > 0 else None
+            calibrated = calibration.update(result.stereo_matches, used, inliers).record()
         t2 = wallclock.perf_counter()
         cpu2 = wallclock.thread_time()
         step = dict.fromkeys(STEP_COLUMNS, math.nan)
@@ -306,7 +332,19 @@ class PairOdometry:
             quality=frame_quality(result, step),
             estimate_reason="" if self.estimate is not None else (self.estimator.estimate_reason or "buffer_filling"),
             vo_cpu_s=cpu2 - cpu1,
+            self_calibration=calibrated,
         )
+
+
+def self_calibration_for(optics: FieldOptics, setup: ScenarioSetup) -> StereoSelfCalibration | None:
+    """The online self-calibration of ``camera.self_calibration`` (``None`` when off), on the odometry's images:
+    their camera matrix and baseline, and the road plane ``camera.mount_height`` below their left camera."""
+    cfg = setup.config.camera.self_calibration
+    if not cfg.enabled:
+        return None
+    settings = SelfCalibrationSettings(**cfg.model_dump(exclude={"enabled"}))
+    plane = RoadPlane.from_camera_pose(optics.left_in_trailer(setup.params))
+    return StereoSelfCalibration(optics.vo_k(), optics.vo_config().baseline, plane, settings)
 
 
 class CameraPipeline:

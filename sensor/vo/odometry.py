@@ -28,6 +28,7 @@ import numpy as np
 from sensor.vo.config import VOConfig
 from sensor.vo.features import ImageFeatures, extract_features
 from sensor.vo.kalman import MotionKalmanFilter
+from sensor.vo.match_columns import U1C, U2C, V1C, V2C
 from sensor.vo.matching import match_frames
 from sensor.vo.motion import estimate_motion, params_to_transform
 from sensor.vo.quality import MotionQuality, motion_quality, quality_failure
@@ -122,6 +123,17 @@ class VOResult:
     def rotation_sigma_rad(self) -> float:
         """Rotation standard deviation about its worst axis [rad per frame] (NaN if unknown)."""
         return MotionQuality(self.n_inliers, self.residual_px, self.covariance).rotation_sigma_rad
+
+    @property
+    def stereo_matches(self) -> np.ndarray:
+        """The current pair's stereo matches: (n_matches, 4) read-only (u_l, v_l, u_r, v_r) [px].
+
+        The current-left and current-right columns of ``matches`` (rows as in ``inliers``): what online
+        stereo self-calibration (:mod:`sensor.vo.self_calibration`) reads. Empty on the first frame.
+        """
+        out = self.matches[:, [U1C, V1C, U2C, V2C]] if self.matches.shape[0] else np.empty((0, 4))
+        out.setflags(write=False)
+        return out
 
     @property
     def camera_motion(self) -> np.ndarray | None:
