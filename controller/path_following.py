@@ -176,8 +176,10 @@ class TrailerSteeringController:
         Vehicle; needs at least one steerable trailer axle.
     config : PathFollowingConfig, optional
         Gains, limits, fades; defaults as documented there.
-    feedback : {"truth", "zero_slip", "viso_ot"} or None
-        Which off-tracking estimate to feed back (key of the estimates dict); ``None``: feed-forward only.
+    feedback : {"truth", "zero_slip", "viso_ot", "viso_ot_fused"} or None
+        Which off-tracking estimate to feed back (key of the estimates dict); ``None``: feed-forward only. An
+        estimate that changes every tick (``viso_ot_fused``) is used every tick; one that comes with a standard
+        deviation (key ``<feedback>_std``) is dropped while that exceeds ``config.feedback_max_std``.
 
     Raises
     ------
@@ -456,6 +458,9 @@ class TrailerSteeringController:
                 "(enable the estimator, or choose another feedback)"
             )
         value = estimates[self.feedback]
+        std = estimates.get(f"{self.feedback}_std")
+        if std is not None and math.isfinite(std) and std > self.config.feedback_max_std:
+            value = None  # too uncertain (PathFollowingConfig.feedback_max_std): feed-forward only
         if value is None or not math.isfinite(value):
             # Missing: feedback off, integrator frozen, derivative restarts when samples return.
             self.estimate = None

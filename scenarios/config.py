@@ -29,7 +29,15 @@ from vehicle_model.errors import InputError
 from vehicle_model.presets import VEHICLE_PRESETS
 from vehicle_model.surface import FRICTION_PRESETS
 
-from .field_schema import CalibrationConfig, FlexConfig, LensConfig, LightingConfig, RigRotationDeg, StrictModel
+from .field_schema import (
+    CalibrationConfig,
+    FlexConfig,
+    LensConfig,
+    LightingConfig,
+    RigRotationDeg,
+    SelfCalibrationConfig,
+    StrictModel,
+)
 
 CATALOGUE_PACKAGE = "scenarios.catalogue"
 
@@ -225,6 +233,7 @@ class SignalsConfig(_Strict):
     tractor_yaw_rate: ChannelConfig = ChannelConfig()
     articulation: ChannelConfig = ChannelConfig()
     trailer_yaw_rate: ChannelConfig = ChannelConfig()
+    trailer_wheel_speed: ChannelConfig = ChannelConfig()
     trailer_steer: ChannelConfig = ChannelConfig()
 
 
@@ -268,6 +277,7 @@ class CameraConfig(_Strict):
     calibration: CalibrationConfig = CalibrationConfig()
     flex: FlexConfig = FlexConfig()
     lighting: LightingConfig = LightingConfig()
+    self_calibration: SelfCalibrationConfig = SelfCalibrationConfig()
     world: Literal["roadside", "airfield"] = "roadside"
     latency_s: float | None = Field(
         None,
@@ -283,11 +293,29 @@ class EstimatorsConfig(_Strict):
     """Which estimators run and how. ``zero_slip_variant``: Cheng's zero-slip dead-reckoning with the
     tractor yaw rate taken from the gyro (``yaw_rate``, default) or from the front steer angle
     (``steer_angle``). ``viso_ot``: render the trailer's stereo camera at the camera rate and run
-    visual odometry and VISO-OT (needs headless OpenGL)."""
+    visual odometry and VISO-OT (needs headless OpenGL). ``viso_ot_fused``: the Kalman filter of the trailer's
+    gyro, wheel speed and steer with the camera's motions (``sensor.fusion``, settings in ``fusion``); it needs
+    the camera, so it turns ``viso_ot`` on."""
 
     zero_slip: bool = True
     zero_slip_variant: Literal["yaw_rate", "steer_angle"] = "yaw_rate"
     viso_ot: bool = False
+    viso_ot_fused: bool = False
+
+    @model_validator(mode="before")
+    @classmethod
+    def _fused_needs_the_camera(cls, data: Any) -> Any:  # the fused filter corrects with the camera's motions
+        return {**data, "viso_ot": True} if isinstance(data, dict) and data.get("viso_ot_fused") is True else data
+
+
+class FusionConfig(_Strict):
+    """The fused VISO-OT filter (``sensor.fusion``): the data-sheet figures it is designed for (not ``signals``)."""
+
+    gyro_noise: float = Field(2e-3, gt=0.0, le=0.1, description="[rad/s] per sample; 0.1 is beyond any gyro")
+    wheel_speed_noise: float = Field(0.05, gt=0.0, le=1.0, description="[m/s] per sample; 1 m/s is a broken sensor")
+    slip_velocity_walk: float = Field(0.1, gt=0.0, le=5.0, description="[m/s/√s] slip build-up; 5 spins in 1 s")
+    vo_covariance_scale: float = Field(4.0, ge=1.0, le=1e4, description="on the VO covariance (a floor); 1e4: no VO")
+    drop_every: int = Field(0, ge=0, le=1000, description="withhold every n-th frame from it (0: none; a test)")
 
 
 class ControllerConfig(_Strict):
@@ -329,7 +357,8 @@ class ScenarioConfig(_Strict):
     signals: SignalsConfig = SignalsConfig()
     estimators: EstimatorsConfig = EstimatorsConfig()
     camera: CameraConfig = CameraConfig()
-    feedback: Literal["none", "truth", "zero_slip", "viso_ot"] = "none"
+    fusion: FusionConfig = FusionConfig()
+    feedback: Literal["none", "truth", "zero_slip", "viso_ot", "viso_ot_fused"] = "none"
     controller: ControllerConfig = ControllerConfig()
     roundabout_test: bool = False
     seed: int = Field(0, ge=0, le=2**32 - 1, description="numpy's seed range")
@@ -347,6 +376,8 @@ class ScenarioConfig(_Strict):
             raise ValueError("feedback zero_slip needs estimators.zero_slip = true")
         if self.feedback == "viso_ot" and not self.estimators.viso_ot:
             raise ValueError("feedback viso_ot needs estimators.viso_ot = true")
+        if self.feedback == "viso_ot_fused" and not self.estimators.viso_ot_fused:
+            raise ValueError("feedback viso_ot_fused needs estimators.viso_ot_fused = true")
         if self.feedback != "none" and not any(a.steerable for a in VEHICLE_PRESETS[self.vehicle]().trailer.axles):
             steerable = sorted(n for n, f in VEHICLE_PRESETS.items() if any(a.steerable for a in f().trailer.axles))
             raise ValueError(

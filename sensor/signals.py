@@ -11,6 +11,8 @@ front_steer         tractor steer-axle angle [rad]
 tractor_yaw_rate    tractor gyro [rad/s]
 articulation        articulation angle Γ = ψ1 − ψ2 from the fifth-wheel sensor [rad]
 trailer_yaw_rate    trailer gyro [rad/s]
+trailer_wheel_speed longitudinal speed of an unsteered trailer axle, along the trailer's centre line, from its
+                    wheel-speed sensor (free-rolling wheels: no longitudinal slip) [m/s]
 trailer_steer       steer angle of every steerable trailer axle [rad] (one value per axle)
 ==================  ===============================================================
 """
@@ -28,6 +30,7 @@ CHANNELS: tuple[str, ...] = (
     "tractor_yaw_rate",
     "articulation",
     "trailer_yaw_rate",
+    "trailer_wheel_speed",
     "trailer_steer",
 )
 

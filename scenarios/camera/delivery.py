@@ -91,6 +91,10 @@ class CameraFeed:
         The VISO-OT off-tracking [m] the controller may use now: that of the latest released frame.
     latency_ticks : int
         Control ticks between taking a frame and releasing its estimate.
+    released : list of CapturedFrame
+        The frames the last :meth:`deliver` released, oldest first (their motions go to the fused estimator).
+    camera_in_trailer : numpy.ndarray
+        4×4 pose of the left camera on the trailer (``T_trailer←camera``), as VISO-OT uses it.
     """
 
     def __init__(self, setup: ScenarioSetup, workers: int = 0) -> None:
@@ -107,6 +111,8 @@ class CameraFeed:
             self._pipeline = CameraPipeline(setup)
             self._odometry = self._pipeline.stage_odometry
         self.rig = self._odometry.rig
+        self.camera_in_trailer = self._odometry.optics.left_in_trailer(setup.params)
+        self.released: list[CapturedFrame] = []
         self._flex = FlexSchedule(
             setup.config, setup.params, frame_interval(setup.config.rates.camera_hz, setup.config.rates.control_hz)
         )
@@ -159,12 +165,14 @@ class CameraFeed:
         """
         while self._unprocessed and self._workers is not None and self._workers.ready(self._unprocessed[0].index):
             self._process_next()
+        self.released = []
         while self._captured and self._captured[0].release_tick <= tick:
             shot = self._captured.popleft()
             while shot.frame is None:
                 self._process_next()
             assert shot.frame is not None
             self.estimate = shot.frame.estimate
+            self.released.append(shot)
         return self.estimate
 
     def finish(self) -> None:

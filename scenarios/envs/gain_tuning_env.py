@@ -119,7 +119,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         self,
         scenario: str = DEFAULT_SCENARIO,
         overrides: Mapping[str, Any] | None = None,
-        feedback: Literal["truth", "zero_slip", "viso_ot"] = "truth",
+        feedback: Literal["truth", "zero_slip", "viso_ot", "viso_ot_fused"] = "truth",
         vehicle: str | None = "lst",
         mu: float | None = None,
         camber_percent: float | None = None,

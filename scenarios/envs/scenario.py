@@ -162,8 +162,9 @@ class ScenarioChoice:
         Catalogue name or YAML file.
     overrides : mapping
         Dotted configuration fields.
-    feedback : {"truth", "zero_slip", "viso_ot"}
-        Off-tracking source of the observation and of the PID (``viso_ot`` renders the trailer camera).
+    feedback : {"truth", "zero_slip", "viso_ot", "viso_ot_fused"}
+        Off-tracking source of the observation and of the PID (``viso_ot`` and ``viso_ot_fused``, the Kalman
+        filter of the trailer's signals and the camera, render the trailer camera).
     vehicle, mu, camber_percent, camber_direction, speed_kmh, direction
         Named settings (``None``: the scenario's own).
     randomise : DomainRandomisation
@@ -174,7 +175,7 @@ class ScenarioChoice:
 
     scenario: str = DEFAULT_SCENARIO
     overrides: Mapping[str, Any] = field(default_factory=lambda: dict(DEFAULT_OVERRIDES))
-    feedback: Literal["truth", "zero_slip", "viso_ot"] = "truth"
+    feedback: Literal["truth", "zero_slip", "viso_ot", "viso_ot_fused"] = "truth"
     vehicle: str | None = "lst"
     mu: float | None = None
     camber_percent: float | None = None

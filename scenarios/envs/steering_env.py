@@ -131,8 +131,9 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
     ```
 
     * ``scenario``, ``overrides``: catalogue scenario and dotted configuration fields (``offtrack run --set``).
-    * ``feedback``: ``truth``, ``zero_slip`` (Cheng, blind to slip) or ``viso_ot`` (renders the trailer's
-      stereo camera and runs visual odometry: about 10× slower).
+    * ``feedback``: ``truth``, ``zero_slip`` (Cheng, blind to slip), ``viso_ot`` (renders the trailer's
+      stereo camera and runs visual odometry: about 10× slower) or ``viso_ot_fused`` (the same camera fused
+      with the trailer's gyro and wheel speed in a Kalman filter, an estimate every control tick).
     * ``vehicle``, ``mu``, ``camber_percent``, ``camber_direction``, ``speed_kmh``, ``direction``: fixed settings
       (``None``: the scenario's).
     * ``randomise``: :class:`~scenarios.envs.scenario.DomainRandomisation` ranges.
@@ -159,7 +160,7 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         self,
         scenario: str = DEFAULT_SCENARIO,
         overrides: Mapping[str, Any] | None = None,
-        feedback: Literal["truth", "zero_slip", "viso_ot"] = "truth",
+        feedback: Literal["truth", "zero_slip", "viso_ot", "viso_ot_fused"] = "truth",
         vehicle: str | None = "lst",
         mu: float | None = None,
         camber_percent: float | None = None,

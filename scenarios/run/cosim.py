@@ -42,7 +42,15 @@ from ..camera.workers import CameraWorkerError, default_workers
 from ..setup.build import ScenarioSetup
 from .camera_columns import CAMERA_COLUMNS
 from .control_loss import loss_of_control
-from .loop_parts import DensePath, kinematic_step, run_duration, signal_specs, true_signals
+from .loop_parts import (
+    DensePath,
+    fused_estimator,
+    kinematic_step,
+    run_duration,
+    signal_specs,
+    true_signals,
+    update_fused,
+)
 from .recording import RowRecorder
 from .results import TimeSeriesWriter
 from .stopping import stop_message, stop_signal_name
@@ -99,7 +107,8 @@ class Tick:
     measured : dict
         On-board signals (:mod:`sensor.signals` channels, each a 1-D array).
     estimates : dict
-        Off-tracking [m] by source: ``truth`` and every configured estimator (``None``: no estimate yet).
+        Off-tracking [m] by source: ``truth`` and every configured estimator (``None``: no estimate yet);
+        ``viso_ot_fused_std`` is the fused estimate's standard deviation [m] (NaN without one).
     front_steer : float
         The driver's steer-axle command [rad].
     drive_force : float
@@ -227,6 +236,7 @@ class CoSimulation:
             from ..camera.pipeline import CameraPipeline  # noqa: F401  (the serial pipeline CameraFeed runs)
 
             self.camera = CameraFeed(setup, workers=self.camera_workers)
+        self.fused = fused_estimator(setup, self.camera) if cfg.estimators.viso_ot_fused else None
         self.steer = np.zeros(len(setup.model.layout.steerable_axles))
         self._prev_pose: tuple[np.ndarray, float] | None = None
         self._ticks = 0  # control ticks observed since reset
@@ -325,6 +335,10 @@ class CoSimulation:
             if camera_frame:
                 shot = self.camera.capture(tick_index, state)
             estimates["viso_ot"] = self.camera.deliver(tick_index)  # released by the latency, then held
+        if self.fused is not None:  # every tick; the frames' motions no earlier than their release
+            drop = setup.config.fusion.drop_every
+            fused = update_fused(self.fused, tick_index, period, measured, self.camera.released, drop)
+            estimates["viso_ot_fused"], estimates["viso_ot_fused_std"] = fused
         # 3. the tractor's commands
         if self.kinematic:
             self.driver.progress, self.driver.lateral_error = setup.path.project(

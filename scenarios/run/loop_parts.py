@@ -1,5 +1,5 @@
 """Parts of the co-simulation loop that need no state of their own: the dense kingpin path, the signals, the
-constant-slip motion (paper §3)."""
+constant-slip motion (paper §3), the fused VISO-OT estimator's wiring."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from sensor.fusion import FusedVisoOt, FusionNoise
 from sensor.signals import ChannelSpec
 from vehicle_model.simulator import VehicleState
 
@@ -63,8 +64,44 @@ def true_signals(setup: ScenarioSetup, state: VehicleState, steer: np.ndarray) -
         "tractor_yaw_rate": state.r1,
         "articulation": state.gamma,
         "trailer_yaw_rate": state.r2,
+        "trailer_wheel_speed": trailer_wheel_speed(setup, state),
         "trailer_steer": steer[trailer] if trailer else np.zeros(0),
     }
+
+
+def trailer_wheel_speed(setup: ScenarioSetup, state: VehicleState) -> float:
+    """Longitudinal speed [m/s] of the trailer's axles along its centre line (that of the kingpin).
+
+    The kingpin moves at ``(u, v1 − h1·r1)`` in tractor axes; turned by Γ into the trailer frame its x component
+    is ``cos Γ·u − sin Γ·(v1 − h1·r1)``, which every point of the centre line shares (a rigid body).
+    """
+    lateral = state.v1 - setup.params.h1 * state.r1
+    return math.cos(state.gamma) * state.u - math.sin(state.gamma) * lateral
+
+
+def fused_estimator(setup: ScenarioSetup, camera: Any) -> FusedVisoOt:
+    """The fused VISO-OT filter of a run (``fusion`` settings; the camera's pose on the trailer)."""
+    f = setup.config.fusion
+    noise = FusionNoise(
+        gyro_noise=f.gyro_noise,
+        wheel_speed_noise=f.wheel_speed_noise,
+        slip_velocity_walk=f.slip_velocity_walk,
+        vo_covariance_scale=f.vo_covariance_scale,
+    )
+    return FusedVisoOt(setup.params, camera.camera_in_trailer, noise)
+
+
+def update_fused(
+    fused: FusedVisoOt, tick: int, period: float, measured: dict[str, np.ndarray], released: list[Any], drop_every: int
+) -> tuple[float | None, float]:
+    """Propagate the fused filter to ``tick`` with the trailer's signals, then give it the motions of the frames the
+    camera latency released on this tick (``drop_every``: every n-th frame withheld); its estimate and std [m]."""
+    steer = measured["trailer_steer"]
+    fused.propagate(tick, period, measured["trailer_yaw_rate"][0], measured["trailer_wheel_speed"][0], steer)
+    for shot in released:
+        usable = shot.valid and not (drop_every > 0 and (shot.index + 1) % drop_every == 0)
+        fused.measure(shot.tick, shot.vo.camera_motion if usable else None, shot.vo.covariance if usable else None)
+    return fused.estimate, fused.std
 
 
 def kinematic_step(setup: ScenarioSetup, state: VehicleState, period: float) -> VehicleState:

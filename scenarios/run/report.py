@@ -42,11 +42,12 @@ RUN_FIELDS = ("status", "message", "rows", "wall_time_s", "stop_time", "stop_sig
 
 
 def estimator_names(columns: dict[str, np.ndarray]) -> list[str]:
-    """The estimators recorded in a run's columns (``offtracking_<name>`` other than the two truths)."""
+    """The estimators recorded in a run's columns (``offtracking_<name>`` other than the two truths and the
+    standard deviations ``offtracking_<name>_std``)."""
     return [
         c.removeprefix("offtracking_")
         for c in columns
-        if c.startswith("offtracking_") and not c.startswith("offtracking_truth")
+        if c.startswith("offtracking_") and not c.startswith("offtracking_truth") and not c.endswith("_std")
     ]
 
 

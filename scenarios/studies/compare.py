@@ -28,8 +28,14 @@ from ..run.swept_path import (
 )
 from ..setup.build import build_scenario
 
-FEEDBACK_ORDER = ("none", "zero_slip", "viso_ot", "truth")
-COLOURS = {"none": "tab:red", "zero_slip": "tab:orange", "viso_ot": "tab:green", "truth": "tab:blue"}
+FEEDBACK_ORDER = ("none", "zero_slip", "viso_ot", "viso_ot_fused", "truth")
+COLOURS = {
+    "none": "tab:red",
+    "zero_slip": "tab:orange",
+    "viso_ot": "tab:green",
+    "viso_ot_fused": "tab:purple",
+    "truth": "tab:blue",
+}
 """Colour of each feedback source in the comparison figure (lines and trailer envelopes)."""
 
 
@@ -66,7 +72,8 @@ def compare_feedback(
     for feedback in feedbacks:  # validate every variant before the first run starts
         data = config.model_dump()
         data["feedback"] = feedback
-        data["estimators"]["viso_ot"] = config.estimators.viso_ot or feedback == "viso_ot"
+        data["estimators"]["viso_ot"] = config.estimators.viso_ot or feedback in ("viso_ot", "viso_ot_fused")
+        data["estimators"]["viso_ot_fused"] = config.estimators.viso_ot_fused or feedback == "viso_ot_fused"
         configs[feedback] = validate_config(data)
     rows, traces, verdicts = [], {}, {}
     for feedback, cfg in configs.items():

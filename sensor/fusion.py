@@ -1,0 +1,458 @@
+"""Fused VISO-OT: a Kalman filter of the trailer's own signals and the stereo camera's visual odometry.
+
+VISO-OT (de Saxe & Cebon 2018, §2.2; :mod:`sensor.viso_ot`) gives the off-tracking at the camera rate, a
+camera latency late, and has nothing between frames or across failed ones. The paper lists a Kalman filter
+as future work (§5). This one propagates at the control rate with **trailer-only** signals — the trailer's
+yaw-rate gyro, a wheel-speed sensor on an unsteered trailer axle and the trailer's own steer angles — so it
+keeps the paper's independence from the tractor, and corrects with every visual-odometry motion, weighted by
+its Gauss–Newton covariance. The kingpin increments it produces feed the one path buffer
+(:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)).
+
+Model (trailer frame ISO 8855, origin at the kingpin; DESIGN §3)
+-----------------------------------------------------------------
+State, kept relative to the *anchor* (the time of the last camera frame that was committed)::
+
+    x = [Δx, Δy, Δψ, v_s, b_g, b_w]
+
+``(Δx, Δy, Δψ)`` is the kingpin's displacement and the trailer's heading change since the anchor, in the
+anchor's trailer frame; ``v_s`` is the lateral *slip velocity* of the kingpin [m/s] (what zero-slip
+kinematics does not explain); ``b_g`` the gyro bias [rad/s]; ``b_w`` the wheel-speed bias [m/s].
+
+Kinematics. The trailer yaw rate is ``r = r_m − b_g``; the kingpin's longitudinal velocity is that of every
+point on the centre line, so the axle's wheel speed gives ``u = w_m − b_w`` (free-rolling trailer wheels, no
+longitudinal slip). Zero lateral force on the trailer's axles at zero slip (reference notes §2.3, the
+stiffness-weighted form: ``Σ C_j (v_k − r L_j − u tan δ_j) = 0``) gives the kingpin's lateral velocity::
+
+    v_k = r·L_c + u·Σ w_j tan δ_j + v_s,     L_c = Σ C_j L_j / Σ C_j,   w_j = C_j / Σ C_j     (1)
+
+(``L_j`` the axle's distance behind the kingpin, ``δ_j`` its measured steer, zero for a fixed axle). Over one
+control period the rates are taken constant at the mean of the two samples and the kingpin moves on the
+exact arc::
+
+    δψ = r·dt,   δp = M(δψ)·(u, v_k)·dt,   M(θ) = [[sin θ/θ, −(1−cos θ)/θ], [(1−cos θ)/θ, sin θ/θ]]   (2)
+    (Δx, Δy) ← (Δx, Δy) + R(Δψ)·δp,   Δψ ← Δψ + δψ
+
+``v_s``, ``b_g`` and ``b_w`` are random walks. The gyro and wheel-speed noises enter as white noise on the
+period's mean rate; the covariance propagates with the Jacobian of (2) (first order in δψ).
+
+Measurement. Each frame's camera motion becomes a kingpin increment ``z = (dx, dy, dψ)`` over the frame
+interval through the camera's pose on the trailer (eqs (1)–(2), :meth:`VisoOtEstimator.kingpin_increment`);
+it measures ``(Δx, Δy, Δψ)`` at the frame's time, ``H = [I₃ 0]``. Its covariance is the odometry's
+``Σ = (JᵀJ)⁻¹σ̂²`` of the 6 motion parameters mapped through that function (numerical Jacobian), scaled by
+``vo_covariance_scale`` (the Gauss–Newton covariance is a floor of the true one, :mod:`sensor.vo.quality`)
+plus a floor; so a frame with few or noisy inliers counts for less. A motion whose normalised innovation
+squared exceeds ``gate`` is refused (``max_gated`` in a row are accepted with the covariance inflated, so the
+filter cannot lock itself out).
+
+Delayed measurements. A frame taken on tick ``k`` is released ``latency`` ticks later
+(:mod:`scenarios.camera.delivery`). The filter keeps the state, covariance and inputs of every tick since the
+anchor; :meth:`FusedVisoOt.measure` updates the stored state of tick ``k`` and re-propagates to the present
+with the stored inputs (an out-of-sequence update by re-filtering). With zero latency this is the ordinary
+update; with any latency it is exactly what the filter would have done had the motion come on tick ``k``,
+seen no earlier than its release.
+
+Commit. After each frame (measured or not) the increments from the anchor to the frame are pushed into the
+path buffer (the propagated per-tick increments, the last one carrying the correction, so the buffer keeps
+control-rate resolution), the frame becomes the anchor, ``(Δx, Δy, Δψ)`` restart from zero and only the
+covariance of ``(v_s, b_g, b_w)`` is carried on (the cross-covariance with the committed increment is dropped:
+the usual reset of a delta state). A failed, refused or dropped frame is committed from the prediction alone,
+so a gap is bridged with a covariance that grows with its length.
+
+Off-tracking and its standard deviation. Every tick the off-tracking is read from the buffer moved by the
+current ``(Δx, Δy, Δψ)`` (eq (7), :func:`~vehicle_model.offtracking.offtracking_from_path`). Its variance is
+approximated as the sum over the committed increments newer than the follow-point station, and the current
+one, of ``gᵀ Q g`` with ``Q`` the increment's covariance and ``g`` the first-order effect of its error on
+``e_tr``::
+
+    g = (−sin ψ_s, −cos ψ_s, x_e + L_fp)                                                        (3)
+
+(``ψ_s`` the heading of the increment's start frame and ``x_e`` the station of its end, both in the current
+trailer frame: a translation error moves the old path rigidly, a heading error turns it about the
+increment's end). The increments are treated as independent — correlation through a slowly varying error of
+``v_s`` or of the biases is ignored — so the figure is a first-order approximation, not a bound.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from vehicle_model.errors import InputError
+from vehicle_model.offtracking import OfftrackingBuffer, offtracking_from_path
+from vehicle_model.parameters import VehicleParams
+
+from .viso_ot import VisoOtEstimator
+from .vo.motion import params_to_transform, transform_to_params
+
+__all__ = ["FusedVisoOt", "FusionNoise", "slip_kinematics"]
+
+_STATES = 6
+_J2 = np.array([[0.0, -1.0], [1.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class FusionNoise:
+    """Noise model and tuning of :class:`FusedVisoOt` (SI units).
+
+    Parameters
+    ----------
+    gyro_noise : float
+        White noise of one trailer yaw-rate sample [rad/s].
+    wheel_speed_noise : float
+        White noise of one trailer wheel-speed sample [m/s].
+    slip_velocity_walk : float
+        Random walk of the kingpin slip velocity ``v_s`` [m/s/√s]: how fast slip can build up (turn entry on ice).
+    gyro_bias_walk, wheel_speed_bias_walk : float
+        Random walks of the biases [rad/s/√s, m/s/√s].
+    initial_slip_velocity, initial_gyro_bias, initial_wheel_speed_bias : float
+        Standard deviations at the start [m/s, rad/s, m/s].
+    vo_covariance_scale : float
+        Variance factor on the odometry's Gauss–Newton covariance (≥ 1: it is a floor).
+    vo_translation_floor, vo_rotation_floor : float
+        Standard deviations added to every frame's increment [m, rad].
+    gate : float
+        Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
+    max_gated : int
+        Refused motions in a row after which the next one is accepted (with its covariance inflated).
+    max_std : float
+        No estimate (``None``) while the off-tracking's standard deviation exceeds this [m].
+    """
+
+    gyro_noise: float = 2e-3
+    wheel_speed_noise: float = 0.05
+    slip_velocity_walk: float = 0.1
+    gyro_bias_walk: float = 1e-4
+    wheel_speed_bias_walk: float = 2e-3
+    initial_slip_velocity: float = 0.3
+    initial_gyro_bias: float = 0.01
+    initial_wheel_speed_bias: float = 0.2
+    vo_covariance_scale: float = 4.0
+    vo_translation_floor: float = 1e-3
+    vo_rotation_floor: float = 1e-4
+    gate: float = 16.3
+    max_gated: int = 3
+    max_std: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name, value in vars(self).items():
+            if not (math.isfinite(value) and value >= 0):
+                raise InputError(f"FusionNoise.{name} = {value!r} must be a finite number ≥ 0")
+        if self.vo_covariance_scale < 1.0 or self.gate <= 0 or self.max_std <= 0:
+            raise InputError("FusionNoise: vo_covariance_scale ≥ 1, gate > 0 and max_std > 0 are needed")
+
+
+def slip_kinematics(params: VehicleParams) -> tuple[float, np.ndarray]:
+    """``L_c`` [m] and the weights ``w_j`` of the steerable trailer axles (layout order) of eq (1).
+
+    Static cornering stiffness per axle, as :meth:`VehicleParams.equivalent_wheelbase`.
+    """
+    table = params.axle_table
+    trailer = table.unit == 1
+    stiff = np.array(
+        [
+            t.cornering_stiffness(fz / n) * n
+            for t, fz, n in zip(table.tyres, table.static_load, table.n_tyres, strict=True)
+        ]
+    )[trailer]
+    lengths = params.trailer_axle_distances()
+    weights = stiff / stiff.sum()
+    steerable = np.array([a.steerable for a in params.trailer.axles])
+    return float(np.sum(weights * lengths)), weights[steerable]
+
+
+@dataclass
+class _Tick:
+    """One control tick since the anchor: its number, the inputs of the step into it, state and covariance after."""
+
+    tick: int
+    inputs: tuple[float, float, float, float]  # dt, mean r_m, mean w_m, mean Σ w_j tan δ_j
+    x: np.ndarray
+    p: np.ndarray
+
+
+class FusedVisoOt:
+    """Kalman filter of trailer signals and visual odometry feeding the off-tracking path buffer (module notes).
+
+    Parameters
+    ----------
+    params
+        Vehicle parameters (the follow point and the trailer's axles, eq (1)).
+    camera_in_trailer
+        4×4 pose ``T_trailer←camera`` of the left camera (as :class:`~sensor.viso_ot.VisoOtEstimator`).
+    noise
+        Noise model and tuning (default :class:`FusionNoise`).
+
+    Attributes
+    ----------
+    estimate : float or None
+        Off-tracking [m] at the last tick (``None``: no estimate yet, or too uncertain).
+    std : float
+        Its standard deviation [m] (NaN without an estimate).
+    frames, updates, rejected : int
+        Frames seen, motions used, motions refused by the gate.
+    """
+
+    def __init__(self, params: VehicleParams, camera_in_trailer: np.ndarray, noise: FusionNoise | None = None) -> None:
+        self.noise = noise if noise is not None else FusionNoise()
+        self.geometry = VisoOtEstimator(params, camera_in_trailer)  # eqs (1)–(2): camera motion → kingpin increment
+        self.follow_point_offset = params.follow_point_offset
+        self.slip_point, self.steer_weights = slip_kinematics(params)
+        self.buffer = OfftrackingBuffer(self.follow_point_offset)
+        n = self.noise
+        self._sample_variance = np.array([n.gyro_noise**2, n.wheel_speed_noise**2])
+        self._walk = np.diag([n.slip_velocity_walk**2, n.gyro_bias_walk**2, n.wheel_speed_bias_walk**2])
+        self._f = np.eye(_STATES)  # work arrays of _step
+        self._g = np.zeros((_STATES, 2))
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the path, the history and the state."""
+        n = self.noise
+        self.buffer.reset()
+        self.estimate: float | None = None
+        self.std = math.nan
+        self.frames = self.updates = self.rejected = 0
+        self._gated = 0
+        self._history: deque[_Tick] = deque()
+        self._previous_input: tuple[float, float, float] | None = None
+        x0 = np.zeros(_STATES)
+        p0 = np.diag([0.0, 0.0, 0.0, n.initial_slip_velocity**2, n.initial_gyro_bias**2, n.initial_wheel_speed_bias**2])
+        self._start = (x0, p0)
+        # Committed increments still ahead of the follow point: start pose (x, y, ψ), end station x_e and
+        # covariance, all in the anchor's frame.
+        self._starts = np.zeros((0, 3))
+        self._ends = np.zeros((0, 2))
+        self._covs = np.zeros((0, 3, 3))
+
+    # ------------------------------------------------------------------ propagation
+
+    def _steer_term(self, steer: np.ndarray | None) -> float:
+        if steer is None or self.steer_weights.size == 0:
+            return 0.0
+        s = np.asarray(steer, dtype=float).reshape(-1)
+        if s.size != self.steer_weights.size:
+            raise InputError(f"steer needs {self.steer_weights.size} trailer steer angles, got {s.size}")
+        return float(np.dot(self.steer_weights, np.tan(s)))
+
+    def propagate(
+        self, tick: int, dt: float, yaw_rate: float, wheel_speed: float, steer: np.ndarray | None = None
+    ) -> None:
+        """Advance to control tick ``tick`` with this tick's trailer signals; update :attr:`estimate`.
+
+        Parameters
+        ----------
+        tick
+            Control tick number (increasing).
+        dt
+            Time since the previous tick [s] (ignored on the first).
+        yaw_rate, wheel_speed
+            Measured trailer yaw rate [rad/s] and trailer wheel speed [m/s].
+        steer
+            Measured steer of the steerable trailer axles [rad] (layout order; empty or ``None`` for none).
+        """
+        sample = (float(yaw_rate), float(wheel_speed), self._steer_term(steer))
+        if not all(math.isfinite(v) for v in sample):
+            raise InputError(f"trailer signals {sample} must be finite")
+        if self._previous_input is None:
+            x, p = self._start
+            self._history.append(_Tick(tick, (0.0, *sample), x.copy(), p.copy()))
+        else:
+            prev = self._previous_input
+            inputs = (float(dt), *(0.5 * (a + b) for a, b in zip(prev, sample, strict=True)))
+            last = self._history[-1]
+            x, p = self._step(last.x, last.p, inputs)
+            self._history.append(_Tick(tick, inputs, x, p))
+        self._previous_input = sample
+        self._read()
+
+    def _step(self, x: np.ndarray, p: np.ndarray, inputs: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """One control period of eqs (1)–(2) and the covariance."""
+        dt, r_m, w_m, tan_steer = inputs
+        r = r_m - x[4]
+        u = w_m - x[5]
+        v = r * self.slip_point + u * tan_steer + x[3]
+        th = r * dt
+        if abs(th) > 1e-9:
+            a, b = math.sin(th) / th, (1.0 - math.cos(th)) / th
+        else:
+            a, b = 1.0 - th * th / 6.0, 0.5 * th
+        dp = np.array([a * u - b * v, b * u + a * v]) * dt  # eq (2)
+        c, s = math.cos(x[2]), math.sin(x[2])
+        rot = np.array([[c, -s], [s, c]])
+        out = x.copy()
+        out[:2] += rot @ dp
+        out[2] += th
+        # Jacobian (first order in δψ) and noise input of the (gyro, wheel) sample noise.
+        ex, ey = rot[:, 0], rot[:, 1]
+        lever, along = ey * (self.slip_point * dt), (ex + ey * tan_steer) * dt
+        f = self._f
+        f[:2, 2] = (-(s * dp[0] + c * dp[1]), c * dp[0] - s * dp[1])  # ∂/∂Δψ of R(Δψ)·δp
+        f[:2, 3] = ey * dt
+        f[:2, 4] = -lever
+        f[2, 4] = -dt
+        f[:2, 5] = -along
+        g = self._g
+        g[:2, 0] = lever
+        g[2, 0] = dt
+        g[:2, 1] = along
+        q = (g * self._sample_variance) @ g.T
+        q[3:, 3:] += self._walk * dt
+        return out, f @ p @ f.T + q
+
+    # ------------------------------------------------------------------ measurement
+
+    def measurement(self, camera_motion: np.ndarray, covariance: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """Kingpin increment ``(dx, dy, dψ)`` of one camera motion and its 3×3 covariance (module notes).
+
+        ``covariance`` is the odometry's 6×6 covariance of ``(rx, ry, rz, tx, ty, tz)`` of Tr_delta, whose
+        inverse is ``camera_motion``; ``None``: the floor alone.
+        """
+        n = self.noise
+        z = np.array(self.geometry.kingpin_increment(camera_motion))
+        r = np.diag([n.vo_translation_floor**2, n.vo_translation_floor**2, n.vo_rotation_floor**2])
+        if covariance is not None and np.all(np.isfinite(covariance)):
+            theta = transform_to_params(_rigid_inverse(camera_motion))
+            jac = np.empty((3, 6))
+            h = 1e-7
+            for i in range(6):
+                d = theta.copy()
+                d[i] += h
+                jac[:, i] = (np.array(self.geometry.kingpin_increment(_rigid_inverse(params_to_transform(d)))) - z) / h
+            r = r + n.vo_covariance_scale * (jac @ np.asarray(covariance, dtype=float) @ jac.T)
+        return z, r
+
+    def measure(self, tick: int, camera_motion: np.ndarray | None, covariance: np.ndarray | None = None) -> bool:
+        """The motion of the frame taken on control tick ``tick`` (since the frame before it), released now.
+
+        ``None`` (a failed, refused or dropped frame) commits the prediction to that tick. Ticks at or before
+        the anchor are ignored. Returns whether the motion was used. Updates :attr:`estimate`.
+        """
+        if not self._history or tick <= self._history[0].tick:
+            return False
+        index = next((i for i, h in enumerate(self._history) if h.tick == tick), None)
+        if index is None:
+            raise InputError(f"frame of tick {tick} is ahead of the filter (last tick {self._history[-1].tick})")
+        self.frames += 1
+        entry = self._history[index]
+        x, p = entry.x.copy(), entry.p.copy()
+        used = False
+        if camera_motion is not None and np.all(np.isfinite(camera_motion)):
+            z, r = self.measurement(np.asarray(camera_motion, dtype=float), covariance)
+            innovation = z - x[:3]
+            innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
+            s = p[:3, :3] + r
+            nis = float(innovation @ np.linalg.solve(s, innovation))
+            if nis > self.noise.gate and self._gated < self.noise.max_gated:
+                self._gated += 1
+                self.rejected += 1
+            else:
+                if nis > self.noise.gate:
+                    s = p[:3, :3] + r * (nis / self.noise.gate)
+                self._gated = 0
+                k = np.linalg.solve(s, p[:3, :]).T  # P Hᵀ S⁻¹
+                x = x + k @ innovation
+                p = p - k @ p[:3, :]
+                p = 0.5 * (p + p.T)
+                used = True
+                self.updates += 1
+        self._commit(index, x, p)
+        self._read()
+        return used
+
+    def _commit(self, index: int, x: np.ndarray, p: np.ndarray) -> None:
+        """Push the increments up to history ``index`` (ending at ``x``) and make that tick the anchor."""
+        poses = [h.x[:3] for h in list(self._history)[: index + 1]]
+        poses[-1] = x[:3]
+        for a, b in itertools.pairwise(poses):
+            self.buffer.push(*_relative(a, b))
+        end = x[:3].copy()
+        # Move the committed increments into the new anchor frame, add this one, drop those behind the follow point.
+        starts = np.vstack([self._starts, [[0.0, 0.0, 0.0]]])
+        ends = np.vstack([self._ends, end[None, :2]])
+        covs = np.concatenate([self._covs, p[None, :3, :3]])
+        starts = _into(starts, end)
+        ends = _into(np.column_stack([ends, np.zeros(len(ends))]), end)[:, :2]
+        keep = starts[:, 0] > -self.follow_point_offset - 2.0
+        self._starts, self._ends, self._covs = starts[keep], ends[keep], covs[keep]
+        # The new anchor: Δ restarts from zero; the slip velocity and biases keep their covariance.
+        anchor_x = x.copy()
+        anchor_x[:3] = 0.0
+        anchor_p = np.zeros_like(p)
+        anchor_p[3:, 3:] = p[3:, 3:]
+        rest = list(self._history)[index + 1 :]
+        self._history = deque([_Tick(self._history[index].tick, (0.0, 0.0, 0.0, 0.0), anchor_x, anchor_p)])
+        for h in rest:  # re-propagate to the present with the stored inputs (delayed measurement)
+            last = self._history[-1]
+            nx, np_ = self._step(last.x, last.p, h.inputs)
+            self._history.append(_Tick(h.tick, h.inputs, nx, np_))
+
+    # ------------------------------------------------------------------ estimate
+
+    def _read(self) -> None:
+        """Off-tracking and its standard deviation at the newest tick (module notes, eq (3))."""
+        now = self._history[-1]
+        d = now.x[:3]
+        lfp = self.follow_point_offset
+        points = self.buffer.points
+        value = None
+        if len(points) >= 2 and self.buffer.distance_travelled + math.hypot(d[0], d[1]) >= lfp:
+            value = offtracking_from_path(np.vstack([points, d[None, :2]]), d[:2], float(d[2]), lfp)
+        if value is None or not math.isfinite(value) or abs(value) > lfp:
+            self.estimate, self.std = None, math.nan
+            return
+        # eq (3) over the committed increments ahead of the follow point, in the current frame ...
+        c, s = math.cos(d[2]), math.sin(d[2])
+        variance = 0.0
+        if len(self._covs):
+            starts, ends = self._starts, self._ends
+            ahead = c * (starts[:, 0] - d[0]) + s * (starts[:, 1] - d[1]) > -lfp
+            if ahead.any():
+                heading = starts[ahead, 2] - d[2]
+                station = c * (ends[ahead, 0] - d[0]) + s * (ends[ahead, 1] - d[1])
+                g = np.column_stack([-np.sin(heading), -np.cos(heading), station + lfp])
+                variance = float(np.einsum("ni,nij,nj->", g, self._covs[ahead], g))
+        # ... and the current one, from the anchor (heading −Δψ in the current frame) to the kingpin.
+        g_now = np.array([s, -c, lfp])
+        variance += float(g_now @ now.p[:3, :3] @ g_now)
+        std = math.sqrt(max(variance, 0.0))
+        if std > self.noise.max_std:
+            self.estimate, self.std = None, std
+            return
+        self.estimate, self.std = float(value), std
+
+    @property
+    def state(self) -> np.ndarray:
+        """Newest state ``[Δx, Δy, Δψ, v_s, b_g, b_w]`` (module notes)."""
+        return self._history[-1].x.copy()
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """Newest 6×6 state covariance."""
+        return self._history[-1].p.copy()
+
+
+def _relative(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
+    """Increment ``(dx, dy, dψ)`` from pose ``a`` to pose ``b`` (both in one frame), in ``a``'s frame."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    return c * dx + s * dy, -s * dx + c * dy, float(b[2] - a[2])
+
+
+def _rigid_inverse(transform: np.ndarray) -> np.ndarray:
+    """Inverse of a 4×4 rigid transform."""
+    out = np.eye(4)
+    out[:3, :3] = transform[:3, :3].T
+    out[:3, 3] = -transform[:3, :3].T @ transform[:3, 3]
+    return out
+
+
+def _into(poses: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """Poses ``(n, 3)`` re-expressed in the frame of ``origin`` (a pose in their frame)."""
+    c, s = math.cos(origin[2]), math.sin(origin[2])
+    x = poses[:, 0] - origin[0]
+    y = poses[:, 1] - origin[1]
+    return np.column_stack([c * x + s * y, -s * x + c * y, poses[:, 2] - origin[2]])

@@ -1,0 +1,187 @@
+"""The fused VISO-OT estimator (issue 15): a Kalman filter of trailer signals and visual-odometry motions.
+
+Synthetic tests drive the filter with a trailer whose kingpin increments are known exactly (the filter's own
+arc rule, eq (2) of :mod:`sensor.fusion`) and camera motions made from them through a rear camera's pose;
+one short rendered run closes the loop with the fused estimate.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sensor.fusion import FusedVisoOt, slip_kinematics
+from sensor.viso_ot import VisoOtEstimator
+from vehicle_model.offtracking import OfftrackingBuffer
+from vehicle_model.presets import VEHICLE_PRESETS
+
+PARAMS = VEHICLE_PRESETS["lst"]()
+DT = 0.02  # control period [s]
+EVERY = 5  # control ticks per camera frame
+# Rear camera 3 m up at x = −14 m, looking back: OpenCV x (right) = trailer +y, y (down) = −z, z (forward) = −x.
+CAMERA = np.eye(4)
+CAMERA[:3, :3] = [[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]
+CAMERA[:3, 3] = (-14.0, 0.0, 3.0)
+VO_COVARIANCE = np.eye(6) * 1e-10
+
+
+def arc(u: float, v: float, r: float, dt: float) -> np.ndarray:
+    """Kingpin increment at constant body velocity ``(u, v)`` and yaw rate ``r`` (eq (2))."""
+    th = r * dt
+    a, b = (math.sin(th) / th, (1 - math.cos(th)) / th) if abs(th) > 1e-9 else (1.0, 0.5 * th)
+    return np.array([(a * u - b * v) * dt, (b * u + a * v) * dt, th])
+
+
+def compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return np.array([a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]])
+
+
+def camera_motion(increment: np.ndarray) -> np.ndarray:
+    """The left camera's motion ``T_prev←curr`` for a trailer increment (inverse of eqs (1)–(2))."""
+    t = np.eye(4)
+    c, s = math.cos(increment[2]), math.sin(increment[2])
+    t[:2, :2] = [[c, -s], [s, c]]
+    t[:2, 3] = increment[:2]
+    return np.linalg.inv(CAMERA) @ t @ CAMERA
+
+
+def drive(n: int = 2000, slip: float = 0.0, gyro_bias: float = 0.0, wheel_bias: float = 0.0):
+    """Measured (yaw rate, wheel speed) per tick and the exact kingpin increments: straight, then a left turn."""
+    lc, _ = slip_kinematics(PARAMS)
+    t = np.arange(n) * DT
+    u = 4.0 + 0.5 * np.sin(0.1 * t)
+    r = np.where(t < 8.0, 0.0, (u / 40.0) * np.clip((t - 8.0) / 4.0, 0.0, 1.0))
+    vs = slip * np.clip((t - 10.0) / 5.0, 0.0, 1.0)
+    incs = [np.zeros(3)] + [
+        arc(0.5 * (u[k - 1] + u[k]), 0.5 * (r[k - 1] + r[k]) * lc + vs[k], 0.5 * (r[k - 1] + r[k]), DT)
+        for k in range(1, n)
+    ]
+    return r + gyro_bias, u + wheel_bias, np.array(incs)
+
+
+def run(fused: FusedVisoOt, r_m, w_m, incs, latency: int = 0, drop=lambda frame: False, stop: int | None = None):
+    """Feed the filter; return its estimates and std and the true off-tracking per tick (NaN: none)."""
+    truth = OfftrackingBuffer(PARAMS.follow_point_offset)
+    est, std, ref = [], [], []
+    frame_inc = np.zeros(3)
+    pending: list[tuple[int, int, np.ndarray | None]] = []
+    for k in range(len(r_m) if stop is None else stop):
+        if k > 0:
+            truth.push(*incs[k])
+            frame_inc = compose(frame_inc, incs[k])
+        fused.propagate(k, DT, r_m[k], w_m[k], np.zeros(2))
+        if k % EVERY == 0:
+            if k > 0:
+                pending.append((k + latency, k, None if drop(k // EVERY) else camera_motion(frame_inc)))
+            frame_inc = np.zeros(3)
+        while pending and pending[0][0] <= k:
+            _, taken, motion = pending.pop(0)
+            fused.measure(taken, motion, VO_COVARIANCE if motion is not None else None)
+        est.append(math.nan if fused.estimate is None else fused.estimate)
+        std.append(fused.std)
+        value = truth.offtracking()
+        ref.append(math.nan if value is None else value)
+    return np.array(est), np.array(std), np.array(ref)
+
+
+def test_the_synthetic_camera_motion_gives_back_the_increment() -> None:
+    inc = np.array([0.4, 0.02, 0.01])
+    assert np.allclose(VisoOtEstimator(PARAMS, CAMERA).kingpin_increment(camera_motion(inc)), inc, atol=1e-12)
+
+
+def test_the_exact_kingpin_path_is_recovered_without_noise() -> None:
+    r_m, w_m, incs = drive()
+    est, std, ref = run(FusedVisoOt(PARAMS, CAMERA), r_m, w_m, incs)
+    both = np.isfinite(est) & np.isfinite(ref)
+    assert both.sum() > 1500 and np.nanmin(ref) < -0.5  # a real turn, estimated over most of it
+    assert np.max(np.abs(est[both] - ref[both])) < 1e-9
+    assert np.all(std[both] > 0) and np.all(std[both] < 0.05)
+
+
+def test_slip_and_biases_are_estimated_and_the_path_follows() -> None:
+    r_m, w_m, incs = drive(slip=0.1, gyro_bias=0.003, wheel_bias=0.1)
+    fused = FusedVisoOt(PARAMS, CAMERA)
+    est, _, ref = run(fused, r_m, w_m, incs, latency=5)
+    x = fused.state
+    assert x[3] == pytest.approx(0.1, abs=2e-3)  # slip velocity [m/s]
+    assert x[4] == pytest.approx(0.003, abs=1e-4)  # gyro bias [rad/s]
+    assert x[5] == pytest.approx(0.1, abs=2e-3)  # wheel-speed bias [m/s]
+    late = np.isfinite(est) & np.isfinite(ref) & (np.arange(len(est)) > 1000)
+    assert np.max(np.abs(est[late] - ref[late])) < 5e-3
+
+
+def test_the_covariance_grows_across_a_gap_and_shrinks_after_a_measurement() -> None:
+    r_m, w_m, incs = drive()
+    gap = range(200, 215)  # frames 200–214 (ticks 1000–1070) are lost
+    fused = FusedVisoOt(PARAMS, CAMERA)
+    _, std, _ = run(fused, r_m, w_m, incs, drop=lambda frame: frame in gap, stop=1071)
+    trace_in_gap = np.trace(fused.covariance)
+    std_before, std_in_gap = std[995], std[1070]
+    assert std_in_gap > 3.0 * std_before
+    assert np.all(np.diff(std[1001:1071]) > 0)  # grows steadily across the gap
+    fused_on = FusedVisoOt(PARAMS, CAMERA)
+    run(fused_on, r_m, w_m, incs, drop=lambda frame: frame in gap, stop=1081)  # frame 215 arrives at tick 1075
+    assert np.trace(fused_on.covariance) < 0.1 * trace_in_gap
+    assert fused_on.covariance[3, 3] < fused.covariance[3, 3]  # slip velocity known again
+
+
+def test_a_delayed_measurement_equals_one_applied_at_its_time() -> None:
+    r_m, w_m, incs = drive(slip=0.05, gyro_bias=0.002)
+    now_filter, late_filter = FusedVisoOt(PARAMS, CAMERA), FusedVisoOt(PARAMS, CAMERA)
+    est_now, std_now, _ = run(now_filter, r_m, w_m, incs, latency=0, stop=1204)
+    est_late, std_late, _ = run(late_filter, r_m, w_m, incs, latency=3, stop=1204)
+    # Released 3 ticks late, a frame taken on tick k is in from tick k + 3: on ticks 3 and 4 after a frame both
+    # filters have seen the same frames and must agree exactly (the late one re-propagated from the frame's time).
+    alike = np.array([k % EVERY in (3, 4) for k in range(1204)]) & np.isfinite(est_now)
+    assert alike.sum() > 300
+    assert np.array_equal(np.isfinite(est_now[alike]), np.isfinite(est_late[alike]))
+    assert np.allclose(est_now[alike], est_late[alike], atol=1e-12, rtol=0)
+    assert np.allclose(std_now[alike], std_late[alike], atol=1e-12, rtol=0)
+    assert np.allclose(now_filter.state, late_filter.state, atol=1e-12, rtol=0)  # tick 1203: frame 1200 in for both
+    # ... and on the ticks in between the late filter has not used the newer frame yet.
+    between = np.array([k % EVERY in (0, 1, 2) for k in range(1204)]) & np.isfinite(est_now) & (np.arange(1204) > 500)
+    assert not np.allclose(std_now[between], std_late[between], atol=1e-9, rtol=0)
+
+
+def test_a_gated_motion_is_refused() -> None:
+    r_m, w_m, incs = drive()
+    fused = FusedVisoOt(PARAMS, CAMERA)
+    run(fused, r_m, w_m, incs, stop=600)
+    k = 600
+    fused.propagate(k, DT, r_m[k], w_m[k], np.zeros(2))
+    wrong = camera_motion(np.array([0.4, 0.5, 0.0]))  # half a metre sideways in 0.1 s: implausible here
+    assert fused.measure(k, wrong, VO_COVARIANCE) is False and fused.rejected == 1
+
+
+@pytest.mark.rendering
+def test_a_short_rendered_run_steered_by_the_fused_estimate_beats_raw_viso_ot() -> None:
+    from scenarios.config import load_scenario
+    from scenarios.run.cosim import run_cosimulation
+    from scenarios.run.metrics import estimator_errors
+    from scenarios.setup.build import build_scenario, trailer_controller
+
+    cfg = load_scenario(
+        "roundabout-3",
+        {
+            "vehicle": "lst",
+            "estimators.viso_ot_fused": True,
+            "feedback": "viso_ot_fused",
+            "duration_s": 8.0,
+            "speed.cornering_kmh": 25.0,
+            "camera.width": 672,
+            "camera.height": 196,
+        },
+    )
+    setup = build_scenario(cfg)
+    outcome, columns = run_cosimulation(setup, trailer_steer_source=trailer_controller(setup), camera_workers=0)
+    assert outcome.status == "completed"
+    truth = columns["offtracking_truth"]
+    raw = estimator_errors(truth, columns["offtracking_viso_ot"])
+    fused = estimator_errors(truth, columns["offtracking_viso_ot_fused"])
+    assert fused["valid_fraction"] > 0.95
+    assert fused["rms_error"] < raw["rms_error"] and fused["max_abs_error"] < raw["max_abs_error"]
+    std = columns["offtracking_viso_ot_fused_std"]
+    assert np.all(np.isfinite(std) == np.isfinite(columns["offtracking_viso_ot_fused"]))
