@@ -29,15 +29,7 @@ from vehicle_model.errors import InputError
 from vehicle_model.presets import VEHICLE_PRESETS
 from vehicle_model.surface import FRICTION_PRESETS
 
-from .field_schema import (
-    CalibrationConfig,
-    FlexConfig,
-    LensConfig,
-    LightingConfig,
-    RigRotationDeg,
-    SelfCalibrationConfig,
-    StrictModel,
-)
+from .camera_schema import CameraConfig, StrictModel
 
 CATALOGUE_PACKAGE = "scenarios.catalogue"
 
@@ -235,58 +227,6 @@ class SignalsConfig(_Strict):
     trailer_yaw_rate: ChannelConfig = ChannelConfig()
     trailer_wheel_speed: ChannelConfig = ChannelConfig()
     trailer_steer: ChannelConfig = ChannelConfig()
-
-
-class CameraConfig(_Strict):
-    """The trailer's stereo camera (defaults: the paper's simulation, §3.1).
-
-    ``station`` is measured from the kingpin (negative behind it; default: the trailer's rear),
-    ``lateral`` is positive to the left, ``psi_c2v_deg`` is the paper's camera-to-vehicle angle,
-    clockwise from the trailer's forward axis (180 rear-facing, 90 right, 270 left).
-    ``right_misalignment_deg`` rotates the right camera (roll, pitch, yaw; paper §4.4) and
-    ``right_correction_deg`` is the rotation correction applied to the right images before
-    odometry (paper eqs (8)–(9)). ``latency_s`` delays each frame's estimate before the controller sees
-    it (default: one frame period).
-    """
-
-    width: int = Field(1344, ge=64, le=4096, description="[px]; too few features below 64, 4096 fills the GPU")
-    height: int = Field(391, ge=48, le=4096, description="[px]; too few features below 48, 4096 fills the GPU")
-    hfov_deg: float = Field(
-        100.0, gt=10.0, lt=170.0, description="[°]; a pinhole camera cannot reach 180°, below 10° it sees no ground"
-    )
-    baseline: float = Field(0.5, gt=0.0, le=5.0, description="[m] stereo baseline; the paper sweeps up to 5 m")
-    mount_height: float = Field(
-        3.0, gt=0.2, le=6.0, description="[m] above the road; between the ground and above the tallest trailer"
-    )
-    station: float | None = Field(
-        None, ge=-20.0, le=2.0, description="[m] from the kingpin; no trailer is longer than 20 m behind it"
-    )
-    lateral: float = Field(0.0, ge=-2.0, le=2.0, description="[m]; the trailer is 2.55 m wide")
-    psi_c2v_deg: float = Field(180.0, ge=0.0, lt=360.0, description="[°] one full turn")
-    right_misalignment_deg: tuple[RigRotationDeg, RigRotationDeg, RigRotationDeg] = (0.0, 0.0, 0.0)
-    right_correction_deg: tuple[RigRotationDeg, RigRotationDeg, RigRotationDeg] = (0.0, 0.0, 0.0)
-    noise_std: float = Field(
-        0.0, ge=0.0, le=50.0, description="[grey levels] image noise; above 50 the images are mostly noise"
-    )
-    brightness_jitter: float = Field(
-        0.0, ge=0.0, le=0.5, description="relative std of the per-frame brightness gain; at 0.5 it swings by half"
-    )
-    scenery_density: float = Field(1.0, ge=0.0, le=1.0, description="fraction of the scenery placed")
-    lens: LensConfig = LensConfig()
-    right_lens: LensConfig | None = Field(None, description="the right camera's lens; None: the same as lens")
-    calibration: CalibrationConfig = CalibrationConfig()
-    flex: FlexConfig = FlexConfig()
-    lighting: LightingConfig = LightingConfig()
-    self_calibration: SelfCalibrationConfig = SelfCalibrationConfig()
-    world: Literal["roadside", "airfield"] = "roadside"
-    latency_s: float | None = Field(
-        None,
-        ge=0.0,
-        le=1.0,
-        description="[s] from taking a frame to its estimate reaching the controller (released on the first "
-        "control tick at or after it); None: one frame period 1/rates.camera_hz, as a camera computer that "
-        "processes each frame while the next is taken; a camera estimate a second old is useless for steering",
-    )
 
 
 class EstimatorsConfig(_Strict):

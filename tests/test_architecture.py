@@ -26,7 +26,7 @@ ALLOWED_PACKAGE_IMPORTS: dict[str, set[str]] = {
 """DESIGN §2: which of the four packages each may import."""
 
 SCENARIO_ROOMS: tuple[str, ...] = (
-    "field_schema",
+    "camera_schema",
     "config",
     "catalogue",
     "setup",

@@ -211,3 +211,13 @@ def camera_frame_metrics(columns: dict[str, np.ndarray]) -> dict[str, Any] | Non
         "rejections": dict(sorted(counts.items(), key=lambda kv: -kv[1])),
         "message": message,
     }
+
+
+def estimator_names(columns: dict[str, np.ndarray]) -> list[str]:
+    """The estimators recorded in a run's columns (``offtracking_<name>`` other than the two truths and the
+    standard deviations ``offtracking_<name>_std``)."""
+    return [
+        c.removeprefix("offtracking_")
+        for c in columns
+        if c.startswith("offtracking_") and not c.startswith("offtracking_truth") and not c.endswith("_std")
+    ]

@@ -25,6 +25,7 @@ from vehicle_model.parameters import VehicleParams
 
 from ..config import ScenarioConfig, validate_config
 from ..setup.build import ScenarioSetup, build_scenario
+from .metrics import estimator_names
 from .results import CONFIG_FILE, METRICS_FILE, TIMESERIES_FILE
 from .swept_path import swept_path_figure
 
@@ -131,11 +132,7 @@ class SavedRun:
 
     def estimator_names(self) -> list[str]:
         """The estimators that ran (columns ``offtracking_<name>`` other than the truth)."""
-        return [
-            c.removeprefix("offtracking_")
-            for c in self.columns
-            if c.startswith("offtracking_") and not c.startswith("offtracking_truth")
-        ]
+        return estimator_names(self.columns)
 
     def swept_path_figure(self, instants: int = 6) -> Figure:
         """The run's swept-path figure (:func:`~scenarios.run.swept_path.swept_path_figure`)."""

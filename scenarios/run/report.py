@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..config import ScenarioConfig
-from .metrics import compute_metrics
+from .metrics import compute_metrics, estimator_names
 from .results import PLOT_FILES, read_config, read_metrics, read_timeseries, write_metrics
 from .stopping import stop_message, stop_signal_name
 
@@ -39,16 +39,6 @@ INCOMPLETE_MESSAGE = (
 )
 RUN_FIELDS = ("status", "message", "rows", "wall_time_s", "stop_time", "stop_signal")
 """What a run adds to :func:`~scenarios.run.metrics.compute_metrics`' content in ``metrics.json``."""
-
-
-def estimator_names(columns: dict[str, np.ndarray]) -> list[str]:
-    """The estimators recorded in a run's columns (``offtracking_<name>`` other than the two truths and the
-    standard deviations ``offtracking_<name>_std``)."""
-    return [
-        c.removeprefix("offtracking_")
-        for c in columns
-        if c.startswith("offtracking_") and not c.startswith("offtracking_truth") and not c.endswith("_std")
-    ]
 
 
 def _identity(config: ScenarioConfig) -> dict[str, Any]:
