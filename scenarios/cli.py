@@ -132,7 +132,7 @@ def run(
     vehicle: Annotated[str | None, typer.Option(help="Vehicle preset (see `offtrack list`).")] = None,
     direction: Annotated[str | None, typer.Option(help="left or right.")] = None,
     feedback: Annotated[
-        str | None, typer.Option(help="Trailer steering fed by: none, truth, zero_slip or viso_ot.")
+        str | None, typer.Option(help="Trailer steering fed by: none, truth, zero_slip, viso_ot or viso_ot_fused.")
     ] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of every random choice.")] = None,
     duration: Annotated[float | None, typer.Option(help="Stop after this many simulated seconds.")] = None,
@@ -213,7 +213,10 @@ def compare(
     camber_direction: Annotated[str | None, typer.Option(help="outward or inward.")] = None,
     vehicle: Annotated[str, typer.Option(help="Vehicle preset with steerable trailer axles.")] = "lst",
     feedbacks: Annotated[
-        str, typer.Option(help="Comma-separated feedback sources to compare: none, zero_slip, viso_ot, truth.")
+        str,
+        typer.Option(
+            help="Comma-separated feedback sources to compare: none, zero_slip, viso_ot, viso_ot_fused, truth."
+        ),
     ] = "none,zero_slip,viso_ot,truth",
     set_: Annotated[list[str] | None, typer.Option("--set", help="Any config field, e.g. --set path.turns=1.")] = None,
     out: Annotated[Path | None, typer.Option(help="Output directory (default runs/compare-SCENARIO/…).")] = None,
