@@ -179,8 +179,10 @@ class CameraConfig(StrictModel):
     ``lateral`` is positive to the left, ``psi_c2v_deg`` is the paper's camera-to-vehicle angle,
     clockwise from the trailer's forward axis (180 rear-facing, 90 right, 270 left).
     ``right_misalignment_deg`` rotates the right camera (roll, pitch, yaw; paper §4.4) and
-    ``right_correction_deg`` is the rotation correction applied to the right images before
-    odometry (paper eqs (8)–(9)). ``latency_s`` delays each frame's estimate before the controller sees
+    ``right_correction_deg`` is the *estimated misalignment* (same convention as
+    ``right_misalignment_deg``) whose rotation is removed from the right images before odometry (paper eqs
+    (8)–(9)): the paper's correction φ = +0.15°, ψ = −0.10° of a misalignment φ = −0.15°, ψ = +0.10° is given
+    here as ``[-0.15, 0, 0.10]``. ``latency_s`` delays each frame's estimate before the controller sees
     it (default: one frame period).
     """
 

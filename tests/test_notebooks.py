@@ -34,11 +34,24 @@ def kernel_name(tmp_path_factory):
 
 def test_there_are_notebooks():
     names = {p.stem for p in NOTEBOOKS}
-    assert {"roundabout_test", "estimators_under_slip", "controller_design_and_tuning", "paper_section3"} <= names
+    assert {
+        "roundabout_test",
+        "estimators_under_slip",
+        "controller_design_and_tuning",
+        "paper_section3",
+        "paper_section4",
+    } <= names
+
+
+HEAVY_NOTEBOOKS = {"paper_section4"}
+"""Run only with ``make test-all``: paper_section4 renders six field-condition cases (~4 min on 2 cores)."""
+NOTEBOOK_PARAMS = [
+    pytest.param(p, id=p.stem, marks=[pytest.mark.slow] if p.stem in HEAVY_NOTEBOOKS else []) for p in NOTEBOOKS
+]
 
 
 @pytest.mark.rendering
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", NOTEBOOK_PARAMS)
 def test_notebook_runs(path, kernel_name, tmp_path):
     notebook = nbformat.read(path, as_version=4)
     assert all(not cell.get("outputs") for cell in notebook.cells if cell.cell_type == "code"), "commit without outputs"

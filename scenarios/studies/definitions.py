@@ -5,7 +5,11 @@
   slip (Fig 6), the slip sweep at baselines 0.5/1.5/2.5 m (Fig 7) and the scenery densities
   100/50/0 % (Fig 8).
 * ``estimators-under-slip`` — μ ∈ {dry, wet, snow, ice} × camber ∈ {0, 2.5, 5 %} × {three-turn
-  roundabout, figure-of-eight} × feedback ∈ {none, zero_slip, viso_ot, truth}.
+  roundabout, figure-of-eight} × feedback ∈ {none, zero_slip, viso_ot, viso_ot_fused, truth}; the fused
+  VISO-OT estimator runs beside raw VISO-OT in every camera case.
+* ``paper-section4`` — de Saxe & Cebon 2018 §4, the field tests under simulated field conditions: rear and
+  side cameras × 0.5/0.7/0.9 m × the three field manoeuvres × the right camera aligned, misaligned and
+  corrected by eqs (8)–(9) (:mod:`scenarios.studies.section4`; Figs 14–16).
 
 The default run of each is a small subset that finishes in minutes; ``full`` runs all of it.
 
@@ -17,6 +21,7 @@ missing or failed.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -28,6 +33,7 @@ from .cases import run_case
 from .figures import FIGURES
 from .progress import ProgressCallback, SweepProgress
 from .records import CaseSpec
+from .section4 import paper_section4_cases, run_section4_case
 from .sweep import run_sweep
 
 # de Saxe & Cebon 2018 §3.2, values stated in the text (the figures themselves are not reproduced there).
@@ -90,7 +96,7 @@ def estimators_under_slip_cases(full: bool = False) -> list[CaseSpec]:
     surfaces = ("dry", "wet", "snow", "ice") if full else ("dry", "ice")
     cambers = (0.0, 2.5, 5.0) if full else (0.0, 5.0)
     scenarios = ("roundabout-3", "figure-eight") if full else ("roundabout-3",)
-    feedbacks = ("none", "zero_slip", "viso_ot", "truth")
+    feedbacks = ("none", "zero_slip", "viso_ot", "viso_ot_fused", "truth")
     cases = []
     for scenario in scenarios:
         for surface in surfaces:
@@ -101,7 +107,10 @@ def estimators_under_slip_cases(full: bool = False) -> list[CaseSpec]:
                         ("surface.preset", surface),
                         ("camber.percent", camber),
                         ("feedback", feedback),
-                        ("estimators.viso_ot", feedback == "viso_ot"),
+                        # the fused filter runs beside raw VISO-OT on every camera case (open loop under
+                        # viso_ot feedback, closed loop under its own)
+                        ("estimators.viso_ot", feedback in ("viso_ot", "viso_ot_fused")),
+                        ("estimators.viso_ot_fused", feedback in ("viso_ot", "viso_ot_fused")),
                     )
                     if not full:
                         overrides += (("path.turns", 0.5),)
@@ -113,7 +122,30 @@ def estimators_under_slip_cases(full: bool = False) -> list[CaseSpec]:
 STUDIES: dict[str, Callable[[bool], list[CaseSpec]]] = {
     "paper-section3": paper_section3_cases,
     "estimators-under-slip": estimators_under_slip_cases,
+    "paper-section4": paper_section4_cases,
 }
+
+
+def run_estimators_under_slip_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
+    """:func:`~scenarios.studies.cases.run_case` plus the fused VISO-OT's error columns (``viso_ot_fused_*``),
+    read from the run's ``metrics.json`` (open loop beside ``viso_ot`` feedback, closed loop under its own)."""
+    row = run_case(spec, out_dir)
+    metrics_file = out_dir / spec.name / "metrics.json"
+    if row.get("status") == "interrupted" or not metrics_file.is_file():
+        return row
+    fused = json.loads(metrics_file.read_text()).get("offtracking", {}).get("estimators", {}).get("viso_ot_fused")
+    if fused:
+        row["viso_ot_fused_rms_error_m"] = fused["rms_error"]
+        row["viso_ot_fused_max_abs_error_m"] = fused["max_abs_error"]
+        row["viso_ot_fused_valid_fraction"] = fused["valid_fraction"]
+    return row
+
+
+CASE_RUNNERS: dict[str, Callable[[CaseSpec, Path], dict[str, Any]]] = {
+    "paper-section4": run_section4_case,
+    "estimators-under-slip": run_estimators_under_slip_case,
+}
+"""A study's own case function (default :func:`~scenarios.studies.cases.run_case`): it adds study columns."""
 
 
 def run_study(
@@ -175,7 +207,8 @@ def run_study(
         if on_progress is not None:
             on_progress(p)
 
-    result = run_sweep(cases, out_dir, run_case, workers=workers, scheduler=scheduler, resume=resume, progress=report)
+    runner = CASE_RUNNERS.get(name, run_case)
+    result = run_sweep(cases, out_dir, runner, workers=workers, scheduler=scheduler, resume=resume, progress=report)
     table = result.table
     ok = table[table["status"] != "failed"] if "status" in table.columns else table
     if not ok.empty:

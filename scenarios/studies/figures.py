@@ -1,4 +1,4 @@
-"""The figures of the studies: paper §3 Figs 6–8 and the estimators-under-slip heat maps."""
+"""The figures of the studies: paper §3 Figs 6–8, the estimators-under-slip heat maps, paper §4 Figs 14–16."""
 
 from __future__ import annotations
 
@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+from .figures_section4 import section4_figures
 
 
 def paper_figures(table: pd.DataFrame, out_dir: Path) -> None:
@@ -87,4 +89,5 @@ def grid_figures(table: pd.DataFrame, out_dir: Path) -> None:
 FIGURES: dict[str, Callable[[pd.DataFrame, Path], None]] = {
     "paper-section3": paper_figures,
     "estimators-under-slip": grid_figures,
+    "paper-section4": section4_figures,
 }
