@@ -68,3 +68,39 @@ def test_error_metrics():
     assert m["max_abs_error"] == pytest.approx(0.2)
     assert m["valid_fraction"] == pytest.approx(3 / 4)
     assert math.isnan(rms(np.array([np.nan])))
+
+
+def test_valid_fraction_means_the_same_for_the_truth_and_the_estimators():
+    # The truth exists on the second half of the ticks; the estimator on the last quarter: it covered half of the
+    # ticks with a truth. The summary once showed 50 % for the truth and 25 % for the estimator.
+    from scenarios.run.metrics import compute_metrics
+    from vehicle_model.presets import VEHICLE_PRESETS
+
+    n = 400
+    truth = np.where(np.arange(n) >= n // 2, 0.1, np.nan)
+    estimate = np.where(np.arange(n) >= 3 * n // 4, 0.12, np.nan)
+    zeros = np.zeros(n)
+    columns = {
+        "time": np.arange(n) * 0.02,
+        **{name: zeros for name in ("X", "Y", "psi1", "gamma", "path_progress", "kingpin_y")},
+        "kingpin_x": np.arange(n) * 0.1,
+        "offtracking_truth": truth,
+        "offtracking_truth_geometric": truth,
+        "offtracking_zero_slip": estimate,
+    }
+    metrics = compute_metrics("t", "none", VEHICLE_PRESETS["reference"](), columns, ["zero_slip"], None, (0.0, 0.0))
+    assert metrics["offtracking"]["truth"]["valid_fraction"] == 1.0
+    assert metrics["offtracking"]["truth"]["defined_fraction"] == pytest.approx(0.5)
+    assert metrics["offtracking"]["estimators"]["zero_slip"]["valid_fraction"] == pytest.approx(0.5)
+    assert metrics["offtracking"]["estimators"]["zero_slip"]["rms_error"] == pytest.approx(0.02)
+
+
+def test_metrics_of_a_run_that_recorded_nothing_are_nan_not_an_error():
+    # Ctrl-C during set-up leaves empty columns; the metrics once raised KeyError: 'offtracking_truth'.
+    from scenarios.run.metrics import compute_metrics
+    from vehicle_model.presets import VEHICLE_PRESETS
+
+    metrics = compute_metrics("t", "none", VEHICLE_PRESETS["reference"](), {}, ["zero_slip"], (0.0, 0.0), (0.0, 1.0))
+    assert math.isnan(metrics["offtracking"]["truth"]["rms"])
+    assert metrics["offtracking"]["estimators"]["zero_slip"]["valid_fraction"] == 0.0
+    assert metrics["roundabout_test"] is None
