@@ -23,7 +23,14 @@ from rich.markup import escape
 from rich.table import Table
 
 from scenarios.bench.cli import bench_app
-from scenarios.run.stopping import exit_code_for_signal, handle_sigterm, stop_message, stop_signal_name
+from scenarios.run.stopping import (
+    exit_code_for_signal,
+    handle_sigterm,
+    raise_pending_stop,
+    stop_handled,
+    stop_message,
+    stop_signal_name,
+)
 from vehicle_model.errors import OfftrackError
 
 EXIT_BAD_INPUT = 2
@@ -51,11 +58,14 @@ def _command(func: F) -> F:
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
-            return func(*args, **kwargs)
+            result = func(*args, **kwargs)
+            raise_pending_stop()  # a stop swallowed on the way still ends with its exit code
+            return result
         except (OfftrackError, ValidationError, ValueError) as exc:
             errors.print(f"error: {exc}", markup=False)
             raise typer.Exit(EXIT_BAD_INPUT) from None
         except KeyboardInterrupt as exc:
+            stop_handled()
             errors.print(stop_message(exc), markup=False)
             raise typer.Exit(exit_code_for_signal(stop_signal_name(exc))) from None
 

@@ -268,3 +268,28 @@ def test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers(
     for pid in workers:  # the workers are gone (reaped, or at worst reparented zombies on the way out)
         state = Path(f"/proc/{pid}/stat")
         assert not state.exists() or state.read_text().split()[2] == "Z"
+
+
+def test_a_stop_swallowed_on_the_way_is_raised_again_at_the_next_check() -> None:
+    # numba loads its kernels through callbacks from C; a Ctrl-C raised inside one was swallowed there and the
+    # run went on to exit 0. The handlers remember the stop until it is handled, and the loop checks each tick.
+    code = """
+import os, signal
+from scenarios.run.stopping import Terminated, handle_sigterm, raise_pending_stop
+handle_sigterm()
+for sig, kind in ((signal.SIGINT, KeyboardInterrupt), (signal.SIGTERM, Terminated)):
+    try:
+        os.kill(os.getpid(), sig)
+    except KeyboardInterrupt:
+        pass  # swallowed, as inside a C callback
+    try:
+        raise_pending_stop()
+    except KeyboardInterrupt as exc:
+        assert type(exc) is kind, exc
+    else:
+        raise SystemExit("the swallowed stop was lost")
+raise_pending_stop()  # nothing pending any more
+print("ok")
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr

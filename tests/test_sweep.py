@@ -20,7 +20,7 @@ import pandas as pd
 import pytest
 
 from scenarios.run import cosim
-from scenarios.run.stopping import Terminated, handle_sigterm
+from scenarios.run.stopping import Terminated, handle_sigterm, stop_handled
 from scenarios.studies import definitions, executors, figures
 from scenarios.studies.cases import model_only_cases, run_case
 from scenarios.studies.executors import local_executor
@@ -80,10 +80,13 @@ def signal_then_fail(spec: CaseSpec, out_dir: Path) -> dict:
 @pytest.fixture
 def sigterm_raises() -> object:
     """SIGTERM raises :class:`Terminated` in this process (as the CLI sets up), restored afterwards."""
-    previous = signal.getsignal(signal.SIGTERM)
+    previous = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT), sys.unraisablehook
     handle_sigterm()
     yield
-    signal.signal(signal.SIGTERM, previous)
+    stop_handled()  # the stops these tests sent are handled: none is left pending for the next test
+    signal.signal(signal.SIGTERM, previous[0])
+    signal.signal(signal.SIGINT, previous[1])
+    sys.unraisablehook = previous[2]
 
 
 def _assert_stopped_cleanly(out: Path, stopped: CaseSpec) -> dict[str, str]:

@@ -50,6 +50,8 @@ class CameraWorkerError(OfftrackError, RuntimeError):
 def _worker_main(config: Any, conn: Connection) -> None:
     """Body of one render worker (runs in the spawned process)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the co-simulation process handles Ctrl-C and stops us
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # started blocked (RenderWorkers)
     try:
         from ..setup.build import build_scenario
         from .pipeline import PairRenderer
@@ -125,24 +127,29 @@ class RenderWorkers:
         self.cpu_s = 0.0
         self.wait_s = 0.0
         self._outstanding: dict[int, int] = {}  # frame → worker
-        # Start the workers with Ctrl-C ignored (inherited through exec), so that a Ctrl-C at the terminal
-        # reaches only this process even while a worker is still importing.
-        main_thread = threading.current_thread() is threading.main_thread()
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
+        # Start the workers with Ctrl-C blocked (the mask is inherited through exec, and the worker ignores
+        # SIGINT before it unblocks it), so that a Ctrl-C at the terminal cannot kill a worker that is still
+        # importing. A Ctrl-C meant for this process is held meanwhile and arrives when the block ends —
+        # never lost (ignoring it here instead once let a run go on after Ctrl-C).
+        block = threading.current_thread() is threading.main_thread() and hasattr(signal, "pthread_sigmask")
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if block else None
         try:
-            for i in range(workers):
-                here, there = ctx.Pipe(duplex=True)
-                proc = ctx.Process(target=_worker_main, args=(config, there), name=f"offtrack-render-{i}", daemon=True)
-                proc.start()
-                there.close()  # so that the worker's death reads as end-of-file here
-                self._procs.append(proc)
-                self._conns.append(here)
+            try:
+                for i in range(workers):
+                    here, there = ctx.Pipe(duplex=True)
+                    proc = ctx.Process(
+                        target=_worker_main, args=(config, there), name=f"offtrack-render-{i}", daemon=True
+                    )
+                    proc.start()
+                    there.close()  # so that the worker's death reads as end-of-file here
+                    self._procs.append(proc)
+                    self._conns.append(here)
+            finally:
+                if previous is not None:
+                    signal.pthread_sigmask(signal.SIG_SETMASK, previous)  # a held Ctrl-C is raised now
         except BaseException:
             self.close()
             raise
-        finally:
-            if main_thread:
-                signal.signal(signal.SIGINT, previous)
 
     @property
     def pids(self) -> list[int]:

@@ -53,7 +53,7 @@ from .loop_parts import (
 )
 from .recording import RowRecorder
 from .results import TimeSeriesWriter
-from .stopping import stop_message, stop_signal_name
+from .stopping import raise_pending_stop, stop_handled, stop_message, stop_signal_name
 
 TrailerSteerSource = Callable[[VehicleState, dict[str, float]], np.ndarray]
 """``(true state, off-tracking estimates by name) → steer of each steerable trailer axle [rad]``."""
@@ -462,6 +462,7 @@ def run_cosimulation(
                     break
                 if cosim.finished:
                     break
+                raise_pending_stop()  # a Ctrl-C or SIGTERM swallowed on the way (e.g. inside a C callback)
                 cosim.advance(trailer_steer)
         except SimulationDivergedError as exc:
             outcome.status, outcome.message, outcome.stop_time = "diverged", str(exc), exc.time
@@ -471,6 +472,7 @@ def run_cosimulation(
         outcome.status, outcome.message = "failed", str(exc)
         outcome.stop_time = recorder.last_time or 0.0
     except KeyboardInterrupt as exc:
+        stop_handled()
         outcome.status, outcome.message = "interrupted", stop_message(exc)
         outcome.stop_signal = stop_signal_name(exc)
         outcome.stop_time = recorder.last_time or 0.0

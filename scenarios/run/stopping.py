@@ -11,6 +11,7 @@ Only the standard library is imported (a spawned sweep worker may use this befor
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from types import FrameType
 
@@ -24,14 +25,57 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM arrived; handled like Ctrl-C (a :class:`KeyboardInterrupt`), reported with exit code 143."""
 
 
+_pending: list[type[KeyboardInterrupt]] = []
+"""The stops requested by a signal and not yet handled (see :func:`raise_pending_stop`)."""
+
+
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+    _pending.append(Terminated)
     raise Terminated("stopped by SIGTERM")
 
 
+def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
+    _pending.append(KeyboardInterrupt)
+    raise KeyboardInterrupt
+
+
+def _unraisable(hook: object) -> object:
+    if getattr(hook, "offtrack_quiet_stops", False):
+        return hook  # installed already
+
+    def quiet(info: object) -> None:  # a stop raised inside a C callback: remembered, not printed
+        if isinstance(getattr(info, "exc_value", None), KeyboardInterrupt):
+            return
+        hook(info)  # type: ignore[operator]
+
+    quiet.offtrack_quiet_stops = True  # type: ignore[attr-defined]
+    return quiet
+
+
 def handle_sigterm() -> None:
-    """Make SIGTERM raise :class:`Terminated` in the main thread (no-op outside the main thread)."""
+    """Make SIGTERM raise :class:`Terminated` and Ctrl-C :class:`KeyboardInterrupt`, both remembered until handled.
+
+    A signal's exception can be swallowed when it is raised inside a callback from C code (e.g. while numba
+    loads its compiled kernels): it is then not printed, and :func:`raise_pending_stop` raises it again at
+    the next check, so a stop is never lost. A no-op outside the main thread.
+    """
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _raise_terminated)
+        signal.signal(signal.SIGINT, _raise_interrupt)
+        sys.unraisablehook = _unraisable(sys.unraisablehook)  # type: ignore[assignment]
+
+
+def stop_handled() -> None:
+    """Forget the requested stops: the :class:`KeyboardInterrupt` they raised has been caught and acted on."""
+    _pending.clear()
+
+
+def raise_pending_stop() -> None:
+    """Raise the stop a signal requested if its exception was swallowed on the way (a check between steps)."""
+    if _pending:
+        kind = _pending[-1]
+        _pending.clear()
+        raise kind("stopped by SIGTERM" if kind is Terminated else "")
 
 
 def stop_signal_name(exc: BaseException) -> str:
