@@ -59,12 +59,7 @@ class AxleSteerDistribution:
         """Distribution for the trailer of ``params`` (``L_v`` defaults to its equivalent wheelbase)."""
         table = params.axle_table
         trailer = table.unit == 1
-        stiffness = np.array(
-            [
-                ty.cornering_stiffness(fz / n) * n
-                for ty, fz, n in zip(table.tyres, table.static_load, table.n_tyres, strict=True)
-            ]
-        )[trailer]
+        stiffness = params.axle_cornering_stiffness()[trailer]
         lv = params.equivalent_wheelbase() if virtual_axle_distance is None else float(virtual_axle_distance)
         return cls(
             distances=params.trailer_axle_distances(),

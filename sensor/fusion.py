@@ -152,12 +152,7 @@ def slip_kinematics(params: VehicleParams) -> tuple[float, np.ndarray]:
     """
     table = params.axle_table
     trailer = table.unit == 1
-    stiff = np.array(
-        [
-            t.cornering_stiffness(fz / n) * n
-            for t, fz, n in zip(table.tyres, table.static_load, table.n_tyres, strict=True)
-        ]
-    )[trailer]
+    stiff = params.axle_cornering_stiffness()[trailer]
     lengths = params.trailer_axle_distances()
     weights = stiff / stiff.sum()
     steerable = np.array([a.steerable for a in params.trailer.axles])

@@ -66,10 +66,7 @@ def linearise(
 
 def axle_cornering_stiffness(params: VehicleParams) -> np.ndarray:
     """Linear cornering stiffness of every axle at its static load [N/rad], layout order."""
-    t = params.axle_table
-    return np.array(
-        [ty.cornering_stiffness(fz / n) * n for ty, fz, n in zip(t.tyres, t.static_load, t.n_tyres, strict=True)]
-    )
+    return params.axle_cornering_stiffness()
 
 
 def linear_yaw_plane_model(

@@ -345,6 +345,16 @@ class VehicleParams(_Frozen):
         """Distances ``L_j`` of the trailer axles behind the kingpin [m]."""
         return -np.array([a.x for a in self.trailer.axles])
 
+    def axle_cornering_stiffness(self) -> np.ndarray:
+        """Static cornering stiffness of every axle [N/rad], in ``axle_table`` order (tyres × per-tyre stiffness)."""
+        table = self.axle_table
+        return np.array(
+            [
+                t.cornering_stiffness(fz / n) * n
+                for t, fz, n in zip(table.tyres, table.static_load, table.n_tyres, strict=True)
+            ]
+        )
+
     def equivalent_wheelbase(self, fixed_only: bool = False) -> float:
         """Trailer equivalent wheelbase ``L_eq = ΣC_j L_j² / ΣC_j L_j`` [m] (reference notes §2.3).
 
@@ -356,12 +366,7 @@ class VehicleParams(_Frozen):
         mask = table.unit == 1
         if fixed_only:
             mask &= ~table.steerable
-        stiff = np.array(
-            [
-                t.cornering_stiffness(fz / n) * n
-                for t, fz, n in zip(table.tyres, table.static_load, table.n_tyres, strict=True)
-            ]
-        )[mask]
+        stiff = self.axle_cornering_stiffness()[mask]
         lengths = -(table.x_cg[mask] + self.trailer.cg_x)
         return float(np.sum(stiff * lengths**2) / np.sum(stiff * lengths))
 
