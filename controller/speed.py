@@ -43,12 +43,19 @@ class SpeedController:
 
         ``force_limit`` lowers the limit for this period (traction control: see :func:`traction_limit`).
         """
+        # Called every control tick: the comparisons below are min/max (same operands, same order,
+        # NaN included) without the builtins' call overhead.
         error = speed_ref - speed
-        limit = self.max_force if force_limit is None else min(self.max_force, force_limit)
-        unsat = self.mass * (self.kp * error + self.ki * (self.integral + error * dt))
-        force = min(max(unsat, -limit), limit)
+        limit = self.max_force
+        if force_limit is not None and force_limit < limit:
+            limit = force_limit
+        integral = self.integral
+        unsat = self.mass * (self.kp * error + self.ki * (integral + error * dt))
+        force = -limit if -limit > unsat else unsat  # max(unsat, -limit)
+        if limit < force:  # min(force, limit)
+            force = limit
         if force == unsat or (force > 0) != (error > 0):
-            self.integral += error * dt
+            self.integral = integral + error * dt
         return force
 
 

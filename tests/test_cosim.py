@@ -108,15 +108,15 @@ def test_a_divergence_is_reported_and_the_run_kept(monkeypatch):
     from vehicle_model.errors import SimulationDivergedError
     from vehicle_model.simulator import Simulator
 
-    real_step, calls = Simulator.step, []
+    real_step, calls = Simulator.step_inputs, []
 
-    def failing_step(self, controls):
+    def failing_step(self, steer, drive_force):
         calls.append(1)
         if len(calls) == 200:
             raise SimulationDivergedError("the simulation diverged at t = 4.000 s: injected", self.time, self.state)
-        return real_step(self, controls)
+        return real_step(self, steer, drive_force)
 
-    monkeypatch.setattr(Simulator, "step", failing_step)
+    monkeypatch.setattr(Simulator, "step_inputs", failing_step)  # the co-simulation's stepping path
     _setup, outcome, cols = run("roundabout-3", duration_s=30.0)
     assert outcome.status == "diverged" and "injected" in outcome.message
     assert outcome.rows == len(cols["time"]) == 200

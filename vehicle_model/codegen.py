@@ -35,6 +35,22 @@ def compile_functions(functions: list[ca.Function], tag: str) -> list[ca.Functio
 
     ``None`` means compilation is switched off or impossible; the caller keeps the originals.
     """
+    lib = compile_library(functions, tag)
+    return None if lib is None else load_functions(functions, lib)
+
+
+def load_functions(functions: list[ca.Function], lib: Path) -> list[ca.Function]:
+    """The compiled twins of ``functions`` in the shared library ``lib`` (:func:`compile_library`)."""
+    return [ca.external(f.name(), str(lib)) for f in functions]
+
+
+def compile_library(functions: list[ca.Function], tag: str, extra_source: str = "") -> Path | None:
+    """Generate C for ``functions``, append ``extra_source``, compile; return the cached shared library.
+
+    ``extra_source`` is C appended to the generated file, so it can call the generated functions
+    directly (``name(arg, res, iw, w, mem)``, casadi's calling convention). ``None`` means compilation
+    is switched off or impossible (with a warning for the latter).
+    """
     if os.environ.get("OFFTRACK_NO_COMPILE"):
         return None
     compiler = _compiler()
@@ -57,7 +73,7 @@ def compile_functions(functions: list[ca.Function], tag: str) -> list[ca.Functio
             gen.generate()
         finally:
             os.chdir(cwd)
-        source = (Path(tmp) / c_name).read_text()
+        source = (Path(tmp) / c_name).read_text() + extra_source
     digest = hashlib.sha256((source + compiler).encode()).hexdigest()[:16]
     safe_tag = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in tag)
     lib = cache_dir() / f"{safe_tag}_{digest}.so"
@@ -78,4 +94,4 @@ def compile_functions(functions: list[ca.Function], tag: str) -> list[ca.Functio
                 )
                 return None
             os.replace(out, lib)  # atomic: concurrent workers never load a half-written library
-    return [ca.external(f.name(), str(lib)) for f in functions]
+    return lib

@@ -20,9 +20,10 @@ import casadi as ca
 import numpy as np
 
 from . import tyre as tyre_model
-from .codegen import compile_functions
+from .codegen import compile_library, load_functions
 from .layout import Layout
 from .parameters import GRAVITY, VehicleParams
+from .period import period_source
 
 AIR_DENSITY = 1.2
 """Air density for aerodynamic drag [kg/m³]."""
@@ -219,6 +220,9 @@ class VehicleModel:
         ``(x, u) → (fy, fx, fz, slip, mu_used, hitch_force, trailer_velocity)``.
     jac_x, jac_u : casadi.Function
         ``(x, u) → ∂ẋ/∂x``, ``∂ẋ/∂u``.
+    library : pathlib.Path or None
+        The compiled shared library (with the control-period function of :mod:`.period`); ``None``
+        when the functions run in casadi's virtual machine.
     """
 
     def __init__(self, params: VehicleParams, compile: bool = True) -> None:
@@ -237,7 +241,10 @@ class VehicleModel:
         jac_u = ca.Function("jac_u", [sym.x, sym.u], [ca.jacobian(sym.xdot, sym.u)], ["x", "u"], ["B"])
         self.rhs_symbolic = rhs  # callable on casadi symbols (a compiled library is not)
         funcs = [rhs, step, outputs, jac_x, jac_u]
-        compiled = compile_functions(funcs, tag=f"vehicle_{params.name}") if compile else None
+        # the control-period function (vehicle_model/period.py) is compiled into the same library
+        extra = period_source(step, self.layout.n_states, self.layout.n_inputs)
+        self.library = compile_library(funcs, f"vehicle_{params.name}", extra) if compile else None
+        compiled = load_functions(funcs, self.library) if self.library is not None else None
         self.compiled = compiled is not None
         self.rhs, self.rk4_step, self.outputs, self.jac_x, self.jac_u = compiled if compiled is not None else funcs
         self.output_names = tuple(out_names)

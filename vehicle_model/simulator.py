@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import NoReturn
 
 import numpy as np
 
@@ -13,7 +14,8 @@ from .errors import InputError, SimulationDivergedError
 from .geometry import tractor_points, trailer_points
 from .layout import BODY_STATES, Layout
 from .parameters import VehicleParams
-from .surface import Surface
+from .period import BAD_INPUT, DIVERGED, OK, context_views, load_period, new_context
+from .surface import Surface, UniformFriction
 
 STATE_LIMITS: dict[str, float] = {"u": 60.0, "v1": 30.0, "r1": 6.0, "r2": 6.0, "gamma": 3.5}
 """Magnitudes beyond which a state is taken as diverged (the model is meaningless there)."""
@@ -76,13 +78,22 @@ _new_object = object.__new__
 
 def _state(cls: type[VehicleState], time: float, body: list[float], slip: np.ndarray) -> VehicleState:
     """A :class:`VehicleState` from its time, the 8 body states and the slip array, without the checks of
-    the frozen dataclass's ``__init__`` (the simulator makes one every control tick: this is half the cost)."""
+    the frozen dataclass's ``__init__`` (the simulator makes one every control tick: this is half the cost).
+
+    The body states are unpacked by name, in :data:`BODY_STATES` order (checked below at import).
+    """
     state = _new_object(cls)
     fields = state.__dict__
     fields["time"] = time
-    fields.update(zip(BODY_STATES, body, strict=True))
+    fields["X"], fields["Y"], fields["psi1"], fields["u"], fields["v1"], fields["r1"], fields["gamma"], fields["r2"] = (
+        body
+    )
     fields["slip"] = slip
     return state
+
+
+if BODY_STATES != ("X", "Y", "psi1", "u", "v1", "r1", "gamma", "r2"):  # pragma: no cover
+    raise ImportError("BODY_STATES changed: update the unpacking in vehicle_model.simulator._state")
 
 
 @dataclass(frozen=True)
@@ -122,6 +133,10 @@ def initial_state(
 class Simulator:
     """Advance the model with fixed RK4 steps; surface look-ups held over one control period.
 
+    With a compiled model a control period is one C call (:mod:`.period`: the RK4 steps and the
+    checks of inputs and state); without one, casadi's ``mapaccum`` integrator and checks in Python,
+    with the same results.
+
     Parameters
     ----------
     params
@@ -159,27 +174,35 @@ class Simulator:
         self.substeps = int(substeps)
         self.model = model if model is not None else VehicleModel(params)
         self.layout = self.model.layout
-        self._advance = self.model.integrator(self.substeps)
-        # Zero-copy evaluation through casadi's function buffer: the arrays below are bound once.
-        self._x = np.zeros(self.layout.n_states)
-        self._u = np.zeros(self.layout.n_inputs)
+        self._limit_index = np.array([self.layout.state_index(n) for n in STATE_LIMITS])
+        self._limit_value = np.array(list(STATE_LIMITS.values()))
+        self._limits = tuple(zip(self._limit_index.tolist(), STATE_LIMITS.values(), strict=True))
+        # State, inputs, end state and trajectory live in one array, the context of the compiled
+        # control-period function (.period); the casadi fallback binds the same arrays to its buffer.
+        n_x, n_u = self.layout.n_states, self.layout.n_inputs
+        n_checked = self.layout.drive_index + 1  # steer and drive force: the caller's inputs
+        self._ctx = new_context(n_x, n_u, self.substeps, self.dt, list(self._limits), n_checked)
+        self._x, self._u, self._x_end, self._trajectory = context_views(self._ctx, n_x, n_u, self.substeps)
         self._h = np.array([self.dt])
-        self._x_end = np.zeros(self.layout.n_states)
-        self._trajectory = np.zeros(self.layout.n_states * self.substeps)
-        buf, self._eval = self._advance.buffer()
+        self._period = load_period(self.model.library) if self.model.library is not None else None
+        self._ctx_address = self._ctx.ctypes.data
+        self._advance = self.model.integrator(self.substeps)
+        buf, self._eval = self._advance.buffer()  # zero-copy evaluation through casadi's function buffer
         for i, arr in enumerate((self._x, self._u, self._h)):
             buf.set_arg(i, memoryview(arr))
         buf.set_res(0, memoryview(self._x_end))
         buf.set_res(1, memoryview(self._trajectory))
         self._buffer = buf
+        self._steer_slice, self._drive_index = self.layout.steer_slice, self.layout.drive_index
+        self._period_s = self.dt * self.substeps
         # Ground points looked up on the surface: every axle, then the unit's CG.
         self._tractor_local = np.array([[a.x, 0.0] for a in params.tractor.axles] + [[params.tractor.cg_x, 0.0]])
         self._trailer_local = np.array([[a.x, 0.0] for a in params.trailer.axles] + [[params.trailer.cg_x, 0.0]])
-        self._limit_index = np.array([self.layout.state_index(n) for n in STATE_LIMITS])
-        self._limit_value = np.array(list(STATE_LIMITS.values()))
-        self._limits = tuple(zip(self._limit_index.tolist(), STATE_LIMITS.values(), strict=True))
         self.time = 0.0
         self._surface_filled = False  # uniform surfaces are looked up once
+        self._surface_uniform = self.surface.is_uniform
+        friction = self.surface.friction
+        self._uniform_mu = float(friction.mu) if isinstance(friction, UniformFriction) else None
         self.reset(state)
 
     @property
@@ -230,6 +253,19 @@ class Simulator:
         slope = self.surface.slope(np.stack([tractor[-1], trailer[-1]]))
         return mu, slope.ravel()
 
+    def min_friction(self, axles: np.ndarray) -> float:
+        """Smallest μ under the axles ``axles`` (layout indices) at the current state.
+
+        What :meth:`surface_inputs` gives, without the slope; a uniform friction field is not looked up.
+        """
+        if self._uniform_mu is not None:
+            return self._uniform_mu
+        x = self._x
+        tractor = tractor_points(self.params, x[0], x[1], x[2], self._tractor_local)
+        trailer = trailer_points(self.params, x[0], x[1], x[2], x[6], self._trailer_local)
+        mu = self.surface.friction(np.concatenate([tractor[:-1], trailer[:-1]]))
+        return float(np.min(mu[axles]))
+
     def fill_inputs(self, controls: Controls) -> None:
         """Write ``controls`` and the surface at the current state into the input vector."""
         layout = self.layout
@@ -246,32 +282,81 @@ class Simulator:
                 f"non-finite controls at t = {self.time:.3f} s: steer {controls.steer}, "
                 f"drive force {controls.drive_force}"
             )
-        if not (self._surface_filled and self.surface.is_uniform):
-            mu, slope = self.surface_inputs(self._x)
-            if not np.all(mu > 0):
-                raise InputError(f"the surface gives μ ≤ 0 at t = {self.time:.3f} s: {mu}")
-            u[layout.mu_slice] = mu
-            u[layout.slope_slice] = slope
-            self._surface_filled = True
+        if not (self._surface_filled and self._surface_uniform):
+            self._fill_surface()
+
+    def _fill_surface(self) -> None:
+        """Write μ and the slopes at the current state into the input vector."""
+        mu, slope = self.surface_inputs(self._x)
+        if not np.all(mu > 0):
+            raise InputError(f"the surface gives μ ≤ 0 at t = {self.time:.3f} s: {mu}")
+        self._u[self.layout.mu_slice] = mu
+        self._u[self.layout.slope_slice] = slope
+        self._surface_filled = True
 
     def step(self, controls: Controls) -> VehicleState:
         """Advance one control period with ``controls`` held; return the new state.
 
         Raises
         ------
+        InputError
+            When a steer angle or the drive force is not finite (nothing is integrated).
         SimulationDivergedError
             When a state becomes non-finite or leaves :data:`STATE_LIMITS`; the simulator keeps
             the last good state.
         """
-        self.fill_inputs(controls)
+        return self.step_inputs(controls.steer, controls.drive_force)
+
+    def step_inputs(self, steer: Sequence[float] | np.ndarray, drive_force: float) -> VehicleState:
+        """:meth:`step` from the steer angles [rad] (``Layout.steerable_axles`` order) and the drive force [N].
+
+        The closed loop's path: no :class:`Controls` is built. With the compiled model one C call
+        (:mod:`.period`) integrates the period and checks the inputs and the new state.
+        """
+        u = self._u
+        try:
+            u[self._steer_slice] = steer
+        except (ValueError, TypeError):
+            raise InputError(
+                f"controls.steer = {steer!r}; give one angle per steerable axle {list(self.layout.steerable_axles)}"
+            ) from None
+        u[self._drive_index] = drive_force
+        if not (self._surface_filled and self._surface_uniform):
+            self._fill_surface()
+        if self._period is None:
+            return self._step_casadi(steer, drive_force)
+        code = self._period(self._ctx_address)
+        if code != OK:
+            self._failed(code, steer, drive_force)
+        self.time += self._period_s
+        x = self._x
+        return _state(VehicleState, self.time, x[:8].tolist(), x[8:].copy())
+
+    def _step_casadi(self, steer: Sequence[float] | np.ndarray, drive_force: float) -> VehicleState:
+        """The period through casadi's ``mapaccum`` integrator, checked here (the model has no compiled library)."""
+        if not math.isfinite(sum(self._u[: self._drive_index + 1].tolist())):
+            self._failed(BAD_INPUT, steer, drive_force)
         self._eval()
         x_end = self._x_end
         values = x_end.tolist()
         if not self._plausible(values):
             self._check(x_end)  # raises, naming the state
         self._x[:] = x_end
-        self.time += self.control_period
+        self.time += self._period_s
         return _state(VehicleState, self.time, values[:8], x_end[8:].copy())
+
+    def _failed(self, code: int, steer: Sequence[float] | np.ndarray, drive_force: float) -> NoReturn:
+        """Raise the error of a failed period (return ``code`` of :mod:`.period`)."""
+        if code == BAD_INPUT:
+            raise InputError(f"non-finite controls at t = {self.time:.3f} s: steer {steer}, drive force {drive_force}")
+        if code == DIVERGED:
+            self._check(self._x_end)  # raises, naming the state
+        t_end = self.time + self._period_s
+        raise SimulationDivergedError(
+            f"the model step failed between t = {self.time:.3f} s and {t_end:.3f} s (code {code})",
+            time=self.time,
+            state=self.state,
+        )
 
     def _plausible(self, values: list[float]) -> bool:
         """Every state finite and inside :data:`STATE_LIMITS` (the cheap check of every step)."""

@@ -36,7 +36,7 @@ from sensor.signals import OnboardSignals
 from vehicle_model.errors import InputError, SimulationDivergedError
 from vehicle_model.geometry import kingpin_position
 from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses, offtracking_from_path
-from vehicle_model.simulator import Controls, Simulator, VehicleState
+from vehicle_model.simulator import Simulator, VehicleState
 
 from ..camera.workers import CameraWorkerError, default_workers
 from ..setup.build import ScenarioSetup
@@ -296,7 +296,7 @@ class CoSimulation:
                     f"trailer steer needs {len(self.trailer_axles)} angles {self.trailer_axles}, got {trailer}"
                 )
             steer = np.concatenate([[tick.front_steer], trailer])
-            state = self.sim.step(Controls(steer, tick.drive_force))
+            state = self.sim.step_inputs(steer, tick.drive_force)
             self.steer = steer
             if self.dense is not None:
                 traj = self.sim.trajectory()
@@ -349,7 +349,7 @@ class CoSimulation:
         else:
             front = self.driver.steer(state, period)
             target = setup.speed_profile(self.driver.progress)
-            mu_drive = float(np.min(self.sim.surface_inputs(self.sim.state_vector)[0][self._driven]))
+            mu_drive = self.sim.min_friction(self._driven)
             drive = self.speed_control(target, state.u, period, traction_limit(mu_drive, self._driven_load))
         return Tick(
             time=t,
