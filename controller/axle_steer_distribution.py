@@ -12,8 +12,10 @@ from vehicle_model.parameters import VehicleParams
 
 __all__ = [
     "AxleSteerDistribution",
+    "axle_velocity_directions",
     "limit_axle_commands",
     "path_following_steer",
+    "slip_angle_window",
     "steady_turn_tangents",
     "tan_kingpin_direction",
 ]
@@ -162,6 +164,52 @@ def tan_kingpin_direction(gamma: float, vx: float, vy: float) -> float:
     cg, sg = math.cos(gamma), math.sin(gamma)
     vk2x, vk2y = cg * vx - sg * vy, sg * vx + cg * vy
     return vk2y / vk2x if vk2x > 1e-6 else 0.0
+
+
+def axle_velocity_directions(
+    distances: np.ndarray, tan_kingpin: float, yaw_rate: float, kingpin_speed: float
+) -> np.ndarray:
+    """Direction ``β_j`` [rad] of each axle's ground velocity in the trailer frame (rigid trailer).
+
+    The point ``L_j`` behind the kingpin moves at ``(v_k2x, v_k2y − r2·L_j)``, so
+    ``β_j = atan(tan β_k − r2·L_j/v_k2x)`` (reference notes §2.3); an axle steered to ``δ_j`` slips by
+    ``α_j = δ_j − β_j``.
+
+    Parameters
+    ----------
+    distances
+        ``L_j`` [m] of the axles.
+    tan_kingpin
+        ``tan β_k = v_k2y/v_k2x`` (:func:`tan_kingpin_direction`).
+    yaw_rate
+        Trailer yaw rate ``r2`` [rad/s].
+    kingpin_speed
+        ``v_k2x`` [m/s], the kingpin's forward velocity in the trailer frame (> 0).
+    """
+    return np.arctan(tan_kingpin - yaw_rate * np.asarray(distances, dtype=float) / kingpin_speed)
+
+
+def slip_angle_window(
+    distances: np.ndarray,
+    gamma: float,
+    vx: float,
+    vy: float,
+    yaw_rate: float,
+    max_slip: float | None,
+    min_speed: float,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Steer bounds ``(β_j − α_max, β_j + α_max)`` [rad] of the slip-angle limit, or ``None`` (no limit).
+
+    ``None`` when ``max_slip`` is ``None`` or the kingpin's forward speed in the trailer frame is below
+    ``min_speed`` [m/s] (a slip angle is not defined by the kinematics at walking pace). ``vx, vy``: kingpin
+    velocity in tractor axes [m/s]; ``gamma``: articulation [rad]; ``yaw_rate``: trailer yaw rate [rad/s].
+    """
+    cg, sg = math.cos(gamma), math.sin(gamma)
+    forward_speed = cg * vx - sg * vy  # v_k2x, as tan_kingpin_direction
+    if max_slip is None or forward_speed < min_speed:
+        return None
+    beta = axle_velocity_directions(distances, tan_kingpin_direction(gamma, vx, vy), yaw_rate, forward_speed)
+    return beta - max_slip, beta + max_slip
 
 
 def limit_axle_commands(

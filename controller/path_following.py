@@ -115,7 +115,9 @@ Conditional integration: the integral is not advanced when that would push the c
 limit that every steerable axle has reached (magnitude saturation or rate limit, in the direction of the
 push; the distribution is monotone in ``δ_v``, so one direction serves all axles), nor while the virtual
 angle is clamped. Without an integrator (``k_i = 0``) nothing winds up; the output leaves saturation as
-soon as the proportional term does, at the rate limit.
+soon as the proportional term does, at the rate limit. The optional slip-angle limit
+(``PathFollowingConfig.max_slip_angle``, off by default) clips each axle to ``β_j ± α_max`` about the direction
+of its velocity before the magnitude limit and counts as a limit here.
 """
 
 from __future__ import annotations
@@ -134,6 +136,7 @@ from vehicle_model.simulator import VehicleState
 from .axle_steer_distribution import (
     AxleSteerDistribution,
     limit_axle_commands,
+    slip_angle_window,
     steady_turn_tangents,
     tan_kingpin_direction,
 )
@@ -165,6 +168,8 @@ class _Step(NamedTuple):
     output: np.ndarray
     blocked_up: bool
     blocked_down: bool
+    slip_limited: np.ndarray
+    bounded: np.ndarray  # target after the slip-angle limit
 
 
 class TrailerSteeringController:
@@ -202,6 +207,8 @@ class TrailerSteeringController:
         Per axle: the magnitude limit clipped the command on the last tick.
     rate_limited : numpy.ndarray
         Per axle: the rate limit clipped the command on the last tick.
+    slip_limited : numpy.ndarray
+        Per axle: the slip-angle limit (``config.max_slip_angle``) clipped the command on the last tick.
     integral : float
         ``∫e ds`` [m²].
     fade : float
@@ -255,6 +262,7 @@ class TrailerSteeringController:
         # Kingpin offset behind the tractor's rear point (reference notes §2.3), as in the zero-slip estimator.
         self._fifth_wheel_offset = -params.tractor_wheelbase() - params.tractor.fifth_wheel_x
         self._h1 = params.h1
+        self._steered_distances = self.distribution.distances[self.distribution.steerable]
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -265,6 +273,7 @@ class TrailerSteeringController:
         self.commands = np.zeros(n)
         self.saturated = np.zeros(n, dtype=bool)
         self.rate_limited = np.zeros(n, dtype=bool)
+        self.slip_limited = np.zeros(n, dtype=bool)
         self.virtual_steer = 0.0
         self.feedforward_steer = 0.0
         self.feedback_steer = 0.0
@@ -293,9 +302,12 @@ class TrailerSteeringController:
             "trailer_fade": self.fade,
             "trailer_estimate_used": math.nan if self.estimate is None else self.estimate,
         }
-        for name, sat, rate in zip(self.axle_names, self.saturated, self.rate_limited, strict=True):
+        for name, sat, rate, slip in zip(
+            self.axle_names, self.saturated, self.rate_limited, self.slip_limited, strict=True
+        ):
             out[f"saturated_{name}"] = float(sat)
             out[f"rate_limited_{name}"] = float(rate)
+            out[f"slip_limited_{name}"] = float(slip)
         return out
 
     # ------------------------------------------------------------------ the law
@@ -337,6 +349,9 @@ class TrailerSteeringController:
         forward = state.u > 0.0
         self.kingpin_curvature = state.r1 / speed if speed > 1e-6 else 0.0
         tan_kingpin = tan_kingpin_direction(state.gamma, vx, vy)
+        slip_window = slip_angle_window(  # β_j ± α_max, from the same kinematics and the trailer's gyro
+            self._steered_distances, state.gamma, vx, vy, state.r2, cfg.max_slip_angle, cfg.fade_speeds[1]
+        )
         ds = speed * dt if forward else 0.0
         self.distance += ds
         self.fade = self._fade(state.u) if forward else 0.0
@@ -361,32 +376,46 @@ class TrailerSteeringController:
         if error is not None and ki > 0 and self.fade > 0:
             integral_new = self.integral + error * ds
 
-        step = self._command(integral_new, error, schedule, tan_kingpin, dt)
+        step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         push = ki * (integral_new - self.integral)
         if (push > 0 and step.blocked_up) or (push < 0 and step.blocked_down):
             integral_new = self.integral  # conditional integration: do not wind up
-            step = self._command(integral_new, error, schedule, tan_kingpin, dt)
+            step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         self.integral = integral_new
         self.feedback_steer = step.feedback
         self.virtual_steer = step.virtual
-        self.saturated = np.abs(step.target) > cfg.max_steer
+        self.saturated = np.abs(step.bounded) > cfg.max_steer
         self.rate_limited = np.abs(step.output - step.limited) > 1e-12
+        self.slip_limited = step.slip_limited
         self.commands = step.output
         return step.output.copy()
 
-    def _command(self, integral: float, error: float | None, schedule: float, tan_kingpin: float, dt: float) -> _Step:
-        """Virtual angle, distribution, fade, saturation and rate limit for a given integral."""
+    def _command(
+        self,
+        integral: float,
+        error: float | None,
+        schedule: float,
+        tan_kingpin: float,
+        dt: float,
+        slip_window: tuple[np.ndarray, np.ndarray] | None,
+    ) -> _Step:
+        """Virtual angle, distribution, fade, slip limit, saturation and rate limit for a given integral."""
         cfg = self.config
         gains = self.gains
         fb = 0.0 if error is None else schedule * (gains.kp * error + gains.ki * integral + gains.kd * self._derivative)
         unclamped = self.feedforward_steer + fb
         virtual = min(max(unclamped, -cfg.max_virtual_steer), cfg.max_virtual_steer)
         target = self.fade * self.distribution(math.tan(virtual), tan_kingpin)
-        limited, output = limit_axle_commands(target, self.commands, cfg.max_steer, cfg.max_steer_rate, dt)
+        slipping = np.zeros(target.shape, dtype=bool)
+        bounded = target
+        if slip_window is not None:  # PathFollowingConfig.max_slip_angle: never past the tyre's peak
+            bounded = np.clip(target, *slip_window)
+            slipping = np.abs(bounded - target) > 1e-12
+        limited, output = limit_axle_commands(bounded, self.commands, cfg.max_steer, cfg.max_steer_rate, dt)
         # Blocked: every axle held below (above) its target by a limit, or the virtual angle clamped.
         blocked_up = bool(np.all(output < target - 1e-12)) or unclamped > virtual
         blocked_down = bool(np.all(output > target + 1e-12)) or unclamped < virtual
-        return _Step(fb, virtual, target, limited, output, blocked_up, blocked_down)
+        return _Step(fb, virtual, target, limited, output, blocked_up, blocked_down, slipping, bounded)
 
     def _record_path(self, state: VehicleState, vx: float, vy: float, dt: float, forward: bool) -> None:
         """Dead-reckon the kingpin path (tractor yaw rate, kingpin velocity) over about one trailer length.

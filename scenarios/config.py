@@ -255,6 +255,12 @@ class FusionConfig(_Strict):
     wheel_speed_noise: float = Field(0.05, gt=0.0, le=1.0, description="[m/s] per sample; 1 m/s is a broken sensor")
     slip_velocity_walk: float = Field(0.1, gt=0.0, le=5.0, description="[m/s/√s] slip build-up; 5 spins in 1 s")
     vo_covariance_scale: float = Field(4.0, ge=1.0, le=1e4, description="on the VO covariance (a floor); 1e4: no VO")
+    offtracking_bias_std: float = Field(
+        0.025,
+        ge=0.0,
+        le=0.5,
+        description="[m] the VO's systematic off-tracking error, added to the filter's std; 0.5 m swamps any estimate",
+    )
     drop_every: int = Field(0, ge=0, le=1000, description="withhold every n-th frame from it (0: none; a test)")
 
 
@@ -279,6 +285,13 @@ class ControllerConfig(_Strict):
     feedforward: Literal["path", "steady", "none"] = "path"
     bandwidth_speed_kmh: float | None = Field(
         15.0, gt=0.0, le=150.0, description="[km/h] speed the gains are designed for; above any truck's speed"
+    )
+    feedback_max_std_m: float = Field(
+        0.05,
+        gt=0.0,
+        le=1.0,
+        description="[m] std of the fed-back estimate above which the trailer is steered by feed-forward only; "
+        "1 m is ten times the 0.10 m off-tracking target",
     )
 
 

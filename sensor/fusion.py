@@ -69,7 +69,11 @@ one, of ``gᵀ Q g`` with ``Q`` the increment's covariance and ``g`` the first-o
 (``ψ_s`` the heading of the increment's start frame and ``x_e`` the station of its end, both in the current
 trailer frame: a translation error moves the old path rigidly, a heading error turns it about the
 increment's end). The increments are treated as independent — correlation through a slowly varying error of
-``v_s`` or of the biases is ignored — so the figure is a first-order approximation, not a bound.
+``v_s`` or of the biases is ignored — so the figure is a first-order approximation, not a bound. The odometry's
+systematic error (scenery- and slip-dependent, correlated over many frames, so absent from each frame's
+Gauss–Newton covariance) is added in quadrature as a constant ``offtracking_bias_std``::
+
+    σ_e² = Σ gᵀ Q g + σ_b²                                                                       (4)
 """
 
 from __future__ import annotations
@@ -120,6 +124,9 @@ class FusionNoise:
         Refused motions in a row after which the next one is accepted (with its covariance inflated).
     max_std : float
         No estimate (``None``) while the off-tracking's standard deviation exceeds this [m].
+    offtracking_bias_std : float
+        ``σ_b`` of eq (4) [m]: the systematic error of the odometry's off-tracking, added in quadrature to the
+        filter's own figure (0: the filter's covariance alone; the runs use ``fusion.offtracking_bias_std``).
     """
 
     gyro_noise: float = 2e-3
@@ -136,6 +143,7 @@ class FusionNoise:
     gate: float = 16.3
     max_gated: int = 3
     max_std: float = 0.5
+    offtracking_bias_std: float = 0.0
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
@@ -412,7 +420,7 @@ class FusedVisoOt:
                 variance = float(np.einsum("ni,nij,nj->", g, self._covs[ahead], g))
         # ... and the current one, from the anchor (heading −Δψ in the current frame) to the kingpin.
         g_now = np.array([s, -c, lfp])
-        variance += float(g_now @ now.p[:3, :3] @ g_now)
+        variance += float(g_now @ now.p[:3, :3] @ g_now) + self.noise.offtracking_bias_std**2  # eq (4)
         std = math.sqrt(max(variance, 0.0))
         if std > self.noise.max_std:
             self.estimate, self.std = None, std

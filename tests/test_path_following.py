@@ -274,6 +274,45 @@ def test_errors_are_clear():
         PathFollowingGains(kp=-1.0)
 
 
+# ----------------------------------------------------------------------------- slip-angle limit
+
+
+def test_slip_limit_holds_each_axle_within_its_velocity_direction_and_freezes_the_integrator():
+    params = lst_laden()
+    limit = math.radians(3.0)
+    cfg = PathFollowingConfig(max_steer_rate=FAST, feedforward="none", max_slip_angle=limit)
+    ctrl = TrailerSteeringController(params, cfg)
+    # A straight with the trailer yawing at r2 = 0.1 rad/s: the point L_j behind the kingpin moves sideways at
+    # −r2·L_j, so the axle's velocity points at β_j = atan(−r2·L_j/u) (kingpin straight ahead, Γ = 0).
+    u, r2 = 4.0, 0.1
+    st = VehicleState(0.0, 0.0, 0.0, 0.0, u, 0.0, 0.0, 0.0, r2, slip=np.zeros(6))
+    beta = np.arctan(-r2 * params.trailer_axle_distances()[1:] / u)
+    cmds = run_ticks(ctrl, ((dataclasses.replace(st, time=k * DT), {"truth": -5.0}) for k in range(50)))
+    assert cmds[-1] == pytest.approx(beta - limit, abs=1e-12)  # pushed right, held at −α_max of slip
+    assert np.all(cmds >= beta - limit - 1e-12)
+    assert ctrl.slip_limited.all() and not ctrl.saturated.any()
+    assert ctrl.integral == 0.0  # every axle held: conditional integration does not wind up
+    assert ctrl.telemetry()["slip_limited_trailer3"] == 1.0
+    # The reversed error leaves the limit on the first tick (nothing wound up) and mirrors about β_j.
+    back = ctrl(dataclasses.replace(st, time=1.0), {"truth": +5.0})
+    assert back == pytest.approx(beta + limit, abs=1e-12)
+    # Off by default: the same error drives the axles to the 25° lock.
+    default = TrailerSteeringController(params, PathFollowingConfig(max_steer_rate=FAST, feedforward="none"))
+    free = run_ticks(default, ((dataclasses.replace(st, time=k * DT), {"truth": -5.0}) for k in range(50)))
+    assert free[-1] == pytest.approx(np.full(2, -math.radians(25.0)), abs=1e-12)
+    assert not default.slip_limited.any()
+
+
+def test_slip_limit_is_off_below_the_fade_speed_and_validated():
+    cfg = PathFollowingConfig(max_steer_rate=FAST, feedforward="none", max_slip_angle=math.radians(3.0))
+    ctrl = TrailerSteeringController(lst_laden(), cfg)
+    slow = constant(ctrl, state(speed=0.8), -5.0, 100)  # below fade_speeds[1] = 1 m/s: slip is not defined
+    assert np.abs(slow[-1]).max() > math.radians(3.0) + 1e-3 and not ctrl.slip_limited.any()
+    for bad in (0.0, -0.1, math.radians(50.0), math.nan):
+        with pytest.raises(InputError, match=r"PathFollowingConfig\.max_slip_angle"):
+            PathFollowingConfig(max_slip_angle=bad)
+
+
 # ----------------------------------------------------------------------------- closed loop
 
 

@@ -87,6 +87,7 @@ def fused_estimator(setup: ScenarioSetup, camera: Any) -> FusedVisoOt:
         wheel_speed_noise=f.wheel_speed_noise,
         slip_velocity_walk=f.slip_velocity_walk,
         vo_covariance_scale=f.vo_covariance_scale,
+        offtracking_bias_std=f.offtracking_bias_std,
     )
     return FusedVisoOt(setup.params, camera.camera_in_trailer, noise)
 

@@ -37,10 +37,19 @@ CARRIAGEWAY_HALF_WIDTH = 8.0
 CAMBER_FADE = 3.0
 """Distance over which the camber fades out beyond the carriageway [m]."""
 
+CAMBER_RUNOFF = 2.0
+"""Half-width [m] of the run-off between two loops' cambers, measured as the difference of the distances to
+the two nearest centres (2 m either side of their bisector): on the figure-eight the crossfall turns from -5 %
+to +5 % over about 16 m of the path instead of flipping at a point (a crease no road has, and one that on ice
+asks the trailer axles to reverse a lateral force near mu*F_z at once)."""
+
 
 @dataclass(frozen=True)
 class LoopCamber:
     """Radial camber of the circulatory carriageway around whichever of ``centres`` is nearest.
+
+    Between two loops (the figure-eight's crossover) the two cambers blend over
+    :data:`CAMBER_RUNOFF` either side of the bisector of their centres, through flat.
 
     Full camber out to ``outer_radius``, fading linearly to flat over :data:`CAMBER_FADE` beyond it,
     so the approach straights are not tilted along the direction of travel.
@@ -54,14 +63,20 @@ class LoopCamber:
     def __call__(self, points: np.ndarray) -> np.ndarray:
         pts = np.asarray(points, dtype=float)
         c = np.asarray(self.centres, dtype=float)
-        d2 = ((pts[:, None, :] - c[None, :, :]) ** 2).sum(axis=-1)
-        nearest = np.argmin(d2, axis=1)
-        out = np.zeros_like(pts)
-        for i, centre in enumerate(self.centres):
-            mask = nearest == i
-            if mask.any():
-                out[mask] = RadialCamber(centre, self.grade_percent, self.direction)(pts[mask])  # type: ignore[arg-type]
-        r = np.sqrt(d2[np.arange(len(pts)), nearest])
+        d = np.sqrt(((pts[:, None, :] - c[None, :, :]) ** 2).sum(axis=-1))
+        fields = np.stack(
+            [RadialCamber(centre, self.grade_percent, self.direction)(pts) for centre in self.centres],  # type: ignore[arg-type]
+            axis=1,
+        )
+        order = np.argsort(d, axis=1)
+        rows = np.arange(len(pts))
+        near = order[:, 0]
+        second = order[:, 1] if len(self.centres) > 1 else near
+        # Weight of the nearest loop: 1 beyond the run-off, 1/2 on the bisector, where two opposite
+        # crossfalls cancel (flat) -- a superelevation run-off instead of a crease.
+        w = np.clip(0.5 + (d[rows, second] - d[rows, near]) / (2.0 * CAMBER_RUNOFF), 0.5, 1.0)[:, None]
+        out = w * fields[rows, near] + (1.0 - w) * fields[rows, second]
+        r = d[rows, near]
         return out * np.clip((self.outer_radius + CAMBER_FADE - r) / CAMBER_FADE, 0.0, 1.0)[:, None]
 
 
@@ -248,5 +263,6 @@ def trailer_controller(setup: ScenarioSetup) -> TrailerSteeringController | None
         feedforward=c.feedforward,
         bandwidth_speed=None if c.bandwidth_speed_kmh is None else c.bandwidth_speed_kmh / 3.6,
         control_period=1.0 / cfg.rates.control_hz,
+        feedback_max_std=c.feedback_max_std_m,
     )
     return TrailerSteeringController(setup.params, config, feedback=cfg.feedback)

@@ -1,0 +1,45 @@
+"""Configuration of the fused VISO-OT loop (issue 15): the controller's std fallback and the filter's bias term."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from scenarios.config import ConfigError, load_scenario
+from scenarios.run.loop_parts import fused_estimator
+from scenarios.setup.build import build_scenario, trailer_controller
+
+
+@pytest.mark.parametrize(
+    ("assignment", "field"),
+    [
+        ({"controller.feedback_max_std_m": 0.0}, "controller.feedback_max_std_m"),
+        ({"controller.feedback_max_std_m": 1.5}, "controller.feedback_max_std_m"),
+        ({"fusion.offtracking_bias_std": -0.01}, "fusion.offtracking_bias_std"),
+        ({"fusion.offtracking_bias_std": 0.6}, "fusion.offtracking_bias_std"),
+    ],
+)
+def test_out_of_range_values_are_refused_in_one_line_naming_the_field(assignment: dict, field: str) -> None:
+    with pytest.raises(ConfigError) as info:
+        load_scenario("roundabout-3", assignment)
+    lines = [line for line in str(info.value).splitlines() if field in line]
+    assert len(lines) == 1 and "[m]" in lines[0]  # the field, its value and its range with the unit
+
+
+def test_the_bias_term_reaches_the_filter() -> None:
+    class Camera:  # only the pose is read
+        camera_in_trailer = np.eye(4)
+
+    setup = build_scenario(load_scenario("roundabout-3", {"vehicle": "lst", "fusion.offtracking_bias_std": 0.04}))
+    assert fused_estimator(setup, Camera()).noise.offtracking_bias_std == 0.04
+    default = build_scenario(load_scenario("roundabout-3", {"vehicle": "lst"}))
+    assert fused_estimator(default, Camera()).noise.offtracking_bias_std == 0.025
+
+
+def test_the_std_fallback_threshold_reaches_the_controller() -> None:
+    setup = build_scenario(
+        load_scenario("roundabout-3", {"vehicle": "lst", "feedback": "truth", "controller.feedback_max_std_m": 0.08})
+    )
+    assert trailer_controller(setup).config.feedback_max_std == 0.08
+    default = build_scenario(load_scenario("roundabout-3", {"vehicle": "lst", "feedback": "truth"}))
+    assert trailer_controller(default).config.feedback_max_std == 0.05
