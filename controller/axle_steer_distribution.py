@@ -1,4 +1,24 @@
-"""Trailer axle steer geometry: virtual-axle angle to per-axle angles, steady-turn steer, kingpin direction, limits."""
+"""Trailer axle steer geometry: virtual-axle angle to per-axle angles, steady-turn steer, kingpin direction, limits.
+
+Virtual axle and distribution
+-----------------------------
+The trailer is controlled as if it had one steered axle at ``L_v`` behind the kingpin (default: the
+equivalent wheelbase ``L_eq = ΣC_j L_j²/ΣC_j L_j`` of all trailer axles, so ``δ_v = 0`` behaves like the
+unsteered trailer). For a given ``δ_v`` and kingpin velocity the zero-slip trailer turns about the centre
+where the virtual axle's axis meets the normal to the kingpin velocity; its curvature abreast of the trailer
+is ``κ_c = 1/y_c = (tan β_k − tan δ_v)/L_v`` (reference notes §2.3: ``r2 = (v_k2y − v_k2x tan δ_v)/L_v`` and
+``y_c = v_k2x/r2``), with ``tan β_k = v_k2y/v_k2x`` the direction of the kingpin velocity in the trailer
+frame. Every steerable axle is steered to that centre (reference notes §7.3, exact form)::
+
+    tan δ_j = tan δ_v + (L_v − L_j)·κ_c
+
+*Fixed axles.* An unsteerable axle cannot point at the centre unless it lies abreast of it; it then slips
+by ``α_f = −atan(t_f)`` (``t_f`` the tangent it would need) and its force turns the trailer about another
+centre. With ``fixed_axle_compensation`` the steerable axles get a common extra angle ``Δ`` chosen so that
+the low-speed yaw-moment balance about the kingpin, ``Σ C_j L_j α_j = 0`` (linear tyres, negligible trailer
+inertia), again puts the centre where ``δ_v`` says: ``Δ = Σ_fixed C_f L_f atan(t_f) / Σ_steered C_s L_s``.
+With every axle steerable ``Δ = 0`` and the distribution is the exact kinematic one.
+"""
 
 from __future__ import annotations
 

@@ -28,24 +28,7 @@ The notes write the same equation for the follow point's left-positive deviation
 A left turn with ``e_tr < 0`` gives a rightward (negative) correction; the mirrored right turn gives the
 mirrored command.
 
-Virtual axle and distribution
------------------------------
-The trailer is controlled as if it had one steered axle at ``L_v`` behind the kingpin (default: the
-equivalent wheelbase ``L_eq = ΣC_j L_j²/ΣC_j L_j`` of all trailer axles, so ``δ_v = 0`` behaves like the
-unsteered trailer). For a given ``δ_v`` and kingpin velocity the zero-slip trailer turns about the centre
-where the virtual axle's axis meets the normal to the kingpin velocity; its curvature abreast of the trailer
-is ``κ_c = 1/y_c = (tan β_k − tan δ_v)/L_v`` (reference notes §2.3: ``r2 = (v_k2y − v_k2x tan δ_v)/L_v`` and
-``y_c = v_k2x/r2``), with ``tan β_k = v_k2y/v_k2x`` the direction of the kingpin velocity in the trailer
-frame. Every steerable axle is steered to that centre (reference notes §7.3, exact form)::
-
-    tan δ_j = tan δ_v + (L_v − L_j)·κ_c
-
-*Fixed axles.* An unsteerable axle cannot point at the centre unless it lies abreast of it; it then slips
-by ``α_f = −atan(t_f)`` (``t_f`` the tangent it would need) and its force turns the trailer about another
-centre. With ``fixed_axle_compensation`` the steerable axles get a common extra angle ``Δ`` chosen so that
-the low-speed yaw-moment balance about the kingpin, ``Σ C_j L_j α_j = 0`` (linear tyres, negligible trailer
-inertia), again puts the centre where ``δ_v`` says: ``Δ = Σ_fixed C_f L_f atan(t_f) / Σ_steered C_s L_s``.
-With every axle steerable ``Δ = 0`` and the distribution is the exact kinematic one.
+Virtual axle and distribution: see :mod:`controller.axle_steer_distribution`.
 
 Feed-forward
 ------------
@@ -89,8 +72,7 @@ Gains are per unit distance travelled: ``k_p`` [rad/m], ``k_i`` [rad/m²] on ``�
 ``k_p``, ``u·k_i``, ``k_d/u``, and the loop's bandwidth in time grows with ``u``. With the camera's hold and
 latency and the trailer's yaw mode (≈ 2.5 rad/s, ζ ≈ 0.5 at 80 km/h) the loop would lose its margins above
 about 25 km/h and go unstable by 30–50 km/h (``docs/controller_design.md`` §5.2), so above ``bandwidth_speed``
-(15 km/h)
-the feedback is scaled by ``f_hs = (bandwidth_speed/u)²``. That holds the natural frequency of the kinematic
+(15 km/h) the feedback is scaled by ``f_hs = (bandwidth_speed/u)²``. That holds the natural frequency of the kinematic
 loop in time, ``u·sqrt(f_hs·k_i·L_fp/L_v)``, at its value at ``bandwidth_speed`` (the loop becomes integral
 dominated); phase margin ≥ 41° and gain margin ≥ 8.5 dB from 15 to 90 km/h with a 0.16 s dead time. The whole
 command is faded in with speed, ``f(u) = clip((u − u0)/(u1 − u0), 0, 1)``, default zero below 0.3 m/s and
@@ -104,8 +86,7 @@ The controller holds the last estimate (zero-order hold). A new sample is recogn
 (or the first value after none); the derivative ``de/ds`` is computed from consecutive samples, over the
 distance driven between them, only when a new sample arrives, and held in between. The hold and the latency
 are treated as a dead time in the gain design (latency + half a camera period + half a control period), not
-predicted away. A
-missing estimate (``None``: not yet one trailer length driven, or the estimator lost track) sets the
+predicted away. A missing estimate (``None``: not yet one trailer length driven, or the estimator lost track) sets the
 feedback to zero and freezes the integrator: the trailer is steered by the feed-forward alone until
 estimates return.
 

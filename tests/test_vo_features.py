@@ -161,3 +161,56 @@ def test_extract_rejects_colour_and_float_images():
         extract_features(np.zeros((50, 60, 3), dtype=np.uint8), config)
     with pytest.raises(ValueError, match="uint8"):
         extract_features(np.zeros((50, 60)), config)
+
+
+def _oracle_extrema(response: np.ndarray, n: int, tau: float, margin: int, period: int = 21) -> list[set]:
+    """Brute-force reference of the detector's rule: (minima, maxima) as sets of (u, v).
+
+    key = response·p² + (u mod p) + p·(v mod p); a pixel ≥ margin px inside is a maximum (minimum) when
+    response ≥ tau (≤ −tau) and no pixel of its (2n+1)² window clipped to the image has a larger
+    (smaller) key.
+    """
+    h, w = response.shape
+    vv, uu = np.mgrid[0:h, 0:w]
+    key = response.astype(np.int64) * period**2 + uu % period + period * (vv % period)
+    low = np.iinfo(np.int64).min
+    hi = ndimage.maximum_filter(key, size=2 * n + 1, mode="constant", cval=low)
+    lo = -ndimage.maximum_filter(-key, size=2 * n + 1, mode="constant", cval=low)
+    inside = np.zeros_like(key, dtype=bool)
+    inside[margin : h - margin, margin : w - margin] = True
+    maxima = inside & (response >= tau) & (key == hi)
+    minima = inside & (response <= -tau) & (key == lo)
+    return [set(zip(uu[m].tolist(), vv[m].tolist(), strict=True)) for m in (minima, maxima)]
+
+
+@pytest.mark.parametrize("nms_n", [2, 3])
+def test_detection_follows_the_tie_breaking_rule_on_plateaus(nms_n):
+    # Coarsely quantised texture: many equal responses, so the tie-breaking decides most extrema.
+    img = (textured((120, 180), seed=4) // 64 * 64).astype(np.uint8)
+    config = StereoRig().vo_config(nms_n=nms_n, nms_tau=50, half_resolution=False, refinement=0)
+    features = extract_features(img, config)
+    blob, corner = filter_responses(img)
+    for fs, n in ((features.dense, nms_n), (features.sparse, config.nms_n_sparse)):
+        assert fs is not None
+        for response, base in ((blob, BLOB_MIN), (corner, CORNER_MIN)):
+            expected = _oracle_extrema(response, n, 50, BORDER_MARGIN)
+            for cls, want in zip((base, base + 1), expected, strict=True):
+                mask = fs.cls == cls
+                got = list(zip(fs.u[mask].tolist(), fs.v[mask].tolist(), strict=True))
+                assert got == sorted(got, key=lambda p: (p[1], p[0]))  # row-major within a class
+                assert set(got) == want and len(want) > 3
+    # Plateaus did occur: equal responses at different dense extrema of one class.
+    values = blob[features.dense.v[features.dense.cls == BLOB_MAX], features.dense.u[features.dense.cls == BLOB_MAX]]
+    assert np.unique(values).shape[0] < values.shape[0]
+
+
+def test_nms_with_a_margin_smaller_than_the_radius_clips_windows_at_the_border():
+    img = textured((70, 90), seed=5)
+    blob, corner = filter_responses(img)
+    u, v, cls = non_maximum_suppression(blob, corner, n=5, tau=30, margin=2)
+    for response, base in ((blob, BLOB_MIN), (corner, CORNER_MIN)):
+        expected = _oracle_extrema(response, 5, 30, 2)
+        for c, want in zip((base, base + 1), expected, strict=True):
+            got = set(zip(u[cls == c].tolist(), v[cls == c].tolist(), strict=True))
+            assert got == want
+    assert (np.minimum(u, v) < 5).any()  # some extrema lie within the radius of the border

@@ -7,18 +7,20 @@
   by 1/128, offset by 128 and saturated to uint8; the horizontal and vertical responses sampled at
   16 sparse offsets of the 11×11 window give 32 bytes, compared by SAD (reference §1.3).
 
-The filters and the (2n+1)² erosion/dilation are OpenCV's; picking the extrema and gathering the
-descriptors is compiled (:mod:`sensor.vo.kernels_features`): a pixel is an extremum when it equals
-the extremum of its (2n+1)² neighbourhood. Filter responses are integers; ties are broken by a fixed sub-integer
-offset pattern that is unique inside any window, so detected extrema are strict and at least n+1 px
-apart (Chebyshev) — the result of Neubeck & Van Gool's block algorithm, not its exact tie behaviour.
-The sparse first-pass set (radius 3n, capped) is the subset of the dense extrema that are also
+The interest filters (exact integer sums), the extrema and the descriptors are compiled
+(:mod:`sensor.vo.kernels_features`); the Sobel filters, the downsampling and the erosion/dilation
+of the tie-broken responses are OpenCV's. A pixel is an extremum when no pixel of its (2n+1)²
+neighbourhood is more extreme. Filter responses are integers; ties are broken by a fixed rank
+pattern that is unique inside any window, so detected extrema are strict and at least n+1 px apart
+(Chebyshev) — the result of Neubeck & Van Gool's block algorithm, not its exact tie behaviour. The
+sparse first-pass set (radius 3n, capped) is the subset of the dense extrema that are also
 extrema of the larger window (clipped to the image). The border margin is 9 px at detection
 resolution (libviso2 2018).
 """
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -26,7 +28,7 @@ import cv2
 import numpy as np
 
 from sensor.vo.config import MAX_NMS_N, VOConfig
-from sensor.vo.kernels_features import describe, extrema
+from sensor.vo.kernels_features import describe, detect, features_at, responses, tie_keys
 
 __all__ = [
     "BLOB_KERNEL",
@@ -64,8 +66,6 @@ CORNER_KERNEL = np.array(
     ],
     dtype=np.float32,
 )
-# The checkerboard kernel is separable: −a·aᵀ with a = [−1 −1 0 1 1].
-_CORNER_A = np.array([-1, -1, 0, 1, 1], dtype=np.float32)
 
 # Sobel 5×5 (reference §1.3): smoothing [1 4 6 4 1] ⊗ derivative [1 2 0 −2 −1] as a convolution, i.e.
 # correlation with [−1 −2 0 2 1] (a positive response for intensity increasing to the right/down).
@@ -85,6 +85,9 @@ DESCRIPTOR_OFFSETS = np.array(
 
 #: Border [detection px] without features: descriptor (±5) + Sobel (±2) + refinement slack (libviso2 2018: 9).
 BORDER_MARGIN = 9
+
+#: Period of the tie-breaking rank pattern: unique inside any window of the largest NMS radius.
+_TIE_PERIOD = 2 * MAX_NMS_N + 1
 
 # Feature classes (reference §1.2).
 BLOB_MIN, BLOB_MAX, CORNER_MIN, CORNER_MAX = 0, 1, 2, 3
@@ -160,80 +163,77 @@ def sobel_responses(image: np.ndarray) -> np.ndarray:
 
 
 def filter_responses(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Blob and corner (checkerboard) filter responses (reference §1.2).
+    """Blob and corner (checkerboard) filter responses (reference §1.2), borders replicated.
 
-    The blob kernel is −(5×5 box) + 2·(3×3 box) + 7·(centre): two unnormalised box filters (libviso2
-    uses an integral image to the same end); the checkerboard kernel is separable.
+    The blob kernel is −(5×5 box) + 2·(3×3 box) + 7·(centre) (libviso2 uses an integral image to the
+    same end); the checkerboard kernel is separable. Exact integer sums
+    (:func:`sensor.vo.kernels_features.responses`).
 
     Returns
     -------
     blob, corner : numpy.ndarray
         float32 responses with integer values (the kernels are symmetric, so correlation = convolution).
     """
-    box5 = cv2.boxFilter(image, cv2.CV_32F, (5, 5), normalize=False, borderType=cv2.BORDER_REPLICATE)
-    box3 = cv2.boxFilter(image, cv2.CV_32F, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE)
-    blob = cv2.scaleAdd(image.astype(np.float32), 7.0, cv2.scaleAdd(box3, 2.0, -box5))
-    corner = cv2.sepFilter2D(image, cv2.CV_32F, _CORNER_A, -_CORNER_A, borderType=cv2.BORDER_REPLICATE)
-    return blob, corner
+    image = np.ascontiguousarray(image, dtype=np.uint8)
+    h, w = image.shape
+    values = np.empty((2, h, w), dtype=np.int32)
+    responses(image, 0, _WORKSPACE.get("ring", (4, 5, w + 4)), values, _NO_KEYS)
+    return values[0].astype(np.float32), values[1].astype(np.float32)
 
 
-@lru_cache(maxsize=8)
-def _tie_breaker(shape: tuple[int, int]) -> np.ndarray:
-    """Offsets in [0, 0.5) that differ between any two pixels of a (2·MAX_NMS_N+1)² window.
+class _Workspace(threading.local):
+    """Work arrays of the compiled detection, per thread and image shape (fresh arrays cost page faults)."""
 
-    Added to the integer responses they make every window's extremum unique without changing the
-    order of different integer values. |response| ≤ 16·255 < 4096, so float32 resolves steps of
-    1/(2·21²) ≈ 1.1e-3 ≫ its 4.9e-4 ulp there.
-    """
-    period = 2 * MAX_NMS_N + 1
-    rows = np.arange(shape[0]) % period
-    cols = np.arange(shape[1]) % period
-    pattern = (cols[None, :] + period * rows[:, None]).astype(np.float32) / np.float32(2 * period * period)
-    pattern.setflags(write=False)
-    return pattern
+    def __init__(self) -> None:
+        self.arrays: dict[tuple[str, int, int], np.ndarray] = {}
+
+    def get(self, name: str, shape: tuple[int, ...], dtype: type = np.int32) -> np.ndarray:
+        """An array of ``shape``, reused between calls (its content is overwritten by the kernels)."""
+        key = (name, *shape)
+        array = self.arrays.get(key)
+        if array is None:
+            if len(self.arrays) > 16:  # many image sizes: start afresh
+                self.arrays.clear()
+            array = self.arrays[key] = np.empty(shape, dtype=dtype)
+        return array
 
 
-def _detect(
-    blob: np.ndarray, corner: np.ndarray, radii: tuple[int, ...], tau: float, margin: int
-) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Extrema for one or two NMS radii (ascending): (flat pixel index, class) per radius.
+_WORKSPACE = _Workspace()
+_NO_VALUES = np.empty((0, 0, 0), dtype=np.int32)
+_NO_KEYS = np.empty((0, 0, 0), dtype=np.float32)
 
-    An extremum for the larger radius is also one for the smaller, so the larger radius only tests
-    the candidates of the first (:func:`sensor.vo.kernels_features.extrema`).
+
+def _keys(image: np.ndarray) -> np.ndarray:
+    """(2, H, W) float32 tie-broken keys of the blob and corner responses, in this thread's work array."""
+    h, w = image.shape
+    keys = _WORKSPACE.get("keys", (2, h, w), np.float32)
+    responses(image, _TIE_PERIOD, _WORKSPACE.get("ring", (4, 5, w + 4)), _NO_VALUES, keys)
+    return keys
+
+
+@lru_cache(maxsize=MAX_NMS_N)
+def _window(radius: int) -> np.ndarray:
+    """The (2·radius + 1)² rectangle of OpenCV's erosion and dilation."""
+    return cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1, 2 * radius + 1))
+
+
+def _detect(keys: np.ndarray, radii: tuple[int, ...], tau: float, margin: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Extrema of the (2, H, W) keys for one or two NMS radii (ascending): (flat pixel index, class) per radius.
+
+    OpenCV dilates and erodes the keys with the dense window; an extremum for the larger radius is
+    also one for the smaller, so the larger radius only tests the extrema of the first
+    (:func:`sensor.vo.kernels_features.detect`).
     """
     if not 1 <= len(radii) <= 2:
         raise ValueError(f"one or two NMS radii, got {radii}")
-    h, w = blob.shape
-    if h <= 2 * margin or w <= 2 * margin:
-        return [(np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int8)) for _ in radii]
-    jitter = _tie_breaker((h, w))
     big = radii[1] if len(radii) == 2 else 0
-    r = radii[0]
-    window = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * r + 1, 2 * r + 1))
-    tiles = np.empty(0, dtype=np.int64)
-    if big:
-        # A (2R+1)² window is the union of (2r+1)² windows centred on an m×m grid of offsets within
-        # ±(R − r) when the grid step is at most 2r + 1 (and the grid stays inside the border margin).
-        m = -(-(2 * big + 1) // (2 * r + 1))
-        grid = np.linspace(-(big - r), big - r, m).round().astype(np.int64)
-        if (m == 1 or np.diff(grid).max() <= 2 * r + 1) and big - r <= margin:
-            offsets = (grid[:, None] * w + grid[None, :]).ravel()
-            tiles = offsets[offsets != 0]
-    found: list[list[tuple[np.ndarray, int]]] = [[] for _ in radii]
-    for base, response in ((BLOB_MIN, blob), (CORNER_MIN, corner)):
-        unique = cv2.add(response, jitter)
-        lowest, highest = cv2.erode(unique, window), cv2.dilate(unique, window)
-        lo, hi, sparse_lo, sparse_hi = extrema(response, unique, lowest, highest, float(tau), margin, big, tiles)
-        found[0] += [(lo, base), (hi, base + 1)]
-        if big:
-            found[1] += [(sparse_lo, base), (sparse_hi, base + 1)]
-    return [
-        (
-            np.concatenate([idx for idx, _ in level]),
-            np.concatenate([np.full(idx.shape[0], cls, dtype=np.int8) for idx, cls in level]),
-        )
-        for level in found
-    ]
+    highest, lowest = (_WORKSPACE.get(name, keys.shape, np.float32) for name in ("highest", "lowest"))
+    window = _window(radii[0])
+    for i in range(2):
+        cv2.dilate(keys[i], window, dst=highest[i])
+        cv2.erode(keys[i], window, dst=lowest[i])
+    flat, cls, sparse, sparse_cls = detect(keys, highest, lowest, float(tau), margin, radii[0], big, _TIE_PERIOD)
+    return [(flat, cls), (sparse, sparse_cls)] if big else [(flat, cls)]
 
 
 def non_maximum_suppression(
@@ -260,7 +260,9 @@ def non_maximum_suppression(
     """
     if not 1 <= n <= MAX_NMS_N:
         raise ValueError(f"n must be in [1, {MAX_NMS_N}], got {n}")
-    flat, cls = _detect(blob, corner, (n,), tau, margin)[0]
+    keys = np.empty((2, *blob.shape), dtype=np.float32)
+    tie_keys(*(np.ascontiguousarray(x, dtype=np.int32) for x in (blob, corner)), _TIE_PERIOD, keys)
+    flat, cls = _detect(keys, (n,), tau, margin)[0]
     w = blob.shape[1]
     return (flat % w).astype(np.int32), (flat // w).astype(np.int32), cls
 
@@ -285,10 +287,8 @@ def compute_descriptors(sobel: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.n
 
 def _feature_set(sobel: np.ndarray, flat: np.ndarray, cls: np.ndarray, scale: int) -> FeatureSet:
     """Features at flat pixel indices of the (2, H, W) Sobel responses, positions scaled to full resolution."""
-    w = sobel.shape[2]
-    u, v = flat % w, flat // w
-    desc = describe(sobel, u, v, DESCRIPTOR_OFFSETS)
-    return FeatureSet(u=u.astype(np.int32) * scale, v=v.astype(np.int32) * scale, cls=cls, desc=desc)
+    u, v, desc = features_at(sobel, flat, scale, DESCRIPTOR_OFFSETS)
+    return FeatureSet(u=u, v=v, cls=cls, desc=desc)
 
 
 def extract_features(image: np.ndarray, config: VOConfig) -> ImageFeatures:
@@ -313,9 +313,8 @@ def extract_features(image: np.ndarray, config: VOConfig) -> ImageFeatures:
     work = half_resolution(image) if config.half_resolution else image
     scale = config.scale
     sobel = sobel_responses(work)
-    blob, corner = filter_responses(work)
     radii = (config.nms_n, config.nms_n_sparse) if config.multi_stage else (config.nms_n,)
-    detected = _detect(blob, corner, radii, config.nms_tau, BORDER_MARGIN)
+    detected = _detect(_keys(work), radii, config.nms_tau, BORDER_MARGIN)
     levels = [_feature_set(sobel, flat, cls, scale) for flat, cls in detected]
     dense = levels[0]
     sparse = levels[1] if config.multi_stage else None

@@ -1,9 +1,12 @@
-"""Compiled kernels of the feature detection: thresholded local extrema and descriptors.
+"""Compiled kernels of the feature detection: filter responses, tie-broken keys, extrema, descriptors.
 
-:mod:`sensor.vo.features` computes the filter responses with OpenCV; :func:`extrema` finds the
-thresholded extrema of one response (tie-broken by a fixed sub-integer pattern) from its OpenCV
-erosion and dilation in one branch-free pass and tests them against the larger sparse window;
-:func:`describe` gathers the 32-byte descriptors (viso2s reference §1.2–1.3).
+:func:`responses` computes the blob and checkerboard responses in exact integer arithmetic over a
+rolling window of rows, optionally straight as the tie-broken float32 keys of :func:`tie_keys`
+(response·p² + a rank unique inside any window); :mod:`sensor.vo.features` has OpenCV dilate and
+erode the keys; :func:`detect` then finds the thresholded extrema of both responses for the dense
+and the sparse radius in one call by Neubeck & Van Gool's block scheme (one candidate per block,
+compared with the dilation); :func:`features_at` and :func:`describe` give positions and 32-byte
+descriptors (viso2s reference §1.2–1.3).
 """
 
 from __future__ import annotations
@@ -12,91 +15,222 @@ import numpy as np
 
 from sensor.vo.jit import kernel
 
-__all__ = ["describe", "extrema"]
+__all__ = ["describe", "detect", "features_at", "responses", "tie_keys"]
 
 
 @kernel
-def _is_extreme(unique: np.ndarray, y: int, x: int, radius: int, is_max: bool) -> bool:
-    """Whether unique[y, x] is at least as extreme as every pixel of its (2·radius + 1)² window ∩ image."""
-    h, w = unique.shape
-    value = unique[y, x]
-    for yy in range(max(y - radius, 0), min(y + radius + 1, h)):
-        for xx in range(max(x - radius, 0), min(x + radius + 1, w)):
-            other = unique[yy, xx]
-            if (other > value) if is_max else (other < value):
-                return False
-    return True
+def _key(response: int, rank: int, p2: int) -> np.float32:
+    """The tie-broken key response·p² + rank (exact in float32: |key| < 2²⁴)."""
+    return np.float32(response * p2 + rank)
 
 
 @kernel
-def extrema(
-    response: np.ndarray, unique: np.ndarray, lowest: np.ndarray, highest: np.ndarray,
-    tau: float, margin: int, big_radius: int, tiles: np.ndarray,
+def _padded_row_sums(image: np.ndarray, padded: int, ring: np.ndarray) -> None:
+    """Row sums of padded row ``padded`` (image row clamp(padded − 2)) into ring slot padded mod 5.
+
+    ring[0] holds the row with its 2-px replicated border, ring[1], ring[2], ring[3] its 3-tap box,
+    5-tap box and [−1 −1 0 1 1] correlation sums.
+    """
+    h, w = image.shape
+    slot = padded % 5
+    src = image[min(max(padded - 2, 0), h - 1)]
+    row, r3, r5, ra = ring[0, slot], ring[1, slot], ring[2, slot], ring[3, slot]
+    for x in range(w):
+        row[x + 2] = src[x]
+    row[0] = row[1] = src[0]
+    row[w + 2] = row[w + 3] = src[w - 1]
+    for x in range(w):
+        a0, a1, a2, a3, a4 = row[x], row[x + 1], row[x + 2], row[x + 3], row[x + 4]
+        r3[x] = a1 + a2 + a3
+        r5[x] = a0 + a1 + a2 + a3 + a4
+        ra[x] = a3 + a4 - a0 - a1
+
+
+@kernel
+def responses(image: np.ndarray, period: int, ring: np.ndarray, values: np.ndarray, keys: np.ndarray) -> None:
+    """Blob and checkerboard responses of a uint8 image, borders replicated (reference §1.2).
+
+    Blob = 7·centre + 2·(3×3 box) − (5×5 box); checkerboard = −a·aᵀ with a = [−1 −1 0 1 1]
+    (correlation): separable integer sums, exact, over a rolling window of five padded rows
+    (``ring``: int32 (4, 5, W + 4) work array), so that only the outputs touch whole-image memory.
+    ``values`` (2, H, W) int32 receives (blob, corner) and ``keys`` (2, H, W) float32 their
+    :func:`tie_keys` for ``period``; either may be an empty (0, 0, 0) array to skip it.
+    """
+    h, w = image.shape
+    with_values, with_keys = values.shape[0] > 0, keys.shape[0] > 0
+    p2 = period * period
+    column_rank = np.zeros(w, dtype=np.int32)
+    if period > 0:
+        for x in range(w):
+            column_rank[x] = x % period
+    for padded in range(4):
+        _padded_row_sums(image, padded, ring)
+    ry = 0
+    for y in range(h):
+        _padded_row_sums(image, y + 4, ring)
+        centre = ring[0, (y + 2) % 5]
+        t1, t2, t3 = ring[1, (y + 1) % 5], ring[1, (y + 2) % 5], ring[1, (y + 3) % 5]
+        f0, f1, f2 = ring[2, y % 5], ring[2, (y + 1) % 5], ring[2, (y + 2) % 5]
+        f3, f4 = ring[2, (y + 3) % 5], ring[2, (y + 4) % 5]
+        a0, a1, a3, a4 = ring[3, y % 5], ring[3, (y + 1) % 5], ring[3, (y + 3) % 5], ring[3, (y + 4) % 5]
+        if with_values:
+            b_out, c_out = values[0, y], values[1, y]
+            for x in range(w):
+                b_out[x] = 7 * centre[x + 2] + 2 * (t1[x] + t2[x] + t3[x]) - (f0[x] + f1[x] + f2[x] + f3[x] + f4[x])
+                c_out[x] = a0[x] + a1[x] - a3[x] - a4[x]
+        if with_keys:
+            b_key, c_key = keys[0, y], keys[1, y]
+            for x in range(w):
+                blob = 7 * centre[x + 2] + 2 * (t1[x] + t2[x] + t3[x]) - (f0[x] + f1[x] + f2[x] + f3[x] + f4[x])
+                b_key[x] = _key(blob, ry + column_rank[x], p2)
+                c_key[x] = _key(a0[x] + a1[x] - a3[x] - a4[x], ry + column_rank[x], p2)
+        if period > 0:
+            ry = ry + period if ry + period < p2 else 0
+
+
+@kernel
+def tie_keys(blob: np.ndarray, corner: np.ndarray, period: int, keys: np.ndarray) -> None:
+    """keys[0] (blob), keys[1] (corner) = response·p² + (x mod p) + p·(y mod p), p = ``period``, as float32.
+
+    The rank pattern is unique inside any p × p window, so the keys of a window are distinct and
+    ordered by response first. |response| ≤ 16·255 gives |key| < 2²⁴: exact in float32 (the type
+    OpenCV's erosion and dilation take).
+    """
+    h, w = blob.shape
+    p2 = period * period
+    column_rank = np.empty(w, dtype=np.int32)
+    for x in range(w):
+        column_rank[x] = x % period
+    ry = 0
+    for y in range(h):
+        b_row, c_row, b_key, c_key = blob[y], corner[y], keys[0, y], keys[1, y]
+        for x in range(w):
+            b_key[x] = _key(b_row[x], ry + column_rank[x], p2)
+            c_key[x] = _key(c_row[x], ry + column_rank[x], p2)
+        ry = ry + period if ry + period < p2 else 0
+
+
+@kernel
+def detect(
+    keys: np.ndarray, highest: np.ndarray, lowest: np.ndarray,
+    tau: float, margin: int, radius: int, big_radius: int, period: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-    """Thresholded local extrema of one filter response, for the dense and the larger (sparse) radius.
+    """Thresholded local extrema of both responses for the dense and the larger (sparse) radius.
 
-    ``unique`` is the response plus the tie-breaking pattern, ``lowest``/``highest`` its erosion and
-    dilation with the dense (2n+1)² window (OpenCV). A pixel at least ``margin`` px inside the border
-    is a maximum when its response is ≥ tau and its unique value equals the dilation (minima: ≤ −tau,
-    the erosion); the test is branch-free. The larger radius tests the dense extrema only, against
-    every pixel of their (2·big_radius + 1)² window clipped to the image (as a dilation with an
-    ignored border); ``big_radius = 0`` skips it. When that window is exactly the union of the dense
-    windows around the flat-index offsets ``tiles`` (non-empty), the test reads ``lowest``/``highest``
-    there instead of scanning the window.
+    ``keys`` (2, H, W) are the :func:`tie_keys` of the blob and corner responses, ``highest`` and
+    ``lowest`` their dilation and erosion with the dense (2·radius + 1)² window clipped to the image
+    (OpenCV). A pixel at least ``margin`` px inside the border is a maximum (minimum) when its
+    response is ≥ tau (≤ −tau) and no pixel of its window has a larger (smaller) key, i.e. its key
+    equals the dilation (erosion); the sparse set keeps the dense extrema that are also extrema of the
+    (2·big_radius + 1)² window clipped to the image (``big_radius = 0``: none).
+
+    Method: Neubeck & Van Gool's (2006) block NMS — a window's extremum is the extremum of its
+    (radius + 1)² block, so one candidate per block is compared with the dilation; the larger window
+    is the union of the dense windows centred on a grid of offsets with steps ≤ 2·radius + 1
+    (clamped to the image), so a dense extremum is a sparse one when the dilation is nowhere on the
+    grid larger than its key.
 
     Returns
     -------
-    minima, maxima, sparse_minima, sparse_maxima : numpy.ndarray
-        int64 flat pixel indices in row-major order.
+    flat, cls, sparse_flat, sparse_cls : numpy.ndarray
+        int64 flat pixel indices and int8 classes (0 blob-min, 1 blob-max, 2 corner-min, 3 corner-max),
+        grouped by class, row-major within a class.
     """
-    h, w = response.shape
-    size = max((h - 2 * margin) * (w - 2 * margin), 0) + 1
-    found_min = np.empty(size, dtype=np.int64)
-    found_max = np.empty(size, dtype=np.int64)
-    n_min = n_max = 0
-    t = np.float32(tau)
-    for y in range(margin, h - margin):
-        for x in range(margin, w - margin):
-            r = response[y, x]
-            value = unique[y, x]
-            found_max[n_max] = y * w + x
-            n_max += (r >= t) & (value == highest[y, x])
-            found_min[n_min] = y * w + x
-            n_min += (r <= -t) & (value == lowest[y, x])
-    found_min, found_max = found_min[:n_min], found_max[:n_max]
-    sparse_min = np.empty(n_min if big_radius > 0 else 0, dtype=np.int64)
-    sparse_max = np.empty(n_max if big_radius > 0 else 0, dtype=np.int64)
-    if big_radius > 0:
-        flat, low, high = unique.ravel(), lowest.ravel(), highest.ravel()
-        k = 0
-        for c in found_min:
-            if tiles.shape[0] > 0:
+    h, w = keys.shape[1], keys.shape[2]
+    if h <= 2 * margin or w <= 2 * margin:
+        e = np.empty(0, dtype=np.int64)
+        c = np.empty(0, dtype=np.int8)
+        return e, c, e.copy(), c.copy()
+    p2 = period * period
+    ceil_tau = np.float64(np.ceil(np.float32(tau)))
+    # Integer responses: r ≥ tau ⇔ key ≥ ⌈tau⌉·p²; r ≤ −tau ⇔ −key ≥ (⌈tau⌉ − 1)·p² + 1.
+    threshold = (ceil_tau * p2, (ceil_tau - 1.0) * p2 + 1.0)
+    reach = big_radius - radius
+    n_tiles = -(-(2 * big_radius + 1) // (2 * radius + 1)) if big_radius > 0 else 0
+    tiles = np.zeros(max(n_tiles, 1), dtype=np.int64)
+    for i in range(1, n_tiles):
+        tiles[i] = -reach + (2 * reach * i) // (n_tiles - 1)
+    if n_tiles > 1:
+        tiles[0] = -reach
+    col_hi = np.empty(w, dtype=np.float32)
+    col_lo = np.empty(w, dtype=np.float32)
+    row_hi = np.empty(w, dtype=np.int32)
+    row_lo = np.empty(w, dtype=np.int32)
+    step = radius + 1
+    blocks = -(-(h - 2 * margin) // step) * -(-(w - 2 * margin) // step)
+    found = np.empty((4, blocks), dtype=np.int64)  # at most one extremum per block and class
+    counts = np.zeros(4, dtype=np.int64)
+    sparse = np.empty((4, blocks if big_radius > 0 else 0), dtype=np.int64)
+    n_sparse = np.zeros(4, dtype=np.int64)
+    x_lo, x_hi = margin, w - margin
+    for which in range(2):
+        key, high, low = keys[which], highest[which], lowest[which]
+        for y0 in range(margin, h - margin, step):
+            y1 = min(y0 + step, h - margin)
+            hi, lo = col_hi[x_lo:x_hi], col_lo[x_lo:x_hi]
+            at_hi, at_lo = row_hi[x_lo:x_hi], row_lo[x_lo:x_hi]
+            first = key[y0, x_lo:x_hi]
+            for i in range(x_hi - x_lo):  # column extremes of the block row and their rows (vectorised)
+                hi[i] = lo[i] = first[i]
+                at_hi[i] = at_lo[i] = y0
+            for y in range(y0 + 1, y1):
+                line = key[y, x_lo:x_hi]
+                for i in range(x_hi - x_lo):
+                    a = line[i]
+                    at_hi[i] = y if a > hi[i] else at_hi[i]
+                    hi[i] = a if a > hi[i] else hi[i]
+                    at_lo[i] = y if a < lo[i] else at_lo[i]
+                    lo[i] = a if a < lo[i] else lo[i]
+            for x0 in range(x_lo, x_hi, step):
+                x1 = min(x0 + step, x_hi)
+                best_hi, best_lo, cx_hi, cx_lo = col_hi[x0], col_lo[x0], x0, x0
+                for x in range(x0 + 1, x1):
+                    a, b = col_hi[x], col_lo[x]
+                    cx_hi = x if a > best_hi else cx_hi
+                    best_hi = a if a > best_hi else best_hi
+                    cx_lo = x if b < best_lo else cx_lo
+                    best_lo = b if b < best_lo else best_lo
+                # Branch-free: kept when beyond the threshold and no key of the window is more extreme.
+                cy, cls = row_hi[cx_hi], 2 * which + 1
+                found[cls, counts[cls]] = cy * w + cx_hi
+                counts[cls] += (best_hi >= threshold[0]) & (high[cy, cx_hi] <= best_hi)
+                cy, cls = row_lo[cx_lo], 2 * which
+                found[cls, counts[cls]] = cy * w + cx_lo
+                counts[cls] += (-best_lo >= threshold[1]) & (low[cy, cx_lo] >= best_lo)
+        for kind in range(2):  # maxima (class 2·which + 1), minima (class 2·which) as maxima of −key
+            sign = np.float32(1 - 2 * kind)
+            extreme = high if kind == 0 else low
+            cls = 2 * which + 1 - kind
+            found[cls, : counts[cls]] = np.sort(found[cls, : counts[cls]])  # row-major within a class
+            if big_radius == 0:
+                continue
+            for k in range(counts[cls]):
+                c = found[cls, k]
+                cy, cx = c // w, c % w
+                own = sign * key[cy, cx]
                 keep = True
-                for offset in tiles:
-                    if low[c + offset] < flat[c]:
-                        keep = False
-                        break
-            else:
-                keep = _is_extreme(unique, c // w, c % w, big_radius, False)
-            if keep:
-                sparse_min[k] = c
-                k += 1
-        sparse_min = sparse_min[:k]
-        k = 0
-        for c in found_max:
-            if tiles.shape[0] > 0:
-                keep = True
-                for offset in tiles:
-                    if high[c + offset] > flat[c]:
-                        keep = False
-                        break
-            else:
-                keep = _is_extreme(unique, c // w, c % w, big_radius, True)
-            if keep:
-                sparse_max[k] = c
-                k += 1
-        sparse_max = sparse_max[:k]
-    return found_min, found_max, sparse_min, sparse_max
+                for gy in tiles[:n_tiles]:
+                    yy = min(max(cy + gy, 0), h - 1)
+                    for gx in tiles[:n_tiles]:
+                        if sign * extreme[yy, min(max(cx + gx, 0), w - 1)] > own:
+                            keep = False
+                if keep:
+                    sparse[cls, n_sparse[cls]] = c
+                    n_sparse[cls] += 1
+    total, total_sparse = counts.sum(), n_sparse.sum()
+    flat = np.empty(total, dtype=np.int64)
+    classes = np.empty(total, dtype=np.int8)
+    sparse_flat = np.empty(total_sparse, dtype=np.int64)
+    sparse_classes = np.empty(total_sparse, dtype=np.int8)
+    m = s = 0
+    for c in range(4):
+        flat[m : m + counts[c]] = found[c, : counts[c]]
+        classes[m : m + counts[c]] = c
+        m += counts[c]
+        sparse_flat[s : s + n_sparse[c]] = sparse[c, : n_sparse[c]]
+        sparse_classes[s : s + n_sparse[c]] = c
+        s += n_sparse[c]
+    return flat, classes, sparse_flat, sparse_classes
 
 
 @kernel
@@ -111,3 +245,22 @@ def describe(sobel: np.ndarray, u: np.ndarray, v: np.ndarray, offsets: np.ndarra
             out[i, 2 * k] = sobel[0, y, x]
             out[i, 2 * k + 1] = sobel[1, y, x]
     return out
+
+
+@kernel
+def features_at(
+    sobel: np.ndarray, flat: np.ndarray, scale: int, offsets: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """int32 positions (u, v) × ``scale`` and :func:`describe` descriptors at flat pixel indices of ``sobel``."""
+    w = sobel.shape[2]
+    n = flat.shape[0]
+    u = np.empty(n, dtype=np.int64)
+    v = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        u[i], v[i] = flat[i] % w, flat[i] // w
+    desc = describe(sobel, u, v, offsets)
+    u_out = np.empty(n, dtype=np.int32)
+    v_out = np.empty(n, dtype=np.int32)
+    for i in range(n):
+        u_out[i], v_out[i] = np.int32(u[i] * scale), np.int32(v[i] * scale)
+    return u_out, v_out, desc

@@ -2,7 +2,7 @@
 
 * :func:`positions` turns index quadruples into (N, 8) positions and keeps the first match of every
   current-left pixel (libviso2 keeps the first).
-* :func:`morton_order` orders points along the Z curve, :func:`corner_triangles` maps the triangles
+* :func:`morton_points` checks and orders points along the Z curve, :func:`corner_triangles` maps the triangles
   of ``cv2.Subdiv2D`` (as coordinates) back to match indices through a look-up image and
   :func:`triangle_support` counts every match's consistent incident edges (viso2s reference §1.4,
   ``removeOutliers``; :mod:`sensor.vo.outliers`).
@@ -17,7 +17,7 @@ import numpy as np
 
 from sensor.vo.jit import kernel
 
-__all__ = ["REFINEMENT_TAPS", "corner_triangles", "morton_order", "positions", "refine", "triangle_support"]
+__all__ = ["REFINEMENT_TAPS", "corner_triangles", "morton_points", "positions", "refine", "triangle_support"]
 
 _KEY_U = 1 << 16  # column stride of pixel keys (images narrower than 65536 px)
 
@@ -60,13 +60,37 @@ def _spread(n: np.uint64) -> np.uint64:
 
 
 @kernel
-def morton_order(u: np.ndarray, v: np.ndarray, u0: int, v0: int) -> np.ndarray:
-    """Order of distinct non-negative integer points (u − u0, v − v0) along the Z curve."""
+def morton_points(u: np.ndarray, v: np.ndarray) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray]:
+    """Distinct integer points along the Z curve, for ``cv2.Subdiv2D``.
+
+    Returns
+    -------
+    ok, ui, vi, ordered
+        Whether every position is an integer and no two are equal (images narrower than 65536 px);
+        the int64 positions; and the float32 (N, 2) points in Z order of (u − min u, v − min v).
+        ``ok`` False leaves the arrays unspecified.
+    """
     n = u.shape[0]
+    ui = np.empty(n, dtype=np.int64)
+    vi = np.empty(n, dtype=np.int64)
+    ordered = np.empty((n, 2), dtype=np.float32)
+    for i in range(n):
+        if u[i] != np.rint(u[i]) or v[i] != np.rint(v[i]):  # also NaN
+            return False, ui, vi, ordered
+        ui[i], vi[i] = np.int64(u[i]), np.int64(v[i])
+    if n == 0:
+        return True, ui, vi, ordered
+    u0, v0 = ui.min(), vi.min()
     code = np.empty(n, dtype=np.uint64)
     for i in range(n):
-        code[i] = _spread(np.uint64(u[i] - u0)) | (_spread(np.uint64(v[i] - v0)) << np.uint64(1))
-    return np.argsort(code)
+        code[i] = _spread(np.uint64(ui[i] - u0)) | (_spread(np.uint64(vi[i] - v0)) << np.uint64(1))
+    order = np.argsort(code)
+    for k in range(1, n):  # the Z-curve code is one-to-one: equal codes are equal positions
+        if code[order[k]] == code[order[k - 1]]:
+            return False, ui, vi, ordered
+    for k in range(n):
+        ordered[k, 0], ordered[k, 1] = np.float32(ui[order[k]]), np.float32(vi[order[k]])
+    return True, ui, vi, ordered
 
 
 @kernel
@@ -184,17 +208,27 @@ def refine(xy: np.ndarray, sobel: tuple, radius: int, taps: np.ndarray) -> np.nd
             u = min(max(np.int64(np.rint(xy[m, col])), reach), width - 1 - reach)
             v = min(max(np.int64(np.rint(xy[m, col + 1])), reach), height - 1 - reach)
             if radius == 2:  # the first minimum in row-major order; a sum stops once it cannot win
-                best, by, bx = np.int64(1) << 40, 0, 0
+                # The centre first (usually the minimum, so the other sums stop early), then the rest:
+                # the lowest (cost, row-major index) wins, as in a plain row-major scan.
+                best, by, bx = np.int64(0), radius, radius
+                base = v * width + u
+                for k in range(n_taps):
+                    d = np.int32(plane[base + offset[k]]) - ref[k]
+                    best += d if d >= 0 else -d
                 for iy in range(side):
                     for ix in range(side):
+                        if iy == radius and ix == radius:
+                            continue
+                        # Before the best in row-major order an equal cost wins, after it only a lower one.
+                        limit = best + 1 if (iy < by or (iy == by and ix < bx)) else best
                         base = (v + iy - radius) * width + u + ix - radius
                         total = 0
                         for k in range(n_taps):
                             d = np.int32(plane[base + offset[k]]) - ref[k]
                             total += d if d >= 0 else -d
-                            if k % 4 == 3 and total >= best:
+                            if k % 4 == 3 and total >= limit:
                                 break
-                        if total < best:
+                        if total < limit:
                             best, by, bx = total, iy, ix
                 out[m, col] = u + (bx - radius)
                 out[m, col + 1] = v + (by - radius)

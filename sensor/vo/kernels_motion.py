@@ -32,29 +32,36 @@ CONVERGED, NOT_CONVERGED, FAILED = 0, 1, 2
 
 
 @kernel
+def _rotate_rows(out: np.ndarray, target: int, i: int, a: float, b: float, c: float, cx: float, sx: float) -> None:
+    """Column i of out[target] = Rx·(a, b, c)ᵀ-style rows: (a, cx·b − sx·c, sx·b + cx·c)."""
+    out[target, 0, i] = a
+    out[target, 1, i] = cx * b - sx * c
+    out[target, 2, i] = sx * b + cx * c
+
+
+@kernel
 def rotations(rx: float, ry: float, rz: float, out: np.ndarray) -> None:
-    """R = Rx·Ry·Rz and ∂R/∂rx, ∂R/∂ry, ∂R/∂rz into out (4, 3, 3) (formulas of :mod:`sensor.vo.motion`)."""
+    """R = Rx·Ry·Rz and ∂R/∂rx, ∂R/∂ry, ∂R/∂rz into out (4, 3, 3) (formulas of :mod:`sensor.vo.motion`).
+
+    The rows of M = Ry·Rz (a), ∂Ry·Rz (b) and Ry·∂Rz (c) enter as scalars (no work array: this runs
+    once per Gauss–Newton iteration of every RANSAC hypothesis).
+    """
     cx, cy, cz = math.cos(rx), math.cos(ry), math.cos(rz)
     sx, sy, sz = math.sin(rx), math.sin(ry), math.sin(rz)
-    # Rows 0 of M = Ry·Rz (a), ∂Ry·Rz (b) and Ry·∂Rz (c) … and their rows 1 and 2.
-    m = np.empty((3, 3, 3))  # m[matrix, row, column]
-    m[0, 0, 0], m[0, 0, 1], m[0, 0, 2] = cy * cz, -cy * sz, sy
-    m[0, 1, 0], m[0, 1, 1], m[0, 1, 2] = -sy * cz, sy * sz, cy
-    m[0, 2, 0], m[0, 2, 1], m[0, 2, 2] = -cy * sz, -cy * cz, 0.0
-    m[1, 0, 0], m[1, 0, 1], m[1, 0, 2] = sz, cz, 0.0
-    m[1, 1, 0], m[1, 1, 1], m[1, 1, 2] = 0.0, 0.0, 0.0
-    m[1, 2, 0], m[1, 2, 1], m[1, 2, 2] = cz, -sz, 0.0
-    m[2, 0, 0], m[2, 0, 1], m[2, 0, 2] = -sy * cz, sy * sz, cy
-    m[2, 1, 0], m[2, 1, 1], m[2, 1, 2] = -cy * cz, cy * sz, -sy
-    m[2, 2, 0], m[2, 2, 1], m[2, 2, 2] = sy * sz, sy * cz, 0.0
-    for k, target in ((0, 0), (1, 2), (2, 3)):  # R (from row 0 of M), ∂R/∂ry, ∂R/∂rz
-        for i in range(3):
-            a, b, c = m[0, k, i], m[1, k, i], m[2, k, i]
-            out[target, 0, i] = a
-            out[target, 1, i] = cx * b - sx * c
-            out[target, 2, i] = sx * b + cx * c
-    for i in range(3):
-        a, b = m[1, 0, i], m[2, 0, i]
+    # R (from row 0 of M)
+    _rotate_rows(out, 0, 0, cy * cz, sz, -sy * cz, cx, sx)
+    _rotate_rows(out, 0, 1, -cy * sz, cz, sy * sz, cx, sx)
+    _rotate_rows(out, 0, 2, sy, 0.0, cy, cx, sx)
+    # ∂R/∂ry (row 1 of M)
+    _rotate_rows(out, 2, 0, -sy * cz, 0.0, -cy * cz, cx, sx)
+    _rotate_rows(out, 2, 1, sy * sz, 0.0, cy * sz, cx, sx)
+    _rotate_rows(out, 2, 2, cy, 0.0, -sy, cx, sx)
+    # ∂R/∂rz (row 2 of M)
+    _rotate_rows(out, 3, 0, -cy * sz, cz, sy * sz, cx, sx)
+    _rotate_rows(out, 3, 1, -cy * cz, -sz, sy * cz, cx, sx)
+    _rotate_rows(out, 3, 2, 0.0, 0.0, 0.0, cx, sx)
+    # ∂R/∂rx = ∂Rx·M: from the b and c entries of row 0 of M
+    for i, a, b in ((0, sz, -sy * cz), (1, cz, sy * sz), (2, 0.0, cy)):
         out[1, 0, i] = 0.0
         out[1, 1, i] = -sx * a - cx * b
         out[1, 2, i] = cx * a - sx * b
@@ -65,21 +72,24 @@ def _point_rows(
     mats: np.ndarray, theta: np.ndarray, p: np.ndarray, o: np.ndarray, w: float,
     f: float, cu: float, cv: float, b: float, res: np.ndarray, jac: np.ndarray,
 ) -> None:  # fmt: skip
-    """Weighted residual (4,) and Jacobian (4, 6) of one match (point p (3,), observation o (4,))."""
-    d = np.empty((4, 3))
-    for k in range(4):
-        for i in range(3):
-            d[k, i] = mats[k, i, 0] * p[0] + mats[k, i, 1] * p[1] + mats[k, i, 2] * p[2]
-    x = d[0, 0] + theta[3]
-    y = d[0, 1] + theta[4]
-    z = d[0, 2] + theta[5]
+    """Weighted residual (4,) and Jacobian (4, 6) of one match (point p (3,), observation o (4,)).
+
+    No work arrays (an allocation per match would dominate): the rotated point and its derivatives
+    are scalars, with the same operations as the matrix products.
+    """
+    p0, p1, p2 = p[0], p[1], p[2]
+    x = (mats[0, 0, 0] * p0 + mats[0, 0, 1] * p1 + mats[0, 0, 2] * p2) + theta[3]
+    y = (mats[0, 1, 0] * p0 + mats[0, 1, 1] * p1 + mats[0, 1, 2] * p2) + theta[4]
+    z = (mats[0, 2, 0] * p0 + mats[0, 2, 1] * p1 + mats[0, 2, 2] * p2) + theta[5]
     iz = 1.0 / z
     fz = f * iz
     wfz = w * fz
     xz, yz, bz = x * iz, y * iz, (x - b) * iz
     for c in range(6):
-        if c < 3:
-            gx, gy, gz = d[c + 1, 0], d[c + 1, 1], d[c + 1, 2]
+        if c < 3:  # ∂R/∂r_c · p
+            gx = mats[c + 1, 0, 0] * p0 + mats[c + 1, 0, 1] * p1 + mats[c + 1, 0, 2] * p2
+            gy = mats[c + 1, 1, 0] * p0 + mats[c + 1, 1, 1] * p1 + mats[c + 1, 1, 2] * p2
+            gz = mats[c + 1, 2, 0] * p0 + mats[c + 1, 2, 1] * p1 + mats[c + 1, 2, 2] * p2
         else:
             gx = 1.0 if c == 3 else 0.0
             gy = 1.0 if c == 4 else 0.0
@@ -213,32 +223,51 @@ def gauss_newton_subset(
 
 
 @kernel
+def _columns_f32(points: np.ndarray, obs: np.ndarray) -> np.ndarray:
+    """(7, N) float32 columns x, y, z, u1, v1, u2, v2 of the points and observations (vectorisable loops)."""
+    n = points.shape[0]
+    out = np.empty((7, n), dtype=np.float32)
+    for i in range(n):
+        for c in range(3):
+            out[c, i] = np.float32(points[i, c])
+        for c in range(4):
+            out[3 + c, i] = np.float32(obs[i, c])
+    return out
+
+
+@kernel
 def _squared_errors_f32(
-    theta: np.ndarray, points: np.ndarray, obs: np.ndarray, f: float, cu: float, cv: float, fb: float, out: np.ndarray
+    theta: np.ndarray, columns: np.ndarray, f: float, cu: float, cv: float, fb: float, out: np.ndarray
 ) -> None:
-    """Unweighted squared 4-D reprojection errors of all matches in float32 (inf where non-finite)."""
+    """Unweighted squared 4-D reprojection errors of all matches in float32 (inf where non-finite).
+
+    ``columns`` from :func:`_columns_f32`; the same float32 operations per match in any case, so the
+    vectorised loop gives the scalar results.
+    """
     mats = np.empty((4, 3, 3))
     rotations(theta[0], theta[1], theta[2], mats)
-    r = np.empty((3, 3), dtype=np.float32)
-    for i in range(3):
-        for j in range(3):
-            r[i, j] = np.float32(mats[0, i, j])
+    r00, r01, r02 = np.float32(mats[0, 0, 0]), np.float32(mats[0, 0, 1]), np.float32(mats[0, 0, 2])
+    r10, r11, r12 = np.float32(mats[0, 1, 0]), np.float32(mats[0, 1, 1]), np.float32(mats[0, 1, 2])
+    r20, r21, r22 = np.float32(mats[0, 2, 0]), np.float32(mats[0, 2, 1]), np.float32(mats[0, 2, 2])
     t0 = np.float32(min(max(theta[3], -1e6), 1e6))
     t1 = np.float32(min(max(theta[4], -1e6), 1e6))
     t2 = np.float32(min(max(theta[5], -1e6), 1e6))
     f32, fb32, cu32, cv32, one = np.float32(f), np.float32(fb), np.float32(cu), np.float32(cv), np.float32(1.0)
-    for i in range(points.shape[0]):
-        x, y, z = np.float32(points[i, 0]), np.float32(points[i, 1]), np.float32(points[i, 2])
-        u1, v1, u2, v2 = np.float32(obs[i, 0]), np.float32(obs[i, 1]), np.float32(obs[i, 2]), np.float32(obs[i, 3])
-        px = r[0, 0] * x + r[0, 1] * y + r[0, 2] * z + t0
-        py = r[1, 0] * x + r[1, 1] * y + r[1, 2] * z + t1
-        iz = one / (r[2, 0] * x + r[2, 1] * y + r[2, 2] * z + t2)
+    inf = np.float32(np.inf)
+    xs, ys, zs, u1s, v1s, u2s, v2s = (
+        columns[0], columns[1], columns[2], columns[3], columns[4], columns[5], columns[6],
+    )  # fmt: skip
+    for i in range(out.shape[0]):
+        x, y, z, u1, v1, u2, v2 = xs[i], ys[i], zs[i], u1s[i], v1s[i], u2s[i], v2s[i]
+        px = r00 * x + r01 * y + r02 * z + t0
+        py = r10 * x + r11 * y + r12 * z + t1
+        iz = one / (r20 * x + r21 * y + r22 * z + t2)
         du = f32 * px * iz + (cu32 - u1)
         dv = f32 * py * iz + (cv32 - v1)
         du2 = du + (u1 - u2) - fb32 * iz
         dv2 = dv + (v1 - v2)
         e = du * du + dv * dv + du2 * du2 + dv2 * dv2
-        out[i] = e if math.isfinite(e) else np.float32(np.inf)
+        out[i] = e if math.isfinite(e) else inf
 
 
 @kernel
@@ -251,10 +280,11 @@ def count_inliers(
     counts = np.zeros(h, dtype=np.int64)
     err = np.empty(n, dtype=np.float32)
     thr = np.float32(threshold2)
+    columns = _columns_f32(points, obs)
     for k in range(h):
         if status[k] == FAILED:
             continue
-        _squared_errors_f32(params[k], points, obs, f, cu, cv, fb, err)
+        _squared_errors_f32(params[k], columns, f, cu, cv, fb, err)
         c = 0
         for i in range(n):
             c += err[i] < thr
@@ -268,5 +298,5 @@ def inlier_mask(
 ) -> np.ndarray:
     """Boolean inlier mask of one hypothesis (the test of :func:`count_inliers`)."""
     err = np.empty(points.shape[0], dtype=np.float32)
-    _squared_errors_f32(theta, points, obs, f, cu, cv, fb, err)
+    _squared_errors_f32(theta, _columns_f32(points, obs), f, cu, cv, fb, err)
     return err < np.float32(threshold2)

@@ -7,37 +7,38 @@ import numpy as np
 from scipy.spatial import Delaunay, QhullError
 
 from sensor.vo.config import VOConfig
-from sensor.vo.kernels_match import corner_triangles, morton_order, triangle_support
-from sensor.vo.match_columns import U1C, V1C, position_key
+from sensor.vo.kernels_match import corner_triangles, morton_points, triangle_support
+from sensor.vo.match_columns import U1C, V1C
 
 __all__ = ["remove_outliers"]
 
 _MIN_CONSISTENT_EDGES = 4  # Delaunay support needed to keep a match (reference §1.4)
 
 
-def _delaunay(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+def _delaunay(u: np.ndarray, v: np.ndarray) -> np.ndarray | None:
     """(T, 3) vertex indices of the Delaunay triangles of distinct integer points (``cv2.Subdiv2D``).
 
-    Points are inserted in Z order (coherent order keeps Subdiv2D's point-location walks short);
-    the triangles, returned as coordinates, are mapped back to indices through a look-up image
-    (:func:`~sensor.vo.kernels_match.corner_triangles`).
-    OpenCV does not return the triangles that touch its virtual outer vertices.
+    None when the positions are not distinct integers. Points are inserted in Z order
+    (:func:`~sensor.vo.kernels_match.morton_points`: coherent order keeps Subdiv2D's point-location
+    walks short); the triangles, returned as coordinates, are mapped back to indices through a
+    look-up image (:func:`~sensor.vo.kernels_match.corner_triangles`). OpenCV does not return the
+    triangles that touch its virtual outer vertices.
 
     Degenerate input — fewer than 3 points, or all points on one line — has no triangle: the result
     is then an empty (0, 3) array (``getTriangleList`` returns an empty tuple, not an array, when it
     finds none; that is normalised here).
     """
+    distinct_integers, ui, vi, ordered = morton_points(np.ascontiguousarray(u), np.ascontiguousarray(v))
+    if not distinct_integers:
+        return None
     none = np.empty((0, 3), dtype=np.int64)
-    if u.shape[0] < 3:
+    if ui.shape[0] < 3:
         return none
-    ui = u.astype(np.int64)
-    vi = v.astype(np.int64)
     x0, y0 = int(ui.min()), int(vi.min())
     width, height = int(ui.max()) - x0 + 1, int(vi.max()) - y0 + 1
-    order = morton_order(ui, vi, x0, y0)
     subdiv = cv2.Subdiv2D((x0 - 1, y0 - 1, width + 2, height + 2))
     try:
-        subdiv.insert(np.stack([ui[order], vi[order]], axis=1).astype(np.float32))
+        subdiv.insert(ordered)
         corners = subdiv.getTriangleList()
     except cv2.error:
         return none
@@ -71,10 +72,8 @@ def remove_outliers(xy: np.ndarray, config: VOConfig) -> np.ndarray:
     if n < 3:
         return np.zeros(n, dtype=bool)
     u, v = xy[:, U1C], xy[:, V1C]
-    integral = np.array_equal(u, np.rint(u)) and np.array_equal(v, np.rint(v))
-    if integral and np.unique(position_key(u, v)).shape[0] == n:
-        simplices = _delaunay(u, v)
-    else:  # general positions: Qhull
+    simplices = _delaunay(u, v)
+    if simplices is None:  # general positions: Qhull
         try:
             simplices = Delaunay(np.stack([u, v], axis=1)).simplices
         except (QhullError, ValueError):
