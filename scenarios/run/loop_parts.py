@@ -17,27 +17,57 @@ from ..setup.build import ScenarioSetup
 
 
 class DensePath:
-    """The recent kingpin path at dynamics-step resolution, trimmed to a little over one trailer length."""
+    """The recent kingpin path at dynamics-step resolution, trimmed to a little over one trailer length.
 
-    def __init__(self, keep_length: float) -> None:
+    Points live in one growing buffer (compacted when full), so :meth:`array` is a view, not a copy of
+    every chunk each control tick. Chunks are trimmed from the front, whole, while more than two remain
+    and the rest still spans ``keep_length``.
+    """
+
+    def __init__(self, keep_length: float, capacity: int = 4096) -> None:
         self.keep_length = keep_length
-        self.chunks: deque[np.ndarray] = deque()
-        self.lengths: deque[float] = deque()
+        self._buf = np.empty((capacity, 2))
+        self._end = 0
+        self._starts: deque[int] = deque()  # buffer index of each chunk's first point
+        self.lengths: deque[float] = deque()  # each chunk's length, joined to the chunk before it
 
     def extend(self, points: np.ndarray) -> None:
-        if self.chunks:
-            joined = np.vstack([self.chunks[-1][-1:], points])
+        """Append a chunk of points ``(N, 2)``, oldest first, then trim."""
+        points = np.asarray(points, dtype=float)
+        if self._starts:
+            joined = np.vstack([self._buf[self._end - 1 : self._end], points])
         else:
             joined = points
-        self.chunks.append(points)
-        self.lengths.append(float(np.hypot(*np.diff(joined, axis=0).T).sum()) if len(joined) > 1 else 0.0)
+        length = float(np.hypot(*np.diff(joined, axis=0).T).sum()) if len(joined) > 1 else 0.0
+        if self._end + len(points) > len(self._buf):
+            self._compact(len(points))
+        self._starts.append(self._end)
+        self._buf[self._end : self._end + len(points)] = points
+        self._end += len(points)
+        self.lengths.append(length)
         total = sum(self.lengths)
-        while len(self.chunks) > 2 and total - self.lengths[0] > self.keep_length:
+        while len(self._starts) > 2 and total - self.lengths[0] > self.keep_length:
             total -= self.lengths.popleft()
-            self.chunks.popleft()
+            self._starts.popleft()
+
+    def _compact(self, incoming: int) -> None:
+        first = self._starts[0] if self._starts else self._end
+        kept = self._end - first
+        if kept + incoming > len(self._buf) // 2:  # grow so that compaction stays rare
+            buf = np.empty((2 * (kept + incoming), 2))
+        else:
+            buf = self._buf
+        buf[:kept] = self._buf[first : self._end]
+        self._buf = buf
+        self._starts = deque(i - first for i in self._starts)
+        self._end = kept
 
     def array(self) -> np.ndarray:
-        return np.vstack(self.chunks)
+        """The kept path ``(N, 2)``, oldest first (a read-only view, valid until the next :meth:`extend`)."""
+        first = self._starts[0] if self._starts else self._end
+        view = self._buf[first : self._end]
+        view.flags.writeable = False
+        return view
 
 
 def run_duration(setup: ScenarioSetup) -> float:
