@@ -47,6 +47,12 @@ def _casadi(sim: Simulator) -> Simulator:
     return sim
 
 
+def _simulator(reference, reference_model, path: str) -> Simulator:
+    """A simulator on the compiled control-period path, or on the casadi fallback."""
+    sim = Simulator(reference, model=reference_model)
+    return _casadi(sim) if path == "casadi" else sim
+
+
 def test_the_compiled_period_matches_the_casadi_integrator(reference, reference_model):
     if reference_model.library is None:
         pytest.skip("no C compiler: the simulator runs the casadi path only")
@@ -73,9 +79,7 @@ def test_the_period_equals_the_integrator_called_directly(reference, reference_m
 
 @pytest.mark.parametrize("path", ["compiled", "casadi"])
 def test_non_finite_inputs_are_refused_and_nothing_is_integrated(reference, reference_model, path):
-    sim = Simulator(reference, model=reference_model)
-    if path == "casadi":
-        _casadi(sim)
+    sim = _simulator(reference, reference_model, path)
     sim.reset(initial_state(sim.layout, speed=5.0))
     before = sim.state_vector
     for steer, force in (([math.nan], 0.0), ([0.1], math.inf), ([0.0], -math.inf)):
@@ -88,9 +92,7 @@ def test_non_finite_inputs_are_refused_and_nothing_is_integrated(reference, refe
 
 @pytest.mark.parametrize("path", ["compiled", "casadi"])
 def test_a_state_beyond_its_limit_is_named_and_the_last_good_state_kept(reference, reference_model, path):
-    sim = Simulator(reference, model=reference_model)
-    if path == "casadi":
-        _casadi(sim)
+    sim = _simulator(reference, reference_model, path)
     sim.reset(initial_state(sim.layout, speed=59.99))
     good = sim.state_vector
     with pytest.raises(SimulationDivergedError, match=r"u = 6\d\.\d+ exceeds ±60") as info:
