@@ -28,9 +28,17 @@ def test_airfield_world_has_apron_grain_fields_and_distant_objects(ring) -> None
     assert "tarmac" in world.mipmaps and "crop" in world.mipmaps  # detail to the horizon
     loop = world.loops[0]
     assert loop.outer_edge - loop.inner_edge == pytest.approx(40.0)
+    # The distant hedges, buildings and horizon woods are landscape: the same at every scenery density.
+    assert {"hedge_0", "hangar_0", "horizon"} <= {p.name for p in world.parts}
+    assert not any(p.category == "scenery" for p in world.parts)
     bare = build_world(ring, kind="airfield", seed=3, scenery_density=0.0)
-    assert not any(p.category == "scenery" for p in bare.parts)
-    assert build_world(ring).mipmaps == {}  # the roadside default keeps today's images
+    assert bare.object_counts == world.object_counts
+    assert [p.name for p in bare.parts] == [p.name for p in world.parts]
+    # Both kinds give the ground detail at every distance by default (issue 14); it can be switched off.
+    roadside = build_world(ring, seed=3).mipmaps
+    assert set(roadside) >= {"grass", "crop", "asphalt", "horizon", "landscape_foliage"}
+    assert "foliage" not in roadside  # the roadside trees and hedges keep the box-filtered chain
+    assert WorldConfig().detailed_ground and not WorldConfig(ground_detail=False).detailed_ground
     with pytest.raises(InputError, match="kind"):
         WorldConfig(kind="moon")
 

@@ -24,10 +24,15 @@ Contents
   to ``ground_reach`` beyond the path, each cell a pasture, crop, ploughed or stubble field with
   its own row direction.
 * Scenery (paper §3.2.3): delineator posts, trees (deciduous and conifers), farm buildings,
-  post-and-rail fences, hedges, road signs and a distant horizon band. ``scenery_density`` in
-  [0, 1] keeps that fraction of the objects, evenly spread (a low-discrepancy selection, so the
-  objects at density 0.5 are a subset of those at 1.0 for the same seed); 0 leaves road, roundabout
-  and ground only, as the paper's "0 %" scene. Repeated objects are instanced.
+  post-and-rail fences, hedges and road signs within ``scenery_reach`` of the road.
+  ``scenery_density`` in [0, 1] keeps that fraction of the objects, evenly spread (a
+  low-discrepancy selection, so the objects at density 0.5 are a subset of those at 1.0 for the
+  same seed); 0 leaves road, roundabout and ground only, as the paper's "0 %" scene. Repeated
+  objects are instanced.
+* Landscape (:mod:`~sensor.world.landscape`, category ``ground``, at every density): hedgerows,
+  hedgerow trees and farmsteads between ``scenery_reach`` and 400 m from the road, and a band of
+  woods on the horizon. Ground, horizon and landscape foliage textures get contrast-preserving
+  mipmaps (:mod:`~sensor.world.detail`), so they keep detail far away.
 
 Modules
 -------
@@ -38,6 +43,9 @@ Modules
 * :mod:`~sensor.world.road`, :mod:`~sensor.world.roundabout`, :mod:`~sensor.world.ground`: the
   carriageway and verges, the roundabout islands and aprons, and the field cells.
 * :mod:`~sensor.world.scenery`: roadside objects, their placement and density selection, the horizon.
+* :mod:`~sensor.world.landscape`: the landscape beyond the roadside.
+* :mod:`~sensor.world.detail`: contrast-preserving mipmap chains.
+* :mod:`~sensor.world.airfield`: the airfield world of paper §4.
 * :mod:`~sensor.world.mesh`: the mesh primitives they are made of.
 """
 

@@ -3,8 +3,10 @@
 A tarmac apron ``airfield_width`` wide (40 m at Bourn) along the path — every loop of the path an
 annulus of that width — with patch repairs, potholes and cracks; large grain fields (crop and stubble,
 ``field_size`` cells) whose texture keeps its detail out to the horizon (contrast-preserving mipmaps,
-:mod:`sensor.world.detail`); a few distant hedges and farm buildings. No road markings, kerbs, islands
-or roadside furniture: the paper found this scene closest to its simulated "0 %" scenery.
+:mod:`sensor.world.detail`); a few distant hedges and farm buildings and the horizon woods. No road
+markings, kerbs, islands or roadside furniture: the paper found this scene closest to its simulated
+"0 %" scenery. The distant hedges, buildings and woods are landscape, as in the roadside world
+(:mod:`sensor.world.landscape`): category ``ground``, present at every scenery density.
 """
 
 from __future__ import annotations
@@ -15,12 +17,13 @@ import cv2
 import numpy as np
 
 from .. import textures as tx
-from .detail import detail_mipmaps, ground_mipmaps
+from .detail import detail_mipmaps, ground_mipmaps, with_aliases
 from .ground import ground_parts
 from .layout import build_layout
 from .mesh import box, gable, merge
 from .mesh import pose as make_pose
 from .road import road_parts
+from .scenery import horizon_part
 from .types import RoadPath, World, WorldConfig, make_part
 
 __all__ = ["AIRFIELD_FIELDS", "airfield_world", "tarmac"]
@@ -62,7 +65,7 @@ def tarmac(rng: np.random.Generator, size: int = 1024) -> np.ndarray:
 
 
 def _far_objects(lay, rng: np.random.Generator, xs: np.ndarray, ys: np.ndarray) -> list:
-    """A few hedges on distant field boundaries and farm buildings beyond them (instanced parts)."""
+    """A few hedges on distant field boundaries and farm buildings beyond them (instanced parts, landscape)."""
     t = tx.TILE_SIZE
     hedge = box((4.0, 1.5, 2.2), t["foliage"], base=(2.0, 0.0, 0.0), faces="xXyYZ")
     walls = box((30.0, 18.0, 7.0), t["panel"], faces="xXyY")
@@ -89,9 +92,9 @@ def _far_objects(lay, rng: np.random.Generator, xs: np.ndarray, ys: np.ndarray) 
                 break
     parts = []
     if hedges:
-        parts.append(make_part("hedge_0", "scenery", "foliage", *_mesh(hedge), np.array(hedges)))
+        parts.append(make_part("hedge_0", "ground", "landscape_foliage", *_mesh(hedge), np.array(hedges)))
     if sheds:
-        parts.append(make_part("hangar_0", "scenery", "panel", *_mesh(merge(walls, roof)), np.array(sheds)))
+        parts.append(make_part("hangar_0", "ground", "panel", *_mesh(merge(walls, roof)), np.array(sheds)))
     return parts
 
 
@@ -108,14 +111,15 @@ def airfield_world(road: RoadPath, cfg: WorldConfig) -> World:
     road : RoadPath
         The path driven on the apron.
     cfg : WorldConfig
-        Settings; ``airfield_width`` is the apron's width, ``field_size`` the grain fields' size,
-        ``scenery_density`` thins the hedges and buildings (0: none).
+        Settings; ``airfield_width`` is the apron's width, ``airfield_field_size`` the grain fields'
+        size. ``scenery_density`` has no effect: the apron has no roadside objects, and the distant
+        hedges, buildings and woods are landscape, kept at every density (issue 14).
 
     Returns
     -------
     World
-        Tarmac apron, grain fields, distant hedges and buildings; ground textures with detail at
-        every distance.
+        Tarmac apron, grain fields, distant hedges and buildings, the horizon woods (``horizon``);
+        ground textures with detail at every distance.
     """
     import dataclasses
 
@@ -125,14 +129,10 @@ def airfield_world(road: RoadPath, cfg: WorldConfig) -> World:
     apron = [dataclasses.replace(p, texture="tarmac") for p in road_parts(lay) if p.name == "road"]
     ground, xs, ys = ground_parts(lay, streams[0])
     ground = [dataclasses.replace(p, texture=AIRFIELD_FIELDS.get(p.texture, p.texture)) for p in ground]
-    scenery = _far_objects(lay, streams[1], xs, ys) if cfg.scenery_density > 0 else []
-    if cfg.scenery_density < 1.0:
-        scenery = [
-            dataclasses.replace(p, poses=p.poses[(np.arange(len(p.poses)) * 0.618034 % 1.0) < cfg.scenery_density])
-            for p in scenery
-        ]
-        scenery = [p for p in scenery if len(p.poses)]
-    textures = dict(tx.texture_set(int(cfg.seed)))
+    scenery = _far_objects(lay, streams[1], xs, ys)
+    if cfg.horizon:
+        scenery.append(horizon_part(lay, streams[3]))
+    textures = with_aliases(tx.texture_set(int(cfg.seed)))
     textures["tarmac"] = tarmac(streams[2])
     mipmaps = dict(ground_mipmaps(int(cfg.seed))) if cfg.detailed_ground else {}
     if cfg.detailed_ground:

@@ -10,8 +10,9 @@ from vehicle_model.errors import InputError
 
 from .. import textures as tx
 from .airfield import airfield_world
-from .detail import ground_mipmaps
+from .detail import ground_mipmaps, with_aliases
 from .ground import ground_parts
+from .landscape import landscape_parts
 from .layout import build_layout
 from .road import road_parts
 from .roundabout import roundabout_parts
@@ -46,19 +47,21 @@ def build_world(path: PathLike | RoadPath, config: WorldConfig | None = None, **
     road = path if isinstance(path, RoadPath) else RoadPath.from_path(path)
     if cfg.kind == "airfield":
         return airfield_world(road, cfg)
-    streams = [np.random.default_rng(s) for s in np.random.SeedSequence([int(cfg.seed), 0x57]).spawn(4)]
+    streams = [np.random.default_rng(s) for s in np.random.SeedSequence([int(cfg.seed), 0x57]).spawn(5)]
     lay = build_layout(road, cfg)
     parts = road_parts(lay)
     rb_parts, sites = roundabout_parts(lay, streams[0])
     ground, xs, ys = ground_parts(lay, streams[1])
     scenery, counts = scenery_parts(lay, streams[2], sites, xs, ys)
-    extra = [horizon_part(lay, streams[3])] if cfg.horizon and cfg.scenery_density > 0 else []
-    counts["horizon"] = len(extra)
+    # The landscape beyond the roadside (hedgerows, trees, farmsteads, horizon woods) is part of the
+    # world at every scenery density: the density thins roadside objects only (paper §3.2.3).
+    landscape = landscape_parts(lay, streams[4], xs, ys) if cfg.landscape else []
+    landscape += [horizon_part(lay, streams[3])] if cfg.horizon else []
     return World(
         config=cfg,
         road=road,
-        parts=tuple(ground + parts + rb_parts + scenery + extra),
-        textures=tx.texture_set(int(cfg.seed)),
+        parts=tuple(ground + parts + rb_parts + scenery + landscape),
+        textures=with_aliases(tx.texture_set(int(cfg.seed))),
         loops=tuple(lay.loops),
         object_counts=counts,
         mipmaps=ground_mipmaps(int(cfg.seed)) if cfg.detailed_ground else {},

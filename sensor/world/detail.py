@@ -1,4 +1,4 @@
-"""Ground detail at every distance: contrast-preserving mipmap chains for the ground textures.
+"""Ground detail at every distance: contrast-preserving mipmap chains for the ground and landscape textures.
 
 Why: OpenGL picks a texture's mipmap level from the *longer* side of a pixel's footprint. On the
 ground seen at a grazing angle from a camera 3 m up, that side grows with the square of the
@@ -6,7 +6,8 @@ distance (``d² / (h·f)``: 1.5 m per pixel at 50 m), so beyond ~20 m an ordinar
 mipmap chain shows the flat mean colour of each field. With no roadside objects (scenery density 0)
 the rear camera then sees features only in the near field, where yaw and lateral translation are
 hard to tell apart, and VISO-OT drifts (paper §3.2.3 found rear cameras almost insensitive to
-scenery). Anisotropic filtering would keep the detail but costs ~100× the render time on llvmpipe.
+scenery). Anisotropic filtering would keep the detail but costs ~100× the render time on llvmpipe (×4:
+5 s instead of 50 ms a stereo pair, issue 14).
 
 What: real ground has structure at every scale (natural textures have roughly ``1/f`` amplitude
 spectra, so an image of a field keeps its contrast with distance); our textures tile every 8–16 m and
@@ -27,10 +28,15 @@ import numpy as np
 
 from .. import textures as tx
 
-__all__ = ["DETAIL_TEXTURES", "MAX_GAIN", "detail_mipmaps", "ground_mipmaps"]
+__all__ = ["DETAIL_ALIASES", "DETAIL_TEXTURES", "MAX_GAIN", "detail_mipmaps", "ground_mipmaps", "with_aliases"]
 
-DETAIL_TEXTURES: tuple[str, ...] = ("grass", "crop", "plough", "stubble", "verge", "asphalt")
-"""Ground textures given contrast-preserving mipmaps (fields, verges and the road)."""
+DETAIL_TEXTURES: tuple[str, ...] = ("grass", "crop", "plough", "stubble", "verge", "asphalt", "horizon")
+"""Textures given contrast-preserving mipmaps: the ground (fields, verges and the road) and the horizon woods."""
+
+DETAIL_ALIASES: dict[str, str] = {"landscape_foliage": "foliage"}
+"""Textures that are copies of another under their own name, with contrast-preserving mipmaps: the foliage
+of the distant landscape (:mod:`sensor.world.landscape`), always seen far away; the roadside trees and
+hedges keep the ordinary ``foliage`` chain."""
 
 MAX_GAIN = 4.0
 """Largest contrast gain of a coarse level over its box-filtered version."""
@@ -71,7 +77,8 @@ def detail_mipmaps(img: np.ndarray, max_gain: float = MAX_GAIN) -> tuple[np.ndar
 
 @functools.lru_cache(maxsize=4)
 def ground_mipmaps(seed: int) -> dict[str, tuple[np.ndarray, ...]]:
-    """The contrast-preserving mipmap chains of the :data:`DETAIL_TEXTURES` of ``texture_set(seed)`` (cached).
+    """The contrast-preserving mipmap chains of the :data:`DETAIL_TEXTURES` of ``texture_set(seed)`` and of
+    the :data:`DETAIL_ALIASES` (cached).
 
     Parameters
     ----------
@@ -85,9 +92,14 @@ def ground_mipmaps(seed: int) -> dict[str, tuple[np.ndarray, ...]]:
     """
     textures = tx.texture_set(int(seed))
     out = {}
-    for name in DETAIL_TEXTURES:
-        levels = detail_mipmaps(textures[name])
+    for name in (*DETAIL_TEXTURES, *DETAIL_ALIASES):
+        levels = detail_mipmaps(textures[DETAIL_ALIASES.get(name, name)])
         for level in levels:
             level.setflags(write=False)
         out[name] = levels
     return out
+
+
+def with_aliases(textures: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``textures`` plus the :data:`DETAIL_ALIASES` (the same arrays under the alias names)."""
+    return {**textures, **{alias: textures[name] for alias, name in DETAIL_ALIASES.items()}}

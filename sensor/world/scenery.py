@@ -302,7 +302,8 @@ def scenery_parts(
 
 
 def horizon_part(lay: Layout, rng: np.random.Generator) -> Part:
-    """A band of distant woods around the world, facing inwards, just inside the ground's edge."""
+    """A band of distant woods around the world, facing inwards, just inside the ground's edge (category
+    ``ground``: part of the landscape, kept at every scenery density)."""
     cfg = lay.cfg
     lo, hi = lay.samples.min(axis=0), lay.samples.max(axis=0)
     centre = 0.5 * (lo + hi)
@@ -326,4 +327,4 @@ def horizon_part(lay: Layout, rng: np.random.Generator) -> Part:
     i = np.arange(n)
     b0, t0, b1, t1 = 2 * i, 2 * i + 1, 2 * i + 2, 2 * i + 3
     idx = np.concatenate([np.column_stack([b0, b1, t1]), np.column_stack([b0, t1, t0])])
-    return make_part("horizon", "scenery", "horizon", pos, uv, idx)
+    return make_part("horizon", "ground", "horizon", pos, uv, idx)

@@ -123,15 +123,19 @@ class WorldConfig:
     field_size : float
         Side of the square field cells of the ground plane [m].
     horizon : bool
-        Add a band of distant woods on the horizon (a scenery object; absent at density 0).
+        Add a band of distant woods on the horizon (part of the landscape: present at every density).
+    landscape : bool
+        Add the landscape beyond the roadside at every scenery density: hedgerows, hedgerow trees
+        and farmsteads between ``scenery_reach`` and 400 m from the road
+        (:mod:`sensor.world.landscape`).
     road_extension : float
         The road continues this far straight on beyond each open end of the path [m], so the rear
         cameras never look at a dead end.
     ground_detail : bool or None
         Ground textures keep their contrast at every distance (contrast-preserving mipmaps,
         :mod:`sensor.world.detail`); False gives ordinary box-filtered mipmaps, whose far field is
-        flat. None (default): False for the roadside world (the ideal study's images), True for the
-        airfield.
+        flat. None (default): True for every kind (issue 14: with the box-filtered chain the
+        ground-only rear view of scenery density 0 carried twice the VO yaw bias).
     kind : str
         ``roadside`` (road, roundabout, verges, fields and roadside scenery) or ``airfield`` (a tarmac
         apron in grain fields with distant hedges and buildings, :mod:`sensor.world.airfield`).
@@ -149,6 +153,7 @@ class WorldConfig:
     ground_reach: float = 600.0
     field_size: float = 50.0
     horizon: bool = True
+    landscape: bool = True
     road_extension: float = 200.0
     ground_detail: bool | None = None
     kind: str = "roadside"
@@ -176,7 +181,7 @@ class WorldConfig:
     @property
     def detailed_ground(self) -> bool:
         """Whether the ground gets contrast-preserving mipmaps (``ground_detail``, or the kind's default)."""
-        return self.kind == "airfield" if self.ground_detail is None else bool(self.ground_detail)
+        return True if self.ground_detail is None else bool(self.ground_detail)
 
 
 @dataclass(frozen=True)
