@@ -71,6 +71,8 @@ def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
             self._fb_key: tuple[int, int, int] | None = None
             self._tex_key: tuple[float, float] | None = None
             self._uniform_locations: dict[int, dict[str, int]] = {}
+            self._programs: dict[tuple[int, int], tuple[Any, Any]] = {}  # (id(primitive), flags) → (it, program)
+            self._synced: Any = None  # the scene sync() brought the context up to date with
             self._max_aniso = 0.0
             try:
                 self._max_aniso = float(GL.glGetFloatv(GL.GL_MAX_TEXTURE_MAX_ANISOTROPY))
@@ -78,7 +80,18 @@ def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
                 self._max_aniso = 0.0
             self.timings: dict[str, float] = {}
 
+        def sync(self, scene, flags):
+            """Bring the context up to date with ``scene`` now (upload new meshes and textures), so that the
+            next :meth:`render` of it need not do it again."""
+            self._synced = None
+            self._update_context(scene, flags)
+            self._synced = scene
+
         def _update_context(self, scene, flags):
+            if self._synced is scene:  # sync() just did it, for this render
+                self._synced = None
+                return
+            self._synced = None
             before = set(self._mesh_textures)
             super()._update_context(scene, flags)
             key = (self.anisotropy, self.lod_bias)
@@ -98,7 +111,8 @@ def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
 
         def _forward_pass(self, scene, flags, seg_node_map=None):
             """A lean forward pass for offtrack's scenes: FLAT shading, one texture per primitive,
-            identity node poses; uniform locations cached, state changed only when it differs."""
+            identity node poses; programs (per primitive) and uniform locations cached, state (texture, colour
+            factor, blending) changed only when it differs; opaque surfaces drawn with blending off."""
             order = getattr(scene, "offtrack_draw_order", None)
             if order is None or not flags & pyrender.RenderFlags.FLAT or flags & pyrender.RenderFlags.SEG:
                 return super()._forward_pass(scene, flags, seg_node_map)
@@ -112,11 +126,10 @@ def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
             GL.glCullFace(GL.GL_BACK)
             GL.glPolygonMode(GL.GL_FRONT_AND_BACK, GL.GL_FILL)
             GL.glDisable(GL.GL_PROGRAM_POINT_SIZE)
-            GL.glEnable(GL.GL_BLEND)
             GL.glActiveTexture(GL.GL_TEXTURE0)
             program = None
             blend = None
-            last_pose = None
+            last_pose = last_texture = last_factor = None
             for node in order:
                 mesh = node.mesh
                 if not mesh.is_visible:
@@ -124,7 +137,7 @@ def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
                 pose = scene.get_pose(node)
                 alpha_only = getattr(node, "offtrack_alpha_only", False)
                 for prim in mesh.primitives:
-                    prog = self._get_primitive_program(prim, flags, pyrender.constants.ProgramFlags.USE_MATERIAL)
+                    prog = self._program(prim, flags)
                     if prog is not program:
                         program = prog
                         prog._bind()
@@ -132,15 +145,19 @@ def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
                         GL.glUniformMatrix4fv(locs["V"], 1, GL.GL_TRUE, v32)
                         GL.glUniformMatrix4fv(locs["P"], 1, GL.GL_TRUE, p32)
                         GL.glUniform1i(locs["material.base_color_texture"], 0)
-                        last_pose = None
+                        last_pose = last_factor = None
                     material = prim.material
                     if last_pose is None or not np.array_equal(pose, last_pose):
                         GL.glUniformMatrix4fv(locs["M"], 1, GL.GL_TRUE, np.ascontiguousarray(pose, np.float32))
                         last_pose = pose
-                    GL.glUniform4fv(
-                        locs["material.base_color_factor"], 1, np.asarray(material.baseColorFactor, np.float32)
-                    )
-                    GL.glBindTexture(GL.GL_TEXTURE_2D, material.baseColorTexture._texid)
+                    factor = np.asarray(material.baseColorFactor, np.float32)
+                    if last_factor is None or not np.array_equal(factor, last_factor):
+                        GL.glUniform4fv(locs["material.base_color_factor"], 1, factor)
+                        last_factor = factor
+                    texture = material.baseColorTexture._texid
+                    if texture != last_texture:
+                        GL.glBindTexture(GL.GL_TEXTURE_2D, texture)
+                        last_texture = texture
                     want = "alpha" if alpha_only else material.alphaMode == "BLEND"
                     if want != blend:
                         if blend == "alpha":
@@ -149,11 +166,12 @@ def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
                         if want == "alpha":  # shadow decals: alpha only, no depth write (no double shade)
                             GL.glColorMask(GL.GL_FALSE, GL.GL_FALSE, GL.GL_FALSE, GL.GL_TRUE)
                             GL.glDepthMask(GL.GL_FALSE)
-                            GL.glBlendFunc(GL.GL_ONE, GL.GL_ZERO)
+                            GL.glDisable(GL.GL_BLEND)  # replace: what blending with (ONE, ZERO) gives
                         elif want:  # road lines over the asphalt; the alpha (sky/shade mask) is kept
+                            GL.glEnable(GL.GL_BLEND)
                             GL.glBlendFuncSeparate(GL.GL_SRC_ALPHA, GL.GL_ONE_MINUS_SRC_ALPHA, GL.GL_ZERO, GL.GL_ONE)
                         else:
-                            GL.glBlendFunc(GL.GL_ONE, GL.GL_ZERO)
+                            GL.glDisable(GL.GL_BLEND)
                         blend = want
                     GL.glBindVertexArray(prim._vaid)
                     n = 1 if prim.poses is None else len(prim.poses)
@@ -165,6 +183,20 @@ def make_fast_renderer(pyrender: Any, osr: Any, samples: int) -> Any:
                 GL.glDepthMask(GL.GL_TRUE)
             GL.glFlush()
             return self._read_main_framebuffer(scene, flags)
+
+        def _program(self, prim, flags):
+            """pyrender's shader program of a primitive, looked up once per primitive and flags."""
+            key = (id(prim), int(flags))
+            entry = self._programs.get(key)
+            if entry is None or entry[0] is not prim:
+                use = pyrender.constants.ProgramFlags.USE_MATERIAL
+                entry = self._programs[key] = (prim, self._get_primitive_program(prim, flags, use))
+            return entry[1]
+
+        def delete(self):
+            self._programs.clear()  # pyrender frees its programs
+            self._uniform_locations.clear()
+            super().delete()
 
         def _locations(self, program):
             pid = program._program_id

@@ -220,7 +220,7 @@ class StereoRenderer:
         flags = pyrender.RenderFlags.FLAT | pyrender.RenderFlags.OFFSCREEN
         culler = getattr(scene, "offtrack_culler", None)
         if culler is not None:
-            r._update_context(scene, flags)  # upload new meshes first, then cut their instance lists
+            r.sync(scene, flags)  # upload new meshes first, then cut their instance lists
             if self.cull:
                 rig = self.rig
                 culler.apply(np.asarray(pose, float), 0.5 * rig.hfov, 0.5 * rig.vfov, min(rig.zfar, self.cull_distance))

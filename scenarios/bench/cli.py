@@ -10,6 +10,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from ..camera.workers import DEFAULT_WORKERS
+
 bench_app = typer.Typer(
     help="Benchmarks printing machine-readable results.", no_args_is_help=True, rich_markup_mode=None
 )
@@ -70,7 +72,9 @@ def bench_model_cmd(
 def bench_loop_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     duration: Annotated[float, typer.Option(help="Simulated seconds per run.", min=4.0)] = 15.0,
-    workers: Annotated[int, typer.Option(help="Render worker processes of the pipelined run.", min=1)] = 2,
+    workers: Annotated[
+        int, typer.Option(help="Render worker processes of the pipelined run.", min=1)
+    ] = DEFAULT_WORKERS,
     serial: Annotated[bool, typer.Option(help="Also run it serial, for the speed-up in the same call.")] = True,
 ) -> None:
     """Rendered closed loop (render + VO + VISO-OT + control): simulated seconds per wall second, CPU shares."""

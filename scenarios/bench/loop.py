@@ -3,7 +3,9 @@
 The loop is ``roundabout-3`` with the LST steered by VISO-OT feedback, the camera latency at its default
 (one frame period), run by :func:`scenarios.run.cosim.run_cosimulation` exactly as ``offtrack run`` does.
 The figures leave out the start (building the world, the workers' OpenGL contexts): the real-time factor
-is simulated seconds per wall second from ``warmup`` simulated seconds to the end. The shares say where the
+is simulated seconds per wall second from ``warmup`` simulated seconds to the end, and the per-frame CPU and
+waiting times are those of the frames after the first ones (whose one-off costs, the OpenGL contexts, texture
+uploads and compiled kernels loading, are reported apart as ``*_startup_*``). The shares say where the
 CPU time went: rendering (every thread of the rendering processes), visual odometry and VISO-OT (thread CPU
 time), and the control side (everything else the co-simulation process did: model, driver, signals,
 estimators, recording, waiting excluded). On a shared machine the wall time varies; the CPU figures much
@@ -47,12 +49,13 @@ def _one_run(duration: float, workers: int, warmup: float) -> dict[str, Any]:
     sim_end = float(columns["time"][-1])
     sim0, wall0, cpu0 = marks[0]
     cam = outcome.camera
-    # CPU after the warm-up: this process's directly, the camera's per frame (steady) times the frames taken
+    # CPU after the warm-up: this process's directly, the camera's per frame (steady: without the first frames'
+    # one-off costs, which fall before the warm-up mark) times the frames taken after it
     taken = np.flatnonzero(columns["camera_frame"] > 0.5)
     frames = int(np.count_nonzero(columns["time"][taken] >= sim0))
-    per_frame = frames / max(cam["frames"], 1.0)
-    render_cpu = cam["render_cpu_s"] * per_frame
-    vo_cpu = cam["vo_cpu_s"] * per_frame
+    steady = max(cam["frames"] - cam["startup_frames"], 1.0)
+    render_cpu = (cam["render_cpu_s"] - cam["startup_render_cpu_s"]) / steady * frames
+    vo_cpu = (cam["vo_cpu_s"] - cam["startup_vo_cpu_s"]) / steady * frames
     control_cpu = (cpu_end - cpu0) - vo_cpu - (render_cpu if workers == 0 else 0.0)
     total_cpu = render_cpu + vo_cpu + control_cpu
     frames = max(frames, 1)
@@ -70,7 +73,10 @@ def _one_run(duration: float, workers: int, warmup: float) -> dict[str, Any]:
         "render_cpu_ms_per_frame": 1e3 * render_cpu / frames,
         "vo_cpu_ms_per_frame": 1e3 * vo_cpu / frames,
         "control_cpu_ms_per_frame": 1e3 * control_cpu / frames,
-        "wait_ms_per_frame": 1e3 * cam["wait_s"] / max(cam["frames"], 1.0),
+        "wait_ms_per_frame": 1e3 * (cam["wait_s"] - cam["startup_wait_s"]) / steady,
+        "render_startup_cpu_s": cam["startup_render_cpu_s"],
+        "vo_startup_cpu_s": cam["startup_vo_cpu_s"],
+        "wait_startup_s": cam["startup_wait_s"],
         "frames": int(cam["frames"]),
         "latency_ticks": int(cam["latency_ticks"]),
     }
@@ -86,7 +92,8 @@ def bench_loop(
     dict
         ``realtime_factor`` (simulated s per wall s after ``warmup``), ``realtime_factor_end_to_end``,
         ``realtime_factor_cpu_bound``, the CPU ``render_share``, ``vo_share`` and ``control_share``, per-frame
-        CPU ms of each and ``wait_ms_per_frame`` (the co-simulation waiting for a render); with
+        CPU ms of each and ``wait_ms_per_frame`` (the co-simulation waiting for a render), the first frames'
+        one-off ``render_startup_cpu_s``, ``vo_startup_cpu_s`` and ``wait_startup_s``; with
         ``compare_serial`` the same of the serial run prefixed ``serial_`` and ``speedup`` (the ratio of the
         real-time factors, measured in this one call).
     """

@@ -2,16 +2,20 @@
 
 A pipelined camera run renders frame ``n + 1`` in one worker while the co-simulation process runs the
 visual odometry and VISO-OT on frame ``n``, so both cores work (:mod:`.delivery` says when each estimate may
-reach the controller). Workers take the frames in turn (frame ``n`` goes to worker ``n mod workers``): with
-the default latency of one frame period two frames are in flight, and the second worker renders the next
-one while the first one's pair waits for the odometry.
+reach the controller). Workers take the frames in turn (frame ``n`` goes to worker ``n mod workers``); with
+the default latency of one frame period up to two frames are in flight. The default is one worker
+(:data:`DEFAULT_WORKERS`); with two, the second renders the next frame while the first one's pair waits for
+the odometry.
 
 Each worker is a ``spawn``-ed process (never a fork: OpenGL contexts do not survive one) that rebuilds the
 scenario from its configuration and owns one :class:`~.pipeline.PairRenderer`, hence one renderer, as the
 rendering rules demand. The co-simulation sends ``(frame, X, Y, ψ1, Γ)`` down a pipe; the worker answers
 with the render time and CPU time, then the left and right images as raw bytes (1 MB a pair at 1344×391,
-well under a millisecond to copy). A worker ignores Ctrl-C (the co-simulation process stops it, keeping
-the data) and exits when its pipe closes, so it never outlives the run even after a SIGKILL of the run.
+well under a millisecond to copy). Workers can run at a lower priority than the co-simulation
+(:data:`RENDER_NICENESS`, off by default), whose odometry is the critical path, and with two or more of them llvmpipe
+rasterises in each worker's own thread (:data:`RENDER_THREADS`). A worker ignores Ctrl-C (the co-simulation
+process stops it, keeping the data) and exits when its pipe closes, so it never outlives the run even after
+a SIGKILL of the run.
 A worker that raises sends the traceback back; one that dies or stops answering is a
 :class:`CameraWorkerError` naming the worker, the frame and the exit code, never a hang.
 """
@@ -33,25 +37,45 @@ import numpy as np
 from sensor.camera import Misalignment
 from vehicle_model.errors import OfftrackError
 
-DEFAULT_WORKERS = 2
-"""Render workers of a pipelined run (two frames in flight at the default latency of one frame period)."""
+DEFAULT_WORKERS = 1
+"""Render workers of a pipelined run. One, whose llvmpipe threads use the core the odometry leaves free, ran the
+loop faster than two on this 2-core machine (``offtrack bench loop``, 2026-12-01: 2.7–2.8× against 2.6× real
+time; two workers' two contexts and caches cost more CPU per pair; ``benchmarks/README.md``)."""
 ANSWER_TIMEOUT_S = 300.0
 """Longest wait for one worker's answer [s]; the first includes building the world and the OpenGL context."""
 MIN_PIPELINED_FRAMES = 150
 """Shortest run (camera frames) pipelined by default: below it the workers' start-up costs more than they save."""
 STOP_TIMEOUT_S = 2.0
 """How long a worker gets to exit on request before it is terminated [s]."""
+RENDER_THREADS = "0"
+"""llvmpipe rasteriser threads of each of two or more workers (``LP_NUM_THREADS`` unless set; "0": in the worker's
+own thread). Such workers already render two frames at once beside the odometry, so threads inside each would
+only add their synchronisation cost (about 2 ms per pair); a single worker, and a serial run, keep llvmpipe's
+default (one thread per core)."""
+RENDER_NICENESS = 0
+"""How much lower a worker's scheduling priority is than the co-simulation's (``nice`` increment). The
+co-simulation process is the critical path (each estimate waits for its odometry); a positive increment
+lets it keep its core while the renders take what is left. Off by default: on a quiet 2-core machine 5 gave
+no gain beyond noise, and on a shared one the lowered workers lost their CPU to other jobs (one loaded round:
+1.04x real time against 2.14x without it)."""
 
 
 class CameraWorkerError(OfftrackError, RuntimeError):
     """A render worker died, raised, or stopped answering: the run cannot go on."""
 
 
-def _worker_main(config: Any, conn: Connection) -> None:
-    """Body of one render worker (runs in the spawned process)."""
+def _worker_main(config: Any, conn: Connection, threads: str | None = None) -> None:
+    """Body of one render worker (runs in the spawned process); ``threads``: llvmpipe's, unless set."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the co-simulation process handles Ctrl-C and stops us
     if hasattr(signal, "pthread_sigmask"):
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # started blocked (RenderWorkers)
+    if threads is not None:
+        os.environ.setdefault("LP_NUM_THREADS", threads)  # read when the OpenGL context is created
+    if RENDER_NICENESS and hasattr(os, "nice"):
+        try:
+            os.nice(RENDER_NICENESS)  # before the renderer's threads start: they inherit it
+        except OSError:
+            pass
     try:
         from ..setup.build import build_scenario
         from .pipeline import PairRenderer
@@ -137,8 +161,9 @@ class RenderWorkers:
             try:
                 for i in range(workers):
                     here, there = ctx.Pipe(duplex=True)
+                    threads = RENDER_THREADS if workers >= 2 else None
                     proc = ctx.Process(
-                        target=_worker_main, args=(config, there), name=f"offtrack-render-{i}", daemon=True
+                        target=_worker_main, args=(config, there, threads), name=f"offtrack-render-{i}", daemon=True
                     )
                     proc.start()
                     there.close()  # so that the worker's death reads as end-of-file here
