@@ -170,10 +170,11 @@ class PathFollowingConfig:
         no limit. Beyond the Magic Formula's peak more steer gives *less* lateral force (on ice, μ = 0.1, the
         peak is at 2.9° of slip; 16 % less force at 10°, 30 % less at 30°), so feedback that keeps pushing
         reverses its own sign and winds the axles to lock. A low-μ safeguard, off by default because the
-        controller does not know μ: at 5° it turns the lost control of the truth-fed figure-eight on ice + 5 %
-        camber into a 0.22 m transient, but on the dry roundabout test, where the fixed-axle compensation runs
-        trailer2 at 6° of slip beside trailer3 at lock, it raises the truth-fed off-tracking after warm-up
-        from 0.17/0.46 m to 0.25/0.59 m (RMS/max).
+        controller does not know μ: at 5° it turned the lost control of the truth-fed figure-eight on ice + 5 %
+        camber into a 0.22 m transient while that scenario's camber still flipped at a point between its loops
+        (it now turns through a run-off, and the cell completes without the limit), but on the dry roundabout
+        test, where the fixed-axle compensation runs trailer2 at 6° of slip beside trailer3 at lock, it raises
+        the truth-fed off-tracking after warm-up from 0.17/0.46 m to 0.25/0.59 m (RMS/max).
     """
 
     gains: PathFollowingGains | None = None

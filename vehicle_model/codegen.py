@@ -30,15 +30,6 @@ def _compiler() -> str | None:
     return os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc") or shutil.which("clang")
 
 
-def compile_functions(functions: list[ca.Function], tag: str) -> list[ca.Function] | None:
-    """Return compiled twins of ``functions`` (same names and signatures), or ``None``.
-
-    ``None`` means compilation is switched off or impossible; the caller keeps the originals.
-    """
-    lib = compile_library(functions, tag)
-    return None if lib is None else load_functions(functions, lib)
-
-
 def load_functions(functions: list[ca.Function], lib: Path) -> list[ca.Function]:
     """The compiled twins of ``functions`` in the shared library ``lib`` (:func:`compile_library`)."""
     return [ca.external(f.name(), str(lib)) for f in functions]

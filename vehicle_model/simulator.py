@@ -268,22 +268,26 @@ class Simulator:
 
     def fill_inputs(self, controls: Controls) -> None:
         """Write ``controls`` and the surface at the current state into the input vector."""
-        layout = self.layout
+        self._write_inputs(controls.steer, controls.drive_force)
+        if not self._inputs_finite():
+            self._failed(BAD_INPUT, controls.steer, controls.drive_force)
+
+    def _write_inputs(self, steer: Sequence[float] | np.ndarray, drive_force: float) -> None:
+        """Write the steer angles, the drive force and (when it may have changed) the surface into the inputs."""
         u = self._u
         try:
-            u[layout.steer_slice] = controls.steer
+            u[self._steer_slice] = steer
         except (ValueError, TypeError):
             raise InputError(
-                f"controls.steer = {controls.steer!r}; give one angle per steerable axle {list(layout.steerable_axles)}"
+                f"controls.steer = {steer!r}; give one angle per steerable axle {list(self.layout.steerable_axles)}"
             ) from None
-        u[layout.drive_index] = controls.drive_force
-        if not math.isfinite(sum(u[: layout.drive_index + 1].tolist())):
-            raise InputError(
-                f"non-finite controls at t = {self.time:.3f} s: steer {controls.steer}, "
-                f"drive force {controls.drive_force}"
-            )
+        u[self._drive_index] = drive_force
         if not (self._surface_filled and self._surface_uniform):
             self._fill_surface()
+
+    def _inputs_finite(self) -> bool:
+        """The caller's inputs (steer angles and drive force) are all finite."""
+        return math.isfinite(sum(self._u[: self._drive_index + 1].tolist()))
 
     def _fill_surface(self) -> None:
         """Write μ and the slopes at the current state into the input vector."""
@@ -313,16 +317,7 @@ class Simulator:
         The closed loop's path: no :class:`Controls` is built. With the compiled model one C call
         (:mod:`.period`) integrates the period and checks the inputs and the new state.
         """
-        u = self._u
-        try:
-            u[self._steer_slice] = steer
-        except (ValueError, TypeError):
-            raise InputError(
-                f"controls.steer = {steer!r}; give one angle per steerable axle {list(self.layout.steerable_axles)}"
-            ) from None
-        u[self._drive_index] = drive_force
-        if not (self._surface_filled and self._surface_uniform):
-            self._fill_surface()
+        self._write_inputs(steer, drive_force)
         if self._period is None:
             return self._step_casadi(steer, drive_force)
         code = self._period(self._ctx_address)
@@ -334,7 +329,7 @@ class Simulator:
 
     def _step_casadi(self, steer: Sequence[float] | np.ndarray, drive_force: float) -> VehicleState:
         """The period through casadi's ``mapaccum`` integrator, checked here (the model has no compiled library)."""
-        if not math.isfinite(sum(self._u[: self._drive_index + 1].tolist())):
+        if not self._inputs_finite():
             self._failed(BAD_INPUT, steer, drive_force)
         self._eval()
         x_end = self._x_end

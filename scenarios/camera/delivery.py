@@ -140,11 +140,6 @@ class CameraFeed:
         return self._pipeline.renderer if self._pipeline is not None else None
 
     @property
-    def worker_pids(self) -> list[int]:
-        """Process ids of the render workers (empty when serial)."""
-        return self._workers.pids if self._workers is not None else []
-
-    @property
     def wait_s(self) -> float:
         """Wall time spent waiting for the render workers [s]."""
         return self._workers.wait_s if self._workers is not None else 0.0
