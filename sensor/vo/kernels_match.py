@@ -2,9 +2,7 @@
 
 * :func:`positions` turns index quadruples into (N, 8) positions and keeps the first match of every
   current-left pixel (libviso2 keeps the first).
-* :func:`morton_points` checks and orders points along the Z curve, :func:`corner_triangles` maps the triangles
-  of ``cv2.Subdiv2D`` (as coordinates) back to match indices through a look-up image and
-  :func:`triangle_support` counts every match's consistent incident edges (viso2s reference §1.4,
+* :func:`triangle_support` counts every match's consistent incident edges (viso2s reference §1.4,
   ``removeOutliers``; :mod:`sensor.vo.outliers`).
 * :func:`refine` moves the 1p, 2p and 2c positions to the SAD minimum of the 16-byte small
   descriptor within ± radius px of full-resolution pixels, with sub-pixel parabolas for radius 3
@@ -17,7 +15,7 @@ import numpy as np
 
 from sensor.vo.jit import kernel
 
-__all__ = ["REFINEMENT_TAPS", "corner_triangles", "morton_points", "positions", "refine", "triangle_support"]
+__all__ = ["REFINEMENT_TAPS", "positions", "refine", "triangle_support"]
 
 _KEY_U = 1 << 16  # column stride of pixel keys (images narrower than 65536 px)
 
@@ -47,84 +45,6 @@ def positions(
         out[m, 4], out[m, 5], out[m, 6], out[m, 7] = u1c[d], v1c[d], u2c[c], v2c[c]
         m += 1
     return out
-
-
-@kernel
-def _spread(n: np.uint64) -> np.uint64:
-    n = n & np.uint64(0xFFFF)
-    n = (n | (n << np.uint64(8))) & np.uint64(0x00FF00FF)
-    n = (n | (n << np.uint64(4))) & np.uint64(0x0F0F0F0F)
-    n = (n | (n << np.uint64(2))) & np.uint64(0x33333333)
-    n = (n | (n << np.uint64(1))) & np.uint64(0x55555555)
-    return n
-
-
-@kernel
-def morton_points(u: np.ndarray, v: np.ndarray) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray]:
-    """Distinct integer points along the Z curve, for ``cv2.Subdiv2D``.
-
-    Returns
-    -------
-    ok, ui, vi, ordered
-        Whether every position is an integer and no two are equal (images narrower than 65536 px);
-        the int64 positions; and the float32 (N, 2) points in Z order of (u − min u, v − min v).
-        ``ok`` False leaves the arrays unspecified.
-    """
-    n = u.shape[0]
-    ui = np.empty(n, dtype=np.int64)
-    vi = np.empty(n, dtype=np.int64)
-    ordered = np.empty((n, 2), dtype=np.float32)
-    for i in range(n):
-        if u[i] != np.rint(u[i]) or v[i] != np.rint(v[i]):  # also NaN
-            return False, ui, vi, ordered
-        ui[i], vi[i] = np.int64(u[i]), np.int64(v[i])
-    if n == 0:
-        return True, ui, vi, ordered
-    u0, v0 = ui.min(), vi.min()
-    code = np.empty(n, dtype=np.uint64)
-    for i in range(n):
-        code[i] = _spread(np.uint64(ui[i] - u0)) | (_spread(np.uint64(vi[i] - v0)) << np.uint64(1))
-    order = np.argsort(code)
-    for k in range(1, n):  # the Z-curve code is one-to-one: equal codes are equal positions
-        if code[order[k]] == code[order[k - 1]]:
-            return False, ui, vi, ordered
-    for k in range(n):
-        ordered[k, 0], ordered[k, 1] = np.float32(ui[order[k]]), np.float32(vi[order[k]])
-    return True, ui, vi, ordered
-
-
-@kernel
-def corner_triangles(corners: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Vertex indices (T', 3) of triangles given by corners (T, 6) (x0, y0, x1, y1, x2, y2) [px].
-
-    Corners are looked up among the distinct integer points (u, v) in a look-up image of their
-    bounding box (left uninitialised: an entry counts only if the point it names is at that pixel);
-    a triangle with a corner that is none of them is dropped.
-    """
-    n = u.shape[0]
-    x0, y0 = u.min(), v.min()
-    width, height = u.max() - x0 + 1, v.max() - y0 + 1
-    lookup = np.empty(width * height, dtype=np.int32)
-    for i in range(n):
-        lookup[(v[i] - y0) * width + u[i] - x0] = i
-    out = np.empty((corners.shape[0], 3), dtype=np.int64)
-    m = 0
-    for t in range(corners.shape[0]):
-        ok = True
-        for c in range(3):
-            x = np.int64(np.rint(corners[t, 2 * c])) - x0
-            y = np.int64(np.rint(corners[t, 2 * c + 1])) - y0
-            if x < 0 or x >= width or y < 0 or y >= height:
-                ok = False
-                break
-            i = lookup[y * width + x]
-            if i < 0 or i >= n or u[i] - x0 != x or v[i] - y0 != y:
-                ok = False
-                break
-            out[m, c] = i
-        if ok:
-            m += 1
-    return out[:m]
 
 
 @kernel

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 from scipy.spatial import Delaunay, QhullError
 
 from sensor.vo.config import VOConfig
-from sensor.vo.kernels_match import corner_triangles, morton_points, triangle_support
+from sensor.vo.kernels_delaunay import delaunay_fits, delaunay_triangles, z_order
+from sensor.vo.kernels_match import triangle_support
 from sensor.vo.match_columns import U1C, V1C
 
 __all__ = ["remove_outliers"]
@@ -16,36 +16,27 @@ _MIN_CONSISTENT_EDGES = 4  # Delaunay support needed to keep a match (reference 
 
 
 def _delaunay(u: np.ndarray, v: np.ndarray) -> np.ndarray | None:
-    """(T, 3) vertex indices of the Delaunay triangles of distinct integer points (``cv2.Subdiv2D``).
+    """(T, 3) vertex indices of the Delaunay triangles of distinct integer points.
 
-    None when the positions are not distinct integers. Points are inserted in Z order
-    (:func:`~sensor.vo.kernels_match.morton_points`: coherent order keeps Subdiv2D's point-location
-    walks short); the triangles, returned as coordinates, are mapped back to indices through a
-    look-up image (:func:`~sensor.vo.kernels_match.corner_triangles`). OpenCV does not return the
-    triangles that touch its virtual outer vertices.
+    Those of ``cv2.Subdiv2D`` on the points' bounding rectangle grown by a pixel each way, the points
+    inserted in Z order (:func:`~sensor.vo.kernels_delaunay.z_order`), and the triangles that touch its
+    virtual outer vertices dropped — computed by the compiled
+    :func:`~sensor.vo.kernels_delaunay.delaunay_triangles` with exact integer predicates, which gives the
+    same triangles, ties included (``tests/test_delaunay_kernel.py``), in a fraction of the time.
 
-    Degenerate input — fewer than 3 points, or all points on one line — has no triangle: the result
-    is then an empty (0, 3) array (``getTriangleList`` returns an empty tuple, not an array, when it
-    finds none; that is normalised here).
+    None when the positions are not distinct integers or too large for the exact predicates. Degenerate
+    input — fewer than 3 points, or all points on one line — has no triangle: an empty (0, 3) array.
     """
-    distinct_integers, ui, vi, ordered = morton_points(np.ascontiguousarray(u), np.ascontiguousarray(v))
+    distinct_integers, ui, vi, order = z_order(np.ascontiguousarray(u), np.ascontiguousarray(v))
     if not distinct_integers:
         return None
-    none = np.empty((0, 3), dtype=np.int64)
     if ui.shape[0] < 3:
-        return none
-    x0, y0 = int(ui.min()), int(vi.min())
-    width, height = int(ui.max()) - x0 + 1, int(vi.max()) - y0 + 1
-    subdiv = cv2.Subdiv2D((x0 - 1, y0 - 1, width + 2, height + 2))
-    try:
-        subdiv.insert(ordered)
-        corners = subdiv.getTriangleList()
-    except cv2.error:
-        return none
-    corners = np.asarray(corners if corners is not None else (), dtype=np.float64).reshape(-1, 6)
-    if corners.shape[0] == 0:
-        return none
-    return corner_triangles(corners, ui, vi)
+        return np.empty((0, 3), dtype=np.int64)
+    x0, y0 = int(ui.min()) - 1, int(vi.min()) - 1
+    width, height = int(ui.max()) - x0 + 2, int(vi.max()) - y0 + 2
+    if not delaunay_fits(x0, y0, width, height):
+        return None
+    return delaunay_triangles(ui, vi, order, x0, y0, width, height)
 
 
 def remove_outliers(xy: np.ndarray, config: VOConfig) -> np.ndarray:
@@ -73,7 +64,7 @@ def remove_outliers(xy: np.ndarray, config: VOConfig) -> np.ndarray:
         return np.zeros(n, dtype=bool)
     u, v = xy[:, U1C], xy[:, V1C]
     simplices = _delaunay(u, v)
-    if simplices is None:  # general positions: Qhull
+    if simplices is None:  # general (or very large) positions: Qhull
         try:
             simplices = Delaunay(np.stack([u, v], axis=1)).simplices
         except (QhullError, ValueError):
