@@ -22,6 +22,24 @@ STEREO_TO_RIGHT, FLOW, STEREO_TO_LEFT = 0, 1, 2
 
 
 @kernel
+def _shift_of(divisor: int) -> int:
+    """k when ``divisor`` = 2**k, else −1."""
+    k = 0
+    while (np.int64(1) << k) < divisor:
+        k += 1
+    return k if (np.int64(1) << k) == divisor else -1
+
+
+@kernel
+def _floor_div(a: int, divisor: int, shift: int) -> int:
+    """⌊a / divisor⌋, by an arithmetic shift when divisor = 2**shift (the same for either sign of a; the
+    index's cell and band sizes are powers of two, and a 64-bit division costs tens of cycles)."""
+    if shift >= 0:
+        return np.int64(a) >> shift
+    return np.int64(a) // divisor
+
+
+@kernel
 def build_index(
     u: np.ndarray, v: np.ndarray, cls: np.ndarray, desc: np.ndarray, band_height: int, col_cell: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, int]:
@@ -37,14 +55,16 @@ def build_index(
     n = u.shape[0]
     n_cells = 1
     n_bands = 1
+    cell_shift, band_shift = _shift_of(col_cell), _shift_of(band_height)
     for i in range(n):
-        n_cells = max(n_cells, u[i] // col_cell + 1)
-        n_bands = max(n_bands, v[i] // band_height + 1)
+        n_cells = max(n_cells, _floor_div(u[i], col_cell, cell_shift) + 1)
+        n_bands = max(n_bands, _floor_div(v[i], band_height, band_shift) + 1)
     n_keys = 4 * n_bands * n_cells
     ptr = np.zeros(n_keys + 1, dtype=np.int64)
     key = np.empty(n, dtype=np.int64)
     for i in range(n):
-        k = (np.int64(cls[i]) * n_bands + v[i] // band_height) * n_cells + u[i] // col_cell
+        band = _floor_div(v[i], band_height, band_shift)
+        k = (np.int64(cls[i]) * n_bands + band) * n_cells + _floor_div(u[i], col_cell, cell_shift)
         key[i] = k
         ptr[k + 1] += 1
     for k in range(n_keys):
@@ -56,12 +76,14 @@ def build_index(
         fill[key[i]] += 1
     su = np.empty(n, dtype=np.int64)
     sv = np.empty(n, dtype=np.int64)
-    sdesc = np.empty((n, desc.shape[1]), dtype=np.uint8)
+    width = desc.shape[1]
+    sdesc = np.empty((n, width), dtype=np.uint8)
     for pos in range(n):
         i = order[pos]
         su[pos] = u[i]
         sv[pos] = v[i]
-        sdesc[pos] = desc[i]
+        for k in range(width):
+            sdesc[pos, k] = desc[i, k]
     return ptr, order, su, sv, sdesc, n_bands, n_cells
 
 
@@ -131,6 +153,7 @@ def search_step(
     best = np.full(n_query, -1, dtype=np.int64)
     has_prior = pred_w.shape[0] > 0
     big = np.int64(1) << 40
+    cell_shift, band_shift = _shift_of(col_cell), _shift_of(band_height)
     for q in range(n_query):
         s = src_idx[q]
         su = np.int64(src_u[s])
@@ -147,10 +170,10 @@ def search_step(
                 u_hi = min(u_hi, su)
             else:
                 u_lo = max(u_lo, su)
-        band_lo = max(v_lo, 0) // band_height
-        band_hi = min(v_hi // band_height, n_bands - 1)
-        cell_lo = min(max(u_lo // col_cell, 0), n_cells)
-        cell_hi = min(max(u_hi // col_cell + 1, 0), n_cells)
+        band_lo = _floor_div(max(v_lo, 0), band_height, band_shift)
+        band_hi = min(_floor_div(v_hi, band_height, band_shift), n_bands - 1)
+        cell_lo = min(max(_floor_div(u_lo, col_cell, cell_shift), 0), n_cells)
+        cell_hi = min(max(_floor_div(u_hi, col_cell, cell_shift) + 1, 0), n_cells)
         if cell_lo >= cell_hi or band_hi < band_lo:
             continue
         cls = np.int64(src_cls[s])
