@@ -48,7 +48,7 @@ def build_index(
     Returns
     -------
     ptr, order, su, sv, sdesc, n_bands, n_cells
-        (4·n_bands·n_cells + 1) int64 pointers, the int64 stable sort order of the features by key,
+        (4·n_bands·n_cells + 1) int32 pointers, the int64 stable sort order of the features by key,
         the positions and descriptors in that order (contiguous runs for the search) and the grid
         size.
     """
@@ -60,7 +60,7 @@ def build_index(
         n_cells = max(n_cells, _floor_div(u[i], col_cell, cell_shift) + 1)
         n_bands = max(n_bands, _floor_div(v[i], band_height, band_shift) + 1)
     n_keys = 4 * n_bands * n_cells
-    ptr = np.zeros(n_keys + 1, dtype=np.int64)
+    ptr = np.zeros(n_keys + 1, dtype=np.int32)  # half the cache footprint of int64
     key = np.empty(n, dtype=np.int64)
     for i in range(n):
         band = _floor_div(v[i], band_height, band_shift)
