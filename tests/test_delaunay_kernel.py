@@ -49,8 +49,8 @@ def test_same_triangles_as_subdiv2d(n: int, width: int, height: int) -> None:
 
 def test_is_delaunay_with_exact_predicates() -> None:
     """Independently of OpenCV: no point is strictly inside any kept triangle's circumcircle, triangles are
-    counter-clockwise and tile the hull (total area = hull area, Euler: T = 2N − 2 − H for N points, H on the
-    hull, when no outer-vertex triangle hides a hull triangle — checked here as T ≤ 2N − 5)."""
+    counter-clockwise, and there are no more than a triangulation of N points can have (Euler: T = 2N − 2 − H
+    with H ≥ 3 points on the hull, so T ≤ 2N − 5)."""
     rng = np.random.default_rng(7)
     u, v = _points(rng, 300, 500, 200)
     tri = _delaunay(u, v)
