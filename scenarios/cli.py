@@ -27,6 +27,7 @@ from scenarios.run.stopping import (
     exit_code_for_signal,
     handle_sigterm,
     raise_pending_stop,
+    stop_behind,
     stop_handled,
     stop_message,
     stop_signal_name,
@@ -61,13 +62,17 @@ def _command(func: F) -> F:
             result = func(*args, **kwargs)
             raise_pending_stop()  # a stop swallowed on the way still ends with its exit code
             return result
-        except (OfftrackError, ValidationError, ValueError) as exc:
-            errors.print(f"error: {exc}", markup=False)
-            raise typer.Exit(EXIT_BAD_INPUT) from None
-        except KeyboardInterrupt as exc:
-            stop_handled()
-            errors.print(stop_message(exc), markup=False)
-            raise typer.Exit(exit_code_for_signal(stop_signal_name(exc))) from None
+        except typer.Exit:
+            raise
+        except BaseException as exc:
+            if (stop := stop_behind(exc)) is not None:  # also a failure a stop caused (inside numba's loading)
+                stop_handled()
+                errors.print(stop_message(stop), markup=False)
+                raise typer.Exit(exit_code_for_signal(stop_signal_name(stop))) from None
+            if isinstance(exc, OfftrackError | ValidationError | ValueError):
+                errors.print(f"error: {exc}", markup=False)
+                raise typer.Exit(EXIT_BAD_INPUT) from None
+            raise
 
     return wrapper  # type: ignore[return-value]
 

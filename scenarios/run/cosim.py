@@ -53,7 +53,7 @@ from .loop_parts import (
 )
 from .recording import RowRecorder
 from .results import TimeSeriesWriter
-from .stopping import raise_pending_stop, stop_handled, stop_message, stop_signal_name
+from .stopping import raise_pending_stop, stop_behind, stop_handled, stop_message, stop_signal_name
 
 TrailerSteerSource = Callable[[VehicleState, dict[str, float]], np.ndarray]
 """``(true state, off-tracking estimates by name) → steer of each steerable trailer axle [rad]``."""
@@ -69,7 +69,7 @@ class RunOutcome:
     Attributes
     ----------
     status : str
-        ``completed``, ``diverged``, ``lost_control`` or ``interrupted``.
+        ``completed``, ``diverged``, ``lost_control``, ``failed`` or ``interrupted``.
     message : str
         Why a run stopped early, in words.
     stop_time : float or None
@@ -369,6 +369,13 @@ def _nan(value: float | None) -> float:
     return math.nan if value is None else float(value)
 
 
+def _mark_stopped(outcome: RunOutcome, stop: KeyboardInterrupt, last_time: float | None) -> None:
+    """Record in ``outcome`` that the run was stopped by ``stop`` after the rows up to ``last_time``."""
+    stop_handled()
+    outcome.status, outcome.message = "interrupted", stop_message(stop)
+    outcome.stop_signal, outcome.stop_time = stop_signal_name(stop), last_time or 0.0
+
+
 def run_cosimulation(
     setup: ScenarioSetup,
     writer: TimeSeriesWriter | None = None,
@@ -471,11 +478,13 @@ def run_cosimulation(
     except CameraWorkerError as exc:
         outcome.status, outcome.message = "failed", str(exc)
         outcome.stop_time = recorder.last_time or 0.0
+    except Exception as exc:  # a failure that a stop caused (e.g. inside numba's loading) is that stop
+        stop = stop_behind(exc)
+        if stop is None:
+            raise
+        _mark_stopped(outcome, stop, recorder.last_time)
     except KeyboardInterrupt as exc:
-        stop_handled()
-        outcome.status, outcome.message = "interrupted", stop_message(exc)
-        outcome.stop_signal = stop_signal_name(exc)
-        outcome.stop_time = recorder.last_time or 0.0
+        _mark_stopped(outcome, exc, recorder.last_time)
     finally:
         try:
             recorder.close()

@@ -10,6 +10,7 @@ from ..setup.build import build_scenario, trailer_controller
 from .cosim import ProgressCallback, TrailerSteerSource, run_cosimulation
 from .report import mark_interrupted, mark_running, write_report
 from .results import PLOT_FILES, TIMESERIES_FILE, TimeSeriesWriter, write_config
+from .stopping import stop_behind
 
 if TYPE_CHECKING:
     from vehicle_model.dynamics import VehicleModel
@@ -56,13 +57,19 @@ def run_scenario(
         (run_dir / name).unlink(missing_ok=True)
     # First of all, so that a run killed at any moment leaves a readable (perhaps empty) series.
     writer = TimeSeriesWriter(run_dir / TIMESERIES_FILE, columns=[])
-    write_config(run_dir, config)
-    mark_running(run_dir, config)
-    try:
+    try:  # a stop from here until the co-simulation runs still leaves a metrics.json that says so
+        write_config(run_dir, config)
+        mark_running(run_dir, config)
         setup = build_scenario(config, model=model)
-    except KeyboardInterrupt as exc:  # stopped while building: say so, then stop
+    except KeyboardInterrupt as exc:
         mark_interrupted(run_dir, config, exc)
         raise
+    except Exception as exc:  # a failure that a stop caused (e.g. inside numba's loading) is that stop
+        stop = stop_behind(exc)
+        if stop is None:
+            raise
+        mark_interrupted(run_dir, config, stop)
+        raise stop from exc
     if trailer_steer_source is None:
         trailer_steer_source = trailer_controller(setup)
     outcome, columns = run_cosimulation(

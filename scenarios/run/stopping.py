@@ -78,6 +78,37 @@ def raise_pending_stop() -> None:
         raise kind("stopped by SIGTERM" if kind is Terminated else "")
 
 
+def stop_behind(exc: BaseException) -> KeyboardInterrupt | None:
+    """The stop (Ctrl-C, SIGTERM) that ``exc`` comes from, or ``None`` if it is an error of its own.
+
+    A signal's exception raised inside a callback from C code can come out as another error: numba wraps it in
+    a :class:`SystemError` when the stop lands while it loads its compiled kernels. So ``exc`` stands for a
+    stop when it is a :class:`KeyboardInterrupt`, when one is among its causes or contexts, or when a signal
+    requested a stop that has not been handled yet (:func:`stop_handled`).
+
+    Parameters
+    ----------
+    exc
+        The exception caught.
+
+    Returns
+    -------
+    KeyboardInterrupt or None
+        The stop (a :class:`Terminated` for SIGTERM), or ``None``.
+    """
+    seen: set[int] = set()
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        if isinstance(link, KeyboardInterrupt):
+            return link
+        seen.add(id(link))
+        link = link.__cause__ or link.__context__
+    if _pending:
+        kind = _pending[-1]
+        return kind("stopped by SIGTERM" if kind is Terminated else "")
+    return None
+
+
 def stop_signal_name(exc: BaseException) -> str:
     """``SIGTERM`` for :class:`Terminated`, ``SIGINT`` for any other :class:`KeyboardInterrupt`."""
     return "SIGTERM" if isinstance(exc, Terminated) else "SIGINT"
