@@ -3,7 +3,9 @@
 CI found both faults injected here. numba loads its compiled kernels through callbacks from C; a SIGTERM whose
 handler raised inside one came out as ``SystemError: ... returned a result with an exception set`` and the run
 ended with a traceback and exit 1. And a Ctrl-C that landed between the run's ``config.yaml`` and its first
-``metrics.json`` left no ``metrics.json`` at all. Each case below sends the real signal to a real ``offtrack run``
+``metrics.json`` left no ``metrics.json`` at all. A third fault was found looking for more of the kind: a stop at
+the end of a run, while its metrics were computed, left a ``metrics.json`` that still said ``running``. Each case
+below sends the real signal to a real ``offtrack run``
 (through the handlers :func:`scenarios.run.stopping.handle_sigterm` installs) at the point named.
 """
 
@@ -68,10 +70,22 @@ runner.mark_running = stop_then_mark
 """
 
 
+_WHILE_THE_METRICS_ARE_COMPUTED = """
+import os, time
+import scenarios.run.report as report
+compute = report.compute_metrics
+def stop_then_compute(*args):
+    os.kill(os.getpid(), SIGNAL)  # the simulation is over; its metrics are not written yet
+    time.sleep(0.5)
+    return compute(*args)
+report.compute_metrics = stop_then_compute
+"""
+
+
 def _run_with(patch: str, signum: int, chained: bool, out: Path) -> subprocess.CompletedProcess:
     code = textwrap.dedent(_IN_A_C_CALLBACK) + patch.replace("SIGNAL", str(signum)).replace("CHAINED", str(chained))
     code += "\nfrom scenarios.cli import main\nmain()\n"
-    args = ["run", "roundabout-test", "--duration", "20", "--no-plots", "--out", str(out)]
+    args = ["run", "roundabout-test", "--duration", "20", "--out", str(out)]
     return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=REPO, timeout=300)
 
 
@@ -123,3 +137,18 @@ def test_stop_behind_tells_a_stop_from_an_error_of_its_own() -> None:
     stop_handled()  # nothing pending: an error of its own is not a stop
     assert stop_behind(ValueError("a bad value")) is None
     assert stop_behind(SystemError("of its own")) is None
+
+
+def test_a_stop_while_the_metrics_are_written_waits_for_them(tmp_path: Path) -> None:
+    # Before, a SIGTERM at the end of a run (e.g. a ``timeout`` expiring) could leave a complete time series
+    # beside a metrics.json that still said "running". The stop now waits until metrics.json is written.
+    out = tmp_path / "r"
+    result = _run_with(_WHILE_THE_METRICS_ARE_COMPUTED, 15, False, out)
+    assert result.returncode == 143, result.stderr
+    assert "Traceback" not in result.stderr
+    assert "interrupted by SIGTERM" in result.stderr.strip().splitlines()[-1]
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "completed"
+    assert metrics["simulated_s"] == pytest.approx(20.0, abs=0.05)
+    assert len(pd.read_parquet(out / "timeseries.parquet")) == metrics["rows"]
+    assert not (out / "plan_view.png").exists()  # the stop took effect right after: no plots drawn

@@ -10,9 +10,11 @@ Only the standard library is imported (a spawned sweep worker may use this befor
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
 import threading
+from collections.abc import Iterator
 from types import FrameType
 
 EXIT_INTERRUPTED = 130
@@ -76,6 +78,31 @@ def raise_pending_stop() -> None:
         kind = _pending[-1]
         _pending.clear()
         raise kind("stopped by SIGTERM" if kind is Terminated else "")
+
+
+@contextlib.contextmanager
+def deferred_stops() -> Iterator[None]:
+    """Hold Ctrl-C and SIGTERM while a short step that must not be cut in half runs; they take effect after it.
+
+    Used where a stop would leave a file that says something false (a finished run's ``metrics.json`` still
+    saying ``running``). The signals are noted by stand-in handlers and raised again, once, through the
+    handlers in place before, as soon as the block ends (also when it raises). A no-op outside the main thread.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+    saved = {signum: signal.signal(signum, lambda signum, frame: held.append(signum)) for signum in _STOPS}
+    try:
+        yield
+    finally:
+        for signum, handler in saved.items():
+            signal.signal(signum, handler)
+        if held:
+            signal.raise_signal(held[0])  # the stop now, as the handler in place would have taken it
+
+
+_STOPS = (signal.SIGINT, signal.SIGTERM)
 
 
 def stop_behind(exc: BaseException) -> KeyboardInterrupt | None:
