@@ -1,12 +1,12 @@
-"""A stop (Ctrl-C, SIGTERM) that comes out of C code as another error is still a stop: exit code, status, data.
+"""Stops (Ctrl-C, SIGTERM) that land where a run cannot take them whole: exit code, status and data stay true.
 
-CI found both faults injected here. numba loads its compiled kernels through callbacks from C; a SIGTERM whose
-handler raised inside one came out as ``SystemError: ... returned a result with an exception set`` and the run
-ended with a traceback and exit 1. And a Ctrl-C that landed between the run's ``config.yaml`` and its first
-``metrics.json`` left no ``metrics.json`` at all. A third fault was found looking for more of the kind: a stop at
-the end of a run, while its metrics were computed, left a ``metrics.json`` that still said ``running``. Each case
-below sends the real signal to a real ``offtrack run``
-(through the handlers :func:`scenarios.run.stopping.handle_sigterm` installs) at the point named.
+CI found the first two faults injected here. numba loads its compiled kernels through callbacks from C; a
+SIGTERM whose handler raised inside one came out as ``SystemError: ... returned a result with an exception set``
+and the run ended with a traceback and exit 1. And a Ctrl-C that landed between the run's ``config.yaml`` and its
+first ``metrics.json`` left no ``metrics.json`` at all. Looking for more of the kind found a third: a stop at the
+end of a run, while its series was closed or its metrics computed, left a ``metrics.json`` that still said
+``running``. Each case sends the real signal to a real ``offtrack run`` (through the handlers
+:func:`scenarios.run.stopping.handle_sigterm` installs) at the point named.
 """
 
 from __future__ import annotations
@@ -81,6 +81,17 @@ def stop_then_compute(*args):
 report.compute_metrics = stop_then_compute
 """
 
+_WHILE_THE_FILES_ARE_CLOSED = """
+import os, time
+import scenarios.run.cosim as cosim
+close = cosim.RowRecorder.close
+def stop_then_close(self):
+    os.kill(os.getpid(), SIGNAL)  # the simulation is over; the last rows are not flushed yet
+    time.sleep(0.5)
+    return close(self)
+cosim.RowRecorder.close = stop_then_close
+"""
+
 
 def _run_with(patch: str, signum: int, chained: bool, out: Path) -> subprocess.CompletedProcess:
     code = textwrap.dedent(_IN_A_C_CALLBACK) + patch.replace("SIGNAL", str(signum)).replace("CHAINED", str(chained))
@@ -139,14 +150,18 @@ def test_stop_behind_tells_a_stop_from_an_error_of_its_own() -> None:
     assert stop_behind(SystemError("of its own")) is None
 
 
-def test_a_stop_while_the_metrics_are_written_waits_for_them(tmp_path: Path) -> None:
+@pytest.mark.parametrize(("where", "signum"), [("metrics", 15), ("closing", 2)])
+def test_a_stop_at_the_end_of_a_run_waits_for_its_files(tmp_path: Path, where: str, signum: int) -> None:
     # Before, a SIGTERM at the end of a run (e.g. a ``timeout`` expiring) could leave a complete time series
-    # beside a metrics.json that still said "running". The stop now waits until metrics.json is written.
+    # beside a metrics.json that still said "running", or the series unflushed. The stop now waits until the
+    # series is closed and metrics.json is written, then takes effect (before the plots).
     out = tmp_path / "r"
-    result = _run_with(_WHILE_THE_METRICS_ARE_COMPUTED, 15, False, out)
-    assert result.returncode == 143, result.stderr
+    patch = {"metrics": _WHILE_THE_METRICS_ARE_COMPUTED, "closing": _WHILE_THE_FILES_ARE_CLOSED}[where]
+    result = _run_with(patch, signum, False, out)
+    code, name = (143, "SIGTERM") if signum == 15 else (130, "the user (Ctrl-C)")
+    assert result.returncode == code, result.stderr
     assert "Traceback" not in result.stderr
-    assert "interrupted by SIGTERM" in result.stderr.strip().splitlines()[-1]
+    assert f"interrupted by {name}" in result.stderr.strip().splitlines()[-1]
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["status"] == "completed"
     assert metrics["simulated_s"] == pytest.approx(20.0, abs=0.05)

@@ -53,7 +53,7 @@ from .loop_parts import (
 )
 from .recording import RowRecorder
 from .results import TimeSeriesWriter
-from .stopping import raise_pending_stop, stop_behind, stop_handled, stop_message, stop_signal_name
+from .stopping import deferred_stops, raise_pending_stop, stop_behind, stop_handled, stop_message, stop_signal_name
 
 TrailerSteerSource = Callable[[VehicleState, dict[str, float]], np.ndarray]
 """``(true state, off-tracking estimates by name) → steer of each steerable trailer axle [rad]``."""
@@ -486,15 +486,15 @@ def run_cosimulation(
     except KeyboardInterrupt as exc:
         _mark_stopped(outcome, exc, recorder.last_time)
     finally:
-        try:
-            recorder.close()
-            if cosim is not None and cosim.camera is not None:
-                outcome.camera = cosim.camera.timings()
-        finally:
-            if cosim is not None:
-                cosim.close()
-            outcome.rows = recorder.rows
-            outcome.wall_time_s = wallclock.perf_counter() - t_start
-            if writer is not None:
-                writer.close()
+        with deferred_stops():  # the files closed and the workers stopped whole; a stop now waits (pending)
+            try:
+                recorder.close()
+                if cosim is not None and cosim.camera is not None:
+                    outcome.camera = cosim.camera.timings()
+            finally:
+                if cosim is not None:
+                    cosim.close()
+                outcome.rows, outcome.wall_time_s = recorder.rows, wallclock.perf_counter() - t_start
+                if writer is not None:
+                    writer.close()
     return outcome, recorder.arrays()

@@ -24,7 +24,7 @@ import numpy as np
 from ..config import ScenarioConfig
 from .metrics import compute_metrics, estimator_names
 from .results import PLOT_FILES, read_config, read_metrics, read_timeseries, write_metrics
-from .stopping import deferred_stops, stop_message, stop_signal_name
+from .stopping import deferred_stops, raise_pending_stop, stop_message, stop_signal_name
 
 if TYPE_CHECKING:
     from ..setup.build import ScenarioSetup
@@ -109,7 +109,7 @@ def write_report(
     config = setup.config
     time = np.asarray(columns.get("time", np.zeros(0)), dtype=float)
     names = estimator_names(columns)
-    with deferred_stops():  # a stop now would leave metrics.json saying "running": it waits until they are written
+    with deferred_stops():  # a stop here would leave metrics.json saying "running": it waits until they are written
         metrics = compute_metrics(
             config.name, config.feedback, setup.params, columns, names, setup.annulus_centre, setup.path.turn_span
         )
@@ -117,6 +117,7 @@ def write_report(
         metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})
         metrics.update({"vehicle": config.vehicle, "seed": config.seed})
         write_metrics(run_dir, metrics)
+    raise_pending_stop()  # a stop held meanwhile takes effect now: before the plots
     if plots and len(time) > 1:
         from .plots import plot_offtracking, plot_plan_view, run_title  # matplotlib only when plots are drawn
 

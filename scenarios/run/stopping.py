@@ -82,27 +82,26 @@ def raise_pending_stop() -> None:
 
 @contextlib.contextmanager
 def deferred_stops() -> Iterator[None]:
-    """Hold Ctrl-C and SIGTERM while a short step that must not be cut in half runs; they take effect after it.
+    """Hold Ctrl-C and SIGTERM while a short step that must not be cut in half runs.
 
     Used where a stop would leave a file that says something false (a finished run's ``metrics.json`` still
-    saying ``running``). The signals are noted by stand-in handlers and raised again, once, through the
-    handlers in place before, as soon as the block ends (also when it raises). A no-op outside the main thread.
+    saying ``running``, a time series not closed). A signal meanwhile does not interrupt the block: it is
+    remembered as a pending stop, which :func:`raise_pending_stop` raises at the next check after the block.
+    A no-op outside the main thread.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    held: list[int] = []
-    saved = {signum: signal.signal(signum, lambda signum, frame: held.append(signum)) for signum in _STOPS}
+
+    def hold(signum: int, frame: FrameType | None) -> None:
+        _pending.append(Terminated if signum == signal.SIGTERM else KeyboardInterrupt)
+
+    saved = {signum: signal.signal(signum, hold) for signum in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
         for signum, handler in saved.items():
             signal.signal(signum, handler)
-        if held:
-            signal.raise_signal(held[0])  # the stop now, as the handler in place would have taken it
-
-
-_STOPS = (signal.SIGINT, signal.SIGTERM)
 
 
 def stop_behind(exc: BaseException) -> KeyboardInterrupt | None:
