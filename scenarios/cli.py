@@ -1,7 +1,8 @@
 """The ``offtrack`` command line.
 
 Exit codes (README, "Exit codes"): 0 done; 2 bad input (a usage error, or a value out of range — one line per
-bad field, never a traceback); 3 a run that diverged or lost control, or a study with a failed case; 130
+bad field, never a traceback); 3 a run that diverged, lost control or could not write a file, or a study with a
+failed case; 130
 Ctrl-C; 143 SIGTERM. Usage errors are typer's own (standalone mode: message and exit code 2); every command
 body runs under :func:`_command`, which turns offtrack's input errors into exit 2 and a stop into 130/143.
 Nothing here depends on typer's vendored click: only ``typer.Exit`` and typer's standalone handling, both
@@ -32,12 +33,12 @@ from scenarios.run.stopping import (
     stop_message,
     stop_signal_name,
 )
-from vehicle_model.errors import OfftrackError
+from vehicle_model.errors import OfftrackError, OutputError
 
 EXIT_BAD_INPUT = 2
 """Exit code for bad input."""
 EXIT_FAILED = 3
-"""Exit code for a run that diverged or lost control, or a study with a failed case."""
+"""Exit code for a run that diverged, lost control or could not write a file, or a study with a failed case."""
 
 app = typer.Typer(
     help="Tractor–semi-trailer off-tracking co-simulation.",
@@ -69,9 +70,9 @@ def _command(func: F) -> F:
                 stop_handled()
                 errors.print(stop_message(stop), markup=False)
                 raise typer.Exit(exit_code_for_signal(stop_signal_name(stop))) from None
-            if isinstance(exc, OfftrackError | ValidationError | ValueError):
+            if isinstance(exc, OfftrackError | ValidationError | ValueError):  # a file not writable: failed, 3
                 errors.print(f"error: {exc}", markup=False)
-                raise typer.Exit(EXIT_BAD_INPUT) from None
+                raise typer.Exit(EXIT_FAILED if isinstance(exc, OutputError) else EXIT_BAD_INPUT) from None
             raise
 
     return wrapper  # type: ignore[return-value]

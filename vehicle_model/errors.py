@@ -28,3 +28,10 @@ class SimulationDivergedError(OfftrackError, RuntimeError):
         super().__init__(message)
         self.time = time
         self.state = state
+
+
+class OutputError(OfftrackError, OSError):
+    """A run's file could not be written (a full disk, a quota, a directory made read-only meanwhile).
+
+    A run that meets one ends ``failed`` (exit code 3) with the message, keeping what it wrote before.
+    """

@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import time as wallclock
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -33,7 +33,7 @@ from controller.driver import PathFollowingDriver
 from controller.speed import SpeedController, traction_limit
 from controller.zero_slip import ZeroSlipEstimator
 from sensor.signals import OnboardSignals
-from vehicle_model.errors import InputError, SimulationDivergedError
+from vehicle_model.errors import InputError, OutputError, SimulationDivergedError
 from vehicle_model.geometry import kingpin_position
 from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses, offtracking_from_path
 from vehicle_model.simulator import Simulator, VehicleState
@@ -51,47 +51,16 @@ from .loop_parts import (
     true_signals,
     update_fused,
 )
+from .outcome import RunOutcome
 from .recording import RowRecorder
 from .results import TimeSeriesWriter
-from .stopping import deferred_stops, raise_pending_stop, stop_behind, stop_handled, stop_message, stop_signal_name
+from .stopping import deferred_stops, raise_pending_stop, stop_behind
 
 TrailerSteerSource = Callable[[VehicleState, dict[str, float]], np.ndarray]
 """``(true state, off-tracking estimates by name) → steer of each steerable trailer axle [rad]``."""
 
 ProgressCallback = Callable[[float, float], None]
 """``(simulated time, progress fraction 0..1)``."""
-
-
-@dataclass
-class RunOutcome:
-    """What a run produced.
-
-    Attributes
-    ----------
-    status : str
-        ``completed``, ``diverged``, ``lost_control``, ``failed`` or ``interrupted``.
-    message : str
-        Why a run stopped early, in words.
-    stop_time : float or None
-        Simulation time [s] at which a run that did not complete stopped.
-    stop_signal : str or None
-        ``SIGINT`` or ``SIGTERM`` for an interrupted run.
-    rows : int
-        Rows written to the time series.
-    wall_time_s : float
-        Wall-clock time of the loop.
-    camera : dict
-        Where a camera run's time went (:meth:`scenarios.camera.delivery.CameraFeed.timings`); empty without one.
-    """
-
-    status: str = "completed"
-    message: str = ""
-    rows: int = 0
-    wall_time_s: float = 0.0
-    columns: list[str] = field(default_factory=list)
-    camera: dict[str, float] = field(default_factory=dict)
-    stop_time: float | None = None
-    stop_signal: str | None = None
 
 
 @dataclass(frozen=True)
@@ -369,13 +338,6 @@ def _nan(value: float | None) -> float:
     return math.nan if value is None else float(value)
 
 
-def _mark_stopped(outcome: RunOutcome, stop: KeyboardInterrupt, last_time: float | None) -> None:
-    """Record in ``outcome`` that the run was stopped by ``stop`` after the rows up to ``last_time``."""
-    stop_handled()
-    outcome.status, outcome.message = "interrupted", stop_message(stop)
-    outcome.stop_signal, outcome.stop_time = stop_signal_name(stop), last_time or 0.0
-
-
 def run_cosimulation(
     setup: ScenarioSetup,
     writer: TimeSeriesWriter | None = None,
@@ -475,26 +437,27 @@ def run_cosimulation(
             outcome.status, outcome.message, outcome.stop_time = "diverged", str(exc), exc.time
         if cosim.camera is not None:
             cosim.camera.finish()  # the frames in flight, so that their rows are complete
-    except CameraWorkerError as exc:
-        outcome.status, outcome.message = "failed", str(exc)
-        outcome.stop_time = recorder.last_time or 0.0
+    except (CameraWorkerError, OutputError) as exc:  # a render worker lost, the series not writable
+        outcome.fail(str(exc), recorder.last_time)
     except Exception as exc:  # a failure that a stop caused (e.g. inside numba's loading) is that stop
         stop = stop_behind(exc)
         if stop is None:
             raise
-        _mark_stopped(outcome, stop, recorder.last_time)
+        outcome.stop(stop, recorder.last_time)
     except KeyboardInterrupt as exc:
-        _mark_stopped(outcome, exc, recorder.last_time)
+        outcome.stop(exc, recorder.last_time)
     finally:
         with deferred_stops():  # the files closed and the workers stopped whole; a stop now waits (pending)
             try:
                 recorder.close()
                 if cosim is not None and cosim.camera is not None:
                     outcome.camera = cosim.camera.timings()
+                if writer is not None:
+                    writer.close()
+            except OutputError as exc:  # the last rows could not be written
+                outcome.fail(str(exc), recorder.last_time)
             finally:
                 if cosim is not None:
                     cosim.close()
                 outcome.rows, outcome.wall_time_s = recorder.rows, wallclock.perf_counter() - t_start
-                if writer is not None:
-                    writer.close()
     return outcome, recorder.arrays()

@@ -1,8 +1,11 @@
 """Files that are never half-written: atomic text writes and JSON-native values (standard library only).
 
 Run directories (:mod:`scenarios.run.results`) and sweep records (:mod:`scenarios.studies.records`) write
-through here. Only the standard library is imported, so a spawned sweep worker can use it before its
-thread limits are set and numpy is first imported.
+through here. Only the standard library is imported (and :mod:`vehicle_model.errors`, which imports nothing
+else), so a spawned sweep worker can use it before its thread limits are set and numpy is first imported.
+
+A write that fails (a full disk, a quota, a directory made read-only meanwhile) raises
+:class:`~vehicle_model.errors.OutputError` naming the file; it is an :class:`OSError` too.
 
 Modes: a file written here gets the mode an ordinary ``open(path, "w")`` would give it, ``0o666 & ~umask``
 (0644 under the usual umask 022), not the 0600 of :func:`tempfile.mkstemp`: Dask workers running as
@@ -19,6 +22,8 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
+
+from vehicle_model.errors import OutputError
 
 TEMPORARY_SUFFIX = ".tmp"
 """Suffix of the temporary file :func:`write_atomic` writes first (``.<name>.<random>.tmp``)."""
@@ -55,8 +60,11 @@ def atomic_path(path: Path) -> Iterator[Path]:
     :func:`tempfile.mkstemp`'s 0600), so the file that replaces ``path`` is readable like any other.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX)
+    except OSError as exc:
+        raise cannot_write(path, exc) from exc
     try:
         os.fchmod(fd, file_mode())
     finally:
@@ -64,10 +72,17 @@ def atomic_path(path: Path) -> Iterator[Path]:
     try:
         yield Path(tmp)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and not isinstance(exc, OutputError):
+            raise cannot_write(path, exc) from exc
         raise
+
+
+def cannot_write(path: Path, exc: OSError) -> OutputError:
+    """The :class:`~vehicle_model.errors.OutputError` for ``path``, which could not be written because of ``exc``."""
+    return OutputError(f"cannot write {path}: {exc.strerror or exc}")
 
 
 def write_atomic(path: Path, text: str) -> None:

@@ -38,7 +38,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import yaml
 
-from vehicle_model.errors import InputError
+from vehicle_model.errors import InputError, OutputError
 
 from ..config import ScenarioConfig, validate_config
 from .files import TEMPORARY_SUFFIX, atomic_path, jsonable, write_atomic
@@ -299,6 +299,7 @@ class TimeSeriesWriter:
         self.rows_written = 0
         self.parts = 0
         self._oldest = 0.0  # wall time at which the oldest buffered row arrived
+        self.failure: str | None = None  # why writing the series failed (a full disk, …)
         if self.path.is_symlink() or self.path.is_file():
             self.path.unlink()
         elif self.path.is_dir():
@@ -307,6 +308,8 @@ class TimeSeriesWriter:
 
     def append(self, row: dict[str, float]) -> None:
         """Add one row (missing columns are NaN); flush if enough rows or time have gone by since the oldest."""
+        if self.failure is not None:
+            return  # the series ends where the first write failed
         now = time.monotonic()
         if not self._rows:
             self._oldest = now
@@ -315,8 +318,15 @@ class TimeSeriesWriter:
             self.flush()
 
     def flush(self) -> None:
-        """Write the buffered rows as the next part file (nothing if there are none)."""
-        if self._rows:
+        """Write the buffered rows as the next part file (nothing if there are none).
+
+        Raises
+        ------
+        OutputError
+            The part could not be written (:attr:`failure` says why). The series keeps the parts written
+            before; every later row is dropped and every later flush and :meth:`close` does nothing.
+        """
+        if self._rows and self.failure is None:
             data = np.array(self._rows, dtype=float).reshape(len(self._rows), len(self.columns))
             self._write_part({c: data[:, i] for i, c in enumerate(self.columns)})
             self.rows_written += len(self._rows)
@@ -325,16 +335,21 @@ class TimeSeriesWriter:
     def close(self) -> None:
         """Flush the last rows; leave an empty part with the columns if there were no rows at all."""
         self.flush()
-        if self.parts == 0:
+        if self.parts == 0 and self.failure is None:
             self._write_part({c: np.zeros(0) for c in self.columns})
 
     def _write_part(self, data: dict[str, np.ndarray]) -> None:
         schema = pa.schema([(c, pa.float64()) for c in self.columns])
         table = pa.table(data, schema=schema)
-        with atomic_path(self.path / PART_NAME.format(self.parts)) as tmp, open(tmp, "wb") as fh:
-            pq.write_table(table, fh)
-            fh.flush()
-            os.fsync(fh.fileno())
+        try:
+            with atomic_path(self.path / PART_NAME.format(self.parts)) as tmp, open(tmp, "wb") as fh:
+                pq.write_table(table, fh)
+                fh.flush()
+                os.fsync(fh.fileno())
+        except OSError as exc:
+            self._rows = []
+            self.failure = f"{exc}; the series holds the first {self.rows_written} rows"
+            raise OutputError(f"the time series could not be written: {self.failure}") from exc
         self.parts += 1
 
 
