@@ -69,3 +69,25 @@ def test_metrics_that_cannot_be_written_are_one_line_and_exit_3(tmp_path: Path) 
     assert "Traceback" not in result.stderr
     assert result.stderr.strip().splitlines()[-1].startswith("error: ")
     assert "No space left on device" in result.stderr
+
+
+_DISK_FULL_AT_THE_START = """
+import errno, pathlib
+mkdir = pathlib.Path.mkdir
+def fill_the_disk(self, *args, **kwargs):
+    if self.name == "timeseries.parquet":
+        raise OSError(errno.ENOSPC, "No space left on device")
+    return mkdir(self, *args, **kwargs)
+pathlib.Path.mkdir = fill_the_disk
+"""
+
+
+def test_a_series_that_cannot_be_made_is_one_line_and_exit_3(tmp_path: Path) -> None:
+    out = tmp_path / "r"
+    code = textwrap.dedent(_DISK_FULL_AT_THE_START) + "\nfrom scenarios.cli import main\nmain()\n"
+    args = ["run", "roundabout-test", "--duration", "4", "--no-plots", "--out", str(out)]
+    result = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=REPO, timeout=300)
+    assert result.returncode == 3, result.stderr
+    assert "Traceback" not in result.stderr
+    last = result.stderr.strip().splitlines()[-1]
+    assert last.startswith("error: cannot write ") and "timeseries.parquet: No space left on device" in last

@@ -41,7 +41,7 @@ import yaml
 from vehicle_model.errors import InputError, OutputError
 
 from ..config import ScenarioConfig, validate_config
-from .files import TEMPORARY_SUFFIX, atomic_path, jsonable, write_atomic
+from .files import TEMPORARY_SUFFIX, atomic_path, cannot_write, jsonable, write_atomic
 
 TIMESERIES_FILE = "timeseries.parquet"
 METRICS_FILE = "metrics.json"
@@ -300,11 +300,14 @@ class TimeSeriesWriter:
         self.parts = 0
         self._oldest = 0.0  # wall time at which the oldest buffered row arrived
         self.failure: str | None = None  # why writing the series failed (a full disk, …)
-        if self.path.is_symlink() or self.path.is_file():
-            self.path.unlink()
-        elif self.path.is_dir():
-            shutil.rmtree(self.path)
-        self.path.mkdir(parents=True)
+        try:
+            if self.path.is_symlink() or self.path.is_file():
+                self.path.unlink()
+            elif self.path.is_dir():
+                shutil.rmtree(self.path)
+            self.path.mkdir(parents=True)
+        except OSError as exc:
+            raise cannot_write(self.path, exc) from exc
 
     def append(self, row: dict[str, float]) -> None:
         """Add one row (missing columns are NaN); flush if enough rows or time have gone by since the oldest."""
