@@ -167,3 +167,31 @@ def test_a_stop_at_the_end_of_a_run_waits_for_its_files(tmp_path: Path, where: s
     assert metrics["simulated_s"] == pytest.approx(20.0, abs=0.05)
     assert len(pd.read_parquet(out / "timeseries.parquet")) == metrics["rows"]
     assert not (out / "plan_view.png").exists()  # the stop took effect right after: no plots drawn
+
+
+def test_deferred_stops_hold_handled_signals_and_leave_ignored_ones() -> None:
+    code = """
+import os, signal, time
+from scenarios.run.stopping import Terminated, deferred_stops, handle_sigterm, raise_pending_stop
+handle_sigterm()
+installed = signal.getsignal(signal.SIGTERM)
+with deferred_stops():
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(0.2)  # the handler would have raised here
+    print("held")
+assert signal.getsignal(signal.SIGTERM) is installed  # the handler is back
+try:
+    raise_pending_stop()
+except Terminated:
+    print("raised after")
+signal.signal(signal.SIGINT, signal.SIG_IGN)  # as in a sweep worker: the parent handles Ctrl-C
+with deferred_stops():
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(0.2)
+raise_pending_stop()  # an ignored Ctrl-C stays ignored: nothing is pending
+assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+print("ignored")
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["held", "raised", "after", "ignored"]

@@ -87,7 +87,7 @@ def deferred_stops() -> Iterator[None]:
     Used where a stop would leave a file that says something false (a finished run's ``metrics.json`` still
     saying ``running``, a time series not closed). A signal meanwhile does not interrupt the block: it is
     remembered as a pending stop, which :func:`raise_pending_stop` raises at the next check after the block.
-    A no-op outside the main thread.
+    Signals that are ignored or take their default action are left so. A no-op outside the main thread.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -96,7 +96,11 @@ def deferred_stops() -> Iterator[None]:
     def hold(signum: int, frame: FrameType | None) -> None:
         _pending.append(Terminated if signum == signal.SIGTERM else KeyboardInterrupt)
 
-    saved = {signum: signal.signal(signum, hold) for signum in (signal.SIGINT, signal.SIGTERM)}
+    saved = {  # only signals with a Python handler: an ignored Ctrl-C (a sweep worker's) stays ignored
+        signum: signal.signal(signum, hold)
+        for signum in (signal.SIGINT, signal.SIGTERM)
+        if callable(signal.getsignal(signum))
+    }
     try:
         yield
     finally:
