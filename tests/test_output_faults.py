@@ -17,6 +17,17 @@ import pandas as pd
 
 REPO = Path(__file__).resolve().parents[1]
 
+
+def _failed_run(patch: str, duration: float, out: Path) -> subprocess.CompletedProcess:
+    """``offtrack run roundabout-test`` with ``patch`` applied first; it must fail with exit 3, no traceback."""
+    code = textwrap.dedent(patch) + "\nfrom scenarios.cli import main\nmain()\n"
+    args = ["run", "roundabout-test", "--duration", str(duration), "--no-plots", "--out", str(out)]
+    result = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=REPO, timeout=300)
+    assert result.returncode == 3, result.stderr
+    assert "Traceback" not in result.stderr
+    return result
+
+
 _DISK_FULL_AT_THE_SECOND_PART = """
 import errno
 import scenarios.run.results as results
@@ -45,11 +56,7 @@ files.tempfile.mkstemp = fill_the_disk
 
 def test_a_full_disk_mid_run_fails_the_run_and_keeps_what_was_written(tmp_path: Path) -> None:
     out = tmp_path / "r"
-    code = textwrap.dedent(_DISK_FULL_AT_THE_SECOND_PART) + "\nfrom scenarios.cli import main\nmain()\n"
-    args = ["run", "roundabout-test", "--duration", "40", "--no-plots", "--out", str(out)]
-    result = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=REPO, timeout=300)
-    assert result.returncode == 3, result.stderr
-    assert "Traceback" not in result.stderr
+    result = _failed_run(_DISK_FULL_AT_THE_SECOND_PART, 40, out)
     assert "No space left on device" in result.stderr.strip().splitlines()[-1]
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["status"] == "failed" and "time series could not be written" in metrics["message"]
@@ -62,11 +69,7 @@ def test_a_full_disk_mid_run_fails_the_run_and_keeps_what_was_written(tmp_path: 
 
 def test_metrics_that_cannot_be_written_are_one_line_and_exit_3(tmp_path: Path) -> None:
     out = tmp_path / "r"
-    code = textwrap.dedent(_DISK_FULL_AT_THE_METRICS) + "\nfrom scenarios.cli import main\nmain()\n"
-    args = ["run", "roundabout-test", "--duration", "4", "--no-plots", "--out", str(out)]
-    result = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=REPO, timeout=300)
-    assert result.returncode == 3, result.stderr
-    assert "Traceback" not in result.stderr
+    result = _failed_run(_DISK_FULL_AT_THE_METRICS, 4, out)
     assert result.stderr.strip().splitlines()[-1].startswith("error: ")
     assert "No space left on device" in result.stderr
 
@@ -84,10 +87,6 @@ pathlib.Path.mkdir = fill_the_disk
 
 def test_a_series_that_cannot_be_made_is_one_line_and_exit_3(tmp_path: Path) -> None:
     out = tmp_path / "r"
-    code = textwrap.dedent(_DISK_FULL_AT_THE_START) + "\nfrom scenarios.cli import main\nmain()\n"
-    args = ["run", "roundabout-test", "--duration", "4", "--no-plots", "--out", str(out)]
-    result = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=REPO, timeout=300)
-    assert result.returncode == 3, result.stderr
-    assert "Traceback" not in result.stderr
+    result = _failed_run(_DISK_FULL_AT_THE_START, 4, out)
     last = result.stderr.strip().splitlines()[-1]
     assert last.startswith("error: cannot write ") and "timeseries.parquet: No space left on device" in last
