@@ -439,13 +439,10 @@ def run_cosimulation(
             cosim.camera.finish()  # the frames in flight, so that their rows are complete
     except (CameraWorkerError, OutputError) as exc:  # a render worker lost, the series not writable
         outcome.fail(str(exc), recorder.last_time)
-    except Exception as exc:  # a failure that a stop caused (e.g. inside numba's loading) is that stop
-        stop = stop_behind(exc)
-        if stop is None:
+    except BaseException as exc:  # a stop, or a failure that a stop caused (e.g. inside numba's loading)
+        if (stop := stop_behind(exc)) is None:
             raise
         outcome.stop(stop, recorder.last_time)
-    except KeyboardInterrupt as exc:
-        outcome.stop(exc, recorder.last_time)
     finally:
         with deferred_stops():  # the files closed and the workers stopped whole; a stop now waits (pending)
             try:

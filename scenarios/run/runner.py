@@ -61,14 +61,12 @@ def run_scenario(
         write_config(run_dir, config)
         mark_running(run_dir, config)
         setup = build_scenario(config, model=model)
-    except KeyboardInterrupt as exc:
-        mark_interrupted(run_dir, config, exc)
-        raise
-    except Exception as exc:  # a failure that a stop caused (e.g. inside numba's loading) is that stop
-        stop = stop_behind(exc)
-        if stop is None:
+    except BaseException as exc:  # a stop, or a failure that a stop caused (e.g. inside numba's loading)
+        if (stop := stop_behind(exc)) is None:
             raise
         mark_interrupted(run_dir, config, stop)
+        if stop is exc:
+            raise
         raise stop from exc
     if trailer_steer_source is None:
         trailer_steer_source = trailer_controller(setup)
