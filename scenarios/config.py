@@ -166,6 +166,16 @@ class RatesConfig(_Strict):
         "(within 0.1 % of control_hz / n is taken as exactly that); 60 Hz is the fastest stereo camera modelled",
     )
 
+    @property
+    def ticks_per_frame(self) -> int:
+        """Control ticks from one camera frame to the next (the validators make ``control_hz/camera_hz`` whole)."""
+        return max(1, round(self.control_hz / self.camera_hz))
+
+    @property
+    def frame_interval_s(self) -> float:
+        """Time between two camera frames [s]: :attr:`ticks_per_frame` control periods."""
+        return self.ticks_per_frame / self.control_hz
+
     @field_validator("control_hz")
     @classmethod
     def _whole_dynamics_steps(cls, control_hz: float, info: ValidationInfo) -> float:

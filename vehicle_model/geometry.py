@@ -10,9 +10,40 @@ Reference notes §1.4::
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .parameters import VehicleParams
+
+
+class CombinationPose(NamedTuple):
+    """Where the combination is in the ground plane: everything a camera or an outline needs.
+
+    Attributes
+    ----------
+    x, y : float
+        Tractor CG position in the global frame [m].
+    psi1 : float
+        Tractor heading [rad].
+    gamma : float
+        Articulation angle Γ = ψ1 − ψ2 [rad].
+    """
+
+    x: float
+    y: float
+    psi1: float
+    gamma: float
+
+    @property
+    def psi2(self) -> float:
+        """Trailer heading ψ2 = ψ1 − Γ [rad]."""
+        return self.psi1 - self.gamma
+
+
+def trailer_heading(psi1, gamma):
+    """Trailer heading ψ2 = ψ1 − Γ [rad] (scalars or arrays of one shape)."""
+    return np.subtract(psi1, gamma, dtype=float)
 
 
 def _place(origin: np.ndarray, psi, local: np.ndarray) -> np.ndarray:
@@ -40,8 +71,7 @@ def kingpin_position(params: VehicleParams, x, y, psi1) -> np.ndarray:
 
 def trailer_points(params: VehicleParams, x, y, psi1, gamma, local: np.ndarray) -> np.ndarray:
     """Global positions of trailer points ``local (n, 2)`` = (station from the kingpin, lateral left +)."""
-    psi2 = np.asarray(psi1, dtype=float) - np.asarray(gamma, dtype=float)
-    return _place(kingpin_position(params, x, y, psi1), psi2, local)
+    return _place(kingpin_position(params, x, y, psi1), trailer_heading(psi1, gamma), local)
 
 
 def follow_point_position(params: VehicleParams, x, y, psi1, gamma) -> np.ndarray:

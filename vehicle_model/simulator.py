@@ -11,7 +11,7 @@ import numpy as np
 
 from .dynamics import VehicleModel
 from .errors import InputError, SimulationDivergedError
-from .geometry import tractor_points, trailer_points
+from .geometry import CombinationPose, tractor_points, trailer_points
 from .layout import BODY_STATES, Layout
 from .parameters import VehicleParams
 from .period import BAD_INPUT, DIVERGED, OK, context_views, load_period, new_context
@@ -60,6 +60,11 @@ class VehicleState:
     def psi2(self) -> float:
         """Trailer heading ψ2 = ψ1 − Γ [rad]."""
         return self.psi1 - self.gamma
+
+    @property
+    def pose(self) -> CombinationPose:
+        """Where the combination is: ``(X, Y, ψ1, Γ)``."""
+        return CombinationPose(self.X, self.Y, self.psi1, self.gamma)
 
     def to_vector(self) -> np.ndarray:
         """State vector in :class:`Layout` order."""
