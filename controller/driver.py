@@ -77,7 +77,7 @@ def kinematic_feedforward(params: VehicleParams, station: float, lateral: float)
 
     With the turn centre abreast of the tractor's rear point at signed radius ρ, the control point at
     ``(a, b)`` from the rear point runs on radius ``sqrt(a² + (ρ − b)²) = 1/|κ|``, so
-    ``ρ = b + sign(κ)·sqrt(1/κ² − a²)`` and ``δ = atan(L1/ρ)`` (reference notes §2.3).
+    ``ρ = b + sign(κ)·sqrt(1/κ² − a²)`` and ``δ = atan(L1/ρ)`` (docs/vehicle_dynamics.md §2.3).
     """
     wheelbase = params.tractor_wheelbase()
     a = station + wheelbase  # station is from the steer axle; the rear point is at −L1

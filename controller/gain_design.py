@@ -1,9 +1,9 @@
 """Gain design of the path-following trailer steering with python-control.
 
-Plant: virtual-axle steer ``δ_v`` → off-tracking ``e_tr`` on a straight path (DESIGN §3 sign: ``e_tr > 0``
+Plant: virtual-axle steer ``δ_v`` → off-tracking ``e_tr`` on a straight path (docs/design.md §6 sign: ``e_tr > 0``
 when the follow point is right of the kingpin path), at a forward speed ``u``. Two models:
 
-``kinematic`` (reference notes §7.3, with ``e = e_tr``; see :mod:`controller.path_following`)::
+``kinematic`` (docs/vehicle_dynamics.md §7.3, with ``e = e_tr``; see :mod:`controller.path_following`)::
 
     de/ds = −e/L_v − (L_fp/L_v)·δ_v     →     G(s) = e_tr/δ_v = −(u·L_fp/L_v) / (s + u/L_v)
 
@@ -29,7 +29,7 @@ distance, ``g = min(1, (u_b/u)²)`` the controller's high-speed schedule), a dea
 the off-tracking set-point) from ``control.step_info``.
 
 Design: pole placement in the distance domain (:func:`~controller.path_following_config.kinematic_pole_placement`,
-reference notes §7.3); if the loop at the given speed misses the required margins, ``ω_n`` is lowered
+docs/vehicle_dynamics.md §7.3); if the loop at the given speed misses the required margins, ``ω_n`` is lowered
 (bisection) until it meets them. ``docs/controller_design.md`` documents the figures; :mod:`controller.gain_report`
 prints the tables and plots the step responses.
 """
@@ -97,7 +97,7 @@ def _virtual_axle_distance(params: VehicleParams, config: PathFollowingConfig) -
 def kinematic_plant(
     params: VehicleParams, speed: float, config: PathFollowingConfig | None = None
 ) -> control.TransferFunction:
-    """``G(s) = e_tr/δ_v = −(u L_fp/L_v)/(s + u/L_v)`` (reference notes §7.3, ``e = e_tr``).
+    """``G(s) = e_tr/δ_v = −(u L_fp/L_v)/(s + u/L_v)`` (docs/vehicle_dynamics.md §7.3, ``e = e_tr``).
 
     Parameters
     ----------
@@ -172,7 +172,7 @@ def dynamic_plant(
     n = len(states)
     distribution = AxleSteerDistribution.for_vehicle(params, cfg.virtual_axle_distance, cfg.fixed_axle_compensation)
     da, db = distribution_jacobian(distribution)
-    # tan β_k ≈ Γ + v_k1y/u with v_k1y = 0 (reference notes §1.1); the distribution feeds it back.
+    # tan β_k ≈ Γ + v_k1y/u with v_k1y = 0 (docs/vehicle_dynamics.md §1.1); the distribution feeds it back.
     dbeta = np.zeros(n)
     dbeta[0] = 1.0
     a_cl = a_mat + b_mat @ np.outer(db, dbeta)
@@ -386,7 +386,7 @@ def design_gains(
 ) -> DesignResult:
     """Design the path-following PI gains at ``speed`` and report the loop's margins and step response.
 
-    Pole placement of the kinematic loop in distance (reference notes §7.3): ``k_p = (2ζω_n L_v − 1)/L_fp``,
+    Pole placement of the kinematic loop in distance (docs/vehicle_dynamics.md §7.3): ``k_p = (2ζω_n L_v − 1)/L_fp``,
     ``k_i = ω_n² L_v/L_fp``, ``k_d = 0``. The loop at ``speed`` (``plant`` model, controller with its
     bandwidth schedule, dead time ``delay``) is then checked; while it misses ``min_phase_margin`` or
     ``min_gain_margin_db``, ``ω_n`` is lowered by bisection (down to 1 % of the request).

@@ -111,23 +111,13 @@ import numpy as np
 
 from vehicle_model.errors import InputError
 from vehicle_model.layout import Layout
+from vehicle_model.offtracking import OfftrackingEstimate
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import VehicleState
 
-from .axle_steer_distribution import (
-    AxleSteerDistribution,
-    limit_axle_commands,
-    slip_angle_window,
-    steady_turn_tangents,
-    tan_kingpin_direction,
-)
-from .path_following_config import (
-    FEEDBACK_SOURCES,
-    FeedbackSource,
-    PathFollowingConfig,
-    bandwidth_schedule,
-    kinematic_pole_placement,
-)
+from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
+from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
+from .steer_output import OutputStep, TrailerSteerOutput, speed_fade
 
 __all__ = ["TrailerSteeringController"]
 
@@ -141,20 +131,8 @@ def _wrap(angle: float) -> float:
     return min(max(wrapped, -1.4), 1.4)
 
 
-class _Step(NamedTuple):
-    feedback: float
-    virtual: float
-    target: np.ndarray
-    limited: np.ndarray
-    output: np.ndarray
-    blocked_up: bool
-    blocked_down: bool
-    slip_limited: np.ndarray
-    bounded: np.ndarray  # target after the slip-angle limit
-
-
 class TrailerSteeringController:
-    """Per-tick path-following trailer steering in the co-simulation's ``TrailerSteerSource`` shape.
+    """Per-tick path-following trailer steering: ``controller(state, estimate) → axle commands``.
 
     Parameters
     ----------
@@ -162,10 +140,6 @@ class TrailerSteeringController:
         Vehicle; needs at least one steerable trailer axle.
     config : PathFollowingConfig, optional
         Gains, limits, fades; defaults as documented there.
-    feedback : {"truth", "zero_slip", "viso_ot", "viso_ot_fused"} or None
-        Which off-tracking estimate to feed back (key of the estimates dict); ``None``: feed-forward only. An
-        estimate that changes every tick (``viso_ot_fused``) is used every tick; one that comes with a standard
-        deviation (key ``<feedback>_std``) is dropped while that exceeds ``config.feedback_max_std``.
 
     Raises
     ------
@@ -178,8 +152,10 @@ class TrailerSteeringController:
         Steerable trailer axles, in the order of the returned commands (the model's layout order).
     gains : PathFollowingGains
         Gains in use.
+    output : TrailerSteerOutput
+        The output stage (distribution, fade, limits; :mod:`controller.steer_output`).
     virtual_steer : float
-        Last virtual-axle angle ``δ_v`` [rad] before the speed fade (feed-forward + feedback).
+        Last virtual-axle angle ``δ_v`` [rad] before the speed fade (feed-forward + feedback, clamped).
     feedforward_steer, feedback_steer : float
         Its two parts [rad].
     commands : numpy.ndarray
@@ -203,22 +179,13 @@ class TrailerSteeringController:
 
     Examples
     --------
-    >>> from scenarios.run.cosim import run_cosimulation  # doctest: +SKIP
-    >>> ctrl = TrailerSteeringController(setup.params, feedback="truth")  # doctest: +SKIP
-    >>> outcome, columns = run_cosimulation(setup, trailer_steer_source=ctrl)  # doctest: +SKIP
+    >>> ctrl = TrailerSteeringController(setup.params)  # doctest: +SKIP
+    >>> commands = ctrl(tick.state, tick.estimates["truth"])  # doctest: +SKIP
     """
 
-    def __init__(
-        self,
-        params: VehicleParams,
-        config: PathFollowingConfig | None = None,
-        feedback: FeedbackSource | None = "truth",
-    ) -> None:
+    def __init__(self, params: VehicleParams, config: PathFollowingConfig | None = None) -> None:
         self.params = params
         self.config = config if config is not None else PathFollowingConfig()
-        if feedback is not None and feedback not in FEEDBACK_SOURCES:
-            raise InputError(f"feedback = {feedback!r} must be one of {list(FEEDBACK_SOURCES)} or None")
-        self.feedback = feedback
         layout = Layout.for_vehicle(params)
         trailer_names = {a.name for a in params.trailer.axles}
         self.axle_names: tuple[str, ...] = tuple(n for n in layout.steerable_axles if n in trailer_names)
@@ -228,9 +195,8 @@ class TrailerSteeringController:
                 "at least one (use the 'lst' preset, or set steerable=True on trailer axles)"
             )
         cfg = self.config
-        self.distribution = AxleSteerDistribution.for_vehicle(
-            params, cfg.virtual_axle_distance, cfg.fixed_axle_compensation
-        )
+        self.output = TrailerSteerOutput(params, cfg)
+        self.distribution = self.output.distribution
         self.follow_point_offset = params.follow_point_offset
         self.virtual_axle_distance = self.distribution.virtual_axle_distance
         self.gains = (
@@ -240,9 +206,6 @@ class TrailerSteeringController:
                 self.virtual_axle_distance, self.follow_point_offset, cfg.natural_frequency, cfg.damping
             )
         )
-        # Kingpin offset behind the tractor's rear point (reference notes §2.3), as in the zero-slip estimator.
-        self._fifth_wheel_offset = -params.tractor_wheelbase() - params.tractor.fifth_wheel_x
-        self._h1 = params.h1
         self._steered_distances = self.distribution.distances[self.distribution.steerable]
         self.reset()
 
@@ -250,12 +213,7 @@ class TrailerSteeringController:
 
     def reset(self) -> None:
         """Straight axles, empty integrator, no held sample."""
-        n = len(self.axle_names)
-        self.commands = np.zeros(n)
-        self.saturated = np.zeros(n, dtype=bool)
-        self.rate_limited = np.zeros(n, dtype=bool)
-        self.slip_limited = np.zeros(n, dtype=bool)
-        self.virtual_steer = 0.0
+        self.output.reset()
         self.feedforward_steer = 0.0
         self.feedback_steer = 0.0
         self.integral = 0.0
@@ -266,12 +224,36 @@ class TrailerSteeringController:
         self.distance = 0.0
         self._derivative = 0.0
         self._last_sample: tuple[float, float] | None = None  # (value, distance) of the previous new sample
-        self._time: float | None = None
         self._heading = 0.0  # dead-reckoned tractor heading ψ̂1 [rad]
         self._position = np.zeros(2)  # dead-reckoned kingpin position [m]
         self._path: deque[tuple[float, float, float]] = deque()  # (x, y, θ) of the kingpin path, oldest first
         self._path_direction = 0.0
         self._last_motion: tuple[float, float, float] | None = None  # (r1, v_kx, v_ky) of the previous tick
+
+    @property
+    def commands(self) -> np.ndarray:
+        """Last per-axle commands [rad]."""
+        return self.output.commands
+
+    @property
+    def virtual_steer(self) -> float:
+        """Last virtual-axle angle [rad] (clamped)."""
+        return self.output.virtual_steer
+
+    @property
+    def saturated(self) -> np.ndarray:
+        """Per axle: the magnitude limit clipped the last command."""
+        return self.output.saturated
+
+    @property
+    def rate_limited(self) -> np.ndarray:
+        """Per axle: the rate limit clipped the last command."""
+        return self.output.rate_limited
+
+    @property
+    def slip_limited(self) -> np.ndarray:
+        """Per axle: the slip-angle limit clipped the last command."""
+        return self.output.slip_limited
 
     def telemetry(self) -> dict[str, float]:
         """Last tick's internals as floats, for recording (``trailer_`` prefixed names; NaN = no estimate)."""
@@ -293,25 +275,16 @@ class TrailerSteeringController:
 
     # ------------------------------------------------------------------ the law
 
-    def _fade(self, speed: float) -> float:
-        lo, hi = self.config.fade_speeds
-        return min(max((speed - lo) / (hi - lo), 0.0), 1.0)
-
-    def _kingpin_velocity(self, state: VehicleState) -> tuple[float, float]:
-        """Kingpin velocity in tractor axes (zero-slip from signals, or true)."""
-        if self.config.kinematics == "truth":
-            return state.u, state.v1 - self._h1 * state.r1
-        return state.u, -self._fifth_wheel_offset * state.r1  # reference notes §2.3
-
-    def __call__(self, state: VehicleState, estimates: dict[str, float | None]) -> np.ndarray:
+    def __call__(self, state: VehicleState, estimate: OfftrackingEstimate | None) -> np.ndarray:
         """Steer of every steerable trailer axle [rad] for the next control period.
 
         Parameters
         ----------
         state
             Current (true) state.
-        estimates
-            Off-tracking estimates by name [m] (``None``: no estimate); must hold the ``feedback`` key.
+        estimate
+            The off-tracking estimate fed back (``None``, or one without a value: feed-forward only, integrator
+            frozen). An estimate whose standard deviation exceeds ``config.feedback_max_std`` is not used.
 
         Returns
         -------
@@ -319,13 +292,10 @@ class TrailerSteeringController:
             One angle per steerable trailer axle, in :attr:`axle_names` (layout) order.
         """
         cfg = self.config
-        dt = cfg.control_period if self._time is None else state.time - self._time
-        if not dt > 0:
-            dt = cfg.control_period
-        self._time = state.time
+        dt = self.output.period(state.time)
 
-        # Kingpin motion: curvature κ5 and direction β_k in the trailer frame (reference notes §1.1, §2.3).
-        vx, vy = self._kingpin_velocity(state)
+        # Kingpin motion: curvature κ5 and direction β_k in the trailer frame (docs/vehicle_dynamics.md).
+        vx, vy = self.output.kingpin_velocity(state)
         speed = math.hypot(vx, vy)
         forward = state.u > 0.0
         self.kingpin_curvature = state.r1 / speed if speed > 1e-6 else 0.0
@@ -335,9 +305,9 @@ class TrailerSteeringController:
         )
         ds = speed * dt if forward else 0.0
         self.distance += ds
-        self.fade = self._fade(state.u) if forward else 0.0
+        self.fade = speed_fade(state.u, cfg.fade_speeds)
 
-        # Feed-forward (reference notes §6.2, exact form).
+        # Feed-forward (the steady law in its exact form, or the chord law).
         self._record_path(state, vx, vy, dt, forward)
         if cfg.feedforward == "steady":
             tan_ff, _ = steady_turn_tangents(
@@ -350,26 +320,21 @@ class TrailerSteeringController:
             self.feedforward_steer = 0.0
 
         # Feedback on the held sample.
-        error = self._sample(estimates)
+        error = self._sample(estimate)
         ki = self.gains.ki
         schedule = bandwidth_schedule(state.u, cfg.bandwidth_speed)
         integral_new = self.integral
         if error is not None and ki > 0 and self.fade > 0:
             integral_new = self.integral + error * ds
 
-        step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
+        feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         push = ki * (integral_new - self.integral)
         if (push > 0 and step.blocked_up) or (push < 0 and step.blocked_down):
             integral_new = self.integral  # conditional integration: do not wind up
-            step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
+            feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         self.integral = integral_new
-        self.feedback_steer = step.feedback
-        self.virtual_steer = step.virtual
-        self.saturated = np.abs(step.bounded) > cfg.max_steer
-        self.rate_limited = np.abs(step.output - step.limited) > 1e-12
-        self.slip_limited = step.slip_limited
-        self.commands = step.output
-        return step.output.copy()
+        self.feedback_steer = feedback
+        return self.output.commit(step)
 
     def _command(
         self,
@@ -379,24 +344,11 @@ class TrailerSteeringController:
         tan_kingpin: float,
         dt: float,
         slip_window: tuple[np.ndarray, np.ndarray] | None,
-    ) -> _Step:
-        """Virtual angle, distribution, fade, slip limit, saturation and rate limit for a given integral."""
-        cfg = self.config
+    ) -> tuple[float, OutputStep]:
+        """The feedback term and the output stage's step for a given integral."""
         gains = self.gains
         fb = 0.0 if error is None else schedule * (gains.kp * error + gains.ki * integral + gains.kd * self._derivative)
-        unclamped = self.feedforward_steer + fb
-        virtual = min(max(unclamped, -cfg.max_virtual_steer), cfg.max_virtual_steer)
-        target = self.fade * self.distribution(math.tan(virtual), tan_kingpin)
-        slipping = np.zeros(target.shape, dtype=bool)
-        bounded = target
-        if slip_window is not None:  # PathFollowingConfig.max_slip_angle: never past the tyre's peak
-            bounded = np.clip(target, *slip_window)
-            slipping = np.abs(bounded - target) > 1e-12
-        limited, output = limit_axle_commands(bounded, self.commands, cfg.max_steer, cfg.max_steer_rate, dt)
-        # Blocked: every axle held below (above) its target by a limit, or the virtual angle clamped.
-        blocked_up = bool(np.all(output < target - 1e-12)) or unclamped > virtual
-        blocked_down = bool(np.all(output > target + 1e-12)) or unclamped < virtual
-        return _Step(fb, virtual, target, limited, output, blocked_up, blocked_down, slipping, bounded)
+        return fb, self.output.propose(self.feedforward_steer + fb, tan_kingpin, self.fade, dt, slip_window)
 
     def _record_path(self, state: VehicleState, vx: float, vy: float, dt: float, forward: bool) -> None:
         """Dead-reckon the kingpin path (tractor yaw rate, kingpin velocity) over about one trailer length.
@@ -456,20 +408,12 @@ class TrailerSteeringController:
         tan_f = math.tan(_wrap(theta_f - psi_chord))
         return tan_k - (self.virtual_axle_distance / lfp) * (tan_k - tan_f)
 
-    def _sample(self, estimates: dict[str, float | None]) -> float | None:
-        """Zero-order hold of the chosen estimate; derivative on new samples only. ``None`` if missing."""
+    def _sample(self, estimate: OfftrackingEstimate | None) -> float | None:
+        """Zero-order hold of the estimate; derivative on new samples only. ``None`` if missing."""
         self.new_sample = False
-        if self.feedback is None:
-            self.estimate = None
-            return None
-        if self.feedback not in estimates:
-            raise InputError(
-                f"no off-tracking estimate named {self.feedback!r} was passed; available: {sorted(estimates)} "
-                "(enable the estimator, or choose another feedback)"
-            )
-        value = estimates[self.feedback]
-        std = estimates.get(f"{self.feedback}_std")
-        if std is not None and math.isfinite(std) and std > self.config.feedback_max_std:
+        value: float | None = None if estimate is None else estimate.value
+        std = math.nan if estimate is None else estimate.std
+        if math.isfinite(std) and std > self.config.feedback_max_std:
             value = None  # too uncertain (PathFollowingConfig.feedback_max_std): feed-forward only
         if value is None or not math.isfinite(value):
             # Missing: feedback off, integrator frozen, derivative restarts when samples return.

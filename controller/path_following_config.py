@@ -9,21 +9,13 @@ from typing import Literal
 from vehicle_model.errors import InputError
 
 __all__ = [
-    "FEEDBACK_SOURCES",
     "FeedForward",
-    "FeedbackSource",
     "Kinematics",
     "PathFollowingConfig",
     "PathFollowingGains",
     "bandwidth_schedule",
     "kinematic_pole_placement",
 ]
-
-FEEDBACK_SOURCES: tuple[str, ...] = ("truth", "zero_slip", "viso_ot", "viso_ot_fused")
-"""Names of the off-tracking estimates the controller can feed back (keys of the co-simulation's dict)."""
-
-FeedbackSource = Literal["truth", "zero_slip", "viso_ot", "viso_ot_fused"]
-"""Type of the ``feedback`` argument of the controller (one of :data:`FEEDBACK_SOURCES`)."""
 
 Kinematics = Literal["signals", "truth"]
 """Type of :attr:`PathFollowingConfig.kinematics`."""

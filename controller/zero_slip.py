@@ -28,6 +28,7 @@ from typing import Literal
 
 import numpy as np
 
+from vehicle_model.kinematics import zero_slip_kingpin_velocity
 from vehicle_model.offtracking import OfftrackingBuffer
 from vehicle_model.parameters import VehicleParams
 
@@ -49,9 +50,8 @@ class ZeroSlipEstimator:
         if variant not in ("yaw_rate", "steer_angle"):
             raise ValueError(f"zero-slip variant {variant!r} must be 'yaw_rate' or 'steer_angle'")
         self.variant = variant
+        self.params = params
         self.wheelbase = params.tractor_wheelbase()
-        # e: fifth wheel behind the rear point (reference notes §2.3); negative when it is ahead.
-        self.fifth_wheel_offset = -self.wheelbase - params.tractor.fifth_wheel_x
         self.buffer = OfftrackingBuffer(params.follow_point_offset)
         self._last: tuple[float, float, float] | None = None  # (u, r1, Γ) of the previous sample
 
@@ -81,8 +81,8 @@ class ZeroSlipEstimator:
         u_mid, r1_mid = 0.5 * (u + u_prev), 0.5 * (r1 + r1_prev)
         delta_gamma = gamma - gamma_prev
         dpsi2 = r1_mid * dt - delta_gamma  # ψ2 = ψ1 − Γ
-        # Kingpin velocity (tractor axes), zero lateral slip at the rear point (reference notes §2.3).
-        vk1 = (u_mid, -self.fifth_wheel_offset * r1_mid)
+        # Kingpin velocity (tractor axes), zero lateral slip at the rear point.
+        vk1 = zero_slip_kingpin_velocity(self.params, u_mid, r1_mid)
         # Into trailer axes at mid-interval, R(Γ), then into the previous trailer frame, R(Δψ2/2).
         g_mid = gamma - 0.5 * delta_gamma
         vk2x = math.cos(g_mid) * vk1[0] - math.sin(g_mid) * vk1[1]

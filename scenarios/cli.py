@@ -24,6 +24,8 @@ from rich.markup import escape
 from rich.table import Table
 
 from scenarios.bench.cli import bench_app
+from scenarios.loop.ends import RunStatus
+from scenarios.registry import feedback_sources
 from scenarios.run.stopping import (
     exit_code_for_signal,
     handle_sigterm,
@@ -39,6 +41,8 @@ EXIT_BAD_INPUT = 2
 """Exit code for bad input."""
 EXIT_FAILED = 3
 """Exit code for a run that diverged, lost control or could not write a file, or a study with a failed case."""
+FEEDBACKS = ", ".join(feedback_sources())
+"""The feedback choices (:mod:`scenarios.registry`), for the help texts."""
 
 app = typer.Typer(
     help="Tractor–semi-trailer off-tracking co-simulation.",
@@ -92,17 +96,10 @@ def _overrides(pairs: tuple[tuple[str, object], ...], surface: str | None, mu: f
 
 
 def _load(scenario: str, overrides: dict[str, object]):
-    """The validated scenario, with a camera that can work (refused up front otherwise)."""
+    """The validated scenario (a camera that cannot work is refused by the validation itself)."""
     from scenarios.config import load_scenario
 
-    config = load_scenario(scenario, overrides)
-    if config.estimators.viso_ot:
-        from scenarios.camera.feasibility import check_camera_feasible
-        from scenarios.camera.optics import check_lenses
-
-        check_camera_feasible(config)
-        check_lenses(config)
-    return config
+    return load_scenario(scenario, overrides)
 
 
 @app.command("list")
@@ -148,7 +145,7 @@ def run(
     vehicle: Annotated[str | None, typer.Option(help="Vehicle preset (see `offtrack list`).")] = None,
     direction: Annotated[str | None, typer.Option(help="left or right.")] = None,
     feedback: Annotated[
-        str | None, typer.Option(help="Trailer steering fed by: none, truth, zero_slip, viso_ot or viso_ot_fused.")
+        str | None, typer.Option(help=f"Trailer steering fed by one of: {FEEDBACKS} (its estimator runs).")
     ] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of every random choice.")] = None,
     duration: Annotated[float | None, typer.Option(help="Stop after this many simulated seconds.")] = None,
@@ -198,10 +195,10 @@ def run(
 def _exit_for_status(metrics: dict) -> None:
     """Say why a run did not complete and exit with its code (3 failed, 130/143 stopped)."""
     status = metrics["status"]
-    if status == "completed":
+    if status == RunStatus.COMPLETED:
         return
     errors.print(f"run {status}: {metrics['message']}", markup=False)
-    if status == "interrupted":
+    if status == RunStatus.INTERRUPTED:
         raise typer.Exit(exit_code_for_signal(metrics.get("stop_signal")))
     raise typer.Exit(EXIT_FAILED)
 
@@ -231,7 +228,7 @@ def compare(
     feedbacks: Annotated[
         str,
         typer.Option(
-            help="Comma-separated feedback sources to compare: none, zero_slip, viso_ot, viso_ot_fused, truth."
+            help=f"Comma-separated feedback sources to compare, of: {FEEDBACKS}."
         ),
     ] = "none,zero_slip,viso_ot,truth",
     set_: Annotated[list[str] | None, typer.Option("--set", help="Any config field, e.g. --set path.turns=1.")] = None,
@@ -240,15 +237,13 @@ def compare(
 ) -> None:
     """Run every feedback source on the same scenario; write a table and one overlay figure."""
     from scenarios.run.results import new_run_dir
-    from scenarios.studies.compare import FEEDBACK_ORDER, compare_feedback, comparison_rows_as_text
+    from scenarios.studies.compare import compare_feedback, comparison_rows_as_text
     from vehicle_model.errors import InputError
 
     chosen = tuple(f.strip() for f in feedbacks.split(",") if f.strip())
-    unknown = [f for f in chosen if f not in FEEDBACK_ORDER]
+    unknown = [f for f in chosen if f not in feedback_sources()]
     if not chosen or unknown:
-        raise InputError(
-            f"--feedbacks {feedbacks!r}: give one or more of {', '.join(FEEDBACK_ORDER)}, separated by commas"
-        )
+        raise InputError(f"--feedbacks {feedbacks!r}: give one or more of {FEEDBACKS}, separated by commas")
     pairs = (
         ("vehicle", vehicle),
         ("surface.preset", surface),
@@ -258,8 +253,8 @@ def compare(
     )
     overrides = _overrides(pairs, surface, mu, set_)
     config = _load(scenario, overrides)
-    if "viso_ot" in chosen and not config.estimators.viso_ot:
-        _load(scenario, {**overrides, "estimators.viso_ot": True})  # the camera run must be able to work
+    for feedback in chosen:  # every variant (a camera's included) must be able to run
+        _load(scenario, {**overrides, "feedback": feedback})
     run_dir = new_run_dir(out, f"compare-{config.name}", force=force)
     table = compare_feedback(config, run_dir, chosen)
     view = Table(title=escape(f"{config.name}: feedback comparison — {run_dir}"))
@@ -356,7 +351,7 @@ def study(
             name, run_dir, full=full, workers=workers, scheduler=scheduler, resume=resume, on_progress=progress
         )
     _print_study_summary(table, run_dir, name)
-    failed = int((table["status"] == "failed").sum()) if "status" in table.columns else 0
+    failed = int((table["status"] == RunStatus.FAILED).sum()) if "status" in table.columns else 0
     if failed:
         errors.print(
             f"{failed} case(s) failed (error and traceback in {run_dir / CASES_DIR}/); "
@@ -397,8 +392,7 @@ def calibrate(
 
     A run uses the file with --set camera.calibration.mode=file --set camera.calibration.file=OUT/calibration.yaml.
     """
-    from scenarios.camera.optics import calibration_target_rig, lenses, run_calibration
-    from scenarios.camera.rig import rig_from_config
+    from scenarios.camera.build import calibration_target_rig, lenses, rig_from_config, run_calibration
     from scenarios.run.files import write_atomic
     from scenarios.run.results import new_run_dir
     from sensor.calibration_report import calibration_summary

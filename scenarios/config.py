@@ -10,6 +10,7 @@ in for the command line, the studies and the environments.
 
 from __future__ import annotations
 
+import math
 from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, get_args
@@ -25,11 +26,13 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from controller.path_following_config import PathFollowingConfig, PathFollowingGains
 from vehicle_model.errors import InputError
 from vehicle_model.presets import VEHICLE_PRESETS
 from vehicle_model.surface import FRICTION_PRESETS
 
 from .camera_schema import CameraConfig, StrictModel
+from .registry import NO_FEEDBACK, estimator_entries, estimator_entry, feedback_sources
 
 CATALOGUE_PACKAGE = "scenarios.catalogue"
 
@@ -240,7 +243,8 @@ class SignalsConfig(_Strict):
 
 
 class EstimatorsConfig(_Strict):
-    """Which estimators run and how. ``zero_slip_variant``: Cheng's zero-slip dead-reckoning with the
+    """Which estimators run and how (the estimators are those of :mod:`scenarios.registry`; the one chosen as
+    ``feedback`` always runs). ``zero_slip_variant``: Cheng's zero-slip dead-reckoning with the
     tractor yaw rate taken from the gyro (``yaw_rate``, default) or from the front steer angle
     (``steer_angle``). ``viso_ot``: render the trailer's stereo camera at the camera rate and run
     visual odometry and VISO-OT (needs headless OpenGL). ``viso_ot_fused``: the Kalman filter of the trailer's
@@ -304,6 +308,23 @@ class ControllerConfig(_Strict):
         "1 m is ten times the 0.10 m off-tracking target",
     )
 
+    def path_following(self, control_hz: float) -> PathFollowingConfig:
+        """The controller's own settings (SI units) from this section (degrees and km/h) and the control rate."""
+        gains = None
+        if self.kp is not None or self.ki is not None or self.kd is not None:
+            gains = PathFollowingGains(kp=self.kp or 0.0, ki=self.ki or 0.0, kd=self.kd or 0.0)
+        return PathFollowingConfig(
+            gains=gains,
+            natural_frequency=self.natural_frequency,
+            damping=self.damping,
+            max_steer=math.radians(self.max_steer_deg),
+            max_steer_rate=math.radians(self.max_steer_rate_deg_s),
+            feedforward=self.feedforward,
+            bandwidth_speed=None if self.bandwidth_speed_kmh is None else self.bandwidth_speed_kmh / 3.6,
+            control_period=1.0 / control_hz,
+            feedback_max_std=self.feedback_max_std_m,
+        )
+
 
 class ScenarioConfig(_Strict):
     """A complete, resolved scenario."""
@@ -321,7 +342,9 @@ class ScenarioConfig(_Strict):
     estimators: EstimatorsConfig = EstimatorsConfig()
     camera: CameraConfig = CameraConfig()
     fusion: FusionConfig = FusionConfig()
-    feedback: Literal["none", "truth", "zero_slip", "viso_ot", "viso_ot_fused"] = "none"
+    feedback: str = Field(
+        NO_FEEDBACK, description="the estimate fed back to the trailer steering; 'none' leaves the trailer unsteered"
+    )
     controller: ControllerConfig = ControllerConfig()
     roundabout_test: bool = False
     seed: int = Field(0, ge=0, le=2**32 - 1, description="numpy's seed range")
@@ -329,18 +352,56 @@ class ScenarioConfig(_Strict):
         None, gt=0.0, le=3600.0, description="[s] simulated; an hour bounds the memory of the recorded time series"
     )
 
+    @field_validator("feedback")
+    @classmethod
+    def _registered_feedback(cls, feedback: str) -> str:
+        if feedback not in feedback_sources():
+            raise PydanticCustomError(
+                "feedback_source",
+                "must be one of {choices} (the registered estimators, scenarios.registry)",
+                {"choices": ", ".join(feedback_sources())},
+            )
+        return feedback
+
+    @model_validator(mode="before")
+    @classmethod
+    def _feedback_turns_its_estimator_on(cls, data: Any) -> Any:
+        """The estimator fed back runs: its ``estimators`` switch is set, so the resolved file says what ran."""
+        if not isinstance(data, dict) or not isinstance(data.get("feedback"), str):
+            return data
+        try:
+            switch = estimator_entry(data["feedback"]).switch
+        except KeyError:
+            return data  # no feedback, or an unknown one: reported by the field's own check
+        estimators = data.get("estimators", {})
+        if switch is None or not isinstance(estimators, dict) or estimators.get(switch) is True:
+            return data
+        return {**data, "estimators": {**estimators, switch: True}}
+
+    def enabled_estimators(self) -> tuple[str, ...]:
+        """The estimators a run of this configuration runs, in registry order (:mod:`scenarios.registry`)."""
+        entries = estimator_entries()
+        on = {
+            e.name
+            for e in entries
+            if e.always or e.name == self.feedback or (e.switch is not None and getattr(self.estimators, e.switch))
+        }
+        for entry in reversed(entries):  # an entry's requirements are registered before it
+            if entry.name in on:
+                on.update(entry.requires)
+        return tuple(e.name for e in entries if e.name in on)
+
+    @property
+    def uses_camera(self) -> bool:
+        """Whether a run renders the trailer's stereo camera (an enabled estimator needs it)."""
+        return any(estimator_entry(name).needs_camera for name in self.enabled_estimators())
+
     @model_validator(mode="after")
     def _check(self) -> ScenarioConfig:
         if self.vehicle not in VEHICLE_PRESETS:
             raise ValueError(f"vehicle {self.vehicle!r} is not a preset; choose one of {sorted(VEHICLE_PRESETS)}")
         if self.roundabout_test and self.path.kind != "roundabout":
             raise ValueError("roundabout_test needs path.kind = roundabout")
-        if self.feedback == "zero_slip" and not self.estimators.zero_slip:
-            raise ValueError("feedback zero_slip needs estimators.zero_slip = true")
-        if self.feedback == "viso_ot" and not self.estimators.viso_ot:
-            raise ValueError("feedback viso_ot needs estimators.viso_ot = true")
-        if self.feedback == "viso_ot_fused" and not self.estimators.viso_ot_fused:
-            raise ValueError("feedback viso_ot_fused needs estimators.viso_ot_fused = true")
         if self.feedback != "none" and not any(a.steerable for a in VEHICLE_PRESETS[self.vehicle]().trailer.axles):
             steerable = sorted(n for n, f in VEHICLE_PRESETS.items() if any(a.steerable for a in f().trailer.axles))
             raise ValueError(

@@ -1,7 +1,7 @@
 """The trailer-mounted stereo rig: intrinsics, mounting, misalignment, and camera-axis conventions.
 
-Frames (DESIGN §3)
-------------------
+Frames
+------
 * **World**: ISO 8855 ground frame, X, Y in the road plane, Z up, ground at Z = 0.
 * **Trailer**: ISO, origin on the ground below the kingpin, x forward, y left, z up; heading
   ψ2 = ψ1 − Γ.
@@ -41,7 +41,7 @@ from typing import Literal
 import numpy as np
 
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import kingpin_position
+from vehicle_model.geometry import CombinationPose, kingpin_position
 from vehicle_model.parameters import VehicleParams
 
 Which = Literal["left", "right"]
@@ -300,19 +300,28 @@ class StereoRig:
             t[:3, :3] = r @ self.misalignment.rotation  # rotation about its own optical centre
         return t
 
-    def camera_in_world(self, params: VehicleParams, x, y, psi1, gamma, which: Which) -> np.ndarray:
-        """Pose ``T_world←camera`` of one camera from the tractor state, OpenCV camera axes.
+    def camera_in_world(self, params: VehicleParams, pose: CombinationPose, which: Which, *loose) -> np.ndarray:
+        """Pose ``T_world←camera`` of one camera at a combination pose, OpenCV camera axes.
 
         Parameters
         ----------
         params : VehicleParams
             The combination (kingpin position, trailer rear).
-        x, y, psi1, gamma : float or array_like
-            Tractor CG position [m], tractor heading [rad] and articulation Γ [rad]; arrays of
-            one shape ``S`` give poses of shape ``S + (4, 4)``.
+        pose : CombinationPose
+            Tractor CG position [m], tractor heading ψ1 [rad] and articulation Γ [rad]
+            (:attr:`vehicle_model.simulator.VehicleState.pose`); fields that are arrays of one shape ``S`` give
+            poses of shape ``S + (4, 4)``.
         which : {"left", "right"}
             The camera.
+
+        The loose form ``camera_in_world(params, x, y, psi1, gamma, which)`` is still accepted for callers that
+        have not moved to :class:`~vehicle_model.geometry.CombinationPose` (``scenarios/envs/steering_env.py``).
         """
+        if loose:
+            if len(loose) != 3:
+                raise InputError("camera_in_world takes (params, pose, which) or (params, x, y, psi1, gamma, which)")
+            pose, which = CombinationPose(pose, which, loose[0], loose[1]), loose[2]  # type: ignore[arg-type]
+        x, y, psi1, gamma = pose
         kp = kingpin_position(params, x, y, psi1)
         psi2 = np.asarray(psi1, dtype=float) - np.asarray(gamma, dtype=float)
         c, s = np.cos(psi2), np.sin(psi2)

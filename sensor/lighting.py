@@ -3,7 +3,7 @@
 The scene is static, so the light is **baked once** into the world (:func:`light_world`):
 
 * every static surface's vertex colours get Lambert shading from the sun at its azimuth and elevation
-  plus sky light (ambient); horizontal ground in sun keeps today's brightness, so the texture range is
+  plus sky light (ambient); horizontal ground in sun keeps the flat lighting's brightness, so the texture range is
   unchanged; instanced objects keep their object-frame shading (their faces turn with each copy);
 * shadows of the roadside objects on the ground are *decals*: per object part and copy, the convex hull
   of its vertices projected along the sun onto the ground, drawn after the ground into the alpha channel

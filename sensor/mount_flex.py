@@ -38,6 +38,8 @@ of the continuous process).
 
 Applying it (for the camera pipeline)
 -------------------------------------
+:class:`FlexSchedule` runs the model frame by frame where the frames are taken, in order, with the trailer's
+lateral acceleration between consecutive vehicle states, and hands each frame's rotation to the renderer.
 The rotation is about the right camera's optical centre. Re-posing the right camera in the renderer
 with the frame's :class:`~sensor.camera.Misalignment` (``StereoRig.replace(misalignment=…)``) is
 exact everywhere and costs nothing extra (the right image is rendered every frame anyway). Warping
@@ -57,6 +59,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from vehicle_model.errors import InputError
+from vehicle_model.kinematics import trailer_lateral_acceleration
+from vehicle_model.parameters import VehicleParams
+from vehicle_model.simulator import VehicleState
 
 from .camera import Misalignment
 
@@ -179,8 +184,8 @@ class MountFlexModel:
     static : Misalignment
         The quasi-static misalignment of the mount [rad].
     seed : int or numpy.random.Generator or None
-        Seed of the vibration, or the generator to draw from (DESIGN §3: one generator per run;
-        pass a child of it). Only vibration draws random numbers.
+        Seed of the vibration, or the generator to draw from (one generator per run: pass a child of
+        it). Only vibration draws random numbers.
     """
 
     def __init__(
@@ -254,3 +259,51 @@ class MountFlexModel:
         self._advance(dt)
         angles = self._static + self._twist * float(lateral_acceleration) + self.vibration
         return Misalignment(*(float(v) for v in angles))
+
+
+class FlexSchedule:
+    """The right camera's mount flex frame by frame, from the trailer's lateral acceleration.
+
+    The twist needs the acceleration between consecutive frames and the vibration a sequence of draws, so the
+    schedule runs where the frames are taken, in order, and hands each frame's rotation to the renderer.
+
+    Parameters
+    ----------
+    flex : MountFlex
+        The settings (zero: no flex, :meth:`rotation` gives ``None``).
+    params : VehicleParams
+        The combination.
+    station : float or None
+        Station of the trailer point whose lateral acceleration twists the mount [m] (from the kingpin, negative
+        behind it); None: the trailer CG (:func:`vehicle_model.kinematics.trailer_lateral_acceleration`).
+    frame_interval : float
+        Time between frames [s].
+    rng : numpy.random.Generator
+        The vibration's draws (a child of the run's seed).
+    """
+
+    def __init__(
+        self,
+        flex: MountFlex,
+        params: VehicleParams,
+        station: float | None,
+        frame_interval: float,
+        rng: np.random.Generator,
+    ) -> None:
+        self.params = params
+        self.dt = frame_interval
+        self.station = station
+        self.model = None if flex.is_zero else MountFlexModel(flex, None, rng)
+        self._previous: VehicleState | None = None
+
+    def rotation(self, state: VehicleState) -> Misalignment | None:
+        """This frame's flex rotation of the right camera (on top of its static misalignment), or ``None``."""
+        if self.model is None:
+            return None
+        previous, self._previous = self._previous, state
+        a_y = 0.0
+        if previous is not None and state.time > previous.time:
+            a_y = trailer_lateral_acceleration(self.params, previous, state, station=self.station)
+        if not math.isfinite(a_y):
+            a_y = 0.0
+        return self.model.rotation_at(a_y, self.dt)

@@ -1,6 +1,6 @@
 """Offscreen rendering of the stereo pair with pyrender through EGL (Mesa llvmpipe needs no GPU).
 
-Rules of the road (DESIGN §6):
+Rules of the road:
 
 * **One OpenGL context per process**, created lazily on the first render and shared by every
   :class:`StereoRenderer` of the process (renderers of other worlds or image sizes switch the
@@ -47,9 +47,10 @@ import cv2
 import numpy as np
 
 from vehicle_model.errors import InputError
+from vehicle_model.geometry import CombinationPose
 from vehicle_model.parameters import VehicleParams
 
-from .camera import StereoRig, opencv_to_opengl
+from .camera import StereoRig, Which, opencv_to_opengl
 from .exposure import AutoExposure, FrameLight
 from .gl_context import GLContext, import_pyrender
 from .lighting import Lighting, light_world
@@ -88,7 +89,8 @@ class StereoRenderer:
     rig : StereoRig
         Cameras, mounting and image effects.
     params : VehicleParams, optional
-        The combination, for :meth:`render` from the tractor state (kingpin position, trailer rear).
+        The combination, for :meth:`render` at a :class:`~vehicle_model.geometry.CombinationPose` (kingpin
+        position, trailer rear).
     seed : int, optional
         Seed of the per-frame image noise and exposure (default: the world's seed). Frame ``k``
         draws from ``numpy.random.default_rng([seed, k])``, so images do not depend on the order
@@ -201,8 +203,20 @@ class StereoRenderer:
         cam.znear, cam.zfar = rig.znear, rig.zfar
         return ctx
 
-    def render_view(self, pose: np.ndarray, *, depth: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-        """Render one camera at ``pose`` (``T_world←camera``, OpenCV axes), without noise or exposure.
+    def render_view(
+        self, pose: CombinationPose | np.ndarray, *, depth: bool = False, which: Which = "left"
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Render one camera without noise or exposure.
+
+        Parameters
+        ----------
+        pose : CombinationPose or numpy.ndarray
+            Where the combination is (the camera ``which`` of the rig is rendered; needs the vehicle params), or
+            directly the camera's pose ``T_world←camera`` (4×4, OpenCV axes).
+        depth : bool
+            Also read the depth buffer.
+        which : {"left", "right"}
+            The camera, for a combination pose.
 
         Returns
         -------
@@ -210,6 +224,8 @@ class StereoRenderer:
             ``(height, width)`` uint8 image and, if ``depth``, float32 depth along the optical axis
             [m] (0 for the sky), else None.
         """
+        if isinstance(pose, CombinationPose):
+            pose = self.rig.camera_in_world(self._params(None), pose, which)
         pyrender = import_pyrender()
         t0 = time.perf_counter()
         ctx = self._context()
@@ -284,25 +300,26 @@ class StereoRenderer:
 
     def render(
         self,
-        x: float,
-        y: float,
-        psi1: float,
-        gamma: float,
+        pose: CombinationPose,
         *,
         depth: bool = False,
         frame: int | None = None,
         params: VehicleParams | None = None,
         expose: bool = True,
     ) -> StereoPair:
-        """Render the pair for a tractor state (CG position [m], tractor heading ψ1 and articulation Γ [rad]).
+        """Render the pair at a combination pose (tractor CG position [m], heading ψ1 and articulation Γ [rad]).
 
         ``expose``: see :meth:`render_poses`."""
+        params = self._params(params)
+        pl = self.rig.camera_in_world(params, pose, "left")
+        pr = self.rig.camera_in_world(params, pose, "right")
+        return self.render_poses(pl, pr, depth=depth, frame=frame, expose=expose)
+
+    def _params(self, params: VehicleParams | None) -> VehicleParams:
         params = params if params is not None else self.params
         if params is None:
-            raise InputError("StereoRenderer.render needs the vehicle params (StereoRenderer(..., params=...))")
-        pl = self.rig.camera_in_world(params, x, y, psi1, gamma, "left")
-        pr = self.rig.camera_in_world(params, x, y, psi1, gamma, "right")
-        return self.render_poses(pl, pr, depth=depth, frame=frame, expose=expose)
+            raise InputError("rendering at a combination pose needs the vehicle params (StereoRenderer(params=...))")
+        return params
 
     def _effects(self, left: np.ndarray, right: np.ndarray, frame: int) -> tuple[np.ndarray, np.ndarray]:
         return apply_sensor_effects(left, right, self.rig, self.seed, frame)

@@ -1,4 +1,4 @@
-"""The airfield world after the Bourn test site (issue 14 item 4; paper §4.1, Fig 12) and ground detail."""
+"""The airfield world after the Bourn test site (de Saxe & Cebon 2018, §4.1, Fig 12) and ground detail."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from sensor.camera import StereoRig
 from sensor.world import WorldConfig, build_world
 from sensor.world.detail import detail_mipmaps
 from vehicle_model.errors import InputError
+from vehicle_model.geometry import CombinationPose
 
 rendering = pytest.mark.rendering
 
@@ -34,7 +35,7 @@ def test_airfield_world_has_apron_grain_fields_and_distant_objects(ring) -> None
     bare = build_world(ring, kind="airfield", seed=3, scenery_density=0.0)
     assert bare.object_counts == world.object_counts
     assert [p.name for p in bare.parts] == [p.name for p in world.parts]
-    # Both kinds give the ground detail at every distance by default (issue 14); it can be switched off.
+    # Both kinds give the ground detail at every distance by default; it can be switched off.
     roadside = build_world(ring, seed=3).mipmaps
     assert set(roadside) >= {"grass", "crop", "asphalt", "horizon", "landscape_foliage"}
     assert "foliage" not in roadside  # the roadside trees and hedges keep the box-filtered chain
@@ -63,7 +64,8 @@ def test_airfield_renders_with_features_to_the_horizon(ring) -> None:
     world = build_world(ring, kind="airfield", scenery_density=0.0)
     rig = StereoRig()
     i = int(np.searchsorted(ring.s, 150.0))
-    pair = StereoRenderer(world, rig, vehicle_preset("reference")).render(ring.x[i], ring.y[i], ring.heading[i], 0.0)
+    pose = CombinationPose(ring.x[i], ring.y[i], ring.heading[i], 0.0)
+    pair = StereoRenderer(world, rig, vehicle_preset("reference")).render(pose)
     corners = cv2.goodFeaturesToTrack(pair.left, 3000, 0.01, 5)
     assert corners is not None and len(corners) >= 300
     far = corners[:, 0, 1] < rig.principal_point[1] + 40  # beyond ~40 m on the ground

@@ -1,8 +1,8 @@
 """Stereo calibration on the rendered checkerboard: recovery against the truth, rectification, files, bad settings.
 
-The rig is the paper's default (1344 × 391 px, 100°, 0.5 m) with the field tests' right-camera rotation
-(roll −0.15°, yaw +0.10°, paper §4.4), wide-angle lenses (170–180 px of barrel distortion at the corners),
-one grey level of image noise and 0.1 px of added corner noise.
+The rig is the default of de Saxe & Cebon 2018, §3.1 (1344 × 391 px, 100°, 0.5 m), with the field tests'
+right-camera rotation (roll −0.15°, yaw +0.10°, paper §4.4), wide-angle lenses (170–180 px of barrel distortion at
+the corners), one grey level of image noise and 0.1 px of added corner noise.
 """
 
 from __future__ import annotations

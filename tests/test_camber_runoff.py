@@ -1,9 +1,9 @@
-"""The figure-eight's camber between its two loops: a superelevation run-off, not a crease (issue 15).
+"""The figure-eight's camber between its two loops: a superelevation run-off, not a crease.
 
 Each loop of the figure-eight falls radially; at the crossover the two loops' crossfalls are opposite. Taking the
-nearest loop's camber flipped the crossfall from -5 % to +5 % at a point, which on ice made even the truth-fed
-loop lose control (t ≈ 113 s): the trailer axles had to reverse a lateral force near μ·F_z at once.
-``LoopCamber`` now blends the two over ``CAMBER_RUNOFF`` either side of the bisector, through flat.
+nearest loop's camber would flip the crossfall from -5 % to +5 % at a point, which on ice makes even the truth-fed
+loop lose control (t ≈ 113 s): the trailer axles have to reverse a lateral force near μ·F_z at once.
+``LoopCamber`` blends the two over ``CAMBER_RUNOFF`` either side of the bisector, through flat.
 """
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from scenarios.config import load_scenario
-from scenarios.run.cosim import run_cosimulation
+from scenarios.run.drive import simulate
 from scenarios.run.metrics import after_warmup
-from scenarios.setup.build import build_scenario, trailer_controller
+from scenarios.setup.build import build_scenario
 from vehicle_model.surface import grade_to_sin
 
 
@@ -52,7 +52,7 @@ def test_the_truth_fed_figure_eight_on_ice_and_camber_stays_under_control() -> N
         "figure-eight", {"vehicle": "lst", "feedback": "truth", "surface.preset": "ice", "camber.percent": 5.0}
     )
     setup = build_scenario(cfg)
-    outcome, cols = run_cosimulation(setup, trailer_steer_source=trailer_controller(setup))  # model only: ~4 s
+    outcome, cols = simulate(setup)  # model only: ~4 s
     assert outcome.status == "completed"  # with the crease: lost_control (left the road) at t ≈ 113 s
     e = cols["offtracking_truth"][after_warmup(cols, setup.params.follow_point_offset)]
     assert np.sqrt(np.mean(e**2)) <= 0.05  # measured 0.014 m

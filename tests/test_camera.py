@@ -16,7 +16,7 @@ from sensor.camera import (
     rotation_rpy,
 )
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import trailer_points
+from vehicle_model.geometry import CombinationPose, trailer_points
 
 
 def _random_pose(rng: np.random.Generator) -> np.ndarray:
@@ -63,8 +63,8 @@ def test_intrinsics_from_image_size_and_hfov() -> None:
 
 def test_point_in_front_projects_to_expected_pixel(reference) -> None:
     rig = StereoRig()
-    state = (12.0, -4.0, 0.7, 0.2)  # X, Y, ψ1, Γ
-    pose = rig.camera_in_world(reference, *state, "left")
+    state = CombinationPose(12.0, -4.0, 0.7, 0.2)  # X, Y, ψ1, Γ
+    pose = rig.camera_in_world(reference, state, "left")
     k = rig.intrinsics()
     for xc, yc, zc in [(0.0, 0.0, 10.0), (2.0, -1.0, 20.0), (-5.0, 1.5, 7.5)]:
         world = pose[:3, :3] @ np.array([xc, yc, zc]) + pose[:3, 3]
@@ -108,16 +108,19 @@ def test_mount_baseline_and_default_station(reference) -> None:
 def test_camera_in_world_follows_the_trailer(reference) -> None:
     rig = StereoRig(station=-10.0)
     x, y, psi1, gamma = np.array([1.0, 5.0]), np.array([-2.0, 3.0]), np.array([0.3, -1.2]), np.array([0.25, -0.1])
-    poses = rig.camera_in_world(reference, x, y, psi1, gamma, "left")
+    poses = rig.camera_in_world(reference, CombinationPose(x, y, psi1, gamma), "left")
     assert poses.shape == (2, 4, 4)
+    # the loose form (x, y, ψ1, Γ, which) of callers not yet moved to CombinationPose gives the same poses
+    np.testing.assert_array_equal(rig.camera_in_world(reference, x, y, psi1, gamma, "left"), poses)
     psi2 = psi1 - gamma
     for k in range(2):
         mount = trailer_points(reference, x[k], y[k], psi1[k], gamma[k], np.array([[-10.0, 0.0]]))[0]
-        centre = 0.5 * (poses[k, :3, 3] + rig.camera_in_world(reference, x[k], y[k], psi1[k], gamma[k], "right")[:3, 3])
+        pose = CombinationPose(x[k], y[k], psi1[k], gamma[k])
+        centre = 0.5 * (poses[k, :3, 3] + rig.camera_in_world(reference, pose, "right")[:3, 3])
         np.testing.assert_allclose(centre, [*mount, 3.0], atol=1e-9)
         # Rear-facing optical axis points along ψ2 + π in the world.
         np.testing.assert_allclose(poses[k, :3, 2], [-math.cos(psi2[k]), -math.sin(psi2[k]), 0.0], atol=1e-12)
-        single = rig.camera_in_world(reference, x[k], y[k], psi1[k], gamma[k], "left")
+        single = rig.camera_in_world(reference, pose, "left")
         np.testing.assert_allclose(single, poses[k], atol=1e-12)
 
 
@@ -138,12 +141,12 @@ def test_misalignment_moves_right_image_points_by_homography(reference) -> None:
     ideal = StereoRig()
     rig = StereoRig.from_degrees(roll_deg=0.8, pitch_deg=-0.5, yaw_deg=1.2)
     k = rig.intrinsics()
-    state = (3.0, 1.0, 0.4, 0.1)
-    p_ideal = ideal.camera_in_world(reference, *state, "right")
-    p_real = rig.camera_in_world(reference, *state, "right")
+    state = CombinationPose(3.0, 1.0, 0.4, 0.1)
+    p_ideal = ideal.camera_in_world(reference, state, "right")
+    p_real = rig.camera_in_world(reference, state, "right")
     np.testing.assert_allclose(p_ideal[:3, 3], p_real[:3, 3], atol=1e-12)  # same optical centre
     np.testing.assert_allclose(
-        ideal.camera_in_world(reference, *state, "left"), rig.camera_in_world(reference, *state, "left"), atol=1e-12
+        ideal.camera_in_world(reference, state, "left"), rig.camera_in_world(reference, state, "left"), atol=1e-12
     )
     rng = np.random.default_rng(3)
     cam_pts = np.column_stack([rng.uniform(-10, 10, 50), rng.uniform(-2, 2, 50), rng.uniform(3, 300, 50)])

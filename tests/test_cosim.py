@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from scenarios.config import load_scenario
-from scenarios.run.cosim import run_cosimulation
+from scenarios.run.drive import simulate
 from scenarios.run.metrics import estimator_errors
 from scenarios.setup.build import build_scenario
 
 
 def run(name, **overrides):
     setup = build_scenario(load_scenario(name, overrides))
-    outcome, cols = run_cosimulation(setup)
+    outcome, cols = simulate(setup)
     return setup, outcome, cols
 
 
@@ -93,7 +93,9 @@ def test_constant_slip_straight_has_the_analytic_offtracking():
 def test_a_jackknife_is_lost_control_and_the_run_kept():
     # 15 km/h on ice with adverse camber on a 25 m roundabout exceeds the available friction: jackknife. The run
     # stops when the articulation passes the physical limit, before the model blows up.
-    from scenarios.run.control_loss import MAX_ARTICULATION_DEG
+    from scenarios.loop.ends import RUN_LIMITS
+
+    MAX_ARTICULATION_DEG = RUN_LIMITS.max_articulation_deg
 
     _setup, outcome, cols = run("roundabout-3", **{"surface.preset": "ice", "camber.percent": 5.0, "path.radius": 25.0})
     assert outcome.status == "lost_control"
@@ -142,13 +144,12 @@ def test_truth_fed_steering_removes_the_offtracking_on_the_dry_roundabout():
     # Issue figure: dry, flat, truth feedback → true off-tracking RMS ≤ 0.10 m and max ≤ 0.15 m after warm-up,
     # where the unsteered trailer shows about half a metre on this 50 m roundabout.
     from scenarios.run.metrics import after_warmup
-    from scenarios.setup.build import trailer_controller
 
     results = {}
     for feedback in ("none", "truth"):
         cfg = load_scenario("roundabout-3", {"vehicle": "lst", "feedback": feedback, "path.turns": 0.5})
         setup = build_scenario(cfg)
-        outcome, cols = run_cosimulation(setup, trailer_steer_source=trailer_controller(setup))
+        outcome, cols = simulate(setup)
         settled = after_warmup(cols, setup.params.follow_point_offset)
         assert outcome.status == "completed" and settled.sum() > 500
         results[feedback] = cols["offtracking_truth"][settled]
@@ -161,7 +162,7 @@ def test_progress_reaches_the_end_when_the_duration_ends_the_run():
     # With --duration the run ends long before the path does; the progress bar once stopped at 4 %.
     setup = build_scenario(load_scenario("roundabout-3", {"duration_s": 5.0}))
     fractions: list[float] = []
-    outcome, _ = run_cosimulation(setup, progress=lambda t, frac: fractions.append(frac))
+    outcome, _ = simulate(setup, progress=lambda t, frac: fractions.append(frac))
     assert outcome.status == "completed"
     assert fractions[-1] == pytest.approx(1.0, abs=0.01)
     assert all(b >= a for a, b in itertools.pairwise(fractions))

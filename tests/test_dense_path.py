@@ -1,4 +1,4 @@
-"""The co-simulation's dense kingpin path (``scenarios.run.loop_parts.DensePath``): a ring of one buffer.
+"""The co-simulation's dense kingpin path (``scenarios.loop.estimators.DensePath``): a ring of one buffer.
 
 Its contract, checked against a direct implementation (a list of chunks, stacked on demand): the kept path is
 the newest whole chunks, as few as still span ``keep_length`` (at least two), oldest first.
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenarios.run.loop_parts import DensePath
+from scenarios.loop.estimators import DensePath
 
 
 def _chunk_lengths(chunks: list[np.ndarray]) -> list[float]:

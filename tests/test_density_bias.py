@@ -1,8 +1,8 @@
-"""Scenery density 0 keeps the rear camera's visual odometry unbiased (issue 14 item 4).
+"""Scenery density 0 keeps the rear camera's visual odometry unbiased.
 
-The paper's §3 constant-slip case with no roadside objects: before the landscape and the ground
-detail (:mod:`sensor.world.landscape`, :mod:`sensor.world.detail`) the rear camera saw only near
-ground, and VISO2's per-frame motion carried a yaw bias of −0.46 mrad and a lateral bias of +5.3 mm
+The constant-slip case of de Saxe & Cebon 2018, §3, with no roadside objects: without the landscape and the
+ground detail (:mod:`sensor.world.landscape`, :mod:`sensor.world.detail`) the rear camera sees only near
+ground, and VISO2's per-frame motion carries a yaw bias of about −0.46 mrad and a lateral bias of +5.3 mm
 (≈ 4 % of the lateral motion) that nearly cancel in the image but add up to −0.24 m of
 off-tracking error. With distant features the yaw is pinned.
 """
@@ -25,13 +25,13 @@ MAX_LATERAL_BIAS = 2.5e-3
 
 @pytest.mark.rendering
 def test_density_zero_rear_camera_vo_bias_is_bounded() -> None:
-    from scenarios.camera.rig import rig_from_config
-    from scenarios.camera.world import world_for_scenario
+    from scenarios.camera.build import rig_from_config, world_for_scenario
     from scenarios.config import load_scenario
     from scenarios.run.cosim import run_cosimulation
     from scenarios.setup.build import build_scenario
     from sensor.renderer import StereoRenderer
     from sensor.vo import StereoOdometry, VOConfig
+    from vehicle_model.geometry import CombinationPose
 
     # The overrides of the paper-section3 study's rear-camera slip case (scenarios.studies.definitions).
     overrides = {
@@ -49,9 +49,9 @@ def test_density_zero_rear_camera_vo_bias_is_bounded() -> None:
     rig = rig_from_config(config)
     renderer = StereoRenderer(world_for_scenario(setup), rig, setup.params, seed=config.seed)
     ticks = np.flatnonzero(np.asarray(cols["camera_frame"]) > 0.5)[: FRAMES + 1]
-    state = [np.asarray(cols[k])[ticks] for k in ("X", "Y", "psi1", "gamma")]
-    left = rig.camera_in_world(setup.params, *state, "left")
-    right = rig.camera_in_world(setup.params, *state, "right")
+    state = CombinationPose(*(np.asarray(cols[k])[ticks] for k in ("X", "Y", "psi1", "gamma")))
+    left = rig.camera_in_world(setup.params, state, "left")
+    right = rig.camera_in_world(setup.params, state, "right")
     vo = StereoOdometry(VOConfig.from_horizontal_fov(rig.width, rig.height, rig.hfov, rig.baseline), seed=0)
     errors = []
     for k in range(len(ticks)):

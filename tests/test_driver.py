@@ -11,14 +11,14 @@ import pytest
 from controller.driver import PathFollowingDriver
 from controller.driver_design import driver_margins
 from scenarios.config import load_scenario
-from scenarios.run.cosim import run_cosimulation
+from scenarios.run.drive import simulate
 from scenarios.setup.build import build_scenario, steady_feedforward
 from scenarios.setup.paths import Segment, build_path
 from vehicle_model.presets import vehicle_preset
 
 
 def curve_300(kmh: float):
-    # The 300 m dry curve of issue 13: 0.3 of a circle, 0.17 g at 80 km/h.
+    # A 300 m dry curve: 0.3 of a circle, 0.17 g at 80 km/h.
     config = load_scenario(
         "roundabout-3", {"vehicle": "reference", "path.radius": 300, "path.turns": 0.3, "speed.cornering_kmh": kmh}
     )
@@ -56,7 +56,7 @@ def steer_rate_rms(cols, mask) -> float:
 @pytest.mark.parametrize("kmh", [80.0, 90.0])
 def test_300m_curve_at_highway_speed_is_tracked_without_oscillation(kmh):
     setup = curve_300(kmh)
-    outcome, cols = run_cosimulation(setup)
+    outcome, cols = simulate(setup)
     assert outcome.status == "completed"
     e, s = cols["lateral_error"], cols["path_progress"]
     start, end = setup.path.turn_span
@@ -71,7 +71,7 @@ def test_300m_curve_at_highway_speed_is_tracked_without_oscillation(kmh):
 @pytest.mark.parametrize("kmh", [80.0, 90.0])
 def test_lane_change_at_highway_speed(kmh):
     setup = lane_change(kmh)
-    outcome, cols = run_cosimulation(setup)
+    outcome, cols = simulate(setup)
     assert outcome.status == "completed"
     assert np.abs(cols["lateral_error"]).max() < 0.3
     assert np.abs(cols["Y"][-1] - 3.5) < 0.5  # it did change lane

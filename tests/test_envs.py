@@ -20,8 +20,9 @@ from controller.path_following_config import PathFollowingGains
 from scenarios.envs import ENV_IDS, register_envs
 from scenarios.envs.gain_tuning_env import GAIN_RANGES, action_to_gains, gains_to_action
 from scenarios.envs.scenario import DomainRandomisation
-from scenarios.run.cosim import run_cosimulation
-from scenarios.setup.build import build_scenario, trailer_controller
+from scenarios.loop.trailer_steer import trailer_steer_for
+from scenarios.run.drive import simulate
+from scenarios.setup.build import build_scenario
 from vehicle_model.errors import InputError
 
 SHORT = {"path.turns": 0.1, "path.entry_length": 10.0, "path.exit_length": 5.0}
@@ -109,7 +110,7 @@ def test_same_seed_gives_identical_rollouts_and_other_seeds_differ() -> None:
     assert not data_equivalence(a[-1][0], c[-1][0])
 
 
-def test_residual_mode_with_zero_action_is_the_pid_of_run_cosimulation() -> None:
+def test_residual_mode_with_zero_action_is_the_pid_of_offtrack_run() -> None:
     """The step-wise loop, the actuator and the PID reproduce ``offtrack run`` tick for tick (noise included)."""
     env = make(action_mode="residual", feedback="zero_slip", overrides=NOISY, mu=0.3, camber_percent=4.0)
     env.reset(seed=3)
@@ -123,7 +124,7 @@ def test_residual_mode_with_zero_action_is_the_pid_of_run_cosimulation() -> None
             break
     assert not terminated
     setup = build_scenario(config)
-    outcome, cols = run_cosimulation(setup, trailer_steer_source=trailer_controller(setup))
+    outcome, cols = simulate(setup)
     assert outcome.status == "completed" and outcome.rows == len(truth) + 1
     np.testing.assert_array_equal(cols["offtracking_truth"][1:], truth)
     trailer_cols = [f"steer_{name}" for name in env.unwrapped._cosim.trailer_axles]
@@ -139,7 +140,7 @@ def test_gain_tuning_reward_is_minus_the_documented_cost() -> None:
     assert reward == pytest.approx(-expected)
     assert 0.0 < info["rms_offtracking"] < 0.05
     # designed gains, evaluated exactly (kd = 0 lies below the action's log range)
-    designed = trailer_controller(env.unwrapped._setup).gains
+    designed = trailer_steer_for(env.unwrapped._setup).controller.gains
     cost, info = env.unwrapped.evaluate(designed)
     assert info["kd"] == 0.0 and cost > 0.0
 

@@ -199,7 +199,7 @@ def test_offtracking_dominates_the_pid_return_and_the_parts_add_up() -> None:
     assert share > 0.9
     # the per-step off-tracking term is |e| / 0.10 m
     truth = env.unwrapped._cosim.tick.estimates["truth"]
-    assert info["reward_offtracking"] == pytest.approx(-abs(truth) / 0.10)
+    assert info["reward_offtracking"] == pytest.approx(-abs(truth.value) / 0.10)
 
 
 @pytest.mark.parametrize("feedback", ["truth", "zero_slip"])

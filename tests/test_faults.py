@@ -1,4 +1,4 @@
-"""Fault injection, end to end through the ``offtrack`` command in a subprocess (issue 13).
+"""Fault injection, end to end through the ``offtrack`` command in a subprocess.
 
 Each test injects one fault a script, a scheduler or a user would meet — a bad option, a bad field, a signal,
 a run that loses control, an output path that cannot be used — and checks what the README promises: the exit
@@ -116,7 +116,7 @@ def test_bad_input_is_one_line_and_exit_2(args: list[str], named: str) -> None:
 
 
 def test_bad_input_is_refused_before_any_work(tmp_path: Path) -> None:
-    # The 1 ns step once ate 23 GB; refused at once now, and nothing is written.
+    # A 1 ns step would take 23 GB of memory; it is refused at once, and nothing is written.
     t0 = time.monotonic()
     result = offtrack("run", "roundabout-test", "--set", "rates.dynamics_step_s=1e-9", "--out", str(tmp_path / "r"))
     assert_one_line_error(result, "rates.dynamics_step_s")
@@ -245,7 +245,7 @@ def test_run_files_are_readable_by_others_and_force_clears_the_old_run(tmp_path:
 def test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    # Issue 16: the camera rendered by spawned worker processes; SIGTERM stops them and keeps the rows.
+    # The camera rendered by spawned worker processes; SIGTERM stops them and keeps the rows.
     monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", "2")
     out = tmp_path / "r"
     proc = start(

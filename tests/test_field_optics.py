@@ -1,9 +1,11 @@
-"""The field optics in the loop (issue 14): lens, calibration and mount flex between the renderer and the odometry.
+"""The field optics in the loop (``sensor/field_optics.py``, ``sensor/stereo_camera.py``): lens, calibration, mount
+flex and the in-order exposure between the renderer and the odometry.
 
 The library parts are tested on their own (``test_lens``, ``test_calibration``, ``test_mount_flex``,
 ``test_lighting``); here: the ideal case is untouched, the chain undoes what it should, the flex warp rotates
 the right camera the way re-posing it in the renderer does, a calibration written by ``offtrack calibrate``
-is what a run loads, and pipelined runs with every field condition on record the same series as serial ones.
+is what a run loads, only the auto-exposure must develop the frames in order, and pipelined runs with every field
+condition on record the same series as serial ones.
 """
 
 from __future__ import annotations
@@ -17,8 +19,7 @@ import cv2
 import numpy as np
 import pytest
 
-from scenarios.camera.optics import field_optics
-from scenarios.camera.rig import rig_from_config
+from scenarios.camera.build import pair_developer, rig_from_config
 from scenarios.config import load_scenario
 from vehicle_model.errors import InputError
 
@@ -35,9 +36,9 @@ def texture(height: int, width: int, seed: int = 0) -> np.ndarray:
 
 def test_the_ideal_camera_has_no_field_optics() -> None:
     config = load_scenario("roundabout-3", {"estimators.viso_ot": True})
-    rig = rig_from_config(config)
-    optics = field_optics(rig, config)
-    assert not optics.active and optics.render_rig is rig  # the renderer draws exactly today's images
+    optics = pair_developer(config).optics
+    assert optics.rig == rig_from_config(config)
+    assert not optics.active and optics.render_rig is optics.rig  # the renderer draws exactly the ideal images
 
 
 def test_lens_with_ideal_calibration_gives_back_the_pinhole_image() -> None:
@@ -45,7 +46,7 @@ def test_lens_with_ideal_calibration_gives_back_the_pinhole_image() -> None:
     # render (same focal length, centred) within interpolation error.
     config = load_scenario("roundabout-3", {"estimators.viso_ot": True, **SMALL, **LENS})
     rig = rig_from_config(config)
-    optics = field_optics(rig, config)
+    optics = pair_developer(config).optics
     wide = optics.render_rig
     assert (wide.width, wide.height) > (rig.width, rig.height)
     assert np.allclose(wide.intrinsics()[0, 0], rig.intrinsics()[0, 0])
@@ -58,6 +59,28 @@ def test_lens_with_ideal_calibration_gives_back_the_pinhole_image() -> None:
     assert np.median(error) < 2.0 and np.percentile(error, 95) < 8.0  # grey levels
 
 
+def test_only_the_auto_exposure_develops_the_frames_in_order() -> None:
+    base = {"estimators.viso_ot": True, **SMALL}
+    ideal = pair_developer(load_scenario("roundabout-3", base))
+    assert not ideal.develops_in_order and ideal.correction is None
+    lit = pair_developer(load_scenario("roundabout-3", {**base, "camera.lighting.sun": True}))
+    assert lit.develops_in_order and lit.optics.sensor_effects_after  # the noise comes after the exposure
+    fixed = pair_developer(
+        load_scenario("roundabout-3", {**base, "camera.lighting.sun": True, "camera.lighting.auto_exposure": False})
+    )
+    assert not fixed.develops_in_order and not fixed.optics.active
+    # An unexposed pair (radiance at gain 1) comes out as grey levels exposed to the target level.
+    from sensor.stereo_camera import RawStereoPair
+
+    rig = lit.rig
+    radiance = np.full((rig.height, rig.width), 55.0, np.float32)
+    left, right = lit.develop(RawStereoPair(radiance, radiance, exposed=False), 0)
+    assert left.dtype == right.dtype == np.uint8
+    assert abs(float(left.mean()) - 110.0) < 1.0  # the default target level, gain 2
+    with pytest.raises(ValueError, match="auto-exposure"):
+        ideal.develop(RawStereoPair(radiance, radiance, exposed=False), 0)
+
+
 @pytest.mark.rendering
 def test_the_flex_warp_rotates_the_right_camera_like_re_posing_it() -> None:
     # Paper eq (8): a rotation about the optical centre is the homography K·Rᵀ·K⁻¹. Rendering the right camera
@@ -67,23 +90,21 @@ import json, numpy as np
 from scenarios.config import load_scenario
 from vehicle_model.errors import InputError
 from scenarios.setup.build import build_scenario
-from scenarios.camera.rig import rig_from_config
-from scenarios.camera.world import world_for_scenario
-from scenarios.camera.optics import field_optics
+from scenarios.camera.build import pair_developer, rig_from_config, world_for_scenario
 from sensor.camera import Misalignment
 from sensor.renderer import StereoRenderer
 over = {"estimators.viso_ot": True, "camera.width": 672, "camera.height": 196,
         "camera.flex.vibration_rms_deg": [0.5, 0.5, 0.5]}
 setup = build_scenario(load_scenario("roundabout-3", over))
 rig = rig_from_config(setup.config)
-optics = field_optics(rig, setup.config)
+optics = pair_developer(setup.config).optics
 rotation = Misalignment.from_degrees(0.4, -0.3, 0.5)
 renderer = StereoRenderer(world_for_scenario(setup), rig, setup.params)
 s = setup.initial_state
-aligned = renderer.render(s.X, s.Y, s.psi1, s.gamma, frame=0).right
+aligned = renderer.render(s.pose, frame=0).right
 _, warped = optics.prepare(aligned, aligned, right_rotation=rotation, seed=0, frame=0)
 renderer.rig = rig.replace(misalignment=rotation)
-posed = renderer.render(s.X, s.Y, s.psi1, s.gamma, frame=0).right
+posed = renderer.render(s.pose, frame=0).right
 inner = (slice(12, -12), slice(12, -12))
 d = np.abs(warped.astype(float) - posed.astype(float))[inner]
 back = Misalignment.from_degrees(-0.4, 0.3, -0.5)
@@ -133,7 +154,7 @@ def test_a_calibration_from_offtrack_calibrate_is_what_a_run_loads(tmp_path: Pat
             "camera.calibration.file": str(out / "calibration.yaml"),
         },
     )
-    optics = field_optics(rig_from_config(config), config)
+    optics = pair_developer(config).optics
     written = CalibrationResult.read(out / "calibration.yaml")
     assert optics.calibration is not None
     np.testing.assert_array_equal(optics.calibration.p1, written.p1)
@@ -147,7 +168,7 @@ def test_a_calibration_from_offtrack_calibrate_is_what_a_run_loads(tmp_path: Pat
         },
     )
     with pytest.raises(InputError, match=r"camera\.calibration\.file"):
-        field_optics(rig_from_config(wrong), wrong)  # made for 672×196 images, the camera is 1344×391
+        pair_developer(wrong)  # made for 672×196 images, the camera is 1344×391
 
 
 @pytest.mark.rendering

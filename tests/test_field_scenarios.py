@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from scenarios.config import catalogue_names, load_scenario
-from scenarios.run.cosim import run_cosimulation
+from scenarios.run.drive import simulate
 from scenarios.setup.build import build_scenario
 
 FIELD_SCENARIOS = ("field-figure-eight", "field-roundabout-left", "field-roundabout-right")
@@ -34,7 +34,7 @@ def short_roundabouts():
     runs = {}
     for direction in ("left", "right"):
         setup = build_scenario(load_scenario(f"field-roundabout-{direction}", {"duration_s": 30.0}))
-        outcome, cols = run_cosimulation(setup)
+        outcome, cols = simulate(setup)
         assert outcome.status == "completed"
         runs[direction] = cols
     return runs

@@ -1,4 +1,4 @@
-"""Configuration of the fused VISO-OT loop (issue 15): the controller's std fallback and the filter's bias term."""
+"""Configuration of the fused VISO-OT loop: the controller's std fallback and the filter's bias term."""
 
 from __future__ import annotations
 
@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from scenarios.config import ConfigError, load_scenario
-from scenarios.run.loop_parts import fused_estimator
-from scenarios.setup.build import build_scenario, trailer_controller
+from scenarios.loop.estimators import fused_viso_ot
+from scenarios.loop.participant import LoopContext
+from scenarios.loop.trailer_steer import trailer_steer_for
+from scenarios.setup.build import build_scenario
 
 
 @pytest.mark.parametrize(
@@ -30,16 +32,20 @@ def test_the_bias_term_reaches_the_filter() -> None:
     class Camera:  # only the pose is read
         camera_in_trailer = np.eye(4)
 
+    def fused(setup):
+        context = LoopContext(setup, None, 0.02, estimators={"viso_ot": Camera()})  # type: ignore[arg-type]
+        return fused_viso_ot(context).filter
+
     setup = build_scenario(load_scenario("roundabout-3", {"vehicle": "lst", "fusion.offtracking_bias_std": 0.04}))
-    assert fused_estimator(setup, Camera()).noise.offtracking_bias_std == 0.04
+    assert fused(setup).noise.offtracking_bias_std == 0.04
     default = build_scenario(load_scenario("roundabout-3", {"vehicle": "lst"}))
-    assert fused_estimator(default, Camera()).noise.offtracking_bias_std == 0.025
+    assert fused(default).noise.offtracking_bias_std == 0.025
 
 
 def test_the_std_fallback_threshold_reaches_the_controller() -> None:
     setup = build_scenario(
         load_scenario("roundabout-3", {"vehicle": "lst", "feedback": "truth", "controller.feedback_max_std_m": 0.08})
     )
-    assert trailer_controller(setup).config.feedback_max_std == 0.08
+    assert trailer_steer_for(setup).controller.config.feedback_max_std == 0.08
     default = build_scenario(load_scenario("roundabout-3", {"vehicle": "lst", "feedback": "truth"}))
-    assert trailer_controller(default).config.feedback_max_std == 0.05
+    assert trailer_steer_for(default).controller.config.feedback_max_std == 0.05

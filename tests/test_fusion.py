@@ -209,9 +209,9 @@ def test_a_gated_motion_is_refused() -> None:
 @pytest.mark.rendering
 def test_a_short_rendered_run_steered_by_the_fused_estimate_beats_raw_viso_ot() -> None:
     from scenarios.config import load_scenario
-    from scenarios.run.cosim import run_cosimulation
+    from scenarios.run.drive import simulate
     from scenarios.run.metrics import estimator_errors
-    from scenarios.setup.build import build_scenario, trailer_controller
+    from scenarios.setup.build import build_scenario
 
     cfg = load_scenario(
         "roundabout-3",
@@ -226,7 +226,7 @@ def test_a_short_rendered_run_steered_by_the_fused_estimate_beats_raw_viso_ot() 
         },
     )
     setup = build_scenario(cfg)
-    outcome, columns = run_cosimulation(setup, trailer_steer_source=trailer_controller(setup), camera_workers=0)
+    outcome, columns = simulate(setup, camera_workers=0)
     assert outcome.status == "completed"
     truth = columns["offtracking_truth"]
     raw = estimator_errors(truth, columns["offtracking_viso_ot"])

@@ -125,7 +125,7 @@ def test_default_controller_gains_are_the_15_kmh_design(lst):
 
 def test_kinematic_design_without_delay_places_the_poles():
     # All axles steered: the kinematic plant is exact, and the closed loop has the placed poles
-    # σ² + 2ζω_n σ + ω_n² = 0 per metre, i.e. s = u·σ per second (reference notes §7.3).
+    # σ² + 2ζω_n σ + ω_n² = 0 per metre, i.e. s = u·σ per second (docs/vehicle_dynamics.md §7.3).
     params = reference_laden().model_dump()
     for axle in params["trailer"]["axles"]:
         axle["steerable"] = True

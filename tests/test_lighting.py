@@ -1,4 +1,4 @@
-"""Sun, shadows, sky and auto-exposure (issue 14 item 3; paper §4.2, Fig 14).
+"""Sun, shadows, sky and auto-exposure (de Saxe & Cebon 2018, §4.2, Fig 14).
 
 The acceptance test drives the rear camera three times around the roundabout-3 ring with a low sun
 (12°) at half resolution (672 × 196, image noise 2 grey levels): at 40 points per turn it renders a
@@ -20,6 +20,7 @@ from sensor.camera import StereoRig
 from sensor.lighting import Lighting, light_world, sun_direction
 from sensor.world import build_world
 from vehicle_model.errors import InputError
+from vehicle_model.geometry import CombinationPose
 
 rendering = pytest.mark.rendering
 
@@ -51,12 +52,12 @@ def test_flat_lighting_leaves_the_images_unchanged(ring) -> None:
     rig = StereoRig(width=320, height=96)
     params = vehicle_preset("reference")
     i = int(np.searchsorted(ring.s, 150.0))
-    state = (ring.x[i], ring.y[i], ring.heading[i], 0.0)
-    a = StereoRenderer(world, rig, params).render(*state, frame=0)
-    b = StereoRenderer(world, rig, params, lighting=Lighting()).render(*state, frame=0)
+    state = CombinationPose(ring.x[i], ring.y[i], ring.heading[i], 0.0)
+    a = StereoRenderer(world, rig, params).render(state, frame=0)
+    b = StereoRenderer(world, rig, params, lighting=Lighting()).render(state, frame=0)
     assert np.array_equal(a.left, b.left) and np.array_equal(a.right, b.right)
     lit = StereoRenderer(world, rig, params, lighting=Lighting.field())
-    c = lit.render(*state, frame=0)
+    c = lit.render(state, frame=0)
     assert not np.array_equal(a.left, c.left)
     again = pickle.loads(pickle.dumps(lit))
     assert again.lighting == lit.lighting and again._lit is None
@@ -80,7 +81,7 @@ def test_matched_features_rise_and_fall_once_per_turn_with_a_low_sun(ring) -> No
         vo.reset()
         for j, sj in enumerate((s - 0.42, s)):  # one 10 fps frame pair at 15 km/h
             x, y, h = (float(np.interp(sj, ring.s, a)) for a in (ring.x, ring.y, ring.heading))
-            result = vo.process(*_pair(renderer.render(x, y, h, 0.0, frame=2 * k + j)))
+            result = vo.process(*_pair(renderer.render(CombinationPose(x, y, h, 0.0), frame=2 * k + j)))
         counts.append(result.n_matches)
         gains.append(renderer.last_gain)
     c = np.asarray(counts, float)

@@ -162,8 +162,8 @@ def test_the_co_simulation_is_the_same_on_both_paths(monkeypatch):
     # A short steered LST run on a patchy, cambered surface: every recorded column equal to 1e-12 relative
     # whether the simulator steps through the compiled period or the casadi fallback.
     from scenarios.config import load_scenario
-    from scenarios.run.cosim import run_cosimulation
-    from scenarios.setup.build import build_scenario, trailer_controller
+    from scenarios.run.drive import simulate
+    from scenarios.setup.build import build_scenario
 
     overrides = {
         "vehicle": "lst",
@@ -176,10 +176,10 @@ def test_the_co_simulation_is_the_same_on_both_paths(monkeypatch):
     setup = build_scenario(load_scenario("roundabout-3", overrides))
     if setup.model.library is None:
         pytest.skip("no C compiler: the simulator runs the casadi path only")
-    fast = run_cosimulation(setup, trailer_steer_source=trailer_controller(setup))
+    fast = simulate(setup)
     refused: list[object] = []
     monkeypatch.setattr("vehicle_model.simulator.load_period", refused.append)  # → None: the casadi path
-    plain = run_cosimulation(setup, trailer_steer_source=trailer_controller(setup))
+    plain = simulate(setup)
     assert refused == [setup.model.library]
     assert fast[0].status == plain[0].status == "completed" and fast[0].rows == plain[0].rows > 300
     for name, column in fast[1].items():

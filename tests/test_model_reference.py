@@ -1,4 +1,4 @@
-"""The reference checks of shared/reference/vehicle-dynamics.md §9, each with its tolerance."""
+"""The reference checks of docs/vehicle_dynamics.md §9, each with its tolerance (§ numbers below refer to that file)."""
 
 from __future__ import annotations
 
@@ -74,7 +74,7 @@ def test_low_speed_offtracking_matches_kinematic_formula(reference, reference_mo
     # §9.3: at 1 m/s the trailer's zero-lateral-velocity point sits at L_eq and OT5 = R5 − sqrt(R5² − L_eq²).
     # Within 1 cm on a 25 m radius; at roundabout size (R5 = 10.19 m) the scrubbing tri-axle runs at
     # ±5° slip where the Magic Formula is no longer linear, which moves the point by 3 cm (allowed 4 cm).
-    # The station itself: the reference's dynamic model gave 7.835 m against L_eq = 7.846 m (1.1 cm).
+    # The station itself: §2.3 gives 7.835 m from the nonlinear model against L_eq = 7.846 m (1.1 cm).
     op = trim(reference, 1.0, kingpin_curvature=1.0 / kingpin_radius, model=reference_model)
     leq = reference.equivalent_wheelbase()
     centre = op.turn_centre_trailer(reference)

@@ -11,13 +11,13 @@ from scipy.linalg import expm
 from scipy.signal import welch
 
 from sensor.camera import Misalignment
-from sensor.mount_flex import DAMPING, MountFlex, MountFlexModel, vibration_transition
+from sensor.mount_flex import DAMPING, FlexSchedule, MountFlex, MountFlexModel, vibration_transition
 from vehicle_model.errors import InputError
 from vehicle_model.kinematics import steady_lateral_acceleration, trailer_lateral_acceleration, trailer_point_velocity
 from vehicle_model.presets import field
 from vehicle_model.simulator import VehicleState
 
-STATIC = Misalignment.from_degrees(roll=-0.15, yaw=0.10)  # paper §4.4
+STATIC = Misalignment.from_degrees(roll=-0.15, yaw=0.10)  # de Saxe & Cebon 2018, §4.4
 
 
 def steady_turn(sign: int, t: float, speed: float = 15.0 / 3.6, radius: float = 11.5) -> VehicleState:
@@ -66,6 +66,22 @@ def test_twist_sign_and_magnitude_left_against_right():
     assert d_right == pytest.approx(-d_left, abs=1e-12)
     # The paper's hypothesis (§4.3): a positive roll twist corrects φ = −0.15° in left turns, amplifies it in right.
     assert abs(left.roll) < abs(STATIC.roll) < abs(right.roll)
+
+
+def test_the_flex_schedule_twists_with_the_acceleration_between_frames():
+    # Frame by frame, in order: the first frame has no previous state (no acceleration), the next ones twist by
+    # k·a_y of the trailer between consecutive states; zero flex gives no rotation at all.
+    params = field()
+    twist = (0.04, -0.01, -0.03)
+    schedule = FlexSchedule(MountFlex(twist_deg_per_mps2=twist), params, None, 0.1, np.random.default_rng(0))
+    first = schedule.rotation(steady_turn(1, 0.0))
+    assert first is not None and first.is_zero
+    second = schedule.rotation(steady_turn(1, 0.1))
+    a_y = trailer_lateral_acceleration(params, steady_turn(1, 0.0), steady_turn(1, 0.1))
+    assert second is not None
+    np.testing.assert_allclose([second.roll, second.pitch, second.yaw], np.radians(twist) * a_y, rtol=1e-12)
+    still = FlexSchedule(MountFlex(), params, None, 0.1, np.random.default_rng(0))
+    assert still.rotation(steady_turn(1, 0.0)) is None and still.rotation(steady_turn(1, 0.1)) is None
 
 
 def test_zero_flex_is_exactly_the_static_misalignment():

@@ -13,7 +13,6 @@ import itertools
 import numpy as np
 import pytest
 
-from scenarios.camera.pipeline import right_correction_homography
 from scenarios.config import load_scenario
 from scenarios.run.cosim import run_cosimulation
 from scenarios.setup.build import build_scenario
@@ -29,6 +28,7 @@ from scenarios.studies.section4 import (
     sign_conditioned_errors,
 )
 from sensor.camera import StereoRig
+from sensor.field_optics import right_correction_homography
 
 FIELD_SCENARIOS = ("field-figure-eight", "field-roundabout-left", "field-roundabout-right")
 

@@ -11,7 +11,7 @@ from vehicle_model.surface import FrictionPatch, RadialCamber, UniformFriction, 
 
 
 def test_reference_static_loads_match_reference_notes(reference):
-    # Reference notes §4.1: steer 7.32 t, drive 8.50 t, tag 8.50 t, trailer 3 × 6.21 t, kingpin 14.47 t.
+    # docs/vehicle_dynamics.md §4.1: steer 7.32 t, drive 8.50 t, tag 8.50 t, trailer 3 × 6.21 t, kingpin 14.47 t.
     loads_t = reference.axle_table.static_load / GRAVITY / 1000.0
     assert loads_t == pytest.approx([7.32, 8.50, 8.50, 6.21, 6.21, 6.21], abs=0.006)
     assert reference.kingpin_load / GRAVITY / 1000.0 == pytest.approx(14.47, abs=0.005)
@@ -21,7 +21,7 @@ def test_reference_static_loads_match_reference_notes(reference):
 
 
 def test_reference_geometry(reference):
-    # Reference notes §4.1: h1 = 2.0353 m, h2 = 4.3344 m, L_eq = 7.846 m.
+    # docs/vehicle_dynamics.md §4.1: h1 = 2.0353 m, h2 = 4.3344 m, L_eq = 7.846 m.
     assert reference.h1 == pytest.approx(2.0353, abs=1e-4)
     assert reference.h2 == pytest.approx(4.3344, abs=1e-4)
     assert reference.equivalent_wheelbase() == pytest.approx(7.846, abs=5e-4)

@@ -11,11 +11,14 @@ import pytest
 from controller.axle_steer_distribution import AxleSteerDistribution, path_following_steer
 from controller.path_following import TrailerSteeringController
 from controller.path_following_config import PathFollowingConfig, PathFollowingGains
-from scenarios.config import load_scenario
-from scenarios.run.cosim import run_cosimulation
+from scenarios.config import ConfigError, load_scenario
+from scenarios.loop.cosimulation import CoSimulation
+from scenarios.loop.trailer_steer import PathFollowingSteer
+from scenarios.run.drive import simulate
 from scenarios.setup.build import build_scenario
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
+from vehicle_model.offtracking import OfftrackingEstimate
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.presets import lst_laden, reference_laden
 from vehicle_model.simulator import VehicleState
@@ -50,7 +53,7 @@ def state(speed=2.0, r1=0.0, gamma=0.0, v1=0.0, time=0.0) -> VehicleState:
 def steady_turn(params: VehicleParams, kingpin_radius: float, speed: float = 1.0, sign: int = 1) -> VehicleState:
     """Zero-slip steady turn of the kingpin on ``kingpin_radius`` with the follow point on the kingpin's circle.
 
-    Reference notes §2.3 and §6.2: the kingpin moves at ``(u, −e5·r1)`` in tractor axes and the articulation is
+    docs/vehicle_dynamics.md §2.3 and §6.2: the kingpin moves at ``(u, −e5·r1)`` in tractor axes and the articulation is
     ``Γ = atan2(L_fp/2, y_c) − atan2(v_k1y, u)`` with ``y_c = sqrt(R5² − L_fp²/4)``.
     """
     e5 = -params.tractor_wheelbase() - params.tractor.fifth_wheel_x
@@ -70,7 +73,8 @@ def run_ticks(ctrl, states_and_estimates):
 
 def constant(ctrl, st: VehicleState, estimate, n: int, t0: float = 0.0) -> np.ndarray:
     """``n`` ticks of the same state (time advancing) and the same estimate; returns every command."""
-    return run_ticks(ctrl, ((dataclasses.replace(st, time=t0 + k * DT), {"truth": estimate}) for k in range(n)))
+    held = OfftrackingEstimate.of(estimate)
+    return run_ticks(ctrl, ((dataclasses.replace(st, time=t0 + k * DT), held) for k in range(n)))
 
 
 # ----------------------------------------------------------------------------- signs
@@ -80,19 +84,19 @@ def test_feedback_steers_the_rear_out_of_a_cut_in_left_turn_and_mirrors_in_a_rig
     cfg = PathFollowingConfig(max_steer_rate=FAST)
     left = steady_turn(all_steer_reference, 20.0, sign=1)
     right = steady_turn(all_steer_reference, 20.0, sign=-1)
-    on_path = TrailerSteeringController(all_steer_reference, cfg)(left, {"truth": 0.0})
+    on_path = TrailerSteeringController(all_steer_reference, cfg)(left, OfftrackingEstimate.of(0.0))
     # Left turn, unsteered-like cut-in: e_tr < 0, the follow point is inside (left of) the kingpin path. The rear
     # must move right: every axle steers further right (negative) than on the path.
     ctrl_left = TrailerSteeringController(all_steer_reference, cfg)
-    cut_in = ctrl_left(left, {"truth": -0.3})
+    cut_in = ctrl_left(left, OfftrackingEstimate.of(-0.3))
     assert ctrl_left.feedback_steer < 0
     assert np.all(cut_in < on_path - 1e-3)
-    # The virtual axle steered right turns the zero-slip trailer left faster (reference notes §2.3:
+    # The virtual axle steered right turns the zero-slip trailer left faster (docs/vehicle_dynamics.md §2.3:
     # r2 = (v_k2y − v_k2x tan δ_v)/L_v), so its heading catches up with the path and e_tr rises towards 0.
     assert ctrl_left.virtual_steer < ctrl_left.feedforward_steer
     # The mirrored right turn with the mirrored error gives the mirrored command.
     ctrl_right = TrailerSteeringController(all_steer_reference, cfg)
-    mirrored = ctrl_right(right, {"truth": +0.3})
+    mirrored = ctrl_right(right, OfftrackingEstimate.of(+0.3))
     assert mirrored == pytest.approx(-cut_in, abs=1e-12)
     assert ctrl_right.feedback_steer > 0
 
@@ -100,10 +104,10 @@ def test_feedback_steers_the_rear_out_of_a_cut_in_left_turn_and_mirrors_in_a_rig
 def test_on_a_straight_a_follow_point_left_of_the_path_steers_every_axle_right():
     params = lst_laden()
     ctrl = TrailerSteeringController(params, PathFollowingConfig(max_steer_rate=FAST))
-    cmd = ctrl(state(), {"truth": -0.2})
+    cmd = ctrl(state(), OfftrackingEstimate.of(-0.2))
     assert cmd.shape == (2,) and ctrl.axle_names == ("trailer2", "trailer3")
     assert np.all(cmd < 0)
-    cmd_right = TrailerSteeringController(params, PathFollowingConfig(max_steer_rate=FAST))(state(), {"truth": 0.2})
+    cmd_right = TrailerSteeringController(params, PathFollowingConfig(max_steer_rate=FAST))(state(), OfftrackingEstimate.of(0.2))
     assert cmd_right == pytest.approx(-cmd, abs=1e-12)
 
 
@@ -163,7 +167,7 @@ def test_missing_estimate_freezes_the_integrator_and_leaves_the_feedforward(all_
     constant(ctrl, turn, -0.1, 200)
     frozen = ctrl.integral
     assert frozen < 0
-    ff_only = TrailerSteeringController(all_steer_reference, cfg, feedback=None)
+    ff_only = TrailerSteeringController(all_steer_reference, cfg)
     reference = constant(ff_only, turn, None, 400)[-1]
     cmd = constant(ctrl, turn, None, 200, t0=4.0)[-1]
     assert ctrl.feedback_steer == 0.0 and ctrl.estimate is None
@@ -175,13 +179,13 @@ def test_missing_estimate_freezes_the_integrator_and_leaves_the_feedforward(all_
 def test_hold_recognises_new_samples_and_differentiates_only_on_them():
     params = lst_laden()
     cfg = PathFollowingConfig(gains=PathFollowingGains(kp=0.2, ki=0.0, kd=0.5), feedforward="none")
-    ctrl = TrailerSteeringController(params, cfg, feedback="viso_ot")
+    ctrl = TrailerSteeringController(params, cfg)
     st = state(speed=4.0)  # 0.08 m per tick
     derivative = []
     new = []
     for k in range(20):
         sample = -0.01 * (k // 5)  # a camera sample every 5 ticks (10 Hz at 50 Hz), held in between
-        ctrl(dataclasses.replace(st, time=k * DT), {"truth": 0.0, "viso_ot": sample})
+        ctrl(dataclasses.replace(st, time=k * DT), OfftrackingEstimate.of(sample))
         new.append(ctrl.new_sample)
         derivative.append((ctrl.feedback_steer - 0.2 * ctrl.estimate) / 0.5)
     assert new == [k % 5 == 0 for k in range(20)]
@@ -194,7 +198,7 @@ def test_speed_fade(all_steer_reference):
     cfg = PathFollowingConfig(PathFollowingGains(kp=0.3), feedforward="none", max_steer_rate=FAST)
 
     def command(speed):
-        return TrailerSteeringController(all_steer_reference, cfg)(state(speed=speed), {"truth": -0.1})
+        return TrailerSteeringController(all_steer_reference, cfg)(state(speed=speed), OfftrackingEstimate.of(-0.1))
 
     full = command(2.0)
     assert np.all(full < 0)
@@ -206,7 +210,7 @@ def test_speed_fade(all_steer_reference):
 # ----------------------------------------------------------------------------- feed-forward and distribution
 
 
-EXPECTED = np.radians([-2.8, -11.8, -20.2])  # reference notes §5.3: front, middle, rear; L_fp 12 m, R5 10.13 m
+EXPECTED = np.radians([-2.8, -11.8, -20.2])  # docs/vehicle_dynamics.md §5.3: front, middle, rear; L_fp 12 m, R5 10.13 m
 
 
 def test_steady_feedforward_gives_the_kinematic_steer_angles(all_steer_reference):
@@ -214,7 +218,7 @@ def test_steady_feedforward_gives_the_kinematic_steer_angles(all_steer_reference
     distribution = AxleSteerDistribution.for_vehicle(all_steer_reference)
     _, angles = path_following_steer(distribution, 1.0 / 10.13, 12.0)
     assert angles == pytest.approx(EXPECTED, abs=math.radians(0.2))
-    # Any virtual axle gives the same axle angles when every axle is steered (reference notes §2.3).
+    # Any virtual axle gives the same axle angles when every axle is steered (docs/vehicle_dynamics.md §2.3).
     _, other = path_following_steer(AxleSteerDistribution.for_vehicle(all_steer_reference, 5.0), 1.0 / 10.13, 12.0)
     assert other == pytest.approx(angles, abs=1e-12)
     # The controller in the steady turn, feed-forward alone (no estimate yet).
@@ -222,14 +226,14 @@ def test_steady_feedforward_gives_the_kinematic_steer_angles(all_steer_reference
     ctrl = TrailerSteeringController(
         all_steer_reference, PathFollowingConfig(feedforward="steady", max_steer_rate=FAST)
     )
-    cmd = ctrl(turn, {"truth": None})
+    cmd = ctrl(turn, OfftrackingEstimate.of(None))
     assert ctrl.kingpin_curvature == pytest.approx(1.0 / 10.13, rel=1e-12)
     assert cmd == pytest.approx(EXPECTED, abs=math.radians(0.2))
 
 
 def test_chord_feedforward_equals_the_steady_law_once_a_trailer_length_is_driven(all_steer_reference):
     turn = steady_turn(all_steer_reference, 10.13)
-    ctrl = TrailerSteeringController(all_steer_reference, PathFollowingConfig(feedforward="path"), feedback=None)
+    ctrl = TrailerSteeringController(all_steer_reference, PathFollowingConfig(feedforward="path"))
     cmds = constant(ctrl, turn, None, 900)  # 18 m at 1 m/s
     assert cmds[-1] == pytest.approx(EXPECTED, abs=math.radians(0.2))
     # Entering the turn from a straight, it steers less than the steady law at first (the follow point is
@@ -237,7 +241,7 @@ def test_chord_feedforward_equals_the_steady_law_once_a_trailer_length_is_driven
     early = cmds[round(2.0 / DT)]
     assert abs(early[2]) < abs(EXPECTED[2]) - math.radians(5.0)
     # Mirror.
-    mirrored = TrailerSteeringController(all_steer_reference, PathFollowingConfig(), feedback=None)
+    mirrored = TrailerSteeringController(all_steer_reference, PathFollowingConfig())
     right = constant(mirrored, steady_turn(all_steer_reference, 10.13, sign=-1), None, 900)
     assert right == pytest.approx(-cmds, abs=1e-9)
 
@@ -263,11 +267,11 @@ def test_fixed_axle_compensation_balances_the_yaw_moment_about_the_kingpin():
 def test_errors_are_clear():
     with pytest.raises(InputError, match="no steerable trailer axle"):
         TrailerSteeringController(reference_laden())
-    with pytest.raises(InputError, match="feedback"):
-        TrailerSteeringController(lst_laden(), feedback="gps")  # type: ignore[arg-type]
-    ctrl = TrailerSteeringController(lst_laden(), feedback="viso_ot")
-    with pytest.raises(InputError, match="no off-tracking estimate named 'viso_ot'"):
-        ctrl(state(), {"truth": 0.0, "zero_slip": 0.0})
+    with pytest.raises(ConfigError, match="feedback = 'gps': must be one of none, truth, zero_slip"):
+        load_scenario("roundabout-3", {"vehicle": "lst", "feedback": "gps"})
+    setup = build_scenario(load_scenario("roundabout-3", {"vehicle": "lst", "duration_s": 1.0}))
+    with pytest.raises(InputError, match="feeds back 'viso_ot', which this run does not estimate"):
+        CoSimulation(setup, PathFollowingSteer(TrailerSteeringController(setup.params), "viso_ot"))
     with pytest.raises(InputError, match="max_steer"):
         PathFollowingConfig(max_steer=-0.1)
     with pytest.raises(InputError, match="kp"):
@@ -287,18 +291,18 @@ def test_slip_limit_holds_each_axle_within_its_velocity_direction_and_freezes_th
     u, r2 = 4.0, 0.1
     st = VehicleState(0.0, 0.0, 0.0, 0.0, u, 0.0, 0.0, 0.0, r2, slip=np.zeros(6))
     beta = np.arctan(-r2 * params.trailer_axle_distances()[1:] / u)
-    cmds = run_ticks(ctrl, ((dataclasses.replace(st, time=k * DT), {"truth": -5.0}) for k in range(50)))
+    cmds = run_ticks(ctrl, ((dataclasses.replace(st, time=k * DT), OfftrackingEstimate.of(-5.0)) for k in range(50)))
     assert cmds[-1] == pytest.approx(beta - limit, abs=1e-12)  # pushed right, held at −α_max of slip
     assert np.all(cmds >= beta - limit - 1e-12)
     assert ctrl.slip_limited.all() and not ctrl.saturated.any()
     assert ctrl.integral == 0.0  # every axle held: conditional integration does not wind up
     assert ctrl.telemetry()["slip_limited_trailer3"] == 1.0
     # The reversed error leaves the limit on the first tick (nothing wound up) and mirrors about β_j.
-    back = ctrl(dataclasses.replace(st, time=1.0), {"truth": +5.0})
+    back = ctrl(dataclasses.replace(st, time=1.0), OfftrackingEstimate.of(+5.0))
     assert back == pytest.approx(beta + limit, abs=1e-12)
     # Off by default: the same error drives the axles to the 25° lock.
     default = TrailerSteeringController(params, PathFollowingConfig(max_steer_rate=FAST, feedforward="none"))
-    free = run_ticks(default, ((dataclasses.replace(st, time=k * DT), {"truth": -5.0}) for k in range(50)))
+    free = run_ticks(default, ((dataclasses.replace(st, time=k * DT), OfftrackingEstimate.of(-5.0)) for k in range(50)))
     assert free[-1] == pytest.approx(np.full(2, -math.radians(25.0)), abs=1e-12)
     assert not default.slip_limited.any()
 
@@ -330,8 +334,8 @@ def closed_loop(name, model=None, feedback="truth", **overrides):
     setup = build_scenario(load_scenario(name, overrides))
     if model is not None:
         setup = dataclasses.replace(setup, params=model.params, model=model)
-    ctrl = TrailerSteeringController(setup.params, feedback=feedback) if feedback != "none" else None
-    outcome, cols = run_cosimulation(setup, trailer_steer_source=ctrl)
+    ctrl = TrailerSteeringController(setup.params) if feedback != "none" else None
+    outcome, cols = simulate(setup, PathFollowingSteer(ctrl, feedback) if ctrl is not None else None)
     assert outcome.status == "completed"
     return setup, cols, ctrl
 
@@ -378,6 +382,6 @@ def test_unsteered_trailer_offtracks_by_metres_on_the_roundabout_test_and_the_co
     steered = after_warm_up(setup, cols)
     assert np.abs(steered).max() <= 0.15
     assert np.sqrt(np.mean(steered**2)) <= 0.10
-    # The rear axle works near −20° (reference notes §5.3) without reaching the ±25° limit.
+    # The rear axle works near −20° (docs/vehicle_dynamics.md §5.3) without reaching the ±25° limit.
     assert np.nanmin(cols["steer_trailer3"]) == pytest.approx(math.radians(-20.2), abs=math.radians(1.5))
     assert not ctrl.saturated.any()

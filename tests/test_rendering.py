@@ -5,7 +5,7 @@ Tests that render are marked ``rendering`` (headless OpenGL through EGL). Tolera
 * depth of flat road: relative error ≤ 1e-4 (24-bit depth buffer; measured ~2e-5);
 * marker centroid within 0.1 px of its pinhole projection, disparity within 0.1 px of f·B/Z
   (measured < 0.01 px);
-* right-camera misalignment vs the homography K·R·K⁻¹ (paper eq (8)): median corner error
+* right-camera misalignment vs the homography K·R·K⁻¹ (de Saxe & Cebon 2018, eq (8)): median corner error
   ≤ 0.2 px and 90 % within 0.5 px (LK-tracked), normalised correlation ≥ 0.99.
 """
 
@@ -27,6 +27,7 @@ from scenarios.setup.paths import roundabout_path
 from sensor.camera import StereoRig, project
 from sensor.world import RoadPath, World, WorldConfig, build_world
 from vehicle_model.errors import InputError, OfftrackError
+from vehicle_model.geometry import CombinationPose
 
 rendering = pytest.mark.rendering
 
@@ -52,9 +53,9 @@ def flat_world() -> World:
     return build_world(RoadPath.straight(400.0, start=(-200.0, 0.0)), scenery_density=0.0, seed=1)
 
 
-def _ring_state(path, s: float) -> tuple[float, float, float, float]:
+def _ring_state(path, s: float) -> CombinationPose:
     i = int(np.searchsorted(path.s, s))
-    return float(path.x[i]), float(path.y[i]), float(path.heading[i]), 0.05
+    return CombinationPose(float(path.x[i]), float(path.y[i]), float(path.heading[i]), 0.05)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -215,15 +216,15 @@ def test_same_seed_same_images_other_seed_different(roundabout) -> None:
     images = []
     for seed in (3, 3, 4):
         world = build_world(roundabout, seed=seed, scenery_density=0.5)
-        images.append(StereoRenderer(world, rig, params).render(*state, frame=5))
+        images.append(StereoRenderer(world, rig, params).render(state, frame=5))
     np.testing.assert_array_equal(images[0].left, images[1].left)
     np.testing.assert_array_equal(images[0].right, images[1].right)
     assert np.abs(images[0].left.astype(int) - images[2].left.astype(int)).mean() > 5.0
     # Noise and exposure depend on the frame index, not on the call order.
     world = build_world(roundabout, seed=3, scenery_density=0.5)
     again = StereoRenderer(world, rig, params)
-    other = again.render(*state, frame=6)
-    np.testing.assert_array_equal(again.render(*state, frame=5).left, images[0].left)
+    other = again.render(state, frame=6)
+    np.testing.assert_array_equal(again.render(state, frame=5).left, images[0].left)
     diff = other.left.astype(float) - images[0].left.astype(float)
     assert 1.5 < np.std(diff[(images[0].left > 20) & (images[0].left < 230)]) < 8.0
 
@@ -238,8 +239,8 @@ def test_right_camera_misalignment_is_the_homography(default_world: World, round
     state = _ring_state(roundabout, 150.0)
     ideal = StereoRig()
     rotated = StereoRig.from_degrees(roll_deg=1.0, pitch_deg=0.6, yaw_deg=-0.8)
-    a = StereoRenderer(default_world, ideal, params, antialias=True).render(*state).right
-    b = StereoRenderer(default_world, rotated, params, antialias=True).render(*state).right
+    a = StereoRenderer(default_world, ideal, params, antialias=True).render(state).right
+    b = StereoRenderer(default_world, rotated, params, antialias=True).render(state).right
     h = rotated.misalignment_homography()
     corners = cv2.goodFeaturesToTrack(a, 500, 0.01, 8)
     predicted = cv2.perspectiveTransform(corners, h)
@@ -275,7 +276,7 @@ def test_images_have_hundreds_of_features(roundabout, density: float) -> None:
     world = build_world(roundabout, scenery_density=density)
     renderer = StereoRenderer(world, StereoRig(), params)
     for s in (20.0, 150.0):
-        pair = renderer.render(*_ring_state(roundabout, s))
+        pair = renderer.render(_ring_state(roundabout, s))
         for img in (pair.left, pair.right):
             corners = cv2.goodFeaturesToTrack(img, 3000, 0.01, 5)
             assert corners is not None and len(corners) >= 300, (density, s, 0 if corners is None else len(corners))
@@ -290,9 +291,13 @@ def test_side_camera_sees_the_central_island(default_world: World, roundabout) -
 
     params = vehicle_preset("reference")
     rig = StereoRig.from_degrees(psi_c2v_deg=270.0)
-    pair = StereoRenderer(default_world, rig, params).render(*_ring_state(roundabout, 150.0), depth=True)
+    renderer = StereoRenderer(default_world, rig, params)
+    pair = renderer.render(_ring_state(roundabout, 150.0), depth=True)
     centre_col = pair.depth_left[rig.height // 2 + 20 :, rig.width // 2 - 50 : rig.width // 2 + 50]
     assert 5.0 < np.median(centre_col[centre_col > 0]) < 60.0
+    # One camera at the combination pose is the pair's (no noise, flat lighting), the right one too.
+    np.testing.assert_array_equal(renderer.render_view(_ring_state(roundabout, 150.0))[0], pair.left)
+    np.testing.assert_array_equal(renderer.render_view(_ring_state(roundabout, 150.0), which="right")[0], pair.right)
 
 
 @rendering
@@ -387,7 +392,7 @@ def test_bench_render_reports() -> None:
 
 
 def test_rig_from_scenario_camera_section() -> None:
-    from scenarios.camera.rig import rig_from_config
+    from scenarios.camera.build import rig_from_config
     from scenarios.config import load_scenario
 
     assert rig_from_config(load_scenario("roundabout-3")) == StereoRig()

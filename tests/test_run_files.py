@@ -65,7 +65,7 @@ def test_json_native_values_with_non_finite_numbers_as_null() -> None:
     assert json.loads(text) == {"a": 1.5, "b": [0, 1, 2], "4": [None, None, True, None], "p": "x/y"}
 
 
-# ------------------------------------------------------------------------ run directories (issue 13)
+# ------------------------------------------------------------------------ run directories
 
 SHORT = {"duration_s": 4.0}
 """A few seconds of ``roundabout-3``, model only: a run of well under a second once the model is compiled."""

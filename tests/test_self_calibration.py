@@ -1,8 +1,8 @@
-"""Online stereo self-calibration of the right camera's rotation (issue 15 item 1; sensor/vo/self_calibration.py).
+"""Online stereo self-calibration of the right camera's rotation (sensor/vo/self_calibration.py).
 
-On synthetic stereo matches with an exact right-camera rotation (paper eqs (8)–(9)): exact recovery without noise,
-forgetting that follows a step change, outliers that do not pull the estimate; then a short rendered run with a
-0.5° misalignment whose estimate converges while the right images are corrected online.
+On synthetic stereo matches with an exact right-camera rotation (de Saxe & Cebon 2018, eqs (8)–(9)): exact
+recovery without noise, forgetting that follows a step change, outliers that do not pull the estimate; then a short
+rendered run with a 0.5° misalignment whose estimate converges while the right images are corrected online.
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
 """Stops (Ctrl-C, SIGTERM) that land where a run cannot take them whole: exit code, status and data stay true.
 
-CI found the first two faults injected here. numba loads its compiled kernels through callbacks from C; a
-SIGTERM whose handler raised inside one came out as ``SystemError: ... returned a result with an exception set``
-and the run ended with a traceback and exit 1. And a Ctrl-C that landed between the run's ``config.yaml`` and its
-first ``metrics.json`` left no ``metrics.json`` at all. Looking for more of the kind found a third: a stop at the
-end of a run, while its series was closed or its metrics computed, left a ``metrics.json`` that still said
-``running``. Each case sends the real signal to a real ``offtrack run`` (through the handlers
+The faults injected here: numba loads its compiled kernels through callbacks from C, and a SIGTERM whose handler
+raises inside one comes out as ``SystemError: ... returned a result with an exception set``, which must still end
+the run as a stop, not with a traceback and exit 1; a Ctrl-C that lands between the run's ``config.yaml`` and its
+first ``metrics.json`` must still leave a ``metrics.json``; and a stop at the end of a run, while its series is
+closed or its metrics computed, must not leave a ``metrics.json`` that says ``running`` (see
+CHANGELOG.md). Each case sends the real signal to a real ``offtrack run`` (through the handlers
 :func:`scenarios.run.stopping.handle_sigterm` installs) at the point named.
 """
 
@@ -38,14 +38,14 @@ def stop_inside_c(signum, chained):
 """
 
 _DURING_THE_LOOP = """
-import scenarios.run.cosim as cosim
-advance, ticks = cosim.CoSimulation.advance, [0]
-def advance_then_stop(self, steer):
+import scenarios.loop.cosimulation as cosim
+step, ticks = cosim.CoSimulation.step, [0]
+def step_then_stop(self):
     ticks[0] += 1
     if ticks[0] == 400:
         stop_inside_c(SIGNAL, CHAINED)
-    return advance(self, steer)
-cosim.CoSimulation.advance = advance_then_stop
+    return step(self)
+cosim.CoSimulation.step = step_then_stop
 """
 
 _DURING_SET_UP = """
@@ -83,13 +83,13 @@ report.compute_metrics = stop_then_compute
 
 _WHILE_THE_FILES_ARE_CLOSED = """
 import os, time
-import scenarios.run.cosim as cosim
-close = cosim.RowRecorder.close
+import scenarios.loop.recording as recording
+close = recording.RowRecorder.close
 def stop_then_close(self):
     os.kill(os.getpid(), SIGNAL)  # the simulation is over; the last rows are not flushed yet
     time.sleep(0.5)
     return close(self)
-cosim.RowRecorder.close = stop_then_close
+recording.RowRecorder.close = stop_then_close
 """
 
 
@@ -152,9 +152,9 @@ def test_stop_behind_tells_a_stop_from_an_error_of_its_own() -> None:
 
 @pytest.mark.parametrize(("where", "signum"), [("metrics", 15), ("closing", 2)])
 def test_a_stop_at_the_end_of_a_run_waits_for_its_files(tmp_path: Path, where: str, signum: int) -> None:
-    # Before, a SIGTERM at the end of a run (e.g. a ``timeout`` expiring) could leave a complete time series
-    # beside a metrics.json that still said "running", or the series unflushed. The stop now waits until the
-    # series is closed and metrics.json is written, then takes effect (before the plots).
+    # A SIGTERM at the end of a run (e.g. a ``timeout`` expiring) must not leave a complete time series beside a
+    # metrics.json that still says "running", or the series unflushed: the stop waits until the series is closed
+    # and metrics.json is written, then takes effect (before the plots).
     out = tmp_path / "r"
     patch = {"metrics": _WHILE_THE_METRICS_ARE_COMPUTED, "closing": _WHILE_THE_FILES_ARE_CLOSED}[where]
     result = _run_with(patch, signum, False, out)

@@ -21,7 +21,7 @@ def fy(slip, fz, mu):
 
 @pytest.mark.parametrize(("fz_kn", "ky_kn"), [(20, 119.9), (30, 173.7), (35, 198.2), (40, 220.9)])
 def test_cornering_stiffness_matches_reference_table(fz_kn, ky_kn):
-    # Reference notes §3.1 table: K_y of the PAC2002 315/80 R22.5 tyre.
+    # docs/vehicle_dynamics.md §3.1 table: K_y of the PAC2002 315/80 R22.5 tyre.
     assert TYRE.cornering_stiffness(fz_kn * 1e3) / 1e3 == pytest.approx(ky_kn, abs=0.1)
 
 
@@ -36,8 +36,8 @@ def test_friction_scaling_keeps_the_initial_slope(mu):
     ("scale", "expected"), [(1.0, [0.10, 0.20, 0.37, 0.59, 0.73]), (0.5, [0.10, 0.18, 0.30, 0.37, 0.37])]
 )
 def test_force_curve_matches_reference_at_30kN(scale, expected):
-    # Reference notes §3.2: F_y/F_z at 1, 2, 4, 8, 15 deg for λμ = 1 and 0.5 at 30 kN. At this load the PAC2002 peak
-    # coefficient is PDY1 + PDY2·dfz, which is the μ that reproduces λμ = 1.
+    # docs/vehicle_dynamics.md §3.2: F_y/F_z at 1, 2, 4, 8, 15 deg for λμ = 1 and 0.5 at 30 kN. At this load the
+    # PAC2002 peak coefficient is PDY1 + PDY2·dfz, which is the μ that reproduces λμ = 1.
     fz = 30e3
     dfz = (fz - TYRE.fz_nominal) / TYRE.fz_nominal
     mu = scale * (TYRE.pdy1 + TYRE.pdy2 * dfz)
@@ -66,5 +66,5 @@ def test_friction_ellipse():
 
 
 def test_relaxation_length_matches_reference():
-    # PTY1/PTY2 of §3.1 give σ ≈ 0.4 m at 30 kN.
+    # PTY1/PTY2 give σ ≈ 0.4 m at 30 kN (docs/vehicle_dynamics.md §3.3).
     assert TYRE.relaxation_length(30e3) == pytest.approx(0.40, abs=0.01)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from scenarios.config import load_scenario
-from scenarios.run.cosim import run_cosimulation
+from scenarios.run.drive import simulate
 from scenarios.setup.build import build_scenario
 from sensor.viso_ot import VisoOtEstimator
 from vehicle_model.errors import InputError
@@ -37,7 +37,7 @@ def trailer_pose(kx: float, ky: float, psi2: float) -> np.ndarray:
 @pytest.fixture(scope="module")
 def run_columns():
     cfg = load_scenario("roundabout-3", {"path.turns": 0.3, "path.exit_length": 5.0, "path.entry_length": 15.0})
-    return run_cosimulation(build_scenario(cfg))[1], build_scenario(cfg).params
+    return simulate(build_scenario(cfg))[1], build_scenario(cfg).params
 
 
 @pytest.mark.parametrize(

@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from scenarios.camera.pipeline import right_correction_homography
 from scenarios.config import load_scenario
 from scenarios.run.cosim import run_cosimulation
 from scenarios.run.metrics import estimator_errors
 from scenarios.setup.build import build_scenario
 from sensor.camera import StereoRig
+from sensor.field_optics import right_correction_homography
 
 pytestmark = pytest.mark.rendering
 

@@ -35,7 +35,7 @@ def test_rotation_convention_is_rx_ry_rz():
     cx, cy, cz = np.cos([rx, ry, rz])
     sx, sy, sz = np.sin([rx, ry, rz])
     r = rotation_matrix(np.array([rx, ry, rz]))
-    # libviso2: row 0 of R = Rx·Ry·Rz is [cy·cz, −cy·sz, sy] (viso2s reference §1.5)
+    # libviso2: row 0 of R = Rx·Ry·Rz is [cy·cz, −cy·sz, sy] (docs/visual_odometry.md §9)
     assert r[0] == pytest.approx([cy * cz, -cy * sz, sy], abs=1e-15)
     assert r @ r.T == pytest.approx(np.eye(3), abs=1e-14)
     assert r[1, 2] == pytest.approx(-sx * cy, abs=1e-15) and r[2, 2] == pytest.approx(cx * cy, abs=1e-15)

@@ -115,7 +115,7 @@ def test_pipeline_recovers_the_motion(sequence):
         assert res.camera_motion[2, 3] == pytest.approx(STEP * math.cos(math.radians(0.5)), abs=0.02)
         assert res.time_total >= res.time_features + res.time_matching > 0
     # Per-frame error of Tr_delta against inv(T_wc,k)·T_wc,k−1: measured 2–6 mm (0.4–1.2 % of the
-    # 0.5 m step) and ≤ 0.02°; libviso2 on similar data (reference §1.8): 5–7 mm, 0.02–0.04° mean.
+    # 0.5 m step) and ≤ 0.02°; libviso2 on similar data (docs/visual_odometry.md §14): 5–7 mm, 0.02–0.04° mean.
     assert max(t_err) < 0.02 * STEP and np.mean(t_err) < 0.01 * STEP
     assert max(r_err) < 0.05
 

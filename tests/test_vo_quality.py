@@ -291,16 +291,17 @@ def test_feasibility_constants_follow_the_vo_defaults():
 
 
 def test_reason_and_quality_tables():
-    import scenarios.camera.pipeline as pipeline
+    import sensor.frame_odometry as frame_odometry
+    from scenarios.config import RatesConfig
 
-    assert pipeline.REJECTION_REASONS is REJECTION_REASONS and pipeline.QUALITY_COLUMNS == QUALITY_COLUMNS
+    assert frame_odometry.REJECTION_REASONS is REJECTION_REASONS and frame_odometry.QUALITY_COLUMNS == QUALITY_COLUMNS
     assert set(VO_REASONS) <= set(REJECTION_REASONS)
     assert all(isinstance(v, str) and v and not v.endswith(".") for v in REJECTION_REASONS.values())
     assert set(STEP_COLUMNS) <= set(QUALITY_COLUMNS) and len(set(QUALITY_COLUMNS)) == len(QUALITY_COLUMNS)
     assert "30" in REJECTION_REASONS["too_few_inliers"]
-    assert pipeline.frame_interval(10.0, 50.0) == pytest.approx(0.1)
-    assert pipeline.frame_interval(15.0, 50.0) == pytest.approx(0.06)  # 3 or 4 ticks apart: the shorter
-    assert pipeline.frame_interval(60.0, 50.0) == pytest.approx(0.02)
+    assert RatesConfig(camera_hz=10.0, control_hz=50.0).frame_interval_s == pytest.approx(0.1)
+    assert RatesConfig(camera_hz=16.67, control_hz=50.0).frame_interval_s == pytest.approx(0.06)  # every 3rd tick
+    assert RatesConfig(camera_hz=50.0, control_hz=50.0).frame_interval_s == pytest.approx(0.02)
 
 
 # ------------------------------------------------------------------------------------------ rendered

@@ -1,4 +1,4 @@
-"""The landscape beyond the roadside (issue 14 item 4): present at every scenery density, in its band, low on
+"""The landscape beyond the roadside: present at every scenery density, in its band, low on
 the horizon and inside the camera's far plane."""
 
 from __future__ import annotations

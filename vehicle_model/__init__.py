@@ -1,4 +1,4 @@
 """The tractor–semi-trailer: parameters, presets, tyres, surfaces, the casadi model, simulation, geometry, off-tracking.
 
-Imports none of the project's other packages (DESIGN §2).
+Imports none of the project's other packages (docs/design.md §2).
 """

@@ -3,7 +3,7 @@
 Two rigid bodies, tractor (unit 1) and semi-trailer (unit 2), joined at the kingpin; any number of
 axles per unit, lumped on the centre line; any axle may be steered. Each right-hand-side
 evaluation solves the six Newton–Euler equations, linear in ``[u̇, v̇1, ṙ1, ṙ2, F_hx, F_hy]``
-(reference notes §1.1 and §1.4, extended with the tractor longitudinal equation so that the
+(docs/vehicle_dynamics.md §1.1 and §1.4, extended with the tractor longitudinal equation so that the
 forward speed follows from the drive force instead of being prescribed); the hitch force is
 eliminated first, leaving a symmetric 4×4 mass matrix.
 
@@ -64,13 +64,14 @@ def define_model(params: VehicleParams) -> SymbolicModel:
     psi2 = psi1 - gamma
     cg, sg = ca.cos(gamma), ca.sin(gamma)
 
-    # Hitch kinematics (reference notes §1.1): kingpin velocity in the tractor frame, rotated into the trailer frame.
+    # Hitch kinematics (docs/vehicle_dynamics.md §1.1): kingpin velocity in the tractor frame, rotated into the
+    # trailer frame.
     v_h1 = v1 - h1 * r1
     u2 = u * cg - v_h1 * sg
     v2 = u * sg + v_h1 * cg - h2 * r2
     gamma_dot = r1 - r2
 
-    # In-plane gravity per body (reference notes §1.3), from the global slope vector.
+    # In-plane gravity per body (docs/vehicle_dynamics.md §1.3), from the global slope vector.
     def body_gravity(sx: ca.SX, sy: ca.SX, psi: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         gx = GRAVITY * (sx * ca.cos(psi) + sy * ca.sin(psi))
         gy = GRAVITY * (-sx * ca.sin(psi) + sy * ca.cos(psi))
@@ -102,7 +103,7 @@ def define_model(params: VehicleParams) -> SymbolicModel:
         # cos θ ≥ 0.995 (θ ≤ 10 %), which moves them by < 0.5 %; the peak force uses the actual load.
         stiffness = float(tyre.cornering_stiffness(fz_static))
         sigma = float(tyre.relaxation_length(fz_static))
-        # Contact-point velocity in wheel axes (reference notes §1.2).
+        # Contact-point velocity in wheel axes (docs/vehicle_dynamics.md §1.2).
         vy_body = vb + a * rb
         cd, sd = ca.cos(delta), ca.sin(delta)
         v_cx = cd * ub + sd * vy_body
@@ -133,12 +134,12 @@ def define_model(params: VehicleParams) -> SymbolicModel:
 
     f_aero = -0.5 * AIR_DENSITY * params.tractor.drag_area * u * ca.fabs(u)
 
-    # Newton–Euler with the hitch constraint (reference notes §1.4, extended with the tractor longitudinal
+    # Newton–Euler with the hitch constraint (docs/vehicle_dynamics.md §1.4, extended with the tractor longitudinal
     # equation). F_h is the hitch force on the trailer in trailer axes; the tractor receives −R(−Γ)·F_h.
     # Writing the trailer equations as F_h = m2·a2 − (trailer forces) and substituting leaves four equations
-    # in [u̇, v̇1, ṙ1, ṙ2] with a symmetric mass matrix (at Γ = 0 it is the matrix of reference notes §2.1).
-    q_u = -gamma_dot * (u * sg + v_h1 * cg)  # velocity-product part of u̇2 (§1.1)
-    q_v = gamma_dot * (u * cg - v_h1 * sg)  # velocity-product part of v̇2 (§1.1)
+    # in [u̇, v̇1, ṙ1, ṙ2] with a symmetric mass matrix (at Γ = 0 it is the matrix of docs/vehicle_dynamics.md §2.1).
+    q_u = -gamma_dot * (u * sg + v_h1 * cg)  # velocity-product part of u̇2 (docs/vehicle_dynamics.md §1.1)
+    q_v = gamma_dot * (u * cg - v_h1 * sg)  # velocity-product part of v̇2 (docs/vehicle_dynamics.md §1.1)
     b_tractor_x = fx_body[0] + m1 * gx1 + m1 * v1 * r1 + f_aero
     b_tractor_y = fy_body[0] + m1 * gy1 - m1 * u * r1
     b_trailer_x = fx_body[1] + m2 * gx2 + m2 * v2 * r2 - m2 * q_u  # F_hx = m2·(u̇2 − q_u) − this

@@ -76,7 +76,21 @@ def trailer_points(params: VehicleParams, x, y, psi1, gamma, local: np.ndarray) 
 
 def follow_point_position(params: VehicleParams, x, y, psi1, gamma) -> np.ndarray:
     """Global follow-point position, ``L_fp`` behind the kingpin on the trailer centre line, ``S + (2,)``."""
-    return trailer_points(params, x, y, psi1, gamma, np.array([[-params.follow_point_offset, 0.0]]))[..., 0, :]
+    return follow_point_from_kingpin(
+        kingpin_position(params, x, y, psi1), trailer_heading(psi1, gamma), params.follow_point_offset
+    )
+
+
+def follow_point_from_kingpin(kingpin: np.ndarray, psi2, follow_point_offset: float) -> np.ndarray:
+    """The follow point ``L_fp`` behind the kingpin ``(S + (2,))`` along the trailer heading ``psi2``, ``S + (2,)``.
+
+    ``P_f = P5 − L_fp·(cos ψ2, sin ψ2)`` (module docstring).
+    """
+    kingpin = np.asarray(kingpin, dtype=float)
+    return np.stack(
+        [kingpin[..., 0] - follow_point_offset * np.cos(psi2), kingpin[..., 1] - follow_point_offset * np.sin(psi2)],
+        axis=-1,
+    )
 
 
 def axle_ground_points(params: VehicleParams, x, y, psi1, gamma) -> np.ndarray:

@@ -27,6 +27,46 @@ from .parameters import VehicleParams
 from .simulator import VehicleState
 
 
+def kingpin_velocity(params: VehicleParams, u: float, v1: float, r1: float) -> tuple[float, float]:
+    """True kingpin velocity ``(v_x, v_y)`` [m/s] in tractor axes: ``(u, v1 − h1·r1)`` (module docstring).
+
+    Parameters
+    ----------
+    params
+        The combination (``h1``).
+    u, v1, r1
+        Tractor CG forward and lateral velocity [m/s] and yaw rate [rad/s].
+    """
+    return u, v1 - params.h1 * r1
+
+
+def zero_slip_kingpin_velocity(params: VehicleParams, u: float, r1: float) -> tuple[float, float]:
+    """Kingpin velocity ``(v_x, v_y)`` [m/s] in tractor axes if no tractor tyre slipped sideways.
+
+    The tractor's rear point (the steer axle minus the wheelbase ``L1``, :meth:`VehicleParams.tractor_wheelbase`)
+    then has no lateral velocity, so the kingpin, ``e5`` behind it (:attr:`VehicleParams.kingpin_behind_rear_point`,
+    negative when ahead), moves at ``(u, −e5·r1)`` (Cheng 2009; ``docs/vehicle_dynamics.md``).
+
+    Parameters
+    ----------
+    params
+        The combination.
+    u, r1
+        Tractor forward speed [m/s] and yaw rate [rad/s] (measured or true).
+    """
+    return u, -params.kingpin_behind_rear_point * r1
+
+
+def trailer_axle_speed(params: VehicleParams, state: VehicleState) -> float:
+    """Longitudinal speed [m/s] of the trailer's axles along its centre line (that of the kingpin).
+
+    The kingpin moves at :func:`kingpin_velocity` in tractor axes; turned by Γ into the trailer frame its x component
+    is ``cos Γ·u − sin Γ·(v1 − h1·r1)``, which every point of the centre line shares (a rigid body).
+    """
+    _, lateral = kingpin_velocity(params, state.u, state.v1, state.r1)
+    return math.cos(state.gamma) * state.u - math.sin(state.gamma) * lateral
+
+
 def _station(params: VehicleParams, station: float | None) -> float:
     """The station [m]: ``station``, or the trailer CG when None."""
     return float(params.trailer.cg_x if station is None else station)

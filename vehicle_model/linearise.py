@@ -72,7 +72,7 @@ def axle_cornering_stiffness(params: VehicleParams) -> np.ndarray:
 def linear_yaw_plane_model(
     params: VehicleParams, speed: float, cornering_stiffness: np.ndarray | None = None
 ) -> control.StateSpace:
-    """The 4-state linear model of reference notes §2.1 (constant speed, small Γ, linear tyres).
+    """The 4-state linear model of docs/vehicle_dynamics.md §2.1 (constant speed, small Γ, linear tyres).
 
     States ``[v1, r1, r2, gamma]``; inputs the steer of every steerable axle (layout order) and the
     lateral gravity forces per unit mass ``[g_y1, g_y2]`` (camber, fraction of g).

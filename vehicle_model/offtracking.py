@@ -31,17 +31,58 @@ from __future__ import annotations
 
 import math
 import numbers
+from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import InputError
 
 __all__ = [
+    "BUFFER_FILLING",
     "OfftrackingBuffer",
+    "OfftrackingEstimate",
     "increments_from_poses",
     "offtracking_from_path",
     "offtracking_series",
 ]
+
+
+BUFFER_FILLING = "buffer_filling"
+"""Why a buffer gives no estimate yet: less than one trailer length of kingpin path is stored."""
+
+
+@dataclass(frozen=True, slots=True)
+class OfftrackingEstimate:
+    """One off-tracking estimate: its value, its standard deviation and, when it has no value, why.
+
+    Every source of the closed loop (the ground truth, the zero-slip estimator, VISO-OT and its fused form)
+    gives one of these each control tick; the trailer-steering controller takes one.
+
+    Attributes
+    ----------
+    value : float
+        Off-tracking ``e_tr`` [m] (module docstring for the sign); NaN when there is no estimate.
+    std : float
+        Its standard deviation [m]; NaN when the source gives none.
+    reason : str
+        Why there is no value (a short code, e.g. :data:`BUFFER_FILLING`); ``""`` when there is one.
+    """
+
+    value: float = math.nan
+    std: float = math.nan
+    reason: str = ""
+
+    @property
+    def available(self) -> bool:
+        """Whether there is a (finite) value."""
+        return math.isfinite(self.value)
+
+    @classmethod
+    def of(cls, value: float | None, std: float = math.nan, reason: str = BUFFER_FILLING) -> OfftrackingEstimate:
+        """An estimate from a value that may be ``None`` (no estimate, for ``reason``)."""
+        if value is None:
+            return cls(math.nan, std, reason or BUFFER_FILLING)
+        return cls(float(value), std, "")
 
 
 def _check_offset(follow_point_offset: float) -> float:

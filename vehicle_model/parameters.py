@@ -18,6 +18,7 @@ static apart from the ``cos θ`` factor of a sloped road.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -375,6 +376,12 @@ class VehicleParams(_Frozen):
         tr = self.tractor
         rear = [a.x for a in tr.axles if a.x < 0]
         return -float(np.mean(rear)) if rear else math.nan
+
+    @functools.cached_property
+    def kingpin_behind_rear_point(self) -> float:
+        """``e5``: the kingpin's distance behind the tractor's rear point (the steer axle minus
+        :meth:`tractor_wheelbase`), negative when the kingpin is ahead of it [m]."""
+        return -self.tractor_wheelbase() - self.tractor.fifth_wheel_x
 
 
 def _groups(axles: tuple[AxleParams, ...]) -> dict[str, list[int]]:

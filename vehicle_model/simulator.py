@@ -135,6 +135,16 @@ def initial_state(
     return VehicleState(0.0, x, y, heading, speed, 0.0, 0.0, 0.0, 0.0, slip=np.zeros(len(layout.axles)))
 
 
+@dataclass(frozen=True)
+class SimulatorSnapshot:
+    """A :class:`Simulator`'s state, inputs (surface values included), time and surface flag, as copies."""
+
+    state: np.ndarray
+    inputs: np.ndarray
+    time: float
+    surface_filled: bool
+
+
 class Simulator:
     """Advance the model with fixed RK4 steps; surface look-ups held over one control period.
 
@@ -234,6 +244,19 @@ class Simulator:
     def input_vector(self) -> np.ndarray:
         """Inputs of the last step, surface values included (a copy)."""
         return self._u.copy()
+
+    def snapshot(self) -> SimulatorSnapshot:
+        """Everything :meth:`restore` needs to continue exactly from here (in this or a rebuilt simulator)."""
+        return SimulatorSnapshot(self._x.copy(), self._u.copy(), self.time, self._surface_filled)
+
+    def restore(self, snapshot: SimulatorSnapshot) -> None:
+        """Continue from ``snapshot`` (of a simulator of the same vehicle, surface and steps)."""
+        if snapshot.state.shape != self._x.shape or snapshot.inputs.shape != self._u.shape:
+            raise InputError("the snapshot is of another vehicle layout")
+        self._x[:] = snapshot.state
+        self._u[:] = snapshot.inputs
+        self.time = snapshot.time
+        self._surface_filled = snapshot.surface_filled
 
     def reset(self, state: VehicleState | None = None) -> VehicleState:
         """Set the state (straight, at rest, at the origin by default) and its time."""

@@ -5,7 +5,7 @@ CG), outside the symbolic model, and enters the model as inputs held over one st
 
 Slope is described by the in-plane gravity direction: a road plane inclined by θ whose
 steepest-descent direction has global azimuth ψ_d pulls each unit mass downhill with
-``g·sinθ·(cos ψ_d, sin ψ_d)`` (reference notes §1.3). The fields below return that vector divided
+``g·sinθ·(cos ψ_d, sin ψ_d)`` (docs/vehicle_dynamics.md §1.3). The fields below return that vector divided
 by g, i.e. ``sinθ·(cos ψ_d, sin ψ_d)``, in the global frame. Grades are given in percent at the edges
 (``θ = atan(grade/100)``).
 

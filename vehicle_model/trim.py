@@ -64,7 +64,7 @@ class TrimResult:
         """Instantaneous centre in trailer axes with the origin at the kingpin [m]."""
         g = self.get("gamma")
         vk = self.kingpin_velocity(params)
-        # Rotate tractor→trailer axes by R(Γ) (reference notes §1.1).
+        # Rotate tractor→trailer axes by R(Γ) (docs/vehicle_dynamics.md §1.1).
         vk2 = np.array([math.cos(g) * vk[0] - math.sin(g) * vk[1], math.sin(g) * vk[0] + math.cos(g) * vk[1]])
         r = self.yaw_rate
         return np.array([-vk2[1] / r, vk2[0] / r])
@@ -157,7 +157,7 @@ def trim(
     res = ca.vertcat(*residual)
     f = ca.Function("trim_res", [z], [res, ca.jacobian(res, z)])
 
-    # Kinematic initial guess (reference notes §2.3).
+    # Kinematic initial guess (docs/vehicle_dynamics.md §2.3).
     wheelbase = params.tractor_wheelbase()
     if solve_steer:
         r_guess = kingpin_curvature * speed

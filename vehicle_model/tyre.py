@@ -7,9 +7,9 @@ Friction scaling
 ----------------
 The road's μ is the tyre's peak lateral friction coefficient at and below the nominal load. Above
 the nominal load the peak falls with Pacejka's load sensitivity ``PDY2/PDY1`` (PAC2002,
-reference notes §3.1). So ``μ_y(Fz) = μ·(1 + (PDY2/PDY1)·max(dfz, 0)) ≤ μ`` and ``|F_y| ≤ μ·F_z``
-always holds. The cornering stiffness ``K_y`` does not depend on μ (MF ``λμy`` scaling, reference
-§3.2): low friction lowers the peak, not the initial slope.
+docs/vehicle_dynamics.md §3.1). So ``μ_y(Fz) = μ·(1 + (PDY2/PDY1)·max(dfz, 0)) ≤ μ`` and ``|F_y| ≤ μ·F_z``
+always holds. The cornering stiffness ``K_y`` does not depend on μ (MF ``λμy`` scaling,
+docs/vehicle_dynamics.md §3.2): low friction lowers the peak, not the initial slope.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ def pure_lateral_force(
 ) -> ca.SX:
     """Pure-slip lateral force of one tyre [N]; positive for positive slip angle ``slip`` [rad].
 
-    PAC2002 lateral force at zero camber with shifts dropped (reference notes §3.1)::
+    PAC2002 lateral force at zero camber with shifts dropped (docs/vehicle_dynamics.md §3.1)::
 
         D = μ_y·Fz,  K_y = PKY1·FNOMIN·sin(2·atan(Fz/(PKY2·FNOMIN))),  B = K_y/(C·D)
         E = min(PEY1 + PEY2·dfz, 1),  F_y = D·sin(C·atan(B·α − E·(B·α − atan(B·α))))

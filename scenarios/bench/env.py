@@ -12,9 +12,10 @@ import numpy as np
 
 from ..config import load_scenario
 from ..envs import register_envs
-from ..envs.stepper import CoSimulation, cached_setup
-from ..run.cosim import run_cosimulation
-from ..setup.build import trailer_controller
+from ..loop.cosimulation import CoSimulation
+from ..loop.trailer_steer import UnsteeredTrailer, trailer_axles, trailer_steer_for
+from ..run.drive import simulate
+from ..setup.models import rebuild_setup
 
 __all__ = ["bench_env"]
 
@@ -47,14 +48,14 @@ def bench_env(
     * ``steps_per_s``: ``offtrack/TrailerSteering-v0``, ``action_mode="direct"``, zero action (the trailer
       unsteered), ``feedback`` the model-based source given;
     * ``steps_per_s_residual``: the same with ``action_mode="residual"`` (the PID runs every step);
-    * ``stepper_steps_per_s``: :class:`~scenarios.envs.stepper.CoSimulation` alone, trailer unsteered (the
-      environment's core);
-    * ``bare_loop_steps_per_s``: :func:`scenarios.run.cosim.run_cosimulation` without a trailer-steer source;
+    * ``stepper_steps_per_s``: :class:`~scenarios.loop.cosimulation.CoSimulation` stepped alone, trailer unsteered
+      (the environment's core);
+    * ``bare_loop_steps_per_s``: :func:`scenarios.run.drive.simulate` with the trailer unsteered;
     * ``bare_loop_pid_steps_per_s``: the same with the configured
       :class:`~controller.path_following.TrailerSteeringController`.
 
     ``env_overhead`` is ``bare_loop_steps_per_s / steps_per_s − 1`` (negative: the environment is faster,
-    because the bare loop also records every column and computes the geometric second truth).
+    because the bare loop also computes the geometric second truth).
     """
     if feedback not in ("truth", "zero_slip"):
         raise ValueError(f"feedback = {feedback!r}: benchmark a model-based source, 'truth' or 'zero_slip'")
@@ -64,22 +65,22 @@ def bench_env(
     if feedback == "zero_slip":
         config_overrides["estimators.zero_slip"] = True
     config = load_scenario(scenario, config_overrides)
-    setup = cached_setup(config)
-    run_cosimulation(setup)  # warm-up: model loaded, caches filled
+    setup = rebuild_setup(config)
+    unsteered = UnsteeredTrailer(trailer_axles(setup))
+    simulate(setup, unsteered)  # warm-up: model loaded, caches filled
 
     t0 = time.perf_counter()
-    outcome, _ = run_cosimulation(setup)
+    outcome, _ = simulate(setup, unsteered)
     bare = outcome.rows / (time.perf_counter() - t0)
     t0 = time.perf_counter()
-    outcome_pid, _ = run_cosimulation(setup, trailer_steer_source=trailer_controller(setup))
+    outcome_pid, _ = simulate(setup, trailer_steer_for(setup))
     bare_pid = outcome_pid.rows / (time.perf_counter() - t0)
 
-    cosim = CoSimulation(setup)
-    zero = np.zeros(len(cosim.trailer_axles))
+    cosim = CoSimulation(setup, unsteered)
     steps = 0
     t0 = time.perf_counter()
-    while not cosim.finished:
-        cosim.advance(zero)
+    while not cosim.done:
+        cosim.step()
         steps += 1
     stepper = steps / (time.perf_counter() - t0)
 

@@ -10,8 +10,9 @@ from typing import Any
 import numpy as np
 
 from sensor.camera import StereoRig
+from vehicle_model.geometry import CombinationPose
 
-from ..camera.world import world_for_scenario
+from ..camera.build import world_for_scenario
 from ..config import load_scenario
 from ..setup.build import build_scenario
 
@@ -62,14 +63,14 @@ def bench_render(
     x, y = np.interp(s, path.s, path.x), np.interp(s, path.s, path.y)
     h = np.interp(s, path.s, path.heading)
     t1 = time.perf_counter()
-    renderer.render(x[0], y[0], h[0], 0.0, frame=0)
+    renderer.render(CombinationPose(x[0], y[0], h[0], 0.0), frame=0)
     first_s = time.perf_counter() - t1
     renderer.reset_timings()
     times = []
     cpu0 = time.process_time()
     for k in range(1, duration_frames + 1):
         t = time.perf_counter()
-        renderer.render(x[k], y[k], h[k], 0.0, frame=k)
+        renderer.render(CombinationPose(x[k], y[k], h[k], 0.0), frame=k)
         times.append(time.perf_counter() - t)
     cpu_s = time.process_time() - cpu0
     times_a = np.array(times)
@@ -119,20 +120,20 @@ def _bench_field(
     lighting = Lighting.field()
     field = StereoRenderer(world, rig, params, seed=seed, antialias=renderer.antialias, lighting=lighting)
     t0 = time.perf_counter()
-    field.render(x[0], y[0], h[0], 0.0, frame=0)  # bakes the light, uploads the lit scene
+    field.render(CombinationPose(x[0], y[0], h[0], 0.0), frame=0)  # bakes the light, uploads the lit scene
     first_s = time.perf_counter() - t0
     # One scene per renderer in the context: switching scenes re-uploads them, so time blocks, not
     # alternate pairs: field, then ideal again (its median with the first ideal block's, before).
     field_t = []
     for k in range(1, len(x)):
         t = time.perf_counter()
-        field.render(x[k], y[k], h[k], 0.0, frame=k)
+        field.render(CombinationPose(x[k], y[k], h[k], 0.0), frame=k)
         field_t.append(time.perf_counter() - t)
-    renderer.render(x[0], y[0], h[0], 0.0, frame=0)  # switch back (re-upload), untimed
+    renderer.render(CombinationPose(x[0], y[0], h[0], 0.0), frame=0)  # switch back (re-upload), untimed
     ideal_t = list(ideal_before)
     for k in range(1, len(x)):
         t = time.perf_counter()
-        renderer.render(x[k], y[k], h[k], 0.0, frame=k)
+        renderer.render(CombinationPose(x[k], y[k], h[k], 0.0), frame=k)
         ideal_t.append(time.perf_counter() - t)
     ideal_m, field_m = float(np.median(ideal_t)), float(np.median(field_t))
     return {

@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ..loop.ends import RunStatus
 from ..studies.cases import model_only_cases, run_case
 from ..studies.executors import local_executor
 from ..studies.sweep import run_sweep
@@ -89,7 +90,7 @@ def bench_sweep(workers: int = 2, cases: int = 8, duration_s: float = 20.0) -> d
         "case_s": serial_s / cases,
         "cpu_speedup": workers * spin_s[1] / spin_s[workers],
         "same_results": all(numbers[0].equals(t) for t in numbers[1:]),
-        "failed": int(sum((t["status"] == "failed").sum() for t in tables)),
+        "failed": int(sum((t["status"] == RunStatus.FAILED).sum() for t in tables)),
         "cpu_count": os.cpu_count(),
         "python": platform.python_version(),
     }

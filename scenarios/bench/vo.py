@@ -23,8 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from ..camera.rig import rig_from_config
-from ..camera.world import world_for_scenario
+from vehicle_model.geometry import CombinationPose
+
+from ..camera.build import rig_from_config, world_for_scenario
 from ..config import load_scenario
 from ..run.cosim import run_cosimulation
 from ..setup.build import build_scenario
@@ -102,9 +103,9 @@ def rendered_sequence(frames: int = 30, seed: int = 0, scenario: str = "roundabo
     rig = rig_from_config(config)
     renderer = StereoRenderer(world_for_scenario(setup), rig, setup.params, seed=config.seed)
     ticks = np.flatnonzero(np.asarray(cols["camera_frame"]) > 0.5)[:frames]
-    x, y, psi1, gamma = (np.asarray(cols[k])[ticks] for k in ("X", "Y", "psi1", "gamma"))
-    poses = rig.camera_in_world(setup.params, x, y, psi1, gamma, "left")
-    right_poses = rig.camera_in_world(setup.params, x, y, psi1, gamma, "right")
+    combination = CombinationPose(*(np.asarray(cols[k])[ticks] for k in ("X", "Y", "psi1", "gamma")))
+    poses = rig.camera_in_world(setup.params, combination, "left")
+    right_poses = rig.camera_in_world(setup.params, combination, "right")
     pairs = [renderer.render_poses(poses[k], right_poses[k], frame=k) for k in range(len(ticks))]
     left = np.stack([p.left for p in pairs])
     right = np.stack([p.right for p in pairs])

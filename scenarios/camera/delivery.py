@@ -6,29 +6,40 @@ time ``t_k`` reaches the controller on the first control tick at or after ``t_k 
 ``k + ceil(latency / control period)``) and is held until the next one arrives. That rule alone decides what
 the controller sees, so *how* the frames are computed cannot change a run:
 
-- **serial** (``workers = 0``): the frame is rendered and processed on the tick it is taken
-  (:class:`~.pipeline.CameraPipeline`) and its result waits for its release tick;
+- **serial** (``workers = 0``): the frame is rendered, developed (:class:`sensor.stereo_camera.StereoCamera`) and
+  processed (:class:`sensor.frame_odometry.FrameOdometry`) on the tick it is taken, and its result waits for its
+  release tick;
 - **pipelined** (``workers ≥ 1``): the pair is rendered by a spawned worker (:mod:`.workers`) while the
-  co-simulation goes on; the odometry and VISO-OT (:class:`~.pipeline.PairOdometry`) run in this process on
-  the pairs in frame order, as soon as a pair is there and at the latest on its release tick, which waits
-  for it. The latency bounds how many frames are in flight (``ceil(latency / frame period) + 1``).
+  co-simulation goes on; the in-order development, if any (the auto-exposure,
+  :class:`sensor.stereo_camera.PairDeveloper`), the odometry and VISO-OT run in this process on the pairs in frame
+  order, as soon as a pair is there and at the latest on its release tick, which waits for it. The latency bounds
+  how many frames are in flight (``ceil(latency / frame period) + 1``).
 
 Both give the same estimates on the same ticks and the same per-frame records (``tests/test_loop_pipelining.py``).
+The right camera's mount flex (:class:`sensor.mount_flex.FlexSchedule`) is drawn here, in frame order, and handed
+to whichever process renders the frame. The camera's objects come from the configuration through :mod:`.build`.
 """
 
 from __future__ import annotations
 
 import math
+import time as wallclock
 from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
+from sensor.camera import Misalignment
+from sensor.frame_odometry import CameraFrame
+from sensor.renderer import StereoRenderer
+from sensor.stereo_camera import RawStereoPair, StereoCamera
+from vehicle_model.geometry import CombinationPose
 from vehicle_model.simulator import VehicleState
 
 from ..setup.build import ScenarioSetup
+from .build import flex_schedule, frame_odometry, pair_developer, stereo_camera
 from .feasibility import check_camera_feasible
-from .optics import FlexSchedule
-from .pipeline import CameraFrame, CameraPipeline, PairFinish, PairOdometry, frame_interval
 from .workers import CameraWorkerError, RenderWorkers
 
 __all__ = ["CameraFeed", "CameraWorkerError", "CapturedFrame", "latency_ticks"]
@@ -37,9 +48,8 @@ __all__ = ["CameraFeed", "CameraWorkerError", "CapturedFrame", "latency_ticks"]
 def latency_ticks(setup: ScenarioSetup) -> int:
     """Control ticks from taking a frame to its estimate reaching the controller (``camera.latency_s`` rounded up)."""
     cfg = setup.config
-    every = max(1, round(cfg.rates.control_hz / cfg.rates.camera_hz))
     if cfg.camera.latency_s is None:
-        return every  # one frame period
+        return cfg.rates.ticks_per_frame  # one frame period
     return max(0, math.ceil(cfg.camera.latency_s * cfg.rates.control_hz - 1e-6))
 
 
@@ -66,7 +76,7 @@ class CapturedFrame:
     frame: CameraFrame | None = None
 
     def __getattr__(self, name: str) -> Any:
-        """The :class:`~.pipeline.CameraFrame`'s fields (``estimate``, ``valid``, …) once it is processed."""
+        """The :class:`~sensor.frame_odometry.CameraFrame`'s fields (``estimate``, ``valid``, …) once processed."""
         if name.startswith("__") or name == "frame":
             raise AttributeError(name)
         frame = self.__dict__.get("frame")
@@ -95,27 +105,28 @@ class CameraFeed:
         The frames the last :meth:`deliver` released, oldest first (their motions go to the fused estimator).
     camera_in_trailer : numpy.ndarray
         4×4 pose of the left camera on the trailer (``T_trailer←camera``), as VISO-OT uses it.
+    rig : StereoRig
+        The true camera rig (:func:`.build.rig_from_config`).
     """
 
     def __init__(self, setup: ScenarioSetup, workers: int = 0) -> None:
         check_camera_feasible(setup.config)
         self.latency_ticks = latency_ticks(setup)
         self.estimate: float | None = None
-        self._pipeline: CameraPipeline | None = None
+        self._setup = setup
+        self._camera: StereoCamera | None = None
         self._workers: RenderWorkers | None = None
         if workers > 0:
             self._workers = RenderWorkers(setup.config, workers)  # start them first: they take a while
-            self._odometry = PairOdometry(setup)
-            self._finish = PairFinish(setup.config)
+            self._developer = pair_developer(setup.config)
         else:
-            self._pipeline = CameraPipeline(setup)
-            self._odometry = self._pipeline.stage_odometry
-        self.rig = self._odometry.rig
-        self.camera_in_trailer = self._odometry.optics.left_in_trailer(setup.params)
+            self._camera = stereo_camera(setup)
+            self._developer = self._camera.developer
+        self._odometry = frame_odometry(setup, self._developer.optics)
+        self.rig = self._developer.rig
+        self.camera_in_trailer = self._developer.optics.left_in_trailer(setup.params)
         self.released: list[CapturedFrame] = []
-        self._flex = FlexSchedule(
-            setup.config, setup.params, frame_interval(setup.config.rates.camera_hz, setup.config.rates.control_hz)
-        )
+        self._flex = flex_schedule(setup)
         self._captured: deque[CapturedFrame] = deque()  # taken, not yet released
         self._unprocessed: deque[CapturedFrame] = deque()  # taken, not yet processed (pipelined)
         self._count = 0
@@ -135,9 +146,16 @@ class CameraFeed:
         return self._workers is not None
 
     @property
-    def renderer(self) -> Any:
+    def renderer(self) -> StereoRenderer | None:
         """This process's :class:`~sensor.renderer.StereoRenderer` (``None`` when the workers render)."""
-        return self._pipeline.renderer if self._pipeline is not None else None
+        return self._camera.renderer if self._camera is not None and self._workers is None else None
+
+    def view_image(self, pose: CombinationPose) -> np.ndarray:
+        """The left camera's grey image at ``pose`` as the renderer draws it (no noise, exposure or lens), e.g. for
+        a display; with render workers a camera is built in this process for it on the first call."""
+        if self._camera is None:
+            self._camera = stereo_camera(self._setup)
+        return self._camera.view_image(pose)
 
     @property
     def wait_s(self) -> float:
@@ -150,11 +168,10 @@ class CameraFeed:
         self._count += 1
         flex = self._flex.rotation(state)  # in frame order, in this process: the twist and the seeded vibration
         if self._workers is None:
-            assert self._pipeline is not None
-            shot.frame = self._pipeline.frame(state, right_rotation=flex)
+            shot.frame = self._frame(state.pose, shot.index, flex)
             self._account(shot.frame)
         else:
-            self._workers.submit(shot.index, state.X, state.Y, state.psi1, state.gamma, right_rotation=flex)
+            self._workers.submit(shot.index, state.pose, right_rotation=flex)
             self._unprocessed.append(shot)
         self._captured.append(shot)
         return shot
@@ -207,11 +224,24 @@ class CameraFeed:
         if self._workers is not None:
             self._workers.close()
 
+    def _frame(self, pose: CombinationPose, index: int, flex: Misalignment | None) -> CameraFrame:
+        """Render, develop and process frame ``index`` in this process (serial)."""
+        assert self._camera is not None
+        t0 = wallclock.perf_counter()
+        cpu0 = wallclock.process_time()
+        left, right = self._camera.develop(self._camera.render(pose, index, right_rotation=flex), index)
+        render_s = wallclock.perf_counter() - t0
+        render_cpu_s = wallclock.process_time() - cpu0
+        frame = self._odometry.process(left, right, render_s)
+        frame.render_cpu_s = render_cpu_s
+        return frame
+
     def _process_next(self) -> None:
         assert self._workers is not None
         shot = self._unprocessed.popleft()
         left, right, render_s, render_cpu_s = self._workers.result(shot.index)
-        left, right = self._finish.finish(left, right, shot.index)  # the in-order exposure, if any
+        if self._developer.develops_in_order:  # the workers leave the exposure to the frames' order
+            left, right = self._developer.develop(RawStereoPair(left, right, exposed=False), shot.index)
         frame = self._odometry.process(left, right, render_s)
         frame.render_cpu_s = render_cpu_s
         shot.frame = frame

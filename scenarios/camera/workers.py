@@ -8,10 +8,13 @@ the default latency of one frame period up to two frames are in flight. The defa
 the odometry.
 
 Each worker is a ``spawn``-ed process (never a fork: OpenGL contexts do not survive one) that rebuilds the
-scenario from its configuration and owns one :class:`~.pipeline.PairRenderer`, hence one renderer, as the
-rendering rules demand. The co-simulation sends ``(frame, X, Y, ψ1, Γ)`` down a pipe; the worker answers
-with the render time and CPU time, then the left and right images as raw bytes (1 MB a pair at 1344×391,
-well under a millisecond to copy). Workers can run at a lower priority than the co-simulation
+scenario from its configuration and owns one :class:`sensor.stereo_camera.StereoCamera` (:func:`.build.stereo_camera`),
+hence one renderer, as the rendering rules of :mod:`sensor.renderer` demand. The co-simulation sends the frame
+number, the :class:`~vehicle_model.geometry.CombinationPose` and the frame's mount flex down a pipe; the worker
+renders the pair and, unless the development must see the frames in order (auto-exposure,
+:attr:`sensor.stereo_camera.StereoCamera.develops_in_order`), develops it too, and answers with the render time
+and CPU time, then the left and right images as raw bytes (1 MB a pair at 1344×391, well under a millisecond to
+copy). Workers can run at a lower priority than the co-simulation
 (:data:`RENDER_NICENESS`, off by default), whose odometry is the critical path, and with two or more of them llvmpipe
 rasterises in each worker's own thread (:data:`RENDER_THREADS`). A worker ignores Ctrl-C (the co-simulation
 process stops it, keeping the data) and exits when its pipe closes, so it never outlives the run even after
@@ -36,6 +39,7 @@ import numpy as np
 
 from sensor.camera import Misalignment
 from vehicle_model.errors import OfftrackError
+from vehicle_model.geometry import CombinationPose
 
 DEFAULT_WORKERS = 1
 """Render workers of a pipelined run. One, whose llvmpipe threads use the core the odometry leaves free, ran the
@@ -78,10 +82,9 @@ def _worker_main(config: Any, conn: Connection, threads: str | None = None) -> N
             pass
     try:
         from ..setup.build import build_scenario
-        from .pipeline import PairRenderer
+        from .build import stereo_camera
 
-        setup = build_scenario(config)
-        renderer = PairRenderer(setup)
+        camera = stereo_camera(build_scenario(config))
     except BaseException:
         _send_error(conn, traceback.format_exc())
         return
@@ -92,11 +95,12 @@ def _worker_main(config: Any, conn: Connection, threads: str | None = None) -> N
             return  # the co-simulation is gone
         if job is None:
             return
-        frame, x, y, psi1, gamma, flex = job
+        frame, pose, flex = job
         try:
             t0, cpu0 = time.perf_counter(), time.process_time()
             rotation = None if flex is None else Misalignment(*flex)
-            left, right = renderer.render_stage(x, y, psi1, gamma, frame, right_rotation=rotation)
+            raw = camera.render(pose, frame, right_rotation=rotation)
+            left, right = (raw.left, raw.right) if camera.develops_in_order else camera.develop(raw, frame)
             answer = (frame, time.perf_counter() - t0, time.process_time() - cpu0, (left.shape, left.dtype.str))
             conn.send(answer)
             conn.send_bytes(np.ascontiguousarray(left).reshape(-1))
@@ -184,15 +188,15 @@ class RenderWorkers:
     def __len__(self) -> int:
         return len(self._procs)
 
-    def submit(self, frame: int, x: float, y: float, psi1: float, gamma: float, right_rotation: Any = None) -> None:
-        """Have worker ``frame mod workers`` render frame ``frame`` at the tractor pose ``(x, y, ψ1, Γ)``.
+    def submit(self, frame: int, pose: CombinationPose, right_rotation: Misalignment | None = None) -> None:
+        """Have worker ``frame mod workers`` render frame ``frame`` at the combination pose ``pose``.
 
-        ``right_rotation``: the frame's mount flex (a :class:`sensor.camera.Misalignment`, or ``None``).
+        ``right_rotation``: the frame's mount flex (or ``None``).
         """
         i = frame % len(self._conns)
         flex = None if right_rotation is None else (right_rotation.roll, right_rotation.pitch, right_rotation.yaw)
         try:
-            self._conns[i].send((frame, float(x), float(y), float(psi1), float(gamma), flex))
+            self._conns[i].send((frame, CombinationPose(*(float(v) for v in pose)), flex))
         except (BrokenPipeError, EOFError, OSError):
             raise self._failure(i, frame, "") from None
         self._outstanding[frame] = i

@@ -14,13 +14,18 @@ from gymnasium import spaces
 from controller.path_following import TrailerSteeringController
 from controller.path_following_config import PathFollowingGains
 from vehicle_model.errors import InputError
+from vehicle_model.geometry import follow_point_from_kingpin
 
-from ..setup.build import ScenarioSetup, trailer_controller
-from .episode import EpisodeLimits, EpisodeRecord, run_episode
+from ..loop.cosimulation import CoSimulation
+from ..loop.ends import ENVIRONMENT_LIMITS, Limits, RunStatus
+from ..loop.trailer_steer import PathFollowingSteer
+from ..run.drive import run_loop
+from ..run.metrics import after_warmup, max_abs, rms
+from ..setup.build import ScenarioSetup
+from ..setup.models import rebuild_setup
 from .plan_view import check_render_mode, draw_plan_view
-from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, ScenarioChoice
+from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, FeedbackSource, ScenarioChoice
 from .sensors import SensorMode
-from .stepper import CoSimulation, cached_setup
 from .validation import check_choice
 
 __all__ = ["GAIN_RANGES", "GainTuningEnv", "action_to_gains", "gains_to_action"]
@@ -53,6 +58,30 @@ def gains_to_action(gains: PathFollowingGains, ranges: Mapping[str, tuple[float,
         value = max(getattr(gains, name), lo)
         out.append(2.0 * math.log(value / lo) / math.log(hi / lo) - 1.0)
     return np.clip(np.array(out, dtype=np.float32), -1.0, 1.0)
+
+
+def episode_figures(columns: dict[str, np.ndarray], follow_point_offset: float) -> dict[str, float]:
+    """RMS and largest true off-tracking after warm-up [m], RMS feedback steer [rad], saturated fraction.
+
+    Warm-up (:func:`scenarios.run.metrics.after_warmup`): until one trailer length after the truth exists. Missing
+    figures are 0.0 (no settled sample: the run ended during warm-up).
+    """
+    settled = after_warmup(columns, follow_point_offset)
+    sat_cols = [v for k, v in columns.items() if k.startswith("saturated_")]
+    saturated = np.any(np.vstack(sat_cols) > 0.5, axis=0) if sat_cols else np.zeros_like(settled)
+    feedback = columns.get("trailer_feedback_steer", np.zeros(settled.size))
+
+    def finite(x: float) -> float:
+        return x if math.isfinite(x) else 0.0
+
+    return {
+        "rms_offtracking": finite(rms(columns["offtracking_truth"][settled])),
+        "max_offtracking": finite(max_abs(columns["offtracking_truth"][settled])),
+        "rms_feedback_steer": finite(rms(feedback[settled])),
+        "saturated_fraction": float(np.mean(saturated[settled])) if settled.any() else 0.0,
+        "settled_samples": float(settled.sum()),
+        "simulated_s": float(columns["time"][-1]) if columns["time"].size else 0.0,
+    }
 
 
 class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
@@ -91,6 +120,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
     saturated fraction the share of settled ticks on which an axle hit ±δ_max. Defaults
     ``w_effort = 0.1 m/rad``, ``w_sat = 0.5 m``, ``failure_cost = 5 m``. The parts and the run's figures are in
     ``info`` (``cost_*``, ``rms_offtracking``, ``max_offtracking``, ``saturated_fraction``, ``status``, the gains).
+    The run is :func:`scenarios.run.drive.run_loop` on the co-simulation of ``offtrack run``.
 
     ## Starting State
 
@@ -100,7 +130,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
     ## Episode End
 
     Every step ends the episode (``terminated=True``). The run inside ends at the scenario's end, or early on a
-    jackknife, divergence or leaving the road (``EpisodeLimits``, then ``failure_cost`` is added).
+    jackknife, divergence or leaving the road (:class:`~scenarios.loop.ends.Limits`, then ``failure_cost`` is added).
 
     ## Arguments
 
@@ -119,7 +149,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         self,
         scenario: str = DEFAULT_SCENARIO,
         overrides: Mapping[str, Any] | None = None,
-        feedback: Literal["truth", "zero_slip", "viso_ot", "viso_ot_fused"] = "truth",
+        feedback: FeedbackSource = "truth",
         vehicle: str | None = "lst",
         mu: float | None = None,
         camber_percent: float | None = None,
@@ -131,9 +161,9 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         effort_weight: float = 0.1,
         saturation_weight: float = 0.5,
         failure_cost: float = 5.0,
-        max_articulation_deg: float = 80.0,
-        max_lateral_error: float = 2.0,
-        max_offtracking: float | None = 3.5,
+        max_articulation_deg: float = ENVIRONMENT_LIMITS.max_articulation_deg,
+        max_lateral_error: float = ENVIRONMENT_LIMITS.max_lateral_error,
+        max_offtracking: float | None = ENVIRONMENT_LIMITS.max_offtracking,
         render_mode: str | None = None,
         render_size: tuple[int, int] = (400, 400),
     ) -> None:
@@ -159,7 +189,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         self.effort_weight = float(effort_weight)
         self.saturation_weight = float(saturation_weight)
         self.failure_cost = float(failure_cost)
-        self.limits = EpisodeLimits(max_articulation_deg, max_lateral_error, max_offtracking)
+        self.limits = Limits(max_articulation_deg, max_lateral_error, max_offtracking)
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.render_size = (int(render_size[0]), int(render_size[1]))
@@ -170,7 +200,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
             dtype=np.float32,
         )
         self._setup: ScenarioSetup | None = None
-        self._last: tuple[EpisodeRecord, CoSimulation] | None = None
+        self._last: tuple[str, dict[str, np.ndarray], CoSimulation] | None = None
         self.episode_settings: dict[str, Any] = {}
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
@@ -180,7 +210,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         if options:
             check_choice(choice)
         config, settings = choice.resolve(self.np_random)
-        self._setup = cached_setup(config)
+        self._setup = rebuild_setup(config)
         self._last = None
         self.episode_settings = settings
         return self._context(), dict(settings)
@@ -205,15 +235,21 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         setup = self._setup
         if setup is None:
             raise gym.error.ResetNeeded("call reset() before evaluate()")
-        controller = self._controller(setup, gains)
-        record, cosim = run_episode(setup, controller, self.limits, setup.config.feedback)
-        self._last = (record, cosim)
-        figures = record.summary(setup.params.follow_point_offset)
+        cosim = CoSimulation(setup, self._source(setup, gains), limits=self.limits)
+        outcome, columns = run_loop(lambda: cosim, catch_stops=False)
+        if outcome.status == RunStatus.LOST_CONTROL and cosim.breach is not None:
+            status = str(cosim.breach.reason)
+        elif outcome.status == RunStatus.DIVERGED:
+            status = "diverged"
+        else:
+            status = str(outcome.status)
+        self._last = (status, columns, cosim)
+        figures = episode_figures(columns, setup.params.follow_point_offset)
         parts = {
             "cost_offtracking": figures["rms_offtracking"],
             "cost_effort": self.effort_weight * figures["rms_feedback_steer"],
             "cost_saturation": self.saturation_weight * figures["saturated_fraction"],
-            "cost_failure": self.failure_cost if record.status != "completed" else 0.0,
+            "cost_failure": self.failure_cost if status != RunStatus.COMPLETED else 0.0,
         }
         cost = float(sum(parts.values()))
         info = {
@@ -221,7 +257,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
             "kp": gains.kp,
             "ki": gains.ki,
             "kd": gains.kd,
-            "status": record.status,
+            "status": status,
             **figures,
             **parts,
             "cost": cost,
@@ -242,14 +278,13 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         if self._last is None:
             state, kingpin, follow, text = setup.initial_state, None, None, ("no run yet",)
         else:
-            record, cosim = self._last
-            cols = record.columns
+            status, cols, cosim = self._last
             kingpin = np.column_stack([cols["kingpin_x"], cols["kingpin_y"]])
             l_fp = setup.params.follow_point_offset
-            follow = kingpin - l_fp * np.column_stack([np.cos(cols["psi2"]), np.sin(cols["psi2"])])
+            follow = follow_point_from_kingpin(kingpin, cols["psi2"], l_fp)
             state = cosim.tick.state
-            figures = record.summary(l_fp)
-            text = (f"{record.status}: RMS e_tr {figures['rms_offtracking'] * 1e3:.1f} mm",)
+            figures = episode_figures(cols, l_fp)
+            text = (f"{status}: RMS e_tr {figures['rms_offtracking'] * 1e3:.1f} mm",)
         return draw_plan_view(
             setup.params,
             state,
@@ -274,16 +309,16 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
     def __setstate__(self, state: dict[str, Any]) -> None:
         config = state["_setup"]
         self.__dict__.update(state)
-        self._setup = None if config is None else cached_setup(config)
+        self._setup = None if config is None else rebuild_setup(config)
 
     # ------------------------------------------------------------------ internals
 
     @staticmethod
-    def _controller(setup: ScenarioSetup, gains: PathFollowingGains) -> TrailerSteeringController:
-        """The scenario's configured controller with ``gains``."""
-        base = trailer_controller(setup)
-        assert base is not None
-        return TrailerSteeringController(setup.params, replace(base.config, gains=gains), feedback=base.feedback)
+    def _source(setup: ScenarioSetup, gains: PathFollowingGains) -> PathFollowingSteer:
+        """The scenario's configured controller with ``gains``, on the configured feedback."""
+        cfg = setup.config
+        settings = replace(cfg.controller.path_following(cfg.rates.control_hz), gains=gains)
+        return PathFollowingSteer(TrailerSteeringController(setup.params, settings), cfg.feedback)
 
     def _context(self) -> np.ndarray:
         s = self.episode_settings

@@ -4,7 +4,7 @@ Reward, per step, from the **true** off-tracking ``e`` after the step and the ap
 
     r = −w_e·min(|e|/e_tol, c_max) − w_u·mean_j (δ_j/δ_max)² − w_du·mean_j (Δδ_j/(δ̇_max·Δt))²
 
-``e_tol`` is a tolerance, by default the 0.10 m off-tracking RMS target of the closed loop (DESIGN §7), so the
+``e_tol`` is a tolerance, by default the 0.10 m off-tracking RMS target of the closed loop, so the
 first term is the off-tracking in units of that target; it is linear (an absolute error) so that it still
 pulls at the millimetre errors a good controller reaches, where a squared error would vanish under the effort
 terms. ``c_max`` (default 10, i.e. 1 m) bounds it; the term is 0 during the first trailer length, before ``e``
@@ -17,9 +17,10 @@ On termination the agent is also charged the worst per-step cost ``w_e·c_max + 
 period left to the end of the path at the target speed, plus ``termination_penalty``, so ending an episode
 early never pays.
 
-The summary (:meth:`EpisodeLog.summary`) is computed by :func:`scenarios.run.metrics.compute_metrics` from
-the episode's recorded ticks, the function that writes ``metrics.json``, so its figures equal that file's for
-the same run (``offtrack run`` of the configuration in ``info["config"]``, steered the same way).
+The summary (:func:`episode_summary`) is computed by :func:`scenarios.run.metrics.compute_metrics` from the
+episode's recorded rows (the co-simulation records every tick as ``offtrack run`` does), the function that writes
+``metrics.json``, so its figures equal that file's for the same run (``offtrack run`` of the configuration in
+``info["config"]``, steered the same way).
 """
 
 from __future__ import annotations
@@ -33,16 +34,16 @@ import numpy as np
 
 from vehicle_model.errors import InputError
 
+from ..loop.cosimulation import CoSimulation
 from ..run.metrics import compute_metrics
-from .stepper import CoSimulation
 
-__all__ = ["OFFTRACKING_TOLERANCE", "REWARD_WEIGHTS", "EpisodeLog", "SteeringReward"]
+__all__ = ["OFFTRACKING_TOLERANCE", "REWARD_WEIGHTS", "SteeringReward", "episode_summary"]
 
 REWARD_WEIGHTS: dict[str, float] = {"offtracking": 1.0, "effort": 0.01, "rate": 0.01}
 """Default weights ``w_e``, ``w_u``, ``w_du`` of the per-step cost terms."""
 
 OFFTRACKING_TOLERANCE = 0.10
-"""Default ``e_tol`` [m]: the closed loop's off-tracking RMS target (DESIGN §7)."""
+"""Default ``e_tol`` [m]: the closed loop's off-tracking RMS target."""
 
 OFFTRACKING_CLIP = 10.0
 """Default ``c_max``: the off-tracking term saturates at ``c_max·e_tol`` (1 m by default)."""
@@ -111,7 +112,7 @@ class SteeringReward:
         if reason == "diverged":
             offtracking = self.clip
         else:
-            offtracking = 0.0 if truth is None else min(abs(truth) / self.tolerance, self.clip)
+            offtracking = min(abs(truth.value) / self.tolerance, self.clip) if truth.available else 0.0
         effort = float(np.mean((commands / max_steer) ** 2))
         rate = float(np.mean(((commands - previous) / (max_rate * cosim.period)) ** 2))
         termination = 0.0
@@ -128,94 +129,47 @@ class SteeringReward:
         }
 
 
-class EpisodeLog:
-    """The columns of an episode that ``metrics.json`` reads, one row per tick, and the reward's running sums.
+def episode_summary(
+    cosim: CoSimulation, termination_reason: str, returns: Mapping[str, float], steps: int
+) -> dict[str, Any]:
+    """An ended episode in figures, as ``metrics.json`` gives them (module docstring).
 
-    Row ``k`` is tick ``k`` (row 0 at ``reset``); the steer and saturation of row ``k`` are those applied from
-    tick ``k`` on, as ``offtrack run`` records them (:meth:`arrays` for the last row).
+    Parameters
+    ----------
+    cosim
+        The episode's co-simulation after :meth:`~scenarios.loop.cosimulation.CoSimulation.finish`.
+    termination_reason
+        Why it terminated (``""``: it reached its end).
+    returns
+        The sum of every reward part over the episode (``reward_offtracking``, …).
+    steps
+        Steps taken.
+
+    Returns
+    -------
+    dict
+        ``rms_offtracking`` and ``max_offtracking`` (true, after warm-up [m]: ``offtracking.truth_after_warmup``
+        of ``metrics.json``; NaN when the episode ended during warm-up), ``rms_offtracking_all`` and
+        ``max_offtracking_all`` (``offtracking.truth``), ``saturated_fraction`` (largest of the axles'
+        ``trailer_steering.<axle>.saturated_fraction``) and ``trailer_steering`` (per axle),
+        ``termination_reason`` (``""``: the episode reached its end), ``steps``, ``simulated_s``, ``return`` and
+        the sum of every reward part (``return_offtracking``, …).
     """
-
-    _STATE = ("X", "Y", "psi1", "gamma")
-
-    def __init__(self, cosim: CoSimulation) -> None:
-        self.axles = tuple(cosim.trailer_axles)
-        self.columns: dict[str, list[float]] = {}
-        self.returns: dict[str, float] = {}
-        self.steps = 0
-        self._tick(cosim)
-
-    def _tick(self, cosim: CoSimulation) -> None:
-        tick = cosim.tick
-        kp = cosim.kingpin
-        truth = tick.estimates["truth"]
-        row = {
-            "time": tick.time,
-            **{name: float(getattr(tick.state, name)) for name in self._STATE},
-            "kingpin_x": float(kp[0]),
-            "kingpin_y": float(kp[1]),
-            "path_progress": float(cosim.driver.progress),
-            "offtracking_truth": math.nan if truth is None else float(truth),
-        }
-        for key, value in row.items():
-            self.columns.setdefault(key, []).append(value)
-
-    def record(
-        self, cosim: CoSimulation, commands: np.ndarray, saturated: np.ndarray, parts: Mapping[str, float]
-    ) -> None:
-        """One step: the commands applied from the previous tick, then the new tick, and the reward's parts."""
-        for name, steer, sat in zip(self.axles, commands, saturated, strict=True):
-            self.columns.setdefault(f"steer_{name}", []).append(float(steer))
-            self.columns.setdefault(f"saturated_{name}", []).append(float(sat))
-        self._tick(cosim)
-        for key, value in parts.items():
-            self.returns[key] = self.returns.get(key, 0.0) + float(value)
-        self.steps += 1
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        """The columns as arrays of one length.
-
-        The per-step columns hold their last value on the last tick, for which no step was taken (``offtrack
-        run`` records there what the controller would command next: the one figure that can differ, by at
-        most one tick in the saturated fraction). The geometric second truth is not computed (NaN).
-        """
-        n = len(self.columns["time"])
-        out = {}
-        for key, values in self.columns.items():
-            pad = [values[-1] if values else 0.0] * (n - len(values))
-            out[key] = np.array(values + pad, dtype=float)
-        out["offtracking_truth_geometric"] = np.full(n, math.nan)
-        return out
-
-    def summary(self, cosim: CoSimulation, termination_reason: str) -> dict[str, Any]:
-        """The episode in figures, as ``metrics.json`` gives them (module docstring).
-
-        Returns
-        -------
-        dict
-            ``rms_offtracking`` and ``max_offtracking`` (true, after warm-up [m]: ``offtracking.truth_after_warmup``
-            of ``metrics.json``; NaN when the episode ended during warm-up), ``rms_offtracking_all`` and
-            ``max_offtracking_all`` (``offtracking.truth``), ``saturated_fraction`` (largest of the axles'
-            ``trailer_steering.<axle>.saturated_fraction``) and ``trailer_steering`` (per axle),
-            ``termination_reason`` (``""``: the episode reached its end), ``steps``, ``simulated_s``, ``return``
-            and the sum of every reward part (``return_offtracking``, …).
-        """
-        setup = cosim.setup
-        metrics = compute_metrics(
-            setup.config.name, setup.config.feedback, setup.params, self.arrays(), [], None, (0.0, 0.0)
-        )
-        truth, settled = metrics["offtracking"]["truth"], metrics["offtracking"]["truth_after_warmup"]
-        steering = metrics["trailer_steering"]
-        total = float(sum(self.returns.values()))
-        return {
-            "rms_offtracking": settled["rms"],
-            "max_offtracking": settled["max_abs"],
-            "rms_offtracking_all": truth["rms"],
-            "max_offtracking_all": truth["max_abs"],
-            "saturated_fraction": max((a["saturated_fraction"] for a in steering.values()), default=0.0),
-            "trailer_steering": steering,
-            "termination_reason": termination_reason,
-            "steps": self.steps,
-            "simulated_s": float(self.columns["time"][-1]),
-            "return": total,
-            **{k.replace("reward_", "return_"): v for k, v in self.returns.items()},
-        }
+    setup = cosim.setup
+    columns = cosim.recorder.arrays()
+    metrics = compute_metrics(setup.config.name, setup.config.feedback, setup.params, columns, [], None, (0.0, 0.0))
+    truth, settled = metrics["offtracking"]["truth"], metrics["offtracking"]["truth_after_warmup"]
+    steering = metrics["trailer_steering"]
+    return {
+        "rms_offtracking": settled["rms"],
+        "max_offtracking": settled["max_abs"],
+        "rms_offtracking_all": truth["rms"],
+        "max_offtracking_all": truth["max_abs"],
+        "saturated_fraction": max((a["saturated_fraction"] for a in steering.values()), default=0.0),
+        "trailer_steering": steering,
+        "termination_reason": termination_reason,
+        "steps": steps,
+        "simulated_s": float(columns["time"][-1]),
+        "return": float(sum(returns.values())),
+        **{k.replace("reward_", "return_"): float(v) for k, v in returns.items()},
+    }

@@ -28,13 +28,24 @@ from typing import Any, Literal
 
 import numpy as np
 
-from controller.path_following_config import FEEDBACK_SOURCES
 from vehicle_model.errors import InputError
 
 from ..config import ScenarioConfig, load_scenario
+from ..registry import NO_FEEDBACK, feedback_sources
 from .sensors import SensorMode, check_mode, draw_biases, sensor_fields
 
-__all__ = ["DEFAULT_OVERRIDES", "DEFAULT_SCENARIO", "OPTION_KEYS", "DomainRandomisation", "ScenarioChoice"]
+__all__ = [
+    "DEFAULT_OVERRIDES",
+    "DEFAULT_SCENARIO",
+    "OPTION_KEYS",
+    "DomainRandomisation",
+    "FeedbackSource",
+    "ScenarioChoice",
+]
+
+FeedbackSource = str
+"""An estimator of :mod:`scenarios.registry` fed back to the trailer (``truth``, ``zero_slip``, ``viso_ot``,
+``viso_ot_fused`` or one a user registered); an environment steers the trailer, so not ``none``."""
 
 DEFAULT_SCENARIO = "roundabout-3"
 """A quarter of the 50 m roundabout (with :data:`DEFAULT_OVERRIDES`): about 1700 control ticks, 33 s simulated."""
@@ -162,9 +173,10 @@ class ScenarioChoice:
         Catalogue name or YAML file.
     overrides : mapping
         Dotted configuration fields.
-    feedback : {"truth", "zero_slip", "viso_ot", "viso_ot_fused"}
-        Off-tracking source of the observation and of the PID (``viso_ot`` and ``viso_ot_fused``, the Kalman
-        filter of the trailer's signals and the camera, render the trailer camera).
+    feedback : str
+        Off-tracking source of the observation and of the PID: an estimator of :mod:`scenarios.registry`
+        (``viso_ot`` and ``viso_ot_fused``, the Kalman filter of the trailer's signals and the camera, render the
+        trailer camera).
     vehicle, mu, camber_percent, camber_direction, speed_kmh, direction
         Named settings (``None``: the scenario's own).
     randomise : DomainRandomisation
@@ -175,7 +187,7 @@ class ScenarioChoice:
 
     scenario: str = DEFAULT_SCENARIO
     overrides: Mapping[str, Any] = field(default_factory=lambda: dict(DEFAULT_OVERRIDES))
-    feedback: Literal["truth", "zero_slip", "viso_ot", "viso_ot_fused"] = "truth"
+    feedback: FeedbackSource = "truth"
     vehicle: str | None = "lst"
     mu: float | None = None
     camber_percent: float | None = None
@@ -189,8 +201,9 @@ class ScenarioChoice:
         check_mode(self.sensors)
         if not isinstance(self.scenario, str):
             raise InputError(f"scenario = {self.scenario!r} must be a catalogue name or a YAML file")
-        if self.feedback not in FEEDBACK_SOURCES:
-            raise InputError(f"feedback = {self.feedback!r} must be one of {list(FEEDBACK_SOURCES)}")
+        sources = [s for s in feedback_sources() if s != NO_FEEDBACK]
+        if self.feedback not in sources:
+            raise InputError(f"feedback = {self.feedback!r} must be one of {sources}")
         if not isinstance(self.overrides, Mapping):
             raise InputError(f"overrides = {self.overrides!r} must be a mapping of dotted fields to values")
         object.__setattr__(self, "overrides", dict(self.overrides))
@@ -248,9 +261,7 @@ class ScenarioChoice:
         """
         data: dict[str, Any] = {"seed": seed, **sensor_fields(self.sensors, dict(biases or {}))}
         data.update(self.overrides)
-        data["feedback"] = self.feedback
-        if self.feedback != "truth":
-            data[f"estimators.{self.feedback}"] = True
+        data["feedback"] = self.feedback  # and so its estimator runs (scenarios.config)
         for name, dotted in NAMED_FIELDS.items():
             if values.get(name) is not None:
                 data[dotted] = values[name]

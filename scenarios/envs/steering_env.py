@@ -12,15 +12,16 @@ from gymnasium import spaces
 
 from controller.path_following import TrailerSteeringController
 from vehicle_model.errors import InputError, SimulationDivergedError
+from vehicle_model.geometry import follow_point_from_kingpin
 
-from ..setup.build import trailer_controller
-from .actuator import TrailerSteerActuator
-from .episode import EpisodeLimits
+from ..loop.cosimulation import CoSimulation
+from ..loop.ends import ENVIRONMENT_LIMITS, Limits
+from ..loop.trailer_steer import AgentSteer
+from ..setup.models import rebuild_setup
 from .plan_view import camera_strip, check_render_mode, draw_plan_view
-from .reward import OFFTRACKING_CLIP, OFFTRACKING_TOLERANCE, REWARD_WEIGHTS, EpisodeLog, SteeringReward
-from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, ScenarioChoice
+from .reward import OFFTRACKING_CLIP, OFFTRACKING_TOLERANCE, REWARD_WEIGHTS, SteeringReward, episode_summary
+from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, FeedbackSource, ScenarioChoice
 from .sensors import SensorMode
-from .stepper import CoSimulation, cached_setup
 from .validation import check_choice
 
 __all__ = ["MAX_EPISODE_STEPS", "OBSERVATION_NAMES", "REWARD_WEIGHTS", "TrailerSteeringEnv"]
@@ -56,7 +57,8 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
     A tractor drives a scenario of the offtrack catalogue (default: a quarter of a 50 m roundabout at
     15 km/h with the ``lst`` longer semi-trailer, entry and exit straights included) under its own driver
     and speed controller. Every step is one control period (20 ms) of the co-simulation
-    (:class:`~scenarios.envs.stepper.CoSimulation`, the loop of ``offtrack run``): the agent steers the
+    (:class:`~scenarios.loop.cosimulation.CoSimulation`, the loop of ``offtrack run``, with the agent as its
+    trailer-steer source, :class:`~scenarios.loop.trailer_steer.AgentSteer`): the agent steers the
     trailer's *virtual axle* and the controller's distribution points every steerable trailer axle at the
     same instantaneous centre, with the speed fade, ±25° saturation and 20°/s rate limit of the
     path-following controller. The goal is zero off-tracking ``e_tr``: the follow point at the trailer's
@@ -160,7 +162,7 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         self,
         scenario: str = DEFAULT_SCENARIO,
         overrides: Mapping[str, Any] | None = None,
-        feedback: Literal["truth", "zero_slip", "viso_ot", "viso_ot_fused"] = "truth",
+        feedback: FeedbackSource = "truth",
         vehicle: str | None = "lst",
         mu: float | None = None,
         camber_percent: float | None = None,
@@ -176,9 +178,9 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         offtracking_tolerance: float = OFFTRACKING_TOLERANCE,
         offtracking_clip: float = OFFTRACKING_CLIP,
         termination_penalty: float = 10.0,
-        max_articulation_deg: float = 80.0,
-        max_lateral_error: float = 2.0,
-        max_offtracking: float | None = 3.5,
+        max_articulation_deg: float = ENVIRONMENT_LIMITS.max_articulation_deg,
+        max_lateral_error: float = ENVIRONMENT_LIMITS.max_lateral_error,
+        max_offtracking: float | None = ENVIRONMENT_LIMITS.max_offtracking,
         render_mode: str | None = None,
         render_size: tuple[int, int] = (400, 400),
         render_span: float = 50.0,
@@ -210,7 +212,7 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
             dict(reward_weights or {}), offtracking_tolerance, offtracking_clip, termination_penalty
         )
         self.reward_weights = dict(self.reward.weights)
-        self.limits = EpisodeLimits(max_articulation_deg, max_lateral_error, max_offtracking)
+        self.limits = Limits(max_articulation_deg, max_lateral_error, max_offtracking)
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.render_size = (int(render_size[0]), int(render_size[1]))
@@ -226,10 +228,10 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
 
         self._cosim: CoSimulation | None = None
         self._controller: TrailerSteeringController | None = None
-        self._actuator: TrailerSteerActuator | None = None
         self._done = False
         self._tracks: tuple[list[np.ndarray], list[np.ndarray]] = ([], [])
-        self._log: EpisodeLog | None = None
+        self._returns: dict[str, float] = {}
+        self._steps = 0
         self.episode_settings: dict[str, Any] = {}
 
     # ------------------------------------------------------------------ Gymnasium API
@@ -241,27 +243,27 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         if options:
             check_choice(choice)
         config, settings = choice.resolve(self.np_random)
-        setup = cached_setup(config)
-        controller = trailer_controller(setup)
-        assert controller is not None  # the feedback is always a source here
-        self._cosim = CoSimulation(setup)
-        self._controller = controller if self.action_mode == "residual" else None
-        self._actuator = TrailerSteerActuator(setup.params, controller.config)
-        self._max_steer = controller.config.max_steer
-        self._max_rate = controller.config.max_steer_rate
+        setup = rebuild_setup(config)
+        settings_si = config.controller.path_following(config.rates.control_hz)
+        agent = AgentSteer(setup.params, settings_si)
+        self._cosim = CoSimulation(setup, agent, limits=self.limits)
+        self._controller = TrailerSteeringController(setup.params, settings_si) if self.action_mode == "residual" else None
+        self._max_steer = settings_si.max_steer
+        self._max_rate = settings_si.max_steer_rate
         self._previous_action = 0.0
         self._pid_virtual = 0.0
         self._done = False
         self.episode_settings = settings
         self._tracks = ([], [])
-        self._log = EpisodeLog(self._cosim)
+        self._returns = {}
+        self._steps = 0
         self._after_tick()
         return self._observation(), dict(settings)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Steer for one control period."""
-        cosim, actuator = self._cosim, self._actuator
-        if cosim is None or actuator is None:
+        cosim, agent = self._cosim, self._agent
+        if cosim is None or agent is None:
             raise gym.error.ResetNeeded("call reset() before step()")
         if self._done:
             raise gym.error.ResetNeeded("the episode has ended; call reset()")
@@ -274,15 +276,16 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
             virtual = self._pid_virtual + a_value * self.residual_scale
         else:
             virtual = a_value * self._max_steer
-        previous = actuator.commands.copy()
-        commands = actuator(virtual, tick.state)
+        previous = agent.commands.copy()
+        agent.request(virtual)
         reason = ""
         try:
-            tick = cosim.advance(commands)
+            tick = cosim.step()
         except SimulationDivergedError:
             reason = "diverged"
-        if not reason:
-            reason = self.limits.check(cosim)
+        if not reason and cosim.breach is not None:
+            reason = cosim.breach.reason
+        commands = agent.commands.copy()
         terminated = bool(reason)
         truncated = not terminated and cosim.finished
         self._done = terminated or truncated
@@ -292,22 +295,25 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         reward = float(sum(parts.values()))
         if not terminated:
             self._after_tick()
+        truth = tick.estimates["truth"]
         estimate = tick.estimates.get(self.choice.feedback)
         info: dict[str, Any] = {
             "time": float(tick.time),
-            "offtracking_true": tick.estimates["truth"],
-            "offtracking_estimate": estimate,
-            "virtual_steer": actuator.virtual_steer,
+            "offtracking_true": truth.value if truth.available else None,
+            "offtracking_estimate": estimate.value if estimate is not None and estimate.available else None,
+            "virtual_steer": agent.virtual_steer,
             "trailer_steer": commands,
             "path_progress": float(cosim.driver.progress),
             "lateral_error": float(cosim.driver.lateral_error),
-            "termination_reason": reason,
+            "termination_reason": str(reason),
             **parts,
         }
-        assert self._log is not None
-        self._log.record(cosim, commands, actuator.saturated, parts)
+        for key, value in parts.items():
+            self._returns[key] = self._returns.get(key, 0.0) + float(value)
+        self._steps += 1
         if self._done:
-            info["episode_summary"] = self._log.summary(cosim, reason)
+            cosim.finish()
+            info["episode_summary"] = episode_summary(cosim, str(reason), self._returns, self._steps)
             info["config"] = cosim.setup.config.model_dump(mode="json")
         return self._observation(), reward, terminated, truncated, info
 
@@ -322,20 +328,21 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         setup, tick = cosim.setup, cosim.tick
         truth = tick.estimates["truth"]
         kingpins, follows = self._tracks
+        agent = self._agent
         image = draw_plan_view(
             setup.params,
             tick.state,
             setup.path.points,
             kingpin_track=np.array(kingpins),
             follow_track=np.array(follows),
-            trailer_steer=self._actuator.commands if self._actuator is not None else (),
+            trailer_steer=agent.commands if agent is not None else (),
             trailer_axles=cosim.trailer_axles,
             span=self.render_span,
             size=self.render_size,
             text=(
                 f"t {tick.time:5.1f} s  u {tick.state.u * 3.6:4.1f} km/h",
-                "e_tr " + ("  n/a" if truth is None else f"{truth:+.3f} m"),
-                f"steer {math.degrees(self._actuator.virtual_steer if self._actuator else 0.0):+.1f} deg",
+                "e_tr " + (f"{truth.value:+.3f} m" if truth.available else "  n/a"),
+                f"steer {math.degrees(agent.virtual_steer if agent is not None else 0.0):+.1f} deg",
             ),
         )
         camera = cosim.camera
@@ -348,11 +355,17 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def close(self) -> None:
         """Drop the run (and its camera pipeline, if any)."""
+        if self._cosim is not None:
+            self._cosim.close()
         self._cosim = None
         self._controller = None
-        self._log = None
 
     # ------------------------------------------------------------------ internals
+
+    @property
+    def _agent(self) -> AgentSteer | None:
+        """The episode's trailer-steer source: the agent's actions through the controller's output stage."""
+        return None if self._cosim is None else self._cosim.trailer_steer  # type: ignore[return-value]
 
     def _after_tick(self) -> None:
         """What the agent sees with a new tick: the PID's proposal (residual mode) and the render tracks."""
@@ -360,35 +373,34 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         assert cosim is not None
         tick = cosim.tick
         if self._controller is not None:
-            self._controller(tick.state, dict(tick.estimates))
+            self._controller(tick.state, tick.estimates.get(self.choice.feedback))
             self._pid_virtual = self._controller.virtual_steer
         if self.render_mode is not None:
-            kp = cosim.kingpin
-            psi2 = tick.state.psi1 - tick.state.gamma
-            l_fp = cosim.setup.params.follow_point_offset
-            self._tracks[0].append(kp)
-            self._tracks[1].append(kp - l_fp * np.array([math.cos(psi2), math.sin(psi2)]))
+            self._tracks[0].append(tick.kingpin)
+            self._tracks[1].append(
+                follow_point_from_kingpin(tick.kingpin, tick.state.psi2, cosim.setup.params.follow_point_offset)
+            )
 
     def _observation(self) -> np.ndarray:
-        cosim, actuator = self._cosim, self._actuator
-        assert cosim is not None and actuator is not None
+        cosim, agent = self._cosim, self._agent
+        assert cosim is not None and agent is not None
         tick = cosim.tick
         m = tick.measured
         estimate = tick.estimates.get(self.choice.feedback)
-        valid = estimate is not None and math.isfinite(estimate)
+        valid = estimate is not None and estimate.available
         path = cosim.setup.path
         ahead = np.clip(cosim.driver.progress + self.preview_distances, 0.0, path.length)
         curvature = np.interp(ahead, path.s, path.curvature)
         obs = np.concatenate(
             [
                 [
-                    estimate if valid else 0.0,
+                    estimate.value if valid else 0.0,  # type: ignore[union-attr]
                     1.0 if valid else 0.0,
                     m["articulation"][0],
                     m["wheel_speed"][0],
                     m["tractor_yaw_rate"][0],
                     m["trailer_yaw_rate"][0],
-                    actuator.virtual_steer,
+                    agent.virtual_steer,
                     self._previous_action,
                     self._pid_virtual,
                 ],

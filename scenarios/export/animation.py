@@ -31,7 +31,7 @@ import numpy as np
 from matplotlib.patches import PathPatch, Polygon
 
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import tractor_outline, trailer_outline
+from vehicle_model.geometry import CombinationPose, tractor_outline, trailer_outline
 
 from ..run.plots import ESTIMATOR_COLOURS, SavedRun, load_run
 from ..run.swept_path import (
@@ -77,11 +77,10 @@ class _Camera:
     """Re-renders the recorded camera frames and reruns the visual odometry to draw the matched features."""
 
     def __init__(self, run: SavedRun) -> None:
+        from sensor.field_optics import right_correction_homography
         from sensor.vo import StereoOdometry, VOConfig
 
-        from ..camera.pipeline import right_correction_homography
-        from ..camera.rig import rig_from_config
-        from ..camera.world import world_for_scenario
+        from ..camera.build import rig_from_config, world_for_scenario
 
         config = run.config
         key = config.model_dump_json(include={"path", "camera", "seed", "direction", "vehicle"})
@@ -109,7 +108,8 @@ class _Camera:
         import cv2
 
         c, r = self.columns, int(self.rows[j])
-        pair = self.renderer.render(c["X"][r], c["Y"][r], c["psi1"][r], c["gamma"][r], frame=j)
+        pose = CombinationPose(c["X"][r], c["Y"][r], c["psi1"][r], c["gamma"][r])
+        pair = self.renderer.render(pose, frame=j)
         right = pair.right
         if self.correction is not None:
             right = cv2.warpPerspective(right, self.correction, (right.shape[1], right.shape[0]))

@@ -20,6 +20,7 @@ The calibration is the *ideal* rig's (rectified, ``P1 = K·[I | −b·e_x]``): a
 from __future__ import annotations
 
 import json
+import math
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -29,9 +30,10 @@ import numpy as np
 
 from sensor.camera import StereoRig
 from vehicle_model.errors import InputError
+from vehicle_model.geometry import CombinationPose
+from vehicle_model.parameters import VehicleParams
 
-from ..camera.rig import rig_from_config, rig_summary
-from ..camera.world import resolve_scenery_density, world_for_scenario
+from ..camera.build import resolve_scenery_density, rig_from_config, world_for_scenario
 from ..config import ScenarioConfig, load_scenario
 from ..run.cosim import run_cosimulation
 from ..run.results import check_output_dir, clear_run_dir
@@ -75,6 +77,28 @@ def read_poses(path: Path) -> np.ndarray:
     poses = np.tile(np.eye(4), (len(rows), 1, 1))
     poses[:, :3, :] = rows
     return poses
+
+
+def rig_summary(rig: StereoRig, params: VehicleParams | None = None) -> dict[str, Any]:
+    """The rig's settings with angles in degrees (for files people read)."""
+    return {
+        "width": rig.width,
+        "height": rig.height,
+        "hfov_deg": math.degrees(rig.hfov),
+        "focal_px": rig.focal_length,
+        "baseline_m": rig.baseline,
+        "station_m": rig.resolve_station(params) if (rig.station is not None or params is not None) else None,
+        "lateral_m": rig.lateral,
+        "mount_height_m": rig.mount_height,
+        "psi_c2v_deg": math.degrees(rig.psi_c2v),
+        "misalignment_deg": {
+            "roll": math.degrees(rig.misalignment.roll),
+            "pitch": math.degrees(rig.misalignment.pitch),
+            "yaw": math.degrees(rig.misalignment.yaw),
+        },
+        "noise_std": rig.noise_std,
+        "exposure_std": rig.exposure_std,
+    }
 
 
 def _enough_for(config: ScenarioConfig, frames: int) -> ScenarioConfig:
@@ -173,9 +197,9 @@ def export_kitti(
         (out / sub).mkdir(parents=True, exist_ok=True)
     import cv2
 
-    x, y, psi1, gamma = (np.asarray(cols[k])[frames] for k in ("X", "Y", "psi1", "gamma"))
-    left_poses = rig.camera_in_world(setup.params, x, y, psi1, gamma, "left")
-    right_poses = rig.camera_in_world(setup.params, x, y, psi1, gamma, "right")
+    poses = CombinationPose(*(np.asarray(cols[k])[frames] for k in ("X", "Y", "psi1", "gamma")))
+    left_poses = rig.camera_in_world(setup.params, poses, "left")
+    right_poses = rig.camera_in_world(setup.params, poses, "right")
     writer = StereoVideoWriter(out / "stereo.mp4", config.rates.camera_hz) if video else None
     t1 = time.perf_counter()
     try:

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..config import ScenarioConfig
+from ..loop.ends import RunStatus
 from .metrics import compute_metrics, estimator_names
 from .results import PLOT_FILES, read_config, read_metrics, read_timeseries, write_metrics
 from .stopping import deferred_stops, raise_pending_stop, stop_message, stop_signal_name
@@ -29,10 +30,6 @@ from .stopping import deferred_stops, raise_pending_stop, stop_message, stop_sig
 if TYPE_CHECKING:
     from ..setup.build import ScenarioSetup
 
-STATUS_RUNNING = "running"
-"""``status`` of a run that has started and not yet written its metrics."""
-STATUS_INCOMPLETE = "incomplete"
-"""``status`` :func:`rebuild_report` gives a run that stopped without writing its metrics."""
 INCOMPLETE_MESSAGE = (
     "the run stopped without writing its metrics (killed, e.g. by SIGKILL, the out-of-memory killer or a "
     "node failure); metrics rebuilt from the time series written up to its last flush"
@@ -51,7 +48,7 @@ def mark_running(run_dir: Path, config: ScenarioConfig) -> None:
         run_dir,
         {
             **_identity(config),
-            "status": STATUS_RUNNING,
+            "status": RunStatus.RUNNING,
             "message": "the run has started and not yet written its metrics",
             "started_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
             "host": socket.gethostname(),
@@ -66,7 +63,7 @@ def mark_interrupted(run_dir: Path, config: ScenarioConfig, exc: BaseException) 
         run_dir,
         {
             **_identity(config),
-            "status": "interrupted",
+            "status": RunStatus.INTERRUPTED,
             "message": stop_message(exc),
             "rows": 0,
             "simulated_s": 0.0,
@@ -167,9 +164,9 @@ def rebuild_report(run_dir: Path, plots: bool = True) -> dict[str, Any]:
     recorded = read_metrics(run_dir) or {}
     columns = read_timeseries(run_dir)
     time = columns.get("time", np.zeros(0))
-    if recorded.get("status") in (None, STATUS_RUNNING):
+    if recorded.get("status") in (None, RunStatus.RUNNING):
         run: dict[str, Any] = {
-            "status": STATUS_INCOMPLETE,
+            "status": RunStatus.INCOMPLETE,
             "message": INCOMPLETE_MESSAGE,
             "stop_time": float(time[-1]) if len(time) else None,
             **{key: recorded[key] for key in ("started_at", "host", "pid") if key in recorded},

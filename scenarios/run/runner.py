@@ -6,14 +6,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..config import ScenarioConfig
-from ..setup.build import build_scenario, trailer_controller
-from .cosim import ProgressCallback, TrailerSteerSource, run_cosimulation
+from ..loop.cosimulation import CoSimulation
+from ..loop.participant import TrailerSteerSource
+from ..setup.build import build_scenario
+from .drive import ProgressCallback, run_loop
 from .report import mark_interrupted, mark_running, write_report
 from .results import PLOT_FILES, TIMESERIES_FILE, TimeSeriesWriter, write_config
 from .stopping import stop_behind
 
 if TYPE_CHECKING:
     from vehicle_model.dynamics import VehicleModel
+
+    from ..setup.build import ScenarioSetup
 
 
 def run_scenario(
@@ -41,7 +45,7 @@ def run_scenario(
     progress
         ``progress(simulated time, fraction done)`` after every control tick.
     trailer_steer_source
-        Steers the trailer instead of the configured controller (``config.feedback``).
+        Steers the trailer instead of the configured source (:func:`scenarios.loop.trailer_steer.trailer_steer_for`).
     plots
         Write ``plan_view.png`` and ``offtracking.png``.
     model
@@ -68,11 +72,7 @@ def run_scenario(
         if stop is exc:
             raise
         raise stop from exc
-    if trailer_steer_source is None:
-        trailer_steer_source = trailer_controller(setup)
-    outcome, columns = run_cosimulation(
-        setup, writer=writer, trailer_steer_source=trailer_steer_source, progress=progress
-    )
+    outcome, columns = run_loop(lambda: _cosimulation(setup, trailer_steer_source, writer), progress, writer.close)
     run = {
         "status": outcome.status,
         "message": outcome.message,
@@ -82,3 +82,10 @@ def run_scenario(
         "stop_signal": outcome.stop_signal,
     }
     return write_report(run_dir, setup, columns, run, plots)
+
+
+def _cosimulation(setup: ScenarioSetup, source: TrailerSteerSource | None, writer: TimeSeriesWriter) -> CoSimulation:
+    """The run's co-simulation, streaming its rows into ``writer`` (which learns the columns)."""
+    cosim = CoSimulation(setup, source, geometric_truth=True, camera_workers=None, sink=writer)
+    writer.columns = cosim.column_names
+    return cosim

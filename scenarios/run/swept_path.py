@@ -382,7 +382,7 @@ def swept_path_figure(
     params
         The combination.
     columns
-        The run's columns (:func:`scenarios.run.cosim.run_cosimulation`): ``time``, ``X``, ``Y``, ``psi1``,
+        The run's columns (:class:`scenarios.loop.cosimulation.CoSimulation`): ``time``, ``X``, ``Y``, ``psi1``,
         ``gamma``, ``follow_x``/``follow_y``, ``steer_*``, ``offtracking_truth``, ``path_progress``.
     reference
         Reference path of the control point ``(n, 2)``.

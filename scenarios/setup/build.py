@@ -10,8 +10,6 @@ import numpy as np
 from scipy.optimize import root_scalar
 
 from controller.driver import SpeedProfile, kinematic_feedforward
-from controller.path_following import TrailerSteeringController
-from controller.path_following_config import PathFollowingConfig, PathFollowingGains
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
@@ -245,24 +243,13 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
     )
 
 
-def trailer_controller(setup: ScenarioSetup) -> TrailerSteeringController | None:
-    """The configured trailer path-following controller, or ``None`` for an unsteered trailer."""
+def run_duration(setup: ScenarioSetup) -> float:
+    """Time [s] at which a run ends even if the driver has not reached the end of the path.
+
+    ``duration_s`` if set; else twice the time the path takes at the cornering speed (at least 0.5 m/s), plus a
+    minute.
+    """
     cfg = setup.config
-    if cfg.feedback == "none":
-        return None
-    c = cfg.controller
-    gains = None
-    if c.kp is not None or c.ki is not None or c.kd is not None:
-        gains = PathFollowingGains(kp=c.kp or 0.0, ki=c.ki or 0.0, kd=c.kd or 0.0)
-    config = PathFollowingConfig(
-        gains=gains,
-        natural_frequency=c.natural_frequency,
-        damping=c.damping,
-        max_steer=math.radians(c.max_steer_deg),
-        max_steer_rate=math.radians(c.max_steer_rate_deg_s),
-        feedforward=c.feedforward,
-        bandwidth_speed=None if c.bandwidth_speed_kmh is None else c.bandwidth_speed_kmh / 3.6,
-        control_period=1.0 / cfg.rates.control_hz,
-        feedback_max_std=c.feedback_max_std_m,
-    )
-    return TrailerSteeringController(setup.params, config, feedback=cfg.feedback)
+    if cfg.duration_s is not None:
+        return cfg.duration_s
+    return 2.0 * setup.path.length / max(setup.speed_profile.cornering, 0.5) + 60.0

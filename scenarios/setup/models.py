@@ -1,12 +1,18 @@
-"""A small registry of built vehicle models, so that the runs of one process share each vehicle's casadi functions."""
+"""Built vehicle models and scenarios shared by the runs of one process (each vehicle's casadi functions once)."""
 
 from __future__ import annotations
 
 from collections import OrderedDict
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any
 
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.presets import vehicle_preset
+
+if TYPE_CHECKING:
+    from ..config import ScenarioConfig
+    from .build import ScenarioSetup
 
 
 class ModelRegistry:
@@ -56,3 +62,51 @@ class ModelRegistry:
 
     def __len__(self) -> int:
         return len(self._models)
+
+
+class SetupCache:
+    """Built scenarios by configuration (the seed aside), least recently used dropped first, on one model registry.
+
+    The seed does not enter a build (it seeds the signals and the camera at run time), so setups are cached by
+    the rest of the configuration and returned with the given configuration attached. Building a scenario
+    solves the driver's steady feed-forward with the model's trim and loads the compiled model: seconds that
+    every episode of an environment and every unpickled co-simulation would otherwise pay again.
+
+    Parameters
+    ----------
+    models
+        The vehicle models the builds use.
+    capacity
+        Setups kept at most.
+    """
+
+    def __init__(self, models: ModelRegistry | None = None, capacity: int = 16) -> None:
+        self.models = models if models is not None else ModelRegistry()
+        self.capacity = capacity
+        self._setups: OrderedDict[str, Any] = OrderedDict()
+
+    def setup(self, config: ScenarioConfig) -> ScenarioSetup:
+        """The built scenario of ``config`` (:func:`~scenarios.setup.build.build_scenario`)."""
+        from .build import build_scenario
+
+        key = config.model_copy(update={"seed": 0}).model_dump_json()
+        setup = self._setups.get(key)
+        if setup is None:
+            setup = build_scenario(config, model=self.models.preset(config.vehicle))
+            self._setups[key] = setup
+            while len(self._setups) > self.capacity:
+                self._setups.popitem(last=False)
+        else:
+            self._setups.move_to_end(key)
+        return setup if setup.config == config else replace(setup, config=config)
+
+
+PROCESS_SETUPS = SetupCache()
+"""This process's built scenarios and vehicle models: the one cache that unpickling a co-simulation (which cannot
+be handed one), the Gymnasium environments and a sweep worker's cases share. One per process because a compiled
+model and its loaded library belong to the process."""
+
+
+def rebuild_setup(config: ScenarioConfig) -> ScenarioSetup:
+    """The built scenario of ``config`` from this process's cache (:data:`PROCESS_SETUPS`)."""
+    return PROCESS_SETUPS.setup(config)

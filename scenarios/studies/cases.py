@@ -8,6 +8,7 @@ from typing import Any
 import pandas as pd
 
 from ..config import load_scenario
+from ..loop.ends import RunStatus
 from ..run.metrics import estimator_errors, rms
 from ..run.runner import run_scenario
 from .records import CaseSpec
@@ -28,7 +29,7 @@ def run_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     metrics = run_scenario(config, run_dir, plots=False, model=worker_models().preset(config.vehicle))
     row: dict[str, Any] = dict(spec.labels)
     row["status"] = metrics["status"]
-    if metrics["status"] == "interrupted":  # stopped (perhaps before the first row): no result, run again on resume
+    if metrics["status"] == RunStatus.INTERRUPTED:  # stopped (perhaps before its first row): run again on resume
         row["stop_signal"] = metrics.get("stop_signal")
         return row
     frame = pd.read_parquet(run_dir / "timeseries.parquet")

@@ -13,8 +13,11 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from vehicle_model.errors import InputError
+
 from ..config import ScenarioConfig, validate_config
-from ..run.cosim import ProgressCallback
+from ..registry import feedback_sources
+from ..run.drive import ProgressCallback
 from ..run.files import write_atomic
 from ..run.results import TIMESERIES_FILE
 from ..run.runner import run_scenario
@@ -28,7 +31,8 @@ from ..run.swept_path import (
 )
 from ..setup.build import build_scenario
 
-FEEDBACK_ORDER = ("none", "zero_slip", "viso_ot", "viso_ot_fused", "truth")
+DEFAULT_FEEDBACKS = ("none", "zero_slip", "viso_ot", "truth")
+"""The feedback sources ``offtrack compare`` runs unless told (every one of :mod:`scenarios.registry` is allowed)."""
 COLOURS = {
     "none": "tab:red",
     "zero_slip": "tab:orange",
@@ -36,7 +40,7 @@ COLOURS = {
     "viso_ot_fused": "tab:purple",
     "truth": "tab:blue",
 }
-"""Colour of each feedback source in the comparison figure (lines and trailer envelopes)."""
+"""Colour of the built-in feedback sources in the comparison figure (others take the next colour of the cycle)."""
 
 
 def summary_row(feedback: str, metrics: dict[str, Any]) -> dict[str, Any]:
@@ -60,7 +64,7 @@ def summary_row(feedback: str, metrics: dict[str, Any]) -> dict[str, Any]:
 def compare_feedback(
     config: ScenarioConfig,
     out_dir: Path,
-    feedbacks: tuple[str, ...] = FEEDBACK_ORDER,
+    feedbacks: tuple[str, ...] = DEFAULT_FEEDBACKS,
     progress: ProgressCallback | None = None,
 ) -> pd.DataFrame:
     """Run ``config`` once per feedback source into ``out_dir/<feedback>/``; write the table and the figure.
@@ -69,12 +73,11 @@ def compare_feedback(
     against time, and their swept follow-point paths).
     """
     configs = {}
-    for feedback in feedbacks:  # validate every variant before the first run starts
-        data = config.model_dump()
-        data["feedback"] = feedback
-        data["estimators"]["viso_ot"] = config.estimators.viso_ot or feedback in ("viso_ot", "viso_ot_fused")
-        data["estimators"]["viso_ot_fused"] = config.estimators.viso_ot_fused or feedback == "viso_ot_fused"
-        configs[feedback] = validate_config(data)
+    unknown = [f for f in feedbacks if f not in feedback_sources()]
+    if unknown:
+        raise InputError(f"feedbacks {unknown}: choose from {', '.join(feedback_sources())}")
+    for feedback in feedbacks:  # validate every variant before the first run starts (its estimator runs)
+        configs[feedback] = validate_config({**config.model_dump(), "feedback": feedback})
     rows, traces, verdicts = [], {}, {}
     for feedback, cfg in configs.items():
         run_dir = out_dir / feedback

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..loop.ends import RunStatus
 from .cases import run_case
 from .figures import FIGURES
 from .progress import ProgressCallback, SweepProgress
@@ -131,7 +132,7 @@ def run_estimators_under_slip_case(spec: CaseSpec, out_dir: Path) -> dict[str, A
     read from the run's ``metrics.json`` (open loop beside ``viso_ot`` feedback, closed loop under its own)."""
     row = run_case(spec, out_dir)
     metrics_file = out_dir / spec.name / "metrics.json"
-    if row.get("status") == "interrupted" or not metrics_file.is_file():
+    if row.get("status") == RunStatus.INTERRUPTED or not metrics_file.is_file():
         return row
     fused = json.loads(metrics_file.read_text()).get("offtracking", {}).get("estimators", {}).get("viso_ot_fused")
     if fused:
@@ -210,7 +211,7 @@ def run_study(
     runner = CASE_RUNNERS.get(name, run_case)
     result = run_sweep(cases, out_dir, runner, workers=workers, scheduler=scheduler, resume=resume, progress=report)
     table = result.table
-    ok = table[table["status"] != "failed"] if "status" in table.columns else table
+    ok = table[table["status"] != RunStatus.FAILED] if "status" in table.columns else table
     if not ok.empty:
         FIGURES[name](ok.reset_index(drop=True), out_dir)
     return table

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..loop.ends import RunStatus
 from ..run.files import jsonable
 
 CASES_DIR = "cases"
@@ -95,7 +96,7 @@ class CaseRecord:
             return dict(self.row)
         error = self.error or {}
         row: dict[str, Any] = {k: v for k, v in self.spec.get("labels", [])}
-        row["status"] = "failed"
+        row["status"] = RunStatus.FAILED
         row["error"] = f"{error.get('type', 'Error')}: {error.get('message', '')}".strip()
         return row
 

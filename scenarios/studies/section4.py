@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..loop.ends import RunStatus
 from .cases import run_case
 from .records import CaseSpec
 
@@ -46,7 +47,7 @@ PAPER_SECTION4_CORRECTION_DEG = (0.15, 0.0, -0.10)
 CORRECTION_SETTING_DEG = PAPER_SECTION4_MISALIGNMENT_DEG
 """``camera.right_correction_deg`` of the corrected cases: the *estimated misalignment* to remove.
 
-:func:`scenarios.camera.pipeline.right_correction_homography` warps the right image by ``K·R·K⁻¹`` with ``R``
+:func:`sensor.field_optics.right_correction_homography` warps the right image by ``K·R·K⁻¹`` with ``R``
 of these angles, which undoes a ``camera.right_misalignment_deg`` of the same angles exactly — the paper's
 correction (the rotation it applied, φ +0.15°, ψ −0.10°, is the inverse of the one it inferred). Setting the
 paper's applied angles here would double the misalignment instead of removing it.
@@ -201,7 +202,7 @@ def run_section4_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     row = run_case(spec, out_dir)
     row["case"] = spec.name
     series = out_dir / spec.name / "timeseries.parquet"
-    if row.get("status") == "interrupted" or not series.exists():
+    if row.get("status") == RunStatus.INTERRUPTED or not series.exists():
         return row
     frame = pd.read_parquet(series, columns=["offtracking_truth", "offtracking_viso_ot"])
     row.update(sign_conditioned_errors(frame["offtracking_truth"].to_numpy(), frame["offtracking_viso_ot"].to_numpy()))

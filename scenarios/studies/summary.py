@@ -19,6 +19,8 @@ from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
 
+from ..loop.ends import RunStatus
+
 LABELS = ("case", "scenario", "sweep", "camera", "surface", "camber", "baseline", "slip", "density", "feedback")
 """Case labels of the studies (:mod:`scenarios.studies.definitions`), shown first when they vary."""
 
@@ -169,7 +171,7 @@ def summary_table(
         row = []
         for column in chosen:
             text = cells[column][i]
-            style = "bold red" if column == "status" and text == "failed" else ""
+            style = "bold red" if column == "status" and text == RunStatus.FAILED else ""
             row.append(Text(text, style=style))
         view.add_row(*row)
     return view

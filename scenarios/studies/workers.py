@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..loop.ends import RunStatus
 from ..run.files import jsonable, write_atomic
 from ..run.stopping import Terminated
 from .records import CaseRecord, CaseSpec, case_path, fingerprint, marker_path, spec_dict
@@ -143,7 +144,7 @@ def failure_record(
     return CaseRecord(
         name=task.spec.name,
         index=task.index,
-        status="failed",
+        status=RunStatus.FAILED,
         row=None,
         error={"type": type(exc).__name__, "message": str(exc), "traceback": tb},
         spec=spec_dict(task.spec),
@@ -219,7 +220,7 @@ def execute(task: Task) -> dict[str, Any]:
         t0 = time.perf_counter()
         try:
             row = task.run(task.spec, out_dir)
-            if isinstance(row, dict) and row.get("status") == "interrupted":
+            if isinstance(row, dict) and row.get("status") == RunStatus.INTERRUPTED:
                 # the co-simulation caught a Ctrl-C or SIGTERM: not a result; the case is run again on resume
                 raise _stop_request(task, row, stops)
             record = CaseRecord(

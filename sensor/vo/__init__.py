@@ -13,7 +13,7 @@ circle), :mod:`sensor.vo.kernels_match` (positions, Delaunay support, refinement
 :mod:`sensor.vo.kernels_motion` (Gauss–Newton, RANSAC). The speed is measured by ``offtrack bench vo``
 (:mod:`scenarios.bench.vo`).
 
-This is a re-implementation from the algorithm's description (``shared/reference/viso2s-algorithm.md``),
+This is a re-implementation from the algorithm's description (``docs/visual_odometry.md``),
 not a port: no libviso2 code is used. Where it knowingly differs from libviso2:
 
 * A failed frame returns ``valid=False`` and no motion; libviso2 keeps returning the stale previous

@@ -11,7 +11,7 @@ __all__ = ["bucket_matches"]
 
 
 def bucket_matches(xy: np.ndarray, config: VOConfig, rng: np.random.Generator) -> np.ndarray:
-    """Keep at most ``bucket_max_features`` random matches per bucket (reference §1.4, ``bucketFeatures``).
+    """Keep at most ``bucket_max_features`` random matches per bucket (docs/visual_odometry.md §7, ``bucketFeatures``).
 
     Buckets are ``bucket_width`` × ``bucket_height`` px cells of the current-left position; the
     random choice comes from ``rng`` (libviso2 shuffles with ``rand()``).

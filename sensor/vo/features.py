@@ -2,10 +2,10 @@
 
 * Two 5×5 interest filters, blob and corner (checkerboard), on the (optionally 2×2 box-downsampled)
   image; non-maximum suppression gives four classes — blob minimum (0), blob maximum (1), corner
-  minimum (2), corner maximum (3) — with |response| ≥ tau (viso2s reference §1.2).
+  minimum (2), corner maximum (3) — with |response| ≥ tau (docs/visual_odometry.md §3).
 * Descriptor: 5×5 Sobel-like responses (smoothing [1 4 6 4 1], derivative [1 2 0 −2 −1]) scaled
   by 1/128, offset by 128 and saturated to uint8; the horizontal and vertical responses sampled at
-  16 sparse offsets of the 11×11 window give 32 bytes, compared by SAD (reference §1.3).
+  16 sparse offsets of the 11×11 window give 32 bytes, compared by SAD (docs/visual_odometry.md §4).
 
 The interest filters (exact integer sums), the extrema and the descriptors are compiled
 (:mod:`sensor.vo.kernels_features`); the Sobel filters, the downsampling and the erosion/dilation
@@ -45,7 +45,7 @@ __all__ = [
     "sobel_responses",
 ]
 
-# Geiger et al. 2011, §III-A; viso2s reference §1.2.
+# Geiger et al. 2011, §III-A; docs/visual_odometry.md §3.
 BLOB_KERNEL = np.array(
     [
         [-1, -1, -1, -1, -1],
@@ -67,12 +67,12 @@ CORNER_KERNEL = np.array(
     dtype=np.float32,
 )
 
-# Sobel 5×5 (reference §1.3): smoothing [1 4 6 4 1] ⊗ derivative [1 2 0 −2 −1] as a convolution, i.e.
+# Sobel 5×5 (docs/visual_odometry.md §4): smoothing [1 4 6 4 1] ⊗ derivative [1 2 0 −2 −1] as a convolution, i.e.
 # correlation with [−1 −2 0 2 1] (a positive response for intensity increasing to the right/down).
 _SOBEL_SMOOTH = np.array([1, 4, 6, 4, 1], dtype=np.float32)
 _SOBEL_DERIV = np.array([-1, -2, 0, 2, 1], dtype=np.float32)
 
-#: (du, dv) sampling offsets of the 32-byte descriptor inside the 11×11 window (reference §1.3).
+#: (du, dv) sampling offsets of the 32-byte descriptor inside the 11×11 window (docs/visual_odometry.md §4).
 DESCRIPTOR_OFFSETS = np.array(
     [
         (-1, -1), (1, -1), (-1, 1), (1, 1),
@@ -89,7 +89,7 @@ BORDER_MARGIN = 9
 #: Period of the tie-breaking rank pattern: unique inside any window of the largest NMS radius.
 _TIE_PERIOD = 2 * MAX_NMS_N + 1
 
-# Feature classes (reference §1.2).
+# Feature classes (docs/visual_odometry.md §3).
 BLOB_MIN, BLOB_MAX, CORNER_MIN, CORNER_MAX = 0, 1, 2, 3
 
 
@@ -140,14 +140,14 @@ class ImageFeatures:
 
 
 def half_resolution(image: np.ndarray) -> np.ndarray:
-    """2×2 box-mean downsampling (reference §1.2); odd trailing rows/columns are dropped."""
+    """2×2 box-mean downsampling (docs/visual_odometry.md §3); odd trailing rows/columns are dropped."""
     h, w = image.shape
     h2, w2 = h // 2, w // 2
     return cv2.resize(image[: 2 * h2, : 2 * w2], (w2, h2), interpolation=cv2.INTER_AREA)
 
 
 def sobel_responses(image: np.ndarray) -> np.ndarray:
-    """5×5 Sobel responses /128 + 128, saturated to uint8 (reference §1.3).
+    """5×5 Sobel responses /128 + 128, saturated to uint8 (docs/visual_odometry.md §4).
 
     Returns
     -------
@@ -163,7 +163,7 @@ def sobel_responses(image: np.ndarray) -> np.ndarray:
 
 
 def filter_responses(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Blob and corner (checkerboard) filter responses (reference §1.2), borders replicated.
+    """Blob and corner (checkerboard) filter responses (docs/visual_odometry.md §3), borders replicated.
 
     The blob kernel is −(5×5 box) + 2·(3×3 box) + 7·(centre) (libviso2 uses an integral image to the
     same end); the checkerboard kernel is separable. Exact integer sums
@@ -239,7 +239,7 @@ def _detect(keys: np.ndarray, radii: tuple[int, ...], tau: float, margin: int) -
 def non_maximum_suppression(
     blob: np.ndarray, corner: np.ndarray, n: int, tau: float, margin: int = BORDER_MARGIN
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Local extrema of both filter responses, four classes (reference §1.2, Neubeck & Van Gool 2006).
+    """Local extrema of both filter responses, four classes (docs/visual_odometry.md §3, Neubeck & Van Gool 2006).
 
     Parameters
     ----------
@@ -268,7 +268,7 @@ def non_maximum_suppression(
 
 
 def compute_descriptors(sobel: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """32-byte descriptors at (u, v) [px of ``sobel``] (reference §1.3).
+    """32-byte descriptors at (u, v) [px of ``sobel``] (docs/visual_odometry.md §4).
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """Optional constant-acceleration Kalman smoothing of the per-frame motion.
 
 The StereoScan paper (Geiger, Ziegler & Stiller 2011, §III-B) filters the ego-motion with a
-constant-acceleration Kalman filter; libviso2 does not contain one (viso2s reference §1.5), so the
+constant-acceleration Kalman filter; libviso2 does not contain one (docs/visual_odometry.md §12), so the
 filter here is off by default. Each of the six motion parameters θ = (rx, ry, rz, tx, ty, tz) per
 frame — a velocity sampled at the camera rate — has the state (θ_i, θ̇_i) with
 

@@ -1,4 +1,4 @@
-"""Compiled circle of the quad matching: 1p → 2p → 2c → 1c → 1p in one call (viso2s reference §1.4).
+"""Compiled circle of the quad matching: 1p → 2p → 2c → 1c → 1p in one call (docs/visual_odometry.md §5).
 
 :func:`circle` runs the four search steps of :func:`sensor.vo.kernels_search.search_step` over the
 surviving start features, with the index row band of every step derived from its windows as

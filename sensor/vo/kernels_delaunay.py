@@ -1,7 +1,7 @@
 """Compiled Delaunay triangulation of distinct integer points, with exact integer predicates.
 
-The triangulation that the outlier check of :mod:`sensor.vo.outliers` counts support on (viso2s reference
-§1.4, ``removeOutliers``). It reproduces what ``cv2.Subdiv2D`` gives for the same input — the same
+The triangulation that the outlier check of :mod:`sensor.vo.outliers` counts support on (docs/visual_odometry.md
+§6, ``removeOutliers``). It reproduces what ``cv2.Subdiv2D`` gives for the same input — the same
 bounding rectangle, hence the same three virtual outer vertices (six times the rectangle's larger side away),
 the points inserted in the same (Z-curve) order, and the triangles that touch an outer vertex dropped —
 at a fraction of its cost: no quad-edge structure, no Python list of triangle corners to map back.

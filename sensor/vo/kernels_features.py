@@ -6,7 +6,7 @@ rolling window of rows, optionally straight as the tie-broken float32 keys of :f
 erode the keys; :func:`detect` then finds the thresholded extrema of both responses for the dense
 and the sparse radius in one call by Neubeck & Van Gool's block scheme (one candidate per block,
 compared with the dilation); :func:`features_at` and :func:`describe` give positions and 32-byte
-descriptors (viso2s reference §1.2–1.3).
+descriptors (docs/visual_odometry.md §3–4).
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ def _padded_row_sums(image: np.ndarray, padded: int, ring: np.ndarray) -> None:
 
 @kernel
 def responses(image: np.ndarray, period: int, ring: np.ndarray, values: np.ndarray, keys: np.ndarray) -> None:
-    """Blob and checkerboard responses of a uint8 image, borders replicated (reference §1.2).
+    """Blob and checkerboard responses of a uint8 image, borders replicated (docs/visual_odometry.md §3).
 
     Blob = 7·centre + 2·(3×3 box) − (5×5 box); checkerboard = −a·aᵀ with a = [−1 −1 0 1 1]
     (correlation): separable integer sums, exact, over a rolling window of five padded rows

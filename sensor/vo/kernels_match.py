@@ -2,7 +2,7 @@
 
 * :func:`positions` turns index quadruples into (N, 8) positions and keeps the first match of every
   current-left pixel (libviso2 keeps the first).
-* :func:`triangle_support` counts every match's consistent incident edges (viso2s reference §1.4,
+* :func:`triangle_support` counts every match's consistent incident edges (docs/visual_odometry.md §6,
   ``removeOutliers``; :mod:`sensor.vo.outliers`).
 * :func:`refine` moves the 1p, 2p and 2c positions to the SAD minimum of the 16-byte small
   descriptor within ± radius px of full-resolution pixels, with sub-pixel parabolas for radius 3

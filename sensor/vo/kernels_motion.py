@@ -1,6 +1,6 @@
 """Compiled kernels of the motion estimation: residuals and Jacobian, Gauss–Newton, RANSAC inliers.
 
-viso2s reference §1.5; the formulas are those documented in :mod:`sensor.vo.motion`. One helper,
+docs/visual_odometry.md §9; the formulas are those documented in :mod:`sensor.vo.motion`. One helper,
 :func:`_point_rows`, holds the residual and analytic Jacobian of one match; Gauss–Newton accumulates
 JᵀJ and Jᵀr from it row by row and solves the 6×6 system by LU with partial pivoting (as LAPACK's
 ``gesv``; an exactly zero pivot or a non-finite step marks the hypothesis as failed). The RANSAC

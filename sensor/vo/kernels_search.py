@@ -5,7 +5,7 @@ The index buckets an image's features by (class, row band, column cell) with CSR
 run. :func:`search_step` walks the runs of every query's window in ascending (band, cell, feature)
 order and keeps the first strict minimum of the cost — the 32-byte SAD plus, with a motion prior,
 ``rint(weight · distance)`` to the predicted position — which is the candidate of the lowest
-sorted position among equal costs (viso2s reference §1.4; :mod:`sensor.vo.kernels_circle`). The SAD
+sorted position among equal costs (docs/visual_odometry.md §5; :mod:`sensor.vo.kernels_circle`). The SAD
 stops early, 8 bytes at a time, once it cannot beat the best so far (an equal cost never wins).
 """
 

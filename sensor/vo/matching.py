@@ -1,6 +1,6 @@
 """Circular ("quad") matching of VISO2-S across the four images of two stereo pairs.
 
-Geiger, Ziegler & Stiller 2011, §III-A; viso2s reference §1.4. The circle runs in libviso2's
+Geiger, Ziegler & Stiller 2011, §III-A; docs/visual_odometry.md §5–8. The circle runs in libviso2's
 (2014/2018) order: previous-left (1p) → previous-right (2p) [stereo] → current-right (2c) [flow]
 → current-left (1c) [stereo] → back to 1p [flow]; a match is accepted when the circle closes on the
 feature it started from. Stereo steps search |Δv| ≤ ``match_disp_tolerance`` with u_left ≥ u_right;
@@ -38,7 +38,7 @@ from sensor.vo.refinement import refine_matches
 
 __all__ = ["MatchResult", "circular_match", "match_frames"]
 
-_PRIOR_WEIGHT = 4.0  # cost per px of distance to the motion-prior prediction (reference §1.4)
+_PRIOR_WEIGHT = 4.0  # cost per px of distance to the motion-prior prediction (docs/visual_odometry.md §5)
 _COL_CELL = 8  # [px] column cell of the candidate index (speed only)
 
 # Steps of the circle: 0 1p→2p (stereo), 1 2p→2c (flow), 2 2c→1c (stereo), 3 1c→1p (flow).

@@ -1,6 +1,6 @@
 """Ego-motion of VISO2-S: Gauss–Newton on the stereo reprojection error inside 3-point RANSAC.
 
-Geiger, Ziegler & Stiller 2011, §III-B; viso2s reference §1.5 (``VisualOdometryStereo::estimateMotion``).
+Geiger, Ziegler & Stiller 2011, §III-B; docs/visual_odometry.md §9 (``VisualOdometryStereo::estimateMotion``).
 
 * 3-D points are triangulated from the previous pair: d = max(u1p − u2p, 1e-4),
   X = (u1p − cu)·b/d, Y = (v1p − cv)·b/d, Z = f·b/d.
@@ -51,13 +51,13 @@ __all__ = [
     "triangulate",
 ]
 
-_MIN_MATCHES = 6  # libviso2: fewer than 6 matches is a failure (reference §1.5)
+_MIN_MATCHES = 6  # libviso2: fewer than 6 matches is a failure (docs/visual_odometry.md §11)
 _RANSAC_MAX_ITER, _RANSAC_EPS = 20, 1e-6
 _FINAL_MAX_ITER, _FINAL_EPS = 100, 1e-8
 
 
 def triangulate(xy: np.ndarray, config: VOConfig) -> np.ndarray:
-    """3-D points [m] in the previous left-camera frame from the previous pair (reference §1.5).
+    """3-D points [m] in the previous left-camera frame from the previous pair (docs/visual_odometry.md §9).
 
     Parameters
     ----------
@@ -124,7 +124,7 @@ def project(points: np.ndarray, config: VOConfig) -> np.ndarray:
 def residuals_and_jacobian(
     params: np.ndarray, points: np.ndarray, obs: np.ndarray, weights: np.ndarray, config: VOConfig
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Weighted stereo reprojection residuals and their analytic Jacobian (reference §1.5).
+    """Weighted stereo reprojection residuals and their analytic Jacobian (docs/visual_odometry.md §9).
 
     Parameters
     ----------
@@ -198,7 +198,7 @@ class MotionEstimate:
 
 
 def estimate_motion(xy: np.ndarray, config: VOConfig, rng: np.random.Generator) -> MotionEstimate:
-    """Frame-to-frame motion from stereo matches by 3-point RANSAC + Gauss–Newton (reference §1.5).
+    """Frame-to-frame motion from stereo matches by 3-point RANSAC + Gauss–Newton (docs/visual_odometry.md §9).
 
     Parameters
     ----------

@@ -3,9 +3,9 @@
 :class:`StereoOdometry` keeps the features of the previous stereo pair; each call of
 :meth:`StereoOdometry.process` detects the features of the new pair, matches the four images in a
 circle, buckets the matches and estimates the frame-to-frame motion by 3-point RANSAC and
-Gauss–Newton on the stereo reprojection error (viso2s reference §1; de Saxe & Cebon 2018 §2.1).
+Gauss–Newton on the stereo reprojection error (docs/visual_odometry.md §1; de Saxe & Cebon 2018 §2.1).
 
-Output convention (reference §1.6): ``motion`` is libviso2's Tr_delta, p_t = Tr_delta·p_{t−1}, which
+Output convention (docs/visual_odometry.md §10): ``motion`` is libviso2's Tr_delta, p_t = Tr_delta·p_{t−1}, which
 maps a point from the previous left-camera frame into the current left-camera frame (OpenCV axes:
 x right, y down, z forward; metres). ``camera_motion`` = inv(Tr_delta) is the current left camera's
 pose in the previous left camera's frame; chaining ``pose = pose @ camera_motion`` integrates the
@@ -225,7 +225,7 @@ class StereoOdometry:
                 self._kalman.predict()
             return self._failed(reason, t0, t1, t2, xy, estimate.inliers, code, quality)
         motion = estimate.motion
-        self._prior = motion  # constant-velocity prior of the next frame's matching (reference §1.4)
+        self._prior = motion  # constant-velocity prior of the next frame's matching (docs/visual_odometry.md §5)
         if self._kalman is not None and estimate.params is not None:
             motion = params_to_transform(self._kalman.update(estimate.params))
         t3 = _Clock()

@@ -12,7 +12,7 @@ from sensor.vo.match_columns import U1C, V1C
 
 __all__ = ["remove_outliers"]
 
-_MIN_CONSISTENT_EDGES = 4  # Delaunay support needed to keep a match (reference §1.4)
+_MIN_CONSISTENT_EDGES = 4  # Delaunay support needed to keep a match (docs/visual_odometry.md §6)
 
 
 def _delaunay(u: np.ndarray, v: np.ndarray) -> np.ndarray | None:
@@ -40,7 +40,7 @@ def _delaunay(u: np.ndarray, v: np.ndarray) -> np.ndarray | None:
 
 
 def remove_outliers(xy: np.ndarray, config: VOConfig) -> np.ndarray:
-    """Delaunay consistency check (reference §1.4, ``removeOutliers``).
+    """Delaunay consistency check (docs/visual_odometry.md §6, ``removeOutliers``).
 
     The current-left positions are triangulated; an edge is consistent when the disparities of its
     end points differ by less than ``outlier_disp_tolerance`` (in the previous and the current pair)

@@ -12,7 +12,7 @@ from sensor.vo.match_columns import U1C, U1P, U2C, U2P, V1P
 
 __all__ = ["PriorRanges", "compute_prior_ranges", "default_ranges"]
 
-_MIN_PRIOR_SPAN = 20  # [px] minimum width of a second-pass search range (reference §1.4)
+_MIN_PRIOR_SPAN = 20  # [px] minimum width of a second-pass search range (docs/visual_odometry.md §5)
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,7 +70,7 @@ def _bin_extremes(xy: np.ndarray, binsize: int, n_bv: int, n_bu: int) -> tuple[n
 
 
 def default_ranges(config: VOConfig) -> tuple[np.ndarray, np.ndarray]:
-    """First-pass search ranges of the four circle steps (reference §1.4).
+    """First-pass search ranges of the four circle steps (docs/visual_odometry.md §5).
 
     Stereo steps (0: 1p→2p, 2: 2c→1c) search ± ``search_radius`` in u on the side of non-negative
     disparity and ± ``match_disp_tolerance`` in v; flow steps (1: 2p→2c, 3: 1c→1p) search
@@ -93,7 +93,7 @@ def default_ranges(config: VOConfig) -> tuple[np.ndarray, np.ndarray]:
 
 
 def compute_prior_ranges(xy: np.ndarray, shape: tuple[int, int], config: VOConfig) -> PriorRanges:
-    """Second-pass search ranges from first-pass matches (reference §1.4, ``computePriorStatistics``).
+    """Second-pass search ranges from first-pass matches (docs/visual_odometry.md §5, ``computePriorStatistics``).
 
     Per ``match_binsize`` bin, the min and max of each step's (du, dv) over the matches starting in
     the 3×3 neighbouring bins, widened to a span of at least 20 px; bins without

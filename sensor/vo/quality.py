@@ -22,7 +22,7 @@ Measures (all over the final RANSAC inliers, at the refined parameters θ̂):
 Reason codes of a refused frame are the keys of :data:`VO_REASONS`. :data:`REJECTION_REASONS` is the
 whole table of the camera estimator — these, VISO-OT's plausibility failures and the reasons for a
 missing estimate (:mod:`sensor.viso_ot`) — and :data:`QUALITY_COLUMNS` the names of a frame's quality
-measures (:class:`scenarios.camera.pipeline.CameraFrame`). Importing this module is light (numpy,
+measures (:class:`sensor.frame_odometry.CameraFrame`). Importing this module is light (numpy,
 no OpenCV): result writers may read the tables without loading the odometry.
 """
 

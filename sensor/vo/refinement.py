@@ -14,7 +14,7 @@ __all__ = ["refine_matches"]
 def refine_matches(xy: np.ndarray, images: tuple[ImageFeatures, ...], config: VOConfig) -> np.ndarray:
     """Relocate the 1p, 2p and 2c positions around their matches relative to the fixed 1c position.
 
-    Reference §1.4 (``refinement``): the 16-byte small descriptor of 1c (ELAS-style: du at 12 offsets,
+    docs/visual_odometry.md §8 (``refinement``): the 16-byte small descriptor of 1c (ELAS-style: du at 12 offsets,
     dv at 4 of the 5×5 window) is compared (SAD) with the small descriptors of the other images within
     ±2 px at full resolution; ``refinement=1`` moves to the minimum, ``refinement=2`` searches ±3 px
     and fits parabolas in u and v through the cost around the inner minimum for sub-pixel positions.

@@ -12,7 +12,7 @@
 Axes: cameras follow OpenCV (x right, y down, z forward). The world frame is the level start frame of
 the camera: X right, Y down (gravity), Z forward; the ground is the plane Y = +height. Poses are
 camera-to-world 4×4 matrices T_wc; the ground-truth libviso2 Tr_delta between frames k−1 and k is
-inv(T_wc,k)·T_wc,k−1 (viso2s reference §1.6).
+inv(T_wc,k)·T_wc,k−1 (docs/visual_odometry.md §10).
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ _SKY = 170  # grey level of pixels that see neither plane
 
 @dataclass(frozen=True)
 class StereoRig:
-    """Ideal rectified pinhole stereo rig (defaults: de Saxe & Cebon 2018 §3.1, DESIGN §6).
+    """Ideal rectified pinhole stereo rig (defaults: de Saxe & Cebon 2018 §3.1, docs/design.md §8).
 
     Parameters
     ----------
@@ -92,7 +92,7 @@ class StereoRig:
 
 
 def relative_motion(pose_prev: np.ndarray, pose_cur: np.ndarray) -> np.ndarray:
-    """libviso2's Tr_delta = inv(T_wc,k)·T_wc,k−1 from two camera-to-world poses (reference §1.6)."""
+    """libviso2's Tr_delta = inv(T_wc,k)·T_wc,k−1 from two camera-to-world poses (docs/visual_odometry.md §10)."""
     return np.linalg.solve(pose_cur, pose_prev)
 
 

@@ -23,7 +23,7 @@ Contents
 * Verges and fields: grass verges along the road, and a ground plane of ``field_size`` cells out
   to ``ground_reach`` beyond the path, each cell a pasture, crop, ploughed or stubble field with
   its own row direction.
-* Scenery (paper §3.2.3): delineator posts, trees (deciduous and conifers), farm buildings,
+* Scenery (de Saxe & Cebon 2018, §3.2.3): delineator posts, trees (deciduous and conifers), farm buildings,
   post-and-rail fences, hedges and road signs within ``scenery_reach`` of the road.
   ``scenery_density`` in [0, 1] keeps that fraction of the objects, evenly spread (a
   low-discrepancy selection, so the objects at density 0.5 are a subset of those at 1.0 for the

@@ -113,7 +113,7 @@ def airfield_world(road: RoadPath, cfg: WorldConfig) -> World:
     cfg : WorldConfig
         Settings; ``airfield_width`` is the apron's width, ``airfield_field_size`` the grain fields'
         size. ``scenery_density`` has no effect: the apron has no roadside objects, and the distant
-        hedges, buildings and woods are landscape, kept at every density (issue 14).
+        hedges, buildings and woods are landscape, kept at every density (:mod:`sensor.world.landscape`).
 
     Returns
     -------

@@ -54,7 +54,7 @@ def build_world(path: PathLike | RoadPath, config: WorldConfig | None = None, **
     ground, xs, ys = ground_parts(lay, streams[1])
     scenery, counts = scenery_parts(lay, streams[2], sites, xs, ys)
     # The landscape beyond the roadside (hedgerows, trees, farmsteads, horizon woods) is part of the
-    # world at every scenery density: the density thins roadside objects only (paper §3.2.3).
+    # world at every scenery density: the density thins roadside objects only (de Saxe & Cebon 2018, §3.2.3).
     landscape = landscape_parts(lay, streams[4], xs, ys) if cfg.landscape else []
     landscape += [horizon_part(lay, streams[3])] if cfg.horizon else []
     return World(

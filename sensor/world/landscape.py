@@ -1,12 +1,12 @@
 """The distant landscape: hedgerows, hedgerow trees and farmsteads beyond the roadside, and the horizon woods.
 
 Why: real fields are bounded by hedgerows and tree lines, with farm buildings and woods on the
-horizon, whether or not the road itself has trees, posts and signs beside it. The paper's scenery
-density (§3.2.3) removes roadside objects; it does not flatten the countryside. Without anything
+horizon, whether or not the road itself has trees, posts and signs beside it. The scenery density of
+de Saxe & Cebon 2018 (§3.2.3) removes roadside objects; it does not flatten the countryside. Without anything
 beyond the roadside a rear camera sees only near ground, where a yaw and a lateral translation
 move the image almost alike, and a small systematic matching error then becomes an off-tracking
-bias (issue 14: −0.24 m at density 0). Features a few hundred metres away pin the yaw, since
-their image motion is nearly pure rotation (a distance ``Z`` moves a feature ``f·t/Z`` px for a
+bias (−0.24 m at scenery density 0; ``CHANGELOG.md``). Features a few hundred metres away pin the
+yaw, since their image motion is nearly pure rotation (a distance ``Z`` moves a feature ``f·t/Z`` px for a
 translation ``t`` but ``f·ψ`` px for a yaw ``ψ``).
 
 What: the parts of :func:`landscape_parts` are category ``ground`` (part of the world, present at

@@ -283,7 +283,7 @@ def scenery_parts(
             if not placer._hits(*p, 2.4):
                 placer.add(kind, *p, rng.uniform(0, 2 * math.pi), rng.uniform(0.7, 1.2), force=True, z=LEVELS["island"])
 
-    # Density selection (paper §3.2.3), then meshes.
+    # Density selection (de Saxe & Cebon 2018, §3.2.3), then meshes.
     templates = _templates(np.random.default_rng(rng.integers(2**63)))
     parts: list[Part] = []
     counts: dict[str, int] = {}

@@ -109,7 +109,7 @@ class WorldConfig:
     Parameters
     ----------
     road_width : float
-        Carriageway width [m] (paper §3.1 used 5 m; default 7 m, a UK single carriageway).
+        Carriageway width [m] (de Saxe & Cebon 2018, §3.1, used 5 m; default 7 m, a UK single carriageway).
     scenery_density : float
         Fraction in [0, 1] of the roadside objects kept (paper §3.2.3: 1.0, 0.5, 0.0).
     seed : int
@@ -134,8 +134,8 @@ class WorldConfig:
     ground_detail : bool or None
         Ground textures keep their contrast at every distance (contrast-preserving mipmaps,
         :mod:`sensor.world.detail`); False gives ordinary box-filtered mipmaps, whose far field is
-        flat. None (default): True for every kind (issue 14: with the box-filtered chain the
-        ground-only rear view of scenery density 0 carried twice the VO yaw bias).
+        flat. None (default): True for every kind (with the box-filtered chain the ground-only rear
+        view of scenery density 0 carries twice the VO yaw bias).
     kind : str
         ``roadside`` (road, roundabout, verges, fields and roadside scenery) or ``airfield`` (a tarmac
         apron in grain fields with distant hedges and buildings, :mod:`sensor.world.airfield`).

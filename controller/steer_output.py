@@ -1,0 +1,163 @@
+"""The trailer steering's output stage: a virtual-axle angle to the commands of every steerable trailer axle.
+
+Whatever chooses the virtual-axle angle ``δ_v`` — the path-following PID (:mod:`controller.path_following`) or an
+agent of the steering environment — the commands are made the same way, here::
+
+    δ_v ← clip(δ_v, ±δ_v,max)                                   (keeps tan δ_v finite)
+    δ_j = f(u) · distribution(tan δ_v, tan β_k)                 (:mod:`controller.axle_steer_distribution`)
+    δ_j ← clip(δ_j, β_j ± α_max)                                (optional slip-angle limit)
+    δ_j ← clip(δ_j, ±δ_max), then within ±δ̇_max·Δt of the last command
+
+with the speed fade ``f(u) = clip((u − u0)/(u1 − u0), 0, 1)`` (zero when reversing) and ``tan β_k`` the direction
+of the kingpin velocity in the trailer frame, from zero-slip kinematics of the tractor's signals or from the true
+state (:attr:`~controller.path_following_config.PathFollowingConfig.kinematics`). :meth:`TrailerSteerOutput.propose`
+computes a step without changing anything, so that the PID can try its anti-windup alternative;
+:meth:`TrailerSteerOutput.commit` makes a step the current command.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from vehicle_model.kinematics import kingpin_velocity, zero_slip_kingpin_velocity
+from vehicle_model.parameters import VehicleParams
+from vehicle_model.simulator import VehicleState
+
+from .axle_steer_distribution import AxleSteerDistribution, limit_axle_commands
+from .path_following_config import PathFollowingConfig
+
+__all__ = ["OutputStep", "TrailerSteerOutput", "speed_fade"]
+
+
+def speed_fade(speed: float, fade_speeds: tuple[float, float]) -> float:
+    """``f(u)``: 0 below ``u0`` and when reversing, 1 above ``u1``, linear in between."""
+    if not speed > 0.0:
+        return 0.0
+    lo, hi = fade_speeds
+    return min(max((speed - lo) / (hi - lo), 0.0), 1.0)
+
+
+class OutputStep(NamedTuple):
+    """One proposed command of every steerable axle [rad], and how the limits shaped it."""
+
+    virtual: float
+    """The virtual-axle angle after its clamp."""
+    target: np.ndarray
+    """Faded distribution of the virtual angle (before any limit)."""
+    bounded: np.ndarray
+    """Target after the slip-angle limit (the target itself without one)."""
+    limited: np.ndarray
+    """After the magnitude limit."""
+    output: np.ndarray
+    """After the rate limit: the commands."""
+    slip_limited: np.ndarray
+    """Per axle: the slip-angle limit clipped the target."""
+    blocked_up: bool
+    """Every axle is held below its target by a limit, or the virtual angle is clamped from above."""
+    blocked_down: bool
+    """The same from below."""
+
+
+class TrailerSteerOutput:
+    """The commands of the steerable trailer axles, made from virtual-axle angles (module docstring).
+
+    Parameters
+    ----------
+    params : VehicleParams
+        The combination (at least one steerable trailer axle).
+    config : PathFollowingConfig
+        Virtual axle, limits, fade speeds, kinematics source and control period.
+
+    Attributes
+    ----------
+    distribution : AxleSteerDistribution
+        Virtual-axle angle → axle angles.
+    commands : numpy.ndarray
+        The current per-axle commands [rad].
+    virtual_steer : float
+        The virtual-axle angle [rad] of the current commands, after its clamp.
+    saturated, rate_limited, slip_limited : numpy.ndarray
+        Per axle: the magnitude limit, the rate limit, the slip-angle limit clipped the current command.
+    """
+
+    def __init__(self, params: VehicleParams, config: PathFollowingConfig) -> None:
+        self.params = params
+        self.config = config
+        self.distribution = AxleSteerDistribution.for_vehicle(
+            params, config.virtual_axle_distance, config.fixed_axle_compensation
+        )
+        self.n_axles = int(np.count_nonzero(self.distribution.steerable))
+        self.reset()
+
+    def reset(self) -> None:
+        """Straight axles, no time yet."""
+        n = self.n_axles
+        self.commands = np.zeros(n)
+        self.saturated = np.zeros(n, dtype=bool)
+        self.rate_limited = np.zeros(n, dtype=bool)
+        self.slip_limited = np.zeros(n, dtype=bool)
+        self.virtual_steer = 0.0
+        self._time: float | None = None
+
+    def period(self, time: float) -> float:
+        """Time [s] since the previous call (the configured control period on the first, or if it is not > 0)."""
+        cfg = self.config
+        dt = cfg.control_period if self._time is None else time - self._time
+        if not dt > 0:
+            dt = cfg.control_period
+        self._time = time
+        return dt
+
+    def kingpin_velocity(self, state: VehicleState) -> tuple[float, float]:
+        """Kingpin velocity [m/s] in tractor axes: zero-slip from the tractor's signals, or true (``kinematics``)."""
+        if self.config.kinematics == "truth":
+            return kingpin_velocity(self.params, state.u, state.v1, state.r1)
+        return zero_slip_kingpin_velocity(self.params, state.u, state.r1)
+
+    def propose(
+        self,
+        virtual: float,
+        tan_kingpin: float,
+        fade: float,
+        dt: float,
+        slip_window: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> OutputStep:
+        """The commands for the virtual-axle angle ``virtual`` [rad], without making them current.
+
+        Parameters
+        ----------
+        virtual
+            ``δ_v`` [rad], before its clamp to ``±max_virtual_steer``.
+        tan_kingpin
+            ``tan β_k``, the direction of the kingpin velocity in the trailer frame.
+        fade
+            Speed fade ``f(u)`` in [0, 1] (:func:`speed_fade`).
+        dt
+            Time since the last command [s] (for the rate limit).
+        slip_window
+            Per-axle bounds of the slip-angle limit, or ``None``.
+        """
+        cfg = self.config
+        clamped = min(max(virtual, -cfg.max_virtual_steer), cfg.max_virtual_steer)
+        target = fade * self.distribution(math.tan(clamped), tan_kingpin)
+        slipping = np.zeros(target.shape, dtype=bool)
+        bounded = target
+        if slip_window is not None:  # never past the tyre's peak
+            bounded = np.clip(target, *slip_window)
+            slipping = np.abs(bounded - target) > 1e-12
+        limited, output = limit_axle_commands(bounded, self.commands, cfg.max_steer, cfg.max_steer_rate, dt)
+        blocked_up = bool(np.all(output < target - 1e-12)) or virtual > clamped
+        blocked_down = bool(np.all(output > target + 1e-12)) or virtual < clamped
+        return OutputStep(clamped, target, bounded, limited, output, slipping, blocked_up, blocked_down)
+
+    def commit(self, step: OutputStep) -> np.ndarray:
+        """Make ``step`` the current commands; return a copy of them."""
+        self.virtual_steer = step.virtual
+        self.saturated = np.abs(step.bounded) > self.config.max_steer
+        self.rate_limited = np.abs(step.output - step.limited) > 1e-12
+        self.slip_limited = step.slip_limited
+        self.commands = step.output
+        return step.output.copy()

@@ -1,0 +1,245 @@
+"""The model-side estimators of the loop: the ground truth, Cheng's zero-slip estimate, fused VISO-OT.
+
+All three feed the one kingpin-path buffer (:class:`vehicle_model.offtracking.OfftrackingBuffer`, de Saxe & Cebon
+2018, eqs (3)–(7)) from different sources of kingpin motion: the exact increments of the simulation, zero-slip
+kinematics of the tractor's signals, or a Kalman filter of the trailer's signals and the camera's motions. The
+builders (:func:`ground_truth`, :func:`zero_slip`, :func:`fused_viso_ot`) are the entries of
+:mod:`scenarios.registry`; the camera's own estimate is in :mod:`.camera_estimator`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping
+
+import numpy as np
+
+from controller.zero_slip import ZeroSlipEstimator
+from sensor.fusion import FusedVisoOt, FusionNoise
+from vehicle_model.geometry import kingpin_position
+from vehicle_model.offtracking import (
+    BUFFER_FILLING,
+    OfftrackingBuffer,
+    OfftrackingEstimate,
+    increments_from_poses,
+    offtracking_from_path,
+)
+from vehicle_model.parameters import VehicleParams
+
+from .participant import Column, LoopContext, TickInput, estimate_column
+
+__all__ = ["DensePath", "FusedVisoOtEstimator", "GroundTruth", "ZeroSlip", "fused_viso_ot", "ground_truth", "zero_slip"]
+
+TOO_UNCERTAIN = "too_uncertain"
+"""Why the fused estimate has no value although it has a standard deviation: that exceeds its ``max_std``."""
+
+
+class DensePath:
+    """The recent kingpin path at dynamics-step resolution, trimmed to a little over one trailer length.
+
+    Points live in one growing buffer (compacted when full), so :meth:`array` is a view, not a copy of
+    every chunk each control tick. Chunks are trimmed from the front, whole, while more than two remain
+    and the rest still spans ``keep_length``.
+    """
+
+    def __init__(self, keep_length: float, capacity: int = 4096) -> None:
+        self.keep_length = keep_length
+        self._buf = np.empty((capacity, 2))
+        self._end = 0
+        self._starts: deque[int] = deque()  # buffer index of each chunk's first point
+        self.lengths: deque[float] = deque()  # each chunk's length, joined to the chunk before it
+
+    def extend(self, points: np.ndarray) -> None:
+        """Append a chunk of points ``(N, 2)``, oldest first, then trim."""
+        points = np.asarray(points, dtype=float)
+        if self._starts:
+            joined = np.vstack([self._buf[self._end - 1 : self._end], points])
+        else:
+            joined = points
+        length = float(np.hypot(*np.diff(joined, axis=0).T).sum()) if len(joined) > 1 else 0.0
+        if self._end + len(points) > len(self._buf):
+            self._compact(len(points))
+        self._starts.append(self._end)
+        self._buf[self._end : self._end + len(points)] = points
+        self._end += len(points)
+        self.lengths.append(length)
+        total = sum(self.lengths)
+        while len(self._starts) > 2 and total - self.lengths[0] > self.keep_length:
+            total -= self.lengths.popleft()
+            self._starts.popleft()
+
+    def _compact(self, incoming: int) -> None:
+        first = self._starts[0] if self._starts else self._end
+        kept = self._end - first
+        if kept + incoming > len(self._buf) // 2:  # grow so that compaction stays rare
+            buf = np.empty((2 * (kept + incoming), 2))
+        else:
+            buf = self._buf
+        buf[:kept] = self._buf[first : self._end]
+        self._buf = buf
+        self._starts = deque(i - first for i in self._starts)
+        self._end = kept
+
+    def array(self) -> np.ndarray:
+        """The kept path ``(N, 2)``, oldest first (a read-only view, valid until the next :meth:`extend`)."""
+        first = self._starts[0] if self._starts else self._end
+        view = self._buf[first : self._end]
+        view.flags.writeable = False
+        return view
+
+
+class GroundTruth:
+    """The exact off-tracking: the buffer fed with the true kingpin increments between ticks.
+
+    With ``geometric`` it also intersects the dense kingpin path (every dynamics step) with the follow point's
+    station, directly (:func:`~vehicle_model.offtracking.offtracking_from_path`): a second truth that must agree
+    with the first to well under a millimetre (``offtracking_truth_geometric``; NaN without it).
+
+    Parameters
+    ----------
+    params
+        The combination.
+    geometric
+        Compute the geometric second truth.
+    """
+
+    name = "truth"
+    columns: tuple[Column, ...] = (
+        Column(estimate_column("truth"), "m", "true off-tracking (the buffer fed with exact increments)"),
+        Column("offtracking_truth_geometric", "m", "the same by intersecting the dense kingpin path (a check)"),
+    )
+
+    def __init__(self, params: VehicleParams, geometric: bool = False) -> None:
+        self.params = params
+        self.follow_point_offset = params.follow_point_offset
+        self.buffer = OfftrackingBuffer(self.follow_point_offset)
+        self.dense = DensePath(keep_length=2.0 * self.follow_point_offset + 10.0) if geometric else None
+        self._previous: tuple[np.ndarray, float] | None = None
+        self.estimate = OfftrackingEstimate.of(None)
+        self.geometric = math.nan
+
+    def update(self, tick: TickInput) -> OfftrackingEstimate:
+        """Push the kingpin's increment since the previous tick; the off-tracking."""
+        kp, psi2 = tick.kingpin, tick.state.psi2
+        if self.dense is not None:
+            trajectory = tick.trajectory
+            if trajectory is None:
+                self.dense.extend(kp[None, :])
+            else:
+                self.dense.extend(kingpin_position(self.params, trajectory[:, 0], trajectory[:, 1], trajectory[:, 2]))
+        if self._previous is not None:
+            prev_kp, prev_psi2 = self._previous
+            increment = increments_from_poses(np.vstack([prev_kp, kp]), np.array([prev_psi2, psi2]))[0]
+            self.buffer.push(*increment)
+        self._previous = (kp, psi2)
+        if self.dense is not None:
+            geometric = offtracking_from_path(self.dense.array(), kp, psi2, self.follow_point_offset)
+            self.geometric = math.nan if geometric is None else float(geometric)
+        self.estimate = OfftrackingEstimate.of(self.buffer.offtracking())
+        return self.estimate
+
+    def record(self) -> Mapping[str, float]:
+        """Both truths."""
+        return {"offtracking_truth": self.estimate.value, "offtracking_truth_geometric": self.geometric}
+
+
+class ZeroSlip:
+    """Cheng's zero-slip estimate (:class:`controller.zero_slip.ZeroSlipEstimator`) on the tick's signals.
+
+    Parameters
+    ----------
+    params
+        The combination.
+    variant
+        ``yaw_rate`` (the gyro) or ``steer_angle``.
+    """
+
+    name = "zero_slip"
+    columns: tuple[Column, ...] = (Column(estimate_column("zero_slip"), "m", "zero-slip (Cheng) off-tracking"),)
+
+    def __init__(self, params: VehicleParams, variant: str = "yaw_rate") -> None:
+        self.estimator = ZeroSlipEstimator(params, variant)  # type: ignore[arg-type]
+        self.estimate = OfftrackingEstimate.of(None)
+
+    def update(self, tick: TickInput) -> OfftrackingEstimate:
+        """Dead-reckon the kingpin over the period that ended at ``tick`` (nothing on the first tick)."""
+        value = None if tick.index == 0 else self.estimator.update(tick.measured, tick.period)
+        self.estimate = OfftrackingEstimate.of(value)
+        return self.estimate
+
+    def record(self) -> Mapping[str, float]:
+        """The estimate."""
+        return {"offtracking_zero_slip": self.estimate.value}
+
+
+class FusedVisoOtEstimator:
+    """Fused VISO-OT (:class:`sensor.fusion.FusedVisoOt`): the trailer's signals every tick, the camera's motions
+    as the camera latency releases them.
+
+    Parameters
+    ----------
+    params
+        The combination.
+    camera
+        The VISO-OT participant (:class:`~.camera_estimator.VisoOt`): its camera pose and its released frames.
+    noise
+        The filter's noise model and tuning.
+    drop_every
+        Withhold every n-th frame from the filter (0: none; a test of its gap bridging).
+    """
+
+    name = "viso_ot_fused"
+    columns: tuple[Column, ...] = (
+        Column(estimate_column("viso_ot_fused"), "m", "fused VISO-OT off-tracking"),
+        Column("offtracking_viso_ot_fused_std", "m", "its standard deviation"),
+    )
+
+    def __init__(self, params: VehicleParams, camera: object, noise: FusionNoise, drop_every: int = 0) -> None:
+        self.camera = camera
+        self.filter = FusedVisoOt(params, camera.camera_in_trailer, noise)  # type: ignore[attr-defined]
+        self.drop_every = drop_every
+        self.estimate = OfftrackingEstimate.of(None)
+
+    def update(self, tick: TickInput) -> OfftrackingEstimate:
+        """Propagate with the trailer's signals, then correct with the frames the camera released on this tick."""
+        fused, measured, drop = self.filter, tick.measured, self.drop_every
+        steer = measured["trailer_steer"]
+        fused.propagate(tick.index, tick.period, measured["trailer_yaw_rate"][0], measured["trailer_wheel_speed"][0], steer)
+        for shot in self.camera.released:  # type: ignore[attr-defined]
+            frame = shot.frame
+            usable = frame.valid and not (drop > 0 and (shot.index + 1) % drop == 0)
+            fused.measure(shot.tick, frame.vo.camera_motion if usable else None, frame.vo.covariance if usable else None)
+        if fused.estimate is not None:
+            self.estimate = OfftrackingEstimate(float(fused.estimate), fused.std)
+        else:
+            reason = TOO_UNCERTAIN if math.isfinite(fused.std) else BUFFER_FILLING
+            self.estimate = OfftrackingEstimate(math.nan, fused.std, reason)
+        return self.estimate
+
+    def record(self) -> Mapping[str, float]:
+        """The estimate and its standard deviation."""
+        return {"offtracking_viso_ot_fused": self.estimate.value, "offtracking_viso_ot_fused_std": self.estimate.std}
+
+
+def ground_truth(context: LoopContext) -> GroundTruth:
+    """The registry's builder of the ground truth."""
+    return GroundTruth(context.setup.params, geometric=context.geometric_truth)
+
+
+def zero_slip(context: LoopContext) -> ZeroSlip:
+    """The registry's builder of the zero-slip estimator (``estimators.zero_slip_variant``)."""
+    return ZeroSlip(context.setup.params, context.setup.config.estimators.zero_slip_variant)
+
+
+def fused_viso_ot(context: LoopContext) -> FusedVisoOtEstimator:
+    """The registry's builder of fused VISO-OT (``fusion`` settings; on the ``viso_ot`` participant's camera)."""
+    f = context.setup.config.fusion
+    noise = FusionNoise(
+        gyro_noise=f.gyro_noise,
+        wheel_speed_noise=f.wheel_speed_noise,
+        slip_velocity_walk=f.slip_velocity_walk,
+        vo_covariance_scale=f.vo_covariance_scale,
+        offtracking_bias_std=f.offtracking_bias_std,
+    )
+    return FusedVisoOtEstimator(context.setup.params, context.estimators["viso_ot"], noise, f.drop_every)

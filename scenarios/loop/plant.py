@@ -1,0 +1,134 @@
+"""The plant's participants: the vehicle as recorded (state, kingpin, follow point) and its on-board signals."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from sensor.signals import ChannelSpec, OnboardSignals
+from vehicle_model.geometry import follow_point_from_kingpin
+from vehicle_model.kinematics import trailer_axle_speed
+from vehicle_model.simulator import VehicleState
+
+from ..setup.build import ScenarioSetup
+from .participant import Column, TickInput
+
+__all__ = ["RECORDED_SIGNALS", "SignalsParticipant", "VehicleParticipant"]
+
+_STATE_COLUMNS = (
+    Column("X", "m", "tractor CG, global X"),
+    Column("Y", "m", "tractor CG, global Y"),
+    Column("psi1", "rad", "tractor heading"),
+    Column("u", "m/s", "tractor CG forward velocity"),
+    Column("v1", "m/s", "tractor CG lateral velocity (left +)"),
+    Column("r1", "rad/s", "tractor yaw rate"),
+    Column("gamma", "rad", "articulation Γ = ψ1 − ψ2"),
+    Column("r2", "rad/s", "trailer yaw rate"),
+)
+
+RECORDED_SIGNALS: tuple[tuple[str, str], ...] = (
+    ("wheel_speed", "m/s"),
+    ("front_steer", "rad"),
+    ("tractor_yaw_rate", "rad/s"),
+    ("articulation", "rad"),
+    ("trailer_yaw_rate", "rad/s"),
+)
+"""The on-board signals recorded as ``signal_<name>`` (:mod:`sensor.signals`), with their units."""
+
+
+class VehicleParticipant:
+    """The true vehicle of a tick: time, body states, trailer heading, kingpin, follow point, camera clock.
+
+    Parameters
+    ----------
+    setup
+        The built scenario.
+    """
+
+    name = "vehicle"
+    columns: tuple[Column, ...] = (
+        Column("time", "s", "simulation time"),
+        *_STATE_COLUMNS,
+        Column("psi2", "rad", "trailer heading ψ1 − Γ"),
+        Column("kingpin_x", "m", "kingpin, global X"),
+        Column("kingpin_y", "m", "kingpin, global Y"),
+        Column("follow_x", "m", "follow point (L_fp behind the kingpin), global X"),
+        Column("follow_y", "m", "follow point, global Y"),
+        Column("camera_frame", "-", "1 on the ticks the camera clock ticked"),
+    )
+
+    def __init__(self, setup: ScenarioSetup) -> None:
+        self.follow_point_offset = setup.params.follow_point_offset
+        self._row: dict[str, float] = {}
+
+    def update(self, tick: TickInput) -> None:
+        """Take the tick's state."""
+        s = tick.state
+        kp = tick.kingpin
+        psi2 = s.psi2
+        follow = follow_point_from_kingpin(kp, psi2, self.follow_point_offset)
+        self._row = {
+            "time": tick.time,
+            "X": s.X,
+            "Y": s.Y,
+            "psi1": s.psi1,
+            "u": s.u,
+            "v1": s.v1,
+            "r1": s.r1,
+            "gamma": s.gamma,
+            "r2": s.r2,
+            "psi2": psi2,
+            "kingpin_x": kp[0],
+            "kingpin_y": kp[1],
+            "follow_x": follow[0],
+            "follow_y": follow[1],
+            "camera_frame": float(tick.camera_frame),
+        }
+
+    def record(self) -> Mapping[str, float]:
+        """The tick's values."""
+        return self._row
+
+
+class SignalsParticipant:
+    """The on-board signals (:class:`sensor.signals.OnboardSignals`) sampled from the true state every tick.
+
+    Parameters
+    ----------
+    setup
+        The built scenario: its ``signals`` section and seed (the run's generator starts here).
+    """
+
+    name = "signals"
+    columns: tuple[Column, ...] = tuple(Column(f"signal_{n}", unit, f"measured {n}") for n, unit in RECORDED_SIGNALS)
+
+    def __init__(self, setup: ScenarioSetup) -> None:
+        cfg = setup.config
+        specs = {name: ChannelSpec(**getattr(cfg.signals, name).model_dump()) for name in type(cfg.signals).model_fields}
+        self.sensors = OnboardSignals(specs, np.random.default_rng(cfg.seed))
+        self.params = setup.params
+        steerable = setup.model.layout.steerable_axles
+        trailer = {a.name for a in setup.params.trailer.axles}
+        self._trailer_index = [i for i, n in enumerate(steerable) if n in trailer]
+        self.measured: dict[str, np.ndarray] = {}
+
+    def measure(self, time: float, state: VehicleState, steer: np.ndarray) -> dict[str, np.ndarray]:
+        """The signals at ``time`` of the true ``state`` and the steer angles ``steer`` (every steerable axle)."""
+        index = self._trailer_index
+        truth = {
+            "wheel_speed": state.u,
+            "front_steer": steer[0],
+            "tractor_yaw_rate": state.r1,
+            "articulation": state.gamma,
+            "trailer_yaw_rate": state.r2,
+            "trailer_wheel_speed": trailer_axle_speed(self.params, state),
+            "trailer_steer": steer[index] if index else np.zeros(0),
+        }
+        self.measured = self.sensors.measure(time, truth)
+        return self.measured
+
+    def record(self) -> Mapping[str, float]:
+        """The recorded signals of the last measurement."""
+        m = self.measured
+        return {f"signal_{n}": float(m[n][0]) for n, _ in RECORDED_SIGNALS}

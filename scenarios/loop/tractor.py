@@ -1,0 +1,133 @@
+"""The tractor's participant: the driver steering its control point along the path and holding the speed profile.
+
+In a kinematic scenario (the constant-slip straight of de Saxe & Cebon 2018, §3) nothing is steered or driven:
+the combination is moved along the path, both units crabbing at the slip angle (:func:`constant_slip_step`), and
+the driver only follows its progress.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from controller.driver import PathFollowingDriver
+from controller.speed import SpeedController, traction_limit
+from vehicle_model.simulator import Simulator, VehicleState
+
+from ..setup.build import ScenarioSetup
+from .participant import Column, TickInput
+
+__all__ = ["DriverParticipant", "TractorCommand", "constant_slip_step"]
+
+
+@dataclass(frozen=True)
+class TractorCommand:
+    """What the driver commands for the next control period."""
+
+    front_steer: float
+    """Steer-axle angle [rad]."""
+    drive_force: float
+    """Drive force of the driven axles [N]."""
+    speed_target: float
+    """The speed profile's target at the driver's progress [m/s]."""
+
+
+class DriverParticipant:
+    """The driver (:class:`controller.driver.PathFollowingDriver`) and its speed controller.
+
+    Parameters
+    ----------
+    setup
+        The built scenario (path, control point, feed-forward, speed profile).
+    simulator
+        The simulator, asked for the friction under the driven axles (the traction limit).
+    """
+
+    name = "driver"
+
+    def __init__(self, setup: ScenarioSetup, simulator: Simulator) -> None:
+        params = setup.params
+        self.setup = setup
+        self.simulator = simulator
+        self.kinematic = setup.kinematic_slip is not None
+        self.driver = PathFollowingDriver(params, setup.path, setup.control_point, feedforward=setup.feedforward)
+        self.driver.reset(setup.initial_state)
+        self.speed_control = SpeedController(params.tractor.mass + params.trailer.mass)
+        driven = np.flatnonzero(params.axle_table.driven)
+        self._driven = driven
+        self._driven_load = float(params.axle_table.static_load[driven].sum())
+        front = setup.model.layout.steerable_axles[0]
+        self.columns: tuple[Column, ...] = (
+            Column(f"steer_{front}", "rad", "the driver's steer-axle command"),
+            Column("drive_force", "N", "the speed controller's drive force"),
+            Column("speed_target", "m/s", "the speed profile's target"),
+            Column("path_progress", "m", "the control point's arc length along the path"),
+            Column("lateral_error", "m", "the control point's distance from the path (left +)"),
+        )
+        self._steer_column = self.columns[0].name
+        self.command = TractorCommand(0.0, 0.0, 0.0)
+
+    @property
+    def progress(self) -> float:
+        """The control point's arc length along the path [m]."""
+        return self.driver.progress
+
+    @property
+    def lateral_error(self) -> float:
+        """The control point's lateral distance from the path [m], left positive."""
+        return self.driver.lateral_error
+
+    @property
+    def finished(self) -> bool:
+        """The control point reached the end of the path."""
+        return self.driver.finished
+
+    def update(self, tick: TickInput) -> TractorCommand:
+        """The tractor's commands for the period from ``tick`` on."""
+        setup, state, period = self.setup, tick.state, tick.period
+        driver = self.driver
+        if self.kinematic:
+            driver.progress, driver.lateral_error = setup.path.project(
+                driver.control_point_position(state), driver.progress
+            )
+            self.command = TractorCommand(0.0, 0.0, setup.speed_profile(driver.progress))
+            return self.command
+        front = driver.steer(state, period)
+        target = setup.speed_profile(driver.progress)
+        mu_drive = self.simulator.min_friction(self._driven)
+        drive = self.speed_control(target, state.u, period, traction_limit(mu_drive, self._driven_load))
+        self.command = TractorCommand(front, drive, target)
+        return self.command
+
+    def record(self) -> Mapping[str, float]:
+        """The commands and the driver's progress and error."""
+        c = self.command
+        return {
+            self._steer_column: c.front_steer,
+            "drive_force": c.drive_force,
+            "speed_target": c.speed_target,
+            "path_progress": self.driver.progress,
+            "lateral_error": self.driver.lateral_error,
+        }
+
+
+def constant_slip_step(setup: ScenarioSetup, state: VehicleState, period: float) -> VehicleState:
+    """Constant-slip straight (de Saxe & Cebon 2018, §3): both units crab at the slip angle along the path."""
+    beta = setup.kinematic_slip or 0.0
+    speed = setup.speed_profile(0.0)
+    direction = state.psi1 + beta
+    return VehicleState(
+        state.time + period,
+        state.X + speed * period * math.cos(direction),
+        state.Y + speed * period * math.sin(direction),
+        state.psi1,
+        state.u,
+        state.v1,
+        0.0,
+        0.0,
+        0.0,
+        slip=state.slip,
+    )

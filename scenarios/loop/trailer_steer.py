@@ -1,0 +1,216 @@
+"""Trailer-steer sources: who chooses the steer of the trailer's axles each tick.
+
+* :class:`UnsteeredTrailer` — straight axles (feedback ``none``, and every kinematic scenario);
+* :class:`PathFollowingSteer` — the path-following PID (:class:`controller.path_following.TrailerSteeringController`)
+  fed by the estimate the configuration chooses (``feedback``);
+* :class:`AgentSteer` — an agent's virtual-axle angle (the steering environment's action) through the
+  controller's own output stage (:class:`controller.steer_output.TrailerSteerOutput`), so a zero correction
+  of the PID's proposal gives the PID's commands exactly.
+
+Each is a :class:`~.participant.TrailerSteerSource`: it records ``steer_<axle>`` of every steerable trailer axle
+and its own internals.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from controller.axle_steer_distribution import tan_kingpin_direction
+from controller.path_following import TrailerSteeringController
+from controller.path_following_config import PathFollowingConfig
+from controller.steer_output import TrailerSteerOutput, speed_fade
+from vehicle_model.layout import Layout
+from vehicle_model.offtracking import OfftrackingEstimate
+from vehicle_model.parameters import VehicleParams
+
+from ..registry import NO_FEEDBACK
+from ..setup.build import ScenarioSetup
+from .participant import Column, TickInput, TrailerSteerSource
+
+__all__ = ["AgentSteer", "PathFollowingSteer", "UnsteeredTrailer", "trailer_axles", "trailer_steer_for"]
+
+
+def trailer_axles(setup: ScenarioSetup) -> tuple[str, ...]:
+    """The steerable trailer axles, in layout order (the order of a source's commands)."""
+    trailer = {a.name for a in setup.params.trailer.axles}
+    return tuple(n for n in setup.model.layout.steerable_axles if n in trailer)
+
+
+def _steer_columns(axles: tuple[str, ...]) -> tuple[Column, ...]:
+    return tuple(Column(f"steer_{name}", "rad", "steer command of a trailer axle") for name in axles)
+
+
+def _limit_columns(axles: tuple[str, ...], kinds: tuple[str, ...]) -> tuple[Column, ...]:
+    words = {"saturated": "magnitude limit", "rate_limited": "rate limit", "slip_limited": "slip-angle limit"}
+    return tuple(Column(f"{kind}_{name}", "-", f"1 when the {words[kind]} clipped it") for kind in kinds for name in axles)
+
+
+class UnsteeredTrailer:
+    """Straight trailer axles.
+
+    Parameters
+    ----------
+    axles
+        The steerable trailer axles (:func:`trailer_axles`).
+    """
+
+    name = "trailer_steer"
+    feedback: str | None = None
+
+    def __init__(self, axles: tuple[str, ...]) -> None:
+        self.axles = axles
+        self.columns: tuple[Column, ...] = _steer_columns(axles)
+        self._zero = np.zeros(len(axles))
+        self._row = {c.name: 0.0 for c in self.columns}
+
+    def reset(self) -> None:
+        """Nothing to forget."""
+
+    def command(self, tick: TickInput, estimates: Mapping[str, OfftrackingEstimate]) -> np.ndarray:
+        """Zero for every axle."""
+        return self._zero.copy()
+
+    def record(self) -> Mapping[str, float]:
+        """Zero steer."""
+        return self._row
+
+
+class PathFollowingSteer:
+    """The path-following PID on the estimate ``feedback``.
+
+    Parameters
+    ----------
+    controller
+        The controller (its gains, limits and output stage).
+    feedback
+        Name of the estimate it feeds back (an estimator of :mod:`scenarios.registry`).
+    """
+
+    name = "trailer_steer"
+
+    def __init__(self, controller: TrailerSteeringController, feedback: str) -> None:
+        self.controller = controller
+        self.feedback: str | None = feedback
+        axles = controller.axle_names
+        telemetry = (
+            Column("trailer_virtual_steer", "rad", "virtual-axle angle (feed-forward + feedback)"),
+            Column("trailer_feedforward_steer", "rad", "its feed-forward part"),
+            Column("trailer_feedback_steer", "rad", "its feedback part"),
+            Column("trailer_integral", "m²", "∫e ds of the PID"),
+            Column("trailer_fade", "-", "speed fade of the commands"),
+            Column("trailer_estimate_used", "m", "the held estimate the PID used (NaN: none)"),
+        )
+        limits = tuple(
+            column
+            for name in axles
+            for column in _limit_columns((name,), ("saturated", "rate_limited", "slip_limited"))
+        )
+        self.columns: tuple[Column, ...] = (*_steer_columns(axles), *telemetry, *limits)
+        self._steer_names = tuple(f"steer_{name}" for name in axles)
+
+    @classmethod
+    def configured(cls, setup: ScenarioSetup, feedback: str | None = None) -> PathFollowingSteer:
+        """The configured controller (``controller`` section) on ``feedback`` (default: the configured one)."""
+        cfg = setup.config
+        settings = cfg.controller.path_following(cfg.rates.control_hz)
+        return cls(TrailerSteeringController(setup.params, settings), feedback or cfg.feedback)
+
+    def reset(self) -> None:
+        """Straight axles, empty integrator."""
+        self.controller.reset()
+
+    def command(self, tick: TickInput, estimates: Mapping[str, OfftrackingEstimate]) -> np.ndarray:
+        """The PID's commands on this tick's estimate."""
+        return self.controller(tick.state, estimates.get(self.feedback))  # type: ignore[arg-type]
+
+    def record(self) -> Mapping[str, float]:
+        """Commands and the controller's internals."""
+        ctrl = self.controller
+        return {**dict(zip(self._steer_names, ctrl.commands.tolist(), strict=True)), **ctrl.telemetry()}
+
+
+class AgentSteer:
+    """An agent's virtual-axle angle → commands, through the controller's output stage.
+
+    :meth:`request` sets the angle of the next :meth:`command`; a tick with no request holds the last commands
+    (the end of an episode, where no action follows).
+
+    Parameters
+    ----------
+    params
+        The combination.
+    config
+        The controller settings whose output stage is used (virtual axle, limits, fade, kinematics).
+    """
+
+    name = "trailer_steer"
+    feedback: str | None = None
+
+    def __init__(self, params: VehicleParams, config: PathFollowingConfig) -> None:
+        self.output = TrailerSteerOutput(params, config)
+        self.config = config
+        trailer = {a.name for a in params.trailer.axles}
+        axles = tuple(n for n in Layout.for_vehicle(params).steerable_axles if n in trailer)  # layout order
+        self.axles = axles
+        self.columns: tuple[Column, ...] = (
+            *_steer_columns(axles),
+            Column("trailer_virtual_steer", "rad", "the agent's virtual-axle angle after its clamp"),
+            *_limit_columns(axles, ("saturated", "rate_limited")),
+        )
+        self._pending: float | None = None
+
+    def reset(self) -> None:
+        """Straight axles, no request."""
+        self.output.reset()
+        self._pending = None
+
+    def request(self, virtual_steer: float) -> None:
+        """The virtual-axle angle [rad] of the next command."""
+        self._pending = float(virtual_steer)
+
+    @property
+    def commands(self) -> np.ndarray:
+        """The current commands [rad]."""
+        return self.output.commands
+
+    @property
+    def saturated(self) -> np.ndarray:
+        """Per axle: the magnitude limit clipped the current command."""
+        return self.output.saturated
+
+    @property
+    def virtual_steer(self) -> float:
+        """The current virtual-axle angle [rad] (clamped)."""
+        return self.output.virtual_steer
+
+    def command(self, tick: TickInput, estimates: Mapping[str, OfftrackingEstimate]) -> np.ndarray:
+        """The requested angle's commands (the held ones without a request)."""
+        if self._pending is None:
+            return self.output.commands.copy()
+        virtual, self._pending = self._pending, None
+        state = tick.state
+        out = self.output
+        dt = out.period(state.time)
+        vx, vy = out.kingpin_velocity(state)
+        fade = speed_fade(state.u, self.config.fade_speeds)
+        return out.commit(out.propose(virtual, tan_kingpin_direction(state.gamma, vx, vy), fade, dt))
+
+    def record(self) -> Mapping[str, float]:
+        """Commands, the virtual angle and the limit flags."""
+        out = self.output
+        row = {f"steer_{n}": float(v) for n, v in zip(self.axles, out.commands, strict=True)}
+        row["trailer_virtual_steer"] = out.virtual_steer
+        for name, sat, rate in zip(self.axles, out.saturated, out.rate_limited, strict=True):
+            row[f"saturated_{name}"] = float(sat)
+            row[f"rate_limited_{name}"] = float(rate)
+        return row
+
+
+def trailer_steer_for(setup: ScenarioSetup) -> TrailerSteerSource:
+    """The configured trailer-steer source: the PID on ``feedback``, or straight axles (``none``, kinematic)."""
+    axles = trailer_axles(setup)
+    if setup.config.feedback == NO_FEEDBACK or setup.kinematic_slip is not None or not axles:
+        return UnsteeredTrailer(axles)
+    return PathFollowingSteer.configured(setup)
