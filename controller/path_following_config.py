@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Literal
 
+from pydantic import Field, model_validator
+
 from vehicle_model.errors import InputError
+from vehicle_model.settings import Settings
 
 __all__ = [
     "FeedForward",
@@ -24,8 +26,7 @@ FeedForward = Literal["path", "steady", "none"]
 """Type of :attr:`PathFollowingConfig.feedforward`."""
 
 
-@dataclass(frozen=True)
-class PathFollowingGains:
+class PathFollowingGains(Settings):
     """PID gains on the off-tracking error, per unit distance travelled.
 
     Parameters
@@ -38,15 +39,9 @@ class PathFollowingGains:
         Derivative gain [rad] on ``de_tr/ds``; ``kd/u`` in time.
     """
 
-    kp: float
-    ki: float = 0.0
-    kd: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("kp", "ki", "kd"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise InputError(f"PathFollowingGains.{name} = {value!r} must be a finite number ≥ 0")
+    kp: float = Field(ge=0.0)
+    ki: float = Field(0.0, ge=0.0)
+    kd: float = Field(0.0, ge=0.0)
 
     def in_time(self, speed: float) -> tuple[float, float, float]:
         """Time-domain equivalents ``(k_p, u·k_i, k_d/u)`` at forward speed ``speed`` [m/s] > 0."""
@@ -112,8 +107,7 @@ def bandwidth_schedule(speed: float, bandwidth_speed: float | None) -> float:
     return (bandwidth_speed / speed) ** 2
 
 
-@dataclass(frozen=True)
-class PathFollowingConfig:
+class PathFollowingConfig(Settings):
     """Settings of :class:`~controller.path_following.TrailerSteeringController` (SI units, angles in radians).
 
     Parameters
@@ -170,51 +164,25 @@ class PathFollowingConfig:
     """
 
     gains: PathFollowingGains | None = None
-    natural_frequency: float = 1.0 / 3.0
-    damping: float = 0.8
-    max_steer: float = math.radians(25.0)
-    max_steer_rate: float = math.radians(20.0)
-    virtual_axle_distance: float | None = None
+    natural_frequency: float = Field(1.0 / 3.0, gt=0.0)
+    damping: float = Field(0.8, gt=0.0)
+    max_steer: float = Field(math.radians(25.0), gt=0.0, le=math.radians(60.0))
+    max_steer_rate: float = Field(math.radians(20.0), gt=0.0)
+    virtual_axle_distance: float | None = Field(None, gt=0.0, le=50.0)
     fade_speeds: tuple[float, float] = (0.3, 1.0)
-    bandwidth_speed: float | None = 15.0 / 3.6
+    bandwidth_speed: float | None = Field(15.0 / 3.6, gt=0.0)
     feedforward: FeedForward = "path"
     kinematics: Kinematics = "signals"
     fixed_axle_compensation: bool = True
-    max_virtual_steer: float = math.radians(45.0)
-    derivative_min_distance: float = 0.05
-    control_period: float = 0.02
-    feedback_max_std: float = 0.05
-    max_slip_angle: float | None = None
+    max_virtual_steer: float = Field(math.radians(45.0), gt=0.0, le=math.radians(80.0))
+    derivative_min_distance: float = Field(0.05, ge=0.0)
+    control_period: float = Field(0.02, gt=0.0, le=1.0)
+    feedback_max_std: float = Field(0.05, gt=0.0)
+    max_slip_angle: float | None = Field(None, gt=0.0, le=math.radians(45.0))
 
-    def __post_init__(self) -> None:
-        def positive(name: str, upper: float = math.inf) -> None:
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and 0 < value <= upper):
-                raise InputError(f"PathFollowingConfig.{name} = {value!r} must be in (0, {upper}]")
-
-        positive("natural_frequency")
-        positive("damping")
-        positive("max_steer", math.radians(60.0))
-        positive("max_steer_rate")
-        positive("max_virtual_steer", math.radians(80.0))
-        positive("control_period", 1.0)
-        positive("feedback_max_std")
-        if self.max_slip_angle is not None:
-            positive("max_slip_angle", math.radians(45.0))
-        if self.virtual_axle_distance is not None:
-            positive("virtual_axle_distance", 50.0)
-        if self.bandwidth_speed is not None:
-            positive("bandwidth_speed")
+    @model_validator(mode="after")
+    def _ordered_fade_speeds(self) -> PathFollowingConfig:
         lo, hi = self.fade_speeds
-        if not (0 <= lo < hi < math.inf):
-            raise InputError(f"PathFollowingConfig.fade_speeds = {self.fade_speeds!r} must satisfy 0 ≤ u0 < u1")
-        if not (math.isfinite(self.derivative_min_distance) and self.derivative_min_distance >= 0):
-            raise InputError("PathFollowingConfig.derivative_min_distance must be finite and ≥ 0")
-        if self.feedforward not in ("path", "steady", "none"):
-            raise InputError(
-                f"PathFollowingConfig.feedforward = {self.feedforward!r} must be 'path', 'steady' or 'none'"
-            )
-        if self.kinematics not in ("signals", "truth"):
-            raise InputError(f"PathFollowingConfig.kinematics = {self.kinematics!r} must be 'signals' or 'truth'")
-        if self.gains is not None and not isinstance(self.gains, PathFollowingGains):
-            raise InputError("PathFollowingConfig.gains must be a PathFollowingGains or None")
+        if not 0 <= lo < hi:
+            raise ValueError(f"fade_speeds = {self.fade_speeds!r} must satisfy 0 ≤ u0 < u1")
+        return self

@@ -2,8 +2,8 @@
 
 The rig (size, field of view, baseline, mounting, misalignment, noise, latency) and the field conditions —
 lens, calibration, mount flex, lighting, world, online self-calibration — all off by default, so the paper's
-§3 ideal simulation is unchanged; paper §4 (the field tests) needs them. This module also holds the strict
-base model every schema section shares; it sits below :mod:`scenarios.config`, which includes
+§3 ideal simulation is unchanged; paper §4 (the field tests) needs them. Every section is a
+:class:`vehicle_model.settings.Settings`; this module sits below :mod:`scenarios.config`, which includes
 :class:`CameraConfig` as ``camera``. Degrees at this edge; the camera pipeline converts to SI.
 """
 
@@ -11,14 +11,9 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field, model_validator
 
-
-class StrictModel(BaseModel):
-    """A schema section: unknown fields refused, frozen, every float finite (also in tuples and options)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False)
-
+from vehicle_model.settings import Settings
 
 MAX_RIG_ROTATION_DEG = 20.0
 """Largest right-camera misalignment or correction per axis [°] (:class:`sensor.camera.Misalignment`)."""
@@ -36,7 +31,7 @@ _RADIAL = "Brown–Conrady radial coefficient; |k| ≤ 1 covers wide-angle autom
 _TANGENTIAL = "Brown–Conrady tangential coefficient; |p| ≤ 0.05 is a lens glued crooked by several degrees"
 
 
-class LensConfig(StrictModel):
+class LensConfig(Settings):
     """A Brown–Conrady lens (OpenCV's k1, k2, p1, p2, k3 on normalised coordinates; :class:`sensor.lens.Lens`).
 
     The renderer draws a slightly wider pinhole image and ``cv2.remap`` turns it into the distorted one.
@@ -54,7 +49,7 @@ class LensConfig(StrictModel):
         return not any((self.k1, self.k2, self.p1, self.p2, self.k3))
 
 
-class CalibrationConfig(StrictModel):
+class CalibrationConfig(Settings):
     """How the visual odometry knows the rig (paper §4.1: the field rig was calibrated with a checkerboard).
 
     ``ideal``: the true intrinsics and the ideal stereo geometry (today's behaviour). ``estimated``: a
@@ -88,7 +83,7 @@ class CalibrationConfig(StrictModel):
 _TWIST = "[°/(m/s²)] per axis (roll, pitch, yaw); paper §4.4 saw ~0.1–0.2° at ~1–2 m/s², so ±1 is generous"
 
 
-class FlexConfig(StrictModel):
+class FlexConfig(Settings):
     """Mount flex of the right camera relative to the left (:class:`sensor.mount_flex.MountFlex`).
 
     Added to the static ``camera.right_misalignment_deg`` every frame: a frame twist proportional to the
@@ -119,7 +114,7 @@ class FlexConfig(StrictModel):
         return not any(self.twist_deg_per_mps2) and not any(self.vibration_rms_deg)
 
 
-class LightingConfig(StrictModel):
+class LightingConfig(Settings):
     """Sun, shadows, sky and auto-exposure (:class:`sensor.lighting.Lighting`); ``sun: false`` is flat lighting.
 
     Light and shadows are baked once into the static world; per frame the sky, the glare of a sun in or near
@@ -138,7 +133,7 @@ class LightingConfig(StrictModel):
     glare: float = Field(100.0, ge=0.0, le=1000.0, description="[grey levels] veiling glare with the sun in view")
 
 
-class SelfCalibrationConfig(StrictModel):
+class SelfCalibrationConfig(Settings):
     """Online stereo self-calibration of the right camera's rotation (:mod:`sensor.vo.self_calibration`).
 
     Runs on the odometry's own stereo matches in frame order: roll and pitch from vertical disparities, yaw
@@ -172,7 +167,7 @@ class SelfCalibrationConfig(StrictModel):
     )
 
 
-class CameraConfig(StrictModel):
+class CameraConfig(Settings):
     """The trailer's stereo camera (defaults: the paper's simulation, §3.1).
 
     ``station`` is measured from the kingpin (negative behind it; default: the trailer's rear),

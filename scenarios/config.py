@@ -27,11 +27,14 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from controller.path_following_config import PathFollowingConfig, PathFollowingGains
+from sensor.fusion import FusionNoise
+from sensor.signals import ChannelSpec
 from vehicle_model.errors import InputError
 from vehicle_model.presets import VEHICLE_PRESETS
+from vehicle_model.settings import Settings
 from vehicle_model.surface import FRICTION_PRESETS
 
-from .camera_schema import CameraConfig, StrictModel
+from .camera_schema import CameraConfig
 from .registry import NO_FEEDBACK, estimator_entries, estimator_entry, feedback_sources
 
 CATALOGUE_PACKAGE = "scenarios.catalogue"
@@ -40,8 +43,6 @@ CATALOGUE_PACKAGE = "scenarios.catalogue"
 class ConfigError(InputError):
     """An invalid scenario configuration; the message lists every bad field with its allowed range."""
 
-
-_Strict = StrictModel  # every float (plain, optional, inside a tuple) must be finite
 
 
 COORDINATE_LIMIT_M = 10_000.0
@@ -66,7 +67,7 @@ def _nearest(value: float, allowed: list[float], low: float, high: float) -> str
     return " or ".join(f"{a:.4g}" for a in below + above) or "none"
 
 
-class PathConfig(_Strict):
+class PathConfig(Settings):
     """Reference path of the tractor's control point.
 
     ``kind``: ``roundabout`` (``turns`` full circles), ``figure_eight`` (two opposite loops joined by
@@ -98,7 +99,7 @@ class PathConfig(_Strict):
     )
 
 
-class PatchConfig(_Strict):
+class PatchConfig(Settings):
     """A rectangle of different friction, in path-aligned global coordinates [m]."""
 
     x_min: float = Field(ge=-COORDINATE_LIMIT_M, le=COORDINATE_LIMIT_M, description=_COORDINATE)
@@ -114,7 +115,7 @@ class PatchConfig(_Strict):
         return self
 
 
-class SurfaceConfig(_Strict):
+class SurfaceConfig(Settings):
     """Road friction: a named preset or an explicit ``mu`` (which wins), plus low-μ patches."""
 
     preset: Literal["dry", "wet", "snow", "ice"] = "dry"
@@ -128,14 +129,14 @@ class SurfaceConfig(_Strict):
         return self.mu if self.mu is not None else FRICTION_PRESETS[self.preset]
 
 
-class CamberConfig(_Strict):
+class CamberConfig(Settings):
     """Cross-slope: radial about the nearest loop centre (``outward`` falls away from it), or across a straight."""
 
     percent: float = Field(0.0, ge=0.0, le=10.0, description="[%] cross-slope; 10 % is beyond any carriageway")
     direction: Literal["outward", "inward"] = "outward"
 
 
-class SpeedConfig(_Strict):
+class SpeedConfig(Settings):
     """Speed profile: ``cornering_kmh`` on the manoeuvre, ``straight_kmh`` on entry and exit (default: the same)."""
 
     cornering_kmh: float = Field(15.0, gt=0.0, le=90.0, description=_SPEED)
@@ -145,7 +146,7 @@ class SpeedConfig(_Strict):
     )
 
 
-class RatesConfig(_Strict):
+class RatesConfig(Settings):
     """Clocks of the co-simulation: dynamics step, control rate, camera rate."""
 
     dynamics_step_s: float = Field(
@@ -218,31 +219,19 @@ class RatesConfig(_Strict):
         )
 
 
-class ChannelConfig(_Strict):
-    """One on-board signal: white noise (standard deviation), constant bias and sample rate."""
-
-    noise_std: float = Field(
-        0.0, ge=0.0, le=1.0, description="[m/s, rad or rad/s]; 1 (57°, 3.6 km/h) is beyond any working sensor"
-    )
-    bias: float = Field(
-        0.0, ge=-1.0, le=1.0, description="[m/s, rad or rad/s]; ±1 (57°, 3.6 km/h) is beyond any working sensor"
-    )
-    rate_hz: float = Field(50.0, gt=0.0, le=1000.0, description="[Hz]; sampled on control ticks, held in between")
-
-
-class SignalsConfig(_Strict):
+class SignalsConfig(Settings):
     """On-board signals. Units: m/s for speed, rad and rad/s for angles and rates."""
 
-    wheel_speed: ChannelConfig = ChannelConfig()
-    front_steer: ChannelConfig = ChannelConfig()
-    tractor_yaw_rate: ChannelConfig = ChannelConfig()
-    articulation: ChannelConfig = ChannelConfig()
-    trailer_yaw_rate: ChannelConfig = ChannelConfig()
-    trailer_wheel_speed: ChannelConfig = ChannelConfig()
-    trailer_steer: ChannelConfig = ChannelConfig()
+    wheel_speed: ChannelSpec = ChannelSpec()
+    front_steer: ChannelSpec = ChannelSpec()
+    tractor_yaw_rate: ChannelSpec = ChannelSpec()
+    articulation: ChannelSpec = ChannelSpec()
+    trailer_yaw_rate: ChannelSpec = ChannelSpec()
+    trailer_wheel_speed: ChannelSpec = ChannelSpec()
+    trailer_steer: ChannelSpec = ChannelSpec()
 
 
-class EstimatorsConfig(_Strict):
+class EstimatorsConfig(Settings):
     """Which estimators run and how (the estimators are those of :mod:`scenarios.registry`; the one chosen as
     ``feedback`` always runs). ``zero_slip_variant``: Cheng's zero-slip dead-reckoning with the
     tractor yaw rate taken from the gyro (``yaw_rate``, default) or from the front steer angle
@@ -262,13 +251,10 @@ class EstimatorsConfig(_Strict):
         return {**data, "viso_ot": True} if isinstance(data, dict) and data.get("viso_ot_fused") is True else data
 
 
-class FusionConfig(_Strict):
-    """The fused VISO-OT filter (``sensor.fusion``): the data-sheet figures it is designed for (not ``signals``)."""
+class FusionConfig(FusionNoise):
+    """The fused VISO-OT filter (``sensor.fusion.FusionNoise``: the data-sheet figures it is designed for, not the
+    ``signals``), and a test's frame drop."""
 
-    gyro_noise: float = Field(2e-3, gt=0.0, le=0.1, description="[rad/s] per sample; 0.1 is beyond any gyro")
-    wheel_speed_noise: float = Field(0.05, gt=0.0, le=1.0, description="[m/s] per sample; 1 m/s is a broken sensor")
-    slip_velocity_walk: float = Field(0.1, gt=0.0, le=5.0, description="[m/s/√s] slip build-up; 5 spins in 1 s")
-    vo_covariance_scale: float = Field(4.0, ge=1.0, le=1e4, description="on the VO covariance (a floor); 1e4: no VO")
     offtracking_bias_std: float = Field(
         0.025,
         ge=0.0,
@@ -278,7 +264,7 @@ class FusionConfig(_Strict):
     drop_every: int = Field(0, ge=0, le=1000, description="withhold every n-th frame from it (0: none; a test)")
 
 
-class ControllerConfig(_Strict):
+class ControllerConfig(Settings):
     """Trailer path-following controller (``controller.path_following``); degrees and km/h at this edge.
 
     Gains ``kp`` [rad/m], ``ki`` [rad/m²], ``kd`` [rad] are per metre travelled; leave them out to place
@@ -326,7 +312,7 @@ class ControllerConfig(_Strict):
         )
 
 
-class ScenarioConfig(_Strict):
+class ScenarioConfig(Settings):
     """A complete, resolved scenario."""
 
     name: str = "custom"

@@ -85,9 +85,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pydantic import Field
+
 from vehicle_model.errors import InputError
 from vehicle_model.offtracking import OfftrackingBuffer, offtracking_from_path
 from vehicle_model.parameters import VehicleParams
+from vehicle_model.settings import Settings
 
 from .viso_ot import VisoOtEstimator
 from .vo.motion import params_to_transform, transform_to_params
@@ -98,9 +101,8 @@ _STATES = 6
 _J2 = np.array([[0.0, -1.0], [1.0, 0.0]])
 
 
-@dataclass(frozen=True)
-class FusionNoise:
-    """Noise model and tuning of :class:`FusedVisoOt` (SI units).
+class FusionNoise(Settings):
+    """Noise model and tuning of :class:`FusedVisoOt` (SI units); each field's range and its reason is declared here.
 
     Parameters
     ----------
@@ -126,31 +128,29 @@ class FusionNoise:
         No estimate (``None``) while the off-tracking's standard deviation exceeds this [m].
     offtracking_bias_std : float
         ``σ_b`` of eq (4) [m]: the systematic error of the odometry's off-tracking, added in quadrature to the
-        filter's own figure (0: the filter's covariance alone; the runs use ``fusion.offtracking_bias_std``).
+        filter's own figure (0: the filter's covariance alone; a run's ``fusion`` settings add 0.025 m).
     """
 
-    gyro_noise: float = 2e-3
-    wheel_speed_noise: float = 0.05
-    slip_velocity_walk: float = 0.1
-    gyro_bias_walk: float = 1e-4
-    wheel_speed_bias_walk: float = 2e-3
-    initial_slip_velocity: float = 0.3
-    initial_gyro_bias: float = 0.01
-    initial_wheel_speed_bias: float = 0.2
-    vo_covariance_scale: float = 4.0
-    vo_translation_floor: float = 1e-3
-    vo_rotation_floor: float = 1e-4
-    gate: float = 16.3
-    max_gated: int = 3
-    max_std: float = 0.5
-    offtracking_bias_std: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name, value in vars(self).items():
-            if not (math.isfinite(value) and value >= 0):
-                raise InputError(f"FusionNoise.{name} = {value!r} must be a finite number ≥ 0")
-        if self.vo_covariance_scale < 1.0 or self.gate <= 0 or self.max_std <= 0:
-            raise InputError("FusionNoise: vo_covariance_scale ≥ 1, gate > 0 and max_std > 0 are needed")
+    gyro_noise: float = Field(2e-3, gt=0.0, le=0.1, description="[rad/s] per sample; 0.1 is beyond any gyro")
+    wheel_speed_noise: float = Field(0.05, gt=0.0, le=1.0, description="[m/s] per sample; 1 m/s is a broken sensor")
+    slip_velocity_walk: float = Field(0.1, gt=0.0, le=5.0, description="[m/s/√s] slip build-up; 5 spins in 1 s")
+    gyro_bias_walk: float = Field(1e-4, ge=0.0, le=0.1, description="[rad/s/√s]; 0.1 is a gyro without a bias")
+    wheel_speed_bias_walk: float = Field(2e-3, ge=0.0, le=1.0, description="[m/s/√s]; 1 is a sensor without a bias")
+    initial_slip_velocity: float = Field(0.3, ge=0.0, le=10.0, description="[m/s]; 10 m/s of slip is a spin")
+    initial_gyro_bias: float = Field(0.01, ge=0.0, le=1.0, description="[rad/s]; 1 rad/s is no gyro")
+    initial_wheel_speed_bias: float = Field(0.2, ge=0.0, le=10.0, description="[m/s]; 10 m/s is no wheel speed")
+    vo_covariance_scale: float = Field(4.0, ge=1.0, le=1e4, description="on the VO covariance (a floor); 1e4: no VO")
+    vo_translation_floor: float = Field(1e-3, ge=0.0, le=1.0, description="[m] per frame; 1 m is no translation")
+    vo_rotation_floor: float = Field(1e-4, ge=0.0, le=0.1, description="[rad] per frame; 0.1 rad is no rotation")
+    gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
+    max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")
+    max_std: float = Field(0.5, gt=0.0, le=10.0, description="[m] of off-tracking std; 10 m says nothing")
+    offtracking_bias_std: float = Field(
+        0.0,
+        ge=0.0,
+        le=0.5,
+        description="[m] the VO's systematic off-tracking error, added to the filter's std; 0.5 m swamps any estimate",
+    )
 
 
 def slip_kinematics(params: VehicleParams) -> tuple[float, np.ndarray]:

@@ -20,9 +20,11 @@ trailer_steer       steer angle of every steerable trailer axle [rad] (one value
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
+from pydantic import Field
+
+from vehicle_model.settings import Settings
 
 CHANNELS: tuple[str, ...] = (
     "wheel_speed",
@@ -35,17 +37,16 @@ CHANNELS: tuple[str, ...] = (
 )
 
 
-@dataclass(frozen=True)
-class ChannelSpec:
-    """Noise standard deviation, bias and sample rate [Hz] of one channel."""
+class ChannelSpec(Settings):
+    """Noise standard deviation, bias and sample rate of one channel (SI units; each range with its reason)."""
 
-    noise_std: float = 0.0
-    bias: float = 0.0
-    rate_hz: float = 50.0
-
-    def __post_init__(self) -> None:
-        if not (self.noise_std >= 0 and math.isfinite(self.bias) and self.rate_hz > 0):
-            raise ValueError(f"invalid signal channel {self}: need noise_std ≥ 0, finite bias, rate_hz > 0")
+    noise_std: float = Field(
+        0.0, ge=0.0, le=1.0, description="[m/s, rad or rad/s]; 1 (57°, 3.6 km/h) is beyond any working sensor"
+    )
+    bias: float = Field(
+        0.0, ge=-1.0, le=1.0, description="[m/s, rad or rad/s]; ±1 (57°, 3.6 km/h) is beyond any working sensor"
+    )
+    rate_hz: float = Field(50.0, gt=0.0, le=1000.0, description="[Hz]; sampled on control ticks, held in between")
 
 
 class OnboardSignals:

@@ -27,7 +27,8 @@ MAX_LATERAL_BIAS = 2.5e-3
 def test_density_zero_rear_camera_vo_bias_is_bounded() -> None:
     from scenarios.camera.build import rig_from_config, world_for_scenario
     from scenarios.config import load_scenario
-    from scenarios.run.cosim import run_cosimulation
+    from scenarios.loop.trailer_steer import UnsteeredTrailer, trailer_axles
+    from scenarios.run.drive import simulate
     from scenarios.setup.build import build_scenario
     from sensor.renderer import StereoRenderer
     from sensor.vo import StereoOdometry, VOConfig
@@ -45,7 +46,7 @@ def test_density_zero_rear_camera_vo_bias_is_bounded() -> None:
     }
     config = load_scenario("constant-slip", overrides)
     setup = build_scenario(config)
-    _, cols = run_cosimulation(setup)
+    _, cols = simulate(setup, UnsteeredTrailer(trailer_axles(setup)))
     rig = rig_from_config(config)
     renderer = StereoRenderer(world_for_scenario(setup), rig, setup.params, seed=config.seed)
     ticks = np.flatnonzero(np.asarray(cols["camera_frame"]) > 0.5)[: FRAMES + 1]

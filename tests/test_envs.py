@@ -153,7 +153,7 @@ def test_gain_actions_are_log_scaled_over_the_documented_ranges() -> None:
         assert getattr(lows, name) == pytest.approx(lo)
         assert getattr(highs, name) == pytest.approx(hi)
         assert getattr(mid, name) == pytest.approx(np.sqrt(lo * hi))
-    gains = PathFollowingGains(0.3, 0.07, 0.02)
+    gains = PathFollowingGains(kp=0.3, ki=0.07, kd=0.02)
     back = action_to_gains(gains_to_action(gains))
     assert (back.kp, back.ki, back.kd) == pytest.approx((0.3, 0.07, 0.02), rel=1e-5)
 

@@ -175,8 +175,8 @@ def test_a_calibration_from_offtrack_calibrate_is_what_a_run_loads(tmp_path: Pat
 def test_pipelined_and_serial_field_runs_are_identical() -> None:
     # Flex (twist and seeded vibration), lens, estimated calibration and a low sun: the flex is drawn in frame order
     # in the co-simulation's process and handed to whichever worker renders the frame.
-    from scenarios.run.cosim import run_cosimulation
-    from scenarios.setup.build import build_scenario, trailer_controller
+    from scenarios.run.drive import simulate
+    from scenarios.setup.build import build_scenario
 
     field = {
         "vehicle": "lst",
@@ -195,7 +195,7 @@ def test_pipelined_and_serial_field_runs_are_identical() -> None:
     runs = []
     for workers in (0, 2):
         setup = build_scenario(load_scenario("roundabout-3", field))
-        runs.append(run_cosimulation(setup, trailer_steer_source=trailer_controller(setup), camera_workers=workers))
+        runs.append(simulate(setup, camera_workers=workers))
     (a_outcome, a), (b_outcome, b) = runs
     assert a_outcome.status == b_outcome.status == "completed"
     differ = [k for k in a if k not in {"render_ms", "vo_ms"} and not np.array_equal(a[k], b[k], equal_nan=True)]

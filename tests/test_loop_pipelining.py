@@ -18,8 +18,8 @@ import pytest
 from scenarios.camera.delivery import latency_ticks
 from scenarios.camera.workers import DEFAULT_WORKERS, RENDER_NICENESS, default_workers
 from scenarios.config import ConfigError, load_scenario
-from scenarios.run.cosim import run_cosimulation
-from scenarios.setup.build import build_scenario, trailer_controller
+from scenarios.run.drive import simulate
+from scenarios.setup.build import build_scenario
 
 pytestmark = pytest.mark.rendering
 
@@ -41,9 +41,7 @@ def camera_run(workers: int, duration: float = 4.0, feedback: str = "viso_ot", p
         },
     )
     setup = build_scenario(cfg)
-    return run_cosimulation(
-        setup, trailer_steer_source=trailer_controller(setup), progress=progress, camera_workers=workers
-    )
+    return simulate(setup, progress=progress, camera_workers=workers)  # the trailer steered on ``feedback``
 
 
 def assert_same_series(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> None:

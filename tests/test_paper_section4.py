@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from scenarios.config import load_scenario
-from scenarios.run.cosim import run_cosimulation
+from scenarios.loop.trailer_steer import UnsteeredTrailer, trailer_axles
+from scenarios.run.drive import simulate
 from scenarios.setup.build import build_scenario
 from scenarios.studies.definitions import CASE_RUNNERS, STUDIES
 from scenarios.studies.figures import FIGURES
@@ -114,7 +115,8 @@ def _short(scenario: str, alignment: str) -> dict[str, float]:
     (case,) = (
         c for c in paper_section4_cases(False) if c.scenario == scenario and dict(c.labels)["alignment"] == alignment
     )
-    cols = run_cosimulation(build_scenario(load_scenario(scenario, {**dict(case.overrides), **SHORT_RUN})))[1]
+    setup = build_scenario(load_scenario(scenario, {**dict(case.overrides), **SHORT_RUN}))
+    cols = simulate(setup, UnsteeredTrailer(trailer_axles(setup)))[1]
     return sign_conditioned_errors(cols["offtracking_truth"], cols["offtracking_viso_ot"])
 
 

@@ -195,7 +195,7 @@ def test_hold_recognises_new_samples_and_differentiates_only_on_them():
 
 
 def test_speed_fade(all_steer_reference):
-    cfg = PathFollowingConfig(PathFollowingGains(kp=0.3), feedforward="none", max_steer_rate=FAST)
+    cfg = PathFollowingConfig(gains=PathFollowingGains(kp=0.3), feedforward="none", max_steer_rate=FAST)
 
     def command(speed):
         return TrailerSteeringController(all_steer_reference, cfg)(state(speed=speed), OfftrackingEstimate.of(-0.1))
@@ -272,9 +272,9 @@ def test_errors_are_clear():
     setup = build_scenario(load_scenario("roundabout-3", {"vehicle": "lst", "duration_s": 1.0}))
     with pytest.raises(InputError, match="feeds back 'viso_ot', which this run does not estimate"):
         CoSimulation(setup, PathFollowingSteer(TrailerSteeringController(setup.params), "viso_ot"))
-    with pytest.raises(InputError, match="max_steer"):
+    with pytest.raises(ValueError, match=r"PathFollowingConfig\s+max_steer\s+Input should be greater than 0"):
         PathFollowingConfig(max_steer=-0.1)
-    with pytest.raises(InputError, match="kp"):
+    with pytest.raises(ValueError, match=r"kp\s+Input should be greater than or equal to 0"):
         PathFollowingGains(kp=-1.0)
 
 
@@ -313,7 +313,7 @@ def test_slip_limit_is_off_below_the_fade_speed_and_validated():
     slow = constant(ctrl, state(speed=0.8), -5.0, 100)  # below fade_speeds[1] = 1 m/s: slip is not defined
     assert np.abs(slow[-1]).max() > math.radians(3.0) + 1e-3 and not ctrl.slip_limited.any()
     for bad in (0.0, -0.1, math.radians(50.0), math.nan):
-        with pytest.raises(InputError, match=r"PathFollowingConfig\.max_slip_angle"):
+        with pytest.raises(ValueError, match=r"PathFollowingConfig\s+max_slip_angle"):
             PathFollowingConfig(max_slip_angle=bad)
 
 

@@ -176,8 +176,8 @@ def test_a_rendered_run_converges_from_a_large_misalignment() -> None:
     # 0.5° about every axis on half-size images (the matcher's ±2 px row band is 2.5 px of pitch at f = 282 px):
     # corrected online from the frames before, the estimate lands on the truth within a few seconds.
     from scenarios.config import load_scenario
-    from scenarios.run.cosim import run_cosimulation
-    from scenarios.setup.build import build_scenario, trailer_controller
+    from scenarios.run.drive import simulate
+    from scenarios.setup.build import build_scenario
 
     truth = (0.5, -0.5, 0.5)
     overrides = {
@@ -189,7 +189,7 @@ def test_a_rendered_run_converges_from_a_large_misalignment() -> None:
         "camera.self_calibration.enabled": True,
     }
     setup = build_scenario(load_scenario("roundabout-3", overrides))
-    outcome, cols = run_cosimulation(setup, trailer_steer_source=trailer_controller(setup), camera_workers=0)
+    outcome, cols = simulate(setup, camera_workers=0)
     assert outcome.status == "completed"
     frames = np.isfinite(cols["selfcal_roll_deg"])
     angles = np.column_stack([cols[f"selfcal_{a}_deg"][frames] for a in ("roll", "pitch", "yaw")])

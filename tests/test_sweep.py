@@ -19,7 +19,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from scenarios.run import cosim
+from scenarios.loop import cosimulation as cosim
 from scenarios.run.stopping import Terminated, handle_sigterm, stop_handled
 from scenarios.studies import definitions, executors, figures
 from scenarios.studies.cases import model_only_cases, run_case

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from scenarios.config import load_scenario
-from scenarios.run.cosim import run_cosimulation
+from scenarios.loop.trailer_steer import UnsteeredTrailer, trailer_axles
+from scenarios.run.drive import simulate
 from scenarios.run.metrics import estimator_errors
 from scenarios.setup.build import build_scenario
 from sensor.camera import StereoRig
@@ -19,7 +20,8 @@ pytestmark = pytest.mark.rendering
 
 def constant_slip(**overrides):
     cfg = load_scenario("constant-slip", {"estimators.viso_ot": True, "estimators.zero_slip": False, **overrides})
-    return run_cosimulation(build_scenario(cfg))[1]
+    setup = build_scenario(cfg)
+    return simulate(setup, UnsteeredTrailer(trailer_axles(setup)))[1]
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -193,8 +192,8 @@ def test_config_defaults_are_libviso2s():
     assert (c.ransac_iters, c.inlier_threshold, c.reweighting, c.min_inliers) == (200, 2.0, True, 6)
     assert c.kalman_smoothing is False
     assert c.nms_n_sparse == 9 and c.search_radius == 100 and c.scale == 2
-    assert dataclasses.replace(c, half_resolution=False).search_radius == 200
-    assert dataclasses.replace(c, nms_n=4).nms_n_sparse == 10
+    assert c.replace(half_resolution=False).search_radius == 200
+    assert c.replace(nms_n=4).nms_n_sparse == 10
     rig = StereoRig()
     fov = VOConfig.from_horizontal_fov(1344, 391, math.radians(100), 0.5)
     assert fov.f == pytest.approx(rig.f) == pytest.approx(672 / math.tan(math.radians(50)))
@@ -204,19 +203,19 @@ def test_config_defaults_are_libviso2s():
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
-        ({"f": -1.0}, "f must be > 0"),
-        ({"baseline": 0.0}, "baseline must be > 0"),
-        ({"cu": float("nan")}, "cu must be a finite number"),
-        ({"nms_n": 0}, r"nms_n must be in \[1, 10\]"),
-        ({"nms_n": 2.5}, "nms_n must be an int"),
-        ({"nms_tau": -5}, "nms_tau must be ≥ 0"),
-        ({"refinement": 3}, "refinement must be 0, 1 or 2"),
-        ({"half_resolution": "yes"}, "half_resolution must be a bool"),
-        ({"ransac_iters": 0}, "ransac_iters must be ≥ 1"),
-        ({"inlier_threshold": 0.0}, "inlier_threshold must be > 0"),
-        ({"min_inliers": 2}, "min_inliers must be ≥ 3"),
-        ({"bucket_max_features": 0}, "bucket_max_features must be ≥ 1"),
-        ({"kalman_rotation_measurement_std": 0.0}, "kalman_rotation_measurement_std must be > 0"),
+        ({"f": -1.0}, r"\bf\s+Input should be greater than 0"),
+        ({"baseline": 0.0}, r"baseline\s+Input should be greater than 0"),
+        ({"cu": float("nan")}, r"cu\s+Input should be a finite number"),
+        ({"nms_n": 0}, r"nms_n\s+Input should be greater than or equal to 1"),
+        ({"nms_n": 2.5}, r"nms_n\s+Input should be a valid integer"),
+        ({"nms_tau": -5}, r"nms_tau\s+Input should be greater than or equal to 0"),
+        ({"refinement": 3}, r"refinement\s+Input should be less than or equal to 2"),
+        ({"half_resolution": "yes"}, r"half_resolution\s+Value error, must be a bool"),
+        ({"ransac_iters": 0}, r"ransac_iters\s+Input should be greater than or equal to 1"),
+        ({"inlier_threshold": 0.0}, r"inlier_threshold\s+Input should be greater than 0"),
+        ({"min_inliers": 2}, r"min_inliers\s+Input should be greater than or equal to 3"),
+        ({"bucket_max_features": 0}, r"bucket_max_features\s+Input should be greater than or equal to 1"),
+        ({"kalman_rotation_measurement_std": 0.0}, r"kalman_rotation_measurement_std\s+Input should be greater than 0"),
     ],
 )
 def test_config_validation(overrides, message):
@@ -228,7 +227,7 @@ def test_config_validation(overrides, message):
 def test_config_accepts_libviso2_style_flags_and_reports_all_errors():
     c = VOConfig(f=500.0, cu=320.0, cv=240.0, baseline=0.5, multi_stage=0, half_resolution=1)
     assert c.multi_stage is False and c.half_resolution is True
-    with pytest.raises(ValueError, match=r"f must be > 0.*baseline must be > 0"):
+    with pytest.raises(ValueError, match=r"(?s)2 validation errors.*\bf\s+Input should be greater than 0.*baseline"):
         VOConfig(f=0.0, cu=320.0, cv=240.0, baseline=-1.0)
     with pytest.raises(ValueError, match="horizontal_fov"):
         VOConfig.from_horizontal_fov(640, 480, 4.0, 0.5)

@@ -1,7 +1,7 @@
 """``offtrack bench loop``: the rendered closed loop (render + VO + VISO-OT + control), pipelined and serial.
 
 The loop is ``roundabout-3`` with the LST steered by VISO-OT feedback, the camera latency at its default
-(one frame period), run by :func:`scenarios.run.cosim.run_cosimulation` exactly as ``offtrack run`` does.
+(one frame period), run by :func:`scenarios.run.drive.simulate` exactly as ``offtrack run`` does.
 The figures leave out the start (building the world, the workers' OpenGL contexts): the real-time factor
 is simulated seconds per wall second from ``warmup`` simulated seconds to the end, and the per-frame CPU and
 waiting times are those of the frames after the first ones (whose one-off costs, the OpenGL contexts, texture
@@ -24,8 +24,8 @@ import numpy as np
 
 from ..camera.workers import DEFAULT_WORKERS
 from ..config import load_scenario
-from ..run.cosim import run_cosimulation
-from ..setup.build import build_scenario, trailer_controller
+from ..run.drive import simulate
+from ..setup.build import build_scenario
 
 
 def _one_run(duration: float, workers: int, warmup: float) -> dict[str, Any]:
@@ -40,9 +40,7 @@ def _one_run(duration: float, workers: int, warmup: float) -> dict[str, Any]:
         if not marks and sim_time >= warmup:
             marks.append((sim_time, time.perf_counter(), time.process_time()))
 
-    outcome, columns = run_cosimulation(
-        setup, trailer_steer_source=trailer_controller(setup), progress=progress, camera_workers=workers
-    )
+    outcome, columns = simulate(setup, progress=progress, camera_workers=workers)  # the PID on viso_ot feedback
     t_end, cpu_end = time.perf_counter(), time.process_time()
     if outcome.status != "completed" or not marks:
         raise RuntimeError(f"the benchmark run did not complete: {outcome.status}: {outcome.message}")

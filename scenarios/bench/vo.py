@@ -27,7 +27,8 @@ from vehicle_model.geometry import CombinationPose
 
 from ..camera.build import rig_from_config, world_for_scenario
 from ..config import load_scenario
-from ..run.cosim import run_cosimulation
+from ..loop.trailer_steer import UnsteeredTrailer, trailer_axles
+from ..run.drive import simulate
 from ..setup.build import build_scenario
 
 __all__ = ["RenderedSequence", "bench_vo", "relative_motions", "rendered_sequence", "vo_calibration"]
@@ -99,7 +100,7 @@ def rendered_sequence(frames: int = 30, seed: int = 0, scenario: str = "roundabo
     from sensor.renderer import StereoRenderer
 
     setup = build_scenario(config)
-    _, cols = run_cosimulation(setup)
+    _, cols = simulate(setup, UnsteeredTrailer(trailer_axles(setup)))
     rig = rig_from_config(config)
     renderer = StereoRenderer(world_for_scenario(setup), rig, setup.params, seed=config.seed)
     ticks = np.flatnonzero(np.asarray(cols["camera_frame"]) > 0.5)[:frames]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import replace
 from typing import Any, ClassVar, Literal
 
 import gymnasium as gym
@@ -317,7 +316,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
     def _source(setup: ScenarioSetup, gains: PathFollowingGains) -> PathFollowingSteer:
         """The scenario's configured controller with ``gains``, on the configured feedback."""
         cfg = setup.config
-        settings = replace(cfg.controller.path_following(cfg.rates.control_hz), gains=gains)
+        settings = cfg.controller.path_following(cfg.rates.control_hz).replace(gains=gains)
         return PathFollowingSteer(TrailerSteeringController(setup.params, settings), cfg.feedback)
 
     def _context(self) -> np.ndarray:

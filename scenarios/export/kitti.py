@@ -35,7 +35,8 @@ from vehicle_model.parameters import VehicleParams
 
 from ..camera.build import resolve_scenery_density, rig_from_config, world_for_scenario
 from ..config import ScenarioConfig, load_scenario
-from ..run.cosim import run_cosimulation
+from ..loop.trailer_steer import UnsteeredTrailer, trailer_axles
+from ..run.drive import simulate
 from ..run.results import check_output_dir, clear_run_dir
 from ..setup.build import build_scenario
 from .video import StereoVideoWriter
@@ -183,7 +184,7 @@ def export_kitti(
         config = _enough_for(config, max_frames)
     t0 = time.perf_counter()
     setup = build_scenario(config)
-    outcome, cols = run_cosimulation(setup)
+    outcome, cols = simulate(setup, UnsteeredTrailer(trailer_axles(setup)))  # the trailer's axles straight
     simulate_s = time.perf_counter() - t0
     frames = np.flatnonzero(np.asarray(cols["camera_frame"]) > 0.5)
     if max_frames is not None:

@@ -234,12 +234,5 @@ def zero_slip(context: LoopContext) -> ZeroSlip:
 
 def fused_viso_ot(context: LoopContext) -> FusedVisoOtEstimator:
     """The registry's builder of fused VISO-OT (``fusion`` settings; on the ``viso_ot`` participant's camera)."""
-    f = context.setup.config.fusion
-    noise = FusionNoise(
-        gyro_noise=f.gyro_noise,
-        wheel_speed_noise=f.wheel_speed_noise,
-        slip_velocity_walk=f.slip_velocity_walk,
-        vo_covariance_scale=f.vo_covariance_scale,
-        offtracking_bias_std=f.offtracking_bias_std,
-    )
-    return FusedVisoOtEstimator(context.setup.params, context.estimators["viso_ot"], noise, f.drop_every)
+    fusion = context.setup.config.fusion  # a FusionNoise with a run's defaults
+    return FusedVisoOtEstimator(context.setup.params, context.estimators["viso_ot"], fusion, fusion.drop_every)

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from sensor.signals import ChannelSpec, OnboardSignals
+from sensor.signals import OnboardSignals
 from vehicle_model.geometry import follow_point_from_kingpin
 from vehicle_model.kinematics import trailer_axle_speed
 from vehicle_model.simulator import VehicleState
@@ -105,7 +105,7 @@ class SignalsParticipant:
 
     def __init__(self, setup: ScenarioSetup) -> None:
         cfg = setup.config
-        specs = {name: ChannelSpec(**getattr(cfg.signals, name).model_dump()) for name in type(cfg.signals).model_fields}
+        specs = {name: getattr(cfg.signals, name) for name in type(cfg.signals).model_fields}
         self.sensors = OnboardSignals(specs, np.random.default_rng(cfg.seed))
         self.params = setup.params
         steerable = setup.model.layout.steerable_axles

@@ -2,9 +2,9 @@
 
 Standard library only at import time: a spawned worker imports this module to run its initializer
 (:func:`init_worker`), which sets the thread limits before numpy (and its BLAS) is first imported.
-Each worker process owns a :class:`~scenarios.setup.models.ModelRegistry` (:func:`worker_models`), so its
-cases build each vehicle's casadi functions once; a model holds no run state, so sharing it changes no
-result. The process that starts a sweep runs its serial cases through the same code and registry.
+Each worker process's cases share the process's vehicle models (:func:`worker_models`, the one process cache of
+:mod:`scenarios.setup.models`), so they build each vehicle's casadi functions once; a model holds no run state, so
+sharing it changes no result. The process that starts a sweep runs its serial cases through the same code and cache.
 
 A stop request is never a case's failure: a :class:`KeyboardInterrupt` (Ctrl-C, or
 :class:`~scenarios.run.stopping.Terminated` on SIGTERM) raised in a case, or an ``interrupted`` result, leaves
@@ -44,7 +44,8 @@ THREAD_LIMITS = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_T
 RunFunction = Callable[[CaseSpec, Path], dict[str, Any]]
 """``run(spec, out_dir) -> table row``; must be a module-level function (it is pickled by reference)."""
 
-_WORKER: dict[str, Any] = {"ready": False, "numpy_preloaded": None, "models": None}
+_WORKER: dict[str, Any] = {"ready": False, "numpy_preloaded": None}
+"""This process's set-up as a worker (thread limits set; whether numpy came first): per process, like the limits."""
 _CASE_LOCK = threading.Lock()  # one case at a time per process: a process has one GL context
 
 
@@ -54,12 +55,11 @@ def whoami() -> tuple[str, int]:
 
 
 def worker_models() -> ModelRegistry:
-    """The vehicle models this process's cases share (one registry per process, made on first use)."""
-    if _WORKER["models"] is None:
-        from ..setup.models import ModelRegistry
+    """The vehicle models this process's cases share: the process's one cache (:data:`scenarios.setup.models.
+    PROCESS_SETUPS`), imported on first use (numpy only after the thread limits)."""
+    from ..setup.models import PROCESS_SETUPS
 
-        _WORKER["models"] = ModelRegistry()
-    return _WORKER["models"]
+    return PROCESS_SETUPS.models
 
 
 def setup_process() -> None:
@@ -112,7 +112,7 @@ def worker_info() -> dict[str, Any]:
     """
     import cv2
 
-    models = _WORKER["models"]
+    models = worker_models() if "scenarios.setup.models" in sys.modules else None
     return {
         "host": socket.gethostname(),
         "pid": os.getpid(),

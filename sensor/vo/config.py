@@ -9,7 +9,10 @@ full-resolution, rectified image; lengths are in metres.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+
+from pydantic import Field
+
+from vehicle_model.settings import Count, Flag, Real, Settings
 
 __all__ = ["VOConfig"]
 
@@ -18,9 +21,8 @@ __all__ = ["VOConfig"]
 MAX_NMS_N = 10
 
 
-@dataclass(frozen=True)
-class VOConfig:
-    """Typed, validated parameters of :class:`sensor.vo.StereoOdometry`.
+class VOConfig(Settings):
+    """Typed, validated parameters of :class:`sensor.vo.StereoOdometry` (a :class:`vehicle_model.settings.Settings`).
 
     Parameters
     ----------
@@ -97,95 +99,36 @@ class VOConfig:
         Measurement noise of one VO estimate [rad and m per frame].
     """
 
-    f: float
-    cu: float
-    cv: float
-    baseline: float
-    nms_n: int = 3
-    nms_tau: int = 50
-    match_binsize: int = 50
-    match_radius: int = 200
-    match_disp_tolerance: int = 2
-    outlier_disp_tolerance: float = 5.0
-    outlier_flow_tolerance: float = 5.0
-    multi_stage: bool = True
-    half_resolution: bool = True
-    refinement: int = 1
-    bucket_width: float = 50.0
-    bucket_height: float = 50.0
-    bucket_max_features: int = 2
-    ransac_iters: int = 200
-    inlier_threshold: float = 2.0
-    reweighting: bool = True
-    min_inliers: int = 6
-    quality_min_inliers: int = 30
-    quality_max_residual: float = 1.75
-    quality_max_translation_sigma: float = 0.03
-    quality_max_rotation_sigma: float = 0.004
-    kalman_smoothing: bool = False
-    kalman_rotation_process_std: float = 1e-4
-    kalman_translation_process_std: float = 1e-3
-    kalman_rotation_measurement_std: float = 5e-4
-    kalman_translation_measurement_std: float = 5e-3
-
-    def __post_init__(self) -> None:
-        errors: list[str] = []
-        spec = {f.name: f.type for f in fields(self)}
-        for name, kind in spec.items():
-            value = getattr(self, name)
-            if kind == "bool":
-                if value not in (0, 1) or isinstance(value, float):
-                    errors.append(f"{name} must be a bool (or 0/1), got {value!r}")
-                else:
-                    object.__setattr__(self, name, bool(value))
-            elif kind == "int":
-                if isinstance(value, bool) or not isinstance(value, int):
-                    errors.append(f"{name} must be an int, got {value!r}")
-            else:
-                if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-                    errors.append(f"{name} must be a finite number, got {value!r}")
-        if errors:
-            raise ValueError("invalid VOConfig: " + "; ".join(errors))
-
-        def check(ok: bool, message: str) -> None:
-            if not ok:
-                errors.append(message)
-
-        check(self.f > 0, f"f must be > 0 px, got {self.f}")
-        check(self.cu > 0, f"cu must be > 0 px (reweighting divides by it), got {self.cu}")
-        check(self.cv > 0, f"cv must be > 0 px, got {self.cv}")
-        check(self.baseline > 0, f"baseline must be > 0 m, got {self.baseline}")
-        check(1 <= self.nms_n <= MAX_NMS_N, f"nms_n must be in [1, {MAX_NMS_N}] px, got {self.nms_n}")
-        check(self.nms_tau >= 0, f"nms_tau must be ≥ 0, got {self.nms_tau}")
-        check(self.match_binsize >= 1, f"match_binsize must be ≥ 1 px, got {self.match_binsize}")
-        check(self.match_radius >= 2, f"match_radius must be ≥ 2 px, got {self.match_radius}")
-        check(self.match_disp_tolerance >= 0, f"match_disp_tolerance must be ≥ 0 px, got {self.match_disp_tolerance}")
-        check(
-            self.outlier_disp_tolerance > 0, f"outlier_disp_tolerance must be > 0 px, got {self.outlier_disp_tolerance}"
-        )
-        check(
-            self.outlier_flow_tolerance > 0, f"outlier_flow_tolerance must be > 0 px, got {self.outlier_flow_tolerance}"
-        )
-        check(self.refinement in (0, 1, 2), f"refinement must be 0, 1 or 2, got {self.refinement}")
-        check(self.bucket_width > 0, f"bucket_width must be > 0 px, got {self.bucket_width}")
-        check(self.bucket_height > 0, f"bucket_height must be > 0 px, got {self.bucket_height}")
-        check(self.bucket_max_features >= 1, f"bucket_max_features must be ≥ 1, got {self.bucket_max_features}")
-        check(self.ransac_iters >= 1, f"ransac_iters must be ≥ 1, got {self.ransac_iters}")
-        check(self.inlier_threshold > 0, f"inlier_threshold must be > 0 px, got {self.inlier_threshold}")
-        check(self.min_inliers >= 3, f"min_inliers must be ≥ 3 (a 6-DoF motion needs 3 points), got {self.min_inliers}")
-        check(self.quality_min_inliers >= 0, f"quality_min_inliers must be ≥ 0, got {self.quality_min_inliers}")
-        for name in (
-            "quality_max_residual",
-            "quality_max_translation_sigma",
-            "quality_max_rotation_sigma",
-            "kalman_rotation_process_std",
-            "kalman_translation_process_std",
-            "kalman_rotation_measurement_std",
-            "kalman_translation_measurement_std",
-        ):
-            check(getattr(self, name) > 0, f"{name} must be > 0, got {getattr(self, name)}")
-        if errors:
-            raise ValueError("invalid VOConfig: " + "; ".join(errors))
+    f: Real = Field(gt=0.0)
+    cu: Real = Field(gt=0.0, description="> 0: the reweighting divides by it")
+    cv: Real = Field(gt=0.0)
+    baseline: Real = Field(gt=0.0)
+    nms_n: Count = Field(3, ge=1, le=MAX_NMS_N)
+    nms_tau: Count = Field(50, ge=0)
+    match_binsize: Count = Field(50, ge=1)
+    match_radius: Count = Field(200, ge=2)
+    match_disp_tolerance: Count = Field(2, ge=0)
+    outlier_disp_tolerance: Real = Field(5.0, gt=0.0)
+    outlier_flow_tolerance: Real = Field(5.0, gt=0.0)
+    multi_stage: Flag = True
+    half_resolution: Flag = True
+    refinement: Count = Field(1, ge=0, le=2)
+    bucket_width: Real = Field(50.0, gt=0.0)
+    bucket_height: Real = Field(50.0, gt=0.0)
+    bucket_max_features: Count = Field(2, ge=1)
+    ransac_iters: Count = Field(200, ge=1)
+    inlier_threshold: Real = Field(2.0, gt=0.0)
+    reweighting: Flag = True
+    min_inliers: Count = Field(6, ge=3, description="a 6-DoF motion needs 3 points")
+    quality_min_inliers: Count = Field(30, ge=0)
+    quality_max_residual: Real = Field(1.75, gt=0.0)
+    quality_max_translation_sigma: Real = Field(0.03, gt=0.0)
+    quality_max_rotation_sigma: Real = Field(0.004, gt=0.0)
+    kalman_smoothing: Flag = False
+    kalman_rotation_process_std: Real = Field(1e-4, gt=0.0)
+    kalman_translation_process_std: Real = Field(1e-3, gt=0.0)
+    kalman_rotation_measurement_std: Real = Field(5e-4, gt=0.0)
+    kalman_translation_measurement_std: Real = Field(5e-3, gt=0.0)
 
     # ------------------------------------------------------------------ derived values
     @property

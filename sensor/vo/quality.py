@@ -29,7 +29,7 @@ no OpenCV): result writers may read the tables without loading the odometry.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -49,7 +49,7 @@ __all__ = [
 
 def _default(name: str) -> float:
     """Default value of a :class:`VOConfig` field (the thresholds quoted in the reason sentences)."""
-    return next(f.default for f in fields(VOConfig) if f.name == name)  # type: ignore[return-value]
+    return VOConfig.model_fields[name].default  # type: ignore[no-any-return]
 
 
 #: Reason codes of a frame without a motion, with one sentence each (thresholds: the defaults).
