@@ -44,7 +44,6 @@ class ConfigError(InputError):
     """An invalid scenario configuration; the message lists every bad field with its allowed range."""
 
 
-
 COORDINATE_LIMIT_M = 10_000.0
 """Largest |coordinate| of a friction patch [m]: beyond any path the schema allows (5 km straight + 2 × 1 km)."""
 

@@ -123,5 +123,5 @@ def test_limits_end_a_run_with_the_reason_and_the_status() -> None:
         cosim.step()
     assert cosim.breach is not None and cosim.breach.reason == StopReason.JACKKNIFE
     assert abs(math.degrees(cosim.tick.state.gamma)) > 3.0
-    outcome, columns = simulate(setup)  # the run's own limits: the physical ones, not reached here
+    outcome, _ = simulate(setup)  # the run's own limits: the physical ones, not reached here
     assert outcome.status == RunStatus.COMPLETED == "completed"

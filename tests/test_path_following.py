@@ -107,7 +107,9 @@ def test_on_a_straight_a_follow_point_left_of_the_path_steers_every_axle_right()
     cmd = ctrl(state(), OfftrackingEstimate.of(-0.2))
     assert cmd.shape == (2,) and ctrl.axle_names == ("trailer2", "trailer3")
     assert np.all(cmd < 0)
-    cmd_right = TrailerSteeringController(params, PathFollowingConfig(max_steer_rate=FAST))(state(), OfftrackingEstimate.of(0.2))
+    cmd_right = TrailerSteeringController(params, PathFollowingConfig(max_steer_rate=FAST))(
+        state(), OfftrackingEstimate.of(0.2)
+    )
     assert cmd_right == pytest.approx(-cmd, abs=1e-12)
 
 

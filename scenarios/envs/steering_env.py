@@ -247,7 +247,9 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         settings_si = config.controller.path_following(config.rates.control_hz)
         agent = AgentSteer(setup.params, settings_si)
         self._cosim = CoSimulation(setup, agent, limits=self.limits)
-        self._controller = TrailerSteeringController(setup.params, settings_si) if self.action_mode == "residual" else None
+        self._controller = (
+            TrailerSteeringController(setup.params, settings_si) if self.action_mode == "residual" else None
+        )
         self._max_steer = settings_si.max_steer
         self._max_rate = settings_si.max_steer_rate
         self._previous_action = 0.0

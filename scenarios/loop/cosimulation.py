@@ -151,7 +151,9 @@ class CoSimulation:
         self.limits = limits
         self.geometric_truth = geometric_truth
         self.sink = sink
-        self.trailer_steer: TrailerSteerSource = trailer_steer if trailer_steer is not None else trailer_steer_for(setup)
+        self.trailer_steer: TrailerSteerSource = (
+            trailer_steer if trailer_steer is not None else trailer_steer_for(setup)
+        )
         if camera_workers is None:
             from ..camera.workers import default_workers  # only a camera run needs it
 
@@ -180,7 +182,8 @@ class CoSimulation:
         self.max_time = run_duration(setup)
         if self.kinematic and not isinstance(self.trailer_steer, UnsteeredTrailer):
             raise InputError(
-                "a kinematic constant-slip scenario (path.slip_deg) prescribes the motion: its trailer cannot be steered"
+                "a kinematic constant-slip scenario (path.slip_deg) prescribes the motion: its trailer cannot be "
+                "steered"
             )
 
     @property
@@ -348,9 +351,7 @@ class CoSimulation:
         time = self.sim.time
         kingpin = kingpin_position(setup.params, state.X, state.Y, state.psi1)
         measured = self.signals.measure(time, state, self.steer)
-        tick = TickInput(
-            index, time, self.period, state, kingpin, measured, index % self._frame_every == 0, trajectory
-        )
+        tick = TickInput(index, time, self.period, state, kingpin, measured, index % self._frame_every == 0, trajectory)
         self._input = tick
         self.vehicle.update(tick)
         estimates = {name: participant.update(tick) for name, participant in self.estimators.items()}

@@ -205,11 +205,15 @@ class FusedVisoOtEstimator:
         """Propagate with the trailer's signals, then correct with the frames the camera released on this tick."""
         fused, measured, drop = self.filter, tick.measured, self.drop_every
         steer = measured["trailer_steer"]
-        fused.propagate(tick.index, tick.period, measured["trailer_yaw_rate"][0], measured["trailer_wheel_speed"][0], steer)
+        fused.propagate(
+            tick.index, tick.period, measured["trailer_yaw_rate"][0], measured["trailer_wheel_speed"][0], steer
+        )
         for shot in self.camera.released:  # type: ignore[attr-defined]
             frame = shot.frame
             usable = frame.valid and not (drop > 0 and (shot.index + 1) % drop == 0)
-            fused.measure(shot.tick, frame.vo.camera_motion if usable else None, frame.vo.covariance if usable else None)
+            fused.measure(
+                shot.tick, frame.vo.camera_motion if usable else None, frame.vo.covariance if usable else None
+            )
         if fused.estimate is not None:
             self.estimate = OfftrackingEstimate(float(fused.estimate), fused.std)
         else:

@@ -44,7 +44,9 @@ def _steer_columns(axles: tuple[str, ...]) -> tuple[Column, ...]:
 
 def _limit_columns(axles: tuple[str, ...], kinds: tuple[str, ...]) -> tuple[Column, ...]:
     words = {"saturated": "magnitude limit", "rate_limited": "rate limit", "slip_limited": "slip-angle limit"}
-    return tuple(Column(f"{kind}_{name}", "-", f"1 when the {words[kind]} clipped it") for kind in kinds for name in axles)
+    return tuple(
+        Column(f"{kind}_{name}", "-", f"1 when the {words[kind]} clipped it") for kind in kinds for name in axles
+    )
 
 
 class UnsteeredTrailer:

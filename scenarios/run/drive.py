@@ -1,7 +1,7 @@
 """Drive a co-simulation to its end: the one function every whole run goes through.
 
 :func:`run_loop` steps a :class:`~scenarios.loop.cosimulation.CoSimulation` until it is done and says how it
-ended (:class:`~.outcome.RunOutcome`). ``offtrack run`` (:func:`scenarios.run.runner.run_scenario`), the studies,
+ended (:class:`RunOutcome`). ``offtrack run`` (:func:`scenarios.run.runner.run_scenario`), the studies,
 ``offtrack compare`` and the gain-tuning environment use it; the steering environment steps the same
 co-simulation one action at a time instead.
 
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import time as wallclock
 from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -26,13 +27,68 @@ from ..loop.cosimulation import CoSimulation
 from ..loop.ends import RunStatus
 from ..loop.participant import TrailerSteerSource
 from ..setup.build import ScenarioSetup
-from .outcome import RunOutcome
-from .stopping import deferred_stops, raise_pending_stop, stop_behind
+from .stopping import (
+    deferred_stops,
+    raise_pending_stop,
+    stop_behind,
+    stop_handled,
+    stop_message,
+    stop_signal_name,
+)
 
-__all__ = ["ProgressCallback", "run_loop", "simulate"]
+__all__ = ["ProgressCallback", "RunOutcome", "run_loop", "simulate"]
 
 ProgressCallback = Callable[[float, float], None]
 """``(simulated time, progress fraction 0..1)``."""
+
+
+@dataclass
+class RunOutcome:
+    """What a run produced.
+
+    Attributes
+    ----------
+    status : RunStatus
+        ``completed``, ``diverged``, ``lost_control``, ``failed`` or ``interrupted``.
+    message : str
+        Why a run stopped early, in words.
+    stop_time : float or None
+        Simulation time [s] at which a run that did not complete stopped.
+    stop_signal : str or None
+        ``SIGINT`` or ``SIGTERM`` for an interrupted run.
+    rows : int
+        Rows written to the time series.
+    wall_time_s : float
+        Wall-clock time of the loop.
+    reports : dict
+        What the loop's participants report about the run, by name (``viso_ot``: where the camera's time went,
+        :meth:`scenarios.camera.delivery.CameraFeed.timings`).
+    """
+
+    status: RunStatus = RunStatus.COMPLETED
+    message: str = ""
+    rows: int = 0
+    wall_time_s: float = 0.0
+    columns: list[str] = field(default_factory=list)
+    reports: dict[str, dict[str, float]] = field(default_factory=dict)
+    stop_time: float | None = None
+    stop_signal: str | None = None
+
+    @property
+    def camera(self) -> dict[str, float]:
+        """Where a camera run's time went (the ``viso_ot`` participant's report); empty without a camera."""
+        return self.reports.get("viso_ot", {})
+
+    def fail(self, message: str, last_time: float | None) -> None:
+        """Record that the run failed (a render worker lost, its series not writable) after ``last_time`` [s]."""
+        if self.status != RunStatus.FAILED:  # the first failure is the one that says why
+            self.status, self.message, self.stop_time = RunStatus.FAILED, message, last_time or 0.0
+
+    def stop(self, stop: KeyboardInterrupt, last_time: float | None) -> None:
+        """Record that ``stop`` (Ctrl-C, SIGTERM) ended the run after the rows up to ``last_time`` [s]."""
+        stop_handled()
+        self.status, self.message = RunStatus.INTERRUPTED, stop_message(stop)
+        self.stop_signal, self.stop_time = stop_signal_name(stop), last_time or 0.0
 
 
 def run_loop(
