@@ -122,11 +122,10 @@ def draw_plan_view(
     scale_bar
         Draw a scale bar (:func:`scale_bar_length`) at the bottom left.
     """
-    kingpin = kingpin_position(params, state.X, state.Y, state.psi1)
-    psi2 = state.psi1 - state.gamma
-    if centre is None:
-        l_fp = params.follow_point_offset
-        centre = kingpin - 0.5 * l_fp * np.array([math.cos(psi2), math.sin(psi2)])
+    psi2 = state.psi2
+    if centre is None:  # midway between the kingpin and the follow point
+        midway = np.array([[-0.5 * params.follow_point_offset, 0.0]])
+        centre = trailer_points(params, state.X, state.Y, state.psi1, state.gamma, midway)[0]
     canvas = _Canvas(size, np.asarray(centre, dtype=float), span)
     canvas.line(path_points, _PATH, 2)
     if kingpin_track is not None:
@@ -144,7 +143,7 @@ def draw_plan_view(
         for side in (-half, half):
             p = trailer_points(params, state.X, state.Y, state.psi1, state.gamma, np.array([[axle.x, side]]))[0]
             canvas.line(np.array([[p[0] - dx, p[1] - dy], [p[0] + dx, p[1] + dy]]), _AXLE, 2)
-    canvas.dot(kingpin, _KINGPIN_TRACK)
+    canvas.dot(kingpin_position(params, state.X, state.Y, state.psi1), _KINGPIN_TRACK)
     if follow_track is not None and len(follow_track):
         canvas.dot(follow_track[-1], _FOLLOW_TRACK)
     canvas.text(text)
