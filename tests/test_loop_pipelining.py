@@ -1,4 +1,5 @@
-"""The camera latency and the pipelined camera (issue 16): what the controller sees is set by the latency alone.
+"""The camera latency and the pipelined camera (``scenarios/camera/delivery.py``): what the controller sees is set
+by the latency alone.
 
 A pipelined run renders in spawned worker processes while the co-simulation runs the odometry; a serial run
 does everything in-process on the tick the frame is taken. For the same seed and latency both must record

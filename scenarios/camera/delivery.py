@@ -26,7 +26,6 @@ import math
 import time as wallclock
 from collections import deque
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -66,23 +65,13 @@ class CapturedFrame:
     release_tick : int
         Control tick its estimate reaches the controller on.
     frame : CameraFrame or None
-        What the pipeline made of it; ``None`` while it is still being rendered or processed. Its fields
-        read through this object too (``shot.valid``), so serial callers can treat it as the frame.
+        What the odometry made of it; ``None`` while it is still being rendered or processed.
     """
 
     index: int
     tick: int
     release_tick: int
     frame: CameraFrame | None = None
-
-    def __getattr__(self, name: str) -> Any:
-        """The :class:`~sensor.frame_odometry.CameraFrame`'s fields (``estimate``, ``valid``, …) once processed."""
-        if name.startswith("__") or name == "frame":
-            raise AttributeError(name)
-        frame = self.__dict__.get("frame")
-        if frame is None:
-            raise AttributeError(f"frame {self.__dict__.get('index')} is not processed yet: no {name!r}")
-        return getattr(frame, name)
 
 
 class CameraFeed:

@@ -51,7 +51,7 @@ def reason_code(reason: str | None) -> float:
 
 
 def camera_row(frame: Any) -> dict[str, float]:
-    """The camera columns of one processed frame (:class:`~scenarios.camera.pipeline.CameraFrame`)."""
+    """The camera columns of one processed frame (:class:`~sensor.frame_odometry.CameraFrame`)."""
     calibration = getattr(frame, "self_calibration", None) or {}
     return {
         "vo_valid": float(frame.valid),
