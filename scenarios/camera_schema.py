@@ -9,11 +9,14 @@ lens, calibration, mount flex, lighting, world, online self-calibration — all 
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import Field, model_validator
 
 from vehicle_model.settings import Settings
+
+if TYPE_CHECKING:
+    from sensor.lens import Lens
 
 MAX_RIG_ROTATION_DEG = 20.0
 """Largest right-camera misalignment or correction per axis [°] (:class:`sensor.camera.Misalignment`)."""
@@ -219,3 +222,12 @@ class CameraConfig(Settings):
         "control tick at or after it); None: one frame period 1/rates.camera_hz, as a camera computer that "
         "processes each frame while the next is taken; a camera estimate a second old is useless for steering",
     )
+
+    def lens_pair(self) -> tuple[Lens, Lens]:
+        """The left and right :class:`sensor.lens.Lens` (``right_lens`` defaults to ``lens``)."""
+        from sensor.lens import Lens  # the numeric lens model only when asked for
+
+        left = Lens.from_mapping(self.lens.model_dump(), name="camera.lens")
+        if self.right_lens is None:
+            return left, left
+        return left, Lens.from_mapping(self.right_lens.model_dump(), name="camera.right_lens")

@@ -34,6 +34,7 @@ from vehicle_model.presets import VEHICLE_PRESETS
 from vehicle_model.settings import Settings
 from vehicle_model.surface import FRICTION_PRESETS
 
+from .camera_checks import check_camera
 from .camera_schema import CameraConfig
 from .registry import NO_FEEDBACK, estimator_entries, estimator_entry, feedback_sources
 
@@ -437,11 +438,19 @@ def _format_errors(exc: ValidationError) -> str:
 
 
 def validate_config(data: dict[str, Any]) -> ScenarioConfig:
-    """Validate a configuration mapping; :class:`ConfigError` lists every bad field."""
+    """Validate a configuration mapping; :class:`ConfigError` lists every bad field.
+
+    A configuration that runs a camera must have one that can work (:func:`scenarios.camera_checks.check_camera`:
+    disparity on the road, room for the matches, a lens that does not fold over); otherwise
+    :class:`~vehicle_model.errors.InputError` names the field in one line.
+    """
     try:
-        return ScenarioConfig.model_validate(data)
+        config = ScenarioConfig.model_validate(data)
     except ValidationError as exc:
         raise ConfigError(_format_errors(exc)) from None
+    if config.uses_camera:
+        check_camera(config.camera)
+    return config
 
 
 def catalogue_names() -> list[str]:

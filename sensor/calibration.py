@@ -22,7 +22,9 @@ odometry must use on the rectified images (:meth:`CalibrationResult.rectified_ri
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar
@@ -335,6 +337,33 @@ def calibrate_rig(
         A bad setting (named), no pose both cameras see, or too few detected views.
     """
     board = _check_settings(views, target, square_size, corner_noise_px, seed, alpha)
+    with _one_opencv_thread():  # OpenCV's parallel loops sum in a varying order; on one thread a seed repeats exactly
+        return _calibrate(rig, lens_left, lens_right, board, views, square_size, corner_noise_px, seed, alpha)
+
+
+@contextlib.contextmanager
+def _one_opencv_thread() -> Iterator[None]:
+    """OpenCV on one thread for the block (then as before)."""
+    previous = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(previous)
+
+
+def _calibrate(
+    rig: StereoRig,
+    lens_left: Lens,
+    lens_right: Lens,
+    board: Board,
+    views: int,
+    square_size: float,
+    corner_noise_px: float,
+    seed: int,
+    alpha: float,
+) -> CalibrationResult:
+    """:func:`calibrate_rig` once its settings are checked: image the target, detect its corners, solve."""
     rng = np.random.default_rng([int(seed), 0xCA11B])
     k = rig.intrinsics()
     left = Camera.build(k, lens_left, rig.width, rig.height)

@@ -41,7 +41,7 @@ from typing import Literal
 import numpy as np
 
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import CombinationPose, kingpin_position
+from vehicle_model.geometry import CombinationPose, kingpin_position, trailer_heading
 from vehicle_model.parameters import VehicleParams
 
 Which = Literal["left", "right"]
@@ -300,7 +300,7 @@ class StereoRig:
             t[:3, :3] = r @ self.misalignment.rotation  # rotation about its own optical centre
         return t
 
-    def camera_in_world(self, params: VehicleParams, pose: CombinationPose, which: Which, *loose) -> np.ndarray:
+    def camera_in_world(self, params: VehicleParams, pose: CombinationPose, which: Which) -> np.ndarray:
         """Pose ``T_world←camera`` of one camera at a combination pose, OpenCV camera axes.
 
         Parameters
@@ -313,17 +313,10 @@ class StereoRig:
             poses of shape ``S + (4, 4)``.
         which : {"left", "right"}
             The camera.
-
-        The loose form ``camera_in_world(params, x, y, psi1, gamma, which)`` is still accepted for callers that
-        have not moved to :class:`~vehicle_model.geometry.CombinationPose` (``scenarios/envs/steering_env.py``).
         """
-        if loose:
-            if len(loose) != 3:
-                raise InputError("camera_in_world takes (params, pose, which) or (params, x, y, psi1, gamma, which)")
-            pose, which = CombinationPose(pose, which, loose[0], loose[1]), loose[2]  # type: ignore[arg-type]
         x, y, psi1, gamma = pose
         kp = kingpin_position(params, x, y, psi1)
-        psi2 = np.asarray(psi1, dtype=float) - np.asarray(gamma, dtype=float)
+        psi2 = np.asarray(trailer_heading(psi1, gamma))
         c, s = np.cos(psi2), np.sin(psi2)
         world_trailer = np.zeros((*psi2.shape, 4, 4))
         world_trailer[..., 0, 0], world_trailer[..., 0, 1] = c, -s

@@ -27,6 +27,7 @@ ALLOWED_PACKAGE_IMPORTS: dict[str, set[str]] = {
 
 SCENARIO_ROOMS: tuple[str, ...] = (
     "camera_schema",
+    "camera_checks",
     "registry",
     "config",
     "catalogue",

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from scenarios.camera.feasibility import check_camera_feasible, nearest_road_disparity
+from scenarios.camera_checks import check_camera_feasible, nearest_road_disparity
 from scenarios.config import load_scenario
 from sensor.viso_ot import STEP_COLUMNS, MotionBounds, VisoOtEstimator
 from sensor.vo import StereoOdometry, VOConfig
@@ -242,7 +242,7 @@ def test_non_finite_motion_and_absurd_estimates_are_not_reported(reference):
 
 def test_a_too_short_baseline_is_refused_up_front():
     with pytest.raises(InputError, match=r"^camera\.baseline = 0\.01 m .* use a baseline ≥ 0\.062 m"):
-        check_camera_feasible(load_scenario("roundabout-3", {"camera.baseline": 0.01}))
+        check_camera_feasible(load_scenario("roundabout-3", {"camera.baseline": 0.01}).camera)
     assert nearest_road_disparity(1344, 391, 100.0, 0.5, 3.0) == pytest.approx(0.5 * 195.0 / 3.0)
 
 
@@ -258,17 +258,28 @@ def test_a_too_short_baseline_is_refused_up_front():
     ],
 )
 def test_workable_cameras_are_accepted(overrides):
-    check_camera_feasible(load_scenario("constant-slip", overrides))
+    check_camera_feasible(load_scenario("constant-slip", overrides).camera)
 
 
 def test_a_tiny_image_is_refused():
     with pytest.raises(InputError, match=r"^camera\.width × camera\.height = 64×48 px"):
-        check_camera_feasible(load_scenario("constant-slip", {"camera.width": 64, "camera.height": 48}))
+        check_camera_feasible(load_scenario("constant-slip", {"camera.width": 64, "camera.height": 48}).camera)
+
+
+def test_loading_a_camera_run_checks_its_camera_once_and_a_model_run_does_not():
+    # The check is part of validating a configuration that renders (any camera estimator, the feedback's included).
+    short = {"camera.baseline": 0.01}
+    assert load_scenario("roundabout-3", short).camera.baseline == 0.01  # no camera runs: nothing to refuse
+    for camera_on in ({"estimators.viso_ot": True}, {"vehicle": "lst", "feedback": "viso_ot_fused"}):
+        with pytest.raises(InputError, match=r"^camera\.baseline = 0\.01 m"):
+            load_scenario("roundabout-3", {**short, **camera_on})
+    with pytest.raises(InputError, match="camera.lens"):
+        load_scenario("roundabout-3", {"estimators.viso_ot": True, "camera.lens.k1": -1.0})  # folds over in the image
 
 
 def test_feasibility_and_reason_tables_import_nothing_heavy():
     code = (
-        "import sys, scenarios.camera.feasibility, sensor.vo.quality; "
+        "import sys, scenarios.camera_checks, sensor.vo.quality; "
         "heavy = [m for m in ('cv2', 'OpenGL', 'pyrender', 'sensor.renderer') if m in sys.modules]; "
         "assert not heavy, heavy"
     )
@@ -276,7 +287,7 @@ def test_feasibility_and_reason_tables_import_nothing_heavy():
 
 
 def test_feasibility_constants_follow_the_vo_defaults():
-    from scenarios.camera import feasibility
+    from scenarios import camera_checks as feasibility
 
     c = StereoRig().vo_config()
     assert feasibility._MIN_INLIERS == c.quality_min_inliers

@@ -5,7 +5,7 @@ Degrees and configuration models stop here; what comes out is SI and made of sen
 * :func:`rig_from_config` — the :class:`~sensor.camera.StereoRig`;
 * :func:`world_for_scenario` — the procedural :class:`~sensor.world.World` around the reference path (the
   scenario's seed, ``camera.scenery_density`` and ``camera.world``);
-* :func:`lenses`, :func:`check_lenses`, :func:`calibration_for` (``camera.calibration``: ideal, estimated once per
+* :func:`lenses`, :func:`calibration_for` (``camera.calibration``: ideal, estimated once per
   process by :func:`run_calibration`, or read from a file), :func:`lighting_from_config`, :func:`mount_flex`;
 * :func:`stereo_camera` — the :class:`~sensor.stereo_camera.StereoCamera` of a built scenario, and
   :func:`pair_developer` its development alone (a process that does not render);
@@ -43,7 +43,6 @@ if TYPE_CHECKING:
 __all__ = [
     "calibration_for",
     "calibration_target_rig",
-    "check_lenses",
     "flex_schedule",
     "frame_odometry",
     "lenses",
@@ -123,19 +122,8 @@ def world_for_scenario(
 
 
 def lenses(config: ScenarioConfig) -> tuple[Lens, Lens]:
-    """The left and right lenses of the configuration (``camera.right_lens`` defaults to ``camera.lens``)."""
-    cam = config.camera
-    left = Lens.from_mapping(cam.lens.model_dump(), name="camera.lens")
-    right = left if cam.right_lens is None else Lens.from_mapping(cam.right_lens.model_dump(), name="camera.right_lens")
-    return left, right
-
-
-def check_lenses(config: ScenarioConfig) -> None:
-    """Refuse, before anything runs, a lens whose model folds over inside the image (one line naming it)."""
-    rig = rig_from_config(config)
-    for lens in lenses(config):
-        if not lens.is_zero:
-            check_invertible(rig.intrinsics(), lens, rig.width, rig.height)
+    """The left and right lenses of the configuration (:meth:`~scenarios.camera_schema.CameraConfig.lens_pair`)."""
+    return config.camera.lens_pair()
 
 
 def calibration_target_rig(rig: StereoRig, config: ScenarioConfig) -> StereoRig:

@@ -38,7 +38,6 @@ from vehicle_model.simulator import VehicleState
 
 from ..setup.build import ScenarioSetup
 from .build import flex_schedule, frame_odometry, pair_developer, stereo_camera
-from .feasibility import check_camera_feasible
 from .workers import CameraWorkerError, RenderWorkers
 
 __all__ = ["CameraFeed", "CameraWorkerError", "CapturedFrame", "latency_ticks"]
@@ -99,7 +98,6 @@ class CameraFeed:
     """
 
     def __init__(self, setup: ScenarioSetup, workers: int = 0) -> None:
-        check_camera_feasible(setup.config)
         self.latency_ticks = latency_ticks(setup)
         self.estimate: float | None = None
         self._setup = setup

@@ -349,10 +349,7 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         )
         camera = cosim.camera
         if camera is not None:
-            s = tick.state
-            pose = camera.rig.camera_in_world(setup.params, s.X, s.Y, s.psi1, s.gamma, "left")
-            grey, _ = camera.renderer.render_view(pose)
-            image = np.vstack([image, camera_strip(grey, image.shape[1])])
+            image = np.vstack([image, camera_strip(camera.view_image(tick.state.pose), image.shape[1])])
         return image
 
     def close(self) -> None:

@@ -1,8 +1,10 @@
 """Refuse camera configurations that cannot give a visual-odometry estimate, before anything runs.
 
-:func:`check_camera_feasible` looks only at the geometry of the ``camera`` section (it imports no
-renderer, no OpenGL and not the odometry itself) and raises :class:`~vehicle_model.errors.InputError`
-with one line naming the field.
+:func:`check_camera` is part of validating a scenario that runs a camera (:func:`scenarios.config.validate_config`),
+so it runs once, before any work, whoever loads the configuration. :func:`check_camera_feasible` looks only at the
+geometry of the ``camera`` section (it imports no renderer, no OpenGL and not the odometry itself);
+:func:`check_lenses` refuses a lens model that folds over inside the image. Each raises
+:class:`~vehicle_model.errors.InputError` with one line naming the field.
 
 Reasoning
 ---------
@@ -43,14 +45,12 @@ verges and fields are textured even at ``scenery_density`` 0), so density 0 runs
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
 
 from vehicle_model.errors import InputError
 
-if TYPE_CHECKING:
-    from ..config import ScenarioConfig
+from .camera_schema import CameraConfig
 
-__all__ = ["MIN_ROAD_DISPARITY_PX", "check_camera_feasible", "nearest_road_disparity"]
+__all__ = ["MIN_ROAD_DISPARITY_PX", "check_camera", "check_camera_feasible", "check_lenses", "nearest_road_disparity"]
 
 #: Disparity [px] the odometry needs on the nearest visible road (module notes).
 MIN_ROAD_DISPARITY_PX = 4.0
@@ -85,20 +85,40 @@ def nearest_road_disparity(width: int, height: int, hfov_deg: float, baseline: f
     return f * baseline / z_near
 
 
-def check_camera_feasible(config: ScenarioConfig | Any) -> None:
-    """Raise :class:`InputError` if the scenario's stereo camera cannot support visual odometry.
+def check_camera(camera: CameraConfig) -> None:
+    """Refuse a camera that cannot work: :func:`check_camera_feasible`, then :func:`check_lenses`."""
+    check_camera_feasible(camera)
+    check_lenses(camera)
+
+
+def check_lenses(camera: CameraConfig) -> None:
+    """Refuse a lens whose model folds over inside the image (one line naming ``camera.lens`` or ``right_lens``)."""
+    left, right = camera.lens_pair()
+    if left.is_zero and right.is_zero:
+        return
+    from sensor.camera import StereoRig  # numeric checks only when there is a lens
+    from sensor.lens import check_invertible
+
+    k = StereoRig.from_degrees(hfov_deg=camera.hfov_deg, width=camera.width, height=camera.height).intrinsics()
+    for lens in (left, right):
+        if not lens.is_zero:
+            check_invertible(k, lens, camera.width, camera.height)
+
+
+def check_camera_feasible(camera: CameraConfig) -> None:
+    """Raise :class:`InputError` if the stereo camera cannot support visual odometry.
 
     Parameters
     ----------
-    config : ScenarioConfig
-        The scenario; only its ``camera`` section is read (module notes give the reasoning).
+    camera : CameraConfig
+        The scenario's ``camera`` section (module notes give the reasoning).
 
     Raises
     ------
     InputError
         One line naming the field, the value, what it gives and what is needed.
     """
-    cam = config.camera
+    cam = camera
     cv = 0.5 * (cam.height - 1)
     f = 0.5 * cam.width / math.tan(math.radians(0.5 * cam.hfov_deg))
     z_near = f * cam.mount_height / cv
