@@ -6,9 +6,9 @@ The trailer is controlled as if it had one steered axle at ``L_v`` behind the ki
 equivalent wheelbase ``L_eq = ΣC_j L_j²/ΣC_j L_j`` of all trailer axles, so ``δ_v = 0`` behaves like the
 unsteered trailer). For a given ``δ_v`` and kingpin velocity the zero-slip trailer turns about the centre
 where the virtual axle's axis meets the normal to the kingpin velocity; its curvature abreast of the trailer
-is ``κ_c = 1/y_c = (tan β_k − tan δ_v)/L_v`` (reference notes §2.3: ``r2 = (v_k2y − v_k2x tan δ_v)/L_v`` and
+is ``κ_c = 1/y_c = (tan β_k − tan δ_v)/L_v`` (docs/vehicle_dynamics.md §2.3: ``r2 = (v_k2y − v_k2x tan δ_v)/L_v`` and
 ``y_c = v_k2x/r2``), with ``tan β_k = v_k2y/v_k2x`` the direction of the kingpin velocity in the trailer
-frame. Every steerable axle is steered to that centre (reference notes §7.3, exact form)::
+frame. Every steerable axle is steered to that centre (docs/vehicle_dynamics.md §7.3, exact form)::
 
     tan δ_j = tan δ_v + (L_v − L_j)·κ_c
 
@@ -92,7 +92,10 @@ class AxleSteerDistribution:
         )
 
     def centre_curvature(self, tan_virtual: float, tan_kingpin: float) -> float:
-        """``κ_c = 1/y_c = (tan β_k − tan δ_v)/L_v`` [1/m] of the centre implied by ``δ_v`` (reference §2.3)."""
+        """``κ_c = 1/y_c = (tan β_k − tan δ_v)/L_v`` [1/m] of the centre implied by ``δ_v``.
+
+        Zero-slip kinematics of docs/vehicle_dynamics.md §2.3.
+        """
         return (tan_kingpin - tan_virtual) / self.virtual_axle_distance
 
     def __call__(self, tan_virtual: float, tan_kingpin: float) -> np.ndarray:
@@ -106,7 +109,7 @@ class AxleSteerDistribution:
             ``tan β_k = v_k2y/v_k2x``: direction of the kingpin velocity in the trailer frame.
         """
         kappa_c = self.centre_curvature(tan_virtual, tan_kingpin)
-        # reference notes §7.3: tan δ_j = tan δ_v + (L_v − L_j)·κ_c for every axle (what each would need)
+        # docs/vehicle_dynamics.md §7.3: tan δ_j = tan δ_v + (L_v − L_j)·κ_c for every axle (what each would need)
         needed = np.arctan(tan_virtual + (self.virtual_axle_distance - self.distances) * kappa_c)
         offset = float(self._weights @ needed)
         return needed[self.steerable] + offset
@@ -115,7 +118,7 @@ class AxleSteerDistribution:
 def path_following_steer(
     distribution: AxleSteerDistribution, kingpin_curvature: float, follow_point_offset: float
 ) -> tuple[float, np.ndarray]:
-    """Steady zero-slip path-following steer: virtual angle and axle angles (reference notes §6.2).
+    """Steady zero-slip path-following steer: virtual angle and axle angles (docs/vehicle_dynamics.md §6.2).
 
     Parameters
     ----------
@@ -139,10 +142,10 @@ def path_following_steer(
 
 
 def steady_turn_tangents(kappa: float, l_fp: float, l_v: float) -> tuple[float, float]:
-    """``(tan δ_ff, tan β_k)`` of the steady path-following turn of kingpin curvature ``kappa`` (§6.2).
+    """``(tan δ_ff, tan β_k)`` of the steady path-following turn of kingpin curvature ``kappa``.
 
     ``tan δ_ff = (L_fp/2 − L_v)/y_c`` and ``tan β_k = (L_fp/2)/y_c`` with ``1/y_c = κ5/sqrt(1 − κ5²L_fp²/4)``
-    (reference notes §6.2, exact form).
+    (docs/vehicle_dynamics.md §6.2, exact form).
 
     Parameters
     ----------
@@ -192,7 +195,7 @@ def axle_velocity_directions(
     """Direction ``β_j`` [rad] of each axle's ground velocity in the trailer frame (rigid trailer).
 
     The point ``L_j`` behind the kingpin moves at ``(v_k2x, v_k2y − r2·L_j)``, so
-    ``β_j = atan(tan β_k − r2·L_j/v_k2x)`` (reference notes §2.3); an axle steered to ``δ_j`` slips by
+    ``β_j = atan(tan β_k − r2·L_j/v_k2x)`` (docs/vehicle_dynamics.md §2.3); an axle steered to ``δ_j`` slips by
     ``α_j = δ_j − β_j``.
 
     Parameters

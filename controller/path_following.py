@@ -1,6 +1,6 @@
 """Path-following trailer steering: a PID on the off-tracking error with curvature feed-forward.
 
-The law (reference notes §6.2, §7.3; Cheng 2009, Jujnovich & Cebon 2013; Miao & Cebon 2014 feed the same
+The law (docs/vehicle_dynamics.md §6.2, §7.3; Cheng 2009, Jujnovich & Cebon 2013; Miao & Cebon 2014 feed the same
 law an independent off-tracking measurement, here the caller picks the estimate by name)::
 
     δ_v = δ_ff(κ5) + f_hs(u)·[k_p·e + k_i·∫e ds + k_d·de/ds]          (virtual-axle steer)
@@ -12,8 +12,8 @@ anti-windup). Its settings, gains, kinematic pole placement and speed schedule a
 :mod:`controller.path_following_config`; the virtual-axle distribution, the steady-turn steer and the per-axle
 limits are in :mod:`controller.axle_steer_distribution`.
 
-Sign convention (DESIGN §3)
----------------------------
+Sign convention (docs/design.md §6)
+-----------------------------------
 ``e = e_tr`` is the off-tracking: the y coordinate (left positive), in the current trailer frame, of the
 kingpin's past path at the follow-point station. An unsteered trailer in a left turn cuts in, so ``e < 0``:
 the follow point lies left of (inside) the kingpin path and the trailer's rear must move **right**, which
@@ -21,10 +21,11 @@ a **negative** (rightward) steer of the rear axles does. Linearised on a straigh
 heading ψ2 relative to the kingpin path, ``e ≈ L_fp·ψ2`` and the virtual axle gives
 ``ψ̇2 = −(u/L_v)(ψ2 + δ_v)``, so
 
-    de/ds = −e/L_v − (L_fp/L_v)·δ_v                                  (reference notes §7.3 with e = −e_§7.3)
+    de/ds = −e/L_v − (L_fp/L_v)·δ_v                                  (docs/vehicle_dynamics.md §7.3)
 
-The notes write the same equation for the follow point's left-positive deviation ``−e_tr``; their
-``δ_v = δ_ff − PID(e_§7.3)`` therefore reads ``δ_v = δ_ff + PID(e_tr)`` here, with **positive** gains.
+The path-following literature writes the same equation for the follow point's left-positive deviation
+``e_f = −e_tr`` (docs/vehicle_dynamics.md §7.3); its law ``δ_v = δ_ff − PID(e_f)`` therefore reads
+``δ_v = δ_ff + PID(e_tr)`` here, with **positive** gains.
 A left turn with ``e_tr < 0`` gives a rightward (negative) correction; the mirrored right turn gives the
 mirrored command.
 
@@ -34,7 +35,7 @@ Feed-forward
 ------------
 *Steady law* (``feedforward = "steady"``). In a steady turn of kingpin radius ``R5 = 1/|κ5|`` the follow
 point runs on the kingpin's circle when the trailer turns about the centre abreast of the midpoint between
-kingpin and follow point (reference notes §6.2)::
+kingpin and follow point (docs/vehicle_dynamics.md §6.2)::
 
     y_c = sign(κ5)·sqrt(R5² − L_fp²/4),   tan δ_ff = (L_fp/2 − L_v)/y_c
         = κ5·(L_fp/2 − L_v) / sqrt(1 − κ5²L_fp²/4)        (→ atan(κ5·(L_fp/2 − L_v)) for R5 ≫ L_fp)
@@ -50,7 +51,7 @@ that tracks perfectly lies on the chord from the path point ``L_fp`` behind the 
 distance) to the kingpin, heading ``ψ2*``; its kingpin moves along the path direction ``θ_k`` and its follow
 point along the path direction ``θ_f`` at the chord's end. The rigid trailer's yaw rate is then
 ``r2 = v_k2x·(tan β_k* − tan φ_f*)/L_fp`` (velocity of the point ``(−L_fp, 0)``), and the virtual axle's
-zero-slip angle (reference notes §2.3)::
+zero-slip angle (docs/vehicle_dynamics.md §2.3)::
 
     tan δ_ff = tan β_k* − (L_v/L_fp)·(tan β_k* − tan φ_f*),    β_k* = θ_k − ψ2*,  φ_f* = θ_f − ψ2*
 
@@ -61,7 +62,7 @@ Before one trailer length has been recorded the path is taken as straight behind
 Kinematics source: ``κ5``, the path direction and ``β_k`` come from the tractor's on-board quantities by
 zero-slip kinematics (``kinematics = "signals"``: wheel speed ``u``, tractor yaw rate ``r1`` and articulation
 ``Γ``; the kingpin moves at ``(u, −e5·r1)`` in tractor axes with ``e5`` its offset behind the tractor's rear
-point, reference notes §2.3, §7.2), read noise-free from the state the co-simulation passes; or from the true
+point, docs/vehicle_dynamics.md §2.3, §7.2), read noise-free from the state the co-simulation passes; or from the true
 state (``kinematics = "truth"``: kingpin velocity ``(u, v1 − h1·r1)``). ``κ5 = r1/|v_k|``. Either way the
 feed-forward is blind to the trailer's own tyre slip; the feedback removes what it misses.
 

@@ -56,7 +56,7 @@ def kinematic_pole_placement(
     """PI gains placing the poles of the kinematic off-tracking loop in the distance domain.
 
     With ``de/ds = −e/L_v − (L_fp/L_v)·δ_v`` and ``δ_v = k_p·e + k_i·∫e ds`` the closed loop is
-    ``σ² + ((1 + k_p L_fp)/L_v)·σ + k_i L_fp/L_v = 0`` (reference notes §7.3), so::
+    ``σ² + ((1 + k_p L_fp)/L_v)·σ + k_i L_fp/L_v = 0`` (docs/vehicle_dynamics.md §7.3), so::
 
         k_p = (2ζω_n L_v − 1)/L_fp,   k_i = ω_n² L_v/L_fp
 
@@ -116,11 +116,11 @@ class PathFollowingConfig(Settings):
         PID gains per unit distance; ``None`` places the kinematic poles at ``natural_frequency`` and
         ``damping`` for the vehicle (:func:`kinematic_pole_placement`).
     natural_frequency : float
-        ``ω_n`` [1/m] of the default design (reference notes §7.3 example: 1/3 m⁻¹).
+        ``ω_n`` [1/m] of the default design (docs/vehicle_dynamics.md §7.3 example: 1/3 m⁻¹).
     damping : float
         ``ζ`` of the default design.
     max_steer : float
-        Per-axle steer limit [rad] (±25°; the roundabout test needs ±20–25°, reference notes §5.3).
+        Per-axle steer limit [rad] (±25°; the roundabout test needs ±20–25°, docs/vehicle_dynamics.md §5.3).
     max_steer_rate : float
         Per-axle rate limit [rad/s] (20°/s).
     virtual_axle_distance : float or None
@@ -132,7 +132,7 @@ class PathFollowingConfig(Settings):
         frequency in time; :mod:`controller.path_following`); ``None`` disables the schedule.
     feedforward : {"path", "steady", "none"}
         ``path``: the chord law on the kingpin path of the last trailer length (exact in transients, equal to
-        the steady law in a steady turn); ``steady``: the steady law of reference notes §6.2 on the current
+        the steady law in a steady turn); ``steady``: the steady law of docs/vehicle_dynamics.md §6.2 on the current
         ``κ5``; ``none``: feedback only.
     kinematics : {"signals", "truth"}
         Where ``κ5`` and the kingpin velocity direction come from (see :mod:`controller.path_following`).
@@ -156,11 +156,11 @@ class PathFollowingConfig(Settings):
         no limit. Beyond the Magic Formula's peak more steer gives *less* lateral force (on ice, μ = 0.1, the
         peak is at 2.9° of slip; 16 % less force at 10°, 30 % less at 30°), so feedback that keeps pushing
         reverses its own sign and winds the axles to lock. A low-μ safeguard, off by default because the
-        controller does not know μ: at 5° it turned the lost control of the truth-fed figure-eight on ice + 5 %
-        camber into a 0.22 m transient while that scenario's camber still flipped at a point between its loops
-        (it now turns through a run-off, and the cell completes without the limit), but on the dry roundabout
-        test, where the fixed-axle compensation runs trailer2 at 6° of slip beside trailer3 at lock, it raises
-        the truth-fed off-tracking after warm-up from 0.17/0.46 m to 0.25/0.59 m (RMS/max).
+        controller does not know μ: at 5° it turns the lost control of a truth-fed figure-eight on ice + 5 %
+        camber whose camber flips at a point between its loops into a 0.22 m transient (the catalogue's
+        figure-eight turns through a run-off between its loops and completes without the limit), but on the dry
+        roundabout test, where the fixed-axle compensation runs trailer2 at 6° of slip beside trailer3 at lock, it
+        raises the truth-fed off-tracking after warm-up from 0.17/0.46 m to 0.25/0.59 m (RMS/max).
     """
 
     gains: PathFollowingGains | None = None

@@ -1,6 +1,6 @@
 """Cheng's zero-slip (model-based) off-tracking estimator.
 
-The estimator assumes that no tyre slips sideways (reference notes §2.3, §7.2; Cheng 2009):
+The estimator assumes that no tyre slips sideways (docs/vehicle_dynamics.md §2.3, §7.2; Cheng 2009):
 
 * the tractor's rear point (the steer axle minus the equivalent wheelbase ``L1``) has no lateral
   velocity, so the kingpin, ``e`` behind it (negative when ahead), moves at ``(u, −e·r1)`` in
@@ -12,12 +12,12 @@ The estimator assumes that no tyre slips sideways (reference notes §2.3, §7.2;
 Each control period it turns the kingpin's motion into an increment in the trailer frame and
 feeds the same :class:`~vehicle_model.offtracking.OfftrackingBuffer` as the ground truth. It is
 blind to slip by construction: tractor crab on a camber, sideslip on ice and the tag axle's scrub
-all go unseen (reference notes §6.4–6.5). That is the phenomenon the product exists to show.
+all go unseen (docs/vehicle_dynamics.md §6.4–6.5). That is the phenomenon the product exists to show.
 
 Variants: Cheng's estimator used the measured yaw rate of the tractor with the articulation
-angle [R, reference notes §7.1 could not verify the thesis]; here ``yaw_rate`` is the default
+angle (unverified: the thesis could not be consulted, docs/vehicle_dynamics.md §7.1); here ``yaw_rate`` is the default
 because the steer-angle variant is additionally wrong for a 6x2 tractor with a tag axle, whose
-scrub makes the tractor turn tighter than ``tan δ/L1`` (reference notes §2.3: 8.8 m against
+scrub makes the tractor turn tighter than ``tan δ/L1`` (docs/vehicle_dynamics.md §2.3: 8.8 m against
 10.1 m kingpin radius in a quick check).
 """
 

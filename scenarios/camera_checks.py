@@ -100,9 +100,9 @@ def check_lenses(camera: CameraConfig) -> None:
     from sensor.lens import check_invertible
 
     k = StereoRig.from_degrees(hfov_deg=camera.hfov_deg, width=camera.width, height=camera.height).intrinsics()
-    for lens in (left, right):
+    for lens, name in ((left, "camera.lens"), (right, "camera.right_lens" if camera.right_lens else "camera.lens")):
         if not lens.is_zero:
-            check_invertible(k, lens, camera.width, camera.height)
+            check_invertible(k, lens, camera.width, camera.height, name)
 
 
 def check_camera_feasible(camera: CameraConfig) -> None:

@@ -9,14 +9,15 @@ lens, calibration, mount flex, lighting, world, online self-calibration — all 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
+from sensor.camera import Lens
+from sensor.lighting import Lighting
+from sensor.mount_flex import MountFlex
+from sensor.vo.self_calibration import SelfCalibrationSettings
 from vehicle_model.settings import Settings
-
-if TYPE_CHECKING:
-    from sensor.lens import Lens
 
 MAX_RIG_ROTATION_DEG = 20.0
 """Largest right-camera misalignment or correction per axis [°] (:class:`sensor.camera.Misalignment`)."""
@@ -29,27 +30,6 @@ RigRotationDeg = Annotated[
         description="[°] per axis, the range the rig accepts (sensor.camera.Misalignment); paper §4.4 needs a few",
     ),
 ]
-
-_RADIAL = "Brown–Conrady radial coefficient; |k| ≤ 1 covers wide-angle automotive lenses (not fisheyes)"
-_TANGENTIAL = "Brown–Conrady tangential coefficient; |p| ≤ 0.05 is a lens glued crooked by several degrees"
-
-
-class LensConfig(Settings):
-    """A Brown–Conrady lens (OpenCV's k1, k2, p1, p2, k3 on normalised coordinates; :class:`sensor.lens.Lens`).
-
-    The renderer draws a slightly wider pinhole image and ``cv2.remap`` turns it into the distorted one.
-    """
-
-    k1: float = Field(0.0, ge=-1.0, le=1.0, description=_RADIAL)
-    k2: float = Field(0.0, ge=-1.0, le=1.0, description=_RADIAL)
-    p1: float = Field(0.0, ge=-0.05, le=0.05, description=_TANGENTIAL)
-    p2: float = Field(0.0, ge=-0.05, le=0.05, description=_TANGENTIAL)
-    k3: float = Field(0.0, ge=-1.0, le=1.0, description=_RADIAL)
-
-    @property
-    def is_zero(self) -> bool:
-        """A pinhole camera: no distortion."""
-        return not any((self.k1, self.k2, self.p1, self.p2, self.k3))
 
 
 class CalibrationConfig(Settings):
@@ -83,91 +63,18 @@ class CalibrationConfig(Settings):
         return self
 
 
-_TWIST = "[°/(m/s²)] per axis (roll, pitch, yaw); paper §4.4 saw ~0.1–0.2° at ~1–2 m/s², so ±1 is generous"
-
-
-class FlexConfig(Settings):
-    """Mount flex of the right camera relative to the left (:class:`sensor.mount_flex.MountFlex`).
-
-    Added to the static ``camera.right_misalignment_deg`` every frame: a frame twist proportional to the
-    trailer's lateral acceleration (signed: left and right turns twist opposite ways, paper §4.4) and seeded
-    band-limited vibration.
-    """
-
-    twist_deg_per_mps2: tuple[float, float, float] = Field((0.0, 0.0, 0.0), description=_TWIST)
-    vibration_rms_deg: tuple[float, float, float] = Field(
-        (0.0, 0.0, 0.0), description="[°] RMS per axis; 2° would shake any stereo rig apart"
-    )
-    vibration_bandwidth_hz: float = Field(5.0, ge=0.01, le=100.0, description="[Hz] corner of the vibration")
-
-    @model_validator(mode="after")
-    def _ranges(self) -> FlexConfig:
-        for axis, twist, rms in zip(
-            ("roll", "pitch", "yaw"), self.twist_deg_per_mps2, self.vibration_rms_deg, strict=True
-        ):
-            if abs(twist) > 1.0:
-                raise ValueError(f"twist_deg_per_mps2 {axis} = {twist}: allowed ±1 °/(m/s²)")
-            if not 0.0 <= rms <= 2.0:
-                raise ValueError(f"vibration_rms_deg {axis} = {rms}: allowed 0 to 2°")
-        return self
-
-    @property
-    def is_zero(self) -> bool:
-        """No flex at all."""
-        return not any(self.twist_deg_per_mps2) and not any(self.vibration_rms_deg)
-
-
-class LightingConfig(Settings):
-    """Sun, shadows, sky and auto-exposure (:class:`sensor.lighting.Lighting`); ``sun: false`` is flat lighting.
-
-    Light and shadows are baked once into the static world; per frame the sky, the glare of a sun in or near
-    the view and one lagging exposure gain for the pair change (paper §4.3: feature counts rose and fell as the
-    cameras faced the low sun). The exposure lag is counted in frames of ``rates.camera_hz``.
-    """
-
-    sun: bool = False
-    sun_azimuth_deg: float = Field(270.0, ge=0.0, lt=360.0, description="[°] towards the sun, anticlockwise from +X")
-    sun_elevation_deg: float = Field(12.0, ge=1.0, le=90.0, description="[°] above the horizon; below 1° no light")
-    shadows: bool = True
-    sky: bool = True
-    auto_exposure: bool = True
-    exposure_lag_s: float = Field(0.5, ge=0.0, le=10.0, description="[s] time constant of the auto-exposure")
-    target_level: float = Field(110.0, ge=10.0, le=245.0, description="[grey levels] mean the exposure aims at")
-    glare: float = Field(100.0, ge=0.0, le=1000.0, description="[grey levels] veiling glare with the sun in view")
-
-
-class SelfCalibrationConfig(Settings):
-    """Online stereo self-calibration of the right camera's rotation (:mod:`sensor.vo.self_calibration`).
+class SelfCalibrationConfig(SelfCalibrationSettings):
+    """Online stereo self-calibration of the right camera's rotation (:mod:`sensor.vo.self_calibration`, whose
+    :class:`~sensor.vo.self_calibration.SelfCalibrationSettings` declare the ranges), and whether it runs.
 
     Runs on the odometry's own stereo matches in frame order: roll and pitch from vertical disparities, yaw
     from the disparity offset of road points scaled by the mounting height (``scale: mount_height``) or only
     from vertical disparities (``vertical_only``); recursive least squares with forgetting and Huber weights.
-    Each frame's right image is warped by the estimate of the frames before it (paper eqs (8)–(9)), on top of
-    ``camera.right_correction_deg``. Off by default.
+    Each frame's right image is warped by the estimate of the frames before it (de Saxe & Cebon 2018, eqs
+    (8)–(9)), on top of ``camera.right_correction_deg``. Off by default.
     """
 
     enabled: bool = False
-    forgetting: float = Field(
-        0.98, ge=0.8, le=1.0, description="RLS forgetting per frame; memory 1/(1−λ) frames: 5 at 0.8, none at 1"
-    )
-    scale: Literal["mount_height", "vertical_only"] = "mount_height"
-    noise_px: float = Field(
-        0.3, ge=0.01, le=5.0, description="[px] floor of the robust residual scale; matches are at best ~0.3 px"
-    )
-    huber_k: float = Field(1.345, ge=0.5, le=10.0, description="Huber threshold in scales; 1.345 is 95 % efficient")
-    reject_sigma: float = Field(4.0, ge=2.0, le=50.0, description="rows beyond this many scales are dropped")
-    ground_tolerance: float = Field(
-        0.1, gt=0.0, le=0.5, description="relative height tolerance of a road point; 0.5 takes kerbs for road"
-    )
-    min_ground_disparity_px: float = Field(
-        4.0, ge=0.5, le=100.0, description="[px] far road points below this are too uncertain to classify"
-    )
-    min_rows: int = Field(20, ge=6, le=2000, description="fewer matches: no update (3 angles need a spread)")
-    prior_std_deg: float = Field(1.0, gt=0.0, le=10.0, description="[°] std of the zero start")
-    max_angle_deg: float = Field(3.0, gt=0.0, le=10.0, description="[°] estimate clipped per axis; a first order model")
-    road_half_width: float = Field(
-        2.5, gt=0.0, le=20.0, description="[m] road points within this of the trailer's centreline; 20 takes fields"
-    )
 
 
 class CameraConfig(Settings):
@@ -207,11 +114,18 @@ class CameraConfig(Settings):
         0.0, ge=0.0, le=0.5, description="relative std of the per-frame brightness gain; at 0.5 it swings by half"
     )
     scenery_density: float = Field(1.0, ge=0.0, le=1.0, description="fraction of the scenery placed")
-    lens: LensConfig = LensConfig()
-    right_lens: LensConfig | None = Field(None, description="the right camera's lens; None: the same as lens")
+    lens: Lens = Field(Lens(), description="Brown–Conrady lens of the cameras (sensor.camera.Lens); zeros: pinhole")
+    right_lens: Lens | None = Field(None, description="the right camera's lens; None: the same as lens")
     calibration: CalibrationConfig = CalibrationConfig()
-    flex: FlexConfig = FlexConfig()
-    lighting: LightingConfig = LightingConfig()
+    flex: MountFlex = Field(
+        MountFlex(),
+        description="the right camera's mount flex on top of its static misalignment (sensor.mount_flex.MountFlex): "
+        "a twist with the trailer's lateral acceleration (signed) and seeded band-limited vibration",
+    )
+    lighting: Lighting = Field(
+        Lighting(),
+        description="sun, shadows, sky and auto-exposure (sensor.lighting.Lighting); sun: false is flat lighting",
+    )
     self_calibration: SelfCalibrationConfig = SelfCalibrationConfig()
     world: Literal["roadside", "airfield"] = "roadside"
     latency_s: float | None = Field(
@@ -224,10 +138,5 @@ class CameraConfig(Settings):
     )
 
     def lens_pair(self) -> tuple[Lens, Lens]:
-        """The left and right :class:`sensor.lens.Lens` (``right_lens`` defaults to ``lens``)."""
-        from sensor.lens import Lens  # the numeric lens model only when asked for
-
-        left = Lens.from_mapping(self.lens.model_dump(), name="camera.lens")
-        if self.right_lens is None:
-            return left, left
-        return left, Lens.from_mapping(self.right_lens.model_dump(), name="camera.right_lens")
+        """The left and right :class:`sensor.camera.Lens` (``right_lens`` defaults to ``lens``)."""
+        return self.lens, self.lens if self.right_lens is None else self.right_lens

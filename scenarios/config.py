@@ -72,7 +72,7 @@ class PathConfig(Settings):
 
     ``kind``: ``roundabout`` (``turns`` full circles), ``figure_eight`` (two opposite loops joined by
     ``gap``), ``straight`` (``length``; with ``slip_deg`` the combination is moved kinematically,
-    crabbing at a constant slip angle, as in paper §3). ``control_point``: the tractor point that
+    crabbing at a constant slip angle, as in de Saxe & Cebon 2018, §3). ``control_point``: the tractor point that
     tracks the path — ``outer_front_corner`` (the roundabout test's outermost point) or
     ``front_axle``. ``radius`` is that point's path radius; in the roundabout test the driver keeps
     the outer corner ``driver_margin`` inside it.

@@ -1,4 +1,4 @@
-"""Stereo calibration of the rig as in the paper's field tests (§4.1): a checkerboard in seeded poses, OpenCV.
+"""Stereo calibration of the rig as in de Saxe & Cebon 2018, §4.1 (field tests): a checkerboard in seeded poses, OpenCV.
 
 de Saxe & Cebon 2018 calibrated each camera by Zhang's method (Zhang 2000) with Heikkilä's distortion model
 (Heikkilä & Silvén 1997) and the pair by Fusiello's rectification (Fusiello et al. 2000), all with OpenCV.
@@ -40,8 +40,7 @@ from sensor.calibration_target import (
     sample_board_poses,
     true_right_from_left,
 )
-from sensor.camera import StereoRig
-from sensor.lens import Lens
+from sensor.camera import Lens, StereoRig
 from sensor.vo.config import VOConfig
 from vehicle_model.errors import InputError
 

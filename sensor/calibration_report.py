@@ -15,8 +15,8 @@ import numpy as np
 
 from sensor.calibration import CalibrationResult
 from sensor.calibration_target import true_right_from_left
-from sensor.camera import StereoRig
-from sensor.lens import Lens, undistort_pixels
+from sensor.camera import Lens, StereoRig
+from sensor.lens import undistort_pixels
 
 
 def rpy_from_rotation(rot: np.ndarray) -> tuple[float, float, float]:

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from sensor.camera import StereoRig
-from sensor.lens import Lens, ideal_extent, undistort_pixels
+from sensor.camera import Lens, StereoRig
+from sensor.lens import ideal_extent, undistort_pixels
 from vehicle_model.errors import InputError
 
 BLACK, WHITE, BACKGROUND = 30.0, 225.0, 110.0

@@ -18,11 +18,11 @@ The rig's mount point — the midpoint between the two optical centres — sits 
 The paper's camera-to-vehicle angle ψ_c2v is measured **clockwise** from the trailer's forward
 axis: 180° faces rearwards, 90° right, 270° left (the field test's side cameras). In ISO terms
 (yaw anticlockwise positive) the cameras face ``−ψ_c2v``. The optical axes are horizontal (no
-tilt or roll, paper §3.1). The left and right cameras sit at ∓ ``baseline/2`` along the camera
+tilt or roll, the paper's §3.1). The left and right cameras sit at ∓ ``baseline/2`` along the camera
 x axis.
 
-Misalignment (paper §4.4)
--------------------------
+Misalignment (the paper's §4.4)
+-------------------------------
 The right camera may be rotated about its own optical centre by roll φ (about its z axis), pitch θ
 (about x) and yaw ψ (about y), composed as in the paper's eq (9): ``R_mis = R_z(φ)·R_y(ψ)·R_x(θ)``,
 the orientation of the actual right camera in its ideal frame (``T_ideal←actual``). A world point
@@ -39,10 +39,12 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 from vehicle_model.errors import InputError
 from vehicle_model.geometry import CombinationPose, kingpin_position, trailer_heading
 from vehicle_model.parameters import VehicleParams
+from vehicle_model.settings import Settings
 
 Which = Literal["left", "right"]
 
@@ -94,6 +96,49 @@ def rotation_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
     return rz @ ry @ rx  # de Saxe & Cebon 2018, eq (9)
 
 
+_RADIAL = "Brown–Conrady radial coefficient; |k| ≤ 1 covers wide-angle automotive lenses (|k1| ≲ 0.4), no fisheye"
+_TANGENTIAL = "Brown–Conrady tangential coefficient; |p| ≤ 0.05 is a lens glued crooked by degrees (≲ 0.005 usual)"
+
+
+class Lens(Settings):
+    """Brown–Conrady distortion coefficients in OpenCV's order ``(k1, k2, p1, p2, k3)`` (dimensionless).
+
+    Parameters
+    ----------
+    k1, k2, k3 : float
+        Radial coefficients of r², r⁴, r⁶ (k1 < 0: barrel distortion, typical of wide-angle lenses).
+    p1, p2 : float
+        Tangential (decentring) coefficients.
+    """
+
+    k1: float = Field(0.0, ge=-1.0, le=1.0, description=_RADIAL)
+    k2: float = Field(0.0, ge=-1.0, le=1.0, description=_RADIAL)
+    p1: float = Field(0.0, ge=-0.05, le=0.05, description=_TANGENTIAL)
+    p2: float = Field(0.0, ge=-0.05, le=0.05, description=_TANGENTIAL)
+    k3: float = Field(0.0, ge=-1.0, le=1.0, description=_RADIAL)
+
+    @property
+    def coefficients(self) -> np.ndarray:
+        """``(5,)`` array ``[k1, k2, p1, p2, k3]``, OpenCV's ``distCoeffs``."""
+        return np.array([self.k1, self.k2, self.p1, self.p2, self.k3], dtype=float)
+
+    @property
+    def is_zero(self) -> bool:
+        """True for an ideal pinhole (all coefficients zero)."""
+        return not np.any(self.coefficients)
+
+    def radial_limit(self) -> float:
+        """Largest undistorted radius r [normalised] up to which the radial map r ↦ r·(1 + k1r² + k2r⁴ + k3r⁶) rises.
+
+        Beyond it the lens model folds over (two rays land on one pixel); ``inf`` if it never does (up to r = 10).
+        """
+        r = np.linspace(0.0, 10.0, 20001)
+        r2 = r * r
+        slope = 1.0 + 3.0 * self.k1 * r2 + 5.0 * self.k2 * r2**2 + 7.0 * self.k3 * r2**3  # d/dr of the radial map
+        bad = np.nonzero(slope <= 0.0)[0]
+        return math.inf if bad.size == 0 else float(r[bad[0]])
+
+
 @dataclass(frozen=True)
 class Misalignment:
     """Rotation of the right camera about its optical centre relative to its ideal pose [rad].
@@ -118,7 +163,7 @@ class Misalignment:
 
     @property
     def rotation(self) -> np.ndarray:
-        """``R_mis`` (3×3): the actual right camera's axes in its ideal frame (paper eq (9))."""
+        """``R_mis`` (3×3): the actual right camera's axes in its ideal frame (the paper's eq (9))."""
         return rotation_rpy(self.roll, self.pitch, self.yaw)
 
     @property
@@ -128,7 +173,7 @@ class Misalignment:
 
 @dataclass(frozen=True)
 class StereoRig:
-    """A horizontal stereo pair on the trailer roof (defaults: paper §3.1).
+    """A horizontal stereo pair on the trailer roof (defaults: the paper's §3.1).
 
     Parameters
     ----------
@@ -148,7 +193,7 @@ class StereoRig:
     psi_c2v : float
         Camera-to-vehicle angle [rad], clockwise from the trailer's forward axis (π: rear-facing).
     misalignment : Misalignment
-        Rotation of the right camera (paper §4.4).
+        Rotation of the right camera (the paper's §4.4).
     noise_std : float
         Standard deviation of additive Gaussian image noise [grey levels].
     exposure_std : float
@@ -326,7 +371,7 @@ class StereoRig:
         return world_trailer @ self.camera_in_trailer(which, params)
 
     def misalignment_homography(self) -> np.ndarray:
-        """``H = K·R_misᵀ·K⁻¹``: maps ideal right-image pixels to the misaligned ones (paper eq (8))."""
+        """``H = K·R_misᵀ·K⁻¹``: maps ideal right-image pixels to the misaligned ones (the paper's eq (8))."""
         k = self.intrinsics()
         return k @ self.misalignment.rotation.T @ np.linalg.inv(k)
 

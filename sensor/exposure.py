@@ -133,11 +133,16 @@ class AutoExposure:
     Parameters
     ----------
     lighting : Lighting
-        ``auto_exposure``, ``exposure_lag_s``, ``frame_interval_s``, ``target_level``, ``gain_range``.
+        ``auto_exposure``, ``exposure_lag_s``, ``target_level``, ``gain_range``.
+    frame_interval_s : float
+        Time between consecutive frames [s] (1 / camera rate): the lag acts over it.
     """
 
-    def __init__(self, lighting: Lighting) -> None:
+    def __init__(self, lighting: Lighting, frame_interval_s: float = 0.1) -> None:
+        if not 0.0 < frame_interval_s <= 10.0:
+            raise ValueError(f"frame_interval_s = {frame_interval_s!r} must be in (0, 10] s")
         self.lighting = lighting
+        self.frame_interval_s = float(frame_interval_s)
         self.gain = 1.0
         self.frame: int | None = None
 
@@ -155,7 +160,7 @@ class AutoExposure:
         lo, hi = lt.gain_range
         target = float(np.clip(lt.target_level / max(metered, 1e-3), lo, hi))
         if self.frame is not None and frame == self.frame + 1 and lt.exposure_lag_s > 0:
-            alpha = 1.0 - math.exp(-lt.frame_interval_s / lt.exposure_lag_s)
+            alpha = 1.0 - math.exp(-self.frame_interval_s / lt.exposure_lag_s)
             self.gain = math.exp(math.log(self.gain) + alpha * (math.log(target) - math.log(self.gain)))
         elif not (self.frame is not None and frame == self.frame):
             self.gain = target

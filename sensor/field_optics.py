@@ -7,7 +7,7 @@ Per frame, in the order a real camera imposes (de Saxe & Cebon 2018, §4):
    interpolated;
 2. the right camera's mount flex of this frame (twist with the trailer's lateral acceleration, vibration;
    :class:`sensor.mount_flex.FlexSchedule`) rotates the right image about its optical centre, ``K·Rᵀ·K⁻¹``
-   (paper eq (8)) — exact for a rotation, and the wide render's margin keeps the border strip outside the final
+   (the paper's eq (8)) — exact for a rotation, and the wide render's margin keeps the border strip outside the final
    image;
 3. the lens distorts both images (``cv2.remap``) and the sensor adds its noise and gain jitter;
 4. the odometry's own image preparation: with a :class:`~sensor.calibration.CalibrationResult` the pair is
@@ -166,7 +166,8 @@ class FieldOptics:
         """Steps 2–3 before the sensor: the right camera's flex, then the lens (grey levels or radiance)."""
         if right_rotation is not None and not right_rotation.is_zero:
             k = self.render_k
-            flex = k @ right_rotation.rotation.T @ np.linalg.inv(k)  # paper eq (8): ideal → rotated pixels
+            # de Saxe & Cebon 2018, eq (8): ideal → rotated pixels
+            flex = k @ right_rotation.rotation.T @ np.linalg.inv(k)
             right = cv2.warpPerspective(right, flex, (right.shape[1], right.shape[0]), flags=cv2.INTER_LINEAR)
         if self.distortion is not None:
             left, right = self.distortion.apply(left, right)

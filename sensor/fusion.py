@@ -8,8 +8,8 @@ keeps the paper's independence from the tractor, and corrects with every visual-
 its Gauss–Newton covariance. The kingpin increments it produces feed the one path buffer
 (:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)).
 
-Model (trailer frame ISO 8855, origin at the kingpin; DESIGN §3)
------------------------------------------------------------------
+Model (trailer frame ISO 8855, origin at the kingpin; docs/design.md §5–6)
+--------------------------------------------------------------------------
 State, kept relative to the *anchor* (the time of the last camera frame that was committed)::
 
     x = [Δx, Δy, Δψ, v_s, b_g, b_w]
@@ -20,7 +20,7 @@ kinematics does not explain); ``b_g`` the gyro bias [rad/s]; ``b_w`` the wheel-s
 
 Kinematics. The trailer yaw rate is ``r = r_m − b_g``; the kingpin's longitudinal velocity is that of every
 point on the centre line, so the axle's wheel speed gives ``u = w_m − b_w`` (free-rolling trailer wheels, no
-longitudinal slip). Zero lateral force on the trailer's axles at zero slip (reference notes §2.3, the
+longitudinal slip). Zero lateral force on the trailer's axles at zero slip (docs/vehicle_dynamics.md §2.3, the
 stiffness-weighted form: ``Σ C_j (v_k − r L_j − u tan δ_j) = 0``) gives the kingpin's lateral velocity::
 
     v_k = r·L_c + u·Σ w_j tan δ_j + v_s,     L_c = Σ C_j L_j / Σ C_j,   w_j = C_j / Σ C_j     (1)
@@ -84,7 +84,6 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-
 from pydantic import Field
 
 from vehicle_model.errors import InputError

@@ -32,84 +32,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import numbers
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-from sensor.camera import StereoRig
+from sensor.camera import Lens, StereoRig
 from vehicle_model.errors import InputError
-
-LENS_LIMITS: dict[str, tuple[float, float]] = {
-    "k1": (-1.0, 1.0),
-    "k2": (-1.0, 1.0),
-    "p1": (-0.05, 0.05),
-    "p2": (-0.05, 0.05),
-    "k3": (-1.0, 1.0),
-}
-"""Allowed range of each coefficient (normalised image coordinates); wide-angle lenses: |k1| ≲ 0.4, |p| ≲ 0.005."""
 
 UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
 """Termination of ``cv2.undistortPoints``' fixed-point iteration: converged to 1e-12 (normalised units)."""
-
-
-@dataclass(frozen=True)
-class Lens:
-    """Brown–Conrady distortion coefficients in OpenCV's order ``(k1, k2, p1, p2, k3)`` (dimensionless).
-
-    Parameters
-    ----------
-    k1, k2, k3 : float
-        Radial coefficients of r², r⁴, r⁶ (k1 < 0: barrel distortion, typical of wide-angle lenses).
-    p1, p2 : float
-        Tangential (decentring) coefficients.
-    name : str
-        Prefix of the coefficient names in error messages (e.g. ``camera.lens``).
-    """
-
-    k1: float = 0.0
-    k2: float = 0.0
-    p1: float = 0.0
-    p2: float = 0.0
-    k3: float = 0.0
-    name: str = dataclasses.field(default="lens", compare=False)
-
-    def __post_init__(self) -> None:
-        for key, (lo, hi) in LENS_LIMITS.items():
-            value = getattr(self, key)
-            if not (isinstance(value, numbers.Real) and math.isfinite(value) and lo <= value <= hi):
-                raise InputError(f"{self.name}.{key} = {value!r} is out of range; allowed: [{lo:g}, {hi:g}]")
-
-    @classmethod
-    def from_mapping(cls, values: dict[str, float] | None, *, name: str = "lens") -> Lens:
-        """A lens from a mapping such as ``{"k1": -0.2, "k2": 0.05}`` (missing keys: 0); None: no distortion."""
-        values = dict(values or {})
-        unknown = sorted(set(values) - set(LENS_LIMITS))
-        if unknown:
-            raise InputError(f"{name}: unknown coefficient(s) {unknown}; allowed: {list(LENS_LIMITS)}")
-        return cls(**{k: float(v) for k, v in values.items()}, name=name)
-
-    @property
-    def coefficients(self) -> np.ndarray:
-        """``(5,)`` array ``[k1, k2, p1, p2, k3]``, OpenCV's ``distCoeffs``."""
-        return np.array([self.k1, self.k2, self.p1, self.p2, self.k3], dtype=float)
-
-    @property
-    def is_zero(self) -> bool:
-        """True for an ideal pinhole (all coefficients zero)."""
-        return not np.any(self.coefficients)
-
-    def radial_limit(self) -> float:
-        """Largest undistorted radius r [normalised] up to which the radial map r ↦ r·(1 + k1r² + k2r⁴ + k3r⁶) rises.
-
-        Beyond it the lens model folds over (two rays land on one pixel); ``inf`` if it never does (up to r = 10).
-        """
-        r = np.linspace(0.0, 10.0, 20001)
-        r2 = r * r
-        slope = 1.0 + 3.0 * self.k1 * r2 + 5.0 * self.k2 * r2**2 + 7.0 * self.k3 * r2**3  # d/dr of the radial map
-        bad = np.nonzero(slope <= 0.0)[0]
-        return math.inf if bad.size == 0 else float(r[bad[0]])
 
 
 def _pixel_grid(width: int, height: int) -> np.ndarray:
@@ -162,13 +94,13 @@ def undistort_pixels(
     return out.reshape(-1, 2)
 
 
-def check_invertible(k: np.ndarray, lens: Lens, width: int, height: int) -> None:
+def check_invertible(k: np.ndarray, lens: Lens, width: int, height: int, name: str = "lens") -> None:
     """Refuse a lens whose model folds over inside the image (the distortion would not be one-to-one).
 
     Raises
     ------
     InputError
-        Naming the lens (its ``name``, e.g. ``camera.lens``), where it folds and the image's corner radius.
+        Naming the lens (``name``, e.g. ``camera.lens``), where it folds and the image's corner radius.
     """
     limit = lens.radial_limit()
     if math.isinf(limit):
@@ -181,7 +113,7 @@ def check_invertible(k: np.ndarray, lens: Lens, width: int, height: int) -> None
     r_corner = float(np.max(np.hypot(xy[:, 0], xy[:, 1])))
     if r_fold <= 1.02 * r_corner:
         raise InputError(
-            f"{lens.name} = (k1={lens.k1:g}, k2={lens.k2:g}, k3={lens.k3:g}) folds over at normalised radius "
+            f"{name} = (k1={lens.k1:g}, k2={lens.k2:g}, k3={lens.k3:g}) folds over at normalised radius "
             f"{limit:.3g}, inside the image (corner radius {r_corner:.3g}); allowed: a distortion that rises "
             "monotonically to the image corners (e.g. smaller |k1| or a positive k2)"
         )

@@ -23,15 +23,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
+from pydantic import Field, model_validator
 
-from vehicle_model.errors import InputError
+from vehicle_model.settings import Settings
 
-from .world import World
-from .world.types import LEVELS, make_part
+if TYPE_CHECKING:
+    from .world import World
 
 __all__ = ["SHADOW_TEXTURE", "Lighting", "light_world", "shadow_part", "sun_direction"]
 
@@ -39,9 +39,8 @@ SHADOW_TEXTURE = "shadow"
 """Texture name of the shadow decals (a 1 × 1 white texel; the shade is in the vertex alpha)."""
 
 
-@dataclass(frozen=True)
-class Lighting:
-    """Sun, shadows, sky and auto-exposure of the rendered images.
+class Lighting(Settings):
+    """Sun, shadows, sky and auto-exposure of the rendered images, each setting with its range and reason.
 
     Parameters
     ----------
@@ -52,7 +51,7 @@ class Lighting:
         Direction *towards* the sun in the world's ground plane, anticlockwise from +X [deg] (the
         convention of the path heading).
     sun_elevation_deg : float
-        Height of the sun above the horizon [deg] (paper §4.2: a low, setting sun).
+        Height of the sun above the horizon [deg] (de Saxe & Cebon 2018, §4.2: a low, setting sun).
     shadows : bool
         Bake object shadows onto the ground.
     sky : bool
@@ -60,9 +59,8 @@ class Lighting:
     auto_exposure : bool
         Exposure follows the image brightness with a lag; False keeps a fixed gain of 1.
     exposure_lag_s : float
-        Time constant of the auto-exposure [s].
-    frame_interval_s : float
-        Time between consecutive frames [s], for the lag (1 / camera rate).
+        Time constant of the auto-exposure [s] (counted in frames of the camera rate,
+        :class:`sensor.exposure.AutoExposure`).
     target_level : float
         Mean grey level [0–255] the auto-exposure aims at.
     gain_range : tuple of float
@@ -76,41 +74,33 @@ class Lighting:
     """
 
     sun: bool = False
-    sun_azimuth_deg: float = 270.0
-    sun_elevation_deg: float = 12.0
+    sun_azimuth_deg: float = Field(270.0, ge=0.0, lt=360.0, description="[°] towards the sun, anticlockwise from +X")
+    sun_elevation_deg: float = Field(12.0, ge=1.0, le=90.0, description="[°] above the horizon; below 1° no light")
     shadows: bool = True
     sky: bool = True
     auto_exposure: bool = True
-    exposure_lag_s: float = 0.5
-    frame_interval_s: float = 0.1
-    target_level: float = 110.0
-    gain_range: tuple[float, float] = (0.25, 4.0)
-    sky_light: float = 0.35
-    glare: float = 100.0
-    sun_radiance: float = 3000.0
+    exposure_lag_s: float = Field(0.5, ge=0.0, le=10.0, description="[s] time constant of the auto-exposure")
+    target_level: float = Field(110.0, ge=10.0, le=245.0, description="[grey levels] mean the exposure aims at")
+    gain_range: tuple[float, float] = Field(
+        (0.25, 4.0), description="smallest gain in [0.01, 1], largest in [1, 100]: 100× is beyond any sensor"
+    )
+    sky_light: float = Field(0.35, gt=0.0, lt=1.0, description="share of the ground's light from the sky, (0, 1)")
+    glare: float = Field(
+        100.0, ge=0.0, le=255.0, description="[grey levels] veiling glare with the sun in view; 255 whites it out"
+    )
+    sun_radiance: float = Field(3000.0, ge=0.0, le=1e6, description="[grey levels] the solar halo's core at gain 1")
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "gain_range", tuple(float(g) for g in self.gain_range))
+    @model_validator(mode="after")
+    def _gain_range(self) -> Lighting:
         lo, hi = self.gain_range
-        checks = [
-            ("sun_azimuth_deg", -360.0 <= self.sun_azimuth_deg <= 360.0, "[-360, 360] deg"),
-            ("sun_elevation_deg", 0.5 <= self.sun_elevation_deg <= 90.0, "[0.5, 90] deg"),
-            ("exposure_lag_s", 0.0 <= self.exposure_lag_s <= 60.0, "[0, 60] s"),
-            ("frame_interval_s", 0.0 < self.frame_interval_s <= 10.0, "(0, 10] s"),
-            ("target_level", 10.0 <= self.target_level <= 245.0, "[10, 245] grey levels"),
-            ("gain_range", 0.01 <= lo <= 1.0 <= hi <= 100.0, "lo in [0.01, 1], hi in [1, 100]"),
-            ("sky_light", 0.0 < self.sky_light < 1.0, "(0, 1)"),
-            ("glare", 0.0 <= self.glare <= 255.0, "[0, 255] grey levels"),
-            ("sun_radiance", 0.0 <= self.sun_radiance <= 1e6, "[0, 1e6] grey levels"),
-        ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise InputError(f"lighting.{name} = {getattr(self, name)!r} is out of range; allowed: {allowed}")
+        if not 0.01 <= lo <= 1.0 <= hi <= 100.0:
+            raise ValueError(f"gain_range = {self.gain_range}: smallest in [0.01, 1], largest in [1, 100]")
+        return self
 
     @classmethod
     def field(cls, **changes: object) -> Lighting:
-        """A low sun with shadows, sky and auto-exposure (the field conditions of paper §4), with ``changes``."""
-        return dataclasses.replace(cls(sun=True), **changes)
+        """A low sun with shadows, sky and auto-exposure (the field conditions of de Saxe & Cebon 2018, §4)."""
+        return cls.model_validate({"sun": True, **changes})
 
     @property
     def shadow_level(self) -> float:
@@ -167,6 +157,10 @@ def shadow_part(world: World, lighting: Lighting, z: float | None = None):
         Category ``shadow``, texture :data:`SHADOW_TEXTURE`, vertex alpha = the shadow level; None
         when nothing casts a shadow.
     """
+    from scipy.spatial import ConvexHull, QhullError  # the world's geometry only where it is lit
+
+    from .world.types import LEVELS, make_part
+
     sun = sun_direction(lighting)
     z = LEVELS["paint"] + 0.004 if z is None else z
     shift = sun[:2] / sun[2]

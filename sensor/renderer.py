@@ -11,9 +11,8 @@ Rules of the road:
   tries to render gets :class:`~sensor.rendering_errors.RenderingUnavailableError` instead of a
   corrupted context. Create renderers after forking, or use the ``spawn`` start method.
 
-Speed (llvmpipe renders on the CPU; measured on 2 cores at 1344 × 391, ``roundabout-3`` world,
-~58 k triangles: about 20–25 ms per stereo pair on an idle machine, see
-:func:`scenarios.bench.render.bench_render`):
+Speed (llvmpipe renders on the CPU; ``offtrack bench render`` measures it,
+:func:`scenarios.bench.render.bench_render`; figures in ``benchmarks/README.md``):
 
 * surfaces are drawn unlit (``RenderFlags.FLAT``: texture × baked vertex colour) by a lean forward
   pass (one shader program, cached uniform locations, state changed only when it differs) in a
@@ -113,6 +112,8 @@ class StereoRenderer:
         the light and shadows are baked into a copy of the world once, and each pair gets the sky,
         the glare and one lagging exposure gain (carried from frame ``k − 1`` to ``k`` when frames
         come in order).
+    frame_interval_s : float
+        Time between frames [s] (1 / camera rate), over which the auto-exposure lags.
 
     Notes
     -----
@@ -133,6 +134,7 @@ class StereoRenderer:
         cull: bool = True,
         cull_distance: float = 600.0,
         lighting: Lighting | None = None,
+        frame_interval_s: float = 0.1,
     ) -> None:
         self.world = world
         self.rig = rig if rig is not None else StereoRig()
@@ -144,6 +146,7 @@ class StereoRenderer:
         self.cull = bool(cull)
         self.cull_distance = float(cull_distance)
         self.lighting = lighting if lighting is not None else Lighting()
+        self.frame_interval_s = float(frame_interval_s)
         self.frame = 0
         self.timings: dict[str, float] = {}
         self._scene: Any = None
@@ -163,6 +166,7 @@ class StereoRenderer:
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         state.setdefault("lighting", Lighting())
+        state.setdefault("frame_interval_s", 0.1)
         state.setdefault("_lit", None)
         state.setdefault("_alpha", None)
         state.setdefault("last_gain", 1.0)
@@ -175,7 +179,8 @@ class StereoRenderer:
         if self._lit is None:
             rig = self.rig
             light = FrameLight(self.lighting, rig.intrinsics(), rig.width, rig.height, self.world.sky_rgb)
-            self._lit = (light_world(self.world, self.lighting), light, AutoExposure(self.lighting))
+            exposure = AutoExposure(self.lighting, self.frame_interval_s)
+            self._lit = (light_world(self.world, self.lighting), light, exposure)
         return self._lit
 
     # -- rendering ----------------------------------------------------------------------------------

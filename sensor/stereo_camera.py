@@ -81,6 +81,8 @@ class PairDeveloper:
         eqs (8)–(9)); zeros: none.
     seed : int
         Seed of the sensor noise (frame ``k`` draws from ``(seed, k)``).
+    frame_interval_s : float
+        Time between frames [s] (1 / camera rate), over which the auto-exposure lags.
     """
 
     def __init__(
@@ -93,11 +95,12 @@ class PairDeveloper:
         flex: MountFlex | None = None,
         right_correction_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
         seed: int = 0,
+        frame_interval_s: float = 0.1,
     ) -> None:
         self.seed = int(seed)
         self.lighting = lighting
         auto = lighting is not None and lighting.sun and lighting.auto_exposure
-        self.exposure = AutoExposure(lighting) if auto and lighting is not None else None
+        self.exposure = AutoExposure(lighting, frame_interval_s) if auto and lighting is not None else None
         flexes = flex is not None and not flex.is_zero
         self.optics = FieldOptics.build(rig, lenses, calibration, defer_sensor=flexes or auto)
         self.correction = right_correction_homography(self.optics.vo_k(), right_correction_deg)
@@ -146,8 +149,8 @@ class StereoCamera:
         What the cameras see.
     params : VehicleParams
         The combination (where the camera is at a pose).
-    lenses, calibration, lighting, flex, right_correction_deg, seed
-        As for :class:`PairDeveloper`; ``lighting`` and ``seed`` also light and seed the renderer.
+    lenses, calibration, lighting, flex, right_correction_deg, seed, frame_interval_s
+        As for :class:`PairDeveloper`; ``lighting``, ``seed`` and ``frame_interval_s`` also go to the renderer.
     """
 
     def __init__(
@@ -162,6 +165,7 @@ class StereoCamera:
         flex: MountFlex | None = None,
         right_correction_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
         seed: int = 0,
+        frame_interval_s: float = 0.1,
     ) -> None:
         self.developer = PairDeveloper(
             rig,
@@ -171,11 +175,14 @@ class StereoCamera:
             flex=flex,
             right_correction_deg=right_correction_deg,
             seed=seed,
+            frame_interval_s=frame_interval_s,
         )
         self.optics = self.developer.optics
         self.world = world
         self.params = params
-        self.renderer = StereoRenderer(world, self.optics.render_rig, params, seed=seed, lighting=lighting)
+        self.renderer = StereoRenderer(
+            world, self.optics.render_rig, params, seed=seed, lighting=lighting, frame_interval_s=frame_interval_s
+        )
 
     @property
     def rig(self) -> StereoRig:

@@ -1,7 +1,7 @@
 """Stereo calibration on the rendered checkerboard: recovery against the truth, rectification, files, bad settings.
 
 The rig is the default of de Saxe & Cebon 2018, §3.1 (1344 × 391 px, 100°, 0.5 m), with the field tests'
-right-camera rotation (roll −0.15°, yaw +0.10°, paper §4.4), wide-angle lenses (170–180 px of barrel distortion at
+right-camera rotation (roll −0.15°, yaw +0.10°, the paper's §4.4), wide-angle lenses (170–180 px of barrel distortion at
 the corners), one grey level of image noise and 0.1 px of added corner noise.
 """
 
@@ -28,8 +28,7 @@ from sensor.calibration_target import (
     sample_board_poses,
     true_right_from_left,
 )
-from sensor.camera import StereoRig, rotation_rpy
-from sensor.lens import Lens
+from sensor.camera import Lens, StereoRig, rotation_rpy
 from vehicle_model.errors import InputError
 
 LENS_LEFT = Lens(k1=-0.2, k2=0.05, p1=1e-3, p2=-5e-4)

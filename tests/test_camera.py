@@ -1,4 +1,7 @@
-"""Stereo rig geometry: camera axes, intrinsics, mounting (ψ_c2v), misalignment (paper §4.4). No rendering."""
+"""Stereo rig geometry: camera axes, intrinsics, mounting (ψ_c2v), misalignment (de Saxe & Cebon 2018, §4.4).
+
+No rendering.
+"""
 
 from __future__ import annotations
 

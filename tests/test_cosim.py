@@ -141,8 +141,8 @@ def test_same_seed_same_numbers_with_noisy_signals():
 
 
 def test_truth_fed_steering_removes_the_offtracking_on_the_dry_roundabout():
-    # Issue figure: dry, flat, truth feedback → true off-tracking RMS ≤ 0.10 m and max ≤ 0.15 m after warm-up,
-    # where the unsteered trailer shows about half a metre on this 50 m roundabout.
+    # Target (docs/design.md §11): dry, flat, truth feedback → true off-tracking RMS ≤ 0.10 m and max ≤ 0.15 m
+    # after warm-up, where the unsteered trailer shows about half a metre on this 50 m roundabout.
     from scenarios.run.metrics import after_warmup
 
     results = {}

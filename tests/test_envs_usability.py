@@ -1,4 +1,4 @@
-"""Gymnasium environments out of the box (issue 17): registration in a fresh process, eager validation, seeds
+"""Gymnasium environments out of the box: registration in a fresh process, eager validation, seeds
 that matter by default, a reward that sees the off-tracking, the final episode summary against ``metrics.json``,
 the spec's time limit, rendering modes and the plan view's scale bar."""
 

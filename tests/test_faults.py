@@ -143,7 +143,7 @@ def test_an_unreachable_scheduler_is_named_quickly(tmp_path: Path) -> None:
 
 
 def test_loss_of_control_is_a_status_with_exit_3(tmp_path: Path) -> None:
-    # Spiralled 414 m off the 50 m ring and was reported "completed" before.
+    # Unstopped, the combination spirals hundreds of metres off the 50 m ring; the run must not report "completed".
     out = tmp_path / "r"
     result = offtrack("run", "roundabout-3", "--surface", "ice", "--camber", "8", "--speed", "40", "--out", str(out))
     assert result.returncode == 3, result.stderr
@@ -271,8 +271,8 @@ def test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers(
 
 
 def test_a_stop_swallowed_on_the_way_is_raised_again_at_the_next_check() -> None:
-    # numba loads its kernels through callbacks from C; a Ctrl-C raised inside one was swallowed there and the
-    # run went on to exit 0. The handlers remember the stop until it is handled, and the loop checks each tick.
+    # numba loads its kernels through callbacks from C; a Ctrl-C raised inside one can be swallowed there, and the
+    # run would go on to exit 0. The handlers remember the stop until it is handled, and the loop checks each tick.
     code = """
 import os, signal
 from scenarios.run.stopping import Terminated, handle_sigterm, raise_pending_stop

@@ -83,8 +83,9 @@ def test_only_the_auto_exposure_develops_the_frames_in_order() -> None:
 
 @pytest.mark.rendering
 def test_the_flex_warp_rotates_the_right_camera_like_re_posing_it() -> None:
-    # Paper eq (8): a rotation about the optical centre is the homography K·Rᵀ·K⁻¹. Rendering the right camera
-    # re-posed by R and warping the aligned render must give the same image (inside the border strip).
+    # de Saxe & Cebon 2018, eq (8): a rotation about the optical centre is the homography K·Rᵀ·K⁻¹. Rendering
+    # the right camera re-posed by R and warping the aligned render must give the same image (inside the border
+    # strip).
     code = """
 import json, numpy as np
 from scenarios.config import load_scenario

@@ -20,7 +20,7 @@ def test_field_scenarios_validate(name):
     assert name in catalogue_names()
     cfg = load_scenario(name)
     assert cfg.name == name and cfg.vehicle == "field"
-    assert cfg.camera.mount_height == pytest.approx(4.2)  # paper §4.1
+    assert cfg.camera.mount_height == pytest.approx(4.2)  # the paper's §4.1
     assert cfg.camera.psi_c2v_deg == 180.0 and cfg.camera.baseline == 0.5
     assert cfg.speed.cornering_kmh == 15.0 and cfg.speed.straight_kmh == 40.0
     assert f"{STEADY_OFFTRACKING_M:.2f}" in cfg.description or name == "field-figure-eight"

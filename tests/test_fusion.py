@@ -1,4 +1,4 @@
-"""The fused VISO-OT estimator (issue 15): a Kalman filter of trailer signals and visual-odometry motions.
+"""The fused VISO-OT estimator: a Kalman filter of trailer signals and visual-odometry motions.
 
 Synthetic tests drive the filter with a trailer whose kingpin increments are known exactly (the filter's own
 arc rule, eq (2) of :mod:`sensor.fusion`) and camera motions made from them through a rear camera's pose;

@@ -19,7 +19,6 @@ from scenarios.setup.paths import roundabout_path
 from sensor.camera import StereoRig
 from sensor.lighting import Lighting, light_world, sun_direction
 from sensor.world import build_world
-from vehicle_model.errors import InputError
 from vehicle_model.geometry import CombinationPose
 
 rendering = pytest.mark.rendering
@@ -39,7 +38,7 @@ def test_default_lighting_is_flat_and_validated(ring) -> None:
     assert sun_direction(Lighting.field(sun_azimuth_deg=90.0, sun_elevation_deg=30.0)) == pytest.approx(
         [0.0, np.cos(np.radians(30)), 0.5], abs=1e-12
     )
-    with pytest.raises(InputError, match="sun_elevation_deg"):
+    with pytest.raises(ValueError, match="sun_elevation_deg"):
         Lighting(sun_elevation_deg=-5.0)
 
 
@@ -71,7 +70,7 @@ def test_matched_features_rise_and_fall_once_per_turn_with_a_low_sun(ring) -> No
 
     world = build_world(ring)
     rig = StereoRig(width=672, height=196, noise_std=2.0)
-    lighting = Lighting.field(sun_elevation_deg=12.0, frame_interval_s=0.1)
+    lighting = Lighting.field(sun_elevation_deg=12.0)
     renderer = StereoRenderer(world, rig, vehicle_preset("reference"), lighting=lighting)
     vo = StereoOdometry(VOConfig.from_horizontal_fov(rig.width, rig.height, rig.hfov, rig.baseline), seed=0)
     turns, per_turn = 3, 40

@@ -150,15 +150,15 @@ def test_discretisation_is_the_matrix_exponential():
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"twist_deg_per_mps2": (0.0, 2.0, 0.0)}, r"flex\.twist_deg_per_mps2\[1\] \(pitch\) = 2\.0 .*±1 °/\(m/s²\)"),
-        ({"vibration_rms_deg": (-0.1, 0.0, 0.0)}, r"flex\.vibration_rms_deg\[0\] \(roll\) = -0\.1 .*\[0, 2\]°"),
-        ({"vibration_rms_deg": (0.0, 0.0, math.nan)}, r"flex\.vibration_rms_deg\[2\] \(yaw\)"),
-        ({"vibration_bandwidth_hz": 0.0}, r"flex\.vibration_bandwidth_hz = 0\.0 .*\[0\.01, 100\] Hz"),
-        ({"twist_deg_per_mps2": (0.1, 0.2)}, r"flex\.twist_deg_per_mps2 = .* three numbers"),
+        ({"twist_deg_per_mps2": (0.0, 2.0, 0.0)}, r"twist_deg_per_mps2\.1\s+Input should be less than or equal to 1"),
+        ({"vibration_rms_deg": (-0.1, 0.0, 0.0)}, r"vibration_rms_deg\.0\s+Input should be greater than or equal to 0"),
+        ({"vibration_rms_deg": (0.0, 0.0, math.nan)}, r"vibration_rms_deg\.2\s+Input should be a finite number"),
+        ({"vibration_bandwidth_hz": 0.0}, r"vibration_bandwidth_hz\s+Input should be greater than or equal to 0\.01"),
+        ({"twist_deg_per_mps2": (0.1, 0.2)}, r"twist_deg_per_mps2\.2\s+Field required"),
     ],
 )
 def test_invalid_flex_names_the_field_and_range(kwargs, message):
-    with pytest.raises(InputError, match=message):
+    with pytest.raises(ValueError, match=message):
         MountFlex(**kwargs)
 
 

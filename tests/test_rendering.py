@@ -84,7 +84,7 @@ def test_world_is_reproducible_and_density_selects_a_subset(roundabout) -> None:
     assert 0.4 * full_n <= half_n <= 0.6 * full_n + 2
     assert sum(v for k, v in none.object_counts.items()) == 0
     assert {p.category for p in none.parts} <= {"road", "roundabout", "ground"}
-    # Density 0.5 keeps a subset of the objects of density 1.0 (paper §3.2.3: objects removed).
+    # Density 0.5 keeps a subset of the objects of density 1.0 (the paper's §3.2.3: objects removed).
     full_trees = {tuple(np.round(p[:3, 3], 6)) for part in a.parts if part.name == "tree_0" for p in part.poses}
     half_trees = {tuple(np.round(p[:3, 3], 6)) for part in half.parts if part.name == "tree_0" for p in part.poses}
     assert half_trees and half_trees < full_trees
@@ -231,7 +231,7 @@ def test_same_seed_same_images_other_seed_different(roundabout) -> None:
 
 @rendering
 def test_right_camera_misalignment_is_the_homography(default_world: World, roundabout) -> None:
-    """Paper eq (8): a pure rotation of the right camera maps its image by K·R·K⁻¹ at every depth."""
+    """The paper's eq (8): a pure rotation of the right camera maps its image by K·R·K⁻¹ at every depth."""
     from sensor.renderer import StereoRenderer
     from vehicle_model.presets import vehicle_preset
 
@@ -349,7 +349,7 @@ def test_kitti_export_loads_back(tmp_path) -> None:
     poses = read_poses(out / "poses.txt")
     assert poses.shape == (5, 4, 4)
     np.testing.assert_allclose(poses[0], np.eye(4), atol=1e-9)
-    # Paper §3: crabbing at 14° at 5 m/s, 10 Hz: 0.5 m per frame, 14° to the trailer's left. The
+    # The paper's §3: crabbing at 14° at 5 m/s, 10 Hz: 0.5 m per frame, 14° to the trailer's left. The
     # rear-facing camera's z is the trailer's −x and its x the trailer's +y.
     step = 5.0 / config.rates.camera_hz
     beta = math.radians(14.0)

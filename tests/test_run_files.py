@@ -143,7 +143,7 @@ def test_the_time_series_is_a_directory_of_whole_parts_read_back_in_order_as_flo
     assert len(list(path.glob("part-*"))) == 15
     assert list(frame["x"]) == list(range(100)) and frame["time"].is_monotonic_increasing
     assert set(frame.dtypes) == {np.dtype("float64")}
-    # A new writer replaces the old series (a file of the earlier layout, or a directory of parts).
+    # A new writer replaces the old series (a single-file series, or a directory of parts).
     TimeSeriesWriter(path, ["time"]).close()
     assert pd.read_parquet(path).shape == (0, 1)
 

@@ -189,7 +189,7 @@ def test_a_stop_signal_during_a_case_set_up_stops_the_sweep(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path, sigterm_raises: object, signame: str, stop: type
 ) -> None:
     # Ctrl-C while the co-simulation is set up: it is caught there and the run ends "interrupted" with no row;
-    # this was once recorded as the case failed ('offtracking_truth') and the study went on.
+    # it must not be recorded as a failed case ('offtracking_truth') with the study going on.
     built: list[int] = []
     setup = cosim.CoSimulation.__init__
 

@@ -1,4 +1,4 @@
-"""VISO-OT on rendered images in the loop (paper §3 reference case) and the right-image correction."""
+"""VISO-OT on rendered images in the loop (de Saxe & Cebon 2018, §3 reference case) and the right-image correction."""
 
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ def test_viso_ot_meets_the_paper_accuracy_on_the_reference_case(reference_case):
     cols = reference_case
     err = estimator_errors(cols["offtracking_truth"], cols["offtracking_viso_ot"])
     assert err["valid_fraction"] > 0.95
-    assert err["rms_error"] <= 0.04  # paper §3: 0.01–0.04 m RMS in simulation
+    assert err["rms_error"] <= 0.04  # the paper's §3: 0.01–0.04 m RMS in simulation
     assert err["max_abs_error"] <= 0.15  # the 0.15 m maximum target
     frames = cols["camera_frame"] > 0.5
     assert frames.sum() == pytest.approx(201, abs=1)  # 20 s at 10 fps

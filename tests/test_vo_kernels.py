@@ -1,6 +1,6 @@
-"""Compiled VO kernels (numba): the same matches and inliers as the numpy implementation they replaced.
+"""Compiled VO kernels (numba): the same matches and inliers as a reference numpy implementation.
 
-The numpy implementation is gone (one way to do each thing); what it produced on a synthetic sequence
+That implementation is not in the tree (one way to do each thing); what it produced on a synthetic sequence
 is stored here as digests of the match arrays and inlier masks, computed with that implementation at
 commit 0d7d437. The kernels are also checked against their own Python source, run by the interpreter
 (``NUMBA_DISABLE_JIT=1``) in a subprocess on a small image, which catches differences of integer and

@@ -12,7 +12,10 @@ from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses
 
 
 def kinematic_run(params, steer_of_s, speed=2.0, duration=40.0, dt=1e-3, every=20):
-    """Tractor whose rear point never slips and a trailer whose zero-slip point sits at L_eq (reference §2.3)."""
+    """Tractor whose rear point never slips and a trailer whose zero-slip point sits at L_eq.
+
+    Zero-slip kinematics of docs/vehicle_dynamics.md §2.3.
+    """
     wheelbase = params.tractor_wheelbase()
     e = -wheelbase - params.tractor.fifth_wheel_x  # fifth wheel behind the rear point
     l_eq = params.equivalent_wheelbase()
@@ -78,7 +81,7 @@ def test_exact_when_nothing_slips(reference, variant):
 
 def test_blind_to_a_pure_crab(reference):
     # Both units crab sideways (e.g. on a crossfall): the tractor signals show straight running, so the
-    # estimate stays zero while the true off-tracking is −L_fp·tan β (the phenomenon of reference §6.5).
+    # estimate stays zero while the true off-tracking is −L_fp·tan β (the phenomenon of docs/vehicle_dynamics.md §6.5).
     est = ZeroSlipEstimator(reference)
     signals = {
         "wheel_speed": np.array([5.0]),

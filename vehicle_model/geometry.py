@@ -3,7 +3,7 @@
 Every function is vectorised over time: pose arguments may be scalars or arrays of the same
 shape ``S``; points come back with shape ``S + (2,)`` (global X, Y).
 
-Reference notes §1.4::
+docs/vehicle_dynamics.md §1.4::
 
     P5 = P_cg1 − h1·(cos ψ1, sin ψ1),   ψ2 = ψ1 − Γ,   P_f = P5 − L_fp·(cos ψ2, sin ψ2)
 """

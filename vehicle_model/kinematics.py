@@ -1,6 +1,6 @@
 """Rigid-body kinematics of the trailer from the model state: point velocities and lateral acceleration.
 
-Hitch kinematics (reference notes §1.1, as in :func:`vehicle_model.dynamics.define_model`): the
+Hitch kinematics (docs/vehicle_dynamics.md §1.1, as in :func:`vehicle_model.dynamics.define_model`): the
 kingpin, ``h1`` behind the tractor CG, moves with ``(u, v1 − h1·r1)`` in tractor axes; rotated by the
 articulation Γ into trailer axes, and with the trailer yaw rate ``r2`` about the kingpin, a trailer
 centre-line point at station ``x`` (from the kingpin, negative behind it) moves with::
@@ -73,7 +73,7 @@ def _station(params: VehicleParams, station: float | None) -> float:
 
 
 def trailer_point_velocity(params: VehicleParams, state: VehicleState, station: float | None = None) -> np.ndarray:
-    """Velocity ``(v_x, v_y)`` [m/s] of a trailer centre-line point in trailer axes (reference notes §1.1).
+    """Velocity ``(v_x, v_y)`` [m/s] of a trailer centre-line point in trailer axes (docs/vehicle_dynamics.md §1.1).
 
     Parameters
     ----------

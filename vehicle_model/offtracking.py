@@ -5,8 +5,8 @@ with kingpin motion increments from different sources. :func:`offtracking_from_p
 :func:`offtracking_series` compute the same quantity directly from a global kingpin path, without the buffer,
 and serve as the reference the buffer is tested against.
 
-Convention (DESIGN §3, ISO 8855)
---------------------------------
+Convention (docs/design.md §6, ISO 8855)
+----------------------------------------
 The trailer frame has its origin at the kingpin, x forward along the trailer centre line, y to the left; yaw
 is positive anticlockwise. The follow point sits at ``(−L_fp, 0)``. The **off-tracking** ``e_tr`` is the y
 coordinate, in the *current* trailer frame, of the kingpin's *past* path at the station ``x = −L_fp``.
@@ -24,7 +24,7 @@ Mapping from the paper's notation (de Saxe & Cebon 2018, §2.2)::
 
 The paper does not state the handedness of its frame. Read with the camera's (right, forward) axes, its
 eqs (1)–(2) suggest its lateral x points to the right (and Δψ positive clockwise); if so its e_tr has the
-opposite sign to the one used here. This module follows DESIGN §3: e_tr is the ISO (left-positive) y.
+opposite sign to the one used here. This module follows docs/design.md §6: e_tr is the ISO (left-positive) y.
 """
 
 from __future__ import annotations

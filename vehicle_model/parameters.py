@@ -37,7 +37,7 @@ class TyreParams(_Frozen):
     """Lateral Magic Formula tyre (PAC2002 pure-slip subset, zero camber, shifts dropped).
 
     Defaults are the 315/80 R22.5 truck tyre of Pacejka's book as shipped in Project Chrono's
-    ``CityBus_Pac02Tire.tir`` (reference notes §3.1), with the sign of ``PKY1`` flipped to this
+    ``CityBus_Pac02Tire.tir`` (docs/vehicle_dynamics.md §3.1), with the sign of ``PKY1`` flipped to this
     project's positive-force slip convention.
 
     Parameters
@@ -75,7 +75,7 @@ class TyreParams(_Frozen):
     low_speed_fade: float = Field(2.0, gt=0)
 
     def cornering_stiffness(self, fz: float | np.ndarray) -> float | np.ndarray:
-        """Cornering stiffness ``K_y`` of one tyre at load ``fz`` [N/rad] (reference §3.1)."""
+        """Cornering stiffness ``K_y`` of one tyre at load ``fz`` [N/rad] (docs/vehicle_dynamics.md §3.1)."""
         return self.pky1 * self.fz_nominal * np.sin(2.0 * np.arctan(fz / (self.pky2 * self.fz_nominal)))
 
     def relaxation_length(self, fz: float | np.ndarray) -> float | np.ndarray:
@@ -357,7 +357,7 @@ class VehicleParams(_Frozen):
         )
 
     def equivalent_wheelbase(self, fixed_only: bool = False) -> float:
-        """Trailer equivalent wheelbase ``L_eq = ΣC_j L_j² / ΣC_j L_j`` [m] (reference notes §2.3).
+        """Trailer equivalent wheelbase ``L_eq = ΣC_j L_j² / ΣC_j L_j`` [m] (docs/vehicle_dynamics.md §2.3).
 
         Uses the static cornering stiffness of each trailer axle. With ``fixed_only`` only the
         unsteerable axles count (the zero-slip point of a trailer whose steerable axles are

@@ -1,7 +1,7 @@
 """Vehicle presets: the reference 6x2 tractor with a UK 13.6 m tri-axle trailer and the UK longer
 semi-trailer (LST), each laden and unladen, and the paper's field-test combination (:func:`field`).
 
-Sources (see ``docs/vehicle_dynamics.md`` §4–5):
+Sources (see ``docs/vehicle_dynamics.md`` §4–5; the § numbers below refer to it):
 
 * Tractor: OpenPBS ``TractorSemitrailer6x2`` — axles at 0, −3.0, −4.37 m (steer, drive, tag), CG
   −1.3647 m, fifth wheel −3.4 m, 9841 kg, 2.991e4 kg·m². Front bumper 1.4 m ahead of the steer

@@ -31,12 +31,12 @@ def bench_model(
     with the loop's inputs (the same motion: a step costs more while turning than in exactly straight
     running, where the lateral states are zero), two ways: the compiled control-period function of
     :mod:`vehicle_model.period` (a C loop over the compiled RK4 step; absent without a C compiler)
-    and casadi's ``mapaccum`` integrator (:meth:`VehicleModel.integrator`); and, as before issue 16's
-    rework, from straight running at 15 km/h with zero inputs (``*_straight``). The segments
-    alternate second by second, so that they see the same (shared) machine; ``*_cpu`` figures use
-    this thread's CPU time. ``realtime_factor_integrator`` is the faster of the two integrators on
-    the loop's states, ``loop_to_integrator`` the ratio of the loop's real-time factor to it (issue
-    16: at least 0.75), and ``us_python_per_control_step_cpu`` what a control step costs beyond its
+    and casadi's ``mapaccum`` integrator (:meth:`VehicleModel.integrator`); and from straight running at
+    15 km/h with zero inputs (``*_straight``, the reference of the older figures in ``benchmarks/README.md``).
+    The segments alternate second by second, so that they see the same (shared) machine; ``*_cpu`` figures
+    use this thread's CPU time. ``realtime_factor_integrator`` is the faster of the two integrators on the
+    loop's states, ``loop_to_integrator`` the ratio of the loop's real-time factor to it (target at least
+    0.75, docs/design.md §11), and ``us_python_per_control_step_cpu`` what a control step costs beyond its
     RK4 steps at that speed.
     """
     params = vehicle_preset(vehicle)
@@ -106,7 +106,8 @@ def bench_model(
     simulated_integ = n_calls * per_call * dt
     fastest = "c" if c_integ is not None and cpu["c"] < cpu["casadi"] else "casadi"
     loop_s, loop_cpu, integ_s, integ_cpu = wall["loop"], cpu["loop"], wall[fastest], cpu[fastest]
-    rf_straight = simulated_integ / cpu["c_straight"] if c_integ is not None else None  # as before issue 16
+    # Straight running: the reference of the older figures in benchmarks/README.md.
+    rf_straight = simulated_integ / cpu["c_straight"] if c_integ is not None else None
     return {
         "benchmark": "model",
         "vehicle": vehicle,

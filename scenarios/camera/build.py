@@ -24,11 +24,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from sensor.calibration import CalibrationResult, calibrate_rig
-from sensor.camera import Misalignment, StereoRig
-from sensor.lens import Lens, check_invertible
+from sensor.camera import Lens, Misalignment, StereoRig
 from sensor.lighting import Lighting
 from sensor.mount_flex import FlexSchedule, MountFlex
-from sensor.vo.self_calibration import SelfCalibrationSettings
 from sensor.world import World, build_world
 from vehicle_model.errors import InputError
 
@@ -173,16 +171,13 @@ def calibration_for(rig: StereoRig, config: ScenarioConfig) -> CalibrationResult
 
 def lighting_from_config(config: ScenarioConfig) -> Lighting | None:
     """The renderer's lighting (``None``: the flat lighting of the ideal study) from ``camera.lighting``."""
-    light = config.camera.lighting
-    if not light.sun:
-        return None
-    return Lighting(**light.model_dump(), frame_interval_s=1.0 / config.rates.camera_hz)
+    light = config.camera.lighting  # the schema's section is the sensor's Lighting
+    return light if light.sun else None
 
 
 def mount_flex(config: ScenarioConfig) -> MountFlex:
     """The right camera's mount flex settings (``camera.flex``)."""
-    flex = config.camera.flex
-    return MountFlex(flex.twist_deg_per_mps2, flex.vibration_rms_deg, flex.vibration_bandwidth_hz)
+    return config.camera.flex  # the schema's section is the sensor's MountFlex
 
 
 def flex_schedule(setup: ScenarioSetup) -> FlexSchedule:
@@ -203,6 +198,7 @@ def _camera_settings(config: ScenarioConfig) -> dict[str, Any]:
         "flex": mount_flex(config),
         "right_correction_deg": tuple(config.camera.right_correction_deg),
         "seed": config.seed,
+        "frame_interval_s": 1.0 / config.rates.camera_hz,
     }
 
 
@@ -229,7 +225,7 @@ def frame_odometry(setup: ScenarioSetup, optics: FieldOptics) -> FrameOdometry:
 
     cfg = setup.config
     self_cal = cfg.camera.self_calibration
-    settings = SelfCalibrationSettings(**self_cal.model_dump(exclude={"enabled"})) if self_cal.enabled else None
+    settings = self_cal if self_cal.enabled else None  # the schema's section is the sensor's settings
     return FrameOdometry(
         setup.params,
         optics.vo_config(),

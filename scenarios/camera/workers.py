@@ -42,9 +42,9 @@ from vehicle_model.errors import OfftrackError
 from vehicle_model.geometry import CombinationPose
 
 DEFAULT_WORKERS = 1
-"""Render workers of a pipelined run. One, whose llvmpipe threads use the core the odometry leaves free, ran the
-loop faster than two on this 2-core machine (``offtrack bench loop``, 2026-12-01: 2.7–2.8× against 2.6× real
-time; two workers' two contexts and caches cost more CPU per pair; ``benchmarks/README.md``)."""
+"""Render workers of a pipelined run. One, whose llvmpipe threads use the core the odometry leaves free, runs the
+loop faster than two on a 2-core machine: two workers' two contexts and caches cost more CPU per pair
+(``offtrack bench loop``; figures in ``benchmarks/README.md``)."""
 ANSWER_TIMEOUT_S = 300.0
 """Longest wait for one worker's answer [s]; the first includes building the world and the OpenGL context."""
 MIN_PIPELINED_FRAMES = 150
@@ -59,9 +59,9 @@ default (one thread per core)."""
 RENDER_NICENESS = 0
 """How much lower a worker's scheduling priority is than the co-simulation's (``nice`` increment). The
 co-simulation process is the critical path (each estimate waits for its odometry); a positive increment
-lets it keep its core while the renders take what is left. Off by default: on a quiet 2-core machine 5 gave
-no gain beyond noise, and on a shared one the lowered workers lost their CPU to other jobs (one loaded round:
-1.04x real time against 2.14x without it)."""
+lets it keep its core while the renders take what is left. Off by default: on a quiet 2-core machine a positive
+increment gains nothing beyond noise, and on a shared one the lowered workers lose their CPU to other jobs
+(figures in ``benchmarks/README.md``)."""
 
 
 class CameraWorkerError(OfftrackError, RuntimeError):
@@ -158,7 +158,7 @@ class RenderWorkers:
         # Start the workers with Ctrl-C blocked (the mask is inherited through exec, and the worker ignores
         # SIGINT before it unblocks it), so that a Ctrl-C at the terminal cannot kill a worker that is still
         # importing. A Ctrl-C meant for this process is held meanwhile and arrives when the block ends —
-        # never lost (ignoring it here instead once let a run go on after Ctrl-C).
+        # never lost (ignoring it here instead would let a run go on after Ctrl-C).
         block = threading.current_thread() is threading.main_thread() and hasattr(signal, "pthread_sigmask")
         previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if block else None
         try:

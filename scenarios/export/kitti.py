@@ -14,7 +14,8 @@ load it::
     stereo.mp4             with ``video=True``: the pairs side by side (:mod:`scenarios.export.video`)
 
 The calibration is the *ideal* rig's (rectified, ``P1 = K·[I | −b·e_x]``): a misaligned right camera
-(paper §4.4) renders rotated images that the calibration does not know about, as in the field tests.
+(de Saxe & Cebon 2018, §4.4) renders rotated images that the calibration does not know about, as in the field
+tests.
 """
 
 from __future__ import annotations
@@ -136,7 +137,7 @@ def export_kitti(
         Output directory (created).
     rig : StereoRig, optional
         The cameras (default: the scenario's ``camera`` section, :func:`rig_from_config`; its
-        defaults are paper §3.1: rear-facing at the trailer's rear, 0.5 m baseline).
+        defaults are the paper's §3.1: rear-facing at the trailer's rear, 0.5 m baseline).
     scenery_density : float, optional
         Fraction of roadside objects, in [0, 1] (default: the scenario's ``camera.scenery_density``).
     max_frames : int, optional

@@ -59,7 +59,7 @@ def roundabout_verdict(
 
     Pass if no outermost point of the towing vehicle leaves the ``outer`` circle and no point of the
     trailer enters the ``inner`` circle: the wording of 97/27/EC Annex I §7.6.1 for a combination
-    (reference notes §5.1). The radii are measured from ``centre``; the nearest point of an outline
+    (docs/vehicle_dynamics.md §5.1). The radii are measured from ``centre``; the nearest point of an outline
     may lie on an edge, not a corner.
     """
     tractor = tractor_outline(params, x, y, psi1)

@@ -54,7 +54,7 @@ def _camera(kind: str) -> tuple[tuple[str, Any], ...]:
 
 
 def paper_section3_cases(full: bool = False) -> list[CaseSpec]:
-    """Cases of the paper §3 reproduction (a subset unless ``full``)."""
+    """Cases of the reproduction of the paper's §3 (a subset unless ``full``)."""
     baselines = np.round(np.arange(0.5, 5.01, 0.5), 2) if full else (0.5, 1.5, 2.5)
     slips = (0, 2, 4, 6, 8, 10, 12, 14, 16, 20, 25, 30, 40, 50, 60) if full else (0, 14, 30)
     slip_baselines = (0.5, 1.5, 2.5) if full else (0.5,)

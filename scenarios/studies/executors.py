@@ -231,7 +231,7 @@ _NO_START = (
 
 
 def _started(task: Task) -> bool:
-    """Whether a worker of this sweep started ``task`` (its running marker is there and of this session)."""
+    """Whether a worker of this sweep started ``task`` (its running marker is there, with this sweep's ``session``)."""
     try:
         marker = json.loads(marker_path(Path(task.out_dir), task.spec.name).read_text())
     except (OSError, ValueError):

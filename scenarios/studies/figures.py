@@ -1,4 +1,4 @@
-"""The figures of the studies: paper §3 Figs 6–8, the estimators-under-slip heat maps, paper §4 Figs 14–16."""
+"""Figures of the studies: de Saxe & Cebon 2018 §3 Figs 6–8 and §4 Figs 14–16, the estimators-under-slip heat maps."""
 
 from __future__ import annotations
 

@@ -5,7 +5,7 @@ three field manoeuvres (``field-figure-eight``, ``field-roundabout-left``, ``fie
 alignments of the right camera:
 
 * ``aligned`` — the rig as calibrated;
-* ``misaligned`` — the right camera rotated by φ = −0.15°, ψ = +0.10° (roll, yaw; paper §4.4) *after* the
+* ``misaligned`` — the right camera rotated by φ = −0.15°, ψ = +0.10° (roll, yaw; the paper's §4.4) *after* the
   calibration (``camera.calibration.misalignment_deg`` stays 0, so the calibration cannot remove it);
 * ``corrected`` — misaligned, and the right images rotated back by eqs (8)–(9), as in the paper's Fig 16
   (its applied rotation φ = +0.15°, ψ = −0.10°; ``camera.right_correction_deg`` takes the rotation to
@@ -81,15 +81,15 @@ ALIGNMENTS: dict[str, tuple[tuple[float, float, float], tuple[float, float, floa
 FIELD_CONDITIONS: tuple[tuple[str, Any], ...] = (
     # A mild wide-angle lens (barrel, a trace of decentring): 100° across, the image corner moves ~25 px.
     ("camera.lens", {"k1": -0.08, "k2": 0.01, "p1": 2e-4, "p2": -1e-4, "k3": 0.0}),
-    # Calibrated as in §4.1 (Zhang + Heikkilä + Fusiello in OpenCV): 40 checkerboard views, 0.1 px corner
+    # Calibrated as in the paper's §4.1 (Zhang + Heikkilä + Fusiello in OpenCV): 40 checkerboard views, 0.1 px corner
     # noise; the rig was aligned when it was calibrated, so the study's misalignment is a change after it.
     ("camera.calibration", {"mode": "estimated", "views": 40, "corner_noise_px": 0.1, "misalignment_deg": [0, 0, 0]}),
-    # §4.2: "the sun was setting in the west": a low sun (10°) with baked shadows, a sky and an auto-exposure
-    # with a 0.5 s lag (the paper's exposure was set by hand; the lag stands in for its slow response).
+    # The paper's §4.2: "the sun was setting in the west": a low sun (10°) with baked shadows, a sky and an
+    # auto-exposure with a 0.5 s lag (the paper's exposure was set by hand; the lag stands in for its slow response).
     ("camera.lighting", {"sun": True, "sun_azimuth_deg": 270.0, "sun_elevation_deg": 10.0, "exposure_lag_s": 0.5}),
-    # §4.1: Bourn Airfield, 40 m of tarmac with potholes and patches, grain fields to the horizon.
+    # The paper's §4.1: Bourn Airfield, 40 m of tarmac with potholes and patches, grain fields to the horizon.
     ("camera.world", "airfield"),
-    # §4.3: the frame twists in the turns, "correct[ing] these camera rotations in left turns, but
+    # The paper's §4.3: the frame twists in the turns, "correct[ing] these camera rotations in left turns, but
     # amplify[ing] them in right turns": +0.05° roll and −0.03° yaw per m/s² of lateral acceleration
     # (left positive) — about 0.06° and 0.035° at the ~1.1 m/s² of the trailer's rear in the 11.5 m turn,
     # under half the static −0.15°/+0.10°; and 0.01° RMS of vibration per axis up to 8 Hz (a magnet mount).
@@ -102,7 +102,7 @@ FIELD_CONDITIONS: tuple[tuple[str, Any], ...] = (
         },
     ),
 )
-"""The field-conditions set every case runs under (paper §4.1–4.3; see the comments for each choice)."""
+"""The field-conditions set every case runs under (de Saxe & Cebon 2018, §4.1–4.3; see the comments for each choice)."""
 
 SHORT: tuple[tuple[str, Any], ...] = (("path.turns", 1.0), ("path.exit_length", 10.0))
 """The default subset's shortening: one turn and a 10 m exit instead of three turns and 80 m."""
@@ -126,7 +126,7 @@ def camera_overrides(kind: str) -> tuple[tuple[str, Any], ...]:
 def paper_section4_cases(
     full: bool = False, extra: tuple[tuple[str, Any], ...] = (), study: str = STUDY
 ) -> list[CaseSpec]:
-    """Cases of the paper §4 field-test reproduction (a subset unless ``full``).
+    """Cases of the reproduction of the paper's §4 field tests (a subset unless ``full``).
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """Parameters of the stereo visual odometry (VISO2-S style).
 
 Every default is libviso2's (``Matcher::parameters``, ``VisualOdometry::bucketing`` and
-``VisualOdometryStereo::parameters``; viso2s reference §1.1). The calibration (``f``, ``cu``, ``cv``,
+``VisualOdometryStereo::parameters``; docs/visual_odometry.md §2). The calibration (``f``, ``cu``, ``cv``,
 ``baseline``) has no meaningful default and must be given. Pixel quantities are in pixels of the
 full-resolution, rectified image; lengths are in metres.
 """
@@ -138,7 +138,7 @@ class VOConfig(Settings):
 
     @property
     def nms_n_sparse(self) -> int:
-        """NMS radius of the sparse first-pass features: 3·n, capped at max(n, 10) (reference §1.2)."""
+        """NMS radius of the sparse first-pass features: 3·n, capped at max(n, 10) (docs/visual_odometry.md §3)."""
         n = 3 * self.nms_n
         return max(self.nms_n, 10) if n > 10 else n
 

@@ -1,6 +1,6 @@
 """How well one frame's motion is supported: inliers, reprojection residual, Gauss–Newton covariance.
 
-libviso2 accepts any motion with 6 inliers and a converged refinement (viso2s reference §1.5). That
+libviso2 accepts any motion with 6 inliers and a converged refinement (docs/visual_odometry.md §11). That
 lets through motions that are numerically fine but physically meaningless: 19 noisy inliers, a
 baseline so short that the depths are guesses, a right camera so misaligned that only a handful of
 accidental matches survive. This module measures the support of an estimate so that

@@ -58,6 +58,9 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
+from pydantic import Field
+
+from vehicle_model.settings import Settings
 
 __all__ = [
     "SELF_CALIBRATION_COLUMNS",
@@ -83,9 +86,8 @@ RMS vertical-disparity residual of the used matches [px], the rows used and how 
 _MAD = 1.4826  # MAD → standard deviation of a normal distribution
 
 
-@dataclass(frozen=True)
-class SelfCalibrationSettings:
-    """Parameters of :class:`StereoSelfCalibration` (the scenario schema documents their ranges).
+class SelfCalibrationSettings(Settings):
+    """Parameters of :class:`StereoSelfCalibration`, each with its range and the reason for it.
 
     Attributes
     ----------
@@ -117,18 +119,28 @@ class SelfCalibrationSettings:
         fields beside it lie at other heights).
     """
 
-    forgetting: float = 0.98
+    forgetting: float = Field(
+        0.98, ge=0.8, le=1.0, description="RLS forgetting per frame; memory 1/(1−λ) frames: 5 at 0.8, none at 1"
+    )
     scale: Literal["mount_height", "vertical_only"] = "mount_height"
-    noise_px: float = 0.3
-    huber_k: float = 1.345
-    reject_sigma: float = 4.0
-    ground_tolerance: float = 0.1
-    min_ground_disparity_px: float = 4.0
-    min_rows: int = 20
-    prior_std_deg: float = 1.0
-    max_angle_deg: float = 3.0
-    irls_iterations: int = 3
-    road_half_width: float = 2.5
+    noise_px: float = Field(
+        0.3, ge=0.01, le=5.0, description="[px] floor of the robust residual scale; matches are at best ~0.3 px"
+    )
+    huber_k: float = Field(1.345, ge=0.5, le=10.0, description="Huber threshold in scales; 1.345 is 95 % efficient")
+    reject_sigma: float = Field(4.0, ge=2.0, le=50.0, description="rows beyond this many scales are dropped")
+    ground_tolerance: float = Field(
+        0.1, gt=0.0, le=0.5, description="relative height tolerance of a road point; 0.5 takes kerbs for road"
+    )
+    min_ground_disparity_px: float = Field(
+        4.0, ge=0.5, le=100.0, description="[px] far road points below this are too uncertain to classify"
+    )
+    min_rows: int = Field(20, ge=6, le=2000, description="fewer matches: no update (3 angles need a spread)")
+    prior_std_deg: float = Field(1.0, gt=0.0, le=10.0, description="[°] std of the zero start")
+    max_angle_deg: float = Field(3.0, gt=0.0, le=10.0, description="[°] estimate clipped per axis; a first order model")
+    irls_iterations: int = Field(3, ge=1, le=20, description="IRLS passes per frame; 20 converges any frame")
+    road_half_width: float = Field(
+        2.5, gt=0.0, le=20.0, description="[m] road points within this of the trailer's centreline; 20 takes fields"
+    )
 
 
 @dataclass(frozen=True)

@@ -45,7 +45,7 @@ Modules
 * :mod:`~sensor.world.scenery`: roadside objects, their placement and density selection, the horizon.
 * :mod:`~sensor.world.landscape`: the landscape beyond the roadside.
 * :mod:`~sensor.world.detail`: contrast-preserving mipmap chains.
-* :mod:`~sensor.world.airfield`: the airfield world of paper §4.
+* :mod:`~sensor.world.airfield`: the airfield world of the paper's §4.
 * :mod:`~sensor.world.mesh`: the mesh primitives they are made of.
 """
 

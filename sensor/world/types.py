@@ -111,7 +111,7 @@ class WorldConfig:
     road_width : float
         Carriageway width [m] (de Saxe & Cebon 2018, §3.1, used 5 m; default 7 m, a UK single carriageway).
     scenery_density : float
-        Fraction in [0, 1] of the roadside objects kept (paper §3.2.3: 1.0, 0.5, 0.0).
+        Fraction in [0, 1] of the roadside objects kept (the paper's §3.2.3: 1.0, 0.5, 0.0).
     seed : int
         Seed of every random choice (layout and textures).
     apron_width : float
