@@ -1,8 +1,8 @@
 """The ``camera`` section of the scenario schema: the rig and its field conditions.
 
 The rig (size, field of view, baseline, mounting, misalignment, noise, latency) and the field conditions —
-lens, calibration, mount flex, lighting, world, online self-calibration — all off by default, so the paper's
-§3 ideal simulation is unchanged; paper §4 (the field tests) needs them. Every section is a
+lens, calibration, mount flex, lighting, world, online self-calibration — all off by default, so the ideal
+simulation of de Saxe & Cebon 2018, §3, is unchanged; its §4 (the field tests) needs them. Every section is a
 :class:`vehicle_model.settings.Settings`; this module sits below :mod:`scenarios.config`, which includes
 :class:`CameraConfig` as ``camera``. Degrees at this edge; the camera pipeline converts to SI.
 """
@@ -27,15 +27,17 @@ RigRotationDeg = Annotated[
     Field(
         ge=-MAX_RIG_ROTATION_DEG,
         le=MAX_RIG_ROTATION_DEG,
-        description="[°] per axis, the range the rig accepts (sensor.camera.Misalignment); paper §4.4 needs a few",
+        description="[°] per axis, the range the rig accepts (sensor.camera.Misalignment); de Saxe & Cebon 2018, "
+        "§4.4 needs a few",
     ),
 ]
 
 
 class CalibrationConfig(Settings):
-    """How the visual odometry knows the rig (paper §4.1: the field rig was calibrated with a checkerboard).
+    """How the visual odometry knows the rig (de Saxe & Cebon 2018, §4.1: the field rig was calibrated with a
+    checkerboard).
 
-    ``ideal``: the true intrinsics and the ideal stereo geometry (today's behaviour). ``estimated``: a
+    ``ideal``: the true intrinsics and the ideal stereo geometry (the default). ``estimated``: a
     checkerboard of ``target_cols × target_rows`` inner corners with ``square_size`` squares is imaged in
     ``views`` seeded poses, its corners detected (plus ``corner_noise_px`` of detection noise), and OpenCV's
     ``calibrateCamera``/``stereoCalibrate``/``stereoRectify`` give the calibration the VO rectifies with — so
@@ -83,9 +85,9 @@ class CameraConfig(Settings):
     ``station`` is measured from the kingpin (negative behind it; default: the trailer's rear),
     ``lateral`` is positive to the left, ``psi_c2v_deg`` is the paper's camera-to-vehicle angle,
     clockwise from the trailer's forward axis (180 rear-facing, 90 right, 270 left).
-    ``right_misalignment_deg`` rotates the right camera (roll, pitch, yaw; paper §4.4) and
+    ``right_misalignment_deg`` rotates the right camera (roll, pitch, yaw; the paper's §4.4) and
     ``right_correction_deg`` is the *estimated misalignment* (same convention as
-    ``right_misalignment_deg``) whose rotation is removed from the right images before odometry (paper eqs
+    ``right_misalignment_deg``) whose rotation is removed from the right images before odometry (the paper's eqs
     (8)–(9)): the paper's correction φ = +0.15°, ψ = −0.10° of a misalignment φ = −0.15°, ψ = +0.10° is given
     here as ``[-0.15, 0, 0.10]``. ``latency_s`` delays each frame's estimate before the controller sees
     it (default: one frame period).

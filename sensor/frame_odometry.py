@@ -12,7 +12,7 @@ of :data:`REJECTION_REASONS`.
 Its state (the previous pair's features, the kingpin path, the self-calibration) depends on the order of the
 frames only, so it gives the same :class:`CameraFrame` whichever process rendered the images. With a
 self-calibration (:mod:`sensor.vo.self_calibration`) the right image is first warped by ``K·R̂·K⁻¹`` of the
-rotation estimated from the frames before (paper eqs (8)–(9); causal), and the frame's stereo matches update the
+rotation estimated from the frames before (the paper's eqs (8)–(9); causal), and the frame's stereo matches update the
 estimate.
 """
 

@@ -1,4 +1,4 @@
-"""Sun, shadows and sky of a rendered world (paper §4.2: feature counts rose and fell as the cameras faced the low sun).
+"""Sun, shadows and sky of a rendered world (de Saxe & Cebon 2018, §4.2: a low, setting sun).
 
 The scene is static, so the light is **baked once** into the world (:func:`light_world`):
 
@@ -130,7 +130,7 @@ def _shade(normals: np.ndarray, sun: np.ndarray, lighting: Lighting) -> np.ndarr
     """Vertex-colour factor (before the shader's gamma) of surfaces with ``normals``.
 
     Illumination ``E = sky·(1 + n_z)/2 + (1 − sky)·max(0, n·s)/s_z``, normalised so that horizontal
-    sunlit ground is 1 (today's flat brightness), clipped at 1; the shader raises vertex colours to
+    sunlit ground is 1 (the flat, unlit brightness), clipped at 1; the shader raises vertex colours to
     the power 1/2.2, so the factor stored is ``E^2.2``.
     """
     sky = lighting.sky_light

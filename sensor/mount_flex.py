@@ -1,4 +1,4 @@
-"""Mount flex: the right camera's rotation relative to the left, frame by frame (paper §4.3–4.4).
+"""Mount flex: the right camera's rotation relative to the left, frame by frame (de Saxe & Cebon 2018, §4.3–4.4).
 
 de Saxe & Cebon 2018 traced the field tests' systematic errors to right-camera rotations under 0.2°
 (φ = −0.15°, ψ = +0.10°, §4.4) and hypothesised that "the trailer structure itself could deform
@@ -6,7 +6,7 @@ de Saxe & Cebon 2018 traced the field tests' systematic errors to right-camera r
 correct for these camera rotations in left turns, but amplify them in right turns" (§4.3). The
 model here is the sum of three parts, per axis (roll φ about the optical axis, pitch θ about the
 camera x axis, yaw ψ about its y axis; the axes and composition of :class:`sensor.camera.Misalignment`,
-paper eq (9))::
+the paper's eq (9))::
 
     angle_i(t) = static_i + k_i·a_y(t) + n_i(t)
 
@@ -44,7 +44,7 @@ The rotation is about the right camera's optical centre. Re-posing the right cam
 with the frame's :class:`~sensor.camera.Misalignment` (``StereoRig.replace(misalignment=…)``) is
 exact everywhere and costs nothing extra (the right image is rendered every frame anyway). Warping
 the ideal right image by ``K·R_misᵀ·K⁻¹`` (:meth:`sensor.camera.StereoRig.misalignment_homography`,
-paper eq (8)) is exact for every scene point whatever its depth, since a pure rotation about the
+the paper's eq (8)) is exact for every scene point whatever its depth, since a pure rotation about the
 optical centre has no parallax; but the rotated camera sees a thin strip the ideal render does
 not (a yaw of 0.2° moves the 100° image's side borders by ~5 px, a roll moves the corners by
 ~2–3 px), which the warp fills with a border value, and the bilinear resampling smooths the image

@@ -62,7 +62,7 @@ def rig_from_config(config: ScenarioConfig | Any) -> StereoRig:
     ----------
     config : ScenarioConfig or CameraConfig
         A scenario configuration (its ``camera``) or the camera section itself; a configuration
-        without one gives the default rig (paper §3.1).
+        without one gives the default rig (de Saxe & Cebon 2018, §3.1).
     """
     camera = getattr(config, "camera", config)
     if camera is None or not hasattr(camera, "psi_c2v_deg"):
@@ -105,13 +105,13 @@ def world_for_scenario(
     setup_or_config : ScenarioSetup or ScenarioConfig
         A built scenario (its ``path`` and ``config.seed`` are used) or a configuration (built here).
     scenery_density : float, optional
-        Fraction of roadside objects, in [0, 1] (paper §3.2.3: 1.0, 0.5, 0.0); default: the
+        Fraction of roadside objects, in [0, 1] (the paper's §3.2.3: 1.0, 0.5, 0.0); default: the
         scenario's ``camera.scenery_density`` (1.0 unless set).
     seed : int, optional
         Seed of the world (default: the scenario's ``seed``).
     **world_settings
         Other :class:`sensor.world.WorldConfig` fields (``road_width``, ``apron_width``,
-        ``kind="airfield"`` for the Bourn-like airfield of paper §4, ``ground_detail``, …).
+        ``kind="airfield"`` for the Bourn-like airfield of the paper's §4, ``ground_detail``, …).
     """
     setup = setup_or_config if isinstance(setup_or_config, ScenarioSetup) else build_scenario(setup_or_config)
     seed = setup.config.seed if seed is None else seed
@@ -203,7 +203,8 @@ def _camera_settings(config: ScenarioConfig) -> dict[str, Any]:
 
 
 def stereo_camera(setup: ScenarioSetup) -> StereoCamera:
-    """The scenario's stereo camera in its world (``camera.world``: the roadside or the airfield of paper §4)."""
+    """The scenario's stereo camera in its world (``camera.world``: the roadside, or the airfield of de Saxe & Cebon
+    2018, §4)."""
     from sensor.stereo_camera import StereoCamera  # the renderer: OpenGL only where frames are rendered
 
     cfg = setup.config

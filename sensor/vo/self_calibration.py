@@ -6,8 +6,8 @@ driving and hands back the eq (8) correction ``K·R̂·K⁻¹`` for the next fra
 
 Model (first order in the angles)
 ---------------------------------
-A right camera rotated by ``R = R_z(φ)·R_y(ψ)·R_x(θ)`` (paper eq (9); roll φ about z, pitch θ about x, yaw ψ
-about y, OpenCV axes) sees the ideal right image moved by ``K·Rᵀ·K⁻¹`` (paper eq (8),
+A right camera rotated by ``R = R_z(φ)·R_y(ψ)·R_x(θ)`` (the paper's eq (9); roll φ about z, pitch θ about x, yaw ψ
+about y, OpenCV axes) sees the ideal right image moved by ``K·Rᵀ·K⁻¹`` (the paper's eq (8),
 :meth:`sensor.camera.StereoRig.misalignment_homography`). With ``R ≈ I + [ω]×``, ``ω = (θ, ψ, φ)`` and the
 normalised coordinates ``x = (u − c_u)/f``, ``y = (v − c_v)/f`` of the ideal right point, the ray
 ``p = (x, y, 1)`` becomes ``p − ω × p`` and, after division by its third component,
@@ -33,7 +33,7 @@ when their disparity is within ``ground_tolerance`` of the plane's (a relative h
 disparity is at least ``min_ground_disparity_px``. The alternative, the distance travelled from the trailer's
 wheel speed against the odometry's translation, would tie the estimate to the wheels — longitudinal slip and a
 tyre radius that varies with load and pressure by 1–2 %, while 0.02° of yaw is a 0.35–0.7 % depth change at
-5–10 m on a 0.5 m baseline — and the sensor's point (paper §1.2) is its independence from the wheels.
+5–10 m on a 0.5 m baseline — and the sensor's point (the paper's §1.2) is its independence from the wheels.
 
 Estimator
 ---------
@@ -316,7 +316,7 @@ class StereoSelfCalibration:
         return (float(d[0]), float(d[1]), float(d[2]))
 
     def rotation(self) -> np.ndarray:
-        """``R̂ = R_z(φ)·R_y(ψ)·R_x(θ)`` of the estimate (paper eq (9))."""
+        """``R̂ = R_z(φ)·R_y(ψ)·R_x(θ)`` of the estimate (de Saxe & Cebon 2018, eq (9))."""
         roll, pitch, yaw = self.angles
         cf, sf, cp, sp, ct, st = (f(a) for a in (roll, yaw, pitch) for f in (math.cos, math.sin))
         rz = np.array([[cf, -sf, 0.0], [sf, cf, 0.0], [0.0, 0.0, 1.0]])
@@ -325,7 +325,8 @@ class StereoSelfCalibration:
         return rz @ ry @ rx
 
     def correction_homography(self) -> np.ndarray | None:
-        """``K·R̂·K⁻¹``, the warp of the right image that removes the estimate (paper eqs (8)–(9)); None at zero."""
+        """``K·R̂·K⁻¹``, the warp of the right image that removes the estimate (de Saxe & Cebon 2018, eqs (8)–(9));
+        None at zero."""
         if not self._omega.any():
             return None
         return self.k @ self.rotation() @ np.linalg.inv(self.k)
