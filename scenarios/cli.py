@@ -227,9 +227,7 @@ def compare(
     vehicle: Annotated[str, typer.Option(help="Vehicle preset with steerable trailer axles.")] = "lst",
     feedbacks: Annotated[
         str,
-        typer.Option(
-            help=f"Comma-separated feedback sources to compare, of: {FEEDBACKS}."
-        ),
+        typer.Option(help=f"Comma-separated feedback sources to compare, of: {FEEDBACKS}."),
     ] = "none,zero_slip,viso_ot,truth",
     set_: Annotated[list[str] | None, typer.Option("--set", help="Any config field, e.g. --set path.turns=1.")] = None,
     out: Annotated[Path | None, typer.Option(help="Output directory (default runs/compare-SCENARIO/…).")] = None,
