@@ -52,10 +52,6 @@ ANIMATION_FILE = "animation.mp4"
 ANIMATION_ENVELOPE_SPACING = 0.25
 """Corner movement [m] between the outlines that make up the envelopes of a frame (coarser than a figure's)."""
 
-_RENDERER: dict[str, Any] = {}
-"""The process's one renderer, ``{"key": …, "renderer": StereoRenderer, "vo": StereoOdometry, …}``."""
-
-
 def frame_times(time: np.ndarray, fps: float, speed: float, max_frames: int | None = None) -> np.ndarray:
     """Simulated times of the frames: every ``speed / fps`` seconds from the first to the last sample.
 
@@ -78,21 +74,14 @@ class _Camera:
 
     def __init__(self, run: SavedRun) -> None:
         from sensor.field_optics import right_correction_homography
+        from sensor.renderer import StereoRenderer
         from sensor.vo import StereoOdometry, VOConfig
 
         from ..camera.build import rig_from_config, world_for_scenario
 
         config = run.config
-        key = config.model_dump_json(include={"path", "camera", "seed", "direction", "vehicle"})
-        if _RENDERER.get("key") != key:
-            from sensor.renderer import StereoRenderer
-
-            _RENDERER.clear()  # drop the previous run's renderer before making this one
-            rig = rig_from_config(config)
-            world = world_for_scenario(run.setup)
-            _RENDERER.update(key=key, renderer=StereoRenderer(world, rig, run.params, seed=config.seed), rig=rig)
-        self.renderer = _RENDERER["renderer"]
-        rig = _RENDERER["rig"]
+        rig = rig_from_config(config)
+        self.renderer = StereoRenderer(world_for_scenario(run.setup), rig, run.params, seed=config.seed)
         self.vo = StereoOdometry(
             VOConfig.from_horizontal_fov(rig.width, rig.height, rig.hfov, rig.baseline), config.seed
         )

@@ -28,7 +28,8 @@ class Terminated(KeyboardInterrupt):
 
 
 _pending: list[type[KeyboardInterrupt]] = []
-"""The stops requested by a signal and not yet handled (see :func:`raise_pending_stop`)."""
+"""The stops requested by a signal and not yet handled (see :func:`raise_pending_stop`): one list per process, because
+a signal is delivered to the process and its handler has nowhere else to leave it."""
 
 
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:
