@@ -228,7 +228,7 @@ def compare(
     feedbacks: Annotated[
         str,
         typer.Option(help=f"Comma-separated feedback sources to compare, of: {FEEDBACKS}."),
-    ] = "none,zero_slip,viso_ot,truth",
+    ] = ",".join(feedback_sources()),
     set_: Annotated[list[str] | None, typer.Option("--set", help="Any config field, e.g. --set path.turns=1.")] = None,
     out: Annotated[Path | None, typer.Option(help="Output directory (default runs/compare-SCENARIO/…).")] = None,
     force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous files are removed.")] = False,
@@ -455,7 +455,9 @@ def tune(
     trials: Annotated[int, typer.Option(help="Optuna trials (the first is the designed gains).", min=1)] = 30,
     draws: Annotated[int, typer.Option(help="Training draws of the randomised roads per trial.", min=1)] = 3,
     seed: Annotated[int, typer.Option(help="Seed of the draws and of the sampler.", min=0)] = 0,
-    feedback: Annotated[str, typer.Option(help="Feedback source: truth, zero_slip or viso_ot.")] = "truth",
+    feedback: Annotated[
+        str, typer.Option(help=f"Feedback source, one of: {FEEDBACKS.removeprefix('none, ')}.")
+    ] = "truth",
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Tune the trailer PID gains with Optuna (offtrack/GainTuning-v0); compare them on held-out roads."""

@@ -28,6 +28,7 @@ __all__ = [
     "estimator_entry",
     "feedback_sources",
     "register_estimator",
+    "source_colour",
     "unregister_estimator",
 ]
 
@@ -56,6 +57,8 @@ class EstimatorEntry:
         Runs in every run (the ground truth).
     needs_camera : bool
         Renders the trailer's stereo camera (headless OpenGL; about ten times slower than a model-only run).
+    colour : str or None
+        Its colour in figures (a matplotlib colour; ``None``: the next of the cycle).
     """
 
     name: str
@@ -65,6 +68,7 @@ class EstimatorEntry:
     requires: tuple[str, ...] = ()
     always: bool = False
     needs_camera: bool = False
+    colour: str | None = None
 
     def __post_init__(self) -> None:
         if not self.name.isidentifier() or self.name == NO_FEEDBACK or self.name.startswith("truth_"):
@@ -125,22 +129,25 @@ def estimator_entry(name: str) -> EstimatorEntry:
 
 
 def feedback_sources() -> tuple[str, ...]:
-    """The feedback choices: :data:`NO_FEEDBACK` and every registered estimator."""
+    """The feedback choices: :data:`NO_FEEDBACK` and every registered estimator, in registration order."""
     return (NO_FEEDBACK, *_ENTRIES)
 
 
+def source_colour(name: str) -> str | None:
+    """The colour of a feedback source in figures (:data:`NO_FEEDBACK`: red; unknown or unset: ``None``)."""
+    if name == NO_FEEDBACK:
+        return "tab:red"
+    entry = _ENTRIES.get(name)
+    return None if entry is None else entry.colour
+
+
 for _entry in (
-    EstimatorEntry(
-        "truth",
-        "ground truth: the exact kingpin path of the simulation (de Saxe & Cebon 2018, eqs (3)–(7))",
-        "scenarios.loop.estimators:ground_truth",
-        always=True,
-    ),
     EstimatorEntry(
         "zero_slip",
         "Cheng's zero-slip estimate from the tractor's signals (blind to tyre slip)",
         "scenarios.loop.estimators:zero_slip",
         switch="zero_slip",
+        colour="tab:orange",
     ),
     EstimatorEntry(
         "viso_ot",
@@ -148,6 +155,7 @@ for _entry in (
         "scenarios.loop.camera_estimator:viso_ot",
         switch="viso_ot",
         needs_camera=True,
+        colour="tab:green",
     ),
     EstimatorEntry(
         "viso_ot_fused",
@@ -156,6 +164,14 @@ for _entry in (
         switch="viso_ot_fused",
         requires=("viso_ot",),
         needs_camera=True,
+        colour="tab:purple",
+    ),
+    EstimatorEntry(
+        "truth",
+        "ground truth: the exact kingpin path of the simulation (de Saxe & Cebon 2018, eqs (3)–(7))",
+        "scenarios.loop.estimators:ground_truth",
+        always=True,
+        colour="tab:blue",
     ),
 ):
     register_estimator(_entry)

@@ -88,7 +88,7 @@ def test_a_registered_estimator_is_recorded_measured_and_fed_back(offset_truth: 
 
 
 def test_an_unregistered_feedback_is_refused_naming_the_choices(offset_truth: str) -> None:
-    with pytest.raises(ConfigError, match="feedback = 'gps_offset': must be one of none, truth"):
+    with pytest.raises(ConfigError, match="feedback = 'gps_offset': must be one of none, zero_slip"):
         load_scenario("roundabout-3", {**QUARTER, "feedback": "gps_offset"})
 
 

@@ -33,7 +33,8 @@ from matplotlib.patches import PathPatch, Polygon
 from vehicle_model.errors import InputError
 from vehicle_model.geometry import CombinationPose, tractor_outline, trailer_outline
 
-from ..run.plots import ESTIMATOR_COLOURS, SavedRun, load_run
+from ..registry import source_colour
+from ..run.plots import SavedRun, load_run
 from ..run.swept_path import (
     TRACTOR_COLOUR,
     TRAILER_COLOUR,
@@ -51,6 +52,7 @@ ANIMATION_FILE = "animation.mp4"
 
 ANIMATION_ENVELOPE_SPACING = 0.25
 """Corner movement [m] between the outlines that make up the envelopes of a frame (coarser than a figure's)."""
+
 
 def frame_times(time: np.ndarray, fps: float, speed: float, max_frames: int | None = None) -> np.ndarray:
     """Simulated times of the frames: every ``speed / fps`` seconds from the first to the last sample.
@@ -302,7 +304,7 @@ def animate_run(
     names = ["truth", *run.estimator_names()]
     lines = []
     for name in names:
-        colour = "k" if name == "truth" else ESTIMATOR_COLOURS.get(name)
+        colour = "k" if name == "truth" else source_colour(name)
         (line,) = trace.plot(time, cols[f"offtracking_{name}"], lw=1.6 if name == "truth" else 1.0, color=colour)
         lines.append(line)
     values = np.concatenate([cols[f"offtracking_{n}"] for n in names])

@@ -24,12 +24,11 @@ from matplotlib.figure import Figure
 from vehicle_model.parameters import VehicleParams
 
 from ..config import ScenarioConfig, validate_config
+from ..registry import source_colour
 from ..setup.build import ScenarioSetup, build_scenario
 from .metrics import estimator_names
 from .results import CONFIG_FILE, METRICS_FILE, TIMESERIES_FILE
 from .swept_path import swept_path_figure
-
-ESTIMATOR_COLOURS = {"zero_slip": "tab:orange", "viso_ot": "tab:green"}
 
 
 def run_title(config: ScenarioConfig) -> str:
@@ -168,7 +167,7 @@ def plot_offtracking(path: Path, columns: dict[str, np.ndarray], estimator_names
     top.plot(t, columns["offtracking_truth_geometric"], color="0.5", lw=0.8, ls="--", label="truth (geometric)")
     for name in estimator_names:
         est = columns[f"offtracking_{name}"]
-        colour = ESTIMATOR_COLOURS.get(name)
+        colour = source_colour(name)
         top.plot(t, est, lw=1.0, color=colour, label=name)
         bottom.plot(t, est - truth, lw=1.0, color=colour, label=f"{name} − truth")
     top.axhline(0.0, color="k", lw=0.5)

@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 from vehicle_model.errors import InputError
 
 from ..config import ScenarioConfig, validate_config
-from ..registry import feedback_sources
+from ..registry import feedback_sources, source_colour
 from ..run.drive import ProgressCallback
 from ..run.files import write_atomic
 from ..run.results import TIMESERIES_FILE
@@ -30,17 +30,6 @@ from ..run.swept_path import (
     turn_sign,
 )
 from ..setup.build import build_scenario
-
-DEFAULT_FEEDBACKS = ("none", "zero_slip", "viso_ot", "truth")
-"""The feedback sources ``offtrack compare`` runs unless told (every one of :mod:`scenarios.registry` is allowed)."""
-COLOURS = {
-    "none": "tab:red",
-    "zero_slip": "tab:orange",
-    "viso_ot": "tab:green",
-    "viso_ot_fused": "tab:purple",
-    "truth": "tab:blue",
-}
-"""Colour of the built-in feedback sources in the comparison figure (others take the next colour of the cycle)."""
 
 
 def summary_row(feedback: str, metrics: dict[str, Any]) -> dict[str, Any]:
@@ -64,14 +53,16 @@ def summary_row(feedback: str, metrics: dict[str, Any]) -> dict[str, Any]:
 def compare_feedback(
     config: ScenarioConfig,
     out_dir: Path,
-    feedbacks: tuple[str, ...] = DEFAULT_FEEDBACKS,
+    feedbacks: tuple[str, ...] | None = None,
     progress: ProgressCallback | None = None,
 ) -> pd.DataFrame:
     """Run ``config`` once per feedback source into ``out_dir/<feedback>/``; write the table and the figure.
 
     Writes ``comparison.csv``, ``comparison.md`` and ``comparison.png`` (true off-tracking of every run
-    against time, and their swept follow-point paths).
+    against time, and their swept follow-point paths). ``feedbacks``: default every source of
+    :mod:`scenarios.registry`.
     """
+    feedbacks = feedback_sources() if feedbacks is None else feedbacks
     configs = {}
     unknown = [f for f in feedbacks if f not in feedback_sources()]
     if unknown:
@@ -132,7 +123,7 @@ def comparison_figure(
         else {}
     )
     for feedback, frame in traces.items():
-        top.plot(frame["time"], frame["offtracking_truth"], color=COLOURS.get(feedback), lw=1.2, label=feedback)
+        top.plot(frame["time"], frame["offtracking_truth"], color=source_colour(feedback), lw=1.2, label=feedback)
     for ax in (plan, zoom):
         draw_envelopes(
             ax,
@@ -148,7 +139,7 @@ def comparison_figure(
         if centre is not None:
             draw_circles(ax, centre)
         for rank, (feedback, cols) in enumerate(columns.items()):
-            colour = COLOURS.get(feedback, "tab:blue")
+            colour = source_colour(feedback) or "tab:blue"
             ext = extremes.get(feedback)
             verdict = (
                 "" if ext is None else f", min r {ext['inner_radius_min']:.3f} m {'PASS' if ext['pass'] else 'FAIL'}"

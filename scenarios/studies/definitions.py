@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from ..loop.ends import RunStatus
+from ..registry import feedback_sources
 from .cases import run_case
 from .figures import FIGURES
 from .progress import ProgressCallback, SweepProgress
@@ -97,7 +98,7 @@ def estimators_under_slip_cases(full: bool = False) -> list[CaseSpec]:
     surfaces = ("dry", "wet", "snow", "ice") if full else ("dry", "ice")
     cambers = (0.0, 2.5, 5.0) if full else (0.0, 5.0)
     scenarios = ("roundabout-3", "figure-eight") if full else ("roundabout-3",)
-    feedbacks = ("none", "zero_slip", "viso_ot", "viso_ot_fused", "truth")
+    feedbacks = feedback_sources()  # every source of the registry: none, zero_slip, viso_ot, viso_ot_fused, truth
     cases = []
     for scenario in scenarios:
         for surface in surfaces:
