@@ -89,6 +89,7 @@ from pydantic import Field
 from vehicle_model.errors import InputError
 from vehicle_model.offtracking import OfftrackingBuffer, offtracking_from_path
 from vehicle_model.parameters import VehicleParams
+from vehicle_model.rigid import invert_rigid
 from vehicle_model.settings import Settings
 
 from .viso_ot import VisoOtEstimator
@@ -317,13 +318,13 @@ class FusedVisoOt:
         z = np.array(self.geometry.kingpin_increment(camera_motion))
         r = np.diag([n.vo_translation_floor**2, n.vo_translation_floor**2, n.vo_rotation_floor**2])
         if covariance is not None and np.all(np.isfinite(covariance)):
-            theta = transform_to_params(_rigid_inverse(camera_motion))
+            theta = transform_to_params(invert_rigid(camera_motion))
             jac = np.empty((3, 6))
             h = 1e-7
             for i in range(6):
                 d = theta.copy()
                 d[i] += h
-                jac[:, i] = (np.array(self.geometry.kingpin_increment(_rigid_inverse(params_to_transform(d)))) - z) / h
+                jac[:, i] = (np.array(self.geometry.kingpin_increment(invert_rigid(params_to_transform(d)))) - z) / h
             r = r + n.vo_covariance_scale * (jac @ np.asarray(covariance, dtype=float) @ jac.T)
         return z, r
 
@@ -442,14 +443,6 @@ def _relative(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
     c, s = math.cos(a[2]), math.sin(a[2])
     dx, dy = b[0] - a[0], b[1] - a[1]
     return c * dx + s * dy, -s * dx + c * dy, float(b[2] - a[2])
-
-
-def _rigid_inverse(transform: np.ndarray) -> np.ndarray:
-    """Inverse of a 4×4 rigid transform."""
-    out = np.eye(4)
-    out[:3, :3] = transform[:3, :3].T
-    out[:3, 3] = -transform[:3, :3].T @ transform[:3, 3]
-    return out
 
 
 def _into(poses: np.ndarray, origin: np.ndarray) -> np.ndarray:

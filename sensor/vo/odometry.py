@@ -32,6 +32,7 @@ from sensor.vo.match_columns import U1C, U2C, V1C, V2C
 from sensor.vo.matching import match_frames
 from sensor.vo.motion import estimate_motion, params_to_transform
 from sensor.vo.quality import MotionQuality, motion_quality, quality_failure
+from vehicle_model.rigid import invert_rigid
 
 __all__ = ["StereoOdometry", "VOResult"]
 
@@ -140,11 +141,7 @@ class VOResult:
         """inv(Tr_delta): the current left camera's pose in the previous left camera's frame."""
         if self.motion is None:
             return None
-        r, t = self.motion[:3, :3], self.motion[:3, 3]
-        out = np.eye(4)
-        out[:3, :3] = r.T
-        out[:3, 3] = -r.T @ t
-        return out
+        return invert_rigid(self.motion)
 
 
 class StereoOdometry:
