@@ -233,7 +233,7 @@ def test_render_checks_its_output_directory_before_simulating(tmp_path: Path, mo
         simulated.append(setup.config.duration_s)  # type: ignore[attr-defined]
         raise RuntimeError("stop here")
 
-    monkeypatch.setattr(kitti, "run_cosimulation", no_simulation)
+    monkeypatch.setattr(kitti, "simulate", no_simulation)
     config = load_scenario("constant-slip")
     a_file = tmp_path / "f.txt"
     a_file.write_text("x")
