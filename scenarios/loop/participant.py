@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -181,9 +181,3 @@ class TrailerSteerSource(Participant, Protocol):
     def command(self, tick: TickInput, estimates: Mapping[str, OfftrackingEstimate]) -> np.ndarray:
         """Steer [rad] of every steerable trailer axle (layout order) from tick ``tick`` on."""
         ...
-
-
-def call_optional(participant: Any, method: str) -> Any:
-    """Call ``participant.<method>()`` if it has one (``None`` otherwise)."""
-    function = getattr(participant, method, None)
-    return function() if callable(function) else None

@@ -1,1 +1,1 @@
-"""One run of a scenario: the co-simulation loop, the run directory's files, metrics and plots."""
+"""One run of a scenario: driving the co-simulation to its end, the run directory's files, metrics and plots."""
