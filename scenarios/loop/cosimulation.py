@@ -21,11 +21,12 @@ is :attr:`~CoSimulation.done` — the driver at the end of its path, the time up
 
 A CoSimulation pickles: the scenario is rebuilt from its configuration (the compiled model and the driver's
 feed-forward closure cannot be pickled) and the simulator continues from its snapshot; every participant is
-pickled as it is.
+pickled as it is. A sink (a time-series file being written) stays behind: the copy records in memory only.
 """
 
 from __future__ import annotations
 
+import copy
 import io
 import pickle
 from collections.abc import Mapping
@@ -365,9 +366,13 @@ class CoSimulation:
 
     def __getstate__(self) -> dict[str, Any]:
         rest = {k: v for k, v in self.__dict__.items() if k not in _REBUILT}
+        if self.recorder.sink is not None:  # a file being written stays with this process: the copy records in memory
+            rest["recorder"] = copy.copy(self.recorder)
+            rest["recorder"].sink = None
         return {"config": self.setup.config, "sim": self.sim.snapshot(), "rest": _dumps(rest, self.setup, self.sim)}
 
     def __setstate__(self, data: dict[str, Any]) -> None:
+        self.sink = None
         self._build(rebuild_setup(data["config"]))
         self.sim.restore(data["sim"])
         self.__dict__.update(_loads(data["rest"], self.setup, self.sim))
