@@ -87,6 +87,10 @@ def follow_point_from_kingpin(kingpin: np.ndarray, psi2, follow_point_offset: fl
     ``P_f = P5 − L_fp·(cos ψ2, sin ψ2)`` (module docstring).
     """
     kingpin = np.asarray(kingpin, dtype=float)
+    if np.ndim(psi2) == 0:  # one pose (every control tick): without the stacking of the array form
+        return np.array(
+            [kingpin[0] - follow_point_offset * np.cos(psi2), kingpin[1] - follow_point_offset * np.sin(psi2)]
+        )
     return np.stack(
         [kingpin[..., 0] - follow_point_offset * np.cos(psi2), kingpin[..., 1] - follow_point_offset * np.sin(psi2)],
         axis=-1,
