@@ -269,7 +269,7 @@ def test_fixed_axle_compensation_balances_the_yaw_moment_about_the_kingpin():
 def test_errors_are_clear():
     with pytest.raises(InputError, match="no steerable trailer axle"):
         TrailerSteeringController(reference_laden())
-    with pytest.raises(ConfigError, match="feedback = 'gps': must be one of none, zero_slip, viso_ot, viso_ot_fused, truth"):
+    with pytest.raises(ConfigError, match="feedback = 'gps': must be one of none, zero_slip, viso_ot, viso_ot_fused"):
         load_scenario("roundabout-3", {"vehicle": "lst", "feedback": "gps"})
     setup = build_scenario(load_scenario("roundabout-3", {"vehicle": "lst", "duration_s": 1.0}))
     with pytest.raises(InputError, match="feeds back 'viso_ot', which this run does not estimate"):
