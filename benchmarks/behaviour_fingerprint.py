@@ -121,6 +121,12 @@ MODEL_RUNS: dict[str, list[str]] = {
     ],
 }
 
+FUSED_FIELD_RUN = [
+    *("roundabout-3", "--vehicle", "lst", "--feedback", "viso_ot_fused", "--set", "estimators.viso_ot_fused=true"),
+    *("--duration", "10", "--seed", "3", *[a for item in FIELD for a in ("--set", item)]),
+]
+"""A fused VISO-OT closed loop under the field conditions (serial and pipelined must agree)."""
+
 CAMERA_RUNS: dict[str, tuple[list[str], dict[str, str]]] = {
     "camera/roundabout-3/viso_ot/serial": (
         [
@@ -150,40 +156,8 @@ CAMERA_RUNS: dict[str, tuple[list[str], dict[str, str]]] = {
         ],
         {"OFFTRACK_CAMERA_WORKERS": "1"},
     ),
-    "camera/roundabout-3/fused-field/serial": (
-        [
-            "roundabout-3",
-            "--vehicle",
-            "lst",
-            "--feedback",
-            "viso_ot_fused",
-            "--set",
-            "estimators.viso_ot_fused=true",
-            "--duration",
-            "10",
-            "--seed",
-            "3",
-            *[a for item in FIELD for a in ("--set", item)],
-        ],
-        {"OFFTRACK_CAMERA_WORKERS": "0"},
-    ),
-    "camera/roundabout-3/fused-field/pipelined": (
-        [
-            "roundabout-3",
-            "--vehicle",
-            "lst",
-            "--feedback",
-            "viso_ot_fused",
-            "--set",
-            "estimators.viso_ot_fused=true",
-            "--duration",
-            "10",
-            "--seed",
-            "3",
-            *[a for item in FIELD for a in ("--set", item)],
-        ],
-        {"OFFTRACK_CAMERA_WORKERS": "1"},
-    ),
+    "camera/roundabout-3/fused-field/serial": (FUSED_FIELD_RUN, {"OFFTRACK_CAMERA_WORKERS": "0"}),
+    "camera/roundabout-3/fused-field/pipelined": (FUSED_FIELD_RUN, {"OFFTRACK_CAMERA_WORKERS": "1"}),
     "camera/constant-slip/side": (
         [
             "constant-slip",

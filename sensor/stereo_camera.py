@@ -99,6 +99,7 @@ class PairDeveloper:
     ) -> None:
         self.seed = int(seed)
         self.lighting = lighting
+        self.frame_interval_s = float(frame_interval_s)
         auto = lighting is not None and lighting.sun and lighting.auto_exposure
         self.exposure = AutoExposure(lighting, frame_interval_s) if auto and lighting is not None else None
         flexes = flex is not None and not flex.is_zero
@@ -143,45 +144,27 @@ class StereoCamera:
 
     Parameters
     ----------
-    rig : StereoRig
-        The true camera rig.
+    developer : PairDeveloper
+        The camera's development (rig, lenses, calibration, lighting, flex, correction, seed); its lighting, seed
+        and frame interval also light and seed the renderer.
     world : World
         What the cameras see.
     params : VehicleParams
         The combination (where the camera is at a pose).
-    lenses, calibration, lighting, flex, right_correction_deg, seed, frame_interval_s
-        As for :class:`PairDeveloper`; ``lighting``, ``seed`` and ``frame_interval_s`` also go to the renderer.
     """
 
-    def __init__(
-        self,
-        rig: StereoRig,
-        world: World,
-        params: VehicleParams,
-        *,
-        lenses: tuple[Lens, Lens] | LensDistortion | None = None,
-        calibration: CalibrationResult | None = None,
-        lighting: Lighting | None = None,
-        flex: MountFlex | None = None,
-        right_correction_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
-        seed: int = 0,
-        frame_interval_s: float = 0.1,
-    ) -> None:
-        self.developer = PairDeveloper(
-            rig,
-            lenses=lenses,
-            calibration=calibration,
-            lighting=lighting,
-            flex=flex,
-            right_correction_deg=right_correction_deg,
-            seed=seed,
-            frame_interval_s=frame_interval_s,
-        )
-        self.optics = self.developer.optics
+    def __init__(self, developer: PairDeveloper, world: World, params: VehicleParams) -> None:
+        self.developer = developer
+        self.optics = developer.optics
         self.world = world
         self.params = params
         self.renderer = StereoRenderer(
-            world, self.optics.render_rig, params, seed=seed, lighting=lighting, frame_interval_s=frame_interval_s
+            world,
+            self.optics.render_rig,
+            params,
+            seed=developer.seed,
+            lighting=developer.lighting,
+            frame_interval_s=developer.frame_interval_s,
         )
 
     @property

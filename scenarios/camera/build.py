@@ -210,7 +210,7 @@ def stereo_camera(setup: ScenarioSetup) -> StereoCamera:
     cfg = setup.config
     kind = cfg.camera.world
     world = world_for_scenario(setup) if kind == "roadside" else world_for_scenario(setup, kind=kind)
-    return StereoCamera(rig_from_config(cfg), world, setup.params, **_camera_settings(cfg))
+    return StereoCamera(pair_developer(cfg), world, setup.params)
 
 
 def pair_developer(config: ScenarioConfig) -> PairDeveloper:
