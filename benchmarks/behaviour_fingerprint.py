@@ -121,6 +121,10 @@ MODEL_RUNS: dict[str, list[str]] = {
     ],
 }
 
+VISO_OT_RUN = ["roundabout-3", "--vehicle", "lst", "--feedback", "viso_ot", "--set", "estimators.viso_ot=true"]
+VISO_OT_RUN += ["--duration", "10"]
+"""A VISO-OT closed loop with ideal cameras (serial and pipelined must agree)."""
+
 FUSED_FIELD_RUN = [
     *("roundabout-3", "--vehicle", "lst", "--feedback", "viso_ot_fused", "--set", "estimators.viso_ot_fused=true"),
     *("--duration", "10", "--seed", "3", *[a for item in FIELD for a in ("--set", item)]),
@@ -128,34 +132,8 @@ FUSED_FIELD_RUN = [
 """A fused VISO-OT closed loop under the field conditions (serial and pipelined must agree)."""
 
 CAMERA_RUNS: dict[str, tuple[list[str], dict[str, str]]] = {
-    "camera/roundabout-3/viso_ot/serial": (
-        [
-            "roundabout-3",
-            "--vehicle",
-            "lst",
-            "--feedback",
-            "viso_ot",
-            "--set",
-            "estimators.viso_ot=true",
-            "--duration",
-            "10",
-        ],
-        {"OFFTRACK_CAMERA_WORKERS": "0"},
-    ),
-    "camera/roundabout-3/viso_ot/pipelined": (
-        [
-            "roundabout-3",
-            "--vehicle",
-            "lst",
-            "--feedback",
-            "viso_ot",
-            "--set",
-            "estimators.viso_ot=true",
-            "--duration",
-            "10",
-        ],
-        {"OFFTRACK_CAMERA_WORKERS": "1"},
-    ),
+    "camera/roundabout-3/viso_ot/serial": (VISO_OT_RUN, {"OFFTRACK_CAMERA_WORKERS": "0"}),
+    "camera/roundabout-3/viso_ot/pipelined": (VISO_OT_RUN, {"OFFTRACK_CAMERA_WORKERS": "1"}),
     "camera/roundabout-3/fused-field/serial": (FUSED_FIELD_RUN, {"OFFTRACK_CAMERA_WORKERS": "0"}),
     "camera/roundabout-3/fused-field/pipelined": (FUSED_FIELD_RUN, {"OFFTRACK_CAMERA_WORKERS": "1"}),
     "camera/constant-slip/side": (
