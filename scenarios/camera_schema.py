@@ -89,7 +89,8 @@ class CameraConfig(Settings):
     ``right_correction_deg`` is the *estimated misalignment* (same convention as
     ``right_misalignment_deg``) whose rotation is removed from the right images before odometry (the paper's eqs
     (8)–(9)): the paper's correction φ = +0.15°, ψ = −0.10° of a misalignment φ = −0.15°, ψ = +0.10° is given
-    here as ``[-0.15, 0, 0.10]``. ``latency_s`` delays each frame's estimate before the controller sees
+    here as ``[-0.15, 0, 0.10]``. ``vo_refinement`` is the odometry's match refinement (sub-pixel by default).
+    ``latency_s`` delays each frame's estimate before the controller sees
     it (default: one frame period).
     """
 
@@ -129,6 +130,13 @@ class CameraConfig(Settings):
         description="sun, shadows, sky and auto-exposure (sensor.lighting.Lighting); sun: false is flat lighting",
     )
     self_calibration: SelfCalibrationConfig = SelfCalibrationConfig()
+    vo_refinement: int = Field(
+        2,
+        ge=0,
+        le=2,
+        description="the odometry's match refinement: 0 none, 1 pixel (libviso2's default), 2 sub-pixel; matches "
+        "located to the pixel lock onto the pixel grid, which on ground texture biases the yaw (docs/field_bias.md)",
+    )
     world: Literal["roadside", "airfield"] = "roadside"
     latency_s: float | None = Field(
         None,

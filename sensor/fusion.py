@@ -1,22 +1,26 @@
-"""Fused VISO-OT: a Kalman filter of the trailer's own signals and the stereo camera's visual odometry.
+"""Fused VISO-OT: a Kalman filter of the trailer's signals, the zero-slip kinematics and the stereo camera's odometry.
 
-VISO-OT (de Saxe & Cebon 2018, §2.2; :mod:`sensor.viso_ot`) gives the off-tracking at the camera rate, a
-camera latency late, and has nothing between frames or across failed ones. The paper lists a Kalman filter
-as future work (§5). This one propagates at the control rate with **trailer-only** signals — the trailer's
-yaw-rate gyro, a wheel-speed sensor on an unsteered trailer axle and the trailer's own steer angles — so it
-keeps the paper's independence from the tractor, and corrects with every visual-odometry motion, weighted by
-its Gauss–Newton covariance. The kingpin increments it produces feed the one path buffer
-(:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)).
+VISO-OT (de Saxe & Cebon 2018, §2.2; :mod:`sensor.viso_ot`) gives the off-tracking at the camera rate, a camera
+latency late, and has nothing between frames or across failed ones; Cheng's zero-slip kinematics (Cheng 2009;
+docs/vehicle_dynamics.md §2.3, §7.2) give it at every control tick from signals a trailer EBS and the tractor's CAN
+carry, but are blind to tyre slip. The paper lists a Kalman filter as future work (§5). This one propagates at the
+control rate with the trailer's yaw-rate gyro, a wheel-speed sensor on an unsteered trailer axle and the trailer's
+own steer angles; fuses, at every tick, the zero-slip kinematics of the trailer and of the tractor with a noise that
+grows with the evidence of slip; and corrects with every visual-odometry motion, weighted by its Gauss–Newton
+covariance, with the odometry's own systematic error as a state. The kingpin increments it produces feed the one
+path buffer (:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)). docs/field_bias.md says why each
+part is there and what it removes.
 
 Model (trailer frame ISO 8855, origin at the kingpin; docs/design.md §5–6)
 --------------------------------------------------------------------------
 State, kept relative to the *anchor* (the time of the last camera frame that was committed)::
 
-    x = [Δx, Δy, Δψ, v_s, b_g, b_w]
+    x = [Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]
 
 ``(Δx, Δy, Δψ)`` is the kingpin's displacement and the trailer's heading change since the anchor, in the
-anchor's trailer frame; ``v_s`` is the lateral *slip velocity* of the kingpin [m/s] (what zero-slip
-kinematics does not explain); ``b_g`` the gyro bias [rad/s]; ``b_w`` the wheel-speed bias [m/s].
+anchor's trailer frame; ``v_s`` is the lateral *slip velocity* of the kingpin [m/s] (what the trailer's zero-slip
+kinematics does not explain); ``b_g`` the gyro bias [rad/s]; ``b_w`` the wheel-speed bias [m/s]; ``β_ψ`` [rad/m] the visual odometry's systematic yaw error per metre
+travelled (calibration and lens: docs/field_bias.md).
 
 Kinematics. The trailer yaw rate is ``r = r_m − b_g``; the kingpin's longitudinal velocity is that of every
 point on the centre line, so the axle's wheel speed gives ``u = w_m − b_w`` (free-rolling trailer wheels, no
@@ -32,48 +36,75 @@ exact arc::
     δψ = r·dt,   δp = M(δψ)·(u, v_k)·dt,   M(θ) = [[sin θ/θ, −(1−cos θ)/θ], [(1−cos θ)/θ, sin θ/θ]]   (2)
     (Δx, Δy) ← (Δx, Δy) + R(Δψ)·δp,   Δψ ← Δψ + δψ
 
-``v_s``, ``b_g`` and ``b_w`` are random walks. The gyro and wheel-speed noises enter as white noise on the
-period's mean rate; the covariance propagates with the Jacobian of (2) (first order in δψ).
+``v_s``, ``b_g`` and ``b_w`` are random walks in time, ``β_ψ`` and ``β_y`` in distance travelled. The gyro and
+wheel-speed noises enter as white noise on the period's mean rate; the covariance propagates with the Jacobian of
+(2) (first order in δψ).
 
-Measurement. Each frame's camera motion becomes a kingpin increment ``z = (dx, dy, dψ)`` over the frame
-interval through the camera's pose on the trailer (eqs (1)–(2), :meth:`VisoOtEstimator.kingpin_increment`);
-it measures ``(Δx, Δy, Δψ)`` at the frame's time, ``H = [I₃ 0]``. Its covariance is the odometry's
-``Σ = (JᵀJ)⁻¹σ̂²`` of the 6 motion parameters mapped through that function (numerical Jacobian), scaled by
-``vo_covariance_scale`` (the Gauss–Newton covariance is a floor of the true one, :mod:`sensor.vo.quality`)
-plus a floor; so a frame with few or noisy inliers counts for less. A motion whose normalised innovation
-squared exceeds ``gate`` is refused (``max_gated`` in a row are accepted with the covariance inflated, so the
-filter cannot lock itself out).
+Zero-slip measurements (every control tick, when the tractor's signals are given). Two pseudo-measurements
+say that no tyre slides:
+
+    (K1)  0 = v_s                                         the trailer's axles roll (Cheng's trailer)
+    (K2)  z_c = r·L_c + u·Σ w_j tan δ_j + v_s             the tractor's rear point rolls (Cheng 2009)
+
+where ``z_c = sin Γ·u_1 + cos Γ·(−e·r_1)`` is the kingpin's lateral velocity in trailer axes if no tractor tyre
+slips (:func:`vehicle_model.kinematics.zero_slip_kingpin_velocity` turned by the articulation Γ; ``u_1``, ``r_1``
+the tractor's wheel speed and yaw rate). Together they tie the yaw rate to the articulation and the speeds with
+no gyro in it (``e``, the kingpin's offset from the tractor's rear point, is under a metre, so ``r_1``'s bias
+hardly enters), which makes the gyro bias and the odometry's systematic error observable where nothing slips.
+Their errors are slowly varying (a steady slip in a steady turn), not white: with a correlation time ``τ_c`` a
+measurement at every tick ``dt`` carries the information of one every ``τ_c``, so each is applied with the
+variance ``σ²·τ_c/dt`` (Bar-Shalom, Li & Kirubarajan 2001, §8.2: time-correlated noise, approximated by its
+equivalent white noise). The standard deviation σ grows with the evidence of slip — covariance matching of the
+innovations (Mehra 1972; Mohamed & Schwarz 1999, eq (22))::
+
+    C_k = (1 − α)·C_{k−1} + α·ν_k²,   α = dt/τ_a,   σ_k² = max(σ_0², C_k − H·P·Hᵀ)                 (K3)
+
+``ν_k`` the innovation with the camera's evidence in ``P`` and the state. On a dry road the innovations stay at
+``σ_0`` (the slip a rolling tyre has), the kinematics carry the estimate and the camera's systematic error is
+learned; on ice or a cambered road the camera sees the slip, the innovations grow, σ follows them within ``τ_a``
+and the camera carries the estimate with the error learned before. ``σ`` of each is recorded: the run says which
+source it trusted.
+
+Camera measurement. Each frame's camera motion becomes a kingpin increment ``z = (dx, dy, dψ)`` over the frame
+interval through the camera's pose on the trailer (eqs (1)–(2), :meth:`VisoOtEstimator.kingpin_increment`); it
+measures ``(Δx, Δy + d·β_y, Δψ + d·β_ψ)`` at the frame's time (``d = Δx``, the distance since the anchor). Its
+covariance is the odometry's ``Σ = (JᵀJ)⁻¹σ̂²`` of the 6 motion parameters mapped through that function (numerical
+Jacobian), scaled by ``vo_covariance_scale`` (the Gauss–Newton covariance is a floor of the true one,
+:mod:`sensor.vo.quality`) plus a floor; so a frame with few or noisy inliers counts for less. A motion whose
+normalised innovation squared exceeds ``gate`` is refused (``max_gated`` in a row are accepted with the covariance
+inflated, so the filter cannot lock itself out).
 
 Delayed measurements. A frame taken on tick ``k`` is released ``latency`` ticks later
-(:mod:`scenarios.camera.delivery`). The filter keeps the state, covariance and inputs of every tick since the
-anchor; :meth:`FusedVisoOt.measure` updates the stored state of tick ``k`` and re-propagates to the present
-with the stored inputs (an out-of-sequence update by re-filtering). With zero latency this is the ordinary
-update; with any latency it is exactly what the filter would have done had the motion come on tick ``k``,
-seen no earlier than its release.
+(:mod:`scenarios.camera.delivery`). The filter keeps the state, covariance, inputs and zero-slip measurements of
+every tick since the anchor; :meth:`FusedVisoOt.measure` updates the stored state of tick ``k`` and re-filters to
+the present with the stored inputs and measurements (an out-of-sequence update by re-filtering). With zero latency
+this is the ordinary update; with any latency it is exactly what the filter would have done had the motion come
+on tick ``k``, seen no earlier than its release.
 
 Commit. After each frame (measured or not) the increments from the anchor to the frame are pushed into the
 path buffer (the propagated per-tick increments, the last one carrying the correction, so the buffer keeps
 control-rate resolution), the frame becomes the anchor, ``(Δx, Δy, Δψ)`` restart from zero and only the
-covariance of ``(v_s, b_g, b_w)`` is carried on (the cross-covariance with the committed increment is dropped:
+covariance of the other states is carried on (the cross-covariance with the committed increment is dropped:
 the usual reset of a delta state). A failed, refused or dropped frame is committed from the prediction alone,
 so a gap is bridged with a covariance that grows with its length.
 
 Off-tracking and its standard deviation. Every tick the off-tracking is read from the buffer moved by the
-current ``(Δx, Δy, Δψ)`` (eq (7), :func:`~vehicle_model.offtracking.offtracking_from_path`). Its variance is
-approximated as the sum over the committed increments newer than the follow-point station, and the current
-one, of ``gᵀ Q g`` with ``Q`` the increment's covariance and ``g`` the first-order effect of its error on
-``e_tr``::
+current ``(Δx, Δy, Δψ)`` (eq (7), :func:`~vehicle_model.offtracking.offtracking_from_path`). Its variance sums
+four parts. The committed increments newer than the follow-point station, and the current one, each contribute
+``gᵀ Q g`` with ``Q`` the increment's covariance and ``g`` the first-order effect of its error on ``e_tr``::
 
     g = (−sin ψ_s, −cos ψ_s, x_e + L_fp)                                                        (3)
 
 (``ψ_s`` the heading of the increment's start frame and ``x_e`` the station of its end, both in the current
-trailer frame: a translation error moves the old path rigidly, a heading error turns it about the
-increment's end). The increments are treated as independent — correlation through a slowly varying error of
-``v_s`` or of the biases is ignored — so the figure is a first-order approximation, not a bound. The odometry's
-systematic error (scenery- and slip-dependent, correlated over many frames, so absent from each frame's
-Gauss–Newton covariance) is added in quadrature as a constant ``offtracking_bias_std``::
+trailer frame: a translation error moves the old path rigidly, a heading error turns it about the increment's
+end). The remaining uncertainty of the odometry's systematic error is common to all of them, so it enters
+coherently, through ``G = Σ gᵀ·J_β`` with ``J_β`` the increment's change per unit ``(β_ψ, β_y)``. What no state
+explains — the part of the odometry's error that varies with the scenery faster than β can follow — is the
+constant ``offtracking_bias_std``. Finally the evidence: the mean normalised innovation squared of the camera's
+recent motions ``ρ`` (3 when the motions agree with their covariance; Bar-Shalom et al. 2001, §5.4) scales the
+increments' part when it exceeds its expectation::
 
-    σ_e² = Σ gᵀ Q g + σ_b²                                                                       (4)
+    σ_e² = max(1, ρ/3)·Σ gᵀ Q g + G·P_β·Gᵀ + σ_b²                                               (4)
 """
 
 from __future__ import annotations
@@ -87,6 +118,7 @@ import numpy as np
 from pydantic import Field
 
 from vehicle_model.errors import InputError
+from vehicle_model.kinematics import zero_slip_kingpin_velocity
 from vehicle_model.offtracking import OfftrackingBuffer, offtracking_from_path
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.rigid import invert_rigid
@@ -95,10 +127,11 @@ from vehicle_model.settings import Settings
 from .viso_ot import VisoOtEstimator
 from .vo.motion import params_to_transform, transform_to_params
 
-__all__ = ["FusedVisoOt", "FusionNoise", "slip_kinematics"]
+__all__ = ["FusedVisoOt", "FusionNoise", "TractorSignals", "slip_kinematics"]
 
-_STATES = 6
-_J2 = np.array([[0.0, -1.0], [1.0, 0.0]])
+_STATES = 7
+_VS, _BG, _BW, _BPSI = 3, 4, 5, 6
+_BIASES = [_BG, _BPSI]
 
 
 class FusionNoise(Settings):
@@ -120,6 +153,21 @@ class FusionNoise(Settings):
         Variance factor on the odometry's Gauss–Newton covariance (≥ 1: it is a floor).
     vo_translation_floor, vo_rotation_floor : float
         Standard deviations added to every frame's increment [m, rad].
+    vo_yaw_bias : float
+        Standard deviation at the start of the odometry's systematic yaw error per metre [rad/m].
+    vo_yaw_bias_walk : float
+        Its random walk per metre travelled [rad/m/√m] (the scenery changes along the road).
+    vo_bias_coupling : float
+        The odometry's systematic translation error per unit of its yaw error, as a multiple of the regression of
+        its random translation error on its yaw error (its covariance; docs/field_bias.md).
+    kinematics : bool
+        Fuse the zero-slip kinematics (K1)–(K2) when the tractor's signals are given.
+    trailer_slip, tractor_slip : float
+        ``σ_0`` of (K3) for (K1) and (K2): the kingpin's lateral slip velocity of rolling tyres [m/s].
+    kinematic_error_time : float
+        ``τ_c``: the correlation time of the kinematic errors [s].
+    slip_evidence_time : float
+        ``τ_a`` of (K3): how fast the kinematics' σ follows the evidence of slip [s].
     gate : float
         Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
     max_gated : int
@@ -127,21 +175,45 @@ class FusionNoise(Settings):
     max_std : float
         No estimate (``None``) while the off-tracking's standard deviation exceeds this [m].
     offtracking_bias_std : float
-        ``σ_b`` of eq (4) [m]: the systematic error of the odometry's off-tracking, added in quadrature to the
-        filter's own figure (0: the filter's covariance alone; a run's ``fusion`` settings add 0.025 m).
+        ``σ_b`` of eq (4) [m]: what no state of the filter explains of the odometry's off-tracking error, added in
+        quadrature (0: none; a run's ``fusion`` settings add 0.015 m).
+    innovation_window : int
+        Camera motions over which the mean normalised innovation squared ``ρ`` of eq (4) is taken.
     """
 
     gyro_noise: float = Field(2e-3, gt=0.0, le=0.1, description="[rad/s] per sample; 0.1 is beyond any gyro")
     wheel_speed_noise: float = Field(0.05, gt=0.0, le=1.0, description="[m/s] per sample; 1 m/s is a broken sensor")
     slip_velocity_walk: float = Field(0.1, gt=0.0, le=5.0, description="[m/s/√s] slip build-up; 5 spins in 1 s")
-    gyro_bias_walk: float = Field(1e-4, ge=0.0, le=0.1, description="[rad/s/√s]; 0.1 is a gyro without a bias")
+    gyro_bias_walk: float = Field(5e-6, ge=0.0, le=0.1, description="[rad/s/√s]; 0.1 is a gyro without a bias")
     wheel_speed_bias_walk: float = Field(2e-3, ge=0.0, le=1.0, description="[m/s/√s]; 1 is a sensor without a bias")
     initial_slip_velocity: float = Field(0.3, ge=0.0, le=10.0, description="[m/s]; 10 m/s of slip is a spin")
-    initial_gyro_bias: float = Field(0.01, ge=0.0, le=1.0, description="[rad/s]; 1 rad/s is no gyro")
+    initial_gyro_bias: float = Field(
+        1e-4, ge=0.0, le=1.0, description="[rad/s] zeroed at standstill, 0.006°/s left; 1 rad/s is no gyro"
+    )
     initial_wheel_speed_bias: float = Field(0.2, ge=0.0, le=10.0, description="[m/s]; 10 m/s is no wheel speed")
     vo_covariance_scale: float = Field(4.0, ge=1.0, le=1e4, description="on the VO covariance (a floor); 1e4: no VO")
     vo_translation_floor: float = Field(1e-3, ge=0.0, le=1.0, description="[m] per frame; 1 m is no translation")
     vo_rotation_floor: float = Field(1e-4, ge=0.0, le=0.1, description="[rad] per frame; 0.1 rad is no rotation")
+    vo_yaw_bias: float = Field(
+        1e-3, ge=0.0, le=0.01, description="[rad/m] start std of the VO's yaw error; 0.01 rad/m turns 57° in 100 m"
+    )
+    vo_yaw_bias_walk: float = Field(2e-5, ge=0.0, le=1e-3, description="[rad/m/√m]; 1e-3 forgets in a metre")
+    vo_bias_coupling: float = Field(
+        1.15, ge=0.0, le=3.0, description="× the covariance's yaw–translation regression; 0 ties no translation to it"
+    )
+    kinematics: bool = True
+    trailer_slip: float = Field(
+        0.02, gt=0.0, le=1.0, description="[m/s] slip of rolling trailer tyres; 1 m/s is a slide, not a roll"
+    )
+    tractor_slip: float = Field(
+        0.02, gt=0.0, le=1.0, description="[m/s] slip of rolling tractor tyres; 1 m/s is a slide, not a roll"
+    )
+    kinematic_error_time: float = Field(
+        10.0, gt=0.0, le=60.0, description="[s] correlation time of a steady slip; 60 s is a whole manoeuvre"
+    )
+    slip_evidence_time: float = Field(
+        1.0, gt=0.0, le=30.0, description="[s] how fast the kinematics' σ follows the slip; 30 s misses a turn entry"
+    )
     gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
     max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")
     max_std: float = Field(0.5, gt=0.0, le=10.0, description="[m] of off-tracking std; 10 m says nothing")
@@ -149,8 +221,21 @@ class FusionNoise(Settings):
         0.0,
         ge=0.0,
         le=0.5,
-        description="[m] the VO's systematic off-tracking error, added to the filter's std; 0.5 m swamps any estimate",
+        description="[m] the VO's error no state explains, added to the filter's std; 0.5 m swamps any estimate",
     )
+    innovation_window: int = Field(
+        50, ge=1, le=10000, description="camera motions in ρ of eq (4); one is no statistic, 10000 never adapts"
+    )
+
+
+@dataclass(frozen=True)
+class TractorSignals:
+    """The tractor's signals the zero-slip kinematics (K2) take: wheel speed [m/s], yaw rate [rad/s], articulation
+    Γ = ψ1 − ψ2 [rad]."""
+
+    speed: float
+    yaw_rate: float
+    articulation: float
 
 
 def slip_kinematics(params: VehicleParams) -> tuple[float, np.ndarray]:
@@ -169,21 +254,25 @@ def slip_kinematics(params: VehicleParams) -> tuple[float, np.ndarray]:
 
 @dataclass
 class _Tick:
-    """One control tick since the anchor: its number, the inputs of the step into it, state and covariance after."""
+    """One control tick since the anchor: its number, the inputs of the step into it, its zero-slip measurements
+    ``(H, z, R)`` and the state and covariance after them."""
 
     tick: int
     inputs: tuple[float, float, float, float]  # dt, mean r_m, mean w_m, mean Σ w_j tan δ_j
     x: np.ndarray
     p: np.ndarray
+    kinematic: tuple[tuple[np.ndarray, float, float], ...] = ()
+    tractor_lateral: float = math.nan  # the kingpin's lateral velocity if no tractor tyre slips [m/s]
 
 
 class FusedVisoOt:
-    """Kalman filter of trailer signals and visual odometry feeding the off-tracking path buffer (module notes).
+    """Kalman filter of trailer signals, zero-slip kinematics and visual odometry feeding the off-tracking path
+    buffer (module notes).
 
     Parameters
     ----------
     params
-        Vehicle parameters (the follow point and the trailer's axles, eq (1)).
+        Vehicle parameters (the follow point, the trailer's axles of eq (1), the tractor's rear point of (K2)).
     camera_in_trailer
         4×4 pose ``T_trailer←camera`` of the left camera (as :class:`~sensor.viso_ot.VisoOtEstimator`).
     noise
@@ -197,17 +286,24 @@ class FusedVisoOt:
         Its standard deviation [m] (NaN without an estimate).
     frames, updates, rejected : int
         Frames seen, motions used, motions refused by the gate.
+    kinematic_std : dict[str, float]
+        σ of (K3) of the trailer's and the tractor's zero-slip measurement at the last tick [m/s] (NaN before the
+        first): small where the filter trusts the kinematics, large where it has seen slip.
+    innovation_ratio : float
+        ``ρ/3`` of eq (4): the camera motions' mean normalised innovation squared over its expectation.
     """
 
     def __init__(self, params: VehicleParams, camera_in_trailer: np.ndarray, noise: FusionNoise | None = None) -> None:
         self.noise = noise if noise is not None else FusionNoise()
+        self.params = params
         self.geometry = VisoOtEstimator(params, camera_in_trailer)  # eqs (1)–(2): camera motion → kingpin increment
         self.follow_point_offset = params.follow_point_offset
         self.slip_point, self.steer_weights = slip_kinematics(params)
         self.buffer = OfftrackingBuffer(self.follow_point_offset)
         n = self.noise
         self._sample_variance = np.array([n.gyro_noise**2, n.wheel_speed_noise**2])
-        self._walk = np.diag([n.slip_velocity_walk**2, n.gyro_bias_walk**2, n.wheel_speed_bias_walk**2])
+        self._walk_time = np.diag([n.slip_velocity_walk**2, n.gyro_bias_walk**2, n.wheel_speed_bias_walk**2])
+        self._walk_distance = n.vo_yaw_bias_walk**2
         self._f = np.eye(_STATES)  # work arrays of _step
         self._g = np.zeros((_STATES, 2))
         self.reset()
@@ -223,13 +319,25 @@ class FusedVisoOt:
         self._history: deque[_Tick] = deque()
         self._previous_input: tuple[float, float, float] | None = None
         x0 = np.zeros(_STATES)
-        p0 = np.diag([0.0, 0.0, 0.0, n.initial_slip_velocity**2, n.initial_gyro_bias**2, n.initial_wheel_speed_bias**2])
+        p0 = np.diag(
+            [0.0, 0.0, 0.0]
+            + [n.initial_slip_velocity**2, n.initial_gyro_bias**2, n.initial_wheel_speed_bias**2]
+            + [n.vo_yaw_bias**2]
+        )
         self._start = (x0, p0)
+        self._innovation_power = math.nan  # C_k of (K3) and its expectation
+        self._expected_power = math.nan
+        self._slip_evidence = 0.0
+        self._coupling = np.zeros(2)  # the last frame's (c_x, c_y)
+        self.kinematic_std = math.nan
+        self._nis: deque[float] = deque(maxlen=n.innovation_window)
+        self.innovation_ratio = 1.0
         # Committed increments still ahead of the follow point: start pose (x, y, ψ), end station x_e and
         # covariance, all in the anchor's frame.
         self._starts = np.zeros((0, 3))
         self._ends = np.zeros((0, 2))
         self._covs = np.zeros((0, 3, 3))
+        self._durations = np.zeros(0)
 
     # ------------------------------------------------------------------ propagation
 
@@ -242,9 +350,15 @@ class FusedVisoOt:
         return float(np.dot(self.steer_weights, np.tan(s)))
 
     def propagate(
-        self, tick: int, dt: float, yaw_rate: float, wheel_speed: float, steer: np.ndarray | None = None
+        self,
+        tick: int,
+        dt: float,
+        yaw_rate: float,
+        wheel_speed: float,
+        steer: np.ndarray | None = None,
+        tractor: TractorSignals | None = None,
     ) -> None:
-        """Advance to control tick ``tick`` with this tick's trailer signals; update :attr:`estimate`.
+        """Advance to control tick ``tick`` with this tick's signals; update :attr:`estimate`.
 
         Parameters
         ----------
@@ -256,28 +370,37 @@ class FusedVisoOt:
             Measured trailer yaw rate [rad/s] and trailer wheel speed [m/s].
         steer
             Measured steer of the steerable trailer axles [rad] (layout order; empty or ``None`` for none).
+        tractor
+            The tractor's signals for the zero-slip measurements (K1)–(K2) (``None``: none this tick).
         """
         sample = (float(yaw_rate), float(wheel_speed), self._steer_term(steer))
         if not all(math.isfinite(v) for v in sample):
             raise InputError(f"trailer signals {sample} must be finite")
         if self._previous_input is None:
             x, p = self._start
-            self._history.append(_Tick(tick, (0.0, *sample), x.copy(), p.copy()))
+            x, p = x.copy(), p.copy()
+            inputs = (0.0, *sample)
         else:
             prev = self._previous_input
             inputs = (float(dt), *(0.5 * (a + b) for a, b in zip(prev, sample, strict=True)))
             last = self._history[-1]
             x, p = self._step(last.x, last.p, inputs)
-            self._history.append(_Tick(tick, inputs, x, p))
+        kinematic: tuple[tuple[np.ndarray, float, float], ...] = ()
+        lateral = math.nan
+        if tractor is not None and self.noise.kinematics and self._previous_input is not None:
+            lateral = self._tractor_lateral(tractor)
+            kinematic = self._kinematic_rows(sample, lateral, float(dt))
+            x, p = _apply_rows(x, p, kinematic)
+        self._history.append(_Tick(tick, inputs, x, p, kinematic, lateral))
         self._previous_input = sample
         self._read()
 
     def _step(self, x: np.ndarray, p: np.ndarray, inputs: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
         """One control period of eqs (1)–(2) and the covariance."""
         dt, r_m, w_m, tan_steer = inputs
-        r = r_m - x[4]
-        u = w_m - x[5]
-        v = r * self.slip_point + u * tan_steer + x[3]
+        r = r_m - x[_BG]
+        u = w_m - x[_BW]
+        v = r * self.slip_point + u * tan_steer + x[_VS]
         th = r * dt
         if abs(th) > 1e-9:
             a, b = math.sin(th) / th, (1.0 - math.cos(th)) / th
@@ -294,17 +417,68 @@ class FusedVisoOt:
         lever, along = ey * (self.slip_point * dt), (ex + ey * tan_steer) * dt
         f = self._f
         f[:2, 2] = (-(s * dp[0] + c * dp[1]), c * dp[0] - s * dp[1])  # ∂/∂Δψ of R(Δψ)·δp
-        f[:2, 3] = ey * dt
-        f[:2, 4] = -lever
-        f[2, 4] = -dt
-        f[:2, 5] = -along
+        f[:2, _VS] = ey * dt
+        f[:2, _BG] = -lever
+        f[2, _BG] = -dt
+        f[:2, _BW] = -along
         g = self._g
         g[:2, 0] = lever
         g[2, 0] = dt
         g[:2, 1] = along
         q = (g * self._sample_variance) @ g.T
-        q[3:, 3:] += self._walk * dt
+        q[_VS:_BPSI, _VS:_BPSI] += self._walk_time * dt
+        q[_BPSI, _BPSI] += self._walk_distance * abs(u) * dt
         return out, f @ p @ f.T + q
+
+    def _tractor_lateral(self, tractor: TractorSignals) -> float:
+        """``z_c``: the kingpin's lateral velocity in trailer axes if no tractor tyre slips (Cheng 2009)."""
+        values = (tractor.speed, tractor.yaw_rate, tractor.articulation)
+        if not all(math.isfinite(v) for v in values):
+            raise InputError(f"tractor signals {values} must be finite")
+        vx1, vy1 = zero_slip_kingpin_velocity(self.params, tractor.speed, tractor.yaw_rate)
+        gamma = tractor.articulation
+        return math.sin(gamma) * vx1 + math.cos(gamma) * vy1  # into trailer axes
+
+    def _kinematic_rows(
+        self, sample: tuple[float, float, float], lateral: float, dt: float
+    ) -> tuple[tuple[np.ndarray, float, float], ...]:
+        """(K1) of this tick as an ``(H, z, R)`` row, with σ from the slip evidence (K2)."""
+        r_m, w_m, tan_steer = sample
+        h = np.zeros(_STATES)
+        h[_VS] = 1.0
+        z = lateral - (r_m * self.slip_point + w_m * tan_steer)  # (K1): the slip velocity the tractor implies
+        n = self.noise
+        variance = max(n.tractor_slip**2, self._slip_evidence)  # (K2)
+        self.kinematic_std = math.sqrt(variance)
+        return ((h, z, variance * n.kinematic_error_time / max(dt, 1e-6)),)  # a time-correlated error
+
+    def _kinematic_lateral_step(self, index: int, x: np.ndarray) -> float | None:
+        """The kingpin's lateral displacement from the anchor to history ``index`` in the anchor's frame, had no
+        tractor tyre slipped: Cheng's lateral velocity with the trailer's speed and the gyro (``None``: no
+        tractor signals on some tick)."""
+        heading = y = 0.0
+        for t in list(self._history)[1 : index + 1]:
+            dt, r_m, w_m, _ = t.inputs
+            if math.isnan(t.tractor_lateral):
+                return None
+            mid = heading + 0.5 * (r_m - x[_BG]) * dt
+            y += (math.sin(mid) * (w_m - x[_BW]) + math.cos(mid) * t.tractor_lateral) * dt
+            heading += (r_m - x[_BG]) * dt
+        return y
+
+    def _weigh_slip_evidence(self, lateral_innovation: float, lateral_variance: float, interval: float) -> None:
+        """(K3): the camera's lateral innovation over the frame ``interval`` [s] as a kingpin velocity, matched."""
+        if interval <= 0.0:
+            return
+        alpha = min(1.0, interval / self.noise.slip_evidence_time)
+        velocity, expected = lateral_innovation / interval, lateral_variance / interval**2
+        if math.isnan(self._innovation_power):
+            self._innovation_power, self._expected_power = velocity, expected
+        else:
+            self._innovation_power += alpha * (velocity - self._innovation_power)
+            self._expected_power += alpha * (expected - self._expected_power)
+        # the mean's own variance, had the innovations been white: α/(2 − α) of theirs
+        self._slip_evidence = max(0.0, self._innovation_power**2 - self._expected_power * alpha / (2.0 - alpha))
 
     # ------------------------------------------------------------------ measurement
 
@@ -345,23 +519,39 @@ class FusedVisoOt:
         used = False
         if camera_motion is not None and np.all(np.isfinite(camera_motion)):
             z, r = self.measurement(np.asarray(camera_motion, dtype=float), covariance)
-            innovation = z - x[:3]
+            h = np.zeros((3, _STATES))
+            h[:, :3] = np.eye(3)
+            coupling = (
+                self.noise.vo_bias_coupling * r[:2, 2] / r[2, 2]
+            )  # the yaw–translation ambiguity of this frame (module notes)
+            h[:2, _BPSI] = x[0] * coupling  # the odometry's error per metre over the distance since the anchor
+            h[2, _BPSI] = x[0]
+            self._coupling = coupling
+            innovation = z - h @ x
             innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
-            s = p[:3, :3] + r
+            ph = p @ h.T
+            s = h @ ph + r
             nis = float(innovation @ np.linalg.solve(s, innovation))
+            interval = sum(t.inputs[0] for t in list(self._history)[1 : index + 1])
+            kinematic_y = self._kinematic_lateral_step(index, x)
+            if kinematic_y is not None:  # (K2): the camera's lateral motion against the tractor's kinematics
+                camera_y = z[1] - h[1, _BPSI] * x[_BPSI]
+                self._weigh_slip_evidence(camera_y - kinematic_y, float(r[1, 1]), interval)
             if nis > self.noise.gate and self._gated < self.noise.max_gated:
                 self._gated += 1
                 self.rejected += 1
             else:
                 if nis > self.noise.gate:
-                    s = p[:3, :3] + r * (nis / self.noise.gate)
+                    s = h @ ph + r * (nis / self.noise.gate)
                 self._gated = 0
-                k = np.linalg.solve(s, p[:3, :]).T  # P Hᵀ S⁻¹
+                k = np.linalg.solve(s, ph.T).T  # P Hᵀ S⁻¹
                 x = x + k @ innovation
-                p = p - k @ p[:3, :]
+                p = p - k @ h @ p
                 p = 0.5 * (p + p.T)
                 used = True
                 self.updates += 1
+                self._nis.append(min(nis, self.noise.gate))
+                self.innovation_ratio = max(1.0, float(np.mean(self._nis)) / 3.0)
         self._commit(index, x, p)
         self._read()
         return used
@@ -377,26 +567,29 @@ class FusedVisoOt:
         starts = np.vstack([self._starts, [[0.0, 0.0, 0.0]]])
         ends = np.vstack([self._ends, end[None, :2]])
         covs = np.concatenate([self._covs, p[None, :3, :3]])
+        durations = np.append(self._durations, sum(t.inputs[0] for t in list(self._history)[1 : index + 1]))
         starts = _into(starts, end)
         ends = _into(np.column_stack([ends, np.zeros(len(ends))]), end)[:, :2]
         keep = starts[:, 0] > -self.follow_point_offset - 2.0
         self._starts, self._ends, self._covs = starts[keep], ends[keep], covs[keep]
-        # The new anchor: Δ restarts from zero; the slip velocity and biases keep their covariance.
+        self._durations = durations[keep]
+        # The new anchor: Δ restarts from zero; the other states keep their covariance.
         anchor_x = x.copy()
         anchor_x[:3] = 0.0
         anchor_p = np.zeros_like(p)
         anchor_p[3:, 3:] = p[3:, 3:]
         rest = list(self._history)[index + 1 :]
         self._history = deque([_Tick(self._history[index].tick, (0.0, 0.0, 0.0, 0.0), anchor_x, anchor_p)])
-        for h in rest:  # re-propagate to the present with the stored inputs (delayed measurement)
+        for h in rest:  # re-filter to the present with the stored inputs and measurements (delayed measurement)
             last = self._history[-1]
             nx, np_ = self._step(last.x, last.p, h.inputs)
-            self._history.append(_Tick(h.tick, h.inputs, nx, np_))
+            nx, np_ = _apply_rows(nx, np_, h.kinematic)
+            self._history.append(_Tick(h.tick, h.inputs, nx, np_, h.kinematic, h.tractor_lateral))
 
     # ------------------------------------------------------------------ estimate
 
     def _read(self) -> None:
-        """Off-tracking and its standard deviation at the newest tick (module notes, eq (3))."""
+        """Off-tracking and its standard deviation at the newest tick (module notes, eqs (3)–(4))."""
         now = self._history[-1]
         d = now.x[:3]
         lfp = self.follow_point_offset
@@ -409,7 +602,8 @@ class FusedVisoOt:
             return
         # eq (3) over the committed increments ahead of the follow point, in the current frame ...
         c, s = math.cos(d[2]), math.sin(d[2])
-        variance = 0.0
+        independent = 0.0
+        coherent = np.zeros(2)  # G of eq (4): ∂e_tr/∂(β_ψ, β_y)
         if len(self._covs):
             starts, ends = self._starts, self._ends
             ahead = c * (starts[:, 0] - d[0]) + s * (starts[:, 1] - d[1]) > -lfp
@@ -417,25 +611,59 @@ class FusedVisoOt:
                 heading = starts[ahead, 2] - d[2]
                 station = c * (ends[ahead, 0] - d[0]) + s * (ends[ahead, 1] - d[1])
                 g = np.column_stack([-np.sin(heading), -np.cos(heading), station + lfp])
-                variance = float(np.einsum("ni,nij,nj->", g, self._covs[ahead], g))
+                independent = float(np.einsum("ni,nij,nj->", g, self._covs[ahead], g))
+                length = np.hypot(ends[ahead, 0] - starts[ahead, 0], ends[ahead, 1] - starts[ahead, 1])
+                coherent = self._bias_effect(g, length, self._durations[ahead])
         # ... and the current one, from the anchor (heading −Δψ in the current frame) to the kingpin.
         g_now = np.array([s, -c, lfp])
-        variance += float(g_now @ now.p[:3, :3] @ g_now) + self.noise.offtracking_bias_std**2  # eq (4)
+        independent += float(g_now @ now.p[:3, :3] @ g_now)
+        elapsed = sum(t.inputs[0] for t in list(self._history)[1:])
+        coherent += self._bias_effect(g_now[None, :], np.array([math.hypot(d[0], d[1])]), np.array([elapsed]))
+        biases = now.p[np.ix_(_BIASES, _BIASES)]
+        variance = (
+            self.innovation_ratio * independent
+            + float(coherent @ biases @ coherent)
+            + self.noise.offtracking_bias_std**2  # eq (4)
+        )
         std = math.sqrt(max(variance, 0.0))
         if std > self.noise.max_std:
             self.estimate, self.std = None, std
             return
         self.estimate, self.std = float(value), std
 
+    def _bias_effect(self, g: np.ndarray, length: np.ndarray, duration: np.ndarray) -> np.ndarray:
+        """``G`` of eq (4): the change of ``e_tr`` per unit error of ``(b_g, β_ψ)``, coherent over increments
+        with sensitivities ``g`` (n×3), lengths [m] and durations [s]: a gyro bias turns and, through eq (1), moves
+        each increment by its duration; an odometry error per metre along the frame's ambiguity by its length."""
+        gyro = -float(np.sum((g[:, 2] + g[:, 1] * self.slip_point) * duration))
+        c_x, c_y = self._coupling
+        yaw = float(np.sum((g[:, 0] * c_x + g[:, 1] * c_y + g[:, 2]) * length))
+        return np.array([gyro, yaw])
+
     @property
     def state(self) -> np.ndarray:
-        """Newest state ``[Δx, Δy, Δψ, v_s, b_g, b_w]`` (module notes)."""
+        """Newest state ``[Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]`` (module notes)."""
         return self._history[-1].x.copy()
 
     @property
     def covariance(self) -> np.ndarray:
-        """Newest 6×6 state covariance."""
+        """Newest 7×7 state covariance."""
         return self._history[-1].p.copy()
+
+
+def _apply_rows(
+    x: np.ndarray, p: np.ndarray, rows: tuple[tuple[np.ndarray, float, float], ...]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sequential scalar Kalman updates with the rows ``(H, z, R)``."""
+    for h, z, r in rows:
+        ph = p @ h
+        s = float(h @ ph) + r
+        k = ph / s
+        x = x + k * (z - float(h @ x))
+        p = p - np.outer(k, ph)
+    if rows:
+        p = 0.5 * (p + p.T)
+    return x, p
 
 
 def _relative(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:

@@ -229,7 +229,7 @@ def frame_odometry(setup: ScenarioSetup, optics: FieldOptics) -> FrameOdometry:
     settings = self_cal if self_cal.enabled else None  # the schema's section is the sensor's settings
     return FrameOdometry(
         setup.params,
-        optics.vo_config(),
+        optics.vo_config().model_copy(update={"refinement": cfg.camera.vo_refinement}),
         optics.left_in_trailer(setup.params),
         cfg.rates.frame_interval_s,
         cfg.seed,

@@ -16,7 +16,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from controller.zero_slip import ZeroSlipEstimator
-from sensor.fusion import FusedVisoOt, FusionNoise
+from sensor.fusion import FusedVisoOt, FusionNoise, TractorSignals
 from vehicle_model.geometry import kingpin_position
 from vehicle_model.offtracking import (
     BUFFER_FILLING,
@@ -193,6 +193,7 @@ class FusedVisoOtEstimator:
     columns: tuple[Column, ...] = (
         Column(estimate_column("viso_ot_fused"), "m", "fused VISO-OT off-tracking"),
         Column("offtracking_viso_ot_fused_std", "m", "its standard deviation"),
+        Column("fusion_kinematic_std", "m/s", "σ of the zero-slip kinematics in the filter: large where it saw slip"),
     )
 
     def __init__(self, params: VehicleParams, camera: object, noise: FusionNoise, drop_every: int = 0) -> None:
@@ -205,8 +206,13 @@ class FusedVisoOtEstimator:
         """Propagate with the trailer's signals, then correct with the frames the camera released on this tick."""
         fused, measured, drop = self.filter, tick.measured, self.drop_every
         steer = measured["trailer_steer"]
+        tractor = TractorSignals(
+            float(measured["wheel_speed"][0]),
+            float(measured["tractor_yaw_rate"][0]),
+            float(measured["articulation"][0]),
+        )
         fused.propagate(
-            tick.index, tick.period, measured["trailer_yaw_rate"][0], measured["trailer_wheel_speed"][0], steer
+            tick.index, tick.period, measured["trailer_yaw_rate"][0], measured["trailer_wheel_speed"][0], steer, tractor
         )
         for shot in self.camera.released:  # type: ignore[attr-defined]
             frame = shot.frame
@@ -223,7 +229,11 @@ class FusedVisoOtEstimator:
 
     def record(self) -> Mapping[str, float]:
         """The estimate and its standard deviation."""
-        return {"offtracking_viso_ot_fused": self.estimate.value, "offtracking_viso_ot_fused_std": self.estimate.std}
+        return {
+            "offtracking_viso_ot_fused": self.estimate.value,
+            "offtracking_viso_ot_fused_std": self.estimate.std,
+            "fusion_kinematic_std": self.filter.kinematic_std,
+        }
 
 
 def ground_truth(context: LoopContext) -> GroundTruth:
