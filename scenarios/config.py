@@ -256,7 +256,7 @@ class FusionConfig(FusionNoise):
     ``signals``), and a test's frame drop."""
 
     offtracking_bias_std: float = Field(
-        0.025,
+        0.01,
         ge=0.0,
         le=0.5,
         description="[m] the VO's systematic off-tracking error, added to the filter's std; 0.5 m swamps any estimate",

@@ -19,8 +19,8 @@ State, kept relative to the *anchor* (the time of the last camera frame that was
 
 ``(Δx, Δy, Δψ)`` is the kingpin's displacement and the trailer's heading change since the anchor, in the
 anchor's trailer frame; ``v_s`` is the lateral *slip velocity* of the kingpin [m/s] (what the trailer's zero-slip
-kinematics does not explain); ``b_g`` the gyro bias [rad/s]; ``b_w`` the wheel-speed bias [m/s]; ``β_ψ`` [rad/m] the visual odometry's systematic yaw error per metre
-travelled (calibration and lens: docs/field_bias.md).
+kinematics does not explain); ``b_g`` the gyro bias [rad/s]; ``b_w`` the wheel-speed bias [m/s]; ``β_ψ`` [rad/m]
+the visual odometry's systematic yaw error per metre travelled (calibration and lens: docs/field_bias.md).
 
 Kinematics. The trailer yaw rate is ``r = r_m − b_g``; the kingpin's longitudinal velocity is that of every
 point on the centre line, so the axle's wheel speed gives ``u = w_m − b_w`` (free-rolling trailer wheels, no
@@ -320,9 +320,11 @@ class FusedVisoOt:
         self._previous_input: tuple[float, float, float] | None = None
         x0 = np.zeros(_STATES)
         p0 = np.diag(
-            [0.0, 0.0, 0.0]
-            + [n.initial_slip_velocity**2, n.initial_gyro_bias**2, n.initial_wheel_speed_bias**2]
-            + [n.vo_yaw_bias**2]
+            [
+                *(0.0, 0.0, 0.0),
+                *(n.initial_slip_velocity**2, n.initial_gyro_bias**2, n.initial_wheel_speed_bias**2),
+                n.vo_yaw_bias**2,
+            ]
         )
         self._start = (x0, p0)
         self._innovation_power = math.nan  # C_k of (K3) and its expectation

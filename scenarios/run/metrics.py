@@ -1,4 +1,5 @@
-"""Run metrics: off-tracking of the truth, estimator errors against it, and the roundabout-test verdict."""
+"""Run metrics: off-tracking of the truth, estimator errors against it, the feedback's fallback, the roundabout-test
+verdict and the run's own (:mod:`.verdicts`)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,8 @@ import numpy as np
 
 from vehicle_model.geometry import radial_extent, tractor_outline, trailer_outline
 from vehicle_model.parameters import VehicleParams
+
+from .verdicts import run_verdict
 
 ROUNDABOUT_OUTER_RADIUS = 12.50
 """97/27/EC Annex I §7.6.1 / UK C&U regs 13A: outer circle [m]."""
@@ -29,20 +32,39 @@ def max_abs(values: np.ndarray) -> float:
     return float(np.max(np.abs(v))) if v.size else float("nan")
 
 
-def estimator_errors(truth: np.ndarray, estimate: np.ndarray) -> dict[str, float]:
-    """RMS and largest error of ``estimate`` against ``truth`` where both exist, and the fraction of the
-    truth's valid samples on which the estimator had an estimate."""
+def estimator_errors(truth: np.ndarray, estimate: np.ndarray, std: np.ndarray | None = None) -> dict[str, float]:
+    """RMS, mean and largest error of ``estimate`` against ``truth`` where both exist, and the fraction of the
+    truth's valid samples on which the estimator had an estimate; with the estimator's ``std``, also the share of
+    the errors within 2σ (``within_2sigma``) and the mean σ (``mean_std``)."""
     truth = np.asarray(truth, dtype=float)
     estimate = np.asarray(estimate, dtype=float)
     valid_truth = np.isfinite(truth)
     both = valid_truth & np.isfinite(estimate)
     err = estimate[both] - truth[both]
-    return {
+    out = {
         "rms_error": rms(err),
         "max_abs_error": max_abs(err),
         "mean_error": float(np.mean(err)) if err.size else float("nan"),
         "valid_fraction": float(both.sum() / valid_truth.sum()) if valid_truth.any() else 0.0,
     }
+    if std is not None:
+        sigma = np.asarray(std, dtype=float)[both]
+        out["within_2sigma"] = float(np.mean(np.abs(err) <= 2.0 * sigma)) if err.size else float("nan")
+        out["mean_std"] = float(np.mean(sigma)) if err.size else float("nan")
+    return out
+
+
+def feedback_fallback(columns: dict[str, np.ndarray], settled: np.ndarray) -> dict[str, float] | None:
+    """Share and seconds of the ticks after warm-up on which the trailer controller had no usable estimate
+    (``trailer_estimate_used`` NaN: none, or its std above ``controller.feedback_max_std_m``); ``None`` when the
+    run recorded no such column (an unsteered run)."""
+    used = columns.get("trailer_estimate_used")
+    if used is None or not settled.any():
+        return None
+    time = columns["time"]
+    period = float(np.median(np.diff(time))) if len(time) > 1 else 0.0
+    missing = settled & ~np.isfinite(used)
+    return {"fraction": float(missing.sum() / settled.sum()), "seconds": float(missing.sum() * period)}
 
 
 def roundabout_verdict(
@@ -139,11 +161,20 @@ def compute_metrics(
             },
             "truth_after_warmup": {"rms": rms(truth[settled]), "max_abs": max_abs(truth[settled])},
             "truth_methods_max_disagreement": max_abs(truth[both] - geometric[both]) if both.any() else float("nan"),
-            "estimators": {name: estimator_errors(truth, columns[f"offtracking_{name}"]) for name in estimator_names},
+            "estimators": {
+                name: estimator_errors(truth, columns[f"offtracking_{name}"], columns.get(f"offtracking_{name}_std"))
+                for name in estimator_names
+            },
         },
         "roundabout_test": None,
         "trailer_steering": trailer_steering_metrics(columns, steerable),
     }
+    fallback = feedback_fallback(columns, settled) if feedback != "none" else None
+    if fallback is not None:
+        metrics["feedback_fallback"] = fallback
+    metrics["verdict"] = run_verdict(
+        feedback, metrics["offtracking"]["truth_after_warmup"], metrics["offtracking"]["estimators"], fallback
+    )
     camera = camera_frame_metrics(columns)
     if camera is not None:
         metrics["camera"] = camera

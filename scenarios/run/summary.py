@@ -40,5 +40,20 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
             f"roundabout test {verdict}: outer radius max {test['outer_radius_max']:.3f} m (limit 12.50), "
             f"inner radius min {test['inner_radius_min']:.3f} m (limit 5.30)"
         )
-    out.append(f"simulated {metrics['simulated_s']:.1f} s in {metrics['wall_time_s']:.1f} s wall time")
+    verdict = metrics.get("verdict")
+    if verdict is not None:
+        if verdict["held"]:
+            out.append(
+                "[green]held[/]: "
+                + (
+                    "off-tracking within target on a trusted estimate"
+                    if metrics["feedback"] != "none"
+                    else "nothing to hold (unsteered)"
+                )
+            )
+        for flag in verdict["flags"]:
+            out.append(f"[red]{flag['flag']}[/]: {escape(flag['reason'])}")
+    wall = metrics.get("wall_time_s")
+    wall_text = f"{wall:.1f} s" if isinstance(wall, int | float) else "an unknown"
+    out.append(f"simulated {metrics['simulated_s']:.1f} s in {wall_text} wall time")
     return out

@@ -1,0 +1,101 @@
+"""What a run was asked to hold, and whether it held: flags with their reasons for ``metrics.json`` and the summary.
+
+A steered run is asked to keep the trailer's true off-tracking within the target of an estimate used for control
+(docs/design.md §11: 0.10 m RMS and 0.15 m at most after warm-up; de Saxe & Cebon 2018, §2, after Jujnovich &
+Cebon 2013), and to steer on an estimate it can trust: one that was there when the controller needed it, whose
+error stayed within that target and whose standard deviation, where it gives one, covered its error (85 % of the
+errors within 2σ, docs/design.md §11). Each miss is a flag with a sentence; a run that raises none *held*. The
+status (``completed``, ``lost_control``, …) says how the run went; the verdict says whether its result is one to
+trust.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "FALLBACK_LIMIT",
+    "MIN_COVERAGE",
+    "OFFTRACKING_TARGET_MAX_M",
+    "OFFTRACKING_TARGET_RMS_M",
+    "run_verdict",
+]
+
+OFFTRACKING_TARGET_RMS_M = 0.10
+"""Target of the true off-tracking of a steered run, and of an estimate used for control, RMS [m]."""
+OFFTRACKING_TARGET_MAX_M = 0.15
+"""The same, largest magnitude [m]."""
+MIN_COVERAGE = 0.85
+"""Least share of an estimator's errors within twice its standard deviation for that std to be honest."""
+FALLBACK_LIMIT = 0.05
+"""Largest share of the ticks after warm-up on which a steered run may lack a usable feedback estimate."""
+
+
+def _flag(flag: str, reason: str) -> dict[str, str]:
+    return {"flag": flag, "reason": reason}
+
+
+def run_verdict(
+    feedback: str,
+    settled_truth: dict[str, float],
+    estimators: dict[str, dict[str, float]],
+    fallback: dict[str, float] | None,
+) -> dict[str, Any]:
+    """The verdict of a run: ``{"held": bool, "flags": [{"flag", "reason"}, …]}``.
+
+    Parameters
+    ----------
+    feedback
+        The feedback source (``none``: an unsteered run, which is asked to hold nothing).
+    settled_truth
+        ``rms`` and ``max_abs`` of the true off-tracking after warm-up [m].
+    estimators
+        The estimators' errors (:func:`~scenarios.run.metrics.estimator_errors`) by name.
+    fallback
+        ``fraction`` and ``seconds`` of the ticks after warm-up without a usable feedback estimate
+        (:func:`~scenarios.run.metrics.feedback_fallback`); ``None`` without feedback.
+    """
+    flags: list[dict[str, str]] = []
+    if feedback != "none":
+        rms, peak = settled_truth.get("rms", np.nan), settled_truth.get("max_abs", np.nan)
+        if not (rms <= OFFTRACKING_TARGET_RMS_M and peak <= OFFTRACKING_TARGET_MAX_M):
+            flags.append(
+                _flag(
+                    "offtracking_above_target",
+                    f"true off-tracking after warm-up {rms:.3f} m RMS / {peak:.3f} m max, not within the target "
+                    f"{OFFTRACKING_TARGET_RMS_M:.2f} m RMS / {OFFTRACKING_TARGET_MAX_M:.2f} m max",
+                )
+            )
+        if fallback is not None and fallback["fraction"] > FALLBACK_LIMIT:
+            flags.append(
+                _flag(
+                    "feedback_fell_back",
+                    f"the controller had no usable {feedback} estimate (none, or its std above "
+                    f"controller.feedback_max_std_m) on {fallback['fraction']:.0%} of the ticks after warm-up "
+                    f"({fallback['seconds']:.1f} s) and steered by feed-forward alone there",
+                )
+            )
+        errors = estimators.get(feedback)
+        if errors is not None and feedback != "truth":
+            rms, peak = errors["rms_error"], errors["max_abs_error"]
+            if not (rms <= OFFTRACKING_TARGET_RMS_M and peak <= OFFTRACKING_TARGET_MAX_M):
+                flags.append(
+                    _flag(
+                        "feedback_error_above_target",
+                        f"the {feedback} estimate steered with errors of {rms:.3f} m RMS / {peak:.3f} m max against "
+                        f"the truth, not within {OFFTRACKING_TARGET_RMS_M:.2f} / {OFFTRACKING_TARGET_MAX_M:.2f} m",
+                    )
+                )
+    for name, errors in estimators.items():
+        coverage = errors.get("within_2sigma")
+        if coverage is not None and np.isfinite(coverage) and coverage < MIN_COVERAGE:
+            flags.append(
+                _flag(
+                    "std_does_not_cover_error",
+                    f"only {coverage:.0%} of the {name} errors lie within twice its standard deviation "
+                    f"(at least {MIN_COVERAGE:.0%} asked): its std understates its error",
+                )
+            )
+    return {"held": not flags, "flags": flags}
