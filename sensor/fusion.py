@@ -2,14 +2,14 @@
 
 VISO-OT (de Saxe & Cebon 2018, §2.2; :mod:`sensor.viso_ot`) gives the off-tracking at the camera rate, a camera
 latency late, and has nothing between frames or across failed ones; Cheng's zero-slip kinematics (Cheng 2009;
-docs/vehicle_dynamics.md §2.3, §7.2) give it at every control tick from signals a trailer EBS and the tractor's CAN
-carry, but are blind to tyre slip. The paper lists a Kalman filter as future work (§5). This one propagates at the
-control rate with the trailer's yaw-rate gyro, a wheel-speed sensor on an unsteered trailer axle and the trailer's
-own steer angles; fuses, at every tick, the zero-slip kinematics of the trailer and of the tractor with a noise that
-grows with the evidence of slip; and corrects with every visual-odometry motion, weighted by its Gauss–Newton
-covariance, with the odometry's own systematic error as a state. The kingpin increments it produces feed the one
-path buffer (:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)). docs/field_bias.md says why each
-part is there and what it removes.
+docs/vehicle_dynamics.md §2.3, §7.2) give the kingpin's motion at every control tick from the tractor's signals,
+but are blind to tyre slip. The paper lists a Kalman filter as future work (§5). This one propagates at the control
+rate with the trailer's yaw-rate gyro, a wheel-speed sensor on an unsteered trailer axle and the trailer's own steer
+angles; takes Cheng's kinematics as a measurement whose noise follows the evidence of slip; and corrects with every
+visual-odometry motion, weighted by its Gauss–Newton covariance, with the odometry's own systematic yaw error as a
+state. The kingpin increments it produces feed the one path buffer
+(:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)). docs/field_bias.md says why each part is
+there and what it removes under field conditions.
 
 Model (trailer frame ISO 8855, origin at the kingpin; docs/design.md §5–6)
 --------------------------------------------------------------------------
@@ -36,43 +36,51 @@ exact arc::
     δψ = r·dt,   δp = M(δψ)·(u, v_k)·dt,   M(θ) = [[sin θ/θ, −(1−cos θ)/θ], [(1−cos θ)/θ, sin θ/θ]]   (2)
     (Δx, Δy) ← (Δx, Δy) + R(Δψ)·δp,   Δψ ← Δψ + δψ
 
-``v_s``, ``b_g`` and ``b_w`` are random walks in time, ``β_ψ`` and ``β_y`` in distance travelled. The gyro and
-wheel-speed noises enter as white noise on the period's mean rate; the covariance propagates with the Jacobian of
-(2) (first order in δψ).
+``v_s``, ``b_g`` and ``b_w`` are random walks in time, ``β_ψ`` in distance travelled. The gyro and wheel-speed
+noises enter as white noise on the period's mean rate; the covariance propagates with the Jacobian of (2) (first
+order in δψ). The gyro is taken as zeroed at standstill, as a trailer's EBS does at every stop: its bias starts
+within ``initial_gyro_bias`` (0.1 mrad/s), a tenth of the odometry's yaw error under field conditions, so that the
+heading comes from the gyro and the odometry's yaw error is found against it (docs/field_bias.md).
 
-Zero-slip measurements (every control tick, when the tractor's signals are given). Two pseudo-measurements
-say that no tyre slides:
+Zero-slip measurement (every control tick, when the tractor's signals are given). If no tractor tyre slips
+sideways, the kingpin moves at ``(u_1, −e·r_1)`` in tractor axes (:func:`vehicle_model.kinematics.
+zero_slip_kingpin_velocity`; Cheng 2009): turned by the articulation Γ into trailer axes its lateral component is
+``z_c = sin Γ·u_1 + cos Γ·(−e·r_1)`` (``u_1``, ``r_1`` the tractor's wheel speed and yaw rate). With (1) it
+measures the slip velocity::
 
-    (K1)  0 = v_s                                         the trailer's axles roll (Cheng's trailer)
-    (K2)  z_c = r·L_c + u·Σ w_j tan δ_j + v_s             the tractor's rear point rolls (Cheng 2009)
+    z_c − r_m·L_c − w_m·Σ w_j tan δ_j = v_s + ε_k                                               (K1)
 
-where ``z_c = sin Γ·u_1 + cos Γ·(−e·r_1)`` is the kingpin's lateral velocity in trailer axes if no tractor tyre
-slips (:func:`vehicle_model.kinematics.zero_slip_kingpin_velocity` turned by the articulation Γ; ``u_1``, ``r_1``
-the tractor's wheel speed and yaw rate). Together they tie the yaw rate to the articulation and the speeds with
-no gyro in it (``e``, the kingpin's offset from the tractor's rear point, is under a metre, so ``r_1``'s bias
-hardly enters), which makes the gyro bias and the odometry's systematic error observable where nothing slips.
-Their errors are slowly varying (a steady slip in a steady turn), not white: with a correlation time ``τ_c`` a
-measurement at every tick ``dt`` carries the information of one every ``τ_c``, so each is applied with the
-variance ``σ²·τ_c/dt`` (Bar-Shalom, Li & Kirubarajan 2001, §8.2: time-correlated noise, approximated by its
-equivalent white noise). The standard deviation σ grows with the evidence of slip — covariance matching of the
-innovations (Mehra 1972; Mohamed & Schwarz 1999, eq (22))::
+``ε_k`` the slip of the tractor's own tyres. It is a slowly varying error (a steady slip in a steady turn), not
+white: with a correlation time ``τ_c`` (``kinematic_error_time``) a measurement at every tick ``dt`` carries the
+information of one every ``τ_c``, so it is applied with the variance ``σ_k²·τ_c/dt``. Its standard deviation σ_k
+follows the evidence of slip, the disagreement between the camera and the kinematics: each camera frame's lateral
+kingpin motion (less the odometry's estimated systematic error) against the kinematics' over the same interval
+(Cheng's lateral velocity with the gyro's heading), as a velocity ``δv``. Its exponentially weighted mean over
+``τ_a`` (``slip_evidence_time``) and the variance that mean would have from the frames' own noise alone give::
 
-    C_k = (1 − α)·C_{k−1} + α·ν_k²,   α = dt/τ_a,   σ_k² = max(σ_0², C_k − H·P·Hᵀ)                 (K3)
+    m_k = m_{k−1} + α·(δv_k − m_{k−1}),   α = Δt_frame/τ_a,   σ_k² = max(σ_0², m_k² − V_k·α/(2 − α))    (K2)
 
-``ν_k`` the innovation with the camera's evidence in ``P`` and the state. On a dry road the innovations stay at
-``σ_0`` (the slip a rolling tyre has), the kinematics carry the estimate and the camera's systematic error is
-learned; on ice or a cambered road the camera sees the slip, the innovations grow, σ follows them within ``τ_a``
-and the camera carries the estimate with the error learned before. ``σ`` of each is recorded: the run says which
-source it trusted.
+(``V_k`` the same weighted mean of the frames' lateral variance over Δt²; ``σ_0`` = ``tractor_slip``: the slip of
+rolling tyres). A persistent disagreement is slip, noise is not (innovation-based adaptive estimation: Mehra 1972;
+Mohamed & Schwarz 1999). On a dry road the disagreement stays within the noise, σ_k stays at σ_0 and the
+kinematics share the estimate with the camera; where the camera sees slip — ice, a cambered road — σ_k follows the
+slip within ``τ_a`` and the camera carries the estimate. σ_k is recorded (:attr:`FusedVisoOt.kinematic_std`): the
+run says which source it trusted.
 
 Camera measurement. Each frame's camera motion becomes a kingpin increment ``z = (dx, dy, dψ)`` over the frame
-interval through the camera's pose on the trailer (eqs (1)–(2), :meth:`VisoOtEstimator.kingpin_increment`); it
-measures ``(Δx, Δy + d·β_y, Δψ + d·β_ψ)`` at the frame's time (``d = Δx``, the distance since the anchor). Its
-covariance is the odometry's ``Σ = (JᵀJ)⁻¹σ̂²`` of the 6 motion parameters mapped through that function (numerical
-Jacobian), scaled by ``vo_covariance_scale`` (the Gauss–Newton covariance is a floor of the true one,
-:mod:`sensor.vo.quality`) plus a floor; so a frame with few or noisy inliers counts for less. A motion whose
-normalised innovation squared exceeds ``gate`` is refused (``max_gated`` in a row are accepted with the covariance
-inflated, so the filter cannot lock itself out).
+interval through the camera's pose on the trailer (eqs (1)–(2), :meth:`VisoOtEstimator.kingpin_increment`). Its
+covariance ``R`` is the odometry's ``Σ = (JᵀJ)⁻¹σ̂²`` of the 6 motion parameters mapped through that function
+(numerical Jacobian), scaled by ``vo_covariance_scale`` (the Gauss–Newton covariance is a floor of the true one,
+:mod:`sensor.vo.quality`) plus a floor; so a frame with few or noisy inliers counts for less. The odometry's
+systematic error lies along its weakest direction, the yaw–translation ambiguity of a camera looking along its
+motion: a yaw error comes with the translation error that keeps the far features in place. So the motion measures::
+
+    z = (Δx, Δy, Δψ) + d·β_ψ·(κ·c_x, κ·c_y, 1),    (c_x, c_y) = R_{xy,ψ} / R_ψψ                   (3)
+
+``d = Δx`` the distance since the anchor, ``(c_x, c_y)`` the frame's regression of translation on yaw error from
+``R``, ``κ`` = ``vo_bias_coupling`` (measured, docs/field_bias.md). A motion whose normalised innovation squared
+exceeds ``gate`` is refused (``max_gated`` in a row are accepted with the covariance inflated, so the filter cannot
+lock itself out).
 
 Delayed measurements. A frame taken on tick ``k`` is released ``latency`` ticks later
 (:mod:`scenarios.camera.delivery`). The filter keeps the state, covariance, inputs and zero-slip measurements of
@@ -89,22 +97,23 @@ the usual reset of a delta state). A failed, refused or dropped frame is committ
 so a gap is bridged with a covariance that grows with its length.
 
 Off-tracking and its standard deviation. Every tick the off-tracking is read from the buffer moved by the
-current ``(Δx, Δy, Δψ)`` (eq (7), :func:`~vehicle_model.offtracking.offtracking_from_path`). Its variance sums
-four parts. The committed increments newer than the follow-point station, and the current one, each contribute
+current ``(Δx, Δy, Δψ)`` (eq (7), :func:`~vehicle_model.offtracking.offtracking_from_path`). Its variance has
+three parts. The committed increments newer than the follow-point station, and the current one, each contribute
 ``gᵀ Q g`` with ``Q`` the increment's covariance and ``g`` the first-order effect of its error on ``e_tr``::
 
-    g = (−sin ψ_s, −cos ψ_s, x_e + L_fp)                                                        (3)
+    g = (−sin ψ_s, −cos ψ_s, x_e + L_fp)                                                        (4)
 
 (``ψ_s`` the heading of the increment's start frame and ``x_e`` the station of its end, both in the current
 trailer frame: a translation error moves the old path rigidly, a heading error turns it about the increment's
-end). The remaining uncertainty of the odometry's systematic error is common to all of them, so it enters
-coherently, through ``G = Σ gᵀ·J_β`` with ``J_β`` the increment's change per unit ``(β_ψ, β_y)``. What no state
-explains — the part of the odometry's error that varies with the scenery faster than β can follow — is the
-constant ``offtracking_bias_std``. Finally the evidence: the mean normalised innovation squared of the camera's
-recent motions ``ρ`` (3 when the motions agree with their covariance; Bar-Shalom et al. 2001, §5.4) scales the
-increments' part when it exceeds its expectation::
+end); the mean normalised innovation squared of the camera's recent motions ``ρ`` (3 when the motions agree with
+their covariance; Bar-Shalom, Li & Kirubarajan 2001, ch. 5) scales this part when it exceeds its expectation. The
+remaining uncertainty of the biases ``(b_g, β_ψ)`` is common to every increment, so it enters coherently, through
+``G``, the change of ``e_tr`` per unit bias summed over the increments (a gyro bias turns each by its duration and,
+through (1), moves it by ``L_c`` times that; the odometry's error per metre along (3) by its length). What no
+state explains — the part of the odometry's error that changes with the scenery faster than β_ψ follows — is the
+constant ``offtracking_bias_std`` ``σ_b``::
 
-    σ_e² = max(1, ρ/3)·Σ gᵀ Q g + G·P_β·Gᵀ + σ_b²                                               (4)
+    σ_e² = max(1, ρ/3)·Σ gᵀ Q g + G·P_b·Gᵀ + σ_b²                                               (5)
 """
 
 from __future__ import annotations
@@ -161,13 +170,13 @@ class FusionNoise(Settings):
         The odometry's systematic translation error per unit of its yaw error, as a multiple of the regression of
         its random translation error on its yaw error (its covariance; docs/field_bias.md).
     kinematics : bool
-        Fuse the zero-slip kinematics (K1)–(K2) when the tractor's signals are given.
-    trailer_slip, tractor_slip : float
-        ``σ_0`` of (K3) for (K1) and (K2): the kingpin's lateral slip velocity of rolling tyres [m/s].
+        Fuse the zero-slip kinematics (K1) when the tractor's signals are given.
+    tractor_slip : float
+        ``σ_0`` of (K2): the lateral slip velocity of the tractor's rolling tyres at the kingpin [m/s].
     kinematic_error_time : float
         ``τ_c``: the correlation time of the kinematic errors [s].
     slip_evidence_time : float
-        ``τ_a`` of (K3): how fast the kinematics' σ follows the evidence of slip [s].
+        ``τ_a`` of (K2): how fast the kinematics' σ follows the evidence of slip [s].
     gate : float
         Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
     max_gated : int
@@ -175,10 +184,10 @@ class FusionNoise(Settings):
     max_std : float
         No estimate (``None``) while the off-tracking's standard deviation exceeds this [m].
     offtracking_bias_std : float
-        ``σ_b`` of eq (4) [m]: what no state of the filter explains of the odometry's off-tracking error, added in
+        ``σ_b`` of eq (5) [m]: what no state of the filter explains of the odometry's off-tracking error, added in
         quadrature (0: none; a run's ``fusion`` settings add 0.015 m).
     innovation_window : int
-        Camera motions over which the mean normalised innovation squared ``ρ`` of eq (4) is taken.
+        Camera motions over which the mean normalised innovation squared ``ρ`` of eq (5) is taken.
     """
 
     gyro_noise: float = Field(2e-3, gt=0.0, le=0.1, description="[rad/s] per sample; 0.1 is beyond any gyro")
@@ -202,9 +211,6 @@ class FusionNoise(Settings):
         1.15, ge=0.0, le=3.0, description="× the covariance's yaw–translation regression; 0 ties no translation to it"
     )
     kinematics: bool = True
-    trailer_slip: float = Field(
-        0.02, gt=0.0, le=1.0, description="[m/s] slip of rolling trailer tyres; 1 m/s is a slide, not a roll"
-    )
     tractor_slip: float = Field(
         0.02, gt=0.0, le=1.0, description="[m/s] slip of rolling tractor tyres; 1 m/s is a slide, not a roll"
     )
@@ -224,7 +230,7 @@ class FusionNoise(Settings):
         description="[m] the VO's error no state explains, added to the filter's std; 0.5 m swamps any estimate",
     )
     innovation_window: int = Field(
-        50, ge=1, le=10000, description="camera motions in ρ of eq (4); one is no statistic, 10000 never adapts"
+        50, ge=1, le=10000, description="camera motions in ρ of eq (5); one is no statistic, 10000 never adapts"
     )
 
 
@@ -286,11 +292,11 @@ class FusedVisoOt:
         Its standard deviation [m] (NaN without an estimate).
     frames, updates, rejected : int
         Frames seen, motions used, motions refused by the gate.
-    kinematic_std : dict[str, float]
-        σ of (K3) of the trailer's and the tractor's zero-slip measurement at the last tick [m/s] (NaN before the
-        first): small where the filter trusts the kinematics, large where it has seen slip.
+    kinematic_std : float
+        σ_k of (K2), the zero-slip measurement's standard deviation at the last tick [m/s] (NaN before the first):
+        small where the filter trusts the kinematics, large where it has seen slip.
     innovation_ratio : float
-        ``ρ/3`` of eq (4): the camera motions' mean normalised innovation squared over its expectation.
+        ``ρ/3`` of eq (5): the camera motions' mean normalised innovation squared over its expectation.
     """
 
     def __init__(self, params: VehicleParams, camera_in_trailer: np.ndarray, noise: FusionNoise | None = None) -> None:
@@ -327,7 +333,7 @@ class FusedVisoOt:
             ]
         )
         self._start = (x0, p0)
-        self._innovation_power = math.nan  # C_k of (K3) and its expectation
+        self._innovation_power = math.nan  # m_k and V_k of (K2)
         self._expected_power = math.nan
         self._slip_evidence = 0.0
         self._coupling = np.zeros(2)  # the last frame's (c_x, c_y)
@@ -373,7 +379,7 @@ class FusedVisoOt:
         steer
             Measured steer of the steerable trailer axles [rad] (layout order; empty or ``None`` for none).
         tractor
-            The tractor's signals for the zero-slip measurements (K1)–(K2) (``None``: none this tick).
+            The tractor's signals for the zero-slip measurement (K1) (``None``: none this tick).
         """
         sample = (float(yaw_rate), float(wheel_speed), self._steer_term(steer))
         if not all(math.isfinite(v) for v in sample):
@@ -468,12 +474,12 @@ class FusedVisoOt:
             heading += (r_m - x[_BG]) * dt
         return y
 
-    def _weigh_slip_evidence(self, lateral_innovation: float, lateral_variance: float, interval: float) -> None:
-        """(K3): the camera's lateral innovation over the frame ``interval`` [s] as a kingpin velocity, matched."""
+    def _weigh_slip_evidence(self, disagreement: float, lateral_variance: float, interval: float) -> None:
+        """(K2): the camera's lateral kingpin motion against the kinematics' over a frame ``interval`` [s]."""
         if interval <= 0.0:
             return
         alpha = min(1.0, interval / self.noise.slip_evidence_time)
-        velocity, expected = lateral_innovation / interval, lateral_variance / interval**2
+        velocity, expected = disagreement / interval, lateral_variance / interval**2
         if math.isnan(self._innovation_power):
             self._innovation_power, self._expected_power = velocity, expected
         else:
@@ -605,7 +611,7 @@ class FusedVisoOt:
         # eq (3) over the committed increments ahead of the follow point, in the current frame ...
         c, s = math.cos(d[2]), math.sin(d[2])
         independent = 0.0
-        coherent = np.zeros(2)  # G of eq (4): ∂e_tr/∂(β_ψ, β_y)
+        coherent = np.zeros(2)  # G of eq (5): ∂e_tr/∂(b_g, β_ψ)
         if len(self._covs):
             starts, ends = self._starts, self._ends
             ahead = c * (starts[:, 0] - d[0]) + s * (starts[:, 1] - d[1]) > -lfp
@@ -625,7 +631,7 @@ class FusedVisoOt:
         variance = (
             self.innovation_ratio * independent
             + float(coherent @ biases @ coherent)
-            + self.noise.offtracking_bias_std**2  # eq (4)
+            + self.noise.offtracking_bias_std**2  # eq (5)
         )
         std = math.sqrt(max(variance, 0.0))
         if std > self.noise.max_std:
@@ -634,7 +640,7 @@ class FusedVisoOt:
         self.estimate, self.std = float(value), std
 
     def _bias_effect(self, g: np.ndarray, length: np.ndarray, duration: np.ndarray) -> np.ndarray:
-        """``G`` of eq (4): the change of ``e_tr`` per unit error of ``(b_g, β_ψ)``, coherent over increments
+        """``G`` of eq (5): the change of ``e_tr`` per unit error of ``(b_g, β_ψ)``, coherent over increments
         with sensitivities ``g`` (n×3), lengths [m] and durations [s]: a gyro bias turns and, through eq (1), moves
         each increment by its duration; an odometry error per metre along the frame's ambiguity by its length."""
         gyro = -float(np.sum((g[:, 2] + g[:, 1] * self.slip_point) * duration))
