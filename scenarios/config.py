@@ -256,10 +256,10 @@ class FusionConfig(FusionNoise):
     ``signals``), and a test's frame drop."""
 
     offtracking_bias_std: float = Field(
-        0.01,
+        0.005,
         ge=0.0,
         le=0.5,
-        description="[m] the VO's systematic off-tracking error, added to the filter's std; 0.5 m swamps any estimate",
+        description="[m] the VO's error no state of the filter explains, added to its std; 0.5 m swamps any estimate",
     )
     drop_every: int = Field(0, ge=0, le=1000, description="withhold every n-th frame from it (0: none; a test)")
 

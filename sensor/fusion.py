@@ -206,7 +206,7 @@ class FusionNoise(Settings):
     vo_yaw_bias: float = Field(
         1e-3, ge=0.0, le=0.01, description="[rad/m] start std of the VO's yaw error; 0.01 rad/m turns 57° in 100 m"
     )
-    vo_yaw_bias_walk: float = Field(2e-5, ge=0.0, le=1e-3, description="[rad/m/√m]; 1e-3 forgets in a metre")
+    vo_yaw_bias_walk: float = Field(3e-5, ge=0.0, le=1e-3, description="[rad/m/√m]; 1e-3 forgets in a metre")
     vo_bias_coupling: float = Field(
         1.15, ge=0.0, le=3.0, description="× the covariance's yaw–translation regression; 0 ties no translation to it"
     )
@@ -336,6 +336,8 @@ class FusedVisoOt:
         self._innovation_power = math.nan  # m_k and V_k of (K2)
         self._expected_power = math.nan
         self._slip_evidence = 0.0
+        self._frame_interval = 0.0
+        self.kinematic_share = 0.0
         self._coupling = np.zeros(2)  # the last frame's (c_x, c_y)
         self.kinematic_std = math.nan
         self._nis: deque[float] = deque(maxlen=n.innovation_window)
@@ -458,6 +460,11 @@ class FusedVisoOt:
         n = self.noise
         variance = max(n.tractor_slip**2, self._slip_evidence)  # (K2)
         self.kinematic_std = math.sqrt(variance)
+        if math.isfinite(self._expected_power) and self._frame_interval > 0.0:  # information per second, eq (5)
+            camera = 1.0 / (self._expected_power * self._frame_interval)
+            self.kinematic_share = (1.0 / (variance * n.kinematic_error_time)) / (
+                1.0 / (variance * n.kinematic_error_time) + camera
+            )
         return ((h, z, variance * n.kinematic_error_time / max(dt, 1e-6)),)  # a time-correlated error
 
     def _kinematic_lateral_step(self, index: int, x: np.ndarray) -> float | None:
@@ -478,6 +485,7 @@ class FusedVisoOt:
         """(K2): the camera's lateral kingpin motion against the kinematics' over a frame ``interval`` [s]."""
         if interval <= 0.0:
             return
+        self._frame_interval = interval
         alpha = min(1.0, interval / self.noise.slip_evidence_time)
         velocity, expected = disagreement / interval, lateral_variance / interval**2
         if math.isnan(self._innovation_power):
@@ -612,6 +620,7 @@ class FusedVisoOt:
         c, s = math.cos(d[2]), math.sin(d[2])
         independent = 0.0
         coherent = np.zeros(2)  # G of eq (5): ∂e_tr/∂(b_g, β_ψ)
+        lever = 0.0  # ∂e_tr/∂v_s, a slip velocity error held over the window [s]
         if len(self._covs):
             starts, ends = self._starts, self._ends
             ahead = c * (starts[:, 0] - d[0]) + s * (starts[:, 1] - d[1]) > -lfp
@@ -622,15 +631,20 @@ class FusedVisoOt:
                 independent = float(np.einsum("ni,nij,nj->", g, self._covs[ahead], g))
                 length = np.hypot(ends[ahead, 0] - starts[ahead, 0], ends[ahead, 1] - starts[ahead, 1])
                 coherent = self._bias_effect(g, length, self._durations[ahead])
+                lever += float(np.sum(g[:, 1] * self._durations[ahead]))
         # ... and the current one, from the anchor (heading −Δψ in the current frame) to the kingpin.
         g_now = np.array([s, -c, lfp])
         independent += float(g_now @ now.p[:3, :3] @ g_now)
         elapsed = sum(t.inputs[0] for t in list(self._history)[1:])
         coherent += self._bias_effect(g_now[None, :], np.array([math.hypot(d[0], d[1])]), np.array([elapsed]))
+        self._lateral_lever = lever + g_now[1] * elapsed
         biases = now.p[np.ix_(_BIASES, _BIASES)]
+        # the disagreement the kinematics' share carries into the slip velocity, coherent over the window
+        disagreement = self.kinematic_share * math.sqrt(max(self._slip_evidence, 0.0)) * self._lateral_lever
         variance = (
             self.innovation_ratio * independent
             + float(coherent @ biases @ coherent)
+            + disagreement**2
             + self.noise.offtracking_bias_std**2  # eq (5)
         )
         std = math.sqrt(max(variance, 0.0))
