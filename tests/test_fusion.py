@@ -316,3 +316,4 @@ def test_slip_that_the_kinematics_cannot_see_is_taken_from_the_camera() -> None:
     assert np.max(np.abs(est[late] - ref[late])) < 0.02
     assert np.max(np.abs(est_k[late] - ref[late])) > 0.1  # what the kinematics alone would steer on
     assert fused.kinematic_std > 0.05  # the run records that it stopped trusting them
+    assert np.mean(np.abs(est[late] - ref[late]) <= 2.0 * std[late]) > 0.9  # and its std says so
