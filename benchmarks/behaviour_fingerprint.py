@@ -16,8 +16,8 @@ The cases:
 * ``render/…`` — ``offtrack render`` datasets: every image's bytes, ``calib.txt``, ``poses.txt``;
 * ``env/…`` — Gymnasium episodes with fixed seeds and actions: observations, rewards, ends and the numbers of
   ``info``;
-* ``study/…`` — the default (small) subsets of the three studies: every column of ``table.csv`` but wall
-  times, hosts and paths.
+* ``study/…`` — the default (small) subsets of the studies (``scenarios.studies.definitions.STUDIES``): every
+  column of ``table.csv`` but wall times, hosts and paths.
 
 ``compare`` prints, per case, ``identical`` or the columns that differ with the largest absolute and relative
 difference, and exits 1 if any column differs by more than ``--rtol`` (default 1e-12, relative) or is missing.
@@ -37,6 +37,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from scenarios.studies.definitions import STUDIES as STUDY_CASES
 
 OFFTRACK = [sys.executable, "-c", "from scenarios.cli import main; main()"]
 
@@ -159,7 +161,8 @@ RENDERS: dict[str, list[str]] = {
     "render/figure-eight/field": ["figure-eight", "--frames", "3", *[a for item in FIELD for a in ("--set", item)]],
 }
 
-STUDIES = ("paper-section3", "estimators-under-slip", "paper-section4")
+STUDIES = tuple(STUDY_CASES)
+"""Every study of :data:`scenarios.studies.definitions.STUDIES`, run by name on the command line."""
 
 VOLATILE = ("wall", "_at", "host", "pid", "worker", "run_dir", "path", "elapsed", "_ms", "cpu")
 """Parts of column or key names whose values are timings, places or processes, not behaviour."""

@@ -10,6 +10,10 @@
 * ``paper-section4`` — de Saxe & Cebon 2018 §4, the field tests under simulated field conditions: rear and
   side cameras × 0.5/0.7/0.9 m × the three field manoeuvres × the right camera aligned, misaligned and
   corrected by eqs (8)–(9) (:mod:`scenarios.studies.section4`; Figs 14–16).
+* ``field-loop`` — the fused VISO-OT loop under field conditions, beside the zero-slip-fed and truth-fed loops:
+  {three-turn roundabout, figure-of-eight} × {dry, ice} × camber ∈ {0, 5 %} × right camera aligned or misaligned
+  as in the paper's §4.4 × seeds 0 and 1 × feedback ∈ {viso_ot_fused, zero_slip, truth}, with an acceptance per
+  cell (:mod:`scenarios.studies.field_loop`).
 
 The default run of each is a small subset that finishes in minutes; ``full`` runs all of it.
 
@@ -32,6 +36,7 @@ import pandas as pd
 from ..loop.ends import RunStatus
 from ..registry import feedback_sources
 from .cases import run_case
+from .field_loop import field_loop_cases, run_field_loop_case
 from .figures import FIGURES
 from .progress import ProgressCallback, SweepProgress
 from .records import CaseSpec
@@ -125,6 +130,7 @@ STUDIES: dict[str, Callable[[bool], list[CaseSpec]]] = {
     "paper-section3": paper_section3_cases,
     "estimators-under-slip": estimators_under_slip_cases,
     "paper-section4": paper_section4_cases,
+    "field-loop": field_loop_cases,
 }
 
 
@@ -146,6 +152,7 @@ def run_estimators_under_slip_case(spec: CaseSpec, out_dir: Path) -> dict[str, A
 CASE_RUNNERS: dict[str, Callable[[CaseSpec, Path], dict[str, Any]]] = {
     "paper-section4": run_section4_case,
     "estimators-under-slip": run_estimators_under_slip_case,
+    "field-loop": run_field_loop_case,
 }
 """A study's own case function (default :func:`~scenarios.studies.cases.run_case`): it adds study columns."""
 

@@ -1,4 +1,5 @@
-"""Figures of the studies: de Saxe & Cebon 2018 §3 Figs 6–8 and §4 Figs 14–16, the estimators-under-slip heat maps."""
+"""Figures of the studies: de Saxe & Cebon 2018 §3 Figs 6–8 and §4 Figs 14–16, the estimators-under-slip heat maps
+and the field-loop cells."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .figures_field_loop import field_loop_figures
 from .figures_section4 import section4_figures
 
 
@@ -90,4 +92,5 @@ FIGURES: dict[str, Callable[[pd.DataFrame, Path], None]] = {
     "paper-section3": paper_figures,
     "estimators-under-slip": grid_figures,
     "paper-section4": section4_figures,
+    "field-loop": field_loop_figures,
 }

@@ -21,13 +21,29 @@ from rich.text import Text
 
 from ..loop.ends import RunStatus
 
-LABELS = ("case", "scenario", "sweep", "camera", "surface", "camber", "baseline", "slip", "density", "feedback")
+LABELS = (
+    "case",
+    "scenario",
+    "sweep",
+    "camera",
+    "surface",
+    "camber",
+    "baseline",
+    "slip",
+    "density",
+    "alignment",
+    "seed",
+    "feedback",
+)
 """Case labels of the studies (:mod:`scenarios.studies.definitions`), shown first when they vary."""
 
 PRIORITY = (
     "status",
     "true_offtracking_rms_after_warmup_m",
     "true_offtracking_max_after_warmup_m",
+    "fused_rms_error_m",
+    "fused_within_2sigma",
+    "verdict_held",
     "viso_ot_rms_error_m",
     "viso_ot_max_abs_error_m",
     "zero_slip_rms_error_m",
@@ -52,6 +68,9 @@ HEADERS = {
     "viso_ot_mean_error_m": "VISO-OT err mean [m]",
     "viso_ot_valid_fraction": "VISO-OT valid [%]",
     "zero_slip_rms_error_m": "zero-slip err RMS [m]",
+    "fused_rms_error_m": "fused err RMS [m]",
+    "fused_within_2sigma": "fused within 2σ [%]",
+    "verdict_held": "verdict held",
     "truth_rms_m": "true e_tr RMS all [m]",
     "saturated_fraction": "steer saturated [%]",
     "mean_matches": "matches",
@@ -65,7 +84,7 @@ HEADERS = {
 }
 """Short headers with units for the known columns (others: :func:`header_for`)."""
 
-PERCENT = {"viso_ot_valid_fraction", "saturated_fraction"}
+PERCENT = {"viso_ot_valid_fraction", "saturated_fraction", "fused_within_2sigma"}
 """Fractions shown as percentages."""
 
 MIN_HEADER_WIDTH = 7

@@ -1,0 +1,374 @@
+"""The ``field-loop`` study: the fused VISO-OT closed loop under field conditions, beside the zero-slip-fed and
+truth-fed loops.
+
+The grid (``full``): the three-turn roundabout and the figure-of-eight × a dry and an icy road × no and 5 %
+adverse camber × the right camera aligned or misaligned as in the paper's field tests
+(:data:`~scenarios.studies.section4.PAPER_SECTION4_MISALIGNMENT_DEG`, after the calibration) × seeds 0 and 1:
+32 cells, each driven by the LST with three feedback sources:
+
+* ``viso_ot_fused`` — the fused VISO-OT filter on the rendered stereo camera under every entry of
+  :data:`~scenarios.studies.section4.FIELD_CONDITIONS`, with the online self-calibration of the right camera on
+  and the raw VISO-OT and zero-slip estimators running beside it (open loop);
+* ``zero_slip`` — Cheng's zero-slip kinematics, model only: the loop a slip-blind estimator gives;
+* ``truth`` — the true off-tracking, model only: the loop a perfect estimate gives.
+
+96 cases, of which the 32 fused ones render. The model-only cases carry no camera override, so they do not depend
+on the alignment; they run for both alignments all the same (seconds each) so that every cell of the table has its
+three loops from its own cases.
+
+The default subset is the three-turn roundabout with seed 0 in two cells, (dry, 0 %, aligned) and (ice, 5 %,
+paper), with the three feedbacks each and ``duration_s`` :data:`SHORT_DURATION_S`: 6 cases, 2 rendered. ``full``
+drives the complete manoeuvres.
+
+:func:`run_field_loop_case` adds to the common row (:func:`~scenarios.studies.cases.run_case`) the fused filter's
+errors and coverage, the feedback's fallback, the run's verdict and how far the filter trusted the zero-slip
+kinematics; :func:`cell_table` gathers the rows into one per cell with the study's acceptance
+(:func:`acceptance`, thresholds :data:`TARGET_RMS_M`, :data:`TARGET_MAX_M`, :data:`DRY_MARGIN_M`,
+:data:`COVERAGE_BAND`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..loop.ends import RunStatus
+from ..run.results import read_timeseries
+from .cases import run_case
+from .records import CaseSpec
+from .section4 import FIELD_CONDITIONS, PAPER_SECTION4_MISALIGNMENT_DEG
+
+STUDY = "field-loop"
+
+VEHICLE = "lst"
+"""The combination every case drives: the LST, whose trailer axles steer."""
+
+SCENARIOS = ("roundabout-3", "figure-eight")
+"""The catalogue manoeuvres of the full grid."""
+
+SURFACES = ("dry", "ice")
+"""``surface.preset`` of the grid: the most and the least grip."""
+
+CAMBERS_PERCENT = (0.0, 5.0)
+"""``camber.percent`` of the grid: a level road and 5 % adverse camber."""
+
+SEEDS = (0, 1)
+"""``seed`` of the full grid (signal noise, field-condition draws)."""
+
+FEEDBACKS = ("viso_ot_fused", "zero_slip", "truth")
+"""The feedback sources of every cell; only the first renders."""
+
+RENDERED_FEEDBACK = "viso_ot_fused"
+"""The feedback source whose cases render the stereo camera under field conditions."""
+
+ALIGNMENTS: dict[str, tuple[float, float, float]] = {
+    "aligned": (0.0, 0.0, 0.0),
+    "paper": PAPER_SECTION4_MISALIGNMENT_DEG,
+}
+"""``camera.right_misalignment_deg`` (roll, pitch, yaw) [°] per alignment label: the rig as calibrated, and the
+right camera rotated after the calibration as inferred in de Saxe & Cebon 2018 §4.4."""
+
+SELF_CALIBRATION: tuple[tuple[str, Any], ...] = (("camera.self_calibration.enabled", True),)
+"""The rendered cases estimate the right camera's rotation online (:mod:`sensor.vo.self_calibration`)."""
+
+DEFAULT_CELLS: tuple[tuple[str, str, float, str, int], ...] = (
+    ("roundabout-3", "dry", 0.0, "aligned", 0),
+    ("roundabout-3", "ice", 5.0, "paper", 0),
+)
+"""(scenario, surface, camber [%], alignment, seed) of the default subset: the easiest cell and the hardest."""
+
+SHORT_DURATION_S = 60.0
+"""Simulated time of the default subset's cases [s]: the entry and most of a turn, so the study ends in minutes."""
+
+CELL_LABELS = ("scenario", "surface", "camber", "alignment", "seed")
+"""The labels that make a cell; ``feedback`` tells a cell's three cases apart."""
+
+TARGET_RMS_M = 0.10
+"""Largest RMS of the true off-tracking after warm-up with fused feedback [m]: the target of an estimate used for
+control, de Saxe & Cebon 2018 §2 after Jujnovich & Cebon 2013 (docs/design.md §11)."""
+
+TARGET_MAX_M = 0.15
+"""Largest magnitude of the true off-tracking after warm-up with fused feedback [m] (the same sources)."""
+
+DRY_MARGIN_M = 0.01
+"""On a dry road the fused-fed loop's true off-tracking RMS may exceed the zero-slip-fed loop's by at most this
+[m]: the project's target "on a dry road no worse than the zero-slip-fed loop" (docs/design.md §11), with a
+centimetre for the noise of the camera."""
+
+COVERAGE_BAND = (0.85, 0.98)
+"""Share of the fused estimate's errors within twice its standard deviation, least and most: the project's target
+for an honest std, neither understating nor grossly overstating the error (docs/design.md §11)."""
+
+KINEMATIC_TRUSTED_STD_MPS = 0.03
+"""``fusion_kinematic_std`` at or below which the fused filter counts as trusting the zero-slip kinematics [m/s]."""
+
+ROW_KEYS = (
+    "fused_rms_error_m",
+    "fused_mean_error_m",
+    "fused_max_abs_error_m",
+    "fused_within_2sigma",
+    "fused_mean_std_m",
+    "fallback_fraction",
+    "fallback_s",
+    "verdict_held",
+    "verdict_flags",
+    "kinematic_std_median_mps",
+    "kinematic_trusted_fraction",
+)
+"""The columns :func:`run_field_loop_case` adds to :func:`~scenarios.studies.cases.run_case`'s row (NaN where
+the run did not give them)."""
+
+
+def _case(scenario: str, surface: str, camber: float, alignment: str, seed: int, feedback: str, full: bool) -> CaseSpec:
+    overrides: tuple[tuple[str, Any], ...] = (
+        ("vehicle", VEHICLE),
+        ("surface.preset", surface),
+        ("camber.percent", float(camber)),
+        ("seed", int(seed)),
+        ("feedback", feedback),
+        ("estimators.zero_slip", True),
+    )
+    if feedback == RENDERED_FEEDBACK:
+        overrides += (
+            *FIELD_CONDITIONS,
+            ("camera.right_misalignment_deg", list(ALIGNMENTS[alignment])),
+            *SELF_CALIBRATION,
+            ("estimators.viso_ot", True),
+        )
+    if not full:
+        overrides += (("duration_s", SHORT_DURATION_S),)
+    labels = (
+        ("scenario", scenario),
+        ("surface", surface),
+        ("camber", float(camber)),
+        ("alignment", alignment),
+        ("seed", int(seed)),
+        ("feedback", feedback),
+    )
+    return CaseSpec(STUDY, scenario, overrides, labels)
+
+
+def field_loop_cases(full: bool = False) -> list[CaseSpec]:
+    """Cases of the field-loop study (the default subset unless ``full``).
+
+    Parameters
+    ----------
+    full
+        All 96 cases (:data:`SCENARIOS` × :data:`SURFACES` × :data:`CAMBERS_PERCENT` × :data:`ALIGNMENTS` ×
+        :data:`SEEDS` × :data:`FEEDBACKS`, the complete manoeuvres) instead of the 6 of :data:`DEFAULT_CELLS`
+        (three feedbacks each, :data:`SHORT_DURATION_S` long).
+
+    Returns
+    -------
+    list of CaseSpec
+        Labelled by ``scenario``, ``surface``, ``camber`` [%], ``alignment``, ``seed`` and ``feedback``, a cell's
+        three feedbacks next to each other; the ``viso_ot_fused`` cases render under field conditions.
+    """
+    if full:
+        cells = [
+            (scenario, surface, camber, alignment, seed)
+            for scenario in SCENARIOS
+            for surface in SURFACES
+            for camber in CAMBERS_PERCENT
+            for alignment in ALIGNMENTS
+            for seed in SEEDS
+        ]
+    else:
+        cells = list(DEFAULT_CELLS)
+    return [_case(*cell, feedback, full) for cell in cells for feedback in FEEDBACKS]
+
+
+def _number(mapping: Any, key: str) -> float:
+    value = mapping.get(key) if isinstance(mapping, dict) else None
+    try:
+        return float(value) if value is not None else math.nan
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def metrics_columns(metrics: dict[str, Any]) -> dict[str, Any]:
+    """The study's columns from a run's ``metrics.json``: fused errors, fallback and verdict (NaN where absent).
+
+    Parameters
+    ----------
+    metrics
+        The run's metrics (:func:`~scenarios.run.metrics.compute_metrics`).
+
+    Returns
+    -------
+    dict
+        ``fused_rms_error_m``, ``fused_mean_error_m``, ``fused_max_abs_error_m`` [m], ``fused_within_2sigma``
+        (share), ``fused_mean_std_m`` [m] of ``offtracking.estimators.viso_ot_fused``; ``fallback_fraction`` and
+        ``fallback_s`` [s] of ``feedback_fallback``; ``verdict_held`` (bool) and ``verdict_flags`` (the flag
+        names joined by ``;``, empty when it held) of ``verdict``.
+    """
+    fused = ((metrics.get("offtracking") or {}).get("estimators") or {}).get("viso_ot_fused") or {}
+    fallback = metrics.get("feedback_fallback") or {}
+    verdict = metrics.get("verdict")
+    row: dict[str, Any] = {
+        "fused_rms_error_m": _number(fused, "rms_error"),
+        "fused_mean_error_m": _number(fused, "mean_error"),
+        "fused_max_abs_error_m": _number(fused, "max_abs_error"),
+        "fused_within_2sigma": _number(fused, "within_2sigma"),
+        "fused_mean_std_m": _number(fused, "mean_std"),
+        "fallback_fraction": _number(fallback, "fraction"),
+        "fallback_s": _number(fallback, "seconds"),
+        "verdict_held": math.nan,
+        "verdict_flags": math.nan,
+    }
+    if isinstance(verdict, dict) and "held" in verdict:
+        row["verdict_held"] = bool(verdict["held"])
+        row["verdict_flags"] = ";".join(str(f.get("flag", "")) for f in verdict.get("flags") or ())
+    return row
+
+
+def kinematic_trust(std: np.ndarray | None, trusted: float = KINEMATIC_TRUSTED_STD_MPS) -> dict[str, float]:
+    """Median of the fused filter's zero-slip-kinematics σ and the share of ticks on which it trusted them.
+
+    Parameters
+    ----------
+    std
+        ``fusion_kinematic_std`` per tick [m/s] (NaN where the filter gave none), or None if not recorded.
+    trusted
+        σ at or below which a tick counts as trusted [m/s].
+
+    Returns
+    -------
+    dict
+        ``kinematic_std_median_mps`` [m/s] and ``kinematic_trusted_fraction`` (of the ticks with a finite σ);
+        NaN without any.
+    """
+    values = np.asarray(std if std is not None else [], dtype=float)
+    values = values[np.isfinite(values)]
+    if not values.size:
+        return {"kinematic_std_median_mps": math.nan, "kinematic_trusted_fraction": math.nan}
+    return {
+        "kinematic_std_median_mps": float(np.median(values)),
+        "kinematic_trusted_fraction": float(np.mean(values <= trusted)),
+    }
+
+
+def run_field_loop_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
+    """:func:`~scenarios.studies.cases.run_case`, plus the columns of :data:`ROW_KEYS`.
+
+    They come from the run's ``metrics.json`` (:func:`metrics_columns`) and, for the filter's trust in the
+    zero-slip kinematics, from the ``fusion_kinematic_std`` column of its ``timeseries.parquet``
+    (:func:`kinematic_trust`); any the run did not record is NaN. An interrupted run returns
+    :func:`~scenarios.studies.cases.run_case`'s row as it is.
+    """
+    row = run_case(spec, out_dir)
+    if row.get("status") == RunStatus.INTERRUPTED:
+        return row
+    run_dir = out_dir / spec.name
+    metrics_file = run_dir / "metrics.json"
+    metrics = json.loads(metrics_file.read_text()) if metrics_file.is_file() else {}
+    row.update(metrics_columns(metrics))
+    row.update(kinematic_trust(read_timeseries(run_dir).get("fusion_kinematic_std")))
+    return row
+
+
+# ------------------------------------------------------------------------------------------- the cells
+
+
+def acceptance(fused_rms_m: float, fused_max_m: float, zero_slip_rms_m: float, coverage: float, dry: bool) -> str:
+    """The study's acceptance of one cell: ``pass``, or the criteria it failed joined by ``; ``.
+
+    Parameters
+    ----------
+    fused_rms_m, fused_max_m
+        RMS and largest magnitude of the true off-tracking after warm-up with fused feedback [m].
+    zero_slip_rms_m
+        The same RMS with zero-slip feedback [m] (compared on dry cells only).
+    coverage
+        Share of the fused estimate's errors within 2σ.
+    dry
+        Whether the cell's road is dry.
+
+    Returns
+    -------
+    str
+        ``pass`` when fused RMS ≤ :data:`TARGET_RMS_M`, max ≤ :data:`TARGET_MAX_M`, on a dry road RMS ≤ the
+        zero-slip-fed RMS + :data:`DRY_MARGIN_M`, and coverage within :data:`COVERAGE_BAND`; a missing value fails
+        its criterion.
+    """
+    failed = []
+    if not fused_rms_m <= TARGET_RMS_M:
+        failed.append(f"RMS {_m(fused_rms_m)} > {TARGET_RMS_M:.2f} m")
+    if not fused_max_m <= TARGET_MAX_M:
+        failed.append(f"max {_m(fused_max_m)} > {TARGET_MAX_M:.2f} m")
+    if dry and not fused_rms_m <= zero_slip_rms_m + DRY_MARGIN_M:
+        failed.append(f"dry: RMS {_m(fused_rms_m)} > zero-slip-fed {_m(zero_slip_rms_m)} + {DRY_MARGIN_M:.2f} m")
+    lo, hi = COVERAGE_BAND
+    if not lo <= coverage <= hi:
+        shown = "—" if not np.isfinite(coverage) else f"{100 * coverage:.0f} %"
+        failed.append(f"coverage {shown} outside {100 * lo:.0f}–{100 * hi:.0f} %")
+    return "pass" if not failed else "; ".join(failed)
+
+
+def _m(value: float) -> str:
+    return "—" if not np.isfinite(value) else f"{value:.3f}"
+
+
+def _verdict_text(held: Any, flags: Any) -> str:
+    if isinstance(held, bool | np.bool_):
+        return "held" if held else (str(flags).replace(";", ", ") if isinstance(flags, str) and flags else "not held")
+    return "—"
+
+
+def cell_table(table: pd.DataFrame) -> pd.DataFrame:
+    """One row per cell of a field-loop table (:func:`run_field_loop_case` rows), with its :func:`acceptance`.
+
+    Parameters
+    ----------
+    table
+        The study's case rows: the labels of :data:`CELL_LABELS` and ``feedback``, the true off-tracking after
+        warm-up, and the columns of :data:`ROW_KEYS` (absent ones are NaN). Failed cases may be in it: their
+        metrics are NaN and fail the acceptance.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The cell labels, then for each feedback ``{feedback}_true_rms_m`` and ``{feedback}_true_max_m`` [m], the
+        fused-fed run's ``fused_rms_error_m``, ``fused_mean_error_m`` [m], ``coverage`` (share within 2σ),
+        ``fallback_s`` [s] and ``verdict`` (``held``, its flags or ``—``), and ``acceptance``; in the table's
+        order of cells.
+    """
+    rows = []
+    for keys, cell in table.groupby(list(CELL_LABELS), sort=False, dropna=False):
+        by_feedback = {str(fb): part.iloc[0] for fb, part in cell.groupby("feedback", sort=False)}
+        row: dict[str, Any] = dict(zip(CELL_LABELS, keys, strict=True))
+        for feedback in FEEDBACKS:
+            case = by_feedback.get(feedback)
+            row[f"{feedback}_true_rms_m"] = _get(case, "true_offtracking_rms_after_warmup_m")
+            row[f"{feedback}_true_max_m"] = _get(case, "true_offtracking_max_after_warmup_m")
+        fused = by_feedback.get(RENDERED_FEEDBACK)
+        row["fused_rms_error_m"] = _get(fused, "fused_rms_error_m")
+        row["fused_mean_error_m"] = _get(fused, "fused_mean_error_m")
+        row["coverage"] = _get(fused, "fused_within_2sigma")
+        row["fallback_s"] = _get(fused, "fallback_s")
+        row["verdict"] = _verdict_text(
+            None if fused is None else fused.get("verdict_held"), None if fused is None else fused.get("verdict_flags")
+        )
+        row["acceptance"] = acceptance(
+            row["viso_ot_fused_true_rms_m"],
+            row["viso_ot_fused_true_max_m"],
+            row["zero_slip_true_rms_m"],
+            row["coverage"],
+            dry=row["surface"] == "dry",
+        )
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _get(case: pd.Series | None, column: str) -> float:
+    if case is None or column not in case.index:
+        return math.nan
+    try:
+        return float(case[column])
+    except (TypeError, ValueError):
+        return math.nan

@@ -1,0 +1,228 @@
+"""The figures and the table of the ``field-loop`` study (:mod:`scenarios.studies.field_loop`), one point per cell.
+
+* ``field_loop_offtracking.png`` — the true off-tracking after warm-up, RMS and max, with fused VISO-OT, zero-slip
+  and truth feedback side by side, with the targets :data:`~.field_loop.TARGET_RMS_M` and
+  :data:`~.field_loop.TARGET_MAX_M`;
+* ``field_loop_coverage.png`` — the share of the fused estimate's errors within 2σ, with the band
+  :data:`~.field_loop.COVERAGE_BAND` shaded;
+* ``field_loop_errors.png`` — the RMS error of the fused, raw VISO-OT and zero-slip estimators, all three run on
+  the fused-fed case;
+* ``table.md`` — rewritten as one row per cell with its acceptance (:func:`~.field_loop.cell_table`), then every
+  case.
+
+Cells are labelled ``r3 dry 0% aligned s0`` (manoeuvre, surface, camber, alignment, seed).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..run.files import write_atomic
+from .field_loop import (
+    COVERAGE_BAND,
+    DRY_MARGIN_M,
+    FEEDBACKS,
+    RENDERED_FEEDBACK,
+    TARGET_MAX_M,
+    TARGET_RMS_M,
+    cell_table,
+)
+
+SHORT_SCENARIOS = {"roundabout-3": "r3", "figure-eight": "f8"}
+"""Short names of the manoeuvres in the cell labels."""
+
+FEEDBACK_STYLE = {
+    "viso_ot_fused": ("fused VISO-OT", "tab:blue", "o"),
+    "zero_slip": ("zero-slip", "tab:orange", "s"),
+    "truth": ("truth", "tab:green", "^"),
+}
+"""Legend name, colour and marker per feedback source."""
+
+ESTIMATOR_ERRORS = (
+    ("fused_rms_error_m", "fused VISO-OT", "tab:blue", "o"),
+    ("viso_ot_rms_error_m", "raw VISO-OT", "tab:purple", "D"),
+    ("zero_slip_rms_error_m", "zero-slip", "tab:orange", "s"),
+)
+"""Column, legend name, colour and marker of the estimators in ``field_loop_errors.png``."""
+
+
+def cell_label(row: pd.Series | dict[str, Any]) -> str:
+    """``r3 dry 0% aligned s0``: manoeuvre, surface, camber [%], alignment and seed of a cell."""
+    scenario = str(row["scenario"])
+    camber = f"{float(row['camber']):g}%"
+    return f"{SHORT_SCENARIOS.get(scenario, scenario)} {row['surface']} {camber} {row['alignment']} s{int(row['seed'])}"
+
+
+def _positive(values: Any) -> np.ndarray:
+    v = np.asarray(values, dtype=float)
+    return np.where(v > 0.0, v, np.nan)  # a log axis has no place for zero
+
+
+def _axes(plt: Any, n_cells: int, rows: int) -> tuple[Any, Any]:
+    width = max(8.0, 0.42 * n_cells + 5.0)  # room for the legend on the right
+    fig, axes = plt.subplots(rows, 1, figsize=(width, 3.2 * rows + 1.2), squeeze=False, sharex=True)
+    return fig, axes[:, 0]
+
+
+def _cell_ticks(ax: Any, labels: list[str]) -> None:
+    ax.set_xticks(range(len(labels)), labels, rotation=60, ha="right", fontsize=8)
+    ax.set_xlim(-0.6, len(labels) - 0.4)
+
+
+def offtracking_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
+    """``field_loop_offtracking.png``: true off-tracking RMS and max per cell for the three feedbacks."""
+    labels = [cell_label(r) for _, r in cells.iterrows()]
+    x = np.arange(len(cells))
+    fig, axes = _axes(plt, len(cells), 2)
+    panels = (("rms", "RMS", TARGET_RMS_M), ("max", "max", TARGET_MAX_M))
+    for ax, (key, name, target) in zip(axes, panels, strict=True):
+        for k, feedback in enumerate(FEEDBACKS):
+            legend, colour, marker = FEEDBACK_STYLE[feedback]
+            column = f"{feedback}_true_{key}_m"
+            values = _positive(cells[column]) if column in cells.columns else np.full(len(cells), np.nan)
+            ax.plot(x + 0.2 * (k - 1), values, marker, color=colour, ms=6, label=f"{legend} feedback")
+        ax.axhline(target, color="tab:red", lw=1.0, ls="--", label=f"target {target:.2f} m")
+        ax.set_yscale("log")
+        ax.set_ylabel(f"true e_tr {name} after warm-up [m]")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    _cell_ticks(axes[-1], labels)
+    fig.suptitle("field-loop: true off-tracking with fused VISO-OT, zero-slip and truth feedback")
+    fig.tight_layout()
+    fig.savefig(out_dir / "field_loop_offtracking.png", dpi=110)
+    plt.close(fig)
+
+
+def coverage_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
+    """``field_loop_coverage.png``: the fused estimate's share of errors within 2σ per cell, with the target band."""
+    labels = [cell_label(r) for _, r in cells.iterrows()]
+    x = np.arange(len(cells))
+    lo, hi = COVERAGE_BAND
+    fig, axes = _axes(plt, len(cells), 1)
+    ax = axes[0]
+    ax.axhspan(100 * lo, 100 * hi, color="tab:green", alpha=0.15, lw=0, label=f"target {100 * lo:.0f}–{100 * hi:.0f} %")
+    coverage = 100 * np.asarray(cells["coverage"], dtype=float)
+    inside = (coverage >= 100 * lo) & (coverage <= 100 * hi)
+    ax.bar(x, coverage, 0.6, color=np.where(inside, "tab:blue", "tab:red"))
+    ax.set_ylim(0.0, 100.0)
+    ax.set_ylabel("fused errors within 2σ [%]")
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    _cell_ticks(ax, labels)
+    fig.suptitle("field-loop: coverage of the fused VISO-OT standard deviation (red: outside the band)")
+    fig.tight_layout()
+    fig.savefig(out_dir / "field_loop_coverage.png", dpi=110)
+    plt.close(fig)
+
+
+def errors_figure(table: pd.DataFrame, cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
+    """``field_loop_errors.png``: RMS error of the fused, raw VISO-OT and zero-slip estimators per cell.
+
+    All three run on the cell's fused-fed case (the raw and zero-slip ones open loop beside the fused filter).
+    """
+    fused = table[table["feedback"] == RENDERED_FEEDBACK]
+    labels = [cell_label(r) for _, r in cells.iterrows()]
+    by_label = {cell_label(r): r for _, r in fused.iterrows()}
+    x = np.arange(len(cells))
+    fig, axes = _axes(plt, len(cells), 1)
+    ax = axes[0]
+    for k, (column, legend, colour, marker) in enumerate(ESTIMATOR_ERRORS):
+        values = [float(by_label[c].get(column, np.nan)) if c in by_label else np.nan for c in labels]
+        ax.plot(x + 0.2 * (k - 1), _positive(values), marker, color=colour, ms=6, label=legend)
+    ax.axhline(TARGET_RMS_M, color="tab:red", lw=1.0, ls="--", label=f"target {TARGET_RMS_M:.2f} m")
+    ax.set_yscale("log")
+    ax.set_ylabel("off-tracking error RMS [m]")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    _cell_ticks(ax, labels)
+    fig.suptitle("field-loop: estimator errors on the fused-fed runs")
+    fig.tight_layout()
+    fig.savefig(out_dir / "field_loop_errors.png", dpi=110)
+    plt.close(fig)
+
+
+def _fmt(value: Any, digits: int = 3) -> str:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return "—"
+    return f"{v:.{digits}f}" if np.isfinite(v) else "—"
+
+
+def _pair(a: Any, b: Any) -> str:
+    return f"{_fmt(a)} / {_fmt(b)}"
+
+
+def field_loop_markdown(cells: pd.DataFrame) -> str:
+    """The per-cell table of the study with its acceptance, as Markdown (degrees and percent at this edge)."""
+    lo, hi = COVERAGE_BAND
+    passed = int((cells["acceptance"] == "pass").sum())
+    lines = [
+        "# field-loop: the fused VISO-OT loop under field conditions, beside the zero-slip-fed and truth-fed loops",
+        "",
+        f"{passed} of {len(cells)} cells pass. Acceptance: with fused feedback the true off-tracking after warm-up "
+        f"is ≤ {TARGET_RMS_M:.2f} m RMS and ≤ {TARGET_MAX_M:.2f} m max (de Saxe & Cebon 2018 §2, after Jujnovich & "
+        f"Cebon 2013), on a dry road ≤ the zero-slip-fed RMS + {DRY_MARGIN_M:.2f} m, and {100 * lo:.0f}–"
+        f"{100 * hi:.0f} % of the fused errors lie within 2σ (docs/design.md §11).",
+        "",
+    ]
+    header = [
+        "scenario",
+        "surface",
+        "camber [%]",
+        "alignment",
+        "seed",
+        *(f"true e_tr RMS / max, {FEEDBACK_STYLE[fb][0]} feedback [m]" for fb in FEEDBACKS),
+        "fused error RMS / mean [m]",
+        "within 2σ [%]",
+        "fallback [s]",
+        "verdict",
+        "acceptance",
+    ]
+    lines += ["| " + " | ".join(header) + " |", "| " + " | ".join(["---"] * len(header)) + " |"]
+    for _, r in cells.iterrows():
+        cells_text = [
+            str(r["scenario"]),
+            str(r["surface"]),
+            f"{float(r['camber']):g}",
+            str(r["alignment"]),
+            f"{int(r['seed'])}",
+            *(_pair(r[f"{fb}_true_rms_m"], r[f"{fb}_true_max_m"]) for fb in FEEDBACKS),
+            _pair(r["fused_rms_error_m"], r["fused_mean_error_m"]),
+            _fmt(100 * float(r["coverage"]), 0),
+            _fmt(r["fallback_s"], 1),
+            str(r["verdict"]),
+            str(r["acceptance"]),
+        ]
+        lines.append("| " + " | ".join(cells_text) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def field_loop_figures(table: pd.DataFrame, out_dir: Path) -> None:
+    """Draw the study's three figures into ``out_dir`` and rewrite ``table.md`` as the cells, then every case.
+
+    Parameters
+    ----------
+    table
+        The study's case rows (:func:`~.field_loop.run_field_loop_case`), failed ones left out.
+    out_dir
+        The study directory.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir = Path(out_dir)
+    cells = cell_table(table)
+    if cells.empty:
+        return
+    offtracking_figure(cells, out_dir, plt)
+    coverage_figure(cells, out_dir, plt)
+    errors_figure(table, cells, out_dir, plt)
+    full = table.to_markdown(index=False, floatfmt=".3f")
+    write_atomic(out_dir / "table.md", field_loop_markdown(cells) + "\n## Every case\n\n" + full + "\n")
