@@ -317,7 +317,7 @@ def render(
 @app.command()
 @_command
 def study(
-    name: Annotated[str, typer.Argument(help="paper-section3, paper-section4, estimators-under-slip or field-loop.")],
+    name: Annotated[str, typer.Argument(help="The study (an unknown name lists them all).")],
     full: Annotated[bool, typer.Option(help="Run the whole study (default: a small subset).")] = False,
     out: Annotated[Path | None, typer.Option(help="Output directory (default runs/study-NAME/…).")] = None,
     force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous files are removed.")] = False,

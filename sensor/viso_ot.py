@@ -44,7 +44,13 @@ from vehicle_model.parameters import VehicleParams
 __all__ = ["ESTIMATE_REASONS", "PLAUSIBILITY_REASONS", "STEP_COLUMNS", "MotionBounds", "VisoOtEstimator"]
 
 #: Names of the step measures of :meth:`VisoOtEstimator.step_measures` (SI units).
-STEP_COLUMNS: tuple[str, ...] = ("step_speed_m_s", "step_yaw_rate_rad_s", "step_tilt_rate_rad_s", "step_vertical_m_s")
+STEP_COLUMNS: tuple[str, ...] = (
+    "step_speed_m_s",
+    "step_lateral_m_s",
+    "step_yaw_rate_rad_s",
+    "step_tilt_rate_rad_s",
+    "step_vertical_m_s",
+)
 
 
 @dataclass(frozen=True)
@@ -212,7 +218,8 @@ class VisoOtEstimator:
     def step_measures(self, camera_motion: np.ndarray, dt: float) -> dict[str, float]:
         """Rates implied by one camera motion over ``dt`` seconds (:data:`STEP_COLUMNS`).
 
-        Kingpin speed (horizontal), trailer yaw rate, tilt rate (the angle between the trailer's
+        Kingpin speed (horizontal), its lateral component in the trailer's axes at the frame's start, trailer
+        yaw rate, tilt rate (the angle between the trailer's
         vertical axis before and after the step: pitch and roll together) and the camera's vertical
         speed (trailer z).
         """
@@ -223,6 +230,7 @@ class VisoOtEstimator:
         dz = float((self.mount_rotation @ m[:3, 3])[2])
         return {
             "step_speed_m_s": math.hypot(dx, dy) / dt,
+            "step_lateral_m_s": dy / dt,
             "step_yaw_rate_rad_s": dpsi / dt,
             "step_tilt_rate_rad_s": tilt / dt,
             "step_vertical_m_s": dz / dt,

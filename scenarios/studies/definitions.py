@@ -14,6 +14,9 @@
   {three-turn roundabout, figure-of-eight} × {dry, ice} × camber ∈ {0, 5 %} × right camera aligned or misaligned
   as in the paper's §4.4 × seeds 0 and 1 × feedback ∈ {viso_ot_fused, zero_slip, truth}, with an acceptance per
   cell (:mod:`scenarios.studies.field_loop`).
+* ``field-bias`` — which part of the field conditions biases VISO-OT: each part alone and in pairs, before and after
+  the fixes, the odometry's error by axis and the raw and fused off-tracking bias
+  (:mod:`scenarios.studies.field_bias`; docs/field_bias.md).
 
 The default run of each is a small subset that finishes in minutes; ``full`` runs all of it.
 
@@ -36,6 +39,7 @@ import pandas as pd
 from ..loop.ends import RunStatus
 from ..registry import feedback_sources
 from .cases import run_case
+from .field_bias import field_bias_cases, run_field_bias_case
 from .field_loop import field_loop_cases, run_field_loop_case
 from .figures import FIGURES
 from .progress import ProgressCallback, SweepProgress
@@ -131,6 +135,7 @@ STUDIES: dict[str, Callable[[bool], list[CaseSpec]]] = {
     "estimators-under-slip": estimators_under_slip_cases,
     "paper-section4": paper_section4_cases,
     "field-loop": field_loop_cases,
+    "field-bias": field_bias_cases,
 }
 
 
@@ -153,6 +158,7 @@ CASE_RUNNERS: dict[str, Callable[[CaseSpec, Path], dict[str, Any]]] = {
     "paper-section4": run_section4_case,
     "estimators-under-slip": run_estimators_under_slip_case,
     "field-loop": run_field_loop_case,
+    "field-bias": run_field_bias_case,
 }
 """A study's own case function (default :func:`~scenarios.studies.cases.run_case`): it adds study columns."""
 

@@ -1,5 +1,5 @@
-"""Figures of the studies: de Saxe & Cebon 2018 §3 Figs 6–8 and §4 Figs 14–16, the estimators-under-slip heat maps
-and the field-loop cells."""
+"""Figures of the studies: de Saxe & Cebon 2018 §3 Figs 6–8 and §4 Figs 14–16, the estimators-under-slip heat maps,
+the field-loop cells and the field-bias decomposition."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .figures_field_bias import field_bias_figures
 from .figures_field_loop import field_loop_figures
 from .figures_section4 import section4_figures
 
@@ -93,4 +94,5 @@ FIGURES: dict[str, Callable[[pd.DataFrame, Path], None]] = {
     "estimators-under-slip": grid_figures,
     "paper-section4": section4_figures,
     "field-loop": field_loop_figures,
+    "field-bias": field_bias_figures,
 }

@@ -32,6 +32,8 @@ LABELS = (
     "slip",
     "density",
     "alignment",
+    "part",
+    "variant",
     "seed",
     "feedback",
 )
