@@ -11,6 +11,7 @@ tested end to end in ``tests/test_faults.py``.
 
 from __future__ import annotations
 
+import errno
 import functools
 import json
 from collections.abc import Callable
@@ -41,6 +42,10 @@ EXIT_BAD_INPUT = 2
 """Exit code for bad input."""
 EXIT_FAILED = 3
 """Exit code for a run that diverged, lost control or could not write a file, or a study with a failed case."""
+FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS)
+"""Errors of a write that found no room (a full disk, a quota, a file too large, a read-only file system): an
+:class:`OSError` with one of these that no writer turned into an :class:`~vehicle_model.errors.OutputError` is one
+line and exit 3 all the same."""
 FEEDBACKS = ", ".join(feedback_sources())
 """The feedback choices (:mod:`scenarios.registry`), for the help texts."""
 
@@ -77,6 +82,10 @@ def _command(func: F) -> F:
             if isinstance(exc, OfftrackError | ValidationError | ValueError):  # a file not writable: failed, 3
                 errors.print(f"error: {exc}", markup=False)
                 raise typer.Exit(EXIT_FAILED if isinstance(exc, OutputError) else EXIT_BAD_INPUT) from None
+            if isinstance(exc, OSError) and exc.errno in FULL:
+                where = f"cannot write {exc.filename}" if exc.filename else "a file could not be written"
+                errors.print(f"error: {where}: {exc.strerror or exc}", markup=False)
+                raise typer.Exit(EXIT_FAILED) from None
             raise
 
     return wrapper  # type: ignore[return-value]

@@ -1,31 +1,41 @@
 """A file a run cannot write (a full disk, a quota): the run fails with exit 3 and says which, keeping what it wrote.
 
-Before, an ``OSError`` from the time series or ``metrics.json`` came out as a traceback with exit code 1 and left
-``metrics.json`` saying ``running``. Each case makes a real ``offtrack run`` meet ``ENOSPC`` at the point named,
-where the library writes (pyarrow's part writer, the temporary file of an atomic write).
+An ``OSError`` from the time series, ``metrics.json`` or the plots must not come out as a traceback with exit code 1,
+nor leave ``metrics.json`` saying ``running``. Each case makes a real ``offtrack run`` (or ``offtrack report``) meet
+``ENOSPC`` at the point named, where the library writes (pyarrow's part writer, the temporary file of an atomic
+write, Pillow's image data), or on a real tmpfs that is full.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import shutil
 import subprocess
 import sys
 import textwrap
 from pathlib import Path
 
 import pandas as pd
+import pytest
+from test_faults import offtrack
 
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _failed_run(patch: str, duration: float, out: Path) -> subprocess.CompletedProcess:
-    """``offtrack run roundabout-test`` with ``patch`` applied first; it must fail with exit 3, no traceback."""
+def _failed(patch: str, *args: str) -> subprocess.CompletedProcess:
+    """``offtrack ARGS`` with ``patch`` applied first; it must fail with exit 3, no traceback."""
     code = textwrap.dedent(patch) + "\nfrom scenarios.cli import main\nmain()\n"
-    args = ["run", "roundabout-test", "--duration", str(duration), "--no-plots", "--out", str(out)]
     result = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=REPO, timeout=300)
     assert result.returncode == 3, result.stderr
     assert "Traceback" not in result.stderr
     return result
+
+
+def _failed_run(patch: str, duration: float, out: Path, plots: bool = False) -> subprocess.CompletedProcess:
+    """``offtrack run roundabout-test`` with ``patch`` applied first; it must fail with exit 3, no traceback."""
+    args = ["run", "roundabout-test", "--duration", str(duration), "--plots" if plots else "--no-plots"]
+    return _failed(patch, *args, "--out", str(out))
 
 
 _DISK_FULL_AT_THE_SECOND_PART = """
@@ -90,3 +100,71 @@ def test_a_series_that_cannot_be_made_is_one_line_and_exit_3(tmp_path: Path) -> 
     result = _failed_run(_DISK_FULL_AT_THE_START, 4, out)
     last = result.stderr.strip().splitlines()[-1]
     assert last.startswith("error: cannot write ") and "timeseries.parquet: No space left on device" in last
+
+
+# Pillow writes the image data of a PNG through ImageFile._save: the disk fills up after the first bytes of it.
+_DISK_FULL_IN_THE_PLOTS = """
+import errno
+import PIL.ImageFile as image_file
+def fill_the_disk(im, fp, *args, **kwargs):
+    fp.write(b"the first bytes of the image data")
+    raise OSError(errno.ENOSPC, "No space left on device")
+image_file._save = fill_the_disk
+"""
+
+
+def _assert_no_plot_and_the_run_kept(out: Path, status: str) -> None:
+    """No plot, whole or in part, and no temporary file; ``metrics.json`` and the series as the run left them."""
+    assert not list(out.glob("*.png")) and not list(out.glob(".*"))
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == status
+    assert len(pd.read_parquet(out / "timeseries.parquet")) == metrics["rows"] > 0
+
+
+def test_plots_that_cannot_be_written_are_one_line_naming_the_file_and_exit_3(tmp_path: Path) -> None:
+    out = tmp_path / "r"
+    result = _failed_run(_DISK_FULL_IN_THE_PLOTS, 4, out, plots=True)
+    last = result.stderr.strip().splitlines()[-1]
+    assert last == f"error: cannot write {out / 'plan_view.png'}: No space left on device"
+    _assert_no_plot_and_the_run_kept(out, "completed")  # the simulation did complete; `report` draws the plots
+
+
+def test_report_that_cannot_draw_its_plots_is_one_line_naming_the_file_and_exit_3(tmp_path: Path) -> None:
+    out = tmp_path / "r"
+    made = offtrack("run", "roundabout-test", "--duration", "4", "--no-plots", "--out", str(out))
+    assert made.returncode == 0, made.stderr
+    result = _failed(_DISK_FULL_IN_THE_PLOTS, "report", str(out))
+    assert result.stderr.strip().splitlines()[-1] == (
+        f"error: cannot write {out / 'plan_view.png'}: No space left on device"
+    )
+    _assert_no_plot_and_the_run_kept(out, "completed")
+
+
+@pytest.fixture
+def tiny_tmpfs(tmp_path: Path):
+    """A 200 kB tmpfs (root only, where mounting is allowed; else the test is skipped), unmounted afterwards."""
+    mount = tmp_path / "tmpfs"
+    mount.mkdir()
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("mounting a tmpfs needs root")
+    made = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=200k", "tmpfs", str(mount)], capture_output=True)
+    if made.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {made.stderr.decode().strip()}")
+    try:
+        yield mount
+    finally:
+        subprocess.run(["umount", "-l", str(mount)], check=False)
+
+
+@pytest.mark.slow
+def test_a_run_and_its_report_on_a_full_tmpfs_name_the_plot_and_exit_3(tiny_tmpfs: Path) -> None:
+    # The real thing: the series (~100 kB) and metrics fit in 200 kB, the plan view does not.
+    out = tiny_tmpfs / "r"
+    result = _failed_run("", 20, out, plots=True)
+    assert (
+        result.stderr.strip().splitlines()[-1]
+        == f"error: cannot write {out / 'plan_view.png'}: No space left on device"
+    )
+    _assert_no_plot_and_the_run_kept(out, "completed")
+    result = _failed("", "report", str(out))
+    assert "plan_view.png: No space left on device" in result.stderr.strip().splitlines()[-1]

@@ -18,17 +18,43 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-import yaml
 from matplotlib.figure import Figure
 
 from vehicle_model.parameters import VehicleParams
 
-from ..config import ScenarioConfig, validate_config
+from ..config import ScenarioConfig
 from ..registry import source_colour
 from ..setup.build import ScenarioSetup, build_scenario
+from .files import atomic_path
 from .metrics import estimator_names
-from .results import CONFIG_FILE, METRICS_FILE, TIMESERIES_FILE
+from .results import METRICS_FILE, TIMESERIES_FILE, read_config
 from .swept_path import swept_path_figure
+
+
+def save_figure(fig: Figure, path: Path, **options: Any) -> None:
+    """Write ``fig`` to ``path`` whole and close it: drawn into a temporary file, renamed when complete.
+
+    Parameters
+    ----------
+    fig
+        The figure (closed afterwards, also when the write fails).
+    path
+        The image file; its suffix gives the format (``.png``).
+    **options
+        Passed to :meth:`matplotlib.figure.Figure.savefig` (``dpi``, ``bbox_inches``).
+
+    Raises
+    ------
+    OutputError
+        The image could not be written (a full disk, a quota): the message names ``path``; no part of the image
+        is left behind, and an earlier file of that name is kept.
+    """
+    path = Path(path)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format=path.suffix.lstrip(".") or "png", **options)
+    finally:
+        plt.close(fig)
 
 
 def run_title(config: ScenarioConfig) -> str:
@@ -92,8 +118,7 @@ def plot_plan_view(
         turn_span=turn_span,
         instants=instants,
     )
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    save_figure(fig, path, dpi=dpi)
     return fig
 
 
@@ -150,7 +175,7 @@ class SavedRun:
 def load_run(run_dir: Path) -> SavedRun:
     """Read a run directory (``config.yaml``, ``timeseries.parquet``, ``metrics.json``) into a :class:`SavedRun`."""
     run_dir = Path(run_dir)
-    config = validate_config(yaml.safe_load((run_dir / CONFIG_FILE).read_text()))
+    config = read_config(run_dir)
     frame = pd.read_parquet(run_dir / TIMESERIES_FILE)
     columns = {c: frame[c].to_numpy(dtype=float) for c in frame.columns}
     metrics_file = run_dir / METRICS_FILE
@@ -182,5 +207,4 @@ def plot_offtracking(path: Path, columns: dict[str, np.ndarray], estimator_names
     top.legend(loc="best", fontsize=8)
     if estimator_names:
         bottom.legend(loc="best", fontsize=8)
-    fig.savefig(path, dpi=130, bbox_inches="tight")
-    plt.close(fig)
+    save_figure(fig, path, dpi=130, bbox_inches="tight")

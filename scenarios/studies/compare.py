@@ -19,6 +19,7 @@ from ..config import ScenarioConfig, validate_config
 from ..registry import feedback_sources, source_colour
 from ..run.drive import ProgressCallback
 from ..run.files import write_atomic
+from ..run.plots import save_figure
 from ..run.results import TIMESERIES_FILE
 from ..run.runner import run_scenario
 from ..run.swept_path import (
@@ -211,8 +212,7 @@ def _plot(
     path: Path, config: ScenarioConfig, traces: dict[str, pd.DataFrame], verdicts: dict[str, Any] | None = None
 ) -> None:
     fig = comparison_figure(config, traces, verdicts)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def comparison_rows_as_text(table: pd.DataFrame) -> list[list[str]]:

@@ -20,6 +20,8 @@ def paper_figures(table: pd.DataFrame, out_dir: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ..run.plots import save_figure
+
     panels = (
         ("viso_ot_rms_error_m", "RMS error [m]"),
         ("viso_ot_mean_error_m", "mean error [m]"),
@@ -48,8 +50,7 @@ def paper_figures(table: pd.DataFrame, out_dir: Path) -> None:
         axes[0].legend(fontsize=8)
         fig.suptitle(title)
         fig.tight_layout()
-        fig.savefig(out_dir / filename, dpi=110)
-        plt.close(fig)
+        save_figure(fig, out_dir / filename, dpi=110)
 
 
 def grid_figures(table: pd.DataFrame, out_dir: Path) -> None:
@@ -57,6 +58,8 @@ def grid_figures(table: pd.DataFrame, out_dir: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from ..run.plots import save_figure
 
     for scenario, part in table.groupby("scenario"):
         feedbacks = list(dict.fromkeys(part["feedback"]))
@@ -85,8 +88,7 @@ def grid_figures(table: pd.DataFrame, out_dir: Path) -> None:
             ax.set_xlabel("adverse camber")
         fig.colorbar(image, ax=axes[0].tolist(), label="true off-tracking RMS after warm-up [m]")
         fig.suptitle(f"{scenario}: true off-tracking by feedback source, μ and camber")
-        fig.savefig(out_dir / f"heatmap_{scenario}.png", dpi=110, bbox_inches="tight")
-        plt.close(fig)
+        save_figure(fig, out_dir / f"heatmap_{scenario}.png", dpi=110, bbox_inches="tight")
 
 
 FIGURES: dict[str, Callable[[pd.DataFrame, Path], None]] = {

@@ -82,8 +82,9 @@ def fig14(table: pd.DataFrame, out_dir: Path, plt: Any) -> None:
     axes[2, 0].legend(fontsize=8)
     fig.suptitle(f"Fig 14: off-tracking with features and errors, {baseline:g} m baseline, misaligned right camera")
     fig.tight_layout()
-    fig.savefig(out_dir / "fig14_timeseries.png", dpi=110)
-    plt.close(fig)
+    from ..run.plots import save_figure  # matplotlib only when the figures are drawn
+
+    save_figure(fig, out_dir / "fig14_timeseries.png", dpi=110)
 
 
 def fig15(table: pd.DataFrame, out_dir: Path, plt: Any) -> None:
@@ -117,8 +118,9 @@ def fig15(table: pd.DataFrame, out_dir: Path, plt: Any) -> None:
     axes[0].legend(fontsize=7)
     fig.suptitle("Fig 15: left roundabout summary (bands: the paper's ranges over 0.5–0.9 m)")
     fig.tight_layout()
-    fig.savefig(out_dir / "fig15_left_roundabout.png", dpi=110)
-    plt.close(fig)
+    from ..run.plots import save_figure  # matplotlib only when the figures are drawn
+
+    save_figure(fig, out_dir / "fig15_left_roundabout.png", dpi=110)
 
 
 def fig16(table: pd.DataFrame, out_dir: Path, plt: Any) -> None:
@@ -160,8 +162,9 @@ def fig16(table: pd.DataFrame, out_dir: Path, plt: Any) -> None:
         "and corrected by eqs (8)–(9)"
     )
     fig.tight_layout()
-    fig.savefig(out_dir / "fig16_correction.png", dpi=110)
-    plt.close(fig)
+    from ..run.plots import save_figure  # matplotlib only when the figures are drawn
+
+    save_figure(fig, out_dir / "fig16_correction.png", dpi=110)
 
 
 def _range(key: str, unit: str = "") -> str:
