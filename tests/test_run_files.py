@@ -325,3 +325,66 @@ def test_a_run_killed_with_sigkill_keeps_its_series_to_the_last_flush(tmp_path: 
     metrics = rebuild_report(run_dir, plots=False)
     assert metrics["status"] == "incomplete" and metrics["rows"] == len(frame)
     assert json.loads((run_dir / "metrics.json").read_text())["rows"] == len(frame)
+
+
+def _killed_at(run_dir: Path, at_s: float, rows_per_part: int = 25) -> pd.DataFrame:
+    """Run :data:`KILLED_RUN` into ``run_dir`` and SIGKILL it once its series reaches ``at_s`` simulated seconds."""
+    run_dir.mkdir()
+    proc = subprocess.Popen(
+        [sys.executable, "-c", KILLED_RUN, str(run_dir), str(rows_per_part)], cwd=REPO, stderr=subprocess.PIPE
+    )
+    try:
+        deadline = time.monotonic() + 120.0
+        while time.monotonic() < deadline:
+            assert proc.poll() is None, proc.stderr.read().decode() if proc.stderr else ""
+            try:
+                frame = pd.read_parquet(run_dir / TIMESERIES_FILE)
+            except (OSError, ValueError):  # no part yet
+                frame = pd.DataFrame()
+            if len(frame) and frame["time"].iloc[-1] >= at_s:
+                break
+            time.sleep(0.01)
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert proc.returncode == -signal.SIGKILL
+    return pd.read_parquet(run_dir / TIMESERIES_FILE)
+
+
+@pytest.mark.parametrize("at_s", [2.4, 9.0])  # before the truth is defined (all NaN), and well into the run
+def test_report_after_sigkill_rebuilds_the_metrics_and_prints_the_summary(tmp_path: Path, at_s: float) -> None:
+    from test_faults import offtrack
+
+    run_dir = tmp_path / "run"
+    frame = _killed_at(run_dir, at_s)
+    assert json.loads((run_dir / "metrics.json").read_text())["status"] == "running"
+    result = offtrack("report", str(run_dir))
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr + result.stdout
+    assert "incomplete" in result.stdout and "an unknown wall time" in result.stdout
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    assert metrics["status"] == "incomplete" and metrics["wall_time_s"] is None
+    assert metrics["rows"] == len(frame) and metrics["stop_time"] == pytest.approx(frame["time"].iloc[-1])
+    assert (run_dir / "plan_view.png").is_file() and (run_dir / "offtracking.png").is_file()
+
+
+def test_the_summary_of_a_killed_run_read_back_from_its_json_shows_what_is_missing(tmp_path: Path) -> None:
+    # metrics.json stores what could not be computed as null (a truth not yet defined, no wall time): the summary
+    # made from it shows "–" for each of them instead of failing on formatting None.
+    from rich.console import Console
+
+    from scenarios.run.summary import run_summary
+
+    run_dir = tmp_path / "run"
+    _killed_at(run_dir, 0.5)
+    rebuild_report(run_dir, plots=False)
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    assert metrics["offtracking"]["truth"]["rms"] is None and metrics["wall_time_s"] is None
+    console = Console(record=True, width=200)
+    for item in run_summary(metrics, run_dir):
+        console.print(item)
+    text = console.export_text()
+    assert "incomplete" in text and "an unknown wall time" in text
+    truth_row = next(line for line in text.splitlines() if line.strip("│┃ ").startswith("truth"))
+    assert truth_row.count("–") == 2  # RMS and max

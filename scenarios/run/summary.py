@@ -1,59 +1,88 @@
-"""The closing summary of a run for the terminal: off-tracking of the truth and every estimator, the verdicts."""
+"""The closing summary of a run for the terminal: off-tracking of the truth and every estimator, the verdicts.
+
+The metrics may come from a run that did not finish (``offtrack report`` after a kill) or from ``metrics.json``
+itself, where a quantity that could not be computed is null: every number is shown through :func:`number`, which
+writes such a value as ``–`` instead of failing.
+"""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
 from rich.markup import escape
 from rich.table import Table
 
+MISSING = "–"
+"""How a number the run did not produce (None, not a number) is shown."""
+
+
+def number(value: Any, spec: str = ".3f", unit: str = "") -> str:
+    """``value`` formatted with ``spec`` (and `` unit``), or :data:`MISSING` if it is None or not a real number.
+
+    NaN is shown as ``nan``: the quantity exists but had no samples (e.g. the truth before it was defined).
+    """
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return MISSING
+    text = f"{value:{spec}}"
+    return f"{text} {unit}" if unit and math.isfinite(value) else text
+
 
 def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
     """Rich renderables, in order: the off-tracking table, what "valid" means, the camera, the roundabout
     verdict and the timing. Units in headers are escaped so that ``[m]`` survives rich's markup."""
     out: list[Any] = []
-    table = Table(title=escape(f"{metrics['scenario']} — {metrics['status']} — {run_dir}"))
+    table = Table(title=escape(f"{metrics.get('scenario')} — {metrics.get('status')} — {run_dir}"))
     table.add_column("off-tracking")
     table.add_column(escape("RMS [m]"), justify="right")
     table.add_column(escape("max |·| [m]"), justify="right")
     table.add_column("valid", justify="right")
-    truth = metrics["offtracking"]["truth"]
-    defined = truth.get("defined_fraction", truth["valid_fraction"])
-    table.add_row("truth", f"{truth['rms']:.3f}", f"{truth['max_abs']:.3f}", f"(defined on {defined:.0%} of ticks)")
-    for name, err in metrics["offtracking"]["estimators"].items():
+    offtracking = metrics.get("offtracking") or {}
+    truth = offtracking.get("truth") or {}
+    defined = truth.get("defined_fraction", truth.get("valid_fraction"))
+    table.add_row(
+        "truth",
+        number(truth.get("rms")),
+        number(truth.get("max_abs")),
+        f"(defined on {number(defined, '.0%')} of ticks)",
+    )
+    for name, err in (offtracking.get("estimators") or {}).items():
         table.add_row(
-            f"{name} error", f"{err['rms_error']:.3f}", f"{err['max_abs_error']:.3f}", f"{err['valid_fraction']:.0%}"
+            f"{name} error",
+            number(err.get("rms_error")),
+            number(err.get("max_abs_error")),
+            number(err.get("valid_fraction"), ".0%"),
         )
     out.append(table)
     out.append("valid: share of the ticks with a truth on which the estimator had an estimate")
     camera = metrics.get("camera")
     if camera:
         out.append(
-            f"camera: {camera['valid_frames']} of {camera['frames']} frames gave an accepted motion"
-            + (f"; {escape(camera['message'])}" if camera.get("message") else "")
+            f"camera: {number(camera.get('valid_frames'), 'd')} of {number(camera.get('frames'), 'd')} frames gave an "
+            "accepted motion" + (f"; {escape(camera['message'])}" if camera.get("message") else "")
         )
     test = metrics.get("roundabout_test")
     if test:
-        verdict = "[green]PASS[/]" if test["pass"] else "[red]FAIL[/]"
+        verdict = "[green]PASS[/]" if test.get("pass") else "[red]FAIL[/]"
         out.append(
-            f"roundabout test {verdict}: outer radius max {test['outer_radius_max']:.3f} m (limit 12.50), "
-            f"inner radius min {test['inner_radius_min']:.3f} m (limit 5.30)"
+            f"roundabout test {verdict}: outer radius max {number(test.get('outer_radius_max'), unit='m')} "
+            f"(limit 12.50), inner radius min {number(test.get('inner_radius_min'), unit='m')} (limit 5.30)"
         )
     verdict = metrics.get("verdict")
     if verdict is not None:
-        if verdict["held"]:
+        if verdict.get("held"):
             out.append(
                 "[green]held[/]: "
                 + (
                     "off-tracking within target on a trusted estimate"
-                    if metrics["feedback"] != "none"
+                    if metrics.get("feedback") != "none"
                     else "nothing to hold (unsteered)"
                 )
             )
-        for flag in verdict["flags"]:
+        for flag in verdict.get("flags", []):
             out.append(f"[red]{flag['flag']}[/]: {escape(flag['reason'])}")
     wall = metrics.get("wall_time_s")
-    wall_text = f"{wall:.1f} s" if isinstance(wall, int | float) else "an unknown"
-    out.append(f"simulated {metrics['simulated_s']:.1f} s in {wall_text} wall time")
+    wall_text = f"{number(wall, '.1f', 's')}" if number(wall) != MISSING else "an unknown"
+    out.append(f"simulated {number(metrics.get('simulated_s'), '.1f', 's')} in {wall_text} wall time")
     return out
