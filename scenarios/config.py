@@ -11,11 +11,11 @@ in for the command line, the studies and the environments.
 from __future__ import annotations
 
 import math
+import reprlib
 from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, get_args
 
-import yaml
 from pydantic import (
     BaseModel,
     Field,
@@ -37,6 +37,7 @@ from vehicle_model.surface import FRICTION_PRESETS
 from .camera_checks import check_camera
 from .camera_schema import CameraConfig
 from .registry import NO_FEEDBACK, estimator_entries, estimator_entry, feedback_sources
+from .yaml_input import RefusedDocument, load_yaml
 
 CATALOGUE_PACKAGE = "scenarios.catalogue"
 
@@ -425,12 +426,25 @@ def _field_reason(loc: tuple[int | str, ...]) -> str | None:
     return description
 
 
+SHOWN_CHARACTERS = 80
+"""A bad value is quoted in its error message up to this many characters."""
+
+
+def _shown(value: Any) -> str:
+    """``repr(value)`` cut to :data:`SHOWN_CHARACTERS` with "…": a huge value is never written out whole."""
+    short = reprlib.Repr()
+    short.maxlevel, short.maxlist, short.maxtuple = 3, 8, 8
+    short.maxstring = short.maxother = SHOWN_CHARACTERS
+    text = short.repr(value)
+    return text if len(text) <= SHOWN_CHARACTERS else text[: SHOWN_CHARACTERS - 1] + "…"
+
+
 def _format_errors(exc: ValidationError) -> str:
     lines = []
     for err in exc.errors():
         loc = ".".join(str(p) for p in err["loc"]) or "(config)"
         value = err.get("input")
-        shown = "" if isinstance(value, dict) else f" = {value!r}"
+        shown = "" if isinstance(value, dict) else f" = {_shown(value)}"
         message = err["msg"].removeprefix("Value error, ")
         reason = _field_reason(err["loc"]) if err["type"] in _RANGE_ERRORS else None
         lines.append(f"  {loc}{shown}: {message}" + (f" — {reason}" if reason else ""))
@@ -460,25 +474,40 @@ def catalogue_names() -> list[str]:
 
 
 def load_scenario_data(name_or_path: str) -> dict[str, Any]:
-    """Raw configuration of a catalogue scenario or a YAML file."""
+    """Raw configuration of a catalogue scenario or a YAML file.
+
+    The text is read within the bounds of :func:`scenarios.yaml_input.load_yaml` (UTF-8, size, nesting, aliases).
+
+    Raises
+    ------
+    ConfigError
+        One line naming the scenario or file: unknown, missing, not UTF-8, out of bounds, not valid YAML, empty, or
+        not a mapping of fields.
+    """
     path = Path(name_or_path)
     if path.suffix in (".yaml", ".yml"):
         if not path.is_file():
             raise ConfigError(f"scenario file {name_or_path} does not exist")
-        text = path.read_text()
+        source = f"scenario file {name_or_path}"
+        try:
+            raw = path.read_bytes()
+        except OSError as exc:
+            raise ConfigError(f"{source} cannot be read: {exc.strerror or exc}") from None
     else:
         entry = resources.files(CATALOGUE_PACKAGE) / f"{name_or_path}.yaml"
         if not entry.is_file():
             raise ConfigError(
                 f"unknown scenario {name_or_path!r}; choose one of {catalogue_names()} or give a YAML file"
             )
-        text = entry.read_text()
+        source, raw = f"catalogue scenario {name_or_path}", entry.read_bytes()
     try:
-        data = yaml.safe_load(text) or {}
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"scenario file {name_or_path!r} is not valid YAML: {exc}") from None
+        data = load_yaml(raw, source)
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
+    if data is None:
+        raise ConfigError(f"{source} is empty: it must hold a mapping of fields (name, vehicle, path, …)")
     if not isinstance(data, dict):
-        raise ConfigError(f"scenario file {name_or_path!r} must hold a mapping of fields")
+        raise ConfigError(f"{source} must hold a mapping of fields, not a {type(data).__name__}")
     return data
 
 
@@ -501,9 +530,11 @@ def parse_assignment(text: str) -> tuple[str, Any]:
         raise ConfigError(f"--set {text!r} must look like field.sub=value")
     key, raw = text.split("=", 1)
     try:
-        value = yaml.safe_load(raw)
-    except yaml.YAMLError:
-        value = raw
+        value = load_yaml(raw, f"--set {key.strip()}")
+    except RefusedDocument as exc:
+        raise ConfigError(str(exc)) from None
+    except InputError:
+        value = raw  # not YAML: the text itself
     return key.strip(), value
 
 

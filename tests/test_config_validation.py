@@ -3,14 +3,22 @@
 Each case here once passed validation and failed later (or never): a 1 ns dynamics step that ate 23 GB,
 infinite noise and NaN bias that failed without naming the field, a NaN patch bound silently ignored, a
 ±20° camera misalignment checked only after the simulation, camera rates the co-simulation cannot keep,
-and a missing YAML file reported as an unknown scenario.
+and a missing YAML file reported as an unknown scenario. The file itself is bounded too
+(``scenarios/yaml_input.py``): a YAML alias bomb, a document nested too deep, too long or with a recursive alias,
+text that is not UTF-8 and an empty file are each refused in one line naming the file.
 """
 
 from __future__ import annotations
 
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
 from typing import Any
 
 import pytest
+from test_faults import REPO, assert_one_line_error, offtrack
 
 from scenarios.config import ConfigError, catalogue_names, load_scenario, parse_assignment
 from scenarios.studies.definitions import STUDIES
@@ -140,3 +148,111 @@ def test_every_catalogue_scenario_validates(name: str) -> None:
 def test_every_study_case_validates(study: str, full: bool) -> None:
     for spec in STUDIES[study](full):
         load_scenario(spec.scenario, dict(spec.overrides))
+
+
+# --- the file itself: bounded YAML (size, depth, aliases), UTF-8, not empty ------------------------------------
+
+
+def _alias_bomb(levels: int = 9, width: int = 10) -> str:
+    """A "billion laughs": ``levels`` lists, each of ``width`` aliases of the one before (``width ** levels`` items)."""
+    lines = ["name: bomb", f"a0: &a0 [{', '.join(['lol'] * width)}]"]
+    for level in range(1, levels):
+        lines.append(f"a{level}: &a{level} [{', '.join([f'*a{level - 1}'] * width)}]")
+    return "\n".join(lines) + "\n"
+
+
+def _one_line(exc: pytest.ExceptionInfo[ConfigError], *words: str) -> str:
+    message = str(exc.value)
+    assert "\n" not in message, message
+    for word in words:
+        assert word in message, (word, message)
+    return message
+
+
+def test_a_yaml_alias_bomb_is_refused_in_one_line_without_exhausting_memory(tmp_path: Path) -> None:
+    # Nine levels of ten aliases in well under a kilobyte: 10⁹ items once expanded. It must be refused while it is
+    # read, within a memory limit a few times that of the command itself, quickly, and before anything is written.
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text(_alias_bomb())
+    assert bomb.stat().st_size < 1024
+
+    def limit_memory() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (2 * 1024**3, 2 * 1024**3))
+
+    t0 = time.monotonic()
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "from scenarios.cli import main; main()",
+            "run",
+            str(bomb),
+            "--out",
+            str(tmp_path / "r"),
+        ],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=120,
+        preexec_fn=limit_memory,
+    )
+    assert_one_line_error(result, str(bomb), "aliases", "1,000,000")
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert time.monotonic() - t0 < 30 and not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        (_alias_bomb(levels=6), ("aliases", "more than 1,000,000 nodes and characters")),
+        ("name: deep\nx: " + "[" * 40 + "]" * 40 + "\n", ("nests deeper than 32 levels",)),
+        ("name: loop\nx: &a [1, *a]\n", ("recursive alias", "*a")),
+        ("name: long\n" + "# padding\n" * 30_000, ("bytes long", "at most 262,144")),
+        ("name: bad\nx: [1, 2\n", ("is not valid YAML",)),
+    ],
+    ids=["aliases", "depth", "recursive", "size", "syntax"],
+)
+def test_a_yaml_file_out_of_bounds_is_refused_naming_it(tmp_path: Path, text: str, words: tuple[str, ...]) -> None:
+    path = tmp_path / "scenario.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as info:
+        load_scenario(str(path))
+    _one_line(info, f"scenario file {path}", *words)
+
+
+def test_aliases_within_the_bounds_still_share_values(tmp_path: Path) -> None:
+    path = tmp_path / "shared.yaml"
+    path.write_text("name: shared\nrates: {control_hz: &hz 50.0, camera_hz: *hz}\n")
+    assert load_scenario(str(path)).rates.camera_hz == 50.0
+
+
+def test_an_alias_bomb_given_with_set_is_refused_naming_the_option() -> None:
+    nested = "&a0 [" + ", ".join(["lol"] * 10) + "]"
+    for level in range(1, 7):
+        nested = f"&a{level} [{nested}, " + ", ".join([f"*a{level - 1}"] * 9) + "]"
+    with pytest.raises(ConfigError) as info:
+        parse_assignment(f"camera.lighting={nested}")
+    _one_line(info, "--set camera.lighting", "aliases")
+    assert parse_assignment("path.radius=not: [valid") == ("path.radius", "not: [valid")  # not YAML: kept as text
+
+
+def test_a_file_that_is_not_utf8_is_refused_naming_it(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.yaml"
+    path.write_bytes("name: café\n".encode("latin-1"))
+    with pytest.raises(ConfigError) as info:
+        load_scenario(str(path))
+    _one_line(info, f"scenario file {path}", "is not UTF-8", "0xe9")
+    assert_one_line_error(offtrack("run", str(path), "--out", str(tmp_path / "r")), str(path), "UTF-8")
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("text", ["", "\n\n", "# nothing but a comment\n", "---\n"])
+def test_an_empty_yaml_file_is_refused_not_run_as_a_default_scenario(tmp_path: Path, text: str) -> None:
+    path = tmp_path / "empty.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as info:
+        load_scenario(str(path))
+    _one_line(info, f"scenario file {path} is empty")
+    if text == "":
+        assert_one_line_error(offtrack("run", str(path), "--out", str(tmp_path / "r")), str(path), "is empty")
+        assert not (tmp_path / "r").exists()

@@ -41,6 +41,7 @@ import yaml
 from vehicle_model.errors import InputError, OutputError
 
 from ..config import ScenarioConfig, validate_config
+from ..yaml_input import load_yaml
 from .files import TEMPORARY_SUFFIX, atomic_path, cannot_write, jsonable, write_atomic
 
 TIMESERIES_FILE = "timeseries.parquet"
@@ -227,15 +228,17 @@ def read_config(run_dir: Path) -> ScenarioConfig:
     Raises
     ------
     InputError
-        ``run_dir`` has no ``config.yaml`` (it is not a run directory), or it is not a valid configuration.
+        ``run_dir`` has no ``config.yaml`` (it is not a run directory), or it is not a valid configuration (nor
+        UTF-8 YAML within :mod:`scenarios.yaml_input`'s bounds).
     """
     path = Path(run_dir) / CONFIG_FILE
     if not path.is_file():
         raise InputError(f"{run_dir} is not a run directory: it has no {CONFIG_FILE}")
     try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise InputError(f"{path} is not valid YAML: {exc}") from None
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path} cannot be read: {exc.strerror or exc}") from None
+    data = load_yaml(raw, str(path))  # within bounds, like any configuration a user gives
     if not isinstance(data, dict):
         raise InputError(f"{path} does not hold a configuration")
     return validate_config(data)
