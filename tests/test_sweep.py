@@ -365,3 +365,87 @@ def test_run_study_writes_tables_and_figures_from_the_sweep(monkeypatch: pytest.
 def test_duplicate_case_names_are_refused(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="distinct"):
         run_sweep([CASES[0], CASES[0]], tmp_path)
+
+
+# --- a case whose run failed (no room for its files, a render worker lost) is a failed case, retried on resume ----
+
+_TINY_STUDY_WITH_A_FULL_DISK = """
+import errno, os
+import scenarios.run.results as results
+from scenarios.studies import definitions, figures
+from scenarios.studies.cases import model_only_cases
+
+definitions.STUDIES["tiny"] = lambda full: model_only_cases(3, duration_s=2.0, study="tiny")
+figures.FIGURES["tiny"] = lambda table, out: None
+results.FLUSH_ROWS = 50  # two parts per case (100 rows)
+write_table = results.pq.write_table
+def fill_the_disk(table, where, **kwargs):  # while DISK_FULL is set, case 1's series finds no room after one part
+    name = str(getattr(where, "name", where))
+    if os.environ.get("DISK_FULL") and "case-1_" in name and ".part-000000." not in name:
+        raise OSError(errno.ENOSPC, "No space left on device")
+    return write_table(table, where, **kwargs)
+results.pq.write_table = fill_the_disk
+from scenarios.cli import main
+main()
+"""
+
+
+def test_a_case_whose_run_failed_for_lack_of_space_is_failed_and_retried_on_resume(tmp_path: Path) -> None:
+    out = tmp_path / "study"
+
+    def study(disk_full: bool) -> subprocess.CompletedProcess:
+        env = {k: v for k, v in os.environ.items() if k != "DISK_FULL"} | ({"DISK_FULL": "1"} if disk_full else {})
+        args = [sys.executable, "-c", _TINY_STUDY_WITH_A_FULL_DISK, "study", "tiny", "--out", str(out)]
+        return subprocess.run(args, capture_output=True, text=True, cwd=REPO, timeout=300, env=env)
+
+    first = study(disk_full=True)
+    assert first.returncode == 3, first.stderr
+    assert "Traceback" not in first.stderr
+    assert first.stderr.strip().splitlines()[-1].startswith("1 case(s) failed")
+    names = [spec.name for spec in model_only_cases(3, duration_s=2.0, study="tiny")]
+    records = [read_record(out, name) for name in names]
+    assert [r.status for r in records] == ["done", "failed", "done"]
+    assert records[1].error["type"] == "RunFailed" and "No space left on device" in records[1].error["message"]
+    assert 0.9 < records[1].row["stop_time"] < 2.0  # the run stopped where its second part found no room
+    table = pd.read_parquet(out / "table.parquet")
+    assert list(table["status"]) == ["completed", "failed", "completed"]
+    assert "No space left on device" in table.loc[1, "error"]
+    sessions = {r.name: r.session for r in records}
+
+    again = study(disk_full=False)  # room again: the failed case runs, the finished ones are kept
+    assert again.returncode == 0, again.stderr
+    assert "failed" not in again.stderr
+    retried = [read_record(out, name) for name in names]
+    assert [r.status for r in retried] == ["done", "done", "done"]
+    assert retried[1].session != sessions[names[1]]
+    assert {r.name: r.session for r in retried if r.name != names[1]} == {
+        k: v for k, v in sessions.items() if k != names[1]
+    }
+    assert list(pd.read_parquet(out / "table.parquet")["status"]) == ["completed"] * 3
+
+
+def test_a_case_whose_run_failed_before_its_first_row_gives_its_status_and_message(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    # A render worker that dies at frame 0: the run fails before the co-simulation records a row (or names its
+    # columns). The case returns its status and message, is recorded failed, and runs again on resume.
+    from scenarios.camera.workers import CameraWorkerError
+    from scenarios.run import runner
+
+    lost = "camera render worker 0 (pid 4242) died with exit code -9 (SIGKILL) at frame 0"
+    build = runner._cosimulation
+
+    def worker_lost(*args: object) -> None:
+        raise CameraWorkerError(lost)
+
+    monkeypatch.setattr(runner, "_cosimulation", worker_lost)
+    row = run_case(CASES[0], tmp_path)
+    assert row["status"] == "failed" and row["message"] == lost and row["stop_time"] == 0.0
+    assert dict(CASES[0].labels).items() <= row.items()
+    result = run_sweep(CASES[:2], tmp_path, workers=1)
+    assert [r.status for r in result.records] == ["failed", "failed"]
+    assert result.records[0].error == {"type": "RunFailed", "message": lost, "traceback": ""}
+    assert list(result.table["status"]) == ["failed", "failed"] and lost in result.table.loc[0, "error"]
+    monkeypatch.setattr(runner, "_cosimulation", build)
+    again = run_sweep(CASES[:2], tmp_path, workers=1)
+    assert again.executed == 2 and not again.failures

@@ -21,7 +21,10 @@ def run_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     The vehicle model comes from this process's :func:`~scenarios.studies.workers.worker_models`, so the
     cases a process runs share each vehicle's casadi functions. A run stopped by Ctrl-C or SIGTERM returns
     only its labels, ``status`` ``interrupted`` and ``stop_signal``, which
-    :func:`~scenarios.studies.workers.execute` turns back into the stop.
+    :func:`~scenarios.studies.workers.execute` turns back into the stop. A run that failed (a file it could not
+    write, a render worker lost; perhaps before its first row) returns its labels, ``status`` ``failed``, its
+    ``message`` and ``stop_time``, which :func:`~scenarios.studies.workers.execute` records as a failed case, run
+    again on resume.
     """
     config = load_scenario(spec.scenario, dict(spec.overrides))
     run_dir = out_dir / spec.name
@@ -31,6 +34,10 @@ def run_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     row["status"] = metrics["status"]
     if metrics["status"] == RunStatus.INTERRUPTED:  # stopped (perhaps before its first row): run again on resume
         row["stop_signal"] = metrics.get("stop_signal")
+        return row
+    if metrics["status"] == RunStatus.FAILED:  # did not do its work (perhaps not one row): failed, run again on resume
+        row["message"] = metrics.get("message")
+        row["stop_time"] = metrics.get("stop_time")
         return row
     frame = pd.read_parquet(run_dir / "timeseries.parquet")
     columns = {c: frame[c].to_numpy() for c in frame.columns}

@@ -44,9 +44,10 @@ class CaseRecord:
     index : int
         Position of the case in the sweep (the table keeps this order).
     status : str
-        ``done`` (the run function returned a row) or ``failed`` (it raised, or its worker died).
+        ``done`` (the run function returned a row) or ``failed`` (it raised, its worker died, or the row it returned
+        says its run failed).
     row : dict or None
-        The table row (JSON types; NaN stored as null), None if failed.
+        The table row (JSON types; NaN stored as null); None if the case raised or its worker died.
     error : dict or None
         ``type``, ``message`` and ``traceback`` of a failure.
     spec : dict
@@ -91,11 +92,13 @@ class CaseRecord:
         return cls(**{k: v for k, v in data.items() if k in names})
 
     def table_row(self) -> dict[str, Any]:
-        """The row this case contributes to the table (labels, ``status`` ``failed`` and ``error`` if it failed)."""
+        """The row this case contributes to the table (if it failed: its labels or the row its run left, ``status``
+        ``failed`` and ``error``)."""
         if self.ok and self.row is not None:
             return dict(self.row)
         error = self.error or {}
         row: dict[str, Any] = {k: v for k, v in self.spec.get("labels", [])}
+        row.update({k: v for k, v in (self.row or {}).items() if k != "message"})
         row["status"] = RunStatus.FAILED
         row["error"] = f"{error.get('type', 'Error')}: {error.get('message', '')}".strip()
         return row

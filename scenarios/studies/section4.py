@@ -202,7 +202,7 @@ def run_section4_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     row = run_case(spec, out_dir)
     row["case"] = spec.name
     series = out_dir / spec.name / "timeseries.parquet"
-    if row.get("status") == RunStatus.INTERRUPTED or not series.exists():
+    if row.get("status") in (RunStatus.INTERRUPTED, RunStatus.FAILED) or not series.exists():
         return row
     frame = pd.read_parquet(series, columns=["offtracking_truth", "offtracking_viso_ot"])
     row.update(sign_conditioned_errors(frame["offtracking_truth"].to_numpy(), frame["offtracking_viso_ot"].to_numpy()))

@@ -6,10 +6,12 @@ Each worker process's cases share the process's vehicle models (:func:`worker_mo
 :mod:`scenarios.setup.models`), so they build each vehicle's casadi functions once; a model holds no run state, so
 sharing it changes no result. The process that starts a sweep runs its serial cases through the same code and cache.
 
-A stop request is never a case's failure: a :class:`KeyboardInterrupt` (Ctrl-C, or
-:class:`~scenarios.run.stopping.Terminated` on SIGTERM) raised in a case, or an ``interrupted`` result, leaves
-no record and propagates out of :func:`execute` (the case runs again on resume). A local worker ignores
-SIGINT: a Ctrl-C at the terminal reaches its whole process group, and it is the sweep process's to handle.
+A case whose run ended ``failed`` (it could not write a file, a render worker was lost) is recorded as failed, with
+the run's row and its message, so that it runs again on resume. A stop request is never a case's failure: a
+:class:`KeyboardInterrupt` (Ctrl-C, or :class:`~scenarios.run.stopping.Terminated` on SIGTERM) raised in a case, or
+an ``interrupted`` result, leaves no record and propagates out of :func:`execute` (the case runs again on resume). A
+local worker ignores SIGINT: a Ctrl-C at the terminal reaches its whole process group, and it is the sweep process's
+to handle.
 """
 
 from __future__ import annotations
@@ -156,6 +158,16 @@ def failure_record(
     )
 
 
+RUN_FAILED = "RunFailed"
+"""The error type recorded for a case whose run ended ``failed`` (it did not raise: its run said so)."""
+
+
+def _run_failure(row: dict[str, Any]) -> dict[str, str]:
+    """The ``error`` of a case whose run ended ``failed`` (a file it could not write, a render worker lost)."""
+    message = str(row.get("message") or "the run failed")
+    return {"type": RUN_FAILED, "message": message, "traceback": ""}
+
+
 def _note_stop(previous: Callable[[int, Any], Any], seen: list[KeyboardInterrupt], signum: int, frame: Any) -> None:
     """Signal handler: run ``previous`` and note the :class:`KeyboardInterrupt` it raises in ``seen``."""
     try:
@@ -223,12 +235,13 @@ def execute(task: Task) -> dict[str, Any]:
             if isinstance(row, dict) and row.get("status") == RunStatus.INTERRUPTED:
                 # the co-simulation caught a Ctrl-C or SIGTERM: not a result; the case is run again on resume
                 raise _stop_request(task, row, stops)
+            failed = isinstance(row, dict) and row.get("status") == RunStatus.FAILED
             record = CaseRecord(
                 name=task.spec.name,
                 index=task.index,
-                status="done",
+                status=RunStatus.FAILED if failed else "done",
                 row=jsonable(dict(row)),
-                error=None,
+                error=_run_failure(row) if failed else None,
                 spec=spec_dict(task.spec),
                 fingerprint=fingerprint(task.spec),
                 session=task.session,
