@@ -388,3 +388,52 @@ def test_the_summary_of_a_killed_run_read_back_from_its_json_shows_what_is_missi
     assert "incomplete" in text and "an unknown wall time" in text
     truth_row = next(line for line in text.splitlines() if line.strip("│┃ ").startswith("truth"))
     assert truth_row.count("–") == 2  # RMS and max
+
+
+def test_force_on_a_file_it_cannot_remove_is_one_line_naming_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    out = tmp_path / "run"
+    write_atomic(out / "config.yaml", "x")
+    write_atomic(out / "metrics.json", "{}")
+    write_atomic(out / TIMESERIES_FILE / "part-000000.parquet", "x")
+    stuck = out / TIMESERIES_FILE / "part-000000.parquet"
+    unlink = os.unlink
+
+    def immutable(path: object, *args: object, **kwargs: object) -> None:
+        if Path(str(path)).name == stuck.name:  # what unlink(2) says of a file with the immutable attribute
+            raise PermissionError(1, "Operation not permitted", str(path))
+        unlink(path, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(os, "unlink", immutable)  # shutil.rmtree and Path.unlink both end here
+    with pytest.raises(InputError) as info:
+        new_run_dir(out, "x", force=True)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith(f"--out {out}: --force cannot remove {stuck}")
+    assert "Operation not permitted" in message
+
+
+@pytest.fixture
+def immutable_file(tmp_path: Path) -> Iterator[Path]:
+    """A run directory whose ``metrics.json`` has the immutable attribute (``chattr +i``: root, ext4 or tmpfs)."""
+    out = tmp_path / "run"
+    write_atomic(out / "config.yaml", "x")
+    write_atomic(out / "metrics.json", "{}")
+    path = out / "metrics.json"
+    made = subprocess.run(["chattr", "+i", str(path)], capture_output=True, text=True)
+    if made.returncode != 0:
+        pytest.skip(f"cannot make a file immutable here: {made.stderr.strip()}")
+    try:
+        yield path
+    finally:
+        subprocess.run(["chattr", "-i", str(path)], check=False)
+
+
+def test_force_on_an_immutable_file_is_one_line_and_exit_2(immutable_file: Path) -> None:
+    from test_faults import assert_one_line_error, offtrack
+
+    out = immutable_file.parent
+    result = offtrack("run", "roundabout-test", "--duration", "2", "--force", "--out", str(out))
+    assert_one_line_error(result, f"--force cannot remove {immutable_file}", "Operation not permitted")
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert immutable_file.read_text() == "{}"  # nothing was run

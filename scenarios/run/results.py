@@ -29,6 +29,7 @@ import json
 import os
 import re
 import shutil
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -195,7 +196,8 @@ def clear_run_dir(directory: Path, option: str = "--out") -> list[Path]:
     Raises
     ------
     InputError
-        ``directory`` holds something offtrack did not write (the message names it).
+        ``directory`` holds something offtrack did not write, or something it cannot remove (a file made immutable,
+        a directory not writable): one line naming it. What was removed before it stays removed.
     """
     directory = Path(directory)
     entries = sorted(directory.iterdir())
@@ -207,11 +209,27 @@ def clear_run_dir(directory: Path, option: str = "--out") -> list[Path]:
             "replaces an earlier offtrack run: move it away or choose another " + option
         )
     for entry in entries:
-        if entry.is_dir() and not entry.is_symlink():
-            shutil.rmtree(entry)
-        else:
-            entry.unlink()
+        try:
+            _remove(entry)
+        except OSError as exc:
+            raise InputError(
+                f"{option} {directory}: --force cannot remove {exc.filename or entry} ({exc.strerror or exc}); "
+                f"remove it yourself or choose another {option}"
+            ) from None
     return entries
+
+
+def _remove(entry: Path) -> None:
+    """Remove a file, or a directory with everything in it; an :class:`OSError` names the whole path that failed."""
+    if not entry.is_dir() or entry.is_symlink():
+        entry.unlink()
+        return
+
+    def failed(function: Any, path: str, info: Any) -> None:  # rmtree's own error names only the base name
+        exc = info[1] if isinstance(info, tuple) else info
+        raise OSError(getattr(exc, "errno", None), getattr(exc, "strerror", None) or str(exc), path) from exc
+
+    shutil.rmtree(entry, **({"onexc": failed} if sys.version_info >= (3, 12) else {"onerror": failed}))
 
 
 # ------------------------------------------------------------------------------------- config, metrics
