@@ -10,6 +10,7 @@ and SIGKILL in ``test_run_files.py``, visual-odometry quality in ``test_vo_quali
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -20,6 +21,7 @@ import time
 from pathlib import Path
 
 import pandas as pd
+import psutil
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
@@ -268,6 +270,69 @@ def test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers(
     for pid in workers:  # the workers are gone (reaped, or at worst reparented zombies on the way out)
         state = Path(f"/proc/{pid}/stat")
         assert not state.exists() or state.read_text().split()[2] == "Z"
+
+
+def _render_workers(proc: subprocess.Popen, count: int, busy_s: float, timeout: float = 120.0) -> list[psutil.Process]:
+    """The render workers (spawned children) of the run ``proc``, once ``count`` of them have each spent ``busy_s``
+    of CPU time (they have their task and are importing and building their world)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, proc.communicate()
+        with contextlib.suppress(psutil.NoSuchProcess):
+            children = psutil.Process(proc.pid).children()
+            workers = [c for c in children if any("spawn_main" in part for part in c.cmdline())]
+            if len(workers) >= count and all(sum(w.cpu_times()[:2]) >= busy_s for w in workers):
+                return workers
+        time.sleep(0.02)
+    raise AssertionError("the render workers did not start")
+
+
+def _survivors(processes: list[psutil.Process], within: float) -> list[int]:
+    """The pids of ``processes`` still running (not gone, not zombies) after ``within`` seconds."""
+    deadline = time.monotonic() + within
+    while True:
+        alive = []
+        for process in processes:
+            with contextlib.suppress(psutil.NoSuchProcess):
+                if process.is_running() and process.status() != psutil.STATUS_ZOMBIE:
+                    alive.append(process.pid)
+        if not alive or time.monotonic() > deadline:
+            return alive
+        time.sleep(0.05)
+
+
+@pytest.mark.parametrize("moment", ["while the workers start", "mid-run"])
+def test_no_render_worker_survives_a_sigkill_of_its_pipelined_camera_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, moment: str
+) -> None:
+    # SIGKILL gives the run no chance to stop its workers: they must end by themselves, also while they are still
+    # building their world and OpenGL context (several seconds, in which an idle worker's closed pipe is not read).
+    monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", "2")
+    out = tmp_path / "r"
+    proc = start(
+        "run", "roundabout-3", "--set", "estimators.viso_ot=true", "--duration", "120", "--no-plots", "--out", str(out)
+    )
+    try:
+        workers = _render_workers(proc, 2, busy_s=0.5)
+        if moment == "mid-run":
+            wait_for_rows(out, proc, timeout=240.0)
+            frame = pd.read_parquet(out / "timeseries.parquet")
+            assert len(frame) > 0
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=30)  # not communicate(): the workers hold its output pipes open while they live
+        survivors = _survivors(workers, within=4.0)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate(timeout=60)
+    assert proc.returncode == -signal.SIGKILL
+    assert survivors == [], "render workers outlived their run"
+    if moment == "mid-run":  # the killed camera run's report is rebuilt and summarised
+        result = offtrack("report", str(out), "--no-plots")
+        assert result.returncode == 0, result.stderr
+        assert "Traceback" not in result.stderr and "incomplete" in result.stdout
+        metrics = json.loads((out / "metrics.json").read_text())
+        assert metrics["status"] == "incomplete" and metrics["rows"] >= len(frame) and metrics["wall_time_s"] is None
 
 
 def test_a_stop_swallowed_on_the_way_is_raised_again_at_the_next_check() -> None:

@@ -17,8 +17,9 @@ and CPU time, then the left and right images as raw bytes (1 MB a pair at 1344×
 copy). Workers can run at a lower priority than the co-simulation
 (:data:`RENDER_NICENESS`, off by default), whose odometry is the critical path, and with two or more of them llvmpipe
 rasterises in each worker's own thread (:data:`RENDER_THREADS`). A worker ignores Ctrl-C (the co-simulation
-process stops it, keeping the data) and exits when its pipe closes, so it never outlives the run even after
-a SIGKILL of the run.
+process stops it, keeping the data) and exits when its pipe closes; a thread of its own also ends it within
+:data:`PARENT_CHECK_S` of its parent's death, so it never outlives the run, even after a SIGKILL of the run that
+lands while it builds its world or renders.
 A worker that raises sends the traceback back; one that dies or stops answering is a
 :class:`CameraWorkerError` naming the worker, the frame and the exit code, never a hang.
 """
@@ -64,12 +65,27 @@ increment gains nothing beyond noise, and on a shared one the lowered workers lo
 (figures in ``benchmarks/README.md``)."""
 
 
+PARENT_CHECK_S = 0.2
+"""How often a worker checks that the process that started it is still there [s]; it exits when it is not."""
+
+
 class CameraWorkerError(OfftrackError, RuntimeError):
     """A render worker died, raised, or stopped answering: the run cannot go on."""
 
 
-def _worker_main(config: Any, conn: Connection, threads: str | None = None) -> None:
-    """Body of one render worker (runs in the spawned process); ``threads``: llvmpipe's, unless set."""
+def _exit_with_parent(parent: int) -> None:
+    """End this worker at once when ``parent`` (the co-simulation process) is no longer its parent: it died."""
+    while True:
+        if os.getppid() != parent:
+            os._exit(1)
+        time.sleep(PARENT_CHECK_S)
+
+
+def _worker_main(config: Any, conn: Connection, threads: str | None = None, parent: int | None = None) -> None:
+    """Body of one render worker (runs in the spawned process); ``threads``: llvmpipe's, unless set; ``parent``: the
+    process id of the co-simulation process, whose death ends the worker (:func:`_exit_with_parent`)."""
+    if parent is not None:  # first of all: a world being built, or a frame being rendered, is no one's any more
+        threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True, name="offtrack-parent-watch").start()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the co-simulation process handles Ctrl-C and stops us
     if hasattr(signal, "pthread_sigmask"):
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # started blocked (RenderWorkers)
@@ -167,7 +183,10 @@ class RenderWorkers:
                     here, there = ctx.Pipe(duplex=True)
                     threads = RENDER_THREADS if workers >= 2 else None
                     proc = ctx.Process(
-                        target=_worker_main, args=(config, there, threads), name=f"offtrack-render-{i}", daemon=True
+                        target=_worker_main,
+                        args=(config, there, threads, os.getpid()),
+                        name=f"offtrack-render-{i}",
+                        daemon=True,
                     )
                     proc.start()
                     there.close()  # so that the worker's death reads as end-of-file here
