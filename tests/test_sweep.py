@@ -369,13 +369,20 @@ def test_duplicate_case_names_are_refused(tmp_path: Path) -> None:
 
 # --- a case whose run failed (no room for its files, a render worker lost) is a failed case, retried on resume ----
 
-_TINY_STUDY_WITH_A_FULL_DISK = """
+_TINY_STUDY = """
 import errno, os
 import scenarios.run.results as results
 from scenarios.studies import definitions, figures
 from scenarios.studies.cases import model_only_cases
 
-definitions.STUDIES["tiny"] = lambda full: model_only_cases(3, duration_s=2.0, study="tiny")
+from scenarios.studies.records import CaseSpec
+
+cases = model_only_cases(3, duration_s=2.0, study="tiny")  # TINY
+if os.environ.get("TINY_RENDERED"):  # and one rendered case (RENDERED_CASE)
+    camera = (("camera.width", 672), ("camera.height", 196), ("seed", 7))
+    overrides = (("duration_s", 1.5), ("estimators.viso_ot", True), ("estimators.zero_slip", True), *camera)
+    cases.append(CaseSpec("tiny", "constant-slip", overrides, (("case", 3), ("surface", "dry"), ("camber", 0.0))))
+definitions.STUDIES["tiny"] = lambda full: cases
 figures.FIGURES["tiny"] = lambda table, out: None
 results.FLUSH_ROWS = 50  # two parts per case (100 rows)
 write_table = results.pq.write_table
@@ -390,19 +397,30 @@ main()
 """
 
 
+TINY = model_only_cases(3, duration_s=2.0, study="tiny")
+"""The cases of the study ``tiny`` that :data:`_TINY_STUDY` registers."""
+
+
+RENDERED_CASE = "case-3_surface-dry_camber-0.0"
+"""The rendered case ``tiny`` adds with ``rendered``."""
+
+
+def _tiny_study(out: Path, *args: str, disk_full: bool = False, rendered: bool = False) -> subprocess.CompletedProcess:
+    """``offtrack study tiny --out OUT ARGS`` (:data:`_TINY_STUDY`); ``disk_full``: case 1 finds no room;
+    ``rendered``: with a rendered case too (:data:`RENDERED_CASE`)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("DISK_FULL", "TINY_RENDERED")}
+    env |= ({"DISK_FULL": "1"} if disk_full else {}) | ({"TINY_RENDERED": "1"} if rendered else {})
+    command = [sys.executable, "-c", _TINY_STUDY, "study", "tiny", "--out", str(out), *args]
+    return subprocess.run(command, capture_output=True, text=True, cwd=REPO, timeout=300, env=env)
+
+
 def test_a_case_whose_run_failed_for_lack_of_space_is_failed_and_retried_on_resume(tmp_path: Path) -> None:
     out = tmp_path / "study"
-
-    def study(disk_full: bool) -> subprocess.CompletedProcess:
-        env = {k: v for k, v in os.environ.items() if k != "DISK_FULL"} | ({"DISK_FULL": "1"} if disk_full else {})
-        args = [sys.executable, "-c", _TINY_STUDY_WITH_A_FULL_DISK, "study", "tiny", "--out", str(out)]
-        return subprocess.run(args, capture_output=True, text=True, cwd=REPO, timeout=300, env=env)
-
-    first = study(disk_full=True)
+    first = _tiny_study(out, disk_full=True)
     assert first.returncode == 3, first.stderr
     assert "Traceback" not in first.stderr
     assert first.stderr.strip().splitlines()[-1].startswith("1 case(s) failed")
-    names = [spec.name for spec in model_only_cases(3, duration_s=2.0, study="tiny")]
+    names = [spec.name for spec in TINY]
     records = [read_record(out, name) for name in names]
     assert [r.status for r in records] == ["done", "failed", "done"]
     assert records[1].error["type"] == "RunFailed" and "No space left on device" in records[1].error["message"]
@@ -412,7 +430,7 @@ def test_a_case_whose_run_failed_for_lack_of_space_is_failed_and_retried_on_resu
     assert "No space left on device" in table.loc[1, "error"]
     sessions = {r.name: r.session for r in records}
 
-    again = study(disk_full=False)  # room again: the failed case runs, the finished ones are kept
+    again = _tiny_study(out)  # room again: the failed case runs, the finished ones are kept
     assert again.returncode == 0, again.stderr
     assert "failed" not in again.stderr
     retried = [read_record(out, name) for name in names]
@@ -449,3 +467,48 @@ def test_a_case_whose_run_failed_before_its_first_row_gives_its_status_and_messa
     monkeypatch.setattr(runner, "_cosimulation", build)
     again = run_sweep(CASES[:2], tmp_path, workers=1)
     assert again.executed == 2 and not again.failures
+
+
+# --- the same cases give the same numbers: any number of workers, any run of the same seed ---------------------
+
+
+def _series(run_dir: Path) -> pd.DataFrame:
+    """A run's time series without its wall-clock columns (the only ones that differ from run to run)."""
+    return pd.read_parquet(run_dir / "timeseries.parquet").drop(columns=["render_ms", "vo_ms"], errors="ignore")
+
+
+@pytest.mark.parametrize("rendered", [False, pytest.param(True, marks=[pytest.mark.slow, pytest.mark.rendering])])
+def test_study_with_one_and_two_workers_gives_identical_tables_and_runs(tmp_path: Path, rendered: bool) -> None:
+    one, two = tmp_path / "one", tmp_path / "two"
+    for out, workers in ((one, "1"), (two, "2")):
+        result = _tiny_study(out, "--workers", workers, rendered=rendered)
+        assert result.returncode == 0, result.stderr
+    names = [spec.name for spec in TINY] + ([RENDERED_CASE] if rendered else [])
+    records = [read_record(two, name) for name in names]
+    assert len({r.worker["pid"] for r in records}) == 2, "two worker processes ran the cases"
+    tables = [pd.read_parquet(out / "table.parquet") for out in (one, two)]
+    assert list(tables[0].columns) == list(tables[1].columns) and "wall_time_s" in tables[0].columns
+    assert len(tables[0]) == len(names) and (tables[0]["status"] == "completed").all()
+    if rendered:
+        assert tables[0]["mean_inliers"].iloc[-1] > 50  # the rendered case saw its images
+    pd.testing.assert_frame_equal(_numbers(tables[0]), _numbers(tables[1]), check_exact=True)
+    for name in names:  # every run bit for bit
+        pd.testing.assert_frame_equal(_series(one / name), _series(two / name), check_exact=True)
+
+
+@pytest.mark.rendering
+def test_the_same_seed_gives_a_bit_identical_rendered_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from test_faults import offtrack
+
+    monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", "0")  # rendered in each run's own process
+    args = ["run", "constant-slip", "--set", "estimators.viso_ot=true", "--set", "camera.width=672"]
+    args += ["--set", "camera.height=196", "--duration", "1.5", "--seed", "7", "--no-plots"]
+    for name in ("a", "b"):
+        result = offtrack(*args, "--out", str(tmp_path / name))
+        assert result.returncode == 0, result.stderr
+    first, second = _series(tmp_path / "a"), _series(tmp_path / "b")
+    assert (first["vo_valid"] > 0.5).sum() >= 10 and first["vo_inliers"].max() > 50  # the images were rendered
+    pd.testing.assert_frame_equal(first, second, check_exact=True)
+    other = offtrack(*args[:-3], "--seed", "8", "--no-plots", "--out", str(tmp_path / "c"))
+    assert other.returncode == 0, other.stderr
+    assert not _series(tmp_path / "c").equals(first), "another seed gives another run (the check can fail)"
