@@ -14,6 +14,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pandas as pd
@@ -512,3 +513,110 @@ def test_the_same_seed_gives_a_bit_identical_rendered_run(tmp_path: Path, monkey
     other = offtrack(*args[:-3], "--seed", "8", "--no-plots", "--out", str(tmp_path / "c"))
     assert other.returncode == 0, other.stderr
     assert not _series(tmp_path / "c").equals(first), "another seed gives another run (the check can fail)"
+
+
+# --- a Dask worker killed mid-study: a replacement finishes it, or its cases are failed and retried --------------
+
+_SWEEP_ON_DASK = """
+import json, sys
+from pathlib import Path
+from scenarios.studies.cases import model_only_cases
+from scenarios.studies.sweep import run_sweep
+cases = model_only_cases(3, duration_s=8.0, study="test-dask-kill")
+result = run_sweep(cases, Path(sys.argv[1]), scheduler=sys.argv[2])
+print(json.dumps({"executed": result.executed, "records": [[r.name, r.status, r.worker.get("pid"), (r.error or {}).get(
+    "type")] for r in result.records]}))
+"""
+
+
+@pytest.fixture
+def dask_cluster(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
+    """A Dask scheduler and one worker (one thread, under a nanny that replaces it) on 127.0.0.1; its address.
+
+    ``request.param``: the scheduler's ``allowed-failures`` (how many worker deaths a task survives).
+    """
+    pytest.importorskip("distributed")
+    dask = Path(sys.executable).with_name("dask")
+    if not dask.exists():
+        pytest.skip("the dask command is not installed")
+    scheduler_file = tmp_path / "scheduler.json"
+    env = {**os.environ, "DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES": str(request.param)}
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "cwd": REPO, "start_new_session": True}
+    local = ["--host", "127.0.0.1", "--no-dashboard"]
+    scheduler = subprocess.Popen(
+        [str(dask), "scheduler", *local, "--port", "0", "--scheduler-file", str(scheduler_file)], env=env, **quiet
+    )
+    processes = [scheduler]
+    try:
+        deadline = time.monotonic() + 60.0
+        while not scheduler_file.exists() or not scheduler_file.read_text().strip():
+            assert scheduler.poll() is None and time.monotonic() < deadline, "the scheduler did not start"
+            time.sleep(0.1)
+        time.sleep(0.2)  # the file is written whole by now
+        address = json.loads(scheduler_file.read_text())["address"]
+        processes.append(
+            subprocess.Popen([str(dask), "worker", address, *local, "--nthreads", "1", "--nworkers", "1"], **quiet)
+        )
+        yield address
+    finally:
+        for process in reversed(processes):  # the worker's nanny and its worker, then the scheduler
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(process.pid, signal.SIGKILL)
+            process.wait(10)
+
+
+def _sweep_with_a_killed_worker(out: Path, address: str) -> tuple[dict, str, int]:
+    """Run :data:`_SWEEP_ON_DASK`; SIGKILL the Dask worker that runs the first case to start, mid-case.
+
+    Returns the sweep's summary, the killed case's name and the killed worker's pid.
+    """
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _SWEEP_ON_DASK, str(out), address],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 120.0
+        killed: tuple[str, int] | None = None
+        while killed is None:
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "no case started"
+            for marker in (out / CASES_DIR).glob(".*.running"):
+                with contextlib.suppress(OSError, ValueError):
+                    pid = json.loads(marker.read_text())["pid"]
+                    os.kill(pid, signal.SIGKILL)  # the worker process, in the middle of the case
+                    killed = (marker.name.removeprefix(".").removesuffix(".running"), pid)
+                    break
+            time.sleep(0.02)
+        stdout, stderr = proc.communicate(timeout=240)  # nothing hangs
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, stderr
+    return json.loads(stdout.strip().splitlines()[-1]), *killed
+
+
+@pytest.mark.parametrize("dask_cluster", [3], indirect=True)
+def test_a_dask_worker_killed_mid_study_is_replaced_and_the_study_finishes(dask_cluster: str, tmp_path: Path) -> None:
+    summary, name, pid = _sweep_with_a_killed_worker(tmp_path, dask_cluster)
+    records = {row[0]: row for row in summary["records"]}
+    assert [row[1] for row in summary["records"]] == ["done"] * 3, summary
+    assert records[name][2] != pid, "the killed case ran again, on the nanny's replacement worker"
+    assert read_record(tmp_path, name).status == "done"
+
+
+@pytest.mark.parametrize("dask_cluster", [0], indirect=True)
+def test_a_dask_worker_killed_mid_study_fails_its_cases_and_resume_retries_them(
+    dask_cluster: str, tmp_path: Path
+) -> None:
+    summary, name, pid = _sweep_with_a_killed_worker(tmp_path, dask_cluster)
+    records = {row[0]: row for row in summary["records"]}
+    assert records[name][1] == "failed" and records[name][3] == "KilledWorker", summary
+    failed = sorted(row[0] for row in summary["records"] if row[1] == "failed")
+    cases = model_only_cases(3, duration_s=8.0, study="test-dask-kill")
+    again = run_sweep(cases, tmp_path, scheduler=dask_cluster)  # resume on the replacement
+    assert again.executed == len(failed) and not again.failures
+    assert all(r.worker["pid"] != pid for r in again.records if r.name in failed)
