@@ -10,6 +10,7 @@ and SIGKILL in ``test_run_files.py``, visual-odometry quality in ``test_vo_quali
 
 from __future__ import annotations
 
+import ast
 import contextlib
 import json
 import os
@@ -223,6 +224,117 @@ def test_the_readme_exit_code_table_is_what_the_command_does(tmp_path: Path) -> 
         proc.send_signal(sig)
         proc.communicate(timeout=120)
         assert proc.returncode == code
+
+
+FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
+    "a value is out of range": (
+        "test_faults.py::test_bad_input_is_one_line_and_exit_2",
+        "test_faults.py::test_bad_input_is_refused_before_any_work",
+        "test_config_validation.py::test_every_bad_field_is_listed_at_once",
+        "test_config_validation.py::test_a_missing_yaml_file_is_named_as_such",
+    ),
+    "a configuration file is not UTF-8": (
+        "test_config_validation.py::test_a_yaml_alias_bomb_is_refused_in_one_line_without_exhausting_memory",
+        "test_config_validation.py::test_a_yaml_file_out_of_bounds_is_refused_naming_it",
+        "test_config_validation.py::test_a_file_that_is_not_utf8_is_refused_naming_it",
+        "test_config_validation.py::test_an_empty_yaml_file_is_refused_not_run_as_a_default_scenario",
+        "test_config_validation.py::test_an_alias_bomb_given_with_set_is_refused_naming_the_option",
+    ),
+    "`--out` is a file": (
+        "test_faults.py::test_an_unusable_out_is_named",
+        "test_run_files.py::test_an_output_path_that_is_a_file_under_a_file_or_not_writable_is_refused",
+    ),
+    "`--force` on a directory holding a file it cannot remove": (
+        "test_run_files.py::test_force_on_a_file_it_cannot_remove_is_one_line_naming_it",
+        "test_run_files.py::test_force_on_an_immutable_file_is_one_line_and_exit_2",
+    ),
+    "the camera cannot work": (
+        "test_vo_quality.py::test_a_too_short_baseline_is_refused_up_front",
+        "test_faults.py::test_bad_input_is_one_line_and_exit_2",
+    ),
+    "Ctrl-C / SIGTERM during a run": (
+        "test_faults.py::test_a_stopped_run_keeps_its_data",
+        "test_stop_faults.py::test_a_stop_that_comes_out_as_another_error_is_a_stop",
+    ),
+    "Ctrl-C / SIGTERM while a finished run": (
+        "test_stop_faults.py::test_a_stop_at_the_end_of_a_run_waits_for_its_files",
+    ),
+    "Ctrl-C / SIGTERM in a study": (
+        "test_sweep.py::test_a_stop_raised_in_a_case_stops_the_sweep",
+        "test_sweep.py::test_ctrl_c_to_the_process_group_stops_a_parallel_sweep_without_failed_records",
+    ),
+    "SIGKILL, a power cut": (
+        "test_run_files.py::test_a_run_killed_with_sigkill_keeps_its_series_to_the_last_flush",
+        "test_run_files.py::test_report_after_sigkill_rebuilds_the_metrics_and_prints_the_summary",
+        "test_run_files.py::test_the_summary_of_a_killed_run_read_back_from_its_json_shows_what_is_missing",
+        "test_faults.py::test_no_render_worker_survives_a_sigkill_of_its_pipelined_camera_run",
+    ),
+    "the model diverges": (
+        "test_cosim.py::test_a_divergence_is_reported_and_the_run_kept",
+        "test_simulator.py::test_divergence_is_reported_with_time_and_state",
+    ),
+    "loss of control": ("test_faults.py::test_loss_of_control_is_a_status_with_exit_3",),
+    "the camera sees too little": (
+        "test_vo_quality.py::test_heavy_image_noise_is_refused_not_reported",
+        "test_vo_quality.py::test_a_20_degree_pitch_misalignment_fails_cleanly_with_a_reason",
+    ),
+    "a file cannot be written": (
+        "test_output_faults.py::test_a_full_disk_mid_run_fails_the_run_and_keeps_what_was_written",
+        "test_output_faults.py::test_metrics_that_cannot_be_written_are_one_line_and_exit_3",
+        "test_output_faults.py::test_a_series_that_cannot_be_made_is_one_line_and_exit_3",
+    ),
+    "the plots cannot be written": (
+        "test_output_faults.py::test_plots_that_cannot_be_written_are_one_line_naming_the_file_and_exit_3",
+        "test_output_faults.py::test_report_that_cannot_draw_its_plots_is_one_line_naming_the_file_and_exit_3",
+        "test_output_faults.py::test_a_run_and_its_report_on_a_full_tmpfs_name_the_plot_and_exit_3",
+    ),
+    "a render worker of a pipelined camera run": (
+        "test_loop_pipelining.py::test_a_render_worker_that_dies_ends_the_run_with_a_clear_status",
+    ),
+    "a study case raises": (
+        "test_sweep.py::test_failing_case_is_recorded_and_the_rest_finish",
+        "test_sweep.py::test_crashed_worker_is_isolated_and_recorded",
+        "test_sweep.py::test_a_case_whose_run_failed_for_lack_of_space_is_failed_and_retried_on_resume",
+        "test_sweep.py::test_a_case_whose_run_failed_before_its_first_row_gives_its_status_and_message",
+    ),
+    "a Dask worker is killed": (
+        "test_sweep.py::test_a_dask_worker_killed_mid_study_is_replaced_and_the_study_finishes",
+        "test_sweep.py::test_a_dask_worker_killed_mid_study_fails_its_cases_and_resume_retries_them",
+    ),
+    "a study run with `--workers 1`": (
+        "test_sweep.py::test_study_with_one_and_two_workers_gives_identical_tables_and_runs",
+        "test_sweep.py::test_the_same_seed_gives_a_bit_identical_rendered_run",
+    ),
+}
+"""The tests of each row of the README's "What happens when …" table, by the words its first cell starts with."""
+
+
+def readme_failure_rows() -> list[tuple[str, str]]:
+    """The README's "What happens when …" table: (the case, its exit code) of every row."""
+    text = (REPO / "README.md").read_text()
+    section = text[text.index("What happens when …") :]
+    section = section[: section.index("\n#", 1)]
+    rows = [line.split(" | ") for line in section.splitlines() if line.startswith("| ") and not line.startswith("| …")]
+    return [(cells[0].removeprefix("| ").strip(), cells[1].strip()) for cells in rows]
+
+
+def _test_functions(file: str) -> set[str]:
+    tree = ast.parse((REPO / "tests" / file).read_text())
+    return {node.name for node in tree.body if isinstance(node, ast.FunctionDef) and node.name.startswith("test_")}
+
+
+def test_every_row_of_the_readme_failure_table_is_checked_by_its_tests() -> None:
+    rows = readme_failure_rows()
+    assert len(rows) >= len(FAILURE_TABLE_TESTS)
+    for case, code in rows:
+        named = [start for start in FAILURE_TABLE_TESTS if case.startswith(start)]
+        assert len(named) == 1, f"the README's row {case!r} has no tests here (or more than one entry)"
+        assert {int(c) for c in code.split(" / ")} <= {0, 2, 3, 130, 137, 143}, (case, code)
+    assert len(rows) == len(FAILURE_TABLE_TESTS), "an entry here names a row the README no longer has"
+    for tests in FAILURE_TABLE_TESTS.values():
+        for test in tests:
+            file, name = test.split("::")
+            assert name in _test_functions(file), f"{test} does not exist"
 
 
 # --- files others can read; --force owns the directory --------------------------------------------------------
