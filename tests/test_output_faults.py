@@ -168,3 +168,18 @@ def test_a_run_and_its_report_on_a_full_tmpfs_name_the_plot_and_exit_3(tiny_tmpf
     _assert_no_plot_and_the_run_kept(out, "completed")
     result = _failed("", "report", str(out))
     assert "plan_view.png: No space left on device" in result.stderr.strip().splitlines()[-1]
+
+
+# Any write that finds no room and is not one of offtrack's own (a library writing a file of its own): no traceback.
+_DISK_FULL_SOMEWHERE_UNNAMED = """
+import errno
+import scenarios.run.report as report
+def fill_the_disk(run_dir, plots=True):
+    raise OSError(errno.ENOSPC, "No space left on device")
+report.rebuild_report = fill_the_disk
+"""
+
+
+def test_a_full_disk_that_no_writer_named_is_still_one_line_and_exit_3(tmp_path: Path) -> None:
+    result = _failed(_DISK_FULL_SOMEWHERE_UNNAMED, "report", str(tmp_path))
+    assert result.stderr.strip().splitlines() == ["error: a file could not be written: No space left on device"]
