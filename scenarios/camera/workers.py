@@ -17,9 +17,9 @@ and CPU time, then the left and right images as raw bytes (1 MB a pair at 1344×
 copy). Workers can run at a lower priority than the co-simulation
 (:data:`RENDER_NICENESS`, off by default), whose odometry is the critical path, and with two or more of them llvmpipe
 rasterises in each worker's own thread (:data:`RENDER_THREADS`). A worker ignores Ctrl-C (the co-simulation
-process stops it, keeping the data) and exits when its pipe closes; a thread of its own also ends it within
-:data:`PARENT_CHECK_S` of its parent's death, so it never outlives the run, even after a SIGKILL of the run that
-lands while it builds its world or renders.
+process stops it, keeping the data) and exits when its pipe closes; a thread of its own, the first thing it starts,
+ends it within :data:`PARENT_CHECK_S` of its parent's death, so it never outlives the run, even after a SIGKILL of
+the run that lands while it builds its world or renders.
 A worker that raises sends the traceback back; one that dies or stops answering is a
 :class:`CameraWorkerError` naming the worker, the frame and the exit code, never a hang.
 """
