@@ -27,6 +27,7 @@ from scenarios.studies.field_loop import (
     acceptance,
     cell_table,
     field_loop_cases,
+    field_signals,
     kinematic_trust,
     metrics_columns,
     run_field_loop_case,
@@ -34,6 +35,7 @@ from scenarios.studies.field_loop import (
 from scenarios.studies.figures import FIGURES
 from scenarios.studies.figures_field_loop import cell_label, field_loop_figures
 from scenarios.studies.section4 import FIELD_CONDITIONS, PAPER_SECTION4_MISALIGNMENT_DEG
+from sensor.datasheet import DATASHEET_BIAS_LIMITS, DATASHEET_NOISE
 
 FIELD_KEYS = {k for k, _ in FIELD_CONDITIONS}
 
@@ -48,29 +50,44 @@ def test_the_study_is_registered() -> None:
     assert FIGURES["field-loop"] is field_loop_figures
 
 
-def test_full_grid_is_96_cases_of_which_32_render() -> None:
+def test_full_grid_is_144_cases_of_which_48_render() -> None:
     cases = field_loop_cases(True)
-    assert len(cases) == 96 and len({c.name for c in cases}) == 96
+    assert len(cases) == 144 and len({c.name for c in cases}) == 144
     rendered = [c for c in cases if _rendered(c)]
-    assert len(rendered) == 32
+    assert len(rendered) == 48
     grid = {tuple(dict(c.labels)[k] for k in (*CELL_LABELS, "feedback")) for c in cases}
-    expected = itertools.product(
-        ("roundabout-3", "figure-eight"), ("dry", "ice"), (0.0, 5.0), ("aligned", "paper"), (0, 1), FEEDBACKS
-    )
-    assert grid == set(expected)
+    places = ("roundabout-3", "figure-eight"), ("dry", "ice"), (0.0, 5.0)
+    field = itertools.product(*places, ("field",), ("aligned", "paper"), (0, 1), FEEDBACKS)
+    ideal = itertools.product(*places, ("ideal",), ("aligned",), (0, 1), FEEDBACKS)
+    assert grid == {*field, *ideal}
     for case in cases:
-        overrides = dict(case.overrides)
+        overrides, labels = dict(case.overrides), dict(case.labels)
         assert overrides["vehicle"] == "lst" and "duration_s" not in overrides and case.study == "field-loop"
-        assert overrides["feedback"] == dict(case.labels)["feedback"] and overrides["seed"] == dict(case.labels)["seed"]
-        if _rendered(case):
+        assert overrides["feedback"] == labels["feedback"] and overrides["seed"] == labels["seed"]
+        field_case = labels["conditions"] == "field"
+        # a field cell's three feedbacks all see the same noisy, biased signals; an ideal cell's none
+        assert {k: v for k, v in overrides.items() if k.startswith("signals.")} == (
+            dict(field_signals(labels["seed"])) if field_case else {}
+        )
+        if _rendered(case) and field_case:
             assert FIELD_KEYS <= set(overrides)
             assert overrides["camera.self_calibration.enabled"] is True
             assert overrides["estimators.viso_ot"] is True and overrides["estimators.zero_slip"] is True
-            alignment = dict(case.labels)["alignment"]
-            assert tuple(overrides["camera.right_misalignment_deg"]) == ALIGNMENTS[alignment]
+            assert tuple(overrides["camera.right_misalignment_deg"]) == ALIGNMENTS[labels["alignment"]]
+        elif _rendered(case):
+            assert not any(k.startswith("camera") for k in overrides) and overrides["estimators.viso_ot"] is True
         else:
             assert not any(k.startswith("camera") for k in overrides) and "estimators.viso_ot" not in overrides
     assert ALIGNMENTS["paper"] == PAPER_SECTION4_MISALIGNMENT_DEG
+
+
+def test_field_signals_are_the_datasheet_errors_with_biases_drawn_from_the_seed() -> None:
+    first, again, other = dict(field_signals(0)), dict(field_signals(0)), dict(field_signals(1))
+    assert first == again and first != other
+    for name, std in DATASHEET_NOISE.items():
+        assert first[f"signals.{name}.noise_std"] == std
+    for name, limit in DATASHEET_BIAS_LIMITS.items():
+        assert 0.0 < abs(first[f"signals.{name}.bias"]) <= limit
 
 
 def test_every_case_is_a_valid_config_and_only_the_fused_ones_render() -> None:
@@ -78,19 +95,25 @@ def test_every_case_is_a_valid_config_and_only_the_fused_ones_render() -> None:
         cfg = load_scenario(case.scenario, dict(case.overrides))
         assert cfg.uses_camera == _rendered(case)
         if _rendered(case):
-            assert cfg.camera.world == "airfield" and cfg.camera.self_calibration.enabled
+            field_case = dict(case.labels)["conditions"] == "field"
+            assert (cfg.camera.world == "airfield") == field_case
+            assert cfg.camera.self_calibration.enabled == field_case
             assert "viso_ot_fused" in cfg.enabled_estimators() and "zero_slip" in cfg.enabled_estimators()
 
 
-def test_default_subset_is_two_cells_with_three_feedbacks() -> None:
+def test_default_subset_is_three_cells_with_three_feedbacks() -> None:
     cases = field_loop_cases(False)
     cells = [tuple(dict(c.labels)[k] for k in (*CELL_LABELS, "feedback")) for c in cases]
     assert cells == [
         (*cell, feedback)
-        for cell in (("roundabout-3", "dry", 0.0, "aligned", 0), ("roundabout-3", "ice", 5.0, "paper", 0))
+        for cell in (
+            ("roundabout-3", "dry", 0.0, "field", "aligned", 0),
+            ("roundabout-3", "ice", 5.0, "field", "paper", 0),
+            ("roundabout-3", "ice", 5.0, "ideal", "aligned", 0),
+        )
         for feedback in FEEDBACKS
     ]
-    assert sum(_rendered(c) for c in cases) == 2
+    assert sum(_rendered(c) for c in cases) == 3
     assert all(dict(c.overrides)["duration_s"] == SHORT_DURATION_S for c in cases)
 
 
@@ -131,6 +154,8 @@ def test_acceptance_names_each_failed_criterion() -> None:
     assert acceptance(0.05, 0.10, 0.05, 0.80, dry=False).startswith("coverage 80 %")
     assert acceptance(0.05, 0.10, 0.05, 0.99, dry=False).startswith("coverage 99 %")
     assert acceptance(math.nan, 0.10, 0.05, math.nan, dry=False).count(";") == 1  # RMS and coverage missing
+    assert acceptance(0.05, 0.10, 0.5, 0.90, dry=False, ice_camber=True).startswith("ice with camber: 0.050 / 0.100")
+    assert acceptance(0.035, 0.10, 0.5, 0.90, dry=False, ice_camber=True) == "pass"
 
 
 CELLS = {
@@ -148,6 +173,7 @@ def _synthetic_table() -> pd.DataFrame:
     rows = []
     for seed, (_, (surface, rms, peak, zs_rms, coverage)) in enumerate(CELLS.items()):
         cell = {"scenario": "roundabout-3", "surface": surface, "camber": 5.0, "alignment": "paper", "seed": seed}
+        cell["conditions"] = "ideal"  # the ice-with-camber limit is a field cell's; tested in the acceptance
         for feedback, (true_rms, true_max) in zip(
             FEEDBACKS, ((rms, peak), (zs_rms, 2 * zs_rms), (0.01, 0.02)), strict=True
         ):
@@ -193,8 +219,9 @@ def test_figures_and_table_on_a_synthetic_table(tmp_path: Path) -> None:
         assert (tmp_path / name).stat().st_size > 0
     text = (tmp_path / "table.md").read_text()
     assert "1 of 6 cells pass" in text and "## Every case" in text
-    assert "| roundabout-3 | dry | 5 | paper | 0 | 0.040 / 0.090 |" in text
-    assert cell_label(table.iloc[0]) == "r3 dry 5% paper s0"
+    assert "| roundabout-3 | dry | 5 | ideal | paper | 0 | 0.040 / 0.090 |" in text
+    assert cell_label(table.iloc[0]) == "r3 dry 5% ideal s0"
+    assert cell_label({**table.iloc[0].to_dict(), "conditions": "field"}) == "r3 dry 5% field paper s0"
 
 
 def test_one_model_only_case_through_the_case_runner(tmp_path: Path) -> None:
@@ -202,6 +229,7 @@ def test_one_model_only_case_through_the_case_runner(tmp_path: Path) -> None:
     case = dataclasses.replace(case, overrides=(*case.overrides, ("duration_s", 3.0)))
     row = run_field_loop_case(case, tmp_path)
     assert row["status"] == "completed" and row["feedback"] == "zero_slip" and row["alignment"] == "aligned"
+    assert row["conditions"] == "field"
     assert set(ROW_KEYS) <= set(row) and "true_offtracking_rms_after_warmup_m" in row
     assert math.isnan(row["fused_rms_error_m"]) and math.isnan(row["kinematic_trusted_fraction"])  # no fused filter
     assert isinstance(row["verdict_held"], bool) and isinstance(row["verdict_flags"], str)

@@ -10,7 +10,8 @@
 * ``table.md`` — rewritten as one row per cell with its acceptance (:func:`~.field_loop.cell_table`), then every
   case.
 
-Cells are labelled ``r3 dry 0% aligned s0`` (manoeuvre, surface, camber, alignment, seed).
+Cells are labelled ``r3 dry 0% field aligned s0`` (manoeuvre, surface, camber, conditions, alignment, seed); an
+ideal cell leaves the alignment out (``r3 ice 5% ideal s0``).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from .field_loop import (
     COVERAGE_BAND,
     DRY_MARGIN_M,
     FEEDBACKS,
+    ICE_CAMBER_LIMITS_M,
     RENDERED_FEEDBACK,
     TARGET_MAX_M,
     TARGET_RMS_M,
@@ -51,10 +53,12 @@ ESTIMATOR_ERRORS = (
 
 
 def cell_label(row: pd.Series | dict[str, Any]) -> str:
-    """``r3 dry 0% aligned s0``: manoeuvre, surface, camber [%], alignment and seed of a cell."""
+    """``r3 dry 0% field aligned s0``: manoeuvre, surface, camber [%], conditions, alignment (field cells) and seed."""
     scenario = str(row["scenario"])
     camber = f"{float(row['camber']):g}%"
-    return f"{SHORT_SCENARIOS.get(scenario, scenario)} {row['surface']} {camber} {row['alignment']} s{int(row['seed'])}"
+    conditions = str(row["conditions"])
+    setting = f"{conditions} {row['alignment']}" if conditions == "field" else conditions
+    return f"{SHORT_SCENARIOS.get(scenario, scenario)} {row['surface']} {camber} {setting} s{int(row['seed'])}"
 
 
 def _positive(values: Any) -> np.ndarray:
@@ -166,7 +170,8 @@ def field_loop_markdown(cells: pd.DataFrame) -> str:
         "",
         f"{passed} of {len(cells)} cells pass. Acceptance: with fused feedback the true off-tracking after warm-up "
         f"is ≤ {TARGET_RMS_M:.2f} m RMS and ≤ {TARGET_MAX_M:.2f} m max (de Saxe & Cebon 2018 §2, after Jujnovich & "
-        f"Cebon 2013), on a dry road ≤ the zero-slip-fed RMS + {DRY_MARGIN_M:.2f} m, and {100 * lo:.0f}–"
+        f"Cebon 2013), on a dry road ≤ the zero-slip-fed RMS + {DRY_MARGIN_M:.2f} m, on ice with camber in the field "
+        f"≤ {ICE_CAMBER_LIMITS_M[0]:.3f} m RMS and {ICE_CAMBER_LIMITS_M[1]:.3f} m max, and {100 * lo:.0f}–"
         f"{100 * hi:.0f} % of the fused errors lie within 2σ (docs/design.md §11).",
         "",
     ]
@@ -174,6 +179,7 @@ def field_loop_markdown(cells: pd.DataFrame) -> str:
         "scenario",
         "surface",
         "camber [%]",
+        "conditions",
         "alignment",
         "seed",
         *(f"true e_tr RMS / max, {FEEDBACK_STYLE[fb][0]} feedback [m]" for fb in FEEDBACKS),
@@ -189,6 +195,7 @@ def field_loop_markdown(cells: pd.DataFrame) -> str:
             str(r["scenario"]),
             str(r["surface"]),
             f"{float(r['camber']):g}",
+            str(r["conditions"]),
             str(r["alignment"]),
             f"{int(r['seed'])}",
             *(_pair(r[f"{fb}_true_rms_m"], r[f"{fb}_true_max_m"]) for fb in FEEDBACKS),
