@@ -387,18 +387,66 @@ def _print_summary(metrics: dict, run_dir: Path) -> None:
 @app.command()
 @_command
 def calibrate(
-    scenario: Annotated[str, typer.Argument(help="Catalogue name or YAML file: its camera is calibrated.")],
-    out: Annotated[Path, typer.Option(help="Directory for calibration.yaml and residuals.json.")],
+    scenario: Annotated[
+        str | None, typer.Argument(help="Catalogue name or YAML file: its rendered camera is calibrated.")
+    ] = None,
+    out: Annotated[Path | None, typer.Option(help="Directory for calibration.yaml and residuals.json.")] = None,
     set_: Annotated[
         list[str] | None, typer.Option("--set", help="Any config field, e.g. --set camera.calibration.views=30.")
     ] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of the target poses and the noise.", min=0)] = None,
     force: Annotated[bool, typer.Option(help="Reuse a non-empty --out (offtrack's files only).")] = False,
+    images: Annotated[
+        Path | None, typer.Option(help="Folder of photos of a board: left*/right* files, or left/ and right/ folders.")
+    ] = None,
+    left: Annotated[str | None, typer.Option(help="Glob of the left photos (with --right).")] = None,
+    right: Annotated[str | None, typer.Option(help="Glob of the right photos (with --left).")] = None,
+    pattern: Annotated[str, typer.Option(help="Board: chessboard or charuco.")] = "chessboard",
+    corners: Annotated[
+        str, typer.Option(help="Inner corners COLSxROWS (a ChArUco board has one more square).")
+    ] = "9x6",
+    square: Annotated[float, typer.Option(help="Side of a square [m].")] = 0.025,
+    marker: Annotated[float | None, typer.Option(help="ChArUco marker side [m] (default 0.75 × square).")] = None,
+    dictionary: Annotated[str, typer.Option(help="ChArUco ArUco dictionary (OpenCV name).")] = "DICT_4X4_50",
+    min_views: Annotated[int, typer.Option(help="Fewest views with the board in both photos.")] = 5,
+    alpha: Annotated[float, typer.Option(help="stereoRectify's free scaling: 0 valid pixels only, 1 all.")] = 0.0,
+    corner_window: Annotated[
+        int | None, typer.Option(help="cornerSubPix half-window [px] (default: a third of the corner spacing).")
+    ] = None,
+    reject_outliers: Annotated[bool, typer.Option(help="Reject views whose RMS is far above the median.")] = True,
 ) -> None:
-    """Calibrate the scenario's stereo camera on a rendered checkerboard (OpenCV); write the YAML and residuals.
+    """Calibrate a stereo camera (OpenCV): from photos of a board (--images or --left/--right), or the scenario's
+    rendered camera on a rendered checkerboard. Writes calibration.yaml and residuals.json (and calibration.png).
 
-    A run uses the file with --set camera.calibration.mode=file --set camera.calibration.file=OUT/calibration.yaml.
+    A run uses the file with --set camera.calibration.mode=file --set camera.calibration.file=OUT/calibration.yaml;
+    offtrack estimate with --calibration OUT/calibration.yaml.
     """
+    from vehicle_model.errors import InputError
+
+    if out is None:
+        raise InputError("--out DIR is required: the directory for calibration.yaml and residuals.json")
+    if images is not None or left is not None or right is not None:
+        if scenario is not None or set_ or seed is not None:
+            raise InputError("photos (--images, --left/--right) take no SCENARIO, --set or --seed")
+        _calibrate_photos(
+            out,
+            force,
+            corners,
+            images=images,
+            left=left,
+            right=right,
+            pattern=pattern,
+            square=square,
+            marker=marker,
+            dictionary=dictionary,
+            min_views=min_views,
+            alpha=alpha,
+            corner_window=corner_window,
+            reject_outliers=reject_outliers,
+        )
+        return
+    if scenario is None:
+        raise InputError("give a SCENARIO (its rendered camera), or photos with --images DIR or --left/--right GLOB")
     from scenarios.camera.build import calibration_target_rig, lenses, rig_from_config, run_calibration
     from scenarios.run.files import write_atomic
     from scenarios.run.results import new_run_dir
@@ -419,6 +467,21 @@ def calibrate(
         f"baseline error {1e3 * summary['baseline_m']['error']:+.2f} mm; rotation error "
         + ", ".join(f"{axis} {rotation[axis]['error']:+.3f}°" for axis in ("roll", "pitch", "yaw"))
     )
+
+
+def _calibrate_photos(out: Path, force: bool, corners: str, **options: Any) -> None:
+    """``offtrack calibrate`` on photos (:mod:`scenarios.recorded.calibrate`): files, then a table of the views."""
+    from scenarios.recorded.calibrate import board_pattern, calibrate_from_photos, check_photos, report_lines
+    from scenarios.run.results import check_output_dir, new_run_dir
+
+    board = board_pattern(corners, **{k: options.pop(k) for k in ("pattern", "square", "marker", "dictionary")})
+    check_output_dir(out)
+    check_photos(options["images"], options["left"], options["right"])  # refused before the directory is made
+    run_dir = new_run_dir(out, "calibration", force=force)
+    with console.status("calibrating: finding the board and solving"):
+        calibration, report = calibrate_from_photos(run_dir, board, **options)
+    for line in report_lines(calibration, report, run_dir):
+        console.print(line)
 
 
 @app.command()

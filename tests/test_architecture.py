@@ -37,6 +37,7 @@ SCENARIO_ROOMS: tuple[str, ...] = (
     "loop",
     "run",
     "export",
+    "recorded",
     "studies",
     "envs",
     "bench",

@@ -1,0 +1,1 @@
+"""Real cameras in: calibration from photos, recorded stereo sequences turned into run directories, VO evaluation."""

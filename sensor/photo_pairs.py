@@ -1,0 +1,147 @@
+"""Which photos form the views of a stereo calibration, and whether they are images of one size.
+
+:func:`stereo_pairs` finds the left and right photo of each view in one folder (``left01.jpg`` / ``right01.jpg``,
+or sub-folders ``left/`` and ``right/`` or ``image_0/`` and ``image_1/``) or from two glob patterns; partners are
+found by name (the file name with ``left``/``right`` taken out), else in sorted order. :func:`check_images` reads
+every photo's header before any work. Each failure is one :class:`~vehicle_model.errors.InputError` naming the
+files.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from pathlib import Path
+
+from vehicle_model.errors import InputError
+
+__all__ = ["IMAGE_SUFFIXES", "check_images", "stereo_pairs"]
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
+"""File suffixes taken as photos (case-insensitive)."""
+
+_SIDE = re.compile(r"left|right", re.IGNORECASE)
+
+
+def _images_in(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+
+
+def _key(path: Path) -> str:
+    """The file name with its first ``left``/``right`` taken out (``left01.jpg`` → ``01.jpg``)."""
+    return _SIDE.sub("", path.name, count=1).lower()
+
+
+def _pair(left: list[Path], right: list[Path], what: str) -> list[tuple[Path, Path]]:
+    """Partners by name (:func:`_key`), else in sorted order when the counts agree."""
+    if not left and not right:
+        raise InputError(f"{what}: no images found (allowed suffixes: {', '.join(IMAGE_SUFFIXES)})")
+    if not left or not right:
+        side, files = ("left", right) if not left else ("right", left)
+        raise InputError(
+            f"{what}: no {side} images found for {len(files)} {'right' if side == 'left' else 'left'} ones"
+        )
+    lkeys = {_key(p): p for p in left}
+    rkeys = {_key(p): p for p in right}
+    if len(lkeys) == len(left) and len(rkeys) == len(right) and (set(lkeys) & set(rkeys)):
+        alone = sorted(
+            [lkeys[k].name for k in set(lkeys) - set(rkeys)] + [rkeys[k].name for k in set(rkeys) - set(lkeys)]
+        )
+        if alone:
+            raise InputError(
+                f"{what}: left/right count mismatch ({len(left)} left, {len(right)} right); without a partner: "
+                + ", ".join(alone[:10])
+                + (f" (and {len(alone) - 10} more)" if len(alone) > 10 else "")
+            )
+        return [(lkeys[k], rkeys[k]) for k in sorted(lkeys)]
+    if len(left) != len(right):
+        more, extra = ("left", left[len(right) :]) if len(left) > len(right) else ("right", right[len(left) :])
+        raise InputError(
+            f"{what}: left/right count mismatch ({len(left)} left, {len(right)} right); the names do not pair them, "
+            f"and in sorted order these {more} images have no partner: " + ", ".join(p.name for p in extra[:10])
+        )
+    return list(zip(left, right, strict=True))
+
+
+def stereo_pairs(
+    images: Path | None = None, left: str | None = None, right: str | None = None
+) -> list[tuple[Path, Path]]:
+    """The (left, right) photo pairs of the views (module notes, step 1).
+
+    Parameters
+    ----------
+    images : Path, optional
+        A folder holding ``left*``/``right*`` photos, or sub-folders ``left/`` and ``right/`` (or ``image_0/`` and
+        ``image_1/``).
+    left, right : str, optional
+        Glob patterns of the left and the right photos (instead of ``images``), e.g. ``"calib/left*.png"``.
+
+    Raises
+    ------
+    InputError
+        No folder or no images, both or neither of ``images`` and the patterns, a photo without a partner.
+    """
+    if images is not None and (left is not None or right is not None):
+        raise InputError("give either --images DIR or --left GLOB --right GLOB, not both")
+    if images is not None:
+        folder = Path(images)
+        if not folder.is_dir():
+            raise InputError(f"--images {folder}: not a folder")
+        for a, b in (("left", "right"), ("image_0", "image_1")):
+            if (folder / a).is_dir() and (folder / b).is_dir():
+                return _pair(_images_in(folder / a), _images_in(folder / b), f"--images {folder}")
+        sides: dict[str, list[Path]] = {"left": [], "right": []}
+        for path in _images_in(folder):
+            if (side := _SIDE.search(path.name)) is not None:
+                sides[side.group().lower()].append(path)
+        return _pair(sides["left"], sides["right"], f"--images {folder}")
+    if left is None or right is None:
+        raise InputError("give --images DIR, or both --left GLOB and --right GLOB")
+
+    def glob(pattern: str, option: str) -> list[Path]:
+        base = Path(pattern)
+        anchor = Path(base.anchor) if base.is_absolute() else Path(".")
+        relative = str(base.relative_to(base.anchor)) if base.is_absolute() else pattern
+        found = sorted(p for p in anchor.glob(relative) if p.is_file())
+        if not found:
+            raise InputError(f"{option} {pattern!r}: matches no file")
+        return found
+
+    return _pair(glob(left, "--left"), glob(right, "--right"), "--left/--right")
+
+
+def check_images(pairs: Sequence[tuple[Path, Path]]) -> tuple[int, int]:
+    """Every photo is an image and all have one size; return it ``(width, height)`` (module notes, step 2).
+
+    The headers are read (Pillow) and each file's structure verified, without decoding the pixels.
+
+    Raises
+    ------
+    InputError
+        One line naming the files that are not images, or the sizes found and the files of the odd ones out.
+    """
+    from PIL import Image
+
+    sizes: dict[tuple[int, int], list[str]] = {}
+    bad: list[str] = []
+    for path in (p for pair in pairs for p in pair):
+        try:
+            with Image.open(path) as im:
+                size = (int(im.size[0]), int(im.size[1]))
+                im.verify()
+        except Exception as exc:  # Pillow raises many kinds for a file that is not an image
+            bad.append(f"{path} ({type(exc).__name__})")
+            continue
+        sizes.setdefault(size, []).append(path.name)
+    if bad:
+        raise InputError(f"cannot read {len(bad)} image(s): " + ", ".join(bad[:5]) + ("; …" if len(bad) > 5 else ""))
+    if len(sizes) > 1:
+        common = max(sizes, key=lambda s: len(sizes[s]))
+        odd = [f"{name} is {w}×{h}" for (w, h), names in sizes.items() if (w, h) != common for name in names]
+        raise InputError(
+            f"mixed resolutions: {len(sizes[common])} images are {common[0]}×{common[1]} px, but "
+            + ", ".join(odd[:10])
+            + ("; …" if len(odd) > 10 else "")
+            + "; allowed: one size for every photo"
+        )
+    return next(iter(sizes))
