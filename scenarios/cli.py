@@ -7,6 +7,9 @@ Ctrl-C; 143 SIGTERM. Usage errors are typer's own (standalone mode: message and 
 body runs under :func:`_command`, which turns offtrack's input errors into exit 2 and a stop into 130/143.
 Nothing here depends on typer's vendored click: only ``typer.Exit`` and typer's standalone handling, both
 tested end to end in ``tests/test_faults.py``.
+
+Why this module is long: it declares every command and its options (one annotated parameter a line, with its help);
+each command body only checks its options and calls into its room.
 """
 
 from __future__ import annotations
@@ -219,9 +222,11 @@ def report(
     plots: Annotated[bool, typer.Option(help="Redraw the plots.")] = True,
 ) -> None:
     """Rebuild metrics.json and the plots of a run from its config and time series (e.g. after a kill)."""
+    from scenarios.recorded.report import is_recorded_run, rebuild_recorded_report
     from scenarios.run.report import rebuild_report
 
-    metrics = rebuild_report(run_dir, plots=plots)
+    recorded = is_recorded_run(run_dir)  # offtrack estimate's: recording.yaml for config.yaml
+    metrics = rebuild_recorded_report(run_dir, plots) if recorded else rebuild_report(run_dir, plots=plots)
     _print_summary(metrics, run_dir)
 
 
@@ -325,6 +330,128 @@ def render(
 
 @app.command()
 @_command
+def estimate(
+    recording: Annotated[
+        Path, typer.Argument(help="KITTI-odometry folder, ROS 1/2 bag, or the left video (with --right-video).")
+    ],
+    rig: Annotated[Path, typer.Option(help="Rig YAML: vehicle, psi_c2v_deg, lever_arm_m [, follow_point_offset_m].")],
+    out: Annotated[Path | None, typer.Option(help="Run directory (default runs/recording-NAME/TIMESTAMP).")] = None,
+    force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous run's files are removed.")] = False,
+    calibration: Annotated[
+        Path | None, typer.Option(help="OpenCV YAML of offtrack calibrate: raw images, rectified on the fly.")
+    ] = None,
+    calib: Annotated[
+        Path | None, typer.Option(help="KITTI calib.txt of rectified images (default: the folder's).")
+    ] = None,
+    right_video: Annotated[Path | None, typer.Option(help="The right camera's video (RECORDING the left one).")] = None,
+    times: Annotated[Path | None, typer.Option(help="One time per video frame [s].")] = None,
+    left_topic: Annotated[str | None, typer.Option(help="Bag: the left camera's image topic.")] = None,
+    right_topic: Annotated[str | None, typer.Option(help="Bag: the right camera's image topic.")] = None,
+    pair_tolerance: Annotated[
+        float | None, typer.Option(help="Bag: largest left-right stamp difference [s] (default: interval/4).")
+    ] = None,
+    signals: Annotated[
+        Path | None, typer.Option(help="CSV time_s, speed_m_s, yaw_rate_deg_s, articulation_deg: fused + zero-slip.")
+    ] = None,
+    reference: Annotated[Path | None, typer.Option(help="Reference camera poses (KITTI or TUM).")] = None,
+    reference_format: Annotated[str | None, typer.Option(help="kitti or tum (default: from the file).")] = None,
+    reference_offtracking: Annotated[
+        Path | None, typer.Option(help="Reference off-tracking CSV: time_s, offtracking_m.")
+    ] = None,
+    folder_poses: Annotated[bool, typer.Option(help="Use a KITTI folder's poses.txt as the reference.")] = True,
+    refinement: Annotated[int, typer.Option(help="Odometry match refinement: 0, 1 pixel, 2 sub-pixel.")] = 2,
+    seed: Annotated[int, typer.Option(help="Seed of the odometry's RANSAC.", min=0)] = 0,
+    plots: Annotated[bool, typer.Option(help="Write the plots.")] = True,
+) -> None:
+    """VISO-OT (and with --signals the fused and zero-slip estimates) on a recorded stereo sequence: a run directory
+    like a simulated run's (offtrack report and offtrack animate take it)."""
+    from rich.progress import Progress
+
+    from scenarios.recorded.estimate import estimate_recording
+    from scenarios.recorded.inputs import resolve_inputs
+    from scenarios.recorded.report import recording_lines
+    from scenarios.run.results import check_output_dir, new_run_dir
+
+    if out is not None:
+        check_output_dir(out)
+    inputs = resolve_inputs(
+        recording,
+        rig=rig,
+        calibration=calibration,
+        calib=calib,
+        right_video=right_video,
+        times=times,
+        left_topic=left_topic,
+        right_topic=right_topic,
+        pair_tolerance=pair_tolerance,
+        signals=signals,
+        reference=reference,
+        reference_format=reference_format,
+        reference_offtracking=reference_offtracking,
+        use_folder_poses=folder_poses,
+        refinement=refinement,
+        seed=seed,
+    )
+    run_dir = new_run_dir(out, f"recording-{recording.resolve().name}", force=force)
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task(escape(f"estimating on {recording.name}"), total=len(inputs.recording.slots))
+        metrics = estimate_recording(
+            inputs, run_dir, plots=plots, progress=lambda done, _: bar.update(task, completed=done)
+        )
+    _print_summary(metrics, run_dir)
+    for line in recording_lines(metrics):
+        console.print(escape(line))
+    _exit_for_status(metrics)
+
+
+@app.command("vo-eval")
+@_command
+def vo_eval(
+    sequence: Annotated[Path, typer.Argument(help="KITTI-odometry folder (image_0/, image_1/, times.txt).")],
+    poses: Annotated[
+        Path | None, typer.Option(help="The left camera's poses, KITTI format (default poses.txt).")
+    ] = None,
+    calibration: Annotated[Path | None, typer.Option(help="OpenCV YAML of offtrack calibrate (raw images).")] = None,
+    calib: Annotated[Path | None, typer.Option(help="KITTI calib.txt (default: the folder's).")] = None,
+    refinement: Annotated[int, typer.Option(help="Odometry match refinement: 0, 1 pixel, 2 sub-pixel.")] = 2,
+    seed: Annotated[int, typer.Option(help="Seed of the odometry's RANSAC.", min=0)] = 0,
+    out: Annotated[Path | None, typer.Option(help="Write vo_eval.json and drift.png here.")] = None,
+    force: Annotated[bool, typer.Option(help="Reuse a non-empty --out (offtrack's files only).")] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """The visual odometry on a KITTI-format sequence with poses: KITTI metric, per-frame error, drift plot."""
+    from rich.progress import Progress
+
+    from scenarios.recorded.vo_eval import evaluate_vo, plot_drift, result_lines
+    from scenarios.run.files import jsonable, write_atomic
+    from scenarios.run.results import check_output_dir, new_run_dir
+
+    if out is not None:
+        check_output_dir(out)
+    with Progress(console=console, transient=True, disable=as_json) as bar:
+        task = bar.add_task(escape(f"odometry on {sequence.name}"), total=None)
+        result, arrays = evaluate_vo(
+            sequence,
+            poses=poses,
+            calibration=calibration,
+            calib=calib,
+            refinement=refinement,
+            seed=seed,
+            progress=lambda done, total: bar.update(task, completed=done, total=total),
+        )
+    if out is not None:
+        run_dir = new_run_dir(out, "vo-eval", force=force)
+        write_atomic(run_dir / "vo_eval.json", json.dumps(jsonable(result), indent=2, allow_nan=False))
+        plot_drift(run_dir / "drift.png", result, arrays)
+    if as_json:
+        print(json.dumps(jsonable(result), allow_nan=False))
+        return
+    for line in result_lines(result):
+        console.print(escape(line))
+
+
+@app.command()
+@_command
 def study(
     name: Annotated[str, typer.Argument(help="The study (an unknown name lists them all).")],
     full: Annotated[bool, typer.Option(help="Run the whole study (default: a small subset).")] = False,
@@ -413,7 +540,9 @@ def calibrate(
     corner_window: Annotated[
         int | None, typer.Option(help="cornerSubPix half-window [px] (default: a third of the corner spacing).")
     ] = None,
-    reject_outliers: Annotated[bool, typer.Option(help="Reject views whose RMS is far above the median.")] = True,
+    reject_outliers: Annotated[
+        bool, typer.Option("--reject-outliers/--keep-outliers", help="Reject views whose RMS is far above the median.")
+    ] = True,
 ) -> None:
     """Calibrate a stereo camera (OpenCV): from photos of a board (--images or --left/--right), or the scenario's
     rendered camera on a rendered checkerboard. Writes calibration.yaml and residuals.json (and calibration.png).
@@ -502,11 +631,15 @@ def animate(
     from rich.progress import Progress
 
     from scenarios.export.animation import animate_run
+    from scenarios.recorded.report import is_recorded_run
 
-    if not (run_dir / "config.yaml").is_file():
+    recorded = is_recorded_run(run_dir)  # offtrack estimate's run
+    if not recorded and not (run_dir / "config.yaml").is_file():
         from vehicle_model.errors import InputError
 
         raise InputError(f"RUN_DIR {run_dir} holds no config.yaml: give the directory of an offtrack run")
+    if recorded:
+        from scenarios.recorded.animation import animate_recorded_run as animate_run  # type: ignore[no-redef]
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("animating", total=None)
         path = animate_run(

@@ -170,6 +170,13 @@ def _writer(out: Path, fps: float, size: tuple[int, int]) -> tuple[Callable[[np.
     return (lambda frame: gen.send(np.ascontiguousarray(frame))), gen.close
 
 
+def frame_writer(
+    out: Path, fps: float, size: tuple[int, int]
+) -> tuple[Callable[[np.ndarray], None], Callable[[], None]]:
+    """``(append(frame), close())`` writing RGB frames of ``size`` (width, height) to an mp4 (H.264) or a GIF."""
+    return _writer(out, fps, size)
+
+
 def animate_run(
     run_dir: Path,
     out: Path | None = None,

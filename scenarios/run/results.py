@@ -81,6 +81,8 @@ RUN_FILES = frozenset(
         "animation.gif",
         "calibration.yaml",
         "residuals.json",
+        "recording.yaml",
+        "vo_eval.json",
     }
 )
 """Files offtrack writes into an output directory (besides ``*.png`` and the directories below)."""

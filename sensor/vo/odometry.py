@@ -20,6 +20,7 @@ every result that reached the motion estimation (``residual_px``, ``covariance``
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -30,7 +31,7 @@ from sensor.vo.features import ImageFeatures, extract_features
 from sensor.vo.kalman import MotionKalmanFilter
 from sensor.vo.match_columns import U1C, U2C, V1C, V2C
 from sensor.vo.matching import match_frames
-from sensor.vo.motion import estimate_motion, params_to_transform
+from sensor.vo.motion import estimate_motion, params_to_transform, transform_to_params
 from sensor.vo.quality import MotionQuality, motion_quality, quality_failure
 from vehicle_model.rigid import invert_rigid
 
@@ -180,6 +181,19 @@ class StereoOdometry:
         self._prior: np.ndarray | None = None
         if self._kalman is not None:
             self._kalman.reset()
+
+    def scale_prior(self, ratio: float) -> None:
+        """Stretch the next frame's motion prior to an interval ``ratio`` times the last one.
+
+        The constant-velocity prior (docs/visual_odometry.md §5) is the last frame's motion; a recording with uneven
+        frame times or a dropped frame moves further (or less) in its next interval. The prior's six parameters
+        θ = (rx, ry, rz, tx, ty, tz) are scaled by ``ratio`` — constant velocity in time rather than per frame
+        (first order in the rotation). Nothing changes without a prior or with ``ratio`` 1.
+        """
+        if not (math.isfinite(ratio) and ratio > 0.0):
+            raise ValueError(f"ratio must be a finite number > 0, got {ratio!r}")
+        if self._prior is not None and ratio != 1.0:
+            self._prior = params_to_transform(ratio * transform_to_params(self._prior))
 
     def process(self, left: np.ndarray, right: np.ndarray) -> VOResult:
         """Estimate the motion from the previous stereo pair to this one.

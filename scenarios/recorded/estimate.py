@@ -1,0 +1,297 @@
+"""``offtrack estimate RECORDING --rig RIG.yaml``: VISO-OT on a recorded sequence, written as a run directory.
+
+:func:`estimate_recording` runs, frame by frame in the recording's own times, what the closed loop runs on rendered
+frames — :class:`sensor.frame_odometry.FrameOdometry` (the stereo odometry, VISO-OT of de Saxe & Cebon 2018 §2.2
+with its plausibility check over the frame's actual interval) — and, with signals, the fused filter
+(:class:`sensor.fusion.FusedVisoOt`, a run's ``fusion`` defaults) and Cheng's zero-slip estimate
+(:class:`controller.zero_slip.ZeroSlipEstimator`) beside it. The rows are the frames' times and, with signals, the
+signals' times between them (the fused filter propagates on every row and takes each frame's motion on the frame's
+own row; no latency). Raw images are rectified first with the calibration. A frame without images (dropped) is
+skipped: the odometry measures the next one against the last it saw, over the actual interval, with its
+constant-velocity motion prior stretched over the gap (:data:`SAME_PERIOD`).
+
+The run directory (:mod:`.report`) holds what a simulated run's does — ``timeseries.parquet`` with the same
+columns where they mean the same (``offtracking_*``, the per-frame ``vo_*`` quality and reasons,
+``camera_frame``), ``metrics.json`` (:func:`scenarios.run.metrics.compute_metrics`, so the errors against the
+reference are reported exactly as a run's), ``offtracking.png``, ``plan_view.png`` — plus ``recording.yaml`` (what
+was given; it stands for a run's ``config.yaml``) and, in ``metrics.json``, ``recording``: the frames missing,
+refused and why, and the gaps in the times.
+
+Columns of a recorded run besides a run's: ``frame`` (the frame's number in the recording), ``frame_missing``,
+``kingpin_x_viso_ot``/``kingpin_y_viso_ot``/``trailer_heading_viso_ot`` (the kingpin's path dead-reckoned from the
+accepted motions), ``vo_rpe_translation_m``/``vo_rpe_rotation_rad`` (the frame's relative pose error against
+reference poses, :func:`sensor.recordings.vo_metrics.relative_pose_error`), the signals at the row. ``kingpin_x`` and
+``kingpin_y`` are the reference's path when there are reference poses, else the dead-reckoned one.
+"""
+
+from __future__ import annotations
+
+import math
+import time as wallclock
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from controller.zero_slip import ZeroSlipEstimator
+from sensor.frame_odometry import CameraFrame, FrameOdometry
+from sensor.fusion import FusedVisoOt, TractorSignals
+from sensor.recordings.sequence import GAP_FACTOR, MISSING_REASONS, time_gaps
+from sensor.recordings.vo_metrics import relative_pose_error
+from sensor.vo.quality import QUALITY_COLUMNS
+from sensor.vo.self_calibration import SELF_CALIBRATION_COLUMNS
+
+from ..config import FusionConfig
+from ..loop.camera_estimator import camera_row
+from ..loop.ends import RunStatus
+from ..run.results import TIMESERIES_FILE, TimeSeriesWriter, write_metrics
+from .inputs import EstimateInputs
+from .reference import reference_columns
+from .report import write_recorded_report, write_recording_file
+
+__all__ = ["estimate_recording", "row_times"]
+
+SAME_PERIOD = GAP_FACTOR
+"""Intervals within this factor of the one before are taken as the same frame period — timestamps jitter by
+milliseconds while a camera's period holds — and leave the odometry's constant-velocity prior as it is; a longer one
+(frames dropped) or a shorter one stretches the prior to it (:meth:`sensor.vo.StereoOdometry.scale_prior`)."""
+
+SAME_INSTANT = 1e-6
+"""Times closer than this [s] are one instant (a signal sample at a frame's time)."""
+
+Progress = Callable[[int, int], None]
+"""``(frames done, frames in all)``."""
+
+_CAMERA = [
+    "vo_valid",
+    "vo_reason",
+    "vo_estimate_reason",
+    *(f"vo_{name}" for name in QUALITY_COLUMNS),
+    "render_ms",
+    "vo_ms",
+    *(f"selfcal_{name}" for name in SELF_CALIBRATION_COLUMNS),
+]
+_SIGNALS = ("wheel_speed", "tractor_yaw_rate", "articulation", "trailer_yaw_rate", "trailer_wheel_speed")
+_SIGNAL_KEYS = ("speed", "yaw_rate", "articulation", "trailer_yaw_rate", "trailer_speed")  # SignalSeries.at's
+
+
+def row_times(inputs: EstimateInputs) -> tuple[np.ndarray, np.ndarray]:
+    """The run's rows: their times [s since the first frame] and the frame slot of each (−1: a signals' row).
+
+    The frames' times, and with signals the signals' times between the first and the last frame; a signal sample
+    within :data:`SAME_INSTANT` of a frame is that frame's row (the two files' clocks written to different digits).
+    """
+    frames = inputs.recording.times
+    times = frames
+    if inputs.signals is not None:
+        extra = inputs.signals.time - inputs.recording.t0
+        extra = extra[(extra > frames[0]) & (extra < frames[-1])]
+        nearest = np.clip(np.searchsorted(frames, extra), 1, len(frames) - 1)
+        gap = np.minimum(np.abs(extra - frames[nearest - 1]), np.abs(frames[nearest] - extra))
+        times = np.union1d(frames, extra[gap > SAME_INSTANT])
+    slot = np.full(times.size, -1)
+    slot[np.searchsorted(times, frames)] = np.arange(frames.size)
+    return times, slot
+
+
+def _columns(inputs: EstimateInputs) -> list[str]:
+    names = ["time", "frame", "camera_frame", "frame_missing", "offtracking_viso_ot", *_CAMERA]
+    names += ["kingpin_x_viso_ot", "kingpin_y_viso_ot", "trailer_heading_viso_ot", "kingpin_x", "kingpin_y"]
+    names += ["offtracking_truth", "offtracking_truth_geometric"]
+    if inputs.reference_poses is not None:
+        names += ["trailer_heading", "vo_rpe_translation_m", "vo_rpe_rotation_rad"]
+    if inputs.signals is not None:
+        names += ["offtracking_viso_ot_fused", "offtracking_viso_ot_fused_std", "fusion_kinematic_std"]
+        names += ["offtracking_zero_slip", *_SIGNALS]
+    return names
+
+
+class _DeadReckoning:
+    """The kingpin's path from the accepted motions' increments (eqs (1)–(2)), in the first frame's trailer frame."""
+
+    def __init__(self) -> None:
+        self.pose = np.zeros(3)
+
+    def push(self, dx: float, dy: float, dpsi: float) -> None:
+        c, s = math.cos(self.pose[2]), math.sin(self.pose[2])
+        self.pose = self.pose + np.array([c * dx - s * dy, s * dx + c * dy, dpsi])
+
+    def record(self) -> dict[str, float]:
+        x, y, psi = (float(v) for v in self.pose)
+        return {"kingpin_x_viso_ot": x, "kingpin_y_viso_ot": y, "trailer_heading_viso_ot": psi}
+
+
+class _SignalEstimators:
+    """The fused filter and the zero-slip estimate on the signals at the rows (within the signals' span)."""
+
+    def __init__(self, inputs: EstimateInputs, signals: dict[str, np.ndarray], times: np.ndarray) -> None:
+        params = inputs.rig.params
+        self.fused = FusedVisoOt(params, inputs.camera_in_trailer, FusionConfig())  # a run's fusion defaults
+        self.zero_slip = ZeroSlipEstimator(params)
+        self.signals, self.times = signals, times
+        self.previous: int | None = None
+        self.zero_slip_value: float | None = None
+        self.active = False
+
+    def propagate(self, row: int) -> None:
+        """Advance both to ``row`` with its signals (nothing outside the signals' span)."""
+        s = self.signals
+        self.active = bool(np.isfinite(s["speed"][row]))
+        if not self.active:
+            return
+        dt = float(self.times[row] - self.times[self.previous]) if self.previous is not None else 0.0
+        tractor = TractorSignals(float(s["speed"][row]), float(s["yaw_rate"][row]), float(s["articulation"][row]))
+        self.fused.propagate(row, dt, float(s["trailer_yaw_rate"][row]), float(s["trailer_speed"][row]), None, tractor)
+        sample = {
+            "wheel_speed": np.array([tractor.speed]),
+            "tractor_yaw_rate": np.array([tractor.yaw_rate]),
+            "articulation": np.array([tractor.articulation]),
+            "front_steer": np.array([0.0]),
+        }
+        self.zero_slip_value = self.zero_slip.update(sample, dt)
+        self.previous = row
+
+    def measure(self, row: int, frame: CameraFrame) -> None:
+        """The frame's motion (or none, if refused) into the fused filter, on the frame's own row."""
+        if self.active:
+            usable = frame.valid
+            self.fused.measure(row, frame.vo.camera_motion if usable else None, frame.vo.covariance if usable else None)
+
+    def record(self, row: int) -> dict[str, float]:
+        """The row's signals and, within their span, the two estimates."""
+        s = self.signals
+        out = {column: float(s[key][row]) for key, column in zip(_SIGNAL_KEYS, _SIGNALS, strict=True)}
+        if self.active:
+            fused = self.fused
+            out["offtracking_viso_ot_fused"] = math.nan if fused.estimate is None else float(fused.estimate)
+            out["offtracking_viso_ot_fused_std"] = float(fused.std)
+            out["fusion_kinematic_std"] = float(fused.kinematic_std)
+            out["offtracking_zero_slip"] = math.nan if self.zero_slip_value is None else float(self.zero_slip_value)
+        return out
+
+
+def estimate_recording(
+    inputs: EstimateInputs, run_dir: Path, *, plots: bool = True, progress: Progress | None = None
+) -> dict[str, Any]:
+    """Run the estimators over the recording and write the run directory (module notes); return ``metrics.json``.
+
+    Parameters
+    ----------
+    inputs : EstimateInputs
+        The checked inputs (:func:`.inputs.resolve_inputs`).
+    run_dir : Path
+        The run directory (exists, empty).
+    plots : bool
+        Draw ``offtracking.png`` and ``plan_view.png``.
+    progress : callable, optional
+        ``progress(frames done, frames in all)`` after every frame.
+    """
+    t_start = wallclock.perf_counter()
+    params = inputs.rig.params
+    write_recording_file(run_dir, inputs.record)
+    write_metrics(
+        run_dir,
+        {"scenario": f"recording {inputs.recording.source}", "status": RunStatus.RUNNING, "message": "running"},
+    )
+    times, slots = row_times(inputs)
+    frame_times = inputs.recording.times
+    first_interval = float(frame_times[1] - frame_times[0]) if frame_times.size > 1 else 0.1
+    odometry = FrameOdometry(params, inputs.vo_config, inputs.camera_in_trailer, first_interval, inputs.seed)
+    truth = reference_columns(
+        times,
+        params.follow_point_offset,
+        inputs.camera_in_trailer,
+        inputs.reference_poses,
+        inputs.reference_offtracking,
+    )
+    camera_pose = truth.pop("camera_pose", None)
+    extra = None
+    if inputs.signals is not None:
+        extra = _SignalEstimators(inputs, inputs.signals.at(times + inputs.recording.t0, params), times)
+    path = _DeadReckoning()
+    writer = TimeSeriesWriter(run_dir / TIMESERIES_FILE, _columns(inputs))
+    refused: list[list[Any]] = []
+    missing: list[list[Any]] = []
+    estimate = math.nan
+    last: tuple[float, np.ndarray | None] | None = None  # time and reference pose of the last frame processed
+    previous_interval: float | None = None
+    pairs = inputs.recording.pairs()
+    status, message = RunStatus.COMPLETED, "the recording was processed to its end"
+    t = 0.0
+    try:
+        for row, (t, slot_index) in enumerate(zip(times, slots, strict=True)):
+            record: dict[str, float] = {"time": float(t)}
+            frame = None
+            if slot_index >= 0:
+                slot, left, right = next(pairs)
+                record.update(frame=float(slot.index), camera_frame=1.0, frame_missing=float(left is None))
+                if left is None or right is None:
+                    missing.append([slot.index, slot.time, slot.missing or "image_missing"])
+                else:
+                    if inputs.calibration is not None:
+                        left, right = inputs.calibration.rectify(left, right)
+                    if last is not None and t > last[0]:
+                        interval = float(t - last[0])
+                        odometry.estimator.frame_interval = interval  # VISO-OT's plausibility over the actual interval
+                        ratio = interval / previous_interval if previous_interval is not None else 1.0
+                        if not 1.0 / SAME_PERIOD <= ratio <= SAME_PERIOD:
+                            odometry.vo.scale_prior(ratio)  # the prior stretched over a gap
+                        previous_interval = interval
+                    frame = odometry.process(left, right)
+                    record.update(camera_row(frame))
+                    estimate = math.nan if frame.estimate is None else float(frame.estimate)
+                    if frame.valid:
+                        path.push(*odometry.estimator.kingpin_increment(frame.vo.camera_motion))
+                    elif last is not None:
+                        refused.append([slot.index, slot.time, frame.reason])
+                    pose = camera_pose[row] if camera_pose is not None else None
+                    if pose is not None and last is not None and last[1] is not None and np.all(np.isfinite(pose)):
+                        true_motion = np.linalg.solve(pose, last[1])  # inv(T_k)·T_{k−1}
+                        rpe = relative_pose_error(frame.vo.motion if frame.vo.valid else None, true_motion)
+                        record.update(vo_rpe_translation_m=rpe[0], vo_rpe_rotation_rad=rpe[1])
+                    last = (float(t), pose)
+            if progress is not None and slot_index >= 0:
+                progress(int(slot_index) + 1, len(frame_times))
+            if extra is not None:
+                extra.propagate(row)
+                if frame is not None:
+                    extra.measure(row, frame)
+                record.update(extra.record(row))
+            record["offtracking_viso_ot"] = estimate  # held between frames, as a run's
+            record.update(path.record())
+            record.update({name: float(values[row]) for name, values in truth.items()})
+            if "kingpin_x" not in truth:
+                record.update(kingpin_x=float(path.pose[0]), kingpin_y=float(path.pose[1]))
+            writer.append(record)
+    except BaseException as exc:
+        status = RunStatus.INTERRUPTED if isinstance(exc, KeyboardInterrupt) else RunStatus.FAILED
+        message = f"stopped at {float(t):.3f} s: {type(exc).__name__}: {exc}"
+        raise
+    finally:
+        writer.close()
+        run = {
+            "status": status,
+            "message": message,
+            "wall_time_s": wallclock.perf_counter() - t_start,
+            "recording": _recording_summary(inputs, missing, refused),
+        }
+        metrics = write_recorded_report(run_dir, inputs.record, run, plots=plots and status == RunStatus.COMPLETED)
+    return metrics
+
+
+def _recording_summary(inputs: EstimateInputs, missing: list[list[Any]], refused: list[list[Any]]) -> dict[str, Any]:
+    """``metrics.json``'s ``recording``: the frames, those missing and refused (frame, time, reason), the gaps."""
+    times = inputs.recording.times
+    intervals = np.diff(times)
+    return {
+        "source": inputs.recording.source,
+        "frames": len(times),
+        "processed": len(times) - len(missing),
+        "time_span_s": float(times[-1]) if times.size else 0.0,
+        "median_interval_s": float(np.median(intervals)) if intervals.size else None,
+        "interval_range_s": [float(intervals.min()), float(intervals.max())] if intervals.size else None,
+        "missing": {"count": len(missing), "frames": missing, "reasons": MISSING_REASONS},
+        "refused": {"count": len(refused), "frames": refused},
+        "gaps": [{"frame": k, "interval_s": dt, "median_interval_s": m} for k, dt, m in time_gaps(times)],
+    }
