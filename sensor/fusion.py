@@ -38,9 +38,11 @@ exact arc::
 
 ``v_s``, ``b_g`` and ``b_w`` are random walks in time, ``β_ψ`` in distance travelled. The gyro and wheel-speed
 noises enter as white noise on the period's mean rate; the covariance propagates with the Jacobian of (2) (first
-order in δψ). The gyro is taken as zeroed at standstill, as a trailer's EBS does at every stop: its bias starts
-within ``initial_gyro_bias`` (0.1 mrad/s), a tenth of the odometry's yaw error under field conditions, so that the
-heading comes from the gyro and the odometry's yaw error is found against it (docs/field_bias.md).
+order in δψ). The gyro is zeroed at standstill (:meth:`FusedVisoOt.zero_gyro`), as a vehicle's stability control
+does at every stop: ``b_g`` starts at the mean reading over the stop with the variance of that mean,
+``σ_g²/n`` for ``n`` samples, so that the heading comes from the gyro and the odometry's yaw error is found against
+it (docs/field_bias.md); a gyro that was not zeroed starts at zero within ``initial_gyro_bias``, the offset a
+data sheet leaves (:mod:`sensor.datasheet`).
 
 Zero-slip measurement (every control tick, when the tractor's signals are given). If no tractor tyre slips
 sideways, the kingpin moves at ``(u_1, −e·r_1)`` in tractor axes (:func:`vehicle_model.kinematics.
@@ -141,6 +143,8 @@ __all__ = ["FusedVisoOt", "FusionNoise", "TractorSignals", "slip_kinematics"]
 _STATES = 7
 _VS, _BG, _BW, _BPSI = 3, 4, 5, 6
 _BIASES = [_BG, _BPSI]
+MIN_INNOVATION_RATIO = 0.25
+"""Least ``ρ/3`` of eq (5): a run of well-matched motions may shrink the std by half, not to nothing."""
 
 
 class FusionNoise(Settings):
@@ -157,7 +161,10 @@ class FusionNoise(Settings):
     gyro_bias_walk, wheel_speed_bias_walk : float
         Random walks of the biases [rad/s/√s, m/s/√s].
     initial_slip_velocity, initial_gyro_bias, initial_wheel_speed_bias : float
-        Standard deviations at the start [m/s, rad/s, m/s].
+        Standard deviations at the start [m/s, rad/s, m/s]; ``initial_gyro_bias`` is that of a gyro that was not
+        zeroed (:meth:`FusedVisoOt.zero_gyro`).
+    gyro_zeroing_s : float
+        The standstill before the run over which a run zeroes the trailer's gyro [s] (0: it does not).
     vo_covariance_scale : float
         Variance factor on the odometry's Gauss–Newton covariance (≥ 1: it is a floor).
     vo_translation_floor, vo_rotation_floor : float
@@ -169,6 +176,9 @@ class FusionNoise(Settings):
     vo_bias_coupling : float
         The odometry's systematic translation error per unit of its yaw error, as a multiple of the regression of
         its random translation error on its yaw error (its covariance; docs/field_bias.md).
+    vo_bias_coupling_uncertainty : float
+        Relative standard deviation of ``vo_bias_coupling``: the off-tracking's std carries this share of the
+        correction the coupling applies for the estimated ``β_ψ`` (eq (5)).
     kinematics : bool
         Fuse the zero-slip kinematics (K1) when the tractor's signals are given.
     tractor_slip : float
@@ -190,14 +200,25 @@ class FusionNoise(Settings):
         Camera motions over which the mean normalised innovation squared ``ρ`` of eq (5) is taken.
     """
 
-    gyro_noise: float = Field(2e-3, gt=0.0, le=0.1, description="[rad/s] per sample; 0.1 is beyond any gyro")
+    gyro_noise: float = Field(
+        1.2e-3, gt=0.0, le=0.1, description="[rad/s] per sample (sensor/datasheet.py); 0.1 is beyond any gyro"
+    )
     wheel_speed_noise: float = Field(0.05, gt=0.0, le=1.0, description="[m/s] per sample; 1 m/s is a broken sensor")
     slip_velocity_walk: float = Field(0.1, gt=0.0, le=5.0, description="[m/s/√s] slip build-up; 5 spins in 1 s")
-    gyro_bias_walk: float = Field(5e-6, ge=0.0, le=0.1, description="[rad/s/√s]; 0.1 is a gyro without a bias")
+    gyro_bias_walk: float = Field(
+        1e-6, ge=0.0, le=0.1, description="[rad/s/√s] in-run drift (a few °/h); 0.1 is a gyro without a bias"
+    )
     wheel_speed_bias_walk: float = Field(2e-3, ge=0.0, le=1.0, description="[m/s/√s]; 1 is a sensor without a bias")
     initial_slip_velocity: float = Field(0.3, ge=0.0, le=10.0, description="[m/s]; 10 m/s of slip is a spin")
     initial_gyro_bias: float = Field(
-        1e-4, ge=0.0, le=1.0, description="[rad/s] zeroed at standstill, 0.006°/s left; 1 rad/s is no gyro"
+        1e-3, ge=0.0, le=1.0, description="[rad/s] the offset of a gyro not zeroed (0.06°/s); 1 rad/s is no gyro"
+    )
+    gyro_zeroing_s: float = Field(
+        10.0,
+        ge=0.0,
+        le=600.0,
+        description="[s] the standstill before the run over which the trailer's gyro is zeroed; 0: not zeroed, "
+        "600 s is a long stop",
     )
     initial_wheel_speed_bias: float = Field(0.2, ge=0.0, le=10.0, description="[m/s]; 10 m/s is no wheel speed")
     vo_covariance_scale: float = Field(4.0, ge=1.0, le=1e4, description="on the VO covariance (a floor); 1e4: no VO")
@@ -206,9 +227,15 @@ class FusionNoise(Settings):
     vo_yaw_bias: float = Field(
         1e-3, ge=0.0, le=0.01, description="[rad/m] start std of the VO's yaw error; 0.01 rad/m turns 57° in 100 m"
     )
-    vo_yaw_bias_walk: float = Field(3e-5, ge=0.0, le=1e-3, description="[rad/m/√m]; 1e-3 forgets in a metre")
+    vo_yaw_bias_walk: float = Field(2e-5, ge=0.0, le=1e-3, description="[rad/m/√m]; 1e-3 forgets in a metre")
     vo_bias_coupling: float = Field(
         1.15, ge=0.0, le=3.0, description="× the covariance's yaw–translation regression; 0 ties no translation to it"
+    )
+    vo_bias_coupling_uncertainty: float = Field(
+        0.15,
+        ge=0.0,
+        le=1.0,
+        description="relative std of vo_bias_coupling, carried into the off-tracking's std; 1: the coupling unknown",
     )
     kinematics: bool = True
     tractor_slip: float = Field(
@@ -312,6 +339,24 @@ class FusedVisoOt:
         self._walk_distance = n.vo_yaw_bias_walk**2
         self._f = np.eye(_STATES)  # work arrays of _step
         self._g = np.zeros((_STATES, 2))
+        self._gyro_zero: tuple[float, int] | None = None
+        self.reset()
+
+    def zero_gyro(self, mean_reading: float, samples: int) -> None:
+        """Zero the gyro at standstill: its mean reading over ``samples`` samples at rest is its offset.
+
+        ``b_g`` then starts at ``mean_reading`` with the variance of that mean, ``gyro_noise²/samples`` (a mean of
+        white samples), instead of at zero within ``initial_gyro_bias``. Call before the first
+        :meth:`propagate`; :meth:`reset` keeps it.
+
+        Raises
+        ------
+        InputError
+            ``mean_reading`` not finite or ``samples`` < 1.
+        """
+        if not math.isfinite(mean_reading) or samples < 1:
+            raise InputError(f"zeroing the gyro needs a finite mean reading and samples ≥ 1: {mean_reading}, {samples}")
+        self._gyro_zero = (float(mean_reading), int(samples))
         self.reset()
 
     def reset(self) -> None:
@@ -332,6 +377,9 @@ class FusedVisoOt:
                 n.vo_yaw_bias**2,
             ]
         )
+        if self._gyro_zero is not None:  # zeroed at standstill: the mean reading and its variance
+            x0[_BG] = self._gyro_zero[0]
+            p0[_BG, _BG] = n.gyro_noise**2 / self._gyro_zero[1]
         self._start = (x0, p0)
         self._innovation_power = math.nan  # m_k and V_k of (K2)
         self._expected_power = math.nan
@@ -456,6 +504,8 @@ class FusedVisoOt:
         r_m, w_m, tan_steer = sample
         h = np.zeros(_STATES)
         h[_VS] = 1.0
+        h[_BG] = -self.slip_point  # (K1) is taken with the measured rates: their biases enter it through (1)
+        h[_BW] = -tan_steer
         z = lateral - (r_m * self.slip_point + w_m * tan_steer)  # (K1): the slip velocity the tractor implies
         n = self.noise
         variance = max(n.tractor_slip**2, self._slip_evidence)  # (K2)
@@ -567,7 +617,7 @@ class FusedVisoOt:
                 used = True
                 self.updates += 1
                 self._nis.append(min(nis, self.noise.gate))
-                self.innovation_ratio = max(1.0, float(np.mean(self._nis)) / 3.0)
+                self.innovation_ratio = max(MIN_INNOVATION_RATIO, float(np.mean(self._nis)) / 3.0)
         self._commit(index, x, p)
         self._read()
         return used
@@ -619,7 +669,7 @@ class FusedVisoOt:
         # eq (3) over the committed increments ahead of the follow point, in the current frame ...
         c, s = math.cos(d[2]), math.sin(d[2])
         independent = 0.0
-        coherent = np.zeros(2)  # G of eq (5): ∂e_tr/∂(b_g, β_ψ)
+        coherent = np.zeros(3)  # G of eq (5): ∂e_tr/∂(b_g, β_ψ), and the coupled part of the second
         lever = 0.0  # ∂e_tr/∂v_s, a slip velocity error held over the window [s]
         if len(self._covs):
             starts, ends = self._starts, self._ends
@@ -641,12 +691,16 @@ class FusedVisoOt:
         biases = now.p[np.ix_(_BIASES, _BIASES)]
         # the disagreement the kinematics' share carries into the slip velocity, coherent over the window
         disagreement = self.kinematic_share * math.sqrt(max(self._slip_evidence, 0.0)) * self._lateral_lever
-        variance = (
-            self.innovation_ratio * independent
-            + float(coherent @ biases @ coherent)
-            + disagreement**2
-            + self.noise.offtracking_bias_std**2  # eq (5)
-        )
+        # the coupling is known to vo_bias_coupling_uncertainty: so is the correction it applies for β_ψ
+        coupling = self.noise.vo_bias_coupling_uncertainty * now.x[_BPSI] * coherent[2]
+        self.std_parts = {
+            "increments": self.innovation_ratio * independent,
+            "biases": self.innovation_ratio * float(coherent[:2] @ biases @ coherent[:2]),
+            "coupling": coupling**2,
+            "kinematics": disagreement**2,
+            "unexplained": self.noise.offtracking_bias_std**2,
+        }
+        variance = sum(self.std_parts.values())  # eq (5)
         std = math.sqrt(max(variance, 0.0))
         if std > self.noise.max_std:
             self.estimate, self.std = None, std
@@ -656,11 +710,12 @@ class FusedVisoOt:
     def _bias_effect(self, g: np.ndarray, length: np.ndarray, duration: np.ndarray) -> np.ndarray:
         """``G`` of eq (5): the change of ``e_tr`` per unit error of ``(b_g, β_ψ)``, coherent over increments
         with sensitivities ``g`` (n×3), lengths [m] and durations [s]: a gyro bias turns and, through eq (1), moves
-        each increment by its duration; an odometry error per metre along the frame's ambiguity by its length."""
+        each increment by its duration; an odometry error per metre along the frame's ambiguity by its length. The
+        third entry is the part of the second that the coupling carries (the translation along the ambiguity)."""
         gyro = -float(np.sum((g[:, 2] + g[:, 1] * self.slip_point) * duration))
         c_x, c_y = self._coupling
-        yaw = float(np.sum((g[:, 0] * c_x + g[:, 1] * c_y + g[:, 2]) * length))
-        return np.array([gyro, yaw])
+        coupled = float(np.sum((g[:, 0] * c_x + g[:, 1] * c_y) * length))
+        return np.array([gyro, coupled + float(np.sum(g[:, 2] * length)), coupled])
 
     @property
     def state(self) -> np.ndarray:

@@ -88,3 +88,32 @@ class OnboardSignals:
                     self._next_sample[name] = time + period
             out[name] = self._held[name].copy()
         return out
+
+
+def standstill_reading(spec: ChannelSpec, duration_s: float, rng: np.random.Generator) -> tuple[float, int]:
+    """What a rate channel reads, on average, while the vehicle stands still: its bias and the mean of its noise.
+
+    A yaw-rate gyro at rest measures zero rate plus its offset, so the mean of its samples over a standstill is the
+    offset within ``noise_std/√n``: the standstill offset compensation of a vehicle's stability control (and of
+    the fused VISO-OT filter, :meth:`sensor.fusion.FusedVisoOt.zero_gyro`) takes it as the offset.
+
+    Parameters
+    ----------
+    spec
+        The channel's noise, bias and rate.
+    duration_s
+        How long the vehicle stood still [s] (0: no sample).
+    rng
+        The generator of the samples' noise.
+
+    Returns
+    -------
+    tuple of float and int
+        The mean reading and the number of samples ``n`` (``duration_s`` times the rate, rounded down); NaN and 0
+        without a sample.
+    """
+    n = math.floor(max(duration_s, 0.0) * spec.rate_hz + 1e-9)
+    if n == 0:
+        return math.nan, 0
+    noise = float(np.mean(rng.standard_normal(n))) * spec.noise_std if spec.noise_std > 0 else 0.0
+    return spec.bias + noise, n

@@ -17,6 +17,7 @@ import numpy as np
 
 from controller.zero_slip import ZeroSlipEstimator
 from sensor.fusion import FusedVisoOt, FusionNoise, TractorSignals
+from sensor.signals import standstill_reading
 from vehicle_model.geometry import kingpin_position
 from vehicle_model.offtracking import (
     BUFFER_FILLING,
@@ -246,7 +247,24 @@ def zero_slip(context: LoopContext) -> ZeroSlip:
     return ZeroSlip(context.setup.params, context.setup.config.estimators.zero_slip_variant)
 
 
+GYRO_ZEROING_STREAM = 0x2E60
+"""Mixed with the run's seed into the generator of the trailer gyro's readings at standstill before the run, so that
+zeroing it draws nothing from the run's own generator."""
+
+
 def fused_viso_ot(context: LoopContext) -> FusedVisoOtEstimator:
-    """The registry's builder of fused VISO-OT (``fusion`` settings; on the ``viso_ot`` participant's camera)."""
-    fusion = context.setup.config.fusion  # a FusionNoise with a run's defaults
-    return FusedVisoOtEstimator(context.setup.params, context.estimators["viso_ot"], fusion, fusion.drop_every)
+    """The registry's builder of fused VISO-OT (``fusion`` settings; on the ``viso_ot`` participant's camera).
+
+    The trailer's gyro is zeroed over ``fusion.gyro_zeroing_s`` of standstill before the run: its readings at rest
+    are drawn from its own channel (``signals.trailer_yaw_rate``: bias and noise; :func:`sensor.signals.
+    standstill_reading`).
+    """
+    config = context.setup.config
+    fusion = config.fusion  # a FusionNoise with a run's defaults
+    estimator = FusedVisoOtEstimator(context.setup.params, context.estimators["viso_ot"], fusion, fusion.drop_every)
+    if fusion.gyro_zeroing_s > 0.0:
+        rng = np.random.default_rng([config.seed, GYRO_ZEROING_STREAM])
+        mean, samples = standstill_reading(config.signals.trailer_yaw_rate, fusion.gyro_zeroing_s, rng)
+        if samples > 0:
+            estimator.filter.zero_gyro(mean, samples)
+    return estimator
