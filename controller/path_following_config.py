@@ -147,8 +147,8 @@ class PathFollowingConfig(Settings):
     feedback_max_std : float
         Largest standard deviation [m] of the fed-back estimate (the estimates' ``<feedback>_std``, given by the
         fused VISO-OT) at which it is used; above it the controller steers by feed-forward only, integrator
-        frozen. 0.05 m is half the 0.10 m RMS off-tracking target: an estimate less certain than that would
-        steer the trailer by as much error as it removes (with ``k_p`` ≈ 0.2 rad/m, 0.05 m is 0.6° of steer).
+        frozen. At 0.075 m an estimate's 2σ reaches the 0.15 m largest off-tracking of the target (docs/design.md
+        §11): less certain than that, it would steer the trailer by as much error as it removes.
     max_slip_angle : float or None
         Largest slip angle ``|δ_j − β_j|`` [rad] a steerable axle is commanded to, ``β_j`` the direction of its
         velocity from the same kinematics as the feed-forward (:func:`~controller.axle_steer_distribution.
@@ -177,7 +177,7 @@ class PathFollowingConfig(Settings):
     max_virtual_steer: float = Field(math.radians(45.0), gt=0.0, le=math.radians(80.0))
     derivative_min_distance: float = Field(0.05, ge=0.0)
     control_period: float = Field(0.02, gt=0.0, le=1.0)
-    feedback_max_std: float = Field(0.05, gt=0.0)
+    feedback_max_std: float = Field(0.075, gt=0.0)
     max_slip_angle: float | None = Field(None, gt=0.0, le=math.radians(45.0))
 
     @model_validator(mode="after")

@@ -288,11 +288,11 @@ class ControllerConfig(Settings):
         15.0, gt=0.0, le=150.0, description="[km/h] speed the gains are designed for; above any truck's speed"
     )
     feedback_max_std_m: float = Field(
-        0.05,
+        0.075,
         gt=0.0,
         le=1.0,
-        description="[m] std of the fed-back estimate above which the trailer is steered by feed-forward only; "
-        "1 m is ten times the 0.10 m off-tracking target",
+        description="[m] std of the fed-back estimate above which the trailer is steered by feed-forward only: an "
+        "estimate whose 2σ reaches the 0.15 m max target is not steered on; 1 m is ten times the 0.10 m RMS target",
     )
 
     def path_following(self, control_hz: float) -> PathFollowingConfig:

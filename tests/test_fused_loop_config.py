@@ -48,4 +48,4 @@ def test_the_std_fallback_threshold_reaches_the_controller() -> None:
     )
     assert trailer_steer_for(setup).controller.config.feedback_max_std == 0.08
     default = build_scenario(load_scenario("roundabout-3", {"vehicle": "lst", "feedback": "truth"}))
-    assert trailer_steer_for(default).controller.config.feedback_max_std == 0.05
+    assert trailer_steer_for(default).controller.config.feedback_max_std == 0.075
