@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenarios.config import ConfigError, load_scenario
+from scenarios.config import ConfigError, FusionConfig, load_scenario
 from scenarios.loop.estimators import fused_viso_ot
 from scenarios.loop.participant import LoopContext
 from scenarios.loop.trailer_steer import trailer_steer_for
 from scenarios.setup.build import build_scenario
+from sensor.fusion import FusionNoise
 
 
 @pytest.mark.parametrize(
@@ -39,7 +40,9 @@ def test_the_bias_term_reaches_the_filter() -> None:
     setup = build_scenario(load_scenario("roundabout-3", {"vehicle": "lst", "fusion.offtracking_bias_std": 0.04}))
     assert fused(setup).noise.offtracking_bias_std == 0.04
     default = build_scenario(load_scenario("roundabout-3", {"vehicle": "lst"}))
-    assert fused(default).noise.offtracking_bias_std == 0.025
+    # the run's own default (the schema's), not the bare filter's
+    assert fused(default).noise.offtracking_bias_std == FusionConfig().offtracking_bias_std
+    assert FusionConfig().offtracking_bias_std != FusionNoise().offtracking_bias_std
 
 
 def test_the_std_fallback_threshold_reaches_the_controller() -> None:
