@@ -80,6 +80,8 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
                     else "nothing to hold (unsteered)"
                 )
             )
+        else:
+            out.append(f"[red]not held[/]: {len(verdict.get('flags', []))} miss(es), each below with its reason")
         for flag in verdict.get("flags", []):
             out.append(f"[red]{flag['flag']}[/]: {escape(flag['reason'])}")
     wall = metrics.get("wall_time_s")
