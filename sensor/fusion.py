@@ -719,13 +719,13 @@ class FusedVisoOt:
 
     @property
     def state(self) -> np.ndarray:
-        """Newest state ``[Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]`` (module notes)."""
-        return self._history[-1].x.copy()
+        """Newest state ``[Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]`` (module notes; before the first tick, the start)."""
+        return (self._history[-1].x if self._history else self._start[0]).copy()
 
     @property
     def covariance(self) -> np.ndarray:
-        """Newest 7×7 state covariance."""
-        return self._history[-1].p.copy()
+        """Newest 7×7 state covariance (before the first tick, the start)."""
+        return (self._history[-1].p if self._history else self._start[1]).copy()
 
 
 def _apply_rows(

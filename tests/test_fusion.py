@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from sensor.fusion import FusedVisoOt, FusionNoise, TractorSignals, slip_kinematics
+from sensor.signals import ChannelSpec, standstill_reading
 from sensor.viso_ot import VisoOtEstimator
 from vehicle_model.offtracking import OfftrackingBuffer
 from vehicle_model.presets import VEHICLE_PRESETS
@@ -96,12 +97,14 @@ def run(
     tractor=None,
     covariance: np.ndarray = VO_COVARIANCE,
     yaw_error_per_m: float = 0.0,
+    coupling_scale: float = 1.0,
 ):
     """Feed the filter; return its estimates and std and the true off-tracking per tick (NaN: none).
 
     ``frame_error``: per frame, an error ``(dx, dy, dψ)`` added to the increment the camera motion is made from.
     ``tractor``: per tick, the :class:`TractorSignals` (``None``: none). ``yaw_error_per_m``: a systematic odometry
-    error of this yaw per metre along the frame's yaw–translation ambiguity (eq (3) of :mod:`sensor.fusion`).
+    error of this yaw per metre along the frame's yaw–translation ambiguity (eq (3) of :mod:`sensor.fusion`), whose
+    translation is ``coupling_scale`` times the one the filter assumes.
     """
     truth = OfftrackingBuffer(PARAMS.follow_point_offset)
     est, std, ref = [], [], []
@@ -117,7 +120,7 @@ def run(
                 seen = frame_inc if frame_error is None else frame_inc + frame_error[k // EVERY]
                 if yaw_error_per_m:
                     r = fused.measurement(camera_motion(seen), covariance)[1]
-                    coupling = fused.noise.vo_bias_coupling * r[:2, 2] / r[2, 2]
+                    coupling = coupling_scale * fused.noise.vo_bias_coupling * r[:2, 2] / r[2, 2]
                     seen = seen + yaw_error_per_m * seen[0] * np.array([*coupling, 1.0])
                 pending.append((k + latency, k, None if drop(k // EVERY) else camera_motion(seen)))
             frame_inc = np.zeros(3)
@@ -285,6 +288,46 @@ def test_the_odometrys_yaw_error_is_found_against_the_gyro_and_removed() -> None
     # without the state the error stays in (the gyro alone holds the heading: 0.05 m)
     assert np.max(np.abs(est_blind[late] - ref[late])) > 4.0 * np.max(np.abs(est[late] - ref[late])) > 0.0
     assert np.mean(np.abs(est[late] - ref[late]) <= 2.0 * std[late]) > 0.95
+
+
+def test_a_zeroed_gyro_tells_its_offset_from_the_odometrys_error() -> None:
+    # A gyro offset of 1 mrad/s and an odometry error of 0.5 mrad/m turn the heading alike at a steady speed. Zeroed
+    # over 10 s of standstill (500 samples), the gyro's offset is known and the odometry's error is found.
+    bias, error = 1e-3, 5e-4
+    r_m, w_m, incs = drive(n=2500, gyro_bias=bias)
+    reading, samples = standstill_reading(ChannelSpec(noise_std=1.2e-3, bias=bias), 10.0, np.random.default_rng(3))
+    zeroed = FusedVisoOt(PARAMS, CAMERA)
+    zeroed.zero_gyro(reading, samples)
+    assert zeroed.state[4] == reading and math.sqrt(zeroed.covariance[4, 4]) == pytest.approx(1.2e-3 / math.sqrt(500))
+    est, std, ref = run(zeroed, r_m, w_m, incs, covariance=ambiguous_covariance(), yaw_error_per_m=error)
+    late = np.isfinite(est) & np.isfinite(ref) & (np.arange(len(est)) > 1500)
+    assert zeroed.state[6] == pytest.approx(error, rel=0.1) and zeroed.state[4] == pytest.approx(bias, abs=1e-4)
+    assert np.max(np.abs(est[late] - ref[late])) < 0.01
+    assert np.mean(np.abs(est[late] - ref[late]) <= 2.0 * std[late]) > 0.95
+    # not zeroed, the offset is known only to the data sheet's 1 mrad/s: the std says so
+    unzeroed = FusedVisoOt(PARAMS, CAMERA)
+    est_u, std_u, _ = run(unzeroed, r_m, w_m, incs, covariance=ambiguous_covariance(), yaw_error_per_m=error)
+    assert np.mean(std_u[late]) > 1.5 * np.mean(std[late])
+    assert np.mean(np.abs(est_u[late] - ref[late]) <= 2.0 * std_u[late]) > 0.85
+
+
+def test_an_odometry_error_the_filter_cannot_observe_widens_its_std() -> None:
+    # The odometry's translation error per unit of its yaw error (1 mrad/m) is 30 % larger than the filter's model:
+    # no state can see that, so only the coupling's uncertainty in eq (5) can keep the std honest.
+    r_m, w_m, incs = drive(n=2500)
+    options = {"covariance": ambiguous_covariance(), "yaw_error_per_m": 1e-3, "coupling_scale": 1.3}
+    honest = FusedVisoOt(PARAMS, CAMERA)
+    honest.zero_gyro(0.0, 500)
+    est, std, ref = run(honest, r_m, w_m, incs, **options)
+    sure = FusedVisoOt(PARAMS, CAMERA, FusionNoise(vo_bias_coupling_uncertainty=0.0))
+    sure.zero_gyro(0.0, 500)
+    est_s, std_s, _ = run(sure, r_m, w_m, incs, **options)
+    late = np.isfinite(est) & np.isfinite(ref) & (np.arange(len(est)) > 1500)
+    error = np.abs(est[late] - ref[late])
+    assert np.allclose(est[late], est_s[late], atol=1e-9)  # the same estimate: only its std differs
+    assert np.mean(error) > 0.01  # the error is real ...
+    assert np.mean(error <= 2.0 * std[late]) > 0.85  # ... and covered
+    assert np.mean(error <= 2.0 * std_s[late]) < 0.6  # without the term it is not
 
 
 def test_a_blinded_camera_falls_back_to_the_kinematics() -> None:

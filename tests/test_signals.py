@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
-from sensor.signals import CHANNELS, ChannelSpec, OnboardSignals
+from sensor.signals import CHANNELS, ChannelSpec, OnboardSignals, standstill_reading
 
 
 def truth(value: float) -> dict:
@@ -51,3 +53,15 @@ def test_bad_specs():
         ChannelSpec(noise_std=-1.0)
     with pytest.raises(ValueError, match="unknown signal channels"):
         OnboardSignals({"gps": ChannelSpec()}, np.random.default_rng(0))
+
+
+def test_a_standstill_reading_is_the_offset_within_the_noise_of_its_mean() -> None:
+    spec = ChannelSpec(noise_std=1.2e-3, bias=1e-3, rate_hz=50.0)
+    means = [standstill_reading(spec, 10.0, np.random.default_rng(seed)) for seed in range(200)]
+    assert {n for _, n in means} == {500}  # 10 s at 50 Hz
+    errors = np.array([m for m, _ in means]) - spec.bias
+    assert abs(np.mean(errors)) < 3 * 1.2e-3 / math.sqrt(500 * 200)  # unbiased
+    assert np.std(errors) == pytest.approx(1.2e-3 / math.sqrt(500), rel=0.15)  # σ/√n
+    assert standstill_reading(ChannelSpec(bias=2e-3), 1.0, np.random.default_rng(0)) == (2e-3, 50)  # no noise: exact
+    value, n = standstill_reading(spec, 0.0, np.random.default_rng(0))
+    assert n == 0 and math.isnan(value)
