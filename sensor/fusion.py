@@ -100,22 +100,32 @@ so a gap is bridged with a covariance that grows with its length.
 
 Off-tracking and its standard deviation. Every tick the off-tracking is read from the buffer moved by the
 current ``(Δx, Δy, Δψ)`` (eq (7), :func:`~vehicle_model.offtracking.offtracking_from_path`). Its variance has
-three parts. The committed increments newer than the follow-point station, and the current one, each contribute
+five parts. The committed increments newer than the follow-point station, and the current one, each contribute
 ``gᵀ Q g`` with ``Q`` the increment's covariance and ``g`` the first-order effect of its error on ``e_tr``::
 
     g = (−sin ψ_s, −cos ψ_s, x_e + L_fp)                                                        (4)
 
 (``ψ_s`` the heading of the increment's start frame and ``x_e`` the station of its end, both in the current
 trailer frame: a translation error moves the old path rigidly, a heading error turns it about the increment's
-end); the mean normalised innovation squared of the camera's recent motions ``ρ`` (3 when the motions agree with
-their covariance; Bar-Shalom, Li & Kirubarajan 2001, ch. 5) scales this part when it exceeds its expectation. The
-remaining uncertainty of the biases ``(b_g, β_ψ)`` is common to every increment, so it enters coherently, through
-``G``, the change of ``e_tr`` per unit bias summed over the increments (a gyro bias turns each by its duration and,
-through (1), moves it by ``L_c`` times that; the odometry's error per metre along (3) by its length). What no
-state explains — the part of the odometry's error that changes with the scenery faster than β_ψ follows — is the
-constant ``offtracking_bias_std`` ``σ_b``::
+end). The remaining uncertainty of the biases ``(b_g, β_ψ)`` is common to every increment, so it enters coherently,
+through ``G``, the change of ``e_tr`` per unit bias summed over the increments (a gyro bias turns each by its
+duration and, through (1), moves it by ``L_c`` times that; the odometry's error per metre along (3) by its length).
+Both parts follow the camera's evidence: ``ρ``, the mean normalised innovation squared of its recent motions, is 3
+when they agree with their covariances (Bar-Shalom, Li & Kirubarajan 2001, ch. 5), so ``ρ/3`` scales them up where
+the motions are noisier than their covariances say and down (to a quarter at most) where they are quieter. The
+coupling ``κ`` of (3) is itself known only to a relative ``u_κ`` (``vo_bias_coupling_uncertainty``: the regression
+of the measured errors, docs/field_bias.md), so the translation the filter removes for the estimated ``β_ψ``,
+``β_ψ·G_κ`` (``G_κ`` the coupled part of ``G``'s second entry), is uncertain by ``u_κ·β_ψ·G_κ``: a large
+estimated odometry error widens the std. The share of the kinematics' disagreement with the camera that the
+estimate carries, ``s_k·m_k`` (K2), enters over the path as a slip velocity would, through ``Λ``, the sum of the
+increments' lateral sensitivities times their durations. What no state explains — the part of the odometry's
+error that changes with the scenery faster than ``β_ψ`` follows — is the constant ``offtracking_bias_std``
+``σ_b``::
 
-    σ_e² = max(1, ρ/3)·Σ gᵀ Q g + G·P_b·Gᵀ + σ_b²                                               (5)
+    σ_e² = (ρ/3)·(Σ gᵀ Q g + G·P_b·Gᵀ) + (u_κ·β_ψ·G_κ)² + (s_k·m_k·Λ)² + σ_b²                       (5)
+
+Why this module is long: this docstring states the filter's model in full beside the code that carries it out,
+and the propagation, the delayed measurements, the commit and the reading of the off-tracking share one state.
 """
 
 from __future__ import annotations
