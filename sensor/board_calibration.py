@@ -35,7 +35,7 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 
-from sensor.calibration import CalibrationResult
+from sensor.calibration import CalibrationResult, solve_stereo_calibration
 from sensor.calibration_target import Board
 from sensor.photo_pairs import check_images
 from vehicle_model.errors import InputError
@@ -59,8 +59,6 @@ OUTLIER_FACTOR = 3.0
 """A view whose stereo RMS exceeds this many times the median view's (and :data:`OUTLIER_FLOOR_PX`) is rejected."""
 OUTLIER_FLOOR_PX = 1.0
 """… and is at least this large [px]: corners found to a pixel are not outliers however sharp the other views are."""
-
-_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
 
 
 @dataclass(frozen=True)
@@ -359,67 +357,22 @@ def _not_found(missing: list[str]) -> str:
 
 
 def _solve(views: list[ViewRecord], size: tuple[int, int], pattern: BoardPattern, alpha: float) -> CalibrationResult:
-    """Zhang per camera, the pair with its intrinsics fixed, the rectification (OpenCV calib3d)."""
-    objs = [v.object_points.astype(np.float32).reshape(-1, 1, 3) for v in views]  # type: ignore[union-attr]
-    img_l = [v.left_corners.astype(np.float32).reshape(-1, 1, 2) for v in views]  # type: ignore[union-attr]
-    img_r = [v.right_corners.astype(np.float32).reshape(-1, 1, 2) for v in views]  # type: ignore[union-attr]
-    mono = []
-    for pts in (img_l, img_r):
-        # Zhang 2000 with Brown–Conrady k1, k2, p1, p2, k3: without k3 first, then k3 freed from there
-        # (from zero distortion the full model can settle in a wrong minimum; sensor.calibration).
-        _, kk, dd, _, _ = cv2.calibrateCamera(objs, pts, size, None, None, flags=cv2.CALIB_FIX_K3, criteria=_CRITERIA)
-        rms, kk, dd, _, _, _, _, per_view = cv2.calibrateCameraExtended(
-            objs, pts, size, kk, dd, flags=cv2.CALIB_USE_INTRINSIC_GUESS, criteria=_CRITERIA
-        )
-        mono.append((float(rms), kk, dd.ravel(), per_view.ravel()))
-    (rms_l, k1, d1, pv_l), (rms_r, k2, d2, pv_r) = mono
-    rms_s, _, _, _, _, r, t, _, _, _, _, per_view = cv2.stereoCalibrateExtended(
-        objs,
-        img_l,
-        img_r,
-        k1,
-        d1,
-        k2,
-        d2,
+    """The views' corners solved (:func:`~sensor.calibration.solve_stereo_calibration`); each view gets its RMS."""
+    result = solve_stereo_calibration(
+        [v.object_points for v in views],  # type: ignore[misc]
+        [v.left_corners for v in views],  # type: ignore[misc]
+        [v.right_corners for v in views],  # type: ignore[misc]
         size,
-        np.eye(3),
-        np.zeros((3, 1)),
-        flags=cv2.CALIB_FIX_INTRINSIC,
-        criteria=_CRITERIA,
-    )
-    r1, r2, p1, p2, q, _, _ = cv2.stereoRectify(
-        k1, d1, k2, d2, size, r, t, flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha
-    )  # Fusiello et al. 2000 / Bouguet
-    stereo = np.asarray(per_view, dtype=float).reshape(-1, 2)
-    for view, left, right, pair in zip(views, pv_l, pv_r, stereo, strict=True):
-        view.used, view.reason = True, ""
-        view.rms_left, view.rms_right, view.rms_stereo = float(left), float(right), (float(pair[0]), float(pair[1]))
-    return CalibrationResult(
-        image_size=size,
-        k_left=k1,
-        dist_left=d1,
-        k_right=k2,
-        dist_right=d2,
-        r=r,
-        t=t.ravel(),
-        r1=r1,
-        r2=r2,
-        p1=p1,
-        p2=p2,
-        q=q,
-        per_view_left=np.asarray(pv_l, dtype=float),
-        per_view_right=np.asarray(pv_r, dtype=float),
-        per_view_stereo=stereo,
-        rms_left=rms_l,
-        rms_right=rms_r,
-        rms_stereo=float(rms_s),
-        views=len(views),
         target=(pattern.cols, pattern.rows),
         square_size=pattern.square,
-        corner_noise_px=0.0,
-        seed=0,
-        alpha=float(alpha),
+        alpha=alpha,
     )
+    for view, left, right, pair in zip(
+        views, result.per_view_left, result.per_view_right, result.per_view_stereo, strict=True
+    ):
+        view.used, view.reason = True, ""
+        view.rms_left, view.rms_right, view.rms_stereo = float(left), float(right), (float(pair[0]), float(pair[1]))
+    return result
 
 
 def calibrate_views(

@@ -410,11 +410,58 @@ def _solve(
     seed: int,
     alpha: float,
 ) -> CalibrationResult:
-    """Zhang per camera, stereo extrinsics with fixed intrinsics, Fusiello rectification (OpenCV calib3d)."""
-    size = (rig.width, rig.height)
-    objs = [obj] * len(found_left)
-    img_l = [c.astype(np.float32).reshape(-1, 1, 2) for c in found_left]
-    img_r = [c.astype(np.float32).reshape(-1, 1, 2) for c in found_right]
+    """The rendered views' corners solved by :func:`solve_stereo_calibration`."""
+    return solve_stereo_calibration(
+        [obj] * len(found_left),
+        found_left,
+        found_right,
+        (rig.width, rig.height),
+        target=(board.cols, board.rows),
+        square_size=board.square,
+        alpha=alpha,
+        corner_noise_px=corner_noise_px,
+        seed=seed,
+    )
+
+
+def solve_stereo_calibration(
+    object_points: list[np.ndarray],
+    left_corners: list[np.ndarray],
+    right_corners: list[np.ndarray],
+    image_size: tuple[int, int],
+    *,
+    target: tuple[int, int],
+    square_size: float,
+    alpha: float,
+    corner_noise_px: float = 0.0,
+    seed: int = 0,
+) -> CalibrationResult:
+    """Zhang per camera, stereo extrinsics with fixed intrinsics, Fusiello rectification (OpenCV calib3d).
+
+    Parameters
+    ----------
+    object_points
+        Per view, the board's corners in its own frame [m], ``(n, 3)``.
+    left_corners, right_corners
+        Per view, the corners found in the left and right image [px], ``(n, 2)``, in the order of ``object_points``.
+    image_size
+        ``(width, height)`` [px].
+    target, square_size
+        The board's inner corners ``(cols, rows)`` and square size [m], recorded in the result.
+    alpha
+        ``cv2.stereoRectify``'s free scaling: 0 keeps only valid pixels, 1 keeps every source pixel.
+    corner_noise_px, seed
+        Recorded in the result: the noise added to rendered corners and its seed (0 for photos).
+
+    Returns
+    -------
+    CalibrationResult
+        Intrinsics, extrinsics, rectification and the per-view reprojection RMS of each camera and of the pair.
+    """
+    size = (int(image_size[0]), int(image_size[1]))
+    objs = [np.asarray(o, dtype=np.float32).reshape(-1, 1, 3) for o in object_points]
+    img_l = [np.asarray(c, dtype=np.float32).reshape(-1, 1, 2) for c in left_corners]
+    img_r = [np.asarray(c, dtype=np.float32).reshape(-1, 1, 2) for c in right_corners]
     mono = []
     for pts in (img_l, img_r):
         # Zhang 2000 with Brown–Conrady k1, k2, p1, p2, k3. Started from zero distortion, the full model can settle
@@ -424,7 +471,7 @@ def _solve(
         rms, kk, dd, _, _, _, _, per_view = cv2.calibrateCameraExtended(
             objs, pts, size, kk, dd, flags=cv2.CALIB_USE_INTRINSIC_GUESS, criteria=_CRITERIA
         )
-        mono.append((float(rms), kk, dd.ravel(), per_view.ravel()))
+        mono.append((float(rms), kk, dd.ravel(), np.asarray(per_view, dtype=float).ravel()))
     (rms_l, k1, d1, pv_l), (rms_r, k2, d2, pv_r) = mono
     rms_s, _, _, _, _, r, t, _, _, _, _, per_view = cv2.stereoCalibrateExtended(
         objs,
@@ -462,9 +509,9 @@ def _solve(
         rms_left=rms_l,
         rms_right=rms_r,
         rms_stereo=float(rms_s),
-        views=len(found_left),
-        target=(board.cols, board.rows),
-        square_size=board.square,
+        views=len(objs),
+        target=(int(target[0]), int(target[1])),
+        square_size=float(square_size),
         corner_noise_px=float(corner_noise_px),
         seed=int(seed),
         alpha=float(alpha),
