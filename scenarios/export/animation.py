@@ -142,6 +142,75 @@ def _fit(frame: np.ndarray, width: int, height: int) -> np.ndarray:
     return frame
 
 
+def check_animation_settings(fps: float, speed: float, size: tuple[int, int]) -> tuple[int, int]:
+    """Refuse settings no animation can use; return the frame size rounded down to even numbers (H.264).
+
+    Raises
+    ------
+    InputError
+        ``fps`` or ``speed`` not positive, or a side of ``size`` below 16 px.
+    """
+    if fps <= 0 or speed <= 0 or min(size) < 16:
+        raise InputError(
+            f"animation needs fps > 0, speed > 0 and a size of at least 16 px (got {fps}, {speed}, {size})"
+        )
+    return int(size[0]) // 2 * 2, int(size[1]) // 2 * 2
+
+
+class OfftrackingTrace:
+    """The scrolling off-tracking panel of an animation: the truth and every estimator, a cursor at the frame's
+    time, each legend entry showing its current value.
+
+    Parameters
+    ----------
+    axes
+        The panel.
+    time
+        The run's times [s].
+    cols
+        The run's columns; ``offtracking_NAME`` for each of ``names``.
+    names
+        The series to draw, ``"truth"`` in black, the estimators in their registry colours.
+    window_s
+        Width of the scrolling window [s].
+    """
+
+    def __init__(self, axes: Any, time: np.ndarray, cols: dict[str, np.ndarray], names: list[str], window_s: float):
+        self._axes, self._time, self._cols, self._names, self._window = axes, time, cols, names, window_s
+        lines = []
+        for name in names:
+            colour = "k" if name == "truth" else source_colour(name)
+            (line,) = axes.plot(time, cols[f"offtracking_{name}"], lw=1.6 if name == "truth" else 1.0, color=colour)
+            lines.append(line)
+        values = np.concatenate([cols[f"offtracking_{n}"] for n in names]) if names else np.zeros(0)
+        values = values[np.isfinite(values)]
+        lo, hi = (float(values.min()), float(values.max())) if values.size else (-0.2, 0.2)
+        pad = max(0.05, 0.1 * (hi - lo))
+        axes.set_ylim(lo - pad, hi + pad)
+        axes.axhline(0.0, color="k", lw=0.5)
+        self._cursor = axes.axvline(time[0], color="0.3", lw=0.8)
+        self._legend = axes.legend(lines, names, loc="upper left", fontsize=7, ncols=max(len(names), 1))
+        axes.set_xlabel("time [s]", fontsize=8)
+        axes.set_ylabel("off-tracking e_tr [m]", fontsize=8)
+        axes.tick_params(labelsize=7)
+
+    def show(self, k: int) -> None:
+        """Scroll to sample ``k`` and show each series' value there."""
+        t = self._time[k]
+        start = t - 0.75 * self._window
+        self._axes.set_xlim(start, start + self._window)
+        self._cursor.set_xdata([t, t])
+        for text, name in zip(self._legend.get_texts(), self._names, strict=True):
+            v = self._cols[f"offtracking_{name}"][k]
+            text.set_text(f"{name} {v:+.3f} m" if np.isfinite(v) else f"{name} —")
+
+
+def grab_frame(fig: Any, width: int, height: int) -> np.ndarray:
+    """The figure drawn and its RGB pixels cropped or padded to exactly ``height × width``."""
+    fig.canvas.draw()
+    return _fit(np.asarray(fig.canvas.buffer_rgba())[..., :3], width, height)
+
+
 def _writer(out: Path, fps: float, size: tuple[int, int]) -> tuple[Callable[[np.ndarray], None], Callable[[], None]]:
     """``(append(frame), close())`` for an mp4 (H.264, streamed) or a GIF (frames kept until closed)."""
     if out.suffix.lower() == ".gif":
@@ -227,10 +296,7 @@ def animate_run(
     InputError
         The run has fewer than two samples, or ``fps``, ``speed`` or ``size`` are not positive.
     """
-    if fps <= 0 or speed <= 0 or min(size) < 16:
-        raise InputError(
-            f"animation needs fps > 0, speed > 0 and a size of at least 16 px (got {fps}, {speed}, {size})"
-        )
+    width, height = check_animation_settings(fps, speed, size)
     run = load_run(Path(run_dir))
     cols, params = run.columns, run.params
     time = np.asarray(cols.get("time", np.zeros(0)), dtype=float)
@@ -238,7 +304,6 @@ def animate_run(
         raise InputError(f"{run_dir}: the run has {time.size} samples; an animation needs two or more")
     out = Path(out) if out is not None else Path(run_dir) / ANIMATION_FILE
     out.parent.mkdir(parents=True, exist_ok=True)
-    width, height = int(size[0]) // 2 * 2, int(size[1]) // 2 * 2
     use_camera = bool(run.config.estimators.viso_ot) if camera is None else bool(camera)
     cam = _Camera(run) if use_camera else None
     times = frame_times(time, fps, speed, max_frames)
@@ -308,23 +373,7 @@ def animate_run(
         side.tick_params(labelsize=7)
         side_title = side.set_title("whole run", fontsize=9)
 
-    names = ["truth", *run.estimator_names()]
-    lines = []
-    for name in names:
-        colour = "k" if name == "truth" else source_colour(name)
-        (line,) = trace.plot(time, cols[f"offtracking_{name}"], lw=1.6 if name == "truth" else 1.0, color=colour)
-        lines.append(line)
-    values = np.concatenate([cols[f"offtracking_{n}"] for n in names])
-    values = values[np.isfinite(values)]
-    lo, hi = (float(values.min()), float(values.max())) if values.size else (-0.2, 0.2)
-    pad = max(0.05, 0.1 * (hi - lo))
-    trace.set_ylim(lo - pad, hi + pad)
-    trace.axhline(0.0, color="k", lw=0.5)
-    cursor = trace.axvline(time[0], color="0.3", lw=0.8)
-    legend = trace.legend(lines, names, loc="upper left", fontsize=7, ncols=len(names))
-    trace.set_xlabel("time [s]", fontsize=8)
-    trace.set_ylabel("off-tracking e_tr [m]", fontsize=8)
-    trace.tick_params(labelsize=7)
+    panel = OfftrackingTrace(trace, time, cols, ["truth", *run.estimator_names()], window_s)
     fig.text(0.01, 0.995, run.title, ha="left", va="top", fontsize=9)
 
     append, close = _writer(out, fps, (width, height))
@@ -351,14 +400,8 @@ def animate_run(
                 side_title.set_text(cam.info)
             elif marker is not None:
                 marker.set_data([cols["X"][k]], [cols["Y"][k]])
-            start = time[k] - 0.75 * window_s
-            trace.set_xlim(start, start + window_s)
-            cursor.set_xdata([time[k], time[k]])
-            for text, name in zip(legend.get_texts(), names, strict=True):
-                v = cols[f"offtracking_{name}"][k]
-                text.set_text(f"{name} {v:+.3f} m" if np.isfinite(v) else f"{name} —")
-            fig.canvas.draw()
-            append(_fit(np.asarray(fig.canvas.buffer_rgba())[..., :3], width, height))
+            panel.show(k)
+            append(grab_frame(fig, width, height))
             if progress is not None:
                 progress(i + 1, len(samples))
     finally:

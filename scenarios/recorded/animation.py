@@ -28,8 +28,14 @@ from matplotlib.patches import Polygon
 
 from vehicle_model.errors import InputError
 
-from ..export.animation import ANIMATION_FILE, frame_times, frame_writer
-from ..registry import source_colour
+from ..export.animation import (
+    ANIMATION_FILE,
+    OfftrackingTrace,
+    check_animation_settings,
+    frame_times,
+    frame_writer,
+    grab_frame,
+)
 from ..run.metrics import estimator_names
 from ..run.results import read_timeseries
 from ..run.swept_path import TRAILER_COLOUR
@@ -142,10 +148,7 @@ def animate_recorded_run(
         The run has fewer than two rows, the settings are not positive, or the camera is asked for and the
         recording cannot be opened.
     """
-    if fps <= 0 or speed <= 0 or min(size) < 16:
-        raise InputError(
-            f"animation needs fps > 0, speed > 0 and a size of at least 16 px (got {fps}, {speed}, {size})"
-        )
+    width, height = check_animation_settings(fps, speed, size)
     run_dir = Path(run_dir)
     record = read_recording_file(run_dir)
     params = rig_from_fields(record["rig_file"], "recording.yaml").params
@@ -166,7 +169,6 @@ def animate_recorded_run(
             cam = _Camera(inputs, rows, cols["frame"][rows])
     out = Path(out) if out is not None else run_dir / ANIMATION_FILE
     out.parent.mkdir(parents=True, exist_ok=True)
-    width, height = int(size[0]) // 2 * 2, int(size[1]) // 2 * 2
     times = frame_times(time, fps, speed, max_frames)
     samples = np.clip(np.searchsorted(time, times + 1e-9, side="right") - 1, 0, time.size - 1)
 
@@ -199,21 +201,7 @@ def animate_recorded_run(
         side.tick_params(labelsize=7)
         side_title = side.set_title("whole recording", fontsize=9)
     names = [n for n in ("truth", *estimator_names(cols)) if np.isfinite(cols[f"offtracking_{n}"]).any()]
-    lines = []
-    for name in names:
-        colour = "k" if name == "truth" else source_colour(name)
-        lines.append(trace.plot(time, cols[f"offtracking_{name}"], lw=1.6 if name == "truth" else 1.0, color=colour)[0])
-    values = np.concatenate([cols[f"offtracking_{n}"] for n in names]) if names else np.zeros(0)
-    values = values[np.isfinite(values)]
-    lo, hi = (float(values.min()), float(values.max())) if values.size else (-0.2, 0.2)
-    pad = max(0.05, 0.1 * (hi - lo))
-    trace.set_ylim(lo - pad, hi + pad)
-    trace.axhline(0.0, color="k", lw=0.5)
-    cursor = trace.axvline(time[0], color="0.3", lw=0.8)
-    legend = trace.legend(lines, names, loc="upper left", fontsize=7, ncols=max(len(names), 1))
-    trace.set_xlabel("time [s]", fontsize=8)
-    trace.set_ylabel("off-tracking e_tr [m]", fontsize=8)
-    trace.tick_params(labelsize=7)
+    panel = OfftrackingTrace(trace, time, cols, names, window_s)
     fig.text(0.01, 0.995, recorded_run_title(record), ha="left", va="top", fontsize=9)
 
     append, close = frame_writer(out, fps, (width, height))
@@ -235,15 +223,8 @@ def animate_recorded_run(
                 side_title.set_text(cam.info)
             else:
                 marker.set_data([vo[k, 0]], [vo[k, 1]])
-            start = time[k] - 0.75 * window_s
-            trace.set_xlim(start, start + window_s)
-            cursor.set_xdata([time[k], time[k]])
-            for text, name in zip(legend.get_texts(), names, strict=True):
-                v = cols[f"offtracking_{name}"][k]
-                text.set_text(f"{name} {v:+.3f} m" if np.isfinite(v) else f"{name} —")
-            fig.canvas.draw()
-            frame = np.asarray(fig.canvas.buffer_rgba())[:height, :width, :3]
-            append(np.pad(frame, ((0, height - frame.shape[0]), (0, width - frame.shape[1]), (0, 0))))
+            panel.show(k)
+            append(grab_frame(fig, width, height))
             if progress is not None:
                 progress(i + 1, len(samples))
     finally:
