@@ -45,6 +45,12 @@ EXIT_BAD_INPUT = 2
 """Exit code for bad input."""
 EXIT_FAILED = 3
 """Exit code for a run that diverged, lost control or could not write a file, or a study with a failed case."""
+EXIT_MISSED = 4
+"""Exit code of ``--check`` for a run that completed but missed what it was asked to hold."""
+CHECK_HELP = (
+    "Exit 4 when the run completed but missed what it was asked to hold: a flag of its verdict, a failed "
+    "roundabout test."
+)
 FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS)
 """Errors of a write that found no room (a full disk, a quota, a file too large, a read-only file system): an
 :class:`OSError` with one of these that no writer turned into an :class:`~vehicle_model.errors.OutputError` is one
@@ -167,6 +173,7 @@ def run(
     out: Annotated[Path | None, typer.Option(help="Run directory (default runs/SCENARIO/TIMESTAMP).")] = None,
     force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous run's files are removed.")] = False,
     plots: Annotated[bool, typer.Option(help="Write the plots.")] = True,
+    check: Annotated[bool, typer.Option(help=CHECK_HELP)] = False,
 ) -> None:
     """Run a scenario: time series, metrics.json and plots in a run directory."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -202,6 +209,20 @@ def run(
         )
     _print_summary(metrics, run_dir)
     _exit_for_status(metrics)
+    if check:
+        _exit_for_checks(metrics)
+
+
+def _exit_for_checks(metrics: dict) -> None:
+    """``--check``: say what a completed run missed and exit 4 (nothing missed: return)."""
+    from scenarios.run.verdicts import missed_checks
+
+    missed = missed_checks(metrics)
+    if missed:
+        errors.print(f"check: the run missed {len(missed)} of what it was asked to hold:", markup=False)
+        for reason in missed:
+            errors.print(f"  {reason}", markup=False, soft_wrap=True)
+        raise typer.Exit(EXIT_MISSED)
 
 
 def _exit_for_status(metrics: dict) -> None:
@@ -220,6 +241,7 @@ def _exit_for_status(metrics: dict) -> None:
 def report(
     run_dir: Annotated[Path, typer.Argument(help="A run directory (config.yaml and timeseries.parquet).")],
     plots: Annotated[bool, typer.Option(help="Redraw the plots.")] = True,
+    check: Annotated[bool, typer.Option(help=CHECK_HELP)] = False,
 ) -> None:
     """Rebuild metrics.json and the plots of a run from its config and time series (e.g. after a kill)."""
     from scenarios.recorded.report import is_recorded_run, rebuild_recorded_report
@@ -228,6 +250,8 @@ def report(
     recorded = is_recorded_run(run_dir)  # offtrack estimate's: recording.yaml for config.yaml
     metrics = rebuild_recorded_report(run_dir, plots) if recorded else rebuild_report(run_dir, plots=plots)
     _print_summary(metrics, run_dir)
+    if check and metrics.get("status") == RunStatus.COMPLETED:
+        _exit_for_checks(metrics)
 
 
 @app.command()

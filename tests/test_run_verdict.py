@@ -13,7 +13,9 @@ from collections.abc import Iterator, Mapping
 import numpy as np
 import pytest
 from rich.console import Console
+from typer.testing import CliRunner
 
+from scenarios.cli import EXIT_MISSED, app
 from scenarios.config import load_scenario
 from scenarios.loop.participant import Column, EstimatorParticipant, LoopContext, TickInput, estimate_column
 from scenarios.registry import EstimatorEntry, register_estimator, unregister_estimator
@@ -24,6 +26,7 @@ from scenarios.run.verdicts import (
     MIN_COVERAGE,
     OFFTRACKING_TARGET_MAX_M,
     OFFTRACKING_TARGET_RMS_M,
+    missed_checks,
     run_verdict,
 )
 from vehicle_model.offtracking import OfftrackingEstimate
@@ -131,3 +134,20 @@ def test_a_run_steered_on_a_grossly_wrong_estimate_flags_itself(grossly_wrong: s
     text = console.export_text()
     assert "not held: 3 miss(es)" in text
     assert all(flag in text for flag in _flags(verdict))
+    # a script gates on the result with --check: exit 4 naming the misses; without it the completed run exits 0
+    checked = CliRunner().invoke(app, ["report", str(tmp_path), "--no-plots", "--check"])
+    assert checked.exit_code == EXIT_MISSED, checked.output
+    assert "missed 3 of what it was asked to hold" in checked.output and "std_does_not_cover_error" in checked.output
+    assert CliRunner().invoke(app, ["report", str(tmp_path), "--no-plots"]).exit_code == 0
+
+
+def test_a_failed_roundabout_test_and_each_flag_is_a_missed_check() -> None:
+    held = {"verdict": {"held": True, "flags": []}, "roundabout_test": None}
+    assert missed_checks(held) == []
+    passed = {"pass": True, "outer_radius_max": 12.4, "inner_radius_min": 5.4, "outer_margin": 0.1, "inner_margin": 0.1}
+    assert missed_checks({**held, "roundabout_test": passed}) == []
+    failed = {**passed, "pass": False, "inner_radius_min": 5.164, "inner_margin": -0.136}
+    missed = missed_checks({**held, "roundabout_test": failed})
+    assert len(missed) == 1 and missed[0].startswith("roundabout_test_failed") and "-0.136" in missed[0]
+    flagged = run_verdict("viso_ot_fused", {"rms": 0.2, "max_abs": 0.3}, {}, {"fraction": 0.0, "seconds": 0.0})
+    assert [m.split(":")[0] for m in missed_checks({"verdict": flagged})] == ["offtracking_above_target"]

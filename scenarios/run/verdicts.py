@@ -20,6 +20,7 @@ __all__ = [
     "MIN_COVERAGE",
     "OFFTRACKING_TARGET_MAX_M",
     "OFFTRACKING_TARGET_RMS_M",
+    "missed_checks",
     "run_verdict",
 ]
 
@@ -60,7 +61,16 @@ def run_verdict(
     flags: list[dict[str, str]] = []
     if feedback != "none":
         rms, peak = settled_truth.get("rms", np.nan), settled_truth.get("max_abs", np.nan)
-        if not (rms <= OFFTRACKING_TARGET_RMS_M and peak <= OFFTRACKING_TARGET_MAX_M):
+        if not (np.isfinite(rms) and np.isfinite(peak)):
+            flags.append(
+                _flag(
+                    "offtracking_above_target",
+                    "no true off-tracking after warm-up to show within the target "
+                    f"{OFFTRACKING_TARGET_RMS_M:.2f} m RMS / {OFFTRACKING_TARGET_MAX_M:.2f} m max: the run ended "
+                    "before its warm-up did",
+                )
+            )
+        elif not (rms <= OFFTRACKING_TARGET_RMS_M and peak <= OFFTRACKING_TARGET_MAX_M):
             flags.append(
                 _flag(
                     "offtracking_above_target",
@@ -99,3 +109,26 @@ def run_verdict(
                 )
             )
     return {"held": not flags, "flags": flags}
+
+
+def missed_checks(metrics: dict[str, Any]) -> list[str]:
+    """What a completed run missed of what it was asked to hold, a sentence each (empty: nothing missed).
+
+    The verdict's flags (:func:`run_verdict`) and, on the roundabout test, a failed test (its radii against the
+    limits); ``offtrack run --check`` and ``offtrack report --check`` exit with their own code when this is not
+    empty, so that a script can gate on a result and not only on a run that went.
+
+    Parameters
+    ----------
+    metrics
+        A run's ``metrics.json``.
+    """
+    missed = [f"{flag['flag']}: {flag['reason']}" for flag in (metrics.get("verdict") or {}).get("flags", [])]
+    test = metrics.get("roundabout_test")
+    if test and not test.get("pass", True):
+        missed.append(
+            f"roundabout_test_failed: tractor max r {test['outer_radius_max']:.3f} m "
+            f"(margin {test['outer_margin']:+.3f} m), trailer min r {test['inner_radius_min']:.3f} m "
+            f"(margin {test['inner_margin']:+.3f} m)"
+        )
+    return missed
