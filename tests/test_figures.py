@@ -20,7 +20,7 @@ from matplotlib.patches import PathPatch
 from rich.console import Console
 
 from scenarios.config import load_scenario
-from scenarios.export.animation import animate_run, frame_times
+from scenarios.export.animation import OfftrackingTrace, animate_run, frame_times
 from scenarios.run.plots import load_run, plot_plan_view
 from scenarios.run.runner import run_scenario
 from scenarios.run.swept_path import envelope_samples, swept_path_figure, vehicle_polygons
@@ -146,6 +146,26 @@ def test_animation_has_the_expected_frames_and_size(roundabout_run: Path, tmp_pa
         reader.close()
     gif = animate_run(roundabout_run, tmp_path / "run.gif", fps=5.0, max_frames=3, size=(160, 120))
     assert iio.imread(gif).shape[:3] == (3, 120, 160)
+
+
+def test_the_offtracking_trace_draws_nothing_ahead_of_its_cursor() -> None:
+    time = np.arange(0.0, 60.001, 0.1)
+    cols = {"offtracking_truth": np.sin(time), "offtracking_zero_slip": np.full(time.size, np.nan)}
+    cols["offtracking_zero_slip"][300:] = 0.25
+    fig, axes = plt.subplots()
+    try:
+        panel = OfftrackingTrace(axes, time, cols, ["truth", "zero_slip"], window_s=30.0)
+        k = 400  # t = 40 s
+        panel.show(k)
+        for line in axes.get_lines()[:2]:
+            assert np.nanmax(line.get_xdata()) == pytest.approx(time[k])  # drawn up to the cursor, not beyond
+        assert axes.get_xlim() == pytest.approx((40.0 - 22.5, 40.0 + 7.5))
+        texts = [t.get_text() for t in axes.get_legend().get_texts()]
+        assert texts == [f"truth {np.sin(40.0):+.3f} m", "zero_slip +0.250 m"]
+        panel.show(100)  # before the estimate exists: a dash, not a number
+        assert axes.get_legend().get_texts()[1].get_text() == "zero_slip —"
+    finally:
+        plt.close(fig)
 
 
 def test_frame_times_follow_fps_and_speed() -> None:

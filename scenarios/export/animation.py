@@ -158,8 +158,8 @@ def check_animation_settings(fps: float, speed: float, size: tuple[int, int]) ->
 
 
 class OfftrackingTrace:
-    """The scrolling off-tracking panel of an animation: the truth and every estimator, a cursor at the frame's
-    time, each legend entry showing its current value.
+    """The scrolling off-tracking panel of an animation: the truth and every estimator drawn up to the frame's
+    time and no further, a cursor there, each legend entry showing its current value.
 
     Parameters
     ----------
@@ -180,8 +180,9 @@ class OfftrackingTrace:
         lines = []
         for name in names:
             colour = "k" if name == "truth" else source_colour(name)
-            (line,) = axes.plot(time, cols[f"offtracking_{name}"], lw=1.6 if name == "truth" else 1.0, color=colour)
+            (line,) = axes.plot([], [], lw=1.6 if name == "truth" else 1.0, color=colour)
             lines.append(line)
+        self._lines = lines
         values = np.concatenate([cols[f"offtracking_{n}"] for n in names]) if names else np.zeros(0)
         values = values[np.isfinite(values)]
         lo, hi = (float(values.min()), float(values.max())) if values.size else (-0.2, 0.2)
@@ -195,11 +196,13 @@ class OfftrackingTrace:
         axes.tick_params(labelsize=7)
 
     def show(self, k: int) -> None:
-        """Scroll to sample ``k`` and show each series' value there."""
+        """Draw each series up to sample ``k`` (nothing ahead of the cursor), scroll there and show its values."""
         t = self._time[k]
         start = t - 0.75 * self._window
         self._axes.set_xlim(start, start + self._window)
         self._cursor.set_xdata([t, t])
+        for line, name in zip(self._lines, self._names, strict=True):
+            line.set_data(self._time[: k + 1], self._cols[f"offtracking_{name}"][: k + 1])
         for text, name in zip(self._legend.get_texts(), self._names, strict=True):
             v = self._cols[f"offtracking_{name}"][k]
             text.set_text(f"{name} {v:+.3f} m" if np.isfinite(v) else f"{name} —")
@@ -344,6 +347,7 @@ def animate_run(
         body.append(plan.add_patch(patch))
     plan.set_aspect("equal")
     plan.set_xlabel("X [m]", fontsize=8)
+    plan.set_ylabel("Y [m]", fontsize=8)
     plan.tick_params(labelsize=7)
     status = plan.text(
         0.02,
@@ -371,6 +375,8 @@ def animate_run(
         side.set_aspect("equal", adjustable="datalim")
         side.autoscale_view()
         side.tick_params(labelsize=7)
+        side.set_xlabel("X [m]", fontsize=8)
+        side.set_ylabel("Y [m]", fontsize=8)
         side_title = side.set_title("whole run", fontsize=9)
 
     panel = OfftrackingTrace(trace, time, cols, ["truth", *run.estimator_names()], window_s)

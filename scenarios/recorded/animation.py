@@ -190,6 +190,7 @@ def animate_recorded_run(
     plan.legend(fontsize=7, loc="lower left")
     plan.tick_params(labelsize=7)
     plan.set_xlabel("x [m]", fontsize=8)
+    plan.set_ylabel("y [m]", fontsize=8)
     if cam is not None:
         picture = side.imshow(np.zeros((*cam.shape, 3), np.uint8))
         side.set_axis_off()
@@ -199,6 +200,8 @@ def animate_recorded_run(
         (marker,) = side.plot([], [], "o", color="k", ms=6)
         side.set_aspect("equal", adjustable="datalim")
         side.tick_params(labelsize=7)
+        side.set_xlabel("x [m]", fontsize=8)
+        side.set_ylabel("y [m]", fontsize=8)
         side_title = side.set_title("whole recording", fontsize=9)
     names = [n for n in ("truth", *estimator_names(cols)) if np.isfinite(cols[f"offtracking_{n}"]).any()]
     panel = OfftrackingTrace(trace, time, cols, names, window_s)
