@@ -176,7 +176,7 @@ def run(
     check: Annotated[bool, typer.Option(help=CHECK_HELP)] = False,
 ) -> None:
     """Run a scenario: time series, metrics.json and plots in a run directory."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from scenarios.run.results import new_run_dir
     from scenarios.run.runner import run_scenario
@@ -200,6 +200,8 @@ def run(
         BarColumn(),
         TextColumn("{task.percentage:>5.1f} %  t = {task.fields[sim_t]:.1f} s"),
         TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
         console=console,
         transient=False,
     ) as bar:
