@@ -388,6 +388,7 @@ def test_the_summary_of_a_killed_run_read_back_from_its_json_shows_what_is_missi
     assert "incomplete" in text and "an unknown wall time" in text
     truth_row = next(line for line in text.splitlines() if line.strip("│┃ ").startswith("truth"))
     assert truth_row.count("–") == 2  # RMS and max
+    assert truth_row.rstrip("│ ").endswith("defined")  # the truth's share is when it is defined, not "valid"
 
 
 def test_force_on_a_file_it_cannot_remove_is_one_line_naming_it(

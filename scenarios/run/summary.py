@@ -30,14 +30,14 @@ def number(value: Any, spec: str = ".3f", unit: str = "") -> str:
 
 
 def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
-    """Rich renderables, in order: the off-tracking table, what "valid" means, the camera, the roundabout
+    """Rich renderables, in order: the off-tracking table, what its "ticks" column means, the camera, the roundabout
     verdict and the timing. Units in headers are escaped so that ``[m]`` survives rich's markup."""
     out: list[Any] = []
     table = Table(title=escape(f"{metrics.get('scenario')} — {metrics.get('status')} — {run_dir}"))
     table.add_column("off-tracking")
     table.add_column(escape("RMS [m]"), justify="right")
     table.add_column(escape("max |·| [m]"), justify="right")
-    table.add_column("valid", justify="right")
+    table.add_column("ticks", justify="right")
     offtracking = metrics.get("offtracking") or {}
     truth = offtracking.get("truth") or {}
     defined = truth.get("defined_fraction", truth.get("valid_fraction"))
@@ -45,17 +45,20 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
         "truth",
         number(truth.get("rms")),
         number(truth.get("max_abs")),
-        f"(defined on {number(defined, '.0%')} of ticks)",
+        f"{number(defined, '.0%')} defined",
     )
     for name, err in (offtracking.get("estimators") or {}).items():
         table.add_row(
             f"{name} error",
             number(err.get("rms_error")),
             number(err.get("max_abs_error")),
-            number(err.get("valid_fraction"), ".0%"),
+            f"{number(err.get('valid_fraction'), '.0%')} valid",
         )
     out.append(table)
-    out.append("valid: share of the ticks with a truth on which the estimator had an estimate")
+    out.append(
+        "ticks: the truth is defined once a trailer length has been driven; an estimator is valid on the share of "
+        "those ticks on which it had an estimate"
+    )
     camera = metrics.get("camera")
     if camera:
         out.append(
