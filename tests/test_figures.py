@@ -21,7 +21,7 @@ from rich.console import Console
 
 from scenarios.config import load_scenario
 from scenarios.export.animation import OfftrackingTrace, animate_run, frame_times
-from scenarios.run.plots import load_run, plot_plan_view
+from scenarios.run.plots import load_run, offtracking_figure, plot_plan_view
 from scenarios.run.runner import run_scenario
 from scenarios.run.swept_path import envelope_samples, swept_path_figure, vehicle_polygons
 from scenarios.studies.compare import comparison_figure
@@ -164,6 +164,42 @@ def test_the_offtracking_trace_draws_nothing_ahead_of_its_cursor() -> None:
         assert texts == [f"truth {np.sin(40.0):+.3f} m", "zero_slip +0.250 m"]
         panel.show(100)  # before the estimate exists: a dash, not a number
         assert axes.get_legend().get_texts()[1].get_text() == "zero_slip —"
+    finally:
+        plt.close(fig)
+
+
+def test_the_offtracking_figure_shows_targets_bands_steer_camera_and_warm_up() -> None:
+    t = np.arange(0.0, 30.001, 0.1)
+    truth = np.where(t >= 5.0, 0.05 * np.sin(t), np.nan)
+    steer = np.where(t > 10.0, np.radians(25.0), np.radians(2.0 * t))
+    cols = {
+        "time": t,
+        "offtracking_truth": truth,
+        "offtracking_truth_geometric": truth,
+        "offtracking_viso_ot_fused": truth + 0.01,
+        "offtracking_viso_ot_fused_std": np.full(t.size, 0.02),
+        "steer_trailer2": steer,
+        "saturated_trailer2": (t > 10.0).astype(float),
+        "vo_matches": np.full(t.size, 250.0),
+        "vo_inliers": np.full(t.size, 180.0),
+        "camera_frame": (np.arange(t.size) % 10 == 0).astype(float),
+    }
+    settled = t >= 8.0
+    fig = offtracking_figure(cols, ["viso_ot_fused"], "title", settled=settled, max_steer_deg=25.0)
+    try:
+        assert len(fig.axes) == 4  # off-tracking, error, steer, camera
+        assert {"target:0.10", "target:0.15", "sigma2:viso_ot_fused", "steer:trailer2", "steer_limit"} <= {
+            str(a.get_gid()) for ax in fig.axes for a in ax.get_children()
+        }
+        assert _gids(fig, "camera:matches") and _gids(fig, "camera:inliers")
+        spans = _gids(fig, "warmup")
+        assert len(spans) == 4  # shaded in every panel, up to the first settled sample
+        assert spans[0].get_x() + spans[0].get_width() == pytest.approx(8.0)
+        labels = [text.get_text() for text in fig.axes[0].get_legend().get_texts()]
+        assert labels[0].startswith("truth: 0.0") and "RMS" in labels[0] and "max after warm-up" in labels[0]
+        assert "viso_ot_fused: error 0.010 m RMS" in labels
+        steer_label = fig.axes[2].get_legend().get_texts()[0].get_text()
+        assert steer_label == f"trailer2: at its lock {np.mean(t > 10.0):.0%} of the time"
     finally:
         plt.close(fig)
 

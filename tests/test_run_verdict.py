@@ -133,6 +133,7 @@ def test_a_run_steered_on_a_grossly_wrong_estimate_flags_itself(grossly_wrong: s
         console.print(renderable)
     text = console.export_text()
     assert "not held: 3 miss(es)" in text
+    assert "trailer steer: trailer2 up to" in text and "at its lock" in text  # the steering is visible
     assert all(flag in text for flag in _flags(verdict))
     # a script gates on the result with --check: exit 4 naming the misses; without it the completed run exits 0
     checked = CliRunner().invoke(app, ["report", str(tmp_path), "--no-plots", "--check"])

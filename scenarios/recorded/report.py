@@ -25,7 +25,7 @@ from vehicle_model.parameters import VehicleParams
 
 from ..loop.ends import RunStatus
 from ..run.files import jsonable, write_atomic
-from ..run.metrics import compute_metrics, estimator_names
+from ..run.metrics import after_warmup, compute_metrics, estimator_names
 from ..run.report import INCOMPLETE_MESSAGE
 from ..run.results import PLOT_FILES, read_metrics, read_timeseries, write_metrics
 from ..yaml_input import load_yaml
@@ -140,7 +140,8 @@ def write_recorded_report(
 
         title = recorded_run_title(record)
         plot_recorded_plan_view(run_dir / PLOT_FILES[0], params, columns, title)
-        plot_offtracking(run_dir / PLOT_FILES[1], columns, names, title)
+        settled = after_warmup(columns, params.follow_point_offset) if "kingpin_x" in columns else None
+        plot_offtracking(run_dir / PLOT_FILES[1], columns, names, title, settled=settled)
     return metrics
 
 

@@ -183,28 +183,151 @@ def load_run(run_dir: Path) -> SavedRun:
     return SavedRun(run_dir, config, build_scenario(config), columns, metrics)
 
 
-def plot_offtracking(path: Path, columns: dict[str, np.ndarray], estimator_names: list[str], title: str) -> None:
-    """Off-tracking of the truth and every estimator against time, with the estimators' errors beneath."""
+def _rms(values: np.ndarray) -> float:
+    values = values[np.isfinite(values)]
+    return float(np.sqrt(np.mean(values**2))) if values.size else float("nan")
+
+
+def _max_abs(values: np.ndarray) -> float:
+    values = values[np.isfinite(values)]
+    return float(np.max(np.abs(values))) if values.size else float("nan")
+
+
+def offtracking_figure(
+    columns: dict[str, np.ndarray],
+    estimator_names: list[str],
+    title: str,
+    *,
+    settled: np.ndarray | None = None,
+    max_steer_deg: float | None = None,
+) -> Figure:
+    """Off-tracking of the truth and every estimator against time, their errors, and what the loop did.
+
+    Panels, top to bottom: the off-tracking (each estimate with its ±2σ band where it gives a standard deviation;
+    the truth's RMS and max after warm-up and each estimator's RMS error in the legend); the errors against the
+    truth with the 0.10 m RMS and 0.15 m max targets labelled; the trailer's steer angles with their lock and the
+    share of time each sat there (runs that steer the trailer); the camera's matches and inliers per frame (camera
+    runs). The warm-up, before the truth exists and one trailer length after, is shaded and named in every panel.
+    Artists carry ``gid`` s: ``warmup``, ``sigma2:NAME``, ``target:0.10``, ``target:0.15``, ``steer:AXLE``,
+    ``steer_limit``, ``camera:matches``, ``camera:inliers``.
+
+    Parameters
+    ----------
+    columns
+        The run's time series.
+    estimator_names
+        The estimators to draw (``offtracking_NAME``, and ``offtracking_NAME_std`` where there is one).
+    title
+        The figure's title.
+    settled
+        Mask of the samples after warm-up (:func:`~scenarios.run.metrics.after_warmup`); default: where the truth
+        is defined.
+    max_steer_deg
+        The trailer axles' lock [°], drawn as a limit (default: none drawn).
+    """
+    from .verdicts import OFFTRACKING_TARGET_MAX_M, OFFTRACKING_TARGET_RMS_M
+
     t = columns["time"]
     truth = columns["offtracking_truth"]
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True, height_ratios=[2, 1])
-    top.plot(t, truth, color="k", lw=1.6, label="truth (buffer, exact increments)")
+    settled = np.isfinite(truth) if settled is None else np.asarray(settled, dtype=bool)
+    steer_axles = [c.removeprefix("steer_") for c in columns if c.startswith("steer_trailer")]
+    steer_axles = [a for a in steer_axles if np.any(np.abs(columns[f"steer_{a}"]) > 1e-9)]
+    camera = bool("vo_matches" in columns and np.isfinite(columns["vo_matches"]).any())
+    ratios = [2.0, 1.0] + [0.8] * bool(steer_axles) + [0.7] * camera
+    fig, axes = plt.subplots(len(ratios), 1, figsize=(10, 2.2 + 2.2 * sum(ratios)), sharex=True, height_ratios=ratios)
+    top, bottom = axes[0], axes[1]
+    rms, peak = _rms(truth[settled]), _max_abs(truth[settled])
+    top.plot(t, truth, color="k", lw=1.6, label=f"truth: {rms:.3f} m RMS, {peak:.3f} m max after warm-up")
     top.plot(t, columns["offtracking_truth_geometric"], color="0.5", lw=0.8, ls="--", label="truth (geometric)")
     for name in estimator_names:
         est = columns[f"offtracking_{name}"]
         colour = source_colour(name)
-        top.plot(t, est, lw=1.0, color=colour, label=name)
-        bottom.plot(t, est - truth, lw=1.0, color=colour, label=f"{name} − truth")
+        error = est - truth
+        top.plot(t, est, lw=1.0, color=colour, label=f"{name}: error {_rms(error[settled]):.3f} m RMS")
+        std = columns.get(f"offtracking_{name}_std")
+        if std is not None and np.isfinite(std).any():
+            top.fill_between(
+                t,
+                est - 2 * std,
+                est + 2 * std,
+                color=colour,
+                alpha=0.18,
+                lw=0,
+                label=f"{name} ±2σ",
+                gid=f"sigma2:{name}",
+            )
+        bottom.plot(t, error, lw=1.0, color=colour, label=f"{name} − truth")
     top.axhline(0.0, color="k", lw=0.5)
     bottom.axhline(0.0, color="k", lw=0.5)
-    for band in (0.10, 0.15):
-        bottom.axhline(band, color="tab:red", lw=0.5, ls=":")
-        bottom.axhline(-band, color="tab:red", lw=0.5, ls=":")
+    for band, style, what in ((OFFTRACKING_TARGET_RMS_M, ":", "RMS"), (OFFTRACKING_TARGET_MAX_M, "--", "max")):
+        bottom.axhline(
+            band, color="tab:red", lw=0.7, ls=style, label=f"±{band:.2f} m {what} target", gid=f"target:{band:.2f}"
+        )
+        bottom.axhline(-band, color="tab:red", lw=0.7, ls=style)
     top.set_ylabel("off-tracking e_tr [m]\n(+: follow point right of kingpin path)")
     bottom.set_ylabel("error [m]")
-    bottom.set_xlabel("time [s]")
     top.set_title(title)
-    top.legend(loc="best", fontsize=8)
-    if estimator_names:
-        bottom.legend(loc="best", fontsize=8)
+    top.legend(loc="best", fontsize=7)
+    bottom.legend(loc="best", fontsize=7)
+    if steer_axles:
+        ax = axes[2]
+        for axle in steer_axles:
+            steer = np.degrees(columns[f"steer_{axle}"])
+            saturated = columns.get(f"saturated_{axle}")
+            share = float(np.mean(saturated > 0.5)) if saturated is not None and saturated.size else 0.0
+            ax.plot(t, steer, lw=1.0, label=f"{axle}: at its lock {share:.0%} of the time", gid=f"steer:{axle}")
+        if max_steer_deg is not None:
+            ax.axhline(
+                max_steer_deg, color="tab:red", lw=0.7, ls="--", label=f"lock ±{max_steer_deg:.0f}°", gid="steer_limit"
+            )
+            ax.axhline(-max_steer_deg, color="tab:red", lw=0.7, ls="--")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_ylabel("trailer steer [°]")
+        ax.legend(loc="best", fontsize=7)
+    if camera:
+        ax = axes[-1]
+        frames = np.isfinite(columns["vo_matches"]) & (columns.get("camera_frame", np.ones_like(t)) > 0.5)
+        ax.plot(t[frames], columns["vo_matches"][frames], ".", ms=2, color="0.4", label="matches", gid="camera:matches")
+        if "vo_inliers" in columns:
+            ax.plot(
+                t[frames],
+                columns["vo_inliers"][frames],
+                ".",
+                ms=2,
+                color="tab:green",
+                label="inliers",
+                gid="camera:inliers",
+            )
+        ax.set_ylabel("per frame")
+        ax.legend(loc="best", fontsize=7, markerscale=4)
+    if settled.any() and not settled[0]:
+        end = float(t[np.flatnonzero(settled)[0]])
+        for k, ax in enumerate(axes):
+            ax.axvspan(
+                float(t[0]), end, color="0.85", alpha=0.5, lw=0, gid="warmup", label="warm-up" if k == 0 else None
+            )
+        top.text(
+            0.5 * (float(t[0]) + end),
+            0.98,
+            "warm-up",
+            transform=top.get_xaxis_transform(),
+            ha="center",
+            va="top",
+            fontsize=8,
+        )
+    axes[-1].set_xlabel("time [s]")
+    return fig
+
+
+def plot_offtracking(
+    path: Path,
+    columns: dict[str, np.ndarray],
+    estimator_names: list[str],
+    title: str,
+    *,
+    settled: np.ndarray | None = None,
+    max_steer_deg: float | None = None,
+) -> None:
+    """Write :func:`offtracking_figure` to ``path`` (:func:`save_figure`)."""
+    fig = offtracking_figure(columns, estimator_names, title, settled=settled, max_steer_deg=max_steer_deg)
     save_figure(fig, path, dpi=130, bbox_inches="tight")

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..config import ScenarioConfig
 from ..loop.ends import RunStatus
-from .metrics import compute_metrics, estimator_names
+from .metrics import after_warmup, compute_metrics, estimator_names
 from .results import PLOT_FILES, read_config, read_metrics, read_timeseries, write_metrics
 from .stopping import deferred_stops, raise_pending_stop, stop_message, stop_signal_name
 
@@ -129,7 +129,14 @@ def write_report(
             roundabout_test=metrics.get("roundabout_test"),
             turn_span=setup.path.turn_span,
         )
-        plot_offtracking(run_dir / PLOT_FILES[1], columns, names, title)
+        plot_offtracking(
+            run_dir / PLOT_FILES[1],
+            columns,
+            names,
+            title,
+            settled=after_warmup(columns, setup.params.follow_point_offset),
+            max_steer_deg=config.controller.max_steer_deg,
+        )
     return metrics
 
 

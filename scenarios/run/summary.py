@@ -65,6 +65,16 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
             f"camera: {number(camera.get('valid_frames'), 'd')} of {number(camera.get('frames'), 'd')} frames gave an "
             "accepted motion" + (f"; {escape(camera['message'])}" if camera.get("message") else "")
         )
+    steering = {axle: m for axle, m in (metrics.get("trailer_steering") or {}).items() if m.get("max_abs_steer_deg")}
+    if steering:
+        out.append(
+            "trailer steer: "
+            + "; ".join(
+                f"{axle} up to {number(m.get('max_abs_steer_deg'), '.1f')}°, at its lock "
+                f"{number(m.get('saturated_fraction'), '.0%')} of the time"
+                for axle, m in steering.items()
+            )
+        )
     test = metrics.get("roundabout_test")
     if test:
         verdict = "[green]PASS[/]" if test.get("pass") else "[red]FAIL[/]"
