@@ -4,9 +4,10 @@ The numbers come from the run directory's ``timeseries.parquet``, their units an
 field metadata the run wrote there (:func:`scenarios.run.results.timeseries_columns`, declared once by the loop's
 participants), the run's description from ``config.yaml`` and ``metrics.json``:
 
-* **CSV** (:func:`write_csv`): one header row, each column ``name [unit]`` (bare ``name`` for a column written
-  without a unit, e.g. by an older run), then one row per control tick; every number in Python's shortest
-  round-trip form (``repr``), so it reads back bit for bit; ``NaN`` where a value is missing, ``Inf``/``-Inf``.
+* **CSV** (:func:`write_csv`, UTF-8): one header row, each column ``name [unit]`` (bare ``name`` for a column
+  written without a unit, e.g. by ``offtrack estimate`` or an older run), then one row per control tick; every
+  number in Python's shortest round-trip form (``repr``), so it reads back bit for bit; ``NaN`` where a value is
+  missing, ``Inf``/``-Inf``.
 * **MATLAB** (:func:`write_mat`, :func:`scipy.io.savemat`, format 5): one column vector per column under a valid
   MATLAB name (:func:`matlab_names`), and the structs ``units`` and ``descriptions`` (a field per variable), the
   cell array ``column_names`` (the original names, in order, beside ``variable_names``) and the struct
@@ -267,7 +268,7 @@ def matlab_names(names: list[str]) -> dict[str, str]:
     chosen: dict[str, str] = {}
     for name in names:
         base = re.sub(r"[^A-Za-z0-9_]", "_", name)
-        if not base[:1].isalpha() or not base[:1].isascii() or base in MATLAB_KEYWORDS or base in MATLAB_RESERVED:
+        if not re.match(r"[A-Za-z]", base) or base in MATLAB_KEYWORDS or base in MATLAB_RESERVED:
             base = "x" + base
         base = base[:MATLAB_NAME_LENGTH]
         candidate, k = base, 1
