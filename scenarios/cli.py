@@ -123,30 +123,11 @@ def _load(scenario: str, overrides: dict[str, object]):
 @app.command("list")
 @_command
 def list_presets() -> None:
-    """List scenarios, vehicle presets and surface presets."""
-    from scenarios.config import catalogue_names, load_scenario_data
-    from vehicle_model.presets import VEHICLE_PRESETS
-    from vehicle_model.surface import FRICTION_PRESETS
+    """List scenarios, vehicle presets and surface presets (tables fitted to the terminal's width)."""
+    from scenarios.catalogue.listing import preset_tables
 
-    table = Table(title="Scenarios (offtrack run NAME)")
-    table.add_column("name")
-    table.add_column("description")
-    for name in catalogue_names():
-        table.add_row(name, escape(" ".join(str(load_scenario_data(name).get("description", "")).split())))
-    console.print(table)
-
-    table = Table(title="Vehicle presets")
-    table.add_column("name")
-    table.add_column("description")
-    for name, factory in VEHICLE_PRESETS.items():
-        table.add_row(name, escape((factory.__doc__ or "").strip().splitlines()[0]))
-    console.print(table)
-    table = Table(title="Surface presets")
-    table.add_column("name")
-    table.add_column("μ", justify="right")
-    for name, mu in FRICTION_PRESETS.items():
-        table.add_row(name, f"{mu:.2f}")
-    console.print(table)
+    for table in preset_tables():
+        console.print(table)
 
 
 @app.command()
@@ -258,6 +239,23 @@ def report(
 
 @app.command()
 @_command
+def export(
+    run_dir: Annotated[Path, typer.Argument(help="A run directory (timeseries.parquet, config.yaml).")],
+    to: Annotated[str, typer.Option(help="csv (header row 'name [unit]') or mat (MATLAB, scipy.io.savemat).")],
+    out: Annotated[
+        Path | None, typer.Option(help="File, or directory for timeseries.csv/.mat (default: RUN_DIR).")
+    ] = None,
+    force: Annotated[bool, typer.Option(help="Replace a file already at --out.")] = False,
+) -> None:
+    """Export a run's time series with its units: CSV, or a MATLAB .mat file with units, descriptions, metadata."""
+    from scenarios.export.table import export_run
+
+    path = export_run(run_dir, to, out, force=force)
+    console.print(f"time series of {run_dir} → {path}", markup=False, highlight=False, soft_wrap=True)
+
+
+@app.command()
+@_command
 def compare(
     scenario: Annotated[str, typer.Argument(help="Catalogue name (see `offtrack list`) or a YAML file.")],
     surface: Annotated[str | None, typer.Option(help="Surface preset: dry, wet, snow, ice.")] = None,
@@ -329,17 +327,19 @@ def render(
     video: Annotated[bool, typer.Option(help="Also write a side-by-side stereo video.")] = False,
     antialias: Annotated[bool, typer.Option(help="4× multisampling (slower).")] = False,
     force: Annotated[bool, typer.Option(help="Replace an earlier dataset in --out (offtrack's files only).")] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Export the scenario's rendered stereo sequence as a KITTI-odometry-style dataset."""
     from rich.progress import Progress
 
-    from scenarios.export.kitti import export_kitti
+    from scenarios.export.kitti import export_kitti, render_summary
+    from scenarios.run.files import jsonable
     from scenarios.run.results import check_output_dir
 
     pairs = (("seed", seed), ("duration_s", duration), ("camera.scenery_density", density))
     config = _load(scenario, _overrides(pairs, None, None, set_))
     check_output_dir(out)
-    with Progress(console=console) as bar:
+    with Progress(console=console, transient=True, disable=as_json) as bar:
         task = bar.add_task(escape(f"rendering {config.name}"), total=None)
         summary = export_kitti(
             config,
@@ -351,7 +351,10 @@ def render(
             antialias=antialias,
             progress=lambda done, total: bar.update(task, completed=done, total=total),
         )
-    console.print({k: v for k, v in summary.items() if not isinstance(v, list | dict)})
+    if as_json:
+        print(json.dumps(jsonable(summary), allow_nan=False))
+        return
+    console.print(render_summary(summary), markup=False, highlight=False, soft_wrap=True)
 
 
 @app.command()

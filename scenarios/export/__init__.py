@@ -1,1 +1,1 @@
-"""Rendered data for other tools: KITTI-odometry-style datasets and stereo videos."""
+"""Data for other tools: KITTI-odometry-style datasets, stereo videos, animations, a run's time series (CSV, .mat)."""

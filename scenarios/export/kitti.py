@@ -158,7 +158,9 @@ def export_kitti(
     -------
     dict
         ``frames``, ``status`` (of the simulation), ``out_dir``, ``render_s``, ``simulate_s``,
-        ``ms_per_pair``.
+        ``ms_per_pair``, and ``files``: where each part went (``left``, ``right``, ``calib``, ``poses``,
+        ``times``, ``metadata`` and with ``video`` ``video``), as text paths; :func:`render_summary` says it in a
+        sentence.
 
     Raises
     ------
@@ -238,6 +240,16 @@ def export_kitti(
         "vehicle": setup.params.name,
     }
     (out / "offtrack.json").write_text(json.dumps(meta, indent=2) + "\n")
+    files = {
+        "left": out / "image_0",
+        "right": out / "image_1",
+        "calib": out / "calib.txt",
+        "poses": out / "poses.txt",
+        "times": out / "times.txt",
+        "metadata": out / "offtrack.json",
+    }
+    if video:
+        files["video"] = out / "stereo.mp4"
     return {
         "out_dir": str(out),
         "frames": len(frames),
@@ -245,4 +257,45 @@ def export_kitti(
         "simulate_s": simulate_s,
         "render_s": render_s,
         "ms_per_pair": 1000.0 * render_s / len(frames),
+        "files": {k: str(v) for k, v in files.items()},
     }
+
+
+def render_summary(summary: dict[str, Any]) -> str:
+    """What :func:`export_kitti` did, in one sentence naming where every file went.
+
+    Parameters
+    ----------
+    summary
+        The dictionary :func:`export_kitti` returned.
+
+    Returns
+    -------
+    str
+        The frames, the simulation's status, the output directory and every file or folder in it, e.g.
+        ``3 stereo pairs (simulation completed) in runs/k: left images in image_0/, right images in image_1/,
+        …; 41.2 ms per pair``.
+    """
+    out = Path(summary["out_dir"])
+
+    def where(key: str) -> str:
+        path = Path(summary["files"][key])
+        name = str(path.relative_to(out)) if path.is_relative_to(out) else str(path)
+        return name + "/" if key in ("left", "right") else name
+
+    parts = [
+        f"left images in {where('left')}",
+        f"right images in {where('right')}",
+        f"the calibration in {where('calib')}",
+        f"the left camera's poses in {where('poses')}",
+        f"the frame times in {where('times')}",
+        f"the scenario and rig in {where('metadata')}",
+    ]
+    if "video" in summary["files"]:
+        parts.append(f"the side-by-side video in {where('video')}")
+    frames = int(summary["frames"])
+    return (
+        f"{frames} stereo pair{'s' if frames != 1 else ''} (simulation {summary['status']}) in {out}: "
+        + ", ".join(parts[:-1])
+        + f" and {parts[-1]}; {summary['ms_per_pair']:.1f} ms per pair"
+    )

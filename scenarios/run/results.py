@@ -20,6 +20,11 @@ node failure) would leave an unreadable file; whole part files, each written und
 name and renamed when complete, leave everything up to the last flush readable at any moment, and
 ``pandas.read_parquet(run_dir / "timeseries.parquet")`` reads the parts in name order (the zero-padded
 numbers keep that the row order) and skips the hidden temporary files.
+
+Each column is float64 and, when the writer is given the columns the loop's participants declare
+(:class:`~scenarios.loop.participant.Column`), carries that column's unit and description as Arrow field metadata
+(:data:`UNIT_KEY`, :data:`DESCRIPTION_KEY`, UTF-8), so the file says what its numbers are wherever it goes;
+:func:`timeseries_columns` reads them back.
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ import re
 import shutil
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +48,7 @@ import yaml
 from vehicle_model.errors import InputError, OutputError
 
 from ..config import ScenarioConfig, validate_config
+from ..loop.participant import Column
 from ..yaml_input import load_yaml
 from .files import TEMPORARY_SUFFIX, atomic_path, cannot_write, jsonable, write_atomic
 
@@ -58,6 +65,11 @@ FLUSH_INTERVAL_S = 2.0
 
 Both are read when a writer is made, so a test (or a user who wants finer crash granularity) can set them
 on this module before a run starts."""
+
+UNIT_KEY = b"unit"
+"""Arrow field metadata key of a time-series column's unit (SI; ``-`` for a count, flag or code)."""
+DESCRIPTION_KEY = b"description"
+"""Arrow field metadata key of a time-series column's one-line description."""
 
 PART_NAME = "part-{:06d}.parquet"
 """Name of the ``k``-th part file of the time series (six digits: names sort in row order)."""
@@ -83,6 +95,8 @@ RUN_FILES = frozenset(
         "residuals.json",
         "recording.yaml",
         "vo_eval.json",
+        "timeseries.csv",
+        "timeseries.mat",
     }
 )
 """Files offtrack writes into an output directory (besides ``*.png`` and the directories below)."""
@@ -299,8 +313,9 @@ class TimeSeriesWriter:
     path
         The dataset directory (an earlier series there, file or directory, is replaced).
     columns
-        Column names (every column is float64); may be set later through :attr:`columns`, before the
-        first row.
+        The columns (every one float64): declared ones (:class:`~scenarios.loop.participant.Column`), whose
+        unit and description go into the file as field metadata, or bare names; may be set later through
+        :attr:`columns`, before the first row.
     flush_every
         Rows per part (default :data:`FLUSH_ROWS`).
     flush_interval_s
@@ -310,12 +325,12 @@ class TimeSeriesWriter:
     def __init__(
         self,
         path: Path,
-        columns: list[str],
+        columns: Sequence[str | Column],
         flush_every: int | None = None,
         flush_interval_s: float | None = None,
     ) -> None:
         self.path = Path(path)
-        self.columns = list(columns)
+        self.columns = columns  # names, or declared columns with their units
         self.flush_every = FLUSH_ROWS if flush_every is None else int(flush_every)
         self.flush_interval_s = FLUSH_INTERVAL_S if flush_interval_s is None else float(flush_interval_s)
         self._rows: list[list[float]] = []
@@ -331,6 +346,16 @@ class TimeSeriesWriter:
             self.path.mkdir(parents=True)
         except OSError as exc:
             raise cannot_write(self.path, exc) from exc
+
+    @property
+    def columns(self) -> list[str]:
+        """The column names, in order; set it to names or to declared columns (with their units)."""
+        return self._names
+
+    @columns.setter
+    def columns(self, columns: Sequence[str | Column]) -> None:
+        self._fields = [_field(c) for c in columns]
+        self._names = [f.name for f in self._fields]
 
     def append(self, row: dict[str, float]) -> None:
         """Add one row (missing columns are NaN); flush if enough rows or time have gone by since the oldest."""
@@ -365,8 +390,7 @@ class TimeSeriesWriter:
             self._write_part({c: np.zeros(0) for c in self.columns})
 
     def _write_part(self, data: dict[str, np.ndarray]) -> None:
-        schema = pa.schema([(c, pa.float64()) for c in self.columns])
-        table = pa.table(data, schema=schema)
+        table = pa.table(data, schema=pa.schema(self._fields))
         try:
             with atomic_path(self.path / PART_NAME.format(self.parts)) as tmp, open(tmp, "wb") as fh:
                 pq.write_table(table, fh)
@@ -377,6 +401,35 @@ class TimeSeriesWriter:
             self.failure = f"{exc}; the series holds the first {self.rows_written} rows"
             raise OutputError(f"the time series could not be written: {self.failure}") from exc
         self.parts += 1
+
+
+def _field(column: str | Column) -> pa.Field:
+    """The float64 Arrow field of a column: a declared one with its unit and description as metadata."""
+    if isinstance(column, str):
+        return pa.field(column, pa.float64())
+    metadata = {UNIT_KEY: column.unit.encode(), DESCRIPTION_KEY: column.description.encode()}
+    return pa.field(column.name, pa.float64(), metadata=metadata)
+
+
+def timeseries_columns(schema: pa.Schema) -> list[Column]:
+    """The columns of a time series' schema with the unit and description it carries (``""`` where it has none).
+
+    Parameters
+    ----------
+    schema
+        The schema of ``timeseries.parquet`` (``pyarrow.parquet.read_table(path).schema``).
+
+    Returns
+    -------
+    list of Column
+        One per field, in order; a series written without declared columns (bare names) gives empty units.
+    """
+    columns = []
+    for field in schema:
+        metadata = field.metadata or {}
+        unit = metadata.get(UNIT_KEY, b"").decode(errors="replace")
+        columns.append(Column(field.name, unit, metadata.get(DESCRIPTION_KEY, b"").decode(errors="replace")))
+    return columns
 
 
 def read_timeseries(run_dir: Path) -> dict[str, np.ndarray]:

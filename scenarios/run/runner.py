@@ -85,7 +85,7 @@ def run_scenario(
 
 
 def _cosimulation(setup: ScenarioSetup, source: TrailerSteerSource | None, writer: TimeSeriesWriter) -> CoSimulation:
-    """The run's co-simulation, streaming its rows into ``writer`` (which learns the columns)."""
+    """The run's co-simulation, streaming its rows into ``writer`` (which learns the columns and their units)."""
     cosim = CoSimulation(setup, source, geometric_truth=True, camera_workers=None, sink=writer)
-    writer.columns = cosim.column_names
+    writer.columns = cosim.columns  # the declared columns: their units go into the file
     return cosim
