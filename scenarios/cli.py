@@ -268,12 +268,10 @@ def config_command(
     --fields the fields of the configuration."""
     from vehicle_model.errors import InputError
 
+    pairs = _scenario_pairs(surface, mu, camber, camber_direction, speed, vehicle, direction, seed, feedback, duration)
     if fields:
         from scenarios.config_fields import fields_table, section_fields
 
-        pairs = _scenario_pairs(
-            surface, mu, camber, camber_direction, speed, vehicle, direction, seed, feedback, duration
-        )
         if set_ or any(value is not None for _, value in pairs):
             raise InputError("--fields takes a SECTION only, no --set or scenario options")
         rows = section_fields(scenario)
@@ -284,7 +282,6 @@ def config_command(
         raise InputError("give a SCENARIO (a catalogue name or a YAML file), or --fields [SECTION]")
     from scenarios.run.results import config_yaml
 
-    pairs = _scenario_pairs(surface, mu, camber, camber_direction, speed, vehicle, direction, seed, feedback, duration)
     print(config_yaml(_load(scenario, _overrides(pairs, surface, mu, set_))), end="")
 
 
