@@ -3,10 +3,11 @@
 Exit codes (README, "Exit codes"): 0 done; 2 bad input (a usage error, or a value out of range — one line per
 bad field, never a traceback); 3 a run that diverged, lost control or could not write a file, or a study with a
 failed case; 130
-Ctrl-C; 143 SIGTERM. Usage errors are typer's own (standalone mode: message and exit code 2); every command
-body runs under :func:`_command`, which turns offtrack's input errors into exit 2 and a stop into 130/143.
-Nothing here depends on typer's vendored click: only ``typer.Exit`` and typer's standalone handling, both
-tested end to end in ``tests/test_faults.py``.
+Ctrl-C; 143 SIGTERM. Usage errors are typer's, shown in offtrack's style (``error: …`` and a ``try … --help``
+line, exit code 2) by the command classes of :mod:`scenarios.cli_format`, which also make the help readable; every
+command body runs under :func:`_command`, which turns offtrack's input errors into exit 2 and a stop into 130/143.
+Nothing here depends on typer's vendored click: only ``typer.Exit``, typer's ``cls`` classes and its standalone
+handling, tested end to end in ``tests/test_faults.py`` and ``tests/test_config_command.py``.
 
 Why this module is long: it declares every command and its options (one annotated parameter a line, with its help);
 each command body only checks its options and calls into its room.
@@ -28,6 +29,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from scenarios.bench.cli import bench_app
+from scenarios.cli_format import OfftrackCommand, OfftrackGroup, offtrack_version
 from scenarios.loop.ends import RunStatus
 from scenarios.registry import feedback_sources
 from scenarios.run.stopping import (
@@ -60,6 +62,7 @@ FEEDBACKS = ", ".join(feedback_sources())
 
 app = typer.Typer(
     help="Tractor–semi-trailer off-tracking co-simulation.",
+    cls=OfftrackGroup,
     no_args_is_help=True,
     add_completion=False,
     rich_markup_mode=None,  # help texts are plain: "[km/h]" is a unit, not markup
@@ -120,7 +123,51 @@ def _load(scenario: str, overrides: dict[str, object]):
     return load_scenario(scenario, overrides)
 
 
-@app.command("list")
+def _scenario_pairs(
+    surface: str | None,
+    mu: float | None,
+    camber: float | None,
+    camber_direction: str | None,
+    speed: float | None,
+    vehicle: str | None,
+    direction: str | None,
+    seed: int | None,
+    feedback: str | None,
+    duration: float | None,
+) -> tuple[tuple[str, object], ...]:
+    """The scenario options of ``offtrack run`` (and ``offtrack config``) as (dotted field, value) pairs."""
+    return (
+        ("surface.preset", surface),
+        ("surface.mu", mu),
+        ("camber.percent", camber),
+        ("camber.direction", camber_direction),
+        ("speed.cornering_kmh", speed),
+        ("vehicle", vehicle),
+        ("direction", direction),
+        ("seed", seed),
+        ("feedback", feedback),
+        ("duration_s", duration),
+    )
+
+
+def _show_version(value: bool) -> None:
+    """``--version``: print ``offtrack X.Y.Z`` and stop."""
+    if value:
+        typer.echo(f"offtrack {offtrack_version()}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: Annotated[
+        bool,
+        typer.Option("--version", help="Print offtrack's version and exit.", callback=_show_version, is_eager=True),
+    ] = False,
+) -> None:
+    """Tractor–semi-trailer off-tracking co-simulation."""
+
+
+@app.command("list", cls=OfftrackCommand)
 @_command
 def list_presets() -> None:
     """List scenarios, vehicle presets and surface presets (tables fitted to the terminal's width)."""
@@ -130,7 +177,7 @@ def list_presets() -> None:
         console.print(table)
 
 
-@app.command()
+@app.command(cls=OfftrackCommand)
 @_command
 def run(
     scenario: Annotated[str, typer.Argument(help="Catalogue name (see `offtrack list`) or a YAML file.")],
@@ -162,18 +209,7 @@ def run(
     from scenarios.run.results import new_run_dir
     from scenarios.run.runner import run_scenario
 
-    pairs = (
-        ("surface.preset", surface),
-        ("surface.mu", mu),
-        ("camber.percent", camber),
-        ("camber.direction", camber_direction),
-        ("speed.cornering_kmh", speed),
-        ("vehicle", vehicle),
-        ("direction", direction),
-        ("seed", seed),
-        ("feedback", feedback),
-        ("duration_s", duration),
-    )
+    pairs = _scenario_pairs(surface, mu, camber, camber_direction, speed, vehicle, direction, seed, feedback, duration)
     config = _load(scenario, _overrides(pairs, surface, mu, set_))
     run_dir = new_run_dir(out, config.name, force=force)
     with Progress(
@@ -208,6 +244,51 @@ def _exit_for_checks(metrics: dict) -> None:
         raise typer.Exit(EXIT_MISSED)
 
 
+@app.command("config", cls=OfftrackCommand)
+@_command
+def config_command(
+    scenario: Annotated[
+        str | None,
+        typer.Argument(help="Catalogue name or YAML file; with --fields a SECTION (e.g. fusion, camera.lighting)."),
+    ] = None,
+    fields: Annotated[
+        bool, typer.Option("--fields", help="List the configuration's fields: unit, default, range, reason.")
+    ] = False,
+    surface: Annotated[str | None, typer.Option(help="Surface preset: dry, wet, snow, ice.")] = None,
+    mu: Annotated[float | None, typer.Option(help="Friction coefficient (overrides --surface).")] = None,
+    camber: Annotated[float | None, typer.Option(help="Camber [%] of the carriageway.")] = None,
+    camber_direction: Annotated[str | None, typer.Option(help="outward or inward.")] = None,
+    speed: Annotated[float | None, typer.Option(help="Cornering speed [km/h].")] = None,
+    vehicle: Annotated[str | None, typer.Option(help="Vehicle preset (see `offtrack list`).")] = None,
+    direction: Annotated[str | None, typer.Option(help="left or right.")] = None,
+    feedback: Annotated[str | None, typer.Option(help=f"Trailer steering fed by one of: {FEEDBACKS}.")] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of every random choice.")] = None,
+    duration: Annotated[float | None, typer.Option(help="Stop after this many simulated seconds.")] = None,
+    set_: Annotated[
+        list[str] | None, typer.Option("--set", help="Any config field, e.g. --set rates.control_hz=100.")
+    ] = None,
+) -> None:
+    """Print a scenario's resolved configuration as YAML (what `offtrack run` with the same options uses), or with
+    --fields the fields of the configuration."""
+    from vehicle_model.errors import InputError
+
+    pairs = _scenario_pairs(surface, mu, camber, camber_direction, speed, vehicle, direction, seed, feedback, duration)
+    if fields:
+        from scenarios.config_fields import fields_table, section_fields
+
+        if set_ or any(value is not None for _, value in pairs):
+            raise InputError("--fields takes a SECTION only, no --set or scenario options")
+        rows = section_fields(scenario)
+        title = f"{scenario or 'configuration'}: {len(rows)} field{'s' if len(rows) > 1 else ''} (--set FIELD=VALUE)"
+        console.print(fields_table(rows, console.width, title=escape(title)))
+        return
+    if scenario is None:
+        raise InputError("give a SCENARIO (a catalogue name or a YAML file), or --fields [SECTION]")
+    from scenarios.run.results import config_yaml
+
+    print(config_yaml(_load(scenario, _overrides(pairs, surface, mu, set_))), end="")
+
+
 def _exit_for_status(metrics: dict) -> None:
     """Say why a run did not complete and exit with its code (3 failed, 130/143 stopped)."""
     status = metrics["status"]
@@ -219,7 +300,7 @@ def _exit_for_status(metrics: dict) -> None:
     raise typer.Exit(EXIT_FAILED)
 
 
-@app.command()
+@app.command(cls=OfftrackCommand)
 @_command
 def report(
     run_dir: Annotated[Path, typer.Argument(help="A run directory (config.yaml and timeseries.parquet).")],
@@ -254,7 +335,7 @@ def export(
     console.print(f"time series of {run_dir} → {path}", markup=False, highlight=False, soft_wrap=True)
 
 
-@app.command()
+@app.command(cls=OfftrackCommand)
 @_command
 def compare(
     scenario: Annotated[str, typer.Argument(help="Catalogue name (see `offtrack list`) or a YAML file.")],
@@ -312,7 +393,7 @@ def compare(
     console.print(view)
 
 
-@app.command()
+@app.command(cls=OfftrackCommand)
 @_command
 def render(
     scenario: Annotated[str, typer.Argument(help="Catalogue name (see `offtrack list`) or a YAML file.")],
@@ -357,7 +438,7 @@ def render(
     console.print(render_summary(summary), markup=False, highlight=False, soft_wrap=True)
 
 
-@app.command()
+@app.command(cls=OfftrackCommand)
 @_command
 def estimate(
     recording: Annotated[
@@ -433,7 +514,7 @@ def estimate(
     _exit_for_status(metrics)
 
 
-@app.command("vo-eval")
+@app.command("vo-eval", cls=OfftrackCommand)
 @_command
 def vo_eval(
     sequence: Annotated[Path, typer.Argument(help="KITTI-odometry folder (image_0/, image_1/, times.txt).")],
@@ -479,7 +560,7 @@ def vo_eval(
         console.print(escape(line))
 
 
-@app.command()
+@app.command(cls=OfftrackCommand)
 @_command
 def study(
     name: Annotated[str, typer.Argument(help="The study (an unknown name lists them all).")],
@@ -540,7 +621,7 @@ def _print_summary(metrics: dict, run_dir: Path) -> None:
         console.print(item)
 
 
-@app.command()
+@app.command(cls=OfftrackCommand)
 @_command
 def calibrate(
     scenario: Annotated[
@@ -642,7 +723,7 @@ def _calibrate_photos(out: Path, force: bool, corners: str, **options: Any) -> N
         console.print(line)
 
 
-@app.command()
+@app.command(cls=OfftrackCommand)
 @_command
 def animate(
     run_dir: Annotated[Path, typer.Argument(help="A run directory (config.yaml and timeseries.parquet).")],
@@ -683,7 +764,7 @@ def animate(
     console.print(escape(f"animation → {path}"))
 
 
-@app.command()
+@app.command(cls=OfftrackCommand)
 @_command
 def tune(
     trials: Annotated[int, typer.Option(help="Optuna trials (the first is the designed gains).", min=1)] = 30,
@@ -721,7 +802,8 @@ def main() -> None:
     """Entry point of ``offtrack``: SIGTERM is handled like Ctrl-C, then typer runs the command.
 
     Typer's standalone mode prints usage errors (unknown option or command, a value of the wrong type or out
-    of an option's range) with exit code 2 and turns ``typer.Exit`` into the process's exit code.
+    of an option's range; in offtrack's style, :mod:`scenarios.cli_format`) with exit code 2 and turns
+    ``typer.Exit`` into the process's exit code.
     """
     handle_sigterm()
     app(prog_name="offtrack")

@@ -10,6 +10,7 @@ in for the command line, the studies and the environments.
 
 from __future__ import annotations
 
+import difflib
 import math
 import reprlib
 from importlib import resources
@@ -58,6 +59,31 @@ _GAIN = "per metre travelled; 10 is far above any designed gain"
 
 _CAMERA_RATE_TOLERANCE = 1e-3
 """A camera rate within this relative distance of ``control_hz / n`` is taken as exactly that."""
+
+
+def did_you_mean(word: str, choices: Any, prefix: str = "") -> str:
+    """``"; did you mean 'a' or 'b'?"`` naming the valid ``choices`` nearest to ``word``, or ``""`` if none is near.
+
+    Parameters
+    ----------
+    word : str
+        What was given.
+    choices : iterable of str
+        The valid names.
+    prefix : str
+        Put before each name shown (a section's dotted name and a dot).
+
+    Returns
+    -------
+    str
+        The suggestion, to append to an error message; empty when no choice is close
+        (:func:`difflib.get_close_matches`).
+    """
+    near = [repr(prefix + n) for n in difflib.get_close_matches(word, sorted(set(choices)), n=3, cutoff=0.6)]
+    if not near:
+        return ""
+    named = near[0] if len(near) == 1 else f"{', '.join(near[:-1])} or {near[-1]}"
+    return f"; did you mean {named}?"
 
 
 def _nearest(value: float, allowed: list[float], low: float, high: float) -> str:
@@ -386,7 +412,8 @@ class ScenarioConfig(Settings):
     @model_validator(mode="after")
     def _check(self) -> ScenarioConfig:
         if self.vehicle not in VEHICLE_PRESETS:
-            raise ValueError(f"vehicle {self.vehicle!r} is not a preset; choose one of {sorted(VEHICLE_PRESETS)}")
+            choices = did_you_mean(self.vehicle, VEHICLE_PRESETS) or f"; choose one of {sorted(VEHICLE_PRESETS)}"
+            raise ValueError(f"vehicle {self.vehicle!r} is not a preset{choices}")
         if self.roundabout_test and self.path.kind != "roundabout":
             raise ValueError("roundabout_test needs path.kind = roundabout")
         if self.feedback != "none" and not any(a.steerable for a in VEHICLE_PRESETS[self.vehicle]().trailer.axles):
@@ -403,8 +430,9 @@ class ScenarioConfig(Settings):
 _RANGE_ERRORS = {"greater_than", "greater_than_equal", "less_than", "less_than_equal", "finite_number", "too_long"}
 
 
-def _field_reason(loc: tuple[int | str, ...]) -> str | None:
-    """The description (the reason for its range) of the field at ``loc``, if it has one."""
+def _walk(loc: tuple[int | str, ...]) -> tuple[Any, str | None, bool]:
+    """The model ``loc`` leads to (``None`` at a plain value), the last field's description, and whether every name
+    was found."""
     model: Any = ScenarioConfig
     description = None
     for part in loc:
@@ -412,7 +440,7 @@ def _field_reason(loc: tuple[int | str, ...]) -> str | None:
             continue
         fields = getattr(model, "model_fields", None)
         if not fields or part not in fields:
-            return None
+            return model, None, False
         info = fields[part]
         description = info.description
         types, model = [info.annotation], None
@@ -423,7 +451,22 @@ def _field_reason(loc: tuple[int | str, ...]) -> str | None:
             for meta in getattr(kind, "__metadata__", ()):
                 description = getattr(meta, "description", None) or description
             types += [a for a in get_args(kind) if a is not Ellipsis]
-    return description
+    return model, description, True
+
+
+def _field_reason(loc: tuple[int | str, ...]) -> str | None:
+    """The description (the reason for its range) of the field at ``loc``, if it has one."""
+    _, description, found = _walk(loc)
+    return description if found else None
+
+
+def _unknown_field(loc: tuple[int | str, ...]) -> str:
+    """The message for a field the schema does not have: the nearest fields of its section, if any is near."""
+    section, _, _ = _walk(loc[:-1])
+    name = str(loc[-1])
+    fields = getattr(section, "model_fields", {})
+    prefix = "".join(f"{part}." for part in loc[:-1])
+    return "not a field of the configuration" + did_you_mean(name, fields, prefix) if fields else "not a field"
 
 
 SHOWN_CHARACTERS = 80
@@ -446,6 +489,8 @@ def _format_errors(exc: ValidationError) -> str:
         value = err.get("input")
         shown = "" if isinstance(value, dict) else f" = {_shown(value)}"
         message = err["msg"].removeprefix("Value error, ")
+        if err["type"] == "extra_forbidden":
+            message = _unknown_field(err["loc"])
         reason = _field_reason(err["loc"]) if err["type"] in _RANGE_ERRORS else None
         lines.append(f"  {loc}{shown}: {message}" + (f" — {reason}" if reason else ""))
     return "invalid scenario configuration:\n" + "\n".join(lines)
@@ -496,9 +541,9 @@ def load_scenario_data(name_or_path: str) -> dict[str, Any]:
     else:
         entry = resources.files(CATALOGUE_PACKAGE) / f"{name_or_path}.yaml"
         if not entry.is_file():
-            raise ConfigError(
-                f"unknown scenario {name_or_path!r}; choose one of {catalogue_names()} or give a YAML file"
-            )
+            near = did_you_mean(name_or_path, catalogue_names())
+            choices = near or f"; choose one of {catalogue_names()} or give a YAML file"
+            raise ConfigError(f"unknown scenario {name_or_path!r}{choices}")
         source, raw = f"catalogue scenario {name_or_path}", entry.read_bytes()
     try:
         data = load_yaml(raw, source)

@@ -31,6 +31,7 @@ SCENARIO_ROOMS: tuple[str, ...] = (
     "camera_checks",
     "registry",
     "config",
+    "config_fields",
     "catalogue",
     "setup",
     "camera",
@@ -40,6 +41,7 @@ SCENARIO_ROOMS: tuple[str, ...] = (
     "recorded",
     "studies",
     "envs",
+    "cli_format",
     "bench",
     "cli",
 )

@@ -98,7 +98,11 @@ def test_spec_has_a_time_limit_longer_than_the_default_episode() -> None:
         ({"speed_kmh": 500}, "speed_kmh = 500", "speed.cornering_kmh = 500: Input should be less than or equal"),
         ({"camber_percent": 20}, "camber_percent = 20", "camber.percent = 20"),
         ({"direction": "north"}, "direction = 'north'", "Input should be 'left' or 'right'"),
-        ({"overrides": {"path.turnz": 1}}, "overrides = {'path.turnz': 1}", "path.turnz = 1: Extra inputs"),
+        (
+            {"overrides": {"path.turnz": 1}},
+            "overrides = {'path.turnz': 1}",
+            "path.turnz = 1: not a field of the configuration; did you mean 'path.turns'?",
+        ),
         ({"randomise": {"mu": (-0.5, 0.1)}}, "randomise.mu = (-0.5, 0.1)", "surface.mu = -0.5"),
         ({"randomise": {"speed_kmh": (10.0, 95.0)}}, "randomise.speed_kmh", "speed.cornering_kmh = 95.0"),
         ({"randomise": {"vehicle": ("lst", "truck")}}, "randomise.vehicle", "vehicle 'truck' is not a preset"),

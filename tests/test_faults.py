@@ -88,7 +88,7 @@ def assert_one_line_error(result: subprocess.CompletedProcess, *words: str) -> N
         (["run", "roundabout-test", "--mu", "abc"], "--mu"),
         (["run", "roundabout-test", "--seed", "1.5"], "--seed"),
         (["run", "roundabout-test", "--no-such-option"], "--no-such-option"),
-        (["run"], "Missing argument 'scenario'"),
+        (["run"], "missing argument 'SCENARIO'"),
         (["frobnicate"], "frobnicate"),
         (["render", "roundabout-test", "--out", "/tmp/x", "--frames", "0"], "--frames"),
         (["render", "roundabout-test", "--out", "/tmp/x", "--density", "2"], "--density"),

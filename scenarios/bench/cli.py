@@ -11,14 +11,18 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..camera.workers import DEFAULT_WORKERS
+from ..cli_format import OfftrackCommand, OfftrackGroup
 
 bench_app = typer.Typer(
-    help="Benchmarks printing machine-readable results.", no_args_is_help=True, rich_markup_mode=None
+    help="Benchmarks printing machine-readable results.",
+    cls=OfftrackGroup,
+    no_args_is_help=True,
+    rich_markup_mode=None,
 )
 console = Console()
 
 
-@bench_app.command("render")
+@bench_app.command("render", cls=OfftrackCommand)
 def bench_render_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     frames: Annotated[int, typer.Option(help="Stereo pairs to render.", min=5)] = 50,
@@ -31,7 +35,7 @@ def bench_render_cmd(
     _print_bench(bench_render(frames, antialias=antialias, field=field), as_json, "Render benchmark")
 
 
-@bench_app.command("vo")
+@bench_app.command("vo", cls=OfftrackCommand)
 def bench_vo_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     frames: Annotated[int, typer.Option(help="Rendered frames to process (cached after the first run).", min=5)] = 30,
@@ -44,7 +48,7 @@ def bench_vo_cmd(
     _print_bench(bench_vo(frames, seed=seed, passes=passes), as_json, "Visual odometry benchmark")
 
 
-@bench_app.command("sweep")
+@bench_app.command("sweep", cls=OfftrackCommand)
 def bench_sweep_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     workers: Annotated[int, typer.Option(help="Worker processes to compare with one.", min=2)] = 2,
@@ -57,7 +61,7 @@ def bench_sweep_cmd(
     _print_bench(bench_sweep(workers, cases, duration), as_json, "Sweep benchmark")
 
 
-@bench_app.command("model")
+@bench_app.command("model", cls=OfftrackCommand)
 def bench_model_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     duration: Annotated[float, typer.Option(help="Simulated seconds.", min=1.0)] = 60.0,
@@ -68,7 +72,7 @@ def bench_model_cmd(
     _print_bench(bench_model(duration=duration), as_json, "Model benchmark")
 
 
-@bench_app.command("loop")
+@bench_app.command("loop", cls=OfftrackCommand)
 def bench_loop_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     duration: Annotated[float, typer.Option(help="Simulated seconds per run.", min=4.0)] = 15.0,
@@ -83,7 +87,7 @@ def bench_loop_cmd(
     _print_bench(bench_loop(duration, workers, compare_serial=serial), as_json, "Closed-loop benchmark")
 
 
-@bench_app.command("env")
+@bench_app.command("env", cls=OfftrackCommand)
 def bench_env_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     feedback: Annotated[str, typer.Option(help="Model-based feedback source: truth or zero_slip.")] = "truth",

@@ -251,9 +251,25 @@ def _remove(entry: Path) -> None:
 # ------------------------------------------------------------------------------------- config, metrics
 
 
+def config_yaml(config: Any) -> str:
+    """The resolved configuration as the YAML a run writes (every field, in the schema's order).
+
+    Parameters
+    ----------
+    config : ScenarioConfig
+        The validated configuration.
+
+    Returns
+    -------
+    str
+        The YAML text; :func:`scenarios.config.validate_config` of its loaded form gives ``config`` back.
+    """
+    return yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False)
+
+
 def write_config(run_dir: Path, config: Any) -> None:
-    """The resolved configuration as YAML."""
-    write_atomic(run_dir / CONFIG_FILE, yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False))
+    """The resolved configuration as YAML (:func:`config_yaml`)."""
+    write_atomic(run_dir / CONFIG_FILE, config_yaml(config))
 
 
 def read_config(run_dir: Path) -> ScenarioConfig:
