@@ -318,7 +318,7 @@ def report(
         _exit_for_checks(metrics)
 
 
-@app.command()
+@app.command(cls=OfftrackCommand)
 @_command
 def export(
     run_dir: Annotated[Path, typer.Argument(help="A run directory (timeseries.parquet, config.yaml).")],
