@@ -26,7 +26,6 @@ import typer
 from pydantic import ValidationError
 from rich.console import Console
 from rich.markup import escape
-from rich.table import Table
 
 from scenarios.bench.cli import bench_app
 from scenarios.cli_format import OfftrackCommand, OfftrackGroup, offtrack_version
@@ -346,15 +345,23 @@ def compare(
     vehicle: Annotated[str, typer.Option(help="Vehicle preset with steerable trailer axles.")] = "lst",
     feedbacks: Annotated[
         str,
-        typer.Option(help=f"Comma-separated feedback sources to compare, of: {FEEDBACKS}."),
+        typer.Option(
+            help=f"Comma-separated feedback sources to compare (default: every registered one, {FEEDBACKS}; the "
+            "viso_ot ones render the camera)."
+        ),
     ] = ",".join(feedback_sources()),
+    duration: Annotated[float | None, typer.Option(help="Stop every run after this many simulated seconds.")] = None,
     set_: Annotated[list[str] | None, typer.Option("--set", help="Any config field, e.g. --set path.turns=1.")] = None,
     out: Annotated[Path | None, typer.Option(help="Output directory (default runs/compare-SCENARIO/…).")] = None,
     force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous files are removed.")] = False,
 ) -> None:
     """Run every feedback source on the same scenario; write a table and one overlay figure."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
     from scenarios.run.results import new_run_dir
-    from scenarios.studies.compare import compare_feedback, comparison_rows_as_text
+    from scenarios.run.summary import MISSING
+    from scenarios.studies.compare import compare_feedback, display_table
+    from scenarios.studies.summary import summary_table
     from vehicle_model.errors import InputError
 
     chosen = tuple(f.strip() for f in feedbacks.split(",") if f.strip())
@@ -367,30 +374,36 @@ def compare(
         ("surface.mu", mu),
         ("camber.percent", camber),
         ("camber.direction", camber_direction),
+        ("duration_s", duration),
     )
     overrides = _overrides(pairs, surface, mu, set_)
     config = _load(scenario, overrides)
     for feedback in chosen:  # every variant (a camera's included) must be able to run
         _load(scenario, {**overrides, "feedback": feedback})
     run_dir = new_run_dir(out, f"compare-{config.name}", force=force)
-    table = compare_feedback(config, run_dir, chosen)
-    view = Table(title=escape(f"{config.name}: feedback comparison — {run_dir}"))
-    headers = [
-        "feedback",
-        "status",
-        "true RMS [m]",
-        "true max [m]",
-        "max steer [°]",
-        "saturated",
-        "roundabout",
-        "R out [m]",
-        "R in [m]",
-    ]
-    for column in headers:
-        view.add_column(escape(column), justify="left" if column in ("feedback", "status") else "right")
-    for cells in comparison_rows_as_text(table):
-        view.add_row(*(escape(str(c)) for c in cells))
-    console.print(view)
+    with Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.percentage:>5.1f} %  t = {task.fields[sim_t]:.1f} s"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        console=console,
+        transient=False,
+    ) as bar:
+        task = bar.add_task(escape(f"{chosen[0]} (1/{len(chosen)})"), total=1.0, sim_t=0.0)
+
+        def progress(feedback: str, t: float, done: float) -> None:
+            label = f"{feedback} ({chosen.index(feedback) + 1}/{len(chosen)})"
+            bar.update(task, completed=done, sim_t=t, description=escape(label))
+
+        table = compare_feedback(config, run_dir, chosen, progress=progress)
+        bar.update(task, completed=1.0)
+    files = (str(run_dir / "comparison.md"), str(run_dir / "comparison.csv"))
+    title = f"{config.name}: feedback comparison"
+    console.print(
+        summary_table(display_table(table), console.width, files=files, title=title, rows="runs", missing=MISSING)
+    )
 
 
 @app.command(cls=OfftrackCommand)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +33,9 @@ from ..run.swept_path import (
 )
 from ..setup.build import build_scenario
 
+CompareProgress = Callable[[str, float, float], None]
+"""Called during the runs with ``(feedback of the run, its simulated time [s], fraction of all runs done)``."""
+
 
 def summary_row(feedback: str, metrics: dict[str, Any]) -> dict[str, Any]:
     """One table row from a run's metrics."""
@@ -55,13 +59,28 @@ def compare_feedback(
     config: ScenarioConfig,
     out_dir: Path,
     feedbacks: tuple[str, ...] | None = None,
-    progress: ProgressCallback | None = None,
+    progress: CompareProgress | None = None,
 ) -> pd.DataFrame:
     """Run ``config`` once per feedback source into ``out_dir/<feedback>/``; write the table and the figure.
 
     Writes ``comparison.csv``, ``comparison.md`` and ``comparison.png`` (true off-tracking of every run
-    against time, and their swept follow-point paths). ``feedbacks``: default every source of
-    :mod:`scenarios.registry`.
+    against time, and their swept follow-point paths).
+
+    Parameters
+    ----------
+    config
+        The scenario (its ``feedback`` is replaced by each source in turn).
+    out_dir
+        Directory of the runs and the files.
+    feedbacks
+        Feedback sources to run, in order (default every source of :mod:`scenarios.registry`).
+    progress
+        Told the progress of the runs (:data:`CompareProgress`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per run (:func:`summary_row`).
     """
     feedbacks = feedback_sources() if feedbacks is None else feedbacks
     configs = {}
@@ -71,10 +90,11 @@ def compare_feedback(
     for feedback in feedbacks:  # validate every variant before the first run starts (its estimator runs)
         configs[feedback] = validate_config({**config.model_dump(), "feedback": feedback})
     rows, traces, verdicts = [], {}, {}
-    for feedback, cfg in configs.items():
+    for rank, (feedback, cfg) in enumerate(configs.items()):
         run_dir = out_dir / feedback
         run_dir.mkdir(parents=True, exist_ok=True)
-        metrics = run_scenario(cfg, run_dir, progress=progress, plots=False)
+        told = None if progress is None else _share(progress, feedback, rank, len(configs))
+        metrics = run_scenario(cfg, run_dir, progress=told, plots=False)
         rows.append(summary_row(feedback, metrics))
         traces[feedback] = pd.read_parquet(run_dir / TIMESERIES_FILE)
         verdicts[feedback] = metrics.get("roundabout_test")
@@ -83,6 +103,15 @@ def compare_feedback(
     write_atomic(out_dir / "comparison.md", table.to_markdown(index=False, floatfmt=".3f"))
     _plot(out_dir / "comparison.png", config, traces, verdicts)
     return table
+
+
+def _share(progress: CompareProgress, feedback: str, rank: int, runs: int) -> ProgressCallback:
+    """A run's progress callback that tells ``progress`` the share of all ``runs`` done (this one is ``rank``)."""
+
+    def told(t: float, frac: float) -> None:
+        progress(feedback, t, (rank + frac) / runs)
+
+    return told
 
 
 def comparison_figure(
@@ -215,15 +244,22 @@ def _plot(
     save_figure(fig, path, dpi=120)
 
 
-def comparison_rows_as_text(table: pd.DataFrame) -> list[list[str]]:
-    """Table cells formatted for a console table."""
-    out = []
-    for _, row in table.iterrows():
-        cells = []
-        for value in row.to_numpy():
-            if isinstance(value, float | np.floating):
-                cells.append("—" if not np.isfinite(value) else f"{value:.3f}")
-            else:
-                cells.append(str(value))
-        out.append(cells)
-    return out
+def display_table(table: pd.DataFrame) -> pd.DataFrame:
+    """The comparison table for the terminal: the roundabout verdict as ``PASS`` / ``FAIL`` (missing without one).
+
+    Parameters
+    ----------
+    table
+        The table of :func:`compare_feedback`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        A copy, for :func:`scenarios.studies.summary.summary_table`.
+    """
+    shown = table.copy()
+    shown["roundabout_pass"] = [
+        None if verdict is None or verdict is pd.NA or verdict != verdict else ("PASS" if verdict else "FAIL")
+        for verdict in shown["roundabout_pass"].tolist()
+    ]
+    return shown

@@ -41,6 +41,10 @@ LABELS = (
 
 PRIORITY = (
     "status",
+    "roundabout_pass",
+    "true_offtracking_rms_m",
+    "true_offtracking_max_m",
+    "inner_radius_min_m",
     "true_offtracking_rms_after_warmup_m",
     "true_offtracking_max_after_warmup_m",
     "fused_rms_error_m",
@@ -60,7 +64,8 @@ PRIORITY = (
     "wall_time_s",
     "error",
 )
-"""Columns after the labels, most important first; any others follow in the table's order."""
+"""Columns after the labels, most important first; any others follow in the table's order. A study's columns and
+``offtrack compare``'s (:func:`scenarios.studies.compare.summary_row`): a table has the one set or the other."""
 
 HEADERS = {
     "true_offtracking_rms_after_warmup_m": "true e_tr RMS [m]",
@@ -83,6 +88,12 @@ HEADERS = {
     "camber": "camber [%]",
     "baseline": "baseline [m]",
     "slip": "slip [deg]",
+    "true_offtracking_rms_m": "true e_tr RMS [m]",
+    "true_offtracking_max_m": "true e_tr max [m]",
+    "max_trailer_steer_deg": "max trailer steer [deg]",
+    "roundabout_pass": "round-about test",
+    "outer_radius_max_m": "R out max [m]",
+    "inner_radius_min_m": "R in min [m]",
 }
 """Short headers with units for the known columns (others: :func:`header_for`)."""
 
@@ -105,10 +116,14 @@ def header_for(column: str) -> str:
     return column.replace("_", " ")
 
 
-def format_cell(column: str, value: Any) -> str:
-    """A cell as text: three decimals for floats, a dash for missing values, yes/no for booleans."""
+MISSING = "—"
+"""A missing value in a study's table."""
+
+
+def format_cell(column: str, value: Any, missing: str = MISSING) -> str:
+    """A cell as text: three decimals for floats, ``missing`` for missing values, yes/no for booleans."""
     if value is None or (isinstance(value, float | np.floating) and not np.isfinite(value)):
-        return "—"
+        return missing
     if isinstance(value, bool | np.bool_):
         return "yes" if value else "no"
     if isinstance(value, float | np.floating):
@@ -140,6 +155,8 @@ def summary_table(
     files: Sequence[str] = ("table.md", "table.csv"),
     title: str | None = None,
     max_cell: int = 40,
+    rows: str = "cases",
+    missing: str = MISSING,
 ) -> Table:
     """The columns of a study's table that fit ``width`` terminal columns, as a rich table.
 
@@ -156,6 +173,10 @@ def summary_table(
         Title of the table; labels with one value in every row are appended to it (``scenario roundabout-3``).
     max_cell
         Longest cell [characters]; longer text (an error message) is cut with an ellipsis.
+    rows
+        What a row is, for the caption (``2 cases``, ``2 runs``).
+    missing
+        How a missing value is shown.
 
     Returns
     -------
@@ -165,7 +186,7 @@ def summary_table(
     """
     constant = {c: table[c].iloc[0] for c in LABELS if c in table.columns and len(table) and table[c].nunique() <= 1}
     candidates = [c for c in _ordered(table) if c not in constant and not (table[c].isna().all() and c != "status")]
-    cells = {c: [format_cell(c, v)[:max_cell] for v in table[c].tolist()] for c in candidates}
+    cells = {c: [format_cell(c, v, missing)[:max_cell] for v in table[c].tolist()] for c in candidates}
     headers = {c: _header_lines(header_for(c), max(map(len, cells[c]), default=0)) for c in candidates}
     chosen: list[str] = []
     used = 1  # the left border
@@ -178,8 +199,10 @@ def summary_table(
     left_out = [c for c in candidates if c not in chosen]
     heading = title or ""
     if constant:
-        heading += (" — " if heading else "") + ", ".join(f"{k} {format_cell(k, v)}" for k, v in constant.items())
-    caption = f"{len(table)} cases"
+        heading += (" — " if heading else "") + ", ".join(
+            f"{k} {format_cell(k, v, missing)}" for k, v in constant.items()
+        )
+    caption = f"{len(table)} {rows}"
     if left_out:
         named = ", ".join(left_out[:4]) + (", …" if len(left_out) > 4 else "")
         caption += f"; {len(left_out)} more columns ({named})"
