@@ -368,6 +368,8 @@ def compare(
     unknown = [f for f in chosen if f not in feedback_sources()]
     if not chosen or unknown:
         raise InputError(f"--feedbacks {feedbacks!r}: give one or more of {FEEDBACKS}, separated by commas")
+    if duration is not None and not duration > 0:  # also NaN
+        raise InputError(f"--duration {duration:g}: give a positive number of simulated seconds")
     pairs = (
         ("vehicle", vehicle),
         ("surface.preset", surface),
@@ -786,29 +788,52 @@ def tune(
     feedback: Annotated[
         str, typer.Option(help=f"Feedback source, one of: {FEEDBACKS.removeprefix('none, ')}.")
     ] = "truth",
+    scenario: Annotated[
+        str, typer.Option(help="Scenario driven (catalogue name or YAML file), a quarter turn of it: path.turns=0.25.")
+    ] = "roundabout-3",
+    out: Annotated[
+        Path | None,
+        typer.Option(help="Write trials.csv, comparison.csv/.md and tuned_gains.yaml (a scenario a run loads) here."),
+    ] = None,
+    force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous files are removed.")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Tune the trailer PID gains with Optuna (offtrack/GainTuning-v0); compare them on held-out roads."""
     from rich.progress import Progress
 
+    from scenarios.envs.scenario import DEFAULT_OVERRIDES
     from scenarios.envs.tuning import tune_gains
+    from scenarios.envs.tuning_report import gains_table, held_out_table, set_options, write_tuning
+    from scenarios.run.results import new_run_dir
 
+    base = _load(scenario, {"feedback": feedback, "vehicle": "lst"})  # the gains' scenario, refused before tuning
+    out_dir = None if out is None else new_run_dir(out, "tune", force=force)
     with Progress(console=console, transient=True, disable=as_json) as bar:
         task = bar.add_task("tuning", total=trials)
 
         def progress(done: int, total: int, best: float) -> None:
             bar.update(task, completed=done, description=f"tuning: best training cost {best:.5f}")
 
-        result = tune_gains(
-            n_trials=trials, train_draws=draws, seed=seed, env_kwargs={"feedback": feedback}, progress=progress
-        )
+        env_kwargs = {"feedback": feedback, "scenario": scenario, "overrides": dict(DEFAULT_OVERRIDES)}
+        result = tune_gains(n_trials=trials, train_draws=draws, seed=seed, env_kwargs=env_kwargs, progress=progress)
+    paths = None if out_dir is None else write_tuning(result, out_dir, base)
     if as_json:
-        print(json.dumps({"benchmark": "tune_gains", **result.to_dict()}))
+        files = None if paths is None else {key: str(path) for key, path in paths.items()}
+        print(json.dumps({"benchmark": "tune_gains", **result.to_dict(), "files": files}))
         return
-    print(result.table())
+    console.print(gains_table(result))
+    console.print(held_out_table(result))
     for condition, better in result.verdicts().items():
-        print(f"{condition}: {'tuned' if better else 'designed'} gains better")
+        console.print(f"{condition}: {'tuned' if better else 'designed'} gains better", markup=False)
     console.print(f"{result.trials} trials, {result.evaluations} scenario runs, {result.wall_s:.0f} s wall time")
+    console.print(f"apply the tuned gains: {set_options(result.tuned)}", markup=False, highlight=False, soft_wrap=True)
+    if paths is not None:
+        console.print(
+            f"trials, comparison and gains in {paths['gains'].parent}; offtrack run {paths['gains']} runs {scenario} "
+            "with them",
+            markup=False,
+            highlight=False,
+        )
 
 
 def main() -> None:

@@ -82,6 +82,9 @@ class TuningResult:
         largest true off-tracking after warm-up [m], saturated fraction and status.
     trials : int
         Optimiser trials run.
+    trial_rows : list of dict
+        One row per trial: ``trial`` (0 is the designed gains), ``kp`` [rad/m], ``ki`` [rad/m²], ``kd`` [rad],
+        ``train_cost`` (mean over the draws; missing for a trial that did not finish) and ``state``.
     evaluations : int
         Scenario runs in all.
     wall_s : float
@@ -94,6 +97,7 @@ class TuningResult:
     train_cost_tuned: float
     held_out: list[dict[str, Any]] = field(default_factory=list)
     trials: int = 0
+    trial_rows: list[dict[str, Any]] = field(default_factory=list)
     evaluations: int = 0
     wall_s: float = 0.0
 
@@ -129,6 +133,7 @@ class TuningResult:
             "held_out": self.held_out,
             "tuned_better": self.verdicts(),
             "trials": self.trials,
+            "trial_rows": self.trial_rows,
             "evaluations": self.evaluations,
             "wall_s": self.wall_s,
         }
@@ -233,6 +238,11 @@ def tune_gains(
         return float(np.mean(costs))
 
     result = TuningResult(designed, tuned, mean_train(designed), mean_train(tuned), trials=len(study.trials))
+    for trial in study.trials:
+        gains = action_to_gains(np.array([trial.params[n] for n in names], dtype=np.float32))
+        cost = None if trial.value is None else float(trial.value)
+        row = {"trial": trial.number, "kp": gains.kp, "ki": gains.ki, "kd": gains.kd, "train_cost": cost}
+        result.trial_rows.append({**row, "state": trial.state.name.lower()})
     for label, options in (HELD_OUT if held_out is None else held_out).items():
         env.reset(seed=seed + 10_000, options={**options, "randomise": None})
         row = {"condition": label}
