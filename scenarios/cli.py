@@ -347,7 +347,8 @@ def compare(
         str,
         typer.Option(
             help=f"Comma-separated feedback sources to compare (default: every registered one, {FEEDBACKS}; the "
-            "viso_ot ones render the camera)."
+            "viso_ot ones render the camera).",
+            show_default=False,
         ),
     ] = ",".join(feedback_sources()),
     duration: Annotated[float | None, typer.Option(help="Stop every run after this many simulated seconds.")] = None,
@@ -355,7 +356,8 @@ def compare(
     out: Annotated[Path | None, typer.Option(help="Output directory (default runs/compare-SCENARIO/…).")] = None,
     force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous files are removed.")] = False,
 ) -> None:
-    """Run every feedback source on the same scenario; write a table and one overlay figure."""
+    """Run each feedback source given (default: every one) on the same scenario; write a table and one overlay
+    figure."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from scenarios.run.results import new_run_dir
