@@ -135,3 +135,30 @@ def test_held_out_table_fits_80_columns_with_a_failed_run() -> None:
     console.print(held_out_table(result))
     text = console.export_text()
     assert max(len(line) for line in text.splitlines()) <= 80 and "diverged" in text and "None" not in text
+
+
+def test_compare_table_says_pass_or_fail_and_fits_80_columns() -> None:
+    from rich.console import Console
+
+    from scenarios.run.summary import MISSING
+    from scenarios.studies.compare import display_table
+    from scenarios.studies.summary import summary_table
+
+    row = {
+        "status": "completed",
+        "true_offtracking_rms_m": 0.012,
+        "true_offtracking_max_m": None,  # a number the run did not produce
+        "max_trailer_steer_deg": 12.3,
+        "saturated_fraction": 0.01,
+        "outer_radius_max_m": 12.1,
+        "inner_radius_min_m": 5.4,
+    }
+    verdicts = {"none": False, "zero_slip": True, "viso_ot_fused": True, "truth": True}
+    table = pd.DataFrame([{"feedback": f, **row, "roundabout_pass": v} for f, v in verdicts.items()])
+    console = Console(width=80, record=True)
+    console.print(summary_table(display_table(table), 80, files=("a.md", "a.csv"), rows="runs", missing=MISSING))
+    text = console.export_text()
+    assert max(len(line) for line in text.splitlines()) <= 80 and "None" not in text
+    lines = text.splitlines()
+    assert any("none" in line and "FAIL" in line for line in lines)
+    assert any("truth" in line and "PASS" in line for line in lines)
