@@ -20,7 +20,7 @@ from ..registry import feedback_sources, source_colour
 from ..run.drive import ProgressCallback
 from ..run.files import write_atomic
 from ..run.plots import save_figure
-from ..run.results import TIMESERIES_FILE
+from ..run.results import TIMESERIES_FILE, check_plot_format, plot_file
 from ..run.runner import run_scenario
 from ..run.swept_path import (
     ZOOM_HALF_WIDTH,
@@ -56,13 +56,15 @@ def compare_feedback(
     out_dir: Path,
     feedbacks: tuple[str, ...] | None = None,
     progress: ProgressCallback | None = None,
+    plot_format: str = "png",
 ) -> pd.DataFrame:
     """Run ``config`` once per feedback source into ``out_dir/<feedback>/``; write the table and the figure.
 
     Writes ``comparison.csv``, ``comparison.md`` and ``comparison.png`` (true off-tracking of every run
     against time, and their swept follow-point paths). ``feedbacks``: default every source of
-    :mod:`scenarios.registry`.
+    :mod:`scenarios.registry`. ``plot_format``: the figure's image format, ``png`` (default), ``svg`` or ``pdf``.
     """
+    plot_format = check_plot_format(plot_format)
     feedbacks = feedback_sources() if feedbacks is None else feedbacks
     configs = {}
     unknown = [f for f in feedbacks if f not in feedback_sources()]
@@ -81,7 +83,7 @@ def compare_feedback(
     table = pd.DataFrame(rows)
     write_atomic(out_dir / "comparison.csv", table.to_csv(index=False))
     write_atomic(out_dir / "comparison.md", table.to_markdown(index=False, floatfmt=".3f"))
-    _plot(out_dir / "comparison.png", config, traces, verdicts)
+    _plot(out_dir / plot_file("comparison.png", plot_format), config, traces, verdicts)
     return table
 
 
