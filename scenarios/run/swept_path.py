@@ -568,8 +568,15 @@ def swept_path_figure(
         draw_vehicle(ax, params, columns, int(k), label=f"t = {times[k]:.1f} s", gid="critical")
         if kind == "offtracking":
             effect = float(columns["offtracking_truth"][k])
-            ax.plot(columns["kingpin_x"], columns["kingpin_y"], color="tab:purple", lw=1.0, label="kingpin path")
-            ax.plot(*point, "o", color="tab:green", ms=6)
+            kingpin = np.column_stack([columns["kingpin_x"], columns["kingpin_y"]])
+            (path_line,) = ax.plot(*kingpin.T, color="tab:purple", lw=1.2, label="kingpin path", zorder=5)
+            (follow,) = ax.plot(*point, "o", color="tab:green", ms=6, label="follow point (↔ e_tr)", zorder=6)
+            near = kingpin[np.nanargmin(np.hypot(*(kingpin - point).T))]
+            arrow = ax.annotate(
+                "", near, xytext=point, arrowprops={"arrowstyle": "<->", "color": "k", "lw": 1.0}, zorder=7
+            )
+            arrow.set_gid("effect")
+            ax.legend(handles=[path_line, follow], loc="lower left", fontsize=7)
             ax.set_title(
                 f"largest true off-tracking: {effect:+.3f} m\nat t = {times[k]:.1f} s (follow point, green)",
                 fontsize=10,
