@@ -6,13 +6,18 @@ What a vehicle engineer reads in an AutoTURN-style swept-path drawing:
   colour (tractor red, trailer blue);
 * the path of the tractor's outer front corner and the trailer's inner path as lines;
 * the combination drawn at a handful of evenly spaced instants, wheels steered as they were;
-* the reference path and, for the UK roundabout test, the 12.50/5.30 m circles with the extreme points
-  marked and labelled with their radii and margins, and the verdict (PASS/FAIL) in the title;
+* the reference path and, for the UK roundabout test, the 12.50 m (outer) and 5.30 m (inner) limit circles in
+  colours of their own, each in the legend and labelled where the run crowds least (outside the outer circle,
+  inside the inner one: off the swept annulus), the extreme points marked and labelled with their radii and
+  margins, and the verdict (PASS/FAIL) in the title (wrapped, never clipped);
 * a zoom panel on each critical point (roundabout test: the tractor's outermost and the trailer's
-  innermost point; other runs: the follow point where the true off-tracking is largest).
+  innermost point; other runs: the follow point where the true off-tracking is largest), sized to the effect it
+  shows (the margin, the off-tracking) and with a scale bar.
 
-Every artist a test looks for carries a ``gid`` (``envelope:tractor``, ``envelope:trailer``,
-``extreme:outer``, ``extreme:inner``, ``instant``), so a figure is checked by what it shows, not by pixels.
+Envelopes are translucent and hatched per unit, so both stay readable where they overlap. Every artist a test
+looks for carries a ``gid`` (``envelope:tractor``, ``envelope:trailer``, ``extreme:outer``, ``extreme:inner``,
+``instant``, ``limit:outer``, ``limit:inner``, ``scale_bar``, ``effect``), so a figure is checked by what it shows,
+not by pixels.
 The drawing primitives (:func:`draw_envelopes`, :func:`draw_vehicle`) are shared by the comparison figure and
 the animation.
 """
