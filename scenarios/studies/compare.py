@@ -18,6 +18,7 @@ from vehicle_model.errors import InputError
 from ..config import ScenarioConfig, validate_config
 from ..registry import feedback_sources, source_colour
 from ..run.drive import ProgressCallback
+from ..run.figure_scale import zoom_half_width, zoom_to
 from ..run.files import write_atomic
 from ..run.metrics import after_warmup, max_abs, rms
 from ..run.plots import save_figure
@@ -29,8 +30,6 @@ from ..run.swept_path import (
     extreme_points,
     inner_trailer_path,
     turn_sign,
-    zoom_half_width,
-    zoom_to,
 )
 from ..setup.build import build_scenario
 
