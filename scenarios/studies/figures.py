@@ -165,7 +165,8 @@ def grid_figure(part: pd.DataFrame, scenario: str):
             grid = grids.get(feedback)
             if grid is None:
                 ax.set_axis_off()
-                ax.text(0.5, 0.5, f"{feedback}: no estimator error", transform=ax.transAxes, ha="center", fontsize=9)
+                what = "no completed case" if row == 0 else "no estimator error"
+                ax.text(0.5, 0.5, f"{feedback}: {what}", transform=ax.transAxes, ha="center", fontsize=9)
                 continue
             image = heat_map(ax, grid, vmax, cmap)
             ax.set_title(f"feedback: {feedback}" if row == 0 else f"{feedback} estimator, in its own loop", fontsize=10)
