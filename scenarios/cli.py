@@ -58,6 +58,7 @@ FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS)
 line and exit 3 all the same."""
 FEEDBACKS = ", ".join(feedback_sources())
 """The feedback choices (:mod:`scenarios.registry`), for the help texts."""
+FORMAT_HELP = "Image format of the plots: png, svg or pdf."
 
 app = typer.Typer(
     help="Tractor–semi-trailer off-tracking co-simulation.",
@@ -200,13 +201,16 @@ def run(
     out: Annotated[Path | None, typer.Option(help="Run directory (default runs/SCENARIO/TIMESTAMP).")] = None,
     force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous run's files are removed.")] = False,
     plots: Annotated[bool, typer.Option(help="Write the plots.")] = True,
+    plot_format: Annotated[str, typer.Option("--format", help=FORMAT_HELP)] = "png",
     check: Annotated[bool, typer.Option(help=CHECK_HELP)] = False,
 ) -> None:
     """Run a scenario: time series, metrics.json and plots in a run directory."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from scenarios.run.results import new_run_dir
+    from scenarios.run.results import check_plot_format, new_run_dir
     from scenarios.run.runner import run_scenario
+
+    plot_format = check_plot_format(plot_format)
 
     pairs = _scenario_pairs(surface, mu, camber, camber_direction, speed, vehicle, direction, seed, feedback, duration)
     config = _load(scenario, _overrides(pairs, surface, mu, set_))
@@ -223,7 +227,11 @@ def run(
     ) as bar:
         task = bar.add_task(escape(config.name), total=1.0, sim_t=0.0)
         metrics = run_scenario(
-            config, run_dir, progress=lambda t, frac: bar.update(task, completed=frac, sim_t=t), plots=plots
+            config,
+            run_dir,
+            progress=lambda t, frac: bar.update(task, completed=frac, sim_t=t),
+            plots=plots,
+            plot_format=plot_format,
         )
     _print_summary(metrics, run_dir)
     _exit_for_status(metrics)
@@ -304,14 +312,21 @@ def _exit_for_status(metrics: dict) -> None:
 def report(
     run_dir: Annotated[Path, typer.Argument(help="A run directory (config.yaml and timeseries.parquet).")],
     plots: Annotated[bool, typer.Option(help="Redraw the plots.")] = True,
+    plot_format: Annotated[str, typer.Option("--format", help=FORMAT_HELP)] = "png",
     check: Annotated[bool, typer.Option(help=CHECK_HELP)] = False,
 ) -> None:
     """Rebuild metrics.json and the plots of a run from its config and time series (e.g. after a kill)."""
     from scenarios.recorded.report import is_recorded_run, rebuild_recorded_report
     from scenarios.run.report import rebuild_report
+    from scenarios.run.results import check_plot_format
 
+    plot_format = check_plot_format(plot_format)
     recorded = is_recorded_run(run_dir)  # offtrack estimate's: recording.yaml for config.yaml
-    metrics = rebuild_recorded_report(run_dir, plots) if recorded else rebuild_report(run_dir, plots=plots)
+    metrics = (
+        rebuild_recorded_report(run_dir, plots, plot_format=plot_format)
+        if recorded
+        else rebuild_report(run_dir, plots=plots, plot_format=plot_format)
+    )
     _print_summary(metrics, run_dir)
     if check and metrics.get("status") == RunStatus.COMPLETED:
         _exit_for_checks(metrics)
@@ -355,17 +370,19 @@ def compare(
     set_: Annotated[list[str] | None, typer.Option("--set", help="Any config field, e.g. --set path.turns=1.")] = None,
     out: Annotated[Path | None, typer.Option(help="Output directory (default runs/compare-SCENARIO/…).")] = None,
     force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous files are removed.")] = False,
+    plot_format: Annotated[str, typer.Option("--format", help=FORMAT_HELP)] = "png",
 ) -> None:
     """Run each feedback source given (default: every one) on the same scenario; write a table and one overlay
     figure."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from scenarios.run.results import new_run_dir
+    from scenarios.run.results import check_plot_format, new_run_dir
     from scenarios.run.summary import MISSING
     from scenarios.studies.compare import compare_feedback, display_table
     from scenarios.studies.summary import summary_table
     from vehicle_model.errors import InputError
 
+    plot_format = check_plot_format(plot_format)
     chosen = tuple(f.strip() for f in feedbacks.split(",") if f.strip())
     unknown = [f for f in chosen if f not in feedback_sources()]
     if not chosen or unknown:
@@ -401,7 +418,7 @@ def compare(
             label = f"{feedback} ({chosen.index(feedback) + 1}/{len(chosen)})"
             bar.update(task, completed=done, sim_t=t, description=escape(label))
 
-        table = compare_feedback(config, run_dir, chosen, progress=progress)
+        table = compare_feedback(config, run_dir, chosen, progress=progress, plot_format=plot_format)
         bar.update(task, completed=1.0)
     files = (str(run_dir / "comparison.md"), str(run_dir / "comparison.csv"))
     title = f"{config.name}: feedback comparison"

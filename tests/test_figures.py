@@ -8,6 +8,8 @@ them all; the reference trailer fails the test (its innermost point enters the 5
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import imageio.v2 as imageio
@@ -23,8 +25,9 @@ from scenarios.config import load_scenario
 from scenarios.export.animation import OfftrackingTrace, animate_run, frame_times
 from scenarios.run.plots import load_run, offtracking_figure, plot_plan_view
 from scenarios.run.runner import run_scenario
-from scenarios.run.swept_path import envelope_samples, swept_path_figure, vehicle_polygons
+from scenarios.run.swept_path import LIMIT_COLOURS, envelope_samples, swept_path_figure, vehicle_polygons
 from scenarios.studies.compare import comparison_figure
+from scenarios.studies.figures import grid_figure
 from scenarios.studies.summary import summary_table
 
 
@@ -133,6 +136,144 @@ def test_comparison_figure_overlays_trailer_envelopes(roundabout_run: Path) -> N
         assert _gids(fig, "extreme:inner:none") and _gids(fig, "extreme:inner:truth")
     finally:
         plt.close(fig)
+
+
+def test_limit_circles_have_their_own_colours_and_labels_off_the_swept_annulus(roundabout_run: Path) -> None:
+    run = load_run(roundabout_run)
+    fig = run.swept_path_figure(instants=2)
+    try:
+        main = fig.axes[0]
+        outer, inner = (next(a for a in main.get_lines() if a.get_gid() == f"limit:{k}") for k in ("outer", "inner"))
+        assert outer.get_color() != inner.get_color()
+        assert (outer.get_color(), inner.get_color()) == (LIMIT_COLOURS["outer"], LIMIT_COLOURS["inner"])
+        centre = np.asarray(run.setup.annulus_centre)
+        for key, line in (("outer", outer), ("inner", inner)):
+            radius = np.hypot(*(line.get_xydata() - centre).T)
+            assert np.allclose(radius, 12.50 if key == "outer" else 5.30)
+            assert f"{radius[0]:.2f} m" in line.get_label()
+        legend = [t.get_text() for t in main.get_legend().get_texts()]
+        assert any("12.50 m" in t for t in legend) and any("5.30 m" in t for t in legend)
+        labels = {a.get_gid(): a for a in main.texts if str(a.get_gid()).startswith("limit:")}
+        assert set(labels) == {"limit:outer:label", "limit:inner:label"}
+        r = {k: np.hypot(*(np.asarray(t.get_position()) - centre)) for k, t in labels.items()}
+        assert r["limit:outer:label"] > 12.50 and r["limit:inner:label"] < 5.30  # off the swept annulus
+    finally:
+        plt.close(fig)
+
+
+def test_a_small_effect_on_a_large_roundabout_gets_a_zoom_of_its_size_and_a_scale_bar(roundabout_run: Path) -> None:
+    run = load_run(roundabout_run)
+    columns = dict(run.columns)
+    columns["offtracking_truth"] = np.where(np.isfinite(columns["offtracking_truth"]), 0.05, np.nan)
+    fig = swept_path_figure(run.params, columns, run.setup.path.points, None, "5 cm of off-tracking", instants=0)
+    try:
+        zoom = fig.axes[1]
+        width = np.diff(zoom.get_xlim())[0]
+        assert 0.05 <= width <= 10 * 0.05  # a window of the effect's size, not the 5 m default
+        bars = [a for a in zoom.get_children() if a.get_gid() == "scale_bar"]
+        assert len(bars) == 1
+        assert bars[0].txt_label.get_text() in ("5 cm", "2 cm", "1 cm")
+    finally:
+        plt.close(fig)
+
+
+def test_a_long_title_is_not_clipped(roundabout_run: Path, tmp_path: Path) -> None:
+    run = load_run(roundabout_run)
+    long_title = run.title + " " + "and a very long remark about the run " * 6
+    fig = swept_path_figure(run.params, run.columns, run.setup.path.points, None, long_title, instants=0)
+    try:
+        fig.savefig(tmp_path / "plan.png", dpi=40, bbox_inches="tight")
+        box = fig._suptitle.get_window_extent(fig.canvas.get_renderer())
+        assert box.x0 >= 0.0 and box.x1 <= fig.bbox.width  # wrapped inside the figure
+        assert "\n" in fig._suptitle.get_text()
+    finally:
+        plt.close(fig)
+
+
+def test_comparison_figure_legend_has_rms_and_puts_a_dominant_unsteered_run_on_its_own_axis(
+    roundabout_run: Path,
+) -> None:
+    run = load_run(roundabout_run)
+    frame = pd.read_parquet(roundabout_run / "timeseries.parquet")
+    steered = frame.copy()
+    steered["offtracking_truth"] = 0.01 * np.sign(frame["offtracking_truth"])  # a run steered to 1 cm
+    steered["X"] += 0.02
+    peak = np.nanmax(np.abs(frame["offtracking_truth"]))
+    assert peak > 5 * 0.01  # the unsteered run dominates
+    fig = comparison_figure(run.config, {"none": frame, "truth": steered}, {"none": run.metrics["roundabout_test"]})
+    try:
+        lines = {a.get_gid(): a for a in _gids(fig, "offtracking:")}
+        assert set(lines) == {"offtracking:none", "offtracking:truth"}
+        assert lines["offtracking:none"].axes is not lines["offtracking:truth"].axes  # its own (twin) axis
+        labels = [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+        for feedback in ("none", "truth"):
+            assert any(t.startswith(feedback) and "RMS" in t and " m" in t for t in labels), feedback
+        zoom = next(ax for ax in fig.axes if _gids_in(ax, "envelope:trailer:"))
+        assert zoom.get_legend() is not None and np.diff(zoom.get_xlim())[0] < 20.0  # no 100 m plan view
+        assert any(a.get_gid() == "scale_bar" for a in zoom.get_children())
+    finally:
+        plt.close(fig)
+    fig = comparison_figure(run.config, {"truth": steered, "zero_slip": steered})
+    try:
+        lines = _gids(fig, "offtracking:")
+        assert len({line.axes for line in lines}) == 1  # nothing dominates: one axis
+    finally:
+        plt.close(fig)
+
+
+def _gids_in(ax, prefix: str) -> list:
+    return [a for a in ax.get_children() if str(a.get_gid() or "").startswith(prefix)]
+
+
+def test_heat_maps_mark_the_target_show_mu_and_do_not_clip_the_largest_cell() -> None:
+    table = _study_table()
+    part = table[table["scenario"] == "roundabout-3"].copy()
+    part.loc[part.index[3], "true_offtracking_rms_after_warmup_m"] = 0.9  # one cell far above the rest
+    fig = grid_figure(part, "roundabout-3")
+    try:
+        targets = _gids(fig, "target")
+        assert targets and all(t.get_gid() in ("target", "target:colorbar") for t in targets)
+        images = [im for ax in fig.axes for im in ax.get_images()]
+        top = images[: len(part["feedback"].unique())]
+        assert max(im.norm.vmax for im in top) >= 0.9
+        rows = [t.get_text() for t in fig.axes[0].get_yticklabels()]
+        assert rows[0] == "dry (μ 0.80)" and rows[-1] == "ice (μ 0.10)"
+        titles = [ax.get_title() for ax in fig.axes]
+        assert any("estimator" in t for t in titles)  # the estimator-error maps beside the closed loop's
+        for ax in fig.axes[: len(top)]:  # outlined cells are those within the target
+            for rect in _gids_in(ax, "target"):
+                i, j = round(rect.get_y() + 0.5), round(rect.get_x() + 0.5)
+                assert ax.get_images()[0].get_array()[i, j] <= 0.10
+    finally:
+        plt.close(fig)
+
+
+def _offtrack(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-c", "from scenarios.cli import main; main()", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+
+
+def test_format_svg_writes_svg_plots_and_a_bad_format_exits_2(tmp_path: Path) -> None:
+    for command in (["run", "roundabout-test"], ["report", str(tmp_path)], ["compare", "roundabout-test"]):
+        bad = _offtrack(*command, "--format", "jpg", "--out", str(tmp_path / "bad"))
+        if command[0] == "report":
+            bad = _offtrack(*command, "--format", "jpg")
+        assert bad.returncode == 2, command
+        lines = bad.stderr.strip().splitlines()
+        assert len(lines) == 1 and "--format" in lines[0] and "png, svg or pdf" in lines[0]
+        assert not (tmp_path / "bad").exists()  # refused before any work
+    out = tmp_path / "svg"
+    ran = _offtrack("run", "roundabout-test", "--duration", "3", "--format", "svg", "--out", str(out))
+    assert ran.returncode == 0, ran.stdout + ran.stderr
+    assert (out / "plan_view.svg").read_text().lstrip().startswith(("<?xml", "<svg"))
+    assert (out / "offtracking.svg").is_file() and not list(out.glob("*.png"))
+    again = _offtrack("report", str(out), "--format", "pdf")
+    assert again.returncode == 0, again.stdout + again.stderr
+    assert (out / "plan_view.pdf").read_bytes().startswith(b"%PDF") and (out / "offtracking.pdf").is_file()
 
 
 def test_animation_has_the_expected_frames_and_size(roundabout_run: Path, tmp_path: Path) -> None:

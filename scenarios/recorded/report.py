@@ -27,7 +27,7 @@ from ..loop.ends import RunStatus
 from ..run.files import jsonable, write_atomic
 from ..run.metrics import after_warmup, compute_metrics, estimator_names
 from ..run.report import INCOMPLETE_MESSAGE
-from ..run.results import PLOT_FILES, read_metrics, read_timeseries, write_metrics
+from ..run.results import plot_files, read_metrics, read_timeseries, write_metrics
 from ..yaml_input import load_yaml
 from .rig import rig_from_fields
 
@@ -101,7 +101,7 @@ def _vo_rpe(columns: dict[str, np.ndarray]) -> dict[str, Any] | None:
 
 
 def write_recorded_report(
-    run_dir: Path, record: dict[str, Any], run: dict[str, Any], *, plots: bool = True
+    run_dir: Path, record: dict[str, Any], run: dict[str, Any], *, plots: bool = True, plot_format: str = "png"
 ) -> dict[str, Any]:
     """Compute a recorded run's metrics from its time series, write ``metrics.json`` and (``plots``) the plots.
 
@@ -115,6 +115,8 @@ def write_recorded_report(
         How the run went: ``status``, ``message``, ``wall_time_s``, ``recording`` (and anything else to record).
     plots : bool
         Draw ``offtracking.png`` and ``plan_view.png`` (with two rows or more).
+    plot_format : str
+        Their image format: ``png`` (default), ``svg`` or ``pdf``.
 
     Returns
     -------
@@ -139,14 +141,16 @@ def write_recorded_report(
         from .plots import plot_recorded_plan_view
 
         title = recorded_run_title(record)
-        plot_recorded_plan_view(run_dir / PLOT_FILES[0], params, columns, title)
+        plan_file, offtracking_file = plot_files(plot_format)
+        plot_recorded_plan_view(run_dir / plan_file, params, columns, title)
         settled = after_warmup(columns, params.follow_point_offset) if "kingpin_x" in columns else None
-        plot_offtracking(run_dir / PLOT_FILES[1], columns, names, title, settled=settled)
+        plot_offtracking(run_dir / offtracking_file, columns, names, title, settled=settled)
     return metrics
 
 
-def rebuild_recorded_report(run_dir: Path, plots: bool = True) -> dict[str, Any]:
-    """``offtrack report`` on a recorded run: ``metrics.json`` and the plots again from the directory alone.
+def rebuild_recorded_report(run_dir: Path, plots: bool = True, *, plot_format: str = "png") -> dict[str, Any]:
+    """``offtrack report`` on a recorded run: ``metrics.json`` and the plots (in ``plot_format``) again from the
+    directory alone.
 
     The status, message, wall time and the recording's summary the run wrote are kept; a run killed before it wrote
     them is ``incomplete``.
@@ -159,7 +163,7 @@ def rebuild_recorded_report(run_dir: Path, plots: bool = True) -> dict[str, Any]
     else:
         run = {key: recorded.get(key) for key in ("status", "message", "wall_time_s", "recording")}
     run["rebuilt_at"] = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
-    return write_recorded_report(run_dir, record, run, plots=plots)
+    return write_recorded_report(run_dir, record, run, plots=plots, plot_format=plot_format)
 
 
 def recording_lines(metrics: dict[str, Any], limit: int = 10) -> list[str]:

@@ -118,7 +118,7 @@ def plot_plan_view(
         turn_span=turn_span,
         instants=instants,
     )
-    save_figure(fig, path, dpi=dpi)
+    save_figure(fig, path, dpi=dpi, bbox_inches="tight")
     return fig
 
 

@@ -24,7 +24,7 @@ import numpy as np
 from ..config import ScenarioConfig
 from ..loop.ends import RunStatus
 from .metrics import after_warmup, compute_metrics, estimator_names
-from .results import PLOT_FILES, read_config, read_metrics, read_timeseries, write_metrics
+from .results import plot_files, read_config, read_metrics, read_timeseries, write_metrics
 from .stopping import deferred_stops, raise_pending_stop, stop_message, stop_signal_name
 
 if TYPE_CHECKING:
@@ -79,6 +79,8 @@ def write_report(
     columns: dict[str, np.ndarray],
     run: dict[str, Any],
     plots: bool = True,
+    *,
+    plot_format: str = "png",
 ) -> dict[str, Any]:
     """Compute a run's metrics, write ``metrics.json`` and (``plots``, two rows or more) the plots.
 
@@ -97,6 +99,8 @@ def write_report(
         ``columns``.
     plots
         Draw ``plan_view.png`` and ``offtracking.png``.
+    plot_format
+        Their image format: ``png`` (default), ``svg`` or ``pdf`` (the suffix of the file names).
 
     Returns
     -------
@@ -119,8 +123,9 @@ def write_report(
         from .plots import plot_offtracking, plot_plan_view, run_title  # matplotlib only when plots are drawn
 
         title = run_title(config)
+        plan_file, offtracking_file = plot_files(plot_format)
         plot_plan_view(
-            run_dir / PLOT_FILES[0],
+            run_dir / plan_file,
             setup.params,
             columns,
             setup.path.points,
@@ -130,7 +135,7 @@ def write_report(
             turn_span=setup.path.turn_span,
         )
         plot_offtracking(
-            run_dir / PLOT_FILES[1],
+            run_dir / offtracking_file,
             columns,
             names,
             title,
@@ -140,7 +145,7 @@ def write_report(
     return metrics
 
 
-def rebuild_report(run_dir: Path, plots: bool = True) -> dict[str, Any]:
+def rebuild_report(run_dir: Path, plots: bool = True, *, plot_format: str = "png") -> dict[str, Any]:
     """Rebuild ``metrics.json`` and the plots of a run from its ``config.yaml`` and time series alone.
 
     A run that wrote its metrics keeps the status, message, wall time and stop it recorded; one that did
@@ -153,6 +158,8 @@ def rebuild_report(run_dir: Path, plots: bool = True) -> dict[str, Any]:
         The run directory.
     plots
         Also redraw the plots (with two rows or more).
+    plot_format
+        Their image format: ``png`` (default), ``svg`` or ``pdf``.
 
     Returns
     -------
@@ -181,4 +188,4 @@ def rebuild_report(run_dir: Path, plots: bool = True) -> dict[str, Any]:
     else:
         run = {key: recorded.get(key) for key in RUN_FIELDS if key != "rows"}
     run["rebuilt_at"] = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
-    return write_report(run_dir, build_scenario(config), columns, run, plots)
+    return write_report(run_dir, build_scenario(config), columns, run, plots, plot_format=plot_format)

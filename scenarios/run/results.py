@@ -56,7 +56,9 @@ TIMESERIES_FILE = "timeseries.parquet"
 METRICS_FILE = "metrics.json"
 CONFIG_FILE = "config.yaml"
 PLOT_FILES = ("plan_view.png", "offtracking.png")
-"""The plots of a run (:mod:`scenarios.run.report`)."""
+"""The plots of a run (:mod:`scenarios.run.report`), in the default format."""
+PLOT_FORMATS = ("png", "svg", "pdf")
+"""The image formats a command writes its plots in (``--format``); the first is the default."""
 
 FLUSH_ROWS = 500
 """A :class:`TimeSeriesWriter` writes a part file at least every this many rows …"""
@@ -99,7 +101,8 @@ RUN_FILES = frozenset(
         "timeseries.mat",
     }
 )
-"""Files offtrack writes into an output directory (besides ``*.png`` and the directories below)."""
+"""Files offtrack writes into an output directory (besides its plots, ``*.png``/``.svg``/``.pdf``, and the
+directories below)."""
 
 _PART = re.compile(r"part-\d+\.parquet")
 _CASE_FILE = re.compile(r"[^/]+\.json|\..+\.running")
@@ -113,6 +116,31 @@ _OWNED_DIRS: dict[str, re.Pattern[str]] = {
 """Directories offtrack writes, with the names of the files it puts in them."""
 _RUN_MARKERS = (CONFIG_FILE, METRICS_FILE, TIMESERIES_FILE)
 """A subdirectory holding one of these is the run directory of a study's case or of a compared feedback."""
+
+
+def check_plot_format(plot_format: str, option: str = "--format") -> str:
+    """The plot format ``plot_format`` (one of :data:`PLOT_FORMATS`, any case), checked before any work.
+
+    Raises
+    ------
+    InputError
+        One line naming ``option`` and the allowed values.
+    """
+    fmt = str(plot_format).strip().lower().lstrip(".")
+    if fmt not in PLOT_FORMATS:
+        raise InputError(f"{option} {plot_format!r}: choose {', '.join(PLOT_FORMATS[:-1])} or {PLOT_FORMATS[-1]}")
+    return fmt
+
+
+def plot_files(plot_format: str = PLOT_FORMATS[0]) -> tuple[str, ...]:
+    """The names of a run's plots (:data:`PLOT_FILES`) in ``plot_format`` (``png``, ``svg`` or ``pdf``)."""
+    fmt = check_plot_format(plot_format)
+    return tuple(str(Path(name).with_suffix(f".{fmt}")) for name in PLOT_FILES)
+
+
+def plot_file(name: str, plot_format: str = PLOT_FORMATS[0]) -> str:
+    """``name`` (e.g. ``comparison.png``) with the suffix of ``plot_format``."""
+    return str(Path(name).with_suffix(f".{check_plot_format(plot_format)}"))
 
 
 # --------------------------------------------------------------------------------- output directories
@@ -186,7 +214,7 @@ def _owned(entry: Path, top: bool) -> bool:
     if entry.is_symlink():
         return False
     if entry.is_file():
-        return name in RUN_FILES or name.endswith(".png")
+        return name in RUN_FILES or name.endswith(tuple(f".{fmt}" for fmt in PLOT_FORMATS))
     if not entry.is_dir():
         return False
     children = list(entry.iterdir())

@@ -11,7 +11,7 @@ from ..loop.participant import TrailerSteerSource
 from ..setup.build import build_scenario
 from .drive import ProgressCallback, run_loop
 from .report import mark_interrupted, mark_running, write_report
-from .results import PLOT_FILES, TIMESERIES_FILE, TimeSeriesWriter, write_config
+from .results import PLOT_FORMATS, TIMESERIES_FILE, TimeSeriesWriter, check_plot_format, plot_files, write_config
 from .stopping import stop_behind
 
 if TYPE_CHECKING:
@@ -27,6 +27,7 @@ def run_scenario(
     trailer_steer_source: TrailerSteerSource | None = None,
     plots: bool = True,
     model: VehicleModel | None = None,
+    plot_format: str = "png",
 ) -> dict[str, Any]:
     """Simulate ``config`` and write ``config.yaml``, ``timeseries.parquet``, ``metrics.json`` and the plots.
 
@@ -51,14 +52,18 @@ def run_scenario(
     model
         A built vehicle model of ``config.vehicle`` to use (e.g. one shared by many runs through a
         :class:`~scenarios.setup.models.ModelRegistry`); default: build one.
+    plot_format
+        Image format of the plots: ``png`` (default), ``svg`` or ``pdf``.
 
     Returns
     -------
     dict
         The content of ``metrics.json``.
     """
-    for name in PLOT_FILES:  # never leave an earlier run's plots beside this run's metrics
-        (run_dir / name).unlink(missing_ok=True)
+    plot_format = check_plot_format(plot_format)
+    for fmt in PLOT_FORMATS:  # never leave an earlier run's plots (in any format) beside this run's metrics
+        for name in plot_files(fmt):
+            (run_dir / name).unlink(missing_ok=True)
     # First of all, so that a run killed at any moment leaves a readable (perhaps empty) series.
     writer = TimeSeriesWriter(run_dir / TIMESERIES_FILE, columns=[])
     try:  # a stop from here until the co-simulation runs still leaves a metrics.json that says so
@@ -81,7 +86,7 @@ def run_scenario(
         "stop_time": outcome.stop_time,
         "stop_signal": outcome.stop_signal,
     }
-    return write_report(run_dir, setup, columns, run, plots)
+    return write_report(run_dir, setup, columns, run, plots, plot_format=plot_format)
 
 
 def _cosimulation(setup: ScenarioSetup, source: TrailerSteerSource | None, writer: TimeSeriesWriter) -> CoSimulation:

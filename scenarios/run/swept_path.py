@@ -6,13 +6,18 @@ What a vehicle engineer reads in an AutoTURN-style swept-path drawing:
   colour (tractor red, trailer blue);
 * the path of the tractor's outer front corner and the trailer's inner path as lines;
 * the combination drawn at a handful of evenly spaced instants, wheels steered as they were;
-* the reference path and, for the UK roundabout test, the 12.50/5.30 m circles with the extreme points
-  marked and labelled with their radii and margins, and the verdict (PASS/FAIL) in the title;
+* the reference path and, for the UK roundabout test, the 12.50 m (outer) and 5.30 m (inner) limit circles in
+  colours of their own, each in the legend and labelled where the run crowds least (outside the outer circle,
+  inside the inner one: off the swept annulus), the extreme points marked and labelled with their radii and
+  margins, and the verdict (PASS/FAIL) in the title (wrapped, never clipped);
 * a zoom panel on each critical point (roundabout test: the tractor's outermost and the trailer's
-  innermost point; other runs: the follow point where the true off-tracking is largest).
+  innermost point; other runs: the follow point where the true off-tracking is largest), sized to the effect it
+  shows (the margin, the off-tracking) and with a scale bar.
 
-Every artist a test looks for carries a ``gid`` (``envelope:tractor``, ``envelope:trailer``,
-``extreme:outer``, ``extreme:inner``, ``instant``), so a figure is checked by what it shows, not by pixels.
+Envelopes are translucent and hatched per unit, so both stay readable where they overlap. Every artist a test
+looks for carries a ``gid`` (``envelope:tractor``, ``envelope:trailer``, ``extreme:outer``, ``extreme:inner``,
+``instant``, ``limit:outer``, ``limit:inner``, ``scale_bar``, ``effect``), so a figure is checked by what it shows,
+not by pixels.
 The drawing primitives (:func:`draw_envelopes`, :func:`draw_vehicle`) are shared by the comparison figure and
 the animation.
 """
@@ -27,6 +32,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
 from matplotlib.patches import PathPatch, Polygon
 from matplotlib.path import Path as MplPath
@@ -34,12 +40,15 @@ from matplotlib.path import Path as MplPath
 from vehicle_model.geometry import tractor_outline, tractor_points, trailer_outline, trailer_points
 from vehicle_model.parameters import VehicleParams
 
+from .figure_scale import wrap_title, zoom_half_width, zoom_to
 from .metrics import ROUNDABOUT_INNER_RADIUS, ROUNDABOUT_OUTER_RADIUS, roundabout_verdict
 
 TRACTOR_COLOUR = "tab:red"
 TRAILER_COLOUR = "tab:blue"
-ZOOM_HALF_WIDTH = 2.5
-"""Half the side of a zoom panel [m]."""
+LIMIT_COLOURS = {"outer": "darkorange", "inner": "darkviolet"}
+"""Colours of the roundabout test's outer (12.50 m) and inner (5.30 m) limit circles."""
+HATCHES = {"tractor": "\\\\\\", "trailer": "///"}
+"""Hatching of each unit's envelope: where the two overlap both patterns show."""
 
 
 # ----------------------------------------------------------------------------------------------- geometry
@@ -204,13 +213,16 @@ def draw_envelopes(
     label: str = "{unit} swept envelope",
     gid: str = "envelope:{unit}",
     spacing: float = ENVELOPE_SPACING,
+    hatches: dict[str, str | None] | None = None,
 ) -> dict[str, PathPatch]:
     """Shade the swept envelope of each unit (``tractor``, ``trailer``) in its own colour; return the patches.
 
     ``spacing`` is the outline spacing of :func:`envelope_samples`; the patches carry ``gid`` (``{unit}``
-    filled in) for tests.
+    filled in) for tests. The face is translucent (``alpha``) and hatched in the unit's colour (``hatches``,
+    default :data:`HATCHES`; None for none), so that overlapping envelopes stay apart.
     """
     colours = {"tractor": TRACTOR_COLOUR, "trailer": TRAILER_COLOUR, **(colours or {})}
+    hatches = {**HATCHES, **(hatches or {})}
     x, y, psi1, gamma = columns["X"], columns["Y"], columns["psi1"], columns["gamma"]
     outlines = {
         "tractor": lambda: tractor_outline(params, x, y, psi1),
@@ -220,9 +232,11 @@ def draw_envelopes(
     for unit in units:
         patch = PathPatch(
             envelope_path(outlines[unit](), spacing),
-            facecolor=colours[unit],
+            facecolor=to_rgba(colours[unit], alpha),
             edgecolor="none",
-            alpha=alpha,
+            hatch=hatches.get(unit),
+            hatchcolor=to_rgba(colours[unit], min(1.0, 2.0 * alpha)),
+            lw=0.0,
             label=label.format(unit=unit),
             zorder=1,
         )
@@ -294,12 +308,75 @@ def draw_vehicle(
     return patches
 
 
-def draw_circles(ax: Axes, centre: tuple[float, float]) -> None:
-    """The roundabout test's 12.50 m and 5.30 m circles."""
+def free_angle(centre: tuple[float, float], points: np.ndarray, avoid: list[np.ndarray] | tuple = ()) -> float:
+    """The direction [rad] from ``centre`` least crowded by ``points`` ``(n, 2)`` and farthest from ``avoid``.
+
+    Where a label on a circle about ``centre`` collides with nothing the run drew: candidates every 10°, the
+    fewest points within ±20°, ties broken by the largest angle to the directions of ``avoid`` (points).
+    """
+    c = np.asarray(centre, dtype=float)
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    candidates = np.radians(np.arange(0.0, 360.0, 10.0))
+    angles = np.arctan2(pts[:, 1] - c[1], pts[:, 0] - c[0])
+
+    def gap(a: np.ndarray, b: float) -> np.ndarray:
+        return np.abs((a - b + np.pi) % (2.0 * np.pi) - np.pi)
+
+    crowd = np.array([np.count_nonzero(gap(angles, a) < np.radians(20.0)) for a in candidates])
+    away = [np.arctan2(p[1] - c[1], p[0] - c[0]) for p in (np.asarray(q, dtype=float) for q in avoid)]
+    spread = np.array([min((gap(np.array([a]), b)[0] for b in away), default=np.pi) for a in candidates])
+    best = np.lexsort((-spread, crowd))[0]
+    return float(candidates[best])
+
+
+def draw_circles(
+    ax: Axes, centre: tuple[float, float], label_angle: float | None = None, *, fontsize: float = 8
+) -> dict[str, Any]:
+    """The roundabout test's 12.50 m (outer) and 5.30 m (inner) circles, each in its colour with its label.
+
+    Lines carry the ``gid`` ``limit:outer`` and ``limit:inner`` and a legend label. With ``label_angle`` [rad]
+    each circle is also labelled in place at that direction: the outer one just outside it, the inner one just
+    inside it, so that neither label sits on the swept annulus between them (``limit:outer:label``,
+    ``limit:inner:label``).
+    """
     a = np.linspace(0.0, 2.0 * np.pi, 721)
-    for radius, label in ((ROUNDABOUT_OUTER_RADIUS, "12.50 m circle"), (ROUNDABOUT_INNER_RADIUS, "5.30 m circle")):
-        ax.plot(centre[0] + radius * np.cos(a), centre[1] + radius * np.sin(a), "k-", lw=1.3, zorder=2, label=label)
+    lines: dict[str, Any] = {}
+    for key, radius, words in (
+        ("outer", ROUNDABOUT_OUTER_RADIUS, "tractor stays inside"),
+        ("inner", ROUNDABOUT_INNER_RADIUS, "trailer stays outside"),
+    ):
+        colour = LIMIT_COLOURS[key]
+        (line,) = ax.plot(
+            centre[0] + radius * np.cos(a),
+            centre[1] + radius * np.sin(a),
+            color=colour,
+            lw=1.5,
+            ls="-" if key == "outer" else (0, (6, 2)),
+            zorder=5,  # over the vehicle drawn at the critical instant
+            label=f"{key} limit {radius:.2f} m ({words})",
+        )
+        line.set_gid(f"limit:{key}")
+        lines[key] = line
+        if label_angle is not None:
+            direction = np.array([np.cos(label_angle), np.sin(label_angle)])
+            offset = 0.4 if key == "outer" else -0.4
+            at = np.asarray(centre) + (radius + offset) * direction
+            sense = direction if key == "outer" else -direction  # text extends away from the swept annulus
+            text = ax.text(
+                *at,
+                f"{radius:.2f} m",
+                color=colour,
+                fontsize=fontsize,
+                fontweight="bold",
+                ha="left" if sense[0] > 0.3 else "right" if sense[0] < -0.3 else "center",
+                va="bottom" if sense[1] > 0.3 else "top" if sense[1] < -0.3 else "center",
+                zorder=8,
+                bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8},
+            )
+            text.set_gid(f"limit:{key}:label")
     ax.plot(*centre, "k+", ms=8, zorder=2)
+    return lines
 
 
 def _draw_paths(ax: Axes, params: VehicleParams, columns: dict, reference: np.ndarray, centre, sign: int) -> None:
@@ -415,31 +492,46 @@ def swept_path_figure(
         truth = np.abs(np.nan_to_num(np.asarray(columns["offtracking_truth"], dtype=float)))
         k = int(np.argmax(truth)) if n else 0
         focus = [("offtracking", k, np.array([columns["follow_x"][k], columns["follow_y"][k]]))]
+    label_angle = None
+    if ext is not None:
+        track = np.column_stack([columns["X"], columns["Y"]])
+        label_angle = free_angle(annulus_centre, track, [ext["outer_point"], ext["inner_point"]])
     for ax in (main, *zooms):
         draw_envelopes(ax, params, columns)
         _draw_paths(ax, params, columns, reference, annulus_centre, sign)
         if annulus_centre is not None:
-            draw_circles(ax, annulus_centre)
+            draw_circles(ax, annulus_centre, label_angle if ax is main else None)
     times = np.asarray(columns["time"], dtype=float)
     for k in instant_indices(n, instants):
         draw_vehicle(main, params, columns, int(k), label=f"t = {times[k]:.0f} s")
     for ax, (kind, k, point) in zip(zooms, focus, strict=True):
         draw_vehicle(ax, params, columns, int(k), label=f"t = {times[k]:.1f} s", gid="critical")
         if kind == "offtracking":
-            ax.plot(columns["kingpin_x"], columns["kingpin_y"], color="tab:purple", lw=1.0, label="kingpin path")
-            ax.plot(*point, "o", color="tab:green", ms=6)
-            ax.set_title(f"largest true off-tracking: {columns['offtracking_truth'][k]:+.3f} m at t = {times[k]:.1f} s")
+            effect = float(columns["offtracking_truth"][k])
+            kingpin = np.column_stack([columns["kingpin_x"], columns["kingpin_y"]])
+            (path_line,) = ax.plot(*kingpin.T, color="tab:purple", lw=1.2, label="kingpin path", zorder=5)
+            (follow,) = ax.plot(*point, "o", color="tab:green", ms=6, label="follow point (↔ e_tr)", zorder=6)
+            near = kingpin[np.nanargmin(np.hypot(*(kingpin - point).T))]
+            arrow = ax.annotate(
+                "", near, xytext=point, arrowprops={"arrowstyle": "<->", "color": "k", "lw": 1.0}, zorder=7
+            )
+            arrow.set_gid("effect")
+            ax.legend(handles=[path_line, follow], loc="lower left", fontsize=7)
+            ax.set_title(
+                f"largest true off-tracking: {effect:+.3f} m\nat t = {times[k]:.1f} s (follow point, green)",
+                fontsize=10,
+            )
         else:
+            effect = float(ext[f"{kind}_margin"])  # the distance from the point to its limit circle
             ax.set_title(f"{'tractor outermost' if kind == 'outer' else 'trailer innermost'} point", fontsize=10)
-        ax.set_xlim(point[0] - ZOOM_HALF_WIDTH, point[0] + ZOOM_HALF_WIDTH)
-        ax.set_ylim(point[1] - ZOOM_HALF_WIDTH, point[1] + ZOOM_HALF_WIDTH)
+        zoom_to(ax, point, zoom_half_width(effect))
     if ext is not None:
         for ax in (main, *zooms):
             _mark_extremes(ax, annulus_centre, ext, zoom=None if ax is main else focus[zooms.index(ax)][0])
         verdict = verdict_line(ext)
-        fig.suptitle(f"{title}\n{verdict}" if title else verdict, color="k" if ext["pass"] else "darkred")
+        fig.suptitle(wrap_title(f"{title}\n{verdict}" if title else verdict), color="k" if ext["pass"] else "darkred")
     elif title:
-        fig.suptitle(title)
+        fig.suptitle(wrap_title(title))
     main.autoscale_view()
     for ax in (main, *zooms):
         ax.set_aspect("equal", adjustable="datalim" if ax is main else "box")

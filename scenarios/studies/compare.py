@@ -19,12 +19,13 @@ from vehicle_model.errors import InputError
 from ..config import ScenarioConfig, validate_config
 from ..registry import feedback_sources, source_colour
 from ..run.drive import ProgressCallback
+from ..run.figure_scale import zoom_half_width, zoom_to
 from ..run.files import write_atomic
+from ..run.metrics import after_warmup, max_abs, rms
 from ..run.plots import save_figure
-from ..run.results import TIMESERIES_FILE
+from ..run.results import TIMESERIES_FILE, check_plot_format, plot_file
 from ..run.runner import run_scenario
 from ..run.swept_path import (
-    ZOOM_HALF_WIDTH,
     draw_circles,
     draw_envelopes,
     extreme_points,
@@ -60,11 +61,12 @@ def compare_feedback(
     out_dir: Path,
     feedbacks: tuple[str, ...] | None = None,
     progress: CompareProgress | None = None,
+    plot_format: str = "png",
 ) -> pd.DataFrame:
     """Run ``config`` once per feedback source into ``out_dir/<feedback>/``; write the table and the figure.
 
-    Writes ``comparison.csv``, ``comparison.md`` and ``comparison.png`` (true off-tracking of every run
-    against time, and their swept follow-point paths).
+    Writes ``comparison.csv``, ``comparison.md`` and ``comparison.png`` (:func:`comparison_figure`: true
+    off-tracking of every run against time, and a zoom where their trailer envelopes differ).
 
     Parameters
     ----------
@@ -76,12 +78,15 @@ def compare_feedback(
         Feedback sources to run, in order (default every source of :mod:`scenarios.registry`).
     progress
         Told the progress of the runs (:data:`CompareProgress`).
+    plot_format
+        The figure's image format: ``png`` (default), ``svg`` or ``pdf``.
 
     Returns
     -------
     pandas.DataFrame
         One row per run (:func:`summary_row`).
     """
+    plot_format = check_plot_format(plot_format)
     feedbacks = feedback_sources() if feedbacks is None else feedbacks
     configs = {}
     unknown = [f for f in feedbacks if f not in feedback_sources()]
@@ -101,7 +106,7 @@ def compare_feedback(
     table = pd.DataFrame(rows)
     write_atomic(out_dir / "comparison.csv", table.to_csv(index=False))
     write_atomic(out_dir / "comparison.md", table.to_markdown(index=False, floatfmt=".3f"))
-    _plot(out_dir / "comparison.png", config, traces, verdicts)
+    _plot(out_dir / plot_file("comparison.png", plot_format), config, traces, verdicts)
     return table
 
 
@@ -114,6 +119,55 @@ def _share(progress: CompareProgress, feedback: str, rank: int, runs: int) -> Pr
     return told
 
 
+DOMINANCE = 5.0
+"""The unsteered run's off-tracking gets its own axis when its largest magnitude is this many times the others'."""
+
+
+def dominant_feedback(peaks: dict[str, float], candidate: str = "none", factor: float = DOMINANCE) -> bool:
+    """Whether ``candidate``'s peak off-tracking is more than ``factor`` × the largest of the others' ``peaks``."""
+    others = [abs(v) for fb, v in peaks.items() if fb != candidate and np.isfinite(v)]
+    if candidate not in peaks or not others or not np.isfinite(peaks[candidate]):
+        return False
+    return abs(peaks[candidate]) > factor * max(max(others), 1e-9)
+
+
+def widest_spread(paths: dict[str, tuple[np.ndarray, np.ndarray]], samples: int = 400) -> tuple[np.ndarray, float]:
+    """Where paths driven along the same reference lie farthest apart, and how far.
+
+    Parameters
+    ----------
+    paths
+        By run: ``(s (n,), points (n, 2))``, the arc length along the reference and the path's points.
+    samples
+        Arc-length samples over the span all runs covered.
+
+    Returns
+    -------
+    tuple
+        The paths' mean point where their spread (largest distance of a path from that mean) is largest, and
+        that spread [m]; with fewer than two paths, the first path's last point and 0.
+    """
+    usable = {}
+    for key, (s, pts) in paths.items():
+        s, pts = np.asarray(s, dtype=float), np.asarray(pts, dtype=float)
+        ok = np.isfinite(s) & np.all(np.isfinite(pts), axis=1)
+        if ok.sum() >= 2:
+            usable[key] = (np.maximum.accumulate(s[ok]), pts[ok])
+    if len(usable) < 2:
+        first = next(iter(usable.values()), (np.zeros(1), np.zeros((1, 2))))
+        return first[1][-1], 0.0
+    lo = max(s[0] for s, _ in usable.values())
+    hi = min(s[-1] for s, _ in usable.values())
+    grid = np.linspace(lo, hi, samples) if hi > lo else np.array([lo])
+    stack = np.stack(
+        [np.column_stack([np.interp(grid, s, p[:, 0]), np.interp(grid, s, p[:, 1])]) for s, p in usable.values()]
+    )
+    mean = stack.mean(axis=0)
+    spread = np.linalg.norm(stack - mean, axis=-1).max(axis=0)
+    k = int(np.argmax(spread))
+    return mean[k], float(spread[k])
+
+
 def comparison_figure(
     config: ScenarioConfig,
     traces: dict[str, pd.DataFrame],
@@ -121,12 +175,15 @@ def comparison_figure(
 ) -> Figure:
     """The steered and unsteered runs of one manoeuvre overlaid; the caller saves and closes the figure.
 
-    Left: true off-tracking of every run against time, with the ±0.10/0.15 m bands. Middle: swept-path plan
-    view: the tractor's envelope (first run, grey) and every run's trailer envelope shaded in its feedback's
-    colour (artist ``gid`` ``envelope:trailer:<feedback>``) with its innermost trailer path as a line, the
-    reference path and, for the roundabout test, the 12.50/5.30 m circles with each run's innermost trailer
-    point marked, labelled with its radius, margin and verdict. Right: a zoom on the critical point (the
-    innermost trailer point of the worst run; otherwise the largest true off-tracking).
+    Left: true off-tracking of every run against time (``gid`` ``offtracking:<feedback>``), with the ±0.10/0.15 m
+    bands and each run's RMS after warm-up in the legend; the unsteered run (``none``) on its own right-hand axis
+    when it would flatten the others (:func:`dominant_feedback`). Right: a zoom, scaled to the difference it
+    shows and with a scale bar, where the runs' trailer envelopes differ: the tractor's envelope (first run,
+    grey) and every run's trailer envelope shaded in its feedback's colour (``envelope:trailer:<feedback>``) with
+    its innermost trailer path as a line, and a legend. Roundabout test: the zoom is on the runs' innermost trailer
+    points (``extreme:inner:<feedback>``), labelled with radius and margin, beside the 12.50/5.30 m circles, and the
+    verdicts head the figure; otherwise it is where the steered runs' inner trailer paths lie farthest apart
+    (all runs' if fewer than two steered).
 
     Parameters
     ----------
@@ -139,8 +196,8 @@ def comparison_figure(
     """
     setup = build_scenario(config)
     params, centre = setup.params, setup.annulus_centre
-    fig = plt.figure(figsize=(17, 6.2), layout="constrained")
-    top, plan, zoom = fig.subplots(1, 3, width_ratios=[1.35, 1.15, 0.75])
+    fig = plt.figure(figsize=(15, 6.2), layout="constrained")
+    top, zoom = fig.subplots(1, 2, width_ratios=[1.4, 1.0])
     columns = {fb: {c: frame[c].to_numpy(dtype=float) for c in frame.columns} for fb, frame in traces.items()}
     first = next(iter(columns.values()))
     sign = turn_sign(first)
@@ -152,88 +209,102 @@ def comparison_figure(
         if centre is not None
         else {}
     )
-    for feedback, frame in traces.items():
-        top.plot(frame["time"], frame["offtracking_truth"], color=source_colour(feedback), lw=1.2, label=feedback)
-    for ax in (plan, zoom):
-        draw_envelopes(
-            ax,
-            params,
-            first,
-            units=("tractor",),
-            colours={"tractor": "0.5"},
-            alpha=0.15,
-            label="tractor swept envelope",
-            gid="envelope:tractor",
+    peaks = {fb: max_abs(c["offtracking_truth"]) for fb, c in columns.items()}
+    apart = dominant_feedback(peaks)
+    right = top.twinx() if apart else None
+    for feedback, cols in columns.items():
+        truth = cols["offtracking_truth"]
+        settled = after_warmup(cols, params.follow_point_offset) if "kingpin_x" in cols else np.isfinite(truth)
+        ax = right if (apart and feedback == "none") else top
+        side = " (right axis)" if ax is right else ""
+        ax.plot(
+            cols["time"],
+            truth,
+            color=source_colour(feedback),
+            lw=1.2,
+            ls="--" if ax is right else "-",
+            label=f"{feedback}{side}: RMS {rms(truth[settled]):.3f} m",
+            gid=f"offtracking:{feedback}",
         )
-        ax.plot(setup.path.points[:, 0], setup.path.points[:, 1], "k--", lw=0.7, label="reference path")
-        if centre is not None:
-            draw_circles(ax, centre)
-        for rank, (feedback, cols) in enumerate(columns.items()):
-            colour = source_colour(feedback) or "tab:blue"
-            ext = extremes.get(feedback)
-            verdict = (
-                "" if ext is None else f", min r {ext['inner_radius_min']:.3f} m {'PASS' if ext['pass'] else 'FAIL'}"
+    draw_envelopes(
+        zoom,
+        params,
+        first,
+        units=("tractor",),
+        colours={"tractor": "0.5"},
+        alpha=0.15,
+        label="tractor swept envelope",
+        gid="envelope:tractor",
+        hatches={"tractor": None},
+    )
+    zoom.plot(setup.path.points[:, 0], setup.path.points[:, 1], "k--", lw=0.7, label="reference path")
+    if centre is not None:
+        draw_circles(zoom, centre)
+    inner_paths = {}
+    for rank, (feedback, cols) in enumerate(columns.items()):
+        colour = source_colour(feedback) or "tab:blue"
+        ext = extremes.get(feedback)
+        verdict = "" if ext is None else f", min r {ext['inner_radius_min']:.3f} m {'PASS' if ext['pass'] else 'FAIL'}"
+        draw_envelopes(
+            zoom,
+            params,
+            cols,
+            units=("trailer",),
+            colours={"trailer": colour},
+            alpha=0.14,
+            label=f"trailer envelope, {feedback}",
+            gid=f"envelope:trailer:{feedback}",
+            hatches={"trailer": ("///", "\\\\\\", "|||", "---", "xx")[rank % 5]},
+        )
+        inner = inner_trailer_path(params, cols, sign, centre)
+        inner_paths[feedback] = (cols.get("path_progress", cols["time"]), inner)
+        zoom.plot(inner[:, 0], inner[:, 1], color=colour, lw=1.4, label=f"trailer inner path, {feedback}{verdict}")
+        if ext is not None:
+            point = ext["inner_point"]
+            (marker,) = zoom.plot(*point, "o", ms=6, color=colour, mfc=colour if not ext["pass"] else "none")
+            marker.set_gid(f"extreme:inner:{feedback}")
+            zoom.annotate(
+                f"{feedback}: {ext['inner_radius_min']:.3f} m ({ext['inner_margin']:+.3f})",
+                point,
+                xytext=(6, -10 - 11 * rank),  # staggered: nearby points keep legible labels
+                textcoords="offset points",
+                fontsize=7,
+                color=colour,
             )
-            draw_envelopes(
-                ax,
-                params,
-                cols,
-                units=("trailer",),
-                colours={"trailer": colour},
-                alpha=0.14,
-                label=f"trailer envelope, {feedback}",
-                gid=f"envelope:trailer:{feedback}",
-            )
-            inner = inner_trailer_path(params, cols, sign, centre)
-            ax.plot(inner[:, 0], inner[:, 1], color=colour, lw=1.2, label=f"trailer inner path, {feedback}{verdict}")
-            if ext is not None:
-                point = ext["inner_point"]
-                (marker,) = ax.plot(*point, "o", ms=6, color=colour, mfc=colour if not ext["pass"] else "none")
-                marker.set_gid(f"extreme:inner:{feedback}")
-                if ax is zoom:
-                    ax.annotate(
-                        f"{feedback}: {ext['inner_radius_min']:.3f} m ({ext['inner_margin']:+.3f})",
-                        point,
-                        xytext=(6, -10 - 11 * rank),  # staggered: nearby points keep legible labels
-                        textcoords="offset points",
-                        fontsize=7,
-                        color=colour,
-                    )
     if extremes:
         worst = min(extremes, key=lambda fb: extremes[fb]["inner_margin"])
-        focus = np.asarray(extremes[worst]["inner_point"])
+        points = np.array([e["inner_point"] for e in extremes.values()])
+        focus = points.mean(axis=0)
+        reach = max(float(np.linalg.norm(points - focus, axis=1).max()), abs(extremes[worst]["inner_margin"]))
         zoom.set_title(f"trailer innermost points (worst: {worst})", fontsize=10)
         verdict = ", ".join(f"{fb} {'PASS' if e['pass'] else 'FAIL'}" for fb, e in extremes.items())
         fig.suptitle(f"UK roundabout test: {verdict}")
     else:
-        peaks = {
-            fb: np.nanmax(np.abs(c["offtracking_truth"])) if np.isfinite(c["offtracking_truth"]).any() else 0.0
-            for fb, c in columns.items()
-        }
-        worst = max(peaks, key=peaks.get)
-        k = int(np.nanargmax(np.abs(np.nan_to_num(columns[worst]["offtracking_truth"]))))
-        focus = np.array([columns[worst]["follow_x"][k], columns[worst]["follow_y"][k]])
-        zoom.set_title(f"largest true off-tracking ({worst}, {peaks[worst]:.2f} m)", fontsize=10)
-    zoom.set_xlim(focus[0] - 2.0 * ZOOM_HALF_WIDTH, focus[0] + 2.0 * ZOOM_HALF_WIDTH)
-    zoom.set_ylim(focus[1] - 2.0 * ZOOM_HALF_WIDTH, focus[1] + 2.0 * ZOOM_HALF_WIDTH)
+        steered = {fb: p for fb, p in inner_paths.items() if fb != "none"}
+        focus, reach = widest_spread(steered if len(steered) >= 2 else inner_paths)
+        zoom.set_title(f"where the trailer paths differ most: {reach:.3f} m from their mean", fontsize=10)
+    zoom_to(zoom, focus, zoom_half_width(reach))
     for band in (0.10, 0.15):
         top.axhline(band, color="tab:red", lw=0.5, ls=":")
         top.axhline(-band, color="tab:red", lw=0.5, ls=":")
     top.axhline(0.0, color="k", lw=0.5)
     top.set_xlabel("time [s]")
     top.set_ylabel("true off-tracking e_tr [m]")
+    if right is not None:
+        right.set_ylabel("true off-tracking e_tr, none (unsteered) [m]", color=source_colour("none"))
+        right.tick_params(axis="y", colors=source_colour("none"))
     top.set_title(
         f"{config.name}: μ = {config.surface.base_mu:.2f}, camber {config.camber.percent:g} % "
-        f"{config.camber.direction}, {config.speed.cornering_kmh:g} km/h, {config.vehicle}"
+        f"{config.camber.direction}, {config.speed.cornering_kmh:g} km/h, {config.vehicle}",
+        fontsize=10,
     )
-    top.legend(title="feedback")
-    plan.autoscale_view()
-    for ax in (plan, zoom):
-        ax.set_aspect("equal", adjustable="datalim" if ax is plan else "box")
-        ax.set_xlabel("X [m]")
-        ax.set_ylabel("Y [m]")
-        ax.grid(alpha=0.25)
-    plan.legend(fontsize=6.5, loc="best")
+    handles = [h for ax in (top, right) if ax is not None for h in ax.get_lines() if h.get_gid()]
+    top.legend(handles=handles, title="feedback: true off-tracking after warm-up", fontsize=8, loc="best")
+    zoom.set_aspect("equal", adjustable="box")
+    zoom.set_xlabel("X [m]")
+    zoom.set_ylabel("Y [m]")
+    zoom.grid(alpha=0.25)
+    zoom.legend(fontsize=6.5, loc="upper left")
     return fig
 
 
