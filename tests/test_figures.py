@@ -22,7 +22,7 @@ from matplotlib.patches import PathPatch
 from rich.console import Console
 
 from scenarios.config import load_scenario
-from scenarios.export.animation import OfftrackingTrace, animate_run, frame_times
+from scenarios.export.animation import OfftrackingTrace, animate_run, animation_title, frame_times
 from scenarios.run.plots import load_run, offtracking_figure, plot_plan_view
 from scenarios.run.runner import run_scenario
 from scenarios.run.swept_path import LIMIT_COLOURS, envelope_samples, swept_path_figure, vehicle_polygons
@@ -343,6 +343,14 @@ def test_the_offtracking_figure_shows_targets_bands_steer_camera_and_warm_up() -
         assert steer_label == f"trailer2: at its lock {np.mean(t > 10.0):.0%} of the time"
     finally:
         plt.close(fig)
+
+
+def test_the_animation_title_carries_the_roundabout_verdict(roundabout_run: Path) -> None:
+    run = load_run(roundabout_run)
+    test = run.metrics["roundabout_test"]
+    title = animation_title(run)
+    assert title.startswith(run.title) and "roundabout test FAIL" in title  # the reference trailer fails (above)
+    assert f"{test['inner_radius_min']:.3f} m" in title
 
 
 def test_frame_times_follow_fps_and_speed() -> None:

@@ -242,6 +242,18 @@ def _writer(out: Path, fps: float, size: tuple[int, int]) -> tuple[Callable[[np.
     return (lambda frame: gen.send(np.ascontiguousarray(frame))), gen.close
 
 
+def animation_title(run: SavedRun) -> str:
+    """The run's title, with the roundabout test's verdict and radii where the run has one."""
+    test = run.metrics.get("roundabout_test")
+    if not test:
+        return run.title
+    verdict = "PASS" if test.get("pass") else "FAIL"
+    return (
+        f"{run.title} — roundabout test {verdict}: tractor max r {test['outer_radius_max']:.3f} m (limit 12.50), "
+        f"trailer min r {test['inner_radius_min']:.3f} m (limit 5.30)"
+    )
+
+
 def frame_writer(
     out: Path, fps: float, size: tuple[int, int]
 ) -> tuple[Callable[[np.ndarray], None], Callable[[], None]]:
@@ -371,6 +383,7 @@ def animate_run(
         side.plot(ref[:, 0], ref[:, 1], "k--", lw=0.6)
         if centre is not None:
             draw_circles(side, centre)
+            side.legend(fontsize=6, loc="upper right")
         (marker,) = side.plot([], [], "o", color="k", ms=6)
         side.set_aspect("equal", adjustable="datalim")
         side.autoscale_view()
@@ -380,7 +393,7 @@ def animate_run(
         side_title = side.set_title("whole run", fontsize=9)
 
     panel = OfftrackingTrace(trace, time, cols, ["truth", *run.estimator_names()], window_s)
-    fig.text(0.01, 0.995, run.title, ha="left", va="top", fontsize=9)
+    fig.text(0.01, 0.995, animation_title(run), ha="left", va="top", fontsize=9)
 
     append, close = _writer(out, fps, (width, height))
     try:
