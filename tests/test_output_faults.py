@@ -174,7 +174,7 @@ def test_a_run_and_its_report_on_a_full_tmpfs_name_the_plot_and_exit_3(tiny_tmpf
 _DISK_FULL_SOMEWHERE_UNNAMED = """
 import errno
 import scenarios.run.report as report
-def fill_the_disk(run_dir, plots=True):
+def fill_the_disk(run_dir, plots=True, **kwargs):
     raise OSError(errno.ENOSPC, "No space left on device")
 report.rebuild_report = fill_the_disk
 """

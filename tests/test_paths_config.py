@@ -79,7 +79,7 @@ def test_defaults_and_overrides():
         ({"vehicle": "bus"}, "vehicle", "choose one of"),
         ({"rates.control_hz": 33}, "rates", "whole number of dynamics steps"),
         ({"path.kind": "spiral"}, "path.kind", "roundabout"),
-        ({"surfce.mu": 0.3}, "surfce", "Extra inputs are not permitted"),
+        ({"surfce.mu": 0.3}, "surfce", "not a field of the configuration; did you mean 'surface'?"),
     ],
 )
 def test_bad_config_values_name_the_field_and_the_allowed_range(overrides, field, allowed):
