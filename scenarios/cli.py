@@ -205,8 +205,6 @@ def run(
     check: Annotated[bool, typer.Option(help=CHECK_HELP)] = False,
 ) -> None:
     """Run a scenario: time series, metrics.json and plots in a run directory."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
     from scenarios.run.results import check_plot_format, new_run_dir
     from scenarios.run.runner import run_scenario
 
@@ -215,16 +213,7 @@ def run(
     pairs = _scenario_pairs(surface, mu, camber, camber_direction, speed, vehicle, direction, seed, feedback, duration)
     config = _load(scenario, _overrides(pairs, surface, mu, set_))
     run_dir = new_run_dir(out, config.name, force=force)
-    with Progress(
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        TextColumn("{task.percentage:>5.1f} %  t = {task.fields[sim_t]:.1f} s"),
-        TimeElapsedColumn(),
-        TextColumn("ETA"),
-        TimeRemainingColumn(),
-        console=console,
-        transient=False,
-    ) as bar:
+    with _simulation_progress() as bar:
         task = bar.add_task(escape(config.name), total=1.0, sim_t=0.0)
         metrics = run_scenario(
             config,
@@ -237,6 +226,22 @@ def run(
     _exit_for_status(metrics)
     if check:
         _exit_for_checks(metrics)
+
+
+def _simulation_progress() -> Any:
+    """The progress bar of simulated runs: share done, simulated time, elapsed time and ETA."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.percentage:>5.1f} %  t = {task.fields[sim_t]:.1f} s"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        console=console,
+        transient=False,
+    )
 
 
 def _exit_for_checks(metrics: dict) -> None:
@@ -374,8 +379,6 @@ def compare(
 ) -> None:
     """Run each feedback source given (default: every one) on the same scenario; write a table and one overlay
     figure."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
     from scenarios.run.results import check_plot_format, new_run_dir
     from scenarios.run.summary import MISSING
     from scenarios.studies.compare import compare_feedback, display_table
@@ -402,16 +405,7 @@ def compare(
     for feedback in chosen:  # every variant (a camera's included) must be able to run
         _load(scenario, {**overrides, "feedback": feedback})
     run_dir = new_run_dir(out, f"compare-{config.name}", force=force)
-    with Progress(
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        TextColumn("{task.percentage:>5.1f} %  t = {task.fields[sim_t]:.1f} s"),
-        TimeElapsedColumn(),
-        TextColumn("ETA"),
-        TimeRemainingColumn(),
-        console=console,
-        transient=False,
-    ) as bar:
+    with _simulation_progress() as bar:
         task = bar.add_task(escape(f"{chosen[0]} (1/{len(chosen)})"), total=1.0, sim_t=0.0)
 
         def progress(feedback: str, t: float, done: float) -> None:
