@@ -43,8 +43,18 @@ def test_there_are_notebooks():
     } <= names
 
 
-HEAVY_NOTEBOOKS = {"paper_section4"}
-"""Run only with ``make test-all``: paper_section4 renders six field-condition cases (~4 min on 2 cores)."""
+HEAVY_NOTEBOOKS = {"paper_section4", "paper_section3", "estimators_under_slip"}
+"""Run only with ``make test-all``: paper_section4 renders six field-condition cases (~4 min on 2 cores); the §3 and
+estimators-under-slip notebooks run their studies' subsets (~50 s each), whose code the default suite tests in
+``test_sweep.py`` and ``test_figures.py``."""
+
+
+def test_every_notebook_is_committed_without_outputs() -> None:
+    for path in NOTEBOOKS:
+        notebook = nbformat.read(path, as_version=4)
+        assert all(not cell.get("outputs") for cell in notebook.cells if cell.cell_type == "code"), path.name
+
+
 NOTEBOOK_PARAMS = [
     pytest.param(p, id=p.stem, marks=[pytest.mark.slow] if p.stem in HEAVY_NOTEBOOKS else []) for p in NOTEBOOKS
 ]
