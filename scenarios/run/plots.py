@@ -26,7 +26,7 @@ from ..config import ScenarioConfig
 from ..registry import source_colour
 from ..setup.build import ScenarioSetup, build_scenario
 from .files import atomic_path
-from .metrics import estimator_names
+from .metrics import estimator_names, max_abs, rms
 from .results import METRICS_FILE, TIMESERIES_FILE, read_config
 from .swept_path import swept_path_figure
 
@@ -183,16 +183,6 @@ def load_run(run_dir: Path) -> SavedRun:
     return SavedRun(run_dir, config, build_scenario(config), columns, metrics)
 
 
-def _rms(values: np.ndarray) -> float:
-    values = values[np.isfinite(values)]
-    return float(np.sqrt(np.mean(values**2))) if values.size else float("nan")
-
-
-def _max_abs(values: np.ndarray) -> float:
-    values = values[np.isfinite(values)]
-    return float(np.max(np.abs(values))) if values.size else float("nan")
-
-
 def offtracking_figure(
     columns: dict[str, np.ndarray],
     estimator_names: list[str],
@@ -236,14 +226,14 @@ def offtracking_figure(
     ratios = [2.0, 1.0] + [0.8] * bool(steer_axles) + [0.7] * camera
     fig, axes = plt.subplots(len(ratios), 1, figsize=(10, 2.2 + 2.2 * sum(ratios)), sharex=True, height_ratios=ratios)
     top, bottom = axes[0], axes[1]
-    rms, peak = _rms(truth[settled]), _max_abs(truth[settled])
-    top.plot(t, truth, color="k", lw=1.6, label=f"truth: {rms:.3f} m RMS, {peak:.3f} m max after warm-up")
+    truth_rms, peak = rms(truth[settled]), max_abs(truth[settled])
+    top.plot(t, truth, color="k", lw=1.6, label=f"truth: {truth_rms:.3f} m RMS, {peak:.3f} m max after warm-up")
     top.plot(t, columns["offtracking_truth_geometric"], color="0.5", lw=0.8, ls="--", label="truth (geometric)")
     for name in estimator_names:
         est = columns[f"offtracking_{name}"]
         colour = source_colour(name)
         error = est - truth
-        top.plot(t, est, lw=1.0, color=colour, label=f"{name}: error {_rms(error[settled]):.3f} m RMS")
+        top.plot(t, est, lw=1.0, color=colour, label=f"{name}: error {rms(error[settled]):.3f} m RMS")
         std = columns.get(f"offtracking_{name}_std")
         if std is not None and np.isfinite(std).any():
             top.fill_between(
