@@ -97,8 +97,8 @@ Conditional integration: the integral is not advanced when that would push the c
 limit that every steerable axle has reached (magnitude saturation or rate limit, in the direction of the
 push; the distribution is monotone in ``δ_v``, so one direction serves all axles), nor while the virtual
 angle is clamped. Without an integrator (``k_i = 0``) nothing winds up; the output leaves saturation as
-soon as the proportional term does, at the rate limit. The optional slip-angle limit
-(``PathFollowingConfig.max_slip_angle``, off by default) clips each axle to ``β_j ± α_max`` about the direction
+soon as the proportional term does, at the rate limit. The slip-angle limit
+(``PathFollowingConfig.max_slip_angle``, 8° by default) clips each axle to ``β_j ± α_max`` about the direction
 of its velocity before the magnitude limit and counts as a limit here.
 """
 

@@ -152,15 +152,17 @@ class PathFollowingConfig(Settings):
     max_slip_angle : float or None
         Largest slip angle ``|δ_j − β_j|`` [rad] a steerable axle is commanded to, ``β_j`` the direction of its
         velocity from the same kinematics as the feed-forward (:func:`~controller.axle_steer_distribution.
-        axle_velocity_directions`); the integrator freezes while every axle is held by it. ``None`` (default):
-        no limit. Beyond the Magic Formula's peak more steer gives *less* lateral force (on ice, μ = 0.1, the
-        peak is at 2.9° of slip; 16 % less force at 10°, 30 % less at 30°), so feedback that keeps pushing
-        reverses its own sign and winds the axles to lock. A low-μ safeguard, off by default because the
-        controller does not know μ: at 5° it turns the lost control of a truth-fed figure-eight on ice + 5 %
-        camber whose camber flips at a point between its loops into a 0.22 m transient (the catalogue's
-        figure-eight turns through a run-off between its loops and completes without the limit), but on the dry
-        roundabout test, where the fixed-axle compensation runs trailer2 at 6° of slip beside trailer3 at lock, it
-        raises the truth-fed off-tracking after warm-up from 0.17/0.46 m to 0.25/0.59 m (RMS/max).
+        axle_velocity_directions`); the integrator freezes while every axle is held by it. ``None``: no limit.
+        Beyond the Magic Formula's peak more steer gives *less* lateral force (on ice, μ = 0.1, the peak is at
+        2.9° of slip; 16 % less force at 10°, 30 % less at 30°), so feedback that keeps pushing reverses its own
+        sign and winds the axles to lock. The default, 8°, is a safeguard that does not need μ: on ice it stops
+        an estimate a few centimetres off from walking the axles into that range (a fused-fed figure-of-eight on
+        ice with 5 % camber under field conditions went to the −25° lock and slid off the road without it, and
+        holds 0.035 / 0.116 m RMS / max with it), while the truth- and zero-slip-fed catalogue runs on dry, wet,
+        snow and ice never reach it (the same numbers with and without). At 6° it binds on the dry roundabout
+        test, where the fixed-axle compensation runs trailer2 at 6° of slip beside trailer3 at lock, and raises
+        the truth-fed off-tracking after warm-up from 0.17 / 0.46 m to 0.21 / 0.49 m (RMS / max); the dry
+        tyre's peak is near 21° (docs/vehicle_dynamics.md §3.2), so 8° keeps most of its force there.
     """
 
     gains: PathFollowingGains | None = None
@@ -178,7 +180,7 @@ class PathFollowingConfig(Settings):
     derivative_min_distance: float = Field(0.05, ge=0.0)
     control_period: float = Field(0.02, gt=0.0, le=1.0)
     feedback_max_std: float = Field(0.075, gt=0.0)
-    max_slip_angle: float | None = Field(None, gt=0.0, le=math.radians(45.0))
+    max_slip_angle: float | None = Field(math.radians(8.0), gt=0.0, le=math.radians(45.0))
 
     @model_validator(mode="after")
     def _ordered_fade_speeds(self) -> PathFollowingConfig:

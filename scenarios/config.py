@@ -320,6 +320,13 @@ class ControllerConfig(Settings):
         description="[m] std of the fed-back estimate above which the trailer is steered by feed-forward only: an "
         "estimate whose 2σ reaches the 0.15 m max target is not steered on; 1 m is ten times the 0.10 m RMS target",
     )
+    max_slip_angle_deg: float | None = Field(
+        math.degrees(PathFollowingConfig.model_fields["max_slip_angle"].default),
+        gt=0.0,
+        le=45.0,
+        description="[°] largest slip angle a steered axle is commanded to, null for none (why 8°: "
+        "controller.path_following_config); beyond 45° no tyre gives force that grows with slip",
+    )
 
     def path_following(self, control_hz: float) -> PathFollowingConfig:
         """The controller's own settings (SI units) from this section (degrees and km/h) and the control rate."""
@@ -336,6 +343,7 @@ class ControllerConfig(Settings):
             bandwidth_speed=None if self.bandwidth_speed_kmh is None else self.bandwidth_speed_kmh / 3.6,
             control_period=1.0 / control_hz,
             feedback_max_std=self.feedback_max_std_m,
+            max_slip_angle=None if self.max_slip_angle_deg is None else math.radians(self.max_slip_angle_deg),
         )
 
 

@@ -10,6 +10,7 @@ text that is not UTF-8 and an empty file are each refused in one line naming the
 
 from __future__ import annotations
 
+import math
 import resource
 import subprocess
 import sys
@@ -256,3 +257,15 @@ def test_an_empty_yaml_file_is_refused_not_run_as_a_default_scenario(tmp_path: P
     if text == "":
         assert_one_line_error(offtrack("run", str(path), "--out", str(tmp_path / "r")), str(path), "is empty")
         assert not (tmp_path / "r").exists()
+
+
+def test_the_slip_angle_limit_reaches_the_controller_in_radians_and_null_turns_it_off() -> None:
+    default = load_scenario("roundabout-3").controller.path_following(50.0)
+    assert default.max_slip_angle == pytest.approx(math.radians(8.0), rel=1e-12)
+    set_six = load_scenario("roundabout-3", {"controller.max_slip_angle_deg": 6.0}).controller.path_following(50.0)
+    assert set_six.max_slip_angle == pytest.approx(math.radians(6.0), rel=1e-12)
+    assert parse_assignment("controller.max_slip_angle_deg=null") == ("controller.max_slip_angle_deg", None)
+    off = load_scenario("roundabout-3", {"controller.max_slip_angle_deg": None}).controller.path_following(50.0)
+    assert off.max_slip_angle is None
+    line = _line(_refused("controller.max_slip_angle_deg=50"), "controller.max_slip_angle_deg")
+    assert "45" in line

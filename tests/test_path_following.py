@@ -116,8 +116,13 @@ def test_on_a_straight_a_follow_point_left_of_the_path_steers_every_axle_right()
 # ----------------------------------------------------------------------------- limits and anti-windup
 
 
+# These tests drive the axles far past any slip a tyre can use to reach the magnitude and rate limits: the slip-angle
+# limit, which would hold them first, is off (``NO_SLIP_LIMIT``) and tested on its own below.
+NO_SLIP_LIMIT = {"max_slip_angle": None}
+
+
 def test_each_axle_saturates_at_25_degrees(all_steer_reference):
-    ctrl = TrailerSteeringController(all_steer_reference, PathFollowingConfig(feedforward="none"))
+    ctrl = TrailerSteeringController(all_steer_reference, PathFollowingConfig(feedforward="none", **NO_SLIP_LIMIT))
     cmds = constant(ctrl, state(), -5.0, 200)
     limit = math.radians(25.0)
     assert np.abs(cmds).max() <= limit + 1e-12
@@ -127,7 +132,7 @@ def test_each_axle_saturates_at_25_degrees(all_steer_reference):
 
 
 def test_rate_limit_of_20_degrees_per_second(all_steer_reference):
-    ctrl = TrailerSteeringController(all_steer_reference, PathFollowingConfig(feedforward="none"))
+    ctrl = TrailerSteeringController(all_steer_reference, PathFollowingConfig(feedforward="none", **NO_SLIP_LIMIT))
     cmds = constant(ctrl, state(), -5.0, 60)
     steps = np.abs(np.diff(np.vstack([np.zeros(3), cmds]), axis=0))
     assert steps.max() <= math.radians(20.0) * DT + 1e-12
@@ -137,7 +142,7 @@ def test_rate_limit_of_20_degrees_per_second(all_steer_reference):
 
 @pytest.mark.parametrize("ki", [0.1, 0.0], ids=["PI", "P-only"])
 def test_no_windup_while_saturated_and_prompt_recovery(all_steer_reference, ki):
-    cfg = PathFollowingConfig(gains=PathFollowingGains(kp=0.3, ki=ki), feedforward="none")
+    cfg = PathFollowingConfig(gains=PathFollowingGains(kp=0.3, ki=ki), feedforward="none", **NO_SLIP_LIMIT)
     ctrl = TrailerSteeringController(all_steer_reference, cfg)
     st = state(speed=4.0)
     constant(ctrl, st, -0.05, 250)  # 5 s of a small error: not saturated, the integral may grow
@@ -302,11 +307,18 @@ def test_slip_limit_holds_each_axle_within_its_velocity_direction_and_freezes_th
     # The reversed error leaves the limit on the first tick (nothing wound up) and mirrors about β_j.
     back = ctrl(dataclasses.replace(st, time=1.0), OfftrackingEstimate.of(+5.0))
     assert back == pytest.approx(beta + limit, abs=1e-12)
-    # Off by default: the same error drives the axles to the 25° lock.
-    default = TrailerSteeringController(params, PathFollowingConfig(max_steer_rate=FAST, feedforward="none"))
-    free = run_ticks(default, ((dataclasses.replace(st, time=k * DT), OfftrackingEstimate.of(-5.0)) for k in range(50)))
+    # Without the limit the same error drives the axles to the 25° lock.
+    unlimited = PathFollowingConfig(max_steer_rate=FAST, feedforward="none", max_slip_angle=None)
+    free_ctrl = TrailerSteeringController(params, unlimited)
+    ticks = ((dataclasses.replace(st, time=k * DT), OfftrackingEstimate.of(-5.0)) for k in range(50))
+    free = run_ticks(free_ctrl, ticks)
     assert free[-1] == pytest.approx(np.full(2, -math.radians(25.0)), abs=1e-12)
-    assert not default.slip_limited.any()
+    assert not free_ctrl.slip_limited.any()
+    # By default the limit is 8°: the axles stop at β_j − 8°, well inside the lock.
+    default = TrailerSteeringController(params, PathFollowingConfig(max_steer_rate=FAST, feedforward="none"))
+    held = run_ticks(default, ((dataclasses.replace(st, time=k * DT), OfftrackingEstimate.of(-5.0)) for k in range(50)))
+    assert held[-1] == pytest.approx(beta - math.radians(8.0), abs=1e-12)
+    assert default.slip_limited.all()
 
 
 def test_slip_limit_is_off_below_the_fade_speed_and_validated():
