@@ -47,7 +47,7 @@ def run_to_end(env: gym.Env, seed: int, action: float = 0.0) -> tuple[list[np.nd
         env = gym.make("scenarios.envs:offtrack/TrailerSteering-v0")
         again = gym.make("offtrack/GainTuning-v0")
         """,
-        # the documented import of every README example
+        # the documented import of every example in docs/environments.md
         """
         import gymnasium as gym
         import scenarios.envs

@@ -62,7 +62,7 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
     trailer's *virtual axle* and the controller's distribution points every steerable trailer axle at the
     same instantaneous centre, with the speed fade, ±25° saturation and 20°/s rate limit of the
     path-following controller. The goal is zero off-tracking ``e_tr``: the follow point at the trailer's
-    rear on the kingpin's past path (README, "Off-tracking and the estimators").
+    rear on the kingpin's past path (docs/usage.md, "Off-tracking and the estimators").
 
     ## Action Space
 
