@@ -49,11 +49,22 @@ def test_no_estimate_before_one_trailer_length(dry_walking_pace):
     assert np.isnan(cols["offtracking_zero_slip"][:first]).all()
 
 
-def test_zero_slip_within_2cm_at_walking_pace_on_dry_flat_road(dry_walking_pace):
-    _, _, cols = dry_walking_pace
+def test_zero_slip_at_walking_pace_on_dry_flat_road_misses_only_the_tri_axles_hitch_scrub(dry_walking_pace):
+    # docs/vehicle_dynamics.md §6.6: the fixed tri-axle scrubs and pushes on the fifth wheel, so the tractor's drive
+    # and tag axles slip and its rear point runs ΔL1 ahead of the equivalent wheelbase (0.16 m, about
+    # L5·R·F_h/ΣC_j·L_j, where R·F_h hardly depends on the radius); the follow point sees −L_fp·ΔL1/R5: measured
+    # −0.031 m mean, 0.039 m max. (With a trailer that pushes nothing the estimate is within 2 cm: test_zero_slip.)
+    setup, _, cols = dry_walking_pace
+    params = setup.params
     err = estimator_errors(cols["offtracking_truth"], cols["offtracking_zero_slip"])
     assert err["valid_fraction"] > 0.99
-    assert err["max_abs_error"] < 0.02
+    turning = np.abs(cols["r1"]) > 0.015
+    rear_point = -params.tractor.cg_x + np.median(cols["v1"][turning] / cols["r1"][turning])
+    shift = params.tractor_equivalent_wheelbase() - rear_point
+    kingpin_radius = np.median(cols["u"][turning] / cols["r1"][turning])
+    assert 0.1 < shift < 0.2  # measured 0.163 m
+    assert err["mean_error"] == pytest.approx(-params.follow_point_offset * shift / kingpin_radius, rel=0.35)
+    assert err["max_abs_error"] < 0.05
 
 
 def test_zero_slip_error_is_large_on_ice_with_camber():

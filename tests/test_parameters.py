@@ -103,6 +103,29 @@ def test_surface_presets():
         RadialCamber((0, 0), 5.0, direction="sideways")  # type: ignore[arg-type]
 
 
+def test_tractor_equivalent_wheelbase_weights_the_rear_axles_by_cornering_stiffness(reference):
+    # docs/vehicle_dynamics.md §2.3: L1 = ΣC_j·L_j² / ΣC_j·L_j over the axles behind the steer axle.
+    # Two equal rear axles (same tyres, equal loads) spaced 2s about L: L + s²/L, not the mean station L.
+    axles = TRACTOR_6X2.model_dump()["axles"]
+    axles[2]["n_tyres"] = axles[1]["n_tyres"]
+    equal = VehicleParams(
+        name="equal-tandem",
+        tractor=TractorParams.model_validate(TRACTOR_6X2.model_dump() | {"axles": axles}),
+        trailer=reference.trailer,
+    )
+    mean, half = (3.0 + 4.37) / 2.0, (4.37 - 3.0) / 2.0
+    assert equal.tractor_wheelbase() == pytest.approx(mean, rel=1e-12)
+    assert equal.tractor_equivalent_wheelbase() == pytest.approx(mean + half**2 / mean, rel=1e-12)
+    # The 6x2 preset: the four-tyre drive axle is the stiffer (§4.1: 499 against 456 kN/rad), so its L1 is
+    # 3.783 m, 0.10 m behind the mean station; by hand from the axles' cornering stiffnesses.
+    c_drive, c_tag = reference.axle_cornering_stiffness()[1:3]
+    by_hand = (c_drive * 3.0**2 + c_tag * 4.37**2) / (c_drive * 3.0 + c_tag * 4.37)
+    assert reference.tractor_equivalent_wheelbase() == pytest.approx(by_hand, rel=1e-12)
+    assert reference.tractor_equivalent_wheelbase() == pytest.approx(3.783, abs=5e-4)
+    # One rear axle: the axle itself.
+    assert vehicle_preset("field").tractor_equivalent_wheelbase() == pytest.approx(3.0, rel=1e-12)
+
+
 def test_reference_preset_is_default_like_design():
     assert reference_laden().name == "reference"
 

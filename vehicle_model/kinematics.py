@@ -40,12 +40,14 @@ def kingpin_velocity(params: VehicleParams, u: float, v1: float, r1: float) -> t
     return u, v1 - params.h1 * r1
 
 
-def zero_slip_kingpin_velocity(params: VehicleParams, u: float, r1: float) -> tuple[float, float]:
+def zero_slip_kingpin_velocity(
+    params: VehicleParams, u: float, r1: float, wheelbase: float | None = None
+) -> tuple[float, float]:
     """Kingpin velocity ``(v_x, v_y)`` [m/s] in tractor axes if no tractor tyre slipped sideways.
 
-    The tractor's rear point (the steer axle minus the wheelbase ``L1``, :meth:`VehicleParams.tractor_wheelbase`)
-    then has no lateral velocity, so the kingpin, ``e5`` behind it (:attr:`VehicleParams.kingpin_behind_rear_point`,
-    negative when ahead), moves at ``(u, −e5·r1)`` (Cheng 2009; ``docs/vehicle_dynamics.md``).
+    The tractor's rear point (the steer axle minus the wheelbase ``L1``) then has no lateral velocity, so the
+    kingpin, ``e5 = L_5 − L1`` behind it (``L_5`` the fifth wheel's distance behind the steer axle; negative when
+    ahead), moves at ``(u, −e5·r1)`` (Cheng 2009; ``docs/vehicle_dynamics.md`` §2.3).
 
     Parameters
     ----------
@@ -53,8 +55,15 @@ def zero_slip_kingpin_velocity(params: VehicleParams, u: float, r1: float) -> tu
         The combination.
     u, r1
         Tractor forward speed [m/s] and yaw rate [rad/s] (measured or true).
+    wheelbase
+        ``L1`` [m]; None: :meth:`VehicleParams.tractor_wheelbase` (the mean station of the rear axles, with
+        ``e5`` = :attr:`VehicleParams.kingpin_behind_rear_point`). The zero-slip estimator passes
+        :meth:`VehicleParams.tractor_equivalent_wheelbase`, the point that has no lateral velocity when no
+        force acts at the fifth wheel.
     """
-    return u, -params.kingpin_behind_rear_point * r1
+    if wheelbase is None:
+        return u, -params.kingpin_behind_rear_point * r1
+    return u, (wheelbase + params.tractor.fifth_wheel_x) * r1
 
 
 def trailer_axle_speed(params: VehicleParams, state: VehicleState) -> float:

@@ -372,15 +372,47 @@ class VehicleParams(_Frozen):
         return float(np.sum(stiff * lengths**2) / np.sum(stiff * lengths))
 
     def tractor_wheelbase(self) -> float:
-        """Steer axle to the mean station of the rear load group [m]."""
+        """Steer axle to the mean station of the rear load group [m] (the geometric wheelbase).
+
+        The point of a multi-axle tractor that has no lateral velocity is :meth:`tractor_equivalent_wheelbase`.
+        """
         tr = self.tractor
         rear = [a.x for a in tr.axles if a.x < 0]
         return -float(np.mean(rear)) if rear else math.nan
 
+    def tractor_equivalent_wheelbase(self) -> float:
+        """Steer axle to the tractor's zero-slip rear point, ``L1 = ΣC_j L_j² / ΣC_j L_j`` [m].
+
+        The sums run over the axles behind the steer axle (``L_j`` behind it, ``C_j`` their static cornering
+        stiffness, :meth:`axle_cornering_stiffness`). Derived (docs/vehicle_dynamics.md §2.3): at low speed, with
+        linear tyres, no lateral acceleration and no lateral force at the fifth wheel, a rear axle ``L_j`` behind the
+        steer axle of a tractor turning on radius ``R`` about a point ``L1`` behind the steer axle slips by
+        ``(L_j − L1)/R`` and carries ``F_j = C_j·(L_j − L1)/R``; the yaw moment of these forces about the steer axle
+        must vanish, ``Σ F_j·L_j = 0``, which gives ``L1`` above. It is the low-speed limit of the equivalent
+        wheelbase of a truck with non-steering rear axles (Winkler 1998; Williams 2011), the same relation as the
+        trailer's :meth:`equivalent_wheelbase`, and the mean station only when the tractor has one rear axle. For
+        the 6x2 tractor of the presets (drive 3.0 m, tag 4.37 m, the four-tyre drive axle the stiffer) it is
+        about 0.10 m behind the mean station. A lateral force at the fifth wheel (a scrubbing trailer group) or a
+        lateral acceleration moves the true zero-slip point away from it: that is tyre slip.
+        """
+        table = self.axle_table
+        stations = -(table.x_cg + self.tractor.cg_x)  # distance behind the steer axle
+        rear = (table.unit == 0) & (stations > 0)
+        if not rear.any():
+            return math.nan
+        stiff = self.axle_cornering_stiffness()[rear]
+        lengths = stations[rear]
+        return float(np.sum(stiff * lengths**2) / np.sum(stiff * lengths))
+
     @functools.cached_property
     def kingpin_behind_rear_point(self) -> float:
         """``e5``: the kingpin's distance behind the tractor's rear point (the steer axle minus
-        :meth:`tractor_wheelbase`), negative when the kingpin is ahead of it [m]."""
+        :meth:`tractor_wheelbase`), negative when the kingpin is ahead of it [m].
+
+        The controller's feed-forward and the fused estimator's tractor prior use this point; the zero-slip
+        estimator uses :meth:`tractor_equivalent_wheelbase` instead
+        (:func:`~vehicle_model.kinematics.zero_slip_kingpin_velocity`).
+        """
         return -self.tractor_wheelbase() - self.tractor.fifth_wheel_x
 
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from vehicle_model.geometry import radial_extent, tractor_outline, trailer_outline
+from vehicle_model.geometry import kingpin_position, radial_extent, tractor_outline, trailer_outline
 from vehicle_model.parameters import VehicleParams
 
 from .verdicts import run_verdict
@@ -16,6 +16,21 @@ ROUNDABOUT_OUTER_RADIUS = 12.50
 """97/27/EC Annex I §7.6.1 / UK C&U regs 13A: outer circle [m]."""
 ROUNDABOUT_INNER_RADIUS = 5.30
 """Inner circle [m]."""
+FRONT_FITTING_RADIUS = 2.04
+"""Largest distance from the kingpin to a semi-trailer's front corner, EU 1230/2012 Annex I Part D [m]: the EU
+wheelbase bound puts the kingpin on ``12.50 − 2.04 = 10.46 m`` (docs/vehicle_dynamics.md §5.2)."""
+
+
+def equivalent_wheelbase_limit(
+    kingpin_radius: float, trailer_width: float, inner: float = ROUNDABOUT_INNER_RADIUS
+) -> float:
+    """Largest equivalent wheelbase [m] of an unsteered trailer whose inner side clears the ``inner`` circle with
+    its kingpin on ``kingpin_radius``: ``sqrt(R5² − (R_inner + W/2)²)`` (zero slip, docs/vehicle_dynamics.md §5.2).
+
+    With ``R5 = 12.50 − 2.04`` and ``W = 2.55 m`` it is the EU bound, 8.135 m; NaN when the circle cannot be cleared.
+    """
+    clear = kingpin_radius**2 - (inner + 0.5 * trailer_width) ** 2
+    return float(np.sqrt(clear)) if clear >= 0 else float("nan")
 
 
 def rms(values: np.ndarray) -> float:
@@ -83,6 +98,13 @@ def roundabout_verdict(
     trailer enters the ``inner`` circle: the wording of 97/27/EC Annex I §7.6.1 for a combination
     (docs/vehicle_dynamics.md §5.1). The radii are measured from ``centre``; the nearest point of an outline
     may lie on an edge, not a corner.
+
+    It also says where the tractor put the kingpin (``kingpin_radius``, the median over the poses) and what that
+    asks of an unsteered trailer (docs/vehicle_dynamics.md §5.2–5.4): ``equivalent_wheelbase_limit``, the largest
+    equivalent wheelbase that clears the inner circle from there (:func:`equivalent_wheelbase_limit`), against the
+    EU bound's ``eu_equivalent_wheelbase_limit`` (kingpin on ``eu_kingpin_radius = outer − 2.04 m``), the
+    trailer's own ``trailer_equivalent_wheelbase`` (every axle, unsteered; :meth:`VehicleParams.equivalent_wheelbase`)
+    and the tractor's ``tractor_equivalent_wheelbase`` (its zero-slip rear point behind the steer axle).
     """
     tractor = tractor_outline(params, x, y, psi1)
     trailer = trailer_outline(params, x, y, psi1, gamma)
@@ -90,12 +112,21 @@ def roundabout_verdict(
     _, trailer_in = radial_extent(trailer, centre)
     outer_max = float(tractor_out.max())
     inner_min = float(trailer_in.min())
+    kingpin = kingpin_position(params, x, y, psi1)
+    kingpin_radius = float(np.median(np.hypot(kingpin[..., 0] - centre[0], kingpin[..., 1] - centre[1])))
+    width = params.trailer.width
     return {
         "pass": bool(outer_max <= outer and inner_min >= inner),
         "outer_radius_max": outer_max,
         "inner_radius_min": inner_min,
         "outer_margin": outer - outer_max,
         "inner_margin": inner_min - inner,
+        "kingpin_radius": kingpin_radius,
+        "equivalent_wheelbase_limit": equivalent_wheelbase_limit(kingpin_radius, width, inner),
+        "tractor_equivalent_wheelbase": params.tractor_equivalent_wheelbase(),
+        "eu_kingpin_radius": outer - FRONT_FITTING_RADIUS,
+        "eu_equivalent_wheelbase_limit": equivalent_wheelbase_limit(outer - FRONT_FITTING_RADIUS, width, inner),
+        "trailer_equivalent_wheelbase": params.equivalent_wheelbase(),
     }
 
 

@@ -14,6 +14,8 @@ from typing import Any
 from rich.markup import escape
 from rich.table import Table
 
+from .verdicts import inner_limit_reason
+
 MISSING = "–"
 """How a number the run did not produce (None, not a number) is shown."""
 
@@ -78,9 +80,11 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
     test = metrics.get("roundabout_test")
     if test:
         verdict = "[green]PASS[/]" if test.get("pass") else "[red]FAIL[/]"
+        reason = inner_limit_reason(test)
         out.append(
             f"roundabout test {verdict}: outer radius max {number(test.get('outer_radius_max'), unit='m')} "
             f"(limit 12.50), inner radius min {number(test.get('inner_radius_min'), unit='m')} (limit 5.30)"
+            + (f": {escape(reason)}" if reason else "")
         )
     verdict = metrics.get("verdict")
     if verdict is not None:

@@ -20,6 +20,7 @@ __all__ = [
     "MIN_COVERAGE",
     "OFFTRACKING_TARGET_MAX_M",
     "OFFTRACKING_TARGET_RMS_M",
+    "inner_limit_reason",
     "missed_checks",
     "run_verdict",
 ]
@@ -111,6 +112,40 @@ def run_verdict(
     return {"held": not flags, "flags": flags}
 
 
+def inner_limit_reason(test: dict[str, Any] | None) -> str | None:
+    """Why the trailer entered the roundabout test's inner circle, in one clause; None when it did not or when the
+    verdict (an older ``metrics.json``) lacks the numbers.
+
+    The EU bound on an unsteered trailer's equivalent wheelbase assumes the kingpin on 12.50 − 2.04 = 10.46 m; a
+    tractor whose zero-slip rear point lies far behind its front corner (a 6x2 with a tag axle) puts it further in,
+    where the trailer needs a shorter equivalent wheelbase (docs/vehicle_dynamics.md §5.4). The clause names the
+    tractor's zero-slip rear point, the kingpin's radius against the EU bound's, and the trailer's equivalent
+    wheelbase against the limit at the kingpin's radius.
+
+    Parameters
+    ----------
+    test
+        The ``roundabout_test`` of ``metrics.json`` (:func:`scenarios.run.metrics.roundabout_verdict`).
+    """
+    keys = (
+        "inner_margin",
+        "kingpin_radius",
+        "equivalent_wheelbase_limit",
+        "trailer_equivalent_wheelbase",
+        "tractor_equivalent_wheelbase",
+        "eu_kingpin_radius",
+        "eu_equivalent_wheelbase_limit",
+    )
+    if not test or any(not isinstance(test.get(k), int | float) for k in keys) or test["inner_margin"] >= 0:
+        return None
+    return (
+        f"the tractor (rear axles' equivalent wheelbase {test['tractor_equivalent_wheelbase']:.2f} m) "
+        f"put the kingpin on {test['kingpin_radius']:.2f} m, not the {test['eu_kingpin_radius']:.2f} m of the EU "
+        f"bound (trailer equivalent wheelbase ≤ {test['eu_equivalent_wheelbase_limit']:.3f} m); there the trailer "
+        f"needs ≤ {test['equivalent_wheelbase_limit']:.2f} m and has {test['trailer_equivalent_wheelbase']:.2f} m"
+    )
+
+
 def missed_checks(metrics: dict[str, Any]) -> list[str]:
     """What a completed run missed of what it was asked to hold, a sentence each (empty: nothing missed).
 
@@ -129,6 +164,6 @@ def missed_checks(metrics: dict[str, Any]) -> list[str]:
         missed.append(
             f"roundabout_test_failed: tractor max r {test['outer_radius_max']:.3f} m "
             f"(margin {test['outer_margin']:+.3f} m), trailer min r {test['inner_radius_min']:.3f} m "
-            f"(margin {test['inner_margin']:+.3f} m)"
+            f"(margin {test['inner_margin']:+.3f} m)" + (f": {reason}" if (reason := inner_limit_reason(test)) else "")
         )
     return missed
