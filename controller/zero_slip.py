@@ -39,6 +39,12 @@ from vehicle_model.offtracking import OfftrackingBuffer
 from vehicle_model.parameters import VehicleParams
 
 ZeroSlipVariant = Literal["yaw_rate", "steer_angle"]
+RearPoint = Literal["equivalent", "axle_mean"]
+"""Where the estimator puts the tractor's point without lateral velocity: ``equivalent``, the stiffness-weighted
+equivalent wheelbase (:meth:`~vehicle_model.parameters.VehicleParams.tractor_equivalent_wheelbase`, exact when
+nothing pushes on the fifth wheel), or ``axle_mean``, the mean station of the rear axles
+(:meth:`~vehicle_model.parameters.VehicleParams.tractor_wheelbase`), which a scrubbing trailer's push on the
+fifth wheel brings the real point close to on the 6x2 tractors (docs/vehicle_dynamics.md §6.6)."""
 
 
 class ZeroSlipEstimator:
@@ -50,14 +56,23 @@ class ZeroSlipEstimator:
         Vehicle parameters (tractor equivalent wheelbase, fifth-wheel position, follow point).
     variant
         ``yaw_rate`` (gyro, default) or ``steer_angle``.
+    rear_point
+        The tractor's point without lateral velocity (:data:`RearPoint`): ``equivalent`` (default) or
+        ``axle_mean``.
     """
 
-    def __init__(self, params: VehicleParams, variant: ZeroSlipVariant = "yaw_rate") -> None:
+    def __init__(
+        self, params: VehicleParams, variant: ZeroSlipVariant = "yaw_rate", rear_point: RearPoint = "equivalent"
+    ) -> None:
         if variant not in ("yaw_rate", "steer_angle"):
             raise ValueError(f"zero-slip variant {variant!r} must be 'yaw_rate' or 'steer_angle'")
+        if rear_point not in ("equivalent", "axle_mean"):
+            raise ValueError(f"zero-slip rear point {rear_point!r} must be 'equivalent' or 'axle_mean'")
         self.variant = variant
         self.params = params
-        self.wheelbase = params.tractor_equivalent_wheelbase()
+        self.wheelbase = (
+            params.tractor_equivalent_wheelbase() if rear_point == "equivalent" else params.tractor_wheelbase()
+        )
         self.buffer = OfftrackingBuffer(params.follow_point_offset)
         self._last: tuple[float, float, float] | None = None  # (u, r1, Γ) of the previous sample
 

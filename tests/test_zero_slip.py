@@ -9,6 +9,7 @@ import pytest
 
 from controller.zero_slip import ZeroSlipEstimator
 from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses
+from vehicle_model.presets import vehicle_preset
 
 
 def kinematic_run(params, steer_of_s, speed=2.0, duration=40.0, dt=1e-3, every=20):
@@ -127,3 +128,13 @@ def test_within_2cm_at_walking_pace_when_the_trailer_pushes_nothing_through_the_
     assert rear_point == pytest.approx(params.tractor_equivalent_wheelbase(), abs=0.02)
     errors = estimator_errors(cols["offtracking_truth"], cols["offtracking_zero_slip"])
     assert errors["rms_error"] < 0.02
+
+
+def test_the_rear_point_setting_chooses_the_wheelbase_and_a_wrong_one_is_refused() -> None:
+    params = vehicle_preset("reference")
+    assert ZeroSlipEstimator(params).wheelbase == pytest.approx(params.tractor_equivalent_wheelbase(), rel=1e-12)
+    mean = ZeroSlipEstimator(params, rear_point="axle_mean").wheelbase
+    assert mean == pytest.approx(params.tractor_wheelbase(), rel=1e-12)
+    assert params.tractor_equivalent_wheelbase() - mean == pytest.approx(0.098, abs=0.002)  # 3.783 m against 3.685 m
+    with pytest.raises(ValueError, match="rear point"):
+        ZeroSlipEstimator(params, rear_point="centre")  # type: ignore[arg-type]

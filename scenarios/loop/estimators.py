@@ -154,13 +154,15 @@ class ZeroSlip:
         The combination.
     variant
         ``yaw_rate`` (the gyro) or ``steer_angle``.
+    rear_point
+        ``equivalent`` or ``axle_mean`` (:data:`controller.zero_slip.RearPoint`).
     """
 
     name = "zero_slip"
     columns: tuple[Column, ...] = (Column(estimate_column("zero_slip"), "m", "zero-slip (Cheng) off-tracking"),)
 
-    def __init__(self, params: VehicleParams, variant: str = "yaw_rate") -> None:
-        self.estimator = ZeroSlipEstimator(params, variant)  # type: ignore[arg-type]
+    def __init__(self, params: VehicleParams, variant: str = "yaw_rate", rear_point: str = "equivalent") -> None:
+        self.estimator = ZeroSlipEstimator(params, variant, rear_point)  # type: ignore[arg-type]
         self.estimate = OfftrackingEstimate.of(None)
 
     def update(self, tick: TickInput) -> OfftrackingEstimate:
@@ -243,8 +245,9 @@ def ground_truth(context: LoopContext) -> GroundTruth:
 
 
 def zero_slip(context: LoopContext) -> ZeroSlip:
-    """The registry's builder of the zero-slip estimator (``estimators.zero_slip_variant``)."""
-    return ZeroSlip(context.setup.params, context.setup.config.estimators.zero_slip_variant)
+    """The registry's builder of the zero-slip estimator (``estimators.zero_slip_variant`` and ``_rear_point``)."""
+    settings = context.setup.config.estimators
+    return ZeroSlip(context.setup.params, settings.zero_slip_variant, settings.zero_slip_rear_point)
 
 
 GYRO_ZEROING_STREAM = 0x2E60
