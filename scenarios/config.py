@@ -265,9 +265,9 @@ class EstimatorsConfig(Settings):
     (``steer_angle``). ``zero_slip_rear_point``: the tractor's point without lateral velocity that it assumes,
     the stiffness-weighted equivalent wheelbase (``equivalent``, default) or the mean station of the rear axles
     (``axle_mean``; ``controller.zero_slip.RearPoint``). ``viso_ot``: render the trailer's stereo camera at the
-    camera rate and run visual odometry and VISO-OT (needs headless OpenGL). ``viso_ot_fused``: the Kalman filter of the trailer's
-    gyro, wheel speed and steer with the camera's motions (``sensor.fusion``, settings in ``fusion``); it needs
-    the camera, so it turns ``viso_ot`` on."""
+    camera rate and run visual odometry and VISO-OT (needs headless OpenGL). ``viso_ot_fused``: the Kalman filter
+    of the trailer's gyro, wheel speed and steer with the camera's motions (``sensor.fusion``, settings in
+    ``fusion``); it needs the camera, so it turns ``viso_ot`` on."""
 
     zero_slip: bool = True
     zero_slip_variant: Literal["yaw_rate", "steer_angle"] = "yaw_rate"
