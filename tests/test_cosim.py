@@ -63,7 +63,11 @@ def test_zero_slip_at_walking_pace_on_dry_flat_road_misses_only_the_tri_axles_hi
     shift = params.tractor_equivalent_wheelbase() - rear_point
     kingpin_radius = np.median(cols["u"][turning] / cols["r1"][turning])
     assert 0.1 < shift < 0.2  # measured 0.163 m
-    assert err["mean_error"] == pytest.approx(-params.follow_point_offset * shift / kingpin_radius, rel=0.35)
+    # The run's estimator assumes the rear axles' mean station (controller.zero_slip.RearPoint), 0.10 m ahead of
+    # the equivalent wheelbase: its error is what is left of the shift, and its sign says which side it lies on.
+    assumed = setup.params.tractor_wheelbase()
+    expected = -params.follow_point_offset * (assumed - rear_point) / kingpin_radius
+    assert err["mean_error"] == pytest.approx(expected, abs=0.01)
     assert err["max_abs_error"] < 0.05
 
 

@@ -12,12 +12,13 @@ from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses
 from vehicle_model.presets import vehicle_preset
 
 
-def kinematic_run(params, steer_of_s, speed=2.0, duration=40.0, dt=1e-3, every=20):
-    """Tractor whose rear point never slips and a trailer whose zero-slip point sits at L_eq.
+def kinematic_run(params, steer_of_s, speed=2.0, duration=40.0, dt=1e-3, every=20, wheelbase=None):
+    """Tractor whose rear point (``wheelbase`` behind the steer axle; default the rear axles' mean station) never
+    slips and a trailer whose zero-slip point sits at L_eq.
 
     Zero-slip kinematics of docs/vehicle_dynamics.md §2.3.
     """
-    wheelbase = params.tractor_equivalent_wheelbase()
+    wheelbase = params.tractor_wheelbase() if wheelbase is None else wheelbase
     e = -wheelbase - params.tractor.fifth_wheel_x  # fifth wheel behind the rear point
     l_eq = params.equivalent_wheelbase()
 
@@ -50,12 +51,14 @@ def kinematic_run(params, steer_of_s, speed=2.0, duration=40.0, dt=1e-3, every=2
     return samples, speed
 
 
+@pytest.mark.parametrize("rear_point", ["axle_mean", "equivalent"])
 @pytest.mark.parametrize("variant", ["yaw_rate", "steer_angle"])
-def test_exact_when_nothing_slips(reference, variant):
-    # An S-shaped drive: left, then right. Without slip the estimate equals the truth up to the
-    # trapezoidal integration of the 20 ms increments (< 1 mm).
-    samples, speed = kinematic_run(reference, lambda s: 0.25 * math.sin(2 * math.pi * s / 60.0))
-    est = ZeroSlipEstimator(reference, variant)
+def test_exact_when_nothing_slips(reference, variant, rear_point):
+    # An S-shaped drive: left, then right, the tractor turning about the point the estimator assumes. Without slip
+    # the estimate equals the truth up to the trapezoidal integration of the 20 ms increments (< 1 mm).
+    est = ZeroSlipEstimator(reference, variant, rear_point)
+    steer = lambda s: 0.25 * math.sin(2 * math.pi * s / 60.0)  # noqa: E731
+    samples, speed = kinematic_run(reference, steer, wheelbase=est.wheelbase)
     truth = OfftrackingBuffer(reference.follow_point_offset)
     dt = samples[1][0] - samples[0][0]
     errors, values = [], []
@@ -119,7 +122,8 @@ def test_within_2cm_at_walking_pace_when_the_trailer_pushes_nothing_through_the_
     )
     params = VehicleParams(name="single-axle", tractor=reference.tractor, trailer=single)
     monkeypatch.setitem(VEHICLE_PRESETS, "single-axle", lambda: params)
-    setup = build_scenario(load_scenario("roundabout-test", {"vehicle": "single-axle", "feedback": "none"}))
+    overrides = {"vehicle": "single-axle", "feedback": "none", "estimators.zero_slip_rear_point": "equivalent"}
+    setup = build_scenario(load_scenario("roundabout-test", overrides))
     outcome, cols = simulate(setup)  # model only
     assert outcome.status == "completed"
     v1, r1 = cols["v1"], cols["r1"]
@@ -132,8 +136,9 @@ def test_within_2cm_at_walking_pace_when_the_trailer_pushes_nothing_through_the_
 
 def test_the_rear_point_setting_chooses_the_wheelbase_and_a_wrong_one_is_refused() -> None:
     params = vehicle_preset("reference")
-    assert ZeroSlipEstimator(params).wheelbase == pytest.approx(params.tractor_equivalent_wheelbase(), rel=1e-12)
-    mean = ZeroSlipEstimator(params, rear_point="axle_mean").wheelbase
+    equivalent = ZeroSlipEstimator(params, rear_point="equivalent").wheelbase
+    assert equivalent == pytest.approx(params.tractor_equivalent_wheelbase(), rel=1e-12)
+    mean = ZeroSlipEstimator(params).wheelbase
     assert mean == pytest.approx(params.tractor_wheelbase(), rel=1e-12)
     assert params.tractor_equivalent_wheelbase() - mean == pytest.approx(0.098, abs=0.002)  # 3.783 m against 3.685 m
     with pytest.raises(ValueError, match="rear point"):

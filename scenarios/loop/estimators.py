@@ -155,13 +155,13 @@ class ZeroSlip:
     variant
         ``yaw_rate`` (the gyro) or ``steer_angle``.
     rear_point
-        ``equivalent`` or ``axle_mean`` (:data:`controller.zero_slip.RearPoint`).
+        ``axle_mean`` or ``equivalent`` (:data:`controller.zero_slip.RearPoint`).
     """
 
     name = "zero_slip"
     columns: tuple[Column, ...] = (Column(estimate_column("zero_slip"), "m", "zero-slip (Cheng) off-tracking"),)
 
-    def __init__(self, params: VehicleParams, variant: str = "yaw_rate", rear_point: str = "equivalent") -> None:
+    def __init__(self, params: VehicleParams, variant: str = "yaw_rate", rear_point: str = "axle_mean") -> None:
         self.estimator = ZeroSlipEstimator(params, variant, rear_point)  # type: ignore[arg-type]
         self.estimate = OfftrackingEstimate.of(None)
 
