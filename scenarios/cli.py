@@ -717,7 +717,7 @@ def calibrate(
     from scenarios.camera.build import calibration_target_rig, lenses, rig_from_config, run_calibration
     from scenarios.run.files import write_atomic
     from scenarios.run.results import new_run_dir
-    from sensor.calibration_report import calibration_summary
+    from sensor.calibration_report import calibration_line, calibration_summary
 
     config = _load(scenario, _overrides((("seed", seed),), None, None, set_))
     run_dir = new_run_dir(out, "calibration", force=force)
@@ -727,13 +727,8 @@ def calibrate(
     path = result.write(run_dir / "calibration.yaml")
     summary = calibration_summary(result, calibration_target_rig(rig, config), *lenses(config))
     write_atomic(run_dir / "residuals.json", json.dumps(summary, indent=2, default=float))
-    rms, rotation = summary["rms_px"], summary["rotation_deg"]
     console.print(escape(f"calibration → {path}; residuals → {run_dir / 'residuals.json'}"))
-    console.print(
-        f"reprojection RMS left {rms['left']:.3f} px, right {rms['right']:.3f} px, stereo {rms['stereo']:.3f} px; "
-        f"baseline error {1e3 * summary['baseline_m']['error']:+.2f} mm; rotation error "
-        + ", ".join(f"{axis} {rotation[axis]['error']:+.3f}°" for axis in ("roll", "pitch", "yaw"))
-    )
+    console.print(calibration_line(summary))
 
 
 def _calibrate_photos(out: Path, force: bool, corners: str, **options: Any) -> None:

@@ -159,3 +159,14 @@ def calibration_summary(
         "rectified": {"f": par.f, "cu": par.cu, "cv": par.cv, "baseline": par.baseline},
         "rectification": rectification_residuals(result, truth_rig, lens_left, lens_right),
     }
+
+
+def calibration_line(summary: dict) -> str:
+    """One sentence of :func:`calibration_summary`'s figures for the terminal: reprojection RMS per camera and of the
+    pair [px], the baseline's error [mm] and the rotation's error per axis [°]."""
+    rms, rotation = summary["rms_px"], summary["rotation_deg"]
+    return (
+        f"reprojection RMS left {rms['left']:.3f} px, right {rms['right']:.3f} px, stereo {rms['stereo']:.3f} px; "
+        f"baseline error {1e3 * summary['baseline_m']['error']:+.2f} mm; rotation error "
+        + ", ".join(f"{axis} {rotation[axis]['error']:+.3f}°" for axis in ("roll", "pitch", "yaw"))
+    )
