@@ -6,6 +6,9 @@ reported with its dotted field name, the value and what is allowed (:class:`Conf
 anything is simulated. Angles and speeds are given in degrees and km/h here, at the edge, and converted
 to SI where the configuration is used. :func:`load_scenario` and :func:`validate_config` are the one way
 in for the command line, the studies and the environments.
+
+Why this module is long: it is the run's schema, one section a class, every field with its unit, range and the
+reason for the range beside it; splitting it would put the loading and the sections it validates apart.
 """
 
 from __future__ import annotations
