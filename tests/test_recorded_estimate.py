@@ -23,6 +23,7 @@ from types import SimpleNamespace
 import cv2
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
 
@@ -30,6 +31,7 @@ from scenarios.camera.build import rig_from_config
 from scenarios.cli import app
 from scenarios.config import FusionConfig, load_scenario
 from scenarios.run.drive import simulate
+from scenarios.run.results import timeseries_columns
 from scenarios.setup.build import build_scenario
 from sensor.frame_odometry import FrameOdometry
 from sensor.recordings.vo_metrics import relative_pose_error
@@ -251,6 +253,17 @@ def test_the_runs_own_signals_give_its_fused_and_zero_slip_series(rendered: Simp
         assert both.sum() > 80, name
         # the same filters on the same signals: measured 3.9e-11 m (fused), 3e-15 m (zero-slip), 3.3e-13 m (VISO-OT)
         assert np.max(np.abs(ours[both] - theirs[both])) < 1e-6, name
+    # every column carries its unit and description, the same as a simulated run's column of that name
+    columns = {c.name: c for c in timeseries_columns(pq.read_table(out / "timeseries.parquet").schema)}
+    assert set(columns) == set(series.columns)
+    assert all(c.unit and c.description for c in columns.values()), [n for n, c in columns.items() if not c.unit]
+    expected = {"offtracking_viso_ot_fused": "m", "fusion_kinematic_std": "m/s", "tractor_yaw_rate": "rad/s"}
+    assert {name: columns[name].unit for name in expected} == expected
+    assert {name: columns[name].unit for name in ("time", "vo_valid", "frame")} == {
+        "time": "s",
+        "vo_valid": "-",
+        "frame": "-",
+    }
 
 
 def test_raw_images_are_rectified_with_a_calibration_file(rendered: SimpleNamespace) -> None:

@@ -39,12 +39,13 @@ from sensor.frame_odometry import CameraFrame, FrameOdometry
 from sensor.fusion import FusedVisoOt, TractorSignals
 from sensor.recordings.sequence import GAP_FACTOR, MISSING_REASONS, time_gaps
 from sensor.recordings.vo_metrics import relative_pose_error
-from sensor.vo.quality import QUALITY_COLUMNS
-from sensor.vo.self_calibration import SELF_CALIBRATION_COLUMNS
 
 from ..config import FusionConfig
-from ..loop.camera_estimator import camera_row
+from ..loop.camera_estimator import CAMERA_COLUMNS, VisoOt, camera_row
 from ..loop.ends import RunStatus
+from ..loop.estimators import FusedVisoOtEstimator, GroundTruth, ZeroSlip
+from ..loop.participant import Column
+from ..loop.plant import VehicleParticipant
 from ..run.results import TIMESERIES_FILE, TimeSeriesWriter, write_metrics
 from .inputs import EstimateInputs
 from .reference import reference_columns
@@ -63,16 +64,26 @@ SAME_INSTANT = 1e-6
 Progress = Callable[[int, int], None]
 """``(frames done, frames in all)``."""
 
-_CAMERA = [
-    "vo_valid",
-    "vo_reason",
-    "vo_estimate_reason",
-    *(f"vo_{name}" for name in QUALITY_COLUMNS),
-    "render_ms",
-    "vo_ms",
-    *(f"selfcal_{name}" for name in SELF_CALIBRATION_COLUMNS),
-]
-_SIGNALS = ("wheel_speed", "tractor_yaw_rate", "articulation", "trailer_yaw_rate", "trailer_wheel_speed")
+_SIGNAL_COLUMNS: tuple[Column, ...] = (
+    Column("wheel_speed", "m/s", "the tractor's wheel speed, the recorded signal at the row's time"),
+    Column("tractor_yaw_rate", "rad/s", "the tractor's yaw rate, the recorded signal at the row's time"),
+    Column("articulation", "rad", "the articulation angle, the recorded signal at the row's time"),
+    Column("trailer_yaw_rate", "rad/s", "the trailer's yaw rate, the recorded signal at the row's time"),
+    Column("trailer_wheel_speed", "m/s", "the trailer's wheel speed, the recorded signal at the row's time"),
+)
+_SIGNALS = tuple(column.name for column in _SIGNAL_COLUMNS)
+_RECORDING_COLUMNS: tuple[Column, ...] = (
+    Column("frame", "-", "the frame's index in the recording"),
+    Column("frame_missing", "-", "1 on a row whose frame was missing or refused (the reason is in metrics.json)"),
+    Column("kingpin_x_viso_ot", "m", "the kingpin dead-reckoned from the accepted motions, first frame's trailer X"),
+    Column("kingpin_y_viso_ot", "m", "the same, Y"),
+    Column("trailer_heading_viso_ot", "rad", "the trailer's heading from the accepted motions"),
+    Column("kingpin_x", "m", "the reference's kingpin, first frame's trailer X"),
+    Column("kingpin_y", "m", "the reference's kingpin, Y"),
+    Column("trailer_heading", "rad", "the reference's trailer heading"),
+    Column("vo_rpe_translation_m", "m", "the frame's relative pose error in translation against the reference"),
+    Column("vo_rpe_rotation_rad", "rad", "the frame's relative pose error in rotation against the reference"),
+)
 _SIGNAL_KEYS = ("speed", "yaw_rate", "articulation", "trailer_yaw_rate", "trailer_speed")  # SignalSeries.at's
 
 
@@ -95,8 +106,23 @@ def row_times(inputs: EstimateInputs) -> tuple[np.ndarray, np.ndarray]:
     return times, slot
 
 
-def _columns(inputs: EstimateInputs) -> list[str]:
-    names = ["time", "frame", "camera_frame", "frame_missing", "offtracking_viso_ot", *_CAMERA]
+def _columns(inputs: EstimateInputs) -> list[Column]:
+    """The run's columns with their units: those a simulated run declares under the same name (the camera's, the
+    estimators', the truth's, the plant's time), and the recording's own."""
+    declared = {
+        column.name: column
+        for column in (
+            *VehicleParticipant.columns,
+            *CAMERA_COLUMNS,
+            *VisoOt.columns,
+            *GroundTruth.columns,
+            *FusedVisoOtEstimator.columns,
+            *ZeroSlip.columns,
+            *_RECORDING_COLUMNS,
+            *_SIGNAL_COLUMNS,
+        )
+    }
+    names = ["time", "frame", "camera_frame", "frame_missing", "offtracking_viso_ot", *(c.name for c in CAMERA_COLUMNS)]
     names += ["kingpin_x_viso_ot", "kingpin_y_viso_ot", "trailer_heading_viso_ot", "kingpin_x", "kingpin_y"]
     names += ["offtracking_truth", "offtracking_truth_geometric"]
     if inputs.reference_poses is not None:
@@ -104,7 +130,7 @@ def _columns(inputs: EstimateInputs) -> list[str]:
     if inputs.signals is not None:
         names += ["offtracking_viso_ot_fused", "offtracking_viso_ot_fused_std", "fusion_kinematic_std"]
         names += ["offtracking_zero_slip", *_SIGNALS]
-    return names
+    return [declared[name] for name in names]
 
 
 class _DeadReckoning:
