@@ -158,7 +158,7 @@ class PathFollowingConfig(Settings):
         sign and winds the axles to lock. The default, 8°, is a safeguard that does not need μ: on ice it stops
         an estimate a few centimetres off from walking the axles into that range (a fused-fed figure-of-eight on
         ice with 5 % camber under field conditions went to the −25° lock and slid off the road without it, and
-        holds 0.035 / 0.116 m RMS / max with it), while the truth- and zero-slip-fed catalogue runs on dry, wet,
+        holds 0.041 / 0.113 m RMS / max with it), while the truth- and zero-slip-fed catalogue runs on dry, wet,
         snow and ice never reach it (the same numbers with and without). At 6° it binds on the dry roundabout
         test, where the fixed-axle compensation runs trailer2 at 6° of slip beside trailer3 at lock, and raises
         the truth-fed off-tracking after warm-up from 0.17 / 0.46 m to 0.21 / 0.49 m (RMS / max); the dry

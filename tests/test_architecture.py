@@ -8,6 +8,7 @@ of the project and see imports that run only on some paths.
 from __future__ import annotations
 
 import ast
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -209,3 +210,20 @@ def test_a_long_module_says_why() -> None:
 def test_every_module_says_what_lives_there() -> None:
     missing = [module for module, path in _modules().items() if not ast.get_docstring(ast.parse(path.read_text()))]
     assert missing == []
+
+
+def test_importing_the_package_holds_numpys_blas_to_one_thread_unless_told_otherwise() -> None:
+    # scenarios/__init__.py: a threaded BLAS makes a closed-loop run depend on the machine's core count.
+    code = "import os, scenarios, numpy; print(os.environ['OPENBLAS_NUM_THREADS'], os.environ['MKL_NUM_THREADS'])"
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    out = subprocess.run([sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["1", "1"]
+    told = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=REPO,
+        env={**env, "OPENBLAS_NUM_THREADS": "2"},
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert told.stdout.split() == ["2", "1"]  # the user's own setting stands
