@@ -22,7 +22,8 @@ the sums of a large product or solve between its threads, so their last bits dep
 closed loop grows a last-bit difference into a different run (measured: a field-conditions figure-of-eight 0.029 m
 RMS with two BLAS threads against 0.022 m with one). With one thread a run gives the same numbers on any machine, as
 the studies' workers (:data:`scenarios.studies.workers.THREAD_LIMITS`) do; the model
-and the odometry are compiled code that does not use BLAS, so nothing measurable is lost.
+and the odometry are compiled code that does not use BLAS, and a second BLAS thread only competes with the render
+worker for the cores (benchmarks/README.md, "One BLAS thread").
 """
 
 import os
