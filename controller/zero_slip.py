@@ -2,11 +2,10 @@
 
 The estimator assumes that no tyre slips sideways (docs/vehicle_dynamics.md §2.3, §7.2; Cheng 2009):
 
-* the tractor's rear point (the steer axle minus the equivalent wheelbase ``L1``,
-  :meth:`~vehicle_model.parameters.VehicleParams.tractor_equivalent_wheelbase`: ``ΣC_j L_j² / ΣC_j L_j`` over
-  the rear axles, the point that has no lateral velocity when no force acts at the fifth wheel) has no lateral
-  velocity, so the kingpin, ``e`` behind it (negative when ahead), moves at ``(u, −e·r1)`` in
-  tractor axes;
+* the tractor's rear point, ``L1`` behind the steer axle (:data:`RearPoint`: the mean station of the rear axles,
+  or their stiffness-weighted equivalent wheelbase ``ΣC_j L_j² / ΣC_j L_j``, the point that has no lateral
+  velocity when no force acts at the fifth wheel), has no lateral velocity, so the kingpin, ``e`` behind it
+  (negative when ahead), moves at ``(u, −e·r1)`` in tractor axes;
 * the tractor yaw rate ``r1`` comes either from the gyro (``yaw_rate`` variant) or from the front
   steer angle, ``r1 = u·tan δ_f / L1`` (``steer_angle`` variant);
 * the trailer heading follows from the tractor's and the measured articulation, ``ψ2 = ψ1 − Γ``.
@@ -15,10 +14,10 @@ Each control period it turns the kingpin's motion into an increment in the trail
 feeds the same :class:`~vehicle_model.offtracking.OfftrackingBuffer` as the ground truth. It is
 blind to slip by construction: tractor crab on a camber, sideslip on ice and the scrub of the tractor's
 drive and tag axles under a trailer's hitch force all go unseen (docs/vehicle_dynamics.md §6.4–6.6). That is
-the phenomenon the product exists to show. Its geometry is the best a kinematic model has: with a trailer that
-pushes nothing through the hitch it is within 2 cm RMS at walking pace (§6.6); the scrub of a fixed tri-axle,
-or of steered trailer axles at their lock, moves the tractor's true rear point 0.1–0.2 m along its axis, which
-a follow point 12–14 m behind shows as 0.1–0.2 m of off-tracking error.
+the phenomenon the product exists to show. With the equivalent wheelbase and a trailer that pushes nothing
+through the hitch it is within 2 cm RMS at walking pace (§6.6); the scrub of a fixed tri-axle, or of steered
+trailer axles at their lock, moves the tractor's true rear point 0.1–0.2 m along its axis, which a follow point
+12–14 m behind shows as 0.1–0.2 m of off-tracking error whichever point the estimator assumes.
 
 Variants: Cheng's estimator used the measured yaw rate of the tractor with the articulation
 angle (unverified: the thesis could not be consulted, docs/vehicle_dynamics.md §7.1); here ``yaw_rate`` is the default
@@ -30,7 +29,7 @@ scrub makes the tractor turn tighter than ``tan δ/L1`` (docs/vehicle_dynamics.m
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -57,12 +56,12 @@ class ZeroSlipEstimator:
     Parameters
     ----------
     params
-        Vehicle parameters (tractor equivalent wheelbase, fifth-wheel position, follow point).
+        Vehicle parameters (tractor axles, fifth-wheel position, follow point).
     variant
         ``yaw_rate`` (gyro, default) or ``steer_angle``.
     rear_point
-        The tractor's point without lateral velocity (:data:`RearPoint`): ``equivalent`` (default) or
-        ``axle_mean``.
+        The tractor's point without lateral velocity (:data:`RearPoint`): ``axle_mean`` (default) or
+        ``equivalent``.
     """
 
     def __init__(
@@ -70,8 +69,8 @@ class ZeroSlipEstimator:
     ) -> None:
         if variant not in ("yaw_rate", "steer_angle"):
             raise ValueError(f"zero-slip variant {variant!r} must be 'yaw_rate' or 'steer_angle'")
-        if rear_point not in ("equivalent", "axle_mean"):
-            raise ValueError(f"zero-slip rear point {rear_point!r} must be 'axle_mean' or 'equivalent'")
+        if rear_point not in get_args(RearPoint):
+            raise ValueError(f"zero-slip rear point {rear_point!r} must be one of {get_args(RearPoint)}")
         self.variant = variant
         self.params = params
         self.wheelbase = (

@@ -57,9 +57,9 @@ def zero_slip_kingpin_velocity(
         Tractor forward speed [m/s] and yaw rate [rad/s] (measured or true).
     wheelbase
         ``L1`` [m]; None: :meth:`VehicleParams.tractor_wheelbase` (the mean station of the rear axles, with
-        ``e5`` = :attr:`VehicleParams.kingpin_behind_rear_point`). The zero-slip estimator passes
-        :meth:`VehicleParams.tractor_equivalent_wheelbase`, the point that has no lateral velocity when no
-        force acts at the fifth wheel.
+        ``e5`` = :attr:`VehicleParams.kingpin_behind_rear_point`). The zero-slip estimator passes the one
+        it is set to (``controller.zero_slip.RearPoint``), e.g. :meth:`VehicleParams.tractor_equivalent_wheelbase`,
+        the point that has no lateral velocity when no force acts at the fifth wheel.
     """
     if wheelbase is None:
         return u, -params.kingpin_behind_rear_point * r1
