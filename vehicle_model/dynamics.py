@@ -1,11 +1,11 @@
 """The nonlinear yaw-plane tractor–semi-trailer model, defined once in casadi.
 
 Two rigid bodies, tractor (unit 1) and semi-trailer (unit 2), joined at the kingpin; any number of
-axles per unit, lumped on the centre line; any axle may be steered. Each right-hand-side
-evaluation solves the six Newton–Euler equations, linear in ``[u̇, v̇1, ṙ1, ṙ2, F_hx, F_hy]``
-(docs/vehicle_dynamics.md §1.1 and §1.4, extended with the tractor longitudinal equation so that the
-forward speed follows from the drive force instead of being prescribed); the hitch force is
-eliminated first, leaving a symmetric 4×4 mass matrix.
+axles per unit, lumped on the centre line; any axle may be steered. The tyre forces follow from each unit's
+velocity; the equations of motion are those of a chain of units (:mod:`vehicle_model.chain`: Kane's equations with
+the hinge forces eliminated, here for two units: a symmetric 4×4 mass matrix in ``[u̇, v̇1, ṙ1, ṙ2]``,
+docs/vehicle_dynamics.md §1.1 and §1.4, extended with the tractor longitudinal equation so that the forward speed
+follows from the drive force instead of being prescribed); the hitch force is recovered after.
 
 From this one definition :class:`VehicleModel` derives the right-hand side, a fixed-step RK4
 step, the multi-step integrator, the outputs and the Jacobians.
@@ -20,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 from . import tyre as tyre_model
+from .chain import ChainBody, chain_motion, chain_velocities
 from .codegen import compile_library, load_functions
 from .layout import Layout
 from .parameters import GRAVITY, VehicleParams
@@ -59,16 +60,17 @@ def define_model(params: VehicleParams) -> SymbolicModel:
     mu = u_in[layout.mu_slice]
     slope = u_in[layout.slope_slice]
 
-    m1, i1, m2, i2 = params.tractor.mass, params.tractor.yaw_inertia, params.trailer.mass, params.trailer.yaw_inertia
-    h1, h2 = params.h1, params.h2
+    m1, m2 = params.tractor.mass, params.trailer.mass
     psi2 = psi1 - gamma
-    cg, sg = ca.cos(gamma), ca.sin(gamma)
-
-    # Hitch kinematics (docs/vehicle_dynamics.md §1.1): kingpin velocity in the tractor frame, rotated into the
-    # trailer frame.
-    v_h1 = v1 - h1 * r1
-    u2 = u * cg - v_h1 * sg
-    v2 = u * sg + v_h1 * cg - h2 * r2
+    # The two units as a chain (vehicle_model/chain.py): the kingpin h1 behind the tractor's CG, h2 ahead of the
+    # trailer's; eq (C1) gives the trailer's CG velocity (docs/vehicle_dynamics.md §1.1).
+    bodies = (
+        ChainBody(m1, params.tractor.yaw_inertia, rear_hinge=params.h1),
+        ChainBody(m2, params.trailer.yaw_inertia, front_hinge=params.h2),
+    )
+    speeds = ca.vertcat(u, v1, r1, r2)
+    articulation = ca.vertcat(gamma)
+    (_, u2), (_, v2) = chain_velocities([u, v1, r1, r2], [gamma], bodies)
     gamma_dot = r1 - r2
 
     # In-plane gravity per body (docs/vehicle_dynamics.md §1.3), from the global slope vector.
@@ -134,37 +136,15 @@ def define_model(params: VehicleParams) -> SymbolicModel:
 
     f_aero = -0.5 * AIR_DENSITY * params.tractor.drag_area * u * ca.fabs(u)
 
-    # Newton–Euler with the hitch constraint (docs/vehicle_dynamics.md §1.4, extended with the tractor longitudinal
-    # equation). F_h is the hitch force on the trailer in trailer axes; the tractor receives −R(−Γ)·F_h.
-    # Writing the trailer equations as F_h = m2·a2 − (trailer forces) and substituting leaves four equations
-    # in [u̇, v̇1, ṙ1, ṙ2] with a symmetric mass matrix (at Γ = 0 it is the matrix of docs/vehicle_dynamics.md §2.1).
-    q_u = -gamma_dot * (u * sg + v_h1 * cg)  # velocity-product part of u̇2 (docs/vehicle_dynamics.md §1.1)
-    q_v = gamma_dot * (u * cg - v_h1 * sg)  # velocity-product part of v̇2 (docs/vehicle_dynamics.md §1.1)
-    b_tractor_x = fx_body[0] + m1 * gx1 + m1 * v1 * r1 + f_aero
-    b_tractor_y = fy_body[0] + m1 * gy1 - m1 * u * r1
-    b_trailer_x = fx_body[1] + m2 * gx2 + m2 * v2 * r2 - m2 * q_u  # F_hx = m2·(u̇2 − q_u) − this
-    b_trailer_y = fy_body[1] + m2 * gy2 - m2 * u2 * r2 - m2 * q_v  # F_hy = m2·(v̇2 − q_v) − this
-    # The trailer-side force rotated into tractor axes.
-    b_rot_x = cg * b_trailer_x + sg * b_trailer_y
-    b_rot_y = -sg * b_trailer_x + cg * b_trailer_y
-    m_tot = m1 + m2
-    mass_matrix = ca.vertcat(
-        ca.horzcat(m_tot, 0.0, 0.0, -m2 * h2 * sg),
-        ca.horzcat(0.0, m_tot, -m2 * h1, -m2 * h2 * cg),
-        ca.horzcat(0.0, -m2 * h1, i1 + m2 * h1**2, m2 * h1 * h2 * cg),
-        ca.horzcat(-m2 * h2 * sg, -m2 * h2 * cg, m2 * h1 * h2 * cg, i2 + m2 * h2**2),
-    )
-    generalised_force = ca.vertcat(
-        b_tractor_x + b_rot_x,
-        b_tractor_y + b_rot_y,
-        mz_body[0] - h1 * b_rot_y,
-        mz_body[1] - h2 * b_trailer_y,
-    )
-    acc = ca.solve(mass_matrix, generalised_force)
-    u_dot, v1_dot, r1_dot, r2_dot = acc[0], acc[1], acc[2], acc[3]
-    w_dot = v1_dot - h1 * r1_dot  # kingpin lateral acceleration term, tractor axes
-    hitch_x = m2 * (cg * u_dot - sg * w_dot) - b_trailer_x
-    hitch_y = m2 * (sg * u_dot + cg * w_dot - h2 * r2_dot) - b_trailer_y
+    # Newton–Euler with the hinge forces eliminated (vehicle_model/chain.py, eqs (C2)–(C4); the tractor's
+    # longitudinal equation included, so the forward speed follows from the drive force).
+    applied = [
+        ca.vertcat(fx_body[0] + m1 * gx1 + f_aero, fy_body[0] + m1 * gy1, mz_body[0]),
+        ca.vertcat(fx_body[1] + m2 * gx2, fy_body[1] + m2 * gy2, mz_body[1]),
+    ]
+    motion = chain_motion(speeds, articulation, bodies, applied)
+    u_dot, v1_dot, r1_dot, r2_dot = (motion.speed_rates[i] for i in range(4))
+    hitch_x, hitch_y = motion.hinge_forces[0][0], motion.hinge_forces[0][1]
 
     xdot = ca.vertcat(
         u * ca.cos(psi1) - v1 * ca.sin(psi1),

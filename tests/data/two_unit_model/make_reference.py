@@ -41,14 +41,15 @@ def sample_points(model: VehicleModel, rng: np.random.Generator) -> tuple[np.nda
 
 
 def open_loop_run(model: VehicleModel) -> np.ndarray:
-    """States every ``DT`` (the file keeps every fifth) of a 10 m/s run with a steer ramp to 0.2 rad over 2 s, held (trailer axles −0.05 rad)."""
+    """States every ``DT`` (the file keeps every fifth) of a 10 m/s run: a steer ramp to 0.2 rad over 2 s, held
+    (steerable trailer axles to −0.05 rad)."""
     lay = model.layout
     n_axles, n_steer = len(lay.axles), len(lay.steerable_axles)
     advance = model.integrator(SUBSTEPS)
     x = np.zeros(lay.n_states)
     x[3] = 10.0
     rows = [x.copy()]
-    for k in range(int(round(RUN_S / DT))):
+    for k in range(round(RUN_S / DT)):
         t = k * DT
         u = np.zeros(lay.n_inputs)
         u[0] = 0.2 * min(t / 2.0, 1.0)
