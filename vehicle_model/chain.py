@@ -15,25 +15,34 @@ unit's CG velocity::
     (a, b) = (u_k, v_k − e_k·r_k)
     u_{k+1} = a·cos Γ_k − b·sin Γ_k,   v_{k+1} = a·sin Γ_k + b·cos Γ_k − f_{k+1}·r_{k+1}                   (C1)
 
-so every unit's velocity ``V_k = (u_k, v_k, r_k) = J_k(Γ)·w`` is linear in ``w`` with a Jacobian that depends on the
-articulation angles only. The hinge forces do no work in any motion the hinges allow, so Kane's equations
-(Kane & Levinson 1985, ch. 6; the partial velocities are the rows of ``J_k``) eliminate them::
+Every unit's CG velocity is linear in ``w``. Written in the first unit's axes, with ``θ_j = ψ_j − ψ_1`` (``θ_1 =
+0``, ``θ_{j+1} = θ_j − Γ_j``) and the unit vectors ``x̂_j = (cos θ_j, sin θ_j)``, ``ŷ_j = (−sin θ_j, cos θ_j)``, each
+unit's rotation moves the points behind it sideways::
 
-    Σ_k J_kᵀ·(F_k − D_k·A_k) = 0,   D_k = diag(m_k, m_k, I_k)                                              (C2)
+    V_k = u_1·x̂_1 + v_1·ŷ_1 + Σ_j λ_kj·r_j·ŷ_j                                                          (C2)
 
-with ``F_k`` the applied force and moment on unit ``k`` at its CG in its axes (tyres, gravity along the slope,
-drag) and ``A_k`` the CG acceleration and yaw acceleration in the unit's own (rotating) axes::
+with the lever arms ``λ_k1 = −e_1`` and ``λ_kj = −(f_j + e_j)`` for the units ``1 < j < k`` between, ``λ_kk = −f_k``
+(0 for ``k = 1``) and ``λ_kj = 0`` for ``j > k``. The hinge forces do no work in any motion the hinges allow, so
+Kane's equations (Kane & Levinson 1985, ch. 6; the partial velocities ``∂V_k/∂w`` are the coefficients of (C2))
+eliminate them: ``M·ẇ = Q`` with the symmetric positive definite mass matrix (``m_k``, ``I_k`` each unit's mass and
+yaw inertia about its CG)::
 
-    A_k = J_k·ẇ + (∂V_k/∂Γ)·Γ̇ + (−v_k·r_k, u_k·r_k, 0),   Γ̇_k = r_k − r_{k+1}                              (C3)
+    M_uu = M_vv = Σ m_k,   M_uv = 0,   M_u,rj = −sin θ_j·Λ_j,   M_v,rj = cos θ_j·Λ_j,   Λ_j = Σ_k m_k·λ_kj
+    M_ri,rj = cos(θ_i − θ_j)·Σ_k m_k·λ_ki·λ_kj + δ_ij·I_j                                               (C3)
 
-(C2) is linear in ``ẇ`` with the symmetric positive definite mass matrix ``M = Σ J_kᵀ D_k J_k``; for two units it is
-the 4×4 matrix of docs/vehicle_dynamics.md §1.4 and §2.1. The force that unit ``k + 1`` receives at its front hinge,
-in its axes, follows from the rear of the chain forward::
+and, with ``F_k`` the applied force on unit ``k`` at its CG (tyres, gravity along the slope, drag; turned into the
+first unit's axes) and ``N_k = F_k − m_k·b_k`` less the velocity-product part of its acceleration::
 
-    H_N = m_N·a_N − F_N,   H_k = m_k·a_k − F_k + R(Γ_k)·H_{k+1}                                            (C4)
+    b_k = −v_1·r_1·x̂_1 + u_1·r_1·ŷ_1 − Σ_j λ_kj·r_j²·x̂_j
+    Q_u = Σ_k N_k·x̂_1,   Q_v = Σ_k N_k·ŷ_1,   Q_rj = τ_j + ŷ_j·Σ_k λ_kj·N_k                              (C4)
 
-(``a_k`` the translational part of ``A_k``; ``R(Γ_k)`` turns unit ``k + 1``'s axes into unit ``k``'s; the force a unit
-receives from the unit behind is ``−R·H``.)
+(``τ_j`` the applied moment on unit ``j`` about its CG). For two units (C3) is the 4×4 matrix of
+docs/vehicle_dynamics.md §1.4 and §2.1. The force that unit ``k`` receives at its front hinge follows from the
+rear of the chain forward, in the first unit's axes (``a_k`` the CG acceleration)::
+
+    H_N = m_N·a_N − F_N,   H_k = m_k·a_k − F_k + H_{k+1}                                                 (C5)
+
+and is reported in unit ``k``'s own axes.
 """
 
 from __future__ import annotations
@@ -75,9 +84,9 @@ class ChainMotion:
     Attributes
     ----------
     speed_rates : casadi.SX
-        ``ẇ`` of (C2), ``N + 2`` entries ``[u̇_1, v̇_1, ṙ_1, …, ṙ_N]``.
+        ``ẇ`` solving ``M·ẇ = Q`` of (C3)–(C4), ``N + 2`` entries ``[u̇_1, v̇_1, ṙ_1, …, ṙ_N]``.
     hinge_forces : list of casadi.SX
-        ``H_{k+1}`` of (C4) for each hinge: the force (x, y) the trailing unit receives at it, in its axes [N].
+        ``H_k`` of (C5) for each hinge: the force (x, y) the trailing unit receives at it, in its own axes [N].
     """
 
     speed_rates: ca.SX
@@ -119,55 +128,88 @@ def chain_velocities(
 def chain_motion(
     speeds: ca.SX, articulation: ca.SX, bodies: Sequence[ChainBody], applied: Sequence[ca.SX]
 ) -> ChainMotion:
-    """Speed rates and hinge forces of the chain, eqs (C2)–(C4).
+    """Speed rates and hinge forces of the chain, eqs (C2)–(C5).
 
     Parameters
     ----------
     speeds : casadi.SX
-        ``w``, a column of ``N + 2`` symbols (or entries of one state vector).
+        ``w``, ``N + 2`` entries.
     articulation : casadi.SX
-        ``Γ``, a column of ``N − 1`` symbols.
+        ``Γ``, ``N − 1`` entries [rad].
     bodies : sequence of ChainBody
         The ``N`` units in order.
     applied : sequence of casadi.SX
-        ``F_k``: per unit the force (x, y) [N] at its CG and the moment about it [N·m], in its axes, every applied
-        load but the hinges'.
+        ``F_k``: per unit the force (x, y) [N] at its CG and the moment about it [N·m], in its own axes, every
+        applied load but the hinges'.
 
     Returns
     -------
     ChainMotion
     """
     n = len(bodies)
-    if len(applied) != n:
-        raise ValueError(f"a chain of {n} units takes {n} applied loads, got {len(applied)}")
-    w = [speeds[i] for i in range(n + 2)]
-    gamma = [articulation[i] for i in range(n - 1)]
-    u, v = chain_velocities(w, gamma, bodies)
-    yaw = w[2:]
-    gamma_rate = ca.vertcat(*[yaw[k] - yaw[k + 1] for k in range(n - 1)]) if n > 1 else ca.SX(0, 1)
-    mass_matrix = ca.SX.zeros(n + 2, n + 2)
-    force = ca.SX.zeros(n + 2, 1)
-    bias_accelerations = []
-    for k, body in enumerate(bodies):
-        velocity = ca.vertcat(u[k], v[k], yaw[k])
-        jac = ca.jacobian(velocity, speeds)
-        # (C3): the rate of V_k through the articulation, and the rotating axes' terms
-        through_angles = ca.jtimes(velocity, articulation, gamma_rate) if n > 1 else ca.SX.zeros(3, 1)
-        bias = through_angles + ca.vertcat(-v[k] * yaw[k], u[k] * yaw[k], 0.0)
-        inertia = ca.diag(ca.vertcat(body.mass, body.mass, body.yaw_inertia))
-        mass_matrix += jac.T @ inertia @ jac
-        force += jac.T @ (applied[k] - inertia @ bias)  # (C2)
-        bias_accelerations.append((jac, bias))
-    rates = ca.solve(mass_matrix, force)
+    if len(applied) != n or speeds.numel() != n + 2 or articulation.numel() != max(n - 1, 0):
+        raise ValueError(f"a chain of {n} units takes {n + 2} speeds, {n - 1} angles and {n} applied loads")
+    u1, v1 = speeds[0], speeds[1]
+    yaw = [speeds[2 + j] for j in range(n)]
+    theta: list[ca.SX | float] = [0.0]
+    for k in range(n - 1):
+        theta.append(theta[k] - articulation[k])
+    cos = [1.0] + [ca.cos(t) for t in theta[1:]]
+    sin = [0.0] + [ca.sin(t) for t in theta[1:]]
+    lever = [[_lever_arm(bodies, k, j) for j in range(n)] for k in range(n)]  # λ_kj of (C2)
+    mass = [b.mass for b in bodies]
+
+    matrix = ca.SX.zeros(n + 2, n + 2)  # (C3)
+    matrix[0, 0] = matrix[1, 1] = sum(mass)
+    for j in range(n):
+        moment = sum(mass[k] * lever[k][j] for k in range(n))
+        if moment:
+            matrix[0, 2 + j] = matrix[2 + j, 0] = -sin[j] * moment
+            matrix[1, 2 + j] = matrix[2 + j, 1] = cos[j] * moment
+        for i in range(j + 1):
+            product = sum(mass[k] * lever[k][i] * lever[k][j] for k in range(n))
+            value = product * (1.0 if i == j else cos[j] if i == 0 else ca.cos(theta[i] - theta[j]))
+            matrix[2 + i, 2 + j] = matrix[2 + j, 2 + i] = value + (bodies[j].yaw_inertia if i == j else 0.0)
+
+    net, bias = [], []  # N_k and b_k of (C4), in the first unit's axes
+    for k in range(n):
+        fx, fy = applied[k][0], applied[k][1]
+        bx, by = -v1 * yaw[0], u1 * yaw[0]
+        for j in range(k + 1):
+            if lever[k][j]:
+                bx -= lever[k][j] * yaw[j] ** 2 * cos[j]
+                by -= lever[k][j] * yaw[j] ** 2 * sin[j]
+        bias.append((bx, by))
+        net.append((fx * cos[k] - fy * sin[k] - mass[k] * bx, fx * sin[k] + fy * cos[k] - mass[k] * by))
+    force = [sum(x for x, _ in net), sum(y for _, y in net)]
+    for j in range(n):
+        nx = sum(lever[k][j] * net[k][0] for k in range(n) if lever[k][j])
+        ny = sum(lever[k][j] * net[k][1] for k in range(n) if lever[k][j])
+        force.append(applied[j][2] - sin[j] * nx + cos[j] * ny)
+    rates = ca.solve(matrix, ca.vertcat(*force))
+
     hinge_forces: list[ca.SX] = []
-    behind = None
-    for k in range(n - 1, 0, -1):  # (C4), from the rear
-        jac, bias = bias_accelerations[k]
-        accel = (jac @ rates + bias)[:2]
-        h = bodies[k].mass * accel - applied[k][:2]
-        if behind is not None:
-            c, s = ca.cos(gamma[k]), ca.sin(gamma[k])
-            h = h + ca.vertcat(c * behind[0] + s * behind[1], -s * behind[0] + c * behind[1])
-        hinge_forces.insert(0, h)
-        behind = h
+    behind = (0.0, 0.0)
+    for k in range(n - 1, 0, -1):  # (C5), from the rear
+        ax, ay = rates[0] + bias[k][0], rates[1] + bias[k][1]
+        for j in range(k + 1):
+            if lever[k][j]:
+                ax -= lever[k][j] * rates[2 + j] * sin[j]
+                ay += lever[k][j] * rates[2 + j] * cos[j]
+        fx, fy = applied[k][0], applied[k][1]
+        hx = mass[k] * ax - (fx * cos[k] - fy * sin[k]) + behind[0]
+        hy = mass[k] * ay - (fx * sin[k] + fy * cos[k]) + behind[1]
+        behind = (hx, hy)
+        hinge_forces.insert(0, ca.vertcat(cos[k] * hx + sin[k] * hy, -sin[k] * hx + cos[k] * hy))  # unit k's axes
     return ChainMotion(speed_rates=rates, hinge_forces=hinge_forces)
+
+
+def _lever_arm(bodies: Sequence[ChainBody], k: int, j: int) -> float:
+    """``λ_kj`` of eq (C2): how far unit ``j``'s rotation moves unit ``k``'s CG sideways, per rad/s [m]."""
+    if j > k or k == 0:
+        return 0.0
+    if j == k:
+        return -bodies[k].front_hinge
+    if j == 0:
+        return -bodies[0].rear_hinge
+    return -(bodies[j].front_hinge + bodies[j].rear_hinge)
