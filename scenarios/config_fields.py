@@ -145,6 +145,10 @@ def _allowed(info: FieldInfo, dotted: str) -> str:
     choices = _choices(info.annotation) or _named_choices().get(dotted, [])
     if info.annotation is bool:
         choices = ["true", "false"]
+    if choices and low is not None and high is not None:  # a number or a name (``yaw_inertia: box``)
+        return f"{'[' if closed_low else '('}{_number(low)}, {_number(high)}{']' if closed_high else ')'} | " + (
+            " | ".join(choices)
+        )
     if choices:
         return " | ".join(choices)
     if low is not None and high is not None:
@@ -193,7 +197,8 @@ def _rows(model: type[BaseModel], prefix: str) -> Iterator[FieldRow]:
         dotted = f"{prefix}{name}"
         models = _models_in(info.annotation)
         if models:
-            if _is_list(info.annotation) or info.default is None:  # a list of sections, or an optional one
+            if _is_list(info.annotation) or info.default is None or isinstance(info.default, str):
+                # a list of sections, an optional one, or one given by name (``vehicle: lst``)
                 yield _row(dotted, info, documented.get(name, ""))
             inner = f"{dotted}[]." if _is_list(info.annotation) else f"{dotted}."
             for nested in models:
@@ -206,7 +211,8 @@ def _row(dotted: str, info: FieldInfo, documented: str) -> FieldRow:
     text = " ".join((_description(info) or documented).split())
     match = _UNIT.match(text)
     unit, text = (match.group(1), text[match.end() :]) if match else ("", text)
-    default = "(section)" if _models_in(info.annotation) and not _is_list(info.annotation) else _default(info)
+    section = _models_in(info.annotation) and not _is_list(info.annotation) and not isinstance(info.default, str)
+    default = "(section)" if section else _default(info)
     if _models_in(info.annotation) and info.default is None:
         default = "null"
     return FieldRow(dotted, unit, default, _allowed(info, dotted), text)
