@@ -286,4 +286,19 @@ def test_the_listing_summary_gives_length_units_and_steerable_axles() -> None:
     length, units, steerable = combination_summary(CombinationSpec.model_validate(catalogue_vehicle_data("lst")))
     # front bumper 1.4 m ahead of the steer axle, kingpin 3.4 m behind it, trailer rear 14.05 m behind the kingpin
     assert length == pytest.approx(1.4 + 3.4 + 14.05, abs=1e-12)
-    assert units == "tractor + semi trailer" and steerable == "steer, trailer2, trailer3"
+    assert units == "tractor + semi" and steerable == "steer, trailer2, trailer3"
+
+
+def test_the_documented_example_is_valid_and_gives_the_lst() -> None:
+    """docs/vehicles.md's complete example (stations from the front of each unit) is the ``lst`` preset."""
+    text = (Path(__file__).resolve().parents[1] / "docs" / "vehicles.md").read_text(encoding="utf-8")
+    block = text.split("```yaml\n", 1)[1].split("```", 1)[0]
+    example = CombinationSpec.model_validate(yaml.safe_load(block)).params()
+    lst = TODAY["lst"]
+    for unit in ("tractor", "trailer"):
+        a, b = getattr(example, unit).model_dump(), getattr(lst, unit).model_dump()
+        for key, value in b.items():
+            if isinstance(value, float):
+                assert a[key] == pytest.approx(value, rel=1e-12, abs=1e-12), (unit, key)
+        assert [x["x"] for x in a["axles"]] == pytest.approx([x["x"] for x in b["axles"]], abs=1e-12)
+        assert [x["steerable"] for x in a["axles"]] == [x["steerable"] for x in b["axles"]]

@@ -68,6 +68,16 @@ COUPLING_OF: dict[str, str] = {
 """The coupling each towed kind is towed by: a semi-trailer's kingpin sits on a fifth wheel, the others have a
 drawbar whose eye hangs on a hitch of the unit ahead."""
 
+SHORT_KIND = {
+    "tractor": "tractor",
+    "rigid_truck": "truck",
+    "semi_trailer": "semi",
+    "converter_dolly": "dolly",
+    "centre_axle_trailer": "centre-axle",
+    "full_trailer": "full",
+}
+"""Each kind in a word, for a listing's narrow column."""
+
 SUPPORTED = "the model supports a tractor or rigid truck with one semi-trailer for now"
 """Why :meth:`CombinationSpec.params` refuses any other combination."""
 
@@ -403,11 +413,11 @@ def combination_summary(spec: CombinationSpec) -> tuple[float, str, str]:
     tuple of (float, str, str)
         The overall length [m] from the first unit's front to the last unit's rear along a straight line (each
         coupling joining the stations of the two units it couples), the unit kinds joined by ``+``, and the names of
-        the steerable axles on the ground (``–`` for none).
+        the steerable axles on the ground (``–`` for none). The kinds are shortened (:data:`SHORT_KIND`).
     """
     rear = min(_rear_in_first(spec, i) for i in range(len(spec.units)))  # a short unit may end ahead of another
     steerable = [a.name for u in spec.units for a in u.grounded if a.steerable]
-    kinds = " + ".join(u.kind.replace("_", " ") for u in spec.units)
+    kinds = " + ".join(SHORT_KIND[u.kind] for u in spec.units)
     return spec.units[0].front_x - rear, kinds, ", ".join(steerable) or "–"
 
 

@@ -108,9 +108,9 @@ def vehicle_table() -> Table:
     rich.table.Table
         A row a combination of the catalogue (:func:`vehicle_model.combination.combination_summary`).
     """
-    columns = [("name", "left"), ("length [m]", "right"), ("units", "left"), ("steerable axles", "left")]
+    columns = [("name", "left"), ("L [m]", "right"), ("units", "left"), ("steerable axles", "left")]
     table = _table("Vehicle presets (--vehicle NAME or --vehicle FILE.yaml)", [*columns, ("description", "left")])
-    table.caption = "length: front to rear, straight; the files are vehicle_model/catalogue/NAME.yaml"
+    table.caption = "L: overall length, straight; semi: semi-trailer; files: vehicle_model/catalogue/NAME.yaml"
     for name in VEHICLE_PRESETS:
         spec = catalogue_vehicle(name)
         length, units, steerable = combination_summary(spec)
