@@ -366,7 +366,9 @@ def compare(
     mu: Annotated[float | None, typer.Option(help="Friction coefficient (overrides --surface).")] = None,
     camber: Annotated[float | None, typer.Option(help="Camber [%].")] = None,
     camber_direction: Annotated[str | None, typer.Option(help="outward or inward.")] = None,
-    vehicle: Annotated[str, typer.Option(help="Vehicle preset with steerable trailer axles.")] = "lst",
+    vehicle: Annotated[
+        str, typer.Option(help="Vehicle preset with steerable trailer axles, or a combination file NAME.yaml.")
+    ] = "lst",
     feedbacks: Annotated[
         str,
         typer.Option(

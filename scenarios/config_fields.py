@@ -174,11 +174,29 @@ def _choices(annotation: Any) -> list[str]:
 
 
 def _docstring_parameters(model: type[BaseModel]) -> dict[str, str]:
-    """The numpydoc ``Parameters`` (or ``Attributes``) entries of a model's docstring, one line each."""
+    """The numpydoc ``Parameters`` (or ``Attributes``) entries of a model's docstring and of the models it extends
+    (its own win), one line each."""
+    entries: dict[str, str] = {}
+    for klass in reversed(model.__mro__):
+        if isinstance(klass, type) and issubclass(klass, BaseModel) and klass is not BaseModel:
+            entries.update(_own_parameters(klass))
+    return entries
+
+
+def _own_parameters(model: type[BaseModel]) -> dict[str, str]:
+    """The ``Parameters`` (or ``Attributes``) entries of one class's own docstring: ``name : type`` headers anywhere,
+    a bare ``name`` header inside those sections."""
     entries: dict[str, str] = {}
     name = None
-    for line in inspect.cleandoc(model.__doc__ or "").splitlines():
+    in_section = False
+    lines = inspect.cleandoc(model.__doc__ or "").splitlines()
+    for line, below in zip(lines, [*lines[1:], ""][: len(lines)], strict=True):
+        if below.strip() and set(below.strip()) == {"-"}:  # a section's title, its underline below it
+            in_section, name = line.strip() in ("Parameters", "Attributes"), None
+            continue
         header = re.match(r"^(\w+(?:\s*,\s*\w+)*)\s+:\s+\S", line)
+        if header is None and in_section:
+            header = re.match(r"^(\w+(?:\s*,\s*\w+)*)\s*$", line)
         if header:
             name = header.group(1)
             for each in name.split(","):

@@ -29,6 +29,7 @@ from pydantic import ConfigDict, Discriminator, Field, Tag, ValidationError, mod
 from .parameters import (
     AxleParams,
     DragArea,
+    Mass,
     Station,
     TractorParams,
     TrailerParams,
@@ -156,6 +157,17 @@ class CouplingSpec(_Frozen):
     x: Station = 0.0
 
 
+RoadMass = Annotated[
+    Mass, Field(le=100_000.0, description="[kg]; a unit has mass, and one above 100 t is no road vehicle")
+]
+"""A road unit's mass [kg]."""
+
+_ROAD_INERTIA = "[kg·m²] about the CG, or box; a uniform 100 t box 25 m long has 5.3e6, so 1e7 bounds any road unit"
+
+RoadYawInertia = Annotated[YawInertia, Field(le=1.0e7, description=_ROAD_INERTIA)]
+"""A road unit's yaw inertia about its CG [kg·m²]."""
+
+
 def _inertia_tag(value: Any) -> str:
     """Which form of ``yaw_inertia`` a value is: a ``number`` or the ``box`` estimate."""
     return "box" if isinstance(value, str) else "number"
@@ -195,9 +207,10 @@ class UnitSpec(_UnitParams):
     model_config = ConfigDict(allow_inf_nan=False)
 
     kind: UnitKind
+    mass: RoadMass
     yaw_inertia: Annotated[
-        Annotated[YawInertia, Tag("number")] | Annotated[Literal["box"], Tag("box")], Discriminator(_inertia_tag)
-    ]
+        Annotated[RoadYawInertia, Tag("number")] | Annotated[Literal["box"], Tag("box")], Discriminator(_inertia_tag)
+    ] = Field(description=_ROAD_INERTIA)
     axles: tuple[AxleSpec, ...] = Field((), description="front to rear; a unit rests on at least one axle")
     coupling: CouplingSpec | None = None
     drag_area: DragArea | None = None

@@ -44,20 +44,12 @@ Station = Annotated[
 ]
 """A station along a unit's centre line [m] (module docstring: where each unit's stations start)."""
 
-Mass = Annotated[
-    float, Field(gt=0, le=100_000.0, description="[kg]; a unit has mass, and one above 100 t is no road vehicle")
-]
-"""A unit's mass [kg]."""
+Mass = Annotated[float, Field(gt=0, description="[kg]; a unit has mass")]
+"""A unit's mass [kg]. Unbounded above: a design model holds the kingpin still with a tractor of 1e6 times its mass
+(:mod:`controller.gain_design`); a combination file bounds it to road units (:mod:`vehicle_model.combination`)."""
 
-YawInertia = Annotated[
-    float,
-    Field(
-        gt=0,
-        le=1.0e7,
-        description="[kg·m²] about the CG; a uniform 100 t box 25 m long has 5.3e6, so 1e7 bounds any road unit",
-    ),
-]
-"""A unit's yaw inertia about its CG [kg·m²]."""
+YawInertia = Annotated[float, Field(gt=0, description="[kg·m²] about the CG; a unit has one")]
+"""A unit's yaw inertia about its CG [kg·m²]; unbounded above, as :data:`Mass`."""
 
 DragArea = Annotated[
     float, Field(ge=0, le=20.0, description="[m²] C_d·A; a truck's is 5–7 m², 20 m² is beyond any road vehicle")
