@@ -302,3 +302,27 @@ def test_the_documented_example_is_valid_and_gives_the_lst() -> None:
                 assert a[key] == pytest.approx(value, rel=1e-12, abs=1e-12), (unit, key)
         assert [x["x"] for x in a["axles"]] == pytest.approx([x["x"] for x in b["axles"]], abs=1e-12)
         assert [x["steerable"] for x in a["axles"]] == [x["steerable"] for x in b["axles"]]
+
+
+def test_the_command_line_takes_a_vehicle_file_and_sets_its_axles(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from scenarios.cli import app
+
+    path = tmp_path / "truck.yaml"
+    path.write_text(yaml.safe_dump(catalogue_vehicle_data("reference")))
+    args = ["config", "roundabout-test", "--vehicle", str(path), "--set", "vehicle.units[1].axles[1].steerable=true"]
+    result = CliRunner().invoke(app, args, prog_name="offtrack")
+    assert result.exit_code == 0, result.output
+    config = validate_config(yaml.safe_load(result.stdout))  # the resolved file holds the vehicle inline
+    assert [a.steerable for a in config.vehicle_params().trailer.axles] == [False, True, False]
+    bad = CliRunner().invoke(app, [*args[:4], "--set", "vehicle.units[1].axles[0].x=-20"], prog_name="offtrack")
+    assert bad.exit_code == 2 and "vehicle.units[1].axles[0].x = -20.0 m" in bad.output
+
+
+def test_an_exported_run_names_an_inline_vehicle(tmp_path: Path) -> None:
+    from scenarios.export.table import _metadata
+
+    config = load_scenario("roundabout-test", {"vehicle.units[1].mass": 30000.0})
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump(config.model_dump(mode="json")))
+    assert _metadata(tmp_path)["vehicle"] == "reference"

@@ -27,17 +27,13 @@ def catalogue_vehicle(name: str) -> CombinationSpec:
     return CombinationSpec.model_validate(catalogue_vehicle_data(name))
 
 
-def _preset(name: str) -> VehicleParams:
-    return _params(name)
-
-
 @functools.cache
 def _params(name: str) -> VehicleParams:
     return catalogue_vehicle(name).params()
 
 
 def _factory(name: str) -> Callable[[], VehicleParams]:
-    factory = functools.partial(_preset, name)
+    factory = functools.partial(_params, name)
     factory.__doc__ = catalogue_vehicle(name).description  # type: ignore[attr-defined]
     return factory
 
