@@ -425,6 +425,37 @@ def _preset_choices(name: str) -> str:
     return did_you_mean(name, VEHICLE_PRESETS) or f"; choose one of {sorted(VEHICLE_PRESETS)} or give a .yaml file"
 
 
+def read_vehicle_file(vehicle: Any) -> Any:
+    """A ``vehicle`` field's value before validation: a combination file read into its mapping, anything else as it
+    is (a schema's ``mode="before"`` validator: the resolved value holds the combination, not the path)."""
+    if isinstance(vehicle, str) and vehicle.endswith(VEHICLE_SUFFIXES):
+        return load_vehicle_file(vehicle)
+    return vehicle
+
+
+def check_vehicle(vehicle: str | CombinationSpec) -> str | CombinationSpec:
+    """A ``vehicle`` field's value after validation, refused (``ValueError``, one line naming the field) if it is not
+    a preset or a combination the model can simulate."""
+    if isinstance(vehicle, str):
+        if vehicle not in VEHICLE_PRESETS:
+            raise ValueError(f"not a preset{_preset_choices(vehicle)}")
+        return vehicle
+    vehicle.params()  # beyond the model, or statics it cannot solve
+    return vehicle
+
+
+def vehicle_name(vehicle: str | CombinationSpec | dict[str, Any]) -> str:
+    """The name of a vehicle as a field holds it: the preset's, or the combination's (validated or raw)."""
+    if isinstance(vehicle, str):
+        return vehicle
+    return vehicle.name if isinstance(vehicle, CombinationSpec) else str(vehicle.get("name", "custom"))
+
+
+def params_of(vehicle: str | CombinationSpec) -> VehicleParams:
+    """The model's parameters of a validated ``vehicle`` field (a preset's name or a combination)."""
+    return vehicle_preset(vehicle) if isinstance(vehicle, str) else vehicle.params()
+
+
 class ScenarioConfig(Settings):
     """A complete, resolved scenario."""
 
@@ -455,32 +486,17 @@ class ScenarioConfig(Settings):
         None, gt=0.0, le=3600.0, description="[s] simulated; an hour bounds the memory of the recorded time series"
     )
 
-    @field_validator("vehicle", mode="before")
-    @classmethod
-    def _vehicle_file(cls, vehicle: Any) -> Any:
-        """A combination file is read: the resolved configuration holds the combination, not the path."""
-        if isinstance(vehicle, str) and vehicle.endswith(VEHICLE_SUFFIXES):
-            return load_vehicle_file(vehicle)
-        return vehicle
-
-    @field_validator("vehicle")
-    @classmethod
-    def _vehicle_the_model_can_run(cls, vehicle: str | CombinationSpec) -> str | CombinationSpec:
-        if isinstance(vehicle, str):
-            if vehicle not in VEHICLE_PRESETS:
-                raise ValueError(f"not a preset{_preset_choices(vehicle)}")
-            return vehicle
-        vehicle.params()  # refused in one line naming the field: beyond the model, or statics it cannot solve
-        return vehicle
+    _vehicle_file = field_validator("vehicle", mode="before")(read_vehicle_file)
+    _vehicle_the_model_can_run = field_validator("vehicle")(check_vehicle)
 
     @property
     def vehicle_name(self) -> str:
         """The vehicle's name: the preset's, or the combination's (a file's stem unless it names itself)."""
-        return self.vehicle if isinstance(self.vehicle, str) else self.vehicle.name
+        return vehicle_name(self.vehicle)
 
     def vehicle_params(self) -> VehicleParams:
         """The model's parameters of the vehicle (:meth:`vehicle_model.combination.CombinationSpec.params`)."""
-        return vehicle_preset(self.vehicle) if isinstance(self.vehicle, str) else self.vehicle.params()
+        return params_of(self.vehicle)
 
     @field_validator("feedback")
     @classmethod
@@ -543,6 +559,11 @@ class ScenarioConfig(Settings):
 
 
 _RANGE_ERRORS = {"greater_than", "greater_than_equal", "less_than", "less_than_equal", "finite_number", "too_long"}
+
+
+def field_name(loc: tuple[int | str, ...]) -> str:
+    """The name of the field at a pydantic error's ``loc``, as ``--set`` takes it (``vehicle.units[1].mass``)."""
+    return _dotted(_plain_loc(loc))
 
 
 def _dotted(loc: tuple[int | str, ...]) -> str:

@@ -326,3 +326,18 @@ def test_an_exported_run_names_an_inline_vehicle(tmp_path: Path) -> None:
     config = load_scenario("roundabout-test", {"vehicle.units[1].mass": 30000.0})
     (tmp_path / "config.yaml").write_text(yaml.safe_dump(config.model_dump(mode="json")))
     assert _metadata(tmp_path)["vehicle"] == "reference"
+
+
+def test_a_recording_rig_takes_a_vehicle_file_and_keeps_it_inline(tmp_path: Path) -> None:
+    from scenarios.recorded.rig import rig_from_fields
+    from vehicle_model.errors import InputError
+
+    data = catalogue_vehicle_data("lst")
+    data["units"][1]["rear_x"] = -13.0
+    path = tmp_path / "short-lst.yaml"
+    path.write_text(yaml.safe_dump({k: v for k, v in data.items() if k != "name"}))
+    rig = rig_from_fields({"vehicle": str(path), "psi_c2v_deg": 180, "lever_arm_m": [-13.0, 0.0, 3.0]}, "--rig r.yaml")
+    assert rig.params.trailer.rear_x == -13.0 and rig.params.name == "short-lst"
+    assert rig.file["vehicle"]["units"][1]["rear_x"] == -13.0  # what the recorded run writes: the file's content
+    with pytest.raises(InputError, match=r"^--rig r\.yaml: vehicle: not a preset; did you mean 'lst'\?$"):
+        rig_from_fields({"vehicle": "lts", "psi_c2v_deg": 180, "lever_arm_m": [-13.0, 0.0, 3.0]}, "--rig r.yaml")
