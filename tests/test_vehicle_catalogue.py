@@ -185,6 +185,10 @@ def _infinite_inertia(d: dict) -> None:
     _units(d)[0]["yaw_inertia"] = float("inf")
 
 
+def _nan_tyre(d: dict) -> None:
+    _units(d)[1]["axles"][1]["tyre"] = {"pky1": float("nan")}
+
+
 def _unknown_kind(d: dict) -> None:
     _units(d)[1]["kind"] = "semitrailer"
 
@@ -215,6 +219,7 @@ FAULTS = [
     (_trailer_without_coupling, "units[1].coupling", "fifth_wheel"),
     (_negative_mass, "units[1].mass", "greater than 0"),
     (_infinite_inertia, "units[0].yaw_inertia", "finite"),
+    (_nan_tyre, "units[1].axles[1].tyre.pky1", "finite"),
     (_unknown_kind, "units[1].kind", "semi_trailer"),
     (_driven_trailer_axle, "units[1].axles", "driven"),
     (_tractor_second, "units[0].kind", "tractor or rigid_truck"),
@@ -341,3 +346,12 @@ def test_a_recording_rig_takes_a_vehicle_file_and_keeps_it_inline(tmp_path: Path
     assert rig.file["vehicle"]["units"][1]["rear_x"] == -13.0  # what the recorded run writes: the file's content
     with pytest.raises(InputError, match=r"^--rig r\.yaml: vehicle: not a preset; did you mean 'lst'\?$"):
         rig_from_fields({"vehicle": "lts", "psi_c2v_deg": 180, "lever_arm_m": [-13.0, 0.0, 3.0]}, "--rig r.yaml")
+
+
+def test_an_axle_keeps_its_own_tyre() -> None:
+    data = catalogue_vehicle_data("reference")
+    data["units"][1]["axles"][2]["tyre"] = {"pky1": 9.0, "fz_nominal": 40000.0}
+    params = CombinationSpec.model_validate(data).params()
+    tyres = [a.tyre for a in params.trailer.axles]
+    assert (tyres[2].pky1, tyres[2].fz_nominal) == (9.0, 40000.0) and tyres[0] == TODAY["reference"].trailer.axles[0].tyre
+    assert params.axle_cornering_stiffness()[-1] != params.axle_cornering_stiffness()[-2]  # the model sees it

@@ -33,6 +33,7 @@ from .parameters import (
     Station,
     TractorParams,
     TrailerParams,
+    TyreParams,
     VehicleParams,
     YawInertia,
     _Frozen,
@@ -107,6 +108,13 @@ def box_yaw_inertia(mass: float, front_x: float, rear_x: float, width: float, cg
     return mass * (length**2 + width**2) / 12.0 + mass * (cg_x - centre) ** 2
 
 
+class TyreSpec(TyreParams):
+    """An axle's tyre as a combination file gives it: :class:`~vehicle_model.parameters.TyreParams`, every number
+    finite."""
+
+    model_config = ConfigDict(allow_inf_nan=False)
+
+
 class AxleSpec(AxleParams):
     """An axle as a combination file gives it: :class:`~vehicle_model.parameters.AxleParams` and its lift.
 
@@ -121,6 +129,7 @@ class AxleSpec(AxleParams):
 
     model_config = ConfigDict(allow_inf_nan=False)
 
+    tyre: TyreSpec = TyreSpec()
     liftable: bool = False
     lifted: bool = False
 
@@ -133,7 +142,8 @@ class AxleSpec(AxleParams):
     def params(self, origin: float) -> AxleParams:
         """The model's axle, its station measured from ``origin`` [m]."""
         fields = {name: getattr(self, name) for name in AxleParams.model_fields}
-        return AxleParams.model_validate(fields | {"x": self.x - origin})
+        tyre = TyreParams.model_validate(self.tyre.model_dump())
+        return AxleParams.model_validate(fields | {"x": self.x - origin, "tyre": tyre})
 
 
 class CouplingSpec(_Frozen):
