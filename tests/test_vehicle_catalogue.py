@@ -353,5 +353,6 @@ def test_an_axle_keeps_its_own_tyre() -> None:
     data["units"][1]["axles"][2]["tyre"] = {"pky1": 9.0, "fz_nominal": 40000.0}
     params = CombinationSpec.model_validate(data).params()
     tyres = [a.tyre for a in params.trailer.axles]
-    assert (tyres[2].pky1, tyres[2].fz_nominal) == (9.0, 40000.0) and tyres[0] == TODAY["reference"].trailer.axles[0].tyre
+    assert (tyres[2].pky1, tyres[2].fz_nominal) == (9.0, 40000.0)
+    assert tyres[0] == TODAY["reference"].trailer.axles[0].tyre
     assert params.axle_cornering_stiffness()[-1] != params.axle_cornering_stiffness()[-2]  # the model sees it
