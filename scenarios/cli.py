@@ -188,7 +188,9 @@ def run(
         str | None, typer.Option(help="outward (falls away from the loop centre; adverse) or inward.")
     ] = None,
     speed: Annotated[float | None, typer.Option(help="Cornering speed [km/h].")] = None,
-    vehicle: Annotated[str | None, typer.Option(help="Vehicle preset (see `offtrack list`).")] = None,
+    vehicle: Annotated[
+        str | None, typer.Option(help="Vehicle preset (see `offtrack list`) or a combination file NAME.yaml.")
+    ] = None,
     direction: Annotated[str | None, typer.Option(help="left or right.")] = None,
     feedback: Annotated[
         str | None, typer.Option(help=f"Trailer steering fed by one of: {FEEDBACKS} (its estimator runs).")
@@ -271,7 +273,9 @@ def config_command(
     camber: Annotated[float | None, typer.Option(help="Camber [%] of the carriageway.")] = None,
     camber_direction: Annotated[str | None, typer.Option(help="outward or inward.")] = None,
     speed: Annotated[float | None, typer.Option(help="Cornering speed [km/h].")] = None,
-    vehicle: Annotated[str | None, typer.Option(help="Vehicle preset (see `offtrack list`).")] = None,
+    vehicle: Annotated[
+        str | None, typer.Option(help="Vehicle preset (see `offtrack list`) or a combination file NAME.yaml.")
+    ] = None,
     direction: Annotated[str | None, typer.Option(help="left or right.")] = None,
     feedback: Annotated[str | None, typer.Option(help=f"Trailer steering fed by one of: {FEEDBACKS}.")] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of every random choice.")] = None,
@@ -362,7 +366,9 @@ def compare(
     mu: Annotated[float | None, typer.Option(help="Friction coefficient (overrides --surface).")] = None,
     camber: Annotated[float | None, typer.Option(help="Camber [%].")] = None,
     camber_direction: Annotated[str | None, typer.Option(help="outward or inward.")] = None,
-    vehicle: Annotated[str, typer.Option(help="Vehicle preset with steerable trailer axles.")] = "lst",
+    vehicle: Annotated[
+        str, typer.Option(help="Vehicle preset with steerable trailer axles, or a combination file NAME.yaml.")
+    ] = "lst",
     feedbacks: Annotated[
         str,
         typer.Option(

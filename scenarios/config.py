@@ -14,15 +14,19 @@ reason for the range beside it; splitting it would put the loading and the secti
 from __future__ import annotations
 
 import difflib
+import itertools
 import math
+import re
 import reprlib
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal, get_args
+from typing import Annotated, Any, Literal, get_args
 
 from pydantic import (
     BaseModel,
+    Discriminator,
     Field,
+    Tag,
     ValidationError,
     ValidationInfo,
     field_validator,
@@ -33,8 +37,10 @@ from pydantic_core import PydanticCustomError
 from controller.path_following_config import PathFollowingConfig, PathFollowingGains
 from sensor.fusion import FusionNoise
 from sensor.signals import ChannelSpec
+from vehicle_model.combination import INERTIA_TAGS, CombinationSpec, catalogue_vehicle_data
 from vehicle_model.errors import InputError
-from vehicle_model.presets import VEHICLE_PRESETS
+from vehicle_model.parameters import VehicleParams
+from vehicle_model.presets import VEHICLE_PRESETS, vehicle_preset
 from vehicle_model.settings import Settings
 from vehicle_model.surface import FRICTION_PRESETS
 
@@ -353,12 +359,113 @@ class ControllerConfig(Settings):
         )
 
 
+VEHICLE_SUFFIXES = (".yaml", ".yml")
+"""A ``vehicle`` ending in one of these is a combination file, anything else a preset's name."""
+
+
+def _vehicle_tag(value: Any) -> str:
+    """Which form of ``vehicle`` a value is: a preset's ``name`` or a combination's ``mapping``."""
+    return "mapping" if isinstance(value, dict | CombinationSpec) else "name"
+
+
+_VEHICLE_TAGS = ("name", "mapping")
+
+Vehicle = Annotated[
+    Annotated[str, Tag("name")] | Annotated[CombinationSpec, Tag("mapping")], Discriminator(_vehicle_tag)
+]
+"""A vehicle: a preset's name, or a combination (vehicle_model.combination) held inline."""
+
+
+def load_vehicle_file(path: str) -> dict[str, Any]:
+    """The raw combination in the YAML file ``path``, its ``name`` the file's stem unless it names itself.
+
+    The text is read within the bounds of :func:`scenarios.yaml_input.load_yaml`.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the file: missing, unreadable, out of bounds, not YAML, or not a mapping of fields.
+    """
+    source = f"vehicle file {path}"
+    if not Path(path).is_file():
+        raise ConfigError(f"{source} does not exist; give a combination file (docs/vehicles.md) or a preset")
+    try:
+        data = load_yaml(Path(path).read_bytes(), source)
+    except OSError as exc:
+        raise ConfigError(f"{source} cannot be read: {exc.strerror or exc}") from None
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source} must hold a mapping of fields (units, …), not a {type(data).__name__}")
+    return {"name": Path(path).stem, **data}
+
+
+def vehicle_data(vehicle: Any) -> Any:
+    """The raw mapping of ``vehicle`` given as a preset's name or a combination file, for fields to be set in it.
+
+    A mapping (or anything else) is returned as it is.
+
+    Raises
+    ------
+    ConfigError
+        The preset or the file does not exist (the message names the nearest presets).
+    """
+    if isinstance(vehicle, CombinationSpec):
+        return vehicle.model_dump(mode="json")
+    if not isinstance(vehicle, str):
+        return vehicle
+    if vehicle.endswith(VEHICLE_SUFFIXES):
+        return load_vehicle_file(vehicle)
+    if vehicle not in VEHICLE_PRESETS:
+        raise ConfigError(f"vehicle {vehicle!r} is not a preset{_preset_choices(vehicle)}")
+    return catalogue_vehicle_data(vehicle)
+
+
+def _preset_choices(name: str) -> str:
+    return did_you_mean(name, VEHICLE_PRESETS) or f"; choose one of {sorted(VEHICLE_PRESETS)} or give a .yaml file"
+
+
+def read_vehicle_file(vehicle: Any) -> Any:
+    """A ``vehicle`` field's value before validation: a combination file read into its mapping, anything else as it
+    is (a schema's ``mode="before"`` validator: the resolved value holds the combination, not the path)."""
+    if isinstance(vehicle, str) and vehicle.endswith(VEHICLE_SUFFIXES):
+        return load_vehicle_file(vehicle)
+    return vehicle
+
+
+def check_vehicle(vehicle: str | CombinationSpec) -> str | CombinationSpec:
+    """A ``vehicle`` field's value after validation, refused (``ValueError``, one line naming the field) if it is not
+    a preset or a combination the model can simulate."""
+    if isinstance(vehicle, str):
+        if vehicle not in VEHICLE_PRESETS:
+            raise ValueError(f"not a preset{_preset_choices(vehicle)}")
+        return vehicle
+    vehicle.params()  # beyond the model, or statics it cannot solve
+    return vehicle
+
+
+def vehicle_name(vehicle: str | CombinationSpec | dict[str, Any]) -> str:
+    """The name of a vehicle as a field holds it: the preset's, or the combination's (validated or raw)."""
+    if isinstance(vehicle, str):
+        return vehicle
+    return vehicle.name if isinstance(vehicle, CombinationSpec) else str(vehicle.get("name", "custom"))
+
+
+def params_of(vehicle: str | CombinationSpec) -> VehicleParams:
+    """The model's parameters of a validated ``vehicle`` field (a preset's name or a combination)."""
+    return vehicle_preset(vehicle) if isinstance(vehicle, str) else vehicle.params()
+
+
 class ScenarioConfig(Settings):
     """A complete, resolved scenario."""
 
     name: str = "custom"
     description: str = ""
-    vehicle: str = "reference"
+    vehicle: Vehicle = Field(
+        "reference",
+        description="a preset (offtrack list), a combination file NAME.yaml (held inline once resolved, so the run "
+        "reproduces from its config.yaml) or the combination itself (docs/vehicles.md)",
+    )
     direction: Literal["left", "right"] = "left"
     path: PathConfig = PathConfig()
     surface: SurfaceConfig = SurfaceConfig()
@@ -378,6 +485,18 @@ class ScenarioConfig(Settings):
     duration_s: float | None = Field(
         None, gt=0.0, le=3600.0, description="[s] simulated; an hour bounds the memory of the recorded time series"
     )
+
+    _vehicle_file = field_validator("vehicle", mode="before")(read_vehicle_file)
+    _vehicle_the_model_can_run = field_validator("vehicle")(check_vehicle)
+
+    @property
+    def vehicle_name(self) -> str:
+        """The vehicle's name: the preset's, or the combination's (a file's stem unless it names itself)."""
+        return vehicle_name(self.vehicle)
+
+    def vehicle_params(self) -> VehicleParams:
+        """The model's parameters of the vehicle (:meth:`vehicle_model.combination.CombinationSpec.params`)."""
+        return params_of(self.vehicle)
 
     @field_validator("feedback")
     @classmethod
@@ -425,16 +544,14 @@ class ScenarioConfig(Settings):
 
     @model_validator(mode="after")
     def _check(self) -> ScenarioConfig:
-        if self.vehicle not in VEHICLE_PRESETS:
-            choices = did_you_mean(self.vehicle, VEHICLE_PRESETS) or f"; choose one of {sorted(VEHICLE_PRESETS)}"
-            raise ValueError(f"vehicle {self.vehicle!r} is not a preset{choices}")
         if self.roundabout_test and self.path.kind != "roundabout":
             raise ValueError("roundabout_test needs path.kind = roundabout")
-        if self.feedback != "none" and not any(a.steerable for a in VEHICLE_PRESETS[self.vehicle]().trailer.axles):
+        if self.feedback != "none" and not any(a.steerable for a in self.vehicle_params().trailer.axles):
             steerable = sorted(n for n, f in VEHICLE_PRESETS.items() if any(a.steerable for a in f().trailer.axles))
             raise ValueError(
-                f"feedback {self.feedback!r} steers the trailer, but vehicle {self.vehicle!r} has no steerable "
-                f"trailer axle; use one of {steerable}"
+                f"feedback {self.feedback!r} steers the trailer, but vehicle {self.vehicle_name!r} has no steerable "
+                f"trailer axle; use one of {steerable} or make one steerable "
+                "(--set vehicle.units[1].axles[0].steerable=true)"
             )
         if self.path.slip_deg is not None and self.feedback != "none":
             raise ValueError("a kinematic constant-slip run cannot be steered; use feedback none")
@@ -442,6 +559,43 @@ class ScenarioConfig(Settings):
 
 
 _RANGE_ERRORS = {"greater_than", "greater_than_equal", "less_than", "less_than_equal", "finite_number", "too_long"}
+
+
+def field_name(loc: tuple[int | str, ...]) -> str:
+    """The name of the field at a pydantic error's ``loc``, as ``--set`` takes it (``vehicle.units[1].mass``)."""
+    return _dotted(_plain_loc(loc))
+
+
+def _dotted(loc: tuple[int | str, ...]) -> str:
+    """A field's name as ``--set`` takes it: ``vehicle.units[1].axles[0].x``, ``surface.patches[0].mu``."""
+    text = ""
+    for part in loc:
+        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+    return text
+
+
+def _plain_loc(loc: tuple[int | str, ...]) -> tuple[int | str, ...]:
+    """``loc`` without the tags pydantic puts after ``vehicle`` and a unit's ``yaw_inertia`` (which form of them was
+    validated)."""
+    tags = {"vehicle": _VEHICLE_TAGS, "yaw_inertia": INERTIA_TAGS}
+    return tuple(p for i, p in enumerate(loc) if not (i and p in tags.get(str(loc[i - 1]), ())))
+
+
+_FIELD_IN_MESSAGE = re.compile(r"^([a-z_]+(?:\[\d+\])?(?:\.[a-z_]+(?:\[\d+\])?)*)(?= \(| = |: | must )")
+"""A vehicle's message that starts with the field it is about (``units[1].coupling.x (-9 m) lies …``)."""
+_VALUE_IN_MESSAGE = re.compile(r"^(?: \((?P<paren>[^)]*)\)| = (?P<equals>.*?):)? *:? *(?P<rest>.*)$")
+"""After that field: its value, ``(-9 m)`` or ``= 'dolly':``, and the rest of the message."""
+
+
+def _joined(loc: str, message: str) -> tuple[str, str, str] | None:
+    """The field, value and message of a vehicle's error whose message names the field inside ``loc``, else None."""
+    named = _FIELD_IN_MESSAGE.match(message)
+    if not loc.startswith("vehicle") or named is None:
+        return None
+    parts = _VALUE_IN_MESSAGE.match(message[named.end() :])
+    assert parts is not None  # the pattern matches any text
+    value = parts["paren"] or parts["equals"]
+    return f"{loc}.{named.group(1)}", f" = {value}" if value else "", parts["rest"]
 
 
 def _walk(loc: tuple[int | str, ...]) -> tuple[Any, str | None, bool]:
@@ -479,7 +633,7 @@ def _unknown_field(loc: tuple[int | str, ...]) -> str:
     section, _, _ = _walk(loc[:-1])
     name = str(loc[-1])
     fields = getattr(section, "model_fields", {})
-    prefix = "".join(f"{part}." for part in loc[:-1])
+    prefix = f"{_dotted(loc[:-1])}." if loc[:-1] else ""
     return "not a field of the configuration" + did_you_mean(name, fields, prefix) if fields else "not a field"
 
 
@@ -499,13 +653,17 @@ def _shown(value: Any) -> str:
 def _format_errors(exc: ValidationError) -> str:
     lines = []
     for err in exc.errors():
-        loc = ".".join(str(p) for p in err["loc"]) or "(config)"
+        where = _plain_loc(err["loc"])
+        loc = _dotted(where) or "(config)"
         value = err.get("input")
-        shown = "" if isinstance(value, dict) else f" = {_shown(value)}"
+        shown = "" if isinstance(value, dict | CombinationSpec) else f" = {_shown(value)}"
         message = err["msg"].removeprefix("Value error, ")
+        joined = _joined(loc, message)
+        if joined:  # a vehicle's own check names its field inside the unit or axle: it joins the field's name
+            loc, shown, message = joined
         if err["type"] == "extra_forbidden":
-            message = _unknown_field(err["loc"])
-        reason = _field_reason(err["loc"]) if err["type"] in _RANGE_ERRORS else None
+            message = _unknown_field(where)
+        reason = _field_reason(where) if err["type"] in _RANGE_ERRORS else None
         lines.append(f"  {loc}{shown}: {message}" + (f" — {reason}" if reason else ""))
     return "invalid scenario configuration:\n" + "\n".join(lines)
 
@@ -570,17 +728,52 @@ def load_scenario_data(name_or_path: str) -> dict[str, Any]:
     return data
 
 
+_KEY = re.compile(r"^([^.\[\]]+)((?:\[\d+\])*)$")
+"""One dotted part of a ``--set`` name: a field, then the indices of its items (``axles[1]``)."""
+
+
+def _parts(dotted: str) -> list[str | int]:
+    """``'vehicle.units[1].steerable'`` → ``['vehicle', 'units', 1, 'steerable']``."""
+    parts: list[str | int] = []
+    for piece in dotted.split("."):
+        match = _KEY.match(piece.strip())
+        if match is None:
+            raise ConfigError(f"--set {dotted}: {piece!r} is not a field name (field or field[index], e.g. units[1])")
+        parts.append(match.group(1))
+        parts += [int(i) for i in re.findall(r"\d+", match.group(2))]
+    return parts
+
+
 def set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
-    """Set ``data['a']['b'] = value`` for ``dotted = 'a.b'``, creating levels as needed."""
-    keys = dotted.split(".")
-    node = data
-    for key in keys[:-1]:
-        child = node.get(key)
-        if not isinstance(child, dict):
+    """Set ``data['a']['b'] = value`` for ``dotted = 'a.b'`` (``a.b[1].c`` an item of a list), creating levels.
+
+    Raises
+    ------
+    ConfigError
+        An index where there is no list, or beyond its items.
+    """
+    parts = _parts(dotted)
+    node: Any = data
+    for i, (key, nxt) in enumerate(itertools.pairwise(parts)):
+        here = _dotted(tuple(parts[: i + 1]))
+        if isinstance(key, int):
+            if not isinstance(node, list) or not -len(node) <= key < len(node):
+                count = f"{parts[i - 1]} has {len(node)}" if isinstance(node, list) else "it is not a list"
+                raise ConfigError(f"--set {dotted}: {here}: no item {key}; {count}")
+            child = node[key]
+        else:
+            child = node.get(key) if isinstance(node, dict) else None
+        if isinstance(nxt, int) and not isinstance(child, list):
+            raise ConfigError(f"--set {dotted}: {here} is not a list of items")
+        if not isinstance(nxt, int) and not isinstance(child, dict):
             child = {}
             node[key] = child
         node = child
-    node[keys[-1]] = value
+    last = parts[-1]
+    if isinstance(last, int):
+        if not -len(node) <= last < len(node):
+            raise ConfigError(f"--set {dotted}: {_dotted(tuple(parts))}: no item {last}; {parts[-2]} has {len(node)}")
+    node[last] = value
 
 
 def parse_assignment(text: str) -> tuple[str, Any]:
@@ -601,6 +794,9 @@ def load_scenario(name_or_path: str, overrides: dict[str, Any] | None = None) ->
     """Load a scenario from the catalogue (or a YAML file) and apply dotted overrides."""
     data = load_scenario_data(name_or_path)
     data.setdefault("name", Path(name_or_path).stem)
+    default_vehicle = ScenarioConfig.model_fields["vehicle"].default
     for key, value in (overrides or {}).items():
+        if key.startswith(("vehicle.", "vehicle[")):  # a field of the vehicle: its preset or file as a mapping
+            data["vehicle"] = vehicle_data(data.get("vehicle", default_vehicle))
         set_dotted(data, key, value)
     return validate_config(data)

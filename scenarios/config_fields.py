@@ -145,6 +145,10 @@ def _allowed(info: FieldInfo, dotted: str) -> str:
     choices = _choices(info.annotation) or _named_choices().get(dotted, [])
     if info.annotation is bool:
         choices = ["true", "false"]
+    if choices and low is not None and high is not None:  # a number or a name (``yaw_inertia: box``)
+        return f"{'[' if closed_low else '('}{_number(low)}, {_number(high)}{']' if closed_high else ')'} | " + (
+            " | ".join(choices)
+        )
     if choices:
         return " | ".join(choices)
     if low is not None and high is not None:
@@ -170,11 +174,29 @@ def _choices(annotation: Any) -> list[str]:
 
 
 def _docstring_parameters(model: type[BaseModel]) -> dict[str, str]:
-    """The numpydoc ``Parameters`` (or ``Attributes``) entries of a model's docstring, one line each."""
+    """The numpydoc ``Parameters`` (or ``Attributes``) entries of a model's docstring and of the models it extends
+    (its own win), one line each."""
+    entries: dict[str, str] = {}
+    for klass in reversed(model.__mro__):
+        if isinstance(klass, type) and issubclass(klass, BaseModel) and klass is not BaseModel:
+            entries.update(_own_parameters(klass))
+    return entries
+
+
+def _own_parameters(model: type[BaseModel]) -> dict[str, str]:
+    """The ``Parameters`` (or ``Attributes``) entries of one class's own docstring: ``name : type`` headers anywhere,
+    a bare ``name`` header inside those sections."""
     entries: dict[str, str] = {}
     name = None
-    for line in inspect.cleandoc(model.__doc__ or "").splitlines():
+    in_section = False
+    lines = inspect.cleandoc(model.__doc__ or "").splitlines()
+    for line, below in zip(lines, [*lines[1:], ""][: len(lines)], strict=True):
+        if below.strip() and set(below.strip()) == {"-"}:  # a section's title, its underline below it
+            in_section, name = line.strip() in ("Parameters", "Attributes"), None
+            continue
         header = re.match(r"^(\w+(?:\s*,\s*\w+)*)\s+:\s+\S", line)
+        if header is None and in_section:
+            header = re.match(r"^(\w+(?:\s*,\s*\w+)*)\s*$", line)
         if header:
             name = header.group(1)
             for each in name.split(","):
@@ -193,7 +215,8 @@ def _rows(model: type[BaseModel], prefix: str) -> Iterator[FieldRow]:
         dotted = f"{prefix}{name}"
         models = _models_in(info.annotation)
         if models:
-            if _is_list(info.annotation) or info.default is None:  # a list of sections, or an optional one
+            if _is_list(info.annotation) or info.default is None or isinstance(info.default, str):
+                # a list of sections, an optional one, or one given by name (``vehicle: lst``)
                 yield _row(dotted, info, documented.get(name, ""))
             inner = f"{dotted}[]." if _is_list(info.annotation) else f"{dotted}."
             for nested in models:
@@ -206,7 +229,8 @@ def _row(dotted: str, info: FieldInfo, documented: str) -> FieldRow:
     text = " ".join((_description(info) or documented).split())
     match = _UNIT.match(text)
     unit, text = (match.group(1), text[match.end() :]) if match else ("", text)
-    default = "(section)" if _models_in(info.annotation) and not _is_list(info.annotation) else _default(info)
+    section = _models_in(info.annotation) and not _is_list(info.annotation) and not isinstance(info.default, str)
+    default = "(section)" if section else _default(info)
     if _models_in(info.annotation) and info.default is None:
         default = "null"
     return FieldRow(dotted, unit, default, _allowed(info, dotted), text)

@@ -72,7 +72,7 @@ def test_a_nan_or_infinite_patch_bound_is_refused(bound: str) -> None:
     for bad in (float("nan"), float("inf")):
         with pytest.raises(ConfigError) as info:
             load_scenario("roundabout-3", {"surface.patches": [{**patch, bound: bad}]})
-        assert "finite" in _line(str(info.value), f"surface.patches.0.{bound}")
+        assert "finite" in _line(str(info.value), f"surface.patches[0].{bound}")
     assert load_scenario("roundabout-3", {"surface.patches": [patch]}).surface.patches[0].mu == 0.1
 
 
@@ -88,10 +88,10 @@ def test_optional_floats_must_be_finite(assignment: str) -> None:
 @pytest.mark.parametrize("field", ["camera.right_misalignment_deg", "camera.right_correction_deg"])
 def test_right_camera_rotations_beyond_20_degrees_are_refused_by_the_schema(field: str) -> None:
     message = _refused(f"{field}=[0, 25, 0]")
-    assert "less than or equal to 20" in _line(message, f"{field}.1")
+    assert "less than or equal to 20" in _line(message, f"{field}[1]")
     message = _refused(f"{field}=[-20.5, 0, .nan]")
-    assert "greater than or equal to -20" in _line(message, f"{field}.0")
-    assert "finite" in _line(message, f"{field}.2")
+    assert "greater than or equal to -20" in _line(message, f"{field}[0]")
+    assert "finite" in _line(message, f"{field}[2]")
     ok = load_scenario("roundabout-3", {field: [-20.0, 0.5, 20.0]})
     assert getattr(ok.camera, field.split(".")[1]) == (-20.0, 0.5, 20.0)
 

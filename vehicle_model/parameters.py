@@ -21,12 +21,40 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 GRAVITY = 9.81
 """Standard gravity used throughout [m/s²]."""
+
+
+STATION_LIMIT_M = 30.0
+"""Largest |station| of a point of a unit [m]: the longest road units are under 20 m, so ±30 m from any reference
+point on the unit holds them."""
+
+Station = Annotated[
+    float,
+    Field(
+        ge=-STATION_LIMIT_M,
+        le=STATION_LIMIT_M,
+        description="[m] along the unit, positive forward; ±30 m holds any road unit (the longest are under 20 m)",
+    ),
+]
+"""A station along a unit's centre line [m] (module docstring: where each unit's stations start)."""
+
+Mass = Annotated[float, Field(gt=0, description="[kg]; a unit has mass")]
+"""A unit's mass [kg]. Unbounded above: a design model holds the kingpin still with a tractor of 1e6 times its mass
+(:mod:`controller.gain_design`); a combination file bounds it to road units (:mod:`vehicle_model.combination`)."""
+
+YawInertia = Annotated[float, Field(gt=0, description="[kg·m²] about the CG; a unit has one")]
+"""A unit's yaw inertia about its CG [kg·m²]; unbounded above, as :data:`Mass`."""
+
+DragArea = Annotated[
+    float, Field(ge=0, le=20.0, description="[m²] C_d·A; a truck's is 5–7 m², 20 m² is beyond any road vehicle")
+]
+"""The aerodynamic drag area ``C_d·A`` of a combination [m²]."""
 
 
 class _Frozen(BaseModel):
@@ -106,23 +134,27 @@ class AxleParams(_Frozen):
         Tyre of this axle.
     """
 
-    name: str = Field(min_length=1)
-    x: float
-    n_tyres: int = Field(2, ge=1, le=8)
+    name: str = Field(min_length=1, description="unique within the vehicle: the axle's columns are named by it")
+    x: Station
+    n_tyres: int = Field(
+        2, ge=1, le=8, description="tyres on the axle; 1 (a single tyre) to 8 (heavy-haulage twin-twins on each end)"
+    )
     steerable: bool = False
     driven: bool = False
     load_group: str = "main"
-    static_load: float | None = Field(None, gt=0)
+    static_load: float | None = Field(None, gt=0, description="[N]; an axle on the ground carries a load")
     tyre: TyreParams = TyreParams()
 
 
 class _UnitParams(_Frozen):
-    mass: float = Field(gt=0)
-    yaw_inertia: float = Field(gt=0)
-    cg_x: float
-    front_x: float
-    rear_x: float
-    width: float = Field(gt=0, le=4.0)
+    mass: Mass
+    yaw_inertia: YawInertia
+    cg_x: Station
+    front_x: Station
+    rear_x: Station
+    width: float = Field(
+        gt=0, le=4.0, description="[m] overall; 2.55 m is the legal width, above 4 m is an abnormal load, not modelled"
+    )
     axles: tuple[AxleParams, ...] = Field(min_length=1)
 
     @model_validator(mode="after")
@@ -170,8 +202,8 @@ class TractorParams(_UnitParams):
         Aerodynamic ``C_d·A`` of the combination [m²], acting on the tractor.
     """
 
-    fifth_wheel_x: float
-    drag_area: float = Field(6.0, ge=0)
+    fifth_wheel_x: Station
+    drag_area: DragArea = 6.0
 
     @model_validator(mode="after")
     def _check_tractor(self) -> TractorParams:
@@ -202,7 +234,7 @@ class TrailerParams(_UnitParams):
         to the rear of the body.
     """
 
-    follow_point_x: float | None = None
+    follow_point_x: Station | None = None
 
     @model_validator(mode="after")
     def _check_trailer(self) -> TrailerParams:

@@ -2,7 +2,7 @@
 
 Each table fits the console's width: names and numbers are never cut; a description is one line, cut with an
 ellipsis where the terminal ends (the whole text is in the scenario's YAML file, ``scenarios/catalogue/NAME.yaml``,
-or the preset's docstring).
+or the vehicle's, ``vehicle_model/catalogue/NAME.yaml``).
 """
 
 from __future__ import annotations
@@ -11,7 +11,8 @@ from rich import box
 from rich.table import Table
 from rich.text import Text
 
-from vehicle_model.presets import VEHICLE_PRESETS
+from vehicle_model.combination import combination_summary
+from vehicle_model.presets import VEHICLE_PRESETS, catalogue_vehicle
 from vehicle_model.surface import FRICTION_PRESETS
 
 from ..config import ScenarioConfig, catalogue_names, load_scenario
@@ -100,11 +101,20 @@ def scenario_table(names: list[str] | None = None) -> Table:
 
 
 def vehicle_table() -> Table:
-    """The vehicle presets (``--vehicle NAME``): name and the first line of the preset's docstring."""
-    table = _table("Vehicle presets (--vehicle NAME)", [("name", "left"), ("description", "left")])
-    for name, factory in VEHICLE_PRESETS.items():
-        lines = (factory.__doc__ or "").strip().splitlines()
-        table.add_row(Text(name), _one_line(lines[0] if lines else ""))
+    """The vehicle presets (``--vehicle NAME``): name, overall length, units, steerable axles and description.
+
+    Returns
+    -------
+    rich.table.Table
+        A row a combination of the catalogue (:func:`vehicle_model.combination.combination_summary`).
+    """
+    columns = [("name", "left"), ("L [m]", "right"), ("units", "left"), ("steerable axles", "left")]
+    table = _table("Vehicle presets (--vehicle NAME or --vehicle FILE.yaml)", [*columns, ("description", "left")])
+    table.caption = "L: overall length, straight; semi: semi-trailer; files: vehicle_model/catalogue/NAME.yaml"
+    for name in VEHICLE_PRESETS:
+        spec = catalogue_vehicle(name)
+        length, units, steerable = combination_summary(spec)
+        table.add_row(Text(name), f"{length:.2f}", Text(units), Text(steerable), _one_line(spec.description))
     return table
 
 

@@ -273,7 +273,7 @@ def episode_summary(config: ScenarioConfig) -> dict[str, Any]:
     return {
         "scenario": config.name,
         "feedback": config.feedback,
-        "vehicle": config.vehicle,
+        "vehicle": config.vehicle_name,
         "mu": float(config.surface.base_mu),
         "camber_percent": float(config.camber.percent),
         "camber_direction": config.camber.direction,

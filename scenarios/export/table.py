@@ -200,6 +200,8 @@ def _metadata(run_dir: Path) -> dict[str, str | float | int]:
             raise InputError(f"{config_path} does not hold a configuration")
         for key in CONFIG_METADATA:
             value = config.get(key)
+            if key == "vehicle" and isinstance(value, dict):  # a combination held inline: its name
+                value = value.get("name")
             if isinstance(value, str | int | float) and not isinstance(value, bool):
                 metadata["scenario" if key == "name" else key] = value
         surface = config.get("surface")

@@ -23,6 +23,7 @@ import yaml
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
 
+from ..config import vehicle_name
 from ..loop.ends import RunStatus
 from ..run.files import jsonable, write_atomic
 from ..run.metrics import after_warmup, compute_metrics, estimator_names
@@ -71,7 +72,7 @@ def recorded_run_title(record: dict[str, Any]) -> str:
     rig = record.get("rig_file", {})
     name = Path(str(record.get("recording", "recording"))).name
     return (
-        f"recording {name}, {rig.get('vehicle')}, camera ψ_c2v {rig.get('psi_c2v_deg')}°, "
+        f"recording {name}, {vehicle_name(rig.get('vehicle', 'reference'))}, camera ψ_c2v {rig.get('psi_c2v_deg')}°, "
         f"lever arm {rig.get('lever_arm_m')} m"
     )
 
@@ -131,7 +132,9 @@ def write_recorded_report(
     metrics = compute_metrics(name, "none", params, columns, names, None, (0.0, 0.0))
     metrics.update({"stop_time": None, "stop_signal": None})
     metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})
-    metrics.update({"vehicle": record["rig_file"].get("vehicle"), "seed": record.get("seed")})
+    metrics.update(
+        {"vehicle": vehicle_name(record["rig_file"].get("vehicle", "reference")), "seed": record.get("seed")}
+    )
     rpe = _vo_rpe(columns)
     if rpe is not None:
         metrics["vo_rpe"] = rpe

@@ -2,7 +2,8 @@
 
 The geometry of de Saxe & Cebon 2018, eqs (1)–(2) — the camera's mounting angle ψ_c2v and the lever arm from the
 camera to the kingpin — and the trailer's follow point (eqs (6)–(7)) are all VISO-OT needs; the fused filter and
-Cheng's zero-slip estimate also need the combination's axles, so the rig names a vehicle preset. A YAML file
+Cheng's zero-slip estimate also need the combination's axles, so the rig names a vehicle: a preset, a combination
+file (docs/vehicles.md, held inline once read, so a recorded run's files describe it) or the combination. A YAML file
 (degrees at this edge, metres; read within :mod:`scenarios.yaml_input`'s bounds)::
 
     vehicle: lst                    # a preset of `offtrack list`: its trailer's axles and the tractor's wheelbase
@@ -31,11 +32,12 @@ from pydantic import Field, ValidationError, field_validator
 
 from sensor.calibration import RectifiedParameters
 from sensor.camera import StereoRig
+from vehicle_model.combination import CombinationSpec
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
-from vehicle_model.presets import VEHICLE_PRESETS
 from vehicle_model.settings import Real, Settings
 
+from ..config import Vehicle, check_vehicle, field_name, params_of, read_vehicle_file, vehicle_name
 from ..yaml_input import MAX_BYTES, load_yaml
 
 __all__ = ["MOUNT_LOW", "MOUNT_REACH", "MOUNT_TOP", "RecordingRig", "RigFile", "load_rig", "rig_from_fields"]
@@ -51,19 +53,17 @@ MOUNT_TOP = 6.0
 class RigFile(Settings):
     """The rig file's fields (module notes), as written: degrees and metres."""
 
-    vehicle: str = Field("reference", description="a vehicle preset (offtrack list)")
+    vehicle: Vehicle = Field(
+        "reference", description="a vehicle preset (offtrack list), a combination file NAME.yaml or the combination"
+    )
     psi_c2v_deg: Real = Field(description="camera-to-vehicle angle, clockwise from the trailer's forward axis [°]")
     lever_arm_m: tuple[Real, Real, Real] = Field(description="mount point from the kingpin, trailer axes [m]")
     follow_point_offset_m: Real | None = Field(None, gt=0.0, le=30.0, description="kingpin to follow point [m]")
     pitch_deg: Real = Field(0.0, ge=-60.0, le=60.0, description="down-tilt [°]; beyond 60° the road fills the image")
     roll_deg: Real = Field(0.0, ge=-45.0, le=45.0, description="roll about the optical axis [°]")
 
-    @field_validator("vehicle")
-    @classmethod
-    def _known(cls, value: str) -> str:
-        if value not in VEHICLE_PRESETS:
-            raise ValueError(f"unknown vehicle {value!r}; allowed: {', '.join(VEHICLE_PRESETS)}")
-        return value
+    _vehicle_file = field_validator("vehicle", mode="before")(read_vehicle_file)
+    _known = field_validator("vehicle")(check_vehicle)
 
 
 @dataclass(frozen=True)
@@ -108,14 +108,15 @@ class RecordingRig:
         return pose if rectification is None else rectification.rectified_left_in_trailer(pose)
 
 
-def _params(vehicle: str, follow_point_offset: float | None, source: str) -> VehicleParams:
-    params = VEHICLE_PRESETS[vehicle]()
+def _params(vehicle: str | CombinationSpec, follow_point_offset: float | None, source: str) -> VehicleParams:
+    params = params_of(vehicle)
     if follow_point_offset is None:
         return params
     rear = params.trailer.rear_x
     if not follow_point_offset <= -rear:
         raise InputError(
-            f"{source}: follow_point_offset_m = {follow_point_offset:g} m lies behind the {vehicle} trailer's rear; "
+            f"{source}: follow_point_offset_m = {follow_point_offset:g} m lies behind the {vehicle_name(vehicle)} "
+            "trailer's rear; "
             f"allowed: (0, {-rear:g}] m"
         )
     data = params.model_dump()
@@ -163,10 +164,10 @@ def rig_from_fields(data: dict[str, Any], source: str) -> RecordingRig:
         rig = RigFile.model_validate(data)
     except ValidationError as exc:
         first = exc.errors()[0]
-        field = ".".join(str(p) for p in first["loc"]) or "file"
-        raise InputError(f"{source}: {field}: {first['msg']}") from None
+        field = field_name(first["loc"]) or "file"
+        raise InputError(f"{source}: {field}: {first['msg'].removeprefix('Value error, ')}") from None
     params = _params(rig.vehicle, rig.follow_point_offset_m, source)
-    _check_lever_arm(rig.lever_arm_m, params, rig.vehicle, source)
+    _check_lever_arm(rig.lever_arm_m, params, vehicle_name(rig.vehicle), source)
     return RecordingRig(
         params,
         math.radians(rig.psi_c2v_deg),

@@ -60,7 +60,7 @@ def save_figure(fig: Figure, path: Path, **options: Any) -> None:
 def run_title(config: ScenarioConfig) -> str:
     """The one-line description of a run that heads its figures."""
     return (
-        f"{config.name} ({config.direction}), {config.vehicle}, μ = {config.surface.base_mu:.2f}, "
+        f"{config.name} ({config.direction}), {config.vehicle_name}, μ = {config.surface.base_mu:.2f}, "
         f"camber {config.camber.percent:g} % {config.camber.direction}, {config.speed.cornering_kmh:g} km/h, "
         f"feedback {config.feedback}"
     )

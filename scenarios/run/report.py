@@ -39,7 +39,7 @@ RUN_FIELDS = ("status", "message", "rows", "wall_time_s", "stop_time", "stop_sig
 
 
 def _identity(config: ScenarioConfig) -> dict[str, Any]:
-    return {"scenario": config.name, "feedback": config.feedback, "vehicle": config.vehicle, "seed": config.seed}
+    return {"scenario": config.name, "feedback": config.feedback, "vehicle": config.vehicle_name, "seed": config.seed}
 
 
 def mark_running(run_dir: Path, config: ScenarioConfig) -> None:
@@ -116,7 +116,7 @@ def write_report(
         )
         metrics.update({key: None for key in RUN_FIELDS})
         metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})
-        metrics.update({"vehicle": config.vehicle, "seed": config.seed})
+        metrics.update({"vehicle": config.vehicle_name, "seed": config.seed})
         write_metrics(run_dir, metrics)
     raise_pending_stop()  # a stop held meanwhile takes effect now: before the plots
     if plots and len(time) > 1:

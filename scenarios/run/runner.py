@@ -50,7 +50,7 @@ def run_scenario(
     plots
         Write ``plan_view.png`` and ``offtracking.png``.
     model
-        A built vehicle model of ``config.vehicle`` to use (e.g. one shared by many runs through a
+        A built vehicle model of ``config.vehicle_params()`` to use (e.g. one shared by many runs through a
         :class:`~scenarios.setup.models.ModelRegistry`); default: build one.
     plot_format
         Image format of the plots: ``png`` (default), ``svg`` or ``pdf``.

@@ -13,7 +13,6 @@ from controller.driver import SpeedProfile, kinematic_feedforward
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
-from vehicle_model.presets import vehicle_preset
 from vehicle_model.simulator import VehicleState
 from vehicle_model.surface import (
     FlatRoad,
@@ -191,9 +190,11 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
     InputError
         ``model`` is the model of another vehicle.
     """
-    params = vehicle_preset(config.vehicle)
+    params = config.vehicle_params()
     if model is not None and model.params != params:
-        raise InputError(f"the model given is of vehicle {model.params.name!r}, the scenario's is {config.vehicle!r}")
+        raise InputError(
+            f"the model given is of vehicle {model.params.name!r}, the scenario's is {config.vehicle_name!r}"
+        )
     model = model if model is not None else VehicleModel(params)
     sign = 1 if config.direction == "left" else -1
     path = _path(config, sign)

@@ -92,7 +92,7 @@ class SetupCache:
         key = config.model_copy(update={"seed": 0}).model_dump_json()
         setup = self._setups.get(key)
         if setup is None:
-            setup = build_scenario(config, model=self.models.preset(config.vehicle))
+            setup = build_scenario(config, model=self.models.model(config.vehicle_params()))
             self._setups[key] = setup
             while len(self._setups) > self.capacity:
                 self._setups.popitem(last=False)

@@ -29,7 +29,7 @@ def run_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     config = load_scenario(spec.scenario, dict(spec.overrides))
     run_dir = out_dir / spec.name
     run_dir.mkdir(parents=True, exist_ok=True)
-    metrics = run_scenario(config, run_dir, plots=False, model=worker_models().preset(config.vehicle))
+    metrics = run_scenario(config, run_dir, plots=False, model=worker_models().model(config.vehicle_params()))
     row: dict[str, Any] = dict(spec.labels)
     row["status"] = metrics["status"]
     if metrics["status"] == RunStatus.INTERRUPTED:  # stopped (perhaps before its first row): run again on resume

@@ -295,7 +295,7 @@ def comparison_figure(
         right.tick_params(axis="y", colors=source_colour("none"))
     top.set_title(
         f"{config.name}: μ = {config.surface.base_mu:.2f}, camber {config.camber.percent:g} % "
-        f"{config.camber.direction}, {config.speed.cornering_kmh:g} km/h, {config.vehicle}",
+        f"{config.camber.direction}, {config.speed.cornering_kmh:g} km/h, {config.vehicle_name}",
         fontsize=10,
     )
     handles = [h for ax in (top, right) if ax is not None for h in ax.get_lines() if h.get_gid()]

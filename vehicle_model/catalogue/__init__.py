@@ -1,0 +1,1 @@
+"""The vehicle presets: one combination a YAML file (vehicle_model.combination)."""
