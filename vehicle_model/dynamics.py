@@ -54,23 +54,29 @@ def define_model(params: VehicleParams) -> SymbolicModel:
     u_in = ca.SX.sym("u", layout.n_inputs)
 
     _, _, psi1, u, v1, r1, gamma, r2 = (x[i] for i in range(8))
-    slip_state = x[8:]
+    slip_state = x[layout.slip_slice]
+    trailing = x[layout.trailing_slice]  # (Γ_k, r_{k+1}) of further semi-trailers
+    n_units = params.n_units
     steer_in = u_in[layout.steer_slice]
     drive_force = u_in[layout.drive_index]
     mu = u_in[layout.mu_slice]
     slope = u_in[layout.slope_slice]
 
-    m1, m2 = params.tractor.mass, params.trailer.mass
-    psi2 = psi1 - gamma
-    # The two units as a chain (vehicle_model/chain.py): the kingpin h1 behind the tractor's CG, h2 ahead of the
-    # trailer's; eq (C1) gives the trailer's CG velocity (docs/vehicle_dynamics.md §1.1).
-    bodies = (
-        ChainBody(m1, params.tractor.yaw_inertia, rear_hinge=params.h1),
-        ChainBody(m2, params.trailer.yaw_inertia, front_hinge=params.h2),
+    # The units as a chain (vehicle_model/chain.py): each fifth wheel e_k behind its unit's CG, each kingpin f_k
+    # ahead of its trailer's; eq (C1) gives every trailer's CG velocity (docs/vehicle_dynamics.md §1.1).
+    bodies = tuple(
+        ChainBody(unit.mass, unit.yaw_inertia, front_hinge=front, rear_hinge=rear)
+        for unit, (front, rear) in zip(params.units, params.hinge_distances(), strict=True)
     )
-    speeds = ca.vertcat(u, v1, r1, r2)
-    articulation = ca.vertcat(gamma)
-    (_, u2), (_, v2) = chain_velocities([u, v1, r1, r2], [gamma], bodies)
+    angles = [gamma] + [trailing[2 * i] for i in range(n_units - 2)]
+    yaw = [r1, r2] + [trailing[2 * i + 1] for i in range(n_units - 2)]
+    speeds = ca.vertcat(u, v1, *yaw)
+    articulation = ca.vertcat(*angles)
+    unit_u, unit_v = chain_velocities([u, v1, *yaw], angles, bodies)
+    u2, v2 = unit_u[1], unit_v[1]
+    headings = [psi1]
+    for angle in angles:
+        headings.append(headings[-1] - angle)
     gamma_dot = r1 - r2
 
     # In-plane gravity per body (docs/vehicle_dynamics.md §1.3), from the global slope vector.
@@ -80,16 +86,15 @@ def define_model(params: VehicleParams) -> SymbolicModel:
         cos_theta = ca.sqrt(ca.fmax(1.0 - sx * sx - sy * sy, 0.0))
         return gx, gy, cos_theta
 
-    gx1, gy1, cos1 = body_gravity(slope[0], slope[1], psi1)
-    gx2, gy2, cos2 = body_gravity(slope[2], slope[3], psi2)
+    gravity = [body_gravity(slope[2 * k], slope[2 * k + 1], headings[k]) for k in range(n_units)]
 
     # Drive force shared among driven axles in proportion to their static load.
     driven_load = float(np.sum(table.static_load[table.driven]))
 
     steer_iter = iter(range(len(layout.steerable_axles)))
-    fx_body = [ca.SX(0.0), ca.SX(0.0)]
-    fy_body = [ca.SX(0.0), ca.SX(0.0)]
-    mz_body = [ca.SX(0.0), ca.SX(0.0)]
+    fx_body = [ca.SX(0.0) for _ in range(n_units)]
+    fy_body = [ca.SX(0.0) for _ in range(n_units)]
+    mz_body = [ca.SX(0.0) for _ in range(n_units)]
     slip_dot, out_fy, out_fx, out_fz, out_slip = [], [], [], [], []
     for k, _name in enumerate(table.names):
         unit = int(table.unit[k])
@@ -97,9 +102,9 @@ def define_model(params: VehicleParams) -> SymbolicModel:
         n = float(table.n_tyres[k])
         a = float(table.x_cg[k])
         delta = steer_in[next(steer_iter)] if table.steerable[k] else ca.SX(0.0)
-        ub, vb, rb = (u, v1, r1) if unit == 0 else (u2, v2, r2)
+        ub, vb, rb = unit_u[unit], unit_v[unit], yaw[unit]
         fz_static = float(table.static_load[k]) / n
-        fz = table.static_load[k] * (cos1 if unit == 0 else cos2)
+        fz = table.static_load[k] * gravity[unit][2]
         fz_tyre = fz / n
         # Cornering stiffness and relaxation length at the static load: on a slope θ the load falls by
         # cos θ ≥ 0.995 (θ ≤ 10 %), which moves them by < 0.5 %; the peak force uses the actual load.
@@ -139,11 +144,15 @@ def define_model(params: VehicleParams) -> SymbolicModel:
     # Newton–Euler with the hinge forces eliminated (vehicle_model/chain.py, eqs (C2)–(C4); the tractor's
     # longitudinal equation included, so the forward speed follows from the drive force).
     applied = [
-        ca.vertcat(fx_body[0] + m1 * gx1 + f_aero, fy_body[0] + m1 * gy1, mz_body[0]),
-        ca.vertcat(fx_body[1] + m2 * gx2, fy_body[1] + m2 * gy2, mz_body[1]),
+        ca.vertcat(fx_body[k] + unit.mass * gravity[k][0], fy_body[k] + unit.mass * gravity[k][1], mz_body[k])
+        for k, unit in enumerate(params.units)
     ]
+    applied[0][0] += f_aero
     motion = chain_motion(speeds, articulation, bodies, applied)
     u_dot, v1_dot, r1_dot, r2_dot = (motion.speed_rates[i] for i in range(4))
+    trailing_dot = []
+    for k in range(2, n_units):  # (Γ̇_k, ṙ_{k+1}) of the further trailers
+        trailing_dot += [yaw[k - 1] - yaw[k], motion.speed_rates[2 + k]]
     hitch_x, hitch_y = motion.hinge_forces[0][0], motion.hinge_forces[0][1]
 
     xdot = ca.vertcat(
@@ -156,6 +165,7 @@ def define_model(params: VehicleParams) -> SymbolicModel:
         gamma_dot,
         r2_dot,
         ca.vertcat(*slip_dot),
+        *trailing_dot,
     )
     outputs = {
         "fy": ca.vertcat(*out_fy),

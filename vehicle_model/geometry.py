@@ -46,7 +46,7 @@ def trailer_heading(psi1, gamma):
     return np.subtract(psi1, gamma, dtype=float)
 
 
-def _place(origin: np.ndarray, psi, local: np.ndarray) -> np.ndarray:
+def place_points(origin: np.ndarray, psi, local: np.ndarray) -> np.ndarray:
     """Points ``local (n, 2)`` (forward, left) of a body at ``origin`` heading ``psi`` → ``S + (n, 2)``."""
     psi = np.asarray(psi, dtype=float)[..., None]
     c, s = np.cos(psi), np.sin(psi)
@@ -61,7 +61,7 @@ def tractor_points(params: VehicleParams, x, y, psi1, local: np.ndarray) -> np.n
     """Global positions of tractor points ``local (n, 2)`` = (station from the steer axle, lateral left +)."""
     cg = np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)], axis=-1)
     rel = np.asarray(local, dtype=float) - [params.tractor.cg_x, 0.0]
-    return _place(cg, psi1, rel)
+    return place_points(cg, psi1, rel)
 
 
 def kingpin_position(params: VehicleParams, x, y, psi1) -> np.ndarray:
@@ -71,7 +71,22 @@ def kingpin_position(params: VehicleParams, x, y, psi1) -> np.ndarray:
 
 def trailer_points(params: VehicleParams, x, y, psi1, gamma, local: np.ndarray) -> np.ndarray:
     """Global positions of trailer points ``local (n, 2)`` = (station from the kingpin, lateral left +)."""
-    return _place(kingpin_position(params, x, y, psi1), trailer_heading(psi1, gamma), local)
+    return place_points(kingpin_position(params, x, y, psi1), trailer_heading(psi1, gamma), local)
+
+
+def trailer_frames(params: VehicleParams, x, y, psi1, angles) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Kingpin position ``S + (2,)`` and heading ``S`` of every semi-trailer, front to rear.
+
+    ``angles`` are the articulation angles ``Γ_k = ψ_k − ψ_{k+1}``, one per trailer (``Γ`` of the first, then
+    ``gamma2, …``); each kingpin sits on the fifth wheel of the unit ahead.
+    """
+    frames = [(kingpin_position(params, x, y, psi1), trailer_heading(psi1, angles[0]))]
+    for k in range(len(params.rear_trailers)):
+        ahead = params.trailers[k]
+        origin, heading = frames[-1]
+        fifth = place_points(origin, heading, np.array([[ahead.fifth_wheel_x, 0.0]]))[..., 0, :]
+        frames.append((fifth, trailer_heading(heading, angles[k + 1])))
+    return frames
 
 
 def follow_point_position(params: VehicleParams, x, y, psi1, gamma) -> np.ndarray:

@@ -232,9 +232,13 @@ class TrailerParams(_UnitParams):
     follow_point_x
         Station of the follow point whose off-tracking is measured and controlled [m]; defaults
         to the rear of the body.
+    fifth_wheel_x
+        Station of a fifth wheel on this semi-trailer [m], on which the next semi-trailer's kingpin sits (the
+        lead trailer of a B-double); none on the last trailer.
     """
 
     follow_point_x: Station | None = None
+    fifth_wheel_x: Station | None = None
 
     @model_validator(mode="after")
     def _check_trailer(self) -> TrailerParams:
@@ -247,6 +251,11 @@ class TrailerParams(_UnitParams):
                 f"follow_point_x ({self.follow_point_x} m) must lie behind the kingpin and on the body "
                 f"[{self.rear_x}, 0) m"
             )
+        if self.fifth_wheel_x is not None and not self.rear_x <= self.fifth_wheel_x < 0:
+            raise ValueError(
+                f"fifth_wheel_x ({self.fifth_wheel_x} m) must lie behind the kingpin and on the body "
+                f"[{self.rear_x}, 0) m"
+            )
         return self
 
     @property
@@ -257,10 +266,10 @@ class TrailerParams(_UnitParams):
 
 @dataclass(frozen=True)
 class AxleTable:
-    """Per-axle arrays of a whole vehicle, tractor axles first (the order of every layout)."""
+    """Per-axle arrays of a whole vehicle, the tractor's axles first, then each trailer's (every layout's order)."""
 
     names: tuple[str, ...]
-    unit: np.ndarray  # 0 tractor, 1 trailer
+    unit: np.ndarray  # 0 tractor, 1 the first trailer, 2 the next, …
     x_cg: np.ndarray  # station relative to the unit CG [m]
     n_tyres: np.ndarray
     steerable: np.ndarray
@@ -270,28 +279,69 @@ class AxleTable:
 
 
 class VehicleParams(_Frozen):
-    """A tractor–semi-trailer combination.
+    """A tractor with one semi-trailer, or a chain of semi-trailers (a B-double, a B-triple).
 
     Parameters
     ----------
     name
         Preset or user name.
     tractor, trailer
-        The two units.
+        The tractor and the semi-trailer on its fifth wheel.
+    rear_trailers
+        Further semi-trailers, front to rear, each with its kingpin on the fifth wheel (``fifth_wheel_x``) of the
+        trailer ahead.
     """
 
     name: str = "custom"
     tractor: TractorParams
     trailer: TrailerParams
+    rear_trailers: tuple[TrailerParams, ...] = Field((), max_length=2, description="a B-triple has three trailers")
 
     @model_validator(mode="after")
     def _check_names(self) -> VehicleParams:
-        names = [a.name for a in self.tractor.axles + self.trailer.axles]
+        names = [a.name for u in self.units for a in u.axles]
         dupes = sorted({n for n in names if names.count(n) > 1})
         if dupes:
             raise ValueError(f"axle names must be unique; repeated: {dupes}")
+        for i, ahead in enumerate(self.trailers[:-1]):
+            if ahead.fifth_wheel_x is None:
+                field = "trailer" if i == 0 else f"rear_trailers[{i - 1}]"
+                raise ValueError(f"{field}.fifth_wheel_x: a semi-trailer tows the next one on its fifth wheel; give it")
         self._loads()  # raise early on an unsolvable load layout
         return self
+
+    # -- the chain of units -----------------------------------------------------------------
+    @property
+    def trailers(self) -> tuple[TrailerParams, ...]:
+        """The semi-trailers, front to rear."""
+        return (self.trailer, *self.rear_trailers)
+
+    @property
+    def units(self) -> tuple[TractorParams | TrailerParams, ...]:
+        """Every unit, front to rear: the tractor, then the semi-trailers."""
+        return (self.tractor, *self.trailers)
+
+    @property
+    def n_units(self) -> int:
+        """Number of units (2 for a tractor–semi-trailer)."""
+        return 1 + len(self.trailers)
+
+    def rear_coupling_x(self, unit: int) -> float:
+        """Station of the fifth wheel on unit ``unit`` (0 the tractor) [m]."""
+        station = self.units[unit].fifth_wheel_x
+        if station is None:
+            raise ValueError(f"unit {unit} tows nothing: it has no fifth wheel")
+        return float(station)
+
+    def hinge_distances(self) -> tuple[tuple[float, float], ...]:
+        """Per unit, the distance from its CG forward to its kingpin and back to its fifth wheel [m] (0 where it
+        has none): the ``f_k`` and ``e_k`` of the chain's equations (:mod:`vehicle_model.chain`)."""
+        out = []
+        for k, unit in enumerate(self.units):
+            front = -unit.cg_x if k else 0.0  # a trailer's stations run from its kingpin
+            fifth = unit.fifth_wheel_x
+            out.append((front, unit.cg_x - fifth if fifth is not None and k < self.n_units - 1 else 0.0))
+        return tuple(out)
 
     # -- derived geometry -------------------------------------------------------------------
     @property
@@ -311,29 +361,43 @@ class VehicleParams(_Frozen):
 
     @property
     def kingpin_load(self) -> float:
-        """Static vertical load on the fifth wheel [N]."""
-        return self._loads()[2]
+        """Static vertical load on the (first) fifth wheel [N]."""
+        return self._loads()[1][0]
 
-    def _loads(self) -> tuple[np.ndarray, np.ndarray, float]:
-        tr, tl = self.tractor, self.trailer
-        if all(a.static_load is not None for a in tl.axles):
-            trailer_loads = np.array([a.static_load for a in tl.axles], dtype=float)
-            kingpin = tl.mass * GRAVITY - trailer_loads.sum()
-            if kingpin < 0:
-                raise ValueError("trailer.axles: explicit static loads exceed the trailer weight")
-        else:
-            groups = _groups(tl.axles)
-            if len(groups) != 1:
-                raise ValueError(
-                    "trailer.axles: statics need exactly one load group on a semi-trailer "
-                    f"(found {sorted(groups)}); give static_load on every trailer axle instead"
-                )
-            x_group = float(np.mean([a.x for a in tl.axles]))
-            if x_group >= tl.cg_x:
-                raise ValueError("trailer.cg_x must lie ahead of the axle group for a positive kingpin load")
-            # Moments about the axle-group centre: W·(cg − x_g) = K·(0 − x_g)
-            kingpin = tl.mass * GRAVITY * (tl.cg_x - x_group) / (0.0 - x_group)
-            trailer_loads = np.full(len(tl.axles), (tl.mass * GRAVITY - kingpin) / len(tl.axles))
+    def _loads(self) -> tuple[list[np.ndarray], list[float]]:
+        """Static axle loads per unit and each semi-trailer's kingpin load [N], solved from the rear forward."""
+        trailer_loads: list[np.ndarray] = []
+        kingpins: list[float] = []
+        behind = 0.0  # the kingpin load of the trailer behind, on this one's fifth wheel
+        for i in range(len(self.trailers) - 1, -1, -1):
+            tl = self.trailers[i]
+            field = "trailer" if i == 0 else f"rear_trailers[{i - 1}]"
+            weight = tl.mass * GRAVITY + behind
+            if all(a.static_load is not None for a in tl.axles):
+                loads = np.array([a.static_load for a in tl.axles], dtype=float)
+                kingpin = weight - loads.sum()
+                if kingpin < 0:
+                    raise ValueError(f"{field}.axles: explicit static loads exceed the weight on them")
+            else:
+                groups = _groups(tl.axles)
+                if len(groups) != 1:
+                    raise ValueError(
+                        f"{field}.axles: statics need exactly one load group on a semi-trailer "
+                        f"(found {sorted(groups)}); give static_load on every axle of it instead"
+                    )
+                x_group = float(np.mean([a.x for a in tl.axles]))
+                # Moments about the axle-group centre: W·(cg − x_g) + K_behind·(x_5w − x_g) = K·(0 − x_g)
+                fifth = tl.fifth_wheel_x if tl.fifth_wheel_x is not None else x_group
+                moment = tl.mass * GRAVITY * (tl.cg_x - x_group) + behind * (fifth - x_group)
+                if x_group >= 0 or moment <= 0:
+                    raise ValueError(f"{field}.cg_x must lie ahead of the axle group for a positive kingpin load")
+                kingpin = moment / (0.0 - x_group)
+                loads = np.full(len(tl.axles), (weight - kingpin) / len(tl.axles))
+            trailer_loads.insert(0, loads)
+            kingpins.insert(0, float(kingpin))
+            behind = kingpin
+        tr = self.tractor
+        kingpin = kingpins[0]
         if all(a.static_load is not None for a in tr.axles):
             tractor_loads = np.array([a.static_load for a in tr.axles], dtype=float)
         else:
@@ -355,23 +419,22 @@ class VehicleParams(_Frozen):
             tractor_loads = np.zeros(len(tr.axles))
             tractor_loads[ia] = load_a / len(ia)
             tractor_loads[ib] = load_b / len(ib)
-        return tractor_loads, trailer_loads, float(kingpin)
+        return [tractor_loads, *trailer_loads], kingpins
 
     @property
     def axle_table(self) -> AxleTable:
-        """Per-axle arrays, tractor axles first."""
-        tr, tl = self.tractor, self.trailer
-        tractor_loads, trailer_loads, _ = self._loads()
-        axles = tr.axles + tl.axles
+        """Per-axle arrays, the tractor's axles first, then each trailer's."""
+        loads, _ = self._loads()
+        units = self.units
         return AxleTable(
-            names=tuple(a.name for a in axles),
-            unit=np.array([0] * len(tr.axles) + [1] * len(tl.axles)),
-            x_cg=np.array([a.x - tr.cg_x for a in tr.axles] + [a.x - tl.cg_x for a in tl.axles]),
-            n_tyres=np.array([a.n_tyres for a in axles], dtype=float),
-            steerable=np.array([a.steerable for a in axles]),
-            driven=np.array([a.driven for a in axles]),
-            static_load=np.concatenate([tractor_loads, trailer_loads]),
-            tyres=tuple(a.tyre for a in axles),
+            names=tuple(a.name for u in units for a in u.axles),
+            unit=np.array([k for k, u in enumerate(units) for _ in u.axles]),
+            x_cg=np.array([a.x - u.cg_x for u in units for a in u.axles]),
+            n_tyres=np.array([a.n_tyres for u in units for a in u.axles], dtype=float),
+            steerable=np.array([a.steerable for u in units for a in u.axles]),
+            driven=np.array([a.driven for u in units for a in u.axles]),
+            static_load=np.concatenate(loads),
+            tyres=tuple(a.tyre for u in units for a in u.axles),
         )
 
     def trailer_axle_distances(self) -> np.ndarray:

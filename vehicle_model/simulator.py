@@ -11,7 +11,7 @@ import numpy as np
 
 from .dynamics import VehicleModel
 from .errors import InputError, SimulationDivergedError
-from .geometry import CombinationPose, tractor_points, trailer_points
+from .geometry import CombinationPose, place_points, tractor_points, trailer_frames, trailer_points
 from .layout import BODY_STATES, Layout
 from .parameters import VehicleParams
 from .period import BAD_INPUT, DIVERGED, OK, context_views, load_period, new_context
@@ -43,6 +43,8 @@ class VehicleState:
         Trailer yaw rate [rad/s].
     slip : numpy.ndarray
         Transient slip state ``tan α'`` of every axle, layout order.
+    trailing : numpy.ndarray
+        Further semi-trailers' ``(Γ_k, r_{k+1})`` pairs, layout order (empty for a tractor–semi-trailer).
     """
 
     time: float
@@ -55,6 +57,7 @@ class VehicleState:
     gamma: float
     r2: float
     slip: np.ndarray = field(repr=False)
+    trailing: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
     @property
     def psi2(self) -> float:
@@ -68,20 +71,27 @@ class VehicleState:
 
     def to_vector(self) -> np.ndarray:
         """State vector in :class:`Layout` order."""
-        return np.concatenate([[getattr(self, n) for n in BODY_STATES], self.slip])
+        return np.concatenate([[getattr(self, n) for n in BODY_STATES], self.slip, self.trailing])
 
     @classmethod
-    def from_vector(cls, vector: np.ndarray, time: float = 0.0) -> VehicleState:
-        """State from a vector in :class:`Layout` order."""
+    def from_vector(cls, vector: np.ndarray, time: float = 0.0, n_axles: int | None = None) -> VehicleState:
+        """State from a vector in :class:`Layout` order (``n_axles`` slip states; all the rest when omitted)."""
         v = np.asarray(vector, dtype=float)
-        return _state(cls, time, v[:8].tolist(), v[8:].copy())
+        end = v.size if n_axles is None else 8 + n_axles
+        return _state(cls, time, v[:8].tolist(), v[8:end].copy(), v[end:].copy())
 
 
 _STATE_FIELDS = ("time", *BODY_STATES)
 _new_object = object.__new__
 
 
-def _state(cls: type[VehicleState], time: float, body: list[float], slip: np.ndarray) -> VehicleState:
+_NO_TRAILING = np.zeros(0)
+_NO_TRAILING.flags.writeable = False
+
+
+def _state(
+    cls: type[VehicleState], time: float, body: list[float], slip: np.ndarray, trailing: np.ndarray = _NO_TRAILING
+) -> VehicleState:
     """A :class:`VehicleState` from its time, the 8 body states and the slip array, without the checks of
     the frozen dataclass's ``__init__`` (the simulator makes one every control tick: this is half the cost).
 
@@ -94,6 +104,7 @@ def _state(cls: type[VehicleState], time: float, body: list[float], slip: np.nda
         body
     )
     fields["slip"] = slip
+    fields["trailing"] = trailing
     return state
 
 
@@ -132,7 +143,19 @@ def initial_state(
     layout: Layout, speed: float = 0.0, x: float = 0.0, y: float = 0.0, heading: float = 0.0
 ) -> VehicleState:
     """Straight-running state at ``speed`` with the tractor CG at ``(x, y)`` heading ``heading``."""
-    return VehicleState(0.0, x, y, heading, speed, 0.0, 0.0, 0.0, 0.0, slip=np.zeros(len(layout.axles)))
+    return VehicleState(
+        0.0,
+        x,
+        y,
+        heading,
+        speed,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        slip=np.zeros(len(layout.axles)),
+        trailing=np.array([v for _ in range(layout.n_units - 2) for v in (0.0, 0.0)]),
+    )
 
 
 @dataclass(frozen=True)
@@ -189,9 +212,13 @@ class Simulator:
         self.substeps = int(substeps)
         self.model = model if model is not None else VehicleModel(params)
         self.layout = self.model.layout
-        self._limit_index = np.array([self.layout.state_index(n) for n in STATE_LIMITS])
-        self._limit_value = np.array(list(STATE_LIMITS.values()))
-        self._limits = tuple(zip(self._limit_index.tolist(), STATE_LIMITS.values(), strict=True))
+        limits = dict(STATE_LIMITS)
+        for k in range(3, self.layout.n_units + 1):  # further trailers: as the first
+            limits[f"gamma{k - 1}"], limits[f"r{k}"] = STATE_LIMITS["gamma"], STATE_LIMITS["r2"]
+        self._limit_names = tuple(limits)
+        self._limit_index = np.array([self.layout.state_index(n) for n in limits])
+        self._limit_value = np.array(list(limits.values()))
+        self._limits = tuple(zip(self._limit_index.tolist(), limits.values(), strict=True))
         # State, inputs, end state and trajectory live in one array, the context of the compiled
         # control-period function (.period); the casadi fallback binds the same arrays to its buffer.
         n_x, n_u = self.layout.n_states, self.layout.n_inputs
@@ -213,6 +240,8 @@ class Simulator:
         # Ground points looked up on the surface: every axle, then the unit's CG.
         self._tractor_local = np.array([[a.x, 0.0] for a in params.tractor.axles] + [[params.tractor.cg_x, 0.0]])
         self._trailer_local = np.array([[a.x, 0.0] for a in params.trailer.axles] + [[params.trailer.cg_x, 0.0]])
+        self._rear_locals = [np.array([[a.x, 0.0] for a in t.axles] + [[t.cg_x, 0.0]]) for t in params.rear_trailers]
+        self._n_axles = len(self.layout.axles)
         self.time = 0.0
         self._surface_filled = False  # uniform surfaces are looked up once
         self._surface_uniform = self.surface.is_uniform
@@ -228,7 +257,7 @@ class Simulator:
     @property
     def state(self) -> VehicleState:
         """Current state."""
-        return VehicleState.from_vector(self._x, self.time)
+        return VehicleState.from_vector(self._x, self.time, self._n_axles)
 
     @property
     def speed(self) -> float:
@@ -272,13 +301,25 @@ class Simulator:
         self.time = state.time
         return state
 
-    def surface_inputs(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """μ per axle and the slope vector per body at state vector ``x``."""
+    def _ground_points(self, x: np.ndarray) -> list[np.ndarray]:
+        """Per unit, its axles' ground points and then its CG, at state vector ``x``."""
         tractor = tractor_points(self.params, x[0], x[1], x[2], self._tractor_local)
         trailer = trailer_points(self.params, x[0], x[1], x[2], x[6], self._trailer_local)
-        axles = np.concatenate([tractor[:-1], trailer[:-1]])
-        mu = self.surface.friction(axles)
-        slope = self.surface.slope(np.stack([tractor[-1], trailer[-1]]))
+        if not self._rear_locals:
+            return [tractor, trailer]
+        angles = [x[6], *x[self.layout.trailing_slice][0::2]]
+        frames = trailer_frames(self.params, x[0], x[1], x[2], angles)[1:]
+        rear = [
+            place_points(origin, heading, local)
+            for (origin, heading), local in zip(frames, self._rear_locals, strict=True)
+        ]
+        return [tractor, trailer, *rear]
+
+    def surface_inputs(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """μ per axle and the slope vector per body at state vector ``x``."""
+        units = self._ground_points(x)
+        mu = self.surface.friction(np.concatenate([p[:-1] for p in units]))
+        slope = self.surface.slope(np.stack([p[-1] for p in units]))
         return mu, slope.ravel()
 
     def min_friction(self, axles: np.ndarray) -> float:
@@ -288,10 +329,7 @@ class Simulator:
         """
         if self._uniform_mu is not None:
             return self._uniform_mu
-        x = self._x
-        tractor = tractor_points(self.params, x[0], x[1], x[2], self._tractor_local)
-        trailer = trailer_points(self.params, x[0], x[1], x[2], x[6], self._trailer_local)
-        mu = self.surface.friction(np.concatenate([tractor[:-1], trailer[:-1]]))
+        mu = self.surface.friction(np.concatenate([p[:-1] for p in self._ground_points(self._x)]))
         return float(np.min(mu[axles]))
 
     def fill_inputs(self, controls: Controls) -> None:
@@ -353,7 +391,8 @@ class Simulator:
             self._failed(code, steer, drive_force)
         self.time += self._period_s
         x = self._x
-        return _state(VehicleState, self.time, x[:8].tolist(), x[8:].copy())
+        n = 8 + self._n_axles
+        return _state(VehicleState, self.time, x[:8].tolist(), x[8:n].copy(), x[n:].copy())
 
     def _step_casadi(self, steer: Sequence[float] | np.ndarray, drive_force: float) -> VehicleState:
         """The period through casadi's ``mapaccum`` integrator, checked here (the model has no compiled library)."""
@@ -366,7 +405,8 @@ class Simulator:
             self._check(x_end)  # raises, naming the state
         self._x[:] = x_end
         self.time += self._period_s
-        return _state(VehicleState, self.time, values[:8], x_end[8:].copy())
+        n = 8 + self._n_axles
+        return _state(VehicleState, self.time, values[:8], x_end[8:n].copy(), x_end[n:].copy())
 
     def _failed(self, code: int, steer: Sequence[float] | np.ndarray, drive_force: float) -> NoReturn:
         """Raise the error of a failed period (return ``code`` of :mod:`.period`)."""
@@ -411,7 +451,7 @@ class Simulator:
                 time=self.time,
                 state=self.state,
             )
-        for i, name, limit in zip(self._limit_index, STATE_LIMITS, self._limit_value, strict=True):
+        for i, name, limit in zip(self._limit_index, self._limit_names, self._limit_value, strict=True):
             if abs(x_new[i]) > limit:
                 raise SimulationDivergedError(
                     f"the simulation diverged at t = {t_end:.3f} s: {name} = {x_new[i]:.4g} exceeds ±{limit} "
