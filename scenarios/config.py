@@ -433,6 +433,13 @@ def read_vehicle_file(vehicle: Any) -> Any:
     return vehicle
 
 
+LOOP_SUPPORTS = (
+    "the closed loop (runs, studies, environments) takes a tractor or rigid truck with one semi-trailer for now; "
+    "vehicle_model simulates chains of semi-trailers"
+)
+"""Why a run refuses a combination of more than two units."""
+
+
 def check_vehicle(vehicle: str | CombinationSpec) -> str | CombinationSpec:
     """A ``vehicle`` field's value after validation, refused (``ValueError``, one line naming the field) if it is not
     a preset or a combination the model can simulate."""
@@ -440,6 +447,8 @@ def check_vehicle(vehicle: str | CombinationSpec) -> str | CombinationSpec:
         if vehicle not in VEHICLE_PRESETS:
             raise ValueError(f"not a preset{_preset_choices(vehicle)}")
         return vehicle
+    if len(vehicle.units) > 2:
+        raise ValueError(f"units[2]: {len(vehicle.units)} units; {LOOP_SUPPORTS}")
     vehicle.params()  # beyond the model, or statics it cannot solve
     return vehicle
 

@@ -201,6 +201,12 @@ def _tractor_second(d: dict) -> None:
     d["units"] = [d["units"][1], d["units"][0]]
 
 
+def _dolly_second(d: dict) -> None:
+    trailer = _units(d)[1]
+    trailer["kind"] = "converter_dolly"
+    trailer["coupling"] = {"kind": "drawbar", "ahead_x": -4.0, "x": 2.0}
+
+
 def _three_units(d: dict) -> None:
     third = copy.deepcopy(_units(d)[1])
     third["coupling"]["ahead_x"] = -11.0
@@ -224,6 +230,7 @@ FAULTS = [
     (_driven_trailer_axle, "units[1].axles", "driven"),
     (_tractor_second, "units[0].kind", "tractor or rigid_truck"),
     (_three_units, "units[2]", "tractor or rigid truck with one semi-trailer for now"),
+    (_dolly_second, "units[1].kind", "chain of semi-trailers"),
 ]
 
 

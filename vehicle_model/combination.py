@@ -14,7 +14,8 @@ axle carries no load and no side force, so the model leaves it out.
 
 The schema names every unit kind of the combinations in use (tractor, rigid truck, semi-trailer, converter dolly,
 centre-axle trailer, full trailer) and checks their couplings; :meth:`CombinationSpec.params` then refuses, in one
-line naming the field, a combination the model cannot simulate: it has a tractor or rigid truck and one semi-trailer.
+line naming the field, a combination the model cannot simulate: it has a tractor or rigid truck and a chain of up to
+three semi-trailers (a B-double, a B-triple).
 """
 
 from __future__ import annotations
@@ -80,7 +81,7 @@ SHORT_KIND = {
 }
 """Each kind in a word, for a listing's narrow column."""
 
-SUPPORTED = "the model supports a tractor or rigid truck with one semi-trailer for now"
+SUPPORTED = "the model supports a tractor or rigid truck with a chain of semi-trailers (up to three) for now"
 """Why :meth:`CombinationSpec.params` refuses any other combination."""
 
 
@@ -342,11 +343,11 @@ class CombinationSpec(_Frozen):
         """
         if len(self.units) == 1:
             raise ValueError(f"units: one unit; {SUPPORTED}: add its semi_trailer")
-        second = self.units[1]
-        if second.kind != "semi_trailer":
-            raise ValueError(f"units[1].kind = {second.kind!r}: {SUPPORTED}")
-        if len(self.units) > 2:
-            raise ValueError(f"units[2]: {len(self.units)} units; {SUPPORTED}")
+        for i, unit in enumerate(self.units[1:], start=1):
+            if unit.kind != "semi_trailer":
+                raise ValueError(f"units[{i}].kind = {unit.kind!r}: {SUPPORTED}")
+        if len(self.units) > 4:
+            raise ValueError(f"units[4]: {len(self.units)} units; {SUPPORTED}")
 
     def params(self) -> VehicleParams:
         """The model's parameters of this combination, stations moved to the model's origins.
@@ -354,7 +355,7 @@ class CombinationSpec(_Frozen):
         Returns
         -------
         VehicleParams
-            The tractor's stations from its front axle on the ground, the semi-trailer's from its kingpin; lifted
+            The tractor's stations from its front axle on the ground, each semi-trailer's from its kingpin; lifted
             axles left out; the box estimate where ``yaw_inertia`` is ``box``.
 
         Raises
@@ -364,35 +365,43 @@ class CombinationSpec(_Frozen):
             the statics cannot give (:class:`~vehicle_model.parameters.VehicleParams`).
         """
         self.supported()
-        front, trailer = self.units
-        assert trailer.coupling is not None  # the checks give every towed unit its coupling
+        front, *towed = self.units
         origin = max(a.x for a in front.grounded)
-        kingpin = trailer.coupling.x
+        assert towed[0].coupling is not None  # the checks give every towed unit its coupling
         tractor = TractorParams(
             mass=front.mass,
             yaw_inertia=front.inertia,
             cg_x=front.cg_x - origin,
-            fifth_wheel_x=trailer.coupling.ahead_x - origin,
+            fifth_wheel_x=towed[0].coupling.ahead_x - origin,
             front_x=front.front_x - origin,
             rear_x=front.rear_x - origin,
             width=front.width,
             axles=tuple(a.params(origin) for a in front.grounded),
             **({} if front.drag_area is None else {"drag_area": front.drag_area}),
         )
-        semi = TrailerParams(
-            mass=trailer.mass,
-            yaw_inertia=trailer.inertia,
-            cg_x=trailer.cg_x - kingpin,
-            front_x=trailer.front_x - kingpin,
-            rear_x=trailer.rear_x - kingpin,
-            width=trailer.width,
-            axles=tuple(a.params(kingpin) for a in trailer.grounded),
-            follow_point_x=None if trailer.follow_point_x is None else trailer.follow_point_x - kingpin,
-        )
+        semis = []
+        for i, trailer in enumerate(towed):
+            assert trailer.coupling is not None
+            kingpin = trailer.coupling.x
+            behind = towed[i + 1].coupling if i + 1 < len(towed) else None
+            semis.append(
+                TrailerParams(
+                    mass=trailer.mass,
+                    yaw_inertia=trailer.inertia,
+                    cg_x=trailer.cg_x - kingpin,
+                    front_x=trailer.front_x - kingpin,
+                    rear_x=trailer.rear_x - kingpin,
+                    width=trailer.width,
+                    axles=tuple(a.params(kingpin) for a in trailer.grounded),
+                    follow_point_x=None if trailer.follow_point_x is None else trailer.follow_point_x - kingpin,
+                    fifth_wheel_x=None if behind is None else behind.ahead_x - kingpin,
+                )
+            )
         try:
-            return VehicleParams(name=self.name, tractor=tractor, trailer=semi)
+            return VehicleParams(name=self.name, tractor=tractor, trailer=semis[0], rear_trailers=tuple(semis[1:]))
         except ValidationError as exc:  # the statics: name the units as the file does
             message = exc.errors()[0]["msg"].removeprefix("Value error, ")
+            message = message.replace("rear_trailers[0].", "units[2].").replace("rear_trailers[1].", "units[3].")
             message = message.replace("trailer.", "units[1].").replace("tractor.", "units[0].")
             raise ValueError(message.replace("tractor:", "units[0]:")) from None
 
