@@ -90,7 +90,7 @@ def _equivalent_point(params: VehicleParams, unit: int) -> float:
 
 def test_walking_pace_turn_follows_the_kinematic_chain(b_double: VehicleParams) -> None:
     sim = _steady_turn(b_double, 0.2)
-    s, x = sim.state, sim.state_vector
+    s = sim.state
     assert abs(s.r1 - s.r2) < 1e-5 and abs(s.r1 - s.trailing[1]) < 1e-5  # steady: one yaw rate
     heading_velocity = np.array(
         [s.u * math.cos(s.psi1) - s.v1 * math.sin(s.psi1), s.u * math.sin(s.psi1) + s.v1 * math.cos(s.psi1)]
@@ -107,7 +107,7 @@ def test_walking_pace_turn_follows_the_kinematic_chain(b_double: VehicleParams) 
         predicted.append(math.sqrt(predicted[-1] ** 2 + offset**2 - length**2))
     length = _equivalent_point(b_double, 2)
     predicted.append(math.sqrt(predicted[-1] ** 2 - length**2))  # the rear trailer's zero-slip point
-    origin, heading = trailer_frames(b_double, s.X, s.Y, s.psi1, [s.gamma, s.trailing[0]])[2 - 1]
+    origin, heading = trailer_frames(b_double, s.X, s.Y, s.psi1, [s.gamma, s.trailing[0]])[1]
     rear_point = origin - length * np.array([math.cos(heading), math.sin(heading)])
     radius.append(float(np.hypot(*(rear_point - centre))))
     assert radius[1] == pytest.approx(predicted[1], rel=0.01)
