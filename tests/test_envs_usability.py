@@ -94,7 +94,7 @@ def test_spec_has_a_time_limit_longer_than_the_default_episode() -> None:
     [
         ({"mu": -1}, "mu = -1", "surface.mu = -1: Input should be greater than 0"),
         ({"scenario": "no-such"}, "scenario = 'no-such'", "unknown scenario 'no-such'"),
-        ({"vehicle": "truck"}, "vehicle = 'truck'", "vehicle 'truck' is not a preset"),
+        ({"vehicle": "truck"}, "vehicle = 'truck'", "vehicle = 'truck': not a preset"),
         ({"speed_kmh": 500}, "speed_kmh = 500", "speed.cornering_kmh = 500: Input should be less than or equal"),
         ({"camber_percent": 20}, "camber_percent = 20", "camber.percent = 20"),
         ({"direction": "north"}, "direction = 'north'", "Input should be 'left' or 'right'"),
@@ -105,7 +105,7 @@ def test_spec_has_a_time_limit_longer_than_the_default_episode() -> None:
         ),
         ({"randomise": {"mu": (-0.5, 0.1)}}, "randomise.mu = (-0.5, 0.1)", "surface.mu = -0.5"),
         ({"randomise": {"speed_kmh": (10.0, 95.0)}}, "randomise.speed_kmh", "speed.cornering_kmh = 95.0"),
-        ({"randomise": {"vehicle": ("lst", "truck")}}, "randomise.vehicle", "vehicle 'truck' is not a preset"),
+        ({"randomise": {"vehicle": ("lst", "truck")}}, "randomise.vehicle", "vehicle = 'truck': not a preset"),
     ],
 )
 @pytest.mark.parametrize("env_id", [STEERING, "offtrack/GainTuning-v0"])
