@@ -435,7 +435,7 @@ def read_vehicle_file(vehicle: Any) -> Any:
 
 LOOP_SUPPORTS = (
     "the closed loop (runs, studies, environments) takes a tractor or rigid truck with one semi-trailer for now; "
-    "vehicle_model simulates chains of semi-trailers"
+    "vehicle_model simulates longer combinations"
 )
 """Why a run refuses a combination of more than two units."""
 
@@ -449,6 +449,8 @@ def check_vehicle(vehicle: str | CombinationSpec) -> str | CombinationSpec:
         return vehicle
     if len(vehicle.units) > 2:
         raise ValueError(f"units[2]: {len(vehicle.units)} units; {LOOP_SUPPORTS}")
+    if len(vehicle.units) == 2 and vehicle.units[1].kind != "semi_trailer":
+        raise ValueError(f"units[1].kind = {vehicle.units[1].kind!r}: {LOOP_SUPPORTS}")
     vehicle.params()  # beyond the model, or statics it cannot solve
     return vehicle
 

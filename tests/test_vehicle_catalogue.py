@@ -230,7 +230,7 @@ FAULTS = [
     (_driven_trailer_axle, "units[1].axles", "driven"),
     (_tractor_second, "units[0].kind", "tractor or rigid_truck"),
     (_three_units, "units[2]", "tractor or rigid truck with one semi-trailer for now"),
-    (_dolly_second, "units[1].kind", "chain of semi-trailers"),
+    (_dolly_second, "units[1].kind", "one semi-trailer for now"),
 ]
 
 
@@ -245,15 +245,23 @@ def test_a_bad_combination_is_refused_before_any_work_naming_the_field(fault, fi
     assert f"vehicle.{field}" in lines[0] and words in lines[0], lines[0]
 
 
-def test_a_dolly_is_described_by_the_schema_but_refused_by_the_model() -> None:
+def test_a_dolly_carries_the_semi_trailer_on_it_and_nothing_on_its_drawbar() -> None:
     data = catalogue_vehicle_data("reference")
     _dolly_without_drawbar(data)
     dolly = _units(data)[1]
     dolly["coupling"] = {"kind": "drawbar", "ahead_x": -5.0, "x": 2.0}
     _units(data)[2]["coupling"]["ahead_x"] = -1.0  # the semi-trailer on the dolly's fifth wheel
-    spec = CombinationSpec.model_validate(data)  # a valid A-double-like layout
-    with pytest.raises(ValueError, match=r"units\[1\]\.kind = 'converter_dolly': the model supports a tractor"):
-        spec.params()
+    params = CombinationSpec.model_validate(data).params()  # an A-double-like layout: tractor, dolly, semi
+    assert params.n_units == 3 and not params.trailer.front_load
+    loads, kingpins = params._loads()
+    assert kingpins[0] == 0.0  # the drawbar, hinged in pitch, carries no load
+    semi_kingpin = kingpins[1]
+    assert loads[1].sum() == pytest.approx(2500.0 * 9.81 + semi_kingpin, rel=1e-12)  # the dolly's axle carries both
+    weight = sum(u.mass for u in params.units) * 9.81
+    assert params.axle_table.static_load.sum() == pytest.approx(weight, rel=1e-12)
+    dolly["kind"] = "full_trailer"  # one body for a dolly and a semi-trailer: not the yaw plane's
+    with pytest.raises(ValueError, match=r"units\[1\]\.kind = 'full_trailer': .* converter_dolly and a semi_trailer"):
+        CombinationSpec.model_validate(data).params()
 
 
 # -- the vehicle in a run's configuration --------------------------------------------------------------------------

@@ -14,8 +14,9 @@ axle carries no load and no side force, so the model leaves it out.
 
 The schema names every unit kind of the combinations in use (tractor, rigid truck, semi-trailer, converter dolly,
 centre-axle trailer, full trailer) and checks their couplings; :meth:`CombinationSpec.params` then refuses, in one
-line naming the field, a combination the model cannot simulate: it has a tractor or rigid truck and a chain of up to
-three semi-trailers (a B-double, a B-triple).
+line naming the field, a combination the model cannot simulate: it has a tractor or rigid truck towing up to three
+units (semi-trailers, converter dollies, centre-axle trailers; a full trailer is written as its dolly and a
+semi-trailer).
 """
 
 from __future__ import annotations
@@ -81,7 +82,10 @@ SHORT_KIND = {
 }
 """Each kind in a word, for a listing's narrow column."""
 
-SUPPORTED = "the model supports a tractor or rigid truck with a chain of semi-trailers (up to three) for now"
+SUPPORTED = (
+    "the model supports a tractor or rigid truck towing up to three semi-trailers, converter dollies and centre-axle "
+    "trailers"
+)
 """Why :meth:`CombinationSpec.params` refuses any other combination."""
 
 
@@ -342,10 +346,13 @@ class CombinationSpec(_Frozen):
             The combination is not a tractor or rigid truck with one semi-trailer.
         """
         if len(self.units) == 1:
-            raise ValueError(f"units: one unit; {SUPPORTED}: add its semi_trailer")
+            raise ValueError(f"units: one unit; {SUPPORTED}: add the unit it tows")
         for i, unit in enumerate(self.units[1:], start=1):
-            if unit.kind != "semi_trailer":
-                raise ValueError(f"units[{i}].kind = {unit.kind!r}: {SUPPORTED}")
+            if unit.kind == "full_trailer":
+                raise ValueError(
+                    f"units[{i}].kind = 'full_trailer': in the yaw plane a full trailer is two bodies; write it as its "
+                    "converter_dolly and a semi_trailer on the dolly's fifth wheel"
+                )
         if len(self.units) > 4:
             raise ValueError(f"units[4]: {len(self.units)} units; {SUPPORTED}")
 
@@ -395,6 +402,7 @@ class CombinationSpec(_Frozen):
                     axles=tuple(a.params(kingpin) for a in trailer.grounded),
                     follow_point_x=None if trailer.follow_point_x is None else trailer.follow_point_x - kingpin,
                     fifth_wheel_x=None if behind is None else behind.ahead_x - kingpin,
+                    front_load=trailer.kind != "converter_dolly",  # a dolly's drawbar is hinged in pitch
                 )
             )
         try:

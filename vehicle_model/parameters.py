@@ -190,7 +190,8 @@ class TractorParams(_UnitParams):
     cg_x
         CG station [m].
     fifth_wheel_x
-        Fifth-wheel (kingpin) station [m].
+        Station of the coupling the first towed unit hangs on [m]: the fifth wheel (kingpin), or a rigid truck's
+        drawbar hitch.
     front_x, rear_x
         Front bumper and rear chassis stations [m]; the front corners are the outermost points in
         the roundabout test.
@@ -215,7 +216,8 @@ class TractorParams(_UnitParams):
 
 
 class TrailerParams(_UnitParams):
-    """Semi-trailer. Stations from the kingpin, positive forward (axles negative).
+    """A towed unit: a semi-trailer, a converter dolly or a centre-axle trailer. Stations from its front coupling
+    (the kingpin, or the drawbar eye), positive forward (axles negative); "kingpin" below means that coupling.
 
     Parameters
     ----------
@@ -233,12 +235,17 @@ class TrailerParams(_UnitParams):
         Station of the follow point whose off-tracking is measured and controlled [m]; defaults
         to the rear of the body.
     fifth_wheel_x
-        Station of a fifth wheel on this semi-trailer [m], on which the next semi-trailer's kingpin sits (the
-        lead trailer of a B-double); none on the last trailer.
+        Station of the coupling on this unit that tows the next one [m]: a fifth wheel (the lead trailer of a
+        B-double, a converter dolly); none on the last unit.
+    front_load
+        Whether the front coupling carries vertical load: a kingpin on a fifth wheel, a centre-axle trailer's rigid
+        drawbar (True); a converter dolly's drawbar, hinged in pitch, carries none, so the dolly's axles carry its
+        weight and the load on its fifth wheel (False).
     """
 
     follow_point_x: Station | None = None
     fifth_wheel_x: Station | None = None
+    front_load: bool = True
 
     @model_validator(mode="after")
     def _check_trailer(self) -> TrailerParams:
@@ -279,23 +286,25 @@ class AxleTable:
 
 
 class VehicleParams(_Frozen):
-    """A tractor with one semi-trailer, or a chain of semi-trailers (a B-double, a B-triple).
+    """A tractor or rigid truck towing a chain of up to three units: a tractor–semi-trailer, a B-double, a truck with
+    a centre-axle trailer or with a converter dolly and a semi-trailer, an A-double.
 
     Parameters
     ----------
     name
         Preset or user name.
     tractor, trailer
-        The tractor and the semi-trailer on its fifth wheel.
+        The towing unit and the unit it tows.
     rear_trailers
-        Further semi-trailers, front to rear, each with its kingpin on the fifth wheel (``fifth_wheel_x``) of the
-        trailer ahead.
+        Further towed units, front to rear, each hanging on the coupling (``fifth_wheel_x``) of the unit ahead.
     """
 
     name: str = "custom"
     tractor: TractorParams
     trailer: TrailerParams
-    rear_trailers: tuple[TrailerParams, ...] = Field((), max_length=2, description="a B-triple has three trailers")
+    rear_trailers: tuple[TrailerParams, ...] = Field(
+        (), max_length=2, description="up to four units in all: an A-double (tractor, semi, dolly, semi) has four"
+    )
 
     @model_validator(mode="after")
     def _check_names(self) -> VehicleParams:
@@ -306,7 +315,7 @@ class VehicleParams(_Frozen):
         for i, ahead in enumerate(self.trailers[:-1]):
             if ahead.fifth_wheel_x is None:
                 field = "trailer" if i == 0 else f"rear_trailers[{i - 1}]"
-                raise ValueError(f"{field}.fifth_wheel_x: a semi-trailer tows the next one on its fifth wheel; give it")
+                raise ValueError(f"{field}.fifth_wheel_x: a unit tows the next one on its fifth wheel; give its station")
         self._loads()  # raise early on an unsolvable load layout
         return self
 
@@ -376,22 +385,25 @@ class VehicleParams(_Frozen):
             if all(a.static_load is not None for a in tl.axles):
                 loads = np.array([a.static_load for a in tl.axles], dtype=float)
                 kingpin = weight - loads.sum()
-                if kingpin < 0:
-                    raise ValueError(f"{field}.axles: explicit static loads exceed the weight on them")
+                if kingpin < 0 or (not tl.front_load and abs(kingpin) > 1e-9 * weight):
+                    raise ValueError(f"{field}.axles: explicit static loads do not carry the weight on them")
             else:
                 groups = _groups(tl.axles)
                 if len(groups) != 1:
                     raise ValueError(
-                        f"{field}.axles: statics need exactly one load group on a semi-trailer "
+                        f"{field}.axles: statics need exactly one load group on a towed unit "
                         f"(found {sorted(groups)}); give static_load on every axle of it instead"
                     )
-                x_group = float(np.mean([a.x for a in tl.axles]))
-                # Moments about the axle-group centre: W·(cg − x_g) + K_behind·(x_5w − x_g) = K·(0 − x_g)
-                fifth = tl.fifth_wheel_x if tl.fifth_wheel_x is not None else x_group
-                moment = tl.mass * GRAVITY * (tl.cg_x - x_group) + behind * (fifth - x_group)
-                if x_group >= 0 or moment <= 0:
-                    raise ValueError(f"{field}.cg_x must lie ahead of the axle group for a positive kingpin load")
-                kingpin = moment / (0.0 - x_group)
+                if tl.front_load:
+                    x_group = float(np.mean([a.x for a in tl.axles]))
+                    # Moments about the axle-group centre: W·(cg − x_g) + K_behind·(x_5w − x_g) = K·(0 − x_g)
+                    fifth = tl.fifth_wheel_x if tl.fifth_wheel_x is not None else x_group
+                    moment = tl.mass * GRAVITY * (tl.cg_x - x_group) + behind * (fifth - x_group)
+                    if x_group >= 0 or moment <= 0:
+                        raise ValueError(f"{field}.cg_x must lie ahead of the axle group for a positive kingpin load")
+                    kingpin = moment / (0.0 - x_group)
+                else:  # a drawbar hinged in pitch: the axles carry everything
+                    kingpin = 0.0
                 loads = np.full(len(tl.axles), (weight - kingpin) / len(tl.axles))
             trailer_loads.insert(0, loads)
             kingpins.insert(0, float(kingpin))

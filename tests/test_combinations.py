@@ -1,0 +1,220 @@
+"""Combinations of three and four units through the whole model: a B-double (tractor, lead semi-trailer with a
+fifth wheel, rear semi-trailer), a rigid truck with a converter dolly and a semi-trailer (a Nordic 25.25 m
+layout), an A-double (tractor, semi-trailer, dolly, semi-trailer).
+
+* At walking pace in a steady turn on a dry road each coupling turns on the radius of the kinematic chain
+  ``R_{k+1}² = R_k² + c_k² − L_k²`` (``L_k`` the unit's equivalent wheelbase from its axles' static cornering
+  stiffness, ``c_k`` its rear coupling's distance behind that point) within 1 %, and so does the last unit's
+  zero-slip point.
+* A left and a right steer give mirrored motions (to 1e-9 of their span).
+* At 80 km/h through a lane change no axle's side force exceeds μ·Fz.
+* A run refuses a combination of more than two units, in one line naming the field (the closed loop takes one
+  semi-trailer for now).
+
+The combinations are test layouts of plausible dimensions, not presets.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from scenarios.config import ConfigError, validate_config
+from vehicle_model.combination import CombinationSpec, catalogue_vehicle_data
+from vehicle_model.dynamics import VehicleModel
+from vehicle_model.geometry import tractor_points, trailer_frames
+from vehicle_model.parameters import VehicleParams
+from vehicle_model.simulator import Controls, Simulator, initial_state
+
+LEAD = {
+    "kind": "semi_trailer",
+    "coupling": {"kind": "fifth_wheel", "ahead_x": -3.4, "x": 0.0},
+    "mass": 20000.0,
+    "yaw_inertia": "box",
+    "cg_x": -4.5,
+    "front_x": 1.2,
+    "rear_x": -9.5,
+    "width": 2.5,
+    "axles": [{"name": "lead1", "x": -6.2}, {"name": "lead2", "x": -7.5}, {"name": "lead3", "x": -8.8}],
+}
+REAR = {
+    "kind": "semi_trailer",
+    "coupling": {"kind": "fifth_wheel", "ahead_x": -7.6, "x": 0.0},
+    "mass": 22000.0,
+    "yaw_inertia": "box",
+    "cg_x": -5.5,
+    "front_x": 1.2,
+    "rear_x": -12.0,
+    "width": 2.5,
+    "axles": [{"name": "rear1", "x": -7.8}, {"name": "rear2", "x": -9.1}, {"name": "rear3", "x": -10.4}],
+}
+
+
+TRUCK = {
+    "kind": "rigid_truck",
+    "mass": 24000.0,
+    "yaw_inertia": "box",
+    "cg_x": -3.0,
+    "front_x": 1.4,
+    "rear_x": -8.3,
+    "width": 2.55,
+    "axles": [
+        {"name": "steer", "x": 0.0, "steerable": True, "load_group": "front"},
+        {"name": "drive", "x": -4.6, "n_tyres": 4, "driven": True, "load_group": "rear"},
+        {"name": "tag", "x": -5.97, "load_group": "rear"},
+    ],
+}
+DOLLY = {
+    "kind": "converter_dolly",
+    "coupling": {"kind": "drawbar", "ahead_x": -8.0, "x": 0.0},
+    "mass": 3000.0,
+    "yaw_inertia": "box",
+    "cg_x": -4.6,
+    "front_x": -3.4,
+    "rear_x": -5.8,
+    "width": 2.5,
+    "axles": [{"name": "dolly1", "x": -4.0, "n_tyres": 4}, {"name": "dolly2", "x": -5.3, "n_tyres": 4}],
+}
+
+
+def _b_double_data() -> dict:
+    data = catalogue_vehicle_data("reference")
+    data["name"] = "b-double-test"
+    data["units"] = [data["units"][0], copy.deepcopy(LEAD), copy.deepcopy(REAR)]
+    return data
+
+
+def _truck_dolly_semi_data() -> dict:
+    data = catalogue_vehicle_data("reference")
+    semi = copy.deepcopy(data["units"][1])
+    semi["coupling"]["ahead_x"] = -4.65  # on the dolly's fifth wheel, between its axles
+    data["name"] = "truck-dolly-semi-test"
+    data["units"] = [copy.deepcopy(TRUCK), copy.deepcopy(DOLLY), semi]
+    return data
+
+
+def _a_double_data() -> dict:
+    data = catalogue_vehicle_data("reference")
+    lead = copy.deepcopy(data["units"][1])
+    lead["axles"] = [{"name": f"lead{i + 1}", "x": x} for i, x in enumerate((-6.4, -7.7, -9.0))]
+    dolly = copy.deepcopy(DOLLY)
+    dolly["coupling"]["ahead_x"] = -11.6  # the tow hitch at the lead trailer's rear
+    rear = copy.deepcopy(data["units"][1])
+    rear["coupling"]["ahead_x"] = -4.65
+    data["name"] = "a-double-test"
+    data["units"] = [data["units"][0], lead, dolly, rear]
+    return data
+
+
+COMBINATIONS = {"b-double": _b_double_data, "truck-dolly-semi": _truck_dolly_semi_data, "a-double": _a_double_data}
+
+
+@pytest.fixture(scope="module", params=sorted(COMBINATIONS))
+def combination(request: pytest.FixtureRequest) -> VehicleParams:
+    return CombinationSpec.model_validate(COMBINATIONS[request.param]()).params()
+
+
+@pytest.fixture(scope="module")
+def b_double() -> VehicleParams:
+    return CombinationSpec.model_validate(_b_double_data()).params()
+
+
+def test_the_file_gives_a_chain_of_three_units(b_double: VehicleParams) -> None:
+    assert b_double.n_units == 3
+    assert b_double.trailer.fifth_wheel_x == pytest.approx(-7.6) and b_double.rear_trailers[0].fifth_wheel_x is None
+
+
+def test_the_axles_carry_the_whole_weight(combination: VehicleParams) -> None:
+    weight = sum(u.mass for u in combination.units) * 9.81
+    assert combination.axle_table.static_load.sum() == pytest.approx(weight, rel=1e-12)
+    assert (combination.axle_table.static_load > 0).all()
+
+
+def _steady_turn(params: VehicleParams, steer: float) -> Simulator:
+    sim = Simulator(params, model=VehicleModel(params, compile=False))  # casadi's VM: no C compile per layout
+    sim.reset(initial_state(sim.layout, speed=1.0))
+    integral = 0.0
+    for _ in range(round(150.0 / sim.control_period)):
+        error = 1.0 - sim.speed
+        integral += 200.0 * error * sim.control_period
+        sim.step(Controls([steer], 3e4 * error + integral))
+    return sim
+
+
+def _equivalent_point(params: VehicleParams, unit: int) -> float:
+    """``L = Σ C_j L_j² / Σ C_j L_j`` behind the unit's front reference (steer axle or kingpin) [m]."""
+    table = params.axle_table
+    mask = table.unit == unit
+    if unit == 0:
+        return params.tractor_equivalent_wheelbase()
+    stations = -(table.x_cg[mask] + params.units[unit].cg_x)  # behind the kingpin
+    stiffness = params.axle_cornering_stiffness()[mask]
+    return float(np.sum(stiffness * stations**2) / np.sum(stiffness * stations))
+
+
+def test_walking_pace_turn_follows_the_kinematic_chain(combination: VehicleParams) -> None:
+    sim = _steady_turn(combination, 0.2)
+    s = sim.state
+    yaw = [s.r1, s.r2, *s.trailing[1::2]]
+    assert max(yaw) - min(yaw) < 1e-5  # steady: one yaw rate
+    heading_velocity = np.array(
+        [s.u * math.cos(s.psi1) - s.v1 * math.sin(s.psi1), s.u * math.sin(s.psi1) + s.v1 * math.cos(s.psi1)]
+    )
+    centre = np.array([s.X, s.Y]) + np.array([-heading_velocity[1], heading_velocity[0]]) / s.r1
+    steer_axle = tractor_points(combination, s.X, s.Y, s.psi1, np.array([[0.0, 0.0]]))[0]
+    frames = trailer_frames(combination, s.X, s.Y, s.psi1, [s.gamma, *s.trailing[0::2]])
+    radius = [float(np.hypot(*(p - centre))) for p in (steer_axle, *(origin for origin, _ in frames))]
+    predicted = [radius[0]]
+    for k in range(combination.n_units - 1):  # R_{k+1}² = R_k² + c_k² − L_k²
+        length = _equivalent_point(combination, k)
+        offset = -combination.units[k].fifth_wheel_x - length
+        predicted.append(math.sqrt(predicted[-1] ** 2 + offset**2 - length**2))
+    length = _equivalent_point(combination, combination.n_units - 1)
+    predicted.append(math.sqrt(predicted[-1] ** 2 - length**2))  # the last unit's zero-slip point
+    origin, heading = frames[-1]
+    rear_point = origin - length * np.array([math.cos(heading), math.sin(heading)])
+    radius.append(float(np.hypot(*(rear_point - centre))))
+    for measured, expected in zip(radius[1:], predicted[1:], strict=True):
+        assert measured == pytest.approx(expected, rel=0.01)
+    assert radius[-1] < radius[1] - 1.0  # the rear cuts in further (a real off-tracking)
+
+
+def _lane_change(params: VehicleParams, sign: float, speed: float) -> tuple[np.ndarray, Simulator]:
+    sim = Simulator(params, model=VehicleModel(params, compile=False))  # casadi's VM: no C compile per layout
+    sim.reset(initial_state(sim.layout, speed=speed))
+    rows, peak_ratio = [], 0.0
+    for i in range(round(6.0 / sim.control_period)):
+        t = i * sim.control_period
+        steer = sign * 0.03 * math.sin(2.0 * math.pi * t / 3.0) if t < 3.0 else 0.0
+        sim.step(Controls([steer], 2000.0))
+        out = sim.outputs()
+        peak_ratio = max(peak_ratio, float(np.max(np.abs(out["fy"]) / (out["mu_used"] * out["fz"]))))
+        rows.append(sim.state_vector)
+    sim.peak_ratio = peak_ratio  # type: ignore[attr-defined]
+    return np.array(rows), sim
+
+
+def test_a_lane_change_mirrors_and_keeps_every_force_within_friction(combination: VehicleParams) -> None:
+    left, sim = _lane_change(combination, 1.0, 80.0 / 3.6)
+    right, _ = _lane_change(combination, -1.0, 80.0 / 3.6)
+    layout = sim.layout
+    odd = [layout.state_index(n) for n in ("Y", "psi1", "v1", "r1", "gamma", "r2")]
+    odd += list(range(layout.trailing_slice.start, layout.trailing_slice.stop))
+    odd += list(range(layout.slip_slice.start, layout.slip_slice.stop))
+    even = [layout.state_index(n) for n in ("X", "u")]
+    span = np.ptp(left, axis=0) + 1e-12
+    assert np.max(np.abs(left[:, odd] + right[:, odd]) / span[odd]) < 1e-9
+    assert np.max(np.abs(left[:, even] - right[:, even]) / span[even]) < 1e-9
+    assert np.ptp(left[:, layout.state_index("gamma2")]) > 1e-3  # the rear trailer did articulate
+    assert sim.peak_ratio <= 1.0 + 1e-9  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize("name", sorted(COMBINATIONS))
+def test_a_run_refuses_more_than_two_units_naming_the_field(name: str) -> None:
+    with pytest.raises(ConfigError) as info:
+        validate_config({"vehicle": COMBINATIONS[name]()})
+    lines = str(info.value).splitlines()[1:]
+    assert len(lines) == 1 and "vehicle.units[2]" in lines[0] and "one semi-trailer for now" in lines[0], lines
