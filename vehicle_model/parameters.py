@@ -315,7 +315,7 @@ class VehicleParams(_Frozen):
         for i, ahead in enumerate(self.trailers[:-1]):
             if ahead.fifth_wheel_x is None:
                 field = "trailer" if i == 0 else f"rear_trailers[{i - 1}]"
-                raise ValueError(f"{field}.fifth_wheel_x: a unit tows the next one on its fifth wheel; give its station")
+                raise ValueError(f"{field}.fifth_wheel_x: a unit tows the next on its fifth wheel; give its station")
         self._loads()  # raise early on an unsolvable load layout
         return self
 
