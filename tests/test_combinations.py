@@ -11,115 +11,42 @@ layout), an A-double (tractor, semi-trailer, dolly, semi-trailer).
 * A run refuses a combination of more than two units, in one line naming the field (the closed loop takes one
   semi-trailer for now).
 
-The combinations are test layouts of plausible dimensions, not presets.
+The combinations are the test layouts of ``tests/data/combinations`` (plausible dimensions, not presets).
 """
 
 from __future__ import annotations
 
-import copy
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from scenarios.config import ConfigError, validate_config
-from vehicle_model.combination import CombinationSpec, catalogue_vehicle_data
+from vehicle_model.combination import CombinationSpec
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.geometry import tractor_points, trailer_frames
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import Controls, Simulator, initial_state
 
-LEAD = {
-    "kind": "semi_trailer",
-    "coupling": {"kind": "fifth_wheel", "ahead_x": -3.4, "x": 0.0},
-    "mass": 20000.0,
-    "yaw_inertia": "box",
-    "cg_x": -4.5,
-    "front_x": 1.2,
-    "rear_x": -9.5,
-    "width": 2.5,
-    "axles": [{"name": "lead1", "x": -6.2}, {"name": "lead2", "x": -7.5}, {"name": "lead3", "x": -8.8}],
-}
-REAR = {
-    "kind": "semi_trailer",
-    "coupling": {"kind": "fifth_wheel", "ahead_x": -7.6, "x": 0.0},
-    "mass": 22000.0,
-    "yaw_inertia": "box",
-    "cg_x": -5.5,
-    "front_x": 1.2,
-    "rear_x": -12.0,
-    "width": 2.5,
-    "axles": [{"name": "rear1", "x": -7.8}, {"name": "rear2", "x": -9.1}, {"name": "rear3", "x": -10.4}],
-}
+DATA = Path(__file__).parent / "data" / "combinations"
+COMBINATIONS = sorted(p.stem for p in DATA.glob("*.yaml"))
 
 
-TRUCK = {
-    "kind": "rigid_truck",
-    "mass": 24000.0,
-    "yaw_inertia": "box",
-    "cg_x": -3.0,
-    "front_x": 1.4,
-    "rear_x": -8.3,
-    "width": 2.55,
-    "axles": [
-        {"name": "steer", "x": 0.0, "steerable": True, "load_group": "front"},
-        {"name": "drive", "x": -4.6, "n_tyres": 4, "driven": True, "load_group": "rear"},
-        {"name": "tag", "x": -5.97, "load_group": "rear"},
-    ],
-}
-DOLLY = {
-    "kind": "converter_dolly",
-    "coupling": {"kind": "drawbar", "ahead_x": -8.0, "x": 0.0},
-    "mass": 3000.0,
-    "yaw_inertia": "box",
-    "cg_x": -4.6,
-    "front_x": -3.4,
-    "rear_x": -5.8,
-    "width": 2.5,
-    "axles": [{"name": "dolly1", "x": -4.0, "n_tyres": 4}, {"name": "dolly2", "x": -5.3, "n_tyres": 4}],
-}
+def _data(name: str) -> dict:
+    """The combination file ``tests/data/combinations/NAME.yaml`` as a mapping (a test layout, not a preset)."""
+    return {"name": name, **yaml.safe_load((DATA / f"{name}.yaml").read_text(encoding="utf-8"))}
 
 
-def _b_double_data() -> dict:
-    data = catalogue_vehicle_data("reference")
-    data["name"] = "b-double-test"
-    data["units"] = [data["units"][0], copy.deepcopy(LEAD), copy.deepcopy(REAR)]
-    return data
-
-
-def _truck_dolly_semi_data() -> dict:
-    data = catalogue_vehicle_data("reference")
-    semi = copy.deepcopy(data["units"][1])
-    semi["coupling"]["ahead_x"] = -4.65  # on the dolly's fifth wheel, between its axles
-    data["name"] = "truck-dolly-semi-test"
-    data["units"] = [copy.deepcopy(TRUCK), copy.deepcopy(DOLLY), semi]
-    return data
-
-
-def _a_double_data() -> dict:
-    data = catalogue_vehicle_data("reference")
-    lead = copy.deepcopy(data["units"][1])
-    lead["axles"] = [{"name": f"lead{i + 1}", "x": x} for i, x in enumerate((-6.4, -7.7, -9.0))]
-    dolly = copy.deepcopy(DOLLY)
-    dolly["coupling"]["ahead_x"] = -11.6  # the tow hitch at the lead trailer's rear
-    rear = copy.deepcopy(data["units"][1])
-    rear["coupling"]["ahead_x"] = -4.65
-    data["name"] = "a-double-test"
-    data["units"] = [data["units"][0], lead, dolly, rear]
-    return data
-
-
-COMBINATIONS = {"b-double": _b_double_data, "truck-dolly-semi": _truck_dolly_semi_data, "a-double": _a_double_data}
-
-
-@pytest.fixture(scope="module", params=sorted(COMBINATIONS))
+@pytest.fixture(scope="module", params=COMBINATIONS)
 def combination(request: pytest.FixtureRequest) -> VehicleParams:
-    return CombinationSpec.model_validate(COMBINATIONS[request.param]()).params()
+    return CombinationSpec.model_validate(_data(request.param)).params()
 
 
 @pytest.fixture(scope="module")
 def b_double() -> VehicleParams:
-    return CombinationSpec.model_validate(_b_double_data()).params()
+    return CombinationSpec.model_validate(_data("b-double")).params()
 
 
 def test_the_file_gives_a_chain_of_three_units(b_double: VehicleParams) -> None:
@@ -212,9 +139,9 @@ def test_a_lane_change_mirrors_and_keeps_every_force_within_friction(combination
     assert sim.peak_ratio <= 1.0 + 1e-9  # type: ignore[attr-defined]
 
 
-@pytest.mark.parametrize("name", sorted(COMBINATIONS))
+@pytest.mark.parametrize("name", COMBINATIONS)
 def test_a_run_refuses_more_than_two_units_naming_the_field(name: str) -> None:
     with pytest.raises(ConfigError) as info:
-        validate_config({"vehicle": COMBINATIONS[name]()})
+        validate_config({"vehicle": _data(name)})
     lines = str(info.value).splitlines()[1:]
     assert len(lines) == 1 and "vehicle.units[2]" in lines[0] and "one semi-trailer for now" in lines[0], lines

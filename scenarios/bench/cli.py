@@ -65,11 +65,14 @@ def bench_sweep_cmd(
 def bench_model_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     duration: Annotated[float, typer.Option(help="Simulated seconds.", min=1.0)] = 60.0,
+    vehicle: Annotated[
+        str, typer.Option(help="A preset, or a combination file (.yaml; up to four units, docs/vehicles.md).")
+    ] = "reference",
 ) -> None:
     """Model-only speed: real-time factor of 60 s of a turning manoeuvre at the default step."""
     from scenarios.bench.model import bench_model
 
-    _print_bench(bench_model(duration=duration), as_json, "Model benchmark")
+    _print_bench(bench_model(duration=duration, vehicle=vehicle), as_json, "Model benchmark")
 
 
 @bench_app.command("loop", cls=OfftrackCommand)

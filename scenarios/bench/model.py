@@ -11,10 +11,24 @@ from typing import Any
 import numpy as np
 
 from controller.speed import SpeedController
+from scenarios.config import ConfigError, load_vehicle_file
+from vehicle_model.combination import CombinationSpec
 from vehicle_model.dynamics import VehicleModel
+from vehicle_model.parameters import VehicleParams
 from vehicle_model.period import context_views, load_period, new_context
 from vehicle_model.presets import vehicle_preset
 from vehicle_model.simulator import Controls, Simulator, initial_state
+
+
+def _vehicle_params(vehicle: str) -> VehicleParams:
+    """A preset by name, or the combination in a ``.yaml`` file (docs/vehicles.md): any combination the model
+    simulates, longer ones included."""
+    if not vehicle.endswith((".yaml", ".yml")):
+        return vehicle_preset(vehicle)
+    try:
+        return CombinationSpec.model_validate(load_vehicle_file(vehicle)).params()
+    except ValueError as exc:  # pydantic's ValidationError is one
+        raise ConfigError(f"vehicle file {vehicle}: {str(exc).splitlines()[-1].strip()}") from None
 
 
 def bench_model(
@@ -39,14 +53,14 @@ def bench_model(
     0.75, docs/design.md §11), and ``us_python_per_control_step_cpu`` what a control step costs beyond its
     RK4 steps at that speed.
     """
-    params = vehicle_preset(vehicle)
+    params = _vehicle_params(vehicle)
     t0 = time.perf_counter()
     model = VehicleModel(params)
     build_s = time.perf_counter() - t0
     sim = Simulator(params, dt=dt, substeps=substeps, model=model)
     speed = 15.0 / 3.6
     sim.reset(initial_state(sim.layout, speed=speed))
-    sc = SpeedController(mass=params.tractor.mass + params.trailer.mass)
+    sc = SpeedController(mass=sum(unit.mass for unit in params.units))
     period = sim.control_period
     per_call = round(1.0 / dt)  # the integrator alone: calls of 1 s of RK4 steps, inputs held
     integ = model.integrator(per_call)
@@ -111,6 +125,7 @@ def bench_model(
     return {
         "benchmark": "model",
         "vehicle": vehicle,
+        "units": params.n_units,
         "simulated_s": simulated_loop,
         "step_s": dt,
         "control_period_s": period,
