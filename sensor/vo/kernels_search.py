@@ -6,10 +6,11 @@ run. :func:`search_step` walks the runs of every query's window in ascending (ba
 order and keeps the first strict minimum of the cost — the 32-byte SAD plus, with a motion prior,
 ``rint(weight · distance)`` to the predicted position — which is the candidate of the lowest
 sorted position among equal costs (docs/visual_odometry.md §5; :mod:`sensor.vo.kernels_circle`). Every
-run is scanned without a data-dependent branch: each candidate's whole cost is computed (the SAD as one
-SIMD expression, :func:`_sad32`), a candidate outside the window gets an unbeatable cost, and the best
-is kept by selects. The candidates' costs and their order are as with an early exit, so the result is too;
-the branches an early exit needs cost more, on real images' wide windows, than the work they save.
+candidate in the window gets its whole cost (the SAD as one SIMD instruction sequence, :func:`_sad32`), with
+no early exit once it cannot win, and the best is kept by selects: the only branch left per candidate is the
+window test, which rarely fails. The costs compared and their order are those an early exit would compare,
+so the result is the same; the early exits' branches, unpredictable on real images' wide windows, cost
+more than the work they save.
 """
 
 from __future__ import annotations
@@ -76,22 +77,23 @@ def build_index(
         band = _floor_div(v[i], band_height, band_shift)
         k = (np.int64(cls[i]) * n_bands + band) * n_cells + _floor_div(u[i], col_cell, cell_shift)
         key[i] = k
-        ptr[k + 2] += 1
+        ptr[np.uint64(k + 2)] += 1  # unsigned indices (keys, positions) skip numba's negative-index wraparound
     running = np.int32(0)
     for k in range(2, n_keys + 1):
         running += ptr[k]
         ptr[k] = running
     order = np.empty(n, dtype=np.int64)
     for i in range(n):
-        pos = ptr[key[i] + 1]
-        ptr[key[i] + 1] = pos + 1
-        order[pos] = i
+        slot = np.uint64(key[i] + 1)
+        pos = ptr[slot]
+        ptr[slot] = pos + 1
+        order[np.uint64(pos)] = i
     su = np.empty(n, dtype=np.int64)
     sv = np.empty(n, dtype=np.int64)
     width = desc.shape[1]
     sdesc = np.empty((n, width), dtype=np.uint8)
     for pos in range(n):
-        i = order[pos]
+        i = np.uint64(order[pos])
         su[pos] = u[i]
         sv[pos] = v[i]
         for k in range(width):
@@ -207,7 +209,7 @@ def search_step(
     if src_desc.shape[1] < _DESC_BYTES or tgt_desc.shape[1] < _DESC_BYTES:
         raise ValueError("descriptors are narrower than 32 bytes")
     for q in range(n_query):
-        s = src_idx[q]
+        s = np.uint64(src_idx[q])
         su = np.int64(src_u[s])
         sv = np.int64(src_v[s])
         u_lo = su + lo[q, 0]
@@ -233,9 +235,9 @@ def search_step(
         best_pos = -1
         for band in range(band_lo, band_hi + 1):
             base = (cls * n_bands + band) * n_cells
-            for pos in range(ptr[base + cell_lo], ptr[base + cell_hi]):
-                tu = tgt_u[pos]
-                tv = tgt_v[pos]
+            for pos in range(ptr[np.uint64(base + cell_lo)], ptr[np.uint64(base + cell_hi)]):
+                tu = tgt_u[np.uint64(pos)]  # unsigned indices skip numba's negative-index wraparound
+                tv = tgt_v[np.uint64(pos)]
                 inside = (tv >= v_lo) & (tv <= v_hi) & (tu >= u_lo) & (tu <= u_hi)
                 penalty = np.int64(0)
                 if has_prior:
