@@ -15,7 +15,7 @@ circle, dense circle, outlier removal, prior ranges, bucketing, refinement)::
 With ``--baseline COMMIT`` it times the odometry of that commit (``sensor/`` extracted with ``git archive``, as
 ``benchmarks/vo_speed_vs_ccc8e1e.py`` does) against this tree's on the same frames instead, the two interleaved pass
 by pass (per frame the fastest pass counts), checks that both give the same matches and motions, and prints the
-ratios current / baseline of the total and the matching stage's CPU time per frame.
+ratios current / baseline of the total, the matching stage's and the circle's (sparse and dense) CPU time per frame.
 """
 
 from __future__ import annotations
@@ -176,7 +176,7 @@ def compare(left: list[np.ndarray], right: list[np.ndarray], passes: int, refine
     """Per-frame CPU time of the baseline's and this tree's odometry, interleaved; identical output checked."""
     import cv2
 
-    from sensor.vo import StereoOdometry, VOConfig
+    from sensor.vo import StereoOdometry, VOConfig, odometry
 
     h, w = left[0].shape
     settings = {"f": 0.8 * w, "cu": 0.5 * (w - 1), "cv": 0.5 * (h - 1), "baseline": 0.5, "refinement": refinement}
@@ -185,32 +185,52 @@ def compare(left: list[np.ndarray], right: list[np.ndarray], passes: int, refine
         "baseline": old[0].StereoOdometry(old[1].VOConfig(**settings), 0),
         "current": StereoOdometry(VOConfig(**settings), 0),
     }
+    circle_spent = dict.fromkeys(impls, 0.0)
+    patched = []
+    for name, module in (("baseline", old[0]), ("current", odometry)):
+        scope = module.match_frames.__globals__  # the matching module of that tree
+        original = scope["circle"]
+
+        def timed(*args: Any, _f: Callable[..., Any] = original, _name: str = name) -> Any:
+            c0 = time.thread_time()
+            try:
+                return _f(*args)
+            finally:
+                circle_spent[_name] += time.thread_time() - c0
+
+        scope["circle"] = timed
+        patched.append((scope, original))
     n = len(left)
-    cpu = {name: np.full((n, 2), np.inf) for name in impls}
+    cpu = {name: np.full((n, 3), np.inf) for name in impls}
     outputs: dict[str, list] = {}
-    for k in range(passes + 1):
-        for name, vo in impls.items():
-            vo.reset()
-            outputs[name] = []
-            for i in range(n):
-                c0 = time.thread_time()
-                result = vo.process(left[i], right[i])
-                total = time.thread_time() - c0
-                outputs[name].append(
-                    (result.matches.tobytes(), None if result.motion is None else result.motion.tobytes())
-                )
-                if k:
-                    cpu[name][i] = np.minimum(cpu[name][i], [total, result.cpu_matching])
+    try:
+        for k in range(passes + 1):
+            for name, vo in impls.items():
+                vo.reset()
+                outputs[name] = []
+                for i in range(n):
+                    circle_spent[name] = 0.0
+                    c0 = time.thread_time()
+                    result = vo.process(left[i], right[i])
+                    total = time.thread_time() - c0
+                    outputs[name].append(
+                        (result.matches.tobytes(), None if result.motion is None else result.motion.tobytes())
+                    )
+                    if k:
+                        cpu[name][i] = np.minimum(cpu[name][i], [total, result.cpu_matching, circle_spent[name]])
+    finally:
+        for scope, original in patched:
+            scope["circle"] = original
     same = outputs["baseline"] == outputs["current"]
     med = {name: 1e3 * np.median(values[1:], axis=0) for name, values in cpu.items()}
+    parts = ("total", "matching", "circle")
     return {
         "width": w,
         "height": h,
         "identical_output": same,
-        "baseline_ms": {"total": float(med["baseline"][0]), "matching": float(med["baseline"][1])},
-        "current_ms": {"total": float(med["current"][0]), "matching": float(med["current"][1])},
-        "ratio_total": float(med["current"][0] / med["baseline"][0]),
-        "ratio_matching": float(med["current"][1] / med["baseline"][1]),
+        "baseline_ms": {p: float(med["baseline"][j]) for j, p in enumerate(parts)},
+        "current_ms": {p: float(med["current"][j]) for j, p in enumerate(parts)},
+        **{f"ratio_{p}": float(med["current"][j] / med["baseline"][j]) for j, p in enumerate(parts)},
     }
 
 
@@ -240,14 +260,15 @@ def main() -> None:
         if args.json:
             print(json.dumps({"benchmark": "vo_real_images_ab", "baseline": args.baseline, "sequences": out}))
             return
-        head = f"| sequence | baseline {args.baseline} total / matching ms | current | ratio total | ratio matching |"
-        print(head + " same |")
-        print("|---|---|---|---|---|---|")
+        head = f"| sequence | baseline {args.baseline} total / matching / circle ms | current |"
+        print(head + " ratio total | ratio matching | ratio circle | same |")
+        print("|---|---|---|---|---|---|---|")
         for name, r in out.items():
             b, c = r["baseline_ms"], r["current_ms"]
             print(
-                f"| {name} | {b['total']:.2f} / {b['matching']:.2f} | {c['total']:.2f} / {c['matching']:.2f} | "
-                f"{r['ratio_total']:.3f} | {r['ratio_matching']:.3f} | {r['identical_output']} |"
+                f"| {name} | {b['total']:.2f} / {b['matching']:.2f} / {b['circle']:.2f} | "
+                f"{c['total']:.2f} / {c['matching']:.2f} / {c['circle']:.2f} | {r['ratio_total']:.3f} | "
+                f"{r['ratio_matching']:.3f} | {r['ratio_circle']:.3f} | {r['identical_output']} |"
             )
         return
 

@@ -105,3 +105,26 @@ def test_compiled_kernels_equal_their_python_source():
         assert (a[3] is None) == (b[3] is None)
         if a[3] is not None:
             assert np.allclose(a[3], b[3], rtol=0, atol=1e-12)
+
+
+def test_the_simd_sad_equals_numpys_on_all_byte_values_and_random_rows():
+    # _sad32 is LLVM IR written by hand (kernels_search): check it against numpy on rows covering all byte pairs.
+    import numba
+
+    from sensor.vo.kernels_search import _sad32
+
+    @numba.njit
+    def all_pairs(a, b):
+        out = np.empty((a.shape[0], b.shape[0]), dtype=np.int64)
+        for i in range(a.shape[0]):
+            for j in range(b.shape[0]):
+                out[i, j] = _sad32(a, i, b, j)
+        return out
+
+    rng = np.random.default_rng(0)
+    values = np.arange(256, dtype=np.uint8)
+    a = np.vstack([np.resize(values, (8, 32)), rng.integers(0, 256, (24, 32), dtype=np.uint8)])
+    b = np.vstack([np.resize(values[::-1], (8, 32)), rng.integers(0, 256, (24, 32), dtype=np.uint8)])
+    b = np.hstack([b, rng.integers(0, 256, (32, 5), dtype=np.uint8)])  # wider rows: only the first 32 bytes count
+    expected = np.abs(a[:, None, :].astype(np.int64) - b[None, :, :32].astype(np.int64)).sum(axis=2)
+    assert np.array_equal(all_pairs(a, np.ascontiguousarray(b)), expected)
