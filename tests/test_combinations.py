@@ -8,6 +8,7 @@ layout), an A-double (tractor, semi-trailer, dolly, semi-trailer).
   zero-slip point.
 * A left and a right steer give mirrored motions (to 1e-9 of their span).
 * At 80 km/h through a lane change no axle's side force exceeds μ·Fz.
+* A small steer at 25 m/s settles where the linearised model (python-control) says, within 2 %.
 * A run refuses a combination of more than two units, in one line naming the field (the closed loop takes one
   semi-trailer for now).
 
@@ -19,6 +20,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import control
 import numpy as np
 import pytest
 import yaml
@@ -27,6 +29,7 @@ from scenarios.config import ConfigError, validate_config
 from vehicle_model.combination import CombinationSpec
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.geometry import tractor_points, trailer_frames
+from vehicle_model.linearise import linearise
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import Controls, Simulator, initial_state
 
@@ -145,3 +148,30 @@ def test_a_run_refuses_more_than_two_units_naming_the_field(name: str) -> None:
         validate_config({"vehicle": _data(name)})
     lines = str(info.value).splitlines()[1:]
     assert len(lines) == 1 and "vehicle.units[2]" in lines[0] and "one semi-trailer for now" in lines[0], lines
+
+
+def test_a_small_steer_at_speed_settles_where_the_linearised_model_says(combination: VehicleParams) -> None:
+    # At 25 m/s, straight running linearised (python-control, the model's own Jacobians): the DC gain from the
+    # steer to every unit's yaw rate and articulation is the nonlinear model's steady response to a small steer
+    # within 2 %.
+    model = VehicleModel(combination, compile=False)
+    layout = model.layout
+    x0 = initial_state(layout, speed=25.0).to_vector()
+    u0 = np.zeros(layout.n_inputs)
+    u0[layout.mu_slice] = 0.8
+    deceleration = float(np.asarray(model.rhs(x0, u0)).ravel()[layout.state_index("u")])
+    u0[layout.drive_index] = 1.0
+    per_newton = float(np.asarray(model.rhs(x0, u0)).ravel()[layout.state_index("u")]) - deceleration
+    u0[layout.drive_index] = -deceleration / per_newton  # the drive force that holds 25 m/s
+    names = ["r1", "gamma", "r2", *layout.states[layout.trailing_slice]]
+    system = linearise(model, x0, u0, input_names=["steer_steer"], outputs=names)
+    steer = 0.002
+    linear = np.asarray(control.dcgain(system)).ravel() * steer
+    sim = Simulator(combination, model=model)
+    sim.reset(initial_state(layout, speed=25.0))
+    for _ in range(round(40.0 / sim.control_period)):
+        sim.step(Controls([steer], float(u0[layout.drive_index])))
+    state = sim.state_vector
+    nonlinear = np.array([state[layout.state_index(n)] for n in names])
+    np.testing.assert_allclose(nonlinear, linear, rtol=0.02)
+    assert abs(nonlinear[1]) > 1e-4  # a real articulation
