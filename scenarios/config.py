@@ -434,10 +434,17 @@ def read_vehicle_file(vehicle: Any) -> Any:
 
 
 LOOP_SUPPORTS = (
-    "the closed loop (runs, studies, environments) takes a tractor or rigid truck with one semi-trailer for now; "
-    "vehicle_model simulates longer combinations"
+    "trailer steering and the camera estimators take a tractor or rigid truck with one semi-trailer for now; a "
+    "longer combination runs with feedback none (each unit's off-tracking and the swept path are measured)"
 )
-"""Why a run refuses a combination of more than two units."""
+"""Why a run of a longer combination (or a first towed unit that is not a semi-trailer) refuses feedback and the
+camera."""
+
+
+def one_semi_trailer(params: VehicleParams) -> bool:
+    """Whether the combination is a tractor or rigid truck with one semi-trailer (the loop's steering and camera
+    estimators assume it)."""
+    return params.n_units == 2 and params.trailer.front_load
 
 
 def check_vehicle(vehicle: str | CombinationSpec) -> str | CombinationSpec:
@@ -447,10 +454,6 @@ def check_vehicle(vehicle: str | CombinationSpec) -> str | CombinationSpec:
         if vehicle not in VEHICLE_PRESETS:
             raise ValueError(f"not a preset{_preset_choices(vehicle)}")
         return vehicle
-    if len(vehicle.units) > 2:
-        raise ValueError(f"units[2]: {len(vehicle.units)} units; {LOOP_SUPPORTS}")
-    if len(vehicle.units) == 2 and vehicle.units[1].kind != "semi_trailer":
-        raise ValueError(f"units[1].kind = {vehicle.units[1].kind!r}: {LOOP_SUPPORTS}")
     vehicle.params()  # beyond the model, or statics it cannot solve
     return vehicle
 
@@ -557,6 +560,11 @@ class ScenarioConfig(Settings):
     def _check(self) -> ScenarioConfig:
         if self.roundabout_test and self.path.kind != "roundabout":
             raise ValueError("roundabout_test needs path.kind = roundabout")
+        if not one_semi_trailer(self.vehicle_params()):
+            if self.feedback != "none":
+                raise ValueError(f"feedback = {self.feedback!r}: {LOOP_SUPPORTS}")
+            if self.uses_camera:
+                raise ValueError(f"estimators: {list(self.enabled_estimators())} include a camera; {LOOP_SUPPORTS}")
         if self.feedback != "none" and not any(a.steerable for a in self.vehicle_params().trailer.axles):
             steerable = sorted(n for n, f in VEHICLE_PRESETS.items() if any(a.steerable for a in f().trailer.axles))
             raise ValueError(

@@ -89,6 +89,16 @@ def trailer_frames(params: VehicleParams, x, y, psi1, angles) -> list[tuple[np.n
     return frames
 
 
+def towed_outlines(params: VehicleParams, x, y, psi1, angles) -> list[np.ndarray]:
+    """Body rectangle corners (front-left, front-right, rear-right, rear-left) of every towed unit, front to rear,
+    each ``S + (4, 2)``; ``angles`` as :func:`trailer_frames` takes them."""
+    frames = trailer_frames(params, x, y, psi1, angles)
+    return [
+        place_points(origin, heading, _rectangle(unit.front_x, unit.rear_x, unit.width))
+        for (origin, heading), unit in zip(frames, params.trailers, strict=True)
+    ]
+
+
 def follow_point_position(params: VehicleParams, x, y, psi1, gamma) -> np.ndarray:
     """Global follow-point position, ``L_fp`` behind the kingpin on the trailer centre line, ``S + (2,)``."""
     return follow_point_from_kingpin(

@@ -31,20 +31,23 @@ import numpy as np
 from matplotlib.patches import PathPatch, Polygon
 
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import CombinationPose, tractor_outline, trailer_outline
+from vehicle_model.geometry import CombinationPose
 
 from ..registry import source_colour
 from ..run.plots import SavedRun, load_run
 from ..run.swept_path import (
     TRACTOR_COLOUR,
-    TRAILER_COLOUR,
+    UNIT_COLOURS,
     draw_circles,
     draw_envelopes,
     envelope_path,
     envelope_samples,
     outer_front_corner_path,
+    pose_polygons,
     turn_sign,
-    vehicle_polygons,
+    unit_colour,
+    unit_names,
+    unit_outlines,
 )
 
 ANIMATION_FILE = "animation.mp4"
@@ -330,17 +333,15 @@ def animate_run(
     plan, side, trace = fig.add_subplot(grid[0, 0]), fig.add_subplot(grid[0, 1]), fig.add_subplot(grid[1, :])
     centre = run.setup.annulus_centre
     ref = run.setup.path.points
-    outlines = {
-        "tractor": tractor_outline(params, cols["X"], cols["Y"], cols["psi1"]),
-        "trailer": trailer_outline(params, cols["X"], cols["Y"], cols["psi1"], cols["gamma"]),
-    }
+    outlines = unit_outlines(params, cols)
     kept = {unit: envelope_samples(polys, ANIMATION_ENVELOPE_SPACING) for unit, polys in outlines.items()}
     corner = outer_front_corner_path(params, cols, turn_sign(cols))
     plan.plot(ref[:, 0], ref[:, 1], "k--", lw=0.7)
     if centre is not None:
         draw_circles(plan, centre)
     envelopes = {}
-    for unit, colour in (("trailer", TRAILER_COLOUR), ("tractor", TRACTOR_COLOUR)):
+    for unit in unit_names(params)[::-1]:
+        colour = UNIT_COLOURS[unit]
         envelopes[unit] = PathPatch(envelope_path(outlines[unit][:1]), facecolor=colour, edgecolor="none", alpha=0.22)
         plan.add_patch(envelopes[unit])
     (corner_line,) = plan.plot([], [], color=TRACTOR_COLOUR, lw=1.2)
@@ -349,12 +350,12 @@ def animate_run(
 
     def polygons(k: int) -> list[tuple[str, np.ndarray]]:
         steer = {c.removeprefix("steer_"): float(cols[c][k]) for c in steer_names}
-        return vehicle_polygons(params, cols["X"][k], cols["Y"][k], cols["psi1"][k], cols["gamma"][k], steer)
+        return pose_polygons(params, cols, k, steer)
 
     body = []
     for unit, poly in polygons(0):
         tyre = unit.endswith("tyre")
-        edge = TRACTOR_COLOUR if unit.startswith("tractor") else TRAILER_COLOUR
+        edge = unit_colour(unit)
         patch = Polygon(poly, closed=True, fc="0.25" if tyre else "white", ec="none" if tyre else edge, alpha=0.85)
         body.append(plan.add_patch(patch))
     plan.set_aspect("equal")

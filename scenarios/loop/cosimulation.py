@@ -44,6 +44,7 @@ from ..registry import estimator_entry
 from ..setup.build import ScenarioSetup, run_duration
 from ..setup.models import rebuild_setup
 from .ends import RUN_LIMITS, LimitBreach, Limits
+from .further_units import FurtherUnitsParticipant
 from .participant import Column, EstimatorParticipant, LoopContext, PendingValues, TickInput, TrailerSteerSource
 from .plant import SignalsParticipant, VehicleParticipant
 from .recording import RowRecorder, RowSink
@@ -201,6 +202,7 @@ class CoSimulation:
         self.sim.reset(setup.initial_state)
         context = LoopContext(setup, self.sim, self.period, self.geometric_truth, self.camera_workers)
         self.vehicle = VehicleParticipant(setup)
+        self.further_units = FurtherUnitsParticipant(setup) if setup.params.n_units > 2 else None
         self.signals = SignalsParticipant(setup)
         self.driver = DriverParticipant(setup, self.sim)
         self.estimators = context.estimators
@@ -215,6 +217,7 @@ class CoSimulation:
         self.trailer_steer.reset()
         self.cast: tuple[Any, ...] = (
             self.vehicle,
+            *((self.further_units,) if self.further_units is not None else ()),
             self.driver,
             self.trailer_steer,
             self.signals,
@@ -355,6 +358,8 @@ class CoSimulation:
         tick = TickInput(index, time, self.period, state, kingpin, measured, index % self._frame_every == 0, trajectory)
         self._input = tick
         self.vehicle.update(tick)
+        if self.further_units is not None:
+            self.further_units.update(tick)
         estimates = {name: participant.update(tick) for name, participant in self.estimators.items()}
         command = self.driver.update(tick)
         self.breach: LimitBreach | None = None

@@ -2,7 +2,9 @@
 
 The co-simulation (:mod:`scenarios.loop.cosimulation`) ticks a fixed cast, each a *participant*:
 
-* the **vehicle** (its state, kingpin and follow point) and the **on-board signals** (:mod:`.plant`);
+* the **vehicle** (its state, kingpin and follow point) and the **on-board signals** (:mod:`.plant`); for a
+  combination of three or four units, the **further units** behind the first towed one, each with its true
+  off-tracking (:mod:`.further_units`);
 * the **estimators** — every enabled entry of :mod:`scenarios.registry` (the ground truth, zero-slip, VISO-OT,
   fused VISO-OT, or one a user registers): ``update(tick) → OfftrackingEstimate`` (value, standard deviation,
   and why there is none);

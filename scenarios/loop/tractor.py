@@ -130,4 +130,5 @@ def constant_slip_step(setup: ScenarioSetup, state: VehicleState, period: float)
         0.0,
         0.0,
         slip=state.slip,
+        trailing=state.trailing,
     )

@@ -33,9 +33,9 @@ __all__ = ["AgentSteer", "PathFollowingSteer", "UnsteeredTrailer", "trailer_axle
 
 
 def trailer_axles(setup: ScenarioSetup) -> tuple[str, ...]:
-    """The steerable trailer axles, in layout order (the order of a source's commands)."""
-    trailer = {a.name for a in setup.params.trailer.axles}
-    return tuple(n for n in setup.model.layout.steerable_axles if n in trailer)
+    """The steerable axles of the towed units, in layout order (the order of a source's commands)."""
+    towed = {a.name for unit in setup.params.trailers for a in unit.axles}
+    return tuple(n for n in setup.model.layout.steerable_axles if n in towed)
 
 
 def _steer_columns(axles: tuple[str, ...]) -> tuple[Column, ...]:

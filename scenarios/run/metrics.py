@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from vehicle_model.geometry import kingpin_position, radial_extent, tractor_outline, trailer_outline
+from vehicle_model.geometry import kingpin_position, radial_extent, towed_outlines, tractor_outline
 from vehicle_model.parameters import VehicleParams
 
 from .verdicts import run_verdict
@@ -91,13 +91,16 @@ def roundabout_verdict(
     centre: tuple[float, float],
     outer: float = ROUNDABOUT_OUTER_RADIUS,
     inner: float = ROUNDABOUT_INNER_RADIUS,
+    further: list[np.ndarray] | None = None,
 ) -> dict[str, Any]:
     """Verdict of the roundabout test over the given poses.
 
-    Pass if no outermost point of the towing vehicle leaves the ``outer`` circle and no point of the
-    trailer enters the ``inner`` circle: the wording of 97/27/EC Annex I §7.6.1 for a combination
+    Pass if no outermost point of the towing vehicle leaves the ``outer`` circle and no point of a
+    towed unit enters the ``inner`` circle: the wording of 97/27/EC Annex I §7.6.1 for a combination
     (docs/vehicle_dynamics.md §5.1). The radii are measured from ``centre``; the nearest point of an outline
-    may lie on an edge, not a corner.
+    may lie on an edge, not a corner. ``further`` holds the articulation angles of the units behind the first
+    towed one (``gamma2``, ``gamma3``), for a longer combination; ``inner_unit`` says which unit (2 the first towed
+    one) comes nearest.
 
     It also says where the tractor put the kingpin (``kingpin_radius``, the median over the poses) and what that
     asks of an unsteered trailer (docs/vehicle_dynamics.md §5.2–5.4): ``equivalent_wheelbase_limit``, the largest
@@ -107,11 +110,12 @@ def roundabout_verdict(
     and the tractor's ``tractor_equivalent_wheelbase`` (its zero-slip rear point behind the steer axle).
     """
     tractor = tractor_outline(params, x, y, psi1)
-    trailer = trailer_outline(params, x, y, psi1, gamma)
     tractor_out, _ = radial_extent(tractor, centre)
-    _, trailer_in = radial_extent(trailer, centre)
+    towed_in = [
+        float(radial_extent(o, centre)[1].min()) for o in towed_outlines(params, x, y, psi1, [gamma, *(further or [])])
+    ]
     outer_max = float(tractor_out.max())
-    inner_min = float(trailer_in.min())
+    inner_min = min(towed_in)
     kingpin = kingpin_position(params, x, y, psi1)
     kingpin_radius = float(np.median(np.hypot(kingpin[..., 0] - centre[0], kingpin[..., 1] - centre[1])))
     width = params.trailer.width
@@ -121,6 +125,7 @@ def roundabout_verdict(
         "inner_radius_min": inner_min,
         "outer_margin": outer - outer_max,
         "inner_margin": inner_min - inner,
+        "inner_unit": 2 + int(np.argmin(towed_in)),
         "kingpin_radius": kingpin_radius,
         "equivalent_wheelbase_limit": equivalent_wheelbase_limit(kingpin_radius, width, inner),
         "tractor_equivalent_wheelbase": params.tractor_equivalent_wheelbase(),
@@ -200,6 +205,9 @@ def compute_metrics(
         "roundabout_test": None,
         "trailer_steering": trailer_steering_metrics(columns, steerable),
     }
+    units = further_unit_offtracking(params, columns, settled)
+    if units:
+        metrics["offtracking"]["units"] = units
     fallback = feedback_fallback(columns, settled) if feedback != "none" else None
     if fallback is not None:
         metrics["feedback_fallback"] = fallback
@@ -220,8 +228,35 @@ def compute_metrics(
                 columns["psi1"][in_turn],
                 columns["gamma"][in_turn],
                 annulus_centre,
+                further=[columns[name][in_turn] for name in further_angles(params)],
             )
     return metrics
+
+
+def further_angles(params: VehicleParams) -> list[str]:
+    """The recorded articulation columns of the units behind the first towed one (``gamma2``, ``gamma3``)."""
+    return [f"gamma{unit - 1}" for unit in range(3, params.n_units + 1)]
+
+
+def further_unit_offtracking(
+    params: VehicleParams, columns: dict[str, np.ndarray], settled: np.ndarray
+) -> dict[str, dict[str, float]]:
+    """Each further unit's true off-tracking (against its own coupling's path): RMS and largest, over the run and
+    after the warm-up of the first towed unit once the unit's own is defined, by unit number (``"3"``, ``"4"``)."""
+    out = {}
+    for unit in range(3, params.n_units + 1):
+        truth = np.asarray(columns.get(f"offtracking_truth{unit}", np.zeros(0)), dtype=float)
+        if truth.shape != settled.shape:
+            continue
+        after = settled & np.isfinite(truth)
+        out[str(unit)] = {
+            "rms": rms(truth),
+            "max_abs": max_abs(truth),
+            "rms_after_warmup": rms(truth[after]),
+            "max_abs_after_warmup": max_abs(truth[after]),
+            "defined_fraction": float(np.isfinite(truth).mean()) if truth.size else 0.0,
+        }
+    return out
 
 
 _REQUIRED = ("time", "X", "Y", "psi1", "gamma", "kingpin_x", "kingpin_y", "path_progress")

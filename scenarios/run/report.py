@@ -73,6 +73,33 @@ def mark_interrupted(run_dir: Path, config: ScenarioConfig, exc: BaseException) 
     )
 
 
+PATH_END_TOLERANCE_M = 1.0
+"""How far short of its path's end a run may stop and still count as having driven it [m]."""
+
+
+def _flag_unfinished_path(
+    metrics: dict[str, Any], config: ScenarioConfig, length: float, columns: dict[str, np.ndarray]
+) -> None:
+    """Flag a run that completed without driving its path: the combination stalled (a drive axle at its traction
+    limit, a scrubbing axle group in a tight turn) or crawled until the run's time was up. A run whose time the
+    configuration limits (``duration_s``) is not flagged."""
+    progress = np.asarray(columns.get("path_progress", np.zeros(0)), dtype=float)
+    if config.duration_s is not None or metrics.get("status") != RunStatus.COMPLETED or not progress.size:
+        return
+    reached = float(progress[-1])
+    if reached >= length - PATH_END_TOLERANCE_M:
+        return
+    verdict = metrics["verdict"]
+    verdict["flags"].append(
+        {
+            "flag": "path_not_driven",
+            "reason": f"the combination reached {reached:.1f} m of its {length:.1f} m path when the run's time was "
+            "up (stalled or crawling: see speed and drive_force)",
+        }
+    )
+    verdict["held"] = False
+
+
 def write_report(
     run_dir: Path,
     setup: ScenarioSetup,
@@ -116,6 +143,7 @@ def write_report(
         )
         metrics.update({key: None for key in RUN_FIELDS})
         metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})
+        _flag_unfinished_path(metrics, config, setup.path.length, columns)
         metrics.update({"vehicle": config.vehicle_name, "seed": config.seed})
         write_metrics(run_dir, metrics)
     raise_pending_stop()  # a stop held meanwhile takes effect now: before the plots

@@ -37,7 +37,13 @@ from matplotlib.figure import Figure
 from matplotlib.patches import PathPatch, Polygon
 from matplotlib.path import Path as MplPath
 
-from vehicle_model.geometry import tractor_outline, tractor_points, trailer_outline, trailer_points
+from vehicle_model.geometry import (
+    place_points,
+    towed_outlines,
+    tractor_outline,
+    tractor_points,
+    trailer_frames,
+)
 from vehicle_model.parameters import VehicleParams
 
 from .figure_scale import wrap_title, zoom_half_width, zoom_to
@@ -45,10 +51,30 @@ from .metrics import ROUNDABOUT_INNER_RADIUS, ROUNDABOUT_OUTER_RADIUS, roundabou
 
 TRACTOR_COLOUR = "tab:red"
 TRAILER_COLOUR = "tab:blue"
+UNIT_COLOURS = {"tractor": TRACTOR_COLOUR, "trailer": TRAILER_COLOUR, "unit3": "tab:green", "unit4": "tab:purple"}
+"""Each unit's colour: the tractor or truck, the first towed unit (``trailer``) and the units behind it."""
 LIMIT_COLOURS = {"outer": "darkorange", "inner": "darkviolet"}
 """Colours of the roundabout test's outer (12.50 m) and inner (5.30 m) limit circles."""
-HATCHES = {"tractor": "\\\\\\", "trailer": "///"}
-"""Hatching of each unit's envelope: where the two overlap both patterns show."""
+HATCHES = {"tractor": "\\\\\\", "trailer": "///", "unit3": "---", "unit4": "|||"}
+"""Hatching of each unit's envelope: where two overlap both patterns show."""
+
+
+def unit_names(params: VehicleParams) -> tuple[str, ...]:
+    """The units of a combination as the figures name them: ``tractor``, ``trailer`` (the first towed unit), then
+    ``unit3``, ``unit4``."""
+    return ("tractor", "trailer", *(f"unit{k}" for k in range(3, params.n_units + 1)))
+
+
+def articulation(params: VehicleParams, columns: dict[str, np.ndarray]) -> list[np.ndarray]:
+    """The articulation angles of every towed unit from a run's columns: ``gamma``, then ``gamma2``, ``gamma3``."""
+    return [columns["gamma"], *(columns[f"gamma{k - 1}"] for k in range(3, params.n_units + 1))]
+
+
+def unit_outlines(params: VehicleParams, columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Every unit's body outline over a run, ``(n, 4, 2)``, by :func:`unit_names`."""
+    x, y, psi1 = columns["X"], columns["Y"], columns["psi1"]
+    towed = towed_outlines(params, x, y, psi1, articulation(params, columns))
+    return dict(zip(unit_names(params), [tractor_outline(params, x, y, psi1), *towed], strict=True))
 
 
 # ----------------------------------------------------------------------------------------------- geometry
@@ -136,12 +162,25 @@ def inner_trailer_path(
     With a turn ``centre`` (roundabout test) the point of the trailer outline nearest to it at each sample;
     otherwise the inner side of the body at the middle of the trailer's axle group (the inner rear wheels).
     """
-    x, y, psi1, gamma = columns["X"], columns["Y"], columns["psi1"], columns["gamma"]
+    x, y, psi1 = columns["X"], columns["Y"], columns["psi1"]
     if centre is not None:
-        return radial_extreme_points(trailer_outline(params, x, y, psi1, gamma), centre)[2]
-    tr = params.trailer
+        return _nearest_towed(params, columns, centre)[0]
+    tr = params.trailers[-1]  # the last unit cuts in furthest
     station = float(np.mean([a.x for a in tr.axles]))
-    return trailer_points(params, x, y, psi1, gamma, np.array([[station, sign * 0.5 * tr.width]]))[:, 0, :]
+    origin, heading = trailer_frames(params, x, y, psi1, articulation(params, columns))[-1]
+    return place_points(origin, heading, np.array([[station, sign * 0.5 * tr.width]]))[:, 0, :]
+
+
+def _nearest_towed(
+    params: VehicleParams, columns: dict[str, np.ndarray], centre: tuple[float, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample, the point of any towed unit's outline nearest ``centre`` ``(n, 2)`` and its radius ``(n,)``."""
+    outlines = unit_outlines(params, columns)
+    nearest = [radial_extreme_points(outlines[unit], centre)[2:] for unit in unit_names(params)[1:]]
+    radii = np.stack([r for _, r in nearest])
+    which = np.argmin(radii, axis=0)
+    points = np.stack([p for p, _ in nearest])[which, np.arange(radii.shape[1])]
+    return points, radii[which, np.arange(radii.shape[1])]
 
 
 def instant_indices(n: int, instants: int) -> np.ndarray:
@@ -158,7 +197,7 @@ def extreme_points(
     roundabout_test: dict[str, Any] | None = None,
     turn_span: tuple[float, float] | None = None,
 ) -> dict[str, Any]:
-    """The tractor's outermost and the trailer's innermost point of the roundabout test, with the verdict.
+    """The tractor's outermost and the towed units' innermost point of the roundabout test, with the verdict.
 
     Parameters
     ----------
@@ -190,10 +229,18 @@ def extreme_points(
     verdict = (
         dict(roundabout_test)  # type: ignore[arg-type]
         if recorded
-        else roundabout_verdict(params, x[mask], y[mask], psi1[mask], gamma[mask], centre)
+        else roundabout_verdict(
+            params,
+            x[mask],
+            y[mask],
+            psi1[mask],
+            gamma[mask],
+            centre,
+            further=[np.asarray(a, dtype=float)[mask] for a in articulation(params, columns)[1:]],
+        )
     )
     far, r_far, _, _ = radial_extreme_points(tractor_outline(params, x, y, psi1), centre)
-    _, _, near, r_near = radial_extreme_points(trailer_outline(params, x, y, psi1, gamma), centre)
+    near, r_near = _nearest_towed(params, columns, centre)
     idx = np.flatnonzero(mask)
     outer = int(idx[np.argmin(np.abs(r_far[mask] - verdict["outer_radius_max"]))])
     inner = int(idx[np.argmin(np.abs(r_near[mask] - verdict["inner_radius_min"]))])
@@ -207,7 +254,7 @@ def draw_envelopes(
     params: VehicleParams,
     columns: dict[str, np.ndarray],
     *,
-    units: tuple[str, ...] = ("trailer", "tractor"),
+    units: tuple[str, ...] | None = None,
     colours: dict[str, str] | None = None,
     alpha: float = 0.22,
     label: str = "{unit} swept envelope",
@@ -215,23 +262,20 @@ def draw_envelopes(
     spacing: float = ENVELOPE_SPACING,
     hatches: dict[str, str | None] | None = None,
 ) -> dict[str, PathPatch]:
-    """Shade the swept envelope of each unit (``tractor``, ``trailer``) in its own colour; return the patches.
+    """Shade the swept envelope of each unit (:func:`unit_names`; all, rearmost first, by default) in its own colour;
+    return the patches.
 
     ``spacing`` is the outline spacing of :func:`envelope_samples`; the patches carry ``gid`` (``{unit}``
     filled in) for tests. The face is translucent (``alpha``) and hatched in the unit's colour (``hatches``,
     default :data:`HATCHES`; None for none), so that overlapping envelopes stay apart.
     """
-    colours = {"tractor": TRACTOR_COLOUR, "trailer": TRAILER_COLOUR, **(colours or {})}
+    colours = {**UNIT_COLOURS, **(colours or {})}
     hatches = {**HATCHES, **(hatches or {})}
-    x, y, psi1, gamma = columns["X"], columns["Y"], columns["psi1"], columns["gamma"]
-    outlines = {
-        "tractor": lambda: tractor_outline(params, x, y, psi1),
-        "trailer": lambda: trailer_outline(params, x, y, psi1, gamma),
-    }
+    outlines = unit_outlines(params, columns)
     patches = {}
-    for unit in units:
+    for unit in units if units is not None else unit_names(params)[::-1]:
         patch = PathPatch(
-            envelope_path(outlines[unit](), spacing),
+            envelope_path(outlines[unit], spacing),
             facecolor=to_rgba(colours[unit], alpha),
             edgecolor="none",
             hatch=hatches.get(unit),
@@ -247,18 +291,26 @@ def draw_envelopes(
 
 
 def vehicle_polygons(
-    params: VehicleParams, x: float, y: float, psi1: float, gamma: float, steer: dict[str, float] | None = None
+    params: VehicleParams,
+    x: float,
+    y: float,
+    psi1: float,
+    gamma: float,
+    steer: dict[str, float] | None = None,
+    further: list[float] | None = None,
 ) -> list[tuple[str, np.ndarray]]:
     """Body outlines and tyre footprints of the combination at one pose: ``[(unit, polygon (k, 2)), …]``.
 
     ``steer`` maps axle names to steer angles [rad] (columns ``steer_<axle>``); unnamed axles are straight.
+    ``further`` holds the articulation angles of the units behind the first towed one (``gamma2``, ``gamma3``).
     """
     steer = steer or {}
-    out = [("tractor", tractor_outline(params, x, y, psi1)), ("trailer", trailer_outline(params, x, y, psi1, gamma))]
-    for unit, body, place in (
-        ("tractor", params.tractor, lambda local: tractor_points(params, x, y, psi1, local)),
-        ("trailer", params.trailer, lambda local: trailer_points(params, x, y, psi1, gamma, local)),
-    ):
+    frames = trailer_frames(params, x, y, psi1, [gamma, *(further or [])])
+    bodies = [("tractor", params.tractor, lambda local: tractor_points(params, x, y, psi1, local))]
+    for name, unit, (origin, heading) in zip(unit_names(params)[1:], params.trailers, frames, strict=True):
+        bodies.append((name, unit, lambda local, o=origin, h=heading: place_points(o, h, local)))
+    out = [(name, place(_body(unit))) for name, unit, place in bodies]
+    for name, body, place in bodies:
         for axle in body.axles:
             half_len, half_w = axle.tyre.unloaded_radius, 0.14 * max(axle.n_tyres // 2, 1)
             lateral = 0.5 * body.width - half_w - 0.05
@@ -267,8 +319,29 @@ def vehicle_polygons(
             shape = np.array([[half_len, half_w], [-half_len, half_w], [-half_len, -half_w], [half_len, -half_w]])
             turned = shape @ np.array([[c, s], [-s, c]])
             for side in (1.0, -1.0):
-                out.append((unit + " tyre", place(turned + np.array([axle.x, side * lateral]))))
+                out.append((name + " tyre", place(turned + np.array([axle.x, side * lateral]))))
     return out
+
+
+def _body(unit: Any) -> np.ndarray:
+    """A unit's body rectangle in its own stations (front-left, front-right, rear-right, rear-left)."""
+    w = 0.5 * unit.width
+    return np.array([[unit.front_x, w], [unit.front_x, -w], [unit.rear_x, -w], [unit.rear_x, w]])
+
+
+def pose_polygons(
+    params: VehicleParams, columns: dict[str, np.ndarray], k: int, steer: dict[str, float] | None = None
+) -> list[tuple[str, np.ndarray]]:
+    """:func:`vehicle_polygons` at sample ``k`` of a run's columns (every unit's articulation from its column)."""
+    angles = [float(a[k]) for a in articulation(params, columns)]
+    return vehicle_polygons(
+        params, columns["X"][k], columns["Y"][k], columns["psi1"][k], angles[0], steer, further=angles[1:]
+    )
+
+
+def unit_colour(unit: str) -> str:
+    """The colour of a polygon of :func:`vehicle_polygons` (``trailer``, ``unit3 tyre``, …)."""
+    return UNIT_COLOURS[unit.removesuffix(" tyre")]
 
 
 def draw_vehicle(
@@ -284,11 +357,9 @@ def draw_vehicle(
     """Draw the combination at sample ``k`` (bodies white with their unit's edge colour, tyres black)."""
     steer = {c.removeprefix("steer_"): float(columns[c][k]) for c in columns if c.startswith("steer_")}
     patches = []
-    for unit, poly in vehicle_polygons(
-        params, columns["X"][k], columns["Y"][k], columns["psi1"][k], columns["gamma"][k], steer
-    ):
+    for unit, poly in pose_polygons(params, columns, k, steer):
         tyre = unit.endswith("tyre")
-        colour = TRACTOR_COLOUR if unit.startswith("tractor") else TRAILER_COLOUR
+        colour = unit_colour(unit)
         patch = Polygon(
             poly,
             closed=True,
@@ -384,7 +455,8 @@ def _draw_paths(ax: Axes, params: VehicleParams, columns: dict, reference: np.nd
     corner = outer_front_corner_path(params, columns, sign)
     ax.plot(corner[:, 0], corner[:, 1], color=TRACTOR_COLOUR, lw=1.4, label="tractor outer front corner", zorder=2)
     inner = inner_trailer_path(params, columns, sign, centre)
-    ax.plot(inner[:, 0], inner[:, 1], color=TRAILER_COLOUR, lw=1.4, label="trailer innermost point", zorder=2)
+    label = "trailer innermost point" if params.n_units == 2 else "towed units' innermost point"
+    ax.plot(inner[:, 0], inner[:, 1], color=TRAILER_COLOUR, lw=1.4, label=label, zorder=2)
     ax.plot(columns["follow_x"], columns["follow_y"], color="tab:green", lw=0.7, ls=":", label="follow point")
 
 
@@ -432,11 +504,17 @@ def _mark_extremes(ax: Axes, centre: tuple[float, float], ext: dict[str, Any], z
         text.set_gid(f"extreme:{key}:label")
 
 
+def _inner_name(ext: dict[str, Any]) -> str:
+    """The unit whose point came nearest the centre: ``trailer`` (the first towed unit) or ``unit 3``, ``unit 4``."""
+    unit = ext.get("inner_unit", 2)
+    return f"unit {unit}" if isinstance(unit, int) and unit > 2 else "trailer"
+
+
 def verdict_line(ext: dict[str, Any]) -> str:
     """One line with the roundabout-test verdict and both radii."""
     return (
         f"UK roundabout test {'PASS' if ext['pass'] else 'FAIL'}: tractor max r {ext['outer_radius_max']:.3f} m "
-        f"(≤ {ROUNDABOUT_OUTER_RADIUS:.2f}, margin {ext['outer_margin']:+.3f}), trailer min r "
+        f"(≤ {ROUNDABOUT_OUTER_RADIUS:.2f}, margin {ext['outer_margin']:+.3f}), {_inner_name(ext)} min r "
         f"{ext['inner_radius_min']:.3f} m (≥ {ROUNDABOUT_INNER_RADIUS:.2f}, margin {ext['inner_margin']:+.3f})"
     )
 

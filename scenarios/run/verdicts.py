@@ -138,6 +138,12 @@ def inner_limit_reason(test: dict[str, Any] | None) -> str | None:
     )
     if not test or any(not isinstance(test.get(k), int | float) for k in keys) or test["inner_margin"] >= 0:
         return None
+    unit = test.get("inner_unit", 2)
+    if isinstance(unit, int) and unit > 2:  # a unit behind the first towed one came nearest
+        return (
+            f"unit {unit} (behind the first towed unit) came nearest; each unit's coupling lies further in than "
+            "the one ahead (docs/vehicle_dynamics.md §6.1), which the EU bound on one semi-trailer does not cover"
+        )
     return (
         f"the tractor (rear axles' equivalent wheelbase {test['tractor_equivalent_wheelbase']:.2f} m) "
         f"put the kingpin on {test['kingpin_radius']:.2f} m, not the {test['eu_kingpin_radius']:.2f} m of the EU "

@@ -226,7 +226,17 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
     v0 = profile(0.0)
     u0, v10 = (v0 * math.cos(kinematic_slip), v0 * math.sin(kinematic_slip)) if kinematic_slip else (v0, 0.0)
     state = VehicleState(
-        0.0, float(cg[0]), float(cg[1]), heading, u0, v10, 0.0, 0.0, 0.0, slip=np.zeros(len(model.layout.axles))
+        0.0,
+        float(cg[0]),
+        float(cg[1]),
+        heading,
+        u0,
+        v10,
+        0.0,
+        0.0,
+        0.0,
+        slip=np.zeros(len(model.layout.axles)),
+        trailing=np.zeros(2 * (params.n_units - 2)),  # further units straight behind, not turning
     )
     annulus = tuple(path.centres[0]) if config.roundabout_test else None
     return ScenarioSetup(

@@ -1,0 +1,102 @@
+"""The units behind the first towed one (a B-double's rear trailer, an A-double's dolly and second trailer): their
+state, coupling and follow point, and each one's true off-tracking.
+
+Units are numbered from the front: 1 the tractor or truck, 2 the unit it tows (recorded by the vehicle participant,
+:mod:`.plant`), 3 and 4 the ones behind. For each unit ``k ≥ 3`` the participant records its articulation against the
+unit ahead (``gamma<k-1> = ψ_{k-1} − ψ_k``), yaw rate and heading, its front coupling (the kingpin or drawbar eye)
+and follow point, and ``offtracking_truth<k>``: de Saxe & Cebon's off-tracking applied to that unit — its follow
+point against the path of its own coupling — by the same buffer as the first trailer's truth
+(:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)), fed with the coupling's exact increments.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from vehicle_model.geometry import follow_point_from_kingpin, trailer_frames
+from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses
+
+from ..setup.build import ScenarioSetup
+from .participant import Column, TickInput
+
+__all__ = ["FurtherUnitsParticipant", "further_units", "truth_column"]
+
+
+def further_units(n_units: int) -> range:
+    """The numbers of the units behind the first towed one (3 and 4 of a four-unit combination)."""
+    return range(3, n_units + 1)
+
+
+def truth_column(unit: int) -> str:
+    """The recorded true off-tracking of unit ``unit`` (``offtracking_truth`` for the first towed unit, 2)."""
+    return "offtracking_truth" if unit == 2 else f"offtracking_truth{unit}"
+
+
+def _columns(unit: int) -> tuple[Column, ...]:
+    return (
+        Column(f"gamma{unit - 1}", "rad", f"articulation ψ{unit - 1} − ψ{unit} of unit {unit} against the unit ahead"),
+        Column(f"r{unit}", "rad/s", f"unit {unit} yaw rate"),
+        Column(f"psi{unit}", "rad", f"unit {unit} heading"),
+        Column(f"coupling{unit}_x", "m", f"unit {unit} front coupling (kingpin or drawbar eye), global X"),
+        Column(f"coupling{unit}_y", "m", f"unit {unit} front coupling, global Y"),
+        Column(f"follow{unit}_x", "m", f"unit {unit} follow point, global X"),
+        Column(f"follow{unit}_y", "m", f"unit {unit} follow point, global Y"),
+        Column(truth_column(unit), "m", f"unit {unit} true off-tracking against its own coupling's path"),
+    )
+
+
+class FurtherUnitsParticipant:
+    """The true state, coupling, follow point and off-tracking of every unit behind the first towed one.
+
+    Parameters
+    ----------
+    setup
+        The built scenario (a combination of three or four units).
+    """
+
+    name = "further_units"
+
+    def __init__(self, setup: ScenarioSetup) -> None:
+        params = setup.params
+        self.params = params
+        self.units = further_units(params.n_units)
+        self.columns: tuple[Column, ...] = tuple(c for unit in self.units for c in _columns(unit))
+        self.buffers = {unit: OfftrackingBuffer(params.trailers[unit - 2].follow_point_offset) for unit in self.units}
+        self._previous: dict[int, tuple[np.ndarray, float]] = {}
+        self._row: dict[str, float] = {}
+
+    def update(self, tick: TickInput) -> None:
+        """Take the tick's state; push each unit's coupling increment into its buffer."""
+        s = tick.state
+        frames = trailer_frames(self.params, s.X, s.Y, s.psi1, [s.gamma, *s.trailing[0::2]])
+        row: dict[str, float] = {}
+        for unit in self.units:
+            origin, heading = frames[unit - 2]
+            heading = float(heading)
+            buffer = self.buffers[unit]
+            previous = self._previous.get(unit)
+            if previous is not None:
+                poses = np.vstack([previous[0], origin])
+                buffer.push(*increments_from_poses(poses, np.array([previous[1], heading]))[0])
+            self._previous[unit] = (origin, heading)
+            follow = follow_point_from_kingpin(origin, heading, buffer.follow_point_offset)
+            value = buffer.offtracking()
+            row.update(
+                {
+                    f"gamma{unit - 1}": float(s.trailing[2 * (unit - 3)]),
+                    f"r{unit}": float(s.trailing[2 * (unit - 3) + 1]),
+                    f"psi{unit}": heading,
+                    f"coupling{unit}_x": float(origin[0]),
+                    f"coupling{unit}_y": float(origin[1]),
+                    f"follow{unit}_x": float(follow[0]),
+                    f"follow{unit}_y": float(follow[1]),
+                    truth_column(unit): float("nan") if value is None else float(value),
+                }
+            )
+        self._row = row
+
+    def record(self) -> Mapping[str, float]:
+        """The tick's values."""
+        return self._row
