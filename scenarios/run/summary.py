@@ -49,6 +49,13 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
         number(truth.get("max_abs")),
         f"{number(defined, '.0%')} defined",
     )
+    for unit, unit_truth in (offtracking.get("units") or {}).items():
+        table.add_row(
+            f"unit {unit} truth",
+            number(unit_truth.get("rms")),
+            number(unit_truth.get("max_abs")),
+            f"{number(unit_truth.get('defined_fraction'), '.0%')} defined",
+        )
     for name, err in (offtracking.get("estimators") or {}).items():
         table.add_row(
             f"{name} error",
