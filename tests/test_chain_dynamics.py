@@ -31,7 +31,11 @@ def reference() -> dict[str, np.ndarray]:
         return {k: data[k] for k in data.files}
 
 
-@pytest.mark.parametrize("name", sorted(VEHICLE_PRESETS))
+TWO_UNIT_PRESETS = ["field", "lst", "lst-unladen", "reference", "reference-unladen"]
+"""The presets the reference file pins (the tractor–semi-trailers of the catalogue when it was written)."""
+
+
+@pytest.mark.parametrize("name", TWO_UNIT_PRESETS)
 def test_two_units_are_the_hand_derived_model(name: str, reference: dict[str, np.ndarray]) -> None:
     from tests.data.two_unit_model.make_reference import open_loop_run
 

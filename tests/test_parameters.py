@@ -31,7 +31,7 @@ def test_reference_geometry(reference):
 @pytest.mark.parametrize("name", sorted(VEHICLE_PRESETS))
 def test_presets_are_valid_and_consistent(name):
     p = vehicle_preset(name)
-    assert p.kingpin_load > 0
+    assert p.kingpin_load > 0 or not p.trailer.front_load  # a dolly's drawbar carries none
     assert (p.axle_table.static_load > 0).all()
     assert p.trailer.follow_point_offset == -p.trailer.rear_x
 

@@ -11,7 +11,7 @@ import yaml
 from scenarios.config import ConfigError, load_scenario, parse_assignment, validate_config
 from vehicle_model.combination import CombinationSpec, catalogue_vehicle_data, combination_summary
 from vehicle_model.parameters import AxleParams, TractorParams, TrailerParams, VehicleParams
-from vehicle_model.presets import VEHICLE_PRESETS, vehicle_preset
+from vehicle_model.presets import VEHICLE_PRESETS, catalogue_vehicle, vehicle_preset
 
 # -- the presets as Python defined them before they became YAML files: the numbers the catalogue must give ----------
 
@@ -82,8 +82,21 @@ TODAY = {
 }
 
 
-def test_the_catalogue_holds_the_five_presets() -> None:
-    assert sorted(VEHICLE_PRESETS) == sorted(TODAY)
+LONGER = {"au-b-double": (24.45, "tractor + semi + semi"), "nordic-truck-dolly-semi": (25.05, "truck + dolly + semi")}
+"""The catalogue's longer combinations: overall length [m] (within 25 m and 25.25 m, their limits) and units."""
+
+
+def test_the_catalogue_holds_the_five_tractor_semi_trailers_and_the_longer_combinations() -> None:
+    assert sorted(VEHICLE_PRESETS) == sorted([*TODAY, *LONGER])
+
+
+@pytest.mark.parametrize("name", sorted(LONGER))
+def test_a_longer_preset_is_within_its_limits_and_carries_its_weight(name: str) -> None:
+    length, units = combination_summary(catalogue_vehicle(name))[:2]
+    assert length == pytest.approx(LONGER[name][0], abs=1e-9) and units == LONGER[name][1]
+    params = vehicle_preset(name)
+    assert params.axle_table.static_load.sum() == pytest.approx(sum(u.mass for u in params.units) * 9.81, rel=1e-12)
+    assert all(u.width <= 2.55 for u in params.units)
 
 
 @pytest.mark.parametrize("name", sorted(TODAY))
