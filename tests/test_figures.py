@@ -25,7 +25,8 @@ from scenarios.config import load_scenario
 from scenarios.export.animation import OfftrackingTrace, animate_run, animation_title, frame_times
 from scenarios.run.plots import load_run, offtracking_figure, plot_plan_view
 from scenarios.run.runner import run_scenario
-from scenarios.run.swept_path import LIMIT_COLOURS, envelope_samples, swept_path_figure, vehicle_polygons
+from scenarios.run.swept_path import LIMIT_COLOURS, envelope_samples, swept_path_figure
+from scenarios.run.unit_shapes import vehicle_polygons
 from scenarios.studies.compare import comparison_figure
 from scenarios.studies.figures import grid_figure
 from scenarios.studies.summary import summary_table

@@ -43,12 +43,10 @@ from ..run.swept_path import (
     envelope_path,
     envelope_samples,
     outer_front_corner_path,
-    pose_polygons,
     turn_sign,
     unit_colour,
-    unit_names,
-    unit_outlines,
 )
+from ..run.unit_shapes import pose_polygons, unit_names, unit_outlines
 
 ANIMATION_FILE = "animation.mp4"
 """Default output file in the run directory."""
