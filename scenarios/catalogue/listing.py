@@ -44,6 +44,8 @@ def _table(title: str, columns: list[tuple[str, str]]) -> Table:
     for header, justify in columns:
         if header == "description":
             table.add_column(Text(header), min_width=12)  # wraps in the width sums; its cells keep to one line
+        elif justify == "right":  # a number: never cut (a name or a list gives way first)
+            table.add_column(Text(header), justify=justify, no_wrap=True, min_width=6)  # type: ignore[arg-type]
         else:
             table.add_column(Text(header), justify=justify, no_wrap=True)  # type: ignore[arg-type]
     return table
@@ -111,6 +113,7 @@ def vehicle_table() -> Table:
     columns = [("name", "left"), ("L [m]", "right"), ("units", "left"), ("steerable axles", "left")]
     table = _table("Vehicle presets (--vehicle NAME or --vehicle FILE.yaml)", [*columns, ("description", "left")])
     table.caption = "L: overall length, straight; semi: semi-trailer; files: vehicle_model/catalogue/NAME.yaml"
+    table.columns[0].min_width = max(map(len, VEHICLE_PRESETS))  # a name is what one types: never cut
     for name in VEHICLE_PRESETS:
         spec = catalogue_vehicle(name)
         length, units, steerable = combination_summary(spec)
