@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import subprocess
 import sys
@@ -24,6 +25,21 @@ def test_list_shows_scenarios_and_presets():
     assert out.returncode == 0
     for name in ("roundabout-test", "roundabout-3", "figure-eight", "constant-slip", "reference", "lst", "ice"):
         assert name in out.stdout
+
+
+def test_vehicle_names_and_lengths_are_never_cut_at_80_columns():
+    from rich.console import Console
+
+    from scenarios.catalogue.listing import vehicle_table
+    from vehicle_model.combination import combination_summary
+    from vehicle_model.presets import VEHICLE_PRESETS, catalogue_vehicle
+
+    console = Console(width=80, record=True, file=io.StringIO())
+    console.print(vehicle_table())
+    text = console.export_text()
+    for name in VEHICLE_PRESETS:  # the longest name is 23 characters, and the steerable axles need more room
+        length = combination_summary(catalogue_vehicle(name))[0]
+        assert f"{name} " in text and f"{length:.2f}" in text, (name, text)
 
 
 def test_run_writes_the_run_directory(tmp_path):
