@@ -82,8 +82,14 @@ TODAY = {
 }
 
 
-LONGER = {"au-b-double": (24.45, "tractor + semi + semi"), "nordic-truck-dolly-semi": (25.05, "truck + dolly + semi")}
-"""The catalogue's longer combinations: overall length [m] (within 25 m and 25.25 m, their limits) and units."""
+LONGER = {
+    "au-b-double": (24.45, "tractor + semi + semi"),
+    "au-a-double": (34.55, "tractor + semi + dolly + semi"),
+    "nordic-truck-dolly-semi": (25.05, "truck + dolly + semi"),
+    "eu-truck-centre-axle": (18.70, "truck + centre-axle"),
+}
+"""The catalogue's other combinations: overall length [m] (within 25, 53.5, 25.25 and 18.75 m, their limits) and
+units."""
 
 
 def test_the_catalogue_holds_the_five_tractor_semi_trailers_and_the_longer_combinations() -> None:
