@@ -41,20 +41,12 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
     table.add_column(escape("max |·| [m]"), justify="right")
     table.add_column("ticks", justify="right")
     offtracking = metrics.get("offtracking") or {}
-    truth = offtracking.get("truth") or {}
-    defined = truth.get("defined_fraction", truth.get("valid_fraction"))
-    table.add_row(
-        "truth",
-        number(truth.get("rms")),
-        number(truth.get("max_abs")),
-        f"{number(defined, '.0%')} defined",
-    )
-    for unit, unit_truth in (offtracking.get("units") or {}).items():
+    truths = {"truth": offtracking.get("truth") or {}}
+    truths.update({f"unit {unit} truth": t for unit, t in (offtracking.get("units") or {}).items()})
+    for label, truth in truths.items():  # the first towed unit's, then each further unit's
+        defined = truth.get("defined_fraction", truth.get("valid_fraction"))
         table.add_row(
-            f"unit {unit} truth",
-            number(unit_truth.get("rms")),
-            number(unit_truth.get("max_abs")),
-            f"{number(unit_truth.get('defined_fraction'), '.0%')} defined",
+            label, number(truth.get("rms")), number(truth.get("max_abs")), f"{number(defined, '.0%')} defined"
         )
     for name, err in (offtracking.get("estimators") or {}).items():
         table.add_row(
