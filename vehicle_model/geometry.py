@@ -122,20 +122,6 @@ def follow_point_from_kingpin(kingpin: np.ndarray, psi2, follow_point_offset: fl
     )
 
 
-def axle_ground_points(params: VehicleParams, x, y, psi1, gamma) -> np.ndarray:
-    """Ground points of every axle centre, layout order, shape ``S + (n_axles, 2)``."""
-    tractor = tractor_points(params, x, y, psi1, np.array([[a.x, 0.0] for a in params.tractor.axles]))
-    trailer = trailer_points(params, x, y, psi1, gamma, np.array([[a.x, 0.0] for a in params.trailer.axles]))
-    return np.concatenate([tractor, trailer], axis=-2)
-
-
-def unit_cg_positions(params: VehicleParams, x, y, psi1, gamma) -> np.ndarray:
-    """Tractor and trailer CG positions, shape ``S + (2, 2)``."""
-    tractor = np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)], axis=-1)
-    trailer = trailer_points(params, x, y, psi1, gamma, np.array([[params.trailer.cg_x, 0.0]]))[..., 0, :]
-    return np.stack([tractor, trailer], axis=-2)
-
-
 def _rectangle(front: float, rear: float, width: float) -> np.ndarray:
     w = 0.5 * width
     return np.array([[front, w], [front, -w], [rear, -w], [rear, w]])

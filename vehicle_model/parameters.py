@@ -335,13 +335,6 @@ class VehicleParams(_Frozen):
         """Number of units (2 for a tractor–semi-trailer)."""
         return 1 + len(self.trailers)
 
-    def rear_coupling_x(self, unit: int) -> float:
-        """Station of the fifth wheel on unit ``unit`` (0 the tractor) [m]."""
-        station = self.units[unit].fifth_wheel_x
-        if station is None:
-            raise ValueError(f"unit {unit} tows nothing: it has no fifth wheel")
-        return float(station)
-
     def hinge_distances(self) -> tuple[tuple[float, float], ...]:
         """Per unit, the distance from its CG forward to its kingpin and back to its fifth wheel [m] (0 where it
         has none): the ``f_k`` and ``e_k`` of the chain's equations (:mod:`vehicle_model.chain`)."""
