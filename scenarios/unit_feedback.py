@@ -89,10 +89,10 @@ def check_unit_feedback(
         axle.
     """
     if not one_semi_trailer(params):
-        if uses_camera:
-            raise ValueError(f"estimators: the run includes a camera; {CAMERA_UNIT}")
         if feedback not in REAR_FEEDBACK:
             raise ValueError(f"feedback = {feedback!r}: {CAMERA_UNIT}")
+        if uses_camera:
+            raise ValueError(f"estimators: the run includes a camera; {CAMERA_UNIT}")
     behind = params.n_units - 2
     if rear_feedback is None:
         return
