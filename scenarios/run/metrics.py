@@ -192,7 +192,7 @@ def compute_metrics(
     geometric = columns["offtracking_truth_geometric"]
     both = np.isfinite(truth) & np.isfinite(geometric)
     settled = after_warmup(columns, params.follow_point_offset)
-    steerable = [a.name for a in params.trailer.axles if a.steerable]
+    steerable = [a.name for unit in params.trailers for a in unit.axles if a.steerable]
     metrics: dict[str, Any] = {
         "scenario": scenario,
         "feedback": feedback,
