@@ -42,6 +42,7 @@ from vehicle_model.parameters import VehicleParams
 
 from .figure_scale import wrap_title, zoom_half_width, zoom_to
 from .metrics import ROUNDABOUT_INNER_RADIUS, ROUNDABOUT_OUTER_RADIUS, roundabout_verdict
+from .swept_geometry import ENVELOPE_SPACING, envelope_samples
 from .unit_shapes import articulation, pose_polygons, unit_names, unit_outlines
 
 TRACTOR_COLOUR = "tab:red"
@@ -55,27 +56,6 @@ HATCHES = {"tractor": "\\\\\\", "trailer": "///", "unit3": "---", "unit4": "|||"
 
 
 # ----------------------------------------------------------------------------------------------- geometry
-ENVELOPE_SPACING = 0.05
-"""Outlines closer than this [m] (largest corner movement) to the last one kept add nothing visible to an envelope."""
-
-
-def envelope_samples(polygons: np.ndarray, spacing: float = ENVELOPE_SPACING) -> np.ndarray:
-    """Indices of the outlines ``(n, k, 2)`` to keep: a new one each time some corner has moved ``spacing``.
-
-    The union of the kept outlines differs from the union of all by far less than ``spacing`` (a scallop
-    of depth ``spacing² / 8R`` on a radius ``R``), for a fraction of the drawing time. First and last kept.
-    """
-    polys = np.asarray(polygons, dtype=float)
-    n = polys.shape[0]
-    if n <= 2 or spacing <= 0.0:
-        return np.arange(n)
-    step = np.nan_to_num(np.linalg.norm(np.diff(polys, axis=0), axis=-1).max(axis=-1), nan=0.0)
-    bucket = np.floor(np.concatenate([[0.0], np.cumsum(step)]) / spacing)
-    keep = np.concatenate([[True], np.diff(bucket) > 0])
-    keep[-1] = True
-    return np.flatnonzero(keep)
-
-
 def envelope_path(polygons: np.ndarray, spacing: float = ENVELOPE_SPACING) -> MplPath:
     """One compound path of closed polygons ``(n, k, 2)``; filled (non-zero rule) it shades their union.
 
