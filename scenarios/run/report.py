@@ -170,6 +170,7 @@ def write_report(
             title,
             roundabout_test=metrics.get("roundabout_test"),
             turn_span=setup.path.turn_span,
+            swept_path=metrics.get("swept_path"),
         )
         plot_offtracking(
             run_dir / offtracking_file,

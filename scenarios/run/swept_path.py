@@ -10,14 +10,16 @@ What a vehicle engineer reads in an AutoTURN-style swept-path drawing:
   colours of their own, each in the legend and labelled where the run crowds least (outside the outer circle,
   inside the inner one: off the swept annulus), the extreme points marked and labelled with their radii and
   margins, and the verdict (PASS/FAIL) in the title (wrapped, never clipped);
+* the swept-path width (:mod:`.swept_geometry`) as a drawn dimension: a double-headed arrow across the swept
+  area where it is widest, labelled with the width and how it was measured;
 * a zoom panel on each critical point (roundabout test: the tractor's outermost and the trailer's
   innermost point; other runs: the follow point where the true off-tracking is largest), sized to the effect it
   shows (the margin, the off-tracking) and with a scale bar.
 
 Envelopes are translucent and hatched per unit, so both stay readable where they overlap. Every artist a test
 looks for carries a ``gid`` (``envelope:tractor``, ``envelope:trailer``, ``extreme:outer``, ``extreme:inner``,
-``instant``, ``limit:outer``, ``limit:inner``, ``scale_bar``, ``effect``), so a figure is checked by what it shows,
-not by pixels.
+``instant``, ``limit:outer``, ``limit:inner``, ``scale_bar``, ``effect``, ``dimension:swept_width``), so a figure
+is checked by what it shows, not by pixels.
 The drawing primitives (:func:`draw_envelopes`, :func:`draw_vehicle`) are shared by the comparison figure and
 the animation.
 """
@@ -42,7 +44,7 @@ from vehicle_model.parameters import VehicleParams
 
 from .figure_scale import wrap_title, zoom_half_width, zoom_to
 from .metrics import ROUNDABOUT_INNER_RADIUS, ROUNDABOUT_OUTER_RADIUS, roundabout_verdict
-from .swept_geometry import ENVELOPE_SPACING, envelope_samples
+from .swept_geometry import ENVELOPE_SPACING, envelope_samples, swept_width
 from .unit_shapes import articulation, pose_polygons, unit_names, unit_outlines
 
 TRACTOR_COLOUR = "tab:red"
@@ -412,6 +414,48 @@ def _mark_extremes(ax: Axes, centre: tuple[float, float], ext: dict[str, Any], z
         text.set_gid(f"extreme:{key}:label")
 
 
+WIDTH_WORDS = {"radial": "radial, about the turn centre", "lateral": "across the path"}
+"""How the dimension's label says which width was measured."""
+
+
+def draw_swept_width(ax: Axes, width: dict[str, Any]) -> list[Any]:
+    """Draw the swept-path width as a dimension, the way a drawing dimensions a distance: a double-headed arrow from
+    ``inner_point`` to ``outer_point`` of ``width`` (``metrics.json["swept_path"]``) with the value in metres on
+    it, and a legend entry saying what was measured (``width_m``, ``definition``).
+
+    The arrow carries the ``gid`` ``dimension:swept_width``, the value ``dimension:swept_width:label``; nothing is
+    drawn when the width is unknown.
+    """
+    inner, outer = (np.asarray(width.get(k) or (np.nan, np.nan), dtype=float) for k in ("inner_point", "outer_point"))
+    value = width.get("width_m")
+    if value is None or not np.isfinite(value) or not np.all(np.isfinite([*inner, *outer])):
+        return []
+    arrow = ax.annotate(
+        "",
+        outer,
+        xytext=inner,
+        arrowprops={"arrowstyle": "<|-|>", "color": "k", "lw": 1.3, "shrinkA": 0, "shrinkB": 0, "mutation_scale": 12},
+        zorder=7,
+    )
+    arrow.set_gid("dimension:swept_width")
+    label = ax.text(
+        *(0.5 * (inner + outer)),
+        f"{value:.2f} m",
+        ha="center",
+        va="center",
+        fontsize=8,
+        fontweight="bold",
+        zorder=8,
+        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.9},
+    )
+    label.set_gid("dimension:swept_width:label")
+    words = WIDTH_WORDS.get(width.get("definition", ""), width.get("definition", ""))
+    (entry,) = ax.plot(
+        [], [], color="k", lw=1.3, marker=r"$\leftrightarrow$", ms=10, label=f"swept width {value:.2f} m ({words})"
+    )
+    return [arrow, label, entry]
+
+
 def _inner_name(ext: dict[str, Any]) -> str:
     """The unit whose point came nearest the centre: ``trailer`` (the first towed unit) or ``unit 3``, ``unit 4``."""
     unit = ext.get("inner_unit", 2)
@@ -437,6 +481,7 @@ def swept_path_figure(
     roundabout_test: dict[str, Any] | None = None,
     turn_span: tuple[float, float] | None = None,
     instants: int = 6,
+    swept_path: dict[str, Any] | None = None,
 ) -> Figure:
     """The swept-path figure of a run (module docstring); the caller saves and closes it.
 
@@ -459,6 +504,9 @@ def swept_path_figure(
         Arc-length interval of the assessed turn (used when ``roundabout_test`` is None).
     instants
         How many evenly spaced instants the combination is drawn at (0: none).
+    swept_path
+        ``metrics.json["swept_path"]``: the width drawn as a dimension (:func:`draw_swept_width`). When None it is
+        measured here, radially about ``annulus_centre`` or, without one, across ``reference``.
 
     Returns
     -------
@@ -490,6 +538,9 @@ def swept_path_figure(
     times = np.asarray(columns["time"], dtype=float)
     for k in instant_indices(n, instants):
         draw_vehicle(main, params, columns, int(k), label=f"t = {times[k]:.0f} s")
+    if swept_path is None:
+        swept_path = swept_width(params, columns, reference, annulus_centre, turn_span).as_dict()
+    draw_swept_width(main, swept_path)
     for ax, (kind, k, point) in zip(zooms, focus, strict=True):
         draw_vehicle(ax, params, columns, int(k), label=f"t = {times[k]:.1f} s", gid="critical")
         if kind == "offtracking":
