@@ -4,7 +4,8 @@
   turn centre on the rear axle line (no slip), posed every 3° (sparser than the outline spacing, so outlines are
   put in between): the radial width equals the closed form, outer front corner radius minus the inner side's
   radius at the rear axle line, ``√(f² + (R + W/2)²) − (R − W/2) = 13.25 − 8.75 = 4.50 m``, within 1 cm, and so
-  do both radii.
+  do both radii. Over more than a full circle the swept area is the annulus between them, ``π(13.25² − 8.75²)``,
+  within 0.05 % (the union of the outlines alone, notched between outlines, is 1.6 % short at the same spacing).
 * A rectangle translated along its own axis, at 30° to the axes, posed every 0.5 m: the union's area is
   ``L·W + W·d`` within 0.5 %, and its width across the line it drove along is ``W`` within 1 mm.
 * A turn (straight, 90° arc, straight) and its mirror image give the same width, radial and lateral, within
@@ -63,15 +64,18 @@ def _turn(radius: float, arc_deg: float, straight: float = 0.0, step: float = 0.
 
 def test_steady_turn_width_is_the_closed_form() -> None:
     front, rear, width, radius = 7.0, 2.5, 2.5, 10.0
-    angle = np.radians(np.arange(0.0, 180.0 + 1e-9, 3.0))
-    polys = _posed(_body(front, rear, width), radius * np.sin(angle), -radius * np.cos(angle), angle)
     outer, inner = math.hypot(front, radius + 0.5 * width), radius - 0.5 * width
     assert outer - inner == pytest.approx(4.50, abs=1e-12)  # 13.25 − 8.75
-    measured = radial_width(swept_area(polys), (0.0, 0.0))
-    assert measured.definition == "radial"
-    assert measured.width == pytest.approx(outer - inner, abs=0.01)
-    assert math.hypot(*measured.outer) == pytest.approx(outer, abs=0.01)
-    assert math.hypot(*measured.inner) == pytest.approx(inner, abs=0.01)
+    for arc in (180.0, 400.0):
+        angle = np.radians(np.arange(0.0, arc + 1e-9, 3.0))
+        polys = _posed(_body(front, rear, width), radius * np.sin(angle), -radius * np.cos(angle), angle)
+        area = swept_area(polys)
+        measured = radial_width(area, (0.0, 0.0))
+        assert measured.definition == "radial"
+        assert measured.width == pytest.approx(outer - inner, abs=0.01)
+        assert math.hypot(*measured.outer) == pytest.approx(outer, abs=0.01)
+        assert math.hypot(*measured.inner) == pytest.approx(inner, abs=0.01)
+    assert area.area == pytest.approx(math.pi * (outer**2 - inner**2), rel=5e-4)  # the full annulus, not notched
 
 
 def test_translated_rectangle_sweeps_length_times_width_plus_width_times_distance() -> None:

@@ -2,9 +2,10 @@
 
 The swept area of a unit is the union of its body outlines over the manoeuvre, a shapely ``Polygon`` or
 ``MultiPolygon``; the combination's is the union of its units'. A run records the outlines at the control rate;
-where a corner moved more than :data:`ENVELOPE_SPACING` between two samples, outlines are interpolated in between
-(:func:`densify`), and outlines that barely moved are left out (:func:`envelope_samples`), so that the union is
-neither scalloped nor needlessly heavy.
+outlines are put in where a vertex moved more than :data:`SWEEP_SPACING` between two samples (:func:`densify`, on
+the arc of the body's displacement) and left out where it barely moved (:func:`envelope_samples`, the figures'
+thinning), and the notches a vertex leaves between two outlines are filled (:func:`swept_area`), so that the union
+is neither scalloped nor needlessly heavy: within ``spacing² / 8R`` of the true area.
 
 The swept-path width follows the Low Speed Swept Path standard of the Australian Performance-Based Standards (PBS)
 scheme (National Transport Commission, *Performance Based Standards Scheme – The Standards and Vehicle Assessment
@@ -40,6 +41,7 @@ __all__ = [
     "ENVELOPE_SPACING",
     "LATERAL_STATION_SPACING",
     "RAY_STEP_DEG",
+    "SWEEP_SPACING",
     "SweptWidth",
     "densify",
     "envelope_samples",
@@ -54,6 +56,9 @@ __all__ = [
 
 ENVELOPE_SPACING = 0.05
 """Outlines closer than this [m] (largest corner movement) to the last one kept add nothing visible to an envelope."""
+SWEEP_SPACING = 0.25
+"""Vertex travel [m] between the outlines of a swept area (:func:`swept_area`): with each edge's sweep between
+them, the area is then within ``spacing² / 8R`` of the true one, 1.6 mm on a 5 m radius."""
 RAY_STEP_DEG = 0.5
 """Angle between the rays of :func:`radial_width` [deg]; the largest width is then refined between its neighbours."""
 LATERAL_STATION_SPACING = 0.25
@@ -107,13 +112,14 @@ def _densify(polygons: np.ndarray, values: np.ndarray, spacing: float) -> tuple[
     # The rotation of each displacement, from the first edge, and its pole: b = R(a − c) + c.
     edge_a, edge_b = a[:, 1] - a[:, 0], b[:, 1] - b[:, 0]
     turn = np.arctan2(edge_a[:, 0] * edge_b[:, 1] - edge_a[:, 1] * edge_b[:, 0], np.sum(edge_a * edge_b, axis=1))
-    rotates = np.abs(turn) > 1e-9
+    rotates = np.abs(turn) > 1e-7  # below, a translation: the arcs' sagitta is under step·1e-7
     cos, sin = np.cos(turn), np.sin(turn)
+    versine = 2.0 * np.sin(0.5 * turn) ** 2  # 1 − cos, without cancellation
     ca, cb = a.mean(axis=1), b.mean(axis=1)
     rhs = cb - np.column_stack([cos * ca[:, 0] - sin * ca[:, 1], sin * ca[:, 0] + cos * ca[:, 1]])
-    det = np.where(rotates, 2.0 * (1.0 - cos), 1.0)
+    det = np.where(rotates, 2.0 * versine, 1.0)
     pole = np.column_stack(
-        [((1.0 - cos) * rhs[:, 0] - sin * rhs[:, 1]) / det, (sin * rhs[:, 0] + (1.0 - cos) * rhs[:, 1]) / det]
+        [(versine * rhs[:, 0] - sin * rhs[:, 1]) / det, (sin * rhs[:, 0] + versine * rhs[:, 1]) / det]
     )
     start = np.repeat(np.arange(len(parts)), parts)
     t = (np.arange(len(start)) - np.repeat(np.cumsum(parts) - parts, parts)) / np.repeat(parts, parts)
@@ -132,24 +138,78 @@ def _densify(polygons: np.ndarray, values: np.ndarray, spacing: float) -> tuple[
     return np.concatenate([dense, polys[-1:]]), np.concatenate([dense_vals, vals[-1:]])
 
 
-def swept_area(polygons: np.ndarray, spacing: float = ENVELOPE_SPACING) -> BaseGeometry:
-    """The union of outlines ``(n, k, 2)`` of one body over a manoeuvre: a shapely (Multi)Polygon.
+def swept_area(polygons: np.ndarray, spacing: float = SWEEP_SPACING) -> BaseGeometry:
+    """The area swept by one rigid body of outlines ``(n, k, 2)`` over a manoeuvre: a shapely (Multi)Polygon.
 
-    Outlines are interpolated (:func:`densify`) and thinned (:func:`envelope_samples`) to one per ``spacing`` of
-    corner travel first. An empty ``Polygon`` when no outline is finite.
+    Outlines are put in (:func:`densify`) and thinned (:func:`envelope_samples`) to one per ``spacing`` of vertex
+    travel, and the area is the union of those outlines and of what each edge sweeps from one to the next (the
+    quadrilateral of its two positions, or the two triangles of a crossed one). Without the edges' sweep the union
+    of outlines alone would be notched wherever a vertex moves obliquely to its edges (a tooth up to ``spacing``
+    times the sine of that angle deep at every outline: 0.3 % of a steady turn's area at 5 cm); with it, the area
+    differs from the true one by the sagitta of a vertex's chord, ``spacing² / 8R`` on a radius ``R``. An empty
+    ``Polygon`` when no outline is finite.
     """
     dense = densify(polygons, spacing)
     if not len(dense):
         return shapely.Polygon()
     kept = dense[envelope_samples(dense, spacing)]
-    return shapely.union_all(shapely.polygons(kept))
+    return shapely.union_all(_swept_pieces(kept))
+
+
+def _swept_pieces(kept: np.ndarray) -> np.ndarray:
+    """Each outline of ``(m, k, 2)`` (convex) with the notches its vertices leave on the way to the next, as shapely
+    polygons.
+
+    A vertex that leaves its outline (it moves outward across one of its two edges) leaves a notch between its two
+    positions and the two outlines. The triangle of the outline's middle and the vertex's two positions covers it,
+    and for a step small against the body lies within the two outlines and the notch; its part outside the outline
+    is the triangle of the vertex, its next position and the point where the segment from the middle to that
+    position leaves the outline, which is put into the outline's boundary at the vertex (one polygon a step, not
+    five: the union is as fast as of the outlines alone).
+    """
+    polys = np.asarray(kept, dtype=float)
+    m, k = polys.shape[:2]
+    slots = np.repeat(polys, 3, axis=1).reshape(m, k, 3, 2)  # three boundary points a vertex: V, V, V by default
+    if m >= 2:
+        v, nxt = polys[:-1], polys[1:]
+        middle = v.mean(axis=1, keepdims=True)
+        orient = np.sign(np.sum(v[..., 0] * np.roll(v[..., 1], -1, 1) - np.roll(v[..., 0], -1, 1) * v[..., 1], axis=1))
+        after, before = np.roll(v, -1, axis=1) - v, v - np.roll(v, 1, axis=1)
+        step = nxt - v
+
+        def outward(edge: np.ndarray) -> np.ndarray:
+            return orient[:, None] * (edge[..., 1] * step[..., 0] - edge[..., 0] * step[..., 1])
+
+        leaves = (outward(after) > 1e-12) | (outward(before) > 1e-12)
+        ray = nxt - middle  # the segment middle → next position: where it crosses an edge next to the vertex
+
+        def crossing(start: np.ndarray, edge: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            rel = start - middle
+            denom = ray[..., 0] * edge[..., 1] - ray[..., 1] * edge[..., 0]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = (rel[..., 0] * edge[..., 1] - rel[..., 1] * edge[..., 0]) / denom
+                u = (rel[..., 0] * ray[..., 1] - rel[..., 1] * ray[..., 0]) / denom
+            return (t >= 0.0) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0), middle + t[..., None] * ray
+
+        on_after, x_after = crossing(v, after)
+        on_before, x_before = crossing(np.roll(v, 1, axis=1), before)
+        use_after = leaves & on_after
+        use_before = leaves & ~on_after & on_before
+        top = slots[:-1]
+        top[use_after] = np.stack([v[use_after], nxt[use_after], x_after[use_after]], axis=1)
+        top[use_before] = np.stack([x_before[use_before], nxt[use_before], v[use_before]], axis=1)
+    pieces = shapely.polygons(slots.reshape(m, 3 * k, 2))
+    bad = ~shapely.is_valid(pieces)
+    if bad.any():  # a step too large against the body: its notch left as the outline's
+        pieces[bad] = shapely.polygons(polys[bad])
+    return pieces
 
 
 def unit_swept_areas(
     params: VehicleParams,
     columns: dict[str, np.ndarray],
     mask: np.ndarray | None = None,
-    spacing: float = ENVELOPE_SPACING,
+    spacing: float = SWEEP_SPACING,
 ) -> dict[str, BaseGeometry]:
     """Each unit's swept area over the samples of ``mask`` (all by default), by :func:`unit_names`."""
     outlines = unit_outlines(params, columns)
@@ -236,10 +296,16 @@ def _ring_edges(area: BaseGeometry) -> tuple[np.ndarray, np.ndarray]:
     return coords[:-1][same], coords[1:][same]
 
 
-def _outline_edges(polygons: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The edges ``a → b`` of outlines ``(n, k, 2)``."""
-    polys = np.asarray(polygons, dtype=float)
-    return polys.reshape(-1, 2), np.roll(polys, -1, axis=1).reshape(-1, 2)
+def _sweep_edges(kept: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The edges ``a → b`` of the pieces of :func:`_swept_pieces` (each outline's edges and each vertex's step to
+    the next outline), with the value ``(m,)`` of the outline each starts from: the boundary of every piece is
+    made of them, so a line's cut through the swept area ends on them."""
+    polys = np.asarray(kept, dtype=float)
+    k = polys.shape[1]
+    a = [polys.reshape(-1, 2), polys[:-1].reshape(-1, 2)]
+    b = [np.roll(polys, -1, axis=1).reshape(-1, 2), polys[1:].reshape(-1, 2)]
+    at = [np.repeat(values, k), np.repeat(values[:-1], k)]
+    return np.concatenate(a), np.concatenate(b), np.concatenate(at)
 
 
 def _ray_extent(edges: tuple[np.ndarray, np.ndarray], centre: np.ndarray, angles: np.ndarray) -> np.ndarray:
@@ -319,7 +385,7 @@ def lateral_width(
     progress: np.ndarray,
     reference: np.ndarray,
     span: tuple[float, float] | None = None,
-    spacing: float = ENVELOPE_SPACING,
+    spacing: float = SWEEP_SPACING,
     station_spacing: float = LATERAL_STATION_SPACING,
 ) -> SweptWidth:
     """The swept-path width across a reference path: the largest, over stations along it, of the extent of the swept
@@ -375,18 +441,15 @@ def lateral_width(
         behind = max(behind, float(np.max(np.where(along <= 0.0, dist, 0.0))))
         reach = max(reach, float(np.max(dist)))
     ahead, behind, reach = REACH_MARGIN * ahead + 1.0, REACH_MARGIN * behind + 1.0, reach + 1.0
+    edge_a, edge_b, edge_at = (np.concatenate(e) for e in zip(*(_sweep_edges(p, v) for p, v in dense), strict=True))
     widths, lo, hi = np.full(len(at), np.nan), np.zeros(len(at)), np.zeros(len(at))
     chunk_length = max(5.0, 20.0 * station_spacing)
     for first in np.arange(at[0], at[-1] + 1e-9, chunk_length):
         chunk = (at >= first) & (at < first + chunk_length)
         if not chunk.any():
             continue
-        near = [(p, v) for p, v in dense if len(p)]
-        near = [p[(v >= first - ahead) & (v <= first + chunk_length + behind)] for p, v in near]
-        edges = (
-            np.concatenate([_outline_edges(p)[0] for p in near]),
-            np.concatenate([_outline_edges(p)[1] for p in near]),
-        )
+        near = (edge_at >= first - ahead) & (edge_at <= first + chunk_length + behind)
+        edges = (edge_a[near], edge_b[near])
         extent = _extent_along(edges, points[chunk], normals[chunk], -reach, reach)
         widths[chunk], lo[chunk], hi[chunk] = extent[:, 1] - extent[:, 0], extent[:, 0], extent[:, 1]
     if not np.isfinite(widths).any():
@@ -459,7 +522,7 @@ def swept_width(
     reference: np.ndarray,
     centre: tuple[float, float] | None,
     turn_span: tuple[float, float] | None = None,
-    spacing: float = ENVELOPE_SPACING,
+    spacing: float = SWEEP_SPACING,
 ) -> SweptWidth:
     """The combination's swept-path width over a run (the arguments as :func:`swept_path_metrics`)."""
     if not len(columns.get("X", ())):
@@ -479,7 +542,7 @@ def swept_path_metrics(
     reference: np.ndarray,
     centre: tuple[float, float] | None,
     turn_span: tuple[float, float] | None = None,
-    spacing: float = ENVELOPE_SPACING,
+    spacing: float = SWEEP_SPACING,
 ) -> dict[str, Any] | None:
     """The ``swept_path`` entry of ``metrics.json``: the combination's swept-path width and each unit's.
 
