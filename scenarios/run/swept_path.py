@@ -289,11 +289,17 @@ def draw_vehicle(
     return patches
 
 
-def free_angle(centre: tuple[float, float], points: np.ndarray, avoid: list[np.ndarray] | tuple = ()) -> float:
+def free_angle(
+    centre: tuple[float, float],
+    points: np.ndarray,
+    avoid: list[np.ndarray] | tuple = (),
+    clear: list[np.ndarray] | tuple = (),
+) -> float:
     """The direction [rad] from ``centre`` least crowded by ``points`` ``(n, 2)`` and farthest from ``avoid``.
 
     Where a label on a circle about ``centre`` collides with nothing the run drew: candidates every 10°, the
-    fewest points within ±20°, ties broken by the largest angle to the directions of ``avoid`` (points).
+    fewest points within ±20°, ties broken by the largest angle to the directions of ``avoid`` (points). Candidates
+    within ±20° of the direction of a point of ``clear`` are taken only when there is no other.
     """
     c = np.asarray(centre, dtype=float)
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
@@ -305,6 +311,8 @@ def free_angle(centre: tuple[float, float], points: np.ndarray, avoid: list[np.n
         return np.abs((a - b + np.pi) % (2.0 * np.pi) - np.pi)
 
     crowd = np.array([np.count_nonzero(gap(angles, a) < np.radians(20.0)) for a in candidates])
+    for q in (np.asarray(q, dtype=float) for q in clear):
+        crowd[gap(candidates, float(np.arctan2(q[1] - c[1], q[0] - c[0]))) < np.radians(20.0)] += len(pts) + 1
     away = [np.arctan2(p[1] - c[1], p[0] - c[0]) for p in (np.asarray(q, dtype=float) for q in avoid)]
     spread = np.array([min((gap(np.array([a]), b)[0] for b in away), default=np.pi) for a in candidates])
     best = np.lexsort((-spread, crowd))[0]
@@ -420,8 +428,9 @@ WIDTH_WORDS = {"radial": "radial, about the turn centre", "lateral": "across the
 
 def draw_swept_width(ax: Axes, width: dict[str, Any]) -> list[Any]:
     """Draw the swept-path width as a dimension, the way a drawing dimensions a distance: a double-headed arrow from
-    ``inner_point`` to ``outer_point`` of ``width`` (``metrics.json["swept_path"]``) with the value in metres on
-    it, and a legend entry saying what was measured (``width_m``, ``definition``).
+    ``inner_point`` to ``outer_point`` of ``width`` (``metrics.json["swept_path"]``) with the value in metres just
+    beyond its inner end (off the swept area, where a long arrow and a short one both stay readable), and a legend
+    entry saying what was measured (``width_m``, ``definition``).
 
     The arrow carries the ``gid`` ``dimension:swept_width``, the value ``dimension:swept_width:label``; nothing is
     drawn when the width is unknown.
@@ -438,11 +447,14 @@ def draw_swept_width(ax: Axes, width: dict[str, Any]) -> list[Any]:
         zorder=7,
     )
     arrow.set_gid("dimension:swept_width")
-    label = ax.text(
-        *(0.5 * (inner + outer)),
+    inward = (inner - outer) / max(float(np.hypot(*(inner - outer))), 1e-9)  # beyond the inner end: off the area
+    label = ax.annotate(
         f"{value:.2f} m",
-        ha="center",
-        va="center",
+        inner,
+        xytext=(5.0 * inward[0], 5.0 * inward[1]),
+        textcoords="offset points",
+        ha="left" if inward[0] > 0.3 else "right" if inward[0] < -0.3 else "center",
+        va="bottom" if inward[1] > 0.3 else "top" if inward[1] < -0.3 else "center",
         fontsize=8,
         fontweight="bold",
         zorder=8,
@@ -526,10 +538,14 @@ def swept_path_figure(
         truth = np.abs(np.nan_to_num(np.asarray(columns["offtracking_truth"], dtype=float)))
         k = int(np.argmax(truth)) if n else 0
         focus = [("offtracking", k, np.array([columns["follow_x"][k], columns["follow_y"][k]]))]
+    if swept_path is None:
+        swept_path = swept_width(params, columns, reference, annulus_centre, turn_span).as_dict()
     label_angle = None
     if ext is not None:
         track = np.column_stack([columns["X"], columns["Y"]])
-        label_angle = free_angle(annulus_centre, track, [ext["outer_point"], ext["inner_point"]])
+        dimension = np.asarray(swept_path.get("inner_point") or (np.nan, np.nan), dtype=float)
+        clear = [dimension] if np.all(np.isfinite(dimension)) else []  # the width's label sits there
+        label_angle = free_angle(annulus_centre, track, [ext["outer_point"], ext["inner_point"]], clear)
     for ax in (main, *zooms):
         draw_envelopes(ax, params, columns)
         _draw_paths(ax, params, columns, reference, annulus_centre, sign)
@@ -538,8 +554,6 @@ def swept_path_figure(
     times = np.asarray(columns["time"], dtype=float)
     for k in instant_indices(n, instants):
         draw_vehicle(main, params, columns, int(k), label=f"t = {times[k]:.0f} s")
-    if swept_path is None:
-        swept_path = swept_width(params, columns, reference, annulus_centre, turn_span).as_dict()
     draw_swept_width(main, swept_path)
     for ax, (kind, k, point) in zip(zooms, focus, strict=True):
         draw_vehicle(ax, params, columns, int(k), label=f"t = {times[k]:.1f} s", gid="critical")
