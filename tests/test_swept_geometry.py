@@ -10,6 +10,8 @@
   ``L·W + W·d`` within 0.5 %, and its width across the line it drove along is ``W`` within 1 mm.
 * A turn (straight, 90° arc, straight) and its mirror image give the same width, radial and lateral, within
   1e-9 relative.
+* A path that crosses itself (a loop ramp back across its own approach): its lateral width is the same as of the
+  path stopped short of the crossing (1e-9 relative): the other pass's swept strip on the normal is not counted.
 * One short model-only run (a quarter of the UK roundabout test, unsteered): ``metrics.json`` holds the radial width
   (at least each unit's own and the trailer's body width), the summary says it, and the swept-path figure draws
   the dimension between the two points ``metrics.json`` names.
@@ -106,6 +108,32 @@ def test_a_turn_and_its_mirror_image_have_the_same_width() -> None:
     across_right = lateral_width([mirror], s, path * np.array([1.0, -1.0]))
     assert across_left.width > 2.55 + 0.5
     assert across_right.width == pytest.approx(across_left.width, rel=1e-9)
+
+
+def _loop_ramp(exit_length: float, step: float = 0.05) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """40 m along +X to the origin, 270° left on a 10 m radius about ``(0, 10)``, then ``exit_length`` metres
+    straight down ``x = −10`` (across the first straight, 30 m before its end). Points, heading, arc length."""
+    radius = 10.0
+    s = np.arange(0.0, 40.0 + 1.5 * math.pi * radius + exit_length + 1e-9, step)
+    arc = np.clip(s - 40.0, 0.0, 1.5 * math.pi * radius) / radius
+    x, y = radius * np.sin(arc), radius * (1.0 - np.cos(arc))
+    x[s < 40.0] = s[s < 40.0] - 40.0
+    beyond = np.maximum(s - 40.0 - 1.5 * math.pi * radius, 0.0)
+    y -= beyond
+    return np.column_stack([x, y]), np.where(beyond > 0.0, 1.5 * math.pi, arc), s
+
+
+def test_a_path_crossing_itself_is_measured_across_the_pass_at_hand() -> None:
+    body = _body(1.0, 9.0, 2.5)
+    widths = []
+    for exit_length in (5.0, 40.0):  # ending before the first straight, and crossing it
+        path, heading, s = _loop_ramp(exit_length)
+        every = slice(None, None, 5)  # posed every 0.25 m
+        polys = _posed(body, path[every, 0], path[every, 1], heading[every])
+        widths.append(lateral_width([polys], s[every], path).width)
+    assert 2.5 + 0.5 < widths[0] < 6.0  # the loop cuts in
+    # Across the crossing the first straight's swept strip lies on the normal: it is another pass, not counted.
+    assert widths[1] == pytest.approx(widths[0], rel=1e-9)
 
 
 @pytest.fixture(scope="module")
