@@ -162,6 +162,8 @@ def test_a_run_records_and_draws_its_swept_width(short_run: Path) -> None:
     assert set(units) == {"tractor", "trailer"}
     assert swept["width_m"] >= max(u["width_m"] for u in units.values()) - 1e-9  # the union is no narrower
     assert units["trailer"]["width_m"] > 2.55  # wider than the trailer body: it cuts in
+    areas = [u["area_m2"] for u in units.values()]
+    assert max(areas) < swept["area_m2"] < sum(areas)  # the union of overlapping units' areas
     inner, outer = np.array(swept["inner_point"]), np.array(swept["outer_point"])
     assert np.hypot(*(outer - inner)) == pytest.approx(swept["width_m"], abs=1e-9)
     words = " ".join(str(r) for r in run_summary(metrics, short_run) if isinstance(r, str))

@@ -43,6 +43,7 @@ __all__ = [
     "RAY_STEP_DEG",
     "SWEEP_SPACING",
     "SweptWidth",
+    "combination_swept_area",
     "densify",
     "envelope_samples",
     "lateral_width",
@@ -479,6 +480,11 @@ def _turn_side(reference: np.ndarray, s: np.ndarray, at: np.ndarray) -> np.ndarr
     return np.where(np.interp(at, s, turning) < 0.0, -1.0, 1.0)
 
 
+def combination_swept_area(areas: dict[str, BaseGeometry]) -> BaseGeometry:
+    """The whole combination's swept area: the union of its units' (:func:`unit_swept_areas`)."""
+    return shapely.union_all(list(areas.values()))
+
+
 def turn_centre(centres: np.ndarray) -> tuple[float, float] | None:
     """The centre the swept-path width is measured about: the path's one circle's centre (a roundabout), or None
     for a path of no circle or of several (a straight, a figure of eight)."""
@@ -559,7 +565,7 @@ def swept_path_metrics(
         Arc-length interval of the assessed manoeuvre: radial, the samples whose control point is in it; lateral,
         the stations in it. The whole run when None or when no sample falls in it.
     spacing
-        Outline spacing (:data:`ENVELOPE_SPACING`).
+        Vertex travel between outlines (:data:`SWEEP_SPACING`).
 
     Returns
     -------
@@ -580,7 +586,7 @@ def swept_path_metrics(
     }
     return {
         **width.as_dict(),
-        "area_m2": float(shapely.union_all(list(areas.values())).area),
+        "area_m2": float(combination_swept_area(areas).area),
         "turn_span": None if turn_span is None else [float(v) for v in turn_span],
         "per_unit": {unit: {"width_m": float(per_unit[unit]), "area_m2": float(areas[unit].area)} for unit in names},
     }
