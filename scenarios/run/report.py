@@ -26,6 +26,7 @@ from ..loop.ends import RunStatus
 from .metrics import after_warmup, compute_metrics, estimator_names
 from .results import plot_files, read_config, read_metrics, read_timeseries, write_metrics
 from .stopping import deferred_stops, raise_pending_stop, stop_message, stop_signal_name
+from .swept_geometry import turn_centre
 
 if TYPE_CHECKING:
     from ..setup.build import ScenarioSetup
@@ -139,7 +140,15 @@ def write_report(
     names = estimator_names(columns)
     with deferred_stops():  # a stop here would leave metrics.json saying "running": it waits until they are written
         metrics = compute_metrics(
-            config.name, config.feedback, setup.params, columns, names, setup.annulus_centre, setup.path.turn_span
+            config.name,
+            config.feedback,
+            setup.params,
+            columns,
+            names,
+            setup.annulus_centre,
+            setup.path.turn_span,
+            reference=setup.path.points,
+            turn_centre=turn_centre(setup.path.centres),
         )
         metrics.update({key: None for key in RUN_FIELDS})
         metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})
@@ -161,6 +170,7 @@ def write_report(
             title,
             roundabout_test=metrics.get("roundabout_test"),
             turn_span=setup.path.turn_span,
+            swept_path=metrics.get("swept_path"),
         )
         plot_offtracking(
             run_dir / offtracking_file,
