@@ -1,5 +1,5 @@
 """Run metrics: off-tracking of the truth, estimator errors against it, the feedback's fallback, the roundabout-test
-verdict and the run's own (:mod:`.verdicts`)."""
+verdict, the swept-path width (:mod:`.swept_geometry`) and the run's own verdict (:mod:`.verdicts`)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import numpy as np
 from vehicle_model.geometry import kingpin_position, radial_extent, towed_outlines, tractor_outline
 from vehicle_model.parameters import VehicleParams
 
+from .swept_geometry import swept_path_metrics
 from .verdicts import run_verdict
 
 ROUNDABOUT_OUTER_RADIUS = 12.50
@@ -173,9 +174,16 @@ def compute_metrics(
     estimator_names: list[str],
     annulus_centre: tuple[float, float] | None,
     turn_span: tuple[float, float],
+    *,
+    reference: np.ndarray | None = None,
+    turn_centre: tuple[float, float] | None = None,
     rear_feedback: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """The ``metrics.json`` content of a run (without timing and status).
+
+    With the ``reference`` path ``(m, 2)`` it also holds ``swept_path``, the swept-path width over the assessed turn
+    (:func:`~scenarios.run.swept_geometry.swept_path_metrics`): radial about ``turn_centre`` (a roundabout's
+    centre), or across the reference path when that is None.
 
     ``rear_feedback`` is the feedback of each unit behind the first towed one (``none`` where it is not steered,
     :func:`scenarios.unit_feedback.rear_feedbacks`): a steered one is judged by the same verdict as the first, on
@@ -252,6 +260,8 @@ def compute_metrics(
                 annulus_centre,
                 further=[columns[name][in_turn] for name in further_angles(params)],
             )
+    if reference is not None and truth.size:
+        metrics["swept_path"] = swept_path_metrics(params, columns, reference, turn_centre, turn_span)
     return metrics
 
 

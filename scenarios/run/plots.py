@@ -79,6 +79,7 @@ def plot_plan_view(
     turn_span: tuple[float, float] | None = None,
     instants: int = 6,
     dpi: int = 130,
+    swept_path: dict[str, Any] | None = None,
 ) -> Figure:
     """Write the swept-path plan view of a run (:func:`~scenarios.run.swept_path.swept_path_figure`) to ``path``.
 
@@ -99,6 +100,9 @@ def plot_plan_view(
         How many evenly spaced instants the combination is drawn at.
     dpi
         Resolution of the image.
+    swept_path
+        ``metrics.json["swept_path"]``: the swept-path width drawn as a dimension (measured from the columns when
+        None).
 
     Returns
     -------
@@ -117,6 +121,7 @@ def plot_plan_view(
         roundabout_test=roundabout_test,
         turn_span=turn_span,
         instants=instants,
+        swept_path=swept_path,
     )
     save_figure(fig, path, dpi=dpi, bbox_inches="tight")
     return fig
@@ -169,6 +174,7 @@ class SavedRun:
             roundabout_test=self.metrics.get("roundabout_test"),
             turn_span=self.setup.path.turn_span,
             instants=instants,
+            swept_path=self.metrics.get("swept_path"),
         )
 
 

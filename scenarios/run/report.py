@@ -27,6 +27,7 @@ from ..unit_feedback import rear_feedbacks
 from .metrics import after_warmup, compute_metrics, estimator_names
 from .results import plot_files, read_config, read_metrics, read_timeseries, write_metrics
 from .stopping import deferred_stops, raise_pending_stop, stop_message, stop_signal_name
+from .swept_geometry import turn_centre
 
 if TYPE_CHECKING:
     from ..setup.build import ScenarioSetup
@@ -147,7 +148,9 @@ def write_report(
             names,
             setup.annulus_centre,
             setup.path.turn_span,
-            rear_feedbacks(setup.params, config.feedback, config.rear_feedback),
+            reference=setup.path.points,
+            turn_centre=turn_centre(setup.path.centres),
+            rear_feedback=rear_feedbacks(setup.params, config.feedback, config.rear_feedback),
         )
         metrics.update({key: None for key in RUN_FIELDS})
         metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})
@@ -169,6 +172,7 @@ def write_report(
             title,
             roundabout_test=metrics.get("roundabout_test"),
             turn_span=setup.path.turn_span,
+            swept_path=metrics.get("swept_path"),
         )
         plot_offtracking(
             run_dir / offtracking_file,

@@ -20,6 +20,13 @@ MISSING = "–"
 """How a number the run did not produce (None, not a number) is shown."""
 
 
+SWEPT_WORDS = {
+    "radial": "radially about the turn centre, as the PBS low speed swept path",
+    "lateral": "across the reference path",
+}
+"""How the summary says which swept-path width a run measured (``metrics.json["swept_path"]["definition"]``)."""
+
+
 def number(value: Any, spec: str = ".3f", unit: str = "") -> str:
     """``value`` formatted with ``spec`` (and `` unit``), or :data:`MISSING` if it is None or not a real number.
 
@@ -33,7 +40,8 @@ def number(value: Any, spec: str = ".3f", unit: str = "") -> str:
 
 def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
     """Rich renderables, in order: the off-tracking table, what its "ticks" column means, the camera, the roundabout
-    verdict and the timing. Units in headers are escaped so that ``[m]`` survives rich's markup."""
+    verdict, the swept-path width and the timing. Units in headers are escaped so that ``[m]`` survives rich's
+    markup."""
     out: list[Any] = []
     table = Table(title=escape(f"{metrics.get('scenario')} — {metrics.get('status')} — {run_dir}"))
     table.add_column("off-tracking")
@@ -87,6 +95,17 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
             f"roundabout test {verdict}: outer radius max {number(test.get('outer_radius_max'), unit='m')} "
             f"(limit 12.50), inner radius min {number(test.get('inner_radius_min'), unit='m')} (limit 5.30)"
             + (f": {escape(reason)}" if reason else "")
+        )
+    swept = metrics.get("swept_path")
+    if swept:
+        how = SWEPT_WORDS.get(swept.get("definition"), "")
+        units = ", ".join(
+            f"{unit} {number(m.get('width_m'), '.2f')}" for unit, m in (swept.get("per_unit") or {}).items()
+        )
+        out.append(
+            f"swept-path width {number(swept.get('width_m'), '.2f', 'm')}"
+            + (f" ({how})" if how else "")
+            + (f"; each unit's own: {units}" if units else "")
         )
     verdict = metrics.get("verdict")
     if verdict is not None:

@@ -10,14 +10,16 @@ What a vehicle engineer reads in an AutoTURN-style swept-path drawing:
   colours of their own, each in the legend and labelled where the run crowds least (outside the outer circle,
   inside the inner one: off the swept annulus), the extreme points marked and labelled with their radii and
   margins, and the verdict (PASS/FAIL) in the title (wrapped, never clipped);
+* the swept-path width (:mod:`.swept_geometry`) as a drawn dimension: a double-headed arrow across the swept
+  area where it is widest, labelled with the width and how it was measured;
 * a zoom panel on each critical point (roundabout test: the tractor's outermost and the trailer's
   innermost point; other runs: the follow point where the true off-tracking is largest), sized to the effect it
   shows (the margin, the off-tracking) and with a scale bar.
 
 Envelopes are translucent and hatched per unit, so both stay readable where they overlap. Every artist a test
 looks for carries a ``gid`` (``envelope:tractor``, ``envelope:trailer``, ``extreme:outer``, ``extreme:inner``,
-``instant``, ``limit:outer``, ``limit:inner``, ``scale_bar``, ``effect``), so a figure is checked by what it shows,
-not by pixels.
+``instant``, ``limit:outer``, ``limit:inner``, ``scale_bar``, ``effect``, ``dimension:swept_width``), so a figure
+is checked by what it shows, not by pixels.
 The drawing primitives (:func:`draw_envelopes`, :func:`draw_vehicle`) are shared by the comparison figure and
 the animation.
 """
@@ -42,6 +44,7 @@ from vehicle_model.parameters import VehicleParams
 
 from .figure_scale import wrap_title, zoom_half_width, zoom_to
 from .metrics import ROUNDABOUT_INNER_RADIUS, ROUNDABOUT_OUTER_RADIUS, roundabout_verdict
+from .swept_geometry import ENVELOPE_SPACING, envelope_samples, swept_width
 from .unit_shapes import articulation, pose_polygons, unit_names, unit_outlines
 
 TRACTOR_COLOUR = "tab:red"
@@ -55,27 +58,6 @@ HATCHES = {"tractor": "\\\\\\", "trailer": "///", "unit3": "---", "unit4": "|||"
 
 
 # ----------------------------------------------------------------------------------------------- geometry
-ENVELOPE_SPACING = 0.05
-"""Outlines closer than this [m] (largest corner movement) to the last one kept add nothing visible to an envelope."""
-
-
-def envelope_samples(polygons: np.ndarray, spacing: float = ENVELOPE_SPACING) -> np.ndarray:
-    """Indices of the outlines ``(n, k, 2)`` to keep: a new one each time some corner has moved ``spacing``.
-
-    The union of the kept outlines differs from the union of all by far less than ``spacing`` (a scallop
-    of depth ``spacing² / 8R`` on a radius ``R``), for a fraction of the drawing time. First and last kept.
-    """
-    polys = np.asarray(polygons, dtype=float)
-    n = polys.shape[0]
-    if n <= 2 or spacing <= 0.0:
-        return np.arange(n)
-    step = np.nan_to_num(np.linalg.norm(np.diff(polys, axis=0), axis=-1).max(axis=-1), nan=0.0)
-    bucket = np.floor(np.concatenate([[0.0], np.cumsum(step)]) / spacing)
-    keep = np.concatenate([[True], np.diff(bucket) > 0])
-    keep[-1] = True
-    return np.flatnonzero(keep)
-
-
 def envelope_path(polygons: np.ndarray, spacing: float = ENVELOPE_SPACING) -> MplPath:
     """One compound path of closed polygons ``(n, k, 2)``; filled (non-zero rule) it shades their union.
 
@@ -307,11 +289,17 @@ def draw_vehicle(
     return patches
 
 
-def free_angle(centre: tuple[float, float], points: np.ndarray, avoid: list[np.ndarray] | tuple = ()) -> float:
+def free_angle(
+    centre: tuple[float, float],
+    points: np.ndarray,
+    avoid: list[np.ndarray] | tuple = (),
+    clear: list[np.ndarray] | tuple = (),
+) -> float:
     """The direction [rad] from ``centre`` least crowded by ``points`` ``(n, 2)`` and farthest from ``avoid``.
 
     Where a label on a circle about ``centre`` collides with nothing the run drew: candidates every 10°, the
-    fewest points within ±20°, ties broken by the largest angle to the directions of ``avoid`` (points).
+    fewest points within ±20°, ties broken by the largest angle to the directions of ``avoid`` (points). Candidates
+    within ±20° of the direction of a point of ``clear`` are taken only when there is no other.
     """
     c = np.asarray(centre, dtype=float)
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
@@ -323,6 +311,8 @@ def free_angle(centre: tuple[float, float], points: np.ndarray, avoid: list[np.n
         return np.abs((a - b + np.pi) % (2.0 * np.pi) - np.pi)
 
     crowd = np.array([np.count_nonzero(gap(angles, a) < np.radians(20.0)) for a in candidates])
+    for q in (np.asarray(q, dtype=float) for q in clear):
+        crowd[gap(candidates, float(np.arctan2(q[1] - c[1], q[0] - c[0]))) < np.radians(20.0)] += len(pts) + 1
     away = [np.arctan2(p[1] - c[1], p[0] - c[0]) for p in (np.asarray(q, dtype=float) for q in avoid)]
     spread = np.array([min((gap(np.array([a]), b)[0] for b in away), default=np.pi) for a in candidates])
     best = np.lexsort((-spread, crowd))[0]
@@ -432,6 +422,52 @@ def _mark_extremes(ax: Axes, centre: tuple[float, float], ext: dict[str, Any], z
         text.set_gid(f"extreme:{key}:label")
 
 
+WIDTH_WORDS = {"radial": "radial, about the turn centre", "lateral": "across the path"}
+"""How the dimension's label says which width was measured."""
+
+
+def draw_swept_width(ax: Axes, width: dict[str, Any]) -> list[Any]:
+    """Draw the swept-path width as a dimension, the way a drawing dimensions a distance: a double-headed arrow from
+    ``inner_point`` to ``outer_point`` of ``width`` (``metrics.json["swept_path"]``) with the value in metres just
+    beyond its inner end (off the swept area, where a long arrow and a short one both stay readable), and a legend
+    entry saying what was measured (``width_m``, ``definition``).
+
+    The arrow carries the ``gid`` ``dimension:swept_width``, the value ``dimension:swept_width:label``; nothing is
+    drawn when the width is unknown.
+    """
+    inner, outer = (np.asarray(width.get(k) or (np.nan, np.nan), dtype=float) for k in ("inner_point", "outer_point"))
+    value = width.get("width_m")
+    if value is None or not np.isfinite(value) or not np.all(np.isfinite([*inner, *outer])):
+        return []
+    arrow = ax.annotate(
+        "",
+        outer,
+        xytext=inner,
+        arrowprops={"arrowstyle": "<|-|>", "color": "k", "lw": 1.3, "shrinkA": 0, "shrinkB": 0, "mutation_scale": 12},
+        zorder=7,
+    )
+    arrow.set_gid("dimension:swept_width")
+    inward = (inner - outer) / max(float(np.hypot(*(inner - outer))), 1e-9)  # beyond the inner end: off the area
+    label = ax.annotate(
+        f"{value:.2f} m",
+        inner,
+        xytext=(5.0 * inward[0], 5.0 * inward[1]),
+        textcoords="offset points",
+        ha="left" if inward[0] > 0.3 else "right" if inward[0] < -0.3 else "center",
+        va="bottom" if inward[1] > 0.3 else "top" if inward[1] < -0.3 else "center",
+        fontsize=8,
+        fontweight="bold",
+        zorder=8,
+        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.9},
+    )
+    label.set_gid("dimension:swept_width:label")
+    words = WIDTH_WORDS.get(width.get("definition", ""), width.get("definition", ""))
+    (entry,) = ax.plot(
+        [], [], color="k", lw=1.3, marker=r"$\leftrightarrow$", ms=10, label=f"swept width {value:.2f} m ({words})"
+    )
+    return [arrow, label, entry]
+
+
 def _inner_name(ext: dict[str, Any]) -> str:
     """The unit whose point came nearest the centre: ``trailer`` (the first towed unit) or ``unit 3``, ``unit 4``."""
     unit = ext.get("inner_unit", 2)
@@ -457,6 +493,7 @@ def swept_path_figure(
     roundabout_test: dict[str, Any] | None = None,
     turn_span: tuple[float, float] | None = None,
     instants: int = 6,
+    swept_path: dict[str, Any] | None = None,
 ) -> Figure:
     """The swept-path figure of a run (module docstring); the caller saves and closes it.
 
@@ -479,6 +516,9 @@ def swept_path_figure(
         Arc-length interval of the assessed turn (used when ``roundabout_test`` is None).
     instants
         How many evenly spaced instants the combination is drawn at (0: none).
+    swept_path
+        ``metrics.json["swept_path"]``: the width drawn as a dimension (:func:`draw_swept_width`). When None it is
+        measured here, radially about ``annulus_centre`` or, without one, across ``reference``.
 
     Returns
     -------
@@ -498,10 +538,14 @@ def swept_path_figure(
         truth = np.abs(np.nan_to_num(np.asarray(columns["offtracking_truth"], dtype=float)))
         k = int(np.argmax(truth)) if n else 0
         focus = [("offtracking", k, np.array([columns["follow_x"][k], columns["follow_y"][k]]))]
+    if swept_path is None:
+        swept_path = swept_width(params, columns, reference, annulus_centre, turn_span).as_dict()
     label_angle = None
     if ext is not None:
         track = np.column_stack([columns["X"], columns["Y"]])
-        label_angle = free_angle(annulus_centre, track, [ext["outer_point"], ext["inner_point"]])
+        dimension = np.asarray(swept_path.get("inner_point") or (np.nan, np.nan), dtype=float)
+        clear = [dimension] if np.all(np.isfinite(dimension)) else []  # the width's label sits there
+        label_angle = free_angle(annulus_centre, track, [ext["outer_point"], ext["inner_point"]], clear)
     for ax in (main, *zooms):
         draw_envelopes(ax, params, columns)
         _draw_paths(ax, params, columns, reference, annulus_centre, sign)
@@ -510,6 +554,7 @@ def swept_path_figure(
     times = np.asarray(columns["time"], dtype=float)
     for k in instant_indices(n, instants):
         draw_vehicle(main, params, columns, int(k), label=f"t = {times[k]:.0f} s")
+    draw_swept_width(main, swept_path)
     for ax, (kind, k, point) in zip(zooms, focus, strict=True):
         draw_vehicle(ax, params, columns, int(k), label=f"t = {times[k]:.1f} s", gid="critical")
         if kind == "offtracking":
