@@ -165,9 +165,7 @@ def test_the_coupling_velocity_down_the_chain_is_the_derivative_of_the_coupling_
     worst = 0.0
     for i in range(1, len(position) - 1, 7):
         kingpin = (run["u"][i], run["v1"][i] - params.h1 * run["r1"][i])
-        local = coupling_velocity(
-            params, 2, kingpin, [run["gamma"][i], run["gamma2"][i]], [run["r2"][i], run["r3"][i]]
-        )
+        local = coupling_velocity(params, 2, kingpin, [run["gamma"][i], run["gamma2"][i]], [run["r2"][i], run["r3"][i]])
         heading = run["psi1"][i] - run["gamma"][i]  # unit 2's axes → global
         worst = max(worst, float(np.linalg.norm(_rot(heading) @ np.array(local) - derivative[i - 1])))
     assert worst < 2e-3
