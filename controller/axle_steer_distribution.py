@@ -76,15 +76,20 @@ class AxleSteerDistribution:
 
     @classmethod
     def for_vehicle(
-        cls, params: VehicleParams, virtual_axle_distance: float | None = None, fixed_axle_compensation: bool = True
+        cls,
+        params: VehicleParams,
+        virtual_axle_distance: float | None = None,
+        fixed_axle_compensation: bool = True,
+        unit: int = 1,
     ) -> AxleSteerDistribution:
-        """Distribution for the trailer of ``params`` (``L_v`` defaults to its equivalent wheelbase)."""
+        """Distribution for a towed unit of ``params`` (``unit``: 1 the first; ``L_v`` defaults to the unit's
+        equivalent wheelbase)."""
         table = params.axle_table
-        trailer = table.unit == 1
+        trailer = table.unit == unit
         stiffness = params.axle_cornering_stiffness()[trailer]
-        lv = params.equivalent_wheelbase() if virtual_axle_distance is None else float(virtual_axle_distance)
+        lv = params.equivalent_wheelbase(unit=unit) if virtual_axle_distance is None else float(virtual_axle_distance)
         return cls(
-            distances=params.trailer_axle_distances(),
+            distances=params.trailer_axle_distances(unit),
             steerable=np.asarray(table.steerable[trailer], dtype=bool),
             stiffness=stiffness,
             virtual_axle_distance=lv,

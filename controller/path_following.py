@@ -119,10 +119,16 @@ from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, ta
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
 from .steer_output import OutputStep, TrailerSteerOutput, speed_fade
 
-__all__ = ["TrailerSteeringController"]
+__all__ = ["TrailerSteeringController", "telemetry_prefix"]
 
 PATH_SPACING = 0.05
 """Spacing [m] of the stored points of the dead-reckoned kingpin path (chord feed-forward)."""
+
+
+def telemetry_prefix(unit: int) -> str:
+    """The prefix of a steered unit's recorded internals: ``trailer_`` for the first towed unit, ``unit<k>_`` for
+    unit ``k`` of the combination behind it (``unit3_`` for the second towed unit)."""
+    return "trailer_" if unit == 1 else f"unit{unit + 1}_"
 
 
 def _wrap(angle: float) -> float:
@@ -137,14 +143,20 @@ class TrailerSteeringController:
     Parameters
     ----------
     params : VehicleParams
-        Vehicle; needs at least one steerable trailer axle.
+        Vehicle; needs at least one steerable axle on the steered unit.
     config : PathFollowingConfig, optional
-        Gains, limits, fades; defaults as documented there.
+        Gains, limits, fades; defaults as documented there. Gains given there serve every unit; without them each
+        unit's gains are placed for its own geometry (:func:`~.path_following_config.kinematic_pole_placement`).
+    unit : int
+        The steered towed unit: 1 the first (default), 2 the one it tows, … A unit behind the first follows its
+        own coupling's path exactly as the first follows the kingpin's (the multi-trailer form of the law:
+        each unit's "tractor" is the unit ahead, whose coupling motion comes down the chain,
+        :meth:`~.steer_output.TrailerSteerOutput.coupling_motion`).
 
     Raises
     ------
     InputError
-        When the vehicle has no steerable trailer axle (the ``reference`` preset), or on a bad argument.
+        When the unit has no steerable axle (the ``reference`` preset), or on a bad argument.
 
     Attributes
     ----------
@@ -183,21 +195,26 @@ class TrailerSteeringController:
     >>> commands = ctrl(tick.state, tick.estimates["truth"])  # doctest: +SKIP
     """
 
-    def __init__(self, params: VehicleParams, config: PathFollowingConfig | None = None) -> None:
+    def __init__(self, params: VehicleParams, config: PathFollowingConfig | None = None, unit: int = 1) -> None:
         self.params = params
         self.config = config if config is not None else PathFollowingConfig()
+        if not 1 <= unit < params.n_units:
+            raise InputError(f"unit {unit} is not a towed unit of {params.name!r} (1..{params.n_units - 1})")
+        self.unit = unit
+        self.prefix = telemetry_prefix(unit)
         layout = Layout.for_vehicle(params)
-        trailer_names = {a.name for a in params.trailer.axles}
+        towed = params.trailers[unit - 1]
+        trailer_names = {a.name for a in towed.axles}
         self.axle_names: tuple[str, ...] = tuple(n for n in layout.steerable_axles if n in trailer_names)
         if not self.axle_names:
             raise InputError(
-                f"vehicle {params.name!r} has no steerable trailer axle; path-following trailer steering needs "
-                "at least one (use the 'lst' preset, or set steerable=True on trailer axles)"
+                f"vehicle {params.name!r} has no steerable axle on towed unit {unit}; path-following trailer "
+                "steering needs at least one (use the 'lst' preset, or set steerable=True on trailer axles)"
             )
         cfg = self.config
-        self.output = TrailerSteerOutput(params, cfg)
+        self.output = TrailerSteerOutput(params, cfg, unit)
         self.distribution = self.output.distribution
-        self.follow_point_offset = params.follow_point_offset
+        self.follow_point_offset = towed.follow_point_offset
         self.virtual_axle_distance = self.distribution.virtual_axle_distance
         self.gains = (
             cfg.gains
@@ -256,14 +273,16 @@ class TrailerSteeringController:
         return self.output.slip_limited
 
     def telemetry(self) -> dict[str, float]:
-        """Last tick's internals as floats, for recording (``trailer_`` prefixed names; NaN = no estimate)."""
+        """Last tick's internals as floats, for recording (names prefixed by :func:`telemetry_prefix`; NaN = no
+        estimate)."""
+        p = self.prefix
         out = {
-            "trailer_virtual_steer": self.virtual_steer,
-            "trailer_feedforward_steer": self.feedforward_steer,
-            "trailer_feedback_steer": self.feedback_steer,
-            "trailer_integral": self.integral,
-            "trailer_fade": self.fade,
-            "trailer_estimate_used": math.nan if self.estimate is None else self.estimate,
+            f"{p}virtual_steer": self.virtual_steer,
+            f"{p}feedforward_steer": self.feedforward_steer,
+            f"{p}feedback_steer": self.feedback_steer,
+            f"{p}integral": self.integral,
+            f"{p}fade": self.fade,
+            f"{p}estimate_used": math.nan if self.estimate is None else self.estimate,
         }
         for name, sat, rate, slip in zip(
             self.axle_names, self.saturated, self.rate_limited, self.slip_limited, strict=True
@@ -295,20 +314,22 @@ class TrailerSteeringController:
         dt = self.output.period(state.time)
 
         # Kingpin motion: curvature κ5 and direction β_k in the trailer frame (docs/vehicle_dynamics.md).
-        vx, vy = self.output.kingpin_velocity(state)
+        motion = self.output.coupling_motion(state)
+        vx, vy = motion.vx, motion.vy
         speed = math.hypot(vx, vy)
         forward = state.u > 0.0
-        self.kingpin_curvature = state.r1 / speed if speed > 1e-6 else 0.0
-        tan_kingpin = tan_kingpin_direction(state.gamma, vx, vy)
+        self.kingpin_curvature = motion.tow_yaw_rate / speed if speed > 1e-6 else 0.0
+        gamma, rate = motion.articulation, motion.yaw_rate
         slip_window = slip_angle_window(  # β_j ± α_max, from the same kinematics and the trailer's gyro
-            self._steered_distances, state.gamma, vx, vy, state.r2, cfg.max_slip_angle, cfg.fade_speeds[1]
+            self._steered_distances, gamma, vx, vy, rate, cfg.max_slip_angle, cfg.fade_speeds[1]
         )
+        tan_kingpin = tan_kingpin_direction(gamma, vx, vy)
         ds = speed * dt if forward else 0.0
         self.distance += ds
         self.fade = speed_fade(state.u, cfg.fade_speeds)
 
         # Feed-forward (the steady law in its exact form, or the chord law).
-        self._record_path(state, vx, vy, dt, forward)
+        self._record_path(motion.tow_yaw_rate, vx, vy, dt, forward)
         if cfg.feedforward == "steady":
             tan_ff, _ = steady_turn_tangents(
                 self.kingpin_curvature, self.follow_point_offset, self.virtual_axle_distance
@@ -350,8 +371,8 @@ class TrailerSteeringController:
         fb = 0.0 if error is None else schedule * (gains.kp * error + gains.ki * integral + gains.kd * self._derivative)
         return fb, self.output.propose(self.feedforward_steer + fb, tan_kingpin, self.fade, dt, slip_window)
 
-    def _record_path(self, state: VehicleState, vx: float, vy: float, dt: float, forward: bool) -> None:
-        """Dead-reckon the kingpin path (tractor yaw rate, kingpin velocity) over about one trailer length.
+    def _record_path(self, tow_yaw_rate: float, vx: float, vy: float, dt: float, forward: bool) -> None:
+        """Dead-reckon the kingpin path (the towing unit's yaw rate, kingpin velocity) over about one trailer length.
 
         Heading and position are integrated every tick (trapezoidal rule); a point is stored every
         :data:`PATH_SPACING` metres and points more than one trailer length back are dropped but one.
@@ -362,12 +383,12 @@ class TrailerSteeringController:
             return
         if self._last_motion is not None:
             r1_prev, vx_prev, vy_prev = self._last_motion
-            mid = self._heading + 0.25 * (r1_prev + state.r1) * dt
-            self._heading += 0.5 * (r1_prev + state.r1) * dt
+            mid = self._heading + 0.25 * (r1_prev + tow_yaw_rate) * dt
+            self._heading += 0.5 * (r1_prev + tow_yaw_rate) * dt
             c, s = math.cos(mid), math.sin(mid)
             mx, my = 0.5 * (vx + vx_prev), 0.5 * (vy + vy_prev)
             self._position += dt * np.array([c * mx - s * my, s * mx + c * my])
-        self._last_motion = (state.r1, vx, vy)
+        self._last_motion = (tow_yaw_rate, vx, vy)
         self._path_direction = self._heading + math.atan2(vy, vx)  # direction θ_k of the kingpin path
         px, py = float(self._position[0]), float(self._position[1])
         if not self._path or math.hypot(px - self._path[-1][0], py - self._path[-1][1]) >= PATH_SPACING:

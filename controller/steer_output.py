@@ -22,14 +22,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from vehicle_model.kinematics import kingpin_velocity, zero_slip_kingpin_velocity
+from vehicle_model.kinematics import coupling_velocity, kingpin_velocity, zero_slip_kingpin_velocity
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import AxleSteerDistribution, limit_axle_commands
 from .path_following_config import PathFollowingConfig
 
-__all__ = ["OutputStep", "TrailerSteerOutput", "speed_fade"]
+__all__ = ["CouplingMotion", "OutputStep", "TrailerSteerOutput", "speed_fade"]
 
 
 def speed_fade(speed: float, fade_speeds: tuple[float, float]) -> float:
@@ -38,6 +38,21 @@ def speed_fade(speed: float, fade_speeds: tuple[float, float]) -> float:
         return 0.0
     lo, hi = fade_speeds
     return min(max((speed - lo) / (hi - lo), 0.0), 1.0)
+
+
+class CouplingMotion(NamedTuple):
+    """How a steered unit's front coupling moves, seen from the unit ahead (the "tractor" of the unit's law)."""
+
+    tow_yaw_rate: float
+    """Yaw rate of the unit ahead [rad/s] (the tractor's ``r1`` for the first towed unit)."""
+    vx: float
+    """Coupling velocity along the unit ahead's axis [m/s]."""
+    vy: float
+    """Coupling velocity across it, left positive [m/s]."""
+    articulation: float
+    """Heading of the unit ahead minus this unit's [rad] (``Γ`` for the first towed unit)."""
+    yaw_rate: float
+    """The unit's own yaw rate [rad/s] (its gyro)."""
 
 
 class OutputStep(NamedTuple):
@@ -67,9 +82,12 @@ class TrailerSteerOutput:
     Parameters
     ----------
     params : VehicleParams
-        The combination (at least one steerable trailer axle).
+        The combination (at least one steerable axle on the steered unit).
     config : PathFollowingConfig
-        Virtual axle, limits, fade speeds, kinematics source and control period.
+        Virtual axle, limits, fade speeds, kinematics source and control period. Its ``virtual_axle_distance``
+        is the first towed unit's; a unit behind it steers about its own equivalent wheelbase.
+    unit : int
+        The steered towed unit: 1 the first (the semi-trailer on the tractor's fifth wheel), 2 the one it tows, …
 
     Attributes
     ----------
@@ -83,11 +101,12 @@ class TrailerSteerOutput:
         Per axle: the magnitude limit, the rate limit, the slip-angle limit clipped the current command.
     """
 
-    def __init__(self, params: VehicleParams, config: PathFollowingConfig) -> None:
+    def __init__(self, params: VehicleParams, config: PathFollowingConfig, unit: int = 1) -> None:
         self.params = params
         self.config = config
+        self.unit = unit
         self.distribution = AxleSteerDistribution.for_vehicle(
-            params, config.virtual_axle_distance, config.fixed_axle_compensation
+            params, config.virtual_axle_distance if unit == 1 else None, config.fixed_axle_compensation, unit
         )
         self.n_axles = int(np.count_nonzero(self.distribution.steerable))
         self.reset()
@@ -116,6 +135,18 @@ class TrailerSteerOutput:
         if self.config.kinematics == "truth":
             return kingpin_velocity(self.params, state.u, state.v1, state.r1)
         return zero_slip_kingpin_velocity(self.params, state.u, state.r1)
+
+    def coupling_motion(self, state: VehicleState) -> CouplingMotion:
+        """The steered unit's coupling motion: its kingpin's (first towed unit, :meth:`kingpin_velocity`), or the
+        fifth wheel's of the unit ahead, carried down the chain by the units' yaw rates and articulations
+        (:func:`~vehicle_model.kinematics.coupling_velocity`)."""
+        vx, vy = self.kingpin_velocity(state)
+        unit = self.unit
+        if unit == 1:
+            return CouplingMotion(state.r1, vx, vy, state.gamma, state.r2)
+        articulations, rates = state.articulations, state.towed_yaw_rates
+        vx, vy = coupling_velocity(self.params, unit, (vx, vy), articulations, rates)
+        return CouplingMotion(rates[unit - 2], vx, vy, articulations[unit - 1], rates[unit - 1])
 
     def propose(
         self,

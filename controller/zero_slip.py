@@ -10,6 +10,12 @@ The estimator assumes that no tyre slips sideways (docs/vehicle_dynamics.md §2.
   steer angle, ``r1 = u·tan δ_f / L1`` (``steer_angle`` variant);
 * the trailer heading follows from the tractor's and the measured articulation, ``ψ2 = ψ1 − Γ``.
 
+A unit further back (a B-double's rear trailer, an A-double's dolly and second trailer) is estimated the same way
+against its own coupling's path: the kingpin's zero-slip velocity is carried down the chain as rigid-body motion
+(:func:`~vehicle_model.kinematics.coupling_velocity`), each unit's yaw rate being the tractor's less the rates of
+the articulations ahead of it (``ψ_k = ψ1 − Γ − Γ2 − …``, from the sensor at each coupling, the
+``rear_articulation`` signal), so the only zero-slip assumption stays the tractor's.
+
 Each control period it turns the kingpin's motion into an increment in the trailer frame and
 feeds the same :class:`~vehicle_model.offtracking.OfftrackingBuffer` as the ground truth. It is
 blind to slip by construction: tractor crab on a camber, sideslip on ice and the scrub of the tractor's
@@ -33,7 +39,7 @@ from typing import Literal, get_args
 
 import numpy as np
 
-from vehicle_model.kinematics import zero_slip_kingpin_velocity
+from vehicle_model.kinematics import coupling_velocity, zero_slip_kingpin_velocity
 from vehicle_model.offtracking import OfftrackingBuffer
 from vehicle_model.parameters import VehicleParams
 
@@ -62,22 +68,31 @@ class ZeroSlipEstimator:
     rear_point
         The tractor's point without lateral velocity (:data:`RearPoint`): ``axle_mean`` (default) or
         ``equivalent``.
+    unit
+        The towed unit estimated: 1 the first (default), 2 the one it tows, … (module docstring).
     """
 
     def __init__(
-        self, params: VehicleParams, variant: ZeroSlipVariant = "yaw_rate", rear_point: RearPoint = "axle_mean"
+        self,
+        params: VehicleParams,
+        variant: ZeroSlipVariant = "yaw_rate",
+        rear_point: RearPoint = "axle_mean",
+        unit: int = 1,
     ) -> None:
         if variant not in ("yaw_rate", "steer_angle"):
             raise ValueError(f"zero-slip variant {variant!r} must be 'yaw_rate' or 'steer_angle'")
         if rear_point not in get_args(RearPoint):
             raise ValueError(f"zero-slip rear point {rear_point!r} must be one of {get_args(RearPoint)}")
+        if not 1 <= unit < params.n_units:
+            raise ValueError(f"unit {unit} is not a towed unit of {params.name!r} (1..{params.n_units - 1})")
         self.variant = variant
         self.params = params
+        self.unit = unit
         self.wheelbase = (
             params.tractor_equivalent_wheelbase() if rear_point == "equivalent" else params.tractor_wheelbase()
         )
-        self.buffer = OfftrackingBuffer(params.follow_point_offset)
-        self._last: tuple[float, float, float] | None = None  # (u, r1, Γ) of the previous sample
+        self.buffer = OfftrackingBuffer(params.trailers[unit - 1].follow_point_offset)
+        self._last: tuple[float, float, np.ndarray] | None = None  # (u, r1, articulations) of the previous sample
 
     def reset(self) -> None:
         """Forget the path."""
@@ -88,27 +103,37 @@ class ZeroSlipEstimator:
         """Feed one control period of signals; return the off-tracking estimate [m] or ``None``.
 
         ``signals`` holds at least ``wheel_speed``, ``front_steer``, ``tractor_yaw_rate`` and
-        ``articulation`` (see :mod:`sensor.signals`).
+        ``articulation`` (see :mod:`sensor.signals`), and ``rear_articulation`` for a unit behind the first.
         """
         u = float(signals["wheel_speed"][0])
-        gamma = float(signals["articulation"][0])
+        gammas = signals["articulation"][:1]
+        if self.unit > 1:
+            gammas = np.concatenate([gammas, signals["rear_articulation"][: self.unit - 1]])
         if self.variant == "yaw_rate":
             r1 = float(signals["tractor_yaw_rate"][0])
         else:
             r1 = u * math.tan(float(signals["front_steer"][0])) / self.wheelbase
         if self._last is None:
-            self._last = (u, r1, gamma)
+            self._last = (u, r1, gammas)
             return self.buffer.offtracking()
-        u_prev, r1_prev, gamma_prev = self._last
-        self._last = (u, r1, gamma)
+        u_prev, r1_prev, gammas_prev = self._last
+        self._last = (u, r1, gammas)
         # Trapezoidal rule over the interval between the two samples.
         u_mid, r1_mid = 0.5 * (u + u_prev), 0.5 * (r1 + r1_prev)
-        delta_gamma = gamma - gamma_prev
-        dpsi2 = r1_mid * dt - delta_gamma  # ψ2 = ψ1 − Γ
         # Kingpin velocity (tractor axes), zero lateral slip at the rear point.
         vk1 = zero_slip_kingpin_velocity(self.params, u_mid, r1_mid, self.wheelbase)
-        # Into trailer axes at mid-interval, R(Γ), then into the previous trailer frame, R(Δψ2/2).
-        g_mid = gamma - 0.5 * delta_gamma
+        # Down the chain to the unit's coupling, in the axes of the unit ahead, at mid-interval; ψ_k = ψ_(k-1) − Γ.
+        dpsi2 = r1_mid * dt
+        mids: list[float] = []
+        rates: list[float] = []
+        for gamma, gamma_prev in zip(gammas.tolist(), gammas_prev.tolist(), strict=True):
+            delta_gamma = gamma - gamma_prev
+            dpsi2 = dpsi2 - delta_gamma
+            mids.append(gamma - 0.5 * delta_gamma)
+            rates.append(dpsi2 / dt)
+        vk1 = coupling_velocity(self.params, self.unit, vk1, mids, rates)
+        # Into the unit's axes at mid-interval, R(Γ), then into its previous frame, R(Δψ/2).
+        g_mid = mids[-1]
         vk2x = math.cos(g_mid) * vk1[0] - math.sin(g_mid) * vk1[1]
         vk2y = math.sin(g_mid) * vk1[0] + math.cos(g_mid) * vk1[1]
         half = 0.5 * dpsi2

@@ -47,6 +47,7 @@ from vehicle_model.surface import FRICTION_PRESETS
 from .camera_checks import check_camera
 from .camera_schema import CameraConfig
 from .registry import NO_FEEDBACK, estimator_entries, estimator_entry, feedback_sources
+from .unit_feedback import check_unit_feedback, steered_units
 from .yaml_input import RefusedDocument, load_yaml
 
 CATALOGUE_PACKAGE = "scenarios.catalogue"
@@ -265,6 +266,7 @@ class SignalsConfig(Settings):
     trailer_yaw_rate: ChannelSpec = ChannelSpec()
     trailer_wheel_speed: ChannelSpec = ChannelSpec()
     trailer_steer: ChannelSpec = ChannelSpec()
+    rear_articulation: ChannelSpec = ChannelSpec()
 
 
 class EstimatorsConfig(Settings):
@@ -433,20 +435,6 @@ def read_vehicle_file(vehicle: Any) -> Any:
     return vehicle
 
 
-LOOP_SUPPORTS = (
-    "trailer steering and the camera estimators take a tractor or rigid truck with one semi-trailer for now; a "
-    "longer combination runs with feedback none (each unit's off-tracking and the swept path are measured)"
-)
-"""Why a run of a longer combination (or a first towed unit that is not a semi-trailer) refuses feedback and the
-camera."""
-
-
-def one_semi_trailer(params: VehicleParams) -> bool:
-    """Whether the combination is a tractor or rigid truck with one semi-trailer (the loop's steering and camera
-    estimators assume it)."""
-    return params.n_units == 2 and params.trailer.front_load
-
-
 def check_vehicle(vehicle: str | CombinationSpec) -> str | CombinationSpec:
     """A ``vehicle`` field's value after validation, refused (``ValueError``, one line naming the field) if it is not
     a preset or a combination the model can simulate."""
@@ -492,6 +480,12 @@ class ScenarioConfig(Settings):
     fusion: FusionConfig = FusionConfig()
     feedback: str = Field(
         NO_FEEDBACK, description="the estimate fed back to the trailer steering; 'none' leaves the trailer unsteered"
+    )
+    rear_feedback: tuple[str, ...] | None = Field(
+        None,
+        description="the estimate fed back to each towed unit behind the first (a B-double's rear trailer, an "
+        "A-double's dolly and second trailer), one per unit: none, truth or zero_slip; null: each steerable one "
+        "on feedback (scenarios.unit_feedback)",
     )
     controller: ControllerConfig = ControllerConfig()
     roundabout_test: bool = False
@@ -560,19 +554,19 @@ class ScenarioConfig(Settings):
     def _check(self) -> ScenarioConfig:
         if self.roundabout_test and self.path.kind != "roundabout":
             raise ValueError("roundabout_test needs path.kind = roundabout")
-        if not one_semi_trailer(self.vehicle_params()):
-            if self.feedback != "none":
-                raise ValueError(f"feedback = {self.feedback!r}: {LOOP_SUPPORTS}")
-            if self.uses_camera:
-                raise ValueError(f"estimators: {list(self.enabled_estimators())} include a camera; {LOOP_SUPPORTS}")
-        if self.feedback != "none" and not any(a.steerable for a in self.vehicle_params().trailer.axles):
+        params = self.vehicle_params()
+        check_unit_feedback(params, self.feedback, self.rear_feedback, self.uses_camera)
+        first_steered = any(a.steerable for a in params.trailer.axles)
+        steered = steered_units(params, self.feedback, self.rear_feedback)
+        if self.feedback != "none" and not first_steered and (self.rear_feedback is not None or not steered):
             steerable = sorted(n for n, f in VEHICLE_PRESETS.items() if any(a.steerable for a in f().trailer.axles))
+            behind = "; rear_feedback steers the units behind it" if params.n_units > 2 else ""
             raise ValueError(
                 f"feedback {self.feedback!r} steers the trailer, but vehicle {self.vehicle_name!r} has no steerable "
-                f"trailer axle; use one of {steerable} or make one steerable "
-                "(--set vehicle.units[1].axles[0].steerable=true)"
+                f"axle on its first towed unit; use one of {steerable} or make one steerable "
+                f"(--set vehicle.units[1].axles[0].steerable=true){behind}"
             )
-        if self.path.slip_deg is not None and self.feedback != "none":
+        if self.path.slip_deg is not None and steered:
             raise ValueError("a kinematic constant-slip run cannot be steered; use feedback none")
         return self
 

@@ -15,6 +15,7 @@ channel              white noise σ                 bias limit (drawn per run)
 tractor_yaw_rate,    1.2e-3 rad/s (0.07 °/s)       ±1.75e-3 rad/s (±0.1 °/s)
 trailer_yaw_rate
 articulation         8.7e-4 rad (0.05 °)           ±1.75e-3 rad (±0.1 °)
+rear_articulation    8.7e-4 rad (0.05 °)           0 (none drawn)
 wheel_speed,         0.02 m/s (0.07 km/h)          0
 trailer_wheel_speed
 front_steer,         0                             0
@@ -51,6 +52,7 @@ DATASHEET_NOISE: dict[str, float] = {
     "wheel_speed": 0.02,
     "tractor_yaw_rate": 1.2e-3,
     "articulation": 8.7e-4,
+    "rear_articulation": 8.7e-4,
     "trailer_yaw_rate": 1.2e-3,
     "trailer_wheel_speed": 0.02,
 }

@@ -14,6 +14,9 @@ trailer_yaw_rate    trailer gyro [rad/s]
 trailer_wheel_speed longitudinal speed of an unsteered trailer axle, along the trailer's centre line, from its
                     wheel-speed sensor (free-rolling wheels: no longitudinal slip) [m/s]
 trailer_steer       steer angle of every steerable trailer axle [rad] (one value per axle)
+rear_articulation   articulation of every further towed unit against the unit ahead, ``Γ_k = ψ_k − ψ_{k+1}``,
+                    from the sensor at its coupling [rad] (one value per coupling behind the first; none for a
+                    tractor–semi-trailer)
 ==================  ===============================================================
 """
 
@@ -34,6 +37,7 @@ CHANNELS: tuple[str, ...] = (
     "trailer_yaw_rate",
     "trailer_wheel_speed",
     "trailer_steer",
+    "rear_articulation",
 )
 
 

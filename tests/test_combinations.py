@@ -9,8 +9,8 @@ layout), an A-double (tractor, semi-trailer, dolly, semi-trailer).
 * A left and a right steer give mirrored motions (to 1e-9 of their span).
 * At 80 km/h through a lane change no axle's side force exceeds μ·Fz.
 * A small steer at 25 m/s settles where the linearised model (python-control) says, within 2 %.
-* A run refuses a combination of more than two units, in one line naming the field (the closed loop takes one
-  semi-trailer for now).
+* A run of a combination of more than two units refuses the camera and the estimates made from it, and feedback
+  with no steerable axle to steer, in one line naming the field (steering per unit: tests/test_unit_steering.py).
 
 The combinations are the test layouts of ``tests/data/combinations`` (plausible dimensions, not presets).
 """
@@ -143,14 +143,19 @@ def test_a_lane_change_mirrors_and_keeps_every_force_within_friction(combination
 
 
 @pytest.mark.parametrize("name", COMBINATIONS)
-def test_a_run_of_a_longer_combination_refuses_steering_and_the_camera_naming_the_field(name: str) -> None:
+def test_a_run_of_a_longer_combination_refuses_the_camera_naming_the_field(name: str) -> None:
     assert validate_config({"vehicle": _data(name), "feedback": "none"}).vehicle_params().n_units >= 3
-    refused = (({"feedback": "truth"}, "feedback = 'truth'"), ({"estimators": {"viso_ot": True}}, "estimators"))
-    for settings, field in refused:
+    refused = (
+        ({"feedback": "viso_ot_fused"}, "feedback = 'viso_ot_fused'", "steered on truth or zero_slip"),
+        ({"estimators": {"viso_ot": True}}, "estimators", "steered on truth or zero_slip"),
+        ({"feedback": "truth"}, "feedback 'truth'", "no steerable axle"),  # the test layouts steer no axle
+        ({"rear_feedback": ["truth"] * 5}, "rear_feedback", "one estimate per towed unit behind the first"),
+    )
+    for settings, field, reason in refused:
         with pytest.raises(ConfigError) as info:
             validate_config({"vehicle": _data(name), **settings})
         lines = str(info.value).splitlines()[1:]
-        assert len(lines) == 1 and field in lines[0] and "one semi-trailer for now" in lines[0], lines
+        assert len(lines) == 1 and field in lines[0] and reason in lines[0], lines
 
 
 def test_a_small_steer_at_speed_settles_where_the_linearised_model_says(combination: VehicleParams) -> None:

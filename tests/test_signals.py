@@ -11,7 +11,7 @@ from sensor.signals import CHANNELS, ChannelSpec, OnboardSignals, standstill_rea
 
 
 def truth(value: float) -> dict:
-    return {c: value for c in CHANNELS[:-1]} | {"trailer_steer": np.array([value, -value])}
+    return {c: value for c in CHANNELS} | {"trailer_steer": np.array([value, -value])}
 
 
 def run(specs, seed, n=2000, dt=0.01):

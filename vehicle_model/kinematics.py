@@ -66,6 +66,44 @@ def zero_slip_kingpin_velocity(
     return u, (wheelbase + params.tractor.fifth_wheel_x) * r1
 
 
+def coupling_velocity(
+    params: VehicleParams,
+    unit: int,
+    kingpin_velocity: tuple[float, float],
+    articulations: list[float],
+    yaw_rates: list[float],
+) -> tuple[float, float]:
+    """Velocity ``(v_x, v_y)`` [m/s] of a towed unit's front coupling, in the axes of the unit ahead.
+
+    Rigid-body kinematics down the chain (docs/vehicle_dynamics.md §1.1): the first towed unit's kingpin moves at
+    ``kingpin_velocity`` in tractor axes; rotated by each unit's articulation into its own axes, and with the
+    unit's yaw rate about its front coupling, its fifth wheel at station ``x5`` (negative) moves with
+    ``(v_x, v_y + r·x5)``, which is the next unit's coupling velocity in this unit's axes.
+
+    Parameters
+    ----------
+    params
+        The combination (each towed unit's ``fifth_wheel_x``).
+    unit
+        The towed unit, as :attr:`~vehicle_model.parameters.AxleTable.unit`: 1 the first (its kingpin,
+        ``kingpin_velocity`` itself), 2 the one behind it, …
+    kingpin_velocity
+        The first towed unit's coupling velocity in tractor axes [m/s] (true, or zero-slip from the tractor's
+        signals).
+    articulations, yaw_rates
+        Each towed unit's articulation against the unit ahead [rad] and yaw rate [rad/s], front to rear
+        (:attr:`~vehicle_model.simulator.VehicleState.articulations`, ``towed_yaw_rates``); those of the units
+        ahead of ``unit`` are used.
+    """
+    vx, vy = kingpin_velocity
+    for k in range(1, unit):  # towed unit k passes the motion to the one it tows
+        c, s = math.cos(articulations[k - 1]), math.sin(articulations[k - 1])
+        vx, vy = c * vx - s * vy, s * vx + c * vy
+        fifth = params.trailers[k - 1].fifth_wheel_x  # every unit that tows another has one (VehicleParams)
+        vy += yaw_rates[k - 1] * (fifth if fifth is not None else 0.0)
+    return vx, vy
+
+
 def trailer_axle_speed(params: VehicleParams, state: VehicleState) -> float:
     """Longitudinal speed [m/s] of the trailer's axles along its centre line (that of the kingpin).
 

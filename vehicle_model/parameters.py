@@ -442,9 +442,16 @@ class VehicleParams(_Frozen):
             tyres=tuple(a.tyre for u in units for a in u.axles),
         )
 
-    def trailer_axle_distances(self) -> np.ndarray:
-        """Distances ``L_j`` of the trailer axles behind the kingpin [m]."""
-        return -np.array([a.x for a in self.trailer.axles])
+    def trailer_axle_distances(self, unit: int = 1) -> np.ndarray:
+        """Distances ``L_j`` of a towed unit's axles behind its front coupling [m] (``unit``: 1 the first towed
+        unit, 2 the one behind it, as :attr:`AxleTable.unit`)."""
+        return -np.array([a.x for a in self._towed(unit).axles])
+
+    def _towed(self, unit: int) -> TrailerParams:
+        """The towed unit numbered ``unit`` (1 the first), or ``ValueError`` naming the range."""
+        if not 1 <= unit < self.n_units:
+            raise ValueError(f"unit {unit} is not a towed unit of {self.name!r} (1..{self.n_units - 1})")
+        return self.trailers[unit - 1]
 
     def axle_cornering_stiffness(self) -> np.ndarray:
         """Static cornering stiffness of every axle [N/rad], in ``axle_table`` order (tyres × per-tyre stiffness)."""
@@ -456,19 +463,22 @@ class VehicleParams(_Frozen):
             ]
         )
 
-    def equivalent_wheelbase(self, fixed_only: bool = False) -> float:
-        """Trailer equivalent wheelbase ``L_eq = ΣC_j L_j² / ΣC_j L_j`` [m] (docs/vehicle_dynamics.md §2.3).
+    def equivalent_wheelbase(self, fixed_only: bool = False, unit: int = 1) -> float:
+        """Equivalent wheelbase ``L_eq = ΣC_j L_j² / ΣC_j L_j`` [m] of a towed unit, from its front coupling
+        (docs/vehicle_dynamics.md §2.3).
 
-        Uses the static cornering stiffness of each trailer axle. With ``fixed_only`` only the
+        Uses the static cornering stiffness of each of the unit's axles. With ``fixed_only`` only the
         unsteerable axles count (the zero-slip point of a trailer whose steerable axles are
-        held straight still includes them; use ``False`` for an unsteered trailer).
+        held straight still includes them; use ``False`` for an unsteered trailer). ``unit``: 1 the first
+        towed unit (the default), 2 the one behind it, as :attr:`AxleTable.unit`.
         """
+        towed = self._towed(unit)
         table = self.axle_table
-        mask = table.unit == 1
+        mask = table.unit == unit
         if fixed_only:
             mask &= ~table.steerable
         stiff = self.axle_cornering_stiffness()[mask]
-        lengths = -(table.x_cg[mask] + self.trailer.cg_x)
+        lengths = -(table.x_cg[mask] + towed.cg_x)
         return float(np.sum(stiff * lengths**2) / np.sum(stiff * lengths))
 
     def tractor_wheelbase(self) -> float:

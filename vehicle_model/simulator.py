@@ -65,6 +65,16 @@ class VehicleState:
         return self.psi1 - self.gamma
 
     @property
+    def articulations(self) -> list[float]:
+        """Each towed unit's articulation against the unit ahead, front to rear: ``[Γ, Γ2, …]`` [rad]."""
+        return [self.gamma, *self.trailing[0::2].tolist()]
+
+    @property
+    def towed_yaw_rates(self) -> list[float]:
+        """Each towed unit's yaw rate, front to rear: ``[r2, r3, …]`` [rad/s]."""
+        return [self.r2, *self.trailing[1::2].tolist()]
+
+    @property
     def pose(self) -> CombinationPose:
         """Where the combination is: ``(X, Y, ψ1, Γ)``."""
         return CombinationPose(self.X, self.Y, self.psi1, self.gamma)

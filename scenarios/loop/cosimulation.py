@@ -208,12 +208,14 @@ class CoSimulation:
         self.estimators = context.estimators
         for name in setup.config.enabled_estimators():
             context.estimators[name] = estimator_entry(name).builder()(context)
-        feedback = self.trailer_steer.feedback
-        if feedback is not None and feedback not in self.estimators:
-            raise InputError(
-                f"the trailer-steer source feeds back {feedback!r}, which this run does not estimate; it runs "
-                f"{list(self.estimators)}"
-            )
+        further = self.further_units.estimate_names if self.further_units is not None else ()
+        offered = [*self.estimators, *further]
+        for feedback in getattr(self.trailer_steer, "feedbacks", (self.trailer_steer.feedback,)):
+            if feedback is not None and feedback not in offered:
+                raise InputError(
+                    f"the trailer-steer source feeds back {feedback!r}, which this run does not estimate; it runs "
+                    f"{offered}"
+                )
         self.trailer_steer.reset()
         self.cast: tuple[Any, ...] = (
             self.vehicle,
@@ -361,6 +363,8 @@ class CoSimulation:
         if self.further_units is not None:
             self.further_units.update(tick)
         estimates = {name: participant.update(tick) for name, participant in self.estimators.items()}
+        if self.further_units is not None:
+            estimates.update(self.further_units.estimates)
         command = self.driver.update(tick)
         self.breach: LimitBreach | None = None
         if not self.kinematic:

@@ -6,7 +6,11 @@ Units are numbered from the front: 1 the tractor or truck, 2 the unit it tows (r
 unit ahead (``gamma<k-1> = ψ_{k-1} − ψ_k``), yaw rate and heading, its front coupling (the kingpin or drawbar eye)
 and follow point, and ``offtracking_truth<k>``: de Saxe & Cebon's off-tracking applied to that unit — its follow
 point against the path of its own coupling — by the same buffer as the first trailer's truth
-(:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)), fed with the coupling's exact increments.
+(:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)), fed with the coupling's exact increments;
+and, when the run estimates zero-slip, ``offtracking_zero_slip<k>``: Cheng's estimate of the same unit from the
+tractor's signals and the articulation sensors (:class:`controller.zero_slip.ZeroSlipEstimator` with ``unit``).
+Both are offered to the trailer steering as estimates ``truth<k>`` and ``zero_slip<k>``
+(:func:`scenarios.unit_feedback.estimate_key`).
 """
 
 from __future__ import annotations
@@ -15,10 +19,12 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from controller.zero_slip import ZeroSlipEstimator
 from vehicle_model.geometry import follow_point_from_kingpin, trailer_frames
-from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses
+from vehicle_model.offtracking import OfftrackingBuffer, OfftrackingEstimate, increments_from_poses
 
 from ..setup.build import ScenarioSetup
+from ..unit_feedback import estimate_key
 from .participant import Column, TickInput
 
 __all__ = ["FurtherUnitsParticipant", "further_units", "truth_column"]
@@ -48,12 +54,18 @@ def _columns(unit: int) -> tuple[Column, ...]:
 
 
 class FurtherUnitsParticipant:
-    """The true state, coupling, follow point and off-tracking of every unit behind the first towed one.
+    """The true state, coupling, follow point and off-tracking of every unit behind the first towed one, and its
+    zero-slip estimate.
 
     Parameters
     ----------
     setup
         The built scenario (a combination of three or four units).
+
+    Attributes
+    ----------
+    estimates : dict
+        The tick's estimates of each unit, by key (``truth3``, ``zero_slip3``, …).
     """
 
     name = "further_units"
@@ -64,12 +76,33 @@ class FurtherUnitsParticipant:
         self.units = further_units(params.n_units)
         self.columns: tuple[Column, ...] = tuple(c for unit in self.units for c in _columns(unit))
         self.buffers = {unit: OfftrackingBuffer(params.trailers[unit - 2].follow_point_offset) for unit in self.units}
+        est = setup.config.estimators
+        self.zero_slip = (
+            {
+                unit: ZeroSlipEstimator(params, est.zero_slip_variant, est.zero_slip_rear_point, unit - 1)
+                for unit in self.units
+            }
+            if "zero_slip" in setup.config.enabled_estimators()
+            else {}
+        )
+        self.columns += tuple(
+            Column(f"offtracking_zero_slip{unit}", "m", f"unit {unit} zero-slip (Cheng) off-tracking")
+            for unit in self.zero_slip
+        )
         self._previous: dict[int, tuple[np.ndarray, float]] = {}
         self._row: dict[str, float] = {}
+        self.estimates: dict[str, OfftrackingEstimate] = {}
+
+    @property
+    def estimate_names(self) -> tuple[str, ...]:
+        """The keys of the estimates it offers (``truth3``, ``zero_slip3``, …)."""
+        truths = tuple(estimate_key("truth", unit - 1) for unit in self.units)
+        return (*truths, *(estimate_key("zero_slip", unit - 1) for unit in self.zero_slip))
 
     def update(self, tick: TickInput) -> None:
-        """Take the tick's state; push each unit's coupling increment into its buffer."""
+        """Take the tick's state and signals; push each unit's coupling increment into its buffer."""
         s = tick.state
+        estimates: dict[str, OfftrackingEstimate] = {}
         frames = trailer_frames(self.params, s.X, s.Y, s.psi1, [s.gamma, *s.trailing[0::2]])
         row: dict[str, float] = {}
         for unit in self.units:
@@ -95,7 +128,14 @@ class FurtherUnitsParticipant:
                     truth_column(unit): float("nan") if value is None else float(value),
                 }
             )
+            estimates[estimate_key("truth", unit - 1)] = OfftrackingEstimate.of(value)
+        for unit, estimator in self.zero_slip.items():
+            value = None if tick.index == 0 else estimator.update(tick.measured, tick.period)
+            estimate = OfftrackingEstimate.of(value)
+            estimates[estimate_key("zero_slip", unit - 1)] = estimate
+            row[f"offtracking_zero_slip{unit}"] = estimate.value
         self._row = row
+        self.estimates = estimates
 
     def record(self) -> Mapping[str, float]:
         """The tick's values."""

@@ -124,6 +124,7 @@ class SignalsParticipant:
             "trailer_yaw_rate": state.r2,
             "trailer_wheel_speed": trailer_axle_speed(self.params, state),
             "trailer_steer": steer[index] if index else np.zeros(0),
+            "rear_articulation": state.trailing[0::2],
         }
         self.measured = self.sensors.measure(time, truth)
         return self.measured

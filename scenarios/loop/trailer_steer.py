@@ -2,7 +2,8 @@
 
 * :class:`UnsteeredTrailer` — straight axles (feedback ``none``, and every kinematic scenario);
 * :class:`PathFollowingSteer` — the path-following PID (:class:`controller.path_following.TrailerSteeringController`)
-  fed by the estimate the configuration chooses (``feedback``);
+  on every steered towed unit, each fed by the estimate the configuration chooses for it (``feedback`` for the first
+  towed unit, ``rear_feedback`` for those behind it: :mod:`scenarios.unit_feedback`);
 * :class:`AgentSteer` — an agent's virtual-axle angle (the steering environment's action) through the
   controller's own output stage (:class:`controller.steer_output.TrailerSteerOutput`), so a zero correction
   of the PID's proposal gives the PID's commands exactly.
@@ -18,15 +19,15 @@ from collections.abc import Mapping
 import numpy as np
 
 from controller.axle_steer_distribution import tan_kingpin_direction
-from controller.path_following import TrailerSteeringController
+from controller.path_following import TrailerSteeringController, telemetry_prefix
 from controller.path_following_config import PathFollowingConfig
 from controller.steer_output import TrailerSteerOutput, speed_fade
 from vehicle_model.layout import Layout
 from vehicle_model.offtracking import OfftrackingEstimate
 from vehicle_model.parameters import VehicleParams
 
-from ..registry import NO_FEEDBACK
 from ..setup.build import ScenarioSetup
+from ..unit_feedback import steered_units
 from .participant import Column, TickInput, TrailerSteerSource
 
 __all__ = ["AgentSteer", "PathFollowingSteer", "UnsteeredTrailer", "trailer_axles", "trailer_steer_for"]
@@ -80,57 +81,89 @@ class UnsteeredTrailer:
 
 
 class PathFollowingSteer:
-    """The path-following PID on the estimate ``feedback``.
+    """The path-following PID of every steered towed unit, each on its own estimate.
 
     Parameters
     ----------
     controller
-        The controller (its gains, limits and output stage).
+        The controller of the first steered unit (its gains, limits and output stage).
     feedback
-        Name of the estimate it feeds back (an estimator of :mod:`scenarios.registry`).
+        Name of the estimate it feeds back (an estimator of :mod:`scenarios.registry`, or for a unit behind the
+        first towed one its key, :func:`scenarios.unit_feedback.estimate_key`).
+    rear
+        The controllers of further steered units and their estimates, front to rear.
+    axles
+        Every steerable towed axle, in the order of the commands (:func:`trailer_axles`); an axle no controller
+        steers is held straight. Default: the controllers' axles.
     """
 
     name = "trailer_steer"
 
-    def __init__(self, controller: TrailerSteeringController, feedback: str) -> None:
+    def __init__(
+        self,
+        controller: TrailerSteeringController,
+        feedback: str,
+        rear: tuple[tuple[TrailerSteeringController, str], ...] = (),
+        axles: tuple[str, ...] | None = None,
+    ) -> None:
         self.controller = controller
         self.feedback: str | None = feedback
-        axles = controller.axle_names
-        telemetry = (
-            Column("trailer_virtual_steer", "rad", "virtual-axle angle (feed-forward + feedback)"),
-            Column("trailer_feedforward_steer", "rad", "its feed-forward part"),
-            Column("trailer_feedback_steer", "rad", "its feedback part"),
-            Column("trailer_integral", "m²", "∫e ds of the PID"),
-            Column("trailer_fade", "-", "speed fade of the commands"),
-            Column("trailer_estimate_used", "m", "the held estimate the PID used (NaN: none)"),
-        )
-        limits = tuple(
-            column
-            for name in axles
-            for column in _limit_columns((name,), ("saturated", "rate_limited", "slip_limited"))
-        )
-        self.columns: tuple[Column, ...] = (*_steer_columns(axles), *telemetry, *limits)
-        self._steer_names = tuple(f"steer_{name}" for name in axles)
+        self.steered = ((controller, feedback), *rear)
+        self.feedbacks = tuple(name for _, name in self.steered)
+        own = tuple(n for ctrl, _ in self.steered for n in ctrl.axle_names)
+        self.axles = own if axles is None else tuple(axles)
+        index = {name: i for i, name in enumerate(self.axles)}
+        self._slots = [np.array([index[n] for n in ctrl.axle_names], dtype=int) for ctrl, _ in self.steered]
+        columns: list[Column] = list(_steer_columns(self.axles))
+        for ctrl, _ in self.steered:
+            p = telemetry_prefix(ctrl.unit)
+            columns += [
+                Column(f"{p}virtual_steer", "rad", "virtual-axle angle (feed-forward + feedback)"),
+                Column(f"{p}feedforward_steer", "rad", "its feed-forward part"),
+                Column(f"{p}feedback_steer", "rad", "its feedback part"),
+                Column(f"{p}integral", "m²", "∫e ds of the PID"),
+                Column(f"{p}fade", "-", "speed fade of the commands"),
+                Column(f"{p}estimate_used", "m", "the held estimate the PID used (NaN: none)"),
+            ]
+        for ctrl, _ in self.steered:
+            columns += [
+                column
+                for name in ctrl.axle_names
+                for column in _limit_columns((name,), ("saturated", "rate_limited", "slip_limited"))
+            ]
+        self.columns: tuple[Column, ...] = tuple(columns)
+        self._commands = np.zeros(len(self.axles))
 
     @classmethod
     def configured(cls, setup: ScenarioSetup, feedback: str | None = None) -> PathFollowingSteer:
-        """The configured controller (``controller`` section) on ``feedback`` (default: the configured one)."""
+        """The configured controllers (``controller`` section) on every steered unit: the first towed unit on
+        ``feedback`` (default: the configured one), the units behind it on ``rear_feedback``."""
         cfg = setup.config
         settings = cfg.controller.path_following(cfg.rates.control_hz)
-        return cls(TrailerSteeringController(setup.params, settings), feedback or cfg.feedback)
+        units = steered_units(setup.params, feedback or cfg.feedback, cfg.rear_feedback)
+        controllers = tuple((TrailerSteeringController(setup.params, settings, unit), key) for unit, key in units)
+        return cls(*controllers[0], rear=controllers[1:], axles=trailer_axles(setup))
 
     def reset(self) -> None:
-        """Straight axles, empty integrator."""
-        self.controller.reset()
+        """Straight axles, empty integrators."""
+        for ctrl, _ in self.steered:
+            ctrl.reset()
+        self._commands = np.zeros(len(self.axles))
 
     def command(self, tick: TickInput, estimates: Mapping[str, OfftrackingEstimate]) -> np.ndarray:
-        """The PID's commands on this tick's estimate."""
-        return self.controller(tick.state, estimates.get(self.feedback))  # type: ignore[arg-type]
+        """Each PID's commands on this tick's estimate of its unit."""
+        commands = np.zeros(len(self.axles))
+        for (ctrl, feedback), slots in zip(self.steered, self._slots, strict=True):
+            commands[slots] = ctrl(tick.state, estimates.get(feedback))  # type: ignore[arg-type]
+        self._commands = commands
+        return commands.copy()
 
     def record(self) -> Mapping[str, float]:
-        """Commands and the controller's internals."""
-        ctrl = self.controller
-        return {**dict(zip(self._steer_names, ctrl.commands.tolist(), strict=True)), **ctrl.telemetry()}
+        """Commands and the controllers' internals."""
+        row = {f"steer_{name}": float(v) for name, v in zip(self.axles, self._commands, strict=True)}
+        for ctrl, _ in self.steered:
+            row.update(ctrl.telemetry())
+        return row
 
 
 class AgentSteer:
@@ -211,8 +244,10 @@ class AgentSteer:
 
 
 def trailer_steer_for(setup: ScenarioSetup) -> TrailerSteerSource:
-    """The configured trailer-steer source: the PID on ``feedback``, or straight axles (``none``, kinematic)."""
+    """The configured trailer-steer source: the PID of every steered unit on its feedback, or straight axles (no
+    unit steered, or a kinematic scenario)."""
     axles = trailer_axles(setup)
-    if setup.config.feedback == NO_FEEDBACK or setup.kinematic_slip is not None or not axles:
+    cfg = setup.config
+    if setup.kinematic_slip is not None or not steered_units(setup.params, cfg.feedback, cfg.rear_feedback):
         return UnsteeredTrailer(axles)
     return PathFollowingSteer.configured(setup)

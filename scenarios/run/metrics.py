@@ -3,6 +3,7 @@ verdict, the swept-path width (:mod:`.swept_geometry`) and the run's own verdict
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
@@ -70,11 +71,13 @@ def estimator_errors(truth: np.ndarray, estimate: np.ndarray, std: np.ndarray | 
     return out
 
 
-def feedback_fallback(columns: dict[str, np.ndarray], settled: np.ndarray) -> dict[str, float] | None:
-    """Share and seconds of the ticks after warm-up on which the trailer controller had no usable estimate
-    (``trailer_estimate_used`` NaN: none, or its std above ``controller.feedback_max_std_m``); ``None`` when the
-    run recorded no such column (an unsteered run)."""
-    used = columns.get("trailer_estimate_used")
+def feedback_fallback(
+    columns: dict[str, np.ndarray], settled: np.ndarray, used_column: str = "trailer_estimate_used"
+) -> dict[str, float] | None:
+    """Share and seconds of the ticks after warm-up on which a unit's controller had no usable estimate
+    (``used_column`` NaN: none, or its std above ``controller.feedback_max_std_m``; ``unit<k>_estimate_used`` for
+    unit ``k`` behind the first towed one); ``None`` when the run recorded no such column (an unsteered unit)."""
+    used = columns.get(used_column)
     if used is None or not settled.any():
         return None
     time = columns["time"]
@@ -174,12 +177,17 @@ def compute_metrics(
     *,
     reference: np.ndarray | None = None,
     turn_centre: tuple[float, float] | None = None,
+    rear_feedback: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """The ``metrics.json`` content of a run (without timing and status).
 
     With the ``reference`` path ``(m, 2)`` it also holds ``swept_path``, the swept-path width over the assessed turn
     (:func:`~scenarios.run.swept_geometry.swept_path_metrics`): radial about ``turn_centre`` (a roundabout's
     centre), or across the reference path when that is None.
+
+    ``rear_feedback`` is the feedback of each unit behind the first towed one (``none`` where it is not steered,
+    :func:`scenarios.unit_feedback.rear_feedbacks`): a steered one is judged by the same verdict as the first, on
+    its own off-tracking, and its flags are merged into the run's, each reason naming the unit.
 
     ``valid_fraction`` means one thing everywhere: the share of the ticks *on which the truth exists* (it
     starts once the kingpin has driven one trailer length) on which that source had a value; for the truth
@@ -192,7 +200,7 @@ def compute_metrics(
     geometric = columns["offtracking_truth_geometric"]
     both = np.isfinite(truth) & np.isfinite(geometric)
     settled = after_warmup(columns, params.follow_point_offset)
-    steerable = [a.name for a in params.trailer.axles if a.steerable]
+    steerable = [a.name for unit in params.trailers for a in unit.axles if a.steerable]
     metrics: dict[str, Any] = {
         "scenario": scenario,
         "feedback": feedback,
@@ -219,9 +227,23 @@ def compute_metrics(
     fallback = feedback_fallback(columns, settled) if feedback != "none" else None
     if fallback is not None:
         metrics["feedback_fallback"] = fallback
-    metrics["verdict"] = run_verdict(
+    verdict = run_verdict(
         feedback, metrics["offtracking"]["truth_after_warmup"], metrics["offtracking"]["estimators"], fallback
     )
+    for unit, unit_feedback in enumerate(rear_feedback, start=3):
+        unit_metrics = units.get(str(unit))
+        if unit_feedback == "none" or unit_metrics is None:
+            continue
+        unit_fallback = feedback_fallback(columns, settled, f"unit{unit}_estimate_used")
+        if unit_fallback is not None:
+            unit_metrics["feedback_fallback"] = unit_fallback
+        settled_truth = {"rms": unit_metrics["rms_after_warmup"], "max_abs": unit_metrics["max_abs_after_warmup"]}
+        unit_verdict = run_verdict(unit_feedback, settled_truth, unit_metrics["estimators"], unit_fallback)
+        verdict["flags"] += [{**f, "reason": f"unit {unit}: {f['reason']}"} for f in unit_verdict["flags"]]
+        verdict["held"] = not verdict["flags"]
+    metrics["verdict"] = verdict
+    if rear_feedback:
+        metrics["rear_feedback"] = list(rear_feedback)
     camera = camera_frame_metrics(columns)
     if camera is not None:
         metrics["camera"] = camera
@@ -252,19 +274,25 @@ def further_unit_offtracking(
     params: VehicleParams, columns: dict[str, np.ndarray], settled: np.ndarray
 ) -> dict[str, dict[str, float]]:
     """Each further unit's true off-tracking (against its own coupling's path): RMS and largest, over the run and
-    after the warm-up of the first towed unit once the unit's own is defined, by unit number (``"3"``, ``"4"``)."""
-    out = {}
+    after the warm-up of the first towed unit once the unit's own is defined, and the errors of each estimate of
+    that unit (``offtracking_<name><k>``) against it, by unit number (``"3"``, ``"4"``)."""
+    out: dict[str, dict[str, Any]] = {}
     for unit in range(3, params.n_units + 1):
         truth = np.asarray(columns.get(f"offtracking_truth{unit}", np.zeros(0)), dtype=float)
         if truth.shape != settled.shape:
             continue
         after = settled & np.isfinite(truth)
+        estimates = {
+            name.removesuffix(str(unit)): np.asarray(columns[f"offtracking_{name}"], dtype=float)
+            for name in unit_estimator_names(columns, unit)
+        }
         out[str(unit)] = {
             "rms": rms(truth),
             "max_abs": max_abs(truth),
             "rms_after_warmup": rms(truth[after]),
             "max_abs_after_warmup": max_abs(truth[after]),
             "defined_fraction": float(np.isfinite(truth).mean()) if truth.size else 0.0,
+            "estimators": {name: estimator_errors(truth, values) for name, values in estimates.items()},
         }
     return out
 
@@ -321,10 +349,35 @@ def camera_frame_metrics(columns: dict[str, np.ndarray]) -> dict[str, Any] | Non
 
 
 def estimator_names(columns: dict[str, np.ndarray]) -> list[str]:
-    """The estimators recorded in a run's columns (``offtracking_<name>`` other than the two truths and the
-    standard deviations ``offtracking_<name>_std``)."""
+    """The estimators of the first towed unit recorded in a run's columns (``offtracking_<name>`` other than the
+    truths, the standard deviations ``offtracking_<name>_std`` and the estimates of further units,
+    :func:`unit_estimator_names`)."""
+    further = {name for unit in _further_units(columns) for name in unit_estimator_names(columns, unit)}
     return [
         c.removeprefix("offtracking_")
         for c in columns
-        if c.startswith("offtracking_") and not c.startswith("offtracking_truth") and not c.endswith("_std")
+        if c.startswith("offtracking_")
+        and not c.startswith("offtracking_truth")
+        and not c.endswith("_std")
+        and c.removeprefix("offtracking_") not in further
+    ]
+
+
+def _further_units(columns: dict[str, np.ndarray]) -> list[int]:
+    """The units behind the first towed one whose truth the run recorded (``offtracking_truth<k>``)."""
+    return [int(c.removeprefix("offtracking_truth")) for c in columns if re.fullmatch(r"offtracking_truth[3-9]", c)]
+
+
+def unit_estimator_names(columns: dict[str, np.ndarray], unit: int) -> list[str]:
+    """The estimates of unit ``unit`` (behind the first towed one) recorded in a run's columns, as ``<name><k>``
+    (``zero_slip3``: column ``offtracking_zero_slip3``)."""
+    suffix = str(unit)
+    return [
+        c.removeprefix("offtracking_")
+        for c in columns
+        if c.startswith("offtracking_")
+        and c.endswith(suffix)
+        and not c.startswith("offtracking_truth")
+        and c.removeprefix("offtracking_").removesuffix(suffix).isidentifier()
+        and not c.removeprefix("offtracking_").removesuffix(suffix)[-1:].isdigit()
     ]

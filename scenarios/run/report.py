@@ -23,6 +23,7 @@ import numpy as np
 
 from ..config import ScenarioConfig
 from ..loop.ends import RunStatus
+from ..unit_feedback import rear_feedbacks
 from .metrics import after_warmup, compute_metrics, estimator_names
 from .results import plot_files, read_config, read_metrics, read_timeseries, write_metrics
 from .stopping import deferred_stops, raise_pending_stop, stop_message, stop_signal_name
@@ -149,6 +150,7 @@ def write_report(
             setup.path.turn_span,
             reference=setup.path.points,
             turn_centre=turn_centre(setup.path.centres),
+            rear_feedback=rear_feedbacks(setup.params, config.feedback, config.rear_feedback),
         )
         metrics.update({key: None for key in RUN_FIELDS})
         metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})

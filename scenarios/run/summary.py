@@ -56,9 +56,12 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
         table.add_row(
             label, number(truth.get("rms")), number(truth.get("max_abs")), f"{number(defined, '.0%')} defined"
         )
-    for name, err in (offtracking.get("estimators") or {}).items():
+    errors = {f"{name} error": err for name, err in (offtracking.get("estimators") or {}).items()}
+    for unit, truth in (offtracking.get("units") or {}).items():
+        errors.update({f"unit {unit} {name} error": err for name, err in (truth.get("estimators") or {}).items()})
+    for label, err in errors.items():
         table.add_row(
-            f"{name} error",
+            label,
             number(err.get("rms_error")),
             number(err.get("max_abs_error")),
             f"{number(err.get('valid_fraction'), '.0%')} valid",
@@ -111,7 +114,7 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
                 "[green]held[/]: "
                 + (
                     "off-tracking within target on a trusted estimate"
-                    if metrics.get("feedback") != "none"
+                    if any(f != "none" for f in (metrics.get("feedback"), *(metrics.get("rear_feedback") or ())))
                     else "nothing to hold (unsteered)"
                 )
             )

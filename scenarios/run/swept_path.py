@@ -382,7 +382,7 @@ def _mark_extremes(ax: Axes, centre: tuple[float, float], ext: dict[str, Any], z
     """Mark both extreme points; label them outside the outer circle (main panel) or in the corner (``zoom``)."""
     for key, limit, colour, unit, word in (
         ("outer", ROUNDABOUT_OUTER_RADIUS, TRACTOR_COLOUR, "tractor", "max"),
-        ("inner", ROUNDABOUT_INNER_RADIUS, TRAILER_COLOUR, "trailer", "min"),
+        ("inner", ROUNDABOUT_INNER_RADIUS, TRAILER_COLOUR, _inner_name(ext), "min"),
     ):
         point = np.asarray(ext[f"{key}_point"], dtype=float)
         radius = ext["outer_radius_max" if key == "outer" else "inner_radius_min"]
@@ -574,7 +574,8 @@ def swept_path_figure(
             )
         else:
             effect = float(ext[f"{kind}_margin"])  # the distance from the point to its limit circle
-            ax.set_title(f"{'tractor outermost' if kind == 'outer' else 'trailer innermost'} point", fontsize=10)
+            which = "tractor outermost" if kind == "outer" else f"{_inner_name(ext)} innermost"
+            ax.set_title(f"{which} point", fontsize=10)
         zoom_to(ax, point, zoom_half_width(effect))
     if ext is not None:
         for ax in (main, *zooms):

@@ -39,7 +39,7 @@ CompareProgress = Callable[[str, float, float], None]
 
 
 def summary_row(feedback: str, metrics: dict[str, Any]) -> dict[str, Any]:
-    """One table row from a run's metrics."""
+    """One table row from a run's metrics (the first towed unit's true off-tracking, then each further unit's)."""
     settled = metrics["offtracking"]["truth_after_warmup"]
     steering = metrics.get("trailer_steering") or {}
     test = metrics.get("roundabout_test")
@@ -53,6 +53,11 @@ def summary_row(feedback: str, metrics: dict[str, Any]) -> dict[str, Any]:
         "roundabout_pass": None if test is None else test["pass"],
         "outer_radius_max_m": None if test is None else test["outer_radius_max"],
         "inner_radius_min_m": None if test is None else test["inner_radius_min"],
+        **{  # each unit behind the first towed one, against its own coupling's path
+            f"unit{unit}_true_offtracking_{kind}_m": truth[f"{key}_after_warmup"]
+            for unit, truth in (metrics["offtracking"].get("units") or {}).items()
+            for kind, key in (("rms", "rms"), ("max", "max_abs"))
+        },
     }
 
 

@@ -9,6 +9,7 @@ rich prints the brackets instead of reading them as markup.
 
 from __future__ import annotations
 
+import re
 import textwrap
 from collections.abc import Sequence
 from typing import Any
@@ -110,6 +111,9 @@ def header_for(column: str) -> str:
     """The header of a column, with its unit in brackets (``viso_ot_rms_error_m`` → ``VISO-OT err RMS [m]``)."""
     if column in HEADERS:
         return HEADERS[column]
+    unit = re.fullmatch(r"unit(\d)_(true_offtracking_(?:rms|max)_m)", column)
+    if unit:  # a unit behind the first towed one (offtrack compare of a longer combination)
+        return f"unit {unit[1]} {HEADERS[unit[2]]}"
     for suffix, unit in UNIT_SUFFIXES:
         if column.endswith(suffix) and len(column) > len(suffix):
             return f"{column.removesuffix(suffix).replace('_', ' ')} [{unit}]"
