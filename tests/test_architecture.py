@@ -31,6 +31,7 @@ SCENARIO_ROOMS: tuple[str, ...] = (
     "camera_schema",
     "camera_checks",
     "registry",
+    "unit_feedback",
     "config",
     "config_fields",
     "catalogue",

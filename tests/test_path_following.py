@@ -272,7 +272,7 @@ def test_fixed_axle_compensation_balances_the_yaw_moment_about_the_kingpin():
 
 
 def test_errors_are_clear():
-    with pytest.raises(InputError, match="no steerable trailer axle"):
+    with pytest.raises(InputError, match="no steerable axle on towed unit 1"):
         TrailerSteeringController(reference_laden())
     with pytest.raises(ConfigError, match="feedback = 'gps': must be one of none, zero_slip, viso_ot, viso_ot_fused"):
         load_scenario("roundabout-3", {"vehicle": "lst", "feedback": "gps"})

@@ -74,10 +74,10 @@ _WHILE_THE_METRICS_ARE_COMPUTED = """
 import os, time
 import scenarios.run.report as report
 compute = report.compute_metrics
-def stop_then_compute(*args):
+def stop_then_compute(*args, **kwargs):
     os.kill(os.getpid(), SIGNAL)  # the simulation is over; its metrics are not written yet
     time.sleep(0.5)
-    return compute(*args)
+    return compute(*args, **kwargs)
 report.compute_metrics = stop_then_compute
 """
 

@@ -486,7 +486,10 @@ def test_study_with_one_and_two_workers_gives_identical_tables_and_runs(tmp_path
         assert result.returncode == 0, result.stderr
     names = [spec.name for spec in TINY] + ([RENDERED_CASE] if rendered else [])
     records = [read_record(two, name) for name in names]
-    assert len({r.worker["pid"] for r in records}) == 2, "two worker processes ran the cases"
+    # Worker processes ran the cases (never more than two); which one takes which case depends on how fast each
+    # starts, so on a loaded machine the first one up may run all three.
+    assert 1 <= len({r.worker["pid"] for r in records}) <= 2
+    assert not {r.worker["pid"] for r in records} & {read_record(one, n).worker["pid"] for n in names}
     tables = [pd.read_parquet(out / "table.parquet") for out in (one, two)]
     assert list(tables[0].columns) == list(tables[1].columns) and "wall_time_s" in tables[0].columns
     assert len(tables[0]) == len(names) and (tables[0]["status"] == "completed").all()

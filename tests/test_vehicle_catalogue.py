@@ -291,7 +291,7 @@ def test_set_reaches_an_axle_of_a_preset() -> None:
 
 
 def test_steering_feedback_needs_a_steerable_axle_of_the_vehicle_given() -> None:
-    with pytest.raises(ConfigError, match="no steerable trailer axle"):
+    with pytest.raises(ConfigError, match="no steerable axle on its first towed unit"):
         load_scenario("roundabout-test", {"vehicle": "reference", "feedback": "truth"})
     config = load_scenario(
         "roundabout-test", {"vehicle": "reference", "vehicle.units[1].axles[2].steerable": True, "feedback": "truth"}
