@@ -859,3 +859,7 @@ def main() -> None:
     """
     handle_sigterm()
     app(prog_name="offtrack")
+
+
+if __name__ == "__main__":  # python -m scenarios.cli, the same as the offtrack script
+    main()

@@ -92,6 +92,19 @@ def stop_then_close(self):
 recording.RowRecorder.close = stop_then_close
 """
 
+_WHILE_A_PART_IS_WRITTEN = """
+import os, time
+import scenarios.run.results as results
+write_part, parts = results.TimeSeriesWriter._write_part, [0]
+def write_then_stop(self, data):
+    write_part(self, data)
+    parts[0] += 1
+    if parts[0] == 1:  # the part is on disk; its rows are not yet marked written
+        os.kill(os.getpid(), SIGNAL)
+        time.sleep(0.2)
+results.TimeSeriesWriter._write_part = write_then_stop
+"""
+
 
 def _run_with(patch: str, signum: int, chained: bool, out: Path) -> subprocess.CompletedProcess:
     code = textwrap.dedent(_IN_A_C_CALLBACK) + patch.replace("SIGNAL", str(signum)).replace("CHAINED", str(chained))
@@ -167,6 +180,23 @@ def test_a_stop_at_the_end_of_a_run_waits_for_its_files(tmp_path: Path, where: s
     assert metrics["simulated_s"] == pytest.approx(20.0, abs=0.05)
     assert len(pd.read_parquet(out / "timeseries.parquet")) == metrics["rows"]
     assert not (out / "plan_view.png").exists()  # the stop took effect right after: no plots drawn
+
+
+@pytest.mark.parametrize("signum", [15, 2])
+def test_a_stop_while_a_row_is_recorded_keeps_every_row_once(tmp_path: Path, signum: int) -> None:
+    # A stop that lands after a part file is written but before its rows are marked written once left those rows
+    # in the series twice (1000 rows against 499 in metrics.json): recording a row holds the stop until it is done.
+    out = tmp_path / "r"
+    result = _run_with(_WHILE_A_PART_IS_WRITTEN, signum, False, out)
+    assert result.returncode == (143 if signum == 15 else 130), result.stderr
+    assert "Traceback" not in result.stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "interrupted"
+    frame = pd.read_parquet(out / "timeseries.parquet")
+    assert 0 < len(frame) == metrics["rows"] < 1000
+    assert frame["time"].is_monotonic_increasing and frame["time"].is_unique
+    step = frame["time"].diff().dropna()
+    assert step.max() < 0.021  # no row missing: one per 20 ms control tick
 
 
 def test_deferred_stops_hold_handled_signals_and_leave_ignored_ones() -> None:

@@ -18,6 +18,7 @@ from typing import Protocol
 import numpy as np
 
 from .participant import PendingValues
+from .stop_hold import held_stops
 
 __all__ = ["RowRecorder", "RowSink"]
 
@@ -80,10 +81,11 @@ class RowRecorder:
     def _write(self, row: dict[str, float], pending: list[PendingValues]) -> None:
         for part in pending:
             row.update(part.values())
-        recorded = self.recorded
-        nan = math.nan
-        for key in self.columns:
-            recorded[key].append(float(row.get(key, nan)))
-        if self.sink is not None:
-            self.sink.append(row)
-        self.rows += 1
+        with held_stops():  # the file and the columns in memory get the row both or neither
+            recorded = self.recorded
+            nan = math.nan
+            for key in self.columns:
+                recorded[key].append(float(row.get(key, nan)))
+            if self.sink is not None:
+                self.sink.append(row)
+            self.rows += 1

@@ -17,6 +17,8 @@ import threading
 from collections.abc import Iterator
 from types import FrameType
 
+from ..loop.stop_hold import stops_held
+
 EXIT_INTERRUPTED = 130
 """Exit code after Ctrl-C (128 + SIGINT)."""
 EXIT_TERMINATED = 143
@@ -34,12 +36,14 @@ a signal is delivered to the process and its handler has nowhere else to leave i
 
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:
     _pending.append(Terminated)
-    raise Terminated("stopped by SIGTERM")
+    if not stops_held():  # else raised at the next check (scenarios.loop.stop_hold)
+        raise Terminated("stopped by SIGTERM")
 
 
 def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
     _pending.append(KeyboardInterrupt)
-    raise KeyboardInterrupt
+    if not stops_held():
+        raise KeyboardInterrupt
 
 
 def _unraisable(hook: object) -> object:
