@@ -4,9 +4,9 @@
 * :class:`PathFollowingSteer` — the path-following PID (:class:`controller.path_following.TrailerSteeringController`)
   on every steered towed unit, each fed by the estimate the configuration chooses for it (``feedback`` for the first
   towed unit, ``rear_feedback`` for those behind it: :mod:`scenarios.unit_feedback`);
-* :class:`AgentSteer` — an agent's virtual-axle angle (the steering environment's action) through the
-  controller's own output stage (:class:`controller.steer_output.TrailerSteerOutput`), so a zero correction
-  of the PID's proposal gives the PID's commands exactly.
+* :class:`AgentSteer` — an agent's virtual-axle angle per steered towed unit (the steering environment's action)
+  through the controller's own output stage of that unit (:class:`controller.steer_output.TrailerSteerOutput`), so a
+  zero correction of each PID's proposal gives the PIDs' commands exactly.
 
 Each is a :class:`~.participant.TrailerSteerSource`: it records ``steer_<axle>`` of every steerable trailer axle
 and its own internals.
