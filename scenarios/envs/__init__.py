@@ -4,9 +4,9 @@ Importing this package registers (idempotently, with string entry points, so tha
 works in spawned worker processes and vector environments):
 
 * ``offtrack/TrailerSteering-v0`` (:class:`~scenarios.envs.steering_env.TrailerSteeringEnv`): one step per
-  control period, the action steers the trailer's virtual axle; ``max_episode_steps`` 5000;
+  control period, the action steers the virtual axle of every steered towed unit; ``max_episode_steps`` 5000;
 * ``offtrack/GainTuning-v0`` (:class:`~scenarios.envs.gain_tuning_env.GainTuningEnv`): one step per
-  episode, the action chooses the path-following PID gains.
+  episode, the action chooses the path-following PID gains of every steered towed unit.
 
 In a fresh process, either import this package first or name it in the id:
 ``gymnasium.make("scenarios.envs:offtrack/TrailerSteering-v0")`` imports it, then makes the environment.

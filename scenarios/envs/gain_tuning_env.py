@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar, Literal
 
 import gymnasium as gym
@@ -17,17 +17,19 @@ from vehicle_model.geometry import follow_point_from_kingpin
 
 from ..loop.cosimulation import CoSimulation
 from ..loop.ends import ENVIRONMENT_LIMITS, Limits, RunStatus
-from ..loop.trailer_steer import PathFollowingSteer
+from ..loop.trailer_steer import PathFollowingSteer, trailer_axles
 from ..run.drive import run_loop
 from ..run.metrics import after_warmup, max_abs, rms
 from ..setup.build import ScenarioSetup
 from ..setup.models import rebuild_setup
+from ..unit_feedback import steered_units
 from .plan_view import check_render_mode, draw_plan_view
 from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, FeedbackSource, ScenarioChoice
 from .sensors import SensorMode
+from .units import EnvUnits, check_episode_units, check_units
 from .validation import check_choice
 
-__all__ = ["GAIN_RANGES", "GainTuningEnv", "action_to_gains", "gains_to_action"]
+__all__ = ["GAIN_RANGES", "GainTuningEnv", "action_to_gains", "action_to_unit_gains", "gains_to_action", "unit_figures"]
 
 GAIN_RANGES: dict[str, tuple[float, float]] = {"kp": (0.01, 3.0), "ki": (0.001, 1.0), "kd": (0.001, 3.0)}
 """Ranges of the gains the action spans (log-scaled): ``kp`` [rad/m], ``ki`` [rad/m²], ``kd`` [rad], per metre
@@ -50,6 +52,22 @@ def action_to_gains(action: np.ndarray, ranges: Mapping[str, tuple[float, float]
     return PathFollowingGains(**values)
 
 
+def action_to_unit_gains(
+    action: np.ndarray, n: int, ranges: Mapping[str, tuple[float, float]] = GAIN_RANGES
+) -> tuple[PathFollowingGains, ...]:
+    """Normalised action ``a ∈ [-1, 1]^(3n)`` → one gain set per steered unit, front to rear: entries ``3i … 3i + 2``
+    are unit ``i``'s ``(kp, ki, kd)``, each as :func:`action_to_gains`."""
+    a = np.asarray(action, dtype=float).reshape(-1)
+    if n == 1:
+        return (action_to_gains(a, ranges),)
+    if a.size != 3 * n:
+        raise InputError(
+            f"action = {action!r} must be {3 * n} finite numbers in [-1, 1]: (kp, ki, kd) of each of the {n} steered "
+            "units, front to rear"
+        )
+    return tuple(action_to_gains(a[3 * i : 3 * i + 3], ranges) for i in range(n))
+
+
 def gains_to_action(gains: PathFollowingGains, ranges: Mapping[str, tuple[float, float]] = GAIN_RANGES) -> np.ndarray:
     """Gains → normalised action (inverse of :func:`action_to_gains`; gains outside the ranges are clipped)."""
     out = []
@@ -57,6 +75,24 @@ def gains_to_action(gains: PathFollowingGains, ranges: Mapping[str, tuple[float,
         value = max(getattr(gains, name), lo)
         out.append(2.0 * math.log(value / lo) / math.log(hi / lo) - 1.0)
     return np.clip(np.array(out, dtype=np.float32), -1.0, 1.0)
+
+
+def unit_figures(columns: dict[str, np.ndarray], settled: np.ndarray, unit: int) -> dict[str, float]:
+    """RMS and largest true off-tracking [m] and RMS feedback steer [rad] of unit ``unit`` of the combination (3 or
+    4: behind the first towed one), over the first towed unit's settled samples on which the unit's own
+    off-tracking exists (0.0 when none; the feedback steer 0.0 when the unit is not steered)."""
+    truth = np.asarray(columns.get(f"offtracking_truth{unit}", np.full(settled.size, np.nan)), dtype=float)
+    after = settled & np.isfinite(truth)
+    feedback = np.asarray(columns.get(f"unit{unit}_feedback_steer", np.zeros(settled.size)), dtype=float)
+
+    def finite(x: float) -> float:
+        return x if math.isfinite(x) else 0.0
+
+    return {
+        "rms_offtracking": finite(rms(truth[after])),
+        "max_offtracking": finite(max_abs(truth[after])),
+        "rms_feedback_steer": finite(rms(feedback[after])),
+    }
 
 
 def episode_figures(columns: dict[str, np.ndarray], follow_point_offset: float) -> dict[str, float]:
@@ -96,11 +132,19 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
     roundabout at 15 km/h with the ``lst`` trailer, about 0.5 s of computing per step with ``truth`` feedback.
     Calling ``step`` again before ``reset`` evaluates other gains on the same draw (same seed).
 
+    Any combination can be tuned (docs/vehicles.md): every steered towed unit — the first on ``feedback`` when it
+    has a steerable axle, each unit behind it on its ``rear_feedback`` (:func:`scenarios.unit_feedback.steered_units`)
+    — runs its own PID, and the action holds one gain set per steered unit. One set per unit, not one shared, is
+    the design: each unit's loop has its own geometry (virtual axle, follow point; the designed gains are placed
+    per unit) and its own estimate, and a shared set is the special case of equal entries. A tractor–semi-trailer
+    has ``n = 1``: everything below then reads as for one trailer.
+
     ## Action Space
 
-    ``Box(-1, 1, (3,), float32)``: ``(kp, ki, kd)`` normalised on a log scale over :data:`GAIN_RANGES`,
+    ``Box(-1, 1, (3n,), float32)`` for ``n`` steered towed units (``Box(-1, 1, (3,))`` for a tractor–semi-trailer):
+    ``(kp, ki, kd)`` of each steered unit, front to rear, normalised on a log scale over :data:`GAIN_RANGES`,
     ``g = lo·(hi/lo)^((a + 1)/2)``: ``kp`` 0.01–3 rad/m, ``ki`` 0.001–1 rad/m², ``kd`` 0.001–3 rad (per metre
-    travelled). :func:`action_to_gains` and :func:`gains_to_action` convert.
+    travelled). :func:`action_to_gains`, :func:`action_to_unit_gains` and :func:`gains_to_action` convert.
 
     ## Observation Space
 
@@ -111,15 +155,20 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ``reward = −cost`` with::
 
-        cost = RMS(e_tr after warm-up) [m] + w_effort·RMS(δ_fb) [rad] + w_sat·(saturated fraction)
+        cost = mean_k RMS(e_k after warm-up) [m] + w_effort·mean_k RMS(δ_fb,k) [rad] + w_sat·(saturated fraction)
                + failure_cost·(run terminated)
 
-    ``e_tr`` the **true** off-tracking, warm-up one trailer length after it first exists
-    (:func:`scenarios.run.metrics.after_warmup`), ``δ_fb`` the PID's part of the virtual-axle steer, the
-    saturated fraction the share of settled ticks on which an axle hit ±δ_max. Defaults
-    ``w_effort = 0.1 m/rad``, ``w_sat = 0.5 m``, ``failure_cost = 5 m``. The parts and the run's figures are in
-    ``info`` (``cost_*``, ``rms_offtracking``, ``max_offtracking``, ``saturated_fraction``, ``status``, the gains).
-    The run is :func:`scenarios.run.drive.run_loop` on the co-simulation of ``offtrack run``.
+    the means over the ``n`` steered units (for ``n = 1`` the single trailer's ``RMS(e_tr)`` and ``RMS(δ_fb)``):
+    ``e_k`` the **true** off-tracking of unit ``k`` against its own coupling's path, warm-up one trailer length
+    after the first towed unit's first exists (:func:`scenarios.run.metrics.after_warmup`), ``δ_fb,k`` the part
+    of unit ``k``'s virtual-axle steer its PID's feedback makes, the saturated fraction the share of settled ticks
+    on which any axle hit ±δ_max. Defaults ``w_effort = 0.1 m/rad``, ``w_sat = 0.5 m``, ``failure_cost = 5 m``.
+    The parts and the run's figures are in ``info`` (``cost_*``, ``rms_offtracking``, ``max_offtracking``,
+    ``rms_feedback_steer`` — the first towed unit's —, ``saturated_fraction``, ``status``, the gains ``kp``,
+    ``ki``, ``kd`` of the first steered unit and ``unit<k>_kp``, … of each further steered unit ``k``; for a
+    longer combination ``units``: :func:`unit_figures` of each unit behind the first towed one, by its number).
+    The run is :func:`scenarios.run.drive.run_loop` on the co-simulation of ``offtrack run``; a run ends early
+    when any towed unit breaks a limit (:meth:`~scenarios.loop.ends.Limits.check_units`).
 
     ## Starting State
 
@@ -133,13 +182,22 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Arguments
 
-    The scenario arguments of ``offtrack/TrailerSteering-v0`` (``scenario``, ``overrides``, ``feedback``, ``vehicle``,
+    The scenario arguments of ``offtrack/TrailerSteering-v0`` (``scenario``, ``overrides``, ``feedback``,
+    ``rear_feedback``, ``vehicle``,
     ``mu``, ``camber_percent``, ``camber_direction``, ``speed_kmh``, ``direction``, ``randomise``, ``sensors``, the
     limits, all validated at construction), and
     ``effort_weight``, ``saturation_weight``, ``failure_cost``, ``render_mode="rgb_array"`` (plan view of the whole
     path with the last run's kingpin and follow-point tracks; ``"human"`` is refused). ``reset(options=...)``
     takes the scenario arguments for one episode. The spec has no ``max_episode_steps``: every episode is one
-    step, ended by ``terminated=True`` (a one-step time limit would also mark it truncated).
+    step, ended by ``terminated=True`` (a one-step time limit would also mark it truncated). As there, the vehicles
+    of ``randomise["vehicle"]`` and of ``reset`` options must steer the same towed units.
+
+    Attributes
+    ----------
+    units : EnvUnits
+        The combination's number of units and its steered towed units (:class:`~scenarios.envs.units.EnvUnits`).
+    n_steered : int
+        Steered towed units: the action holds ``3·n_steered`` entries.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 1}
@@ -165,6 +223,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         max_offtracking: float | None = ENVIRONMENT_LIMITS.max_offtracking,
         render_mode: str | None = None,
         render_size: tuple[int, int] = (400, 400),
+        rear_feedback: Sequence[str] | None = None,
     ) -> None:
         self.choice = ScenarioChoice(
             scenario=scenario,
@@ -178,8 +237,11 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
             direction=direction,
             randomise=DomainRandomisation.coerce(randomise),
             sensors=sensors,
+            rear_feedback=None if rear_feedback is None else tuple(rear_feedback),
         )
         check_choice(self.choice)
+        self.units: EnvUnits = check_units(self.choice)
+        self.n_steered = self.units.n_steered
         for name, value in (("effort_weight", effort_weight), ("saturation_weight", saturation_weight)):
             if not (value >= 0 and math.isfinite(value)):
                 raise InputError(f"{name} = {value!r} must be a finite number ≥ 0")
@@ -188,11 +250,11 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         self.effort_weight = float(effort_weight)
         self.saturation_weight = float(saturation_weight)
         self.failure_cost = float(failure_cost)
-        self.limits = Limits(max_articulation_deg, max_lateral_error, max_offtracking)
+        self.limits = Limits(max_articulation_deg, max_lateral_error, max_offtracking, every_unit=True)
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.render_size = (int(render_size[0]), int(render_size[1]))
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(3 * self.n_steered,), dtype=np.float32)
         self.observation_space = spaces.Box(
             np.array([0.0, -10.0, 0.0, 0.0], dtype=np.float32),
             np.array([1.5, 10.0, 25.0, 1.0], dtype=np.float32),
@@ -208,21 +270,34 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         choice = self.choice.with_options(options)
         if options:
             check_choice(choice)
+            episode = check_units(choice)
+            if not episode.same_shape(self.units):
+                raise InputError(
+                    f"reset options: {episode.describe()}; this environment's action needs {self.units.describe()} "
+                    "(make a new environment for it)"
+                )
         config, settings = choice.resolve(self.np_random)
+        check_episode_units(self.units, config)
         self._setup = rebuild_setup(config)
         self._last = None
         self.episode_settings = settings
         return self._context(), dict(settings)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        """Run the episode's scenario with the gains of ``action``."""
+        """Run the episode's scenario with the gains of ``action`` (one ``(kp, ki, kd)`` per steered unit)."""
         if self._setup is None:
             raise gym.error.ResetNeeded("call reset() before step()")
-        cost, info = self.evaluate(action_to_gains(action))
+        gains = action_to_unit_gains(action, self.n_steered)
+        cost, info = self.evaluate(gains[0] if self.n_steered == 1 else gains)
         return self._context(), -cost, True, False, info
 
-    def evaluate(self, gains: PathFollowingGains) -> tuple[float, dict[str, Any]]:
+    def evaluate(self, gains: PathFollowingGains | Sequence[PathFollowingGains]) -> tuple[float, dict[str, Any]]:
         """Cost and figures of the episode's scenario steered with ``gains`` (any gains, e.g. ``kd = 0``).
+
+        Parameters
+        ----------
+        gains
+            One gain set per steered unit, front to rear, or one set for every steered unit.
 
         Returns
         -------
@@ -234,7 +309,12 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         setup = self._setup
         if setup is None:
             raise gym.error.ResetNeeded("call reset() before evaluate()")
-        cosim = CoSimulation(setup, self._source(setup, gains), limits=self.limits)
+        sets = (gains,) * self.n_steered if isinstance(gains, PathFollowingGains) else tuple(gains)
+        if len(sets) != self.n_steered or not all(isinstance(g, PathFollowingGains) for g in sets):
+            raise InputError(
+                f"gains = {gains!r}: one PathFollowingGains per steered unit ({self.n_steered}) or one for every unit"
+            )
+        cosim = CoSimulation(setup, self._source(setup, sets), limits=self.limits)
         outcome, columns = run_loop(lambda: cosim, catch_stops=False)
         if outcome.status == RunStatus.LOST_CONTROL and cosim.breach is not None:
             status = str(cosim.breach.reason)
@@ -244,23 +324,27 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
             status = str(outcome.status)
         self._last = (status, columns, cosim)
         figures = episode_figures(columns, setup.params.follow_point_offset)
+        settled = after_warmup(columns, setup.params.follow_point_offset)
+        further = {str(unit): unit_figures(columns, settled, unit) for unit in self.units.further}
+        steered = [figures if unit == 1 else further[str(unit + 1)] for unit in self.units.units]
         parts = {
-            "cost_offtracking": figures["rms_offtracking"],
-            "cost_effort": self.effort_weight * figures["rms_feedback_steer"],
+            "cost_offtracking": sum(f["rms_offtracking"] for f in steered) / len(steered),
+            "cost_effort": self.effort_weight * (sum(f["rms_feedback_steer"] for f in steered) / len(steered)),
             "cost_saturation": self.saturation_weight * figures["saturated_fraction"],
             "cost_failure": self.failure_cost if status != RunStatus.COMPLETED else 0.0,
         }
         cost = float(sum(parts.values()))
         info = {
             **self.episode_settings,
-            "kp": gains.kp,
-            "ki": gains.ki,
-            "kd": gains.kd,
-            "status": status,
-            **figures,
-            **parts,
-            "cost": cost,
+            "kp": sets[0].kp,
+            "ki": sets[0].ki,
+            "kd": sets[0].kd,
         }
+        for unit, unit_gains in zip(self.units.units[1:], sets[1:], strict=True):
+            info.update({f"unit{unit + 1}_{k}": getattr(unit_gains, k) for k in ("kp", "ki", "kd")})
+        info.update({"status": status, **figures, **parts, "cost": cost})
+        if further:
+            info["units"] = further
         return cost, info
 
     def render(self) -> np.ndarray | None:
@@ -313,11 +397,17 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
     # ------------------------------------------------------------------ internals
 
     @staticmethod
-    def _source(setup: ScenarioSetup, gains: PathFollowingGains) -> PathFollowingSteer:
-        """The scenario's configured controller with ``gains``, on the configured feedback."""
+    def _source(setup: ScenarioSetup, gains: Sequence[PathFollowingGains]) -> PathFollowingSteer:
+        """The scenario's configured controller on every steered unit, each with its own ``gains`` and on its
+        configured feedback."""
         cfg = setup.config
-        settings = cfg.controller.path_following(cfg.rates.control_hz).replace(gains=gains)
-        return PathFollowingSteer(TrailerSteeringController(setup.params, settings), cfg.feedback)
+        settings = cfg.controller.path_following(cfg.rates.control_hz)
+        units = steered_units(setup.params, cfg.feedback, cfg.rear_feedback)
+        controllers = tuple(
+            (TrailerSteeringController(setup.params, settings.replace(gains=g), unit), key)
+            for (unit, key), g in zip(units, gains, strict=True)
+        )
+        return PathFollowingSteer(*controllers[0], rear=controllers[1:], axles=trailer_axles(setup))
 
     def _context(self) -> np.ndarray:
         s = self.episode_settings

@@ -16,7 +16,15 @@ import cv2
 import numpy as np
 
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import kingpin_position, tractor_outline, trailer_outline, trailer_points
+from vehicle_model.geometry import (
+    kingpin_position,
+    place_points,
+    towed_outlines,
+    tractor_outline,
+    trailer_frames,
+    trailer_outline,
+    trailer_points,
+)
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import VehicleState
 
@@ -133,10 +141,26 @@ def draw_plan_view(
     if follow_track is not None:
         canvas.line(follow_track, _FOLLOW_TRACK)
     canvas.polygon(trailer_outline(params, state.X, state.Y, state.psi1, state.gamma), _TRAILER)
+    further = params.n_units > 2
+    if further:  # the units behind the first towed one
+        for outline in towed_outlines(params, state.X, state.Y, state.psi1, state.articulations)[1:]:
+            canvas.polygon(outline, _TRAILER)
     canvas.polygon(tractor_outline(params, state.X, state.Y, state.psi1), _TRACTOR)
     axles = {a.name: a for a in params.trailer.axles}
     half = 0.5 * params.trailer.width
+    frames = trailer_frames(params, state.X, state.Y, state.psi1, state.articulations) if further else []
+    behind = {a.name: (k, a) for k, unit in enumerate(params.trailers) if k > 0 for a in unit.axles}
     for name, steer in zip(trailer_axles, trailer_steer, strict=False):
+        if name in behind:
+            k, axle = behind[name]
+            origin, unit_heading = frames[k]
+            unit_half = 0.5 * params.trailers[k].width
+            heading = float(unit_heading) + float(steer)
+            dx, dy = 0.6 * math.cos(heading), 0.6 * math.sin(heading)
+            for side in (-unit_half, unit_half):
+                p = place_points(origin, unit_heading, np.array([[axle.x, side]]))[0]
+                canvas.line(np.array([[p[0] - dx, p[1] - dy], [p[0] + dx, p[1] + dy]]), _AXLE, 2)
+            continue
         axle = axles[name]
         heading = psi2 + float(steer)
         dx, dy = 0.6 * math.cos(heading), 0.6 * math.sin(heading)

@@ -1,17 +1,20 @@
 """The steering environment's reward, and the episode summary that matches ``metrics.json`` of the same run.
 
-Reward, per step, from the **true** off-tracking ``e`` after the step and the applied axle commands ``δ_j``::
+Reward, per step, from the **true** off-tracking ``e_k`` of every steered towed unit after the step (each against
+its own coupling's path) and the applied commands ``δ_j`` of every steered axle::
 
-    r = −w_e·min(|e|/e_tol, c_max) − w_u·mean_j (δ_j/δ_max)² − w_du·mean_j (Δδ_j/(δ̇_max·Δt))²
+    r = −w_e·mean_k min(|e_k|/e_tol, c_max) − w_u·mean_j (δ_j/δ_max)² − w_du·mean_j (Δδ_j/(δ̇_max·Δt))²
+
+For one steered unit (a tractor–semi-trailer) the first term is ``−w_e·min(|e|/e_tol, c_max)`` of its trailer.
 
 ``e_tol`` is a tolerance, by default the 0.10 m off-tracking RMS target of the closed loop, so the
 first term is the off-tracking in units of that target; it is linear (an absolute error) so that it still
 pulls at the millimetre errors a good controller reaches, where a squared error would vanish under the effort
-terms. ``c_max`` (default 10, i.e. 1 m) bounds it; the term is 0 during the first trailer length, before ``e``
-exists, and ``c_max`` when the model diverges. With the default weights (:data:`REWARD_WEIGHTS`) and the
-designed PID on the default scenario (about 1.3 mm mean ``|e|``, 4.7° largest steer) the off-tracking term is
-about 99 % of the return; a policy whose steer chatters at the full rate limit pays 0.01 per step, what
-1 mm of off-tracking costs.
+terms. ``c_max`` (default 10, i.e. 1 m) bounds it; a unit's term is 0 during its first trailer length, before
+``e_k`` exists, and every unit's is ``c_max`` when the model diverges. With the default weights
+(:data:`REWARD_WEIGHTS`) and the designed PID on the default scenario (about 1.3 mm mean ``|e|``, 4.7° largest
+steer) the off-tracking term is about 99 % of the return; a policy whose steer chatters at the full rate limit
+pays 0.01 per step, what 1 mm of off-tracking costs.
 
 On termination the agent is also charged the worst per-step cost ``w_e·c_max + w_u + w_du`` for every control
 period left to the end of the path at the target speed, plus ``termination_penalty``, so ending an episode
@@ -26,7 +29,7 @@ episode's recorded rows (the co-simulation records every tick as ``offtrack run`
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -92,6 +95,7 @@ class SteeringReward:
         max_steer: float,
         max_rate: float,
         reason: str,
+        truths: Sequence[str] = ("truth",),
     ) -> dict[str, float]:
         """The reward's parts for one step (``reward_offtracking``, ``_effort``, ``_rate``, ``_termination``).
 
@@ -105,14 +109,21 @@ class SteeringReward:
             ``δ_max`` [rad] and ``δ̇_max`` [rad/s].
         reason
             Why the step terminated the episode (``""``: it did not).
+        truths
+            The keys of the steered units' true off-tracking among the tick's estimates (``truth`` for the first
+            towed unit, ``truth3`` for the one behind it, …: :func:`scenarios.unit_feedback.estimate_key`); the
+            off-tracking term is the mean of their clipped, normalised magnitudes.
         """
         w = self.weights
         tick = cosim.tick
-        truth = tick.estimates["truth"]
         if reason == "diverged":
             offtracking = self.clip
         else:
-            offtracking = min(abs(truth.value) / self.tolerance, self.clip) if truth.available else 0.0
+            terms = []
+            for key in truths:
+                truth = tick.estimates[key]
+                terms.append(min(abs(truth.value) / self.tolerance, self.clip) if truth.available else 0.0)
+            offtracking = sum(terms) / len(terms)
         effort = float(np.mean((commands / max_steer) ** 2))
         rate = float(np.mean(((commands - previous) / (max_rate * cosim.period)) ** 2))
         termination = 0.0
@@ -153,13 +164,32 @@ def episode_summary(
         ``max_offtracking_all`` (``offtracking.truth``), ``saturated_fraction`` (largest of the axles'
         ``trailer_steering.<axle>.saturated_fraction``) and ``trailer_steering`` (per axle),
         ``termination_reason`` (``""``: the episode reached its end), ``steps``, ``simulated_s``, ``return`` and
-        the sum of every reward part (``return_offtracking``, …).
+        the sum of every reward part (``return_offtracking``, …). The off-tracking figures are the first towed
+        unit's; for a longer combination ``units`` holds, by the number of each unit behind it (``"3"``, ``"4"``),
+        its own ``rms_offtracking``, ``max_offtracking`` (after the first towed unit's warm-up, once the unit's own
+        exists), ``rms_offtracking_all`` and ``max_offtracking_all`` (``offtracking.units`` of ``metrics.json``).
     """
     setup = cosim.setup
     columns = cosim.recorder.arrays()
     metrics = compute_metrics(setup.config.name, setup.config.feedback, setup.params, columns, [], None, (0.0, 0.0))
     truth, settled = metrics["offtracking"]["truth"], metrics["offtracking"]["truth_after_warmup"]
     steering = metrics["trailer_steering"]
+    further = metrics["offtracking"].get("units")
+    units = (
+        {
+            "units": {
+                unit: {
+                    "rms_offtracking": u["rms_after_warmup"],
+                    "max_offtracking": u["max_abs_after_warmup"],
+                    "rms_offtracking_all": u["rms"],
+                    "max_offtracking_all": u["max_abs"],
+                }
+                for unit, u in further.items()
+            }
+        }
+        if further
+        else {}
+    )
     return {
         "rms_offtracking": settled["rms"],
         "max_offtracking": settled["max_abs"],
@@ -172,4 +202,5 @@ def episode_summary(
         "simulated_s": float(columns["time"][-1]),
         "return": float(sum(returns.values())),
         **{k.replace("reward_", "return_"): float(v) for k, v in returns.items()},
+        **units,
     }

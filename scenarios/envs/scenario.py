@@ -6,7 +6,7 @@ Precedence, lowest first:
 2. the sensor errors of ``sensors`` (:mod:`scenarios.envs.sensors`: data-sheet noise and a bias drawn per
    episode, by default; ``"scenario"``: the scenario's own signals);
 3. ``overrides``, dotted configuration fields as in ``offtrack run --set`` (``{"path.turns": 0.25}``);
-4. the named settings ``feedback``, ``vehicle``, ``mu``, ``camber_percent``, ``camber_direction``,
+4. the named settings ``feedback``, ``rear_feedback``, ``vehicle``, ``mu``, ``camber_percent``, ``camber_direction``,
    ``speed_kmh``, ``direction`` (``None``: the scenario's own);
 5. draws from the :class:`DomainRandomisation` ranges (a range replaces the fixed setting);
 6. ``reset(options=...)``: any of the keys above for this episode only; a named setting given there is not
@@ -32,6 +32,7 @@ from vehicle_model.errors import InputError
 
 from ..config import ScenarioConfig, load_scenario
 from ..registry import NO_FEEDBACK, feedback_sources
+from ..unit_feedback import REAR_FEEDBACK, rear_feedbacks
 from .sensors import SensorMode, check_mode, draw_biases, sensor_fields
 
 __all__ = [
@@ -61,7 +62,15 @@ NAMED_FIELDS: dict[str, str] = {
 }
 """Named settings and the configuration fields they set."""
 
-OPTION_KEYS: tuple[str, ...] = ("scenario", "overrides", "feedback", "sensors", *NAMED_FIELDS, "randomise")
+OPTION_KEYS: tuple[str, ...] = (
+    "scenario",
+    "overrides",
+    "feedback",
+    "rear_feedback",
+    "sensors",
+    *NAMED_FIELDS,
+    "randomise",
+)
 """Keys accepted in ``reset(options=...)``."""
 
 SEED_LIMIT = 2**32 - 1
@@ -183,6 +192,10 @@ class ScenarioChoice:
         Ranges drawn at every reset.
     sensors : {"datasheet", "scenario"}
         On-board sensor errors (:mod:`scenarios.envs.sensors`).
+    rear_feedback : tuple of str, optional
+        The estimate fed back to each towed unit behind the first (``none``, ``truth`` or ``zero_slip``, one per
+        unit; the configuration's ``rear_feedback``, :mod:`scenarios.unit_feedback`); ``None``: each steerable one
+        on ``feedback``.
     """
 
     scenario: str = DEFAULT_SCENARIO
@@ -196,9 +209,18 @@ class ScenarioChoice:
     direction: Literal["left", "right"] | None = None
     randomise: DomainRandomisation = field(default_factory=DomainRandomisation)
     sensors: SensorMode = "datasheet"
+    rear_feedback: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         check_mode(self.sensors)
+        rear = self.rear_feedback
+        if rear is not None:
+            if isinstance(rear, str) or not all(isinstance(v, str) for v in rear):
+                raise InputError(
+                    f"rear_feedback = {rear!r} must be a sequence of {', '.join(REAR_FEEDBACK)}, one per towed unit "
+                    "behind the first, or None"
+                )
+            object.__setattr__(self, "rear_feedback", tuple(rear))
         if not isinstance(self.scenario, str):
             raise InputError(f"scenario = {self.scenario!r} must be a catalogue name or a YAML file")
         sources = [s for s in feedback_sources() if s != NO_FEEDBACK]
@@ -262,6 +284,8 @@ class ScenarioChoice:
         data: dict[str, Any] = {"seed": seed, **sensor_fields(self.sensors, dict(biases or {}))}
         data.update(self.overrides)
         data["feedback"] = self.feedback  # and so its estimator runs (scenarios.config)
+        if self.rear_feedback is not None:
+            data["rear_feedback"] = list(self.rear_feedback)
         for name, dotted in NAMED_FIELDS.items():
             if values.get(name) is not None:
                 data[dotted] = values[name]
@@ -269,7 +293,14 @@ class ScenarioChoice:
 
 
 def episode_summary(config: ScenarioConfig) -> dict[str, Any]:
-    """The settings an episode ran with (plain values, for ``info``)."""
+    """The settings an episode ran with (plain values, for ``info``; ``rear_feedback``, each unit's behind the first
+    towed one, only for a combination of more than two units)."""
+    params = config.vehicle_params()
+    rear = (
+        {"rear_feedback": list(rear_feedbacks(params, config.feedback, config.rear_feedback))}
+        if params.n_units > 2
+        else {}
+    )
     return {
         "scenario": config.name,
         "feedback": config.feedback,
@@ -280,4 +311,5 @@ def episode_summary(config: ScenarioConfig) -> dict[str, Any]:
         "speed_kmh": float(config.speed.cornering_kmh),
         "direction": config.direction,
         "seed": int(config.seed),
+        **rear,
     }

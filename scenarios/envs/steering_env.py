@@ -13,18 +13,28 @@ from gymnasium import spaces
 from controller.path_following import TrailerSteeringController
 from vehicle_model.errors import InputError, SimulationDivergedError
 from vehicle_model.geometry import follow_point_from_kingpin
+from vehicle_model.offtracking import OfftrackingEstimate
 
 from ..loop.cosimulation import CoSimulation
 from ..loop.ends import ENVIRONMENT_LIMITS, Limits
-from ..loop.trailer_steer import AgentSteer
+from ..loop.trailer_steer import AgentSteer, trailer_axles
 from ..setup.models import rebuild_setup
+from ..unit_feedback import estimate_key
 from .plan_view import camera_strip, check_render_mode, draw_plan_view
 from .reward import OFFTRACKING_CLIP, OFFTRACKING_TOLERANCE, REWARD_WEIGHTS, SteeringReward, episode_summary
 from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, FeedbackSource, ScenarioChoice
 from .sensors import SensorMode
+from .units import EnvUnits, check_episode_units, check_units
 from .validation import check_choice
 
-__all__ = ["MAX_EPISODE_STEPS", "OBSERVATION_NAMES", "REWARD_WEIGHTS", "TrailerSteeringEnv"]
+__all__ = [
+    "MAX_EPISODE_STEPS",
+    "OBSERVATION_NAMES",
+    "REWARD_WEIGHTS",
+    "UNIT_OBSERVATION_NAMES",
+    "TrailerSteeringEnv",
+    "unit_observation_names",
+]
 
 MAX_EPISODE_STEPS = 5000
 """``max_episode_steps`` of the registered spec: 100 s simulated (the default episode is about 1700 steps)."""
@@ -45,12 +55,33 @@ _BASE_OBSERVATION: tuple[tuple[str, float], ...] = (
 )
 _CURVATURE_BOUND = 0.25  # [1/m]: the configuration's smallest path radius is 5 m
 
+_UNIT_OBSERVATION: tuple[tuple[str, float], ...] = (
+    ("offtracking_estimate", 5.0),
+    ("estimate_valid", 1.0),
+    ("articulation", math.pi),
+    ("yaw_rate", 6.0),
+    ("previous_virtual_steer", math.pi / 2),
+    ("previous_action", 1.0),
+    ("pid_virtual_steer", math.pi / 2),
+)
+
 OBSERVATION_NAMES: tuple[str, ...] = tuple(name for name, _ in _BASE_OBSERVATION)
-"""Names of the leading observation entries; ``curvature_ahead_<d>m`` entries follow, one per preview distance."""
+"""Names of the leading observation entries (the tractor and the first towed unit); for a longer combination
+:func:`unit_observation_names` of each unit behind the first towed one follow, then ``curvature_ahead_<d>m``
+entries, one per preview distance."""
+
+UNIT_OBSERVATION_NAMES: tuple[str, ...] = tuple(name for name, _ in _UNIT_OBSERVATION)
+"""The entries of each unit behind the first towed one, each prefixed ``unit<k>_`` (:func:`unit_observation_names`)."""
+
+
+def unit_observation_names(unit: int) -> tuple[str, ...]:
+    """The observation entries of unit ``unit`` of the combination (3 or 4: behind the first towed one),
+    ``unit3_offtracking_estimate``, …"""
+    return tuple(f"unit{unit}_{name}" for name in UNIT_OBSERVATION_NAMES)
 
 
 class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
-    """Steer the trailer of a tractor–semi-trailer so that its rear follows the tractor's kingpin path.
+    """Steer the towed units of a combination so that each one's rear follows its own coupling's path.
 
     ## Description
 
@@ -64,20 +95,36 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
     path-following controller. The goal is zero off-tracking ``e_tr``: the follow point at the trailer's
     rear on the kingpin's past path (docs/usage.md, "Off-tracking and the estimators").
 
+    Any combination of the catalogue (docs/vehicles.md) can be steered: a B-double, an A-double, a truck and dolly
+    with steerable axles on more than one towed unit. Every towed unit that is steered — one with a steerable axle,
+    the first on ``feedback`` and each unit behind it on its ``rear_feedback``
+    (:func:`scenarios.unit_feedback.steered_units`) — has its own entry in the action, its own virtual axle and
+    output stage (:class:`~controller.steer_output.TrailerSteerOutput` with ``unit``), and its own off-tracking
+    ``e_k`` against its own coupling's path (the closed loop of ``offtrack run`` with the PID on every steered unit,
+    :class:`~scenarios.loop.trailer_steer.PathFollowingSteer`). A tractor–semi-trailer has ``n = 1``: everything
+    below then reads as for one trailer.
+
     ## Action Space
 
-    ``Box(-1, 1, (1,), float32)``, normalised:
+    ``Box(-1, 1, (n,), float32)``, normalised, one entry ``a_k`` per steered towed unit, front to rear
+    (``n`` = :attr:`n_steered`; ``Box(-1, 1, (1,))`` for a tractor–semi-trailer):
 
-    * ``action_mode="direct"``: the virtual-axle steer ``δ_v = a·δ_max`` (``δ_max`` = ``controller.max_steer_deg``,
-      25° by default);
-    * ``action_mode="residual"``: a correction added to the PID's virtual-axle steer
-      (:class:`~controller.path_following.TrailerSteeringController` fed by ``feedback``),
-      ``δ_v = δ_PID + a·residual_scale_deg``; ``a = 0`` reproduces the PID exactly.
+    * ``action_mode="direct"``: unit ``k``'s virtual-axle steer ``δ_v,k = a_k·δ_max`` (``δ_max`` =
+      ``controller.max_steer_deg``, 25° by default);
+    * ``action_mode="residual"``: a correction added to unit ``k``'s own PID's virtual-axle steer
+      (:class:`~controller.path_following.TrailerSteeringController` with ``unit``, fed by that unit's estimate),
+      ``δ_v,k = δ_PID,k + a_k·residual_scale_deg``; ``a = 0`` reproduces the closed loop of ``offtrack run`` with
+      the same feedbacks exactly, as long as the controller's slip-angle limit (``controller.max_slip_angle_deg``,
+      which only the PID applies) clips nothing.
+
+    A unit's virtual-axle angle is distributed over its own steerable axles; a steerable axle of a unit that is
+    not steered (``rear_feedback`` ``none``) is held straight.
 
     ## Observation Space
 
-    ``Box(float32)`` of ``9 + len(preview_distances)`` entries, what the vehicle can know (measured signals,
-    the chosen estimate, the map), clipped to finite bounds:
+    ``Box(float32)`` of ``9 + 7·(N − 2) + len(preview_distances)`` entries for a combination of ``N`` units
+    (``9 + len(preview_distances)`` for a tractor–semi-trailer), what the vehicle can know (measured signals,
+    the chosen estimates, the map), clipped to finite bounds; :attr:`observation_names` names them:
 
     | # | name | unit | bound |
     |---|---|---|---|
@@ -90,13 +137,32 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
     | 6 | ``previous_virtual_steer`` (applied, after the clamp) | rad | ±π/2 |
     | 7 | ``previous_action`` | - | ±1 |
     | 8 | ``pid_virtual_steer`` (residual mode; 0 in direct mode) | rad | ±π/2 |
-    | 9… | ``curvature_ahead_<d>m``: path curvature ``d`` metres ahead of the driver's control point | 1/m | ±0.25 |
+    | 9… | ``unit<k>_…``: 7 entries for each unit ``k = 3 … N`` behind the first towed one (below) | | |
+    | … | ``curvature_ahead_<d>m``: path curvature ``d`` metres ahead of the driver's control point | 1/m | ±0.25 |
+
+    Entries 0, 1 and 6–8 are the first towed unit's (6–8 are 0 when it is not steered). Each unit ``k`` behind
+    it (:func:`unit_observation_names`; ``k`` numbers the combination's units from the tractor, as the recorded
+    columns do) adds:
+
+    | name | unit | bound |
+    |---|---|---|
+    | ``unit<k>_offtracking_estimate``: the estimate it is steered on (``truth<k>`` or ``zero_slip<k>``, its
+      ``rear_feedback``; 0 when invalid or the unit is not steered) | m | ±5 |
+    | ``unit<k>_estimate_valid`` | - | 0..1 |
+    | ``unit<k>_articulation`` against the unit ahead (its coupling's sensor, ``rear_articulation``) | rad | ±π |
+    | ``unit<k>_yaw_rate`` (true: the signals have no gyro on the units behind the first towed one) | rad/s | ±6 |
+    | ``unit<k>_previous_virtual_steer``, ``unit<k>_previous_action``, ``unit<k>_pid_virtual_steer`` (as 6–8; 0
+      when the unit is not steered) | rad, -, rad | ±π/2, ±1, ±π/2 |
 
     ## Rewards
 
-    From the **true** off-tracking ``e`` after the step and the applied axle commands ``δ_j``, per step::
+    From the **true** off-tracking ``e_k`` of every steered unit after the step and the applied commands ``δ_j``
+    of every steered axle, per step::
 
-        r = −w_e·min(|e|/e_tol, c_max) − w_u·mean_j (δ_j/δ_max)² − w_du·mean_j (Δδ_j/(δ̇_max·Δt))²
+        r = −w_e·mean_k min(|e_k|/e_tol, c_max) − w_u·mean_j (δ_j/δ_max)² − w_du·mean_j (Δδ_j/(δ̇_max·Δt))²
+
+    (the mean over the ``n`` steered units of each one's clipped, normalised off-tracking against its own
+    coupling's path, 0 for a unit whose ``e_k`` does not exist yet; for ``n = 1`` the single trailer's term).
 
     ``e_tol = 0.10 m`` (the off-tracking target), ``c_max = 10``, weights :data:`REWARD_WEIGHTS` (``w_e = 1``,
     ``w_u = w_du = 0.01``): the off-tracking term is about 99 % of the designed PID's return. On termination
@@ -104,7 +170,10 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
     (:mod:`scenarios.envs.reward`). The parts are in ``info`` as ``reward_offtracking``, ``reward_effort``,
     ``reward_rate``, ``reward_termination``; the final step's ``info["episode_summary"]`` holds the episode in
     the figures of ``metrics.json`` (true off-tracking RMS and largest after warm-up, saturated fraction,
-    termination reason, the return and its parts) and ``info["config"]`` the configuration it ran.
+    termination reason, the return and its parts; for a longer combination ``units``, the same RMS and largest
+    of every unit behind the first towed one, by its number) and ``info["config"]`` the configuration it ran.
+    For a longer combination ``info`` also holds ``virtual_steers`` (every steered unit's, front to rear) and
+    ``offtracking_true_units`` (each further unit's true off-tracking, by its number).
 
     ## Starting State
 
@@ -117,9 +186,11 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Episode End
 
-    *Terminated*: jackknife (``|Γ| > max_articulation_deg``, or the model diverges), the driver's control
-    point more than ``max_lateral_error`` from its path, or ``|e| > max_offtracking`` (the trailer leaves
-    the road); ``info["termination_reason"]`` says which. *Truncated*: the driver reaches the end of the path
+    *Terminated*: jackknife (any towed unit's articulation against the unit ahead beyond
+    ``max_articulation_deg``, or the model diverges), the driver's control point more than ``max_lateral_error``
+    from its path, or any towed unit's ``|e_k| > max_offtracking`` (it leaves the road);
+    ``info["termination_reason"]`` says which (:meth:`~scenarios.loop.ends.Limits.check_units`).
+    *Truncated*: the driver reaches the end of the path
     (or the scenario's duration is up): about 1700 steps by default. The registered spec also truncates at
     ``max_episode_steps`` = :data:`MAX_EPISODE_STEPS` (100 s simulated): for a longer scenario pass a larger
     ``max_episode_steps`` to ``gymnasium.make`` (an episode cut by the time limit has no ``episode_summary``).
@@ -133,12 +204,20 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
     ```
 
     * ``scenario``, ``overrides``: catalogue scenario and dotted configuration fields (``offtrack run --set``).
-    * ``feedback``: ``truth``, ``zero_slip`` (Cheng, blind to slip), ``viso_ot`` (renders the trailer's
-      stereo camera and runs visual odometry: about 10× slower) or ``viso_ot_fused`` (the same camera fused
-      with the trailer's gyro and wheel speed in a Kalman filter, an estimate every control tick).
+    * ``feedback``: the first towed unit's estimate: ``truth``, ``zero_slip`` (Cheng, blind to slip), ``viso_ot``
+      (renders the trailer's stereo camera and runs visual odometry: about 10× slower) or ``viso_ot_fused`` (the
+      same camera fused with the trailer's gyro and wheel speed in a Kalman filter, an estimate every control
+      tick). The camera sees the semi-trailer of a tractor–semi-trailer only: a longer combination takes
+      ``truth`` or ``zero_slip``.
+    * ``rear_feedback``: the estimate of each towed unit behind the first, one per unit: ``none`` (not steered:
+      its axles held straight, no action entry), ``truth`` or ``zero_slip`` (of that unit); ``None`` (default):
+      each one with a steerable axle on the kind of ``feedback``. The configuration's ``rear_feedback``
+      (:mod:`scenarios.unit_feedback`), validated with its messages.
     * ``vehicle``, ``mu``, ``camber_percent``, ``camber_direction``, ``speed_kmh``, ``direction``: fixed settings
       (``None``: the scenario's).
-    * ``randomise``: :class:`~scenarios.envs.scenario.DomainRandomisation` ranges.
+    * ``randomise``: :class:`~scenarios.envs.scenario.DomainRandomisation` ranges. The vehicles of
+      ``randomise["vehicle"]`` must have the same number of units and steer the same towed units (the spaces'
+      shapes are fixed), or the environment is refused (:func:`~scenarios.envs.units.check_units`).
     * ``sensors``: ``datasheet`` (default: noise and bias of production sensors) or ``scenario`` (its own signals).
     * ``action_mode``, ``residual_scale_deg``, ``preview_distances``.
     * ``reward_weights`` (keys ``offtracking``, ``effort``, ``rate``), ``offtracking_tolerance`` [m],
@@ -153,7 +232,18 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
     :class:`~scenarios.config.ConfigError` naming the argument), randomisation ranges at both ends.
 
     Every setting except the reward and action settings can also be given for one episode in
-    ``reset(options=...)`` (:data:`~scenarios.envs.scenario.OPTION_KEYS`).
+    ``reset(options=...)`` (:data:`~scenarios.envs.scenario.OPTION_KEYS`); one that would change the units (a
+    vehicle with other units steered) is refused.
+
+    Attributes
+    ----------
+    units : EnvUnits
+        The combination's number of units and its steered towed units with their estimates
+        (:class:`~scenarios.envs.units.EnvUnits`).
+    n_steered : int
+        Steered towed units: the action's length.
+    observation_names : tuple of str
+        The name of every observation entry.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50}
@@ -184,6 +274,7 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         render_mode: str | None = None,
         render_size: tuple[int, int] = (400, 400),
         render_span: float = 50.0,
+        rear_feedback: Sequence[str] | None = None,
     ) -> None:
         self.choice = ScenarioChoice(
             scenario=scenario,
@@ -197,8 +288,11 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
             direction=direction,
             randomise=DomainRandomisation.coerce(randomise),
             sensors=sensors,
+            rear_feedback=None if rear_feedback is None else tuple(rear_feedback),
         )
         check_choice(self.choice)
+        self.units: EnvUnits = check_units(self.choice)
+        self.n_steered = self.units.n_steered
         if action_mode not in ("direct", "residual"):
             raise InputError(f"action_mode = {action_mode!r} must be 'direct' or 'residual'")
         self.action_mode = action_mode
@@ -212,22 +306,35 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
             dict(reward_weights or {}), offtracking_tolerance, offtracking_clip, termination_penalty
         )
         self.reward_weights = dict(self.reward.weights)
-        self.limits = Limits(max_articulation_deg, max_lateral_error, max_offtracking)
+        self.limits = Limits(max_articulation_deg, max_lateral_error, max_offtracking, every_unit=True)
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.render_size = (int(render_size[0]), int(render_size[1]))
         self.render_span = float(render_span)
 
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
-        bounds = [b for _, b in _BASE_OBSERVATION] + [_CURVATURE_BOUND] * len(self.preview_distances)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(self.n_steered,), dtype=np.float32)
+        further = self.units.further
+        bounds = (
+            [b for _, b in _BASE_OBSERVATION]
+            + [b for _ in further for _, b in _UNIT_OBSERVATION]
+            + [_CURVATURE_BOUND] * len(self.preview_distances)
+        )
         high = np.array(bounds, dtype=np.float32)
         low = -high
         low[1] = 0.0
+        for i, _ in enumerate(further):
+            low[len(_BASE_OBSERVATION) + i * len(_UNIT_OBSERVATION) + 1] = 0.0  # unit<k>_estimate_valid
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
-        self.observation_names = OBSERVATION_NAMES + tuple(f"curvature_ahead_{d:g}m" for d in self.preview_distances)
+        self.observation_names = (
+            OBSERVATION_NAMES
+            + tuple(name for unit in further for name in unit_observation_names(unit))
+            + tuple(f"curvature_ahead_{d:g}m" for d in self.preview_distances)
+        )
 
         self._cosim: CoSimulation | None = None
-        self._controller: TrailerSteeringController | None = None
+        self._controllers: tuple[TrailerSteeringController, ...] = ()
+        self._episode_units = self.units
+        self._feedback = self.choice.feedback
         self._done = False
         self._tracks: tuple[list[np.ndarray], list[np.ndarray]] = ([], [])
         self._returns: dict[str, float] = {}
@@ -242,18 +349,29 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         choice = self.choice.with_options(options)
         if options:
             check_choice(choice)
+            episode = check_units(choice)
+            if not episode.same_shape(self.units):
+                raise InputError(
+                    f"reset options: {episode.describe()}; this environment's spaces need {self.units.describe()} "
+                    "(make a new environment for it)"
+                )
         config, settings = choice.resolve(self.np_random)
+        units = check_episode_units(self.units, config)
         setup = rebuild_setup(config)
         settings_si = config.controller.path_following(config.rates.control_hz)
-        agent = AgentSteer(setup.params, settings_si)
+        agent = AgentSteer(setup.params, settings_si, units.units, trailer_axles(setup))
         self._cosim = CoSimulation(setup, agent, limits=self.limits)
-        self._controller = (
-            TrailerSteeringController(setup.params, settings_si) if self.action_mode == "residual" else None
+        self._episode_units = units
+        self._feedback = config.feedback
+        self._controllers = (
+            tuple(TrailerSteeringController(setup.params, settings_si, unit) for unit in units.units)
+            if self.action_mode == "residual"
+            else ()
         )
         self._max_steer = settings_si.max_steer
         self._max_rate = settings_si.max_steer_rate
-        self._previous_action = 0.0
-        self._pid_virtual = 0.0
+        self._previous_action = np.zeros(self.n_steered)
+        self._pid_virtual = np.zeros(self.n_steered)
         self._done = False
         self.episode_settings = settings
         self._tracks = ([], [])
@@ -263,23 +381,25 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._observation(), dict(settings)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        """Steer for one control period."""
+        """Steer for one control period: ``action`` holds one entry per steered towed unit, front to rear."""
         cosim, agent = self._cosim, self._agent
         if cosim is None or agent is None:
             raise gym.error.ResetNeeded("call reset() before step()")
         if self._done:
             raise gym.error.ResetNeeded("the episode has ended; call reset()")
+        n = self.n_steered
         a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.size != 1 or not np.isfinite(a[0]):
-            raise InputError(f"action = {action!r} must be one finite number in [-1, 1]")
-        a_value = float(np.clip(a[0], -1.0, 1.0))
-        tick = cosim.tick
+        if a.size != n or not np.all(np.isfinite(a)):
+            wanted = "one finite number" if n == 1 else f"{n} finite numbers (one per steered towed unit)"
+            raise InputError(f"action = {action!r} must be {wanted} in [-1, 1]")
+        a_values = np.clip(a, -1.0, 1.0)
         if self.action_mode == "residual":
-            virtual = self._pid_virtual + a_value * self.residual_scale
+            virtual = self._pid_virtual + a_values * self.residual_scale
         else:
-            virtual = a_value * self._max_steer
-        previous = agent.commands.copy()
+            virtual = a_values * self._max_steer
+        previous = agent.steered_commands
         agent.request(virtual)
+        tick = cosim.tick
         reason = ""
         try:
             tick = cosim.step()
@@ -291,14 +411,18 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         terminated = bool(reason)
         truncated = not terminated and cosim.finished
         self._done = terminated or truncated
-        self._previous_action = a_value
+        self._previous_action = a_values
 
-        parts = self.reward.parts(cosim, commands, previous, self._max_steer, self._max_rate, reason)
+        units = self._episode_units
+        truth_keys = tuple(estimate_key("truth", unit) for unit in units.units)
+        parts = self.reward.parts(
+            cosim, agent.steered_commands, previous, self._max_steer, self._max_rate, reason, truth_keys
+        )
         reward = float(sum(parts.values()))
         if not terminated:
             self._after_tick()
         truth = tick.estimates["truth"]
-        estimate = tick.estimates.get(self.choice.feedback)
+        estimate = tick.estimates.get(self._feedback)
         info: dict[str, Any] = {
             "time": float(tick.time),
             "offtracking_true": truth.value if truth.available else None,
@@ -310,6 +434,11 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
             "termination_reason": str(reason),
             **parts,
         }
+        if units.n_units > 2:
+            info["virtual_steers"] = agent.virtual_steers
+            info["offtracking_true_units"] = {
+                str(unit): _value(tick.estimates.get(estimate_key("truth", unit - 1))) for unit in units.further
+            }
         for key, value in parts.items():
             self._returns[key] = self._returns.get(key, 0.0) + float(value)
         self._steps += 1
@@ -357,39 +486,62 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         if self._cosim is not None:
             self._cosim.close()
         self._cosim = None
-        self._controller = None
+        self._controllers = ()
 
     # ------------------------------------------------------------------ internals
 
     @property
     def _agent(self) -> AgentSteer | None:
-        """The episode's trailer-steer source: the agent's actions through the controller's output stage."""
+        """The episode's trailer-steer source: the agent's actions through the controller's output stages."""
         return None if self._cosim is None else self._cosim.trailer_steer  # type: ignore[return-value]
 
     def _after_tick(self) -> None:
-        """What the agent sees with a new tick: the PID's proposal (residual mode) and the render tracks."""
+        """What the agent sees with a new tick: the PIDs' proposals (residual mode) and the render tracks."""
         cosim = self._cosim
         assert cosim is not None
         tick = cosim.tick
-        if self._controller is not None:
-            self._controller(tick.state, tick.estimates.get(self.choice.feedback))
-            self._pid_virtual = self._controller.virtual_steer
+        for i, (ctrl, (_, key)) in enumerate(zip(self._controllers, self._episode_units.steered, strict=False)):
+            ctrl(tick.state, tick.estimates.get(key))
+            self._pid_virtual[i] = ctrl.virtual_steer
         if self.render_mode is not None:
             self._tracks[0].append(tick.kingpin)
             self._tracks[1].append(
                 follow_point_from_kingpin(tick.kingpin, tick.state.psi2, cosim.setup.params.follow_point_offset)
             )
 
+    def _steer_entries(self, agent: AgentSteer, towed: int) -> list[float]:
+        """Previous virtual steer, previous action and PID virtual steer of towed unit ``towed`` (0 if not steered)."""
+        units = self._episode_units.units
+        if towed not in units:
+            return [0.0, 0.0, 0.0]
+        i = units.index(towed)
+        return [agent.outputs[i].virtual_steer, float(self._previous_action[i]), float(self._pid_virtual[i])]
+
     def _observation(self) -> np.ndarray:
         cosim, agent = self._cosim, self._agent
         assert cosim is not None and agent is not None
         tick = cosim.tick
         m = tick.measured
-        estimate = tick.estimates.get(self.choice.feedback)
+        estimate = tick.estimates.get(self._feedback)
         valid = estimate is not None and estimate.available
         path = cosim.setup.path
         ahead = np.clip(cosim.driver.progress + self.preview_distances, 0.0, path.length)
         curvature = np.interp(ahead, path.s, path.curvature)
+        further: list[float] = []
+        units = self._episode_units
+        keys = dict(units.steered)
+        rates = tick.state.towed_yaw_rates
+        for unit in units.further:
+            key = keys.get(unit - 1)
+            unit_estimate = tick.estimates.get(key) if key is not None else None
+            unit_valid = unit_estimate is not None and unit_estimate.available
+            further += [
+                unit_estimate.value if unit_valid else 0.0,  # type: ignore[union-attr]
+                1.0 if unit_valid else 0.0,
+                m["rear_articulation"][unit - 3],
+                rates[unit - 2],
+                *self._steer_entries(agent, unit - 1),
+            ]
         obs = np.concatenate(
             [
                 [
@@ -399,11 +551,15 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
                     m["wheel_speed"][0],
                     m["tractor_yaw_rate"][0],
                     m["trailer_yaw_rate"][0],
-                    agent.virtual_steer,
-                    self._previous_action,
-                    self._pid_virtual,
+                    *self._steer_entries(agent, 1),
                 ],
+                further,
                 curvature,
             ]
         ).astype(np.float32)
         return np.clip(obs, self.observation_space.low, self.observation_space.high)
+
+
+def _value(estimate: OfftrackingEstimate | None) -> float | None:
+    """An estimate's value, or ``None`` when it has none."""
+    return estimate.value if estimate is not None and estimate.available else None

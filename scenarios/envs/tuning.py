@@ -183,7 +183,8 @@ def tune_gains(
     Raises
     ------
     InputError
-        Bad budget, or Optuna is not installed.
+        Bad budget, Optuna is not installed, or the combination steers more than one towed unit (the designed
+        gains it starts from and compares with are the first towed unit's).
     """
     if n_trials < 1 or train_draws < 1:
         raise InputError("tune_gains needs n_trials ≥ 1 and train_draws ≥ 1")
@@ -196,6 +197,13 @@ def tune_gains(
     kwargs = {"randomise": TRAIN_RANDOMISATION if randomise is None else dict(randomise), **(env_kwargs or {})}
     env = gym.make("offtrack/GainTuning-v0", **kwargs)
     tuning_env: GainTuningEnv = env.unwrapped  # type: ignore[assignment]
+    if tuning_env.n_steered != 1:
+        env.close()
+        raise InputError(
+            f"env_kwargs: tune_gains tunes one steered unit (its designed gains are the first towed unit's); this "
+            f"combination steers {tuning_env.n_steered} ({tuning_env.units.describe()}): use offtrack/GainTuning-v0 "
+            "with your own optimiser"
+        )
     evaluations = 0
 
     def train_cost(action: np.ndarray) -> float:

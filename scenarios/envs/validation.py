@@ -3,8 +3,8 @@
 :func:`check_choice` builds the scenario configuration of a :class:`~scenarios.envs.scenario.ScenarioChoice`
 with :func:`scenarios.config.load_scenario` — the function behind ``offtrack run --set`` — step by step, so
 that a :class:`~scenarios.config.ConfigError` names the argument that caused it (``scenario``, ``overrides``,
-``feedback``, a named setting such as ``mu``, or a ``randomise`` range) and then quotes the schema's message
-(dotted field, value, allowed range and its reason) unchanged. Randomisation ranges are checked at both
+``feedback``, ``rear_feedback``, a named setting such as ``mu``, or a ``randomise`` range) and then quotes the
+schema's message (dotted field, value, allowed range and its reason) unchanged. Randomisation ranges are checked at both
 ends of every interval and for every listed choice, with the other settings fixed, so no draw can fail at
 ``reset``. The sensor biases are checked at both ends of their limits.
 """
@@ -38,8 +38,8 @@ def check_choice(choice: ScenarioChoice) -> None:
     Raises
     ------
     ConfigError
-        Naming the argument (``scenario``, ``overrides``, ``feedback``, ``sensors``, a named setting, or
-        ``randomise.<name>``) and quoting the configuration schema's message.
+        Naming the argument (``scenario``, ``overrides``, ``feedback``, ``rear_feedback``, ``sensors``, a named
+        setting, or ``randomise.<name>``) and quoting the configuration schema's message.
     """
     try:
         load_scenario_data(choice.scenario)
@@ -54,7 +54,10 @@ def check_choice(choice: ScenarioChoice) -> None:
     for name, value in values.items():
         if value is not None:
             _load(choice, _without_feedback(choice.config_data({name: value})), name, value)
-    _load(choice, choice.config_data(values), "feedback", choice.feedback)
+    data = choice.config_data(values)
+    _load(choice, {k: v for k, v in data.items() if k != "rear_feedback"}, "feedback", choice.feedback)
+    if choice.rear_feedback is not None:
+        _load(choice, data, "rear_feedback", choice.rear_feedback)
     ranges = choice.randomise
     for name in NAMED_FIELDS:
         spec = getattr(ranges, name, None)
@@ -65,5 +68,5 @@ def check_choice(choice: ScenarioChoice) -> None:
 
 
 def _without_feedback(data: dict[str, Any]) -> dict[str, Any]:
-    """``data`` without the feedback source and the estimator it switches on (checked on their own)."""
-    return {k: v for k, v in data.items() if k != "feedback" and not k.startswith("estimators.")}
+    """``data`` without the feedback sources and the estimator they switch on (checked on their own)."""
+    return {k: v for k, v in data.items() if k not in ("feedback", "rear_feedback") and not k.startswith("estimators.")}

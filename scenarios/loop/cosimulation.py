@@ -43,6 +43,7 @@ from vehicle_model.simulator import Simulator, VehicleState
 from ..registry import estimator_entry
 from ..setup.build import ScenarioSetup, run_duration
 from ..setup.models import rebuild_setup
+from ..unit_feedback import estimate_key
 from .ends import RUN_LIMITS, LimitBreach, Limits
 from .further_units import FurtherUnitsParticipant
 from .participant import Column, EstimatorParticipant, LoopContext, PendingValues, TickInput, TrailerSteerSource
@@ -367,7 +368,10 @@ class CoSimulation:
             estimates.update(self.further_units.estimates)
         command = self.driver.update(tick)
         self.breach: LimitBreach | None = None
-        if not self.kinematic:
+        if not self.kinematic and self.limits.every_unit and self.further_units is not None:
+            truths = [estimates[estimate_key("truth", unit)].value for unit in range(1, setup.params.n_units)]
+            self.breach = self.limits.check_units(state.articulations, self.driver.lateral_error, truths)
+        elif not self.kinematic:
             self.breach = self.limits.check(state.gamma, self.driver.lateral_error, estimates["truth"].value)
         return Tick(index, time, state, kingpin, measured, estimates, command, tick.camera_frame)
 

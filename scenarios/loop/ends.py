@@ -14,6 +14,9 @@ run with the :class:`StopReason` and a sentence saying what happened:
 * **the trailer left the road** — the true off-tracking beyond ``max_offtracking`` (not checked in a run by
   default; the environments check 3.5 m).
 
+A run checks the first towed unit; with ``every_unit`` (the environments') each unit behind it is held to the
+articulation and off-tracking limits as well (:meth:`Limits.check_units`).
+
 The Gymnasium environments pass stricter limits (:data:`ENVIRONMENT_LIMITS`): an episode that an agent steers
 should end well before the physical limits.
 """
@@ -21,6 +24,7 @@ should end well before the physical limits.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -77,11 +81,16 @@ class Limits:
         Off the road: the driver's control point more than this [m] from its path.
     max_offtracking : float or None
         The trailer off the road: true off-tracking ``|e_tr|`` above this [m] (``None``: not checked).
+    every_unit : bool
+        Also hold every towed unit behind the first to the articulation and off-tracking limits (its articulation
+        against the unit ahead, its off-tracking against its own coupling's path: :meth:`check_units`); ``False``
+        (a run's default): the first towed unit's only.
     """
 
     max_articulation_deg: float = 90.0
     max_lateral_error: float = 3.0
     max_offtracking: float | None = None
+    every_unit: bool = False
 
     def __post_init__(self) -> None:
         if not (0.0 < self.max_articulation_deg <= 180.0):
@@ -124,9 +133,46 @@ class Limits:
             )
         return None
 
+    def check_units(
+        self, articulations: Sequence[float], path_error: float, offtrackings: Sequence[float]
+    ) -> LimitBreach | None:
+        """The first limit broken by any towed unit, or ``None``: :meth:`check` for the first towed unit, then the
+        articulation and off-tracking limits of each unit behind it, front to rear.
+
+        Parameters
+        ----------
+        articulations
+            Each towed unit's articulation against the unit ahead, front to rear ``[Γ, Γ2, …]`` [rad].
+        path_error
+            The driver's control point's lateral distance from its path [m].
+        offtrackings
+            Each towed unit's true off-tracking against its own coupling's path, front to rear [m] (NaN while
+            there is none).
+        """
+        breach = self.check(articulations[0], path_error, offtrackings[0])
+        if breach is not None:
+            return breach
+        for unit, (articulation, offtracking) in enumerate(
+            zip(articulations[1:], offtrackings[1:], strict=True), start=3
+        ):
+            if not math.isfinite(articulation) or abs(articulation) > math.radians(self.max_articulation_deg):
+                return LimitBreach(
+                    StopReason.JACKKNIFE,
+                    f"jackknife: unit {unit}'s articulation {math.degrees(articulation):+.1f}° beyond "
+                    f"±{self.max_articulation_deg:g}° (it would hit the unit ahead)",
+                )
+            if self.max_offtracking is not None and abs(offtracking) > self.max_offtracking:
+                return LimitBreach(
+                    StopReason.TRAILER_LEFT_ROAD,
+                    f"unit {unit} left the road: true off-tracking {offtracking:+.2f} m beyond "
+                    f"±{self.max_offtracking:g} m",
+                )
+        return None
+
 
 RUN_LIMITS = Limits()
 """The limits of a run (``offtrack run``, the studies): the physical ones of the module docstring."""
 
-ENVIRONMENT_LIMITS = Limits(max_articulation_deg=80.0, max_lateral_error=2.0, max_offtracking=3.5)
-"""The Gymnasium environments' default limits: stricter, so an episode ends before the physical ones."""
+ENVIRONMENT_LIMITS = Limits(max_articulation_deg=80.0, max_lateral_error=2.0, max_offtracking=3.5, every_unit=True)
+"""The Gymnasium environments' default limits: stricter, so an episode ends before the physical ones, and on every
+towed unit."""

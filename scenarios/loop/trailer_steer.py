@@ -4,9 +4,9 @@
 * :class:`PathFollowingSteer` — the path-following PID (:class:`controller.path_following.TrailerSteeringController`)
   on every steered towed unit, each fed by the estimate the configuration chooses for it (``feedback`` for the first
   towed unit, ``rear_feedback`` for those behind it: :mod:`scenarios.unit_feedback`);
-* :class:`AgentSteer` — an agent's virtual-axle angle (the steering environment's action) through the
-  controller's own output stage (:class:`controller.steer_output.TrailerSteerOutput`), so a zero correction
-  of the PID's proposal gives the PID's commands exactly.
+* :class:`AgentSteer` — an agent's virtual-axle angle per steered towed unit (the steering environment's action)
+  through the controller's own output stage of that unit (:class:`controller.steer_output.TrailerSteerOutput`), so a
+  zero correction of each PID's proposal gives the PIDs' commands exactly.
 
 Each is a :class:`~.participant.TrailerSteerSource`: it records ``steer_<axle>`` of every steerable trailer axle
 and its own internals.
@@ -14,7 +14,7 @@ and its own internals.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -22,6 +22,7 @@ from controller.axle_steer_distribution import tan_kingpin_direction
 from controller.path_following import TrailerSteeringController, telemetry_prefix
 from controller.path_following_config import PathFollowingConfig
 from controller.steer_output import TrailerSteerOutput, speed_fade
+from vehicle_model.errors import InputError
 from vehicle_model.layout import Layout
 from vehicle_model.offtracking import OfftrackingEstimate
 from vehicle_model.parameters import VehicleParams
@@ -167,10 +168,13 @@ class PathFollowingSteer:
 
 
 class AgentSteer:
-    """An agent's virtual-axle angle → commands, through the controller's output stage.
+    """An agent's virtual-axle angles → commands, through the controller's output stage of each steered unit.
 
-    :meth:`request` sets the angle of the next :meth:`command`; a tick with no request holds the last commands
-    (the end of an episode, where no action follows).
+    :meth:`request` sets the angles of the next :meth:`command`; a tick with no request holds the last commands
+    (the end of an episode, where no action follows). Each steered towed unit has its own output stage
+    (:class:`~controller.steer_output.TrailerSteerOutput` with ``unit``: its own distribution about its own virtual
+    axle, the coupling motion carried down the chain), so that one angle per unit gives the commands the path-following
+    PID of that unit would give for the same angle.
 
     Parameters
     ----------
@@ -178,66 +182,121 @@ class AgentSteer:
         The combination.
     config
         The controller settings whose output stage is used (virtual axle, limits, fade, kinematics).
+    units
+        The steered towed units, front to rear (1 the first towed unit, 2 the one it tows, …; default: the first).
+    axles
+        Every steerable towed axle, in the order of the commands (:func:`trailer_axles`); an axle of a unit not in
+        ``units`` is held straight. Default: the steered units' steerable axles, in layout order.
     """
 
     name = "trailer_steer"
     feedback: str | None = None
 
-    def __init__(self, params: VehicleParams, config: PathFollowingConfig) -> None:
-        self.output = TrailerSteerOutput(params, config)
+    def __init__(
+        self,
+        params: VehicleParams,
+        config: PathFollowingConfig,
+        units: tuple[int, ...] = (1,),
+        axles: tuple[str, ...] | None = None,
+    ) -> None:
+        if not units:
+            raise InputError(f"units = {units!r}: at least one steered towed unit (1..{params.n_units - 1})")
+        self.units = tuple(int(u) for u in units)
+        self.outputs = tuple(TrailerSteerOutput(params, config, unit) for unit in self.units)
+        self.output = self.outputs[0]
         self.config = config
-        trailer = {a.name for a in params.trailer.axles}
-        axles = tuple(n for n in Layout.for_vehicle(params).steerable_axles if n in trailer)  # layout order
-        self.axles = axles
+        layout = Layout.for_vehicle(params).steerable_axles  # layout order
+        own: list[tuple[str, ...]] = []
+        for unit in self.units:
+            names = {a.name for a in params.trailers[unit - 1].axles}
+            own.append(tuple(n for n in layout if n in names))
+        steered = tuple(n for names in own for n in names)
+        self.axles = steered if axles is None else tuple(axles)
+        index = {name: i for i, name in enumerate(self.axles)}
+        self._slots = [np.array([index[n] for n in names], dtype=int) for names in own]
+        self.steered_axles = steered
+        """The axles the agent steers, in the order of :attr:`steered_commands`."""
+        self._virtual_columns = tuple(f"{telemetry_prefix(unit)}virtual_steer" for unit in self.units)
         self.columns: tuple[Column, ...] = (
-            *_steer_columns(axles),
-            Column("trailer_virtual_steer", "rad", "the agent's virtual-axle angle after its clamp"),
-            *_limit_columns(axles, ("saturated", "rate_limited")),
+            *_steer_columns(self.axles),
+            *(Column(c, "rad", "the agent's virtual-axle angle after its clamp") for c in self._virtual_columns),
+            *_limit_columns(steered, ("saturated", "rate_limited")),
         )
-        self._pending: float | None = None
+        self._pending: np.ndarray | None = None
+        self._commands = np.zeros(len(self.axles))
 
     def reset(self) -> None:
         """Straight axles, no request."""
-        self.output.reset()
+        for out in self.outputs:
+            out.reset()
         self._pending = None
+        self._commands = np.zeros(len(self.axles))
 
-    def request(self, virtual_steer: float) -> None:
-        """The virtual-axle angle [rad] of the next command."""
-        self._pending = float(virtual_steer)
+    def request(self, virtual_steer: float | Sequence[float]) -> None:
+        """The virtual-axle angle [rad] of each steered unit for the next command (a number: every unit's)."""
+        values = np.asarray(virtual_steer, dtype=float).reshape(-1)
+        if values.size == 1:
+            values = np.repeat(values, len(self.units))
+        if values.size != len(self.units):
+            raise InputError(
+                f"virtual_steer = {virtual_steer!r}: one angle per steered unit ({len(self.units)}) or one for all"
+            )
+        self._pending = values
 
     @property
     def commands(self) -> np.ndarray:
-        """The current commands [rad]."""
-        return self.output.commands
+        """The current commands of every axle in :attr:`axles` [rad] (held axles 0)."""
+        if len(self.outputs) == 1 and self.axles == self.steered_axles:
+            return self.output.commands
+        return self._commands.copy()
+
+    @property
+    def steered_commands(self) -> np.ndarray:
+        """The current commands of the steered axles [rad], in :attr:`steered_axles` order."""
+        return np.concatenate([out.commands for out in self.outputs])
 
     @property
     def saturated(self) -> np.ndarray:
-        """Per axle: the magnitude limit clipped the current command."""
-        return self.output.saturated
+        """Per steered axle: the magnitude limit clipped the current command."""
+        return np.concatenate([out.saturated for out in self.outputs])
 
     @property
     def virtual_steer(self) -> float:
-        """The current virtual-axle angle [rad] (clamped)."""
+        """The first steered unit's current virtual-axle angle [rad] (clamped)."""
         return self.output.virtual_steer
 
+    @property
+    def virtual_steers(self) -> np.ndarray:
+        """Every steered unit's current virtual-axle angle [rad] (clamped), front to rear."""
+        return np.array([out.virtual_steer for out in self.outputs])
+
     def command(self, tick: TickInput, estimates: Mapping[str, OfftrackingEstimate]) -> np.ndarray:
-        """The requested angle's commands (the held ones without a request)."""
+        """The requested angles' commands (the held ones without a request)."""
         if self._pending is None:
-            return self.output.commands.copy()
+            return self.commands.copy()
         virtual, self._pending = self._pending, None
         state = tick.state
-        out = self.output
-        dt = out.period(state.time)
-        vx, vy = out.kingpin_velocity(state)
         fade = speed_fade(state.u, self.config.fade_speeds)
-        return out.commit(out.propose(virtual, tan_kingpin_direction(state.gamma, vx, vy), fade, dt))
+        commands = np.zeros(len(self.axles))
+        for out, slots, angle in zip(self.outputs, self._slots, virtual, strict=True):
+            dt = out.period(state.time)
+            motion = out.coupling_motion(state)
+            tan_kingpin = tan_kingpin_direction(motion.articulation, motion.vx, motion.vy)
+            commands[slots] = out.commit(out.propose(float(angle), tan_kingpin, fade, dt))
+        self._commands = commands
+        return commands.copy()
 
     def record(self) -> Mapping[str, float]:
-        """Commands, the virtual angle and the limit flags."""
-        out = self.output
-        row = {f"steer_{n}": float(v) for n, v in zip(self.axles, out.commands, strict=True)}
-        row["trailer_virtual_steer"] = out.virtual_steer
-        for name, sat, rate in zip(self.axles, out.saturated, out.rate_limited, strict=True):
+        """Commands, the virtual angles and the limit flags."""
+        row = {f"steer_{n}": float(v) for n, v in zip(self.axles, self._commands, strict=True)}
+        for column, out in zip(self._virtual_columns, self.outputs, strict=True):
+            row[column] = out.virtual_steer
+        for name, sat, rate in zip(
+            self.steered_axles,
+            np.concatenate([out.saturated for out in self.outputs]),
+            np.concatenate([out.rate_limited for out in self.outputs]),
+            strict=True,
+        ):
             row[f"saturated_{name}"] = float(sat)
             row[f"rate_limited_{name}"] = float(rate)
         return row
