@@ -11,6 +11,7 @@ import numpy as np
 from vehicle_model.geometry import kingpin_position, radial_extent, towed_outlines, tractor_outline
 from vehicle_model.parameters import VehicleParams
 
+from .path_offtracking import combination_offtracking, rear_point_columns
 from .swept_geometry import swept_path_metrics
 from .verdicts import run_verdict
 
@@ -224,6 +225,8 @@ def compute_metrics(
     units = further_unit_offtracking(params, columns, settled)
     if units:
         metrics["offtracking"]["units"] = units
+    if truth.size and all(name in columns for name in rear_point_columns(params)):
+        metrics["offtracking"]["combination"] = combination_offtracking_metrics(params, columns)
     fallback = feedback_fallback(columns, settled) if feedback != "none" else None
     if fallback is not None:
         metrics["feedback_fallback"] = fallback
@@ -263,6 +266,26 @@ def compute_metrics(
     if reference is not None and truth.size:
         metrics["swept_path"] = swept_path_metrics(params, columns, reference, turn_centre, turn_span)
     return metrics
+
+
+def combination_offtracking_metrics(params: VehicleParams, columns: dict[str, np.ndarray]) -> dict[str, Any]:
+    """``offtracking.combination``: the last unit's rear against the steer axle's path (:mod:`.path_offtracking`).
+
+    Returns
+    -------
+    dict
+        ``unit`` (the last unit's number), ``rms`` and ``max_abs`` [m] over the ticks where it is defined,
+        ``defined_fraction``, and ``reference`` / ``point`` saying what was measured.
+    """
+    values = combination_offtracking(params, columns)
+    return {
+        "unit": params.n_units,
+        "rms": rms(values),
+        "max_abs": max_abs(values),
+        "defined_fraction": float(np.isfinite(values).mean()) if values.size else 0.0,
+        "reference": "path of the steer axle's centre",
+        "point": f"unit {params.n_units}'s follow point",
+    }
 
 
 def further_angles(params: VehicleParams) -> list[str]:

@@ -51,6 +51,8 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
     offtracking = metrics.get("offtracking") or {}
     truths = {"truth": offtracking.get("truth") or {}}
     truths.update({f"unit {unit} truth": t for unit, t in (offtracking.get("units") or {}).items()})
+    if combination := offtracking.get("combination"):  # the last unit's rear against the steer axle's path
+        truths[f"unit {combination.get('unit')} rear vs steer axle path"] = combination
     for label, truth in truths.items():  # the first towed unit's, then each further unit's
         defined = truth.get("defined_fraction", truth.get("valid_fraction"))
         table.add_row(
