@@ -119,7 +119,8 @@ def verdict_figure(table: pd.DataFrame):
     """The run verdicts: one cell per case (rows scenario, surface and camber; columns the steering).
 
     A cell is green when the run completed and held its verdict, orange when it completed and missed it (the units
-    that missed it named), red when it did not complete (its status named) and grey when there is no such case.
+    that missed it named), red when it did not complete (its status named) and grey when it steered no unit (an
+    unsteered run is asked to hold nothing) or there is no such case.
 
     Parameters
     ----------
@@ -146,8 +147,11 @@ def verdict_figure(table: pd.DataFrame):
     for _, case in table.iterrows():
         i = rows.index((case["scenario"], case["surface"], case["camber"]))
         j = steerings.index(case["steering"])
+        steered = any(case.get(f"unit{u}_feedback", "none") != "none" for u in units)
         if case.get("status") != RunStatus.COMPLETED:
             codes[i, j], texts[i][j] = 2, str(case.get("status"))
+        elif not steered:
+            codes[i, j], texts[i][j] = 3, "unsteered: nothing asked"
         elif case.get("verdict_held"):
             codes[i, j], texts[i][j] = 0, "held"
         else:
@@ -159,12 +163,16 @@ def verdict_figure(table: pd.DataFrame):
     ax.imshow(codes, cmap=colours, vmin=-0.5, vmax=3.5, aspect="auto")
     for (i, j), _ in np.ndenumerate(codes):
         ax.text(j, i, texts[i][j], ha="center", va="center", fontsize=8)
+    ax.set_xticks(np.arange(len(steerings) + 1) - 0.5, minor=True)
+    ax.set_yticks(np.arange(len(rows) + 1) - 0.5, minor=True)
+    ax.grid(which="minor", color="w", lw=2)
+    ax.tick_params(which="minor", length=0)
     ax.set_xticks(range(len(steerings)), steerings)
     ax.set_yticks(range(len(rows)), [f"{s}, {surface}, {c:g} %" for s, surface, c in rows], fontsize=8)
     ax.set_xlabel("steering")
     ax.set_title(
-        "Run verdicts: green held, orange missed (the units named), red did not complete\n"
-        "(an unsteered run is asked to hold nothing)",
+        "Run verdicts: green held, orange missed (the units that missed it named), red did not complete,\n"
+        "grey unsteered (asked to hold nothing) or no such case",
         fontsize=10,
     )
     return fig

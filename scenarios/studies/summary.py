@@ -50,6 +50,11 @@ PRIORITY = (
     "inner_radius_min_m",
     "true_offtracking_rms_after_warmup_m",
     "true_offtracking_max_after_warmup_m",
+    *(  # each towed unit of the unit-steering study (2 the first, as many as a combination has)
+        f"unit{unit}_{metric}"
+        for metric in ("true_offtracking_rms_m", "true_offtracking_max_m", "feedback_rms_error_m", "max_steer_deg")
+        for unit in range(2, 10)
+    ),
     "fused_rms_error_m",
     "fused_within_2sigma",
     "verdict_held",
