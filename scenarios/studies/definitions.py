@@ -48,8 +48,8 @@ from vehicle_model.parameters import VehicleParams
 
 from ..config import load_scenario
 from ..loop.ends import RunStatus
-from ..registry import estimator_entry, feedback_sources
-from ..unit_feedback import one_semi_trailer
+from ..registry import feedback_sources
+from ..unit_feedback import REAR_FEEDBACK, one_semi_trailer
 from .cases import run_case
 from .field_bias import field_bias_cases, run_field_bias_case
 from .field_loop import field_loop_cases, run_field_loop_case
@@ -58,7 +58,13 @@ from .progress import ProgressCallback, SweepProgress
 from .records import CaseSpec
 from .section4 import paper_section4_cases, run_section4_case
 from .sweep import run_sweep
-from .unit_steering import run_unit_steering_case, study_vehicle, unit_columns, unit_steering_cases
+from .unit_steering import (
+    run_unit_steering_case,
+    study_vehicle,
+    unit_columns,
+    unit_steering_cases,
+    vehicle_problem,
+)
 
 # de Saxe & Cebon 2018 §3.2, values stated in the text (the figures themselves are not reproduced there).
 PAPER_SECTION3 = {
@@ -115,10 +121,6 @@ def paper_section3_cases(full: bool = False) -> list[CaseSpec]:
     return cases
 
 
-def _camera_feedback(feedback: str) -> bool:
-    return estimator_entry(feedback).needs_camera if feedback in feedback_sources() else False
-
-
 def estimators_under_slip_cases(full: bool = False, vehicle: str | None = None) -> list[CaseSpec]:
     """Cases of the estimators-under-slip grid (a subset unless ``full``).
 
@@ -140,7 +142,7 @@ def estimators_under_slip_cases(full: bool = False, vehicle: str | None = None) 
         resolved = study_vehicle(vehicle, "estimators-under-slip")
         combination = resolved.value
         if not one_semi_trailer(resolved.params):
-            feedbacks = tuple(f for f in feedbacks if not _camera_feedback(f))
+            feedbacks = tuple(f for f in feedbacks if f in REAR_FEEDBACK)
     cases = []
     for scenario in scenarios:
         for surface in surfaces:
@@ -212,10 +214,10 @@ def check_study_vehicle(name: str, vehicle: str | None) -> list[str]:
         raise InputError(f"--vehicle {vehicle}: {name} takes no --vehicle ({why}); {takes} take one")
     resolved_vehicle = study_vehicle(vehicle, name)
     if name == "estimators-under-slip" and not one_semi_trailer(resolved_vehicle.params):
-        dropped = [f for f in feedback_sources() if _camera_feedback(f)]
+        dropped = [f for f in feedback_sources() if f not in REAR_FEEDBACK]
         return [
             f"{name} --vehicle {resolved_vehicle.name}: the camera feedbacks ({', '.join(dropped)}) are left out; "
-            "the camera sees the first towed unit of a tractor with one semi-trailer only"
+            "the camera sees the first towed unit of a tractor or rigid truck with one semi-trailer only"
         ]
     return []
 
@@ -226,7 +228,7 @@ def study_vehicle_params(vehicle: str) -> VehicleParams:
     try:
         return load_scenario("roundabout-3", {"vehicle": vehicle}).vehicle_params()
     except (InputError, ValueError) as exc:
-        raise InputError(f"--vehicle {vehicle}: {' '.join(str(exc).split())}") from None
+        raise InputError(f"--vehicle {vehicle}: {vehicle_problem(exc)}") from None
 
 
 def study_cases(name: str, full: bool = False, vehicle: str | None = None) -> list[CaseSpec]:

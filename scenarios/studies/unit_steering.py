@@ -55,6 +55,7 @@ __all__ = [
     "study_vehicle",
     "unit_columns",
     "unit_steering_cases",
+    "vehicle_problem",
 ]
 
 STUDY = "unit-steering"
@@ -107,6 +108,8 @@ class StudyVehicle:
 def study_vehicle(vehicle: str | None = None, study: str = STUDY) -> StudyVehicle:
     """Resolve the combination of a study: ``None`` for the default, a preset's name or a combination file.
 
+    ``study`` names the study in the refusal (its own vehicle is then the one to leave ``--vehicle`` out for).
+
     Raises
     ------
     InputError
@@ -124,16 +127,22 @@ def study_vehicle(vehicle: str | None = None, study: str = STUDY) -> StudyVehicl
     try:
         config = load_scenario(SCENARIOS[0], {"vehicle": vehicle})
     except (InputError, ValueError) as exc:
-        raise InputError(f"--vehicle {vehicle}: {' '.join(str(exc).split())}") from None
+        raise InputError(f"--vehicle {vehicle}: {vehicle_problem(exc)}") from None
     value = config.vehicle if isinstance(config.vehicle, str) else config.vehicle.model_dump(mode="json")
     resolved = StudyVehicle(config.vehicle_name, value, (), config.vehicle_params())
     if not any(resolved.steerable):
+        default = f"{DEFAULT_VEHICLE} with lead2, lead3, rear2 and rear3 steerable" if study == STUDY else "its own"
         raise InputError(
             f"--vehicle {vehicle}: {study} steers the towed units, but {resolved.name!r} has no steerable axle on "
             "any of them; give a combination with one (steerable: true on a towed unit's axle, docs/vehicles.md) "
-            f"or leave --vehicle out for {DEFAULT_VEHICLE} with lead2, lead3, rear2 and rear3 steerable"
+            f"or leave --vehicle out for {default}"
         )
     return resolved
+
+
+def vehicle_problem(exc: BaseException) -> str:
+    """The one line of a refused vehicle, without the configuration's preamble."""
+    return " ".join(str(exc).split()).removeprefix("invalid scenario configuration: ")
 
 
 def steering_feedback(steering: str, steerable: tuple[bool, ...]) -> tuple[str, tuple[str, ...]]:
