@@ -37,7 +37,8 @@ def unit_offtracking_figure(table: pd.DataFrame):
     """Bar charts of each towed unit's true off-tracking RMS after warm-up by steering (groups) and surface (bars).
 
     One row of panels per scenario and camber, one column per towed unit; the 0.10 m target is the dashed line
-    (``gid`` ``target``). A case without a value (failed, or ended before its warm-up) leaves its bar out.
+    (``gid`` ``target``). A case without a value (failed, or ended before its warm-up) leaves its bar out; cases that
+    differ only in a label the study does not vary (a test's ``direction``) share their bar, the mean of theirs.
 
     Parameters
     ----------
@@ -75,7 +76,7 @@ def unit_offtracking_figure(table: pd.DataFrame):
             ax = axes[row][col]
             column = f"unit{unit}_true_offtracking_rms_m"
             for i, surface in enumerate(surfaces):
-                cases = part[part["surface"] == surface].set_index("steering")[column]
+                cases = part[part["surface"] == surface].groupby("steering")[column].mean()
                 values = np.array([float(cases.get(s, np.nan)) for s in steerings], dtype=float)
                 bars = ax.bar(
                     x + (i - 0.5 * (len(surfaces) - 1)) * width,
