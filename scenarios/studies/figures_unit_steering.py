@@ -37,8 +37,9 @@ def unit_offtracking_figure(table: pd.DataFrame):
     """Bar charts of each towed unit's true off-tracking RMS after warm-up by steering (groups) and surface (bars).
 
     One row of panels per scenario and camber, one column per towed unit; the 0.10 m target is the dashed line
-    (``gid`` ``target``). A case without a value (failed, or ended before its warm-up) leaves its bar out; cases that
-    differ only in a label the study does not vary (a test's ``direction``) share their bar, the mean of theirs.
+    (``gid`` ``target``); a bar of a run that did not complete is hatched in red. A case without a value (failed,
+    or ended before its warm-up) leaves its bar out; cases that differ only in a label the study does not vary (a
+    test's ``direction``) share their bar, the mean of theirs.
 
     Parameters
     ----------
@@ -76,7 +77,9 @@ def unit_offtracking_figure(table: pd.DataFrame):
             ax = axes[row][col]
             column = f"unit{unit}_true_offtracking_rms_m"
             for i, surface in enumerate(surfaces):
-                cases = part[part["surface"] == surface].groupby("steering")[column].mean()
+                by_steering = part[part["surface"] == surface].groupby("steering")
+                cases = by_steering[column].mean()
+                completed = by_steering["status"].agg(lambda st: bool((st == RunStatus.COMPLETED).all()))
                 values = np.array([float(cases.get(s, np.nan)) for s in steerings], dtype=float)
                 bars = ax.bar(
                     x + (i - 0.5 * (len(surfaces) - 1)) * width,
@@ -85,7 +88,10 @@ def unit_offtracking_figure(table: pd.DataFrame):
                     label=surface,
                     color=SURFACE_COLOURS.get(str(surface)),
                 )
-                for bar, value in zip(bars, values, strict=True):
+                for bar, value, steering in zip(bars, values, steerings, strict=True):
+                    if not completed.get(steering, True):
+                        bar.set_hatch("xx")
+                        bar.set_edgecolor("tab:red")
                     if np.isfinite(value):
                         ax.annotate(
                             f"{value:.3f}",
@@ -111,7 +117,8 @@ def unit_offtracking_figure(table: pd.DataFrame):
     axes[0][0].legend(title="surface", fontsize=8)
     fig.suptitle(
         "True off-tracking of each towed unit after warm-up, against its own coupling's path, by steering and "
-        f"surface\n(dashed: the {OFFTRACKING_TARGET_RMS_M:.2f} m RMS target of a steered unit)"
+        f"surface\n(dashed: the {OFFTRACKING_TARGET_RMS_M:.2f} m RMS target of a steered unit; "
+        "hatched red: the run did not complete, its figure up to the stop)"
     )
     return fig
 
