@@ -610,23 +610,39 @@ def study(
     resume: Annotated[
         bool, typer.Option(help="Skip the cases already finished in --out; failed ones run again.")
     ] = True,
+    vehicle: Annotated[
+        str | None,
+        typer.Option(
+            help="Another combination (preset or NAME.yaml) for unit-steering or estimators-under-slip; "
+            "it needs a steerable towed unit."
+        ),
+    ] = None,
 ) -> None:
     """Run a study: every case into its own directory, then one table and the figures."""
     from scenarios.run.results import new_run_dir
-    from scenarios.studies.definitions import STUDIES, run_study
+    from scenarios.studies.definitions import STUDIES, check_study_vehicle, run_study
     from scenarios.studies.progress import rich_progress
     from scenarios.studies.records import CASES_DIR
     from vehicle_model.errors import InputError
 
     if name not in STUDIES:
         raise InputError(f"unknown study {name!r}; choose one of {', '.join(sorted(STUDIES))}")
+    for note in check_study_vehicle(name, vehicle):  # a vehicle it cannot drive: refused before any work
+        errors.print(f"note: {note}", markup=False)
     if out is not None and resume and (out / CASES_DIR).is_dir():
         run_dir = out  # an earlier run of the study: finish it
     else:
         run_dir = new_run_dir(out, f"study-{name}", force=force)
     with rich_progress(name, console=console) as progress:
         table = run_study(
-            name, run_dir, full=full, workers=workers, scheduler=scheduler, resume=resume, on_progress=progress
+            name,
+            run_dir,
+            full=full,
+            workers=workers,
+            scheduler=scheduler,
+            resume=resume,
+            on_progress=progress,
+            vehicle=vehicle,
         )
     _print_study_summary(table, run_dir, name)
     failed = int((table["status"] == RunStatus.FAILED).sum()) if "status" in table.columns else 0

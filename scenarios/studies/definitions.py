@@ -17,6 +17,13 @@
 * ``field-bias`` — which part of the field conditions biases VISO-OT: each part alone and in pairs, before and after
   the fixes, the odometry's error by axis and the raw and fused off-tracking bias
   (:mod:`scenarios.studies.field_bias`; docs/field_bias.md).
+* ``unit-steering`` — a combination with several steerable towed units (default the ``au-b-double`` with both
+  trailers' tri-axle groups steered), each unit on its own feedback: {three-turn roundabout, figure-of-eight} ×
+  {dry, ice} × camber ∈ {0, 5 %} × steering ∈ {unsteered, zero_slip, truth, truth+zero_slip}, model only
+  (:mod:`scenarios.studies.unit_steering`).
+
+``unit-steering`` and ``estimators-under-slip`` take another combination (``vehicle``, :func:`check_study_vehicle`);
+the camera studies keep their own vehicle.
 
 The default run of each is a small subset that finishes in minutes; ``full`` runs all of it.
 
@@ -36,8 +43,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from vehicle_model.errors import InputError
+from vehicle_model.parameters import VehicleParams
+
+from ..config import load_scenario
 from ..loop.ends import RunStatus
 from ..registry import feedback_sources
+from ..unit_feedback import REAR_FEEDBACK, one_semi_trailer
 from .cases import run_case
 from .field_bias import field_bias_cases, run_field_bias_case
 from .field_loop import field_loop_cases, run_field_loop_case
@@ -46,6 +58,13 @@ from .progress import ProgressCallback, SweepProgress
 from .records import CaseSpec
 from .section4 import paper_section4_cases, run_section4_case
 from .sweep import run_sweep
+from .unit_steering import (
+    run_unit_steering_case,
+    study_vehicle,
+    unit_columns,
+    unit_steering_cases,
+    vehicle_problem,
+)
 
 # de Saxe & Cebon 2018 §3.2, values stated in the text (the figures themselves are not reproduced there).
 PAPER_SECTION3 = {
@@ -102,19 +121,35 @@ def paper_section3_cases(full: bool = False) -> list[CaseSpec]:
     return cases
 
 
-def estimators_under_slip_cases(full: bool = False) -> list[CaseSpec]:
-    """Cases of the estimators-under-slip grid (a subset unless ``full``)."""
+def estimators_under_slip_cases(full: bool = False, vehicle: str | None = None) -> list[CaseSpec]:
+    """Cases of the estimators-under-slip grid (a subset unless ``full``).
+
+    Parameters
+    ----------
+    full
+        Every surface, camber and manoeuvre; otherwise dry and ice, 0 and 5 %, half a turn of the roundabout.
+    vehicle
+        ``None`` for the 14.05 m LST, or a preset's name or combination file with a steerable towed unit
+        (:func:`check_study_vehicle`). A combination longer than a tractor with one semi-trailer has no camera: its
+        runs are the feedbacks without one (none, zero_slip, truth), every steerable unit steered on the same kind.
+    """
     surfaces = ("dry", "wet", "snow", "ice") if full else ("dry", "ice")
     cambers = (0.0, 2.5, 5.0) if full else (0.0, 5.0)
     scenarios = ("roundabout-3", "figure-eight") if full else ("roundabout-3",)
     feedbacks = feedback_sources()  # every source of the registry: none, zero_slip, viso_ot, viso_ot_fused, truth
+    combination: str | dict[str, Any] = "lst"
+    if vehicle is not None:
+        resolved = study_vehicle(vehicle, "estimators-under-slip")
+        combination = resolved.value
+        if not one_semi_trailer(resolved.params):
+            feedbacks = tuple(f for f in feedbacks if f in REAR_FEEDBACK)
     cases = []
     for scenario in scenarios:
         for surface in surfaces:
             for camber in cambers:
                 for feedback in feedbacks:
                     overrides: tuple[tuple[str, Any], ...] = (
-                        ("vehicle", "lst"),
+                        ("vehicle", combination),
                         ("surface.preset", surface),
                         ("camber.percent", camber),
                         ("feedback", feedback),
@@ -136,7 +171,75 @@ STUDIES: dict[str, Callable[[bool], list[CaseSpec]]] = {
     "paper-section4": paper_section4_cases,
     "field-loop": field_loop_cases,
     "field-bias": field_bias_cases,
+    "unit-steering": unit_steering_cases,
 }
+
+VEHICLE_STUDIES = ("unit-steering", "estimators-under-slip")
+"""The studies that take another combination (``vehicle``); the others keep their own vehicle."""
+
+
+def check_study_vehicle(name: str, vehicle: str | None) -> list[str]:
+    """Refuse, before any work, a ``vehicle`` the study ``name`` cannot drive; return what it will leave out.
+
+    Parameters
+    ----------
+    name
+        A key of :data:`STUDIES`.
+    vehicle
+        ``None`` (the study's own vehicle), a preset's name or a combination file.
+
+    Returns
+    -------
+    list of str
+        Notes to tell once: the camera feedbacks that ``estimators-under-slip`` drops for a longer combination.
+
+    Raises
+    ------
+    InputError
+        One line naming ``--vehicle``: a camera study given any vehicle (a longer combination has no camera;
+        a tractor with one semi-trailer is not the vehicle the study reproduces), or a vehicle that is not a
+        combination the study can steer (:func:`~scenarios.studies.unit_steering.study_vehicle`).
+    """
+    if vehicle is None:
+        return []
+    takes = " and ".join(VEHICLE_STUDIES)
+    if name not in VEHICLE_STUDIES:
+        resolved = study_vehicle_params(vehicle)
+        why = (
+            "it sees the first towed unit with a stereo camera, which needs a tractor or rigid truck with one "
+            "semi-trailer"
+            if not one_semi_trailer(resolved)
+            else "it reproduces its cases on its own vehicle"
+        )
+        raise InputError(f"--vehicle {vehicle}: {name} takes no --vehicle ({why}); {takes} take one")
+    resolved_vehicle = study_vehicle(vehicle, name)
+    if name == "estimators-under-slip" and not one_semi_trailer(resolved_vehicle.params):
+        dropped = [f for f in feedback_sources() if f not in REAR_FEEDBACK]
+        return [
+            f"{name} --vehicle {resolved_vehicle.name}: the camera feedbacks ({', '.join(dropped)}) are left out; "
+            "the camera sees the first towed unit of a tractor or rigid truck with one semi-trailer only"
+        ]
+    return []
+
+
+def study_vehicle_params(vehicle: str) -> VehicleParams:
+    """The model's parameters of a preset's name or combination file given as ``--vehicle`` (one line naming it
+    when it is neither)."""
+    try:
+        return load_scenario("roundabout-3", {"vehicle": vehicle}).vehicle_params()
+    except (InputError, ValueError) as exc:
+        raise InputError(f"--vehicle {vehicle}: {vehicle_problem(exc)}") from None
+
+
+def study_cases(name: str, full: bool = False, vehicle: str | None = None) -> list[CaseSpec]:
+    """The cases of study ``name`` (a subset unless ``full``), for ``vehicle`` where it takes one
+    (:func:`check_study_vehicle`)."""
+    if name not in STUDIES:
+        raise InputError(f"unknown study {name!r}; choose one of {', '.join(sorted(STUDIES))}")
+    check_study_vehicle(name, vehicle)
+    if vehicle is None:
+        return STUDIES[name](full)
+    return STUDIES[name](full, vehicle)  # type: ignore[call-arg]
 
 
 def run_estimators_under_slip_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
@@ -146,7 +249,11 @@ def run_estimators_under_slip_case(spec: CaseSpec, out_dir: Path) -> dict[str, A
     metrics_file = out_dir / spec.name / "metrics.json"
     if row.get("status") == RunStatus.INTERRUPTED or not metrics_file.is_file():
         return row
-    fused = json.loads(metrics_file.read_text()).get("offtracking", {}).get("estimators", {}).get("viso_ot_fused")
+    metrics = json.loads(metrics_file.read_text())
+    if metrics.get("offtracking", {}).get("units"):  # a longer combination: each towed unit's own columns
+        params = load_scenario(spec.scenario, dict(spec.overrides)).vehicle_params()
+        row.update(unit_columns(metrics, params))
+    fused = metrics.get("offtracking", {}).get("estimators", {}).get("viso_ot_fused")
     if fused:
         row["viso_ot_fused_rms_error_m"] = fused["rms_error"]
         row["viso_ot_fused_max_abs_error_m"] = fused["max_abs_error"]
@@ -159,6 +266,7 @@ CASE_RUNNERS: dict[str, Callable[[CaseSpec, Path], dict[str, Any]]] = {
     "estimators-under-slip": run_estimators_under_slip_case,
     "field-loop": run_field_loop_case,
     "field-bias": run_field_bias_case,
+    "unit-steering": run_unit_steering_case,
 }
 """A study's own case function (default :func:`~scenarios.studies.cases.run_case`): it adds study columns."""
 
@@ -173,6 +281,7 @@ def run_study(
     scheduler: str | Any | None = None,
     resume: bool = True,
     on_progress: ProgressCallback | None = None,
+    vehicle: str | None = None,
 ) -> pd.DataFrame:
     """Run every case of a study; write ``table.parquet``, ``table.csv``, ``table.md`` and the figures.
 
@@ -196,6 +305,9 @@ def run_study(
         Skip cases already finished in ``out_dir`` (failed ones run again).
     on_progress
         Called with a :class:`~scenarios.studies.progress.SweepProgress` (finished, failed, remaining, ETA).
+    vehicle
+        Another combination (a preset's name or a combination file) for a study of :data:`VEHICLE_STUDIES`;
+        refused for the others (:func:`check_study_vehicle`, before any case runs).
 
     Returns
     -------
@@ -205,15 +317,15 @@ def run_study(
 
     Raises
     ------
+    InputError
+        An unknown study, or a ``vehicle`` it does not take (one line, before any case runs).
     KeyboardInterrupt
         Ctrl-C, or :class:`~scenarios.run.stopping.Terminated` on SIGTERM, anywhere in the study (also in a
         case or a worker): the study stops at once, the finished cases stay recorded, no table or figure
         is written, and running it again into ``out_dir`` runs the rest
         (:func:`~scenarios.studies.sweep.run_sweep`).
     """
-    if name not in STUDIES:
-        raise ValueError(f"unknown study {name!r}; choose one of {sorted(STUDIES)}")
-    cases = STUDIES[name](full)
+    cases = study_cases(name, full, vehicle)
     by_name = {spec.name: spec for spec in cases}
 
     def report(p: SweepProgress) -> None:

@@ -1,5 +1,5 @@
 """Figures of the studies: de Saxe & Cebon 2018 §3 Figs 6–8 and §4 Figs 14–16, the estimators-under-slip heat maps,
-the field-loop cells and the field-bias decomposition."""
+the field-loop cells, the field-bias decomposition and the unit-steering bars and verdicts."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import pandas as pd
 from .figures_field_bias import field_bias_figures
 from .figures_field_loop import field_loop_figures
 from .figures_section4 import section4_figures
+from .figures_unit_steering import unit_steering_figures
 
 
 def paper_figures(table: pd.DataFrame, out_dir: Path) -> None:
@@ -187,4 +188,5 @@ FIGURES: dict[str, Callable[[pd.DataFrame, Path], None]] = {
     "paper-section4": section4_figures,
     "field-loop": field_loop_figures,
     "field-bias": field_bias_figures,
+    "unit-steering": unit_steering_figures,
 }

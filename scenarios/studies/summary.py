@@ -24,6 +24,7 @@ from ..loop.ends import RunStatus
 
 LABELS = (
     "case",
+    "vehicle",
     "scenario",
     "sweep",
     "camera",
@@ -37,6 +38,7 @@ LABELS = (
     "variant",
     "seed",
     "feedback",
+    "steering",
 )
 """Case labels of the studies (:mod:`scenarios.studies.definitions`), shown first when they vary."""
 
@@ -48,6 +50,11 @@ PRIORITY = (
     "inner_radius_min_m",
     "true_offtracking_rms_after_warmup_m",
     "true_offtracking_max_after_warmup_m",
+    *(  # each towed unit of the unit-steering study (2 the first, as many as a combination has)
+        f"unit{unit}_{metric}"
+        for metric in ("true_offtracking_rms_m", "true_offtracking_max_m", "feedback_rms_error_m", "max_steer_deg")
+        for unit in range(2, 10)
+    ),
     "fused_rms_error_m",
     "fused_within_2sigma",
     "verdict_held",
@@ -95,6 +102,9 @@ HEADERS = {
     "roundabout_pass": "round-about test",
     "outer_radius_max_m": "R out max [m]",
     "inner_radius_min_m": "R in min [m]",
+    "feedback_rms_error_m": "fed-back err RMS [m]",
+    "max_steer_deg": "max steer [deg]",
+    "verdict_flags": "verdict flags",
 }
 """Short headers with units for the known columns (others: :func:`header_for`)."""
 
@@ -111,9 +121,9 @@ def header_for(column: str) -> str:
     """The header of a column, with its unit in brackets (``viso_ot_rms_error_m`` → ``VISO-OT err RMS [m]``)."""
     if column in HEADERS:
         return HEADERS[column]
-    unit = re.fullmatch(r"unit(\d)_(true_offtracking_(?:rms|max)_m)", column)
-    if unit:  # a unit behind the first towed one (offtrack compare of a longer combination)
-        return f"unit {unit[1]} {HEADERS[unit[2]]}"
+    unit = re.fullmatch(r"unit(\d)_(.+)", column)
+    if unit:  # one towed unit's column (offtrack compare of a longer combination, the unit-steering study)
+        return f"unit {unit[1]} {header_for(unit[2])}"
     for suffix, unit in UNIT_SUFFIXES:
         if column.endswith(suffix) and len(column) > len(suffix):
             return f"{column.removesuffix(suffix).replace('_', ' ')} [{unit}]"
@@ -131,7 +141,7 @@ def format_cell(column: str, value: Any, missing: str = MISSING) -> str:
     if isinstance(value, bool | np.bool_):
         return "yes" if value else "no"
     if isinstance(value, float | np.floating):
-        if column in PERCENT:
+        if column in PERCENT or re.fullmatch(r"unit\d_saturated_fraction", column):
             return f"{100.0 * value:.0f}"
         if column in ("mean_matches", "mean_inliers", "inlier_percent", "wall_time_s") or float(value).is_integer():
             return f"{value:.0f}" if abs(value) >= 10 or float(value).is_integer() else f"{value:.1f}"
