@@ -114,22 +114,29 @@ class Limits:
         offtracking
             The true off-tracking [m] (NaN while there is none).
         """
-        if not math.isfinite(articulation) or abs(articulation) > math.radians(self.max_articulation_deg):
-            return LimitBreach(
-                StopReason.JACKKNIFE,
-                f"jackknife: articulation {math.degrees(articulation):+.1f}° beyond ±{self.max_articulation_deg:g}° "
-                "(the trailer would hit the tractor)",
-            )
+        if (breach := self._jackknife(articulation, "articulation", "the trailer would hit the tractor")) is not None:
+            return breach
         if not math.isfinite(path_error) or abs(path_error) > self.max_lateral_error:
             return LimitBreach(
                 StopReason.LEFT_ROAD,
                 f"left the road: the driver's control point is {path_error:+.2f} m from its path "
                 f"(limit ±{self.max_lateral_error:g} m, a 3.5 m lane)",
             )
+        return self._off_road(offtracking, "the trailer left the road")
+
+    def _jackknife(self, articulation: float, what: str, why: str) -> LimitBreach | None:
+        if not math.isfinite(articulation) or abs(articulation) > math.radians(self.max_articulation_deg):
+            return LimitBreach(
+                StopReason.JACKKNIFE,
+                f"jackknife: {what} {math.degrees(articulation):+.1f}° beyond ±{self.max_articulation_deg:g}° ({why})",
+            )
+        return None
+
+    def _off_road(self, offtracking: float, who: str) -> LimitBreach | None:
         if self.max_offtracking is not None and abs(offtracking) > self.max_offtracking:
             return LimitBreach(
                 StopReason.TRAILER_LEFT_ROAD,
-                f"the trailer left the road: true off-tracking {offtracking:+.2f} m beyond ±{self.max_offtracking:g} m",
+                f"{who}: true off-tracking {offtracking:+.2f} m beyond ±{self.max_offtracking:g} m",
             )
         return None
 
@@ -155,18 +162,11 @@ class Limits:
         for unit, (articulation, offtracking) in enumerate(
             zip(articulations[1:], offtrackings[1:], strict=True), start=3
         ):
-            if not math.isfinite(articulation) or abs(articulation) > math.radians(self.max_articulation_deg):
-                return LimitBreach(
-                    StopReason.JACKKNIFE,
-                    f"jackknife: unit {unit}'s articulation {math.degrees(articulation):+.1f}° beyond "
-                    f"±{self.max_articulation_deg:g}° (it would hit the unit ahead)",
-                )
-            if self.max_offtracking is not None and abs(offtracking) > self.max_offtracking:
-                return LimitBreach(
-                    StopReason.TRAILER_LEFT_ROAD,
-                    f"unit {unit} left the road: true off-tracking {offtracking:+.2f} m beyond "
-                    f"±{self.max_offtracking:g} m",
-                )
+            breach = self._jackknife(articulation, f"unit {unit}'s articulation", "it would hit the unit ahead")
+            if breach is None:
+                breach = self._off_road(offtracking, f"unit {unit} left the road")
+            if breach is not None:
+                return breach
         return None
 
 
