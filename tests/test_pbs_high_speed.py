@@ -254,3 +254,27 @@ def test_grading_takes_the_most_demanding_level_met(measure: Measure, value: flo
     got_level, got_margin = grade(measure, value)
     assert got_level == level
     assert got_margin == (None if margin is None else pytest.approx(margin))
+
+
+def _steady_turn(speed_kmh: float, direction: str) -> dict:
+    data = {
+        "vehicle": "reference",
+        "direction": direction,
+        "path": {"kind": "roundabout", "radius": 200.0, "turns": 0.5, "entry_length": 30.0, "exit_length": 10.0},
+        "speed": {"cornering_kmh": speed_kmh},
+    }
+    setup = build_scenario(validate_config(data))
+    outcome, columns = simulate(setup, geometric_truth=False)
+    assert outcome.status == "completed", outcome.message
+    (record,) = high_speed_assessment(columns, setup.params, "steady_turn")
+    return record
+
+
+def test_steady_offtracking_grows_outward_with_speed_and_mirrors() -> None:
+    # On a 200 m circle the path follower holds the steer axle on the path; at 80 km/h (0.25 g) the trailer's
+    # rear axle runs outside it, at 20 km/h inside it (the low-speed cut-in), the same either way round.
+    fast_left, fast_right = _steady_turn(80.0, "left"), _steady_turn(80.0, "right")
+    slow = _steady_turn(20.0, "left")
+    assert fast_left["value"] == pytest.approx(fast_right["value"], abs=1e-6)
+    assert fast_left["value"] > 0.1 and slow["value"] < 0.0
+    assert "radius 200 m at 0.25 g" in fast_left["note"]
