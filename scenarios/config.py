@@ -35,6 +35,7 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from controller.path_following_config import PathFollowingConfig, PathFollowingGains
+from controller.steer_input import SteerInputConfig
 from sensor.fusion import FusionNoise
 from sensor.signals import ChannelSpec
 from vehicle_model.combination import INERTIA_TAGS, CombinationSpec, catalogue_vehicle_data
@@ -488,6 +489,11 @@ class ScenarioConfig(Settings):
         "on feedback (scenarios.unit_feedback)",
     )
     controller: ControllerConfig = ControllerConfig()
+    driver: SteerInputConfig = Field(
+        SteerInputConfig(),
+        description="the tractor's steer: the path follower (steer_input none) or an open-loop sine or pulse "
+        "(controller.steer_input)",
+    )
     roundabout_test: bool = False
     seed: int = Field(0, ge=0, le=2**32 - 1, description="numpy's seed range")
     duration_s: float | None = Field(
@@ -568,6 +574,11 @@ class ScenarioConfig(Settings):
             )
         if self.path.slip_deg is not None and steered:
             raise ValueError("a kinematic constant-slip run cannot be steered; use feedback none")
+        if self.path.slip_deg is not None and self.driver.open_loop:
+            raise ValueError(
+                f"driver.steer_input = {self.driver.steer_input!r}: a kinematic constant-slip run is not steered; "
+                "use none"
+            )
         return self
 
 

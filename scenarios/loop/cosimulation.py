@@ -370,9 +370,9 @@ class CoSimulation:
         self.breach: LimitBreach | None = None
         if not self.kinematic and self.limits.every_unit and self.further_units is not None:
             truths = [estimates[estimate_key("truth", unit)].value for unit in range(1, setup.params.n_units)]
-            self.breach = self.limits.check_units(state.articulations, self.driver.lateral_error, truths)
+            self.breach = self.limits.check_units(state.articulations, self.driver.kept_error, truths)
         elif not self.kinematic:
-            self.breach = self.limits.check(state.gamma, self.driver.lateral_error, estimates["truth"].value)
+            self.breach = self.limits.check(state.gamma, self.driver.kept_error, estimates["truth"].value)
         return Tick(index, time, state, kingpin, measured, estimates, command, tick.camera_frame)
 
     # ------------------------------------------------------------------ pickling

@@ -2,7 +2,10 @@
 
 In a kinematic scenario (the constant-slip straight of de Saxe & Cebon 2018, §3) nothing is steered or driven:
 the combination is moved along the path, both units crabbing at the slip angle (:func:`constant_slip_step`), and
-the driver only follows its progress.
+the driver only follows its progress. With an open-loop steer input (the configuration's ``driver`` section,
+:mod:`controller.steer_input`) the steer angle follows the input — its sign set by the scenario's direction, so a
+right run mirrors a left one — while the driver follows its progress along the path and the speed controller holds
+the speed profile.
 """
 
 from __future__ import annotations
@@ -55,6 +58,9 @@ class DriverParticipant:
         self.kinematic = setup.kinematic_slip is not None
         self.driver = PathFollowingDriver(params, setup.path, setup.control_point, feedforward=setup.feedforward)
         self.driver.reset(setup.initial_state)
+        steer_input = setup.config.driver
+        self.open_loop = steer_input.steer() if steer_input.open_loop else None
+        self._sign = setup.direction_sign
         self.speed_control = SpeedController(params.tractor.mass + params.trailer.mass)
         driven = np.flatnonzero(params.axle_table.driven)
         self._driven = driven
@@ -81,6 +87,13 @@ class DriverParticipant:
         return self.driver.lateral_error
 
     @property
+    def kept_error(self) -> float:
+        """The distance from the path the run's road limit holds the driver to [m]: the lateral error when the
+        path follower steers; 0 under an open-loop input, which does not try to keep to the path (the run's
+        duration or the path's length ends it, the articulation limit still applies)."""
+        return self.driver.lateral_error if self.open_loop is None else 0.0
+
+    @property
     def finished(self) -> bool:
         """The control point reached the end of the path."""
         return self.driver.finished
@@ -95,7 +108,13 @@ class DriverParticipant:
             )
             self.command = TractorCommand(0.0, 0.0, setup.speed_profile(driver.progress))
             return self.command
-        front = driver.steer(state, period)
+        if self.open_loop is None:
+            front = driver.steer(state, period)
+        else:  # the input, held over the period from this tick; the driver only follows its progress
+            driver.progress, driver.lateral_error = setup.path.project(
+                driver.control_point_position(state), driver.progress
+            )
+            front = self._sign * self.open_loop(tick.time)
         target = setup.speed_profile(driver.progress)
         mu_drive = self.simulator.min_friction(self._driven)
         drive = self.speed_control(target, state.u, period, traction_limit(mu_drive, self._driven_load))

@@ -1,0 +1,1 @@
+"""Assessment of a run against performance standards: measures computed from a run's recorded columns."""
