@@ -16,7 +16,7 @@ Formats (docs/usage.md, "Roads from files"):
 Smoothing: the points are joined by a cubic spline in their chord length (exact enough that a polyline sampled
 every metre from an arc lies within a few µm of it), resampled every :data:`~scenarios.setup.paths.SAMPLE_SPACING`
 of arc length, and smoothed with a Gaussian of standard deviation ``path.smoothing`` [m]; heading and curvature
-are the smoothed curve's, from the Gaussian's derivative kernels. A circle of radius ``R`` keeps its curvature within
+are the smoothed curve's, by central differences. A circle of radius ``R`` keeps its curvature within
 ``σ²/(2R²)`` (relative) away from the ends. The ends are extended by point reflection before smoothing, so a
 straight end stays straight and in place. A path whose radius after smoothing is below the configuration's 5 m
 anywhere is refused, naming the station.
@@ -348,14 +348,16 @@ def smooth_points(xy: np.ndarray, smoothing: float) -> tuple[np.ndarray, np.ndar
     pts = np.column_stack([np.interp(grid, arc, dense[:, 0]), np.interp(grid, arc, dense[:, 1])])
     sigma = smoothing / step
     pad = math.ceil(5.0 * sigma) + 1
-    out = []
+    smoothed = []
     for column in pts.T:
-        extended = _reflect(column, pad)
+        extended = gaussian_filter1d(_reflect(column, pad), sigma, mode="nearest", truncate=5.0)
         lo = (len(extended) - len(column)) // 2
-        cut = slice(lo, lo + len(column))
-        out.append([gaussian_filter1d(extended, sigma, order=k, mode="nearest", truncate=5.0)[cut] for k in range(3)])
-    (x, dx, ddx), (y, dy, ddy) = out
-    dx, dy, ddx, ddy = dx / step, dy / step, ddx / step**2, ddy / step**2
+        smoothed.append(extended[lo : lo + len(column)])
+    x, y = smoothed
+    # Derivatives by central differences of the smoothed curve: the sampled derivative-of-Gaussian kernels are
+    # biased by ~1/σ² (3 % in curvature at σ = 10 samples), central differences by (5 cm)²·κ³, nothing.
+    dx, dy = np.gradient(x, step), np.gradient(y, step)
+    ddx, ddy = np.gradient(dx, step), np.gradient(dy, step)
     curvature = (dx * ddy - dy * ddx) / np.hypot(dx, dy) ** 3
     heading = np.unwrap(np.arctan2(dy, dx))
     return np.column_stack([x, y]), heading, curvature, stations
