@@ -30,6 +30,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -55,7 +56,8 @@ SAME_POINT = 1e-6
 XODR_RESOLUTION = 0.05
 """Spacing [m] at which pyxodr samples an OpenDRIVE line (linear between samples: 0.3 µm off an arc of 1 km⁻¹)."""
 GEOGRAPHIC_CRS = ("crs84", "4326", "4258", "4269", "4979")
-"""Names or EPSG codes of geographic (degree) coordinate systems, refused in a GeoJSON ``crs``."""
+"""The endings (OGC CRS84 or an EPSG code) of the geographic (degree) coordinate systems a GeoJSON ``crs`` is refused
+for."""
 _DENSE = 0.01
 """Step [m] of the spline's parameter when its arc length is measured."""
 
@@ -185,7 +187,8 @@ def _read_geojson(file: Path, source: str) -> RoadPoints:
             f"road file {source}: no crs member, so the coordinates are WGS 84 longitude/latitude in degrees "
             "(RFC 7946 §4), which are not projected here; give projected metric coordinates and name their crs"
         )
-    if any(code in str(crs).lower().replace(":", "") for code in GEOGRAPHIC_CRS):
+    code = re.search(r"(\d+|crs84)$", str(crs).strip().lower())
+    if code is not None and code.group(1) in GEOGRAPHIC_CRS:
         raise RoadFileError(f"road file {source}: crs {crs!r} is geographic (degrees); give projected metres")
     xy = np.empty((len(coordinates), 2))
     for i, point in enumerate(coordinates):
