@@ -69,8 +69,8 @@ def scenario_row(config: ScenarioConfig) -> tuple[str, str, str, str, str, str]:
     Returns
     -------
     tuple of str
-        The radius is the control point's path radius (:data:`NOT_SET` for a path without one, :data:`UNRADIUSED`); the duration
-        ``full path`` when the run lasts until the driver reaches the path's end; the surface a preset name, or
+        The radius is the control point's path radius (:data:`NOT_SET` for a path without one,
+        :data:`UNRADIUSED`); the duration ``full path`` when the run lasts until the driver reaches the path's end; the surface a preset name, or
         ``μ`` and its value, with its low-friction patches counted.
     """
     radius = f"{config.path.radius:g}" if config.path.kind not in UNRADIUSED else NOT_SET
