@@ -70,8 +70,8 @@ def scenario_row(config: ScenarioConfig) -> tuple[str, str, str, str, str, str]:
     -------
     tuple of str
         The radius is the control point's path radius (:data:`NOT_SET` for a path without one,
-        :data:`UNRADIUSED`); the duration ``full path`` when the run lasts until the driver reaches the path's end; the surface a preset name, or
-        ``μ`` and its value, with its low-friction patches counted.
+        :data:`UNRADIUSED`); the duration ``full path`` when the run lasts until the driver reaches the path's end;
+        the surface a preset name, or ``μ`` and its value, with its low-friction patches counted.
     """
     radius = f"{config.path.radius:g}" if config.path.kind not in UNRADIUSED else NOT_SET
     duration = "full path" if config.duration_s is None else f"{config.duration_s:g} s"
