@@ -223,6 +223,8 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
     InputError
         ``model`` is the model of another vehicle.
     """
+    spec = config.path  # a bad road file is refused before the model is built
+    road = load_road(spec.file, spec.smoothing, spec.road, spec.lane) if spec.file is not None else None
     params = config.vehicle_params()
     if model is not None and model.params != params:
         raise InputError(
@@ -230,8 +232,6 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
         )
     model = model if model is not None else VehicleModel(params)
     sign = 1 if config.direction == "left" else -1
-    spec = config.path
-    road = load_road(spec.file, spec.smoothing, spec.road, spec.lane) if spec.file is not None else None
     path = road.path if road is not None else _path(config, sign)
     base_mu = config.surface.base_mu
     friction = (
