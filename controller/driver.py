@@ -277,3 +277,37 @@ class SpeedProfile:
         v2 = self.cornering**2 + 2.0 * a * d * (1.0 if self.straight > self.cornering else -1.0)
         v = math.sqrt(max(v2, 0.0))
         return min(v, self.straight) if self.straight > self.cornering else max(v, self.straight)
+
+
+class StationSpeedProfile:
+    """Target speed given along the path: linear between the stations ``stations`` [m] of ``speeds`` [m/s].
+
+    Before the first and after the last station the end speeds hold. What the speed controller can reach is its
+    business (its acceleration limits); the profile is the target only.
+
+    Parameters
+    ----------
+    stations : numpy.ndarray
+        Increasing arc lengths [m].
+    speeds : numpy.ndarray
+        Target speed at each [m/s], positive.
+    """
+
+    def __init__(self, stations: np.ndarray, speeds: np.ndarray) -> None:
+        self.stations = np.asarray(stations, dtype=float)
+        self.speeds = np.asarray(speeds, dtype=float)
+        if self.stations.shape != self.speeds.shape or not np.all(self.speeds > 0.0):
+            raise ValueError("a station speed profile needs one positive speed per station")
+
+    @property
+    def cornering(self) -> float:
+        """The lowest target speed [m/s] (what the run's length and the designed gains are sized for)."""
+        return float(self.speeds.min())
+
+    @property
+    def straight(self) -> float:
+        """The highest target speed [m/s]."""
+        return float(self.speeds.max())
+
+    def __call__(self, s: float) -> float:
+        return float(np.interp(s, self.stations, self.speeds))

@@ -114,9 +114,21 @@ class PathConfig(Settings):
     tracks the path — ``outer_front_corner`` (the roundabout test's outermost point) or
     ``front_axle``. ``radius`` is that point's path radius; in the roundabout test the driver keeps
     the outer corner ``driver_margin`` inside it.
+
+    ``file``: a road read from ``file`` (CSV, GeoJSON or OpenDRIVE, :mod:`scenarios.setup.roads`) and smoothed over
+    ``smoothing``; ``single_lane_change`` (ISO 14791) and ``double_lane_change`` (ISO 3888-1) are generated
+    (:mod:`scenarios.setup.lane_changes`, which says which of their defaults were checked against the standards),
+    after ``entry_length`` and before ``exit_length``, to the side ``direction`` names first.
     """
 
-    kind: Literal["roundabout", "figure_eight", "straight"] = "roundabout"
+    kind: Literal[
+        "roundabout",
+        "figure_eight",
+        "straight",
+        "file",
+        "single_lane_change",
+        "double_lane_change",
+    ] = "roundabout"
     # settle_turns: circles driven before the assessed ``turns`` (the roundabout test assesses a full
     # 360° once the combination is on the circle, not its entry from the approach).
     radius: float = Field(
@@ -135,6 +147,67 @@ class PathConfig(Settings):
     driver_margin: float = Field(
         0.0, ge=0.0, le=0.5, description="[m] the driver keeps inside the test circle; more is not the test"
     )
+    # Roads from files (kind file).
+    file: str | None = Field(
+        None,
+        min_length=1,
+        max_length=4096,
+        description="road file (.csv, .geojson, .json, .xodr), relative to the working directory; 4096 is PATH_MAX",
+    )
+    smoothing: float = Field(
+        2.0,
+        ge=0.2,
+        le=20.0,
+        description="[m] standard deviation of the Gaussian that smooths a road file; below 0.2 m (four samples) "
+        "a digitised polyline's corners reach the driver as curvature spikes, above 20 m it flattens a 5 m radius turn",
+    )
+    road: str | None = Field(
+        None, min_length=1, max_length=100, description="OpenDRIVE road id (default: the file's first road)"
+    )
+    lane: int | None = Field(
+        None,
+        ge=-50,
+        le=50,
+        description="OpenDRIVE lane id whose centre line is followed (default: the road's reference line); no road "
+        "has 50 lanes a side",
+    )
+    # The lane changes (scenarios.setup.lane_changes: defaults not verified against the standards' texts).
+    slc_offset: float = Field(
+        1.46,
+        gt=0.0,
+        le=10.0,
+        description="[m] lateral offset of ISO 14791's single lane change (0.15 g at 0.4 Hz, 88 km/h; not verified); "
+        "10 m is three lanes",
+    )
+    slc_length: float = Field(
+        61.1,
+        ge=10.0,
+        le=500.0,
+        description="[m] length of the single lane change (2.5 s at 88 km/h; not verified); below 10 m no "
+        "combination follows it, 500 m is no longer a manoeuvre",
+    )
+    dlc_offset: float = Field(
+        3.5,
+        gt=0.0,
+        le=10.0,
+        description="[m] lateral offset of ISO 3888-1's double lane change (not verified); 10 m is three lanes",
+    )
+    dlc_sections: tuple[
+        Annotated[float, Field(gt=0.0, le=500.0, description="[m] a section; 500 m is no longer a manoeuvre")],
+        Annotated[float, Field(gt=0.0, le=500.0, description="[m] a section; 500 m is no longer a manoeuvre")],
+        Annotated[float, Field(gt=0.0, le=500.0, description="[m] a section; 500 m is no longer a manoeuvre")],
+        Annotated[float, Field(gt=0.0, le=500.0, description="[m] a section; 500 m is no longer a manoeuvre")],
+        Annotated[float, Field(gt=0.0, le=500.0, description="[m] a section; 500 m is no longer a manoeuvre")],
+    ] = Field(
+        (15.0, 30.0, 25.0, 25.0, 15.0),
+        description="[m] ISO 3888-1's sections: entry lane, change, offset lane, return, exit lane (not verified)",
+    )
+
+    @model_validator(mode="after")
+    def _file_for_a_file_road(self) -> PathConfig:
+        if (self.kind == "file") != (self.file is not None):
+            raise ValueError("path.file is needed with path.kind = file, and only then")
+        return self
 
 
 class PatchConfig(Settings):

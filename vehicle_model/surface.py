@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from typing import Literal, Protocol
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 FRICTION_PRESETS: dict[str, float] = {"dry": 0.80, "wet": 0.50, "snow": 0.25, "ice": 0.10}
 """Named surfaces and their peak friction coefficient μ."""
@@ -170,6 +171,70 @@ class RadialCamber:
         sign = 1.0 if self.direction == "outward" else -1.0
         unit = d / np.maximum(r, 1e-12)[:, None]
         return sign * s[:, None] * unit
+
+
+class _NearestSample:
+    """The index of the path sample nearest each query point (a k-d tree over the samples, built once)."""
+
+    def __init__(self, points: np.ndarray) -> None:
+        self._tree = cKDTree(np.asarray(points, dtype=float))
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        return self._tree.query(np.asarray(points, dtype=float))[1]
+
+
+class StationFriction:
+    """μ given along a path: a ground point takes the μ of the path sample nearest it.
+
+    Parameters
+    ----------
+    points : numpy.ndarray
+        Path samples ``(N, 2)`` [m].
+    mu : numpy.ndarray
+        Friction coefficient at each sample ``(N,)``.
+
+    Notes
+    -----
+    Where a path crosses itself the nearer branch wins. A lookup is one k-d tree query (a few µs for the dozen
+    ground points of a combination), so it can be asked every dynamics step.
+    """
+
+    def __init__(self, points: np.ndarray, mu: np.ndarray) -> None:
+        mu = np.asarray(mu, dtype=float)
+        for value in mu:
+            _check_mu(float(value))
+        self._nearest = _NearestSample(points)
+        self.mu = mu
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        return self.mu[self._nearest(points)]
+
+
+class StationCrossfall:
+    """A crossfall given along a path: at a point, the grade of the nearest path sample, across that sample's heading.
+
+    Parameters
+    ----------
+    points : numpy.ndarray
+        Path samples ``(N, 2)`` [m].
+    heading : numpy.ndarray
+        The path's heading at each sample [rad].
+    grade_percent : numpy.ndarray
+        Crossfall [%] at each sample; positive falls to the right of the direction of travel (downhill azimuth
+        ``heading − π/2``), negative to the left.
+    """
+
+    def __init__(self, points: np.ndarray, heading: np.ndarray, grade_percent: np.ndarray) -> None:
+        grade = np.asarray(grade_percent, dtype=float)
+        if not np.all(np.abs(grade) <= 30.0):
+            raise ValueError(f"crossfall {float(np.max(np.abs(grade))):g} % is outside [-30, 30] %")
+        self._nearest = _NearestSample(points)
+        s = np.sin(np.arctan(grade / 100.0))
+        h = np.asarray(heading, dtype=float)
+        self._vectors = np.column_stack([s * np.sin(h), -s * np.cos(h)])
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        return self._vectors[self._nearest(points)]
 
 
 @dataclass(frozen=True)

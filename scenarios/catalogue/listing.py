@@ -21,6 +21,8 @@ __all__ = ["preset_tables", "scenario_row", "scenario_table", "surface_table", "
 
 NOT_SET = "–"
 """A cell with no value (a straight path has no radius)."""
+UNRADIUSED = ("straight", "file", "single_lane_change", "double_lane_change")
+"""Path kinds that do not use ``path.radius``."""
 
 
 def _table(title: str, columns: list[tuple[str, str]]) -> Table:
@@ -67,11 +69,11 @@ def scenario_row(config: ScenarioConfig) -> tuple[str, str, str, str, str, str]:
     Returns
     -------
     tuple of str
-        The radius is the control point's path radius (:data:`NOT_SET` for a straight); the duration
-        ``full path`` when the run lasts until the driver reaches the path's end; the surface a preset name, or
-        ``μ`` and its value, with its low-friction patches counted.
+        The radius is the control point's path radius (:data:`NOT_SET` for a path without one,
+        :data:`UNRADIUSED`); the duration ``full path`` when the run lasts until the driver reaches the path's end;
+        the surface a preset name, or ``μ`` and its value, with its low-friction patches counted.
     """
-    radius = NOT_SET if config.path.kind == "straight" else f"{config.path.radius:g}"
+    radius = f"{config.path.radius:g}" if config.path.kind not in UNRADIUSED else NOT_SET
     duration = "full path" if config.duration_s is None else f"{config.duration_s:g} s"
     surface = config.surface.preset if config.surface.mu is None else f"μ {config.surface.mu:g}"
     if config.surface.patches:

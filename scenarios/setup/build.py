@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import root_scalar
 
-from controller.driver import SpeedProfile, kinematic_feedforward
+from controller.driver import SpeedProfile, StationSpeedProfile, kinematic_feedforward
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
@@ -20,6 +20,8 @@ from vehicle_model.surface import (
     PatchyFriction,
     RadialCamber,
     SlopeField,
+    StationCrossfall,
+    StationFriction,
     Surface,
     UniformCrossfall,
     UniformFriction,
@@ -27,7 +29,9 @@ from vehicle_model.surface import (
 from vehicle_model.trim import trim
 
 from ..config import ScenarioConfig
+from .lane_changes import double_lane_change_path, single_lane_change_path
 from .paths import ReferencePath, figure_eight_path, roundabout_path, straight_path
+from .roads import Road, RoadFileError, load_road
 
 CARRIAGEWAY_HALF_WIDTH = 8.0
 """Radial camber extends this far beyond a loop's path radius [m]; the approaches are flat."""
@@ -87,7 +91,7 @@ class ScenarioSetup:
     path: ReferencePath
     surface: Surface
     control_point: tuple[float, float]
-    speed_profile: SpeedProfile
+    speed_profile: SpeedProfile | StationSpeedProfile
     feedforward: Callable[[float], float]
     initial_state: VehicleState
     annulus_centre: tuple[float, float] | None
@@ -105,11 +109,37 @@ def _path(config: ScenarioConfig, sign: int) -> ReferencePath:
         return roundabout_path(radius, p.turns, sign, p.entry_length, p.exit_length, p.settle_turns)
     if p.kind == "figure_eight":
         return figure_eight_path(radius, p.gap, p.entry_length, p.exit_length, sign)
+    if p.kind == "single_lane_change":
+        return single_lane_change_path(p.slc_offset, p.slc_length, p.entry_length, p.exit_length, sign)
+    if p.kind == "double_lane_change":
+        return double_lane_change_path(p.dlc_offset, p.dlc_sections, p.entry_length, p.exit_length, sign)
     return straight_path(p.length, p.entry_length)
 
 
-def _slope(config: ScenarioConfig, path: ReferencePath, sign: int) -> SlopeField:
+FEEDFORWARD_LEVELS = 8
+"""A path with more distinct curvatures than this (a road file, a lane change) has its steady-state feed-forward
+tabulated at this many curvatures a side, evenly up to the largest: a trim a curvature would cost seconds a sample."""
+
+
+def feedforward_curvatures(curvature: np.ndarray) -> np.ndarray:
+    """The curvatures at which :func:`steady_feedforward` solves a trim: the path's own, or a few levels a side."""
+    distinct = np.unique(np.round(curvature[curvature != 0.0], 9))
+    if len(distinct) <= 2 * FEEDFORWARD_LEVELS:
+        return curvature
+    levels = []
+    for side in (curvature[curvature > 0.0], -curvature[curvature < 0.0]):
+        if len(side) and side.max() > 1e-6:
+            top = float(side.max())
+            levels.append(np.sign(side[0]) * np.linspace(top / FEEDFORWARD_LEVELS, top, FEEDFORWARD_LEVELS))
+    return np.concatenate(levels) if levels else np.zeros(1)
+
+
+def _slope(config: ScenarioConfig, path: ReferencePath, sign: int, road: Road | None = None) -> SlopeField:
     camber = config.camber
+    if road is not None and road.crossfall is not None:
+        if camber.percent != 0.0:
+            raise RoadFileError(f"road file {config.path.file} gives a crossfall; camber.percent must be 0 with it")
+        return StationCrossfall(path.points, path.heading, road.crossfall)
     if camber.percent == 0.0:
         return FlatRoad()
     if len(path.centres):
@@ -120,6 +150,9 @@ def _slope(config: ScenarioConfig, path: ReferencePath, sign: int) -> SlopeField
             config.path.radius + CARRIAGEWAY_HALF_WIDTH,
         )
     # A straight: "outward" falls to the right of the direction of travel, "inward" to the left.
+    if config.path.kind != "straight":  # a lane change or a road file: across the path's own heading
+        grade = camber.percent if camber.direction == "outward" else -camber.percent
+        return StationCrossfall(path.points, path.heading, np.full(len(path.s), grade))
     return UniformCrossfall(camber.percent, -math.pi / 2 if camber.direction == "outward" else math.pi / 2)
 
 
@@ -190,6 +223,8 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
     InputError
         ``model`` is the model of another vehicle.
     """
+    spec = config.path  # a bad road file is refused before the model is built
+    road = load_road(spec.file, spec.smoothing, spec.road, spec.lane) if spec.file is not None else None
     params = config.vehicle_params()
     if model is not None and model.params != params:
         raise InputError(
@@ -197,24 +232,34 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
         )
     model = model if model is not None else VehicleModel(params)
     sign = 1 if config.direction == "left" else -1
-    path = _path(config, sign)
+    path = road.path if road is not None else _path(config, sign)
     base_mu = config.surface.base_mu
     friction = (
         PatchyFriction(base_mu, tuple(FrictionPatch(**p.model_dump()) for p in config.surface.patches))
         if config.surface.patches
         else UniformFriction(base_mu)
     )
-    surface = Surface(friction, _slope(config, path, sign))
+    if road is not None and road.mu is not None:
+        if config.surface.patches or config.surface.mu is not None:
+            raise RoadFileError(f"road file {spec.file} gives mu; surface.mu and surface.patches must be unset with it")
+        friction = StationFriction(path.points, road.mu)
+    surface = Surface(friction, _slope(config, path, sign, road))
     if config.path.control_point == "outer_front_corner":
         control_point = (params.tractor.front_x, -sign * 0.5 * params.tractor.width)
     else:
         control_point = (0.0, 0.0)
     cornering = config.speed.cornering_kmh / 3.6
     straight = (config.speed.straight_kmh or config.speed.cornering_kmh) / 3.6
-    profile = SpeedProfile(cornering, straight, path.turn_span[0], path.turn_span[1], config.speed.acceleration)
+    profile: SpeedProfile | StationSpeedProfile
+    if road is not None and road.speed is not None:
+        profile = StationSpeedProfile(path.s, road.speed)
+        cornering = profile.cornering
+    else:
+        profile = SpeedProfile(cornering, straight, path.turn_span[0], path.turn_span[1], config.speed.acceleration)
     kinematic_slip = math.radians(config.path.slip_deg) if config.path.slip_deg is not None else None
     if kinematic_slip is None and config.path.kind != "straight":
-        feedforward = steady_feedforward(params, model, path.curvature, cornering, base_mu, control_point)
+        curvatures = feedforward_curvatures(path.curvature)
+        feedforward = steady_feedforward(params, model, curvatures, cornering, base_mu, control_point)
     else:
         feedforward = kinematic_feedforward(params, *control_point)
     # Start with the control point at the path start, straight, at the profile's speed.
