@@ -9,12 +9,18 @@ import numpy as np
 from sensor.signals import OnboardSignals
 from vehicle_model.geometry import follow_point_from_kingpin
 from vehicle_model.kinematics import trailer_axle_speed
-from vehicle_model.simulator import VehicleState
+from vehicle_model.simulator import Simulator, VehicleState
 
 from ..setup.build import ScenarioSetup
 from .participant import Column, TickInput
 
-__all__ = ["RECORDED_SIGNALS", "SignalsParticipant", "VehicleParticipant"]
+__all__ = [
+    "RECORDED_SIGNALS",
+    "STEER_TYRE_QUANTITIES",
+    "SignalsParticipant",
+    "SteerTyreParticipant",
+    "VehicleParticipant",
+]
 
 _STATE_COLUMNS = (
     Column("X", "m", "tractor CG, global X"),
@@ -133,3 +139,59 @@ class SignalsParticipant:
         """The recorded signals of the last measurement."""
         m = self.measured
         return {f"signal_{n}": float(m[n][0]) for n, _ in RECORDED_SIGNALS}
+
+
+STEER_TYRE_QUANTITIES: tuple[tuple[str, str, str], ...] = (
+    ("fx", "N", "longitudinal force of the steer axle's tyres, wheel frame, both sides together"),
+    ("fy", "N", "lateral force of the steer axle's tyres, wheel frame, both sides together"),
+    ("fz", "N", "normal load of the steer axle's tyres, both sides together"),
+    ("mu", "-", "road friction coefficient under the steer axle"),
+)
+"""The steer-axle quantities recorded as ``<quantity>_<axle>`` for each steerable axle of the tractor or truck."""
+
+
+class SteerTyreParticipant:
+    """The forces, load and road friction of the tractor's steerable axles, from the model's outputs every tick.
+
+    The model is single-track: an axle's tyres share its load and force equally (no load transfer), so each tyre's
+    friction use is the axle's ``sqrt(fx² + fy²) / fz`` (:mod:`scenarios.assess.low_speed`).
+
+    Parameters
+    ----------
+    setup
+        The built scenario.
+    simulator
+        The simulator whose state and held inputs the outputs are evaluated at.
+    """
+
+    name = "steer_tyres"
+
+    def __init__(self, setup: ScenarioSetup, simulator: Simulator) -> None:
+        self.model = setup.model
+        self.simulator = simulator
+        layout = setup.model.layout
+        steer = {a.name for a in setup.params.tractor.axles if a.steerable}
+        self._index = np.array([i for i, n in enumerate(layout.axles) if n in steer], dtype=int)
+        names = [layout.axles[i] for i in self._index]
+        self.columns: tuple[Column, ...] = tuple(
+            Column(f"{q}_{n}", unit, what) for n in names for q, unit, what in STEER_TYRE_QUANTITIES
+        )
+        self._mu, self._slope = layout.mu_slice, layout.slope_slice
+        self._names = names
+        self._row: dict[str, float] = {}
+
+    def update(self, tick: TickInput) -> None:
+        """Evaluate the model's outputs at the tick's state, the held inputs and the surface under the axles."""
+        sim = self.simulator
+        x, u = sim.state_vector, sim.input_vector
+        mu, slope = sim.surface_inputs(x)
+        u[self._mu], u[self._slope] = mu, slope
+        out = dict(zip(self.model.output_names, self.model.outputs(x, u), strict=True))
+        values = {
+            q: np.asarray(out[q if q != "mu" else "mu_used"]).ravel()[self._index] for q in ("fx", "fy", "fz", "mu")
+        }
+        self._row = {f"{q}_{n}": float(values[q][k]) for k, n in enumerate(self._names) for q in values}
+
+    def record(self) -> Mapping[str, float]:
+        """The tick's values."""
+        return self._row

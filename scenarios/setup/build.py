@@ -27,7 +27,7 @@ from vehicle_model.surface import (
 from vehicle_model.trim import trim
 
 from ..config import ScenarioConfig
-from .paths import ReferencePath, figure_eight_path, roundabout_path, straight_path
+from .paths import ReferencePath, figure_eight_path, roundabout_path, straight_path, turn_path
 
 CARRIAGEWAY_HALF_WIDTH = 8.0
 """Radial camber extends this far beyond a loop's path radius [m]; the approaches are flat."""
@@ -105,6 +105,8 @@ def _path(config: ScenarioConfig, sign: int) -> ReferencePath:
         return roundabout_path(radius, p.turns, sign, p.entry_length, p.exit_length, p.settle_turns)
     if p.kind == "figure_eight":
         return figure_eight_path(radius, p.gap, p.entry_length, p.exit_length, sign)
+    if p.kind == "turn":
+        return turn_path(radius, math.radians(p.angle_deg), sign, p.entry_length, p.exit_length)
     return straight_path(p.length, p.entry_length)
 
 
@@ -121,6 +123,20 @@ def _slope(config: ScenarioConfig, path: ReferencePath, sign: int) -> SlopeField
         )
     # A straight: "outward" falls to the right of the direction of travel, "inward" to the left.
     return UniformCrossfall(camber.percent, -math.pi / 2 if camber.direction == "outward" else math.pi / 2)
+
+
+STEER_TYRE_INSET = 0.05
+"""Lateral distance [m] from the body's side to the outer edge of the steer axle's outer tyre (the single-track
+model has no track width; the figures draw the tyres this far inside the body, :mod:`scenarios.run.unit_shapes`)."""
+
+
+def outer_steer_tyre(params: VehicleParams, sign: int) -> tuple[float, float]:
+    """The outer edge of the outer tyre of the tractor's first steer axle, ``(station, lateral)`` in tractor axes.
+
+    ``sign`` is +1 for a left turn (the outer tyre is on the right, lateral < 0) and −1 for a right turn.
+    """
+    steer = next((a for a in params.tractor.axles if a.steerable), params.tractor.axles[0])
+    return (steer.x, -sign * (0.5 * params.tractor.width - STEER_TYRE_INSET))
 
 
 def control_point_radius(params: VehicleParams, op, station: float, lateral: float) -> float:
@@ -207,6 +223,8 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
     surface = Surface(friction, _slope(config, path, sign))
     if config.path.control_point == "outer_front_corner":
         control_point = (params.tractor.front_x, -sign * 0.5 * params.tractor.width)
+    elif config.path.control_point == "outer_steer_tyre":
+        control_point = outer_steer_tyre(params, sign)
     else:
         control_point = (0.0, 0.0)
     cornering = config.speed.cornering_kmh / 3.6
