@@ -39,6 +39,7 @@ SCENARIO_ROOMS: tuple[str, ...] = (
     "camera",
     "loop",
     "run",
+    "assess",
     "export",
     "recorded",
     "studies",

@@ -1,0 +1,1 @@
+"""Assessments of a finished run against published performance standards (docs/pbs.md)."""
