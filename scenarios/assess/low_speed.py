@@ -575,13 +575,21 @@ def steer_tyre_friction_demand(
 # ---------------------------------------------------------------------------------------------- the records
 
 
-def _manoeuvre(turn: TurnGeometry, columns: dict[str, np.ndarray]) -> str:
-    """How the run's manoeuvre compares with the prescribed turn, in words."""
-    parts = [f"{math.degrees(turn.angle):.1f}° turn, control point on {turn.radius:.2f} m"]
+def _manoeuvre(params: VehicleParams, turn: TurnGeometry, columns: dict[str, np.ndarray], path: ReferencePath) -> str:
+    """How the run's manoeuvre compares with the prescribed turn, in words: the path's angle and radius, the radii
+    the outer steer tyre's edge ran on while the control point was on the arc, and the top speed."""
+    parts = [f"{math.degrees(turn.angle):.1f}° turn, control point's path on {turn.radius:.2f} m"]
     if abs(turn.angle - PRESCRIBED_TURN_ANGLE) > 1e-3:
         parts.append(f"not the prescribed {math.degrees(PRESCRIBED_TURN_ANGLE):.0f}°")
     if abs(turn.radius - PRESCRIBED_TURN_RADIUS) > 0.05:
         parts.append(f"not the stated {PRESCRIBED_TURN_RADIUS:g} m")
+    progress = np.asarray(columns.get("path_progress", ()), dtype=float)
+    on_arc = (progress >= path.turn_span[0]) & (progress <= path.turn_span[1])
+    if on_arc.any():
+        local = np.array([outer_steer_tyre(params, turn.direction)])
+        tyre = tractor_points(params, columns["X"][on_arc], columns["Y"][on_arc], columns["psi1"][on_arc], local)
+        radius = turn.radius_of(tyre[:, 0, :])
+        parts.append(f"outer steer tyre on {radius.min():.2f}-{radius.max():.2f} m while on the arc")
     if "u" in columns and len(columns["u"]):
         top = float(np.nanmax(np.abs(columns["u"])))
         parts.append(f"top speed {3.6 * top:.2f} km/h")
@@ -624,7 +632,7 @@ def low_speed_assessment(
     """
     turn = turn_geometry(path)
     length = combination_length(params)
-    manoeuvre = _manoeuvre(turn, columns)
+    manoeuvre = _manoeuvre(params, turn, columns, path)
     swept = low_speed_swept_path(params, columns, path)
     tails = tail_swing(params, columns, path)
     fronts = frontal_swing(params, columns, path)
