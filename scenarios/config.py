@@ -110,8 +110,10 @@ class PathConfig(Settings):
 
     ``kind``: ``roundabout`` (``turns`` full circles), ``figure_eight`` (two opposite loops joined by
     ``gap``), ``straight`` (``length``; with ``slip_deg`` the combination is moved kinematically,
-    crabbing at a constant slip angle, as in de Saxe & Cebon 2018, §3). ``control_point``: the tractor point that
-    tracks the path — ``outer_front_corner`` (the roundabout test's outermost point) or
+    crabbing at a constant slip angle, as in de Saxe & Cebon 2018, §3), ``turn`` (one arc of ``angle_deg``
+    between the entry and exit straights: the PBS low-speed turn, docs/pbs.md). ``control_point``: the tractor
+    point that tracks the path — ``outer_front_corner`` (the roundabout test's outermost point),
+    ``outer_steer_tyre`` (the outer edge of the steer axle's outer tyre, the PBS low-speed turn's) or
     ``front_axle``. ``radius`` is that point's path radius; in the roundabout test the driver keeps
     the outer corner ``driver_margin`` inside it.
 
@@ -125,6 +127,7 @@ class PathConfig(Settings):
         "roundabout",
         "figure_eight",
         "straight",
+        "turn",
         "file",
         "single_lane_change",
         "double_lane_change",
@@ -137,13 +140,16 @@ class PathConfig(Settings):
     turns: float = Field(1.0, gt=0.0, le=10.0, description="assessed circles; more adds run time, not information")
     settle_turns: float = Field(0.0, ge=0.0, le=2.0, description="circles before assessment; one settles any entry")
     gap: float = Field(10.0, ge=0.0, le=200.0, description="[m] straight between the figure-of-eight's loops")
+    angle_deg: float = Field(
+        90.0, gt=0.0, le=180.0, description="[°] the turn's arc; beyond 180° it is a roundabout (kind roundabout)"
+    )
     length: float = Field(100.0, gt=0.0, le=5000.0, description="[m] straight length; 5 km is an hour at 5 km/h")
     slip_deg: float | None = Field(
         None, ge=-80.0, le=80.0, description="[°] constant crab angle; at ±90° the combination moves sideways"
     )
     entry_length: float = Field(30.0, ge=0.0, le=1000.0, description="[m] approach straight")
     exit_length: float = Field(30.0, ge=0.0, le=1000.0, description="[m] departure straight")
-    control_point: Literal["outer_front_corner", "front_axle"] = "front_axle"
+    control_point: Literal["outer_front_corner", "outer_steer_tyre", "front_axle"] = "front_axle"
     driver_margin: float = Field(
         0.0, ge=0.0, le=0.5, description="[m] the driver keeps inside the test circle; more is not the test"
     )

@@ -1,1 +1,2 @@
-"""Assessment of a run against performance standards: measures computed from a run's recorded columns."""
+"""Assessment of a run against performance standards (docs/pbs.md, docs/pbs_high_speed.md): measures computed from
+a run's recorded columns."""

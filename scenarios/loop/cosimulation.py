@@ -47,7 +47,7 @@ from ..unit_feedback import estimate_key
 from .ends import RUN_LIMITS, LimitBreach, Limits
 from .further_units import FurtherUnitsParticipant
 from .participant import Column, EstimatorParticipant, LoopContext, PendingValues, TickInput, TrailerSteerSource
-from .plant import SignalsParticipant, VehicleParticipant
+from .plant import SignalsParticipant, SteerTyreParticipant, VehicleParticipant
 from .recording import RowRecorder, RowSink
 from .tractor import DriverParticipant, TractorCommand, constant_slip_step
 from .trailer_steer import UnsteeredTrailer, trailer_axles, trailer_steer_for
@@ -203,6 +203,7 @@ class CoSimulation:
         self.sim.reset(setup.initial_state)
         context = LoopContext(setup, self.sim, self.period, self.geometric_truth, self.camera_workers)
         self.vehicle = VehicleParticipant(setup)
+        self.steer_tyres = SteerTyreParticipant(setup, self.sim)
         self.further_units = FurtherUnitsParticipant(setup) if setup.params.n_units > 2 else None
         self.signals = SignalsParticipant(setup)
         self.driver = DriverParticipant(setup, self.sim)
@@ -220,6 +221,7 @@ class CoSimulation:
         self.trailer_steer.reset()
         self.cast: tuple[Any, ...] = (
             self.vehicle,
+            self.steer_tyres,
             *((self.further_units,) if self.further_units is not None else ()),
             self.driver,
             self.trailer_steer,
@@ -361,6 +363,7 @@ class CoSimulation:
         tick = TickInput(index, time, self.period, state, kingpin, measured, index % self._frame_every == 0, trajectory)
         self._input = tick
         self.vehicle.update(tick)
+        self.steer_tyres.update(tick)
         if self.further_units is not None:
             self.further_units.update(tick)
         estimates = {name: participant.update(tick) for name, participant in self.estimators.items()}

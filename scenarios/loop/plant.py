@@ -4,17 +4,24 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+import casadi as ca
 import numpy as np
 
 from sensor.signals import OnboardSignals
 from vehicle_model.geometry import follow_point_from_kingpin
 from vehicle_model.kinematics import trailer_axle_speed
-from vehicle_model.simulator import VehicleState
+from vehicle_model.simulator import Simulator, VehicleState
 
 from ..setup.build import ScenarioSetup
 from .participant import Column, TickInput
 
-__all__ = ["RECORDED_SIGNALS", "SignalsParticipant", "VehicleParticipant"]
+__all__ = [
+    "RECORDED_SIGNALS",
+    "STEER_TYRE_QUANTITIES",
+    "SignalsParticipant",
+    "SteerTyreParticipant",
+    "VehicleParticipant",
+]
 
 _STATE_COLUMNS = (
     Column("X", "m", "tractor CG, global X"),
@@ -133,3 +140,77 @@ class SignalsParticipant:
         """The recorded signals of the last measurement."""
         m = self.measured
         return {f"signal_{n}": float(m[n][0]) for n, _ in RECORDED_SIGNALS}
+
+
+STEER_TYRE_QUANTITIES: tuple[tuple[str, str, str], ...] = (
+    ("fx", "N", "longitudinal force of the steer axle's tyres, wheel frame, both sides together"),
+    ("fy", "N", "lateral force of the steer axle's tyres, wheel frame, both sides together"),
+    ("fz", "N", "normal load of the steer axle's tyres, both sides together"),
+    ("mu", "-", "road friction coefficient under the steer axle"),
+)
+"""The steer-axle quantities recorded as ``<quantity>_<axle>`` for each steerable axle of the tractor or truck."""
+
+
+class SteerTyreParticipant:
+    """The forces, load and road friction of the tractor's steerable axles, from the model's outputs every tick.
+
+    The model is single-track: an axle's tyres share its load and force equally (no load transfer), so each tyre's
+    friction use is the axle's ``sqrt(fx² + fy²) / fz`` (:mod:`scenarios.assess.low_speed`). The outputs are
+    evaluated at the tick's state with the inputs held over the period that ended there, the road's friction and
+    slope as the model used them over it (at the initial state, from the surface).
+
+    Parameters
+    ----------
+    setup
+        The built scenario.
+    simulator
+        The simulator whose state and held inputs the outputs are evaluated at.
+    """
+
+    name = "steer_tyres"
+
+    def __init__(self, setup: ScenarioSetup, simulator: Simulator) -> None:
+        self.simulator = simulator
+        model = setup.model
+        layout = model.layout
+        steer = {a.name for a in setup.params.tractor.axles if a.steerable}
+        index = [i for i, n in enumerate(layout.axles) if n in steer]
+        self._names = [layout.axles[i] for i in index]
+        self.columns: tuple[Column, ...] = tuple(
+            Column(f"{q}_{n}", unit, what) for n in self._names for q, unit, what in STEER_TYRE_QUANTITIES
+        )
+        self.model = model
+        self._index = index
+        self._outputs = self._picked_outputs()
+        self._mu = layout.mu_slice
+        self._row: dict[str, float] = {}
+
+    def _picked_outputs(self) -> ca.Function:
+        """One casadi call giving only the recorded entries, axle by axle (fx, fy, fz, mu), as one vector."""
+        layout = self.model.layout
+        x, u = ca.MX.sym("x", layout.n_states), ca.MX.sym("u", layout.n_inputs)
+        out = dict(zip(self.model.output_names, self.model.outputs(x, u), strict=True))
+        picked = [out[q if q != "mu" else "mu_used"][i] for i in self._index for q, _, _ in STEER_TYRE_QUANTITIES]
+        return ca.Function("steer_tyres", [x, u], [ca.vertcat(*picked)])
+
+    def __getstate__(self) -> dict[str, object]:
+        return {k: v for k, v in self.__dict__.items() if k != "_outputs"}  # rebuilt from the model
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state)
+        self._outputs = self._picked_outputs()
+
+    def update(self, tick: TickInput) -> None:
+        """Evaluate the steer axles' outputs at the tick's state."""
+        sim = self.simulator
+        x, u = sim.state_vector, sim.input_vector
+        if not np.all(u[self._mu] > 0.0):  # no period integrated yet: the surface is not in the inputs
+            mu, slope = sim.surface_inputs(x)
+            u[self._mu] = mu
+            u[self.simulator.layout.slope_slice] = slope
+        values = np.asarray(self._outputs(x, u)).ravel().tolist()
+        self._row = dict(zip((c.name for c in self.columns), values, strict=True))
+
+    def record(self) -> Mapping[str, float]:
+        """The tick's values."""
+        return self._row

@@ -15,6 +15,8 @@ import numpy as np
 from vehicle_model.geometry import place_points, towed_outlines, tractor_outline, tractor_points, trailer_frames
 from vehicle_model.parameters import VehicleParams
 
+from ..setup.build import STEER_TYRE_INSET
+
 __all__ = ["articulation", "pose_polygons", "unit_names", "unit_outlines", "vehicle_polygons"]
 
 
@@ -59,7 +61,7 @@ def vehicle_polygons(
     for name, body, place in bodies:
         for axle in body.axles:
             half_len, half_w = axle.tyre.unloaded_radius, 0.14 * max(axle.n_tyres // 2, 1)
-            lateral = 0.5 * body.width - half_w - 0.05
+            lateral = 0.5 * body.width - half_w - STEER_TYRE_INSET
             delta = float(steer.get(axle.name, 0.0))
             c, s = np.cos(delta), np.sin(delta)
             shape = np.array([[half_len, half_w], [-half_len, half_w], [-half_len, -half_w], [half_len, -half_w]])

@@ -30,7 +30,7 @@ from vehicle_model.trim import trim
 
 from ..config import ScenarioConfig
 from .lane_changes import double_lane_change_path, single_lane_change_path
-from .paths import ReferencePath, figure_eight_path, roundabout_path, straight_path
+from .paths import ReferencePath, figure_eight_path, roundabout_path, straight_path, turn_path
 from .roads import Road, RoadFileError, load_road
 
 CARRIAGEWAY_HALF_WIDTH = 8.0
@@ -113,6 +113,8 @@ def _path(config: ScenarioConfig, sign: int) -> ReferencePath:
         return single_lane_change_path(p.slc_offset, p.slc_length, p.entry_length, p.exit_length, sign)
     if p.kind == "double_lane_change":
         return double_lane_change_path(p.dlc_offset, p.dlc_sections, p.entry_length, p.exit_length, sign)
+    if p.kind == "turn":
+        return turn_path(radius, math.radians(p.angle_deg), sign, p.entry_length, p.exit_length)
     return straight_path(p.length, p.entry_length)
 
 
@@ -154,6 +156,20 @@ def _slope(config: ScenarioConfig, path: ReferencePath, sign: int, road: Road | 
         grade = camber.percent if camber.direction == "outward" else -camber.percent
         return StationCrossfall(path.points, path.heading, np.full(len(path.s), grade))
     return UniformCrossfall(camber.percent, -math.pi / 2 if camber.direction == "outward" else math.pi / 2)
+
+
+STEER_TYRE_INSET = 0.05
+"""Lateral distance [m] from the body's side to the outer edge of the steer axle's outer tyre (the single-track
+model has no track width; the figures draw the tyres this far inside the body, :mod:`scenarios.run.unit_shapes`)."""
+
+
+def outer_steer_tyre(params: VehicleParams, sign: int) -> tuple[float, float]:
+    """The outer edge of the outer tyre of the tractor's first steer axle, ``(station, lateral)`` in tractor axes.
+
+    ``sign`` is +1 for a left turn (the outer tyre is on the right, lateral < 0) and −1 for a right turn.
+    """
+    steer = next((a for a in params.tractor.axles if a.steerable), params.tractor.axles[0])
+    return (steer.x, -sign * (0.5 * params.tractor.width - STEER_TYRE_INSET))
 
 
 def control_point_radius(params: VehicleParams, op, station: float, lateral: float) -> float:
@@ -246,6 +262,8 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
     surface = Surface(friction, _slope(config, path, sign, road))
     if config.path.control_point == "outer_front_corner":
         control_point = (params.tractor.front_x, -sign * 0.5 * params.tractor.width)
+    elif config.path.control_point == "outer_steer_tyre":
+        control_point = outer_steer_tyre(params, sign)
     else:
         control_point = (0.0, 0.0)
     cornering = config.speed.cornering_kmh / 3.6

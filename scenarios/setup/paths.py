@@ -150,6 +150,22 @@ def roundabout_path(
     )
 
 
+def turn_path(radius: float, angle: float, direction: int, entry: float, exit_: float) -> ReferencePath:
+    """Entry straight along +X ending at the origin, one arc of ``radius`` through ``angle`` [rad], exit straight.
+
+    ``direction`` is +1 for a left and −1 for a right turn; the arc's centre is at ``(0, direction·radius)`` and
+    ``turn_span`` is the arc (the PBS low-speed turn is 90° on the outer steer tyre's radius, docs/pbs.md).
+    """
+    arc = radius * angle
+    segments = [Segment(entry), Segment(arc, direction / radius), Segment(exit_)]
+    return build_path(
+        [seg for seg in segments if seg.length > 0.0],
+        start=(-entry, 0.0, 0.0),
+        centres=[(0.0, direction * radius)],
+        turn_span=(entry, entry + arc),
+    )
+
+
 def figure_eight_path(radius: float, gap: float, entry: float, exit_: float, direction: int = 1) -> ReferencePath:
     """Entry straight, a full loop one way, a straight of ``gap`` metres, a full loop the other way, exit.
 
