@@ -574,6 +574,12 @@ class ScenarioConfig(Settings):
         "(controller.steer_input)",
     )
     roundabout_test: bool = False
+    record_steer_tyres: bool = Field(
+        False,
+        description="record the steer axles' forces, load and road friction every tick (fx_/fy_/fz_/mu_<axle>; the "
+        "PBS steer-tyre friction demand needs them); off by default: the model's outputs cost about a fifth of a "
+        "model-only run's time",
+    )
     seed: int = Field(0, ge=0, le=2**32 - 1, description="numpy's seed range")
     duration_s: float | None = Field(
         None, gt=0.0, le=3600.0, description="[s] simulated; an hour bounds the memory of the recorded time series"

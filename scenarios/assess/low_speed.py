@@ -550,8 +550,12 @@ def low_speed_assessment(
         (
             "steer_tyre_friction_demand",
             friction.demand,
-            "per axle: " + _per({a: v[0] for a, v in friction.per_axle.items()}) + "; single-track model: both "
-            "tyres of an axle equally loaded",
+            (
+                "per axle: " + _per({a: v[0] for a, v in friction.per_axle.items()}) + "; single-track model: both "
+                "tyres of an axle equally loaded"
+            )
+            if math.isfinite(friction.demand)
+            else "not recorded: the run needs record_steer_tyres: true (the pbs-low-speed-turn scenario sets it)",
         ),
         (
             "steer_tyre_friction_utilisation",

@@ -203,7 +203,7 @@ class CoSimulation:
         self.sim.reset(setup.initial_state)
         context = LoopContext(setup, self.sim, self.period, self.geometric_truth, self.camera_workers)
         self.vehicle = VehicleParticipant(setup)
-        self.steer_tyres = SteerTyreParticipant(setup, self.sim)
+        self.steer_tyres = SteerTyreParticipant(setup, self.sim) if setup.config.record_steer_tyres else None
         self.further_units = FurtherUnitsParticipant(setup) if setup.params.n_units > 2 else None
         self.signals = SignalsParticipant(setup)
         self.driver = DriverParticipant(setup, self.sim)
@@ -221,7 +221,7 @@ class CoSimulation:
         self.trailer_steer.reset()
         self.cast: tuple[Any, ...] = (
             self.vehicle,
-            self.steer_tyres,
+            *((self.steer_tyres,) if self.steer_tyres is not None else ()),
             *((self.further_units,) if self.further_units is not None else ()),
             self.driver,
             self.trailer_steer,
@@ -363,7 +363,8 @@ class CoSimulation:
         tick = TickInput(index, time, self.period, state, kingpin, measured, index % self._frame_every == 0, trajectory)
         self._input = tick
         self.vehicle.update(tick)
-        self.steer_tyres.update(tick)
+        if self.steer_tyres is not None:
+            self.steer_tyres.update(tick)
         if self.further_units is not None:
             self.further_units.update(tick)
         estimates = {name: participant.update(tick) for name, participant in self.estimators.items()}
