@@ -655,6 +655,71 @@ def study(
         raise typer.Exit(EXIT_FAILED)
 
 
+@app.command(cls=OfftrackCommand)
+@_command
+def assess(
+    combination: Annotated[str, typer.Argument(help="The combination: a preset's name or a combination YAML file.")],
+    feedback: Annotated[
+        str, typer.Option(help="Feedback steering every steerable towed unit: none, truth, zero_slip, viso_ot_fused.")
+    ] = "none",
+    side_by_side: Annotated[
+        bool, typer.Option(help="Compare unsteered, truth-, zero-slip- (and for one semi-trailer VISO-OT-) fed.")
+    ] = False,
+    surface: Annotated[
+        list[str] | None, typer.Option(help="Surface preset, repeatable: dry, wet, snow, ice (default dry).")
+    ] = None,
+    out: Annotated[Path | None, typer.Option(help="Output directory (default runs/assess-NAME/…).")] = None,
+    force: Annotated[bool, typer.Option(help="Reuse a non-empty --out: the previous files are removed.")] = False,
+    workers: Annotated[
+        int, typer.Option(help="Local worker processes (1: one case after another in this process).", min=1)
+    ] = 1,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Dask scheduler address (e.g. tcp://HOST:8786): run the cases on that cluster.")
+    ] = None,
+    resume: Annotated[
+        bool, typer.Option(help="Skip the cases already finished in --out; failed ones run again.")
+    ] = True,
+    plot_format: Annotated[str, typer.Option("--format", help=FORMAT_HELP)] = "png",
+) -> None:
+    """Assess one combination: the PBS measures a yaw-plane model supports and the UK/EU turning circle, each on its
+    manoeuvre, into assessment.md / .csv / .json with a figure per measure (docs/pbs.md)."""
+    from scenarios.run.results import check_plot_format, new_run_dir
+    from scenarios.studies.pbs_assessment import assessment_cases, run_assessment, side_by_side_feedbacks
+    from scenarios.studies.progress import rich_progress
+    from scenarios.studies.records import CASES_DIR
+
+    plot_format = check_plot_format(plot_format)
+    surfaces = tuple(surface or ("dry",))
+    feedbacks = side_by_side_feedbacks(combination) if side_by_side else (feedback,)
+    assessment_cases(combination, feedbacks, surfaces)  # every option checked before any work
+    name = Path(combination).stem if combination.endswith((".yaml", ".yml")) else combination
+    if out is not None and resume and (out / CASES_DIR).is_dir():
+        run_dir = out
+    else:
+        run_dir = new_run_dir(out, f"assess-{name}", force=force)
+    with rich_progress(f"assess {name}", console=console) as progress:
+        table = run_assessment(
+            combination,
+            run_dir,
+            feedbacks,
+            surfaces,
+            workers=workers,
+            scheduler=scheduler,
+            resume=resume,
+            on_progress=progress,
+            plot_format=plot_format,
+        )
+    console.print(f"assessment: {run_dir / 'assessment.md'} (and .csv, .json, measure-*.{plot_format})")
+    failed = int((table["status"] == RunStatus.FAILED).sum()) if "status" in table.columns else 0
+    if failed:
+        errors.print(
+            f"{failed} case(s) failed (error and traceback in {run_dir / CASES_DIR}/); "
+            f"run the same command with --out {run_dir} to retry them",
+            markup=False,
+        )
+        raise typer.Exit(EXIT_FAILED)
+
+
 def _print_study_summary(table, run_dir: Path, name: str) -> None:
     """The columns that matter, to the terminal's width; the rest is in table.md / table.csv."""
     from scenarios.studies.summary import summary_table
