@@ -660,8 +660,11 @@ def study(
 def assess(
     combination: Annotated[str, typer.Argument(help="The combination: a preset's name or a combination YAML file.")],
     feedback: Annotated[
-        str, typer.Option(help="Feedback steering every steerable towed unit: none, truth, zero_slip, viso_ot_fused.")
-    ] = "none",
+        list[str] | None,
+        typer.Option(
+            help="Feedback steering every steerable towed unit (repeatable): none, truth, zero_slip, viso_ot_fused."
+        ),
+    ] = None,
     side_by_side: Annotated[
         bool, typer.Option(help="Compare unsteered, truth-, zero-slip- (and for one semi-trailer VISO-OT-) fed.")
     ] = False,
@@ -690,7 +693,7 @@ def assess(
 
     plot_format = check_plot_format(plot_format)
     surfaces = tuple(surface or ("dry",))
-    feedbacks = side_by_side_feedbacks(combination) if side_by_side else (feedback,)
+    feedbacks = side_by_side_feedbacks(combination) if side_by_side else tuple(feedback or ("none",))
     assessment_cases(combination, feedbacks, surfaces)  # every option checked before any work
     name = Path(combination).stem if combination.endswith((".yaml", ".yml")) else combination
     if out is not None and resume and (out / CASES_DIR).is_dir():
