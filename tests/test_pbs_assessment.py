@@ -14,7 +14,6 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-import yaml
 
 from scenarios.studies.pbs_assessment import (
     MANOEUVRES,
@@ -27,16 +26,8 @@ from vehicle_model.errors import InputError
 B_DOUBLE = Path(__file__).parent / "data" / "combinations" / "b-double.yaml"
 
 
-@pytest.fixture(scope="module")
-def steered_b_double(tmp_path_factory: pytest.TempPathFactory) -> str:
-    """The B-double test layout with the rear two axles of each trailer steerable, as a combination file."""
-    data = yaml.safe_load(B_DOUBLE.read_text(encoding="utf-8"))
-    for unit in data["units"][1:]:
-        for axle in unit["axles"][1:]:
-            axle["steerable"] = True
-    path = tmp_path_factory.mktemp("vehicle") / "b-double-steered.yaml"
-    path.write_text(yaml.safe_dump(data), encoding="utf-8")
-    return str(path)
+STEERED_B_DOUBLE = str(B_DOUBLE.with_name("b-double-steered.yaml"))
+"""The B-double test layout with the rear two axles of each trailer steerable."""
 
 
 @pytest.fixture(scope="module")
@@ -106,19 +97,19 @@ def test_the_low_speed_swept_path_is_wider_than_each_units_own(reference) -> Non
     ],
 )
 def test_an_assessment_it_cannot_run_is_refused_in_one_line(
-    vehicle: str, feedbacks: tuple[str, ...], surfaces: tuple[str, ...], message: str, steered_b_double: str
+    vehicle: str, feedbacks: tuple[str, ...], surfaces: tuple[str, ...], message: str
 ) -> None:
     with pytest.raises(InputError) as caught:
-        assessment_cases(steered_b_double if vehicle == "B-DOUBLE" else vehicle, feedbacks, surfaces)
+        assessment_cases(STEERED_B_DOUBLE if vehicle == "B-DOUBLE" else vehicle, feedbacks, surfaces)
     text = str(caught.value)
     assert message in text and "\n" not in text
 
 
-def test_side_by_side_compares_every_feedback_the_combination_takes(steered_b_double: str) -> None:
+def test_side_by_side_compares_every_feedback_the_combination_takes() -> None:
     assert side_by_side_feedbacks("lst") == ("none", "truth", "zero_slip", "viso_ot_fused")
     with pytest.raises(InputError, match="--side-by-side: 'reference' has no steerable axle"):
         side_by_side_feedbacks("reference")
-    steered = steered_b_double
+    steered = STEERED_B_DOUBLE
     assert side_by_side_feedbacks(steered) == ("none", "truth", "zero_slip")
     cases = assessment_cases(steered, ("truth",), ("ice",))
     overrides = dict(cases[0].overrides)
