@@ -31,6 +31,7 @@ from scenarios.assess.high_speed import (
     Measure,
     grade,
     high_speed_assessment,
+    logarithmic_decrement_damping,
     rearward_amplification,
     unassessable_records,
     yaw_damping_coefficient,
@@ -278,3 +279,15 @@ def test_steady_offtracking_grows_outward_with_speed_and_mirrors() -> None:
     assert fast_left["value"] == pytest.approx(fast_right["value"], abs=1e-6)
     assert fast_left["value"] > 0.1 and slow["value"] < 0.0
     assert "radius 200 m at 0.25 g" in fast_left["note"]
+
+
+def test_the_damping_ratio_needs_an_oscillation() -> None:
+    # A damped sine gives its ζ from the decrement of its extrema; a signal that comes back to zero from one side
+    # (an actively steered trailer after a pulse) has no sway to measure: NaN, never a number of the wrong sign.
+    zeta, omega = 0.2, 2.0
+    t = np.arange(0.0, 20.0, 0.002)
+    wd = omega * math.sqrt(1.0 - zeta**2)
+    sway = np.exp(-zeta * omega * t) * np.sin(wd * t)
+    assert logarithmic_decrement_damping(sway) == pytest.approx(zeta, rel=1e-3)
+    one_sided = np.exp(-0.5 * t) * (1.0 + 0.3 * np.sin(3.0 * t)) + 0.05 * np.exp(-0.1 * t) * np.sin(7.0 * t)
+    assert math.isnan(logarithmic_decrement_damping(np.abs(one_sided)))

@@ -318,14 +318,18 @@ def logarithmic_decrement_damping(signal: np.ndarray, floor: float = 0.01, pairs
     Returns
     -------
     float
-        ``ζ``; NaN with fewer than two usable peaks.
+        ``ζ``; NaN with fewer than two usable peaks: the extrema used must alternate in sign (a signal that comes
+        back to zero from one side, as an actively steered unit's articulation may, is not an oscillation).
     """
     _, values = _peaks(np.asarray(signal, dtype=float))
-    magnitudes = np.abs(values)[skip:]
+    values = values[skip:]
+    magnitudes = np.abs(values)
     if len(magnitudes) < 2:
         return math.nan
     small = magnitudes < floor * magnitudes[0]
-    usable = magnitudes[: int(np.argmax(small))] if small.any() else magnitudes
+    same_side = np.concatenate([[False], np.sign(values[1:]) == np.sign(values[:-1])])
+    stop = small | same_side  # an oscillation's extrema alternate about zero; two on one side are not a sway
+    usable = magnitudes[: int(np.argmax(stop))] if stop.any() else magnitudes
     usable = usable[: pairs + 1]
     if len(usable) < 2:
         return math.nan
@@ -470,13 +474,13 @@ def high_speed_assessment(
         ]
     if manoeuvre == "pulse_steer":
         zeta, joint = yaw_damping_coefficient(params, columns)
-        return [
-            _record(
-                "yaw_damping_coefficient",
-                zeta,
-                f"logarithmic decrement of successive peaks of {joint or 'the articulation angles'} after the pulse",
-            )
-        ]
+        note = (
+            f"logarithmic decrement of successive peaks of {joint} after the pulse"
+            if joint
+            else "no decaying oscillation after the pulse: no articulation angle swung to both sides at least twice "
+            "(an actively steered unit may come back without swaying), so no damping ratio"
+        )
+        return [_record("yaw_damping_coefficient", zeta, note)]
     if manoeuvre == "steady_turn":
         value, acceleration, radius = steady_offtracking(params, columns)
         note = (
