@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from sensor.vo.jit import kernel
+from sensor.vo.kernels_sort import radix_argsort
 
 __all__ = ["MAX_COORDINATE", "OUTER_SCALE", "delaunay_fits", "delaunay_triangles", "z_order"]
 
@@ -75,7 +76,7 @@ def z_order(u: np.ndarray, v: np.ndarray) -> tuple[bool, np.ndarray, np.ndarray,
     code = np.empty(n, dtype=np.uint64)
     for i in range(n):
         code[i] = _spread(np.uint64(ui[i] - u0)) | (_spread(np.uint64(vi[i] - v0)) << np.uint64(1))
-    order = np.argsort(code)
+    order = radix_argsort(code)  # codes of ≤ 32 bits (usually ~22): two or three linear passes
     for k in range(1, n):  # the Z-curve code is one-to-one: equal codes are equal positions
         if code[order[k]] == code[order[k - 1]]:
             return False, ui, vi, order

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from sensor.vo.jit import kernel
+from sensor.vo.kernels_sort import radix_argsort
 
 __all__ = ["REFINEMENT_TAPS", "positions", "refine", "triangle_support"]
 
@@ -27,10 +28,17 @@ def positions(
 ) -> np.ndarray:  # fmt: skip
     """(M, 8) float64 positions of the index quadruples (i1p, i2p, i2c, i1c), first match per 1c pixel."""
     n = idx.shape[0]
+    # Row-major pixel keys of the 1c positions, offset to their bounding box so that they span as few bits as
+    # the pixels do (fewer radix passes); the order of (v, u) and which keys are equal stay those of v·2¹⁶ + u.
+    u_lo, u_hi, v_lo = _KEY_U, -_KEY_U, _KEY_U
+    for k in range(n):
+        d = idx[k, 3]
+        u_lo, u_hi, v_lo = min(u_lo, np.int64(u1c[d])), max(u_hi, np.int64(u1c[d])), min(v_lo, np.int64(v1c[d]))
     key = np.empty(n, dtype=np.int64)
     for k in range(n):
-        key[k] = np.int64(v1c[idx[k, 3]]) * _KEY_U + u1c[idx[k, 3]]
-    order = np.argsort(key, kind="mergesort")
+        d = idx[k, 3]
+        key[k] = (np.int64(v1c[d]) - v_lo) * (u_hi - u_lo + 1) + (np.int64(u1c[d]) - u_lo)
+    order = radix_argsort(key)  # stable, as a merge sort: the first of equal keys stays first
     keep = np.ones(n, dtype=np.bool_)
     for k in range(1, n):
         if key[order[k]] == key[order[k - 1]]:

@@ -1,0 +1,51 @@
+"""The matching's compiled helpers give what their plain numpy references give, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sensor.vo.kernels_delaunay import z_order
+from sensor.vo.kernels_match import positions
+from sensor.vo.kernels_sort import radix_argsort
+
+
+@pytest.mark.parametrize("bits", [1, 5, 11, 12, 22, 23, 33, 62])
+@pytest.mark.parametrize("dtype", [np.int64, np.uint64, np.int32])
+def test_radix_argsort_is_numpys_stable_argsort(bits: int, dtype: type) -> None:
+    rng = np.random.default_rng(bits)
+    high = min(1 << bits, int(np.iinfo(dtype).max))
+    for n in (0, 1, 2, 17, 3000):
+        keys = rng.integers(0, high, n, dtype=np.int64).astype(dtype)
+        assert np.array_equal(radix_argsort(keys), np.argsort(keys, kind="stable"))
+        ties = (keys % 7).astype(dtype)  # many equal keys: their input order is kept
+        assert np.array_equal(radix_argsort(ties), np.argsort(ties, kind="stable"))
+
+
+def test_z_order_sorts_by_the_morton_code() -> None:
+    rng = np.random.default_rng(3)
+    uv = np.unique(np.stack([rng.integers(5, 1300, 2500), rng.integers(2, 390, 2500)], axis=1), axis=0)
+    rng.shuffle(uv)
+    ok, ui, vi, order = z_order(uv[:, 0].astype(np.float64), uv[:, 1].astype(np.float64))
+    assert ok
+
+    def spread(x: np.ndarray) -> np.ndarray:
+        return sum(((x >> b) & 1) << (2 * b) for b in range(16))
+
+    code = spread(ui - ui.min()) | (spread(vi - vi.min()) << 1)
+    assert np.array_equal(order, np.argsort(code, kind="stable"))
+
+
+def test_positions_keep_the_first_match_of_every_pixel() -> None:
+    rng = np.random.default_rng(5)
+    m, n = 400, 900
+    coords = [rng.integers(0, 60, m).astype(np.int32) for _ in range(8)]  # many pixels shared
+    idx = rng.integers(0, m, (n, 4)).astype(np.int64)
+    out = positions(*coords, idx)
+    u1c, v1c = coords[4][idx[:, 3]], coords[5][idx[:, 3]]
+    _, first = np.unique(np.int64(v1c) * (1 << 16) + u1c, return_index=True)
+    kept = np.sort(first)
+    a, b, c, d = idx[kept].T
+    columns = [(0, a), (1, a), (2, b), (3, b), (4, d), (5, d), (6, c), (7, c)]
+    expected = np.stack([coords[j][i] for j, i in columns], axis=1).astype(np.float64)
+    assert np.array_equal(out, expected)
