@@ -5,9 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sensor.vo.bucketing import bucket_matches
+from sensor.vo.config import VOConfig
 from sensor.vo.kernels_delaunay import z_order
 from sensor.vo.kernels_match import positions
 from sensor.vo.kernels_sort import radix_argsort
+from sensor.vo.match_columns import U1C, V1C
 
 
 @pytest.mark.parametrize("bits", [1, 5, 11, 12, 22, 23, 33, 62])
@@ -49,3 +52,33 @@ def test_positions_keep_the_first_match_of_every_pixel() -> None:
     columns = [(0, a), (1, a), (2, b), (3, b), (4, d), (5, d), (6, c), (7, c)]
     expected = np.stack([coords[j][i] for j, i in columns], axis=1).astype(np.float64)
     assert np.array_equal(out, expected)
+
+
+def _bucket_reference(xy: np.ndarray, config: VOConfig, rng: np.random.Generator) -> np.ndarray:
+    """The bucketing in numpy: shuffle, a stable sort by bucket, the first ``bucket_max_features`` of every run."""
+    n = xy.shape[0]
+    if n == 0:
+        return np.empty(0, dtype=np.int64)
+    bu = np.floor(xy[:, U1C] / config.bucket_width).astype(np.int64)
+    bv = np.floor(xy[:, V1C] / config.bucket_height).astype(np.int64)
+    bucket = (bv - bv.min()) * (int(bu.max() - bu.min()) + 1) + (bu - bu.min())
+    shuffle = rng.permutation(n)
+    order = shuffle[np.argsort(bucket[shuffle], kind="stable")]
+    sorted_bucket = bucket[order]
+    first = np.r_[True, sorted_bucket[1:] != sorted_bucket[:-1]]
+    run_start = np.maximum.accumulate(np.where(first, np.arange(n), 0))
+    rank = np.arange(n) - run_start
+    return np.sort(order[rank < config.bucket_max_features])
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 300, 3000])
+@pytest.mark.parametrize("overrides", [{}, {"bucket_max_features": 3, "bucket_width": 37.5, "bucket_height": 20}])
+def test_bucketing_is_the_shuffle_and_stable_sort_of_numpy(n: int, overrides: dict) -> None:
+    config = VOConfig(f=500.0, cu=640.0, cv=200.0, baseline=0.5, **overrides)
+    rng = np.random.default_rng(n)
+    xy = np.zeros((n, 8))
+    xy[:, U1C] = rng.uniform(-3.0, 1340.0, n).round(1)
+    xy[:, V1C] = rng.uniform(0.0, 391.0, n).round()
+    for seed in range(3):
+        expected = _bucket_reference(xy, config, np.random.default_rng(seed))
+        assert np.array_equal(bucket_matches(xy, config, np.random.default_rng(seed)), expected)

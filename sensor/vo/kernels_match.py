@@ -2,6 +2,8 @@
 
 * :func:`positions` turns index quadruples into (N, 8) positions and keeps the first match of every
   current-left pixel (libviso2 keeps the first).
+* :func:`bucket_choice` keeps at most a given number of randomly ordered matches per image bucket
+  (:mod:`sensor.vo.bucketing`).
 * :func:`triangle_support` counts every match's consistent incident edges (docs/visual_odometry.md §6,
   ``removeOutliers``; :mod:`sensor.vo.outliers`).
 * :func:`refine` moves the 1p, 2p and 2c positions to the SAD minimum of the 16-byte small
@@ -16,7 +18,7 @@ import numpy as np
 from sensor.vo.jit import kernel
 from sensor.vo.kernels_sort import radix_argsort
 
-__all__ = ["REFINEMENT_TAPS", "positions", "refine", "triangle_support"]
+__all__ = ["REFINEMENT_TAPS", "bucket_choice", "positions", "refine", "triangle_support"]
 
 _KEY_U = 1 << 16  # column stride of pixel keys (images narrower than 65536 px)
 
@@ -52,6 +54,58 @@ def positions(
         out[m, 0], out[m, 1], out[m, 2], out[m, 3] = u1p[a], v1p[a], u2p[b], v2p[b]
         out[m, 4], out[m, 5], out[m, 6], out[m, 7] = u1c[d], v1c[d], u2c[c], v2c[c]
         m += 1
+    return out
+
+
+@kernel
+def bucket_choice(
+    u: np.ndarray, v: np.ndarray, bucket_width: float, bucket_height: float, shuffle: np.ndarray, max_per_bucket: int
+) -> np.ndarray:
+    """Sorted indices of the first ``max_per_bucket`` matches of every bucket in the order ``shuffle``.
+
+    Parameters
+    ----------
+    u, v : numpy.ndarray
+        (N,) float64 positions [px] that decide the bucket: (⌊u / bucket_width⌋, ⌊v / bucket_height⌋).
+    bucket_width, bucket_height : float
+        Bucket size [px].
+    shuffle : numpy.ndarray
+        (N,) int64 permutation of the matches (random: the choice within a bucket).
+    max_per_bucket : int
+        Matches kept per bucket.
+
+    Returns
+    -------
+    numpy.ndarray
+        (M,) int64 ascending indices of the matches kept — a match is kept when fewer than ``max_per_bucket``
+        matches of its bucket come before it in ``shuffle`` (a stable sort of ``shuffle`` by bucket, ranked).
+    """
+    n = u.shape[0]
+    if n == 0:
+        return np.empty(0, dtype=np.int64)
+    bu = np.empty(n, dtype=np.int64)
+    bv = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        bu[i] = np.int64(np.floor(u[i] / bucket_width))
+        bv[i] = np.int64(np.floor(v[i] / bucket_height))
+    bu_lo, bv_lo = bu.min(), bv.min()
+    n_cols = bu.max() - bu_lo + 1
+    seen = np.zeros((bv.max() - bv_lo + 1) * n_cols, dtype=np.int64)
+    keep = np.zeros(n, dtype=np.bool_)
+    n_kept = 0
+    for k in range(n):
+        i = shuffle[k]
+        b = (bv[i] - bv_lo) * n_cols + (bu[i] - bu_lo)
+        if seen[b] < max_per_bucket:
+            seen[b] += 1
+            keep[i] = True
+            n_kept += 1
+    out = np.empty(n_kept, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        if keep[i]:
+            out[m] = i
+            m += 1
     return out
 
 
