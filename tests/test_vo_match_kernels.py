@@ -82,3 +82,28 @@ def test_bucketing_is_the_shuffle_and_stable_sort_of_numpy(n: int, overrides: di
     for seed in range(3):
         expected = _bucket_reference(xy, config, np.random.default_rng(seed))
         assert np.array_equal(bucket_matches(xy, config, np.random.default_rng(seed)), expected)
+
+
+def test_the_simd_refinement_row_equals_the_sum_over_taps() -> None:
+    # _row_costs is LLVM IR written by hand (kernels_match): every byte pair, random planes, all 8 lanes.
+    import numba
+
+    from sensor.vo.kernels_match import _row_costs
+
+    @numba.njit
+    def rows(plane, starts, offset, ref):
+        cost = np.zeros((starts.shape[0], 8), dtype=np.int64)
+        for r in range(starts.shape[0]):
+            _row_costs(plane, starts[r], offset, ref, cost, r)
+        return cost
+
+    rng = np.random.default_rng(11)
+    plane = np.concatenate([np.arange(256, dtype=np.uint8), rng.integers(0, 256, 4000, dtype=np.uint8)])
+    for n_taps in (1, 16, 257):
+        offset = rng.integers(0, 3000, n_taps).astype(np.int64)
+        ref = rng.integers(0, 256, n_taps, dtype=np.uint8)
+        ref[: min(n_taps, 2)] = (0, 255)[: min(n_taps, 2)]
+        starts = np.arange(0, 1000, 37, dtype=np.int64)
+        reads = plane[starts[:, None, None] + offset[None, None, :] + np.arange(8)[None, :, None]].astype(np.int64)
+        expected = np.abs(reads - ref.astype(np.int64)).sum(axis=2)
+        assert np.array_equal(rows(plane, starts, offset, ref), expected)
