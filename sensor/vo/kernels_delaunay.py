@@ -35,6 +35,7 @@ stay within 28 000, the lifts and the cross products within 2·D², so the three
 12·D⁴ ≈ 7.4·10¹⁸ < 2⁶³ (no overflow). Images up to about 2300 px wide fit."""
 
 
+@kernel
 def delaunay_fits(x0: int, y0: int, width: int, height: int) -> bool:
     """Whether points in the rectangle ``(x0, y0, width, height)`` and its outer vertices stay in the exact range."""
     big = OUTER_SCALE * max(width, height)

@@ -5,7 +5,7 @@
 * :func:`bucket_choice` keeps at most a given number of randomly ordered matches per image bucket
   (:mod:`sensor.vo.bucketing`).
 * :func:`triangle_support` counts every match's consistent incident edges (docs/visual_odometry.md §6,
-  ``removeOutliers``; :mod:`sensor.vo.outliers`).
+  ``removeOutliers``; :mod:`sensor.vo.outliers`), :func:`delaunay_support` on the Delaunay triangles it makes.
 * :func:`refine` moves the 1p, 2p and 2c positions to the SAD minimum of the 16-byte small
   descriptor within ± radius px of full-resolution pixels, with sub-pixel parabolas for radius 3
   (:mod:`sensor.vo.refinement`).
@@ -20,9 +20,10 @@ from numba.core import cgutils, types
 from numba.extending import intrinsic
 
 from sensor.vo.jit import kernel
+from sensor.vo.kernels_delaunay import delaunay_fits, delaunay_triangles, z_order
 from sensor.vo.kernels_sort import radix_argsort
 
-__all__ = ["REFINEMENT_TAPS", "bucket_choice", "positions", "refine", "triangle_support"]
+__all__ = ["REFINEMENT_TAPS", "bucket_choice", "delaunay_support", "positions", "refine", "triangle_support"]
 
 _KEY_U = 1 << 16  # column stride of pixel keys (images narrower than 65536 px)
 
@@ -133,18 +134,56 @@ def triangle_support(triangles: np.ndarray, xy: np.ndarray, tol_disp: float, tol
     numpy.ndarray
         (N,) int64 support.
     """
-    support = np.zeros(xy.shape[0], dtype=np.int64)
+    n = xy.shape[0]
+    # Per match once (not per edge end, about 12 times): the current and previous disparity and the left flow.
+    # The same differences as taken per edge, so the same sums.
+    q = np.empty((n, 4))
+    for i in range(n):
+        q[i, 0] = xy[i, 4] - xy[i, 6]
+        q[i, 1] = xy[i, 0] - xy[i, 2]
+        q[i, 2] = xy[i, 4] - xy[i, 0]
+        q[i, 3] = xy[i, 5] - xy[i, 1]
+    support = np.zeros(n, dtype=np.int64)
     for t in range(triangles.shape[0]):
         for c in range(3):
             i, j = triangles[t, c], triangles[t, (c + 1) % 3]
-            disp_c = abs((xy[i, 4] - xy[i, 6]) - (xy[j, 4] - xy[j, 6]))
-            disp_p = abs((xy[i, 0] - xy[i, 2]) - (xy[j, 0] - xy[j, 2]))
-            flow_u = abs((xy[i, 4] - xy[i, 0]) - (xy[j, 4] - xy[j, 0]))
-            flow = flow_u + abs((xy[i, 5] - xy[i, 1]) - (xy[j, 5] - xy[j, 1]))
+            disp_c = abs(q[i, 0] - q[j, 0])
+            disp_p = abs(q[i, 1] - q[j, 1])
+            flow = abs(q[i, 2] - q[j, 2]) + abs(q[i, 3] - q[j, 3])
             if disp_c < tol_disp and disp_p < tol_disp and flow < tol_flow:
                 support[i] += 1
                 support[j] += 1
     return support
+
+
+@kernel
+def delaunay_support(
+    u: np.ndarray, v: np.ndarray, xy: np.ndarray, tol_disp: float, tol_flow: float
+) -> tuple[bool, np.ndarray]:
+    """:func:`triangle_support` on the Delaunay triangles of integer positions, in one call.
+
+    The triangles are those of :func:`sensor.vo.kernels_delaunay.delaunay_triangles` on the points in Z order
+    (:func:`~sensor.vo.kernels_delaunay.z_order`) and their bounding rectangle grown by a pixel each way.
+
+    Returns
+    -------
+    ok, support
+        False (and no support) when the positions are not distinct integers or too large for the exact
+        predicates (:func:`~sensor.vo.kernels_delaunay.delaunay_fits`); else the (N,) int64 support (all zero
+        for fewer than 3 points or points on one line).
+    """
+    n = u.shape[0]
+    distinct_integers, ui, vi, order = z_order(u, v)
+    if not distinct_integers:
+        return False, np.empty(0, dtype=np.int64)
+    if n < 3:
+        return True, np.zeros(n, dtype=np.int64)
+    x0, y0 = ui.min() - 1, vi.min() - 1
+    width, height = ui.max() - x0 + 2, vi.max() - y0 + 2
+    if not delaunay_fits(x0, y0, width, height):
+        return False, np.empty(0, dtype=np.int64)
+    triangles = delaunay_triangles(ui, vi, order, x0, y0, width, height)
+    return True, triangle_support(triangles, xy, tol_disp, tol_flow)
 
 
 # Small 16-byte descriptor inside 5×5 (ELAS-style): du at 12 offsets, dv at 4; (plane, dx, dy).
