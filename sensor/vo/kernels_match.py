@@ -273,6 +273,52 @@ def _row_costs_llvm(typingctx, plane, start, offset, ref, cost, row):
 _row_costs = _row_costs_python if numba.config.DISABLE_JIT else _row_costs_llvm
 
 
+def _prefetch_python(plane: np.ndarray, index: int) -> None:
+    """:func:`_prefetch` when the kernels run as Python: nothing."""
+
+
+@intrinsic
+def _prefetch_llvm(typingctx, plane, index):
+    """Ask the CPU to bring the cache line of ``plane[index]`` (1-d uint8) into its caches (``llvm.prefetch``: a
+    hint, no fault and no effect on the result)."""
+    if not (isinstance(plane, types.Array) and plane.ndim == 1 and plane.dtype == types.uint8):
+        return None
+    if not isinstance(index, types.Integer):
+        return None
+    signature = types.none(plane, types.int64)
+
+    def codegen(context, builder, sig, args):
+        array = context.make_array(sig.args[0])(context, builder, args[0])
+        byte_pointer, word = ir.IntType(8).as_pointer(), ir.IntType(32)
+        prefetch = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(ir.VoidType(), [byte_pointer, word, word, word]), "llvm.prefetch.p0"
+        )
+        address = builder.bitcast(builder.gep(array.data, [args[1]]), byte_pointer)
+        # read, keep in all cache levels, data cache
+        builder.call(prefetch, [address, ir.Constant(word, 0), ir.Constant(word, 3), ir.Constant(word, 1)])
+        return context.get_dummy_value()
+
+    return signature, codegen
+
+
+#: Prefetch the cache line of ``plane[index]``, ``_prefetch(plane, index)``.
+_prefetch = _prefetch_python if numba.config.DISABLE_JIT else _prefetch_llvm
+
+_PREFETCH_AHEAD = 2  # matches ahead whose windows the refinement prefetches
+
+
+@kernel
+def _prefetch_window(plane: np.ndarray, u: int, v: int, width: int, plane_size: int, reach: int, span: int) -> None:
+    """Prefetch the first and last byte of rows v − reach … v + reach of both (H, W) planes from column u − reach
+    (``span`` bytes a row) of the flattened ``plane``."""
+    for dy in range(-reach, reach + 1):
+        row = (v + dy) * width + u - reach
+        _prefetch(plane, row)
+        _prefetch(plane, row + span - 1)
+        _prefetch(plane, plane_size + row)
+        _prefetch(plane, plane_size + row + span - 1)
+
+
 @kernel
 def refine(xy: np.ndarray, sobel: tuple, radius: int, taps: np.ndarray) -> np.ndarray:
     """Refined copy of the (N, 8) matches; ``sobel`` holds the (2, H, W) uint8 planes of 1p, 2p, 1c, 2c.
@@ -299,7 +345,19 @@ def refine(xy: np.ndarray, sobel: tuple, radius: int, taps: np.ndarray) -> np.nd
     ref = np.empty(n_taps, dtype=np.uint8)
     cost = np.empty((side, _ROW_LANES), dtype=np.int64)
     s1c = sobel[2].ravel()
+    planes = (sobel[0].ravel(), sobel[1].ravel(), sobel[3].ravel())
+    span = 2 * reach + _ROW_LANES - side + 1  # bytes a window row reads
+    plane_size = height * width
     for m in range(n):
+        ahead = m + _PREFETCH_AHEAD  # the windows of a later match, while this one is costed
+        if ahead < n:
+            for image, col in ((0, 0), (1, 2), (2, 6)):
+                u = min(max(np.int64(np.rint(xy[ahead, col])), reach), width - 1 - reach)
+                v = min(max(np.int64(np.rint(xy[ahead, col + 1])), reach), height - 1 - reach)
+                _prefetch_window(planes[image], u, v, width, plane_size, reach, span)
+            u = min(max(np.int64(np.rint(xy[ahead, 4])), reach), width - 1 - reach)
+            v = min(max(np.int64(np.rint(xy[ahead, 5])), reach), height - 1 - reach)
+            _prefetch_window(s1c, u, v, width, plane_size, 2, 5)
         uc = min(max(np.int64(np.rint(xy[m, 4])), reach), width - 1 - reach)
         vc = min(max(np.int64(np.rint(xy[m, 5])), reach), height - 1 - reach)
         for k in range(n_taps):
