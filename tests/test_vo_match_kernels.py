@@ -107,3 +107,56 @@ def test_the_simd_refinement_row_equals_the_sum_over_taps() -> None:
         reads = plane[starts[:, None, None] + offset[None, None, :] + np.arange(8)[None, :, None]].astype(np.int64)
         expected = np.abs(reads - ref.astype(np.int64)).sum(axis=2)
         assert np.array_equal(rows(plane, starts, offset, ref), expected)
+
+
+def _search_reference(src_u, src_v, src_cls, src_desc, src_idx, lo, hi, index, tgt, pred):
+    """Per query the first strict minimum of penalty + SAD in ascending index position: brute force."""
+    order, sdesc = index[1], index[4]
+    tu, tv, tc = tgt
+    pu, pv, pw = pred
+    out = np.full(src_idx.shape[0], -1, dtype=np.int64)
+    for q, s in enumerate(src_idx):
+        best = None
+        for pos in range(order.shape[0]):
+            i = order[pos]
+            du, dv = int(tu[i]) - int(src_u[s]), int(tv[i]) - int(src_v[s])
+            if tc[i] != src_cls[s] or not (lo[q, 0] <= du <= hi[q, 0] and lo[q, 1] <= dv <= hi[q, 1]):
+                continue
+            penalty = int(np.rint(pw[q] * np.sqrt((tu[i] - pu[q]) ** 2 + (tv[i] - pv[q]) ** 2)))
+            cost = penalty + int(np.abs(src_desc[s].astype(np.int64) - sdesc[pos].astype(np.int64)).sum())
+            if best is None or cost < best:
+                best, out[q] = cost, i
+    return out
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_flow_search_near_the_prediction_first_finds_the_first_strict_minimum(seed: int) -> None:
+    # Tall windows with a prior take the near-first search (kernels_search); few descriptor values give many ties.
+    from sensor.vo.kernels_search import FLOW, build_index, search_step
+
+    rng = np.random.default_rng(seed)
+    n_src, n_tgt = 60, 900
+    src_u, src_v = rng.integers(40, 160, n_src).astype(np.int32), rng.integers(40, 160, n_src).astype(np.int32)
+    tgt_u, tgt_v = rng.integers(0, 200, n_tgt).astype(np.int32), rng.integers(0, 200, n_tgt).astype(np.int32)
+    src_cls, tgt_cls = rng.integers(0, 2, n_src).astype(np.int8), rng.integers(0, 2, n_tgt).astype(np.int8)
+    src_desc = rng.integers(0, 3, (n_src, 32)).astype(np.uint8)
+    tgt_desc = rng.integers(0, 3, (n_tgt, 32)).astype(np.uint8)
+    src_idx = np.arange(n_src, dtype=np.int64)
+    half = rng.integers(3, 40, (n_src, 2))
+    lo, hi = -half, half + rng.integers(0, 5, (n_src, 2))
+    pred_u = src_u + rng.normal(0.0, 8.0, n_src)
+    pred_v = src_v + rng.normal(0.0, 8.0, n_src)
+    pred_v[:5] = (-30.0, 300.0, 45.5, 0.0, 1e6)  # predictions above, below and far outside the windows
+    pred_w = np.where(rng.random(n_src) < 0.15, 0.0, rng.choice([0.25, 1.0, 4.0], n_src))
+    band_height, col_cell = 4, 8
+    index = build_index(tgt_u, tgt_v, tgt_cls, tgt_desc, band_height, col_cell)
+    ptr, order, su, sv, sdesc, n_bands, n_cells = index
+    found = search_step(
+        src_u, src_v, src_cls, src_desc, src_idx, lo, hi, FLOW, 0, ptr, order, su, sv, sdesc, n_bands, n_cells,
+        band_height, col_cell, pred_u, pred_v, pred_w,
+    )  # fmt: skip
+    expected = _search_reference(
+        src_u, src_v, src_cls, src_desc, src_idx, lo, hi, index, (tgt_u, tgt_v, tgt_cls), (pred_u, pred_v, pred_w)
+    )
+    assert (expected >= 0).sum() > 40
+    assert np.array_equal(found, expected)
