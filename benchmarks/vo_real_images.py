@@ -15,7 +15,7 @@ circle, dense circle, outlier removal, prior ranges, bucketing, refinement)::
 With ``--baseline COMMIT`` it times the odometry of that commit (``sensor/`` extracted with ``git archive``, as
 ``benchmarks/vo_speed_vs_ccc8e1e.py`` does) against this tree's on the same frames instead, the two interleaved pass
 by pass (per frame the fastest pass counts), checks that both give the same matches and motions, and prints the
-ratios current / baseline of the total, the matching stage's and the circle's (sparse and dense) CPU time per frame.
+ratios current / baseline of the total, the matching stage's and each of its parts' CPU time per frame.
 """
 
 from __future__ import annotations
@@ -173,7 +173,8 @@ def profile(left: list[np.ndarray], right: list[np.ndarray], passes: int, refine
 
 
 def compare(left: list[np.ndarray], right: list[np.ndarray], passes: int, refinement: int, old: Any) -> dict:
-    """Per-frame CPU time of the baseline's and this tree's odometry, interleaved; identical output checked."""
+    """Per-frame CPU time of the baseline's and this tree's odometry and of their matching parts
+    (:data:`PARTS`), interleaved; identical output checked."""
     import cv2
 
     from sensor.vo import StereoOdometry, VOConfig, odometry
@@ -185,23 +186,29 @@ def compare(left: list[np.ndarray], right: list[np.ndarray], passes: int, refine
         "baseline": old[0].StereoOdometry(old[1].VOConfig(**settings), 0),
         "current": StereoOdometry(VOConfig(**settings), 0),
     }
-    circle_spent = dict.fromkeys(impls, 0.0)
+    names = list(PARTS)  # the matching stage's parts, each timed in both trees
+    spent = {name: dict.fromkeys(names, 0.0) for name in impls}
     patched = []
     for name, module in (("baseline", old[0]), ("current", odometry)):
         scope = module.match_frames.__globals__  # the matching module of that tree
-        original = scope["circle"]
+        for part in names:
+            attribute = PARTS[part].rsplit(".", 1)[1]
+            if attribute not in scope:
+                continue
+            original = scope[attribute]
 
-        def timed(*args: Any, _f: Callable[..., Any] = original, _name: str = name) -> Any:
-            c0 = time.thread_time()
-            try:
-                return _f(*args)
-            finally:
-                circle_spent[_name] += time.thread_time() - c0
+            def timed(*args: Any, _f: Callable[..., Any] = original, _name: str = name, _part: str = part) -> Any:
+                c0 = time.thread_time()
+                try:
+                    return _f(*args)
+                finally:
+                    spent[_name][_part] += time.thread_time() - c0
 
-        scope["circle"] = timed
-        patched.append((scope, original))
+            scope[attribute] = timed
+            patched.append((scope, attribute, original))
     n = len(left)
-    cpu = {name: np.full((n, 3), np.inf) for name in impls}
+    columns = ("total", "matching", *names)
+    cpu = {name: np.full((n, len(columns)), np.inf) for name in impls}
     outputs: dict[str, list] = {}
     try:
         for k in range(passes + 1):
@@ -209,7 +216,7 @@ def compare(left: list[np.ndarray], right: list[np.ndarray], passes: int, refine
                 vo.reset()
                 outputs[name] = []
                 for i in range(n):
-                    circle_spent[name] = 0.0
+                    spent[name] = dict.fromkeys(names, 0.0)
                     c0 = time.thread_time()
                     result = vo.process(left[i], right[i])
                     total = time.thread_time() - c0
@@ -217,20 +224,25 @@ def compare(left: list[np.ndarray], right: list[np.ndarray], passes: int, refine
                         (result.matches.tobytes(), None if result.motion is None else result.motion.tobytes())
                     )
                     if k:
-                        cpu[name][i] = np.minimum(cpu[name][i], [total, result.cpu_matching, circle_spent[name]])
+                        row = [total, result.cpu_matching, *(spent[name][p] for p in names)]
+                        cpu[name][i] = np.minimum(cpu[name][i], row)
     finally:
-        for scope, original in patched:
-            scope["circle"] = original
+        for scope, attribute, original in patched:
+            scope[attribute] = original
     same = outputs["baseline"] == outputs["current"]
     med = {name: 1e3 * np.median(values[1:], axis=0) for name, values in cpu.items()}
-    parts = ("total", "matching", "circle")
+    parts = columns
     return {
         "width": w,
         "height": h,
         "identical_output": same,
         "baseline_ms": {p: float(med["baseline"][j]) for j, p in enumerate(parts)},
         "current_ms": {p: float(med["current"][j]) for j, p in enumerate(parts)},
-        **{f"ratio_{p}": float(med["current"][j] / med["baseline"][j]) for j, p in enumerate(parts)},
+        **{
+            f"ratio_{p}": float(med["current"][j] / med["baseline"][j])
+            for j, p in enumerate(parts)
+            if med["baseline"][j]
+        },
     }
 
 
@@ -260,16 +272,14 @@ def main() -> None:
         if args.json:
             print(json.dumps({"benchmark": "vo_real_images_ab", "baseline": args.baseline, "sequences": out}))
             return
-        head = f"| sequence | baseline {args.baseline} total / matching / circle ms | current |"
-        print(head + " ratio total | ratio matching | ratio circle | same |")
-        print("|---|---|---|---|---|---|---|")
+        shown = ("total", "matching", *PARTS)
+        print(f"baseline {args.baseline} → this tree: ms per frame (ratio)")
+        print("| sequence | " + " | ".join(shown) + " | same |")
+        print("|---|" + "---|" * (len(shown) + 1))
         for name, r in out.items():
             b, c = r["baseline_ms"], r["current_ms"]
-            print(
-                f"| {name} | {b['total']:.2f} / {b['matching']:.2f} / {b['circle']:.2f} | "
-                f"{c['total']:.2f} / {c['matching']:.2f} / {c['circle']:.2f} | {r['ratio_total']:.3f} | "
-                f"{r['ratio_matching']:.3f} | {r['ratio_circle']:.3f} | {r['identical_output']} |"
-            )
+            cells = [f"{b[p]:.2f} → {c[p]:.2f} ({r.get('ratio_' + p, float('nan')):.3f})" for p in shown]
+            print(f"| {name} | " + " | ".join(cells) + f" | {r['identical_output']} |")
         return
 
     rows = {}

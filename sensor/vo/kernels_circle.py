@@ -70,20 +70,22 @@ def predict_right(
 @kernel
 def _step(
     k: int, mode: int, tol: int, col_cell: int, alive: np.ndarray, src_idx: np.ndarray,
-    lo_all: np.ndarray, hi_all: np.ndarray,
+    bin_of: np.ndarray, lo_bins: np.ndarray, hi_bins: np.ndarray,
     su: np.ndarray, sv: np.ndarray, sc: np.ndarray, sd: np.ndarray,
     tu: np.ndarray, tv: np.ndarray, tc: np.ndarray, td: np.ndarray,
     pu: np.ndarray, pv: np.ndarray, pw: np.ndarray,
 ) -> np.ndarray:  # fmt: skip
-    """One step of the circle for the start features ``alive`` at source features ``src_idx``."""
+    """One step of the circle for the start features ``alive`` at source features ``src_idx``; a start feature's
+    search ranges are those of its bin ``bin_of`` in the flattened (bins, 4, 2) ``lo_bins``/``hi_bins``."""
     n = alive.shape[0]
     lo = np.empty((n, 2), dtype=np.int64)
     hi = np.empty((n, 2), dtype=np.int64)
     heights = np.empty(n, dtype=np.int64)
     for q in range(n):
+        b = bin_of[alive[q]]
         for c in range(2):
-            lo[q, c] = lo_all[alive[q], k, c]
-            hi[q, c] = hi_all[alive[q], k, c]
+            lo[q, c] = lo_bins[b, k, c]
+            hi[q, c] = hi_bins[b, k, c]
         heights[q] = hi[q, 1] - lo[q, 1] if mode == FLOW else 2 * tol
     bh = band_height(heights)
     if n == 0 or tu.shape[0] == 0:
@@ -101,20 +103,29 @@ def circle(
     u2p: np.ndarray, v2p: np.ndarray, c2p: np.ndarray, d2p: np.ndarray,
     u1c: np.ndarray, v1c: np.ndarray, c1c: np.ndarray, d1c: np.ndarray,
     u2c: np.ndarray, v2c: np.ndarray, c2c: np.ndarray, d2c: np.ndarray,
-    lo_all: np.ndarray, hi_all: np.ndarray, tol: int, col_cell: int,
+    lo_bins: np.ndarray, hi_bins: np.ndarray, binsize: int, tol: int, col_cell: int,
     motion: np.ndarray, f: float, cu: float, cv: float, b: float, prior_weight: float,
 ) -> np.ndarray:  # fmt: skip
     """Closed circles (N, 4) of feature indices (i1p, i2p, i2c, i1c).
 
     ``u, v, c, d`` are the positions, classes and descriptors of the four images' features;
-    ``lo_all``/``hi_all`` (M, 4, 2) the search offset ranges of every start (1p) feature and step;
+    ``lo_bins``/``hi_bins`` (n_bins_v, n_bins_u, 4, 2) the search offset ranges of every step for the start (1p)
+    features in each ``binsize`` px bin (bins clipped to the table: a (1, 1, 4, 2) table applies to all);
     ``motion`` the previous Tr_delta (4, 4) for the constant-velocity prior, or an empty (0, 0) array.
     """
     none = np.empty(0)
     has_prior = motion.shape[0] == 4
     alive = np.arange(u1p.shape[0])
+    n_bv, n_bu = lo_bins.shape[0], lo_bins.shape[1]
+    bin_of = np.empty(u1p.shape[0], dtype=np.int64)  # the start features' bins (PriorRanges.lookup)
+    for i in range(u1p.shape[0]):
+        bu = min(max(np.int64(u1p[i]) // binsize, 0), n_bu - 1)
+        bv = min(max(np.int64(v1p[i]) // binsize, 0), n_bv - 1)
+        bin_of[i] = bv * n_bu + bu
+    lo_all = lo_bins.reshape((n_bv * n_bu, 4, 2))
+    hi_all = hi_bins.reshape((n_bv * n_bu, 4, 2))
     # 1p → 2p (stereo)
-    i2p = _step(0, STEREO_TO_RIGHT, tol, col_cell, alive, alive, lo_all, hi_all,
+    i2p = _step(0, STEREO_TO_RIGHT, tol, col_cell, alive, alive, bin_of, lo_all, hi_all,
                 u1p, v1p, c1p, d1p, u2p, v2p, c2p, d2p, none, none, none)  # fmt: skip
     keep = i2p >= 0
     alive, i2p = alive[keep], i2p[keep]
@@ -122,12 +133,12 @@ def circle(
     pu, pv, pw = none, none, none
     if has_prior:
         pu, pv, pw = predict_right(u1p[alive], v1p[alive], u2p[i2p], motion, f, cu, cv, b, prior_weight)
-    i2c = _step(1, FLOW, tol, col_cell, alive, i2p, lo_all, hi_all,
+    i2c = _step(1, FLOW, tol, col_cell, alive, i2p, bin_of, lo_all, hi_all,
                 u2p, v2p, c2p, d2p, u2c, v2c, c2c, d2c, pu, pv, pw)  # fmt: skip
     keep = i2c >= 0
     alive, i2p, i2c = alive[keep], i2p[keep], i2c[keep]
     # 2c → 1c (stereo)
-    i1c = _step(2, STEREO_TO_LEFT, tol, col_cell, alive, i2c, lo_all, hi_all,
+    i1c = _step(2, STEREO_TO_LEFT, tol, col_cell, alive, i2c, bin_of, lo_all, hi_all,
                 u2c, v2c, c2c, d2c, u1c, v1c, c1c, d1c, none, none, none)  # fmt: skip
     keep = i1c >= 0
     alive, i2p, i2c, i1c = alive[keep], i2p[keep], i2c[keep], i1c[keep]
@@ -137,7 +148,7 @@ def circle(
         pu = u1p[alive].astype(np.float64)
         pv = v1p[alive].astype(np.float64)
         pw = np.full(alive.shape[0], prior_weight)
-    back = _step(3, FLOW, tol, col_cell, alive, i1c, lo_all, hi_all,
+    back = _step(3, FLOW, tol, col_cell, alive, i1c, bin_of, lo_all, hi_all,
                  u1c, v1c, c1c, d1c, u1p, v1p, c1p, d1p, pu, pv, pw)  # fmt: skip
     closed = back == alive
     out = np.empty((closed.sum(), 4), dtype=np.int64)

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from sensor.vo.jit import kernel
+from sensor.vo.kernels_sort import radix_argsort
 
 __all__ = ["MAX_COORDINATE", "OUTER_SCALE", "delaunay_fits", "delaunay_triangles", "z_order"]
 
@@ -34,6 +35,7 @@ stay within 28 000, the lifts and the cross products within 2·D², so the three
 12·D⁴ ≈ 7.4·10¹⁸ < 2⁶³ (no overflow). Images up to about 2300 px wide fit."""
 
 
+@kernel
 def delaunay_fits(x0: int, y0: int, width: int, height: int) -> bool:
     """Whether points in the rectangle ``(x0, y0, width, height)`` and its outer vertices stay in the exact range."""
     big = OUTER_SCALE * max(width, height)
@@ -75,7 +77,7 @@ def z_order(u: np.ndarray, v: np.ndarray) -> tuple[bool, np.ndarray, np.ndarray,
     code = np.empty(n, dtype=np.uint64)
     for i in range(n):
         code[i] = _spread(np.uint64(ui[i] - u0)) | (_spread(np.uint64(vi[i] - v0)) << np.uint64(1))
-    order = np.argsort(code)
+    order = radix_argsort(code)  # codes of ≤ 32 bits (usually ~22): two or three linear passes
     for k in range(1, n):  # the Z-curve code is one-to-one: equal codes are equal positions
         if code[order[k]] == code[order[k - 1]]:
             return False, ui, vi, order

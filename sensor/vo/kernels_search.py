@@ -10,7 +10,11 @@ candidate in the window gets its whole cost (the SAD as one SIMD instruction seq
 no early exit once it cannot win, and the best is kept by selects: the only branch left per candidate is the
 window test, which rarely fails. The costs compared and their order are those an early exit would compare,
 so the result is the same; the early exits' branches, unpredictable on real images' wide windows, cost
-more than the work they save.
+more than the work they save. A tall window (more than :data:`_NEAR_FIRST_BANDS` row bands, common on real images
+whose first-pass matches spread) with a motion prior is searched near the prediction first: the band of the
+predicted row, then only the bands and cells within (best cost + 1) / weight of the prediction, since a candidate
+farther away has a larger penalty alone; ties go to the lower index position, so the winner is again the first
+strict minimum of the row-major traversal.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ __all__ = ["build_index", "search_step"]
 
 #: Window modes of a circle step: stereo left → right (u ≤ source u), flow, stereo right → left (u ≥ source u).
 STEREO_TO_RIGHT, FLOW, STEREO_TO_LEFT = 0, 1, 2
+_NEAR_FIRST_BANDS = 6  # a window of more row bands (beyond this many) is searched near the prediction first
 
 
 @kernel
@@ -231,23 +236,71 @@ def search_step(
         if cell_lo >= cell_hi or band_hi < band_lo:
             continue
         cls = np.int64(src_cls[s])
-        best_cost = big
-        best_pos = -1
-        for band in range(band_lo, band_hi + 1):
-            base = (cls * n_bands + band) * n_cells
+        if has_prior and pred_w[q] > 0.0 and band_hi - band_lo >= _NEAR_FIRST_BANDS:
+            # A candidate at distance d from the prediction costs at least rint(weight · d): once the best cost is
+            # c, one farther than r = (c + 1) / weight in u or v costs more and cannot win. The band of the
+            # predicted row is searched first, then the other bands and cells within r of the prediction; a lower
+            # cost, or an equal one at a lower index position, wins — the first strict minimum of the row-major
+            # traversal of the whole window.
+            weight, pu, pv = pred_w[q], pred_u[q], pred_v[q]
+            best_cost = big
+            best_pos = -1
+            first = min(max(_floor_div(np.int64(np.floor(pv)), band_height, band_shift), band_lo), band_hi)
+            base = (cls * n_bands + first) * n_cells
             for pos in range(ptr[np.uint64(base + cell_lo)], ptr[np.uint64(base + cell_hi)]):
                 tu = tgt_u[np.uint64(pos)]  # unsigned indices skip numba's negative-index wraparound
                 tv = tgt_v[np.uint64(pos)]
                 inside = (tv >= v_lo) & (tv <= v_hi) & (tu >= u_lo) & (tu <= u_hi)
-                penalty = np.int64(0)
-                if has_prior:
-                    du = tu - pred_u[q]
-                    dv = tv - pred_v[q]
-                    penalty = np.int64(np.rint(pred_w[q] * np.sqrt(du * du + dv * dv)))
+                du = tu - pu
+                dv = tv - pv
+                penalty = np.int64(np.rint(weight * np.sqrt(du * du + dv * dv)))
                 cost = penalty + _sad32(src_desc, s, tgt_desc, pos) if inside else big
                 better = cost < best_cost  # selects, not branches
                 best_pos = pos if better else best_pos
                 best_cost = cost if better else best_cost
+            b_lo, b_hi, c_lo, c_hi = band_lo, band_hi, cell_lo, cell_hi
+            if best_pos >= 0:  # the rectangle around the disc of radius r
+                reach = (best_cost + 1.0) / weight
+                top = _floor_div(np.int64(np.floor(max(pv - reach, -1.0))), band_height, band_shift)
+                bottom = _floor_div(np.int64(np.floor(min(pv + reach, 1e15))), band_height, band_shift)
+                left = _floor_div(np.int64(np.floor(max(pu - reach, -1.0))), col_cell, cell_shift)
+                right = _floor_div(np.int64(np.floor(min(pu + reach, 1e15))), col_cell, cell_shift) + 1
+                b_lo, b_hi = max(band_lo, top), min(band_hi, bottom)
+                c_lo = max(cell_lo, min(left, cell_hi))
+                c_hi = max(min(cell_hi, right), c_lo)  # an empty run, not a negative index, left of the window
+            for band in range(b_lo, b_hi + 1):
+                if band == first:
+                    continue
+                base = (cls * n_bands + band) * n_cells
+                for pos in range(ptr[np.uint64(base + c_lo)], ptr[np.uint64(base + c_hi)]):
+                    tu = tgt_u[np.uint64(pos)]
+                    tv = tgt_v[np.uint64(pos)]
+                    inside = (tv >= v_lo) & (tv <= v_hi) & (tu >= u_lo) & (tu <= u_hi)
+                    du = tu - pu
+                    dv = tv - pv
+                    penalty = np.int64(np.rint(weight * np.sqrt(du * du + dv * dv)))
+                    cost = penalty + _sad32(src_desc, s, tgt_desc, pos) if inside else big
+                    better = (cost < best_cost) | ((cost == best_cost) & (pos < best_pos))  # selects, not branches
+                    best_pos = pos if better else best_pos
+                    best_cost = cost if better else best_cost
+        else:
+            best_cost = big
+            best_pos = -1
+            for band in range(band_lo, band_hi + 1):
+                base = (cls * n_bands + band) * n_cells
+                for pos in range(ptr[np.uint64(base + cell_lo)], ptr[np.uint64(base + cell_hi)]):
+                    tu = tgt_u[np.uint64(pos)]  # unsigned indices skip numba's negative-index wraparound
+                    tv = tgt_v[np.uint64(pos)]
+                    inside = (tv >= v_lo) & (tv <= v_hi) & (tu >= u_lo) & (tu <= u_hi)
+                    penalty = np.int64(0)
+                    if has_prior:
+                        du = tu - pred_u[q]
+                        dv = tv - pred_v[q]
+                        penalty = np.int64(np.rint(pred_w[q] * np.sqrt(du * du + dv * dv)))
+                    cost = penalty + _sad32(src_desc, s, tgt_desc, pos) if inside else big
+                    better = cost < best_cost  # selects, not branches
+                    best_pos = pos if better else best_pos
+                    best_cost = cost if better else best_cost
         if best_pos >= 0:
             best[q] = order[best_pos]
     return best

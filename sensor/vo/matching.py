@@ -74,16 +74,16 @@ def circular_match(
     numpy.ndarray
         (N, 4) int64 feature indices (i1p, i2p, i2c, i1c) of the closed circles.
     """
-    n = len(f1p)
-    if ranges is None:
-        lo_all, hi_all = (np.ascontiguousarray(np.broadcast_to(r, (n, 4, 2))) for r in default_ranges(config))
-    else:
-        lo_all, hi_all = ranges.lookup(f1p.u.astype(np.int64), f1p.v.astype(np.int64))
+    if ranges is None:  # one bin for all
+        binsize = 1
+        lo_bins, hi_bins = (r.reshape(1, 1, 4, 2) for r in default_ranges(config))
+    else:  # the bins' table, looked up in the kernel as PriorRanges.lookup does
+        binsize, lo_bins, hi_bins = ranges.binsize, ranges.lo, ranges.hi
     motion = np.empty((0, 0)) if prior_motion is None else np.ascontiguousarray(prior_motion, dtype=np.float64)
     return circle(
         *(x for fs in (f1p, f2p, f1c, f2c) for x in (fs.u, fs.v, fs.cls, fs.desc)),
-        np.ascontiguousarray(lo_all), np.ascontiguousarray(hi_all), config.match_disp_tolerance, _COL_CELL,
-        motion, config.f, config.cu, config.cv, config.baseline, _PRIOR_WEIGHT,
+        np.ascontiguousarray(lo_bins, dtype=np.int64), np.ascontiguousarray(hi_bins, dtype=np.int64), int(binsize),
+        config.match_disp_tolerance, _COL_CELL, motion, config.f, config.cu, config.cv, config.baseline, _PRIOR_WEIGHT,
     )  # fmt: skip
 
 

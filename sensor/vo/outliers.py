@@ -7,7 +7,7 @@ from scipy.spatial import Delaunay, QhullError
 
 from sensor.vo.config import VOConfig
 from sensor.vo.kernels_delaunay import delaunay_fits, delaunay_triangles, z_order
-from sensor.vo.kernels_match import triangle_support
+from sensor.vo.kernels_match import delaunay_support, triangle_support
 from sensor.vo.match_columns import U1C, V1C
 
 __all__ = ["remove_outliers"]
@@ -62,16 +62,16 @@ def remove_outliers(xy: np.ndarray, config: VOConfig) -> np.ndarray:
     n = xy.shape[0]
     if n < 3:
         return np.zeros(n, dtype=bool)
-    u, v = xy[:, U1C], xy[:, V1C]
-    simplices = _delaunay(u, v)
-    if simplices is None:  # general (or very large) positions: Qhull
+    xy = np.ascontiguousarray(xy, dtype=np.float64)
+    u, v = np.ascontiguousarray(xy[:, U1C]), np.ascontiguousarray(xy[:, V1C])
+    tol_disp, tol_flow = float(config.outlier_disp_tolerance), float(config.outlier_flow_tolerance)
+    exact, support = delaunay_support(u, v, xy, tol_disp, tol_flow)  # the usual case: one compiled call
+    if not exact:  # general (or very large) positions: Qhull
         try:
             simplices = Delaunay(np.stack([u, v], axis=1)).simplices
         except (QhullError, ValueError):
             simplices = np.empty((0, 3), dtype=np.int64)
-    if simplices.shape[0] == 0:
-        return np.zeros(n, dtype=bool)
-    triangles = np.ascontiguousarray(simplices, dtype=np.int64)
-    xy = np.ascontiguousarray(xy, dtype=np.float64)
-    support = triangle_support(triangles, xy, config.outlier_disp_tolerance, config.outlier_flow_tolerance)
+        if simplices.shape[0] == 0:
+            return np.zeros(n, dtype=bool)
+        support = triangle_support(np.ascontiguousarray(simplices, dtype=np.int64), xy, tol_disp, tol_flow)
     return support >= _MIN_CONSISTENT_EDGES
