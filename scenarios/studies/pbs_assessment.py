@@ -318,8 +318,9 @@ def write_assessment(table: pd.DataFrame, out_dir: Path, vehicle: str, plot_form
     lines = [f"# Assessment of {vehicle}", ""]
     lines += [
         "Each cell: the measured value, then the level it reaches (`pass`/`fail` for the turning circle; PBS levels",
-        "only where a threshold was checked against the rules — see the notes) and the margin. Measured by `offtrack",
-        "assess`; each case's run directory holds its time series, metrics and plots.",
+        "only where a threshold was checked against the rules — see the notes) and the margin; a run that did not",
+        "complete its manoeuvre (lost control, diverged) gives no value and says so. Measured by `offtrack assess`;",
+        "each case's run directory holds its time series, metrics and plots.",
         "",
     ]
     for surface in dict.fromkeys(records["surface"]):
@@ -336,6 +337,8 @@ def write_assessment(table: pd.DataFrame, out_dir: Path, vehicle: str, plot_form
                     continue
                 r = match.iloc[0]
                 text = _number(r["value"])
+                if text == "—" and r["status"] not in ("—", RunStatus.COMPLETED):
+                    text += f" (run {str(r['status']).replace('_', ' ')})"
                 if r["level"] not in (None, "") and not (isinstance(r["level"], float) and math.isnan(r["level"])):
                     text += f" ({r['level']}, margin {_number(r['margin'])})"
                 cells.append(text)
