@@ -26,7 +26,7 @@ from vehicle_model.errors import InputError
 B_DOUBLE = Path(__file__).parent / "data" / "combinations" / "b-double.yaml"
 
 
-STEERED_B_DOUBLE = str(B_DOUBLE.with_name("b-double-steered.yaml"))
+STEERED_B_DOUBLE = str(B_DOUBLE.parents[1] / "vehicles" / "b-double-steered.yaml")
 """The B-double test layout with the rear two axles of each trailer steerable."""
 
 
