@@ -291,3 +291,5 @@ def test_the_damping_ratio_needs_an_oscillation() -> None:
     assert logarithmic_decrement_damping(sway) == pytest.approx(zeta, rel=1e-3)
     one_sided = np.exp(-0.5 * t) * (1.0 + 0.3 * np.sin(3.0 * t)) + 0.05 * np.exp(-0.1 * t) * np.sin(7.0 * t)
     assert math.isnan(logarithmic_decrement_damping(np.abs(one_sided)))
+    regrowing = np.interp(t, [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 20.0], [0.0, 0.9, -0.1, 0.6, -0.05, 0.0, 0.0])
+    assert math.isnan(logarithmic_decrement_damping(regrowing))  # the swings grow again: not a free sway

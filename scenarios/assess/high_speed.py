@@ -318,8 +318,9 @@ def logarithmic_decrement_damping(signal: np.ndarray, floor: float = 0.01, pairs
     Returns
     -------
     float
-        ``ζ``; NaN with fewer than two usable peaks: the extrema used must alternate in sign (a signal that comes
-        back to zero from one side, as an actively steered unit's articulation may, is not an oscillation).
+        ``ζ``; NaN with fewer than two usable peaks: the extrema used must alternate in sign and shrink (a signal
+        that comes back to zero from one side, or whose swings grow again, as an actively steered unit's articulation
+        may under its controller, is not a free decaying sway).
     """
     _, values = _peaks(np.asarray(signal, dtype=float))
     values = values[skip:]
@@ -328,7 +329,8 @@ def logarithmic_decrement_damping(signal: np.ndarray, floor: float = 0.01, pairs
         return math.nan
     small = magnitudes < floor * magnitudes[0]
     same_side = np.concatenate([[False], np.sign(values[1:]) == np.sign(values[:-1])])
-    stop = small | same_side  # an oscillation's extrema alternate about zero; two on one side are not a sway
+    growing = np.concatenate([[False], magnitudes[1:] >= magnitudes[:-1]])
+    stop = small | same_side | growing  # a decaying sway's extrema alternate about zero and shrink
     usable = magnitudes[: int(np.argmax(stop))] if stop.any() else magnitudes
     usable = usable[: pairs + 1]
     if len(usable) < 2:
@@ -477,8 +479,8 @@ def high_speed_assessment(
         note = (
             f"logarithmic decrement of successive peaks of {joint} after the pulse"
             if joint
-            else "no decaying oscillation after the pulse: no articulation angle swung to both sides at least twice "
-            "(an actively steered unit may come back without swaying), so no damping ratio"
+            else "no decaying sway after the pulse: no articulation angle swung to both sides with shrinking swings "
+            "(an actively steered unit's response is shaped by its controller), so no damping ratio"
         )
         return [_record("yaw_damping_coefficient", zeta, note)]
     if manoeuvre == "steady_turn":
