@@ -158,7 +158,8 @@ class PathConfig(Settings):
         None,
         min_length=1,
         max_length=4096,
-        description="road file (.csv, .geojson, .json, .xodr), relative to the working directory; 4096 is PATH_MAX",
+        description="road file (.csv, .geojson, .json, .xodr): beside the scenario file if it is there, else relative "
+        "to the working directory; 4096 is PATH_MAX",
     )
     smoothing: float = Field(
         2.0,
@@ -834,7 +835,25 @@ def load_scenario_data(name_or_path: str) -> dict[str, Any]:
         raise ConfigError(f"{source} is empty: it must hold a mapping of fields (name, vehicle, path, …)")
     if not isinstance(data, dict):
         raise ConfigError(f"{source} must hold a mapping of fields, not a {type(data).__name__}")
+    if path.suffix in (".yaml", ".yml"):
+        _files_beside(data, path.parent)
     return data
+
+
+def _files_beside(data: dict[str, Any], folder: Path) -> None:
+    """Make a scenario file's relative ``vehicle`` file and ``path.file`` road the ones beside it, where they exist
+    there (a scenario, its vehicle and its road kept in one folder run from anywhere); others stay as written,
+    relative to the working directory."""
+
+    def beside(value: Any) -> Any:
+        if isinstance(value, str) and value and not Path(value).is_absolute() and (folder / value).is_file():
+            return str((folder / value).resolve())
+        return value
+
+    if isinstance(data.get("vehicle"), str) and data["vehicle"].endswith(VEHICLE_SUFFIXES):
+        data["vehicle"] = beside(data["vehicle"])
+    if isinstance(data.get("path"), dict) and "file" in data["path"]:
+        data["path"]["file"] = beside(data["path"]["file"])
 
 
 _KEY = re.compile(r"^([^.\[\]]+)((?:\[\d+\])*)$")

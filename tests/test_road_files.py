@@ -217,3 +217,30 @@ def test_file_kind_needs_a_file():
         validate_config({"name": "x", "path": {"kind": "file"}})
     with pytest.raises(ConfigError, match=r"path\.file is needed"):
         validate_config({"name": "x", "path": {"kind": "straight", "file": "a.csv"}})
+
+
+def test_a_scenario_files_road_and_vehicle_are_the_ones_beside_it(tmp_path, monkeypatch):
+    # A scenario, its road and its vehicle kept in one folder: the relative names in the scenario file are the files
+    # beside it, wherever the command runs; a name that is not beside it stays relative to the working directory.
+    import shutil
+
+    import yaml
+
+    from scenarios.config import load_scenario
+
+    folder = tmp_path / "study"
+    folder.mkdir()
+    shutil.copy(ROADS / "line-arc.csv", folder / "road.csv")
+    shutil.copy(Path(__file__).parent / "data" / "vehicles" / "b-double-steered.yaml", folder / "truck.yaml")
+    scenario = {**_file_config(Path("road.csv")), "vehicle": "truck.yaml"}
+    (folder / "scenario.yaml").write_text(yaml.safe_dump(scenario))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    config = load_scenario(str(folder / "scenario.yaml"))
+    assert Path(config.path.file) == (folder / "road.csv").resolve()
+    assert config.vehicle_params().n_units == 3
+    assert build_scenario(config).path.length == pytest.approx(load_road(ROADS / "line-arc.csv", 2.0).path.length)
+    (folder / "road.csv").unlink()
+    with pytest.raises(RoadFileError, match=r"road file road\.csv does not exist"):  # nowhere: refused
+        build_scenario(load_scenario(str(folder / "scenario.yaml")))
