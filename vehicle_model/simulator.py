@@ -252,6 +252,7 @@ class Simulator:
         self._trailer_local = np.array([[a.x, 0.0] for a in params.trailer.axles] + [[params.trailer.cg_x, 0.0]])
         self._rear_locals = [np.array([[a.x, 0.0] for a in t.axles] + [[t.cg_x, 0.0]]) for t in params.rear_trailers]
         self._n_axles = len(self.layout.axles)
+        self._trailing = self.layout.n_units > 2  # further units' states follow the slip states
         self.time = 0.0
         self._surface_filled = False  # uniform surfaces are looked up once
         self._surface_uniform = self.surface.is_uniform
@@ -402,7 +403,9 @@ class Simulator:
         self.time += self._period_s
         x = self._x
         n = 8 + self._n_axles
-        return _state(VehicleState, self.time, x[:8].tolist(), x[8:n].copy(), x[n:].copy())
+        return _state(
+            VehicleState, self.time, x[:8].tolist(), x[8:n].copy(), x[n:].copy() if self._trailing else _NO_TRAILING
+        )
 
     def _step_casadi(self, steer: Sequence[float] | np.ndarray, drive_force: float) -> VehicleState:
         """The period through casadi's ``mapaccum`` integrator, checked here (the model has no compiled library)."""
@@ -416,7 +419,8 @@ class Simulator:
         self._x[:] = x_end
         self.time += self._period_s
         n = 8 + self._n_axles
-        return _state(VehicleState, self.time, values[:8], x_end[8:n].copy(), x_end[n:].copy())
+        trailing = x_end[n:].copy() if self._trailing else _NO_TRAILING
+        return _state(VehicleState, self.time, values[:8], x_end[8:n].copy(), trailing)
 
     def _failed(self, code: int, steer: Sequence[float] | np.ndarray, drive_force: float) -> NoReturn:
         """Raise the error of a failed period (return ``code`` of :mod:`.period`)."""
