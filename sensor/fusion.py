@@ -148,7 +148,12 @@ from vehicle_model.settings import Settings
 from .viso_ot import VisoOtEstimator
 from .vo.motion import params_to_transform, transform_to_params
 
-__all__ = ["FusedVisoOt", "FusionNoise", "TractorSignals", "slip_kinematics"]
+__all__ = ["STD_PARTS", "FusedVisoOt", "FusionNoise", "TractorSignals", "slip_kinematics"]
+
+#: The five terms of the off-tracking's variance, eq (5), in its order: the increments' own covariance, the
+#: biases' remaining uncertainty, the bias coupling's, the kinematics' carried disagreement and the constant
+#: ``offtracking_bias_std``.
+STD_PARTS: tuple[str, ...] = ("increments", "biases", "coupling", "kinematics", "unexplained")
 
 _STATES = 7
 _VS, _BG, _BW, _BPSI = 3, 4, 5, 6
@@ -334,6 +339,9 @@ class FusedVisoOt:
         small where the filter trusts the kinematics, large where it has seen slip.
     innovation_ratio : float
         ``ρ/3`` of eq (5): the camera motions' mean normalised innovation squared over its expectation.
+    std_parts : dict[str, float]
+        The five variance terms of eq (5) at the last tick [m²], keyed by :data:`STD_PARTS` (NaN without an
+        estimate); :meth:`std_contributions` gives them as standard deviations.
     """
 
     def __init__(self, params: VehicleParams, camera_in_trailer: np.ndarray, noise: FusionNoise | None = None) -> None:
@@ -375,6 +383,7 @@ class FusedVisoOt:
         self.buffer.reset()
         self.estimate: float | None = None
         self.std = math.nan
+        self.std_parts = dict.fromkeys(STD_PARTS, math.nan)
         self.frames = self.updates = self.rejected = 0
         self._gated = 0
         self._history: deque[_Tick] = deque()
@@ -675,6 +684,7 @@ class FusedVisoOt:
             value = offtracking_from_path(np.vstack([points, d[None, :2]]), d[:2], float(d[2]), lfp)
         if value is None or not math.isfinite(value) or abs(value) > lfp:
             self.estimate, self.std = None, math.nan
+            self.std_parts = dict.fromkeys(STD_PARTS, math.nan)
             return
         # eq (3) over the committed increments ahead of the follow point, in the current frame ...
         c, s = math.cos(d[2]), math.sin(d[2])
@@ -716,6 +726,14 @@ class FusedVisoOt:
             self.estimate, self.std = None, std
             return
         self.estimate, self.std = float(value), std
+
+    def std_contributions(self) -> dict[str, float]:
+        """Each term of eq (5) as the standard deviation it alone would give [m] (NaN without an estimate).
+
+        Their squares add up to :attr:`std`'s square: they say what the reported uncertainty is made of (the
+        odometry's increments, the biases, the bias coupling, the kinematics' disagreement, the constant).
+        """
+        return {part: math.sqrt(max(self.std_parts[part], 0.0)) for part in STD_PARTS}
 
     def _bias_effect(self, g: np.ndarray, length: np.ndarray, duration: np.ndarray) -> np.ndarray:
         """``G`` of eq (5): the change of ``e_tr`` per unit error of ``(b_g, β_ψ)``, coherent over increments

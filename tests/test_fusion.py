@@ -328,6 +328,13 @@ def test_an_odometry_error_the_filter_cannot_observe_widens_its_std() -> None:
     assert np.mean(error) > 0.01  # the error is real ...
     assert np.mean(error <= 2.0 * std[late]) > 0.85  # ... and covered
     assert np.mean(error <= 2.0 * std_s[late]) < 0.6  # without the term it is not
+    # The recorded terms of eq (5) say so: their squares add up to the std's (1e-12 relative), and the coupling
+    # term, zero in the sure filter, carries most of the honest filter's variance.
+    for filt in (honest, sure):
+        parts = filt.std_contributions()
+        assert sum(v**2 for v in parts.values()) == pytest.approx(filt.std**2, rel=1e-12)
+    assert sure.std_contributions()["coupling"] == 0.0
+    assert honest.std_contributions()["coupling"] ** 2 > 0.5 * honest.std**2
 
 
 def test_a_blinded_camera_falls_back_to_the_kinematics() -> None:

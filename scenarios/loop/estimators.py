@@ -16,7 +16,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from controller.zero_slip import ZeroSlipEstimator
-from sensor.fusion import FusedVisoOt, FusionNoise, TractorSignals
+from sensor.fusion import STD_PARTS, FusedVisoOt, FusionNoise, TractorSignals
 from sensor.signals import standstill_reading
 from vehicle_model.geometry import kingpin_position
 from vehicle_model.offtracking import (
@@ -30,7 +30,17 @@ from vehicle_model.parameters import VehicleParams
 
 from .participant import Column, LoopContext, TickInput, estimate_column
 
-__all__ = ["DensePath", "FusedVisoOtEstimator", "GroundTruth", "ZeroSlip", "fused_viso_ot", "ground_truth", "zero_slip"]
+__all__ = [
+    "FUSION_STD_COLUMNS",
+    "DensePath",
+    "FusedVisoOtEstimator",
+    "GroundTruth",
+    "ZeroSlip",
+    "fused_viso_ot",
+    "fusion_std_record",
+    "ground_truth",
+    "zero_slip",
+]
 
 TOO_UNCERTAIN = "too_uncertain"
 """Why the fused estimate has no value although it has a standard deviation: that exceeds its ``max_std``."""
@@ -176,6 +186,17 @@ class ZeroSlip:
         return {"offtracking_zero_slip": self.estimate.value}
 
 
+#: The columns of the fused filter's standard deviation by term (eq (5) of :mod:`sensor.fusion`), in its order.
+FUSION_STD_COLUMNS: tuple[str, ...] = tuple(f"fusion_std_{part}" for part in STD_PARTS)
+
+
+def fusion_std_record(fused: FusedVisoOt) -> dict[str, float]:
+    """The :data:`FUSION_STD_COLUMNS` of ``fused``'s last tick [m]
+    (:meth:`~sensor.fusion.FusedVisoOt.std_contributions`)."""
+    parts = fused.std_contributions()
+    return {name: parts[part] for part, name in zip(STD_PARTS, FUSION_STD_COLUMNS, strict=True)}
+
+
 class FusedVisoOtEstimator:
     """Fused VISO-OT (:class:`sensor.fusion.FusedVisoOt`): the trailer's signals every tick, the camera's motions
     as the camera latency releases them.
@@ -197,6 +218,10 @@ class FusedVisoOtEstimator:
         Column(estimate_column("viso_ot_fused"), "m", "fused VISO-OT off-tracking"),
         Column("offtracking_viso_ot_fused_std", "m", "its standard deviation"),
         Column("fusion_kinematic_std", "m/s", "σ of the zero-slip kinematics in the filter: large where it saw slip"),
+        *(
+            Column(name, "m", f"the {part} term of the std, as the std it alone would give")
+            for part, name in zip(STD_PARTS, FUSION_STD_COLUMNS, strict=True)
+        ),
     )
 
     def __init__(self, params: VehicleParams, camera: object, noise: FusionNoise, drop_every: int = 0) -> None:
@@ -231,11 +256,12 @@ class FusedVisoOtEstimator:
         return self.estimate
 
     def record(self) -> Mapping[str, float]:
-        """The estimate and its standard deviation."""
+        """The estimate, its standard deviation, the kinematics' σ and the terms of the standard deviation."""
         return {
             "offtracking_viso_ot_fused": self.estimate.value,
             "offtracking_viso_ot_fused_std": self.estimate.std,
             "fusion_kinematic_std": self.filter.kinematic_std,
+            **fusion_std_record(self.filter),
         }
 
 

@@ -43,7 +43,7 @@ from sensor.recordings.vo_metrics import relative_pose_error
 from ..config import FusionConfig
 from ..loop.camera_estimator import CAMERA_COLUMNS, VisoOt, camera_row
 from ..loop.ends import RunStatus
-from ..loop.estimators import FusedVisoOtEstimator, GroundTruth, ZeroSlip
+from ..loop.estimators import FUSION_STD_COLUMNS, FusedVisoOtEstimator, GroundTruth, ZeroSlip, fusion_std_record
 from ..loop.participant import Column
 from ..loop.plant import VehicleParticipant
 from ..run.results import TIMESERIES_FILE, TimeSeriesWriter, write_metrics
@@ -129,6 +129,7 @@ def _columns(inputs: EstimateInputs) -> list[Column]:
         names += ["trailer_heading", "vo_rpe_translation_m", "vo_rpe_rotation_rad"]
     if inputs.signals is not None:
         names += ["offtracking_viso_ot_fused", "offtracking_viso_ot_fused_std", "fusion_kinematic_std"]
+        names += FUSION_STD_COLUMNS
         names += ["offtracking_zero_slip", *_SIGNALS]
     return [declared[name] for name in names]
 
@@ -193,6 +194,7 @@ class _SignalEstimators:
             out["offtracking_viso_ot_fused"] = math.nan if fused.estimate is None else float(fused.estimate)
             out["offtracking_viso_ot_fused_std"] = float(fused.std)
             out["fusion_kinematic_std"] = float(fused.kinematic_std)
+            out.update(fusion_std_record(fused))
             out["offtracking_zero_slip"] = math.nan if self.zero_slip_value is None else float(self.zero_slip_value)
         return out
 
