@@ -44,7 +44,7 @@ from vehicle_model.offtracking import OfftrackingBuffer
 from vehicle_model.parameters import VehicleParams
 
 ZeroSlipVariant = Literal["yaw_rate", "steer_angle"]
-RearPoint = Literal["axle_mean", "equivalent"]
+RearPoint = Literal["axle_mean", "equivalent", "speed_compensated"]
 """Where the estimator puts the tractor's point without lateral velocity: ``axle_mean``, the mean station of the
 rear axles (:meth:`~vehicle_model.parameters.VehicleParams.tractor_wheelbase`), or ``equivalent``, the
 stiffness-weighted equivalent wheelbase (:meth:`~vehicle_model.parameters.VehicleParams.
@@ -52,8 +52,10 @@ tractor_equivalent_wheelbase`), exact when nothing pushes on the fifth wheel. A 
 moves the real point ahead of the equivalent wheelbase (docs/vehicle_dynamics.md §6.6): on the LST at 15 km/h on a
 dry road the zero-slip-fed loop holds 0.041–0.047 m RMS with ``axle_mean`` and 0.067–0.072 m with ``equivalent``
 (ideal and data-sheet signals, roundabout-3 and the figure-of-eight), while at walking pace with the trailer's axles
-at their lock (the roundabout test) ``equivalent`` is the closer (0.19 against 0.30 m RMS). ``axle_mean`` is the
-default: it is the stronger baseline where the camera is compared with it."""
+at their lock (the roundabout test) ``equivalent`` is the closer (0.19 against 0.30 m RMS). ``speed_compensated``
+moves the equivalent wheelbase forwards with the speed as a steady turn's lateral acceleration moves the real point,
+``L1 − K·u²`` (:meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_point`: linear tyres, the trailer's pull
+at the fifth wheel). ``axle_mean`` is the default."""
 
 
 class ZeroSlipEstimator:
@@ -66,8 +68,8 @@ class ZeroSlipEstimator:
     variant
         ``yaw_rate`` (gyro, default) or ``steer_angle``.
     rear_point
-        The tractor's point without lateral velocity (:data:`RearPoint`): ``axle_mean`` (default) or
-        ``equivalent``.
+        The tractor's point without lateral velocity (:data:`RearPoint`): ``axle_mean`` (default),
+        ``equivalent`` or ``speed_compensated``.
     unit
         The towed unit estimated: 1 the first (default), 2 the one it tows, … (module docstring).
     """
@@ -89,8 +91,9 @@ class ZeroSlipEstimator:
         self.params = params
         self.unit = unit
         self.wheelbase = (
-            params.tractor_equivalent_wheelbase() if rear_point == "equivalent" else params.tractor_wheelbase()
+            params.tractor_wheelbase() if rear_point == "axle_mean" else params.tractor_equivalent_wheelbase()
         )
+        self.rear_point_gradient = params.tractor_rear_point_gradient if rear_point == "speed_compensated" else 0.0
         self.buffer = OfftrackingBuffer(params.trailers[unit - 1].follow_point_offset)
         self._last: tuple[float, float, np.ndarray] | None = None  # (u, r1, articulations) of the previous sample
 
@@ -121,7 +124,8 @@ class ZeroSlipEstimator:
         # Trapezoidal rule over the interval between the two samples.
         u_mid, r1_mid = 0.5 * (u + u_prev), 0.5 * (r1 + r1_prev)
         # Kingpin velocity (tractor axes), zero lateral slip at the rear point.
-        vk1 = zero_slip_kingpin_velocity(self.params, u_mid, r1_mid, self.wheelbase)
+        wheelbase = self.wheelbase - self.rear_point_gradient * u_mid * u_mid
+        vk1 = zero_slip_kingpin_velocity(self.params, u_mid, r1_mid, wheelbase)
         # Down the chain to the unit's coupling, in the axes of the unit ahead, at mid-interval; ψ_k = ψ_(k-1) − Γ.
         dpsi2 = r1_mid * dt
         mids: list[float] = []

@@ -355,15 +355,16 @@ class EstimatorsConfig(Settings):
     ``feedback`` always runs). ``zero_slip_variant``: Cheng's zero-slip dead-reckoning with the
     tractor yaw rate taken from the gyro (``yaw_rate``, default) or from the front steer angle
     (``steer_angle``). ``zero_slip_rear_point``: the tractor's point without lateral velocity that it assumes,
-    the mean station of the rear axles (``axle_mean``, default) or their stiffness-weighted equivalent wheelbase
-    (``equivalent``; why: ``controller.zero_slip.RearPoint``). ``viso_ot``: render the trailer's stereo camera at the
+    the mean station of the rear axles (``axle_mean``, default), their stiffness-weighted equivalent wheelbase
+    (``equivalent``) or that moved forwards with the speed (``speed_compensated``; why: ``controller.zero_slip.
+    RearPoint``). ``viso_ot``: render the trailer's stereo camera at the
     camera rate and run visual odometry and VISO-OT (needs headless OpenGL). ``viso_ot_fused``: the Kalman filter
     of the trailer's gyro, wheel speed and steer with the camera's motions (``sensor.fusion``, settings in
     ``fusion``); it needs the camera, so it turns ``viso_ot`` on."""
 
     zero_slip: bool = True
     zero_slip_variant: Literal["yaw_rate", "steer_angle"] = "yaw_rate"
-    zero_slip_rear_point: Literal["axle_mean", "equivalent"] = "axle_mean"
+    zero_slip_rear_point: Literal["axle_mean", "equivalent", "speed_compensated"] = "axle_mean"
     viso_ot: bool = False
     viso_ot_fused: bool = False
 

@@ -47,8 +47,14 @@ data sheet leaves (:mod:`sensor.datasheet`).
 Zero-slip measurement (every control tick, when the tractor's signals are given). If no tractor tyre slips
 sideways, the kingpin moves at ``(u_1, −e·r_1)`` in tractor axes (:func:`vehicle_model.kinematics.
 zero_slip_kingpin_velocity`; Cheng 2009): turned by the articulation Γ into trailer axes its lateral component is
-``z_c = sin Γ·u_1 + cos Γ·(−e·r_1)`` (``u_1``, ``r_1`` the tractor's wheel speed and yaw rate). With (1) it
-measures the slip velocity::
+``z_c = sin Γ·u_1 + cos Γ·(−e·r_1)`` (``u_1``, ``r_1`` the tractor's wheel speed and yaw rate). ``e`` is the
+kingpin's distance behind the tractor's rear point, which is not fixed: in a steady turn the rear tyres carry the
+tractor's lateral acceleration and the trailer's pull at the fifth wheel, and with linear tyres the point without
+lateral velocity lies ``L1' = L1 − K·u_1²`` behind the steer axle (``L1`` the equivalent wheelbase, ``K`` from the
+masses and the static cornering stiffnesses: :meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_point`,
+docs/vehicle_dynamics.md §2.3, §6.6), so ``e = L_5 − L1'`` (``speed_compensated_kinematics``; off: the rear
+axles' mean station). That is the steady part of the tractor's slip, predicted from its speed; the rest
+(camber, saturation, a scrubbing trailer's push) is ``ε_k`` below. With (1) it measures the slip velocity::
 
     z_c − r_m·L_c − w_m·Σ w_j tan δ_j = v_s + ε_k                                               (K1)
 
@@ -196,6 +202,10 @@ class FusionNoise(Settings):
         correction the coupling applies for the estimated ``β_ψ`` (eq (5)).
     kinematics : bool
         Fuse the zero-slip kinematics (K1) when the tractor's signals are given.
+    speed_compensated_kinematics : bool
+        Take the tractor's rear point of (K1) where a steady turn's lateral acceleration puts it, ``L1 − K·u²``
+        (:meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_point`); ``False``: the rear axles' mean
+        station, fixed.
     tractor_slip : float
         ``σ_0`` of (K2): the lateral slip velocity of the tractor's rolling tyres at the kingpin [m/s].
     kinematic_error_time : float
@@ -210,7 +220,7 @@ class FusionNoise(Settings):
         No estimate (``None``) while the off-tracking's standard deviation exceeds this [m].
     offtracking_bias_std : float
         ``σ_b`` of eq (5) [m]: what no state of the filter explains of the odometry's off-tracking error, added in
-        quadrature (0: none; a run's ``fusion`` settings add 0.015 m).
+        quadrature (0: none; a run's ``fusion`` settings add 0.005 m).
     innovation_window : int
         Camera motions over which the mean normalised innovation squared ``ρ`` of eq (5) is taken.
     """
@@ -253,6 +263,7 @@ class FusionNoise(Settings):
         description="relative std of vo_bias_coupling, carried into the off-tracking's std; 1: the coupling unknown",
     )
     kinematics: bool = True
+    speed_compensated_kinematics: bool = True
     tractor_slip: float = Field(
         0.02, gt=0.0, le=1.0, description="[m/s] slip of rolling tractor tyres; 1 m/s is a slide, not a roll"
     )
@@ -350,6 +361,8 @@ class FusedVisoOt:
         self.geometry = VisoOtEstimator(params, camera_in_trailer)  # eqs (1)–(2): camera motion → kingpin increment
         self.follow_point_offset = params.follow_point_offset
         self.slip_point, self.steer_weights = slip_kinematics(params)
+        self._tractor_wheelbase = params.tractor_equivalent_wheelbase()  # L1 of (K1) at rest, and K of its shift
+        self._rear_point_gradient = params.tractor_rear_point_gradient
         self.buffer = OfftrackingBuffer(self.follow_point_offset)
         n = self.noise
         self._sample_variance = np.array([n.gyro_noise**2, n.wheel_speed_noise**2])
@@ -512,7 +525,12 @@ class FusedVisoOt:
         values = (tractor.speed, tractor.yaw_rate, tractor.articulation)
         if not all(math.isfinite(v) for v in values):
             raise InputError(f"tractor signals {values} must be finite")
-        vx1, vy1 = zero_slip_kingpin_velocity(self.params, tractor.speed, tractor.yaw_rate)
+        u = tractor.speed
+        if self.noise.speed_compensated_kinematics:  # the rear point a steady turn's lateral acceleration moves
+            wheelbase = self._tractor_wheelbase - self._rear_point_gradient * u * u
+            vx1, vy1 = zero_slip_kingpin_velocity(self.params, u, tractor.yaw_rate, wheelbase)
+        else:
+            vx1, vy1 = zero_slip_kingpin_velocity(self.params, u, tractor.yaw_rate)
         gamma = tractor.articulation
         return math.sin(gamma) * vx1 + math.cos(gamma) * vy1  # into trailer axes
 

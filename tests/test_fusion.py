@@ -71,8 +71,11 @@ def drive_with_truth(n: int = 2000, slip: float = 0.0, gyro_bias: float = 0.0, w
 
 def tractor_signals(u: float, r: float, lateral: float) -> TractorSignals:
     """Tractor signals whose zero-slip kinematics put the kingpin's lateral velocity (trailer axes) at ``lateral``:
-    the articulation Γ solves ``sin Γ·u + cos Γ·(−e·r) = lateral`` (the tractor turning at the trailer's rate)."""
-    a, b = u, -PARAMS.kingpin_behind_rear_point * r
+    the articulation Γ solves ``sin Γ·u + cos Γ·(−e·r) = lateral`` (the tractor turning at the trailer's rate), with
+    ``e`` the kingpin's distance behind the rear point the filter assumes at speed ``u`` (its default, the
+    speed-compensated point ``L1 − K·u²``)."""
+    e = -PARAMS.tractor.fifth_wheel_x - PARAMS.tractor_rear_point(u)
+    a, b = u, -e * r
     gamma = math.asin(lateral / math.hypot(a, b)) - math.atan2(b, a)
     return TractorSignals(u, r, gamma)
 

@@ -143,3 +143,44 @@ def test_the_rear_point_setting_chooses_the_wheelbase_and_a_wrong_one_is_refused
     assert params.tractor_equivalent_wheelbase() - mean == pytest.approx(0.098, abs=0.002)  # 3.783 m against 3.685 m
     with pytest.raises(ValueError, match="rear point"):
         ZeroSlipEstimator(params, rear_point="centre")  # type: ignore[arg-type]
+
+
+def test_the_rear_point_moves_forwards_with_the_speed_as_the_steady_turn_predicts(monkeypatch):
+    # docs/vehicle_dynamics.md §2.3, §6.6. The same single-axle trailer (no scrub at the fifth wheel) on the 50 m
+    # roundabout at 15 km/h, model only: the tractor's point without lateral velocity lies L1 − K·u² behind the
+    # steer axle (VehicleParams.tractor_rear_point; linear tyres, the trailer's pull at the fifth wheel) within 5 %
+    # of the shift K·u² (0.31 m; measured 6 mm off), and the speed-compensated estimate is at least ten times
+    # closer to the truth than the equivalent wheelbase's (measured 1.4 against 73 mm). Without the trailer's pull
+    # in K the predicted shift would be a fifth of it (the tractor's own m1·L_cg is 21 % of K's numerator).
+    from scenarios.config import load_scenario
+    from scenarios.run.drive import simulate
+    from scenarios.run.metrics import estimator_errors
+    from scenarios.setup.build import build_scenario
+    from vehicle_model.parameters import TrailerParams, VehicleParams
+    from vehicle_model.presets import VEHICLE_PRESETS, reference_laden
+
+    reference = reference_laden()
+    single = TrailerParams.model_validate(
+        reference.trailer.model_dump() | {"axles": ({"name": "trailer2", "x": -7.7, "n_tyres": 6},)}
+    )
+    params = VehicleParams(name="single-axle", tractor=reference.tractor, trailer=single)
+    monkeypatch.setitem(VEHICLE_PRESETS, "single-axle", lambda: params)
+    errors = {}
+    for rear_point in ("equivalent", "speed_compensated"):
+        overrides = {
+            "vehicle": "single-axle",
+            "feedback": "none",
+            "duration_s": 80.0,
+            "estimators.zero_slip_rear_point": rear_point,
+        }
+        outcome, cols = simulate(build_scenario(load_scenario("roundabout-3", overrides)))  # model only
+        assert outcome.status == "completed"
+        late = cols["time"] > 40.0  # well into the steady turn
+        errors[rear_point] = estimator_errors(cols["offtracking_truth"][late], cols["offtracking_zero_slip"][late])
+    u, v1, r1 = cols["u"][late], cols["v1"][late], cols["r1"][late]
+    true_point = -params.tractor.cg_x + np.median(v1 / r1)
+    speed = float(np.median(u))
+    shift = params.tractor_equivalent_wheelbase() - params.tractor_rear_point(speed)
+    assert shift > 0.2
+    assert true_point == pytest.approx(params.tractor_rear_point(speed), abs=0.05 * shift)
+    assert errors["speed_compensated"]["rms_error"] < errors["equivalent"]["rms_error"] / 10.0

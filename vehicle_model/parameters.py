@@ -515,6 +515,37 @@ class VehicleParams(_Frozen):
         return float(np.sum(stiff * lengths**2) / np.sum(stiff * lengths))
 
     @functools.cached_property
+    def tractor_rear_point_gradient(self) -> float:
+        """``K`` [s²]: how far the tractor's zero-slip rear point moves forwards of
+        :meth:`tractor_equivalent_wheelbase` per (m/s)² of speed in a steady turn, ``L1'(u) = L1 − K·u²``.
+
+        Derived (docs/vehicle_dynamics.md §2.3, §6.6): in a steady turn the rear axles carry the yaw moment of the
+        tractor's own lateral acceleration and of the trailer's pull at the fifth wheel, ``Σ F_j·L_j = m1·L_cg·a_y −
+        L_5·F_5``; with linear tyres (``F_j = C_j·(L_j − L1')/R``, static cornering stiffness) and the trailer's pull
+        ``F_5 = −m_5·a_y`` (``m_5`` the coupling's static vertical load over g: the share of the trailer's mass its
+        coupling accelerates, exact for a trailer whose axle group sits at its equivalent wheelbase), ``a_y = u²/R``::
+
+            K = (m1·L_cg + m_5·L_5) / Σ C_j·L_j
+
+        (``L_cg``, ``L_5``, ``L_j`` behind the steer axle; the sum over the axles behind it). Linear tyres and
+        steady state: it leaves out the push of a scrubbing trailer group at walking pace (§6.6), a camber's
+        share of the lateral demand and the tyres' saturation, all of which are slip the signals do not show.
+        """
+        table = self.axle_table
+        stations = -(table.x_cg + self.tractor.cg_x)  # distance behind the steer axle
+        rear = (table.unit == 0) & (stations > 0)
+        if not rear.any():
+            return math.nan
+        moment = float(np.sum(self.axle_cornering_stiffness()[rear] * stations[rear]))
+        fifth_wheel = -self.tractor.fifth_wheel_x  # behind the steer axle
+        return (self.tractor.mass * -self.tractor.cg_x + self.kingpin_load / GRAVITY * fifth_wheel) / moment
+
+    def tractor_rear_point(self, speed: float) -> float:
+        """Steer axle to the tractor's zero-slip rear point at ``speed`` [m/s] in a steady turn,
+        ``L1' = L1 − K·u²`` [m] (:attr:`tractor_rear_point_gradient`, :meth:`tractor_equivalent_wheelbase`)."""
+        return self.tractor_equivalent_wheelbase() - self.tractor_rear_point_gradient * speed * speed
+
+    @functools.cached_property
     def kingpin_behind_rear_point(self) -> float:
         """``e5``: the kingpin's distance behind the tractor's rear point (the steer axle minus
         :meth:`tractor_wheelbase`), negative when the kingpin is ahead of it [m].
