@@ -111,6 +111,41 @@ def test_sobel_scaling_on_a_ramp():
     assert du[10, 10] == 224 and du[10, 9] == 224 and du[10, 5] == 128 and du[10, 14] == 128
 
 
+def _opencv_sobel(img: np.ndarray) -> np.ndarray:
+    """The reference: OpenCV's separable filter, float kernels with the 1/128 folded into the derivative."""
+    smooth = np.array([1, 4, 6, 4, 1], dtype=np.float32)
+    deriv = np.array([-1, -2, 0, 2, 1], dtype=np.float32) / 128.0
+    args = {"delta": 128.0, "borderType": cv2.BORDER_REPLICATE}
+    return np.stack(
+        [cv2.sepFilter2D(img, cv2.CV_8U, deriv, smooth, **args), cv2.sepFilter2D(img, cv2.CV_8U, smooth, deriv, **args)]
+    )
+
+
+def test_sobel_responses_equal_opencvs_separable_filter_bytes():
+    # Random, binary (the strongest responses) and few-level images of odd, even and tiny sizes, borders included.
+    rng = np.random.default_rng(11)
+    levels = np.array([0, 1, 2, 127, 128, 254, 255], dtype=np.uint8)
+    half_up = half_even = 0
+    for h, w in [(1, 1), (1, 6), (2, 3), (4, 4), (5, 7), (16, 33), (31, 30), (64, 97), (120, 181)]:
+        for img in (
+            rng.integers(0, 256, (h, w), dtype=np.uint8),
+            np.where(rng.random((h, w)) < 0.5, 0, 255).astype(np.uint8),
+            rng.choice(levels, (h, w)),
+            textured((h, w), seed=h + w),
+        ):
+            got, want = sobel_responses(img), _opencv_sobel(img)
+            assert got.dtype == np.uint8 and np.array_equal(got, want), (h, w)
+            # The exact sum S = (byte − 128)·128 + remainder: count halves rounded up and down (ties to even).
+            exact = cv2.sepFilter2D(img.astype(np.float64), cv2.CV_64F, np.float64([-1, -2, 0, 2, 1]),
+                                    np.float64([1, 4, 6, 4, 1]), borderType=cv2.BORDER_REPLICATE)  # fmt: skip
+            tie = np.mod(exact, 128) == 64
+            half_up += int(np.sum(tie & (got[0] - 128.0 > exact / 128)))
+            half_even += int(np.sum(tie & (got[0] - 128.0 < exact / 128)))
+    assert half_up > 0 and half_even > 0  # both tie directions occurred (round half to even, not half up)
+    strongest = _opencv_sobel(np.where(np.arange(40) % 6 < 3, 0, 255).astype(np.uint8)[None].repeat(12, 0))
+    assert strongest.min() == 32 and strongest.max() == 224  # the extremes of the range: no saturation possible
+
+
 def test_half_resolution_is_the_2x2_mean():
     img = np.arange(6 * 8, dtype=np.uint8).reshape(6, 8) * 5
     half = half_resolution(img)

@@ -7,15 +7,15 @@
   by 1/128, offset by 128 and saturated to uint8; the horizontal and vertical responses sampled at
   16 sparse offsets of the 11×11 window give 32 bytes, compared by SAD (docs/visual_odometry.md §4).
 
-The interest filters (exact integer sums), the extrema and the descriptors are compiled
-(:mod:`sensor.vo.kernels_features`); the Sobel filters, the downsampling and the erosion/dilation
-of the tie-broken responses are OpenCV's. A pixel is an extremum when no pixel of its (2n+1)²
-neighbourhood is more extreme. Filter responses are integers; ties are broken by a fixed rank
-pattern that is unique inside any window, so detected extrema are strict and at least n+1 px apart
-(Chebyshev) — the result of Neubeck & Van Gool's block algorithm, not its exact tie behaviour. The
-sparse first-pass set (radius 3n, capped) is the subset of the dense extrema that are also
-extrema of the larger window (clipped to the image). The border margin is 9 px at detection
-resolution (libviso2 2018).
+The interest filters and the Sobel filters (exact integer sums; the Sobel bytes those of OpenCV's
+``sepFilter2D``), the extrema and the descriptors are compiled (:mod:`sensor.vo.kernels_features`);
+the downsampling and the erosion/dilation of the tie-broken responses are OpenCV's. A pixel is an
+extremum when no pixel of its (2n+1)² neighbourhood is more extreme. Filter responses are integers;
+ties are broken by a fixed rank pattern that is unique inside any window, so detected extrema are
+strict and at least n+1 px apart (Chebyshev) — the result of Neubeck & Van Gool's block algorithm,
+not its exact tie behaviour. The sparse first-pass set (radius 3n, capped) is the subset of the
+dense extrema that are also extrema of the larger window (clipped to the image). The border margin
+is 9 px at detection resolution (libviso2 2018).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 
 from sensor.vo.config import MAX_NMS_N, VOConfig
-from sensor.vo.kernels_features import describe, detect, features_at, responses, tie_keys
+from sensor.vo.kernels_features import describe, detect, features_at, responses, sobel, tie_keys
 
 __all__ = [
     "BLOB_KERNEL",
@@ -68,9 +68,8 @@ CORNER_KERNEL = np.array(
 )
 
 # Sobel 5×5 (docs/visual_odometry.md §4): smoothing [1 4 6 4 1] ⊗ derivative [1 2 0 −2 −1] as a convolution, i.e.
-# correlation with [−1 −2 0 2 1] (a positive response for intensity increasing to the right/down).
-_SOBEL_SMOOTH = np.array([1, 4, 6, 4, 1], dtype=np.float32)
-_SOBEL_DERIV = np.array([-1, -2, 0, 2, 1], dtype=np.float32)
+# correlation with [−1 −2 0 2 1] (a positive response for intensity increasing to the right/down):
+# :func:`sensor.vo.kernels_features.sobel`.
 
 #: (du, dv) sampling offsets of the 32-byte descriptor inside the 11×11 window (docs/visual_odometry.md §4).
 DESCRIPTOR_OFFSETS = np.array(
@@ -146,19 +145,31 @@ def half_resolution(image: np.ndarray) -> np.ndarray:
     return cv2.resize(image[: 2 * h2, : 2 * w2], (w2, h2), interpolation=cv2.INTER_AREA)
 
 
-def sobel_responses(image: np.ndarray) -> np.ndarray:
-    """5×5 Sobel responses /128 + 128, saturated to uint8 (docs/visual_odometry.md §4).
+def sobel_responses(image: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """5×5 Sobel responses /128 + 128, rounded to uint8 (docs/visual_odometry.md §4).
+
+    Exact integer sums, rounded half to even (:func:`sensor.vo.kernels_features.sobel`): the same
+    bytes as OpenCV's ``sepFilter2D`` with the float kernels (derivative/128), delta 128 and
+    replicated borders; OpenCV rounds where libviso2 shifts.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        (H, W) uint8.
+    out : numpy.ndarray, optional
+        (2, H, W) uint8 array to fill; a new one by default.
 
     Returns
     -------
     numpy.ndarray
         (2, H, W) uint8: horizontal (du) and vertical (dv) responses.
     """
-    out = np.empty((2, *image.shape), dtype=np.uint8)
-    # The 1/128 scale is folded into the derivative kernel; OpenCV rounds where libviso2 shifts.
-    deriv = _SOBEL_DERIV / 128.0
-    cv2.sepFilter2D(image, cv2.CV_8U, deriv, _SOBEL_SMOOTH, dst=out[0], delta=128.0, borderType=cv2.BORDER_REPLICATE)
-    cv2.sepFilter2D(image, cv2.CV_8U, _SOBEL_SMOOTH, deriv, dst=out[1], delta=128.0, borderType=cv2.BORDER_REPLICATE)
+    image = np.ascontiguousarray(image, dtype=np.uint8)
+    h, w = image.shape
+    if out is None:
+        out = np.empty((2, h, w), dtype=np.uint8)
+    padded_row = _WORKSPACE.get("sobel_row", (w + 4,), np.int16)
+    sobel(image, padded_row, _WORKSPACE.get("sobel_ring", (2, 5, w), np.int16), out)
     return out
 
 
@@ -312,7 +323,8 @@ def extract_features(image: np.ndarray, config: VOConfig) -> ImageFeatures:
     image = np.ascontiguousarray(image)
     work = half_resolution(image) if config.half_resolution else image
     scale = config.scale
-    sobel = sobel_responses(work)
+    # At half resolution the detection-resolution responses serve the descriptors only: a reused array.
+    sobel = sobel_responses(work, _WORKSPACE.get("sobel", (2, *work.shape), np.uint8) if scale > 1 else None)
     radii = (config.nms_n, config.nms_n_sparse) if config.multi_stage else (config.nms_n,)
     detected = _detect(_keys(work), radii, config.nms_tau, BORDER_MARGIN)
     levels = [_feature_set(sobel, flat, cls, scale) for flat, cls in detected]
