@@ -179,10 +179,11 @@ def detect(
     (2·big_radius + 1)² window clipped to the image (``big_radius = 0``: none).
 
     Method: Neubeck & Van Gool's (2006) block NMS — a window's extremum is the extremum of its
-    (radius + 1)² block, so one candidate per block is compared with the dilation; the larger window
+    (radius + 1)² block, so one candidate per block is compared with the dilation, and a block row's
+    extrema are put in row-major order by their row (no sort); the larger window
     is the union of the dense windows centred on a grid of offsets with steps ≤ 2·radius + 1
     (clamped to the image), so a dense extremum is a sparse one when the dilation is nowhere on the
-    grid larger than its key.
+    grid larger than its key (the test stops at the first larger one).
 
     Returns
     -------
@@ -197,8 +198,8 @@ def detect(
         return e, c, e.copy(), c.copy()
     p2 = period * period
     ceil_tau = np.float64(np.ceil(np.float32(tau)))
-    # Integer responses: r ≥ tau ⇔ key ≥ ⌈tau⌉·p²; r ≤ −tau ⇔ −key ≥ (⌈tau⌉ − 1)·p² + 1.
-    threshold = (ceil_tau * p2, (ceil_tau - 1.0) * p2 + 1.0)
+    # Integer responses: r ≥ tau ⇔ key ≥ ⌈tau⌉·p²; r ≤ −tau ⇔ key ≤ −((⌈tau⌉ − 1)·p² + 1) (exact in float32).
+    above, below = np.float32(ceil_tau * p2), np.float32(-((ceil_tau - 1.0) * p2 + 1.0))
     reach = big_radius - radius
     n_tiles = -(-(2 * big_radius + 1) // (2 * radius + 1)) if big_radius > 0 else 0
     tiles = np.zeros(max(n_tiles, 1), dtype=np.int64)
@@ -211,14 +212,18 @@ def detect(
     row_hi = np.empty(w, dtype=np.int32)
     row_lo = np.empty(w, dtype=np.int32)
     step = radius + 1
-    blocks = -(-(h - 2 * margin) // step) * -(-(w - 2 * margin) // step)
-    found = np.empty((4, blocks), dtype=np.int64)  # at most one extremum per block and class
+    per_row = -(-(w - 2 * margin) // step)
+    blocks = -(-(h - 2 * margin) // step) * per_row
+    found = np.empty((4, blocks + 1), dtype=np.int64)  # at most one extremum per block and class (+1: the write-ahead)
     counts = np.zeros(4, dtype=np.int64)
+    block_row = np.empty((2, per_row), dtype=np.int64)  # one block row's maxima, minima (flat), in block order
     sparse = np.empty((4, blocks if big_radius > 0 else 0), dtype=np.int64)
     n_sparse = np.zeros(4, dtype=np.int64)
     x_lo, x_hi = margin, w - margin
     for which in range(2):
         key, high, low = keys[which], highest[which], lowest[which]
+        c_max, c_min = 2 * which + 1, 2 * which
+        n_max, n_min = counts[c_max], counts[c_min]
         for y0 in range(margin, h - margin, step):
             y1 = min(y0 + step, h - margin)
             hi, lo = col_hi[x_lo:x_hi], col_lo[x_lo:x_hi]
@@ -235,6 +240,7 @@ def detect(
                     hi[i] = a if a > hi[i] else hi[i]
                     at_lo[i] = y if a < lo[i] else at_lo[i]
                     lo[i] = a if a < lo[i] else lo[i]
+            m_max = m_min = 0
             for x0 in range(x_lo, x_hi, step):
                 x1 = min(x0 + step, x_hi)
                 best_hi, best_lo, cx_hi, cx_lo = col_hi[x0], col_lo[x0], x0, x0
@@ -245,29 +251,42 @@ def detect(
                     cx_lo = x if b < best_lo else cx_lo
                     best_lo = b if b < best_lo else best_lo
                 # Branch-free: kept when beyond the threshold and no key of the window is more extreme.
-                cy, cls = row_hi[cx_hi], 2 * which + 1
-                found[cls, counts[cls]] = cy * w + cx_hi
-                counts[cls] += (best_hi >= threshold[0]) & (high[cy, cx_hi] <= best_hi)
-                cy, cls = row_lo[cx_lo], 2 * which
-                found[cls, counts[cls]] = cy * w + cx_lo
-                counts[cls] += (-best_lo >= threshold[1]) & (low[cy, cx_lo] >= best_lo)
+                cy = row_hi[cx_hi]
+                block_row[0, m_max] = cy * w + cx_hi
+                m_max += (best_hi >= above) & (high[cy, cx_hi] <= best_hi)
+                cy = row_lo[cx_lo]
+                block_row[1, m_min] = cy * w + cx_lo
+                m_min += (best_lo <= below) & (low[cy, cx_lo] >= best_lo)
+            for y in range(y0, y1):  # row-major within a class: the block row's extrema row by row (branch-free)
+                start, stop = y * w, (y + 1) * w
+                for k in range(m_max):
+                    f = block_row[0, k]
+                    found[c_max, n_max] = f
+                    n_max += (start <= f) & (f < stop)
+                for k in range(m_min):
+                    f = block_row[1, k]
+                    found[c_min, n_min] = f
+                    n_min += (start <= f) & (f < stop)
+        counts[c_max], counts[c_min] = n_max, n_min
+        if big_radius == 0:
+            continue
         for kind in range(2):  # maxima (class 2·which + 1), minima (class 2·which) as maxima of −key
             sign = np.float32(1 - 2 * kind)
             extreme = high if kind == 0 else low
             cls = 2 * which + 1 - kind
-            found[cls, : counts[cls]] = np.sort(found[cls, : counts[cls]])  # row-major within a class
-            if big_radius == 0:
-                continue
             for k in range(counts[cls]):
                 c = found[cls, k]
                 cy, cx = c // w, c % w
                 own = sign * key[cy, cx]
                 keep = True
                 for gy in tiles[:n_tiles]:
-                    yy = min(max(cy + gy, 0), h - 1)
+                    line = extreme[min(max(cy + gy, 0), h - 1)]
                     for gx in tiles[:n_tiles]:
-                        if sign * extreme[yy, min(max(cx + gx, 0), w - 1)] > own:
+                        if sign * line[min(max(cx + gx, 0), w - 1)] > own:
                             keep = False
+                            break
+                    if not keep:
+                        break
                 if keep:
                     sparse[cls, n_sparse[cls]] = c
                     n_sparse[cls] += 1
