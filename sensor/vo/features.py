@@ -228,12 +228,20 @@ def _window(radius: int) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1, 2 * radius + 1))
 
 
-def _detect(keys: np.ndarray, radii: tuple[int, ...], tau: float, margin: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Extrema of the (2, H, W) keys for one or two NMS radii (ascending): (flat pixel index, class) per radius.
+def _detect(
+    keys: np.ndarray, radii: tuple[int, ...], tau: float, margin: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Extrema of the (2, H, W) keys for the dense and optionally a larger (sparse) NMS radius.
 
     OpenCV dilates and erodes the keys with the dense window; an extremum for the larger radius is
     also one for the smaller, so the larger radius only tests the extrema of the first
     (:func:`sensor.vo.kernels_features.detect`).
+
+    Returns
+    -------
+    u, v, cls, sparse_index : numpy.ndarray
+        The dense extrema (int32 column, row; int8 class) and the indices of the sparse ones among
+        them (empty for one radius).
     """
     if not 1 <= len(radii) <= 2:
         raise ValueError(f"one or two NMS radii, got {radii}")
@@ -243,8 +251,7 @@ def _detect(keys: np.ndarray, radii: tuple[int, ...], tau: float, margin: int) -
     for i in range(2):
         cv2.dilate(keys[i], window, dst=highest[i])
         cv2.erode(keys[i], window, dst=lowest[i])
-    flat, cls, sparse, sparse_cls = detect(keys, highest, lowest, float(tau), margin, radii[0], big, _TIE_PERIOD)
-    return [(flat, cls), (sparse, sparse_cls)] if big else [(flat, cls)]
+    return detect(keys, highest, lowest, float(tau), margin, radii[0], big, _TIE_PERIOD)
 
 
 def non_maximum_suppression(
@@ -273,9 +280,8 @@ def non_maximum_suppression(
         raise ValueError(f"n must be in [1, {MAX_NMS_N}], got {n}")
     keys = np.empty((2, *blob.shape), dtype=np.float32)
     tie_keys(*(np.ascontiguousarray(x, dtype=np.int32) for x in (blob, corner)), _TIE_PERIOD, keys)
-    flat, cls = _detect(keys, (n,), tau, margin)[0]
-    w = blob.shape[1]
-    return (flat % w).astype(np.int32), (flat // w).astype(np.int32), cls
+    u, v, cls, _ = _detect(keys, (n,), tau, margin)
+    return u, v, cls
 
 
 def compute_descriptors(sobel: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -296,10 +302,18 @@ def compute_descriptors(sobel: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.n
     return describe(np.ascontiguousarray(sobel), np.asarray(u, np.int64), np.asarray(v, np.int64), DESCRIPTOR_OFFSETS)
 
 
-def _feature_set(sobel: np.ndarray, flat: np.ndarray, cls: np.ndarray, scale: int) -> FeatureSet:
-    """Features at flat pixel indices of the (2, H, W) Sobel responses, positions scaled to full resolution."""
-    u, v, desc = features_at(sobel, flat, scale, DESCRIPTOR_OFFSETS)
-    return FeatureSet(u=u, v=v, cls=cls, desc=desc)
+def _feature_sets(
+    sobel: np.ndarray, detected: tuple[np.ndarray, ...], scale: int, sparse: bool
+) -> tuple[FeatureSet, FeatureSet | None]:
+    """Dense (and sparse) features at the detected positions of the (2, H, W) Sobel responses, positions
+    scaled to full resolution; the sparse set is a subset of the dense one, so its rows are taken from it."""
+    u, v, cls, sparse_index = detected
+    u, v, desc = features_at(sobel, u, v, scale, DESCRIPTOR_OFFSETS)
+    dense = FeatureSet(u=u, v=v, cls=cls, desc=desc)
+    if not sparse:
+        return dense, None
+    i = sparse_index
+    return dense, FeatureSet(u=u[i], v=v[i], cls=cls[i], desc=desc[i])
 
 
 def extract_features(image: np.ndarray, config: VOConfig) -> ImageFeatures:
@@ -327,9 +341,7 @@ def extract_features(image: np.ndarray, config: VOConfig) -> ImageFeatures:
     sobel = sobel_responses(work, _WORKSPACE.get("sobel", (2, *work.shape), np.uint8) if scale > 1 else None)
     radii = (config.nms_n, config.nms_n_sparse) if config.multi_stage else (config.nms_n,)
     detected = _detect(_keys(work), radii, config.nms_tau, BORDER_MARGIN)
-    levels = [_feature_set(sobel, flat, cls, scale) for flat, cls in detected]
-    dense = levels[0]
-    sparse = levels[1] if config.multi_stage else None
+    dense, sparse = _feature_sets(sobel, detected, scale, config.multi_stage)
     if config.refinement > 0:
         sobel_full = sobel if not config.half_resolution else sobel_responses(image)
     else:

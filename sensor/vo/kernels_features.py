@@ -187,15 +187,15 @@ def detect(
 
     Returns
     -------
-    flat, cls, sparse_flat, sparse_cls : numpy.ndarray
-        int64 flat pixel indices and int8 classes (0 blob-min, 1 blob-max, 2 corner-min, 3 corner-max),
-        grouped by class, row-major within a class.
+    u, v, cls, sparse_index : numpy.ndarray
+        int32 column and row and int8 class (0 blob-min, 1 blob-max, 2 corner-min, 3 corner-max) of the
+        dense extrema, grouped by class, row-major within a class; int64 indices of the sparse ones
+        among them (ascending).
     """
     h, w = keys.shape[1], keys.shape[2]
     if h <= 2 * margin or w <= 2 * margin:
-        e = np.empty(0, dtype=np.int64)
-        c = np.empty(0, dtype=np.int8)
-        return e, c, e.copy(), c.copy()
+        e = np.empty(0, dtype=np.int32)
+        return e, e.copy(), np.empty(0, dtype=np.int8), np.empty(0, dtype=np.int64)
     p2 = period * period
     ceil_tau = np.float64(np.ceil(np.float32(tau)))
     # Integer responses: r ≥ tau ⇔ key ≥ ⌈tau⌉·p²; r ≤ −tau ⇔ key ≤ −((⌈tau⌉ − 1)·p² + 1) (exact in float32).
@@ -214,10 +214,13 @@ def detect(
     step = radius + 1
     per_row = -(-(w - 2 * margin) // step)
     blocks = -(-(h - 2 * margin) // step) * per_row
-    found = np.empty((4, blocks + 1), dtype=np.int64)  # at most one extremum per block and class (+1: the write-ahead)
+    # Positions per class: at most one extremum per block and class (+1: the branch-free write-ahead).
+    found_x = np.empty((4, blocks + 1), dtype=np.int32)
+    found_y = np.empty((4, blocks + 1), dtype=np.int32)
     counts = np.zeros(4, dtype=np.int64)
-    block_row = np.empty((2, per_row), dtype=np.int64)  # one block row's maxima, minima (flat), in block order
-    sparse = np.empty((4, blocks if big_radius > 0 else 0), dtype=np.int64)
+    block_x = np.empty((2, per_row), dtype=np.int32)  # one block row's maxima, minima, in block order
+    block_y = np.empty((2, per_row), dtype=np.int32)
+    sparse = np.empty((4, blocks if big_radius > 0 else 0), dtype=np.int64)  # indices into the class's list
     n_sparse = np.zeros(4, dtype=np.int64)
     x_lo, x_hi = margin, w - margin
     for which in range(2):
@@ -252,21 +255,18 @@ def detect(
                     best_lo = b if b < best_lo else best_lo
                 # Branch-free: kept when beyond the threshold and no key of the window is more extreme.
                 cy = row_hi[cx_hi]
-                block_row[0, m_max] = cy * w + cx_hi
+                block_x[0, m_max], block_y[0, m_max] = cx_hi, cy
                 m_max += (best_hi >= above) & (high[cy, cx_hi] <= best_hi)
                 cy = row_lo[cx_lo]
-                block_row[1, m_min] = cy * w + cx_lo
+                block_x[1, m_min], block_y[1, m_min] = cx_lo, cy
                 m_min += (best_lo <= below) & (low[cy, cx_lo] >= best_lo)
             for y in range(y0, y1):  # row-major within a class: the block row's extrema row by row (branch-free)
-                start, stop = y * w, (y + 1) * w
                 for k in range(m_max):
-                    f = block_row[0, k]
-                    found[c_max, n_max] = f
-                    n_max += (start <= f) & (f < stop)
+                    found_x[c_max, n_max], found_y[c_max, n_max] = block_x[0, k], y
+                    n_max += block_y[0, k] == y
                 for k in range(m_min):
-                    f = block_row[1, k]
-                    found[c_min, n_min] = f
-                    n_min += (start <= f) & (f < stop)
+                    found_x[c_min, n_min], found_y[c_min, n_min] = block_x[1, k], y
+                    n_min += block_y[1, k] == y
         counts[c_max], counts[c_min] = n_max, n_min
         if big_radius == 0:
             continue
@@ -275,8 +275,7 @@ def detect(
             extreme = high if kind == 0 else low
             cls = 2 * which + 1 - kind
             for k in range(counts[cls]):
-                c = found[cls, k]
-                cy, cx = c // w, c % w
+                cy, cx = found_y[cls, k], found_x[cls, k]
                 own = sign * key[cy, cx]
                 keep = True
                 for gy in tiles[:n_tiles]:
@@ -288,22 +287,22 @@ def detect(
                     if not keep:
                         break
                 if keep:
-                    sparse[cls, n_sparse[cls]] = c
+                    sparse[cls, n_sparse[cls]] = k
                     n_sparse[cls] += 1
     total, total_sparse = counts.sum(), n_sparse.sum()
-    flat = np.empty(total, dtype=np.int64)
+    u = np.empty(total, dtype=np.int32)
+    v = np.empty(total, dtype=np.int32)
     classes = np.empty(total, dtype=np.int8)
-    sparse_flat = np.empty(total_sparse, dtype=np.int64)
-    sparse_classes = np.empty(total_sparse, dtype=np.int8)
+    sparse_index = np.empty(total_sparse, dtype=np.int64)
     m = s = 0
     for c in range(4):
-        flat[m : m + counts[c]] = found[c, : counts[c]]
+        u[m : m + counts[c]] = found_x[c, : counts[c]]
+        v[m : m + counts[c]] = found_y[c, : counts[c]]
         classes[m : m + counts[c]] = c
+        sparse_index[s : s + n_sparse[c]] = m + sparse[c, : n_sparse[c]]
         m += counts[c]
-        sparse_flat[s : s + n_sparse[c]] = sparse[c, : n_sparse[c]]
-        sparse_classes[s : s + n_sparse[c]] = c
         s += n_sparse[c]
-    return flat, classes, sparse_flat, sparse_classes
+    return u, v, classes, sparse_index
 
 
 @kernel
@@ -322,15 +321,10 @@ def describe(sobel: np.ndarray, u: np.ndarray, v: np.ndarray, offsets: np.ndarra
 
 @kernel
 def features_at(
-    sobel: np.ndarray, flat: np.ndarray, scale: int, offsets: np.ndarray
+    sobel: np.ndarray, u: np.ndarray, v: np.ndarray, scale: int, offsets: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """int32 positions (u, v) × ``scale`` and :func:`describe` descriptors at flat pixel indices of ``sobel``."""
-    w = sobel.shape[2]
-    n = flat.shape[0]
-    u = np.empty(n, dtype=np.int64)
-    v = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        u[i], v[i] = flat[i] % w, flat[i] // w
+    """int32 positions (u, v) × ``scale`` and the :func:`describe` descriptors at (u, v) [px of ``sobel``]."""
+    n = u.shape[0]
     desc = describe(sobel, u, v, offsets)
     u_out = np.empty(n, dtype=np.int32)
     v_out = np.empty(n, dtype=np.int32)
