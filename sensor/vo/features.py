@@ -218,7 +218,7 @@ def _keys(image: np.ndarray) -> np.ndarray:
     """(2, H, W) float32 tie-broken keys of the blob and corner responses, in this thread's work array."""
     h, w = image.shape
     keys = _WORKSPACE.get("keys", (2, h, w), np.float32)
-    responses(image, _TIE_PERIOD, _WORKSPACE.get("ring", (4, 5, w + 4)), _NO_VALUES, keys)
+    responses(image, _TIE_PERIOD, _WORKSPACE.get("ring", (4, 5, w + 4), np.int16), _NO_VALUES, keys)
     return keys
 
 

@@ -20,8 +20,8 @@ __all__ = ["describe", "detect", "features_at", "responses", "sobel", "tie_keys"
 
 @kernel
 def _key(response: int, rank: int, p2: int) -> np.float32:
-    """The tie-broken key response·p² + rank (exact in float32: |key| < 2²⁴)."""
-    return np.float32(response * p2 + rank)
+    """The tie-broken key response·p² + rank (exact in float32: |key| < 2²⁴; int32 also for int16 input)."""
+    return np.float32(np.int32(response) * np.int32(p2) + np.int32(rank))
 
 
 @kernel
@@ -308,14 +308,19 @@ def detect(
 @kernel
 def describe(sobel: np.ndarray, u: np.ndarray, v: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """(N, 32) uint8 descriptors: the (du, dv) Sobel pair at each of the 16 (du, dv) ``offsets``."""
-    n = u.shape[0]
-    out = np.empty((n, 2 * offsets.shape[0]), dtype=np.uint8)
+    n, m = u.shape[0], offsets.shape[0]
+    w = sobel.shape[2]
+    du, dv = sobel[0].ravel(), sobel[1].ravel()
+    shift = np.empty(m, dtype=np.int64)  # offsets as flat index steps
+    for k in range(m):
+        shift[k] = offsets[k, 1] * w + offsets[k, 0]
+    out = np.empty((n, 2 * m), dtype=np.uint8)
     for i in range(n):
-        for k in range(offsets.shape[0]):
-            y = v[i] + offsets[k, 1]
-            x = u[i] + offsets[k, 0]
-            out[i, 2 * k] = sobel[0, y, x]
-            out[i, 2 * k + 1] = sobel[1, y, x]
+        centre = np.int64(v[i]) * w + u[i]
+        row = out[i]
+        for k in range(m):
+            row[2 * k] = du[centre + shift[k]]
+            row[2 * k + 1] = dv[centre + shift[k]]
     return out
 
 
