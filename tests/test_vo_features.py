@@ -13,6 +13,7 @@ from sensor.vo.features import (
     CORNER_KERNEL,
     CORNER_MAX,
     CORNER_MIN,
+    DESCRIPTOR_OFFSETS,
     compute_descriptors,
     extract_features,
     filter_responses,
@@ -249,3 +250,42 @@ def test_nms_with_a_margin_smaller_than_the_radius_clips_windows_at_the_border()
             got = set(zip(u[cls == c].tolist(), v[cls == c].tolist(), strict=True))
             assert got == want
     assert (np.minimum(u, v) < 5).any()  # some extrema lie within the radius of the border
+
+
+def _oracle_features(img: np.ndarray, n: int, n_sparse: int, tau: float) -> list[tuple[list, list]]:
+    """Brute-force dense and sparse features of a full-resolution image: [(positions (u, v, cls) in the
+    detector's order — grouped by class, row-major within a class —, descriptors)] for both radii."""
+    blob, corner = filter_responses(img)
+    sobel = sobel_responses(img)
+    out = []
+    for radius in (n, n_sparse):
+        found = []
+        for response, base in ((blob, BLOB_MIN), (corner, CORNER_MIN)):
+            minima, maxima = _oracle_extrema(response, radius, tau, BORDER_MARGIN)
+            found += [(base, p) for p in minima] + [(base + 1, p) for p in maxima]
+        found.sort(key=lambda item: (item[0], item[1][1], item[1][0]))
+        positions = [(u, v, c) for c, (u, v) in found]
+        out.append((positions, [sobel[:, v + DESCRIPTOR_OFFSETS[:, 1], u + DESCRIPTOR_OFFSETS[:, 0]].T.ravel().tolist()
+                                for u, v, _ in positions]))  # fmt: skip
+    return out
+
+
+@pytest.mark.parametrize("nms_n", [1, 2, 3, 5])
+def test_features_equal_a_brute_force_detector_in_order_with_their_descriptors(nms_n):
+    # Random noise, a quantised texture (plateaus: ties everywhere) and a smooth texture, odd sizes.
+    rng = np.random.default_rng(nms_n)
+    images = [
+        rng.integers(0, 256, (61, 87), dtype=np.uint8),
+        (textured((75, 94), seed=nms_n) // 85 * 85).astype(np.uint8),
+        textured((70, 101), seed=10 + nms_n),
+    ]
+    for img in images:
+        config = StereoRig().vo_config(nms_n=nms_n, nms_tau=20, half_resolution=False, refinement=1)
+        features = extract_features(img, config)
+        assert features.sobel_full is not None and np.array_equal(features.sobel_full, _opencv_sobel(img))
+        want = _oracle_features(img, nms_n, config.nms_n_sparse, 20)
+        for fs, (positions, descriptors) in zip((features.dense, features.sparse), want, strict=True):
+            assert fs is not None and len(positions) > 5
+            got = list(zip(fs.u.tolist(), fs.v.tolist(), fs.cls.tolist(), strict=True))
+            assert got == positions
+            assert fs.desc.tolist() == descriptors
