@@ -145,7 +145,7 @@ def half_resolution(image: np.ndarray) -> np.ndarray:
     return cv2.resize(image[: 2 * h2, : 2 * w2], (w2, h2), interpolation=cv2.INTER_AREA)
 
 
-def sobel_responses(image: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+def sobel_responses(image: np.ndarray) -> np.ndarray:
     """5×5 Sobel responses /128 + 128, rounded to uint8 (docs/visual_odometry.md §4).
 
     Exact integer sums, rounded half to even (:func:`sensor.vo.kernels_features.sobel`): the same
@@ -156,8 +156,6 @@ def sobel_responses(image: np.ndarray, out: np.ndarray | None = None) -> np.ndar
     ----------
     image : numpy.ndarray
         (H, W) uint8.
-    out : numpy.ndarray, optional
-        (2, H, W) uint8 array to fill; a new one by default.
 
     Returns
     -------
@@ -166,8 +164,7 @@ def sobel_responses(image: np.ndarray, out: np.ndarray | None = None) -> np.ndar
     """
     image = np.ascontiguousarray(image, dtype=np.uint8)
     h, w = image.shape
-    if out is None:
-        out = np.empty((2, h, w), dtype=np.uint8)
+    out = np.empty((2, h, w), dtype=np.uint8)
     padded_row = _WORKSPACE.get("sobel_row", (w + 4,), np.int16)
     sobel(image, padded_row, _WORKSPACE.get("sobel_ring", (2, 5, w), np.int16), out)
     return out
@@ -335,15 +332,12 @@ def extract_features(image: np.ndarray, config: VOConfig) -> ImageFeatures:
     if image.ndim != 2 or image.dtype != np.uint8:
         raise ValueError(f"expected an (H, W) uint8 grey image, got {image.dtype} {image.shape}")
     image = np.ascontiguousarray(image)
+    # The full-resolution responses first, while the image is in the cache (cheaper than last).
+    sobel_full = sobel_responses(image) if config.refinement > 0 else None
     work = half_resolution(image) if config.half_resolution else image
     scale = config.scale
-    # At half resolution the detection-resolution responses serve the descriptors only: a reused array.
-    sobel = sobel_responses(work, _WORKSPACE.get("sobel", (2, *work.shape), np.uint8) if scale > 1 else None)
+    sobel = sobel_full if scale == 1 and sobel_full is not None else sobel_responses(work)
     radii = (config.nms_n, config.nms_n_sparse) if config.multi_stage else (config.nms_n,)
     detected = _detect(_keys(work), radii, config.nms_tau, BORDER_MARGIN)
     dense, sparse = _feature_sets(sobel, detected, scale, config.multi_stage)
-    if config.refinement > 0:
-        sobel_full = sobel if not config.half_resolution else sobel_responses(image)
-    else:
-        sobel_full = None
     return ImageFeatures(dense=dense, sparse=sparse, sobel_full=sobel_full, shape=image.shape)
