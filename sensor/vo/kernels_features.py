@@ -1,13 +1,13 @@
-"""Compiled kernels of the feature detection: filter responses, tie-broken keys, extrema, descriptors.
+"""Compiled kernels of the feature detection: filter responses, tie-broken keys, extrema, Sobel, descriptors.
 
 :func:`responses` computes the blob and checkerboard responses in exact integer arithmetic over a
 rolling window of rows, optionally straight as the tie-broken float32 keys of :func:`tie_keys`
 (response·p² + a rank unique inside any window); :mod:`sensor.vo.features` has OpenCV dilate and
 erode the keys; :func:`detect` then finds the thresholded extrema of both responses for the dense
 and the sparse radius in one call by Neubeck & Van Gool's block scheme (one candidate per block,
-compared with the dilation); :func:`features_at` and :func:`describe` give positions and 32-byte
-descriptors (docs/visual_odometry.md §3–4).
-"""
+compared with the dilation); :func:`sobel` gives the 5×5 Sobel planes (exact integer sums, the bytes
+of OpenCV's float separable filter); :func:`features_at` and :func:`describe` give positions and
+32-byte descriptors (docs/visual_odometry.md §3–4)."""
 
 from __future__ import annotations
 
