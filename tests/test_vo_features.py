@@ -13,6 +13,7 @@ from sensor.vo.features import (
     CORNER_KERNEL,
     CORNER_MAX,
     CORNER_MIN,
+    DESCRIPTOR_OFFSETS,
     compute_descriptors,
     extract_features,
     filter_responses,
@@ -109,6 +110,41 @@ def test_sobel_scaling_on_a_ramp():
     step[:, 10:] = 255
     du, _ = sobel_responses(step)
     assert du[10, 10] == 224 and du[10, 9] == 224 and du[10, 5] == 128 and du[10, 14] == 128
+
+
+def _opencv_sobel(img: np.ndarray) -> np.ndarray:
+    """The reference: OpenCV's separable filter, float kernels with the 1/128 folded into the derivative."""
+    smooth = np.array([1, 4, 6, 4, 1], dtype=np.float32)
+    deriv = np.array([-1, -2, 0, 2, 1], dtype=np.float32) / 128.0
+    args = {"delta": 128.0, "borderType": cv2.BORDER_REPLICATE}
+    return np.stack(
+        [cv2.sepFilter2D(img, cv2.CV_8U, deriv, smooth, **args), cv2.sepFilter2D(img, cv2.CV_8U, smooth, deriv, **args)]
+    )
+
+
+def test_sobel_responses_equal_opencvs_separable_filter_bytes():
+    # Random, binary (the strongest responses) and few-level images of odd, even and tiny sizes, borders included.
+    rng = np.random.default_rng(11)
+    levels = np.array([0, 1, 2, 127, 128, 254, 255], dtype=np.uint8)
+    half_up = half_even = 0
+    for h, w in [(1, 1), (1, 6), (2, 3), (4, 4), (5, 7), (16, 33), (31, 30), (64, 97), (120, 181)]:
+        for img in (
+            rng.integers(0, 256, (h, w), dtype=np.uint8),
+            np.where(rng.random((h, w)) < 0.5, 0, 255).astype(np.uint8),
+            rng.choice(levels, (h, w)),
+            textured((h, w), seed=h + w),
+        ):
+            got, want = sobel_responses(img), _opencv_sobel(img)
+            assert got.dtype == np.uint8 and np.array_equal(got, want), (h, w)
+            # The exact sum S = (byte − 128)·128 + remainder: count halves rounded up and down (ties to even).
+            exact = cv2.sepFilter2D(img.astype(np.float64), cv2.CV_64F, np.float64([-1, -2, 0, 2, 1]),
+                                    np.float64([1, 4, 6, 4, 1]), borderType=cv2.BORDER_REPLICATE)  # fmt: skip
+            tie = np.mod(exact, 128) == 64
+            half_up += int(np.sum(tie & (got[0] - 128.0 > exact / 128)))
+            half_even += int(np.sum(tie & (got[0] - 128.0 < exact / 128)))
+    assert half_up > 0 and half_even > 0  # both tie directions occurred (round half to even, not half up)
+    strongest = _opencv_sobel(np.where(np.arange(40) % 6 < 3, 0, 255).astype(np.uint8)[None].repeat(12, 0))
+    assert strongest.min() == 32 and strongest.max() == 224  # the extremes of the range: no saturation possible
 
 
 def test_half_resolution_is_the_2x2_mean():
@@ -214,3 +250,42 @@ def test_nms_with_a_margin_smaller_than_the_radius_clips_windows_at_the_border()
             got = set(zip(u[cls == c].tolist(), v[cls == c].tolist(), strict=True))
             assert got == want
     assert (np.minimum(u, v) < 5).any()  # some extrema lie within the radius of the border
+
+
+def _oracle_features(img: np.ndarray, n: int, n_sparse: int, tau: float) -> list[tuple[list, list]]:
+    """Brute-force dense and sparse features of a full-resolution image: [(positions (u, v, cls) in the
+    detector's order — grouped by class, row-major within a class —, descriptors)] for both radii."""
+    blob, corner = filter_responses(img)
+    sobel = sobel_responses(img)
+    out = []
+    for radius in (n, n_sparse):
+        found = []
+        for response, base in ((blob, BLOB_MIN), (corner, CORNER_MIN)):
+            minima, maxima = _oracle_extrema(response, radius, tau, BORDER_MARGIN)
+            found += [(base, p) for p in minima] + [(base + 1, p) for p in maxima]
+        found.sort(key=lambda item: (item[0], item[1][1], item[1][0]))
+        positions = [(u, v, c) for c, (u, v) in found]
+        out.append((positions, [sobel[:, v + DESCRIPTOR_OFFSETS[:, 1], u + DESCRIPTOR_OFFSETS[:, 0]].T.ravel().tolist()
+                                for u, v, _ in positions]))  # fmt: skip
+    return out
+
+
+@pytest.mark.parametrize("nms_n", [1, 2, 3, 5])
+def test_features_equal_a_brute_force_detector_in_order_with_their_descriptors(nms_n):
+    # Random noise, a quantised texture (plateaus: ties everywhere) and a smooth texture, odd sizes.
+    rng = np.random.default_rng(nms_n)
+    images = [
+        rng.integers(0, 256, (61, 87), dtype=np.uint8),
+        (textured((75, 94), seed=nms_n) // 85 * 85).astype(np.uint8),
+        textured((70, 101), seed=10 + nms_n),
+    ]
+    for img in images:
+        config = StereoRig().vo_config(nms_n=nms_n, nms_tau=20, half_resolution=False, refinement=1)
+        features = extract_features(img, config)
+        assert features.sobel_full is not None and np.array_equal(features.sobel_full, _opencv_sobel(img))
+        want = _oracle_features(img, nms_n, config.nms_n_sparse, 20)
+        for fs, (positions, descriptors) in zip((features.dense, features.sparse), want, strict=True):
+            assert fs is not None and len(positions) > 5
+            got = list(zip(fs.u.tolist(), fs.v.tolist(), fs.cls.tolist(), strict=True))
+            assert got == positions
+            assert fs.desc.tolist() == descriptors

@@ -7,15 +7,15 @@
   by 1/128, offset by 128 and saturated to uint8; the horizontal and vertical responses sampled at
   16 sparse offsets of the 11×11 window give 32 bytes, compared by SAD (docs/visual_odometry.md §4).
 
-The interest filters (exact integer sums), the extrema and the descriptors are compiled
-(:mod:`sensor.vo.kernels_features`); the Sobel filters, the downsampling and the erosion/dilation
-of the tie-broken responses are OpenCV's. A pixel is an extremum when no pixel of its (2n+1)²
-neighbourhood is more extreme. Filter responses are integers; ties are broken by a fixed rank
-pattern that is unique inside any window, so detected extrema are strict and at least n+1 px apart
-(Chebyshev) — the result of Neubeck & Van Gool's block algorithm, not its exact tie behaviour. The
-sparse first-pass set (radius 3n, capped) is the subset of the dense extrema that are also
-extrema of the larger window (clipped to the image). The border margin is 9 px at detection
-resolution (libviso2 2018).
+The interest filters and the Sobel filters (exact integer sums; the Sobel bytes those of OpenCV's
+``sepFilter2D``), the extrema and the descriptors are compiled (:mod:`sensor.vo.kernels_features`);
+the downsampling and the erosion/dilation of the tie-broken responses are OpenCV's. A pixel is an
+extremum when no pixel of its (2n+1)² neighbourhood is more extreme. Filter responses are integers;
+ties are broken by a fixed rank pattern that is unique inside any window, so detected extrema are
+strict and at least n+1 px apart (Chebyshev) — the result of Neubeck & Van Gool's block algorithm,
+not its exact tie behaviour. The sparse first-pass set (radius 3n, capped) is the subset of the
+dense extrema that are also extrema of the larger window (clipped to the image). The border margin
+is 9 px at detection resolution (libviso2 2018).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 
 from sensor.vo.config import MAX_NMS_N, VOConfig
-from sensor.vo.kernels_features import describe, detect, features_at, responses, tie_keys
+from sensor.vo.kernels_features import describe, detect, features_at, responses, sobel, tie_keys
 
 __all__ = [
     "BLOB_KERNEL",
@@ -68,9 +68,8 @@ CORNER_KERNEL = np.array(
 )
 
 # Sobel 5×5 (docs/visual_odometry.md §4): smoothing [1 4 6 4 1] ⊗ derivative [1 2 0 −2 −1] as a convolution, i.e.
-# correlation with [−1 −2 0 2 1] (a positive response for intensity increasing to the right/down).
-_SOBEL_SMOOTH = np.array([1, 4, 6, 4, 1], dtype=np.float32)
-_SOBEL_DERIV = np.array([-1, -2, 0, 2, 1], dtype=np.float32)
+# correlation with [−1 −2 0 2 1] (a positive response for intensity increasing to the right/down):
+# :func:`sensor.vo.kernels_features.sobel`.
 
 #: (du, dv) sampling offsets of the 32-byte descriptor inside the 11×11 window (docs/visual_odometry.md §4).
 DESCRIPTOR_OFFSETS = np.array(
@@ -147,18 +146,27 @@ def half_resolution(image: np.ndarray) -> np.ndarray:
 
 
 def sobel_responses(image: np.ndarray) -> np.ndarray:
-    """5×5 Sobel responses /128 + 128, saturated to uint8 (docs/visual_odometry.md §4).
+    """5×5 Sobel responses /128 + 128, rounded to uint8 (docs/visual_odometry.md §4).
+
+    Exact integer sums, rounded half to even (:func:`sensor.vo.kernels_features.sobel`): the same
+    bytes as OpenCV's ``sepFilter2D`` with the float kernels (derivative/128), delta 128 and
+    replicated borders; OpenCV rounds where libviso2 shifts.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        (H, W) uint8.
 
     Returns
     -------
     numpy.ndarray
         (2, H, W) uint8: horizontal (du) and vertical (dv) responses.
     """
-    out = np.empty((2, *image.shape), dtype=np.uint8)
-    # The 1/128 scale is folded into the derivative kernel; OpenCV rounds where libviso2 shifts.
-    deriv = _SOBEL_DERIV / 128.0
-    cv2.sepFilter2D(image, cv2.CV_8U, deriv, _SOBEL_SMOOTH, dst=out[0], delta=128.0, borderType=cv2.BORDER_REPLICATE)
-    cv2.sepFilter2D(image, cv2.CV_8U, _SOBEL_SMOOTH, deriv, dst=out[1], delta=128.0, borderType=cv2.BORDER_REPLICATE)
+    image = np.ascontiguousarray(image, dtype=np.uint8)
+    h, w = image.shape
+    out = np.empty((2, h, w), dtype=np.uint8)
+    padded_row = _WORKSPACE.get("sobel_row", (w + 4,), np.int16)
+    sobel(image, padded_row, _WORKSPACE.get("sobel_ring", (2, 5, w), np.int16), out)
     return out
 
 
@@ -207,7 +215,7 @@ def _keys(image: np.ndarray) -> np.ndarray:
     """(2, H, W) float32 tie-broken keys of the blob and corner responses, in this thread's work array."""
     h, w = image.shape
     keys = _WORKSPACE.get("keys", (2, h, w), np.float32)
-    responses(image, _TIE_PERIOD, _WORKSPACE.get("ring", (4, 5, w + 4)), _NO_VALUES, keys)
+    responses(image, _TIE_PERIOD, _WORKSPACE.get("ring", (4, 5, w + 4), np.int16), _NO_VALUES, keys)
     return keys
 
 
@@ -217,12 +225,20 @@ def _window(radius: int) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1, 2 * radius + 1))
 
 
-def _detect(keys: np.ndarray, radii: tuple[int, ...], tau: float, margin: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Extrema of the (2, H, W) keys for one or two NMS radii (ascending): (flat pixel index, class) per radius.
+def _detect(
+    keys: np.ndarray, radii: tuple[int, ...], tau: float, margin: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Extrema of the (2, H, W) keys for the dense and optionally a larger (sparse) NMS radius.
 
     OpenCV dilates and erodes the keys with the dense window; an extremum for the larger radius is
     also one for the smaller, so the larger radius only tests the extrema of the first
     (:func:`sensor.vo.kernels_features.detect`).
+
+    Returns
+    -------
+    u, v, cls, sparse_index : numpy.ndarray
+        The dense extrema (int32 column, row; int8 class) and the indices of the sparse ones among
+        them (empty for one radius).
     """
     if not 1 <= len(radii) <= 2:
         raise ValueError(f"one or two NMS radii, got {radii}")
@@ -232,8 +248,7 @@ def _detect(keys: np.ndarray, radii: tuple[int, ...], tau: float, margin: int) -
     for i in range(2):
         cv2.dilate(keys[i], window, dst=highest[i])
         cv2.erode(keys[i], window, dst=lowest[i])
-    flat, cls, sparse, sparse_cls = detect(keys, highest, lowest, float(tau), margin, radii[0], big, _TIE_PERIOD)
-    return [(flat, cls), (sparse, sparse_cls)] if big else [(flat, cls)]
+    return detect(keys, highest, lowest, float(tau), margin, radii[0], big, _TIE_PERIOD)
 
 
 def non_maximum_suppression(
@@ -262,9 +277,8 @@ def non_maximum_suppression(
         raise ValueError(f"n must be in [1, {MAX_NMS_N}], got {n}")
     keys = np.empty((2, *blob.shape), dtype=np.float32)
     tie_keys(*(np.ascontiguousarray(x, dtype=np.int32) for x in (blob, corner)), _TIE_PERIOD, keys)
-    flat, cls = _detect(keys, (n,), tau, margin)[0]
-    w = blob.shape[1]
-    return (flat % w).astype(np.int32), (flat // w).astype(np.int32), cls
+    u, v, cls, _ = _detect(keys, (n,), tau, margin)
+    return u, v, cls
 
 
 def compute_descriptors(sobel: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -285,10 +299,18 @@ def compute_descriptors(sobel: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.n
     return describe(np.ascontiguousarray(sobel), np.asarray(u, np.int64), np.asarray(v, np.int64), DESCRIPTOR_OFFSETS)
 
 
-def _feature_set(sobel: np.ndarray, flat: np.ndarray, cls: np.ndarray, scale: int) -> FeatureSet:
-    """Features at flat pixel indices of the (2, H, W) Sobel responses, positions scaled to full resolution."""
-    u, v, desc = features_at(sobel, flat, scale, DESCRIPTOR_OFFSETS)
-    return FeatureSet(u=u, v=v, cls=cls, desc=desc)
+def _feature_sets(
+    sobel: np.ndarray, detected: tuple[np.ndarray, ...], scale: int, sparse: bool
+) -> tuple[FeatureSet, FeatureSet | None]:
+    """Dense (and sparse) features at the detected positions of the (2, H, W) Sobel responses, positions
+    scaled to full resolution; the sparse set is a subset of the dense one, so its rows are taken from it."""
+    u, v, cls, sparse_index = detected
+    u, v, desc = features_at(sobel, u, v, scale, DESCRIPTOR_OFFSETS)
+    dense = FeatureSet(u=u, v=v, cls=cls, desc=desc)
+    if not sparse:
+        return dense, None
+    i = sparse_index
+    return dense, FeatureSet(u=u[i], v=v[i], cls=cls[i], desc=desc[i])
 
 
 def extract_features(image: np.ndarray, config: VOConfig) -> ImageFeatures:
@@ -310,16 +332,12 @@ def extract_features(image: np.ndarray, config: VOConfig) -> ImageFeatures:
     if image.ndim != 2 or image.dtype != np.uint8:
         raise ValueError(f"expected an (H, W) uint8 grey image, got {image.dtype} {image.shape}")
     image = np.ascontiguousarray(image)
+    # The full-resolution responses first, while the image is in the cache (cheaper than last).
+    sobel_full = sobel_responses(image) if config.refinement > 0 else None
     work = half_resolution(image) if config.half_resolution else image
     scale = config.scale
-    sobel = sobel_responses(work)
+    sobel = sobel_full if scale == 1 and sobel_full is not None else sobel_responses(work)
     radii = (config.nms_n, config.nms_n_sparse) if config.multi_stage else (config.nms_n,)
     detected = _detect(_keys(work), radii, config.nms_tau, BORDER_MARGIN)
-    levels = [_feature_set(sobel, flat, cls, scale) for flat, cls in detected]
-    dense = levels[0]
-    sparse = levels[1] if config.multi_stage else None
-    if config.refinement > 0:
-        sobel_full = sobel if not config.half_resolution else sobel_responses(image)
-    else:
-        sobel_full = None
+    dense, sparse = _feature_sets(sobel, detected, scale, config.multi_stage)
     return ImageFeatures(dense=dense, sparse=sparse, sobel_full=sobel_full, shape=image.shape)

@@ -1,13 +1,13 @@
-"""Compiled kernels of the feature detection: filter responses, tie-broken keys, extrema, descriptors.
+"""Compiled kernels of the feature detection: filter responses, tie-broken keys, extrema, Sobel, descriptors.
 
 :func:`responses` computes the blob and checkerboard responses in exact integer arithmetic over a
 rolling window of rows, optionally straight as the tie-broken float32 keys of :func:`tie_keys`
 (response·p² + a rank unique inside any window); :mod:`sensor.vo.features` has OpenCV dilate and
 erode the keys; :func:`detect` then finds the thresholded extrema of both responses for the dense
 and the sparse radius in one call by Neubeck & Van Gool's block scheme (one candidate per block,
-compared with the dilation); :func:`features_at` and :func:`describe` give positions and 32-byte
-descriptors (docs/visual_odometry.md §3–4).
-"""
+compared with the dilation); :func:`sobel` gives the 5×5 Sobel planes (exact integer sums, the bytes
+of OpenCV's float separable filter); :func:`features_at` and :func:`describe` give positions and
+32-byte descriptors (docs/visual_odometry.md §3–4)."""
 
 from __future__ import annotations
 
@@ -15,13 +15,13 @@ import numpy as np
 
 from sensor.vo.jit import kernel
 
-__all__ = ["describe", "detect", "features_at", "responses", "tie_keys"]
+__all__ = ["describe", "detect", "features_at", "responses", "sobel", "tie_keys"]
 
 
 @kernel
 def _key(response: int, rank: int, p2: int) -> np.float32:
-    """The tie-broken key response·p² + rank (exact in float32: |key| < 2²⁴)."""
-    return np.float32(response * p2 + rank)
+    """The tie-broken key response·p² + rank (exact in float32: |key| < 2²⁴; int32 also for int16 input)."""
+    return np.float32(np.int32(response) * np.int32(p2) + np.int32(rank))
 
 
 @kernel
@@ -89,6 +89,60 @@ def responses(image: np.ndarray, period: int, ring: np.ndarray, values: np.ndarr
 
 
 @kernel
+def _sobel_row_sums(image: np.ndarray, padded: int, padded_row: np.ndarray, ring: np.ndarray) -> None:
+    """Smoothing [1 4 6 4 1] and derivative [−1 −2 0 2 1] sums of padded row ``padded`` (image row
+    clamp(padded − 2), 2-px replicated border) into ring[0 | 1, padded mod 5]."""
+    h, w = image.shape
+    slot = padded % 5
+    src = image[min(max(padded - 2, 0), h - 1)]
+    for x in range(w):
+        padded_row[x + 2] = src[x]
+    padded_row[0] = padded_row[1] = src[0]
+    padded_row[w + 2] = padded_row[w + 3] = src[w - 1]
+    smooth, deriv = ring[0, slot], ring[1, slot]
+    for x in range(w):
+        a0, a1, a2, a3, a4 = padded_row[x], padded_row[x + 1], padded_row[x + 2], padded_row[x + 3], padded_row[x + 4]
+        smooth[x] = a0 + a4 + 4 * (a1 + a3) + 6 * a2
+        deriv[x] = a4 - a0 + 2 * (a3 - a1)
+
+
+@kernel
+def _rounded_byte(offset_total: np.uint16) -> np.uint8:
+    """round(offset_total / 128), ties to even, for offset_total = S + 128² ∈ [0, 2¹⁵ − 64]: S/128 + 128 rounded.
+
+    128² is an even multiple of 128, so the parity and the rounding of S/128 carry over.
+    """
+    return np.uint8((offset_total + 63 + ((offset_total >> 7) & 1)) >> 7)
+
+
+@kernel
+def sobel(image: np.ndarray, padded_row: np.ndarray, ring: np.ndarray, out: np.ndarray) -> None:
+    """5×5 Sobel responses /128 + 128 of a uint8 image as uint8, borders replicated.
+
+    ``out`` (2, H, W) uint8 receives the horizontal response (derivative [−1 −2 0 2 1] along rows,
+    smoothing [1 4 6 4 1] down columns) and the vertical one (the kernels swapped), both planes in
+    one pass over a rolling window of five rows of horizontal sums (``padded_row``: int16 (W + 4,),
+    ``ring``: int16 (2, 5, W) work arrays; every partial sum fits 16 bits). The sums S are exact
+    integers, |S| ≤ 16·3·255 = 12240, so S/128 + 128 lies in [32.4, 223.6] and never saturates;
+    the output is S/128 rounded half to even, plus 128 — bit-identical to OpenCV's ``sepFilter2D``
+    with the float kernels (derivative/128), delta 128 and ``BORDER_REPLICATE``, whose float32
+    arithmetic is exact on these dyadic values and rounds with ``cvRound`` (docs/visual_odometry.md §4).
+    """
+    h, w = image.shape
+    for padded in range(4):
+        _sobel_row_sums(image, padded, padded_row, ring)
+    for y in range(h):
+        _sobel_row_sums(image, y + 4, padded_row, ring)
+        s0, s1, s3, s4 = ring[0, y % 5], ring[0, (y + 1) % 5], ring[0, (y + 3) % 5], ring[0, (y + 4) % 5]
+        d0, d1, d2 = ring[1, y % 5], ring[1, (y + 1) % 5], ring[1, (y + 2) % 5]
+        d3, d4 = ring[1, (y + 3) % 5], ring[1, (y + 4) % 5]
+        du, dv = out[0, y], out[1, y]
+        for x in range(w):
+            du[x] = _rounded_byte(np.uint16(16384 + d0[x] + d4[x] + 4 * (d1[x] + d3[x]) + 6 * d2[x]))
+            dv[x] = _rounded_byte(np.uint16(16384 + s4[x] - s0[x] + 2 * (s3[x] - s1[x])))
+
+
+@kernel
 def tie_keys(blob: np.ndarray, corner: np.ndarray, period: int, keys: np.ndarray) -> None:
     """keys[0] (blob), keys[1] (corner) = response·p² + (x mod p) + p·(y mod p), p = ``period``, as float32.
 
@@ -125,26 +179,27 @@ def detect(
     (2·big_radius + 1)² window clipped to the image (``big_radius = 0``: none).
 
     Method: Neubeck & Van Gool's (2006) block NMS — a window's extremum is the extremum of its
-    (radius + 1)² block, so one candidate per block is compared with the dilation; the larger window
+    (radius + 1)² block, so one candidate per block is compared with the dilation, and a block row's
+    extrema are put in row-major order by their row (no sort); the larger window
     is the union of the dense windows centred on a grid of offsets with steps ≤ 2·radius + 1
     (clamped to the image), so a dense extremum is a sparse one when the dilation is nowhere on the
-    grid larger than its key.
+    grid larger than its key (the test stops at the first larger one).
 
     Returns
     -------
-    flat, cls, sparse_flat, sparse_cls : numpy.ndarray
-        int64 flat pixel indices and int8 classes (0 blob-min, 1 blob-max, 2 corner-min, 3 corner-max),
-        grouped by class, row-major within a class.
+    u, v, cls, sparse_index : numpy.ndarray
+        int32 column and row and int8 class (0 blob-min, 1 blob-max, 2 corner-min, 3 corner-max) of the
+        dense extrema, grouped by class, row-major within a class; int64 indices of the sparse ones
+        among them (ascending).
     """
     h, w = keys.shape[1], keys.shape[2]
     if h <= 2 * margin or w <= 2 * margin:
-        e = np.empty(0, dtype=np.int64)
-        c = np.empty(0, dtype=np.int8)
-        return e, c, e.copy(), c.copy()
+        e = np.empty(0, dtype=np.int32)
+        return e, e.copy(), np.empty(0, dtype=np.int8), np.empty(0, dtype=np.int64)
     p2 = period * period
     ceil_tau = np.float64(np.ceil(np.float32(tau)))
-    # Integer responses: r ≥ tau ⇔ key ≥ ⌈tau⌉·p²; r ≤ −tau ⇔ −key ≥ (⌈tau⌉ − 1)·p² + 1.
-    threshold = (ceil_tau * p2, (ceil_tau - 1.0) * p2 + 1.0)
+    # Integer responses: r ≥ tau ⇔ key ≥ ⌈tau⌉·p²; r ≤ −tau ⇔ key ≤ −((⌈tau⌉ − 1)·p² + 1) (exact in float32).
+    above, below = np.float32(ceil_tau * p2), np.float32(-((ceil_tau - 1.0) * p2 + 1.0))
     reach = big_radius - radius
     n_tiles = -(-(2 * big_radius + 1) // (2 * radius + 1)) if big_radius > 0 else 0
     tiles = np.zeros(max(n_tiles, 1), dtype=np.int64)
@@ -157,14 +212,21 @@ def detect(
     row_hi = np.empty(w, dtype=np.int32)
     row_lo = np.empty(w, dtype=np.int32)
     step = radius + 1
-    blocks = -(-(h - 2 * margin) // step) * -(-(w - 2 * margin) // step)
-    found = np.empty((4, blocks), dtype=np.int64)  # at most one extremum per block and class
+    per_row = -(-(w - 2 * margin) // step)
+    blocks = -(-(h - 2 * margin) // step) * per_row
+    # Positions per class: at most one extremum per block and class (+1: the branch-free write-ahead).
+    found_x = np.empty((4, blocks + 1), dtype=np.int32)
+    found_y = np.empty((4, blocks + 1), dtype=np.int32)
     counts = np.zeros(4, dtype=np.int64)
-    sparse = np.empty((4, blocks if big_radius > 0 else 0), dtype=np.int64)
+    block_x = np.empty((2, per_row), dtype=np.int32)  # one block row's maxima, minima, in block order
+    block_y = np.empty((2, per_row), dtype=np.int32)
+    sparse = np.empty((4, blocks if big_radius > 0 else 0), dtype=np.int64)  # indices into the class's list
     n_sparse = np.zeros(4, dtype=np.int64)
     x_lo, x_hi = margin, w - margin
     for which in range(2):
         key, high, low = keys[which], highest[which], lowest[which]
+        c_max, c_min = 2 * which + 1, 2 * which
+        n_max, n_min = counts[c_max], counts[c_min]
         for y0 in range(margin, h - margin, step):
             y1 = min(y0 + step, h - margin)
             hi, lo = col_hi[x_lo:x_hi], col_lo[x_lo:x_hi]
@@ -181,6 +243,7 @@ def detect(
                     hi[i] = a if a > hi[i] else hi[i]
                     at_lo[i] = y if a < lo[i] else at_lo[i]
                     lo[i] = a if a < lo[i] else lo[i]
+            m_max = m_min = 0
             for x0 in range(x_lo, x_hi, step):
                 x1 = min(x0 + step, x_hi)
                 best_hi, best_lo, cx_hi, cx_lo = col_hi[x0], col_lo[x0], x0, x0
@@ -191,73 +254,82 @@ def detect(
                     cx_lo = x if b < best_lo else cx_lo
                     best_lo = b if b < best_lo else best_lo
                 # Branch-free: kept when beyond the threshold and no key of the window is more extreme.
-                cy, cls = row_hi[cx_hi], 2 * which + 1
-                found[cls, counts[cls]] = cy * w + cx_hi
-                counts[cls] += (best_hi >= threshold[0]) & (high[cy, cx_hi] <= best_hi)
-                cy, cls = row_lo[cx_lo], 2 * which
-                found[cls, counts[cls]] = cy * w + cx_lo
-                counts[cls] += (-best_lo >= threshold[1]) & (low[cy, cx_lo] >= best_lo)
+                cy = row_hi[cx_hi]
+                block_x[0, m_max], block_y[0, m_max] = cx_hi, cy
+                m_max += (best_hi >= above) & (high[cy, cx_hi] <= best_hi)
+                cy = row_lo[cx_lo]
+                block_x[1, m_min], block_y[1, m_min] = cx_lo, cy
+                m_min += (best_lo <= below) & (low[cy, cx_lo] >= best_lo)
+            for y in range(y0, y1):  # row-major within a class: the block row's extrema row by row (branch-free)
+                for k in range(m_max):
+                    found_x[c_max, n_max], found_y[c_max, n_max] = block_x[0, k], y
+                    n_max += block_y[0, k] == y
+                for k in range(m_min):
+                    found_x[c_min, n_min], found_y[c_min, n_min] = block_x[1, k], y
+                    n_min += block_y[1, k] == y
+        counts[c_max], counts[c_min] = n_max, n_min
+        if big_radius == 0:
+            continue
         for kind in range(2):  # maxima (class 2·which + 1), minima (class 2·which) as maxima of −key
             sign = np.float32(1 - 2 * kind)
             extreme = high if kind == 0 else low
             cls = 2 * which + 1 - kind
-            found[cls, : counts[cls]] = np.sort(found[cls, : counts[cls]])  # row-major within a class
-            if big_radius == 0:
-                continue
             for k in range(counts[cls]):
-                c = found[cls, k]
-                cy, cx = c // w, c % w
+                cy, cx = found_y[cls, k], found_x[cls, k]
                 own = sign * key[cy, cx]
                 keep = True
                 for gy in tiles[:n_tiles]:
-                    yy = min(max(cy + gy, 0), h - 1)
+                    line = extreme[min(max(cy + gy, 0), h - 1)]
                     for gx in tiles[:n_tiles]:
-                        if sign * extreme[yy, min(max(cx + gx, 0), w - 1)] > own:
+                        if sign * line[min(max(cx + gx, 0), w - 1)] > own:
                             keep = False
+                            break
+                    if not keep:
+                        break
                 if keep:
-                    sparse[cls, n_sparse[cls]] = c
+                    sparse[cls, n_sparse[cls]] = k
                     n_sparse[cls] += 1
     total, total_sparse = counts.sum(), n_sparse.sum()
-    flat = np.empty(total, dtype=np.int64)
+    u = np.empty(total, dtype=np.int32)
+    v = np.empty(total, dtype=np.int32)
     classes = np.empty(total, dtype=np.int8)
-    sparse_flat = np.empty(total_sparse, dtype=np.int64)
-    sparse_classes = np.empty(total_sparse, dtype=np.int8)
+    sparse_index = np.empty(total_sparse, dtype=np.int64)
     m = s = 0
     for c in range(4):
-        flat[m : m + counts[c]] = found[c, : counts[c]]
+        u[m : m + counts[c]] = found_x[c, : counts[c]]
+        v[m : m + counts[c]] = found_y[c, : counts[c]]
         classes[m : m + counts[c]] = c
+        sparse_index[s : s + n_sparse[c]] = m + sparse[c, : n_sparse[c]]
         m += counts[c]
-        sparse_flat[s : s + n_sparse[c]] = sparse[c, : n_sparse[c]]
-        sparse_classes[s : s + n_sparse[c]] = c
         s += n_sparse[c]
-    return flat, classes, sparse_flat, sparse_classes
+    return u, v, classes, sparse_index
 
 
 @kernel
 def describe(sobel: np.ndarray, u: np.ndarray, v: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """(N, 32) uint8 descriptors: the (du, dv) Sobel pair at each of the 16 (du, dv) ``offsets``."""
-    n = u.shape[0]
-    out = np.empty((n, 2 * offsets.shape[0]), dtype=np.uint8)
+    n, m = u.shape[0], offsets.shape[0]
+    w = sobel.shape[2]
+    du, dv = sobel[0].ravel(), sobel[1].ravel()
+    shift = np.empty(m, dtype=np.int64)  # offsets as flat index steps
+    for k in range(m):
+        shift[k] = offsets[k, 1] * w + offsets[k, 0]
+    out = np.empty((n, 2 * m), dtype=np.uint8)
     for i in range(n):
-        for k in range(offsets.shape[0]):
-            y = v[i] + offsets[k, 1]
-            x = u[i] + offsets[k, 0]
-            out[i, 2 * k] = sobel[0, y, x]
-            out[i, 2 * k + 1] = sobel[1, y, x]
+        centre = np.int64(v[i]) * w + u[i]
+        row = out[i]
+        for k in range(m):
+            row[2 * k] = du[centre + shift[k]]
+            row[2 * k + 1] = dv[centre + shift[k]]
     return out
 
 
 @kernel
 def features_at(
-    sobel: np.ndarray, flat: np.ndarray, scale: int, offsets: np.ndarray
+    sobel: np.ndarray, u: np.ndarray, v: np.ndarray, scale: int, offsets: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """int32 positions (u, v) × ``scale`` and :func:`describe` descriptors at flat pixel indices of ``sobel``."""
-    w = sobel.shape[2]
-    n = flat.shape[0]
-    u = np.empty(n, dtype=np.int64)
-    v = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        u[i], v[i] = flat[i] % w, flat[i] // w
+    """int32 positions (u, v) × ``scale`` and the :func:`describe` descriptors at (u, v) [px of ``sobel``]."""
+    n = u.shape[0]
     desc = describe(sobel, u, v, offsets)
     u_out = np.empty(n, dtype=np.int32)
     v_out = np.empty(n, dtype=np.int32)
