@@ -52,9 +52,10 @@ kingpin's distance behind the tractor's rear point, which is not fixed: in a ste
 tractor's lateral acceleration and the trailer's pull at the fifth wheel, and with linear tyres the point without
 lateral velocity lies ``L1' = L1 − K·u_1²`` behind the steer axle (``L1`` the equivalent wheelbase, ``K`` from the
 masses and the static cornering stiffnesses: :meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_point`,
-docs/vehicle_dynamics.md §2.3, §6.6), so ``e = L_5 − L1'`` (``speed_compensated_kinematics``; off: the rear
-axles' mean station). That is the steady part of the tractor's slip, predicted from its speed; the rest
-(camber, saturation, a scrubbing trailer's push) is ``ε_k`` below. With (1) it measures the slip velocity::
+docs/vehicle_dynamics.md §2.3, §6.6), so ``e = L_5 − L1'`` with ``speed_compensated_kinematics`` (off by
+default: the rear axles' mean station, fixed). That is the steady part of the tractor's slip, predicted from its
+speed; the rest (camber, saturation, a scrubbing trailer's push) is ``ε_k`` below. With (1) it measures the slip
+velocity::
 
     z_c − r_m·L_c − w_m·Σ w_j tan δ_j = v_s + ε_k                                               (K1)
 
@@ -204,8 +205,9 @@ class FusionNoise(Settings):
         Fuse the zero-slip kinematics (K1) when the tractor's signals are given.
     speed_compensated_kinematics : bool
         Take the tractor's rear point of (K1) where a steady turn's lateral acceleration puts it, ``L1 − K·u²``
-        (:meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_point`); ``False``: the rear axles' mean
-        station, fixed.
+        (:meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_point`); ``False`` (default): the rear axles'
+        mean station, fixed, with which the filter's noise model was set and the field-loop grid measured
+        (docs/field_bias.md §6.3 says what the compensated kinematics change and why they are not the default).
     tractor_slip : float
         ``σ_0`` of (K2): the lateral slip velocity of the tractor's rolling tyres at the kingpin [m/s].
     kinematic_error_time : float
@@ -263,7 +265,7 @@ class FusionNoise(Settings):
         description="relative std of vo_bias_coupling, carried into the off-tracking's std; 1: the coupling unknown",
     )
     kinematics: bool = True
-    speed_compensated_kinematics: bool = True
+    speed_compensated_kinematics: bool = False
     tractor_slip: float = Field(
         0.02, gt=0.0, le=1.0, description="[m/s] slip of rolling tractor tyres; 1 m/s is a slide, not a roll"
     )
