@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from controller.zero_slip import ZeroSlipEstimator
+from scenarios.run.metrics import estimator_errors
 from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses
 from vehicle_model.presets import vehicle_preset
 
@@ -103,16 +104,9 @@ def test_bad_variant(reference):
         ZeroSlipEstimator(reference, "gps")  # type: ignore[arg-type]
 
 
-def test_within_2cm_at_walking_pace_when_the_trailer_pushes_nothing_through_the_hitch(monkeypatch):
-    # docs/vehicle_dynamics.md §6.6. The reference tractor with a single-axle trailer (the tri-axle's six tyres on
-    # one axle at the group centre, which scrubs nothing) on the roundabout test at 5 km/h: the tractor's rear
-    # point then has no lateral velocity within 2 cm of the equivalent wheelbase, and the estimate is within 2 cm
-    # RMS (measured 0.015 m). With the mean station of the drive and tag axles (3.685 m, 0.10 m ahead) it was
-    # 0.08 m; the error grows as L_fp·ΔL1/R5.
-    from scenarios.config import load_scenario
-    from scenarios.run.drive import simulate
-    from scenarios.run.metrics import estimator_errors
-    from scenarios.setup.build import build_scenario
+def single_axle_trailer(monkeypatch):
+    """The reference tractor with a single-axle trailer (the tri-axle's six tyres on one axle at the group centre,
+    which scrubs nothing), registered as the preset ``single-axle`` for the test's runs."""
     from vehicle_model.parameters import TrailerParams, VehicleParams
     from vehicle_model.presets import VEHICLE_PRESETS, reference_laden
 
@@ -122,9 +116,27 @@ def test_within_2cm_at_walking_pace_when_the_trailer_pushes_nothing_through_the_
     )
     params = VehicleParams(name="single-axle", tractor=reference.tractor, trailer=single)
     monkeypatch.setitem(VEHICLE_PRESETS, "single-axle", lambda: params)
+    return params
+
+
+def model_only_run(scenario: str, overrides: dict):
+    """A model-only run of a catalogue scenario: its outcome and columns."""
+    from scenarios.config import load_scenario
+    from scenarios.run.drive import simulate
+    from scenarios.setup.build import build_scenario
+
+    return simulate(build_scenario(load_scenario(scenario, overrides)))
+
+
+def test_within_2cm_at_walking_pace_when_the_trailer_pushes_nothing_through_the_hitch(monkeypatch):
+    # docs/vehicle_dynamics.md §6.6. The reference tractor with a single-axle trailer (the tri-axle's six tyres on
+    # one axle at the group centre, which scrubs nothing) on the roundabout test at 5 km/h: the tractor's rear
+    # point then has no lateral velocity within 2 cm of the equivalent wheelbase, and the estimate is within 2 cm
+    # RMS (measured 0.015 m). With the mean station of the drive and tag axles (3.685 m, 0.10 m ahead) it was
+    # 0.08 m; the error grows as L_fp·ΔL1/R5.
+    params = single_axle_trailer(monkeypatch)
     overrides = {"vehicle": "single-axle", "feedback": "none", "estimators.zero_slip_rear_point": "equivalent"}
-    setup = build_scenario(load_scenario("roundabout-test", overrides))
-    outcome, cols = simulate(setup)  # model only
+    outcome, cols = model_only_run("roundabout-test", overrides)
     assert outcome.status == "completed"
     v1, r1 = cols["v1"], cols["r1"]
     turning = np.abs(r1) > 0.05
@@ -152,19 +164,7 @@ def test_the_rear_point_moves_forwards_with_the_speed_as_the_steady_turn_predict
     # of the shift K·u² (0.31 m; measured 6 mm off), and the speed-compensated estimate is at least ten times
     # closer to the truth than the equivalent wheelbase's (measured 1.4 against 73 mm). Without the trailer's pull
     # in K the predicted shift would be a fifth of it (the tractor's own m1·L_cg is 21 % of K's numerator).
-    from scenarios.config import load_scenario
-    from scenarios.run.drive import simulate
-    from scenarios.run.metrics import estimator_errors
-    from scenarios.setup.build import build_scenario
-    from vehicle_model.parameters import TrailerParams, VehicleParams
-    from vehicle_model.presets import VEHICLE_PRESETS, reference_laden
-
-    reference = reference_laden()
-    single = TrailerParams.model_validate(
-        reference.trailer.model_dump() | {"axles": ({"name": "trailer2", "x": -7.7, "n_tyres": 6},)}
-    )
-    params = VehicleParams(name="single-axle", tractor=reference.tractor, trailer=single)
-    monkeypatch.setitem(VEHICLE_PRESETS, "single-axle", lambda: params)
+    params = single_axle_trailer(monkeypatch)
     errors = {}
     for rear_point in ("equivalent", "speed_compensated"):
         overrides = {
@@ -173,7 +173,7 @@ def test_the_rear_point_moves_forwards_with_the_speed_as_the_steady_turn_predict
             "duration_s": 80.0,
             "estimators.zero_slip_rear_point": rear_point,
         }
-        outcome, cols = simulate(build_scenario(load_scenario("roundabout-3", overrides)))  # model only
+        outcome, cols = model_only_run("roundabout-3", overrides)
         assert outcome.status == "completed"
         late = cols["time"] > 40.0  # well into the steady turn
         errors[rear_point] = estimator_errors(cols["offtracking_truth"][late], cols["offtracking_zero_slip"][late])
