@@ -96,7 +96,7 @@ class ZeroSlipEstimator:
         self.wheelbase = (
             params.tractor_wheelbase() if rear_point == "axle_mean" else params.tractor_equivalent_wheelbase()
         )
-        self.rear_point_gradient = params.tractor_rear_point_gradient if rear_point == "speed_compensated" else 0.0
+        self.speed_compensated = rear_point == "speed_compensated"
         self.buffer = OfftrackingBuffer(params.trailers[unit - 1].follow_point_offset)
         self._last: tuple[float, float, np.ndarray] | None = None  # (u, r1, articulations) of the previous sample
 
@@ -127,7 +127,7 @@ class ZeroSlipEstimator:
         # Trapezoidal rule over the interval between the two samples.
         u_mid, r1_mid = 0.5 * (u + u_prev), 0.5 * (r1 + r1_prev)
         # Kingpin velocity (tractor axes), zero lateral slip at the rear point.
-        wheelbase = self.wheelbase - self.rear_point_gradient * u_mid * u_mid
+        wheelbase = self.params.tractor_rear_point(u_mid) if self.speed_compensated else self.wheelbase
         vk1 = zero_slip_kingpin_velocity(self.params, u_mid, r1_mid, wheelbase)
         # Down the chain to the unit's coupling, in the axes of the unit ahead, at mid-interval; ψ_k = ψ_(k-1) − Γ.
         dpsi2 = r1_mid * dt

@@ -363,8 +363,6 @@ class FusedVisoOt:
         self.geometry = VisoOtEstimator(params, camera_in_trailer)  # eqs (1)–(2): camera motion → kingpin increment
         self.follow_point_offset = params.follow_point_offset
         self.slip_point, self.steer_weights = slip_kinematics(params)
-        self._tractor_wheelbase = params.tractor_equivalent_wheelbase()  # L1 of (K1) at rest, and K of its shift
-        self._rear_point_gradient = params.tractor_rear_point_gradient
         self.buffer = OfftrackingBuffer(self.follow_point_offset)
         n = self.noise
         self._sample_variance = np.array([n.gyro_noise**2, n.wheel_speed_noise**2])
@@ -527,12 +525,9 @@ class FusedVisoOt:
         values = (tractor.speed, tractor.yaw_rate, tractor.articulation)
         if not all(math.isfinite(v) for v in values):
             raise InputError(f"tractor signals {values} must be finite")
-        u = tractor.speed
-        if self.noise.speed_compensated_kinematics:  # the rear point a steady turn's lateral acceleration moves
-            wheelbase = self._tractor_wheelbase - self._rear_point_gradient * u * u
-            vx1, vy1 = zero_slip_kingpin_velocity(self.params, u, tractor.yaw_rate, wheelbase)
-        else:
-            vx1, vy1 = zero_slip_kingpin_velocity(self.params, u, tractor.yaw_rate)
+        # the rear axles' mean station, or the rear point a steady turn's lateral acceleration moves
+        wheelbase = self.params.tractor_rear_point(tractor.speed) if self.noise.speed_compensated_kinematics else None
+        vx1, vy1 = zero_slip_kingpin_velocity(self.params, tractor.speed, tractor.yaw_rate, wheelbase)
         gamma = tractor.articulation
         return math.sin(gamma) * vx1 + math.cos(gamma) * vy1  # into trailer axes
 

@@ -542,8 +542,14 @@ class VehicleParams(_Frozen):
 
     def tractor_rear_point(self, speed: float) -> float:
         """Steer axle to the tractor's zero-slip rear point at ``speed`` [m/s] in a steady turn,
-        ``L1' = L1 − K·u²`` [m] (:attr:`tractor_rear_point_gradient`, :meth:`tractor_equivalent_wheelbase`)."""
-        return self.tractor_equivalent_wheelbase() - self.tractor_rear_point_gradient * speed * speed
+        ``L1' = L1 − K·u²`` [m] (:attr:`tractor_rear_point_gradient`, :meth:`tractor_equivalent_wheelbase`).
+        Cheap: the estimators call it every control tick."""
+        return self._tractor_rear_point_at_rest - self.tractor_rear_point_gradient * speed * speed
+
+    @functools.cached_property
+    def _tractor_rear_point_at_rest(self) -> float:
+        """:meth:`tractor_equivalent_wheelbase`, computed once for :meth:`tractor_rear_point`."""
+        return self.tractor_equivalent_wheelbase()
 
     @functools.cached_property
     def kingpin_behind_rear_point(self) -> float:
