@@ -39,26 +39,21 @@ from typing import Literal, get_args
 
 import numpy as np
 
-from vehicle_model.kinematics import coupling_velocity, zero_slip_kingpin_velocity
+from vehicle_model.kinematics import RearPoint, coupling_velocity, tractor_kingpin_velocity
 from vehicle_model.offtracking import OfftrackingBuffer
 from vehicle_model.parameters import VehicleParams
 
 ZeroSlipVariant = Literal["yaw_rate", "steer_angle"]
-RearPoint = Literal["axle_mean", "equivalent", "speed_compensated"]
-"""Where the estimator puts the tractor's point without lateral velocity: ``axle_mean``, the mean station of the
-rear axles (:meth:`~vehicle_model.parameters.VehicleParams.tractor_wheelbase`), or ``equivalent``, the
-stiffness-weighted equivalent wheelbase (:meth:`~vehicle_model.parameters.VehicleParams.
-tractor_equivalent_wheelbase`), exact when nothing pushes on the fifth wheel. A trailer in a turn pushes on it and
-moves the real point ahead of the equivalent wheelbase (docs/vehicle_dynamics.md §6.6): on the LST at 15 km/h on a
-dry road the zero-slip-fed loop holds 0.041–0.047 m RMS with ``axle_mean`` and 0.067–0.072 m with ``equivalent``
-(ideal and data-sheet signals, roundabout-3 and the figure-of-eight), while at walking pace with the trailer's axles
-at their lock (the roundabout test) ``equivalent`` is the closer (0.19 against 0.30 m RMS). ``speed_compensated``
-moves the equivalent wheelbase forwards with the speed as a steady turn's lateral acceleration moves the real point,
-``L1 − K·u²`` (:meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_point`: linear tyres, the trailer's pull
-at the fifth wheel): on the LST at 15 km/h, steered on the truth, 0.015 m RMS against 0.044 m (``axle_mean``) on
-``roundabout-3`` and 0.016 against 0.044 m on the figure-of-eight; it does not see a camber's crab or the scrub of a
-fixed group at walking pace (docs/vehicle_dynamics.md §6.6). ``axle_mean`` is the default: every study of the
-project was measured with it."""
+REAR_POINT_NOTES = """Which rear point (:data:`~vehicle_model.kinematics.RearPoint`) the zero-slip estimator is best
+with. A trailer in a turn pushes on the fifth wheel and moves the real point ahead of the equivalent wheelbase
+(docs/vehicle_dynamics.md §6.6): on the LST at 15 km/h on a dry road the zero-slip-fed loop holds 0.041–0.047 m
+RMS with ``axle_mean`` and 0.067–0.072 m with ``equivalent`` (ideal and data-sheet signals, roundabout-3 and the
+figure-of-eight), while at walking pace with the trailer's axles at their lock (the roundabout test)
+``equivalent`` is the closer (0.19 against 0.30 m RMS). ``speed_compensated`` (``L1 − K·u²``), on the LST at
+15 km/h, steered on the truth: 0.015 m RMS against 0.044 m (``axle_mean``) on ``roundabout-3`` and 0.016 against
+0.044 m on the figure-of-eight; it does not see a camber's crab or the scrub of a fixed group at walking pace.
+``lateral_acceleration`` sees the camber's crab through the tractor's accelerometer (docs/vehicle_dynamics.md
+§6.7). ``axle_mean`` is the default: every study of the project was measured with it."""
 
 
 class ZeroSlipEstimator:
@@ -71,8 +66,9 @@ class ZeroSlipEstimator:
     variant
         ``yaw_rate`` (gyro, default) or ``steer_angle``.
     rear_point
-        The tractor's point without lateral velocity (:data:`RearPoint`): ``axle_mean`` (default),
-        ``equivalent`` or ``speed_compensated``.
+        The tractor's point without lateral velocity (:data:`~vehicle_model.kinematics.RearPoint`, and
+        :data:`REAR_POINT_NOTES`): ``axle_mean`` (default), ``equivalent``, ``speed_compensated`` or
+        ``lateral_acceleration`` (which needs the ``tractor_lateral_acceleration`` signal).
     unit
         The towed unit estimated: 1 the first (default), 2 the one it tows, … (module docstring).
     """
@@ -93,12 +89,13 @@ class ZeroSlipEstimator:
         self.variant = variant
         self.params = params
         self.unit = unit
+        self.rear_point = rear_point
         self.wheelbase = (
             params.tractor_wheelbase() if rear_point == "axle_mean" else params.tractor_equivalent_wheelbase()
         )
-        self.speed_compensated = rear_point == "speed_compensated"
         self.buffer = OfftrackingBuffer(params.trailers[unit - 1].follow_point_offset)
-        self._last: tuple[float, float, np.ndarray] | None = None  # (u, r1, articulations) of the previous sample
+        # (u, r1, f_y, articulations) of the previous sample
+        self._last: tuple[float, float, float, np.ndarray] | None = None
 
     def reset(self) -> None:
         """Forget the path."""
@@ -112,6 +109,7 @@ class ZeroSlipEstimator:
         ``articulation`` (see :mod:`sensor.signals`), and ``rear_articulation`` for a unit behind the first.
         """
         u = float(signals["wheel_speed"][0])
+        f_y = float(signals["tractor_lateral_acceleration"][0]) if self.rear_point == "lateral_acceleration" else 0.0
         gammas = signals["articulation"][:1]
         if self.unit > 1:
             gammas = np.concatenate([gammas, signals["rear_articulation"][: self.unit - 1]])
@@ -120,15 +118,14 @@ class ZeroSlipEstimator:
         else:
             r1 = u * math.tan(float(signals["front_steer"][0])) / self.wheelbase
         if self._last is None:
-            self._last = (u, r1, gammas)
+            self._last = (u, r1, f_y, gammas)
             return self.buffer.offtracking()
-        u_prev, r1_prev, gammas_prev = self._last
-        self._last = (u, r1, gammas)
+        u_prev, r1_prev, f_y_prev, gammas_prev = self._last
+        self._last = (u, r1, f_y, gammas)
         # Trapezoidal rule over the interval between the two samples.
         u_mid, r1_mid = 0.5 * (u + u_prev), 0.5 * (r1 + r1_prev)
-        # Kingpin velocity (tractor axes), zero lateral slip at the rear point.
-        wheelbase = self.params.tractor_rear_point(u_mid) if self.speed_compensated else self.wheelbase
-        vk1 = zero_slip_kingpin_velocity(self.params, u_mid, r1_mid, wheelbase)
+        # Kingpin velocity (tractor axes) with the rear point's lateral velocity as set.
+        vk1 = tractor_kingpin_velocity(self.params, self.rear_point, u_mid, r1_mid, 0.5 * (f_y + f_y_prev))
         # Down the chain to the unit's coupling, in the axes of the unit ahead, at mid-interval; ψ_k = ψ_(k-1) − Γ.
         dpsi2 = r1_mid * dt
         mids: list[float] = []

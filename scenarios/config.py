@@ -40,6 +40,7 @@ from sensor.fusion import FusionNoise
 from sensor.signals import ChannelSpec
 from vehicle_model.combination import INERTIA_TAGS, CombinationSpec, catalogue_vehicle_data
 from vehicle_model.errors import InputError
+from vehicle_model.kinematics import RearPoint
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.presets import VEHICLE_PRESETS, vehicle_preset
 from vehicle_model.settings import Settings
@@ -338,7 +339,7 @@ class RatesConfig(Settings):
 
 
 class SignalsConfig(Settings):
-    """On-board signals. Units: m/s for speed, rad and rad/s for angles and rates."""
+    """On-board signals. Units: m/s for speed, rad and rad/s for angles and rates, m/s² for the accelerometer."""
 
     wheel_speed: ChannelSpec = ChannelSpec()
     front_steer: ChannelSpec = ChannelSpec()
@@ -348,6 +349,7 @@ class SignalsConfig(Settings):
     trailer_wheel_speed: ChannelSpec = ChannelSpec()
     trailer_steer: ChannelSpec = ChannelSpec()
     rear_articulation: ChannelSpec = ChannelSpec()
+    tractor_lateral_acceleration: ChannelSpec = ChannelSpec()
 
 
 class EstimatorsConfig(Settings):
@@ -356,15 +358,16 @@ class EstimatorsConfig(Settings):
     tractor yaw rate taken from the gyro (``yaw_rate``, default) or from the front steer angle
     (``steer_angle``). ``zero_slip_rear_point``: the tractor's point without lateral velocity that it assumes,
     the mean station of the rear axles (``axle_mean``, default), their stiffness-weighted equivalent wheelbase
-    (``equivalent``) or that moved forwards with the speed (``speed_compensated``; why: ``controller.zero_slip.
-    RearPoint``). ``viso_ot``: render the trailer's stereo camera at the
+    (``equivalent``), that moved forwards with the speed (``speed_compensated``) or moving sideways with the slip
+    the tractor's lateral accelerometer asks of its rear tyres (``lateral_acceleration``; ``vehicle_model.kinematics.
+    RearPoint``, ``controller.zero_slip.REAR_POINT_NOTES``). ``viso_ot``: render the trailer's stereo camera at the
     camera rate and run visual odometry and VISO-OT (needs headless OpenGL). ``viso_ot_fused``: the Kalman filter
     of the trailer's gyro, wheel speed and steer with the camera's motions (``sensor.fusion``, settings in
     ``fusion``); it needs the camera, so it turns ``viso_ot`` on."""
 
     zero_slip: bool = True
     zero_slip_variant: Literal["yaw_rate", "steer_angle"] = "yaw_rate"
-    zero_slip_rear_point: Literal["axle_mean", "equivalent", "speed_compensated"] = "axle_mean"
+    zero_slip_rear_point: RearPoint = "axle_mean"
     viso_ot: bool = False
     viso_ot_fused: bool = False
 

@@ -18,6 +18,8 @@ articulation         8.7e-4 rad (0.05 °)           ±1.75e-3 rad (±0.1 °)
 rear_articulation    8.7e-4 rad (0.05 °)           0 (none drawn)
 wheel_speed,         0.02 m/s (0.07 km/h)          0
 trailer_wheel_speed
+tractor_lateral_     0.009 m/s² (0.9 mg)           ±0.1 m/s² (±10 mg)
+acceleration
 front_steer,         0                             0
 trailer_steer
 ===================  ============================  ==================================================
@@ -38,6 +40,13 @@ Sources (typical values):
   vehicle bus (SAE J1939-71 wheel-based vehicle speed, 1/256 km/h per bit) jitters with the pole-pitch error
   of the tone ring, about 0.5 % at 15 km/h: σ 0.02 m/s. A tyre-radius error is a scale error, not a bias,
   and is not modelled.
+* **Lateral accelerometer** (the tractor's stability control, at about its CG, on the CAN): the same automotive
+  MEMS IMUs give an acceleration noise density of 175 µg/√Hz (Bosch BMI088/SMI230, ±3 g range), so 0.9 mg =
+  0.009 m/s² at 25 Hz; the zero-g offset (±20 mg typical) is trimmed by the stability control's long-term offset
+  learning on straight driving, which cannot tell an offset from the road's crossfall (drainage slopes of 1–2.5 %
+  that lean mostly one way in one country's traffic), so a residual of ±10 mg (±0.1 m/s², a 1 % slope) is taken.
+  The body's roll in a turn (a few degrees per g for a laden tractor) reads as a gain error of a few per cent; it
+  is not modelled (the yaw-plane model has no roll) and lies within the filter's cornering-stiffness uncertainty.
 * Steer-angle feedback (tractor front axle, trailer axles) is the steering actuators' own position sensor,
   taken as exact (the zero-slip estimator uses the gyro, not the front steer).
 """
@@ -55,15 +64,18 @@ DATASHEET_NOISE: dict[str, float] = {
     "rear_articulation": 8.7e-4,
     "trailer_yaw_rate": 1.2e-3,
     "trailer_wheel_speed": 0.02,
+    "tractor_lateral_acceleration": 0.009,
 }
-"""White-noise standard deviation per channel [m/s, rad or rad/s] (module docstring for the sources)."""
+"""White-noise standard deviation per channel [m/s, rad, rad/s or m/s²] (module docstring for the sources)."""
 
 DATASHEET_BIAS_LIMITS: dict[str, float] = {
     "tractor_yaw_rate": 1.75e-3,
     "articulation": 1.75e-3,
     "trailer_yaw_rate": 1.75e-3,
+    "tractor_lateral_acceleration": 0.1,
 }
-"""Per-run bias, drawn uniformly within ± this [rad or rad/s] (module docstring for the sources)."""
+"""Per-run bias, drawn uniformly within ± this [rad, rad/s or m/s²] (module docstring for the sources); a channel
+added later goes last, so the draws of those before it do not change."""
 
 
 def draw_biases(rng: np.random.Generator) -> dict[str, float]:

@@ -52,10 +52,13 @@ kingpin's distance behind the tractor's rear point, which is not fixed: in a ste
 tractor's lateral acceleration and the trailer's pull at the fifth wheel, and with linear tyres the point without
 lateral velocity lies ``L1' = L1 − K·u_1²`` behind the steer axle (``L1`` the equivalent wheelbase, ``K`` from the
 masses and the static cornering stiffnesses: :meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_point`,
-docs/vehicle_dynamics.md §2.3, §6.6), so ``e = L_5 − L1'`` with ``speed_compensated_kinematics`` (off by
-default: the rear axles' mean station, fixed). That is the steady part of the tractor's slip, predicted from its
-speed; the rest (camber, saturation, a scrubbing trailer's push) is ``ε_k`` below. With (1) it measures the slip
-velocity::
+docs/vehicle_dynamics.md §2.3, §6.6), so ``e = L_5 − L1'`` with ``kinematic_rear_point`` ``speed_compensated``
+(default ``axle_mean``: the rear axles' mean station, fixed). That is the steady part of the tractor's slip,
+predicted from its speed. With the tractor's lateral accelerometer (``lateral_acceleration``) the rear point is the
+equivalent wheelbase moving sideways at ``−K·u_1·f_y`` (``f_y`` the specific force it reads:
+:meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_slip_velocity`), which is the same in a level steady
+turn (``f_y = u_1·r_1``) and also covers a cross slope's share of gravity. The rest (saturation, a scrubbing
+trailer's push, and for the fixed points the camber) is ``ε_k`` below. With (1) it measures the slip velocity::
 
     z_c − r_m·L_c − w_m·Σ w_j tan δ_j = v_s + ε_k                                               (K1)
 
@@ -67,10 +70,12 @@ kingpin motion (less the odometry's estimated systematic error) against the kine
 (Cheng's lateral velocity with the gyro's heading), as a velocity ``δv``. Its exponentially weighted mean over
 ``τ_a`` (``slip_evidence_time``) and the variance that mean would have from the frames' own noise alone give::
 
-    m_k = m_{k−1} + α·(δv_k − m_{k−1}),   α = Δt_frame/τ_a,   σ_k² = max(σ_0², m_k² − V_k·α/(2 − α))    (K2)
+    m_k = m_{k−1} + α·(δv_k − m_{k−1}),   α = Δt_frame/τ_a,
+    σ_k² = max(σ_0² + (u_C·v_m)², m_k² − V_k·α/(2 − α))                                          (K2)
 
 (``V_k`` the same weighted mean of the frames' lateral variance over Δt²; ``σ_0`` = ``tractor_slip``: the slip of
-rolling tyres). A persistent disagreement is slip, noise is not (innovation-based adaptive estimation: Mehra 1972;
+rolling tyres; ``v_m`` the rear slip velocity the compensated rear points predict, ``K·u_1²·r_1`` or
+``K·u_1·f_y``, uncertain by the cornering stiffnesses' relative ``u_C`` = ``tractor_stiffness_uncertainty``). A persistent disagreement is slip, noise is not (innovation-based adaptive estimation: Mehra 1972;
 Mohamed & Schwarz 1999). On a dry road the disagreement stays within the noise, σ_k stays at σ_0 and the
 kinematics share the estimate with the camera; where the camera sees slip — ice, a cambered road — σ_k follows the
 slip within ``τ_a`` and the camera carries the estimate. σ_k is recorded (:attr:`FusedVisoOt.kinematic_std`): the
@@ -146,7 +151,7 @@ import numpy as np
 from pydantic import Field
 
 from vehicle_model.errors import InputError
-from vehicle_model.kinematics import zero_slip_kingpin_velocity
+from vehicle_model.kinematics import RearPoint, tractor_kingpin_velocity
 from vehicle_model.offtracking import OfftrackingBuffer, offtracking_from_path
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.rigid import invert_rigid
@@ -203,11 +208,16 @@ class FusionNoise(Settings):
         correction the coupling applies for the estimated ``β_ψ`` (eq (5)).
     kinematics : bool
         Fuse the zero-slip kinematics (K1) when the tractor's signals are given.
-    speed_compensated_kinematics : bool
-        Take the tractor's rear point of (K1) where a steady turn's lateral acceleration puts it, ``L1 − K·u²``
-        (:meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_point`); ``False`` (default): the rear axles'
-        mean station, fixed, with which the filter's noise model was set and the field-loop grid measured
-        (docs/field_bias.md §6.3 says what the compensated kinematics change and why they are not the default).
+    kinematic_rear_point : str
+        The tractor's rear point of (K1), :data:`~vehicle_model.kinematics.RearPoint`: ``axle_mean`` (default: the
+        rear axles' mean station, fixed, with which the filter's noise model was set and the field-loop grid
+        measured), ``equivalent``, ``speed_compensated`` (where a steady turn's lateral acceleration puts it,
+        ``L1 − K·u²``) or ``lateral_acceleration`` (moving sideways at the slip the tractor's accelerometer asks
+        of its rear tyres; it needs :attr:`TractorSignals.lateral_acceleration`). docs/field_bias.md §6.3–6.4 say
+        what the compensated points change.
+    tractor_stiffness_uncertainty : float
+        ``u_C`` of (K2): the relative uncertainty of the tractor's cornering stiffnesses, so of the rear slip the
+        compensated rear points predict.
     tractor_slip : float
         ``σ_0`` of (K2): the lateral slip velocity of the tractor's rolling tyres at the kingpin [m/s].
     kinematic_error_time : float
@@ -265,7 +275,13 @@ class FusionNoise(Settings):
         description="relative std of vo_bias_coupling, carried into the off-tracking's std; 1: the coupling unknown",
     )
     kinematics: bool = True
-    speed_compensated_kinematics: bool = False
+    kinematic_rear_point: RearPoint = "axle_mean"
+    tractor_stiffness_uncertainty: float = Field(
+        0.2,
+        ge=0.0,
+        le=1.0,
+        description="relative; a tyre's cornering stiffness is known to 10–30 % (load, wear, pressure); 1: unknown",
+    )
     tractor_slip: float = Field(
         0.02, gt=0.0, le=1.0, description="[m/s] slip of rolling tractor tyres; 1 m/s is a slide, not a roll"
     )
@@ -292,11 +308,13 @@ class FusionNoise(Settings):
 @dataclass(frozen=True)
 class TractorSignals:
     """The tractor's signals the zero-slip kinematics (K2) take: wheel speed [m/s], yaw rate [rad/s], articulation
-    Γ = ψ1 − ψ2 [rad]."""
+    Γ = ψ1 − ψ2 [rad] and the lateral specific force its accelerometer reads [m/s²] (NaN: none; needed by the
+    ``lateral_acceleration`` rear point)."""
 
     speed: float
     yaw_rate: float
     articulation: float
+    lateral_acceleration: float = math.nan
 
 
 def slip_kinematics(params: VehicleParams) -> tuple[float, np.ndarray]:
@@ -416,6 +434,7 @@ class FusedVisoOt:
         self._innovation_power = math.nan  # m_k and V_k of (K2)
         self._expected_power = math.nan
         self._slip_evidence = 0.0
+        self._modelled_slip = 0.0  # v_m of (K2)
         self._frame_interval = 0.0
         self.kinematic_share = 0.0
         self._coupling = np.zeros(2)  # the last frame's (c_x, c_y)
@@ -525,9 +544,15 @@ class FusedVisoOt:
         values = (tractor.speed, tractor.yaw_rate, tractor.articulation)
         if not all(math.isfinite(v) for v in values):
             raise InputError(f"tractor signals {values} must be finite")
-        # the rear axles' mean station, or the rear point a steady turn's lateral acceleration moves
-        wheelbase = self.params.tractor_rear_point(tractor.speed) if self.noise.speed_compensated_kinematics else None
-        vx1, vy1 = zero_slip_kingpin_velocity(self.params, tractor.speed, tractor.yaw_rate, wheelbase)
+        point, params = self.noise.kinematic_rear_point, self.params
+        vx1, vy1 = tractor_kingpin_velocity(
+            params, point, tractor.speed, tractor.yaw_rate, tractor.lateral_acceleration
+        )
+        # the rear slip the compensated points predict, for its share of (K2)
+        if point == "speed_compensated":
+            self._modelled_slip = params.tractor_rear_slip_velocity(tractor.speed, tractor.speed * tractor.yaw_rate)
+        elif point == "lateral_acceleration":
+            self._modelled_slip = params.tractor_rear_slip_velocity(tractor.speed, tractor.lateral_acceleration)
         gamma = tractor.articulation
         return math.sin(gamma) * vx1 + math.cos(gamma) * vy1  # into trailer axes
 
@@ -542,7 +567,8 @@ class FusedVisoOt:
         h[_BW] = -tan_steer
         z = lateral - (r_m * self.slip_point + w_m * tan_steer)  # (K1): the slip velocity the tractor implies
         n = self.noise
-        variance = max(n.tractor_slip**2, self._slip_evidence)  # (K2)
+        modelled = n.tractor_stiffness_uncertainty * self._modelled_slip
+        variance = max(n.tractor_slip**2 + modelled * modelled, self._slip_evidence)  # (K2)
         self.kinematic_std = math.sqrt(variance)
         if math.isfinite(self._expected_power) and self._frame_interval > 0.0:  # information per second, eq (5)
             camera = 1.0 / (self._expected_power * self._frame_interval)

@@ -17,6 +17,9 @@ trailer_steer       steer angle of every steerable trailer axle [rad] (one value
 rear_articulation   articulation of every further towed unit against the unit ahead, ``Γ_k = ψ_k − ψ_{k+1}``,
                     from the sensor at its coupling [rad] (one value per coupling behind the first; none for a
                     tractor–semi-trailer)
+tractor_lateral_    the tractor's lateral accelerometer at its CG (the stability control's, on the CAN): the
+acceleration        specific force, acceleration less gravity, so on a cross slope it reads the share of
+                    gravity the tyres carry [m/s²]
 ==================  ===============================================================
 """
 
@@ -38,6 +41,7 @@ CHANNELS: tuple[str, ...] = (
     "trailer_wheel_speed",
     "trailer_steer",
     "rear_articulation",
+    "tractor_lateral_acceleration",
 )
 
 
@@ -45,10 +49,16 @@ class ChannelSpec(Settings):
     """Noise standard deviation, bias and sample rate of one channel (SI units; each range with its reason)."""
 
     noise_std: float = Field(
-        0.0, ge=0.0, le=1.0, description="[m/s, rad or rad/s]; 1 (57°, 3.6 km/h) is beyond any working sensor"
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description="[m/s, rad, rad/s or m/s²]; 1 (57°, 3.6 km/h, 0.1 g) is beyond any working sensor",
     )
     bias: float = Field(
-        0.0, ge=-1.0, le=1.0, description="[m/s, rad or rad/s]; ±1 (57°, 3.6 km/h) is beyond any working sensor"
+        0.0,
+        ge=-1.0,
+        le=1.0,
+        description="[m/s, rad, rad/s or m/s²]; ±1 (57°, 3.6 km/h, 0.1 g) is beyond any working sensor",
     )
     rate_hz: float = Field(50.0, gt=0.0, le=1000.0, description="[Hz]; sampled on control ticks, held in between")
 

@@ -15,6 +15,8 @@ import pytest
 from sensor.fusion import FusedVisoOt, FusionNoise, TractorSignals, slip_kinematics
 from sensor.signals import ChannelSpec, standstill_reading
 from sensor.viso_ot import VisoOtEstimator
+from vehicle_model.errors import InputError
+from vehicle_model.kinematics import RearPoint, tractor_kingpin_velocity
 from vehicle_model.offtracking import OfftrackingBuffer
 from vehicle_model.presets import VEHICLE_PRESETS
 
@@ -69,19 +71,16 @@ def drive_with_truth(n: int = 2000, slip: float = 0.0, gyro_bias: float = 0.0, w
     return r + gyro_bias, u + wheel_bias, np.array(incs), np.column_stack([u, r, vs])
 
 
-def tractor_signals(u: float, r: float, lateral: float, compensated: bool = False) -> TractorSignals:
-    """Tractor signals whose zero-slip kinematics put the kingpin's lateral velocity (trailer axes) at ``lateral``:
-    the articulation Γ solves ``sin Γ·u + cos Γ·(−e·r) = lateral`` (the tractor turning at the trailer's rate), with
-    ``e`` the kingpin's distance behind the tractor's rear point: the rear axles' mean station (the filter's
-    default), or with ``compensated`` the point a steady turn's lateral acceleration puts at ``L1 − K·u²``."""
-    e = (
-        -PARAMS.tractor.fifth_wheel_x - PARAMS.tractor_rear_point(u)
-        if compensated
-        else PARAMS.kingpin_behind_rear_point
-    )
-    a, b = u, -e * r
+def tractor_signals(
+    u: float, r: float, lateral: float, point: RearPoint = "axle_mean", lateral_acceleration: float = math.nan
+) -> TractorSignals:
+    """Tractor signals whose kinematics with the rear point ``point`` put the kingpin's lateral velocity (trailer
+    axes) at ``lateral``: the articulation Γ solves ``sin Γ·v_x + cos Γ·v_y = lateral`` for the kingpin velocity
+    ``(v_x, v_y)`` in tractor axes that point gives (the tractor turning at the trailer's rate; the mean station is
+    the filter's default, ``lateral_acceleration`` the accelerometer's reading)."""
+    a, b = tractor_kingpin_velocity(PARAMS, point, u, r, lateral_acceleration)
     gamma = math.asin(lateral / math.hypot(a, b)) - math.atan2(b, a)
-    return TractorSignals(u, r, gamma)
+    return TractorSignals(u, r, gamma, lateral_acceleration)
 
 
 def ambiguous_covariance() -> np.ndarray:
@@ -378,19 +377,36 @@ def test_slip_that_the_kinematics_cannot_see_is_taken_from_the_camera() -> None:
     assert np.mean(np.abs(est[late] - ref[late]) <= 2.0 * std[late]) > 0.9  # and its std says so
 
 
-def test_speed_compensated_kinematics_take_the_tractors_rear_point_where_the_turn_puts_it() -> None:
-    # The tractor's rear point sits L1 − K·u² behind its steer axle (0.19 m ahead of the mean station at 4 m/s):
-    # blinded for 20 s in the turn, the filter that assumes that point follows the truth within 1 cm (measured
-    # 1e-15 m: the kinematics are then exact), the one that assumes the mean station does not (0.069 m).
+def test_compensated_rear_points_take_the_tractors_rear_point_where_the_turn_and_the_slope_put_it() -> None:
+    # The tractor's rear point sits L1 − K·u² behind its steer axle in a level turn (0.19 m ahead of the mean
+    # station at 4 m/s): blinded for 9 s in the turn, the filter that assumes that point follows the truth within
+    # 1 cm (measured 1e-15 m: the kinematics are then exact), the one that assumes the mean station does not
+    # (0.069 m). On a 5 % cross slope the rear tyres also carry gravity's share, g·0.05 = 0.49 m/s², and the
+    # tractor crabs at K·u·0.49 = 0.035 m/s: the accelerometer's rear point follows within 1 cm, the turn's alone
+    # does not.
     r_m, w_m, incs, true = drive_with_truth(n=2500)
     lc, _ = slip_kinematics(PARAMS)
-    tractor = [tractor_signals(u, r, r * lc + vs, compensated=True) for u, r, vs in true]
     gap = range(250, 350)
     blind = (np.arange(2500) > 1300) & (np.arange(2500) < 1750)
-    worst = {}
-    for compensated in (True, False):
-        fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(speed_compensated_kinematics=compensated))
+    slope = 9.81 * 0.05
+
+    def worst(truth_point: RearPoint, filter_point: RearPoint, crossfall: float) -> float:
+        tractor = [tractor_signals(u, r, r * lc + vs, truth_point, u * r + crossfall) for u, r, vs in true]
+        fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(kinematic_rear_point=filter_point))
         est, _, ref = run(fused, r_m, w_m, incs, drop=lambda frame: frame in gap, tractor=tractor)
-        worst[compensated] = np.max(np.abs(est[blind] - ref[blind]))
-    assert worst[True] < 0.01
-    assert worst[False] > 3.0 * worst[True]
+        return float(np.max(np.abs(est[blind] - ref[blind])))
+
+    level = worst("speed_compensated", "speed_compensated", 0.0)
+    assert level < 0.01
+    assert worst("speed_compensated", "axle_mean", 0.0) > 3.0 * level
+    assert worst("speed_compensated", "lateral_acceleration", 0.0) < 0.01  # the same point in a level turn
+    sloped = worst("lateral_acceleration", "lateral_acceleration", slope)
+    assert sloped < 0.01
+    assert worst("lateral_acceleration", "speed_compensated", slope) > 3.0 * sloped
+
+
+def test_the_accelerometers_rear_point_without_an_accelerometer_is_refused() -> None:
+    fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(kinematic_rear_point="lateral_acceleration"))
+    fused.propagate(0, DT, 0.0, 4.0)
+    with pytest.raises(InputError, match="tractor_lateral_acceleration"):
+        fused.propagate(1, DT, 0.0, 4.0, None, TractorSignals(4.0, 0.0, 0.0))  # no reading: NaN

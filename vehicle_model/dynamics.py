@@ -175,6 +175,10 @@ def define_model(params: VehicleParams) -> SymbolicModel:
         "mu_used": mu,
         "hitch_force": ca.vertcat(hitch_x, hitch_y),
         "trailer_velocity": ca.vertcat(u2, v2),
+        # What an accelerometer at the tractor's CG reads, in tractor axes: its acceleration less gravity's
+        # in-plane part, ``f = a − g`` with ``a = (u̇ − v1·r1, v̇1 + u·r1)``; on a cross slope it holds the share of
+        # gravity the tyres carry (docs/vehicle_dynamics.md §2.3).
+        "tractor_specific_force": ca.vertcat(u_dot - v1 * r1 - gravity[0][0], v1_dot + u * r1 - gravity[0][1]),
     }
     return SymbolicModel(x=x, u=u_in, xdot=xdot, outputs=outputs)
 
@@ -208,7 +212,7 @@ class VehicleModel:
     rk4_step : casadi.Function
         ``(x, u, h) → x⁺``, one RK4 step of length ``h``.
     outputs : casadi.Function
-        ``(x, u) → (fy, fx, fz, slip, mu_used, hitch_force, trailer_velocity)``.
+        ``(x, u) → (fy, fx, fz, slip, mu_used, hitch_force, trailer_velocity, tractor_specific_force)``.
     jac_x, jac_u : casadi.Function
         ``(x, u) → ∂ẋ/∂x``, ``∂ẋ/∂u``.
     library : pathlib.Path or None

@@ -19,6 +19,7 @@ part ``r2·v_x`` alone, exact in a steady turn.
 from __future__ import annotations
 
 import math
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -64,6 +65,62 @@ def zero_slip_kingpin_velocity(
     if wheelbase is None:
         return u, -params.kingpin_behind_rear_point * r1
     return u, (wheelbase + params.tractor.fifth_wheel_x) * r1
+
+
+RearPoint = Literal["axle_mean", "equivalent", "speed_compensated", "lateral_acceleration"]
+"""Where an estimator from the tractor's signals puts the tractor's point without lateral velocity
+(:func:`tractor_kingpin_velocity`): ``axle_mean``, the mean station of the rear axles
+(:meth:`~vehicle_model.parameters.VehicleParams.tractor_wheelbase`); ``equivalent``, their stiffness-weighted
+equivalent wheelbase (:meth:`~vehicle_model.parameters.VehicleParams.tractor_equivalent_wheelbase`), exact when
+nothing asks the rear tyres for a force; ``speed_compensated``, that moved forwards with the speed as a steady
+turn's lateral acceleration moves the real point, ``L1 − K·u²``
+(:meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_point`); ``lateral_acceleration``, the equivalent
+wheelbase moving sideways at the slip the measured lateral specific force asks of the rear tyres, ``−K·u·f_y``
+(:meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_slip_velocity`), which also covers a cross slope's
+share of gravity (docs/vehicle_dynamics.md §2.3, §6.6)."""
+
+
+def tractor_kingpin_velocity(
+    params: VehicleParams,
+    rear_point: RearPoint,
+    u: float,
+    r1: float,
+    lateral_acceleration: float = math.nan,
+) -> tuple[float, float]:
+    """Kingpin velocity ``(v_x, v_y)`` [m/s] in tractor axes from the tractor's signals, with its rear point
+    taken as ``rear_point`` (:data:`RearPoint`; Cheng 2009 for the zero-slip forms).
+
+    Parameters
+    ----------
+    params
+        The combination.
+    rear_point
+        One of :data:`RearPoint`.
+    u, r1
+        Tractor forward speed [m/s] and yaw rate [rad/s] (measured or true).
+    lateral_acceleration
+        The tractor's lateral specific force [m/s²] (its accelerometer; ``lateral_acceleration`` only).
+
+    Raises
+    ------
+    InputError
+        ``lateral_acceleration`` is asked for and not finite, or ``rear_point`` is none of :data:`RearPoint`.
+    """
+    if rear_point == "axle_mean":
+        return zero_slip_kingpin_velocity(params, u, r1)
+    if rear_point == "speed_compensated":
+        return zero_slip_kingpin_velocity(params, u, r1, params.tractor_rear_point(u))
+    if rear_point == "equivalent":
+        return zero_slip_kingpin_velocity(params, u, r1, params.tractor_rear_point(0.0))
+    if rear_point != "lateral_acceleration":
+        raise InputError(f"tractor rear point {rear_point!r} must be one of {get_args(RearPoint)}")
+    if not math.isfinite(lateral_acceleration):
+        raise InputError(
+            f"the tractor's lateral acceleration is {lateral_acceleration!r}; rear point 'lateral_acceleration' "
+            "needs its accelerometer (signal tractor_lateral_acceleration)"
+        )
+    vx, vy = zero_slip_kingpin_velocity(params, u, r1, params.tractor_rear_point(0.0))
+    return vx, vy + params.tractor_rear_slip_velocity(u, lateral_acceleration)
 
 
 def coupling_velocity(

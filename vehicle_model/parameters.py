@@ -546,6 +546,21 @@ class VehicleParams(_Frozen):
         Cheap: the estimators call it every control tick."""
         return self._tractor_rear_point_at_rest - self.tractor_rear_point_gradient * speed * speed
 
+    def tractor_rear_slip_velocity(self, speed: float, lateral_acceleration: float) -> float:
+        """Lateral velocity [m/s] of the tractor at :meth:`tractor_equivalent_wheelbase` from its rear tyres' slip,
+        ``−K·u·f_y`` (left positive), with ``f_y`` the lateral specific force an accelerometer at the tractor's CG
+        reads [m/s²].
+
+        The balance of :attr:`tractor_rear_point_gradient` with the specific force in place of the centripetal
+        acceleration (docs/vehicle_dynamics.md §2.3): the rear tyres carry ``Σ F_j·L_j = (m1·L_cg + m_5·L_5)·f_y``
+        whatever asks for the force, a turn or a cross slope's share of gravity (the trailer's pull at the fifth
+        wheel is ``m_5·f_y`` when the trailer's specific force is the tractor's), so each rear axle slips by
+        ``F_j/C_j`` and the equivalent rear point moves sideways at ``u`` times that. In a steady turn on a level
+        road ``f_y = u·r`` and it is :meth:`tractor_rear_point`'s shift times the yaw rate. Linear tyres: a tyre
+        near its friction limit slips more.
+        """
+        return -self.tractor_rear_point_gradient * speed * lateral_acceleration
+
     @functools.cached_property
     def _tractor_rear_point_at_rest(self) -> float:
         """:meth:`tractor_equivalent_wheelbase`, computed once for :meth:`tractor_rear_point`."""

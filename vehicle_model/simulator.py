@@ -453,6 +453,18 @@ class Simulator:
         values = self.model.outputs(self._x, self._u)
         return {name: np.asarray(v).ravel() for name, v in zip(self.model.output_names, values, strict=True)}
 
+    def tractor_specific_force(self) -> tuple[float, float]:
+        """What an accelerometer at the tractor's CG reads [m/s²], ``(f_x, f_y)`` in tractor axes (left positive).
+
+        The model's ``tractor_specific_force`` output (acceleration less in-plane gravity) at the current state
+        with the inputs held over the last period; before the first period, with the surface at the current state.
+        """
+        if not self._surface_filled:
+            self._fill_surface()
+        values = self.model.outputs(self._x, self._u)
+        force = np.asarray(values[self.model.output_names.index("tractor_specific_force")]).ravel()
+        return float(force[0]), float(force[1])
+
     def _check(self, x_new: np.ndarray) -> None:
         if math.isfinite(float(x_new.sum())) and not (np.abs(x_new[self._limit_index]) > self._limit_value).any():
             return  # the common case, checked cheaply

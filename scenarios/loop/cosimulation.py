@@ -359,7 +359,9 @@ class CoSimulation:
         setup = self.setup
         time = self.sim.time
         kingpin = kingpin_position(setup.params, state.X, state.Y, state.psi1)
-        measured = self.signals.measure(time, state, self.steer)
+        # the accelerometer's truth: the model's specific force, or a prescribed motion's centripetal acceleration
+        specific = state.u * state.r1 if self.kinematic else self.sim.tractor_specific_force()[1]
+        measured = self.signals.measure(time, state, self.steer, specific)
         tick = TickInput(index, time, self.period, state, kingpin, measured, index % self._frame_every == 0, trajectory)
         self._input = tick
         self.vehicle.update(tick)

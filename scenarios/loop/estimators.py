@@ -238,6 +238,7 @@ class FusedVisoOtEstimator:
             float(measured["wheel_speed"][0]),
             float(measured["tractor_yaw_rate"][0]),
             float(measured["articulation"][0]),
+            float(measured["tractor_lateral_acceleration"][0]),
         )
         fused.propagate(
             tick.index, tick.period, measured["trailer_yaw_rate"][0], measured["trailer_wheel_speed"][0], steer, tractor

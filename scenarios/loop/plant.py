@@ -40,6 +40,7 @@ RECORDED_SIGNALS: tuple[tuple[str, str], ...] = (
     ("tractor_yaw_rate", "rad/s"),
     ("articulation", "rad"),
     ("trailer_yaw_rate", "rad/s"),
+    ("tractor_lateral_acceleration", "m/s²"),
 )
 """The on-board signals recorded as ``signal_<name>`` (:mod:`sensor.signals`), with their units."""
 
@@ -120,8 +121,12 @@ class SignalsParticipant:
         self._trailer_index = [i for i, n in enumerate(steerable) if n in trailer]
         self.measured: dict[str, np.ndarray] = {}
 
-    def measure(self, time: float, state: VehicleState, steer: np.ndarray) -> dict[str, np.ndarray]:
-        """The signals at ``time`` of the true ``state`` and the steer angles ``steer`` (every steerable axle)."""
+    def measure(
+        self, time: float, state: VehicleState, steer: np.ndarray, lateral_acceleration: float
+    ) -> dict[str, np.ndarray]:
+        """The signals at ``time`` of the true ``state``, the steer angles ``steer`` (every steerable axle) and the
+        tractor's true lateral specific force ``lateral_acceleration`` [m/s²]
+        (:meth:`~vehicle_model.simulator.Simulator.tractor_specific_force`)."""
         index = self._trailer_index
         truth = {
             "wheel_speed": state.u,
@@ -132,6 +137,7 @@ class SignalsParticipant:
             "trailer_wheel_speed": trailer_axle_speed(self.params, state),
             "trailer_steer": steer[index] if index else np.zeros(0),
             "rear_articulation": state.trailing[0::2],
+            "tractor_lateral_acceleration": lateral_acceleration,
         }
         self.measured = self.sensors.measure(time, truth)
         return self.measured
