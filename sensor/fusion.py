@@ -75,8 +75,9 @@ kingpin motion (less the odometry's estimated systematic error) against the kine
 
 (``V_k`` the same weighted mean of the frames' lateral variance over Δt²; ``σ_0`` = ``tractor_slip``: the slip of
 rolling tyres; ``v_m`` the rear slip velocity the compensated rear points predict, ``K·u_1²·r_1`` or
-``K·u_1·f_y``, uncertain by the cornering stiffnesses' relative ``u_C`` = ``tractor_stiffness_uncertainty``). A persistent disagreement is slip, noise is not (innovation-based adaptive estimation: Mehra 1972;
-Mohamed & Schwarz 1999). On a dry road the disagreement stays within the noise, σ_k stays at σ_0 and the
+``K·u_1·f_y``, uncertain by the cornering stiffnesses' relative ``u_C`` = ``tractor_stiffness_uncertainty``).
+A persistent disagreement is slip, noise is not (innovation-based adaptive estimation: Mehra 1972; Mohamed &
+Schwarz 1999). On a dry road the disagreement stays within the noise, σ_k stays at σ_0 and the
 kinematics share the estimate with the camera; where the camera sees slip — ice, a cambered road — σ_k follows the
 slip within ``τ_a`` and the camera carries the estimate. σ_k is recorded (:attr:`FusedVisoOt.kinematic_std`): the
 run says which source it trusted.
