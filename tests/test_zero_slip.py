@@ -128,6 +128,18 @@ def model_only_run(scenario: str, overrides: dict):
     return simulate(build_scenario(load_scenario(scenario, overrides)))
 
 
+def zero_slip_errors(scenario: str, rear_points: tuple[str, ...], overrides: dict, after: float):
+    """The zero-slip estimate's errors after ``after`` seconds of a model-only run per rear point, and the last
+    run's columns and mask."""
+    errors = {}
+    for rear_point in rear_points:
+        outcome, cols = model_only_run(scenario, overrides | {"estimators.zero_slip_rear_point": rear_point})
+        assert outcome.status == "completed"
+        late = cols["time"] > after
+        errors[rear_point] = estimator_errors(cols["offtracking_truth"][late], cols["offtracking_zero_slip"][late])
+    return errors, cols, late
+
+
 def test_within_2cm_at_walking_pace_when_the_trailer_pushes_nothing_through_the_hitch(monkeypatch):
     # docs/vehicle_dynamics.md §6.6. The reference tractor with a single-axle trailer (the tri-axle's six tyres on
     # one axle at the group centre, which scrubs nothing) on the roundabout test at 5 km/h: the tractor's rear
@@ -165,18 +177,9 @@ def test_the_rear_point_moves_forwards_with_the_speed_as_the_steady_turn_predict
     # closer to the truth than the equivalent wheelbase's (measured 1.4 against 73 mm). Without the trailer's pull
     # in K the predicted shift would be a fifth of it (the tractor's own m1·L_cg is 21 % of K's numerator).
     params = single_axle_trailer(monkeypatch)
-    errors = {}
-    for rear_point in ("equivalent", "speed_compensated"):
-        overrides = {
-            "vehicle": "single-axle",
-            "feedback": "none",
-            "duration_s": 80.0,
-            "estimators.zero_slip_rear_point": rear_point,
-        }
-        outcome, cols = model_only_run("roundabout-3", overrides)
-        assert outcome.status == "completed"
-        late = cols["time"] > 40.0  # well into the steady turn
-        errors[rear_point] = estimator_errors(cols["offtracking_truth"][late], cols["offtracking_zero_slip"][late])
+    overrides = {"vehicle": "single-axle", "feedback": "none", "duration_s": 80.0}
+    # from 40 s: well into the steady turn
+    errors, cols, late = zero_slip_errors("roundabout-3", ("equivalent", "speed_compensated"), overrides, 40.0)
     u, v1, r1 = cols["u"][late], cols["v1"][late], cols["r1"][late]
     true_point = -params.tractor.cg_x + np.median(v1 / r1)
     speed = float(np.median(u))
@@ -212,17 +215,7 @@ def test_the_accelerometers_rear_point_sees_a_cambers_crab() -> None:
     # camber, model only, ideal signals: the camber's share of gravity makes the tractor crab, which the
     # speed-compensated rear point does not see (measured 0.119 m RMS after 20 s) and the accelerometer's does
     # (0.004 m): at least ten times closer, and within 1 cm.
-    errors = {}
-    for rear_point in ("speed_compensated", "lateral_acceleration"):
-        overrides = {
-            "vehicle": "lst",
-            "feedback": "truth",
-            "camber.percent": 5.0,
-            "estimators.zero_slip_rear_point": rear_point,
-        }
-        outcome, cols = model_only_run("roundabout-3", overrides)
-        assert outcome.status == "completed"
-        late = cols["time"] > 20.0
-        errors[rear_point] = estimator_errors(cols["offtracking_truth"][late], cols["offtracking_zero_slip"][late])
+    overrides = {"vehicle": "lst", "feedback": "truth", "camber.percent": 5.0}
+    errors, _, _ = zero_slip_errors("roundabout-3", ("speed_compensated", "lateral_acceleration"), overrides, 20.0)
     assert errors["lateral_acceleration"]["rms_error"] < 0.01
     assert errors["lateral_acceleration"]["rms_error"] < errors["speed_compensated"]["rms_error"] / 10.0
