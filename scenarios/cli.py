@@ -505,6 +505,13 @@ def estimate(
     folder_poses: Annotated[bool, typer.Option(help="Use a KITTI folder's poses.txt as the reference.")] = True,
     refinement: Annotated[int, typer.Option(help="Odometry match refinement: 0, 1 pixel, 2 sub-pixel.")] = 2,
     seed: Annotated[int, typer.Option(help="Seed of the odometry's RANSAC.", min=0)] = 0,
+    rear_point: Annotated[
+        str,
+        typer.Option(
+            help="The tractor's rear point of the zero-slip and fused estimates: axle_mean, equivalent, "
+            "speed_compensated or lateral_acceleration (needs lateral_acceleration_m_s2 in --signals)."
+        ),
+    ] = "axle_mean",
     plots: Annotated[bool, typer.Option(help="Write the plots.")] = True,
 ) -> None:
     """VISO-OT (and with --signals the fused and zero-slip estimates) on a recorded stereo sequence: a run directory
@@ -535,6 +542,7 @@ def estimate(
         use_folder_poses=folder_poses,
         refinement=refinement,
         seed=seed,
+        rear_point=rear_point,
     )
     run_dir = new_run_dir(out, f"recording-{recording.resolve().name}", force=force)
     with Progress(console=console, transient=True) as bar:

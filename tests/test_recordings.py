@@ -209,6 +209,13 @@ def test_the_signals_csv_is_read_in_si_and_the_trailer_signals_derived(tmp_path:
     # r2 = r1 − dΓ/dt (Γ = ψ1 − ψ2): 10 − 2 = 8 °/s
     assert at["trailer_yaw_rate"][:2] == pytest.approx([math.radians(8.0)] * 2)
     assert math.isnan(at["speed"][2])
+    assert np.all(np.isnan(at["lateral_acceleration"]))  # no accelerometer column: none
+    with_accelerometer = tmp_path / "with_accelerometer.csv"
+    with_accelerometer.write_text("time_s,speed_m_s,yaw_rate_deg_s,articulation_deg,lateral_acceleration_m_s2\n")
+    with with_accelerometer.open("a") as fh:
+        fh.writelines(f"{ti},5.0,10.0,0.0,{0.5 + ti}\n" for ti in t)
+    at = read_signals(with_accelerometer).at(np.array([0.5, 1.01]), load_rig(rig).params)
+    assert at["lateral_acceleration"] == pytest.approx([1.0, 1.51])  # m/s², interpolated
     path.write_text("time_s,speed_m_s,articulation_deg\n0,1,2\n0.1,1,2\n")
     with pytest.raises(InputError, match="no column yaw_rate_deg_s or yaw_rate_rad_s"):
         read_signals(path)
@@ -339,6 +346,12 @@ def test_each_bad_input_of_estimate_is_one_line_and_exit_2_before_any_work(tmp_p
         ]
     )
     assert "has no topic /cam/right" in line
+    good = ["estimate", str(tmp_path / "seq2"), "--rig", str(rig), "--out", str(out)]
+    assert "--rear-point 'centre': allowed: axle_mean, equivalent" in _refused([*good, "--rear-point", "centre"])
+    signals = tmp_path / "signals.csv"
+    signals.write_text("time_s,speed_m_s,yaw_rate_deg_s,articulation_deg\n0,1,0,0\n0.1,1,0,0\n")
+    line = _refused([*good, "--signals", str(signals), "--rear-point", "lateral_acceleration"])
+    assert "needs the tractor's accelerometer: a --signals CSV with a lateral_acceleration_m_s2 column" in line
     assert not out.exists()  # nothing was written
 
 

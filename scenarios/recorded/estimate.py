@@ -70,6 +70,11 @@ _SIGNAL_COLUMNS: tuple[Column, ...] = (
     Column("articulation", "rad", "the articulation angle, the recorded signal at the row's time"),
     Column("trailer_yaw_rate", "rad/s", "the trailer's yaw rate, the recorded signal at the row's time"),
     Column("trailer_wheel_speed", "m/s", "the trailer's wheel speed, the recorded signal at the row's time"),
+    Column(
+        "tractor_lateral_acceleration",
+        "m/s²",
+        "the tractor's lateral accelerometer, the recorded signal at the row's time (NaN: not recorded)",
+    ),
 )
 _SIGNALS = tuple(column.name for column in _SIGNAL_COLUMNS)
 _RECORDING_COLUMNS: tuple[Column, ...] = (
@@ -84,7 +89,8 @@ _RECORDING_COLUMNS: tuple[Column, ...] = (
     Column("vo_rpe_translation_m", "m", "the frame's relative pose error in translation against the reference"),
     Column("vo_rpe_rotation_rad", "rad", "the frame's relative pose error in rotation against the reference"),
 )
-_SIGNAL_KEYS = ("speed", "yaw_rate", "articulation", "trailer_yaw_rate", "trailer_speed")  # SignalSeries.at's
+# SignalSeries.at's
+_SIGNAL_KEYS = ("speed", "yaw_rate", "articulation", "trailer_yaw_rate", "trailer_speed", "lateral_acceleration")
 
 
 def row_times(inputs: EstimateInputs) -> tuple[np.ndarray, np.ndarray]:
@@ -154,8 +160,10 @@ class _SignalEstimators:
 
     def __init__(self, inputs: EstimateInputs, signals: dict[str, np.ndarray], times: np.ndarray) -> None:
         params = inputs.rig.params
-        self.fused = FusedVisoOt(params, inputs.camera_in_trailer, FusionConfig())  # a run's fusion defaults
-        self.zero_slip = ZeroSlipEstimator(params)
+        # a run's fusion defaults, with the tractor's rear point the inputs ask for
+        fusion = FusionConfig(kinematic_rear_point=inputs.rear_point)
+        self.fused = FusedVisoOt(params, inputs.camera_in_trailer, fusion)
+        self.zero_slip = ZeroSlipEstimator(params, rear_point=inputs.rear_point)
         self.signals, self.times = signals, times
         self.previous: int | None = None
         self.zero_slip_value: float | None = None
@@ -168,12 +176,18 @@ class _SignalEstimators:
         if not self.active:
             return
         dt = float(self.times[row] - self.times[self.previous]) if self.previous is not None else 0.0
-        tractor = TractorSignals(float(s["speed"][row]), float(s["yaw_rate"][row]), float(s["articulation"][row]))
+        tractor = TractorSignals(
+            float(s["speed"][row]),
+            float(s["yaw_rate"][row]),
+            float(s["articulation"][row]),
+            float(s["lateral_acceleration"][row]),
+        )
         self.fused.propagate(row, dt, float(s["trailer_yaw_rate"][row]), float(s["trailer_speed"][row]), None, tractor)
         sample = {
             "wheel_speed": np.array([tractor.speed]),
             "tractor_yaw_rate": np.array([tractor.yaw_rate]),
             "articulation": np.array([tractor.articulation]),
+            "tractor_lateral_acceleration": np.array([tractor.lateral_acceleration]),
             "front_steer": np.array([0.0]),
         }
         self.zero_slip_value = self.zero_slip.update(sample, dt)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, get_args
 
 import numpy as np
 
@@ -33,6 +33,7 @@ from sensor.recordings.signals import SignalSeries, read_signals
 from sensor.recordings.video import VideoPair
 from sensor.vo import VOConfig
 from vehicle_model.errors import InputError
+from vehicle_model.kinematics import RearPoint
 
 from .rig import RecordingRig, load_rig
 
@@ -63,6 +64,9 @@ class EstimateInputs:
         Times [s since the first frame] and reference off-tracking [m].
     seed : int
         Seed of the odometry's RANSAC.
+    rear_point : str
+        Where the zero-slip and fused estimators put the tractor's point without lateral velocity
+        (:data:`~vehicle_model.kinematics.RearPoint`).
     record : dict
         What was given, for ``recording.yaml``.
     """
@@ -76,6 +80,7 @@ class EstimateInputs:
     reference_poses: tuple[np.ndarray, np.ndarray] | None
     reference_offtracking: tuple[np.ndarray, np.ndarray] | None
     seed: int
+    rear_point: RearPoint
     record: dict[str, Any]
 
 
@@ -186,12 +191,15 @@ def resolve_inputs(
     use_folder_poses: bool = True,
     refinement: int = 2,
     seed: int = 0,
+    rear_point: str = "axle_mean",
 ) -> EstimateInputs:
     """Everything ``offtrack estimate`` is given, opened and checked (module notes); nothing decoded yet.
 
     ``refinement`` is the odometry's match refinement (0, 1, 2; the loop's ``camera.vo_refinement``, 2 by default)
     and ``seed`` its RANSAC's seed (a run's ``seed``, 0 by default): with both as a run had them, the odometry
-    repeats the run's.
+    repeats the run's. ``rear_point`` is the tractor's rear point of the zero-slip and fused estimators
+    (:data:`~vehicle_model.kinematics.RearPoint`; a run's ``estimators.zero_slip_rear_point`` and
+    ``fusion.kinematic_rear_point``); ``lateral_acceleration`` needs the signals' accelerometer column.
 
     Raises
     ------
@@ -203,6 +211,8 @@ def resolve_inputs(
         raise InputError(f"--refinement {refinement!r}: allowed: 0 (none), 1 (pixel), 2 (sub-pixel)")
     if not (isinstance(seed, int) and seed >= 0):
         raise InputError(f"--seed {seed!r}: allowed: an integer ≥ 0")
+    if rear_point not in get_args(RearPoint):
+        raise InputError(f"--rear-point {rear_point!r}: allowed: {', '.join(get_args(RearPoint))}")
     rec = open_recording(
         Path(recording),
         right_video=right_video,
@@ -214,6 +224,11 @@ def resolve_inputs(
     camera, cal = camera_model(rec, calibration, calib)
     par = cal.rectified_rig_parameters() if cal is not None else None
     series = read_signals(Path(signals)) if signals is not None else None
+    if rear_point == "lateral_acceleration" and (series is None or series.lateral_acceleration is None):
+        raise InputError(
+            "--rear-point lateral_acceleration needs the tractor's accelerometer: a --signals CSV with a "
+            "lateral_acceleration_m_s2 column"
+        )
     poses, offtracking, reference_source = _reference(
         rec, reference, reference_format, reference_offtracking, use_folder_poses
     )
@@ -236,6 +251,7 @@ def resolve_inputs(
         "reference_kind": "poses" if poses is not None else ("offtracking" if offtracking is not None else None),
         "refinement": refinement,
         "seed": seed,
+        "rear_point": rear_point,
     }
     return EstimateInputs(
         recording=rec,
@@ -247,5 +263,6 @@ def resolve_inputs(
         reference_poses=poses,
         reference_offtracking=offtracking,
         seed=seed,
+        rear_point=rear_point,  # checked above
         record=record,
     )

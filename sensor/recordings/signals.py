@@ -9,6 +9,9 @@ Columns (a header line, units in the names; degrees at this edge, SI inside):
 ``articulation_deg``           articulation Γ = ψ1 − ψ2 [°] (or ``articulation_rad``; positive in a left turn)
 ``trailer_yaw_rate_deg_s``     optional: the trailer's gyro [°/s] (or ``_rad_s``)
 ``trailer_speed_m_s``          optional: a wheel speed on an unsteered trailer axle [m/s]
+``lateral_acceleration_m_s2``  optional: the tractor's lateral accelerometer (specific force, left positive)
+                               [m/s²], for the ``lateral_acceleration`` rear point
+                               (:data:`vehicle_model.kinematics.RearPoint`)
 ============================== ==========================================================================
 
 The fused filter (:mod:`sensor.fusion`) propagates with the trailer's yaw rate and wheel speed; without their
@@ -39,6 +42,7 @@ SIGNAL_COLUMNS = {
     "articulation": ("articulation_deg", "articulation_rad"),
     "trailer_yaw_rate": ("trailer_yaw_rate_deg_s", "trailer_yaw_rate_rad_s"),
     "trailer_speed": ("trailer_speed_m_s",),
+    "lateral_acceleration": ("lateral_acceleration_m_s2",),
 }
 """Each signal and the column names it may have (the first unit given is the usual one)."""
 _REQUIRED = ("time", "speed", "yaw_rate", "articulation")
@@ -56,6 +60,8 @@ class SignalSeries:
         The tractor's wheel speed [m/s], yaw rate [rad/s] and the articulation [rad].
     trailer_yaw_rate, trailer_speed : numpy.ndarray or None
         The trailer's gyro [rad/s] and axle wheel speed [m/s], when recorded.
+    lateral_acceleration : numpy.ndarray or None
+        The tractor's lateral specific force [m/s²], when recorded.
     source : str
         The file.
     """
@@ -66,12 +72,13 @@ class SignalSeries:
     articulation: np.ndarray
     trailer_yaw_rate: np.ndarray | None
     trailer_speed: np.ndarray | None
+    lateral_acceleration: np.ndarray | None
     source: str
 
     def at(self, times: np.ndarray, params: VehicleParams) -> dict[str, np.ndarray]:
         """The signals at ``times`` (linear interpolation; NaN outside the recorded span): ``speed``, ``yaw_rate``,
         ``articulation``, ``trailer_yaw_rate`` and ``trailer_speed`` (derived as the module notes say when not
-        recorded)."""
+        recorded), and ``lateral_acceleration`` (NaN when not recorded)."""
         times = np.asarray(times, dtype=float)
         inside = (times >= self.time[0]) & (times <= self.time[-1])
 
@@ -91,6 +98,8 @@ class SignalSeries:
             _, lateral_per_rate = zero_slip_kingpin_velocity(params, 0.0, 1.0)
             u1, r1, gamma = out["speed"], out["yaw_rate"], out["articulation"]
             out["trailer_speed"] = np.cos(gamma) * u1 - np.sin(gamma) * (lateral_per_rate * r1)
+        recorded = self.lateral_acceleration
+        out["lateral_acceleration"] = sample(recorded) if recorded is not None else np.full(times.shape, np.nan)
         return out
 
 
@@ -151,5 +160,6 @@ def read_signals(path: Path) -> SignalSeries:
         data["articulation"],
         data.get("trailer_yaw_rate"),
         data.get("trailer_speed"),
+        data.get("lateral_acceleration"),
         str(path),
     )
