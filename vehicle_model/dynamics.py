@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -34,6 +35,15 @@ TRACTION_MARGIN = 0.95
 
 OUTPUT_GROUPS = ("fy", "fx", "fz", "slip", "mu_used")
 """Per-axle outputs, each one entry per axle in layout order (wheel-frame forces)."""
+
+
+def in_plane_gravity(sx: Any, sy: Any, cos_psi: Any, sin_psi: Any) -> tuple[Any, Any]:
+    """Gravity's in-plane part per unit mass ``(g_x, g_y)`` [m/s²] in the axes of a body heading ``ψ``, from the
+    road's global slope vector ``(s_x, s_y)`` (docs/vehicle_dynamics.md §1.3); numbers or casadi symbols."""
+    return (
+        GRAVITY * (sx * cos_psi + sy * sin_psi),
+        GRAVITY * (-sx * sin_psi + sy * cos_psi),
+    )
 
 
 @dataclass(frozen=True)
@@ -81,8 +91,7 @@ def define_model(params: VehicleParams) -> SymbolicModel:
 
     # In-plane gravity per body (docs/vehicle_dynamics.md §1.3), from the global slope vector.
     def body_gravity(sx: ca.SX, sy: ca.SX, psi: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
-        gx = GRAVITY * (sx * ca.cos(psi) + sy * ca.sin(psi))
-        gy = GRAVITY * (-sx * ca.sin(psi) + sy * ca.cos(psi))
+        gx, gy = in_plane_gravity(sx, sy, ca.cos(psi), ca.sin(psi))
         cos_theta = ca.sqrt(ca.fmax(1.0 - sx * sx - sy * sy, 0.0))
         return gx, gy, cos_theta
 
@@ -175,10 +184,6 @@ def define_model(params: VehicleParams) -> SymbolicModel:
         "mu_used": mu,
         "hitch_force": ca.vertcat(hitch_x, hitch_y),
         "trailer_velocity": ca.vertcat(u2, v2),
-        # What an accelerometer at the tractor's CG reads, in tractor axes: its acceleration less gravity's
-        # in-plane part, ``f = a − g`` with ``a = (u̇ − v1·r1, v̇1 + u·r1)``; on a cross slope it holds the share of
-        # gravity the tyres carry (docs/vehicle_dynamics.md §2.3).
-        "tractor_specific_force": ca.vertcat(u_dot - v1 * r1 - gravity[0][0], v1_dot + u * r1 - gravity[0][1]),
     }
     return SymbolicModel(x=x, u=u_in, xdot=xdot, outputs=outputs)
 
@@ -212,7 +217,7 @@ class VehicleModel:
     rk4_step : casadi.Function
         ``(x, u, h) → x⁺``, one RK4 step of length ``h``.
     outputs : casadi.Function
-        ``(x, u) → (fy, fx, fz, slip, mu_used, hitch_force, trailer_velocity, tractor_specific_force)``.
+        ``(x, u) → (fy, fx, fz, slip, mu_used, hitch_force, trailer_velocity)``.
     jac_x, jac_u : casadi.Function
         ``(x, u) → ∂ẋ/∂x``, ``∂ẋ/∂u``.
     library : pathlib.Path or None

@@ -203,6 +203,33 @@ def steady_lateral_acceleration(params: VehicleParams, state: VehicleState, stat
     return float(state.r2 * trailer_point_velocity(params, state, station)[0])
 
 
+def tractor_lateral_specific_force(
+    previous: VehicleState | None, current: VehicleState, gravity_lateral: float
+) -> float:
+    """What a lateral accelerometer at the tractor's CG reads [m/s²]: the specific force ``a_y − g_y`` (left
+    positive), ``a_y = v̇1 + u·r1`` in tractor axes.
+
+    ``v̇1`` is the mean over the interval from ``previous`` (an accelerometer's anti-alias filter over one control
+    period; zero without ``previous``), ``u·r1`` that of ``current``; on a cross slope the reading holds the share of
+    gravity the tyres carry.
+
+    Parameters
+    ----------
+    previous, current
+        Two states of one run, ``current`` later (consecutive control ticks), or ``None`` and the first state.
+    gravity_lateral
+        Gravity's in-plane lateral part per unit mass at the tractor [m/s²]
+        (:meth:`~vehicle_model.simulator.Simulator.tractor_gravity`).
+    """
+    rate = 0.0
+    if previous is not None:
+        dt = current.time - previous.time
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise InputError(f"tractor_lateral_specific_force needs a later current state; got dt = {dt!r} s")
+        rate = (current.v1 - previous.v1) / dt
+    return rate + current.u * current.r1 - gravity_lateral
+
+
 def trailer_lateral_acceleration(
     params: VehicleParams, previous: VehicleState, current: VehicleState, station: float | None = None
 ) -> float:

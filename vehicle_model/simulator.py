@@ -9,7 +9,7 @@ from typing import NoReturn
 
 import numpy as np
 
-from .dynamics import VehicleModel
+from .dynamics import VehicleModel, in_plane_gravity
 from .errors import InputError, SimulationDivergedError
 from .geometry import CombinationPose, place_points, tractor_points, trailer_frames, trailer_points
 from .layout import BODY_STATES, Layout
@@ -453,17 +453,14 @@ class Simulator:
         values = self.model.outputs(self._x, self._u)
         return {name: np.asarray(v).ravel() for name, v in zip(self.model.output_names, values, strict=True)}
 
-    def tractor_specific_force(self) -> tuple[float, float]:
-        """What an accelerometer at the tractor's CG reads [m/s²], ``(f_x, f_y)`` in tractor axes (left positive).
-
-        The model's ``tractor_specific_force`` output (acceleration less in-plane gravity) at the current state
-        with the inputs held over the last period; before the first period, with the surface at the current state.
-        """
+    def tractor_gravity(self) -> tuple[float, float]:
+        """Gravity's in-plane part per unit mass at the tractor ``(g_x, g_y)`` [m/s²], in its axes, from the road's
+        slope the inputs hold (that of the last period; before the first, the surface at the current state)."""
         if not self._surface_filled:
             self._fill_surface()
-        values = self.model.outputs(self._x, self._u)
-        force = np.asarray(values[self.model.output_names.index("tractor_specific_force")]).ravel()
-        return float(force[0]), float(force[1])
+        slope = self._u[self.layout.slope_slice]
+        psi = float(self._x[2])
+        return in_plane_gravity(float(slope[0]), float(slope[1]), math.cos(psi), math.sin(psi))
 
     def _check(self, x_new: np.ndarray) -> None:
         if math.isfinite(float(x_new.sum())) and not (np.abs(x_new[self._limit_index]) > self._limit_value).any():

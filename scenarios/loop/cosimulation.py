@@ -37,6 +37,7 @@ import numpy as np
 
 from vehicle_model.errors import InputError, SimulationDivergedError
 from vehicle_model.geometry import kingpin_position
+from vehicle_model.kinematics import tractor_lateral_specific_force
 from vehicle_model.offtracking import OfftrackingEstimate
 from vehicle_model.simulator import Simulator, VehicleState
 
@@ -359,8 +360,10 @@ class CoSimulation:
         setup = self.setup
         time = self.sim.time
         kingpin = kingpin_position(setup.params, state.X, state.Y, state.psi1)
-        # the accelerometer's truth: the model's specific force, or a prescribed motion's centripetal acceleration
-        specific = state.u * state.r1 if self.kinematic else self.sim.tractor_specific_force()[1]
+        # the accelerometer's truth: the specific force (a prescribed motion: its centripetal acceleration)
+        gravity = 0.0 if self.kinematic else self.sim.tractor_gravity()[1]
+        previous = self.tick.state if index > 0 and not self.kinematic else None
+        specific = tractor_lateral_specific_force(previous, state, gravity)
         measured = self.signals.measure(time, state, self.steer, specific)
         tick = TickInput(index, time, self.period, state, kingpin, measured, index % self._frame_every == 0, trajectory)
         self._input = tick

@@ -126,7 +126,7 @@ class SignalsParticipant:
     ) -> dict[str, np.ndarray]:
         """The signals at ``time`` of the true ``state``, the steer angles ``steer`` (every steerable axle) and the
         tractor's true lateral specific force ``lateral_acceleration`` [m/s²]
-        (:meth:`~vehicle_model.simulator.Simulator.tractor_specific_force`)."""
+        (:func:`~vehicle_model.kinematics.tractor_lateral_specific_force`)."""
         index = self._trailer_index
         truth = {
             "wheel_speed": state.u,
