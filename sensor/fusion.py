@@ -152,7 +152,7 @@ import numpy as np
 from pydantic import Field
 
 from vehicle_model.errors import InputError
-from vehicle_model.kinematics import RearPoint, tractor_kingpin_velocity
+from vehicle_model.kinematics import RearPoint, modelled_rear_slip, tractor_kingpin_velocity
 from vehicle_model.offtracking import OfftrackingBuffer, offtracking_from_path
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.rigid import invert_rigid
@@ -550,10 +550,9 @@ class FusedVisoOt:
             params, point, tractor.speed, tractor.yaw_rate, tractor.lateral_acceleration
         )
         # the rear slip the compensated points predict, for its share of (K2)
-        if point == "speed_compensated":
-            self._modelled_slip = params.tractor_rear_slip_velocity(tractor.speed, tractor.speed * tractor.yaw_rate)
-        elif point == "lateral_acceleration":
-            self._modelled_slip = params.tractor_rear_slip_velocity(tractor.speed, tractor.lateral_acceleration)
+        self._modelled_slip = modelled_rear_slip(
+            params, point, tractor.speed, tractor.yaw_rate, tractor.lateral_acceleration
+        )
         gamma = tractor.articulation
         return math.sin(gamma) * vx1 + math.cos(gamma) * vy1  # into trailer axes
 

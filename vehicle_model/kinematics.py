@@ -120,7 +120,21 @@ def tractor_kingpin_velocity(
             "needs its accelerometer (signal tractor_lateral_acceleration)"
         )
     vx, vy = zero_slip_kingpin_velocity(params, u, r1, params.tractor_rear_point(0.0))
-    return vx, vy + params.tractor_rear_slip_velocity(u, lateral_acceleration)
+    return vx, vy + modelled_rear_slip(params, rear_point, u, r1, lateral_acceleration)
+
+
+def modelled_rear_slip(
+    params: VehicleParams, rear_point: RearPoint, u: float, r1: float, lateral_acceleration: float = math.nan
+) -> float:
+    """The lateral velocity [m/s] of the tractor's equivalent rear point that ``rear_point`` predicts from its
+    tyres' slip (:meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_slip_velocity`): ``−K·u²·r1`` for
+    ``speed_compensated`` (the steady level turn's ``f_y = u·r1``), ``−K·u·f_y`` for ``lateral_acceleration``, zero
+    for the fixed points, which predict none."""
+    if rear_point == "speed_compensated":
+        return params.tractor_rear_slip_velocity(u, u * r1)
+    if rear_point == "lateral_acceleration":
+        return params.tractor_rear_slip_velocity(u, lateral_acceleration)
+    return 0.0
 
 
 def coupling_velocity(
