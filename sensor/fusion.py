@@ -15,7 +15,7 @@ Model (trailer frame ISO 8855, origin at the kingpin; docs/design.md §5–6)
 --------------------------------------------------------------------------
 State, kept relative to the *anchor* (the time of the last camera frame that was committed)::
 
-    x = [Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]
+    x = [Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]     (and ε_k of (K3) with ``kinematic_error_model: state``)
 
 ``(Δx, Δy, Δψ)`` is the kingpin's displacement and the trailer's heading change since the anchor, in the
 anchor's trailer frame; ``v_s`` is the lateral *slip velocity* of the kingpin [m/s] (what the trailer's zero-slip
@@ -82,6 +82,17 @@ kinematics share the estimate with the camera; where the camera sees slip — ic
 slip within ``τ_a`` and the camera carries the estimate. σ_k is recorded (:attr:`FusedVisoOt.kinematic_std`): the
 run says which source it trusted.
 
+With ``kinematic_error_model: state`` the correlated error is not inflated white noise but an eighth state, the
+shaping filter of a time-correlated measurement error (state augmentation: Bryson & Henrikson 1968): a first-order
+Gauss–Markov process with the correlation time ``τ_c`` and the standard deviation σ_k of (K2), and (K1) carries only
+the white noise ``σ_w`` (``kinematic_white_noise``) of the tractor's sensors::
+
+    ε_k ← φ·ε_k + w,   φ = exp(−dt/τ_c),   E[w²] = σ_k²·(1 − φ²);     (K1) = v_s + ε_k + n,   E[n²] = σ_w²   (K3)
+
+The camera measures the kingpin's motion, so ε_k is observed through the difference: the filter learns the
+kinematics' steady error (the sensors' offsets, the linear tyre model's residual, a steady crab) from the camera and
+the kinematics carry what changes faster than the camera resolves.
+
 Camera measurement. Each frame's camera motion becomes a kingpin increment ``z = (dx, dy, dψ)`` over the frame
 interval through the camera's pose on the trailer (eqs (1)–(2), :meth:`VisoOtEstimator.kingpin_increment`). Its
 covariance ``R`` is the odometry's ``Σ = (JᵀJ)⁻¹σ̂²`` of the 6 motion parameters mapped through that function
@@ -147,6 +158,7 @@ import itertools
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from pydantic import Field
@@ -169,7 +181,7 @@ __all__ = ["STD_PARTS", "FusedVisoOt", "FusionNoise", "TractorSignals", "slip_ki
 STD_PARTS: tuple[str, ...] = ("increments", "biases", "coupling", "kinematics", "unexplained")
 
 _STATES = 7
-_VS, _BG, _BW, _BPSI = 3, 4, 5, 6
+_VS, _BG, _BW, _BPSI, _EK = 3, 4, 5, 6, 7
 _BIASES = [_BG, _BPSI]
 MIN_INNOVATION_RATIO = 0.25
 """Least ``ρ/3`` of eq (5): a run of well-matched motions may shrink the std by half, not to nothing."""
@@ -219,6 +231,14 @@ class FusionNoise(Settings):
     tractor_stiffness_uncertainty : float
         ``u_C`` of (K2): the relative uncertainty of the tractor's cornering stiffnesses, so of the rear slip the
         compensated rear points predict.
+    kinematic_error_model : str
+        How (K1)'s error ``ε_k`` enters: ``inflated`` (default: white, with the variance ``σ_k²·τ_c/dt`` of a
+        correlated error, with which the field-loop grid was measured) or ``state`` (an eighth state, a first-order
+        Gauss–Markov process with correlation time ``τ_c`` and standard deviation ``σ_k``, so that the camera
+        learns the kinematics' steady error and the kinematics carry what changes faster: (K3) in the module notes).
+    kinematic_white_noise : float
+        With ``kinematic_error_model: state``, the white noise of one tick's (K1) [m/s]: the tractor's gyro,
+        wheel-speed and articulation sensors' noise at the kingpin.
     tractor_slip : float
         ``σ_0`` of (K2): the lateral slip velocity of the tractor's rolling tyres at the kingpin [m/s].
     kinematic_error_time : float
@@ -283,6 +303,10 @@ class FusionNoise(Settings):
         le=1.0,
         description="relative; a tyre's cornering stiffness is known to 10–30 % (load, wear, pressure); 1: unknown",
     )
+    kinematic_error_model: Literal["inflated", "state"] = "inflated"
+    kinematic_white_noise: float = Field(
+        0.005, gt=0.0, le=1.0, description="[m/s] per tick, the tractor's sensor noise at the kingpin; 1 m/s is none"
+    )
     tractor_slip: float = Field(
         0.02, gt=0.0, le=1.0, description="[m/s] slip of rolling tractor tyres; 1 m/s is a slide, not a roll"
     )
@@ -343,6 +367,7 @@ class _Tick:
     p: np.ndarray
     kinematic: tuple[tuple[np.ndarray, float, float], ...] = ()
     tractor_lateral: float = math.nan  # the kingpin's lateral velocity if no tractor tyre slips [m/s]
+    kinematic_variance: float = 0.0  # σ_k² of (K3) on the step into this tick [m²/s²]
 
 
 class FusedVisoOt:
@@ -387,8 +412,10 @@ class FusedVisoOt:
         self._sample_variance = np.array([n.gyro_noise**2, n.wheel_speed_noise**2])
         self._walk_time = np.diag([n.slip_velocity_walk**2, n.gyro_bias_walk**2, n.wheel_speed_bias_walk**2])
         self._walk_distance = n.vo_yaw_bias_walk**2
-        self._f = np.eye(_STATES)  # work arrays of _step
-        self._g = np.zeros((_STATES, 2))
+        self._error_state = n.kinematic_error_model == "state"  # ε_k of (K1) an eighth state, (K3)
+        self._states = _STATES + 1 if self._error_state else _STATES
+        self._f = np.eye(self._states)  # work arrays of _step
+        self._g = np.zeros((self._states, 2))
         self._gyro_zero: tuple[float, int] | None = None
         self.reset()
 
@@ -420,12 +447,13 @@ class FusedVisoOt:
         self._gated = 0
         self._history: deque[_Tick] = deque()
         self._previous_input: tuple[float, float, float] | None = None
-        x0 = np.zeros(_STATES)
+        x0 = np.zeros(self._states)
         p0 = np.diag(
             [
                 *(0.0, 0.0, 0.0),
                 *(n.initial_slip_velocity**2, n.initial_gyro_bias**2, n.initial_wheel_speed_bias**2),
                 n.vo_yaw_bias**2,
+                *((n.tractor_slip**2,) if self._error_state else ()),
             ]
         )
         if self._gyro_zero is not None:  # zeroed at standstill: the mean reading and its variance
@@ -486,6 +514,7 @@ class FusedVisoOt:
         sample = (float(yaw_rate), float(wheel_speed), self._steer_term(steer))
         if not all(math.isfinite(v) for v in sample):
             raise InputError(f"trailer signals {sample} must be finite")
+        kinematic_variance = self._kinematic_variance()  # σ_k² of (K3) on this step, kept for re-filtering
         if self._previous_input is None:
             x, p = self._start
             x, p = x.copy(), p.copy()
@@ -494,19 +523,21 @@ class FusedVisoOt:
             prev = self._previous_input
             inputs = (float(dt), *(0.5 * (a + b) for a, b in zip(prev, sample, strict=True)))
             last = self._history[-1]
-            x, p = self._step(last.x, last.p, inputs)
+            x, p = self._step(last.x, last.p, inputs, kinematic_variance)
         kinematic: tuple[tuple[np.ndarray, float, float], ...] = ()
         lateral = math.nan
         if tractor is not None and self.noise.kinematics and self._previous_input is not None:
             lateral = self._tractor_lateral(tractor)
             kinematic = self._kinematic_rows(sample, lateral, float(dt))
             x, p = _apply_rows(x, p, kinematic)
-        self._history.append(_Tick(tick, inputs, x, p, kinematic, lateral))
+        self._history.append(_Tick(tick, inputs, x, p, kinematic, lateral, kinematic_variance))
         self._previous_input = sample
         self._read()
 
-    def _step(self, x: np.ndarray, p: np.ndarray, inputs: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
-        """One control period of eqs (1)–(2) and the covariance."""
+    def _step(
+        self, x: np.ndarray, p: np.ndarray, inputs: tuple[float, ...], kinematic_variance: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """One control period of eqs (1)–(2) and the covariance (and of (K3) with ``σ_k²`` = ``kinematic_variance``)."""
         dt, r_m, w_m, tan_steer = inputs
         r = r_m - x[_BG]
         u = w_m - x[_BW]
@@ -538,6 +569,11 @@ class FusedVisoOt:
         q = (g * self._sample_variance) @ g.T
         q[_VS:_BPSI, _VS:_BPSI] += self._walk_time * dt
         q[_BPSI, _BPSI] += self._walk_distance * abs(u) * dt
+        if self._error_state:  # (K3): ε_k ← φ·ε_k, its variance relaxing to σ_k² with the correlation time
+            phi = math.exp(-dt / self.noise.kinematic_error_time)
+            out[_EK] = phi * x[_EK]
+            f[_EK, _EK] = phi
+            q[_EK, _EK] += kinematic_variance * (1.0 - phi * phi)
         return out, f @ p @ f.T + q
 
     def _tractor_lateral(self, tractor: TractorSignals) -> float:
@@ -561,21 +597,29 @@ class FusedVisoOt:
     ) -> tuple[tuple[np.ndarray, float, float], ...]:
         """(K1) of this tick as an ``(H, z, R)`` row, with σ from the slip evidence (K2)."""
         r_m, w_m, tan_steer = sample
-        h = np.zeros(_STATES)
+        h = np.zeros(self._states)
         h[_VS] = 1.0
         h[_BG] = -self.slip_point  # (K1) is taken with the measured rates: their biases enter it through (1)
         h[_BW] = -tan_steer
         z = lateral - (r_m * self.slip_point + w_m * tan_steer)  # (K1): the slip velocity the tractor implies
         n = self.noise
-        modelled = n.tractor_stiffness_uncertainty * self._modelled_slip
-        variance = max(n.tractor_slip**2 + modelled * modelled, self._slip_evidence)  # (K2)
+        variance = self._kinematic_variance()
         self.kinematic_std = math.sqrt(variance)
+        if self._error_state:  # (K3): ε_k is a state, the tick's own noise white
+            h[_EK] = 1.0
+            return ((h, z, n.kinematic_white_noise**2),)
         if math.isfinite(self._expected_power) and self._frame_interval > 0.0:  # information per second, eq (5)
             camera = 1.0 / (self._expected_power * self._frame_interval)
             self.kinematic_share = (1.0 / (variance * n.kinematic_error_time)) / (
                 1.0 / (variance * n.kinematic_error_time) + camera
             )
         return ((h, z, variance * n.kinematic_error_time / max(dt, 1e-6)),)  # a time-correlated error
+
+    def _kinematic_variance(self) -> float:
+        """σ_k² of (K2) from the slip evidence so far and the last tick's modelled rear slip [m²/s²]."""
+        n = self.noise
+        modelled = n.tractor_stiffness_uncertainty * self._modelled_slip
+        return max(n.tractor_slip**2 + modelled * modelled, self._slip_evidence)  # (K2)
 
     def _kinematic_lateral_step(self, index: int, x: np.ndarray) -> float | None:
         """The kingpin's lateral displacement from the anchor to history ``index`` in the anchor's frame, had no
@@ -645,7 +689,7 @@ class FusedVisoOt:
         used = False
         if camera_motion is not None and np.all(np.isfinite(camera_motion)):
             z, r = self.measurement(np.asarray(camera_motion, dtype=float), covariance)
-            h = np.zeros((3, _STATES))
+            h = np.zeros((3, self._states))
             h[:, :3] = np.eye(3)
             coupling = (
                 self.noise.vo_bias_coupling * r[:2, 2] / r[2, 2]
@@ -708,9 +752,9 @@ class FusedVisoOt:
         self._history = deque([_Tick(self._history[index].tick, (0.0, 0.0, 0.0, 0.0), anchor_x, anchor_p)])
         for h in rest:  # re-filter to the present with the stored inputs and measurements (delayed measurement)
             last = self._history[-1]
-            nx, np_ = self._step(last.x, last.p, h.inputs)
+            nx, np_ = self._step(last.x, last.p, h.inputs, h.kinematic_variance)
             nx, np_ = _apply_rows(nx, np_, h.kinematic)
-            self._history.append(_Tick(h.tick, h.inputs, nx, np_, h.kinematic, h.tractor_lateral))
+            self._history.append(_Tick(h.tick, h.inputs, nx, np_, h.kinematic, h.tractor_lateral, h.kinematic_variance))
 
     # ------------------------------------------------------------------ estimate
 
@@ -788,12 +832,13 @@ class FusedVisoOt:
 
     @property
     def state(self) -> np.ndarray:
-        """Newest state ``[Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]`` (module notes; before the first tick, the start)."""
+        """Newest state ``[Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]`` and ``ε_k`` with (K3) (module notes; before the first tick,
+        the start)."""
         return (self._history[-1].x if self._history else self._start[0]).copy()
 
     @property
     def covariance(self) -> np.ndarray:
-        """Newest 7×7 state covariance (before the first tick, the start)."""
+        """Newest state covariance, 7×7 or 8×8 with (K3) (before the first tick, the start)."""
         return (self._history[-1].p if self._history else self._start[1]).copy()
 
 
