@@ -85,13 +85,17 @@ run says which source it trusted.
 With ``kinematic_error_model: state`` the correlated error is not inflated white noise but an eighth state, the
 shaping filter of a time-correlated measurement error (state augmentation: Bryson & Henrikson 1968): a first-order
 Gauss–Markov process with the correlation time ``τ_c`` and the standard deviation σ_k of (K2), and (K1) carries only
-the white noise ``σ_w`` (``kinematic_white_noise``) of the tractor's sensors::
+the white noise ``σ_w`` (``kinematic_white_noise``) of the tractor's sensors and, as in the inflated model, the
+evidence of slip beyond its floor ``σ_f² = σ_0² + (u_C·v_m)²``::
 
-    ε_k ← φ·ε_k + w,   φ = exp(−dt/τ_c),   E[w²] = σ_k²·(1 − φ²);     (K1) = v_s + ε_k + n,   E[n²] = σ_w²   (K3)
+    ε_k ← φ·ε_k + w,   φ = exp(−dt/τ_c),   E[w²] = σ_k²·(1 − φ²)
+    (K1) = v_s + ε_k + n,   E[n²] = σ_w² + (σ_k² − σ_f²)·τ_c/dt                                    (K3)
 
 The camera measures the kingpin's motion, so ε_k is observed through the difference: the filter learns the
-kinematics' steady error (the sensors' offsets, the linear tyre model's residual, a steady crab) from the camera and
-the kinematics carry what changes faster than the camera resolves.
+kinematics' steady error (the sensors' offsets, the linear tyre model's residual, a steady crab) from the camera,
+and where the disagreement says nothing slips the kinematics carry what changes faster than that; where it says the
+tyres slip, the white part de-weights the kinematics at once, before the state has learned the new error (a
+figure-of-eight's change of turn on ice; docs/field_bias.md §6.5).
 
 Camera measurement. Each frame's camera motion becomes a kingpin increment ``z = (dx, dy, dψ)`` over the frame
 interval through the camera's pose on the trailer (eqs (1)–(2), :meth:`VisoOtEstimator.kingpin_increment`). Its
@@ -142,9 +146,10 @@ of the measured errors, docs/field_bias.md), so the translation the filter remov
 ``β_ψ·G_κ`` (``G_κ`` the coupled part of ``G``'s second entry), is uncertain by ``u_κ·β_ψ·G_κ``: a large
 estimated odometry error widens the std. The share of the kinematics' disagreement with the camera that the
 estimate carries, ``s_k·m_k`` (K2), enters over the path as a slip velocity would, through ``Λ``, the sum of the
-increments' lateral sensitivities times their durations. What no state explains — the part of the odometry's
-error that changes with the scenery faster than ``β_ψ`` follows — is the constant ``offtracking_bias_std``
-``σ_b``::
+increments' lateral sensitivities times their durations (with (K3) the kinematics' error is a state, its
+uncertainty is in the increments' own covariance, and this term is zero). What no state explains — the part of
+the odometry's error that changes with the scenery faster than ``β_ψ`` follows — is the constant
+``offtracking_bias_std`` ``σ_b``::
 
     σ_e² = (ρ/3)·(Σ gᵀ Q g + G·P_b·Gᵀ) + (u_κ·β_ψ·G_κ)² + (s_k·m_k·Λ)² + σ_b²                       (5)
 
@@ -607,7 +612,11 @@ class FusedVisoOt:
         self.kinematic_std = math.sqrt(variance)
         if self._error_state:  # (K3): ε_k is a state, the tick's own noise white
             h[_EK] = 1.0
-            return ((h, z, n.kinematic_white_noise**2),)
+            # the evidence of slip beyond the floor also as (K2)'s correlated white error: seen slip de-weights the
+            # kinematics at once, while the state learns their steady error
+            floor = self._kinematic_variance(evidence=False)
+            excess = max(0.0, variance - floor) * n.kinematic_error_time / max(dt, 1e-6)
+            return ((h, z, n.kinematic_white_noise**2 + excess),)
         if math.isfinite(self._expected_power) and self._frame_interval > 0.0:  # information per second, eq (5)
             camera = 1.0 / (self._expected_power * self._frame_interval)
             self.kinematic_share = (1.0 / (variance * n.kinematic_error_time)) / (
@@ -615,11 +624,13 @@ class FusedVisoOt:
             )
         return ((h, z, variance * n.kinematic_error_time / max(dt, 1e-6)),)  # a time-correlated error
 
-    def _kinematic_variance(self) -> float:
-        """σ_k² of (K2) from the slip evidence so far and the last tick's modelled rear slip [m²/s²]."""
+    def _kinematic_variance(self, evidence: bool = True) -> float:
+        """σ_k² of (K2) from the slip evidence so far and the last tick's modelled rear slip [m²/s²] (its floor
+        alone with ``evidence`` false)."""
         n = self.noise
         modelled = n.tractor_stiffness_uncertainty * self._modelled_slip
-        return max(n.tractor_slip**2 + modelled * modelled, self._slip_evidence)  # (K2)
+        floor = n.tractor_slip**2 + modelled * modelled
+        return max(floor, self._slip_evidence) if evidence else floor  # (K2)
 
     def _kinematic_lateral_step(self, index: int, x: np.ndarray) -> float | None:
         """The kingpin's lateral displacement from the anchor to history ``index`` in the anchor's frame, had no

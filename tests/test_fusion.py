@@ -413,13 +413,14 @@ def test_the_accelerometers_rear_point_without_an_accelerometer_is_refused() -> 
 
 
 def test_a_steady_kinematic_error_is_learned_and_carried_through_a_camera_gap() -> None:
-    # The tractor's kinematics are 0.03 m/s off (a sensor offset, a steady crab) while the camera sees the truth,
-    # then 5 s without a frame in the turn. With the error as a state, (K3), the filter has learned the offset
-    # (measured 0.0289 m/s) and keeps correcting the kinematics for it in the gap: worst error 0.031 m, where the
-    # inflated white error, which ascribes the disagreement to the trailer's slip, follows the kinematics (0.10 m).
+    # The tractor's kinematics are 0.015 m/s off (a sensor offset, the linear tyre model's residual: within the
+    # rolling tyres' 0.02 m/s, so no evidence of slip) while the camera sees the truth, then 5 s without a frame in
+    # the turn. With the error as a state, (K3), the filter has learned the offset (measured 0.0142 m/s) and keeps
+    # correcting the kinematics for it in the gap: worst error 0.016 m, where the inflated white error, which
+    # ascribes the disagreement to the trailer's slip, follows the kinematics (0.054 m).
     r_m, w_m, incs, true = drive_with_truth(n=3000)
     lc, _ = slip_kinematics(PARAMS)
-    offset = 0.03
+    offset = 0.015
     tractor = [tractor_signals(u, r, r * lc + vs + offset) for u, r, vs in true]
     gap = range(400, 450)  # frames, ticks 2000–2250
     blind = (np.arange(3000) > 2000) & (np.arange(3000) < 2250)
@@ -433,6 +434,6 @@ def test_a_steady_kinematic_error_is_learned_and_carried_through_a_camera_gap() 
 
     learned, state_error = learned_and_worst_in_gap("state")
     inflated_state, inflated_error = learned_and_worst_in_gap("inflated")
-    assert learned.size == 8 and learned[7] == pytest.approx(offset, rel=0.05)
+    assert learned.size == 8 and learned[7] == pytest.approx(offset, rel=0.1)
     assert inflated_state.size == 7
-    assert state_error < 0.05 and inflated_error > 2.0 * state_error
+    assert state_error < 0.025 and inflated_error > 2.0 * state_error
