@@ -625,10 +625,15 @@ def study(
             "it needs a steerable towed unit."
         ),
     ] = None,
+    set_: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="A run setting for every case, e.g. --set fusion.kinematic_error_model=state."),
+    ] = None,
 ) -> None:
     """Run a study: every case into its own directory, then one table and the figures."""
+    from scenarios.config import parse_assignment
     from scenarios.run.results import new_run_dir
-    from scenarios.studies.definitions import STUDIES, check_study_vehicle, run_study
+    from scenarios.studies.definitions import STUDIES, check_study_vehicle, run_study, study_cases
     from scenarios.studies.progress import rich_progress
     from scenarios.studies.records import CASES_DIR
     from vehicle_model.errors import InputError
@@ -637,6 +642,9 @@ def study(
         raise InputError(f"unknown study {name!r}; choose one of {', '.join(sorted(STUDIES))}")
     for note in check_study_vehicle(name, vehicle):  # a vehicle it cannot drive: refused before any work
         errors.print(f"note: {note}", markup=False)
+    settings = dict(parse_assignment(item) for item in set_ or [])
+    if settings:
+        study_cases(name, full, vehicle, settings)  # settings a case refuses: one line, before any work
     if out is not None and resume and (out / CASES_DIR).is_dir():
         run_dir = out  # an earlier run of the study: finish it
     else:
@@ -651,6 +659,7 @@ def study(
             resume=resume,
             on_progress=progress,
             vehicle=vehicle,
+            settings=settings,
         )
     _print_study_summary(table, run_dir, name)
     failed = int((table["status"] == RunStatus.FAILED).sum()) if "status" in table.columns else 0

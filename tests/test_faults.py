@@ -94,6 +94,7 @@ def assert_one_line_error(result: subprocess.CompletedProcess, *words: str) -> N
         (["render", "roundabout-test", "--out", "/tmp/x", "--density", "2"], "--density"),
         (["study", "paper-section3", "--workers", "0"], "--workers"),
         (["study", "no-such-study"], "no-such-study"),
+        (["study", "field-loop", "--set", "fusion.kinematic_error_model=bogus"], "fusion.kinematic_error_model"),
         (["compare", "roundabout-test", "--feedbacks", ""], "--feedbacks"),
         (["compare", "roundabout-test", "--feedbacks", "truth,gps"], "--feedbacks"),
         (["run", "roundabout-7"], "unknown scenario"),
@@ -124,6 +125,12 @@ def test_bad_input_is_refused_before_any_work(tmp_path: Path) -> None:
     result = offtrack("run", "roundabout-test", "--set", "rates.dynamics_step_s=1e-9", "--out", str(tmp_path / "r"))
     assert_one_line_error(result, "rates.dynamics_step_s")
     assert time.monotonic() - t0 < 30 and not (tmp_path / "r").exists()
+
+
+def test_a_study_setting_a_case_refuses_stops_before_any_work(tmp_path: Path) -> None:
+    result = offtrack("study", "field-loop", "--set", "fusion.tractor_slip=-1", "--out", str(tmp_path / "s"))
+    assert_one_line_error(result, "fusion.tractor_slip")
+    assert not (tmp_path / "s").exists()
 
 
 @pytest.mark.parametrize("where", ["file", "under_file"])

@@ -623,3 +623,17 @@ def test_a_dask_worker_killed_mid_study_fails_its_cases_and_resume_retries_them(
     again = run_sweep(cases, tmp_path, scheduler=dask_cluster)  # resume on the replacement
     assert again.executed == len(failed) and not again.failures
     assert all(r.worker["pid"] != pid for r in again.records if r.name in failed)
+
+
+def test_a_studys_settings_are_appended_to_every_case() -> None:
+    from scenarios.studies.definitions import study_cases
+
+    plain = study_cases("field-loop")
+    tuned = study_cases("field-loop", settings={"fusion.kinematic_error_model": "state", "fusion.tractor_slip": 0.005})
+    assert [s.name for s in tuned] == [s.name for s in plain]
+    for before, after in zip(plain, tuned, strict=True):
+        assert after.overrides == (
+            *before.overrides,
+            ("fusion.kinematic_error_model", "state"),
+            ("fusion.tractor_slip", 0.005),
+        )

@@ -35,8 +35,9 @@ missing or failed.
 
 from __future__ import annotations
 
+import dataclasses
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -231,15 +232,30 @@ def study_vehicle_params(vehicle: str) -> VehicleParams:
         raise InputError(f"--vehicle {vehicle}: {vehicle_problem(exc)}") from None
 
 
-def study_cases(name: str, full: bool = False, vehicle: str | None = None) -> list[CaseSpec]:
+def study_cases(
+    name: str, full: bool = False, vehicle: str | None = None, settings: Mapping[str, Any] | None = None
+) -> list[CaseSpec]:
     """The cases of study ``name`` (a subset unless ``full``), for ``vehicle`` where it takes one
-    (:func:`check_study_vehicle`)."""
+    (:func:`check_study_vehicle`), with ``settings`` (dotted run settings, e.g. the fused filter's) appended to
+    every case's own overrides.
+
+    Raises
+    ------
+    InputError
+        An unknown study, a ``vehicle`` it does not take, or ``settings`` that make some case's configuration
+        invalid (one line naming the field, from the configuration's own validation; before any case runs).
+    """
     if name not in STUDIES:
         raise InputError(f"unknown study {name!r}; choose one of {', '.join(sorted(STUDIES))}")
     check_study_vehicle(name, vehicle)
-    if vehicle is None:
-        return STUDIES[name](full)
-    return STUDIES[name](full, vehicle)  # type: ignore[call-arg]
+    cases = STUDIES[name](full) if vehicle is None else STUDIES[name](full, vehicle)  # type: ignore[call-arg]
+    if not settings:
+        return cases
+    extra = tuple(settings.items())
+    cases = [dataclasses.replace(spec, overrides=spec.overrides + extra) for spec in cases]
+    for spec in cases:  # every case's configuration validated with them, before any runs
+        load_scenario(spec.scenario, dict(spec.overrides))
+    return cases
 
 
 def run_estimators_under_slip_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
@@ -282,6 +298,7 @@ def run_study(
     resume: bool = True,
     on_progress: ProgressCallback | None = None,
     vehicle: str | None = None,
+    settings: Mapping[str, Any] | None = None,
 ) -> pd.DataFrame:
     """Run every case of a study; write ``table.parquet``, ``table.csv``, ``table.md`` and the figures.
 
@@ -308,6 +325,9 @@ def run_study(
     vehicle
         Another combination (a preset's name or a combination file) for a study of :data:`VEHICLE_STUDIES`;
         refused for the others (:func:`check_study_vehicle`, before any case runs).
+    settings
+        Dotted run settings appended to every case's overrides (:func:`study_cases`); a finished case whose spec
+        they change is run again on resume.
 
     Returns
     -------
@@ -318,14 +338,15 @@ def run_study(
     Raises
     ------
     InputError
-        An unknown study, or a ``vehicle`` it does not take (one line, before any case runs).
+        An unknown study, a ``vehicle`` it does not take, or ``settings`` a case's configuration refuses (one line,
+        before any case runs).
     KeyboardInterrupt
         Ctrl-C, or :class:`~scenarios.run.stopping.Terminated` on SIGTERM, anywhere in the study (also in a
         case or a worker): the study stops at once, the finished cases stay recorded, no table or figure
         is written, and running it again into ``out_dir`` runs the rest
         (:func:`~scenarios.studies.sweep.run_sweep`).
     """
-    cases = study_cases(name, full, vehicle)
+    cases = study_cases(name, full, vehicle, settings)
     by_name = {spec.name: spec for spec in cases}
 
     def report(p: SweepProgress) -> None:
