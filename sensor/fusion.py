@@ -162,7 +162,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -519,7 +519,8 @@ class FusedVisoOt:
         sample = (float(yaw_rate), float(wheel_speed), self._steer_term(steer))
         if not all(math.isfinite(v) for v in sample):
             raise InputError(f"trailer signals {sample} must be finite")
-        kinematic_variance = self._kinematic_variance()  # σ_k² of (K3) on this step, kept for re-filtering
+        # σ_k² of (K3) on this step, kept for re-filtering (the inflated model has no such state)
+        kinematic_variance = self._kinematic_variance() if self._error_state else 0.0
         if self._previous_input is None:
             x, p = self._start
             x, p = x.copy(), p.copy()
@@ -614,8 +615,7 @@ class FusedVisoOt:
             h[_EK] = 1.0
             # the evidence of slip beyond the floor also as (K2)'s correlated white error: seen slip de-weights the
             # kinematics at once, while the state learns their steady error
-            floor = self._kinematic_variance(evidence=False)
-            excess = max(0.0, variance - floor) * n.kinematic_error_time / max(dt, 1e-6)
+            excess = (variance - self._kinematic_floor()) * n.kinematic_error_time / max(dt, 1e-6)
             return ((h, z, n.kinematic_white_noise**2 + excess),)
         if math.isfinite(self._expected_power) and self._frame_interval > 0.0:  # information per second, eq (5)
             camera = 1.0 / (self._expected_power * self._frame_interval)
@@ -624,13 +624,15 @@ class FusedVisoOt:
             )
         return ((h, z, variance * n.kinematic_error_time / max(dt, 1e-6)),)  # a time-correlated error
 
-    def _kinematic_variance(self, evidence: bool = True) -> float:
-        """σ_k² of (K2) from the slip evidence so far and the last tick's modelled rear slip [m²/s²] (its floor
-        alone with ``evidence`` false)."""
+    def _kinematic_floor(self) -> float:
+        """σ_k²'s floor of (K2), ``σ_0² + (u_C·v_m)²``, with the last tick's modelled rear slip [m²/s²]."""
         n = self.noise
         modelled = n.tractor_stiffness_uncertainty * self._modelled_slip
-        floor = n.tractor_slip**2 + modelled * modelled
-        return max(floor, self._slip_evidence) if evidence else floor  # (K2)
+        return n.tractor_slip**2 + modelled * modelled
+
+    def _kinematic_variance(self) -> float:
+        """σ_k² of (K2): the slip evidence so far, at least its floor [m²/s²]."""
+        return max(self._kinematic_floor(), self._slip_evidence)  # (K2)
 
     def _kinematic_lateral_step(self, index: int, x: np.ndarray) -> float | None:
         """The kingpin's lateral displacement from the anchor to history ``index`` in the anchor's frame, had no
@@ -765,7 +767,7 @@ class FusedVisoOt:
             last = self._history[-1]
             nx, np_ = self._step(last.x, last.p, h.inputs, h.kinematic_variance)
             nx, np_ = _apply_rows(nx, np_, h.kinematic)
-            self._history.append(_Tick(h.tick, h.inputs, nx, np_, h.kinematic, h.tractor_lateral, h.kinematic_variance))
+            self._history.append(replace(h, x=nx, p=np_))
 
     # ------------------------------------------------------------------ estimate
 
