@@ -30,6 +30,7 @@ from scenarios.studies.field_loop import (
     field_signals,
     kinematic_trust,
     metrics_columns,
+    pooled_coverage,
     run_field_loop_case,
 )
 from scenarios.studies.figures import FIGURES
@@ -212,6 +213,25 @@ def test_a_missing_feedback_case_fails_its_cell() -> None:
     assert all(a.startswith("RMS —") for a in cells["acceptance"])
 
 
+def test_pooled_coverage_means_each_group_of_cells_once() -> None:
+    cells = pd.DataFrame(
+        {
+            "conditions": ["field", "field", "field", "field", "ideal", "ideal"],
+            "alignment": ["aligned", "aligned", "paper", "paper", "aligned", "aligned"],
+            "coverage": [0.86, 0.90, 0.99, math.nan, 0.97, 0.93],
+        }
+    )
+    pooled = pooled_coverage(cells).set_index("group")
+    assert list(pooled.index) == ["field, aligned", "field, the paper's rotation", "ideal", "all"]
+    assert pooled.loc["field, aligned", "mean"] == pytest.approx(0.88, abs=1e-12)
+    assert pooled.loc["field, the paper's rotation", "cells"] == 1  # the cell without a coverage left out
+    assert pooled.loc["field, the paper's rotation", "mean"] == pytest.approx(0.99, abs=1e-12)
+    assert (pooled.loc["ideal", "least"], pooled.loc["ideal", "most"]) == (0.93, 0.97)
+    assert pooled.loc["all", "cells"] == 5 and pooled.loc["all", "mean"] == pytest.approx(0.93, abs=1e-12)
+    empty = pooled_coverage(cells.iloc[:0]).set_index("group")
+    assert (empty["cells"] == 0).all() and empty["mean"].isna().all()
+
+
 def test_figures_and_table_on_a_synthetic_table(tmp_path: Path) -> None:
     table = _synthetic_table()
     field_loop_figures(table, tmp_path)
@@ -220,6 +240,7 @@ def test_figures_and_table_on_a_synthetic_table(tmp_path: Path) -> None:
     text = (tmp_path / "table.md").read_text()
     assert "1 of 6 cells pass" in text and "## Every case" in text
     assert "| roundabout-3 | dry | 5 | ideal | paper | 0 | 0.040 / 0.090 |" in text
+    assert "| ideal | 6 | 89.5 | 70.0 / 99.0 |" in text  # the synthetic cells' coverages, all ideal
     assert cell_label(table.iloc[0]) == "r3 dry 5% ideal s0"
     assert cell_label({**table.iloc[0].to_dict(), "conditions": "field"}) == "r3 dry 5% field paper s0"
 

@@ -30,7 +30,7 @@ ice, 5 %, paper) and (ideal, ice, 5 %), with the three feedbacks each and ``dura
 errors and coverage, the feedback's fallback, the run's verdict and how far the filter trusted the zero-slip
 kinematics; :func:`cell_table` gathers the rows into one per cell with the study's acceptance
 (:func:`acceptance`, thresholds :data:`TARGET_RMS_M`, :data:`TARGET_MAX_M`, :data:`DRY_MARGIN_M`,
-:data:`COVERAGE_BAND`).
+:data:`COVERAGE_BAND`), and :func:`pooled_coverage` the std's coverage over groups of cells.
 """
 
 from __future__ import annotations
@@ -407,6 +407,50 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
             ice_camber=row["surface"] == "ice" and row["camber"] > 0.0 and row["conditions"] == "field",
         )
         rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def pooled_coverage(cells: pd.DataFrame) -> pd.DataFrame:
+    """The share of the fused errors within 2σ over groups of cells: field aligned, field with the paper's rotation,
+    ideal, and all.
+
+    A std that is right on average puts 95 % of a normal error within 2σ; one cell's share varies with what that
+    seed's calibration and scenery happen to do, which no state of the filter observes (docs/field_bias.md §6.2),
+    so the groups' means say whether the std is calibrated where one cell cannot. Each cell counts once (the mean of
+    the cells' shares, not of their samples).
+
+    Parameters
+    ----------
+    cells
+        :func:`cell_table`'s rows (cells without a coverage are left out).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``group``, ``cells`` (how many had a coverage), ``mean``, ``least`` and ``most`` (shares; NaN without
+        cells), one row per group in the order above.
+    """
+    coverage = np.asarray(cells["coverage"], dtype=float) if len(cells) else np.zeros(0)
+    field = np.asarray(cells["conditions"] == "field", dtype=bool) if len(cells) else np.zeros(0, bool)
+    paper = np.asarray(cells["alignment"] == "paper", dtype=bool) if len(cells) else np.zeros(0, bool)
+    groups = {
+        "field, aligned": field & ~paper,
+        "field, the paper's rotation": field & paper,
+        "ideal": ~field,
+        "all": np.ones_like(field),
+    }
+    rows = []
+    for group, members in groups.items():
+        shares = coverage[members & np.isfinite(coverage)]
+        rows.append(
+            {
+                "group": group,
+                "cells": int(shares.size),
+                "mean": float(shares.mean()) if shares.size else math.nan,
+                "least": float(shares.min()) if shares.size else math.nan,
+                "most": float(shares.max()) if shares.size else math.nan,
+            }
+        )
     return pd.DataFrame(rows)
 
 

@@ -7,8 +7,8 @@
   :data:`~.field_loop.COVERAGE_BAND` shaded;
 * ``field_loop_errors.png`` — the RMS error of the fused, raw VISO-OT and zero-slip estimators, all three run on
   the fused-fed case;
-* ``table.md`` — rewritten as one row per cell with its acceptance (:func:`~.field_loop.cell_table`), then every
-  case.
+* ``table.md`` — rewritten as one row per cell with its acceptance (:func:`~.field_loop.cell_table`), the
+  coverage over groups of cells (:func:`~.field_loop.pooled_coverage`), then every case.
 
 Cells are labelled ``r3 dry 0% field aligned s0`` (manoeuvre, surface, camber, conditions, alignment, seed); an
 ideal cell leaves the alignment out (``r3 ice 5% ideal s0``).
@@ -32,6 +32,7 @@ from .field_loop import (
     TARGET_MAX_M,
     TARGET_RMS_M,
     cell_table,
+    pooled_coverage,
 )
 
 SHORT_SCENARIOS = {"roundabout-3": "r3", "figure-eight": "f8"}
@@ -206,6 +207,20 @@ def field_loop_markdown(cells: pd.DataFrame) -> str:
             str(r["acceptance"]),
         ]
         lines.append("| " + " | ".join(cells_text) + " |")
+    lines += [
+        "",
+        "Fused errors within 2σ over groups of cells (each cell counts once; a calibrated std puts 95 % of a normal "
+        "error there, and one cell's share varies with what its seed's calibration and scenery do: "
+        "docs/field_bias.md §6.2):",
+        "",
+        "| cells | how many | mean within 2σ [%] | least / most [%] |",
+        "| --- | --- | --- | --- |",
+    ]
+    for _, g in pooled_coverage(cells).iterrows():
+        lines.append(
+            f"| {g['group']} | {int(g['cells'])} | {_fmt(100 * g['mean'], 1)} | "
+            f"{_fmt(100 * g['least'], 1)} / {_fmt(100 * g['most'], 1)} |"
+        )
     return "\n".join(lines) + "\n"
 
 
