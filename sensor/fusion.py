@@ -77,7 +77,14 @@ kingpin motion (less the odometry's estimated systematic error) against the kine
 rolling tyres; ``v_m`` the rear slip velocity the compensated rear points predict, ``K·u_1²·r_1`` or
 ``K·u_1·f_y``, uncertain by the cornering stiffnesses' relative ``u_C`` = ``tractor_stiffness_uncertainty``).
 A persistent disagreement is slip, noise is not (innovation-based adaptive estimation: Mehra 1972; Mohamed &
-Schwarz 1999). On a dry road the disagreement stays within the noise, σ_k stays at σ_0 and the
+Schwarz 1999). A slip that changes sign — a change of turn on ice, where the tractor's tyres slip the other way —
+takes ``m_k`` through zero, and (K2) would trust the kinematics just as their error flips; with
+``slip_evidence_hold`` the evidence falls no faster than it would had the slip stopped (a mean decaying by
+``1 − α`` a frame, its square by ``(1 − α)²``)::
+
+    e_k = max(m_k² − V_k·α/(2 − α), (1 − α)²·e_{k−1}),   σ_k² = max(σ_0² + (u_C·v_m)², e_k)           (K2')
+
+On a dry road the disagreement stays within the noise, σ_k stays at σ_0 and the
 kinematics share the estimate with the camera; where the camera sees slip — ice, a cambered road — σ_k follows the
 slip within ``τ_a`` and the camera carries the estimate. σ_k is recorded (:attr:`FusedVisoOt.kinematic_std`): the
 run says which source it trusted.
@@ -250,6 +257,10 @@ class FusionNoise(Settings):
         ``τ_c``: the correlation time of the kinematic errors [s].
     slip_evidence_time : float
         ``τ_a`` of (K2): how fast the kinematics' σ follows the evidence of slip [s].
+    slip_evidence_hold : bool
+        (K2'): the evidence of slip falls no faster than a stopped slip's would, so a slip that changes sign (a
+        change of turn on ice) keeps the kinematics de-weighted through the change (default off: the model the
+        field-loop grid was measured with).
     gate : float
         Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
     max_gated : int
@@ -321,6 +332,7 @@ class FusionNoise(Settings):
     slip_evidence_time: float = Field(
         1.0, gt=0.0, le=30.0, description="[s] how fast the kinematics' σ follows the slip; 30 s misses a turn entry"
     )
+    slip_evidence_hold: bool = False
     gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
     max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")
     max_std: float = Field(0.5, gt=0.0, le=10.0, description="[m] of off-tracking std; 10 m says nothing")
@@ -661,7 +673,10 @@ class FusedVisoOt:
             self._innovation_power += alpha * (velocity - self._innovation_power)
             self._expected_power += alpha * (expected - self._expected_power)
         # the mean's own variance, had the innovations been white: α/(2 − α) of theirs
-        self._slip_evidence = max(0.0, self._innovation_power**2 - self._expected_power * alpha / (2.0 - alpha))
+        evidence = max(0.0, self._innovation_power**2 - self._expected_power * alpha / (2.0 - alpha))
+        if self.noise.slip_evidence_hold:  # (K2'): no faster down than a slip that stopped
+            evidence = max(evidence, (1.0 - alpha) ** 2 * self._slip_evidence)
+        self._slip_evidence = evidence
 
     # ------------------------------------------------------------------ measurement
 

@@ -437,3 +437,38 @@ def test_a_steady_kinematic_error_is_learned_and_carried_through_a_camera_gap() 
     assert learned.size == 8 and learned[7] == pytest.approx(offset, rel=0.1)
     assert inflated_state.size == 7
     assert state_error < 0.025 and inflated_error > 2.0 * state_error
+
+
+def test_held_slip_evidence_keeps_the_kinematics_de_weighted_through_a_change_of_slip_sign() -> None:
+    # The tractor's kinematics are 0.08 m/s off from 15 s and −0.08 m/s from 35 s (the tyres slipping the other
+    # way, a change of turn on ice); the camera sees the truth. (K2)'s signed mean passes through zero at the
+    # change, so σ_k falls to its floor (0.02 m/s) just as the error flips; (K2') lets the evidence fall no faster
+    # than a stopped slip's, so σ_k stays at least a third of the slip (worked out: 0.0267 m/s, the new evidence
+    # meeting the held one where 1 − 2x = x of the decay).
+    r_m, w_m, incs, true = drive_with_truth(n=3000)
+    lc, _ = slip_kinematics(PARAMS)
+    t = np.arange(3000) * DT
+    error = np.where(t < 15.0, 0.0, np.where(t < 35.0, 0.08, -0.08))
+    tractor = [tractor_signals(u, r, r * lc + vs + e) for (u, r, vs), e in zip(true, error, strict=True)]
+
+    def kinematic_std(hold: bool) -> np.ndarray:
+        fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(slip_evidence_hold=hold))
+        out = np.empty(len(t))
+        frame_inc = np.zeros(3)
+        for k in range(len(t)):
+            if k > 0:
+                frame_inc = compose(frame_inc, incs[k])
+            fused.propagate(k, DT, r_m[k], w_m[k], np.zeros(2), tractor[k])
+            if k % EVERY == 0:
+                if k > 0:
+                    fused.measure(k, camera_motion(frame_inc), VO_COVARIANCE)
+                frame_inc = np.zeros(3)
+            out[k] = fused.kinematic_std
+        return out
+
+    held, signed = kinematic_std(True), kinematic_std(False)
+    change = (t > 34.0) & (t < 40.0)
+    steady = (t > 25.0) & (t < 35.0)
+    assert signed[change].min() == pytest.approx(FusionNoise().tractor_slip, abs=1e-12)  # the floor
+    assert held[change].min() == pytest.approx(0.08 / 3.0, rel=0.05)
+    assert held[steady] == pytest.approx(0.08, rel=0.02) and signed[steady] == pytest.approx(0.08, rel=0.02)
