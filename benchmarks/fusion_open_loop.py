@@ -93,16 +93,14 @@ def run_cell(args: tuple[str, list[tuple[str, Any]], str, str]) -> tuple[str, di
 
 
 def parse_set(items: list[str]) -> list[tuple[str, Any]]:
-    """``key=value`` overrides, the value read as YAML (numbers, booleans, lists)."""
-    import yaml
+    """``key=value`` overrides, the value read as YAML (numbers, booleans, lists), as ``offtrack … --set`` reads them
+    (:func:`scenarios.config.parse_assignment`)."""
+    from scenarios.config import ConfigError, parse_assignment
 
-    pairs = []
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise SystemExit(f"--set {item!r}: expected key=value")
-        pairs.append((key, yaml.safe_load(value)))
-    return pairs
+    try:
+        return [parse_assignment(item) for item in items]
+    except ConfigError as exc:
+        raise SystemExit(f"{exc}: expected key=value") from None
 
 
 def main(argv: list[str] | None = None) -> int:

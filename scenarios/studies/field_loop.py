@@ -430,9 +430,10 @@ def pooled_coverage(cells: pd.DataFrame) -> pd.DataFrame:
         ``group``, ``cells`` (how many had a coverage), ``mean``, ``least`` and ``most`` (shares; NaN without
         cells), one row per group in the order above.
     """
-    coverage = np.asarray(cells["coverage"], dtype=float) if len(cells) else np.zeros(0)
-    field = np.asarray(cells["conditions"] == "field", dtype=bool) if len(cells) else np.zeros(0, bool)
-    paper = np.asarray(cells["alignment"] == "paper", dtype=bool) if len(cells) else np.zeros(0, bool)
+    cells = cells.reindex(columns=["conditions", "alignment", "coverage"])  # an empty table may have no columns
+    coverage = cells["coverage"].to_numpy(dtype=float)
+    field = cells["conditions"].eq("field").to_numpy()
+    paper = cells["alignment"].eq("paper").to_numpy()
     groups = {
         "field, aligned": field & ~paper,
         "field, the paper's rotation": field & paper,
