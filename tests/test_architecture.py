@@ -32,6 +32,7 @@ SCENARIO_ROOMS: tuple[str, ...] = (
     "camera_checks",
     "registry",
     "unit_feedback",
+    "configuration",
     "config",
     "config_fields",
     "catalogue",

@@ -1,0 +1,159 @@
+"""The complete, resolved scenario (:class:`ScenarioConfig`): its sections, vehicle, feedback and the checks across
+them."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import Field, field_validator, model_validator
+from pydantic_core import PydanticCustomError
+
+from controller.steer_input import SteerInputConfig
+from vehicle_model.parameters import VehicleParams
+from vehicle_model.presets import VEHICLE_PRESETS
+from vehicle_model.settings import Settings
+
+from ..camera_schema import CameraConfig
+from ..registry import NO_FEEDBACK, estimator_entries, estimator_entry, feedback_sources
+from ..unit_feedback import check_unit_feedback, steered_units
+from .sections import (
+    CamberConfig,
+    ControllerConfig,
+    EstimatorsConfig,
+    FusionConfig,
+    PathConfig,
+    RatesConfig,
+    SignalsConfig,
+    SpeedConfig,
+    SurfaceConfig,
+)
+from .vehicle_field import Vehicle, check_vehicle, params_of, read_vehicle_file, vehicle_name
+
+
+class ScenarioConfig(Settings):
+    """A complete, resolved scenario."""
+
+    name: str = "custom"
+    description: str = ""
+    vehicle: Vehicle = Field(
+        "reference",
+        description="a preset (offtrack list), a combination file NAME.yaml (held inline once resolved, so the run "
+        "reproduces from its config.yaml) or the combination itself (docs/vehicles.md)",
+    )
+    direction: Literal["left", "right"] = "left"
+    path: PathConfig = PathConfig()
+    surface: SurfaceConfig = SurfaceConfig()
+    camber: CamberConfig = CamberConfig()
+    speed: SpeedConfig = SpeedConfig()
+    rates: RatesConfig = RatesConfig()
+    signals: SignalsConfig = SignalsConfig()
+    estimators: EstimatorsConfig = EstimatorsConfig()
+    camera: CameraConfig = CameraConfig()
+    fusion: FusionConfig = FusionConfig()
+    feedback: str = Field(
+        NO_FEEDBACK, description="the estimate fed back to the trailer steering; 'none' leaves the trailer unsteered"
+    )
+    rear_feedback: tuple[str, ...] | None = Field(
+        None,
+        description="the estimate fed back to each towed unit behind the first (a B-double's rear trailer, an "
+        "A-double's dolly and second trailer), one per unit: none, truth or zero_slip; null: each steerable one "
+        "on feedback (scenarios.unit_feedback)",
+    )
+    controller: ControllerConfig = ControllerConfig()
+    driver: SteerInputConfig = Field(
+        SteerInputConfig(),
+        description="the tractor's steer: the path follower (steer_input none) or an open-loop sine or pulse "
+        "(controller.steer_input)",
+    )
+    roundabout_test: bool = False
+    record_steer_tyres: bool = Field(
+        False,
+        description="record the steer axles' forces, load and road friction every tick (fx_/fy_/fz_/mu_<axle>; the "
+        "PBS steer-tyre friction demand needs them); off by default: the model's outputs cost about a fifth of a "
+        "model-only run's time",
+    )
+    seed: int = Field(0, ge=0, le=2**32 - 1, description="numpy's seed range")
+    duration_s: float | None = Field(
+        None, gt=0.0, le=3600.0, description="[s] simulated; an hour bounds the memory of the recorded time series"
+    )
+
+    _vehicle_file = field_validator("vehicle", mode="before")(read_vehicle_file)
+    _vehicle_the_model_can_run = field_validator("vehicle")(check_vehicle)
+
+    @property
+    def vehicle_name(self) -> str:
+        """The vehicle's name: the preset's, or the combination's (a file's stem unless it names itself)."""
+        return vehicle_name(self.vehicle)
+
+    def vehicle_params(self) -> VehicleParams:
+        """The model's parameters of the vehicle (:meth:`vehicle_model.combination.CombinationSpec.params`)."""
+        return params_of(self.vehicle)
+
+    @field_validator("feedback")
+    @classmethod
+    def _registered_feedback(cls, feedback: str) -> str:
+        if feedback not in feedback_sources():
+            raise PydanticCustomError(
+                "feedback_source",
+                "must be one of {choices} (the registered estimators, scenarios.registry)",
+                {"choices": ", ".join(feedback_sources())},
+            )
+        return feedback
+
+    @model_validator(mode="before")
+    @classmethod
+    def _feedback_turns_its_estimator_on(cls, data: Any) -> Any:
+        """The estimator fed back runs: its ``estimators`` switch is set, so the resolved file says what ran."""
+        if not isinstance(data, dict) or not isinstance(data.get("feedback"), str):
+            return data
+        try:
+            switch = estimator_entry(data["feedback"]).switch
+        except KeyError:
+            return data  # no feedback, or an unknown one: reported by the field's own check
+        estimators = data.get("estimators", {})
+        if switch is None or not isinstance(estimators, dict) or estimators.get(switch) is True:
+            return data
+        return {**data, "estimators": {**estimators, switch: True}}
+
+    def enabled_estimators(self) -> tuple[str, ...]:
+        """The estimators a run of this configuration runs, in registry order (:mod:`scenarios.registry`)."""
+        entries = estimator_entries()
+        on = {
+            e.name
+            for e in entries
+            if e.always or e.name == self.feedback or (e.switch is not None and getattr(self.estimators, e.switch))
+        }
+        for entry in reversed(entries):  # an entry's requirements are registered before it
+            if entry.name in on:
+                on.update(entry.requires)
+        return tuple(e.name for e in entries if e.name in on)
+
+    @property
+    def uses_camera(self) -> bool:
+        """Whether a run renders the trailer's stereo camera (an enabled estimator needs it)."""
+        return any(estimator_entry(name).needs_camera for name in self.enabled_estimators())
+
+    @model_validator(mode="after")
+    def _check(self) -> ScenarioConfig:
+        if self.roundabout_test and self.path.kind != "roundabout":
+            raise ValueError("roundabout_test needs path.kind = roundabout")
+        params = self.vehicle_params()
+        check_unit_feedback(params, self.feedback, self.rear_feedback, self.uses_camera)
+        first_steered = any(a.steerable for a in params.trailer.axles)
+        steered = steered_units(params, self.feedback, self.rear_feedback)
+        if self.feedback != "none" and not first_steered and (self.rear_feedback is not None or not steered):
+            steerable = sorted(n for n, f in VEHICLE_PRESETS.items() if any(a.steerable for a in f().trailer.axles))
+            behind = "; rear_feedback steers the units behind it" if params.n_units > 2 else ""
+            raise ValueError(
+                f"feedback {self.feedback!r} steers the trailer, but vehicle {self.vehicle_name!r} has no steerable "
+                f"axle on its first towed unit; use one of {steerable} or make one steerable "
+                f"(--set vehicle.units[1].axles[0].steerable=true){behind}"
+            )
+        if self.path.slip_deg is not None and steered:
+            raise ValueError("a kinematic constant-slip run cannot be steered; use feedback none")
+        if self.path.slip_deg is not None and self.driver.open_loop:
+            raise ValueError(
+                f"driver.steer_input = {self.driver.steer_input!r}: a kinematic constant-slip run is not steered; "
+                "use none"
+            )
+        return self

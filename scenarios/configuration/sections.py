@@ -1,0 +1,378 @@
+"""The sections of a scenario's configuration: path, surface, camber, speed, rates, signals, estimators, fusion and
+controller, one class each, every field with its unit, range and the reason for the range beside it."""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any, Literal
+
+from pydantic import Field, ValidationInfo, field_validator, model_validator
+from pydantic_core import PydanticCustomError
+
+from controller.path_following_config import PathFollowingConfig, PathFollowingGains
+from sensor.fusion import FusionNoise
+from sensor.signals import ChannelSpec
+from vehicle_model.kinematics import RearPoint
+from vehicle_model.settings import Settings
+from vehicle_model.surface import FRICTION_PRESETS
+
+COORDINATE_LIMIT_M = 10_000.0
+"""Largest |coordinate| of a friction patch [m]: beyond any path the schema allows (5 km straight + 2 × 1 km)."""
+
+
+_COORDINATE = "[m]; ±10 km holds every path the schema allows (5 km straight, 1 km entry and exit)"
+_MU = "friction coefficient; 0 cannot be driven on and 1.5 is above any real road"
+
+_SPEED = "[km/h]; 90 km/h is a truck's speed limiter"
+_GAIN = "per metre travelled; 10 is far above any designed gain"
+
+_CAMERA_RATE_TOLERANCE = 1e-3
+"""A camera rate within this relative distance of ``control_hz / n`` is taken as exactly that."""
+
+
+def _nearest(value: float, allowed: list[float], low: float, high: float) -> str:
+    """The allowed values in ``[low, high]`` next below and above ``value``, as ``'a or b'``."""
+    usable = sorted(a for a in allowed if low <= a <= high)
+    below = [a for a in usable if a < value][-1:]
+    above = [a for a in usable if a > value][:1]
+    return " or ".join(f"{a:.4g}" for a in below + above) or "none"
+
+
+class PathConfig(Settings):
+    """Reference path of the tractor's control point.
+
+    ``kind``: ``roundabout`` (``turns`` full circles), ``figure_eight`` (two opposite loops joined by
+    ``gap``), ``straight`` (``length``; with ``slip_deg`` the combination is moved kinematically,
+    crabbing at a constant slip angle, as in de Saxe & Cebon 2018, §3), ``turn`` (one arc of ``angle_deg``
+    between the entry and exit straights: the PBS low-speed turn, docs/pbs.md). ``control_point``: the tractor
+    point that tracks the path — ``outer_front_corner`` (the roundabout test's outermost point),
+    ``outer_steer_tyre`` (the outer edge of the steer axle's outer tyre, the PBS low-speed turn's) or
+    ``front_axle``. ``radius`` is that point's path radius; in the roundabout test the driver keeps
+    the outer corner ``driver_margin`` inside it.
+
+    ``file``: a road read from ``file`` (CSV, GeoJSON or OpenDRIVE, :mod:`scenarios.setup.roads`) and smoothed over
+    ``smoothing``; ``single_lane_change`` (ISO 14791) and ``double_lane_change`` (ISO 3888-1) are generated
+    (:mod:`scenarios.setup.lane_changes`, which says which of their defaults were checked against the standards),
+    after ``entry_length`` and before ``exit_length``, to the side ``direction`` names first.
+    """
+
+    kind: Literal[
+        "roundabout",
+        "figure_eight",
+        "straight",
+        "turn",
+        "file",
+        "single_lane_change",
+        "double_lane_change",
+    ] = "roundabout"
+    # settle_turns: circles driven before the assessed ``turns`` (the roundabout test assesses a full
+    # 360° once the combination is on the circle, not its entry from the approach).
+    radius: float = Field(
+        15.0, ge=5.0, le=500.0, description="[m]; below 5 m no combination can turn, above 500 m it is a straight"
+    )
+    turns: float = Field(1.0, gt=0.0, le=10.0, description="assessed circles; more adds run time, not information")
+    settle_turns: float = Field(0.0, ge=0.0, le=2.0, description="circles before assessment; one settles any entry")
+    gap: float = Field(10.0, ge=0.0, le=200.0, description="[m] straight between the figure-of-eight's loops")
+    angle_deg: float = Field(
+        90.0, gt=0.0, le=180.0, description="[°] the turn's arc; beyond 180° it is a roundabout (kind roundabout)"
+    )
+    length: float = Field(100.0, gt=0.0, le=5000.0, description="[m] straight length; 5 km is an hour at 5 km/h")
+    slip_deg: float | None = Field(
+        None, ge=-80.0, le=80.0, description="[°] constant crab angle; at ±90° the combination moves sideways"
+    )
+    entry_length: float = Field(30.0, ge=0.0, le=1000.0, description="[m] approach straight")
+    exit_length: float = Field(30.0, ge=0.0, le=1000.0, description="[m] departure straight")
+    control_point: Literal["outer_front_corner", "outer_steer_tyre", "front_axle"] = "front_axle"
+    driver_margin: float = Field(
+        0.0, ge=0.0, le=0.5, description="[m] the driver keeps inside the test circle; more is not the test"
+    )
+    # Roads from files (kind file).
+    file: str | None = Field(
+        None,
+        min_length=1,
+        max_length=4096,
+        description="road file (.csv, .geojson, .json, .xodr): beside the scenario file if it is there, else relative "
+        "to the working directory; 4096 is PATH_MAX",
+    )
+    smoothing: float = Field(
+        2.0,
+        ge=0.2,
+        le=20.0,
+        description="[m] standard deviation of the Gaussian that smooths a road file; below 0.2 m (four samples) "
+        "a digitised polyline's corners reach the driver as curvature spikes, above 20 m it flattens a 5 m radius turn",
+    )
+    road: str | None = Field(
+        None, min_length=1, max_length=100, description="OpenDRIVE road id (default: the file's first road)"
+    )
+    lane: int | None = Field(
+        None,
+        ge=-50,
+        le=50,
+        description="OpenDRIVE lane id whose centre line is followed (default: the road's reference line); no road "
+        "has 50 lanes a side",
+    )
+    # The lane changes (scenarios.setup.lane_changes: defaults not verified against the standards' texts).
+    slc_offset: float = Field(
+        1.46,
+        gt=0.0,
+        le=10.0,
+        description="[m] lateral offset of ISO 14791's single lane change (0.15 g at 0.4 Hz, 88 km/h; not verified); "
+        "10 m is three lanes",
+    )
+    slc_length: float = Field(
+        61.1,
+        ge=10.0,
+        le=500.0,
+        description="[m] length of the single lane change (2.5 s at 88 km/h; not verified); below 10 m no "
+        "combination follows it, 500 m is no longer a manoeuvre",
+    )
+    dlc_offset: float = Field(
+        3.5,
+        gt=0.0,
+        le=10.0,
+        description="[m] lateral offset of ISO 3888-1's double lane change (not verified); 10 m is three lanes",
+    )
+    dlc_sections: tuple[
+        Annotated[float, Field(gt=0.0, le=500.0, description="[m] a section; 500 m is no longer a manoeuvre")],
+        Annotated[float, Field(gt=0.0, le=500.0, description="[m] a section; 500 m is no longer a manoeuvre")],
+        Annotated[float, Field(gt=0.0, le=500.0, description="[m] a section; 500 m is no longer a manoeuvre")],
+        Annotated[float, Field(gt=0.0, le=500.0, description="[m] a section; 500 m is no longer a manoeuvre")],
+        Annotated[float, Field(gt=0.0, le=500.0, description="[m] a section; 500 m is no longer a manoeuvre")],
+    ] = Field(
+        (15.0, 30.0, 25.0, 25.0, 15.0),
+        description="[m] ISO 3888-1's sections: entry lane, change, offset lane, return, exit lane (not verified)",
+    )
+
+    @model_validator(mode="after")
+    def _file_for_a_file_road(self) -> PathConfig:
+        if (self.kind == "file") != (self.file is not None):
+            raise ValueError("path.file is needed with path.kind = file, and only then")
+        return self
+
+
+class PatchConfig(Settings):
+    """A rectangle of different friction, in path-aligned global coordinates [m]."""
+
+    x_min: float = Field(ge=-COORDINATE_LIMIT_M, le=COORDINATE_LIMIT_M, description=_COORDINATE)
+    x_max: float = Field(ge=-COORDINATE_LIMIT_M, le=COORDINATE_LIMIT_M, description=_COORDINATE)
+    y_min: float = Field(ge=-COORDINATE_LIMIT_M, le=COORDINATE_LIMIT_M, description=_COORDINATE)
+    y_max: float = Field(ge=-COORDINATE_LIMIT_M, le=COORDINATE_LIMIT_M, description=_COORDINATE)
+    mu: float = Field(gt=0.0, le=1.5, description=_MU)
+
+    @model_validator(mode="after")
+    def _extent(self) -> PatchConfig:
+        if self.x_max <= self.x_min or self.y_max <= self.y_min:
+            raise ValueError("patch needs x_max > x_min and y_max > y_min")
+        return self
+
+
+class SurfaceConfig(Settings):
+    """Road friction: a named preset or an explicit ``mu`` (which wins), plus low-μ patches."""
+
+    preset: Literal["dry", "wet", "snow", "ice"] = "dry"
+    mu: float | None = Field(None, gt=0.0, le=1.5, description=_MU)
+    patches: tuple[PatchConfig, ...] = Field(
+        (), max_length=1000, description="at most 1000: every patch is tested at every tyre on every dynamics step"
+    )
+
+    @property
+    def base_mu(self) -> float:
+        return self.mu if self.mu is not None else FRICTION_PRESETS[self.preset]
+
+
+class CamberConfig(Settings):
+    """Cross-slope: radial about the nearest loop centre (``outward`` falls away from it), or across a straight."""
+
+    percent: float = Field(0.0, ge=0.0, le=10.0, description="[%] cross-slope; 10 % is beyond any carriageway")
+    direction: Literal["outward", "inward"] = "outward"
+
+
+class SpeedConfig(Settings):
+    """Speed profile: ``cornering_kmh`` on the manoeuvre, ``straight_kmh`` on entry and exit (default: the same)."""
+
+    cornering_kmh: float = Field(15.0, gt=0.0, le=90.0, description=_SPEED)
+    straight_kmh: float | None = Field(None, gt=0.0, le=90.0, description=_SPEED)
+    acceleration: float = Field(
+        0.5, gt=0.0, le=3.0, description="[m/s²]; 3 m/s² is beyond what a laden combination can do"
+    )
+
+
+class RatesConfig(Settings):
+    """Clocks of the co-simulation: dynamics step, control rate, camera rate."""
+
+    dynamics_step_s: float = Field(
+        0.002,
+        ge=1e-4,
+        le=0.005,
+        description="[s] RK4 step; below 0.1 ms a run costs only time and memory (1e-9 s took 23 GB), above 5 ms "
+        "RK4 leaves its stability region for the tyre relaxation dynamics",
+    )
+    control_hz: float = Field(
+        50.0,
+        ge=5.0,
+        le=500.0,
+        description="[Hz]; a whole number of dynamics steps per control period; 5–500 Hz spans real controllers",
+    )
+    camera_hz: float = Field(
+        10.0,
+        ge=1.0,
+        le=60.0,
+        description="[Hz]; frames are taken on control ticks, so control_hz / camera_hz must be a whole number "
+        "(within 0.1 % of control_hz / n is taken as exactly that); 60 Hz is the fastest stereo camera modelled",
+    )
+
+    @property
+    def ticks_per_frame(self) -> int:
+        """Control ticks from one camera frame to the next (the validators make ``control_hz/camera_hz`` whole)."""
+        return max(1, round(self.control_hz / self.camera_hz))
+
+    @property
+    def frame_interval_s(self) -> float:
+        """Time between two camera frames [s]: :attr:`ticks_per_frame` control periods."""
+        return self.ticks_per_frame / self.control_hz
+
+    @field_validator("control_hz")
+    @classmethod
+    def _whole_dynamics_steps(cls, control_hz: float, info: ValidationInfo) -> float:
+        step = info.data.get("dynamics_step_s")
+        if step is None:  # the step itself is invalid and reported
+            return control_hz
+        ratio = 1.0 / (control_hz * step)
+        if round(ratio) < 1 or abs(ratio - round(ratio)) > 1e-6:
+            allowed = [1.0 / (n * step) for n in range(1, int(1.0 / (5.0 * step)) + 1)]
+            raise PydanticCustomError(
+                "control_rate",
+                "control period 1/{control} s must be a whole number of dynamics steps of {step} s; nearest "
+                "allowed {nearest}",
+                {
+                    "control": f"{control_hz:g}",
+                    "step": f"{step:g}",
+                    "nearest": _nearest(control_hz, allowed, 5.0, 500.0),
+                },
+            )
+        return control_hz
+
+    @field_validator("camera_hz")
+    @classmethod
+    def _whole_control_periods(cls, camera_hz: float, info: ValidationInfo) -> float:
+        control_hz = info.data.get("control_hz")
+        if control_hz is None:  # the control rate is invalid and reported
+            return camera_hz
+        n = max(round(control_hz / camera_hz), 1)
+        exact = control_hz / n
+        if abs(camera_hz - exact) <= _CAMERA_RATE_TOLERANCE * exact:
+            return exact  # e.g. 16.67 → 50 / 3, so the frames stay on every third control tick
+        allowed = [control_hz / n for n in range(1, int(control_hz) + 1)]
+        raise PydanticCustomError(
+            "camera_rate",
+            "must divide rates.control_hz = {control} into whole control periods; nearest allowed {nearest}",
+            {"control": f"{control_hz:g}", "nearest": _nearest(camera_hz, allowed, 1.0, 60.0)},
+        )
+
+
+class SignalsConfig(Settings):
+    """On-board signals. Units: m/s for speed, rad and rad/s for angles and rates, m/s² for the accelerometer."""
+
+    wheel_speed: ChannelSpec = ChannelSpec()
+    front_steer: ChannelSpec = ChannelSpec()
+    tractor_yaw_rate: ChannelSpec = ChannelSpec()
+    articulation: ChannelSpec = ChannelSpec()
+    trailer_yaw_rate: ChannelSpec = ChannelSpec()
+    trailer_wheel_speed: ChannelSpec = ChannelSpec()
+    trailer_steer: ChannelSpec = ChannelSpec()
+    rear_articulation: ChannelSpec = ChannelSpec()
+    tractor_lateral_acceleration: ChannelSpec = ChannelSpec()
+
+
+class EstimatorsConfig(Settings):
+    """Which estimators run and how (the estimators are those of :mod:`scenarios.registry`; the one chosen as
+    ``feedback`` always runs). ``zero_slip_variant``: Cheng's zero-slip dead-reckoning with the
+    tractor yaw rate taken from the gyro (``yaw_rate``, default) or from the front steer angle
+    (``steer_angle``). ``zero_slip_rear_point``: the tractor's point without lateral velocity that it assumes,
+    the mean station of the rear axles (``axle_mean``, default), their stiffness-weighted equivalent wheelbase
+    (``equivalent``), that moved forwards with the speed (``speed_compensated``) or moving sideways with the slip
+    the tractor's lateral accelerometer asks of its rear tyres (``lateral_acceleration``; ``vehicle_model.kinematics.
+    RearPoint``, ``controller.zero_slip.REAR_POINT_NOTES``). ``viso_ot``: render the trailer's stereo camera at the
+    camera rate and run visual odometry and VISO-OT (needs headless OpenGL). ``viso_ot_fused``: the Kalman filter
+    of the trailer's gyro, wheel speed and steer with the camera's motions (``sensor.fusion``, settings in
+    ``fusion``); it needs the camera, so it turns ``viso_ot`` on."""
+
+    zero_slip: bool = True
+    zero_slip_variant: Literal["yaw_rate", "steer_angle"] = "yaw_rate"
+    zero_slip_rear_point: RearPoint = "axle_mean"
+    viso_ot: bool = False
+    viso_ot_fused: bool = False
+
+    @model_validator(mode="before")
+    @classmethod
+    def _fused_needs_the_camera(cls, data: Any) -> Any:  # the fused filter corrects with the camera's motions
+        return {**data, "viso_ot": True} if isinstance(data, dict) and data.get("viso_ot_fused") is True else data
+
+
+class FusionConfig(FusionNoise):
+    """The fused VISO-OT filter (``sensor.fusion.FusionNoise``: the data-sheet figures it is designed for, not the
+    ``signals``), and a test's frame drop."""
+
+    offtracking_bias_std: float = Field(
+        0.005,
+        ge=0.0,
+        le=0.5,
+        description="[m] the VO's error no state of the filter explains, added to its std; 0.5 m swamps any estimate",
+    )
+    drop_every: int = Field(0, ge=0, le=1000, description="withhold every n-th frame from it (0: none; a test)")
+
+
+class ControllerConfig(Settings):
+    """Trailer path-following controller (``controller.path_following``); degrees and km/h at this edge.
+
+    Gains ``kp`` [rad/m], ``ki`` [rad/m²], ``kd`` [rad] are per metre travelled; leave them out to place
+    the poles at ``natural_frequency`` [1/m] and ``damping``.
+    """
+
+    kp: float | None = Field(None, ge=0.0, le=10.0, description=_GAIN)
+    ki: float | None = Field(None, ge=0.0, le=10.0, description=_GAIN)
+    kd: float | None = Field(None, ge=0.0, le=10.0, description=_GAIN)
+    natural_frequency: float = Field(
+        1.0 / 3.0, gt=0.0, le=5.0, description="[1/m]; 5 per metre is far beyond the steering actuator's bandwidth"
+    )
+    damping: float = Field(0.8, gt=0.0, le=5.0, description="damping ratio; above 5 it only slows the loop")
+    max_steer_deg: float = Field(25.0, gt=0.0, le=60.0, description="[°] trailer wheel lock; 60° is beyond any axle")
+    max_steer_rate_deg_s: float = Field(
+        20.0, gt=0.0, le=500.0, description="[°/s]; 500 °/s is beyond any steering actuator"
+    )
+    feedforward: Literal["path", "steady", "none"] = "path"
+    bandwidth_speed_kmh: float | None = Field(
+        15.0, gt=0.0, le=150.0, description="[km/h] speed the gains are designed for; above any truck's speed"
+    )
+    feedback_max_std_m: float = Field(
+        0.075,
+        gt=0.0,
+        le=1.0,
+        description="[m] std of the fed-back estimate above which the trailer is steered by feed-forward only: an "
+        "estimate whose 2σ reaches the 0.15 m max target is not steered on; 1 m is ten times the 0.10 m RMS target",
+    )
+    max_slip_angle_deg: float | None = Field(
+        math.degrees(PathFollowingConfig.model_fields["max_slip_angle"].default),
+        gt=0.0,
+        le=45.0,
+        description="[°] largest slip angle a steered axle is commanded to, null for none (why 8°: "
+        "controller.path_following_config); beyond 45° no tyre gives force that grows with slip",
+    )
+
+    def path_following(self, control_hz: float) -> PathFollowingConfig:
+        """The controller's own settings (SI units) from this section (degrees and km/h) and the control rate."""
+        gains = None
+        if self.kp is not None or self.ki is not None or self.kd is not None:
+            gains = PathFollowingGains(kp=self.kp or 0.0, ki=self.ki or 0.0, kd=self.kd or 0.0)
+        return PathFollowingConfig(
+            gains=gains,
+            natural_frequency=self.natural_frequency,
+            damping=self.damping,
+            max_steer=math.radians(self.max_steer_deg),
+            max_steer_rate=math.radians(self.max_steer_rate_deg_s),
+            feedforward=self.feedforward,
+            bandwidth_speed=None if self.bandwidth_speed_kmh is None else self.bandwidth_speed_kmh / 3.6,
+            control_period=1.0 / control_hz,
+            feedback_max_std=self.feedback_max_std_m,
+            max_slip_angle=None if self.max_slip_angle_deg is None else math.radians(self.max_slip_angle_deg),
+        )
