@@ -69,8 +69,8 @@ class ScenarioConfig(Settings):
     record_steer_tyres: bool = Field(
         False,
         description="record the steer axles' forces, load and road friction every tick (fx_/fy_/fz_/mu_<axle>; the "
-        "PBS steer-tyre friction demand needs them); off by default: the model's outputs cost about a fifth of a "
-        "model-only run's time",
+        "PBS steer-tyre friction demand needs them); off by default: evaluating the model's outputs every tick "
+        "lengthens a model-only run markedly",
     )
     seed: int = Field(0, ge=0, le=2**32 - 1, description="numpy's seed range")
     duration_s: float | None = Field(

@@ -204,8 +204,9 @@ class RatesConfig(Settings):
         0.002,
         ge=1e-4,
         le=0.005,
-        description="[s] RK4 step; below 0.1 ms a run costs only time and memory (1e-9 s took 23 GB), above 5 ms "
-        "RK4 leaves its stability region for the tyre relaxation dynamics",
+        description="[s] RK4 step; below 0.1 ms a run costs only time and memory (both grow as 1/step, so a far "
+        "smaller step exhausts the machine), above 5 ms RK4 leaves its stability region for the tyre relaxation "
+        "dynamics",
     )
     control_hz: float = Field(
         50.0,
