@@ -32,6 +32,7 @@ SCENARIO_ROOMS: tuple[str, ...] = (
     "camera_checks",
     "registry",
     "unit_feedback",
+    "scenario_shortcuts",
     "configuration",
     "config",
     "config_fields",
@@ -47,6 +48,7 @@ SCENARIO_ROOMS: tuple[str, ...] = (
     "envs",
     "cli_format",
     "bench",
+    "commands",
     "cli",
 )
 """The rooms of ``scenarios/``, lowest first: a room imports only rooms before it."""

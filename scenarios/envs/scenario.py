@@ -32,6 +32,7 @@ from vehicle_model.errors import InputError
 
 from ..config import ScenarioConfig, load_scenario
 from ..registry import NO_FEEDBACK, feedback_sources
+from ..scenario_shortcuts import SCENARIO_SHORTCUTS
 from ..unit_feedback import REAR_FEEDBACK, rear_feedbacks
 from .sensors import SensorMode, check_mode, draw_biases, sensor_fields
 
@@ -53,14 +54,10 @@ DEFAULT_SCENARIO = "roundabout-3"
 DEFAULT_OVERRIDES: dict[str, Any] = {"path.turns": 0.25}
 
 NAMED_FIELDS: dict[str, str] = {
-    "vehicle": "vehicle",
-    "mu": "surface.mu",
-    "camber_percent": "camber.percent",
-    "camber_direction": "camber.direction",
-    "speed_kmh": "speed.cornering_kmh",
-    "direction": "direction",
+    name: SCENARIO_SHORTCUTS[name]
+    for name in ("vehicle", "mu", "camber_percent", "camber_direction", "speed_kmh", "direction")
 }
-"""Named settings and the configuration fields they set."""
+"""Named settings and the configuration fields they set (:data:`scenarios.scenario_shortcuts.SCENARIO_SHORTCUTS`)."""
 
 OPTION_KEYS: tuple[str, ...] = (
     "scenario",

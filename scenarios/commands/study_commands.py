@@ -1,0 +1,278 @@
+"""The commands of many runs: ``compare``, ``study``, ``assess`` and ``tune``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.markup import escape
+
+from scenarios.loop.ends import RunStatus
+from scenarios.registry import feedback_sources
+from scenarios.scenario_shortcuts import shortcut_pairs
+
+from .options import (
+    FEEDBACKS,
+    CamberDirectionOption,
+    ForceOption,
+    JsonOption,
+    MuOption,
+    PlotFormatOption,
+    ResumeOption,
+    ScenarioArgument,
+    SchedulerOption,
+    SurfaceOption,
+    WorkersOption,
+)
+from .scenario_input import load_config, scenario_overrides
+from .terminal import EXIT_FAILED, console, errors, handled, print_study_summary, simulation_progress
+
+
+@handled
+def compare(
+    scenario: ScenarioArgument,
+    surface: SurfaceOption = None,
+    mu: MuOption = None,
+    camber: Annotated[float | None, typer.Option(help="Camber [%].")] = None,
+    camber_direction: CamberDirectionOption = None,
+    vehicle: Annotated[
+        str, typer.Option(help="Vehicle preset with steerable trailer axles, or a combination file NAME.yaml.")
+    ] = "lst",
+    feedbacks: Annotated[
+        str,
+        typer.Option(
+            help=f"Comma-separated feedback sources to compare (default: every registered one, {FEEDBACKS}; the "
+            "viso_ot ones render the camera).",
+            show_default=False,
+        ),
+    ] = ",".join(feedback_sources()),
+    duration: Annotated[float | None, typer.Option(help="Stop every run after this many simulated seconds.")] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", help="Any config field, e.g. --set path.turns=1.")] = None,
+    out: Annotated[Path | None, typer.Option(help="Output directory (default runs/compare-SCENARIO/…).")] = None,
+    force: ForceOption = False,
+    plot_format: PlotFormatOption = "png",
+) -> None:
+    """Run each feedback source given (default: every one) on the same scenario; write a table and one overlay
+    figure."""
+    from scenarios.run.results import check_plot_format, new_run_dir
+    from scenarios.run.summary import MISSING
+    from scenarios.studies.compare import compare_feedback, display_table
+    from scenarios.studies.summary import summary_table
+    from vehicle_model.errors import InputError
+
+    plot_format = check_plot_format(plot_format)
+    chosen = tuple(f.strip() for f in feedbacks.split(",") if f.strip())
+    unknown = [f for f in chosen if f not in feedback_sources()]
+    if not chosen or unknown:
+        raise InputError(f"--feedbacks {feedbacks!r}: give one or more of {FEEDBACKS}, separated by commas")
+    if duration is not None and not duration > 0:  # also NaN
+        raise InputError(f"--duration {duration:g}: give a positive number of simulated seconds")
+    pairs = shortcut_pairs(
+        vehicle=vehicle,
+        surface=surface,
+        mu=mu,
+        camber_percent=camber,
+        camber_direction=camber_direction,
+        duration_s=duration,
+    )
+    overrides = scenario_overrides(pairs, surface, mu, set_)
+    config = load_config(scenario, overrides)
+    for feedback in chosen:  # every variant (a camera's included) must be able to run
+        load_config(scenario, {**overrides, "feedback": feedback})
+    run_dir = new_run_dir(out, f"compare-{config.name}", force=force)
+    with simulation_progress() as bar:
+        task = bar.add_task(escape(f"{chosen[0]} (1/{len(chosen)})"), total=1.0, sim_t=0.0)
+
+        def progress(feedback: str, t: float, done: float) -> None:
+            label = f"{feedback} ({chosen.index(feedback) + 1}/{len(chosen)})"
+            bar.update(task, completed=done, sim_t=t, description=escape(label))
+
+        table = compare_feedback(config, run_dir, chosen, progress=progress, plot_format=plot_format)
+        bar.update(task, completed=1.0)
+    files = (str(run_dir / "comparison.md"), str(run_dir / "comparison.csv"))
+    title = f"{config.name}: feedback comparison"
+    console.print(
+        summary_table(display_table(table), console.width, files=files, title=title, rows="runs", missing=MISSING)
+    )
+
+
+@handled
+def study(
+    name: Annotated[str, typer.Argument(help="The study (an unknown name lists them all).")],
+    full: Annotated[bool, typer.Option(help="Run the whole study (default: a small subset).")] = False,
+    out: Annotated[Path | None, typer.Option(help="Output directory (default runs/study-NAME/…).")] = None,
+    force: ForceOption = False,
+    workers: WorkersOption = 1,
+    scheduler: SchedulerOption = None,
+    resume: ResumeOption = True,
+    vehicle: Annotated[
+        str | None,
+        typer.Option(
+            help="Another combination (preset or NAME.yaml) for unit-steering or estimators-under-slip; "
+            "it needs a steerable towed unit."
+        ),
+    ] = None,
+    set_: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="A run setting for every case, e.g. --set fusion.kinematic_error_model=state."),
+    ] = None,
+) -> None:
+    """Run a study: every case into its own directory, then one table and the figures."""
+    from scenarios.config import parse_assignment
+    from scenarios.run.results import new_run_dir
+    from scenarios.studies.definitions import STUDIES, check_study_vehicle, run_study, study_cases
+    from scenarios.studies.progress import rich_progress
+    from scenarios.studies.records import CASES_DIR
+    from vehicle_model.errors import InputError
+
+    if name not in STUDIES:
+        raise InputError(f"unknown study {name!r}; choose one of {', '.join(sorted(STUDIES))}")
+    for note in check_study_vehicle(name, vehicle):  # a vehicle it cannot drive: refused before any work
+        errors.print(f"note: {note}", markup=False)
+    settings = dict(parse_assignment(item) for item in set_ or [])
+    if settings:
+        study_cases(name, full, vehicle, settings)  # settings a case refuses: one line, before any work
+    if out is not None and resume and (out / CASES_DIR).is_dir():
+        run_dir = out  # an earlier run of the study: finish it
+    else:
+        run_dir = new_run_dir(out, f"study-{name}", force=force)
+    with rich_progress(name, console=console) as progress:
+        table = run_study(
+            name,
+            run_dir,
+            full=full,
+            workers=workers,
+            scheduler=scheduler,
+            resume=resume,
+            on_progress=progress,
+            vehicle=vehicle,
+            settings=settings,
+        )
+    print_study_summary(table, run_dir, name)
+    failed = int((table["status"] == RunStatus.FAILED).sum()) if "status" in table.columns else 0
+    if failed:
+        errors.print(
+            f"{failed} case(s) failed (error and traceback in {run_dir / CASES_DIR}/); "
+            f"run the same command with --out {run_dir} to retry them",
+            markup=False,
+        )
+        raise typer.Exit(EXIT_FAILED)
+
+
+@handled
+def assess(
+    combination: Annotated[str, typer.Argument(help="The combination: a preset's name or a combination YAML file.")],
+    feedback: Annotated[
+        list[str] | None,
+        typer.Option(
+            help="Feedback steering every steerable towed unit (repeatable): none, truth, zero_slip, viso_ot_fused."
+        ),
+    ] = None,
+    side_by_side: Annotated[
+        bool, typer.Option(help="Compare unsteered, truth-, zero-slip- (and for one semi-trailer VISO-OT-) fed.")
+    ] = False,
+    surface: Annotated[
+        list[str] | None, typer.Option(help="Surface preset, repeatable: dry, wet, snow, ice (default dry).")
+    ] = None,
+    out: Annotated[Path | None, typer.Option(help="Output directory (default runs/assess-NAME/…).")] = None,
+    force: ForceOption = False,
+    workers: WorkersOption = 1,
+    scheduler: SchedulerOption = None,
+    resume: ResumeOption = True,
+    plot_format: PlotFormatOption = "png",
+) -> None:
+    """Assess one combination: the PBS measures a yaw-plane model supports and the UK/EU turning circle, each on its
+    manoeuvre, into assessment.md / .csv / .json with a figure per measure (docs/pbs.md)."""
+    from scenarios.run.results import check_plot_format, new_run_dir
+    from scenarios.studies.pbs_assessment import assessment_cases, run_assessment, side_by_side_feedbacks
+    from scenarios.studies.progress import rich_progress
+    from scenarios.studies.records import CASES_DIR
+
+    plot_format = check_plot_format(plot_format)
+    surfaces = tuple(surface or ("dry",))
+    feedbacks = side_by_side_feedbacks(combination) if side_by_side else tuple(feedback or ("none",))
+    assessment_cases(combination, feedbacks, surfaces)  # every option checked before any work
+    name = Path(combination).stem if combination.endswith((".yaml", ".yml")) else combination
+    if out is not None and resume and (out / CASES_DIR).is_dir():
+        run_dir = out
+    else:
+        run_dir = new_run_dir(out, f"assess-{name}", force=force)
+    with rich_progress(f"assess {name}", console=console) as progress:
+        table = run_assessment(
+            combination,
+            run_dir,
+            feedbacks,
+            surfaces,
+            workers=workers,
+            scheduler=scheduler,
+            resume=resume,
+            on_progress=progress,
+            plot_format=plot_format,
+        )
+    console.print(f"assessment: {run_dir / 'assessment.md'} (and .csv, .json, measure-*.{plot_format})")
+    failed = int((table["status"] == RunStatus.FAILED).sum()) if "status" in table.columns else 0
+    if failed:
+        errors.print(
+            f"{failed} case(s) failed (error and traceback in {run_dir / CASES_DIR}/); "
+            f"run the same command with --out {run_dir} to retry them",
+            markup=False,
+        )
+        raise typer.Exit(EXIT_FAILED)
+
+
+@handled
+def tune(
+    trials: Annotated[int, typer.Option(help="Optuna trials (the first is the designed gains).", min=1)] = 30,
+    draws: Annotated[int, typer.Option(help="Training draws of the randomised roads per trial.", min=1)] = 3,
+    seed: Annotated[int, typer.Option(help="Seed of the draws and of the sampler.", min=0)] = 0,
+    feedback: Annotated[
+        str, typer.Option(help=f"Feedback source, one of: {FEEDBACKS.removeprefix('none, ')}.")
+    ] = "truth",
+    scenario: Annotated[
+        str, typer.Option(help="Scenario driven (catalogue name or YAML file), a quarter turn of it: path.turns=0.25.")
+    ] = "roundabout-3",
+    out: Annotated[
+        Path | None,
+        typer.Option(help="Write trials.csv, comparison.csv/.md and tuned_gains.yaml (a scenario a run loads) here."),
+    ] = None,
+    force: ForceOption = False,
+    as_json: JsonOption = False,
+) -> None:
+    """Tune the trailer PID gains with Optuna (offtrack/GainTuning-v0); compare them on held-out roads."""
+    from rich.progress import Progress
+
+    from scenarios.envs.scenario import DEFAULT_OVERRIDES
+    from scenarios.envs.tuning import tune_gains
+    from scenarios.envs.tuning_report import gains_table, held_out_table, set_options, write_tuning
+    from scenarios.run.results import new_run_dir
+
+    base = load_config(scenario, {"feedback": feedback, "vehicle": "lst"})  # the gains' scenario, refused before tuning
+    out_dir = None if out is None else new_run_dir(out, "tune", force=force)
+    with Progress(console=console, transient=True, disable=as_json) as bar:
+        task = bar.add_task("tuning", total=trials)
+
+        def progress(done: int, total: int, best: float) -> None:
+            bar.update(task, completed=done, description=f"tuning: best training cost {best:.5f}")
+
+        env_kwargs = {"feedback": feedback, "scenario": scenario, "overrides": dict(DEFAULT_OVERRIDES)}
+        result = tune_gains(n_trials=trials, train_draws=draws, seed=seed, env_kwargs=env_kwargs, progress=progress)
+    paths = None if out_dir is None else write_tuning(result, out_dir, base)
+    if as_json:
+        files = None if paths is None else {key: str(path) for key, path in paths.items()}
+        print(json.dumps({"benchmark": "tune_gains", **result.to_dict(), "files": files}))
+        return
+    console.print(gains_table(result))
+    console.print(held_out_table(result))
+    for condition, better in result.verdicts().items():
+        console.print(f"{condition}: {'tuned' if better else 'designed'} gains better", markup=False)
+    console.print(f"{result.trials} trials, {result.evaluations} scenario runs, {result.wall_s:.0f} s wall time")
+    console.print(f"apply the tuned gains: {set_options(result.tuned)}", markup=False, highlight=False, soft_wrap=True)
+    if paths is not None:
+        console.print(
+            f"trials, comparison and gains in {paths['gains'].parent}; offtrack run {paths['gains']} runs {scenario} "
+            "with them",
+            markup=False,
+            highlight=False,
+        )
