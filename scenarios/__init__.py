@@ -2,7 +2,8 @@
 
 Rooms, lowest first (a room imports only the rooms above it in this list; ``tests/test_architecture.py``):
 
-* :mod:`scenarios.config` — the validated configuration schema, catalogue loading, dotted overrides;
+* :mod:`scenarios.configuration` — the validated configuration schema, catalogue loading, dotted overrides,
+  gathered by :mod:`scenarios.config`;
 * ``scenarios/catalogue/`` — the scenario YAML files;
 * :mod:`scenarios.setup` — configuration → the parts of a run (reference path, surface, vehicle model,
   driver feed-forward, trailer controller) and the registry that shares built models;
@@ -14,7 +15,8 @@ Rooms, lowest first (a room imports only the rooms above it in this list; ``test
   studies and their figures, feedback comparison;
 * :mod:`scenarios.envs` — the Gymnasium environments and gain tuning;
 * :mod:`scenarios.bench` — the benchmarks of ``offtrack bench``;
-* :mod:`scenarios.cli` — the ``offtrack`` command line.
+* :mod:`scenarios.commands` — the ``offtrack`` commands by room, and the options they share;
+* :mod:`scenarios.cli` — the ``offtrack`` command line: the app, its command table and ``main``.
 
 One thing happens on import, before numpy loads: its BLAS is held to one thread (``OPENBLAS_NUM_THREADS``,
 ``MKL_NUM_THREADS``; :data:`BLAS_THREADS`), unless the environment already says otherwise. A threaded BLAS splits
