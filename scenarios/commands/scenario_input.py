@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from scenarios.scenario_shortcuts import SCENARIO_SHORTCUTS, shortcut_pairs
+
+if TYPE_CHECKING:
+    from scenarios.config import ScenarioConfig
 
 
 def scenario_overrides(
     pairs: tuple[tuple[str, object], ...], surface: str | None, mu: float | None, set_: list[str] | None
-):
+) -> dict[str, object]:
     """Dotted overrides from the options (``None``: not given) and the ``--set`` items."""
     from scenarios.config import parse_assignment
 
@@ -20,7 +25,7 @@ def scenario_overrides(
     return overrides
 
 
-def load_config(scenario: str, overrides: dict[str, object]):
+def load_config(scenario: str, overrides: dict[str, object]) -> ScenarioConfig:
     """The validated scenario (a camera that cannot work is refused by the validation itself)."""
     from scenarios.config import load_scenario
 
