@@ -471,4 +471,5 @@ def high_speed_assessment(
             else "no steady turn of a second or more in the run"
         )
         return [_record("high_speed_steady_offtracking", value, note)]
-    return [r for r in unassessable_records() if r["measure"] == MEASURES["tracking_ability_on_a_straight_path"].measure]
+    straight = MEASURES["tracking_ability_on_a_straight_path"].measure
+    return [r for r in unassessable_records() if r["measure"] == straight]
