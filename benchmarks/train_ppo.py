@@ -31,6 +31,7 @@ import gymnasium as gym
 import numpy as np
 
 import scenarios.envs  # noqa: F401  (registers the environments)
+from scenarios.extras import require
 
 TRAIN_ROADS: dict[str, Any] = {
     "mu": (0.1, 0.3),
@@ -144,6 +145,7 @@ def train_and_compare(
     log
         Progress messages.
     """
+    require("stable_baselines3", "rl", "training PPO")
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env

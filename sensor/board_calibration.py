@@ -25,9 +25,8 @@ The result is a :class:`sensor.calibration.CalibrationResult`, so it writes the 
 
 from __future__ import annotations
 
-import contextlib
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -35,7 +34,7 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 
-from sensor.calibration import CalibrationResult, solve_stereo_calibration
+from sensor.calibration import CalibrationResult, one_opencv_thread, solve_stereo_calibration
 from sensor.calibration_target import Board
 from sensor.photo_pairs import check_images
 from vehicle_model.errors import InputError
@@ -404,7 +403,7 @@ def calibrate_views(
             + ("; not found: " + ", ".join(lost[:8]) if lost else "")
             + ("; …" if len(lost) > 8 else "")
         )
-    with _one_opencv_thread():
+    with one_opencv_thread():
         result = _solve(found, size, pattern, alpha)
         worst = np.array([max(v.rms_stereo) for v in found])
         limit = max(OUTLIER_FLOOR_PX, OUTLIER_FACTOR * float(np.median(worst)))
@@ -467,17 +466,6 @@ def calibrate_photos(
         raise InputError(f"--corner-window {corner_window!r}: allowed: an integer in [2, 50] px")
     size = check_images(pairs)
     detector = pattern.charuco_detector() if pattern.kind == "charuco" else None
-    with _one_opencv_thread():
+    with one_opencv_thread():
         views = [detect_view(left, right, pattern, detector, corner_window=corner_window) for left, right in pairs]
     return calibrate_views(views, size, pattern, min_views=min_views, alpha=alpha, reject_outliers=reject_outliers)
-
-
-@contextlib.contextmanager
-def _one_opencv_thread() -> Iterator[None]:
-    """OpenCV on one thread for the block (its parallel loops sum in a varying order), then as before."""
-    previous = cv2.getNumThreads()
-    cv2.setNumThreads(1)
-    try:
-        yield
-    finally:
-        cv2.setNumThreads(previous)

@@ -336,13 +336,13 @@ def calibrate_rig(
         A bad setting (named), no pose both cameras see, or too few detected views.
     """
     board = _check_settings(views, target, square_size, corner_noise_px, seed, alpha)
-    with _one_opencv_thread():  # OpenCV's parallel loops sum in a varying order; on one thread a seed repeats exactly
+    with one_opencv_thread():  # OpenCV's parallel loops sum in a varying order; on one thread a seed repeats exactly
         return _calibrate(rig, lens_left, lens_right, board, views, square_size, corner_noise_px, seed, alpha)
 
 
 @contextlib.contextmanager
-def _one_opencv_thread() -> Iterator[None]:
-    """OpenCV on one thread for the block (then as before)."""
+def one_opencv_thread() -> Iterator[None]:
+    """OpenCV on one thread for the block (its parallel loops sum in a varying order), then as before."""
     previous = cv2.getNumThreads()
     cv2.setNumThreads(1)
     try:

@@ -67,9 +67,6 @@ from vehicle_model.simulator import VehicleState
 
 from .camera import Misalignment
 
-AXES: tuple[str, str, str] = ("roll", "pitch", "yaw")
-"""The order of the three angles in every tuple here (that of :class:`sensor.camera.Misalignment`)."""
-
 MAX_TWIST_DEG_PER_MPS2 = 1.0
 """Largest |twist| per axis [°/(m/s²)]: 3° at the 3 m/s² a combination can corner with, fifteen times
 the paper's whole misalignment (< 0.2°, §4.4)."""

@@ -26,16 +26,15 @@ import pytest
 from controller.steer_input import OpenLoopSteer
 from scenarios.assess.high_speed import (
     MEASURES,
-    NOT_VERIFIED,
-    LevelThreshold,
-    Measure,
-    grade,
+    NOT_VERIFIED_NOTE,
     high_speed_assessment,
     logarithmic_decrement_damping,
     rearward_amplification,
+    record_level,
     unassessable_records,
     yaw_damping_coefficient,
 )
+from scenarios.assess.levels import Standard, Threshold
 from scenarios.config import ConfigError, validate_config
 from scenarios.run.drive import simulate
 from scenarios.setup.build import ScenarioSetup, build_scenario
@@ -210,7 +209,7 @@ def test_every_record_says_its_threshold_is_not_verified_and_gives_no_level(sine
     keys = {"measure", "value", "unit", "level", "margin", "threshold_source", "note"}
     for record in records:
         assert set(record) == keys
-        assert record["level"] is None and record["margin"] is None and NOT_VERIFIED in record["note"]
+        assert record["level"] is None and record["margin"] is None and NOT_VERIFIED_NOTE in record["note"]
         assert "10 November 2008" in record["threshold_source"]
     measured = [r for r in records if r["value"] is not None]
     assert len(measured) == 3 and all(math.isfinite(r["value"]) and r["value"] > 0.0 for r in measured)
@@ -229,14 +228,16 @@ def test_an_unknown_manoeuvre_is_refused() -> None:
         high_speed_assessment({}, None, "slalom")  # type: ignore[arg-type]
 
 
-ILLUSTRATIVE_LOWER = Measure(
+ILLUSTRATIVE_LOWER = Standard(
     "a lower-is-better measure",
     "m",
-    "lower",
-    (LevelThreshold("1", 0.5, "illustration"), LevelThreshold("2", 0.8, "illustration")),
+    "illustration",
+    (Threshold(1, 0.5, "illustration"), Threshold(2, 0.8, "illustration")),
 )
-"""Not PBS's limits: a made-up table that exercises :func:`grade`."""
-ILLUSTRATIVE_HIGHER = Measure("a higher-is-better measure", "-", "higher", (LevelThreshold("1", 0.15, "illustration"),))
+"""Not PBS's limits: a made-up table that exercises :func:`record_level`."""
+ILLUSTRATIVE_HIGHER = Standard(
+    "a higher-is-better measure", "-", "illustration", (Threshold(1, 0.15, "illustration"),), better="higher"
+)
 
 
 @pytest.mark.parametrize(
@@ -248,11 +249,11 @@ ILLUSTRATIVE_HIGHER = Measure("a higher-is-better measure", "-", "higher", (Leve
         (ILLUSTRATIVE_HIGHER, 0.16, "1", 0.01),
         (ILLUSTRATIVE_HIGHER, 0.14, "none", -0.01),
         (ILLUSTRATIVE_HIGHER, math.nan, None, None),
-        (Measure("no levels", "-", "lower"), 1.0, None, None),
+        (Standard("no levels", "-", "illustration"), 1.0, None, None),
     ],
 )
-def test_grading_takes_the_most_demanding_level_met(measure: Measure, value: float, level, margin) -> None:
-    got_level, got_margin = grade(measure, value)
+def test_grading_takes_the_most_demanding_level_met(measure: Standard, value: float, level, margin) -> None:
+    got_level, got_margin = record_level(measure, value)
     assert got_level == level
     assert got_margin == (None if margin is None else pytest.approx(margin))
 

@@ -364,8 +364,9 @@ def test_bad_input_of_vo_eval_is_one_line_and_exit_2(tmp_path: Path) -> None:
 
 
 def test_the_motion_prior_stretches_over_a_dropped_frame() -> None:
+    from vo_synthetic import planar_sequence, relative_motion
+
     from sensor.vo import StereoOdometry
-    from sensor.vo.synthetic import planar_sequence, relative_motion
 
     seq = planar_sequence(5, step=0.5)
     vo = StereoOdometry(seq.rig.vo_config(), seed=0)

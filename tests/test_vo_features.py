@@ -6,6 +6,7 @@ import cv2
 import numpy as np
 import pytest
 from scipy import ndimage
+from vo_synthetic import StereoRig, make_texture
 
 from sensor.vo.features import (
     BLOB_KERNEL,
@@ -21,7 +22,6 @@ from sensor.vo.features import (
     non_maximum_suppression,
     sobel_responses,
 )
-from sensor.vo.synthetic import StereoRig, make_texture
 
 BLOB_MIN, BLOB_MAX = 0, 1
 

@@ -17,9 +17,9 @@ import sys
 
 import numpy as np
 import pytest
+from vo_synthetic import StereoRig, planar_sequence
 
 from sensor.vo import StereoOdometry
-from sensor.vo.synthetic import StereoRig, planar_sequence
 
 # (matches, inliers, digest of the matches, digest of the inlier mask) of frames 1–3 of
 # planar_sequence(4, step=0.5) with seed 3, from the numpy implementation (commit 0d7d437).
@@ -73,7 +73,8 @@ def test_matches_and_inliers_equal_the_numpy_reference(sequence, variant):
 
 _SMALL = (
     "import json, sys\n"
-    "from tests.test_vo_kernels import _small_fingerprints\n"
+    "sys.path.insert(0, 'tests')\n"  # the tests' own modules (vo_synthetic), as pytest sees them
+    "from test_vo_kernels import _small_fingerprints\n"
     "json.dump(_small_fingerprints(), sys.stdout)\n"
 )
 

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from vo_synthetic import StereoRig, random_point_matches
 
 from sensor.vo.kalman import MotionKalmanFilter
 from sensor.vo.motion import (
@@ -16,7 +17,6 @@ from sensor.vo.motion import (
     transform_to_params,
     triangulate,
 )
-from sensor.vo.synthetic import StereoRig, random_point_matches
 
 RIG = StereoRig()  # 1344×391, 100° field of view, 0.5 m baseline
 CONFIG = RIG.vo_config()

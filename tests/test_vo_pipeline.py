@@ -6,13 +6,7 @@ import math
 
 import numpy as np
 import pytest
-
-from sensor.vo import StereoOdometry, VOConfig, VOResult
-from sensor.vo.bucketing import bucket_matches
-from sensor.vo.features import extract_features
-from sensor.vo.match_columns import COLUMNS
-from sensor.vo.matching import match_frames
-from sensor.vo.synthetic import (
+from vo_synthetic import (
     PlanarSequence,
     StereoRig,
     backproject,
@@ -20,6 +14,12 @@ from sensor.vo.synthetic import (
     project_world,
     right_pose,
 )
+
+from sensor.vo import StereoOdometry, VOConfig, VOResult
+from sensor.vo.bucketing import bucket_matches
+from sensor.vo.features import extract_features
+from sensor.vo.match_columns import COLUMNS
+from sensor.vo.matching import match_frames
 
 N_FRAMES = 7
 STEP = 0.5  # m forward per frame (with 1° yaw per frame), camera 3 m up, pitched 8° down

@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import pytest
+from vo_synthetic import StereoRig, planar_sequence, random_point_matches
 
 from scenarios.camera_checks import check_camera_feasible, nearest_road_disparity
 from scenarios.config import load_scenario
@@ -16,7 +17,6 @@ from sensor.vo import StereoOdometry, VOConfig
 from sensor.vo.motion import estimate_motion, params_to_transform
 from sensor.vo.outliers import _delaunay, remove_outliers
 from sensor.vo.quality import QUALITY_COLUMNS, REJECTION_REASONS, VO_REASONS, motion_quality, quality_failure
-from sensor.vo.synthetic import StereoRig, planar_sequence, random_point_matches
 from vehicle_model.errors import InputError
 
 DT = 0.1  # camera period [s] (10 Hz)

@@ -33,9 +33,6 @@ AIR_DENSITY = 1.2
 TRACTION_MARGIN = 0.95
 """Drive force per axle is capped at this fraction of μ·Fz (no wheel spin is modelled)."""
 
-OUTPUT_GROUPS = ("fy", "fx", "fz", "slip", "mu_used")
-"""Per-axle outputs, each one entry per axle in layout order (wheel-frame forces)."""
-
 
 def in_plane_gravity(sx: Any, sy: Any, cos_psi: Any, sin_psi: Any) -> tuple[Any, Any]:
     """Gravity's in-plane part per unit mass ``(g_x, g_y)`` [m/s²] in the axes of a body heading ``ψ``, from the

@@ -61,19 +61,9 @@ def reference_laden() -> VehicleParams:
     return vehicle_preset("reference")
 
 
-def reference_unladen() -> VehicleParams:
-    """6x2 tractor + UK 13.6 m tri-axle trailer, unladen (tare 7.5 t)."""
-    return vehicle_preset("reference-unladen")
-
-
 def lst_laden() -> VehicleParams:
     """6x2 tractor + UK longer semi-trailer (15.65 m, rear two axles steerable), laden."""
     return vehicle_preset("lst")
-
-
-def lst_unladen() -> VehicleParams:
-    """6x2 tractor + UK longer semi-trailer, unladen (tare 8.5 t)."""
-    return vehicle_preset("lst-unladen")
 
 
 def field() -> VehicleParams:

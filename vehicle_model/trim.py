@@ -74,10 +74,6 @@ class TrimResult:
         c = self.turn_centre_trailer(params)
         return float(math.hypot(station - c[0], c[1]))
 
-    def zero_lateral_velocity_station(self, params: VehicleParams) -> float:
-        """Trailer station where the lateral velocity is zero (abreast of the turn centre) [m]."""
-        return float(self.turn_centre_trailer(params)[0])
-
 
 def trim(
     params: VehicleParams,

@@ -21,18 +21,17 @@ can be assessed after the fact. docs/pbs_high_speed.md says what each measure is
 Every lateral acceleration is the second time derivative of the point's recorded position (central differences),
 turned into the unit's own axes: ``a_y = −sin ψ·Ẍ + cos ψ·Ÿ``.
 
-*Levels.* :data:`MEASURES` holds, per measure, the limit of each performance level with the clause and table of the
-rules it is quoted from. A limit enters the table only once checked against the document; the stored copy of the
-rules consulted here gave only the document's title page and contents, so no limit could be checked and every
-table is empty: each record says ``threshold not verified`` and carries no level (never a number from memory).
-:func:`grade` gives the level from a table once it has limits.
+*Levels.* :data:`MEASURES` holds, per measure, a :class:`~.levels.Standard` with the limit of each performance level
+and the clause and table of the rules it is quoted from. A limit enters the table only once checked against the
+document; the stored copy of the rules consulted here gave only the document's title page and contents, so no limit
+could be checked and every table is empty: each record says ``threshold not verified`` and carries no level (never a
+number from memory). :func:`record_level` gives the level from a table once it has limits (:func:`.levels.grade`).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -41,21 +40,20 @@ from vehicle_model.geometry import place_points, tractor_points, trailer_frames
 from vehicle_model.parameters import VehicleParams
 
 from ..run.path_offtracking import offsets_from_path
+from .levels import NOT_VERIFIED, Standard, grade
 
 __all__ = [
     "MANOEUVRES",
     "MEASURES",
-    "NOT_VERIFIED",
+    "NOT_VERIFIED_NOTE",
     "THRESHOLD_SOURCE",
-    "LevelThreshold",
     "Manoeuvre",
-    "Measure",
     "articulation_columns",
-    "grade",
     "high_speed_assessment",
     "lateral_accelerations",
     "logarithmic_decrement_damping",
     "rearward_amplification",
+    "record_level",
     "steady_offtracking",
     "transient_offtracking",
     "unassessable_records",
@@ -70,102 +68,84 @@ THRESHOLD_SOURCE = (
     "NTC, Performance Based Standards Scheme — The Standards and Vehicle Assessment Rules, as at 10 November 2008"
 )
 """The document the levels are to be quoted from."""
-NOT_VERIFIED = (
-    "threshold not verified: the stored copy of the rules consulted held only its title page and contents, not the "
+NOT_VERIFIED_NOTE = (
+    f"{NOT_VERIFIED}: the stored copy of the rules consulted held only its title page and contents, not the "
     "standard's table of levels, so no level is given"
 )
 """The note of a measure whose levels could not be checked against :data:`THRESHOLD_SOURCE`."""
 
 
-@dataclass(frozen=True)
-class LevelThreshold:
-    """The limit of one performance level, as the rules give it.
-
-    Attributes
-    ----------
-    level : str
-        The performance level (``"1"`` … ``"4"``; 1 the most demanding road network).
-    limit : float
-        The limit in the measure's unit.
-    clause : str
-        Where the rules give it: clause and table.
-    """
-
-    level: str
-    limit: float
-    clause: str
-
-
-@dataclass(frozen=True)
-class Measure:
-    """A performance measure: its name, unit, which way is better and its levels.
-
-    Attributes
-    ----------
-    name : str
-        As reported.
-    unit : str
-        Of the value.
-    better : {"lower", "higher"}
-        A value at or below (``lower``) or at or above (``higher``) a level's limit meets that level.
-    thresholds : tuple of LevelThreshold
-        Most demanding level first; empty where no limit was verified.
-    """
-
-    name: str
-    unit: str
-    better: Literal["lower", "higher"]
-    thresholds: tuple[LevelThreshold, ...] = ()
-
-
-MEASURES: dict[str, Measure] = {
-    "rearward_amplification": Measure("rearward amplification", "-", "lower"),
-    "high_speed_transient_offtracking": Measure("high-speed transient off-tracking", "m", "lower"),
-    "yaw_damping_coefficient": Measure("yaw damping coefficient", "-", "higher"),
-    "high_speed_steady_offtracking": Measure("high-speed steady off-tracking", "m", "lower"),
-    "tracking_ability_on_a_straight_path": Measure("tracking ability on a straight path", "m", "lower"),
-    "static_rollover_threshold": Measure("static rollover threshold", "g", "higher"),
+MEASURES: dict[str, Standard] = {
+    "rearward_amplification": Standard(
+        "rearward amplification",
+        "-",
+        "peak lateral acceleration of the rearmost unit's CG over that of the tractor's CG, in the lane change",
+    ),
+    "high_speed_transient_offtracking": Standard(
+        "high-speed transient off-tracking",
+        "m",
+        "largest lateral distance of the last unit's rearmost axle centre from the steer axle's path, in the lane "
+        "change",
+    ),
+    "yaw_damping_coefficient": Standard(
+        "yaw damping coefficient",
+        "-",
+        "damping ratio of the sway after a steer pulse, of the least damped joint",
+        better="higher",
+    ),
+    "high_speed_steady_offtracking": Standard(
+        "high-speed steady off-tracking",
+        "m",
+        "how far the last unit's rearmost axle centre runs outside the steer axle's path in the steady turn",
+    ),
+    "tracking_ability_on_a_straight_path": Standard(
+        "tracking ability on a straight path", "m", "width of road the combination uses on a straight, rough road"
+    ),
+    "static_rollover_threshold": Standard(
+        "static rollover threshold",
+        "g",
+        "steady lateral acceleration at which the combination rolls over",
+        better="higher",
+    ),
 }
 """Every high-speed measure by key, with its levels (none verified: module docstring)."""
 
 
-def grade(measure: Measure, value: float) -> tuple[str | None, float | None]:
-    """The most demanding level ``value`` meets, and its margin to that level's limit.
+def record_level(standard: Standard, value: float) -> tuple[str | None, float | None]:
+    """The most demanding level ``value`` meets, and its margin to that level's limit, as a record gives them.
 
     Parameters
     ----------
-    measure
-        The measure and its levels (most demanding first).
+    standard
+        The measure and its levels.
     value
         The measured value.
 
     Returns
     -------
     level : str or None
-        The first level in ``measure.thresholds`` whose limit the value meets; ``"none"`` when it meets none;
-        ``None`` when the measure has no levels or the value is not finite.
+        The most demanding level the value meets (``"1"`` … ``"4"``); ``"none"`` when it meets none; ``None`` when
+        the measure has no levels or the value is not finite.
     margin : float or None
         How far inside that level's limit the value lies (positive inside, in the measure's unit); when no level is
         met, against the least demanding limit (negative). ``None`` with no level.
     """
-    if not measure.thresholds or not math.isfinite(value):
-        return None, None
-    sign = 1.0 if measure.better == "lower" else -1.0
-    for threshold in measure.thresholds:
-        margin = sign * (threshold.limit - value)
-        if margin >= 0.0:
-            return threshold.level, margin
-    return "none", sign * (measure.thresholds[-1].limit - value)
+    graded = grade(value, standard)
+    if graded.level is not None:
+        return str(graded.level), graded.margin
+    if graded.shortfall is not None:
+        return "none", graded.shortfall
+    return None, None
 
 
 def _record(key: str, value: float | None, note: str) -> dict[str, Any]:
     """The record of measure ``key`` (the keys :func:`high_speed_assessment` returns)."""
     measure = MEASURES[key]
-    level, margin = grade(measure, value) if value is not None else (None, None)
+    level, margin = record_level(measure, value) if value is not None else (None, None)
     if not measure.thresholds:
-        note = f"{note}; {NOT_VERIFIED}" if note else NOT_VERIFIED
+        note = f"{note}; {NOT_VERIFIED_NOTE}" if note else NOT_VERIFIED_NOTE
     return {
-        "measure": measure.name,
+        "measure": measure.measure,
         "value": value,
         "unit": measure.unit,
         "level": level,
@@ -491,4 +471,5 @@ def high_speed_assessment(
             else "no steady turn of a second or more in the run"
         )
         return [_record("high_speed_steady_offtracking", value, note)]
-    return [r for r in unassessable_records() if r["measure"] == MEASURES["tracking_ability_on_a_straight_path"].name]
+    straight = MEASURES["tracking_ability_on_a_straight_path"].measure
+    return [r for r in unassessable_records() if r["measure"] == straight]

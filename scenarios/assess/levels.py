@@ -2,7 +2,8 @@
 
 The PBS scheme grades each standard in four levels, level 1 the most demanding. A :class:`Standard` holds its
 measure's :class:`Threshold` s (none until they are verified against :data:`DOCUMENT`); :func:`grade` gives the level
-a value reaches and its margins. Every threshold names its clause and table; one that could not be verified is left
+a value reaches and its margins. The low-speed (:mod:`.low_speed`) and high-speed (:mod:`.high_speed`) measures are
+both graded here. Every threshold names its clause and table; one that could not be verified is left
 out, and the measure is reported without a level (:data:`NOT_VERIFIED`).
 """
 
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 __all__ = ["DOCUMENT", "NOT_VERIFIED", "SUMMARY_SOURCE", "Grade", "Standard", "Threshold", "grade"]
 
@@ -33,7 +35,8 @@ class Threshold:
     level
         The PBS level, 1 to 4.
     limit
-        The largest value that meets the level, in the standard's unit (SI).
+        The level's limit in the standard's unit (SI): the largest value that meets it where lower is better, the
+        smallest where higher is.
     clause
         Where the document gives it: clause and table.
     min_length, max_length
@@ -49,12 +52,27 @@ class Threshold:
 
 @dataclass(frozen=True)
 class Standard:
-    """One low-speed measure: its unit, what it measures, and its level thresholds (none when not verified)."""
+    """One measure: its unit, what it measures, its level thresholds (none when not verified) and which way is better.
+
+    Attributes
+    ----------
+    measure
+        Its name, as reported.
+    unit
+        Of the value.
+    definition
+        What it measures, in words.
+    thresholds
+        The level thresholds; empty where no limit was verified.
+    better
+        ``"lower"``: a value at or below a level's limit meets it; ``"higher"``: at or above.
+    """
 
     measure: str
     unit: str
     definition: str
     thresholds: tuple[Threshold, ...] = ()
+    better: Literal["lower", "higher"] = "lower"
 
     def applicable(self, length: float | None) -> tuple[Threshold, ...]:
         """The thresholds for a combination ``length`` metres long (every one when the length is not given),
@@ -74,12 +92,17 @@ class Grade:
         thresholds, or the value is not finite.
     margin
         That level's limit minus the value [the measure's unit]; None without a level.
+    margin
+        How far inside that level's limit the value lies (positive, the measure's unit); None without a level.
     margin_level_1
-        Level 1's limit minus the value (negative: short of level 1); None without a level-1 threshold.
+        How far inside level 1's limit the value lies (negative: short of level 1); None without a level-1 threshold.
     reason
         Why, in words.
     threshold_source
         The clauses the thresholds come from, or the document and :data:`NOT_VERIFIED`.
+    shortfall
+        When thresholds apply but no level is met: how far inside the least demanding level's limit the value lies
+        (negative); None otherwise.
     """
 
     level: int | None
@@ -87,6 +110,7 @@ class Grade:
     margin_level_1: float | None
     reason: str
     threshold_source: str
+    shortfall: float | None = None
 
 
 def grade(value: float, standard: Standard, length: float | None = None) -> Grade:
@@ -95,7 +119,7 @@ def grade(value: float, standard: Standard, length: float | None = None) -> Grad
     Parameters
     ----------
     value
-        The measure, in the standard's unit; smaller is better for every low-speed measure.
+        The measure, in the standard's unit (``standard.better`` says which way is better).
     standard
         The measure's :class:`Standard`.
     length
@@ -112,11 +136,13 @@ def grade(value: float, standard: Standard, length: float | None = None) -> Grad
     level_1 = next((t for t in thresholds if t.level == 1), None)
     if not math.isfinite(value):
         return Grade(None, None, None, "no finite value to grade", source)
-    margin_1 = None if level_1 is None else level_1.limit - value
-    met = next((t for t in thresholds if value <= t.limit), None)
+    sign = 1.0 if standard.better == "lower" else -1.0
+    margin_1 = None if level_1 is None else sign * (level_1.limit - value)
+    met = next((t for t in thresholds if sign * (t.limit - value) >= 0.0), None)
     if met is None:
         worst = thresholds[-1]
-        return Grade(None, None, margin_1, f"{value:.4g} exceeds level {worst.level}'s limit {worst.limit:.4g}", source)
-    return Grade(
-        met.level, met.limit - value, margin_1, f"{value:.4g} within level {met.level}'s {met.limit:.4g}", source
-    )
+        beyond = "exceeds" if standard.better == "lower" else "falls short of"
+        reason = f"{value:.4g} {beyond} level {worst.level}'s limit {worst.limit:.4g}"
+        return Grade(None, None, margin_1, reason, source, sign * (worst.limit - value))
+    reason = f"{value:.4g} within level {met.level}'s {met.limit:.4g}"
+    return Grade(met.level, sign * (met.limit - value), margin_1, reason, source)

@@ -128,11 +128,6 @@ class CameraFeed:
         self.startup_wait_s = 0.0
 
     @property
-    def pipelined(self) -> bool:
-        """Pairs are rendered by worker processes."""
-        return self._workers is not None
-
-    @property
     def renderer(self) -> StereoRenderer | None:
         """This process's :class:`~sensor.renderer.StereoRenderer` (``None`` when the workers render)."""
         return self._camera.renderer if self._camera is not None and self._workers is None else None

@@ -199,11 +199,6 @@ class RenderWorkers:
             self.close()
             raise
 
-    @property
-    def pids(self) -> list[int]:
-        """Process ids of the workers."""
-        return [p.pid for p in self._procs]
-
     def __len__(self) -> int:
         return len(self._procs)
 

@@ -16,7 +16,7 @@ from vehicle_model.errors import InputError
 from vehicle_model.geometry import follow_point_from_kingpin
 
 from ..loop.cosimulation import CoSimulation
-from ..loop.ends import ENVIRONMENT_LIMITS, Limits, RunStatus
+from ..loop.ends import ENVIRONMENT_LIMITS, Limits, RunStatus, StopReason
 from ..loop.trailer_steer import PathFollowingSteer, trailer_axles
 from ..run.drive import run_loop
 from ..run.metrics import after_warmup, max_abs, rms
@@ -319,7 +319,7 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         if outcome.status == RunStatus.LOST_CONTROL and cosim.breach is not None:
             status = str(cosim.breach.reason)
         elif outcome.status == RunStatus.DIVERGED:
-            status = "diverged"
+            status = str(StopReason.DIVERGED)
         else:
             status = str(outcome.status)
         self._last = (status, columns, cosim)

@@ -38,6 +38,7 @@ import numpy as np
 from vehicle_model.errors import InputError
 
 from ..loop.cosimulation import CoSimulation
+from ..loop.ends import StopReason
 from ..run.metrics import compute_metrics
 
 __all__ = ["OFFTRACKING_TOLERANCE", "REWARD_WEIGHTS", "SteeringReward", "episode_summary"]
@@ -116,7 +117,7 @@ class SteeringReward:
         """
         w = self.weights
         tick = cosim.tick
-        if reason == "diverged":
+        if reason == StopReason.DIVERGED:
             offtracking = self.clip
         else:
             terms = []

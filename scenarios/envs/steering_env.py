@@ -16,7 +16,7 @@ from vehicle_model.geometry import follow_point_from_kingpin
 from vehicle_model.offtracking import OfftrackingEstimate
 
 from ..loop.cosimulation import CoSimulation
-from ..loop.ends import ENVIRONMENT_LIMITS, Limits
+from ..loop.ends import ENVIRONMENT_LIMITS, Limits, StopReason
 from ..loop.trailer_steer import AgentSteer, trailer_axles
 from ..setup.models import rebuild_setup
 from ..unit_feedback import estimate_key
@@ -404,7 +404,7 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         try:
             tick = cosim.step()
         except SimulationDivergedError:
-            reason = "diverged"
+            reason = StopReason.DIVERGED
         if not reason and cosim.breach is not None:
             reason = cosim.breach.reason
         commands = agent.commands.copy()

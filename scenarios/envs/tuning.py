@@ -21,6 +21,7 @@ from controller.gain_design import design_gains
 from controller.path_following_config import PathFollowingGains
 from vehicle_model.errors import InputError
 
+from ..extras import require
 from . import register_envs
 from .gain_tuning_env import GAIN_RANGES, GainTuningEnv, action_to_gains, gains_to_action
 
@@ -188,10 +189,7 @@ def tune_gains(
     """
     if n_trials < 1 or train_draws < 1:
         raise InputError("tune_gains needs n_trials ≥ 1 and train_draws ≥ 1")
-    try:
-        import optuna
-    except ImportError:
-        raise InputError("tuning needs Optuna: pip install 'offtrack[tune]' (or pip install optuna)") from None
+    optuna = require("optuna", "tune", "tuning the gains")
     register_envs()
     t0 = time.perf_counter()
     kwargs = {"randomise": TRAIN_RANDOMISATION if randomise is None else dict(randomise), **(env_kwargs or {})}

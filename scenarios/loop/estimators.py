@@ -209,8 +209,6 @@ class FusedVisoOtEstimator:
         The VISO-OT participant (:class:`~.camera_estimator.VisoOt`): its camera pose and its released frames.
     noise
         The filter's noise model and tuning.
-    drop_every
-        Withhold every n-th frame from the filter (0: none; a test of its gap bridging).
     """
 
     name = "viso_ot_fused"
@@ -224,15 +222,14 @@ class FusedVisoOtEstimator:
         ),
     )
 
-    def __init__(self, params: VehicleParams, camera: object, noise: FusionNoise, drop_every: int = 0) -> None:
+    def __init__(self, params: VehicleParams, camera: object, noise: FusionNoise) -> None:
         self.camera = camera
         self.filter = FusedVisoOt(params, camera.camera_in_trailer, noise)  # type: ignore[attr-defined]
-        self.drop_every = drop_every
         self.estimate = OfftrackingEstimate.of(None)
 
     def update(self, tick: TickInput) -> OfftrackingEstimate:
         """Propagate with the trailer's signals, then correct with the frames the camera released on this tick."""
-        fused, measured, drop = self.filter, tick.measured, self.drop_every
+        fused, measured = self.filter, tick.measured
         steer = measured["trailer_steer"]
         tractor = TractorSignals(
             float(measured["wheel_speed"][0]),
@@ -245,9 +242,8 @@ class FusedVisoOtEstimator:
         )
         for shot in self.camera.released:  # type: ignore[attr-defined]
             frame = shot.frame
-            usable = frame.valid and not (drop > 0 and (shot.index + 1) % drop == 0)
             fused.measure(
-                shot.tick, frame.vo.camera_motion if usable else None, frame.vo.covariance if usable else None
+                shot.tick, frame.vo.camera_motion if frame.valid else None, frame.vo.covariance if frame.valid else None
             )
         if fused.estimate is not None:
             self.estimate = OfftrackingEstimate(float(fused.estimate), fused.std)
@@ -291,7 +287,7 @@ def fused_viso_ot(context: LoopContext) -> FusedVisoOtEstimator:
     """
     config = context.setup.config
     fusion = config.fusion  # a FusionNoise with a run's defaults
-    estimator = FusedVisoOtEstimator(context.setup.params, context.estimators["viso_ot"], fusion, fusion.drop_every)
+    estimator = FusedVisoOtEstimator(context.setup.params, context.estimators["viso_ot"], fusion)
     if fusion.gyro_zeroing_s > 0.0:
         rng = np.random.default_rng([config.seed, GYRO_ZEROING_STREAM])
         mean, samples = standstill_reading(config.signals.trailer_yaw_rate, fusion.gyro_zeroing_s, rng)

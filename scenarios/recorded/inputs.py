@@ -35,6 +35,7 @@ from sensor.vo import VOConfig
 from vehicle_model.errors import InputError
 from vehicle_model.kinematics import RearPoint
 
+from ..extras import require
 from .rig import RecordingRig, load_rig
 
 __all__ = ["EstimateInputs", "camera_model", "open_recording", "resolve_inputs"]
@@ -101,6 +102,8 @@ def open_recording(
     if is_bag(path):
         if not left_topic or not right_topic:
             raise InputError(f"RECORDING {path} is a bag: give --left-topic and --right-topic (its image topics)")
+        require("rosbags", "ros", "reading a ROS bag")
+        require("rosbags.image", "ros", "reading a ROS bag")
         return BagPair(path, left_topic, right_topic, pair_tolerance)
     if path.is_dir():
         return KittiFolder(path)

@@ -42,6 +42,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from vehicle_model.errors import InputError
 
+from ..extras import require
 from .paths import SAMPLE_SPACING, ReferencePath
 
 ROAD_SUFFIXES = (".csv", ".geojson", ".json", ".xodr")
@@ -215,6 +216,7 @@ def _read_geojson(file: Path, source: str) -> RoadPoints:
 
 
 def _read_xodr(file: Path, source: str, road: str | None, lane: int | None) -> RoadPoints:
+    require("pyxodr", "opendrive", f"road file {source}: reading OpenDRIVE")
     from lxml import etree
     from pyxodr.road_objects.network import RoadNetwork
 

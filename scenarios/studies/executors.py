@@ -28,6 +28,7 @@ from typing import Any
 
 from vehicle_model.errors import InputError
 
+from ..extras import require
 from ..run.files import TEMPORARY_SUFFIX, write_atomic
 from .progress import ProgressCallback, SweepProgress
 from .records import CaseRecord, case_path, marker_path, read_record
@@ -130,12 +131,10 @@ def dask_client(scheduler: str | Any, timeout: float | None = None) -> tuple[Any
     Raises
     ------
     vehicle_model.errors.InputError
-        The scheduler cannot be reached in time (or the address is not one), naming ``--scheduler`` and it.
+        The scheduler cannot be reached in time (or the address is not one), naming ``--scheduler`` and it; or
+        ``distributed`` is not installed (the ``cluster`` extra).
     """
-    try:
-        from distributed import Client
-    except ImportError as exc:  # pragma: no cover - depends on the installation
-        raise ImportError('running on a Dask cluster needs dask.distributed: pip install "dask[distributed]"') from exc
+    Client = require("distributed", "cluster", "--scheduler").Client
     if isinstance(scheduler, Client):
         return scheduler, False
     timeout = CONNECT_TIMEOUT_S if timeout is None else timeout

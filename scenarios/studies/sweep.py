@@ -70,6 +70,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..extras import require
 from ..run.files import atomic_path, write_atomic
 from .executors import SweepState, drain, run_dask, run_local
 from .progress import ProgressCallback
@@ -163,7 +164,8 @@ def run_sweep(
         :func:`~scenarios.run.stopping.handle_sigterm`), also when raised in a case: after stopping the
         workers and cancelling what had not started; finished cases stay recorded.
     vehicle_model.errors.InputError
-        ``scheduler`` cannot be reached (:func:`~scenarios.studies.executors.dask_client`).
+        ``scheduler`` cannot be reached (:func:`~scenarios.studies.executors.dask_client`), or is given without
+        ``distributed`` installed (the ``cluster`` extra).
     """
     if run is None:
         from .cases import run_case as run
@@ -171,6 +173,8 @@ def run_sweep(
         raise ValueError(f"workers = {workers} must be at least 1")
     if scheduler is not None and executor is not None:
         raise ValueError("give either a Dask scheduler or an executor, not both")
+    if scheduler is not None:
+        require("distributed", "cluster", "--scheduler")  # before any case runs
     names = [spec.name for spec in cases]
     duplicates = sorted({n for n in names if names.count(n) > 1})
     if duplicates:

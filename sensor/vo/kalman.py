@@ -43,11 +43,6 @@ class MotionKalmanFilter:
         self._x: np.ndarray | None = None  # (6, 2)
         self._p: np.ndarray | None = None  # (6, 2, 2)
 
-    @property
-    def initialised(self) -> bool:
-        """True once a measurement has been seen."""
-        return self._x is not None
-
     def predict(self) -> None:
         """Propagate one frame."""
         if self._x is None or self._p is None:

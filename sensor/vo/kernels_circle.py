@@ -117,7 +117,7 @@ def circle(
     has_prior = motion.shape[0] == 4
     alive = np.arange(u1p.shape[0])
     n_bv, n_bu = lo_bins.shape[0], lo_bins.shape[1]
-    bin_of = np.empty(u1p.shape[0], dtype=np.int64)  # the start features' bins (PriorRanges.lookup)
+    bin_of = np.empty(u1p.shape[0], dtype=np.int64)  # the start features' bins in the prior ranges' table
     for i in range(u1p.shape[0]):
         bu = min(max(np.int64(u1p[i]) // binsize, 0), n_bu - 1)
         bv = min(max(np.int64(v1p[i]) // binsize, 0), n_bv - 1)

@@ -77,7 +77,7 @@ def circular_match(
     if ranges is None:  # one bin for all
         binsize = 1
         lo_bins, hi_bins = (r.reshape(1, 1, 4, 2) for r in default_ranges(config))
-    else:  # the bins' table, looked up in the kernel as PriorRanges.lookup does
+    else:  # the bins' table, looked up in the kernel by each start feature's bin
         binsize, lo_bins, hi_bins = ranges.binsize, ranges.lo, ranges.hi
     motion = np.empty((0, 0)) if prior_motion is None else np.ascontiguousarray(prior_motion, dtype=np.float64)
     return circle(

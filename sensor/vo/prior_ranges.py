@@ -31,12 +31,6 @@ class PriorRanges:
     lo: np.ndarray
     hi: np.ndarray
 
-    def lookup(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Ranges (N, 4, 2) for start features at (u, v)."""
-        bu = np.clip(u // self.binsize, 0, self.lo.shape[1] - 1)
-        bv = np.clip(v // self.binsize, 0, self.lo.shape[0] - 1)
-        return self.lo[bv, bu], self.hi[bv, bu]
-
 
 @kernel
 def _bin_extremes(xy: np.ndarray, binsize: int, n_bv: int, n_bu: int) -> tuple[np.ndarray, np.ndarray]:
