@@ -54,9 +54,6 @@ def test_the_std_fallback_threshold_reaches_the_controller() -> None:
     assert trailer_steer_for(default).controller.config.feedback_max_std == 0.075
 
 
-@pytest.mark.skipif(
-    "drop_every" in FusionConfig.model_fields, reason="scenarios/config.py still declares fusion.drop_every"
-)
 def test_a_config_with_the_removed_frame_drop_is_refused_like_any_unknown_field() -> None:
     with pytest.raises(ConfigError, match=r"fusion\.drop_every = 2: not a field of the configuration"):
         load_scenario("roundabout-3", {"fusion.drop_every": 2})

@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 from rich.markup import escape
 
+from scenarios.extras import require
 from scenarios.loop.ends import RunStatus
 from scenarios.registry import feedback_sources
 from scenarios.scenario_shortcuts import shortcut_pairs
@@ -131,6 +132,8 @@ def study(
         raise InputError(f"unknown study {name!r}; choose one of {', '.join(sorted(STUDIES))}")
     for note in check_study_vehicle(name, vehicle):  # a vehicle it cannot drive: refused before any work
         errors.print(f"note: {note}", markup=False)
+    if scheduler is not None:
+        require("distributed", "cluster", "--scheduler")
     settings = dict(parse_assignment(item) for item in set_ or [])
     if settings:
         study_cases(name, full, vehicle, settings)  # settings a case refuses: one line, before any work
@@ -194,6 +197,8 @@ def assess(
     surfaces = tuple(surface or ("dry",))
     feedbacks = side_by_side_feedbacks(combination) if side_by_side else tuple(feedback or ("none",))
     assessment_cases(combination, feedbacks, surfaces)  # every option checked before any work
+    if scheduler is not None:
+        require("distributed", "cluster", "--scheduler")
     name = Path(combination).stem if combination.endswith((".yaml", ".yml")) else combination
     if out is not None and resume and (out / CASES_DIR).is_dir():
         run_dir = out
@@ -248,6 +253,7 @@ def tune(
     from scenarios.envs.tuning_report import gains_table, held_out_table, set_options, write_tuning
     from scenarios.run.results import new_run_dir
 
+    require("optuna", "tune", "tuning the gains")
     base = load_config(scenario, {"feedback": feedback, "vehicle": "lst"})  # the gains' scenario, refused before tuning
     out_dir = None if out is None else new_run_dir(out, "tune", force=force)
     with Progress(console=console, transient=True, disable=as_json) as bar:

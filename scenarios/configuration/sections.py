@@ -312,7 +312,7 @@ class EstimatorsConfig(Settings):
 
 class FusionConfig(FusionNoise):
     """The fused VISO-OT filter (``sensor.fusion.FusionNoise``: the data-sheet figures it is designed for, not the
-    ``signals``), and a test's frame drop."""
+    ``signals``)."""
 
     offtracking_bias_std: float = Field(
         0.005,
@@ -320,7 +320,6 @@ class FusionConfig(FusionNoise):
         le=0.5,
         description="[m] the VO's error no state of the filter explains, added to its std; 0.5 m swamps any estimate",
     )
-    drop_every: int = Field(0, ge=0, le=1000, description="withhold every n-th frame from it (0: none; a test)")
 
 
 class ControllerConfig(Settings):
