@@ -93,6 +93,8 @@ class CameraPanel:
         The latest drawn frame's number, matches, inliers and failure reason.
     frame : CameraFrame or None
         What the odometry made of the latest drawn frame (:class:`sensor.frame_odometry.CameraFrame`).
+    drawn : (int, int)
+        The matches and the inliers drawn on the latest image.
     """
 
     def __init__(self, run: SavedRun) -> None:
@@ -108,6 +110,7 @@ class CameraPanel:
         self._image: np.ndarray | None = None
         self.info = ""
         self.frame: Any = None
+        self.drawn = (0, 0)
 
     def _state(self, r: int) -> VehicleState:
         """The recorded state of row ``r`` (the camera reads the pose and, for the mount flex, the velocities)."""
@@ -154,6 +157,7 @@ class CameraPanel:
             "" if result.valid else f" ({result.reason or 'failed'})"
         )
         self._last, self._image = j, image
+        self.drawn = (len(points), int(inliers.sum()))
         return image
 
     def close(self) -> None:
