@@ -7,18 +7,18 @@ the default latency of one frame period up to two frames are in flight. The defa
 (:data:`DEFAULT_WORKERS`); with two, the second renders the next frame while the first one's pair waits for
 the odometry.
 
-Each worker is a ``spawn``-ed process (never a fork: OpenGL contexts do not survive one) that rebuilds the
-scenario from its configuration and owns one :class:`sensor.stereo_camera.StereoCamera` (:func:`.build.stereo_camera`),
-hence one renderer, as the rendering rules of :mod:`sensor.renderer` demand. The co-simulation sends the frame
-number, the :class:`~vehicle_model.geometry.CombinationPose` and the frame's mount flex down a pipe; the worker
-renders the pair and, unless the development must see the frames in order (auto-exposure,
-:attr:`sensor.stereo_camera.StereoCamera.develops_in_order`), develops it too, and answers with the render time
-and CPU time, then the left and right images as raw bytes (their cost: ``benchmarks/README.md``). Workers can run
-at a lower priority than the co-simulation (:data:`RENDER_NICENESS`, off by default), whose odometry is the critical
-path, and with two or more of them llvmpipe rasterises in each worker's own thread (:data:`RENDER_THREADS`). A worker ignores Ctrl-C (the co-simulation
-process stops it, keeping the data) and exits when its pipe closes; a thread of its own, the first thing it starts,
-ends it within :data:`PARENT_CHECK_S` of its parent's death, so it never outlives the run, even after a SIGKILL of
-the run that lands while it builds its world or renders.
+Each worker is a ``spawn``-ed process (never a fork: OpenGL contexts do not survive one) that rebuilds the scenario
+from its configuration and owns one :class:`sensor.stereo_camera.StereoCamera` (:func:`.build.stereo_camera`), hence
+one renderer, as the rendering rules of :mod:`sensor.renderer` demand. The co-simulation sends the frame number, the
+:class:`~vehicle_model.geometry.CombinationPose` and the frame's mount flex down a pipe; the worker renders the pair
+and, unless the development must see the frames in order (auto-exposure,
+:attr:`sensor.stereo_camera.StereoCamera.develops_in_order`), develops it too, and answers with the render time and
+CPU time, then the left and right images as raw bytes (their cost: ``benchmarks/README.md``). Workers can run at a
+lower priority than the co-simulation (:data:`RENDER_NICENESS`, off by default), whose odometry is the critical
+path, and with two or more of them llvmpipe rasterises in each worker's own thread (:data:`RENDER_THREADS`). A
+worker ignores Ctrl-C (the co-simulation process stops it, keeping the data) and exits when its pipe closes; a
+thread of its own, the first thing it starts, ends it within :data:`PARENT_CHECK_S` of its parent's death, so it
+never outlives the run, even after a SIGKILL of the run that lands while it builds its world or renders.
 A worker that raises sends the traceback back; one that dies or stops answering is a
 :class:`CameraWorkerError` naming the worker, the frame and the exit code, never a hang.
 """
