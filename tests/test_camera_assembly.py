@@ -7,6 +7,7 @@ few frames.
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 import sys
@@ -105,6 +106,8 @@ def test_kitti_export_renders_the_runs_lighting_as_the_runs_camera(tmp_path: Pat
         return cv2.imread(str(tmp_path / name / side / f"{k:06d}.png"), cv2.IMREAD_UNCHANGED)
 
     assert np.abs(image("flat", "image_0", 1).astype(int) - image("lit", "image_0", 1)).mean() > 5.0
+    meta = {name: json.loads((tmp_path / name / "offtrack.json").read_text()) for name in ("flat", "lit")}
+    assert "lighting" not in meta["flat"] and meta["lit"]["lighting"]["sun"] is True
     # the export is what the run's camera gives for those frames (the lit scenario has no lens, flex or correction)
     setup = build_scenario(lit.model_copy(update={"duration_s": 0.1 + 2.0 / lit.rates.control_hz}))
     _, cols = simulate(setup, UnsteeredTrailer(trailer_axles(setup)))

@@ -10,7 +10,7 @@ load it::
     poses.txt              per frame: the 3×4 pose of the left camera in the first left camera's
                            frame, T_cam0←cam_k, OpenCV axes (x right, y down, z forward)
     times.txt              per frame: time since the first frame [s]
-    offtrack.json          scenario, rig, world settings and run status
+    offtrack.json          scenario, rig, world settings (and the lighting, with a sun) and run status
     stereo.mp4             with ``video=True``: the pairs side by side (:mod:`scenarios.export.video`)
 
 The calibration is the *ideal* rig's (rectified, ``P1 = K·[I | −b·e_x]``): a misaligned right camera
@@ -248,6 +248,8 @@ def export_kitti(
         "rig": rig_summary(rig, setup.params),
         "vehicle": setup.params.name,
     }
+    if camera.developer.lighting is not None:  # a sun: its settings (flat lighting adds nothing)
+        meta["lighting"] = camera.developer.lighting.model_dump(mode="json")
     (out / "offtrack.json").write_text(json.dumps(meta, indent=2) + "\n")
     files = {
         "left": out / "image_0",
