@@ -72,6 +72,31 @@ def frame_times(time: np.ndarray, fps: float, speed: float, max_frames: int | No
     return t0 + step * np.arange(n)
 
 
+def draw_matches(left: np.ndarray, result: Any, frame: int) -> tuple[np.ndarray, tuple[int, int], str]:
+    """A grey left image (RGB) with the odometry's matches of a frame drawn (as de Saxe & Cebon 2018, Figs 5 and 13):
+    inliers green with their flow since the previous frame, outliers red.
+
+    Returns
+    -------
+    image, (matches, inliers), caption
+        The drawn image, the matches and the inliers drawn, and a caption naming frame ``frame``'s counts and
+        why its motion failed.
+    """
+    import cv2
+
+    image = cv2.cvtColor(left, cv2.COLOR_GRAY2RGB)
+    inliers = np.asarray(result.inliers, dtype=bool)
+    points = np.rint(np.asarray(result.matches, dtype=float).reshape(-1, 8)).astype(int)
+    for i, m in enumerate(points.tolist()):
+        colour = (40, 220, 40) if i < inliers.size and inliers[i] else (230, 40, 40)
+        cv2.line(image, (m[0], m[1]), (m[4], m[5]), colour, 1, cv2.LINE_AA)
+        cv2.circle(image, (m[4], m[5]), 2, colour, -1, cv2.LINE_AA)
+    caption = f"camera frame {frame}: {len(result.matches)} matches, {int(inliers.sum())} inliers" + (
+        "" if result.valid else f" ({result.reason or 'failed'})"
+    )
+    return image, (len(points), int(inliers.sum())), caption
+
+
 class CameraPanel:
     """The run's own camera replayed frame by frame, the left image of a frame drawn with its matched features.
 
@@ -137,7 +162,6 @@ class CameraPanel:
 
         Samples must not go back in time past the latest drawn frame.
         """
-        import cv2
 
         j = int(np.searchsorted(self.rows, k, side="right")) - 1
         if j < 0:
@@ -145,19 +169,8 @@ class CameraPanel:
         if j == self._last and self._image is not None:
             return self._image
         left, frame = self._replay(j)
-        result = frame.vo
-        image = cv2.cvtColor(left, cv2.COLOR_GRAY2RGB)
-        inliers = np.asarray(result.inliers, dtype=bool)
-        points = np.rint(np.asarray(result.matches, dtype=float).reshape(-1, 8)).astype(int)
-        for i, m in enumerate(points.tolist()):
-            colour = (40, 220, 40) if i < inliers.size and inliers[i] else (230, 40, 40)
-            cv2.line(image, (m[0], m[1]), (m[4], m[5]), colour, 1, cv2.LINE_AA)
-            cv2.circle(image, (m[4], m[5]), 2, colour, -1, cv2.LINE_AA)
-        self.info = f"camera frame {j}: {len(result.matches)} matches, {int(inliers.sum())} inliers" + (
-            "" if result.valid else f" ({result.reason or 'failed'})"
-        )
+        image, self.drawn, self.info = draw_matches(left, frame.vo, j)
         self._last, self._image = j, image
-        self.drawn = (len(points), int(inliers.sum()))
         return image
 
     def close(self) -> None:
