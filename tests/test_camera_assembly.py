@@ -147,3 +147,33 @@ def test_animation_draws_the_matches_the_runs_odometry_recorded(tmp_path: Path) 
     finally:
         panel.close()
     assert sum(int(cols["vo_matches"][r]) for r in panel.rows) > 100  # the frames after the first did match
+
+
+@pytest.mark.rendering
+def test_a_run_through_the_frame_cache_records_the_same_series(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``OFFTRACK_FRAME_CACHE``: the first run keeps its frames, the second takes them all back; both record what a
+    run without the cache records (the timing columns aside)."""
+    from scenarios.camera.frame_cache import FRAME_CACHE_ENV
+    from scenarios.run.drive import simulate
+
+    small = {"camera.width": 672, "camera.height": 196}
+    config = load_scenario(
+        "roundabout-3", {**small, "estimators.viso_ot": True, "duration_s": 0.35, "camera.lighting.sun": True}
+    )
+
+    def series(workers: int) -> dict[str, np.ndarray]:
+        outcome, cols = simulate(build_scenario(config), camera_workers=2)  # with a frame cache: rendered here
+        assert outcome.status == "completed" and outcome.camera["workers"] == workers
+        return {k: v for k, v in cols.items() if k not in ("render_ms", "vo_ms")}
+
+    plain = series(2)
+    monkeypatch.setenv(FRAME_CACHE_ENV, str(tmp_path))
+    first = series(0)
+    frames = sorted(tmp_path.glob("*/*.npz"))
+    assert len(frames) == int(np.sum(plain["camera_frame"] > 0.5)) >= 3
+    stamps = [f.stat().st_mtime_ns for f in frames]
+    second = series(0)
+    assert [f.stat().st_mtime_ns for f in frames] == stamps  # read back, not written again
+    for run in (first, second):
+        assert run.keys() == plain.keys()
+        assert [k for k in plain if not np.array_equal(plain[k], run[k], equal_nan=True)] == []
