@@ -3,9 +3,9 @@
 A closed field-loop cell costs 3–4 minutes, nearly all of it rendering; the filter itself costs seconds. Here each
 chosen cell of ``offtrack study field-loop --full`` (its fused-feedback case) is run **steered on the truth**, with
 the fused estimate computed beside it as an observer, so the path does not depend on the filter's settings. On the
-first run of a cell the developed stereo pairs are kept in ``--cache`` (one pickle per cell: 2.5 GB for a
-roundabout-3 cell, 1.8 GB for a figure-of-eight one; the size is checked against the free disk first); every later
-run reads them back and runs only the odometry, self-calibration and the filter. Per cell it prints the fused
+first run of a cell the camera keeps its developed stereo pairs in ``--cache`` (its frame cache,
+:mod:`scenarios.camera.frame_cache`, one directory per cell; the size is checked against the free disk first); every
+later run reads them back and runs only the odometry, self-calibration and the filter. Per cell it prints the fused
 estimate's error RMS and mean after 20 s, the share within 2σ, the std's RMS and the zero-slip estimate's error RMS
 (open loop: the true off-tracking is the truth-fed loop's, not what the estimate would steer)::
 
@@ -23,7 +23,7 @@ import argparse
 import dataclasses
 import json
 import multiprocessing as mp
-import pickle
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -33,12 +33,17 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
-CELL_BYTES = 2.6e9  # the largest cell's pickle (roundabout-3), for the free-space check
+CELL_BYTES = 2.6e9  # the largest cell's frames (roundabout-3), for the free-space check
 
 
 def cached_frames(cache: Path, name: str) -> Path:
-    """The pickle of the cell ``name``'s developed stereo pairs."""
-    return cache / f"{name.removeprefix('scenario-')}.pkl"
+    """The frame cache directory of the cell ``name``'s camera."""
+    return cache / name.removeprefix("scenario-")
+
+
+def is_cached(cache: Path, name: str) -> bool:
+    """Whether the cell ``name``'s frames are in the cache (its directory holds frames)."""
+    return any(cached_frames(cache, name).glob("*/*.npz"))
 
 
 def run_cell(args: tuple[str, list[tuple[str, Any]], str, str]) -> tuple[str, dict[str, Any]]:
@@ -49,31 +54,15 @@ def run_cell(args: tuple[str, list[tuple[str, Any]], str, str]) -> tuple[str, di
     setup_process()
     import pandas as pd
 
-    from scenarios.camera.delivery import CameraFeed
+    from scenarios.camera.frame_cache import FRAME_CACHE_ENV
     from scenarios.studies.field_loop import field_loop_cases, run_field_loop_case
 
-    cache_file = cached_frames(Path(cache_dir), name)
-    frames: dict[int, tuple[np.ndarray, np.ndarray]] = (
-        pickle.loads(cache_file.read_bytes()) if cache_file.is_file() else {}
-    )
-    fresh = not frames
-
-    def frame(self: CameraFeed, pose: Any, index: int, flex: Any) -> Any:
-        if index not in frames:
-            raw = self._camera.render(pose, index, right_rotation=flex)
-            frames[index] = self._camera.develop(raw, index)
-        result = self._odometry.process(*frames[index], 0.0)
-        result.render_cpu_s = 0.0
-        return result
-
-    CameraFeed._frame = frame  # this script's own replacement of the serial render step
+    os.environ[FRAME_CACHE_ENV] = str(cached_frames(Path(cache_dir), name))  # this process runs one cell at a time
     spec = next(s for s in field_loop_cases(full=True) if s.name == name)
     overrides = tuple((k, v) for k, v in spec.overrides if k != "feedback")
     overrides += (("feedback", "truth"), ("estimators.viso_ot_fused", True), *extra)
     spec = dataclasses.replace(spec, overrides=overrides)
     row = run_field_loop_case(spec, Path(out))
-    if fresh and frames:
-        cache_file.write_bytes(pickle.dumps(frames, protocol=5))
     series = pd.read_parquet(Path(out) / spec.name / "timeseries.parquet")
     late = series["time"].to_numpy() > 20.0
     truth = series["offtracking_truth"].to_numpy()
@@ -124,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         if s.name.endswith("viso_ot_fused") and any(all(w in s.name for w in want) for want in wants)
     ]
     args.cache.mkdir(parents=True, exist_ok=True)
-    missing = [n for n in names if not cached_frames(args.cache, n).is_file()]
+    missing = [n for n in names if not is_cached(args.cache, n)]
     if args.cached_only:
         names = [n for n in names if n not in missing]
         missing = []

@@ -22,6 +22,7 @@ alone develops in a process that does not render (it needs no world and no OpenG
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -39,7 +40,7 @@ from .mount_flex import MountFlex
 from .renderer import StereoRenderer
 from .world import World
 
-__all__ = ["PairDeveloper", "RawStereoPair", "StereoCamera"]
+__all__ = ["CachedPair", "FrameStore", "PairDeveloper", "RawStereoPair", "StereoCamera"]
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,36 @@ class RawStereoPair:
     left: np.ndarray
     right: np.ndarray
     exposed: bool = True
+
+
+@dataclass(frozen=True)
+class CachedPair:
+    """A developed frame as a :class:`FrameStore` keeps it.
+
+    Attributes
+    ----------
+    left, right : numpy.ndarray
+        The left and corrected right grey images the odometry gets (:meth:`StereoCamera.develop`).
+    metered : float
+        Mean level of the raw left image the auto-exposure metered (NaN without auto-exposure): replayed into the
+        exposure so that the frames after a stored one are developed as if it had been rendered.
+    """
+
+    left: np.ndarray
+    right: np.ndarray
+    metered: float = float("nan")
+
+
+class FrameStore(Protocol):
+    """Where :meth:`StereoCamera.pair` keeps developed frames, keyed by frame number, pose and mount flex."""
+
+    def load(self, frame: int, pose: CombinationPose, right_rotation: Misalignment | None) -> CachedPair | None:
+        """The stored frame ``frame`` if it was taken at this pose and flex, else ``None``."""
+        ...
+
+    def save(self, frame: int, pose: CombinationPose, right_rotation: Misalignment | None, pair: CachedPair) -> None:
+        """Keep frame ``frame`` taken at this pose and flex."""
+        ...
 
 
 class PairDeveloper:
@@ -121,13 +152,18 @@ class PairDeveloper:
         """The left and corrected right grey images the odometry gets from frame ``frame``'s raw pair."""
         left, right = raw.left, raw.right
         if not raw.exposed:
-            if self.exposure is None:
-                raise ValueError("an unexposed pair needs the auto-exposure of a lit camera")
-            gain = self.exposure.update(float(cv2.mean(left)[0]), frame)
-            self.last_gain = gain
+            gain = self.meter(float(cv2.mean(left)[0]), frame)
             left, right = AutoExposure.apply(left, gain), AutoExposure.apply(right, gain)
         left, right = self.optics.electronic(left, right, seed=self.seed, frame=frame)
         return left, self.correct(right)
+
+    def meter(self, metered: float, frame: int) -> float:
+        """The auto-exposure's gain for frame ``frame`` whose raw left image has the mean level ``metered``."""
+        if self.exposure is None:
+            raise ValueError("an unexposed pair needs the auto-exposure of a lit camera")
+        gain = self.exposure.update(metered, frame)
+        self.last_gain = gain
+        return gain
 
     def correct(self, right: np.ndarray) -> np.ndarray:
         """The right image with the eq (8)–(9) correction applied (unchanged without one)."""
@@ -151,18 +187,32 @@ class StereoCamera:
         What the cameras see.
     params : VehicleParams
         The combination (where the camera is at a pose).
+    antialias : bool
+        Render with 4× multisampling (:class:`~sensor.renderer.StereoRenderer`).
+    frame_store : FrameStore, optional
+        Where :meth:`pair` keeps the developed frames and takes them back instead of rendering them again.
     """
 
-    def __init__(self, developer: PairDeveloper, world: World, params: VehicleParams) -> None:
+    def __init__(
+        self,
+        developer: PairDeveloper,
+        world: World,
+        params: VehicleParams,
+        *,
+        antialias: bool = False,
+        frame_store: FrameStore | None = None,
+    ) -> None:
         self.developer = developer
         self.optics = developer.optics
         self.world = world
         self.params = params
+        self.frame_store = frame_store
         self.renderer = StereoRenderer(
             world,
             self.optics.render_rig,
             params,
             seed=developer.seed,
+            antialias=antialias,
             lighting=developer.lighting,
             frame_interval_s=developer.frame_interval_s,
         )
@@ -188,9 +238,40 @@ class StereoCamera:
         left, right = self.optics.optical(pair.left, pair.right, right_rotation=right_rotation)
         return RawStereoPair(left, right, exposed)
 
+    def render_poses(
+        self, pose_left: np.ndarray, pose_right: np.ndarray, frame: int, right_rotation: Misalignment | None = None
+    ) -> RawStereoPair:
+        """Frame ``frame`` from the two cameras' poses ``T_world←camera`` (OpenCV axes), as :meth:`render` makes it
+        at a combination pose."""
+        exposed = not self.develops_in_order
+        pair = self.renderer.render_poses(pose_left, pose_right, frame=frame, expose=exposed)
+        left, right = self.optics.optical(pair.left, pair.right, right_rotation=right_rotation)
+        return RawStereoPair(left, right, exposed)
+
     def develop(self, raw: RawStereoPair, frame: int) -> tuple[np.ndarray, np.ndarray]:
         """The left and corrected right grey images the odometry gets (:meth:`PairDeveloper.develop`)."""
         return self.developer.develop(raw, frame)
+
+    def pair(
+        self, pose: CombinationPose, frame: int, right_rotation: Misalignment | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Frame ``frame`` rendered and developed (:meth:`render` then :meth:`develop`), through the
+        :attr:`frame_store` when there is one: a stored frame of this pose and flex is taken back, not rendered.
+
+        Frames must come in order when the camera develops in order (auto-exposure), stored or not.
+        """
+        store = self.frame_store
+        stored = store.load(frame, pose, right_rotation) if store is not None else None
+        if stored is not None:
+            if self.develops_in_order:
+                self.developer.meter(stored.metered, frame)
+            return stored.left, stored.right
+        raw = self.render(pose, frame, right_rotation=right_rotation)
+        left, right = self.develop(raw, frame)
+        if store is not None:
+            metered = float(cv2.mean(raw.left)[0]) if self.develops_in_order else float("nan")
+            store.save(frame, pose, right_rotation, CachedPair(left, right, metered))
+        return left, right
 
     def view_image(self, pose: CombinationPose) -> np.ndarray:
         """The left camera's grey image at ``pose``, as the renderer draws it (no noise, exposure or lens)."""

@@ -33,4 +33,9 @@ def test_cells_that_match_no_case_stop_before_any_work(tmp_path: Path) -> None:
     with pytest.raises(SystemExit, match="no fused-feedback case of the full grid matches"):
         script.main([str(tmp_path / "out"), "--cells", "no-such-manoeuvre", "--cache", str(tmp_path / "cache")])
     assert not (tmp_path / "out").exists()
-    assert script.cached_frames(tmp_path, "scenario-a_b").name == "a_b.pkl"
+    cell = script.cached_frames(tmp_path, "scenario-a_b")
+    assert cell == tmp_path / "a_b" and not script.is_cached(tmp_path, "scenario-a_b")
+    (cell / "0123456789abcdef").mkdir(parents=True)
+    assert not script.is_cached(tmp_path, "scenario-a_b")  # a camera's directory without frames
+    (cell / "0123456789abcdef" / "000000.npz").write_bytes(b"")
+    assert script.is_cached(tmp_path, "scenario-a_b")

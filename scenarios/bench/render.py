@@ -12,7 +12,7 @@ import numpy as np
 from sensor.camera import StereoRig
 from vehicle_model.geometry import CombinationPose
 
-from ..camera.build import world_for_scenario
+from ..camera.build import stereo_camera, world_for_scenario
 from ..config import load_scenario
 from ..setup.build import build_scenario
 
@@ -48,15 +48,13 @@ def bench_render(
         ``field_ms_per_pair`` (mean), ``field_ms_per_pair_median``, ``ideal_ms_per_pair_both_blocks``
         (median over both ideal blocks) and ``field_ratio`` (field over ideal, medians).
     """
-    from sensor.renderer import StereoRenderer
-
     config = load_scenario(scenario)
     setup = build_scenario(config)
     t0 = time.perf_counter()
     world = world_for_scenario(setup, scenery_density)
     build_s = time.perf_counter() - t0
     rig = StereoRig()
-    renderer = StereoRenderer(world, rig, setup.params, seed=config.seed, antialias=antialias)
+    renderer = stereo_camera(setup, ideal=True, rig=rig, world=world, antialias=antialias).renderer
     path = setup.path
     step = config.speed.cornering_kmh / 3.6 / config.rates.camera_hz
     s = path.turn_span[0] + step * np.arange(duration_frames + 1)
@@ -75,7 +73,7 @@ def bench_render(
     cpu_s = time.process_time() - cpu0
     times_a = np.array(times)
     tm = dict(renderer.timings)
-    field_figures = _bench_field(renderer, world, rig, setup.params, config.seed, (x, y, h), times) if field else {}
+    field_figures = _bench_field(renderer, setup, world, rig, (x, y, h), times) if field else {}
     n = max(len(times), 1)
     info = renderer.gl_info
     return {
@@ -110,15 +108,15 @@ def bench_render(
 
 
 def _bench_field(
-    renderer: Any, world: Any, rig: StereoRig, params: Any, seed: int, xyh: tuple, ideal_before: list[float]
+    renderer: Any, setup: Any, world: Any, rig: StereoRig, xyh: tuple, ideal_before: list[float]
 ) -> dict[str, Any]:
     """Field-conditions pairs against ideal ones on the same poses, interleaved (see :func:`bench_render`)."""
     from sensor.lighting import Lighting
-    from sensor.renderer import StereoRenderer
 
     x, y, h = xyh
     lighting = Lighting.field()
-    field = StereoRenderer(world, rig, params, seed=seed, antialias=renderer.antialias, lighting=lighting)
+    camera = stereo_camera(setup, ideal=True, rig=rig, lighting=lighting, world=world, antialias=renderer.antialias)
+    field = camera.renderer
     t0 = time.perf_counter()
     field.render(CombinationPose(x[0], y[0], h[0], 0.0), frame=0)  # bakes the light, uploads the lit scene
     first_s = time.perf_counter() - t0

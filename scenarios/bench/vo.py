@@ -25,7 +25,7 @@ import numpy as np
 
 from vehicle_model.geometry import CombinationPose
 
-from ..camera.build import rig_from_config, world_for_scenario
+from ..camera.build import stereo_camera
 from ..config import load_scenario
 from ..loop.trailer_steer import UnsteeredTrailer, trailer_axles
 from ..run.drive import simulate
@@ -97,19 +97,17 @@ def rendered_sequence(frames: int = 30, seed: int = 0, scenario: str = "roundabo
         with np.load(path) as data:
             cal = json.loads(str(data["calibration"]))
             return RenderedSequence(data["left"], data["right"], data["poses"], cal, scenario, seed)
-    from sensor.renderer import StereoRenderer
-
     setup = build_scenario(config)
     _, cols = simulate(setup, UnsteeredTrailer(trailer_axles(setup)))
-    rig = rig_from_config(config)
-    renderer = StereoRenderer(world_for_scenario(setup), rig, setup.params, seed=config.seed)
+    camera = stereo_camera(setup, ideal=True)  # the scenario's rig as an ideal pinhole pair, flat lighting
+    rig = camera.rig
     ticks = np.flatnonzero(np.asarray(cols["camera_frame"]) > 0.5)[:frames]
     combination = CombinationPose(*(np.asarray(cols[k])[ticks] for k in ("X", "Y", "psi1", "gamma")))
     poses = rig.camera_in_world(setup.params, combination, "left")
     right_poses = rig.camera_in_world(setup.params, combination, "right")
-    pairs = [renderer.render_poses(poses[k], right_poses[k], frame=k) for k in range(len(ticks))]
-    left = np.stack([p.left for p in pairs])
-    right = np.stack([p.right for p in pairs])
+    pairs = [camera.develop(camera.render_poses(poses[k], right_poses[k], k), k) for k in range(len(ticks))]
+    left = np.stack([p[0] for p in pairs])
+    right = np.stack([p[1] for p in pairs])
     cal = {"width": rig.width, "height": rig.height, "hfov": float(rig.hfov), "baseline": float(rig.baseline)}
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp.npz")

@@ -7,8 +7,10 @@ Degrees and configuration models stop here; what comes out is SI and made of sen
   scenario's seed, ``camera.scenery_density`` and ``camera.world``);
 * :func:`lenses`, :func:`calibration_for` (``camera.calibration``: ideal, estimated once per
   process by :func:`run_calibration`, or read from a file), :func:`lighting_from_config`, :func:`mount_flex`;
-* :func:`stereo_camera` — the :class:`~sensor.stereo_camera.StereoCamera` of a built scenario, and
-  :func:`pair_developer` its development alone (a process that does not render);
+* :func:`stereo_camera` — the :class:`~sensor.stereo_camera.StereoCamera` of a built scenario: the one place a
+  camera (and its :class:`~sensor.renderer.StereoRenderer`) is assembled, as the run has it or as an ideal pinhole
+  rig (``ideal=True``), optionally through a frame cache (:mod:`.frame_cache`); :func:`pair_developer` its
+  development alone (a process that does not render);
 * :func:`frame_odometry` — the per-frame estimator :class:`~sensor.frame_odometry.FrameOdometry`;
 * :func:`flex_schedule` — the right camera's :class:`~sensor.mount_flex.FlexSchedule`, seeded by
   ``(seed, 0xF1E8)``.
@@ -17,9 +19,10 @@ Degrees and configuration models stop here; what comes out is SI and made of sen
 from __future__ import annotations
 
 import functools
+import hashlib
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
@@ -39,8 +42,10 @@ if TYPE_CHECKING:
     from sensor.stereo_camera import PairDeveloper, StereoCamera
 
 __all__ = [
+    "CONFIGURED",
     "calibration_for",
     "calibration_target_rig",
+    "camera_tag",
     "flex_schedule",
     "frame_odometry",
     "lenses",
@@ -202,15 +207,109 @@ def _camera_settings(config: ScenarioConfig) -> dict[str, Any]:
     }
 
 
-def stereo_camera(setup: ScenarioSetup) -> StereoCamera:
-    """The scenario's stereo camera in its world (``camera.world``: the roadside, or the airfield of de Saxe & Cebon
-    2018, §4)."""
+CONFIGURED: Final = "configured"
+"""``lighting`` of :func:`stereo_camera`: the configuration's (flat for an ideal camera)."""
+
+
+def _ideal_developer(config: ScenarioConfig, rig: StereoRig, lighting: Lighting | None) -> PairDeveloper:
+    """An ideal pinhole rig's development: no lens, ideal calibration, no mount flex, no right-image correction."""
+    from sensor.stereo_camera import PairDeveloper
+
+    return PairDeveloper(rig, lighting=lighting, seed=config.seed, frame_interval_s=1.0 / config.rates.camera_hz)
+
+
+def camera_tag(setup: ScenarioSetup, **settings: Any) -> str:
+    """A name for the frames of the camera :func:`stereo_camera` builds for ``setup`` with ``settings``: a hash of the
+    configuration's camera section, seed and camera rate, the reference path, the vehicle and the settings."""
+    cfg = setup.config
+    described = {
+        "camera": cfg.camera.model_dump(mode="json"),
+        "seed": cfg.seed,
+        "camera_hz": cfg.rates.camera_hz,
+        "vehicle": repr(setup.params),
+        "settings": {k: repr(v) for k, v in sorted(settings.items())},
+    }
+    digest = hashlib.sha256(json.dumps(described, sort_keys=True).encode())
+    digest.update(np.ascontiguousarray(setup.path.points, dtype=np.float64).tobytes())
+    return digest.hexdigest()[:16]
+
+
+def stereo_camera(
+    setup: ScenarioSetup,
+    *,
+    ideal: bool = False,
+    rig: StereoRig | None = None,
+    lighting: Lighting | str | None = CONFIGURED,
+    scenery_density: float | None = None,
+    world: World | None = None,
+    antialias: bool = False,
+    frame_cache: Path | None = None,
+) -> StereoCamera:
+    """The scenario's stereo camera in its world: the one place a camera of a run is assembled.
+
+    As the run has it (default): the world (``camera.world``: the roadside, or the airfield of de Saxe & Cebon
+    2018, §4; ``camera.scenery_density``), the rig, the lenses, the calibration the odometry uses, the lighting and
+    auto-exposure, the right camera's mount flex and the eq (8)–(9) correction, seeded by the run's seed. The
+    odometry on its images is :func:`frame_odometry` and the flex frame by frame :func:`flex_schedule`.
+
+    Parameters
+    ----------
+    setup : ScenarioSetup
+        The built scenario.
+    ideal : bool
+        An ideal pinhole rig instead: the configured rig with no lens, ideal calibration, no mount flex and no
+        correction, under flat lighting unless ``lighting`` says otherwise.
+    rig : StereoRig, optional
+        The rig of an ideal camera (default: the configured one, :func:`rig_from_config`); only with ``ideal``.
+    lighting : Lighting or None
+        The lighting of an ideal camera (``None``: flat); default: the configuration's for the run's camera, flat
+        for an ideal one.
+    scenery_density : float, optional
+        Fraction of roadside objects (default: ``camera.scenery_density``).
+    world : World, optional
+        The world to render (default: built from the scenario, :func:`world_for_scenario`).
+    antialias : bool
+        Render with 4× multisampling.
+    frame_cache : Path, optional
+        Keep the developed frames in this directory and take them back on a later run
+        (:class:`.frame_cache.FrameCache`, :meth:`sensor.stereo_camera.StereoCamera.pair`).
+
+    Raises
+    ------
+    InputError
+        ``rig`` or ``lighting`` given for the run's camera (they are the configuration's).
+    """
     from sensor.stereo_camera import StereoCamera  # the renderer: OpenGL only where frames are rendered
 
+    from .frame_cache import FrameCache
+
     cfg = setup.config
-    kind = cfg.camera.world
-    world = world_for_scenario(setup) if kind == "roadside" else world_for_scenario(setup, kind=kind)
-    return StereoCamera(pair_developer(cfg), world, setup.params)
+    if ideal:
+        light = None if isinstance(lighting, str) else lighting
+        developer = _ideal_developer(cfg, rig if rig is not None else rig_from_config(cfg), light)
+    else:
+        if rig is not None or not isinstance(lighting, str):
+            raise InputError("the run's camera has the configured rig and lighting; pass ideal=True to change them")
+        developer = pair_developer(cfg)
+    if world is None:
+        kind = cfg.camera.world
+        world = (
+            world_for_scenario(setup, scenery_density)
+            if kind == "roadside"
+            else world_for_scenario(setup, scenery_density, kind=kind)
+        )
+    store = None
+    if frame_cache is not None:
+        tag = camera_tag(
+            setup,
+            ideal=ideal,
+            rig=developer.rig,
+            lighting=developer.lighting,
+            world=world.config,
+            antialias=antialias,
+        )
+        store = FrameCache(frame_cache, tag)
+    return StereoCamera(developer, world, setup.params, antialias=antialias, frame_store=store)
 
 
 def pair_developer(config: ScenarioConfig) -> PairDeveloper:

@@ -26,6 +26,7 @@ import math
 import time as wallclock
 from collections import deque
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -38,6 +39,7 @@ from vehicle_model.simulator import VehicleState
 
 from ..setup.build import ScenarioSetup
 from .build import flex_schedule, frame_odometry, pair_developer, stereo_camera
+from .frame_cache import frame_cache_from_env
 from .workers import CameraWorkerError, RenderWorkers
 
 __all__ = ["CameraFeed", "CameraWorkerError", "CapturedFrame", "latency_ticks"]
@@ -82,6 +84,10 @@ class CameraFeed:
         The built scenario.
     workers
         Render worker processes; 0 renders and processes each frame in this process on the tick it is taken.
+    frame_cache
+        Keep the developed frames in this directory and take them back instead of rendering them again
+        (:mod:`.frame_cache`; default: ``OFFTRACK_FRAME_CACHE``, unset: none). Frames are then rendered in this
+        process (no workers).
 
     Attributes
     ----------
@@ -95,9 +101,14 @@ class CameraFeed:
         4×4 pose of the left camera on the trailer (``T_trailer←camera``), as VISO-OT uses it.
     rig : StereoRig
         The true camera rig (:func:`.build.rig_from_config`).
+    last_pair : tuple of numpy.ndarray or None
+        The left and corrected right images the odometry got for the latest frame rendered in this process
+        (``None`` before one, and with render workers).
     """
 
-    def __init__(self, setup: ScenarioSetup, workers: int = 0) -> None:
+    def __init__(self, setup: ScenarioSetup, workers: int = 0, frame_cache: Path | None = None) -> None:
+        frame_cache = frame_cache if frame_cache is not None else frame_cache_from_env()
+        workers = 0 if frame_cache is not None else workers
         self.latency_ticks = latency_ticks(setup)
         self.estimate: float | None = None
         self._setup = setup
@@ -107,12 +118,13 @@ class CameraFeed:
             self._workers = RenderWorkers(setup.config, workers)  # start them first: they take a while
             self._developer = pair_developer(setup.config)
         else:
-            self._camera = stereo_camera(setup)
+            self._camera = stereo_camera(setup, frame_cache=frame_cache)
             self._developer = self._camera.developer
         self._odometry = frame_odometry(setup, self._developer.optics)
         self.rig = self._developer.rig
         self.camera_in_trailer = self._developer.optics.left_in_trailer(setup.params)
         self.released: list[CapturedFrame] = []
+        self.last_pair: tuple[np.ndarray, np.ndarray] | None = None
         self._flex = flex_schedule(setup)
         self._captured: deque[CapturedFrame] = deque()  # taken, not yet released
         self._unprocessed: deque[CapturedFrame] = deque()  # taken, not yet processed (pipelined)
@@ -211,7 +223,8 @@ class CameraFeed:
         assert self._camera is not None
         t0 = wallclock.perf_counter()
         cpu0 = wallclock.process_time()
-        left, right = self._camera.develop(self._camera.render(pose, index, right_rotation=flex), index)
+        left, right = self._camera.pair(pose, index, right_rotation=flex)
+        self.last_pair = (left, right)
         render_s = wallclock.perf_counter() - t0
         render_cpu_s = wallclock.process_time() - cpu0
         frame = self._odometry.process(left, right, render_s)

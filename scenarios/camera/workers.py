@@ -7,19 +7,18 @@ the default latency of one frame period up to two frames are in flight. The defa
 (:data:`DEFAULT_WORKERS`); with two, the second renders the next frame while the first one's pair waits for
 the odometry.
 
-Each worker is a ``spawn``-ed process (never a fork: OpenGL contexts do not survive one) that rebuilds the
-scenario from its configuration and owns one :class:`sensor.stereo_camera.StereoCamera` (:func:`.build.stereo_camera`),
-hence one renderer, as the rendering rules of :mod:`sensor.renderer` demand. The co-simulation sends the frame
-number, the :class:`~vehicle_model.geometry.CombinationPose` and the frame's mount flex down a pipe; the worker
-renders the pair and, unless the development must see the frames in order (auto-exposure,
-:attr:`sensor.stereo_camera.StereoCamera.develops_in_order`), develops it too, and answers with the render time
-and CPU time, then the left and right images as raw bytes (1 MB a pair at 1344×391, well under a millisecond to
-copy). Workers can run at a lower priority than the co-simulation
-(:data:`RENDER_NICENESS`, off by default), whose odometry is the critical path, and with two or more of them llvmpipe
-rasterises in each worker's own thread (:data:`RENDER_THREADS`). A worker ignores Ctrl-C (the co-simulation
-process stops it, keeping the data) and exits when its pipe closes; a thread of its own, the first thing it starts,
-ends it within :data:`PARENT_CHECK_S` of its parent's death, so it never outlives the run, even after a SIGKILL of
-the run that lands while it builds its world or renders.
+Each worker is a ``spawn``-ed process (never a fork: OpenGL contexts do not survive one) that rebuilds the scenario
+from its configuration and owns one :class:`sensor.stereo_camera.StereoCamera` (:func:`.build.stereo_camera`), hence
+one renderer, as the rendering rules of :mod:`sensor.renderer` demand. The co-simulation sends the frame number, the
+:class:`~vehicle_model.geometry.CombinationPose` and the frame's mount flex down a pipe; the worker renders the pair
+and, unless the development must see the frames in order (auto-exposure,
+:attr:`sensor.stereo_camera.StereoCamera.develops_in_order`), develops it too, and answers with the render time and
+CPU time, then the left and right images as raw bytes (their cost: ``benchmarks/README.md``). Workers can run at a
+lower priority than the co-simulation (:data:`RENDER_NICENESS`, off by default), whose odometry is the critical
+path, and with two or more of them llvmpipe rasterises in each worker's own thread (:data:`RENDER_THREADS`). A
+worker ignores Ctrl-C (the co-simulation process stops it, keeping the data) and exits when its pipe closes; a
+thread of its own, the first thing it starts, ends it within :data:`PARENT_CHECK_S` of its parent's death, so it
+never outlives the run, even after a SIGKILL of the run that lands while it builds its world or renders.
 A worker that raises sends the traceback back; one that dies or stops answering is a
 :class:`CameraWorkerError` naming the worker, the frame and the exit code, never a hang.
 """
@@ -43,9 +42,9 @@ from vehicle_model.errors import OfftrackError
 from vehicle_model.geometry import CombinationPose
 
 DEFAULT_WORKERS = 1
-"""Render workers of a pipelined run. One, whose llvmpipe threads use the core the odometry leaves free, runs the
-loop faster than two on a 2-core machine: two workers' two contexts and caches cost more CPU per pair
-(``offtrack bench loop``; figures in ``benchmarks/README.md``)."""
+"""Render workers of a pipelined run. One: its llvmpipe threads use the core the odometry leaves free, where two
+workers would keep two OpenGL contexts and texture caches (``offtrack bench loop`` compares them; figures in
+``benchmarks/README.md``)."""
 ANSWER_TIMEOUT_S = 300.0
 """Longest wait for one worker's answer [s]; the first includes building the world and the OpenGL context."""
 MIN_PIPELINED_FRAMES = 150
@@ -55,14 +54,13 @@ STOP_TIMEOUT_S = 2.0
 RENDER_THREADS = "0"
 """llvmpipe rasteriser threads of each of two or more workers (``LP_NUM_THREADS`` unless set; "0": in the worker's
 own thread). Such workers already render two frames at once beside the odometry, so threads inside each would
-only add their synchronisation cost (about 2 ms per pair); a single worker, and a serial run, keep llvmpipe's
-default (one thread per core)."""
+only add their synchronisation cost (figures in ``benchmarks/README.md``); a single worker, and a serial run, keep
+llvmpipe's default (one thread per core)."""
 RENDER_NICENESS = 0
 """How much lower a worker's scheduling priority is than the co-simulation's (``nice`` increment). The
 co-simulation process is the critical path (each estimate waits for its odometry); a positive increment
-lets it keep its core while the renders take what is left. Off by default: on a quiet 2-core machine a positive
-increment gains nothing beyond noise, and on a shared one the lowered workers lose their CPU to other jobs
-(figures in ``benchmarks/README.md``)."""
+lets it keep its core while the renders take what is left. Off by default (``offtrack bench loop`` at both
+increments; figures in ``benchmarks/README.md``)."""
 
 
 PARENT_CHECK_S = 0.2

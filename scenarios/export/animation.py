@@ -6,10 +6,10 @@ Each frame shows
   trailer blue), the outer front corner and follow-point paths, the combination with its steered wheels
   and, for the roundabout test, the 12.50/5.30 m circles;
 * when the camera ran (``estimators.viso_ot``), the left camera image with its matched features (as de Saxe
-  & Cebon 2018, Figs 5 and 13): the pair is re-rendered from the recorded state with the project's renderer
-  and the visual odometry is run again on it, so the features are those the estimator saw (up to the
-  random bucketing); inliers green with their flow since the previous frame, outliers red. Without the
-  camera the panel is an overview of the whole run with the current position;
+  & Cebon 2018, Figs 5 and 13): the run's own camera (:class:`CameraPanel`: its lens, calibration, lighting,
+  mount flex and odometry) is fed the recorded states of every camera tick in order, so the images and the
+  features are those the run's odometry saw; inliers green with their flow since the previous frame, outliers
+  red. Without the camera the panel is an overview of the whole run with the current position;
 * beneath, the off-tracking of the truth and of every estimator (columns ``offtracking_*``) scrolling with
   time, with a cursor at the current instant.
 
@@ -31,7 +31,7 @@ import numpy as np
 from matplotlib.patches import PathPatch, Polygon
 
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import CombinationPose
+from vehicle_model.simulator import VehicleState
 
 from ..registry import source_colour
 from ..run.plots import SavedRun, load_run
@@ -72,67 +72,110 @@ def frame_times(time: np.ndarray, fps: float, speed: float, max_frames: int | No
     return t0 + step * np.arange(n)
 
 
-class _Camera:
-    """Re-renders the recorded camera frames and reruns the visual odometry to draw the matched features."""
+def draw_matches(left: np.ndarray, result: Any, frame: int) -> tuple[np.ndarray, tuple[int, int], str]:
+    """A grey left image (RGB) with the odometry's matches of a frame drawn (as de Saxe & Cebon 2018, Figs 5 and 13):
+    inliers green with their flow since the previous frame, outliers red.
+
+    Returns
+    -------
+    image, (matches, inliers), caption
+        The drawn image, the matches and the inliers drawn, and a caption naming frame ``frame``'s counts and
+        why its motion failed.
+    """
+    import cv2
+
+    image = cv2.cvtColor(left, cv2.COLOR_GRAY2RGB)
+    inliers = np.asarray(result.inliers, dtype=bool)
+    points = np.rint(np.asarray(result.matches, dtype=float).reshape(-1, 8)).astype(int)
+    for i, m in enumerate(points.tolist()):
+        colour = (40, 220, 40) if i < inliers.size and inliers[i] else (230, 40, 40)
+        cv2.line(image, (m[0], m[1]), (m[4], m[5]), colour, 1, cv2.LINE_AA)
+        cv2.circle(image, (m[4], m[5]), 2, colour, -1, cv2.LINE_AA)
+    caption = f"camera frame {frame}: {len(result.matches)} matches, {int(inliers.sum())} inliers" + (
+        "" if result.valid else f" ({result.reason or 'failed'})"
+    )
+    return image, (len(points), int(inliers.sum())), caption
+
+
+class CameraPanel:
+    """The run's own camera replayed frame by frame, the left image of a frame drawn with its matched features.
+
+    The camera and its odometry are built from the run's configuration as the run built them
+    (:class:`scenarios.camera.delivery.CameraFeed`, rendering in this process) and fed the recorded states of
+    the camera ticks in order: lens, calibration, lighting and auto-exposure, mount flex, self-calibration and
+    the odometry's state are the run's, so the images and matches are those the run's odometry saw.
+
+    Parameters
+    ----------
+    run : SavedRun
+        The run (its configuration and time series).
+
+    Attributes
+    ----------
+    shape : (int, int)
+        Height and width of the images [px].
+    info : str
+        The latest drawn frame's number, matches, inliers and failure reason.
+    frame : CameraFrame or None
+        What the odometry made of the latest drawn frame (:class:`sensor.frame_odometry.CameraFrame`).
+    drawn : (int, int)
+        The matches and the inliers drawn on the latest image.
+    """
 
     def __init__(self, run: SavedRun) -> None:
-        from sensor.field_optics import right_correction_homography
-        from sensor.renderer import StereoRenderer
-        from sensor.vo import StereoOdometry, VOConfig
+        from ..camera.delivery import CameraFeed
 
-        from ..camera.build import rig_from_config, world_for_scenario
-
-        config = run.config
-        rig = rig_from_config(config)
-        self.renderer = StereoRenderer(world_for_scenario(run.setup), rig, run.params, seed=config.seed)
-        self.vo = StereoOdometry(
-            VOConfig.from_horizontal_fov(rig.width, rig.height, rig.hfov, rig.baseline), config.seed
-        )
-        self.correction = right_correction_homography(rig, config.camera.right_correction_deg)
+        self.feed = CameraFeed(run.setup, workers=0)
         self.columns = run.columns
         self.rows = np.flatnonzero(np.asarray(run.columns.get("camera_frame", np.zeros(0))) > 0.5)
+        rig = self.feed.rig
         self.shape = (rig.height, rig.width)
+        self._replayed = 0  # camera frames fed to the feed so far
         self._last: int | None = None
         self._image: np.ndarray | None = None
         self.info = ""
+        self.frame: Any = None
+        self.drawn = (0, 0)
 
-    def _process(self, j: int) -> Any:
-        import cv2
+    def _state(self, r: int) -> VehicleState:
+        """The recorded state of row ``r`` (the camera reads the pose and, for the mount flex, the velocities)."""
+        c = self.columns
+        values = {k: float(c[k][r]) for k in ("time", "X", "Y", "psi1", "u", "v1", "r1", "gamma", "r2")}
+        return VehicleState(**values, slip=np.zeros(0))
 
-        c, r = self.columns, int(self.rows[j])
-        pose = CombinationPose(c["X"][r], c["Y"][r], c["psi1"][r], c["gamma"][r])
-        pair = self.renderer.render(pose, frame=j)
-        right = pair.right
-        if self.correction is not None:
-            right = cv2.warpPerspective(right, self.correction, (right.shape[1], right.shape[0]))
-        return pair.left, self.vo.process(pair.left, right)
+    def _replay(self, j: int) -> tuple[np.ndarray, Any]:
+        """Feed the camera ticks up to frame ``j`` in order; frame ``j``'s left image and odometry result."""
+        if j < self._replayed - 1:
+            raise ValueError(f"camera frame {j} is behind the replay (frame {self._replayed - 1}); frames go forward")
+        feed = self.feed
+        while self._replayed <= j:
+            r = int(self.rows[self._replayed])
+            shot = feed.capture(r, self._state(r))
+            feed.deliver(r + feed.latency_ticks)  # released at once: the estimates are not drawn
+            self._replayed += 1
+            self.frame = shot.frame
+        assert feed.last_pair is not None
+        return feed.last_pair[0], self.frame
 
     def image(self, k: int) -> np.ndarray:
-        """The left image (RGB) of the latest camera frame at or before sample ``k``, features drawn."""
-        import cv2
+        """The left image (RGB) of the latest camera frame at or before sample ``k``, features drawn.
+
+        Samples must not go back in time past the latest drawn frame.
+        """
 
         j = int(np.searchsorted(self.rows, k, side="right")) - 1
         if j < 0:
             return np.zeros((*self.shape, 3), np.uint8)
         if j == self._last and self._image is not None:
             return self._image
-        if self._last is None or j != self._last + 1:
-            self.vo.reset()
-            if j > 0:
-                self._process(j - 1)
-        left, result = self._process(j)
-        image = cv2.cvtColor(left, cv2.COLOR_GRAY2RGB)
-        inliers = np.asarray(result.inliers, dtype=bool)
-        points = np.rint(np.asarray(result.matches, dtype=float).reshape(-1, 8)).astype(int)
-        for i, m in enumerate(points.tolist()):
-            colour = (40, 220, 40) if i < inliers.size and inliers[i] else (230, 40, 40)
-            cv2.line(image, (m[0], m[1]), (m[4], m[5]), colour, 1, cv2.LINE_AA)
-            cv2.circle(image, (m[4], m[5]), 2, colour, -1, cv2.LINE_AA)
-        self.info = f"camera frame {j}: {len(result.matches)} matches, {int(inliers.sum())} inliers" + (
-            "" if result.valid else f" ({result.reason or 'failed'})"
-        )
+        left, frame = self._replay(j)
+        image, self.drawn, self.info = draw_matches(left, frame.vo, j)
         self._last, self._image = j, image
         return image
+
+    def close(self) -> None:
+        """Release the camera."""
+        self.feed.close()
 
 
 def _fit(frame: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -291,8 +334,8 @@ def animate_run(
         Simulated seconds per second of video.
     camera
         Show the left camera image with its matched features (re-rendered; needs headless OpenGL). Default:
-        when the camera ran (``estimators.viso_ot``). Costs about two renders and two VO frames per video
-        frame, one of each when the frames follow the camera rate (``speed / fps`` = 1 / camera rate).
+        when the camera ran (``estimators.viso_ot``). Costs one render and one odometry frame per camera frame
+        up to the last one shown.
     size
         Frame size (width, height) [px]; rounded down to even numbers for H.264.
     view_half_width
@@ -321,7 +364,7 @@ def animate_run(
     out = Path(out) if out is not None else Path(run_dir) / ANIMATION_FILE
     out.parent.mkdir(parents=True, exist_ok=True)
     use_camera = bool(run.config.estimators.viso_ot) if camera is None else bool(camera)
-    cam = _Camera(run) if use_camera else None
+    cam = CameraPanel(run) if use_camera else None
     times = frame_times(time, fps, speed, max_frames)
     samples = np.clip(np.searchsorted(time, times + 1e-9, side="right") - 1, 0, time.size - 1)
 
@@ -425,4 +468,6 @@ def animate_run(
     finally:
         close()
         plt.close(fig)
+        if cam is not None:
+            cam.close()
     return out

@@ -10,12 +10,15 @@ load it::
     poses.txt              per frame: the 3×4 pose of the left camera in the first left camera's
                            frame, T_cam0←cam_k, OpenCV axes (x right, y down, z forward)
     times.txt              per frame: time since the first frame [s]
-    offtrack.json          scenario, rig, world settings and run status
+    offtrack.json          scenario, rig, world settings (and the lighting, with a sun) and run status
     stereo.mp4             with ``video=True``: the pairs side by side (:mod:`scenarios.export.video`)
 
 The calibration is the *ideal* rig's (rectified, ``P1 = K·[I | −b·e_x]``): a misaligned right camera
 (de Saxe & Cebon 2018, §4.4) renders rotated images that the calibration does not know about, as in the field
-tests.
+tests. The frames are those of the scenario's camera as an ideal pinhole rig
+(:func:`scenarios.camera.build.stereo_camera`, ``ideal=True``) in its world and under its lighting
+(``camera.lighting``: sun, shadows, sky and the auto-exposure, frame by frame in order); lenses, mount flex and the
+odometry's rectification are left out.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from vehicle_model.errors import InputError
 from vehicle_model.geometry import CombinationPose
 from vehicle_model.parameters import VehicleParams
 
-from ..camera.build import resolve_scenery_density, rig_from_config, world_for_scenario
+from ..camera.build import lighting_from_config, resolve_scenery_density, rig_from_config, stereo_camera
 from ..config import ScenarioConfig, load_scenario
 from ..loop.trailer_steer import UnsteeredTrailer, trailer_axles
 from ..run.drive import simulate
@@ -168,8 +171,6 @@ def export_kitti(
         ``out_dir`` is a file, under a file or not writable, or already holds a dataset and not
         ``overwrite`` — all before anything is simulated.
     """
-    from sensor.renderer import StereoRenderer
-
     if isinstance(config, str):
         config = load_scenario(config)
     if max_frames is not None and max_frames < 1:
@@ -195,8 +196,16 @@ def export_kitti(
     if len(frames) == 0:
         raise InputError("the simulation produced no camera frame; check rates.camera_hz and duration_s")
 
-    world = world_for_scenario(setup, scenery_density)
-    renderer = StereoRenderer(world, rig, setup.params, seed=config.seed, antialias=antialias)
+    # the run's world, rig and lighting through an ideal pinhole camera (no lens, flex or rectification)
+    camera = stereo_camera(
+        setup,
+        ideal=True,
+        rig=rig,
+        lighting=lighting_from_config(config),
+        scenery_density=scenery_density,
+        antialias=antialias,
+    )
+    world = camera.world
     for sub in ("image_0", "image_1"):
         (out / sub).mkdir(parents=True, exist_ok=True)
     import cv2
@@ -208,11 +217,11 @@ def export_kitti(
     t1 = time.perf_counter()
     try:
         for k in range(len(frames)):
-            pair = renderer.render_poses(left_poses[k], right_poses[k], frame=k)
-            cv2.imwrite(str(out / "image_0" / f"{k:06d}.png"), pair.left)
-            cv2.imwrite(str(out / "image_1" / f"{k:06d}.png"), pair.right)
+            left, right = camera.develop(camera.render_poses(left_poses[k], right_poses[k], k), k)  # in order
+            cv2.imwrite(str(out / "image_0" / f"{k:06d}.png"), left)
+            cv2.imwrite(str(out / "image_1" / f"{k:06d}.png"), right)
             if writer is not None:
-                writer.append(pair.left, pair.right)
+                writer.append(left, right)
             if progress is not None:
                 progress(k + 1, len(frames))
     finally:
@@ -239,6 +248,8 @@ def export_kitti(
         "rig": rig_summary(rig, setup.params),
         "vehicle": setup.params.name,
     }
+    if camera.developer.lighting is not None:  # a sun: its settings (flat lighting adds nothing)
+        meta["lighting"] = camera.developer.lighting.model_dump(mode="json")
     (out / "offtrack.json").write_text(json.dumps(meta, indent=2) + "\n")
     files = {
         "left": out / "image_0",

@@ -32,6 +32,7 @@ from ..export.animation import (
     ANIMATION_FILE,
     OfftrackingTrace,
     check_animation_settings,
+    draw_matches,
     frame_times,
     frame_writer,
     grab_frame,
@@ -86,8 +87,6 @@ class _Camera:
 
     def image(self, k: int) -> np.ndarray:
         """The left image (RGB) of the latest camera frame at or before row ``k``, its matches drawn."""
-        import cv2
-
         j = int(np.searchsorted(self.rows, k, side="right")) - 1
         if j < 0:
             return np.zeros((*self.shape, 3), np.uint8)
@@ -110,16 +109,7 @@ class _Camera:
             image = np.zeros((*self.shape, 3), np.uint8)
             self.info = f"camera frame {index}: no images"
         else:
-            image = cv2.cvtColor(left, cv2.COLOR_GRAY2RGB)
-            inliers = np.asarray(result.inliers, dtype=bool)
-            points = np.rint(np.asarray(result.matches, dtype=float).reshape(-1, 8)).astype(int)
-            for i, m in enumerate(points.tolist()):
-                colour = (40, 220, 40) if i < inliers.size and inliers[i] else (230, 40, 40)
-                cv2.line(image, (m[0], m[1]), (m[4], m[5]), colour, 1, cv2.LINE_AA)
-                cv2.circle(image, (m[4], m[5]), 2, colour, -1, cv2.LINE_AA)
-            self.info = f"camera frame {index}: {len(result.matches)} matches, {int(inliers.sum())} inliers" + (
-                "" if result.valid else f" ({result.reason or 'failed'})"
-            )
+            image, _, self.info = draw_matches(left, result, index)
         self._last, self._image = j, image
         return image
 
