@@ -24,6 +24,7 @@ from typing import Annotated, Any, Literal, get_args
 
 from pydantic import (
     BaseModel,
+    ConfigDict,
     Discriminator,
     Field,
     Tag,
@@ -48,6 +49,7 @@ from vehicle_model.surface import FRICTION_PRESETS
 
 from .camera_checks import check_camera
 from .camera_schema import CameraConfig
+from .estimator_settings import check_switches, switch_is_on, turn_on
 from .registry import NO_FEEDBACK, estimator_entries, estimator_entry, feedback_sources
 from .unit_feedback import check_unit_feedback, steered_units
 from .yaml_input import RefusedDocument, load_yaml
@@ -363,7 +365,10 @@ class EstimatorsConfig(Settings):
     RearPoint``, ``controller.zero_slip.REAR_POINT_NOTES``). ``viso_ot``: render the trailer's stereo camera at the
     camera rate and run visual odometry and VISO-OT (needs headless OpenGL). ``viso_ot_fused``: the Kalman filter
     of the trailer's gyro, wheel speed and steer with the camera's motions (``sensor.fusion``, settings in
-    ``fusion``); it needs the camera, so it turns ``viso_ot`` on."""
+    ``fusion``); it needs the camera, so it turns ``viso_ot`` on. Any other registered estimator's switch (or
+    settings) is taken under its name (:mod:`scenarios.estimator_settings`)."""
+
+    model_config = ConfigDict(extra="allow")
 
     zero_slip: bool = True
     zero_slip_variant: Literal["yaw_rate", "steer_angle"] = "yaw_rate"
@@ -375,6 +380,11 @@ class EstimatorsConfig(Settings):
     @classmethod
     def _fused_needs_the_camera(cls, data: Any) -> Any:  # the fused filter corrects with the camera's motions
         return {**data, "viso_ot": True} if isinstance(data, dict) and data.get("viso_ot_fused") is True else data
+
+    @model_validator(mode="before")
+    @classmethod
+    def _registered_switches(cls, data: Any) -> Any:  # another registered estimator's switch, under its name
+        return check_switches(data, cls.model_fields)
 
 
 class FusionConfig(FusionNoise):
@@ -619,23 +629,12 @@ class ScenarioConfig(Settings):
         """The estimator fed back runs: its ``estimators`` switch is set, so the resolved file says what ran."""
         if not isinstance(data, dict) or not isinstance(data.get("feedback"), str):
             return data
-        try:
-            switch = estimator_entry(data["feedback"]).switch
-        except KeyError:
-            return data  # no feedback, or an unknown one: reported by the field's own check
-        estimators = data.get("estimators", {})
-        if switch is None or not isinstance(estimators, dict) or estimators.get(switch) is True:
-            return data
-        return {**data, "estimators": {**estimators, switch: True}}
+        return turn_on(data, data["feedback"])
 
     def enabled_estimators(self) -> tuple[str, ...]:
         """The estimators a run of this configuration runs, in registry order (:mod:`scenarios.registry`)."""
         entries = estimator_entries()
-        on = {
-            e.name
-            for e in entries
-            if e.always or e.name == self.feedback or (e.switch is not None and getattr(self.estimators, e.switch))
-        }
+        on = {e.name for e in entries if e.always or e.name == self.feedback or switch_is_on(self.estimators, e.name)}
         for entry in reversed(entries):  # an entry's requirements are registered before it
             if entry.name in on:
                 on.update(entry.requires)

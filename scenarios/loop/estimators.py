@@ -40,6 +40,7 @@ __all__ = [
     "fusion_std_record",
     "ground_truth",
     "zero_slip",
+    "zero_slip_unit",
 ]
 
 TOO_UNCERTAIN = "too_uncertain"
@@ -166,13 +167,17 @@ class ZeroSlip:
         ``yaw_rate`` (the gyro) or ``steer_angle``.
     rear_point
         ``axle_mean`` or ``equivalent`` (:data:`controller.zero_slip.RearPoint`).
+    unit
+        The towed unit it estimates (1: the first; :class:`controller.zero_slip.ZeroSlipEstimator`).
     """
 
     name = "zero_slip"
     columns: tuple[Column, ...] = (Column(estimate_column("zero_slip"), "m", "zero-slip (Cheng) off-tracking"),)
 
-    def __init__(self, params: VehicleParams, variant: str = "yaw_rate", rear_point: str = "axle_mean") -> None:
-        self.estimator = ZeroSlipEstimator(params, variant, rear_point)  # type: ignore[arg-type]
+    def __init__(
+        self, params: VehicleParams, variant: str = "yaw_rate", rear_point: str = "axle_mean", unit: int = 1
+    ) -> None:
+        self.estimator = ZeroSlipEstimator(params, variant, rear_point, unit)  # type: ignore[arg-type]
         self.estimate = OfftrackingEstimate.of(None)
 
     def update(self, tick: TickInput) -> OfftrackingEstimate:
@@ -275,6 +280,12 @@ def zero_slip(context: LoopContext) -> ZeroSlip:
     """The registry's builder of the zero-slip estimator (``estimators.zero_slip_variant`` and ``_rear_point``)."""
     settings = context.setup.config.estimators
     return ZeroSlip(context.setup.params, settings.zero_slip_variant, settings.zero_slip_rear_point)
+
+
+def zero_slip_unit(context: LoopContext, unit: int) -> ZeroSlip:
+    """The registry's builder of the zero-slip estimate of towed unit ``unit`` behind the first (its ``update``)."""
+    settings = context.setup.config.estimators
+    return ZeroSlip(context.setup.params, settings.zero_slip_variant, settings.zero_slip_rear_point, unit)
 
 
 GYRO_ZEROING_STREAM = 0x2E60
