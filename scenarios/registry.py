@@ -10,15 +10,17 @@ Gymnasium environments all read their choices from this registry; the closed loo
 
 An entry is the estimator's whole declaration (:class:`EstimatorEntry`): its builder, what it requires, whether it
 needs the camera or estimates every towed unit along the chain, its switch's default, its settings model, its label
-and colour. The built-in builders import the loop lazily, inside their bodies, so reading the names never imports
-OpenGL or the odometry. The plug-ins are loaded once, when the registry is first read, so the command line, spawned
-study workers and Dask workers all see them.
+and colour. The built-in entries are declared with the loop, in :data:`BUILTIN_MODULE`, whose builders import the
+loop's estimators lazily, inside their bodies, so reading the names never imports OpenGL or the odometry. The
+built-ins and then the plug-ins are loaded once, when the registry is first read (or first added to), so the
+command line, spawned study workers and Dask workers all see them.
 
-This module imports only the standard library: the configuration schema sits above it.
+This module imports only the standard library: the configuration schema sits above it, the loop above that.
 """
 
 from __future__ import annotations
 
+import importlib
 import logging
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -26,6 +28,7 @@ from importlib.metadata import entry_points
 from typing import Any
 
 __all__ = [
+    "BUILTIN_MODULE",
     "NO_FEEDBACK",
     "PLUGIN_GROUP",
     "EstimatorEntry",
@@ -45,6 +48,10 @@ NO_FEEDBACK = "none"
 PLUGIN_GROUP = "offtrack.estimators"
 """The entry-point group under which an installed distribution declares estimators: each entry point names an
 :class:`EstimatorEntry`, an iterable of them, or a function of no arguments returning either."""
+
+BUILTIN_MODULE = "scenarios.loop.builtin_estimators"
+"""The module declaring the built-in estimators (``BUILTIN_ESTIMATORS``, in registration order), loaded with the
+registry's first use: it sits with the loop, above the configuration schema that reads this registry."""
 
 TRUTH = "truth"
 """The ground truth's name: every other ``offtracking_truth…`` column is one of its own."""
@@ -158,6 +165,7 @@ def register_estimator(entry: EstimatorEntry, replace: bool = False) -> None:
     ValueError
         The name is taken (unless ``replace``) or a required entry is not registered.
     """
+    load_plugins()
     if entry.name in _ENTRIES and not replace:
         raise ValueError(f"an estimator named {entry.name!r} is registered already")
     missing = [name for name in entry.requires if name not in _ENTRIES]
@@ -168,6 +176,7 @@ def register_estimator(entry: EstimatorEntry, replace: bool = False) -> None:
 
 def unregister_estimator(name: str) -> None:
     """Remove the entry ``name`` (and nothing that requires it may stay)."""
+    load_plugins()
     dependants = [e.name for e in _ENTRIES.values() if name in e.requires]
     if dependants:
         raise ValueError(f"estimators {dependants} require {name!r}")
@@ -186,13 +195,16 @@ def _declared(loaded: Any) -> tuple[EstimatorEntry, ...]:
 
 
 def load_plugins() -> None:
-    """Register the estimators of every installed distribution's :data:`PLUGIN_GROUP` entry points, once, in the
-    entry points' name order. A plug-in that fails to load or to register is left out with one logged line
-    naming it."""
+    """Register the built-in estimators (:data:`BUILTIN_MODULE`), then those of every installed distribution's
+    :data:`PLUGIN_GROUP` entry points in the entry points' name order; once. A plug-in that fails to load or to
+    register is left out with one logged line naming it."""
     global _plugins_loaded
     if _plugins_loaded:
         return
     _plugins_loaded = True
+    builtin = importlib.import_module(BUILTIN_MODULE).BUILTIN_ESTIMATORS
+    for entry in builtin:
+        register_estimator(entry)
     for point in sorted(entry_points(group=PLUGIN_GROUP), key=lambda p: p.name):
         try:
             for entry in _declared(point.load()):
@@ -246,77 +258,3 @@ def source_colour(name: str) -> str | None:
     load_plugins()
     entry = _ENTRIES.get(name)
     return None if entry is None else entry.colour
-
-
-# The built-in estimators. Each builder imports the loop only when a run builds it.
-
-
-def _build_zero_slip(context: Any) -> Any:
-    from .loop.estimators import zero_slip
-
-    return zero_slip(context)
-
-
-def _build_zero_slip_unit(context: Any, unit: int) -> Any:
-    from .loop.estimators import zero_slip_unit
-
-    return zero_slip_unit(context, unit)
-
-
-def _build_viso_ot(context: Any) -> Any:
-    from .loop.camera_estimator import viso_ot
-
-    return viso_ot(context)
-
-
-def _build_fused_viso_ot(context: Any) -> Any:
-    from .loop.estimators import fused_viso_ot
-
-    return fused_viso_ot(context)
-
-
-def _build_ground_truth(context: Any) -> Any:
-    from .loop.estimators import ground_truth
-
-    return ground_truth(context)
-
-
-for _entry in (
-    EstimatorEntry(
-        "zero_slip",
-        "Cheng's zero-slip estimate from the tractor's signals (blind to tyre slip)",
-        _build_zero_slip,
-        enabled=True,
-        colour="tab:orange",
-        label="zero-slip (Cheng)",
-        per_unit=True,
-        build_unit=_build_zero_slip_unit,
-    ),
-    EstimatorEntry(
-        "viso_ot",
-        "VISO-OT: the trailer's stereo camera, visual odometry and the kingpin path (renders; slow)",
-        _build_viso_ot,
-        needs_camera=True,
-        colour="tab:green",
-        label="VISO-OT",
-    ),
-    EstimatorEntry(
-        "viso_ot_fused",
-        "fused VISO-OT: a Kalman filter of the trailer's gyro, wheel speed and steer with the camera (renders)",
-        _build_fused_viso_ot,
-        requires=("viso_ot",),
-        needs_camera=True,
-        colour="tab:purple",
-        label="fused VISO-OT",
-    ),
-    EstimatorEntry(
-        TRUTH,
-        "ground truth: the exact kingpin path of the simulation (de Saxe & Cebon 2018, eqs (3)–(7))",
-        _build_ground_truth,
-        always=True,
-        colour="tab:blue",
-        label="truth",
-        per_unit=True,
-    ),
-):
-    register_estimator(_entry)

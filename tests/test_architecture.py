@@ -32,6 +32,7 @@ SCENARIO_ROOMS: tuple[str, ...] = (
     "camera_checks",
     "registry",
     "unit_feedback",
+    "estimator_settings",
     "config",
     "config_fields",
     "catalogue",
