@@ -120,6 +120,10 @@ class EstimatorEntry:
         behind the first), an object whose ``update(tick)`` returns that unit's
         :class:`~vehicle_model.offtracking.OfftrackingEstimate`. Only the ground truth, whose units' truths are the
         loop's own (:mod:`scenarios.loop.further_units`), is per unit without one.
+    offline : callable or None
+        Its adapter to recorded rows, ``offline(context) -> OfflineEstimator or None``
+        (:mod:`scenarios.loop.offline`): ``offtrack estimate`` runs it over a recording beside the recording's own
+        odometry. ``None``: it does not run on recordings.
     """
 
     name: str
@@ -134,6 +138,7 @@ class EstimatorEntry:
     settings: type | None = None
     per_unit: bool = False
     build_unit: Callable[..., Any] | None = None
+    offline: Callable[..., Any] | None = None
 
     def __post_init__(self) -> None:
         check_estimator_name(self.name)
@@ -141,6 +146,8 @@ class EstimatorEntry:
             raise ValueError(f"estimator {self.name!r}: build must be a callable, build(context) -> participant")
         if self.per_unit and not self.always and not callable(self.build_unit):
             raise ValueError(f"estimator {self.name!r}: per_unit needs build_unit(context, unit) -> unit estimator")
+        if self.offline is not None and not callable(self.offline):
+            raise ValueError(f"estimator {self.name!r}: offline must be a callable, offline(context) -> adapter")
 
     @property
     def switch(self) -> str | None:

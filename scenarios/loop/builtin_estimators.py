@@ -1,7 +1,8 @@
 """The built-in estimators' declarations: the entries :mod:`scenarios.registry` loads first, in this order.
 
 Each builder imports its estimator's module only when a run builds it (:mod:`.estimators`,
-:mod:`.camera_estimator`), so reading the registry's names never imports the odometry or OpenGL.
+:mod:`.camera_estimator`, the offline adapters of :mod:`.offline`), so reading the registry's names never imports the
+odometry or OpenGL. VISO-OT has no offline adapter: ``offtrack estimate`` is its odometry on the recording's frames.
 """
 
 from __future__ import annotations
@@ -23,6 +24,18 @@ def _zero_slip_unit(context: Any, unit: int) -> Any:
     from .estimators import zero_slip_unit
 
     return zero_slip_unit(context, unit)
+
+
+def _zero_slip_offline(context: Any) -> Any:
+    from .offline import zero_slip_offline
+
+    return zero_slip_offline(context)
+
+
+def _fused_viso_ot_offline(context: Any) -> Any:
+    from .offline import fused_viso_ot_offline
+
+    return fused_viso_ot_offline(context)
 
 
 def _viso_ot(context: Any) -> Any:
@@ -53,6 +66,7 @@ BUILTIN_ESTIMATORS: tuple[EstimatorEntry, ...] = (
         label="zero-slip (Cheng)",
         per_unit=True,
         build_unit=_zero_slip_unit,
+        offline=_zero_slip_offline,
     ),
     EstimatorEntry(
         "viso_ot",
@@ -70,6 +84,7 @@ BUILTIN_ESTIMATORS: tuple[EstimatorEntry, ...] = (
         needs_camera=True,
         colour="tab:purple",
         label="fused VISO-OT",
+        offline=_fused_viso_ot_offline,
     ),
     EstimatorEntry(
         TRUTH,

@@ -54,6 +54,32 @@ class ShiftedTruth:
         return {f"offtracking_{NAME}": self.estimate.value, "shifted_truth_shift": self.shift}
 
 
+class OfflineShiftedTruth:
+    """Its offline adapter: the recording's reference off-tracking (where it has one) plus the default shift."""
+
+    name = NAME
+
+    def __init__(self, shift: float) -> None:
+        from scenarios.loop.participant import Column, estimate_column
+
+        self.columns = (
+            Column(estimate_column(NAME), "m", "the reference's off-tracking shifted by a constant"),
+            Column("shifted_truth_shift", "m", "the constant"),
+        )
+        self.shift = shift
+        self.value = float("nan")
+
+    def update(self, row: int, frame: Any, reference: Mapping[str, float]) -> None:
+        self.value = reference.get("offtracking_truth", float("nan")) + self.shift
+
+    def record(self) -> Mapping[str, float]:
+        return {f"offtracking_{NAME}": self.value, "shifted_truth_shift": self.shift}
+
+
+def offline(context: Any) -> OfflineShiftedTruth:
+    return OfflineShiftedTruth(ShiftSettings().shift_m)
+
+
 def build(context: Any) -> ShiftedTruth:
     from scenarios.estimator_settings import estimator_settings
 
@@ -69,4 +95,5 @@ ENTRY = EstimatorEntry(
     colour=COLOUR,
     label="shifted truth",
     settings=ShiftSettings,
+    offline=offline,
 )
