@@ -3,8 +3,9 @@
 ``tests/data/plugin_estimator`` holds the package ``offtrack_test_plugin`` (the truth shifted by a constant, its
 settings model, its own columns and colour) and its ``offtrack_test_plugin-0.1.dist-info`` declaring it under the
 entry-point group ``offtrack.estimators``: on ``PYTHONPATH`` it is an installed distribution, found by
-:mod:`importlib.metadata` in every process — the command line, the spawned workers of a sweep. Nothing in the project
-names it. ``tests/data/plugin_broken`` declares one whose module does not exist.
+:mod:`importlib.metadata` in every process — the command line, the spawned workers of a sweep, ``offtrack estimate``
+through its offline adapter. Nothing in the project names it. ``tests/data/plugin_broken`` declares one whose
+module does not exist.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pandas as pd
 import pytest
@@ -116,3 +118,40 @@ def test_a_broken_plugin_is_left_out_with_one_line_naming_it() -> None:
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "'broken_estimator'" in lines[0] and "offtrack_broken_plugin_missing" in lines[0]
     assert "Traceback" not in done.stderr
+
+
+def _recording(folder: Path, frames: int) -> Path:
+    """A tiny KITTI folder (64×48 noise: the odometry refuses every frame) whose reference poses drive straight
+    ahead 0.5 m a frame, so that the reference's off-tracking exists after a trailer length; signals beside it."""
+    rng = np.random.default_rng(0)
+    for side in ("image_0", "image_1"):
+        (folder / side).mkdir(parents=True)
+        for k in range(frames):
+            cv2.imwrite(str(folder / side / f"{k:06d}.png"), rng.integers(0, 256, (48, 64), dtype=np.uint8))
+    (folder / "times.txt").write_text("".join(f"{0.1 * k:.6e}\n" for k in range(frames)))
+    p0, p1 = "50 0 31.5 0 0 50 23.5 0 0 0 1 0", "50 0 31.5 -25 0 50 23.5 0 0 0 1 0"
+    (folder / "calib.txt").write_text(f"P0: {p0}\nP1: {p1}\nP2: {p0}\nP3: {p1}\n")
+    (folder / "poses.txt").write_text("".join(f"1 0 0 0 0 1 0 0 0 0 1 {-0.5 * k}\n" for k in range(frames)))
+    signals = [f"{0.05 * k:.3f},5.0,0.0,0.0" for k in range(2 * frames)]
+    header = "time_s,speed_m_s,yaw_rate_deg_s,articulation_deg\n"
+    (folder.parent / "signals.csv").write_text(header + "\n".join(signals))
+    (folder.parent / "rig.yaml").write_text("vehicle: lst\npsi_c2v_deg: 180\nlever_arm_m: [-14.05, 0.0, 3.0]\n")
+    return folder
+
+
+def test_estimate_runs_a_plugins_offline_adapter_beside_the_built_in_ones(tmp_path: Path) -> None:
+    folder, out = _recording(tmp_path / "seq", 34), tmp_path / "estimate"
+    args = ("estimate", str(folder), "--rig", str(tmp_path / "rig.yaml"), "--signals", str(tmp_path / "signals.csv"))
+    done = _python(CLI, PLUGIN, args=(*args, "--out", str(out), "--no-plots"))
+    assert done.returncode == 0, done.stderr
+    series = pd.read_parquet(out / "timeseries.parquet")
+    # its columns after the built-ins' and the signals', as declared
+    own = [f"offtracking_{NAME}", "shifted_truth_shift"]
+    assert list(series.columns[-4:]) == ["trailer_wheel_speed", "tractor_lateral_acceleration", *own]
+    assert "offtracking_zero_slip" in series and "offtracking_viso_ot_fused" in series
+    truth, shifted = series["offtracking_truth"].to_numpy(), series[f"offtracking_{NAME}"].to_numpy()
+    defined = np.isfinite(truth)
+    assert defined.sum() > 5 and np.array_equal(np.isfinite(shifted), defined)
+    assert np.abs(shifted[defined] - truth[defined] - SHIFT).max() < 1e-12
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["offtracking"]["estimators"][NAME]["mean_error"] == pytest.approx(SHIFT, abs=1e-12)

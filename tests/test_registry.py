@@ -3,6 +3,8 @@ per-unit choices taken from it (no run: configurations only)."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -25,7 +27,8 @@ from scenarios.registry import (
 )
 from scenarios.unit_feedback import REAR_FEEDBACK  # type: ignore[attr-defined]
 
-COMBINATIONS = Path(__file__).parent / "data" / "combinations"
+ROOT = Path(__file__).resolve().parents[1]
+COMBINATIONS = ROOT / "tests" / "data" / "combinations"
 
 
 def _build(context: Any) -> Any:
@@ -128,3 +131,14 @@ def test_the_built_in_switches_load_as_before() -> None:
     )  # fmt: skip
     assert REAR_FEEDBACK == ("none", "truth", "zero_slip")
     assert [e.name for e in estimator_entries() if e.switch is None] == ["truth"]
+
+
+def test_reading_the_names_imports_neither_the_loop_nor_numpy() -> None:
+    code = (
+        "import sys; from scenarios.registry import feedback_sources, estimator_entries; feedback_sources(); "
+        "print(sorted({m.split('.')[0] for m in sys.modules} & {'numpy', 'OpenGL', 'cv2', 'sensor', 'controller'}), "
+        "sorted(m for m in sys.modules if m.startswith('scenarios.')))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert done.stdout.split("] ")[0] == "["
+    assert "'scenarios.loop.builtin_estimators'" in done.stdout and "'scenarios.loop.estimators'" not in done.stdout
