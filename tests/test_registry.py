@@ -25,7 +25,7 @@ from scenarios.registry import (
     unit_feedback_sources,
     unregister_estimator,
 )
-from scenarios.unit_feedback import REAR_FEEDBACK  # type: ignore[attr-defined]
+from scenarios.unit_feedback import REAR_FEEDBACK
 
 ROOT = Path(__file__).resolve().parents[1]
 COMBINATIONS = ROOT / "tests" / "data" / "combinations"

@@ -3,8 +3,9 @@
 All three feed the one kingpin-path buffer (:class:`vehicle_model.offtracking.OfftrackingBuffer`, de Saxe & Cebon
 2018, eqs (3)–(7)) from different sources of kingpin motion: the exact increments of the simulation, zero-slip
 kinematics of the tractor's signals, or a Kalman filter of the trailer's signals and the camera's motions. The
-builders (:func:`ground_truth`, :func:`zero_slip`, :func:`fused_viso_ot`) are the entries of
-:mod:`scenarios.registry`; the camera's own estimate is in :mod:`.camera_estimator`.
+builders (:func:`ground_truth`, :func:`zero_slip` and per unit :func:`zero_slip_unit`, :func:`fused_viso_ot`) are
+those of the registry's built-in entries (:mod:`.builtin_estimators`); the camera's own estimate is in
+:mod:`.camera_estimator`.
 """
 
 from __future__ import annotations
