@@ -3,8 +3,9 @@
 ``feedback`` is the estimate fed back to the first towed unit (the semi-trailer on the tractor's fifth wheel), any
 estimator of :mod:`scenarios.registry`. Each unit behind it (a B-double's rear trailer, an A-double's dolly and second
 trailer) follows its own coupling's path on an estimate of its own off-tracking, of which the loop has two: the ground
-truth and the zero-slip estimate carried down the chain (:class:`controller.zero_slip.ZeroSlipEstimator` with
-``unit``); a camera sits on the first towed unit only. ``rear_feedback`` names one per unit behind the first, or is
+truth and every estimator the registry declares per unit (:attr:`scenarios.registry.EstimatorEntry.per_unit`: the
+zero-slip estimate carried down the chain, :class:`controller.zero_slip.ZeroSlipEstimator` with ``unit``, and any
+plug-in's); a camera sits on the first towed unit only. ``rear_feedback`` names one per unit behind the first, or is
 left out, and then every unit behind the first that has a steerable axle is steered on the same kind of estimate as
 the first (which must then be one of those two).
 
@@ -18,12 +19,18 @@ from __future__ import annotations
 
 from vehicle_model.parameters import VehicleParams
 
-from .registry import NO_FEEDBACK
+from .registry import NO_FEEDBACK, unit_feedback_sources
 
-__all__ = ["REAR_FEEDBACK", "check_unit_feedback", "estimate_key", "one_semi_trailer", "steered_units"]
+__all__ = ["check_unit_feedback", "estimate_key", "one_semi_trailer", "steered_units"]
 
-REAR_FEEDBACK: tuple[str, ...] = (NO_FEEDBACK, "truth", "zero_slip")
-"""The estimates a towed unit behind the first can be steered on."""
+
+def __getattr__(name: str) -> tuple[str, ...]:
+    """``REAR_FEEDBACK``: the estimates a towed unit behind the first can be steered on
+    (:func:`scenarios.registry.unit_feedback_sources`, read from the registry when asked for)."""
+    if name == "REAR_FEEDBACK":
+        return unit_feedback_sources()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 CAMERA_UNIT = (
     "the camera estimators see the first towed unit of a tractor or rigid truck with one semi-trailer; a longer "
@@ -88,8 +95,9 @@ def check_unit_feedback(
         ``rear_feedback`` of the wrong length, with an unknown estimate, or steering a unit without a steerable
         axle.
     """
+    per_unit = unit_feedback_sources()
     if not one_semi_trailer(params):
-        if feedback not in REAR_FEEDBACK:
+        if feedback not in per_unit:
             raise ValueError(f"feedback = {feedback!r}: {CAMERA_UNIT}")
         if uses_camera:
             raise ValueError(f"estimators: the run includes a camera; {CAMERA_UNIT}")
@@ -102,8 +110,8 @@ def check_unit_feedback(
             f"got {len(rear_feedback)}"
         )
     for i, name in enumerate(rear_feedback):
-        if name not in REAR_FEEDBACK:
-            raise ValueError(f"rear_feedback[{i}] = {name!r} must be one of {', '.join(REAR_FEEDBACK)}")
+        if name not in per_unit:
+            raise ValueError(f"rear_feedback[{i}] = {name!r} must be one of {', '.join(per_unit)}")
         if name != NO_FEEDBACK and not _steerable(params, i + 2):
             raise ValueError(
                 f"rear_feedback[{i}] = {name!r} steers unit {i + 3}, which has no steerable axle "

@@ -33,6 +33,7 @@ SCENARIO_ROOMS: tuple[str, ...] = (
     "camera_checks",
     "registry",
     "unit_feedback",
+    "estimator_settings",
     "scenario_shortcuts",
     "configuration",
     "config",

@@ -97,7 +97,7 @@ def test_the_registry_refuses_a_name_taken_and_a_missing_requirement() -> None:
         register_estimator(EstimatorEntry("zero_slip", "a second zero-slip", build_offset_truth))
     with pytest.raises(ValueError, match="requires"):
         register_estimator(EstimatorEntry("later", "needs an unknown one", build_offset_truth, requires=("gps",)))
-    with pytest.raises(ValueError, match="identifier"):
+    with pytest.raises(ValueError, match="must not start with 'truth'"):
         EstimatorEntry("truth_again", "the truth's column prefix", build_offset_truth)
 
 

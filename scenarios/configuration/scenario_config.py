@@ -14,6 +14,7 @@ from vehicle_model.presets import VEHICLE_PRESETS
 from vehicle_model.settings import Settings
 
 from ..camera_schema import CameraConfig
+from ..estimator_settings import switch_is_on, turn_on
 from ..registry import NO_FEEDBACK, estimator_entries, estimator_entry, feedback_sources
 from ..unit_feedback import check_unit_feedback, steered_units
 from .sections import (
@@ -106,23 +107,12 @@ class ScenarioConfig(Settings):
         """The estimator fed back runs: its ``estimators`` switch is set, so the resolved file says what ran."""
         if not isinstance(data, dict) or not isinstance(data.get("feedback"), str):
             return data
-        try:
-            switch = estimator_entry(data["feedback"]).switch
-        except KeyError:
-            return data  # no feedback, or an unknown one: reported by the field's own check
-        estimators = data.get("estimators", {})
-        if switch is None or not isinstance(estimators, dict) or estimators.get(switch) is True:
-            return data
-        return {**data, "estimators": {**estimators, switch: True}}
+        return turn_on(data, data["feedback"])
 
     def enabled_estimators(self) -> tuple[str, ...]:
         """The estimators a run of this configuration runs, in registry order (:mod:`scenarios.registry`)."""
         entries = estimator_entries()
-        on = {
-            e.name
-            for e in entries
-            if e.always or e.name == self.feedback or (e.switch is not None and getattr(self.estimators, e.switch))
-        }
+        on = {e.name for e in entries if e.always or e.name == self.feedback or switch_is_on(self.estimators, e.name)}
         for entry in reversed(entries):  # an entry's requirements are registered before it
             if entry.name in on:
                 on.update(entry.requires)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, ValidationInfo, field_validator, model_validator
+from pydantic import ConfigDict, Field, ValidationInfo, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 from controller.path_following_config import PathFollowingConfig, PathFollowingGains
@@ -15,6 +15,8 @@ from sensor.signals import ChannelSpec
 from vehicle_model.kinematics import RearPoint
 from vehicle_model.settings import Settings
 from vehicle_model.surface import FRICTION_PRESETS
+
+from ..estimator_settings import check_switches
 
 COORDINATE_LIMIT_M = 10_000.0
 """Largest |coordinate| of a friction patch [m]: beyond any path the schema allows (5 km straight + 2 × 1 km)."""
@@ -296,7 +298,10 @@ class EstimatorsConfig(Settings):
     RearPoint``, ``controller.zero_slip.REAR_POINT_NOTES``). ``viso_ot``: render the trailer's stereo camera at the
     camera rate and run visual odometry and VISO-OT (needs headless OpenGL). ``viso_ot_fused``: the Kalman filter
     of the trailer's gyro, wheel speed and steer with the camera's motions (``sensor.fusion``, settings in
-    ``fusion``); it needs the camera, so it turns ``viso_ot`` on."""
+    ``fusion``); it needs the camera, so it turns ``viso_ot`` on. Any other registered estimator's switch (or
+    settings) is taken under its name (:mod:`scenarios.estimator_settings`)."""
+
+    model_config = ConfigDict(extra="allow")
 
     zero_slip: bool = True
     zero_slip_variant: Literal["yaw_rate", "steer_angle"] = "yaw_rate"
@@ -308,6 +313,11 @@ class EstimatorsConfig(Settings):
     @classmethod
     def _fused_needs_the_camera(cls, data: Any) -> Any:  # the fused filter corrects with the camera's motions
         return {**data, "viso_ot": True} if isinstance(data, dict) and data.get("viso_ot_fused") is True else data
+
+    @model_validator(mode="before")
+    @classmethod
+    def _registered_switches(cls, data: Any) -> Any:  # another registered estimator's switch, under its name
+        return check_switches(data, cls.model_fields)
 
 
 class FusionConfig(FusionNoise):

@@ -205,12 +205,12 @@ class CoSimulation:
         context = LoopContext(setup, self.sim, self.period, self.geometric_truth, self.camera_workers)
         self.vehicle = VehicleParticipant(setup)
         self.steer_tyres = SteerTyreParticipant(setup, self.sim) if setup.config.record_steer_tyres else None
-        self.further_units = FurtherUnitsParticipant(setup) if setup.params.n_units > 2 else None
+        self.further_units = FurtherUnitsParticipant(setup, context) if setup.params.n_units > 2 else None
         self.signals = SignalsParticipant(setup)
         self.driver = DriverParticipant(setup, self.sim)
         self.estimators = context.estimators
         for name in setup.config.enabled_estimators():
-            context.estimators[name] = estimator_entry(name).builder()(context)
+            context.estimators[name] = estimator_entry(name).build(context)
         further = self.further_units.estimate_names if self.further_units is not None else ()
         offered = [*self.estimators, *further]
         for feedback in getattr(self.trailer_steer, "feedbacks", (self.trailer_steer.feedback,)):

@@ -3,8 +3,9 @@
 All three feed the one kingpin-path buffer (:class:`vehicle_model.offtracking.OfftrackingBuffer`, de Saxe & Cebon
 2018, eqs (3)–(7)) from different sources of kingpin motion: the exact increments of the simulation, zero-slip
 kinematics of the tractor's signals, or a Kalman filter of the trailer's signals and the camera's motions. The
-builders (:func:`ground_truth`, :func:`zero_slip`, :func:`fused_viso_ot`) are the entries of
-:mod:`scenarios.registry`; the camera's own estimate is in :mod:`.camera_estimator`.
+builders (:func:`ground_truth`, :func:`zero_slip` and per unit :func:`zero_slip_unit`, :func:`fused_viso_ot`) are
+those of the registry's built-in entries (:mod:`.builtin_estimators`); the camera's own estimate is in
+:mod:`.camera_estimator`.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ __all__ = [
     "fusion_std_record",
     "ground_truth",
     "zero_slip",
+    "zero_slip_unit",
 ]
 
 TOO_UNCERTAIN = "too_uncertain"
@@ -166,13 +168,17 @@ class ZeroSlip:
         ``yaw_rate`` (the gyro) or ``steer_angle``.
     rear_point
         ``axle_mean`` or ``equivalent`` (:data:`controller.zero_slip.RearPoint`).
+    unit
+        The towed unit it estimates (1: the first; :class:`controller.zero_slip.ZeroSlipEstimator`).
     """
 
     name = "zero_slip"
     columns: tuple[Column, ...] = (Column(estimate_column("zero_slip"), "m", "zero-slip (Cheng) off-tracking"),)
 
-    def __init__(self, params: VehicleParams, variant: str = "yaw_rate", rear_point: str = "axle_mean") -> None:
-        self.estimator = ZeroSlipEstimator(params, variant, rear_point)  # type: ignore[arg-type]
+    def __init__(
+        self, params: VehicleParams, variant: str = "yaw_rate", rear_point: str = "axle_mean", unit: int = 1
+    ) -> None:
+        self.estimator = ZeroSlipEstimator(params, variant, rear_point, unit)  # type: ignore[arg-type]
         self.estimate = OfftrackingEstimate.of(None)
 
     def update(self, tick: TickInput) -> OfftrackingEstimate:
@@ -271,6 +277,12 @@ def zero_slip(context: LoopContext) -> ZeroSlip:
     """The registry's builder of the zero-slip estimator (``estimators.zero_slip_variant`` and ``_rear_point``)."""
     settings = context.setup.config.estimators
     return ZeroSlip(context.setup.params, settings.zero_slip_variant, settings.zero_slip_rear_point)
+
+
+def zero_slip_unit(context: LoopContext, unit: int) -> ZeroSlip:
+    """The registry's builder of the zero-slip estimate of towed unit ``unit`` behind the first (its ``update``)."""
+    settings = context.setup.config.estimators
+    return ZeroSlip(context.setup.params, settings.zero_slip_variant, settings.zero_slip_rear_point, unit)
 
 
 GYRO_ZEROING_STREAM = 0x2E60

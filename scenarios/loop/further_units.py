@@ -7,25 +7,27 @@ unit ahead (``gamma<k-1> = ψ_{k-1} − ψ_k``), yaw rate and heading, its front
 and follow point, and ``offtracking_truth<k>``: de Saxe & Cebon's off-tracking applied to that unit — its follow
 point against the path of its own coupling — by the same buffer as the first trailer's truth
 (:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)), fed with the coupling's exact increments;
-and, when the run estimates zero-slip, ``offtracking_zero_slip<k>``: Cheng's estimate of the same unit from the
-tractor's signals and the articulation sensors (:class:`controller.zero_slip.ZeroSlipEstimator` with ``unit``).
-Both are offered to the trailer steering as estimates ``truth<k>`` and ``zero_slip<k>``
-(:func:`scenarios.unit_feedback.estimate_key`).
+and, for every enabled estimator of :mod:`scenarios.registry` that estimates each unit along the chain
+(:attr:`~scenarios.registry.EstimatorEntry.per_unit`, built by its ``build_unit``), ``offtracking_<name><k>``: for
+zero-slip, Cheng's estimate of the same unit from the tractor's signals and the articulation sensors
+(:class:`controller.zero_slip.ZeroSlipEstimator` with ``unit``). Each is offered to the trailer steering as estimate
+``truth<k>``, ``zero_slip<k>``, … (:func:`scenarios.unit_feedback.estimate_key`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
-from controller.zero_slip import ZeroSlipEstimator
 from vehicle_model.geometry import follow_point_from_kingpin, trailer_frames
 from vehicle_model.offtracking import OfftrackingBuffer, OfftrackingEstimate, increments_from_poses
 
+from ..registry import estimator_entry
 from ..setup.build import ScenarioSetup
 from ..unit_feedback import estimate_key
-from .participant import Column, TickInput
+from .participant import Column, LoopContext, TickInput
 
 __all__ = ["FurtherUnitsParticipant", "further_units", "truth_column"]
 
@@ -54,13 +56,15 @@ def _columns(unit: int) -> tuple[Column, ...]:
 
 
 class FurtherUnitsParticipant:
-    """The true state, coupling, follow point and off-tracking of every unit behind the first towed one, and its
-    zero-slip estimate.
+    """The true state, coupling, follow point and off-tracking of every unit behind the first towed one, and the
+    estimates of each of them by the enabled per-unit estimators.
 
     Parameters
     ----------
     setup
         The built scenario (a combination of three or four units).
+    context
+        What the per-unit estimators' builders get (``None``: none is built).
 
     Attributes
     ----------
@@ -70,25 +74,20 @@ class FurtherUnitsParticipant:
 
     name = "further_units"
 
-    def __init__(self, setup: ScenarioSetup) -> None:
-        params = setup.params
-        self.params = params
+    def __init__(self, setup: ScenarioSetup, context: LoopContext | None = None) -> None:
+        params = self.params = setup.params
         self.units = further_units(params.n_units)
         self.columns: tuple[Column, ...] = tuple(c for unit in self.units for c in _columns(unit))
         self.buffers = {unit: OfftrackingBuffer(params.trailers[unit - 2].follow_point_offset) for unit in self.units}
-        est = setup.config.estimators
-        self.zero_slip = (
-            {
-                unit: ZeroSlipEstimator(params, est.zero_slip_variant, est.zero_slip_rear_point, unit - 1)
-                for unit in self.units
-            }
-            if "zero_slip" in setup.config.enabled_estimators()
-            else {}
-        )
-        self.columns += tuple(
-            Column(f"offtracking_zero_slip{unit}", "m", f"unit {unit} zero-slip (Cheng) off-tracking")
-            for unit in self.zero_slip
-        )
+        self.unit_estimators: dict[str, tuple[str, Any]] = {}  # by estimate key: its column and unit estimator
+        columns = []
+        for name in setup.config.enabled_estimators() if context is not None else ():
+            entry = estimator_entry(name)
+            for unit in self.units if entry.build_unit is not None else ():
+                key = estimate_key(name, unit - 1)
+                self.unit_estimators[key] = (f"offtracking_{key}", entry.build_unit(context, unit - 1))
+                columns.append(Column(f"offtracking_{key}", "m", f"unit {unit} {entry.legend} off-tracking"))
+        self.columns += tuple(columns)
         self._previous: dict[int, tuple[np.ndarray, float]] = {}
         self._row: dict[str, float] = {}
         self.estimates: dict[str, OfftrackingEstimate] = {}
@@ -96,8 +95,7 @@ class FurtherUnitsParticipant:
     @property
     def estimate_names(self) -> tuple[str, ...]:
         """The keys of the estimates it offers (``truth3``, ``zero_slip3``, …)."""
-        truths = tuple(estimate_key("truth", unit - 1) for unit in self.units)
-        return (*truths, *(estimate_key("zero_slip", unit - 1) for unit in self.zero_slip))
+        return (*(estimate_key("truth", unit - 1) for unit in self.units), *self.unit_estimators)
 
     def update(self, tick: TickInput) -> None:
         """Take the tick's state and signals; push each unit's coupling increment into its buffer."""
@@ -129,11 +127,9 @@ class FurtherUnitsParticipant:
                 }
             )
             estimates[estimate_key("truth", unit - 1)] = OfftrackingEstimate.of(value)
-        for unit, estimator in self.zero_slip.items():
-            value = None if tick.index == 0 else estimator.update(tick.measured, tick.period)
-            estimate = OfftrackingEstimate.of(value)
-            estimates[estimate_key("zero_slip", unit - 1)] = estimate
-            row[f"offtracking_zero_slip{unit}"] = estimate.value
+        for key, (column, estimator) in self.unit_estimators.items():
+            estimate = estimates[key] = estimator.update(tick)
+            row[column] = estimate.value
         self._row = row
         self.estimates = estimates
 

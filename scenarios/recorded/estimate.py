@@ -2,13 +2,14 @@
 
 :func:`estimate_recording` runs, frame by frame in the recording's own times, what the closed loop runs on rendered
 frames — :class:`sensor.frame_odometry.FrameOdometry` (the stereo odometry, VISO-OT of de Saxe & Cebon 2018 §2.2
-with its plausibility check over the frame's actual interval) — and, with signals, the fused filter
-(:class:`sensor.fusion.FusedVisoOt`, a run's ``fusion`` defaults) and Cheng's zero-slip estimate
-(:class:`controller.zero_slip.ZeroSlipEstimator`) beside it. The rows are the frames' times and, with signals, the
-signals' times between them (the fused filter propagates on every row and takes each frame's motion on the frame's
-own row; no latency). Raw images are rectified first with the calibration. A frame without images (dropped) is
-skipped: the odometry measures the next one against the last it saw, over the actual interval, with its
-constant-velocity motion prior stretched over the gap (:data:`SAME_PERIOD`).
+with its plausibility check over the frame's actual interval) — and beside it every estimator of
+:mod:`scenarios.registry` that declares an offline adapter (:mod:`scenarios.loop.offline`): with signals, the
+fused filter (:class:`sensor.fusion.FusedVisoOt`, a run's ``fusion`` defaults) and Cheng's zero-slip estimate
+(:class:`controller.zero_slip.ZeroSlipEstimator`), and any plug-in's. The rows are the frames' times and, with
+signals, the signals' times between them (the fused filter propagates on every row and takes each frame's motion on
+the frame's own row; no latency). Raw images are rectified first with the calibration. A frame without images
+(dropped) is skipped: the odometry measures the next one against the last it saw, over the actual interval, with
+its constant-velocity motion prior stretched over the gap (:data:`SAME_PERIOD`).
 
 The run directory (:mod:`.report`) holds what a simulated run's does — ``timeseries.parquet`` with the same
 columns where they mean the same (``offtracking_*``, the per-frame ``vo_*`` quality and reasons,
@@ -21,7 +22,9 @@ Columns of a recorded run besides a run's: ``frame`` (the frame's number in the 
 ``kingpin_x_viso_ot``/``kingpin_y_viso_ot``/``trailer_heading_viso_ot`` (the kingpin's path dead-reckoned from the
 accepted motions), ``vo_rpe_translation_m``/``vo_rpe_rotation_rad`` (the frame's relative pose error against
 reference poses, :func:`sensor.recordings.vo_metrics.relative_pose_error`), the signals at the row. ``kingpin_x`` and
-``kingpin_y`` are the reference's path when there are reference poses, else the dead-reckoned one.
+``kingpin_y`` are the reference's path when there are reference poses, else the dead-reckoned one. The built-in
+estimates keep their place in the columns (the fused filter's, zero-slip's, then the signals); a plug-in's columns
+follow, in registry order.
 """
 
 from __future__ import annotations
@@ -34,24 +37,23 @@ from typing import Any
 
 import numpy as np
 
-from controller.zero_slip import ZeroSlipEstimator
-from sensor.frame_odometry import CameraFrame, FrameOdometry
-from sensor.fusion import FusedVisoOt, TractorSignals
+from sensor.frame_odometry import FrameOdometry
 from sensor.recordings.sequence import GAP_FACTOR, MISSING_REASONS, time_gaps
 from sensor.recordings.vo_metrics import relative_pose_error
 
-from ..config import FusionConfig
 from ..loop.camera_estimator import CAMERA_COLUMNS, VisoOt, camera_row
 from ..loop.ends import RunStatus
-from ..loop.estimators import FUSION_STD_COLUMNS, FusedVisoOtEstimator, GroundTruth, ZeroSlip, fusion_std_record
+from ..loop.estimators import GroundTruth
+from ..loop.offline import SIGNAL_KEYS, OfflineContext, OfflineEstimator
 from ..loop.participant import Column
 from ..loop.plant import VehicleParticipant
+from ..registry import estimator_entries
 from ..run.results import TIMESERIES_FILE, TimeSeriesWriter, write_metrics
 from .inputs import EstimateInputs
 from .reference import reference_columns
 from .report import write_recorded_report, write_recording_file
 
-__all__ = ["estimate_recording", "row_times"]
+__all__ = ["estimate_recording", "offline_estimators", "row_times"]
 
 SAME_PERIOD = GAP_FACTOR
 """Intervals within this factor of the one before are taken as the same frame period — timestamps jitter by
@@ -89,8 +91,6 @@ _RECORDING_COLUMNS: tuple[Column, ...] = (
     Column("vo_rpe_translation_m", "m", "the frame's relative pose error in translation against the reference"),
     Column("vo_rpe_rotation_rad", "rad", "the frame's relative pose error in rotation against the reference"),
 )
-# SignalSeries.at's
-_SIGNAL_KEYS = ("speed", "yaw_rate", "articulation", "trailer_yaw_rate", "trailer_speed", "lateral_acceleration")
 
 
 def row_times(inputs: EstimateInputs) -> tuple[np.ndarray, np.ndarray]:
@@ -112,9 +112,14 @@ def row_times(inputs: EstimateInputs) -> tuple[np.ndarray, np.ndarray]:
     return times, slot
 
 
-def _columns(inputs: EstimateInputs) -> list[Column]:
+BUILT_IN_LAYOUT = ("viso_ot_fused", "zero_slip")
+"""The offline estimators whose columns come before the signals', in this order (a recorded run's layout)."""
+
+
+def _columns(inputs: EstimateInputs, offline: list[OfflineEstimator]) -> list[Column]:
     """The run's columns with their units: those a simulated run declares under the same name (the camera's, the
-    estimators', the truth's, the plant's time), and the recording's own."""
+    truth's, the plant's time), the offline estimators' (the built-ins', the signals', then the others'), and the
+    recording's own."""
     declared = {
         column.name: column
         for column in (
@@ -122,8 +127,6 @@ def _columns(inputs: EstimateInputs) -> list[Column]:
             *CAMERA_COLUMNS,
             *VisoOt.columns,
             *GroundTruth.columns,
-            *FusedVisoOtEstimator.columns,
-            *ZeroSlip.columns,
             *_RECORDING_COLUMNS,
             *_SIGNAL_COLUMNS,
         )
@@ -133,11 +136,19 @@ def _columns(inputs: EstimateInputs) -> list[Column]:
     names += ["offtracking_truth", "offtracking_truth_geometric"]
     if inputs.reference_poses is not None:
         names += ["trailer_heading", "vo_rpe_translation_m", "vo_rpe_rotation_rad"]
+    first = sorted((e for e in offline if e.name in BUILT_IN_LAYOUT), key=lambda e: BUILT_IN_LAYOUT.index(e.name))
+    others = [e for e in offline if e.name not in BUILT_IN_LAYOUT]
+    own = [c for estimator in first for c in estimator.columns]
     if inputs.signals is not None:
-        names += ["offtracking_viso_ot_fused", "offtracking_viso_ot_fused_std", "fusion_kinematic_std"]
-        names += FUSION_STD_COLUMNS
-        names += ["offtracking_zero_slip", *_SIGNALS]
-    return [declared[name] for name in names]
+        own += _SIGNAL_COLUMNS
+    own += [c for estimator in others for c in estimator.columns]
+    return [declared[name] for name in names] + own
+
+
+def offline_estimators(context: OfflineContext) -> list[OfflineEstimator]:
+    """The registered estimators' offline adapters that run on these inputs, in registry order."""
+    adapters = (entry.offline(context) for entry in estimator_entries() if entry.offline is not None)
+    return [adapter for adapter in adapters if adapter is not None]
 
 
 class _DeadReckoning:
@@ -153,64 +164,6 @@ class _DeadReckoning:
     def record(self) -> dict[str, float]:
         x, y, psi = (float(v) for v in self.pose)
         return {"kingpin_x_viso_ot": x, "kingpin_y_viso_ot": y, "trailer_heading_viso_ot": psi}
-
-
-class _SignalEstimators:
-    """The fused filter and the zero-slip estimate on the signals at the rows (within the signals' span)."""
-
-    def __init__(self, inputs: EstimateInputs, signals: dict[str, np.ndarray], times: np.ndarray) -> None:
-        params = inputs.rig.params
-        # a run's fusion defaults, with the tractor's rear point the inputs ask for
-        fusion = FusionConfig(kinematic_rear_point=inputs.rear_point)
-        self.fused = FusedVisoOt(params, inputs.camera_in_trailer, fusion)
-        self.zero_slip = ZeroSlipEstimator(params, rear_point=inputs.rear_point)
-        self.signals, self.times = signals, times
-        self.previous: int | None = None
-        self.zero_slip_value: float | None = None
-        self.active = False
-
-    def propagate(self, row: int) -> None:
-        """Advance both to ``row`` with its signals (nothing outside the signals' span)."""
-        s = self.signals
-        self.active = bool(np.isfinite(s["speed"][row]))
-        if not self.active:
-            return
-        dt = float(self.times[row] - self.times[self.previous]) if self.previous is not None else 0.0
-        tractor = TractorSignals(
-            float(s["speed"][row]),
-            float(s["yaw_rate"][row]),
-            float(s["articulation"][row]),
-            float(s["lateral_acceleration"][row]),
-        )
-        self.fused.propagate(row, dt, float(s["trailer_yaw_rate"][row]), float(s["trailer_speed"][row]), None, tractor)
-        sample = {
-            "wheel_speed": np.array([tractor.speed]),
-            "tractor_yaw_rate": np.array([tractor.yaw_rate]),
-            "articulation": np.array([tractor.articulation]),
-            "tractor_lateral_acceleration": np.array([tractor.lateral_acceleration]),
-            "front_steer": np.array([0.0]),
-        }
-        self.zero_slip_value = self.zero_slip.update(sample, dt)
-        self.previous = row
-
-    def measure(self, row: int, frame: CameraFrame) -> None:
-        """The frame's motion (or none, if refused) into the fused filter, on the frame's own row."""
-        if self.active:
-            usable = frame.valid
-            self.fused.measure(row, frame.vo.camera_motion if usable else None, frame.vo.covariance if usable else None)
-
-    def record(self, row: int) -> dict[str, float]:
-        """The row's signals and, within their span, the two estimates."""
-        s = self.signals
-        out = {column: float(s[key][row]) for key, column in zip(_SIGNAL_KEYS, _SIGNALS, strict=True)}
-        if self.active:
-            fused = self.fused
-            out["offtracking_viso_ot_fused"] = math.nan if fused.estimate is None else float(fused.estimate)
-            out["offtracking_viso_ot_fused_std"] = float(fused.std)
-            out["fusion_kinematic_std"] = float(fused.kinematic_std)
-            out.update(fusion_std_record(fused))
-            out["offtracking_zero_slip"] = math.nan if self.zero_slip_value is None else float(self.zero_slip_value)
-        return out
 
 
 def estimate_recording(
@@ -248,11 +201,10 @@ def estimate_recording(
         inputs.reference_offtracking,
     )
     camera_pose = truth.pop("camera_pose", None)
-    extra = None
-    if inputs.signals is not None:
-        extra = _SignalEstimators(inputs, inputs.signals.at(times + inputs.recording.t0, params), times)
+    signals = None if inputs.signals is None else inputs.signals.at(times + inputs.recording.t0, params)
+    offline = offline_estimators(OfflineContext(inputs, times, signals))
     path = _DeadReckoning()
-    writer = TimeSeriesWriter(run_dir / TIMESERIES_FILE, _columns(inputs))
+    writer = TimeSeriesWriter(run_dir / TIMESERIES_FILE, _columns(inputs, offline))
     refused: list[list[Any]] = []
     missing: list[list[Any]] = []
     estimate = math.nan
@@ -295,14 +247,15 @@ def estimate_recording(
                     last = (float(t), pose)
             if progress is not None and slot_index >= 0:
                 progress(int(slot_index) + 1, len(frame_times))
-            if extra is not None:
-                extra.propagate(row)
-                if frame is not None:
-                    extra.measure(row, frame)
-                record.update(extra.record(row))
+            reference = {name: float(values[row]) for name, values in truth.items()}
+            if signals is not None:
+                record.update({c: float(signals[k][row]) for k, c in zip(SIGNAL_KEYS, _SIGNALS, strict=True)})
+            for estimator in offline:
+                estimator.update(row, frame, reference)
+                record.update(estimator.record())
             record["offtracking_viso_ot"] = estimate  # held between frames, as a run's
             record.update(path.record())
-            record.update({name: float(values[row]) for name, values in truth.items()})
+            record.update(reference)
             if "kingpin_x" not in truth:
                 record.update(kingpin_x=float(path.pose[0]), kingpin_y=float(path.pose[1]))
             writer.append(record)

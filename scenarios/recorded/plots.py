@@ -19,6 +19,7 @@ from matplotlib.patches import Polygon
 
 from vehicle_model.parameters import VehicleParams
 
+from ..registry import source_colour
 from ..run.plots import save_figure
 from ..run.swept_path import TRAILER_COLOUR
 
@@ -42,7 +43,13 @@ def plot_recorded_plan_view(
     vo = np.column_stack([columns["kingpin_x_viso_ot"], columns["kingpin_y_viso_ot"]])
     vo_heading = columns["trailer_heading_viso_ot"]
     reference = "trailer_heading" in columns and np.isfinite(columns["trailer_heading"]).any()
-    ax.plot(vo[:, 0], vo[:, 1], color="tab:blue", lw=1.2, label="kingpin, dead-reckoned from the camera (VISO-OT)")
+    ax.plot(
+        vo[:, 0],
+        vo[:, 1],
+        color=source_colour("viso_ot"),
+        lw=1.2,
+        label="kingpin, dead-reckoned from the camera (VISO-OT)",
+    )
     if reference:
         ref = np.column_stack([columns["kingpin_x"], columns["kingpin_y"]])
         ax.plot(ref[:, 0], ref[:, 1], color="k", lw=1.0, ls="--", label="kingpin, reference")

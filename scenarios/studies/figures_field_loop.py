@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..registry import source_colour
 from ..run.files import write_atomic
 from .field_loop import (
     COVERAGE_BAND,
@@ -39,16 +40,16 @@ SHORT_SCENARIOS = {"roundabout-3": "r3", "figure-eight": "f8"}
 """Short names of the manoeuvres in the cell labels."""
 
 FEEDBACK_STYLE = {
-    "viso_ot_fused": ("fused VISO-OT", "tab:blue", "o"),
-    "zero_slip": ("zero-slip", "tab:orange", "s"),
-    "truth": ("truth", "tab:green", "^"),
+    "viso_ot_fused": ("fused VISO-OT", source_colour("viso_ot_fused"), "o"),
+    "zero_slip": ("zero-slip", source_colour("zero_slip"), "s"),
+    "truth": ("truth", source_colour("truth"), "^"),
 }
 """Legend name, colour and marker per feedback source."""
 
 ESTIMATOR_ERRORS = (
-    ("fused_rms_error_m", "fused VISO-OT", "tab:blue", "o"),
-    ("viso_ot_rms_error_m", "raw VISO-OT", "tab:purple", "D"),
-    ("zero_slip_rms_error_m", "zero-slip", "tab:orange", "s"),
+    ("fused_rms_error_m", "fused VISO-OT", source_colour("viso_ot_fused"), "o"),
+    ("viso_ot_rms_error_m", "raw VISO-OT", source_colour("viso_ot"), "D"),
+    ("zero_slip_rms_error_m", "zero-slip", source_colour("zero_slip"), "s"),
 )
 """Column, legend name, colour and marker of the estimators in ``field_loop_errors.png``."""
 

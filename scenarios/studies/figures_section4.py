@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..registry import source_colour
 from ..run.files import write_atomic
 from .section4 import PAPER_SECTION4, PAPER_SECTION4_TEXT, SIGN_THRESHOLD_M
 
@@ -65,9 +66,9 @@ def fig14(table: pd.DataFrame, out_dir: Path, plt: Any) -> None:
             continue
         t = s["time"].to_numpy()
         axes[0, j].plot(t, s["offtracking_truth"], "k", lw=1.2, label="truth")
-        axes[0, j].plot(t, s["offtracking_viso_ot"], "tab:red", lw=1.0, label="VISO-OT")
+        axes[0, j].plot(t, s["offtracking_viso_ot"], color=source_colour("viso_ot"), lw=1.0, label="VISO-OT")
         axes[0, j].set_title(f"{camera} cameras, {SHORT_NAMES[scenario]}", fontsize=10)
-        axes[1, j].plot(t, s["offtracking_viso_ot"] - s["offtracking_truth"], "tab:red", lw=0.9)
+        axes[1, j].plot(t, s["offtracking_viso_ot"] - s["offtracking_truth"], color=source_colour("viso_ot"), lw=0.9)
         axes[1, j].axhline(0.0, color="k", lw=0.5)
         cam = s[s["camera_frame"] > 0.5]
         axes[2, j].plot(cam["time"], cam["vo_matches"], "tab:gray", lw=0.8, label="matches")

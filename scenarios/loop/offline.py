@@ -1,0 +1,191 @@
+"""Estimators over recorded rows: what an estimator of :mod:`scenarios.registry` declares as its ``offline`` adapter.
+
+``offtrack estimate`` (:mod:`scenarios.recorded.estimate`) runs the recording's own stereo odometry (VISO-OT) on its
+frames and, beside it, every registered estimator that declares an offline adapter: ``offline(context)`` is given
+an :class:`OfflineContext` — the recording's inputs, the rows' times and, where the recording has signals, the
+signals at the rows — and returns an :class:`OfflineEstimator`, or ``None`` when it cannot run on these inputs
+(the built-in ones need signals). On every row, in time order, each gets :meth:`OfflineEstimator.update` with the
+row, the frame processed on it (or ``None``) and the reference's columns at the row, and then its
+:meth:`~OfflineEstimator.record` joins the row.
+
+The built-in adapters: Cheng's zero-slip estimate (:class:`OfflineZeroSlip`) and fused VISO-OT
+(:class:`OfflineFusedVisoOt`: the filter propagates on every row and takes each frame's motion on the frame's own
+row; no latency), both on the signals at the rows and silent outside the signals' span.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from controller.zero_slip import ZeroSlipEstimator
+
+from ..config import FusionConfig
+from .estimators import FusedVisoOtEstimator, ZeroSlip, fusion_std_record
+from .participant import Column
+
+__all__ = [
+    "SIGNAL_KEYS",
+    "OfflineContext",
+    "OfflineEstimator",
+    "OfflineFusedVisoOt",
+    "OfflineZeroSlip",
+    "fused_viso_ot_offline",
+    "zero_slip_offline",
+]
+
+SIGNAL_KEYS = ("speed", "yaw_rate", "articulation", "trailer_yaw_rate", "trailer_speed", "lateral_acceleration")
+"""The signals at the rows, by key (:meth:`sensor.recordings.signals.SignalSeries.at`)."""
+
+
+@dataclass(frozen=True)
+class OfflineContext:
+    """What an offline adapter is built from.
+
+    Attributes
+    ----------
+    inputs : EstimateInputs
+        The checked inputs of ``offtrack estimate`` (:class:`scenarios.recorded.inputs.EstimateInputs`: the rig's
+        parameters, the camera's mounting, the tractor's rear point, …).
+    times : numpy.ndarray
+        The rows' times [s since the first frame].
+    signals : dict or None
+        The signals at the rows (:data:`SIGNAL_KEYS`; NaN outside the signals' span), or ``None`` without signals.
+    """
+
+    inputs: Any
+    times: np.ndarray
+    signals: dict[str, np.ndarray] | None
+
+
+@runtime_checkable
+class OfflineEstimator(Protocol):
+    """An estimator over recorded rows (module notes)."""
+
+    name: str
+    columns: tuple[Column, ...]
+
+    def update(self, row: int, frame: Any, reference: Mapping[str, float]) -> None:
+        """Take row ``row``: the frame processed on it (:class:`sensor.frame_odometry.CameraFrame`, or ``None``)
+        and the reference's columns at it (``offtracking_truth``, … where the recording has them)."""
+        ...
+
+    def record(self) -> Mapping[str, float]:
+        """The values of :attr:`columns` for the row last updated (missing keys are written as NaN)."""
+        ...
+
+
+class _OnSignals:
+    """The step between the rows with signals, and whether the row is within the signals' span."""
+
+    def __init__(self, context: OfflineContext) -> None:
+        assert context.signals is not None
+        self.signals, self.times = context.signals, context.times
+        self.previous: int | None = None
+        self.active = False
+
+    def step(self, row: int) -> float | None:
+        """The time since the previous row with signals [s] (0 on the first), or ``None`` outside their span."""
+        self.active = bool(np.isfinite(self.signals["speed"][row]))
+        if not self.active:
+            return None
+        dt = float(self.times[row] - self.times[self.previous]) if self.previous is not None else 0.0
+        self.previous = row
+        return dt
+
+    def value(self, row: int, key: str) -> float:
+        return float(self.signals[key][row])
+
+
+class OfflineZeroSlip(_OnSignals):
+    """Cheng's zero-slip estimate on the signals at the rows, with the tractor's rear point the inputs ask for."""
+
+    name = "zero_slip"
+    columns = ZeroSlip.columns
+
+    def __init__(self, context: OfflineContext) -> None:
+        super().__init__(context)
+        self.estimator = ZeroSlipEstimator(context.inputs.rig.params, rear_point=context.inputs.rear_point)
+        self.value_m: float | None = None
+
+    def update(self, row: int, frame: Any, reference: Mapping[str, float]) -> None:
+        """Dead-reckon over the step to ``row``."""
+        dt = self.step(row)
+        if dt is None:
+            return
+        sample = {
+            "wheel_speed": np.array([self.value(row, "speed")]),
+            "tractor_yaw_rate": np.array([self.value(row, "yaw_rate")]),
+            "articulation": np.array([self.value(row, "articulation")]),
+            "tractor_lateral_acceleration": np.array([self.value(row, "lateral_acceleration")]),
+            "front_steer": np.array([0.0]),
+        }
+        self.value_m = self.estimator.update(sample, dt)
+
+    def record(self) -> Mapping[str, float]:
+        """The estimate, within the signals' span."""
+        if not self.active:
+            return {}
+        return {"offtracking_zero_slip": math.nan if self.value_m is None else float(self.value_m)}
+
+
+class OfflineFusedVisoOt(_OnSignals):
+    """Fused VISO-OT (:class:`sensor.fusion.FusedVisoOt`, a run's ``fusion`` defaults with the inputs' rear point):
+    the trailer's and tractor's signals on every row, each frame's motion on its own row."""
+
+    name = "viso_ot_fused"
+    columns = FusedVisoOtEstimator.columns
+
+    def __init__(self, context: OfflineContext) -> None:
+        from sensor.fusion import FusedVisoOt
+
+        super().__init__(context)
+        inputs = context.inputs
+        fusion = FusionConfig(kinematic_rear_point=inputs.rear_point)
+        self.fused = FusedVisoOt(inputs.rig.params, inputs.camera_in_trailer, fusion)
+
+    def update(self, row: int, frame: Any, reference: Mapping[str, float]) -> None:
+        """Propagate to ``row``; then the frame's motion (or none, if refused) on the same row."""
+        from sensor.fusion import TractorSignals
+
+        dt = self.step(row)
+        if dt is None:
+            return
+        tractor = TractorSignals(
+            self.value(row, "speed"),
+            self.value(row, "yaw_rate"),
+            self.value(row, "articulation"),
+            self.value(row, "lateral_acceleration"),
+        )
+        self.fused.propagate(
+            row, dt, self.value(row, "trailer_yaw_rate"), self.value(row, "trailer_speed"), None, tractor
+        )
+        if frame is not None:
+            usable = frame.valid
+            self.fused.measure(row, frame.vo.camera_motion if usable else None, frame.vo.covariance if usable else None)
+
+    def record(self) -> Mapping[str, float]:
+        """The estimate, its standard deviation and its terms, within the signals' span."""
+        if not self.active:
+            return {}
+        fused = self.fused
+        return {
+            "offtracking_viso_ot_fused": math.nan if fused.estimate is None else float(fused.estimate),
+            "offtracking_viso_ot_fused_std": float(fused.std),
+            "fusion_kinematic_std": float(fused.kinematic_std),
+            **fusion_std_record(fused),
+        }
+
+
+def zero_slip_offline(context: OfflineContext) -> OfflineZeroSlip | None:
+    """The registry's offline adapter of zero-slip (``None`` without signals)."""
+    return None if context.signals is None else OfflineZeroSlip(context)
+
+
+def fused_viso_ot_offline(context: OfflineContext) -> OfflineFusedVisoOt | None:
+    """The registry's offline adapter of fused VISO-OT (``None`` without signals)."""
+    return None if context.signals is None else OfflineFusedVisoOt(context)
