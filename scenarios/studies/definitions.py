@@ -27,11 +27,10 @@ from ..unit_feedback import REAR_FEEDBACK, one_semi_trailer
 from .progress import ProgressCallback, SweepProgress
 from .records import CaseSpec
 from .registry import STUDIES, vehicle_studies
-from .section3 import PAPER_SECTION3
 from .sweep import run_sweep
 from .unit_steering import study_vehicle, vehicle_problem
 
-__all__ = ["PAPER_SECTION3", "STUDIES", "check_study_vehicle", "run_study", "study_cases", "study_vehicle_params"]
+__all__ = ["STUDIES", "check_study_vehicle", "run_study", "study_cases", "study_vehicle_params"]
 
 
 def check_study_vehicle(name: str, vehicle: str | None) -> list[str]:
