@@ -16,7 +16,7 @@ The cases:
 * ``render/…`` — ``offtrack render`` datasets: every image's bytes, ``calib.txt``, ``poses.txt``;
 * ``env/…`` — Gymnasium episodes with fixed seeds and actions: observations, rewards, ends and the numbers of
   ``info``;
-* ``study/…`` — the default (small) subsets of the studies (``scenarios.studies.definitions.STUDIES``): every
+* ``study/…`` — the default (small) subsets of the studies (``scenarios.studies.registry.STUDIES``): every
   column of ``table.csv`` but wall times, hosts and paths.
 
 ``compare`` prints, per case, ``identical`` or the columns that differ with the largest absolute and relative
@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from scenarios.studies.definitions import STUDIES as STUDY_CASES
+from scenarios.studies.registry import STUDIES as STUDY_REGISTRY
 
 OFFTRACK = [sys.executable, "-c", "from scenarios.cli import main; main()"]
 
@@ -161,8 +161,8 @@ RENDERS: dict[str, list[str]] = {
     "render/figure-eight/field": ["figure-eight", "--frames", "3", *[a for item in FIELD for a in ("--set", item)]],
 }
 
-STUDIES = tuple(STUDY_CASES)
-"""Every study of :data:`scenarios.studies.definitions.STUDIES`, run by name on the command line."""
+STUDIES = tuple(STUDY_REGISTRY)
+"""Every study of :data:`scenarios.studies.registry.STUDIES`, run by name on the command line."""
 
 VOLATILE = ("wall", "_at", "host", "pid", "worker", "run_dir", "path", "elapsed", "_ms", "cpu")
 """Parts of column or key names whose values are timings, places or processes, not behaviour."""

@@ -22,7 +22,7 @@ import pytest
 from test_faults import REPO, assert_one_line_error, offtrack
 
 from scenarios.config import ConfigError, catalogue_names, load_scenario, parse_assignment
-from scenarios.studies.definitions import STUDIES
+from scenarios.studies.registry import STUDIES
 
 
 def _refused(*assignments: str) -> str:
@@ -147,7 +147,7 @@ def test_every_catalogue_scenario_validates(name: str) -> None:
 @pytest.mark.parametrize("study", sorted(STUDIES))
 @pytest.mark.parametrize("full", [False, True])
 def test_every_study_case_validates(study: str, full: bool) -> None:
-    for spec in STUDIES[study](full):
+    for spec in STUDIES[study].case_specs(full):
         load_scenario(spec.scenario, dict(spec.overrides))
 
 

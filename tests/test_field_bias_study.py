@@ -14,7 +14,6 @@ import pandas as pd
 import pytest
 
 from scenarios.config import load_scenario
-from scenarios.studies.definitions import CASE_RUNNERS, STUDIES
 from scenarios.studies.field_bias import (
     DEFAULT_PARTS,
     PARTS,
@@ -25,15 +24,15 @@ from scenarios.studies.field_bias import (
     odometry_errors,
     run_field_bias_case,
 )
-from scenarios.studies.figures import FIGURES
 from scenarios.studies.figures_field_bias import field_bias_figures
+from scenarios.studies.registry import STUDIES
 from scenarios.studies.section4 import FIELD_CONDITIONS
 
 
 def test_the_study_is_registered_and_its_cases_are_valid_configs() -> None:
-    assert STUDIES["field-bias"] is field_bias_cases
-    assert CASE_RUNNERS["field-bias"] is run_field_bias_case
-    assert FIGURES["field-bias"] is field_bias_figures
+    study = STUDIES["field-bias"]
+    assert study.cases is field_bias_cases and study.run_case is run_field_bias_case
+    assert study.figures is field_bias_figures and not study.takes_vehicle
     full, short = field_bias_cases(True), field_bias_cases(False)
     assert len(full) == len(PARTS) * len(VARIANTS) and len({c.name for c in full}) == len(full)
     assert [dict(c.labels)["part"] for c in short[:: len(VARIANTS)]] == list(DEFAULT_PARTS)

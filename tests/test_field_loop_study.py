@@ -17,7 +17,6 @@ import pandas as pd
 import pytest
 
 from scenarios.config import load_scenario
-from scenarios.studies.definitions import CASE_RUNNERS, STUDIES
 from scenarios.studies.field_loop import (
     ALIGNMENTS,
     CELL_LABELS,
@@ -33,8 +32,8 @@ from scenarios.studies.field_loop import (
     pooled_coverage,
     run_field_loop_case,
 )
-from scenarios.studies.figures import FIGURES
 from scenarios.studies.figures_field_loop import cell_label, field_loop_figures
+from scenarios.studies.registry import STUDIES
 from scenarios.studies.section4 import FIELD_CONDITIONS, PAPER_SECTION4_MISALIGNMENT_DEG
 from sensor.datasheet import DATASHEET_BIAS_LIMITS, DATASHEET_NOISE
 
@@ -46,9 +45,9 @@ def _rendered(case) -> bool:
 
 
 def test_the_study_is_registered() -> None:
-    assert STUDIES["field-loop"] is field_loop_cases
-    assert CASE_RUNNERS["field-loop"] is run_field_loop_case
-    assert FIGURES["field-loop"] is field_loop_figures
+    study = STUDIES["field-loop"]
+    assert study.cases is field_loop_cases and study.run_case is run_field_loop_case
+    assert study.figures is field_loop_figures and not study.takes_vehicle
 
 
 def test_full_grid_is_144_cases_of_which_48_render() -> None:

@@ -17,8 +17,8 @@ from scenarios.config import load_scenario
 from scenarios.loop.trailer_steer import UnsteeredTrailer, trailer_axles
 from scenarios.run.drive import simulate
 from scenarios.setup.build import build_scenario
-from scenarios.studies.definitions import CASE_RUNNERS, STUDIES
-from scenarios.studies.figures import FIGURES
+from scenarios.studies.figures_section4 import section4_figures
+from scenarios.studies.registry import STUDIES
 from scenarios.studies.section4 import (
     ALIGNMENTS,
     CORRECTION_SETTING_DEG,
@@ -26,6 +26,7 @@ from scenarios.studies.section4 import (
     PAPER_SECTION4_CORRECTION_DEG,
     PAPER_SECTION4_MISALIGNMENT_DEG,
     paper_section4_cases,
+    run_section4_case,
     sign_conditioned_errors,
 )
 from sensor.camera import StereoRig
@@ -39,11 +40,13 @@ def _labels(cases):
 
 
 def test_the_study_is_registered_with_its_figures_and_case_runner() -> None:
-    assert "paper-section4" in STUDIES and "paper-section4" in FIGURES and "paper-section4" in CASE_RUNNERS
+    study = STUDIES["paper-section4"]
+    assert study.cases is paper_section4_cases and study.run_case is run_section4_case
+    assert study.figures is section4_figures
 
 
 def test_full_case_list_is_the_documented_grid() -> None:
-    cases = STUDIES["paper-section4"](True)
+    cases = STUDIES["paper-section4"].case_specs(True)
     labels = _labels(cases)
     assert len(cases) == 2 * 3 * 3 * 3 == 54
     assert len({c.name for c in cases}) == 54
@@ -54,7 +57,7 @@ def test_full_case_list_is_the_documented_grid() -> None:
 
 
 def test_default_case_list_is_the_small_subset() -> None:
-    cases = STUDIES["paper-section4"](False)
+    cases = STUDIES["paper-section4"].case_specs(False)
     grid = [(lab["scenario"], lab["camera"], lab["baseline"], lab["alignment"]) for lab in _labels(cases)]
     expected = itertools.product(("field-roundabout-left", "field-roundabout-right"), ("rear",), (0.5,), ALIGNMENTS)
     assert grid == list(expected)

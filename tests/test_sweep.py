@@ -22,11 +22,12 @@ import pytest
 
 from scenarios.loop import cosimulation as cosim
 from scenarios.run.stopping import Terminated, handle_sigterm, stop_handled
-from scenarios.studies import definitions, executors, figures
+from scenarios.studies import definitions, executors, registry
 from scenarios.studies.cases import model_only_cases, run_case
 from scenarios.studies.executors import local_executor
 from scenarios.studies.progress import SweepProgress
 from scenarios.studies.records import CASES_DIR, CaseSpec, read_record
+from scenarios.studies.registry import Study
 from scenarios.studies.sweep import gather_table, run_sweep
 from scenarios.studies.workers import worker_info
 from vehicle_model.errors import InputError
@@ -349,8 +350,13 @@ def test_dask_local_cluster_gives_the_local_table(serial: pd.DataFrame, tmp_path
 
 def test_run_study_writes_tables_and_figures_from_the_sweep(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     drawn: list[pd.DataFrame] = []
-    monkeypatch.setitem(definitions.STUDIES, "tiny", lambda full: [*model_only_cases(2, 2.0, study="tiny"), BAD])
-    monkeypatch.setitem(figures.FIGURES, "tiny", lambda table, out: drawn.append(table))
+    tiny = Study(
+        "tiny",
+        "two model-only cases and one that fails",
+        lambda full: [*model_only_cases(2, 2.0, study="tiny"), BAD],
+        lambda table, out: drawn.append(table),
+    )
+    monkeypatch.setitem(registry.STUDIES, "tiny", tiny)
     calls: list[tuple[int, int, str]] = []
     table = definitions.run_study("tiny", tmp_path, progress=lambda i, n, spec: calls.append((i, n, spec.name)))
     assert list(table["status"]) == ["completed", "completed", "failed"]
@@ -373,7 +379,7 @@ def test_duplicate_case_names_are_refused(tmp_path: Path) -> None:
 _TINY_STUDY = """
 import errno, os
 import scenarios.run.results as results
-from scenarios.studies import definitions, figures
+from scenarios.studies import registry
 from scenarios.studies.cases import model_only_cases
 
 from scenarios.studies.records import CaseSpec
@@ -383,8 +389,7 @@ if os.environ.get("TINY_RENDERED"):  # and one rendered case (RENDERED_CASE)
     camera = (("camera.width", 672), ("camera.height", 196), ("seed", 7))
     overrides = (("duration_s", 1.5), ("estimators.viso_ot", True), ("estimators.zero_slip", True), *camera)
     cases.append(CaseSpec("tiny", "constant-slip", overrides, (("case", 3), ("surface", "dry"), ("camber", 0.0))))
-definitions.STUDIES["tiny"] = lambda full: cases
-figures.FIGURES["tiny"] = lambda table, out: None
+registry.STUDIES["tiny"] = registry.Study("tiny", "model-only cases", lambda full: cases, lambda table, out: None)
 results.FLUSH_ROWS = 50  # two parts per case (100 rows)
 write_table = results.pq.write_table
 def fill_the_disk(table, where, **kwargs):  # while DISK_FULL is set, case 1's series finds no room after one part

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -23,9 +23,9 @@ from ..run.metrics import after_warmup, max_abs, rms
 from ..setup.build import ScenarioSetup
 from ..setup.models import rebuild_setup
 from ..unit_feedback import steered_units
+from .env_config import merge_config, scenario_choice, scenario_defaults
 from .plan_view import check_render_mode, draw_plan_view
-from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, FeedbackSource, ScenarioChoice
-from .sensors import SensorMode
+from .scenario import ScenarioChoice
 from .units import EnvUnits, check_episode_units, check_units
 from .validation import check_choice
 
@@ -182,18 +182,21 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Arguments
 
-    The scenario arguments of ``offtrack/TrailerSteering-v0`` (``scenario``, ``overrides``, ``feedback``,
-    ``rear_feedback``, ``vehicle``,
-    ``mu``, ``camber_percent``, ``camber_direction``, ``speed_kmh``, ``direction``, ``randomise``, ``sensors``, the
-    limits, all validated at construction), and
-    ``effort_weight``, ``saturation_weight``, ``failure_cost``, ``render_mode="rgb_array"`` (plan view of the whole
-    path with the last run's kingpin and follow-point tracks; ``"human"`` is refused). ``reset(options=...)``
+    ``GainTuningEnv(config=None, render_mode=None, **settings)``, its :attr:`config` :meth:`default_config` updated
+    by ``config`` and then by the keywords, as ``offtrack/TrailerSteering-v0``'s. The settings are the scenario
+    settings of ``offtrack/TrailerSteering-v0`` (``scenario``, ``overrides``, ``feedback``, ``rear_feedback``,
+    ``vehicle``, ``mu``, ``camber_percent``, ``camber_direction``, ``speed_kmh``, ``direction``, ``randomise``,
+    ``sensors``, the limits, all validated at construction), and ``effort_weight``, ``saturation_weight``,
+    ``failure_cost``, ``render_size``; ``render_mode="rgb_array"`` gives a plan view of the whole
+    path with the last run's kingpin and follow-point tracks (``"human"`` is refused). ``reset(options=...)``
     takes the scenario arguments for one episode. The spec has no ``max_episode_steps``: every episode is one
     step, ended by ``terminated=True`` (a one-step time limit would also mark it truncated). As there, the vehicles
     of ``randomise["vehicle"]`` and of ``reset`` options must steer the same towed units.
 
     Attributes
     ----------
+    config : dict
+        Every setting the environment was made with (:meth:`default_config`'s keys).
     units : EnvUnits
         The combination's number of units and its steered towed units (:class:`~scenarios.envs.units.EnvUnits`).
     n_steered : int
@@ -202,46 +205,59 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 1}
 
+    @classmethod
+    def default_config(cls) -> dict[str, Any]:
+        """Every setting of the environment and its default (the keys its ``config`` and keywords take).
+
+        The scenario settings (:func:`~scenarios.envs.env_config.scenario_defaults`), then the cost's
+        ``effort_weight``, ``saturation_weight`` and ``failure_cost``, the limits ``max_articulation_deg``,
+        ``max_lateral_error``, ``max_offtracking``, and the picture's ``render_size``.
+        """
+        return {
+            **scenario_defaults(),
+            "effort_weight": 0.1,
+            "saturation_weight": 0.5,
+            "failure_cost": 5.0,
+            "max_articulation_deg": ENVIRONMENT_LIMITS.max_articulation_deg,
+            "max_lateral_error": ENVIRONMENT_LIMITS.max_lateral_error,
+            "max_offtracking": ENVIRONMENT_LIMITS.max_offtracking,
+            "render_size": (400, 400),
+        }
+
     def __init__(
         self,
-        scenario: str = DEFAULT_SCENARIO,
-        overrides: Mapping[str, Any] | None = None,
-        feedback: FeedbackSource = "truth",
-        vehicle: str | None = "lst",
-        mu: float | None = None,
-        camber_percent: float | None = None,
-        camber_direction: Literal["outward", "inward"] | None = None,
-        speed_kmh: float | None = None,
-        direction: Literal["left", "right"] | None = None,
-        randomise: DomainRandomisation | Mapping[str, Any] | None = None,
-        sensors: SensorMode = "datasheet",
-        effort_weight: float = 0.1,
-        saturation_weight: float = 0.5,
-        failure_cost: float = 5.0,
-        max_articulation_deg: float = ENVIRONMENT_LIMITS.max_articulation_deg,
-        max_lateral_error: float = ENVIRONMENT_LIMITS.max_lateral_error,
-        max_offtracking: float | None = ENVIRONMENT_LIMITS.max_offtracking,
+        config: Mapping[str, Any] | ScenarioChoice | None = None,
         render_mode: str | None = None,
-        render_size: tuple[int, int] = (400, 400),
-        rear_feedback: Sequence[str] | None = None,
+        **settings: Any,
     ) -> None:
-        self.choice = ScenarioChoice(
-            scenario=scenario,
-            overrides=dict(DEFAULT_OVERRIDES) if overrides is None else dict(overrides),
-            feedback=feedback,
-            vehicle=vehicle,
-            mu=mu,
-            camber_percent=camber_percent,
-            camber_direction=camber_direction,
-            speed_kmh=speed_kmh,
-            direction=direction,
-            randomise=DomainRandomisation.coerce(randomise),
-            sensors=sensors,
-            rear_feedback=None if rear_feedback is None else tuple(rear_feedback),
-        )
+        """Make the environment.
+
+        Parameters
+        ----------
+        config
+            Settings over :meth:`default_config` (the keys of the "Arguments" above), or a
+            :class:`~scenarios.envs.scenario.ScenarioChoice` for the scenario settings.
+        render_mode
+            ``None`` or ``"rgb_array"``.
+        **settings
+            Any key of :meth:`default_config`, applied over ``config`` (how ``gymnasium.make`` passes them).
+
+        Raises
+        ------
+        InputError
+            A key that is not a setting (naming it and the allowed keys), or a setting out of its range.
+        """
+        self.config = merge_config(type(self).__name__, self.default_config(), config, settings)
+        cfg = self.config
+        self.choice = scenario_choice(cfg)
         check_choice(self.choice)
         self.units: EnvUnits = check_units(self.choice)
         self.n_steered = self.units.n_steered
+        effort_weight, saturation_weight, failure_cost = (
+            cfg["effort_weight"],
+            cfg["saturation_weight"],
+            cfg["failure_cost"],
+        )
         for name, value in (("effort_weight", effort_weight), ("saturation_weight", saturation_weight)):
             if not (value >= 0 and math.isfinite(value)):
                 raise InputError(f"{name} = {value!r} must be a finite number ≥ 0")
@@ -250,10 +266,12 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         self.effort_weight = float(effort_weight)
         self.saturation_weight = float(saturation_weight)
         self.failure_cost = float(failure_cost)
-        self.limits = Limits(max_articulation_deg, max_lateral_error, max_offtracking, every_unit=True)
+        self.limits = Limits(
+            cfg["max_articulation_deg"], cfg["max_lateral_error"], cfg["max_offtracking"], every_unit=True
+        )
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
-        self.render_size = (int(render_size[0]), int(render_size[1]))
+        self.render_size = (int(cfg["render_size"][0]), int(cfg["render_size"][1]))
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3 * self.n_steered,), dtype=np.float32)
         self.observation_space = spaces.Box(
             np.array([0.0, -10.0, 0.0, 0.0], dtype=np.float32),

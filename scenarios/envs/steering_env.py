@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from typing import Any, ClassVar, Literal
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -20,10 +20,10 @@ from ..loop.ends import ENVIRONMENT_LIMITS, Limits, StopReason
 from ..loop.trailer_steer import AgentSteer, trailer_axles
 from ..setup.models import rebuild_setup
 from ..unit_feedback import estimate_key
+from .env_config import merge_config, scenario_choice, scenario_defaults
 from .plan_view import camera_strip, check_render_mode, draw_plan_view
 from .reward import OFFTRACKING_CLIP, OFFTRACKING_TOLERANCE, REWARD_WEIGHTS, SteeringReward, episode_summary
-from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, FeedbackSource, ScenarioChoice
-from .sensors import SensorMode
+from .scenario import ScenarioChoice
 from .units import EnvUnits, check_episode_units, check_units
 from .validation import check_choice
 
@@ -197,11 +197,15 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Arguments
 
-    ```python
-    gymnasium.make("offtrack/TrailerSteering-v0", scenario="roundabout-3", overrides={"path.turns": 0.25},
-                   feedback="truth", vehicle="lst", action_mode="direct",
-                   randomise={"mu": (0.1, 0.8), "camber_percent": (0, 5), "vehicle": ("lst", "lst-unladen")})
-    ```
+    ``TrailerSteeringEnv(config=None, render_mode=None, **settings)``: the environment's :attr:`config` is
+    :meth:`default_config` updated by ``config`` (a mapping of the settings below, or a
+    :class:`~scenarios.envs.scenario.ScenarioChoice` for the scenario ones) and then by the keywords, which is how
+    ``gymnasium.make`` passes them; a key that is not a setting is refused, naming it and the allowed keys::
+
+        gymnasium.make("offtrack/TrailerSteering-v0", scenario="roundabout-3", overrides={"path.turns": 0.25},
+                       feedback="truth", vehicle="lst", action_mode="direct",
+                       randomise={"mu": (0.1, 0.8), "camber_percent": (0, 5), "vehicle": ("lst", "lst-unladen")})
+        TrailerSteeringEnv({"feedback": "zero_slip", "action_mode": "residual"})
 
     * ``scenario``, ``overrides``: catalogue scenario and dotted configuration fields (``offtrack run --set``).
     * ``feedback``: the first towed unit's estimate: ``truth``, ``zero_slip`` (Cheng, blind to slip), ``viso_ot``
@@ -237,6 +241,10 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
 
     Attributes
     ----------
+    config : dict
+        Every setting the environment was made with (:meth:`default_config`'s keys).
+    choice : ScenarioChoice
+        Its scenario settings.
     units : EnvUnits
         The combination's number of units and its steered towed units with their estimates
         (:class:`~scenarios.envs.units.EnvUnits`).
@@ -248,69 +256,85 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50}
 
+    @classmethod
+    def default_config(cls) -> dict[str, Any]:
+        """Every setting of the environment and its default (the keys its ``config`` and keywords take).
+
+        The scenario settings (:func:`~scenarios.envs.env_config.scenario_defaults`), then ``action_mode``,
+        ``residual_scale_deg``, ``preview_distances``, ``reward_weights`` (``None``: :data:`REWARD_WEIGHTS`),
+        ``offtracking_tolerance``, ``offtracking_clip``, ``termination_penalty``, the limits ``max_articulation_deg``,
+        ``max_lateral_error``, ``max_offtracking``, and the picture's ``render_size`` and ``render_span``.
+        """
+        return {
+            **scenario_defaults(),
+            "action_mode": "direct",
+            "residual_scale_deg": 5.0,
+            "preview_distances": PREVIEW_DISTANCES,
+            "reward_weights": None,
+            "offtracking_tolerance": OFFTRACKING_TOLERANCE,
+            "offtracking_clip": OFFTRACKING_CLIP,
+            "termination_penalty": 10.0,
+            "max_articulation_deg": ENVIRONMENT_LIMITS.max_articulation_deg,
+            "max_lateral_error": ENVIRONMENT_LIMITS.max_lateral_error,
+            "max_offtracking": ENVIRONMENT_LIMITS.max_offtracking,
+            "render_size": (400, 400),
+            "render_span": 50.0,
+        }
+
     def __init__(
         self,
-        scenario: str = DEFAULT_SCENARIO,
-        overrides: Mapping[str, Any] | None = None,
-        feedback: FeedbackSource = "truth",
-        vehicle: str | None = "lst",
-        mu: float | None = None,
-        camber_percent: float | None = None,
-        camber_direction: Literal["outward", "inward"] | None = None,
-        speed_kmh: float | None = None,
-        direction: Literal["left", "right"] | None = None,
-        randomise: DomainRandomisation | Mapping[str, Any] | None = None,
-        sensors: SensorMode = "datasheet",
-        action_mode: Literal["direct", "residual"] = "direct",
-        residual_scale_deg: float = 5.0,
-        preview_distances: Sequence[float] = PREVIEW_DISTANCES,
-        reward_weights: Mapping[str, float] | None = None,
-        offtracking_tolerance: float = OFFTRACKING_TOLERANCE,
-        offtracking_clip: float = OFFTRACKING_CLIP,
-        termination_penalty: float = 10.0,
-        max_articulation_deg: float = ENVIRONMENT_LIMITS.max_articulation_deg,
-        max_lateral_error: float = ENVIRONMENT_LIMITS.max_lateral_error,
-        max_offtracking: float | None = ENVIRONMENT_LIMITS.max_offtracking,
+        config: Mapping[str, Any] | ScenarioChoice | None = None,
         render_mode: str | None = None,
-        render_size: tuple[int, int] = (400, 400),
-        render_span: float = 50.0,
-        rear_feedback: Sequence[str] | None = None,
+        **settings: Any,
     ) -> None:
-        self.choice = ScenarioChoice(
-            scenario=scenario,
-            overrides=dict(DEFAULT_OVERRIDES) if overrides is None else dict(overrides),
-            feedback=feedback,
-            vehicle=vehicle,
-            mu=mu,
-            camber_percent=camber_percent,
-            camber_direction=camber_direction,
-            speed_kmh=speed_kmh,
-            direction=direction,
-            randomise=DomainRandomisation.coerce(randomise),
-            sensors=sensors,
-            rear_feedback=None if rear_feedback is None else tuple(rear_feedback),
-        )
+        """Make the environment.
+
+        Parameters
+        ----------
+        config
+            Settings over :meth:`default_config` (the keys of the "Arguments" above), or a
+            :class:`~scenarios.envs.scenario.ScenarioChoice` for the scenario settings.
+        render_mode
+            ``None`` or ``"rgb_array"``.
+        **settings
+            Any key of :meth:`default_config`, applied over ``config`` (how ``gymnasium.make`` passes them).
+
+        Raises
+        ------
+        InputError
+            A key that is not a setting (naming it and the allowed keys), or a setting out of its range.
+        """
+        self.config = merge_config(type(self).__name__, self.default_config(), config, settings)
+        cfg = self.config
+        self.choice = scenario_choice(cfg)
         check_choice(self.choice)
         self.units: EnvUnits = check_units(self.choice)
         self.n_steered = self.units.n_steered
+        action_mode, residual_scale_deg = cfg["action_mode"], cfg["residual_scale_deg"]
         if action_mode not in ("direct", "residual"):
             raise InputError(f"action_mode = {action_mode!r} must be 'direct' or 'residual'")
         self.action_mode = action_mode
         if not (residual_scale_deg > 0 and math.isfinite(residual_scale_deg)):
             raise InputError(f"residual_scale_deg = {residual_scale_deg!r} must be a finite number > 0")
         self.residual_scale = math.radians(residual_scale_deg)
+        preview_distances = cfg["preview_distances"]
         self.preview_distances = np.asarray(preview_distances, dtype=float)
         if self.preview_distances.ndim != 1 or not np.all(np.isfinite(self.preview_distances)):
             raise InputError(f"preview_distances = {preview_distances!r} must be a sequence of distances [m]")
         self.reward = SteeringReward(
-            dict(reward_weights or {}), offtracking_tolerance, offtracking_clip, termination_penalty
+            dict(cfg["reward_weights"] or {}),
+            cfg["offtracking_tolerance"],
+            cfg["offtracking_clip"],
+            cfg["termination_penalty"],
         )
         self.reward_weights = dict(self.reward.weights)
-        self.limits = Limits(max_articulation_deg, max_lateral_error, max_offtracking, every_unit=True)
+        self.limits = Limits(
+            cfg["max_articulation_deg"], cfg["max_lateral_error"], cfg["max_offtracking"], every_unit=True
+        )
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
-        self.render_size = (int(render_size[0]), int(render_size[1]))
-        self.render_span = float(render_span)
+        self.render_size = (int(cfg["render_size"][0]), int(cfg["render_size"][1]))
+        self.render_span = float(cfg["render_span"])
 
         self.action_space = spaces.Box(-1.0, 1.0, shape=(self.n_steered,), dtype=np.float32)
         further = self.units.further

@@ -1,7 +1,11 @@
-"""Compare feedback sources on one scenario: the same manoeuvre steered by each off-tracking estimate."""
+"""Compare feedback sources on one scenario: the same manoeuvre steered by each off-tracking estimate, each run a
+case of the sweep runner (:mod:`scenarios.studies.sweep`)."""
 
 from __future__ import annotations
 
+import contextvars
+import json
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -23,7 +27,7 @@ from ..run.figure_scale import zoom_half_width, zoom_to
 from ..run.files import write_atomic
 from ..run.metrics import after_warmup, max_abs, rms
 from ..run.plots import save_figure
-from ..run.results import TIMESERIES_FILE, check_plot_format, plot_file
+from ..run.results import METRICS_FILE, TIMESERIES_FILE, check_plot_format, plot_file
 from ..run.runner import run_scenario
 from ..run.swept_path import (
     draw_circles,
@@ -33,6 +37,9 @@ from ..run.swept_path import (
     turn_sign,
 )
 from ..setup.build import build_scenario
+from .progress import SweepProgress
+from .records import CaseRecord, CaseSpec
+from .sweep import run_sweep
 
 CompareProgress = Callable[[str, float, float], None]
 """Called during the runs with ``(feedback of the run, its simulated time [s], fraction of all runs done)``."""
@@ -61,17 +68,82 @@ def summary_row(feedback: str, metrics: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+COMPARE_STUDY = "compare"
+"""The ``study`` of the comparison's case specs."""
+
+_RUN_PROGRESS: contextvars.ContextVar[tuple[CompareProgress, tuple[str, ...]] | None] = contextvars.ContextVar(
+    "compare_progress", default=None
+)
+"""The progress of a comparison run in this process, one case after another: the callback and the feedbacks in
+order (a worker process has none and its runs report nothing)."""
+
+
+def compare_cases(config: ScenarioConfig, feedbacks: tuple[str, ...]) -> list[CaseSpec]:
+    """One case per feedback source: ``config`` with its ``feedback`` replaced, labelled ``feedback``.
+
+    Raises
+    ------
+    InputError
+        A feedback that is not a registered source.
+    ConfigError
+        A variant the configuration refuses (e.g. a camera feedback on a combination without one), before any run.
+    """
+    unknown = [f for f in feedbacks if f not in feedback_sources()]
+    if unknown:
+        raise InputError(f"feedbacks {unknown}: choose from {', '.join(feedback_sources())}")
+    cases = []
+    for feedback in dict.fromkeys(feedbacks):  # every variant validated before the first run starts
+        data = {**config.model_dump(), "feedback": feedback}
+        validate_config(data)
+        cases.append(CaseSpec(COMPARE_STUDY, config.name, (("config", data),), (("feedback", feedback),)))
+    return cases
+
+
+def run_compare_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
+    """Run one feedback's case into ``out_dir/<feedback>/``; its row is :func:`summary_row`."""
+    feedback = dict(spec.labels)["feedback"]
+    config = validate_config(dict(spec.overrides)["config"])
+    run_dir = out_dir / feedback
+    run_dir.mkdir(parents=True, exist_ok=True)
+    shared = _RUN_PROGRESS.get()
+    told = None
+    if shared is not None:
+        progress, order = shared
+        told = _share(progress, feedback, order.index(feedback), len(order))
+    metrics = run_scenario(config, run_dir, progress=told, plots=False)
+    return summary_row(feedback, metrics)
+
+
+NULLABLE = ("roundabout_pass", "outer_radius_max_m", "inner_radius_min_m")
+"""Columns of :func:`summary_row` that are ``None`` without a roundabout test (the others' nulls are NaN)."""
+
+
+def _row(record: CaseRecord) -> dict[str, Any]:
+    """A case's table row: its recorded :func:`summary_row` (JSON's nulls back to NaN but in :data:`NULLABLE`), or
+    its failure's row."""
+    if not record.ok or record.row is None:
+        return record.table_row()
+    return {k: math.nan if v is None and k not in NULLABLE else v for k, v in record.row.items()}
+
+
 def compare_feedback(
     config: ScenarioConfig,
     out_dir: Path,
     feedbacks: tuple[str, ...] | None = None,
     progress: CompareProgress | None = None,
     plot_format: str = "png",
+    *,
+    workers: int = 1,
+    scheduler: str | Any | None = None,
+    resume: bool = True,
 ) -> pd.DataFrame:
     """Run ``config`` once per feedback source into ``out_dir/<feedback>/``; write the table and the figure.
 
-    Writes ``comparison.csv``, ``comparison.md`` and ``comparison.png`` (:func:`comparison_figure`: true
-    off-tracking of every run against time, and a zoom where their trailer envelopes differ).
+    The runs are the cases of the sweep runner (:func:`scenarios.studies.sweep.run_sweep`, :func:`compare_cases`):
+    one after another in this process, on local worker processes or on a Dask cluster, each recorded in
+    ``out_dir/cases/`` as it ends. Writes ``comparison.csv``, ``comparison.md`` and ``comparison.png``
+    (:func:`comparison_figure`: true off-tracking of every run against time, and a zoom where their trailer
+    envelopes differ).
 
     Parameters
     ----------
@@ -82,37 +154,60 @@ def compare_feedback(
     feedbacks
         Feedback sources to run, in order (default every source of :mod:`scenarios.registry`).
     progress
-        Told the progress of the runs (:data:`CompareProgress`).
+        Told the progress of the runs (:data:`CompareProgress`): during each run when they run in this process,
+        otherwise as each one ends (its simulated time then 0).
     plot_format
         The figure's image format: ``png`` (default), ``svg`` or ``pdf``.
+    workers, scheduler, resume
+        As :func:`scenarios.studies.sweep.run_sweep` (a finished run of the same configuration is kept on
+        resume).
 
     Returns
     -------
     pandas.DataFrame
-        One row per run (:func:`summary_row`).
+        One row per run (:func:`summary_row`; a run that failed: ``feedback``, ``status`` ``failed``, ``error``).
     """
     plot_format = check_plot_format(plot_format)
     feedbacks = feedback_sources() if feedbacks is None else feedbacks
-    configs = {}
-    unknown = [f for f in feedbacks if f not in feedback_sources()]
-    if unknown:
-        raise InputError(f"feedbacks {unknown}: choose from {', '.join(feedback_sources())}")
-    for feedback in feedbacks:  # validate every variant before the first run starts (its estimator runs)
-        configs[feedback] = validate_config({**config.model_dump(), "feedback": feedback})
-    rows, traces, verdicts = [], {}, {}
-    for rank, (feedback, cfg) in enumerate(configs.items()):
+    cases = compare_cases(config, feedbacks)
+    order = tuple(dict(spec.labels)["feedback"] for spec in cases)
+    in_process = scheduler is None and (workers == 1 or len(cases) == 1)
+    ended = None if progress is None or in_process else _ended_runs(progress)
+    token = _RUN_PROGRESS.set((progress, order) if progress is not None and in_process else None)
+    try:
+        result = run_sweep(
+            cases,
+            out_dir,
+            run_compare_case,
+            workers=workers,
+            scheduler=scheduler,
+            resume=resume,
+            progress=ended,
+            write_tables=False,
+        )
+    finally:
+        _RUN_PROGRESS.reset(token)
+    table = pd.DataFrame([_row(record) for record in result.records])
+    traces, verdicts = {}, {}
+    for record, feedback in zip(result.records, order, strict=True):
         run_dir = out_dir / feedback
-        run_dir.mkdir(parents=True, exist_ok=True)
-        told = None if progress is None else _share(progress, feedback, rank, len(configs))
-        metrics = run_scenario(cfg, run_dir, progress=told, plots=False)
-        rows.append(summary_row(feedback, metrics))
-        traces[feedback] = pd.read_parquet(run_dir / TIMESERIES_FILE)
-        verdicts[feedback] = metrics.get("roundabout_test")
-    table = pd.DataFrame(rows)
+        if record.ok and (run_dir / TIMESERIES_FILE).exists():
+            traces[feedback] = pd.read_parquet(run_dir / TIMESERIES_FILE)
+            verdicts[feedback] = json.loads((run_dir / METRICS_FILE).read_text()).get("roundabout_test")
     write_atomic(out_dir / "comparison.csv", table.to_csv(index=False))
     write_atomic(out_dir / "comparison.md", table.to_markdown(index=False, floatfmt=".3f"))
     _plot(out_dir / plot_file("comparison.png", plot_format), config, traces, verdicts)
     return table
+
+
+def _ended_runs(progress: CompareProgress) -> Callable[[SweepProgress], None]:
+    """A sweep's progress callback that tells ``progress`` the share of the runs ended (at simulated time 0)."""
+
+    def told(p: SweepProgress) -> None:
+        if p.last is not None:
+            progress(dict(p.last.spec["labels"])["feedback"], 0.0, p.ended / max(p.total, 1))
+
+    return told
 
 
 def _share(progress: CompareProgress, feedback: str, rank: int, runs: int) -> ProgressCallback:

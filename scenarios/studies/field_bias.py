@@ -1,12 +1,13 @@
-"""The ``field-bias`` study: which part of the field conditions biases VISO-OT, by how much, and what the fixes leave.
+"""The ``field-bias`` study: which part of the field conditions biases VISO-OT and by how much, under two builds of
+the estimators.
 
 The field-conditions set (:data:`~scenarios.studies.section4.FIELD_CONDITIONS`) is switched on one part at a time
 and in pairs, on the three-turn roundabout (one turn in the default subset), dry, with the LST steered on the true
 off-tracking so that every case drives the same path and the camera estimators run open loop beside it. Every case
-runs twice:
+runs under both builds of the estimators it compares:
 
 * ``before`` — the odometry's matches refined to the pixel (``camera.vo_refinement`` 1, libviso2's default) and the
-  fused filter without what was added against the field bias: no state for the odometry's yaw error
+  fused filter without its bias states and kinematics: no state for the odometry's yaw error
   (``fusion.vo_yaw_bias`` 0, ``fusion.vo_yaw_bias_walk`` 0), the gyro bias unknown at the start
   (``fusion.initial_gyro_bias`` 0.01 rad/s, ``fusion.gyro_bias_walk`` 1e-4 rad/s/√s) and no zero-slip kinematics
   (``fusion.kinematics`` false);
@@ -87,7 +88,8 @@ VARIANTS: dict[str, tuple[tuple[str, Any], ...]] = {
     ),
     "after": (),
 }
-"""The odometry and the fused filter without and with the fixes (module notes)."""
+"""The two builds of the estimators compared: pixel-refined odometry and the fused filter without its bias states and
+kinematics (``before``), and the defaults (``after``) (module notes)."""
 
 COMMON: tuple[tuple[str, Any], ...] = (
     ("vehicle", "lst"),
@@ -124,8 +126,8 @@ def field_bias_cases(full: bool = False) -> list[CaseSpec]:
     parts = PARTS if full else {name: PARTS[name] for name in DEFAULT_PARTS}
     cases = []
     for part, overrides in parts.items():
-        for variant, fixes in VARIANTS.items():
-            all_overrides = (*COMMON, *overrides, *fixes, *(() if full else SHORT))
+        for variant, build in VARIANTS.items():
+            all_overrides = (*COMMON, *overrides, *build, *(() if full else SHORT))
             cases.append(CaseSpec(STUDY, SCENARIO, all_overrides, (("part", part), ("variant", variant))))
     return cases
 

@@ -1,18 +1,13 @@
-"""Figures of the studies: de Saxe & Cebon 2018 §3 Figs 6–8 and §4 Figs 14–16, the estimators-under-slip heat maps,
-the field-loop cells, the field-bias decomposition and the unit-steering bars and verdicts."""
+"""Figures of the ``paper-section3`` study (de Saxe & Cebon 2018 §3 Figs 6–8) and the ``estimators-under-slip`` heat
+maps; the other studies' figures are in their own ``figures_*`` modules (each study's record names its function,
+:data:`scenarios.studies.registry.STUDIES`)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-
-from .figures_field_bias import field_bias_figures
-from .figures_field_loop import field_loop_figures
-from .figures_section4 import section4_figures
-from .figures_unit_steering import unit_steering_figures
 
 
 def paper_figures(table: pd.DataFrame, out_dir: Path) -> None:
@@ -180,13 +175,3 @@ def grid_figure(part: pd.DataFrame, scenario: str):
         f"(bottom)\nby feedback source, μ and camber; outlined in black: within the {TARGET_RMS_M:.2f} m RMS target"
     )
     return fig
-
-
-FIGURES: dict[str, Callable[[pd.DataFrame, Path], None]] = {
-    "paper-section3": paper_figures,
-    "estimators-under-slip": grid_figures,
-    "paper-section4": section4_figures,
-    "field-loop": field_loop_figures,
-    "field-bias": field_bias_figures,
-    "unit-steering": unit_steering_figures,
-}

@@ -1,7 +1,7 @@
 """The figure and the table of the ``field-bias`` study (:mod:`scenarios.studies.field_bias`), one row per part.
 
 * ``field_bias.png`` — per part of the field conditions, the odometry's yaw error per metre and the off-tracking
-  bias (mean error) of raw and fused VISO-OT, before and after the fixes;
+  bias (mean error) of raw and fused VISO-OT, under both builds of the estimators (``before``, ``after``);
 * ``table.md`` — rewritten as the decomposition (:func:`~.field_bias.decomposition_table`), then every case.
 """
 
@@ -40,7 +40,10 @@ def bias_figure(parts: pd.DataFrame, out_dir: Path, plt: Any) -> None:
     axes[0].set_yticks(y, list(parts["part"]), fontsize=8)
     axes[0].invert_yaxis()
     axes[-1].legend(fontsize=8)
-    fig.suptitle("field-bias: each part of the field conditions, before and after the fixes (dry roundabout)")
+    fig.suptitle(
+        "field-bias: each part of the field conditions, before (pixel refinement, no bias states) and after "
+        "(the defaults), dry roundabout"
+    )
     fig.tight_layout()
     fig.savefig(out_dir / "field_bias.png", dpi=110)
     plt.close(fig)
@@ -67,7 +70,8 @@ def field_bias_markdown(parts: pd.DataFrame) -> str:
     )
     header = ["part", *(f"{name}, before → after" for _, name, _ in columns)]
     lines = [
-        "# field-bias: what each part of the field conditions adds, before and after the fixes",
+        "# field-bias: what each part of the field conditions adds, before (pixel-refined odometry, fused filter "
+        "without bias states) and after (the defaults)",
         "",
         "| " + " | ".join(header) + " |",
         "| " + " | ".join(["---"] * len(header)) + " |",

@@ -40,7 +40,8 @@ LABELS = (
     "feedback",
     "steering",
 )
-"""Case labels of the studies (:mod:`scenarios.studies.definitions`), shown first when they vary."""
+"""Case labels of the studies (:data:`scenarios.studies.registry.STUDIES`) and of ``compare``, shown first when they
+vary."""
 
 PRIORITY = (
     "status",

@@ -1,0 +1,135 @@
+"""The studies offtrack ships, each one :class:`Study` record in one registry, :data:`STUDIES`.
+
+A study is its cases (a function of ``full``, and of ``vehicle`` for a study that takes another combination), the
+function that runs one case into a table row, and the function that draws its figures from the table. Everything
+that lists, runs or describes the studies (the ``study`` command, :func:`scenarios.studies.definitions.run_study`,
+the behaviour fingerprint) reads this registry.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from .cases import run_case
+from .estimators_under_slip import estimators_under_slip_cases, run_estimators_under_slip_case
+from .field_bias import field_bias_cases, run_field_bias_case
+from .field_loop import field_loop_cases, run_field_loop_case
+from .figures import grid_figures, paper_figures
+from .figures_field_bias import field_bias_figures
+from .figures_field_loop import field_loop_figures
+from .figures_section4 import section4_figures
+from .figures_unit_steering import unit_steering_figures
+from .records import CaseSpec
+from .section3 import paper_section3_cases
+from .section4 import paper_section4_cases, run_section4_case
+from .unit_steering import run_unit_steering_case, unit_steering_cases
+from .workers import RunFunction
+
+
+@dataclass(frozen=True)
+class Study:
+    """One study: what it runs, how it runs one case, and how it draws its table.
+
+    Attributes
+    ----------
+    name : str
+        The name on the command line (``offtrack study NAME``).
+    summary : str
+        One line saying what the study compares.
+    cases : callable
+        ``cases(full)`` (or ``cases(full, vehicle)`` when :attr:`takes_vehicle`): the case specs, the default
+        subset unless ``full``.
+    figures : callable
+        ``figures(table, out_dir)``: draws the study's figures from the rows of the cases that did not fail.
+    run_case : callable
+        ``run_case(spec, out_dir) -> row``, a module-level function (it is pickled for the workers); default
+        :func:`scenarios.studies.cases.run_case`, a study's own adds its columns.
+    takes_vehicle : bool
+        The study runs on another combination given as ``vehicle``; the others keep their own vehicle.
+    """
+
+    name: str
+    summary: str
+    cases: Callable[..., list[CaseSpec]]
+    figures: Callable[[pd.DataFrame, Path], None]
+    run_case: RunFunction = run_case
+    takes_vehicle: bool = False
+
+    def case_specs(self, full: bool = False, vehicle: str | None = None) -> list[CaseSpec]:
+        """The cases (a subset unless ``full``), on ``vehicle`` when given (only for :attr:`takes_vehicle`)."""
+        if vehicle is None:
+            return self.cases(full)
+        if not self.takes_vehicle:
+            raise ValueError(f"{self.name} takes no vehicle")
+        return self.cases(full, vehicle)
+
+
+def _studies(*studies: Study) -> dict[str, Study]:
+    return {study.name: study for study in studies}
+
+
+STUDIES: dict[str, Study] = _studies(
+    Study(
+        "paper-section3",
+        "de Saxe & Cebon 2018 §3: VISO-OT on the constant-slip straight over stereo baseline, slip and scenery "
+        "density (Figs 6–8)",
+        paper_section3_cases,
+        paper_figures,
+    ),
+    Study(
+        "estimators-under-slip",
+        "every feedback source over μ, camber and manoeuvre, the fused VISO-OT beside the raw one",
+        estimators_under_slip_cases,
+        grid_figures,
+        run_estimators_under_slip_case,
+        takes_vehicle=True,
+    ),
+    Study(
+        "paper-section4",
+        "de Saxe & Cebon 2018 §4: rear and side cameras, baselines and the field manoeuvres with the right camera "
+        "aligned, misaligned and corrected (Figs 14–16)",
+        paper_section4_cases,
+        section4_figures,
+        run_section4_case,
+    ),
+    Study(
+        "field-loop",
+        "the fused VISO-OT loop under field conditions beside the zero-slip-fed and truth-fed loops, with an "
+        "acceptance per cell",
+        field_loop_cases,
+        field_loop_figures,
+        run_field_loop_case,
+    ),
+    Study(
+        "field-bias",
+        "each part of the field conditions alone and in pairs, under pixel-refined odometry and a fused filter "
+        "without bias states (before) against the defaults (after): the odometry's error and VISO-OT's bias",
+        field_bias_cases,
+        field_bias_figures,
+        run_field_bias_case,
+    ),
+    Study(
+        "unit-steering",
+        "a combination with several steerable towed units, each on its own feedback, against unsteered (model only)",
+        unit_steering_cases,
+        unit_steering_figures,
+        run_unit_steering_case,
+        takes_vehicle=True,
+    ),
+)
+"""Every study by name, in the order they are listed."""
+
+
+def vehicle_studies() -> tuple[str, ...]:
+    """The names of the studies that take another combination (``vehicle``)."""
+    return tuple(name for name, study in STUDIES.items() if study.takes_vehicle)
+
+
+def study_summaries() -> dict[str, Any]:
+    """Each study's name and its one-line summary, in the registry's order."""
+    return {name: study.summary for name, study in STUDIES.items()}
