@@ -54,6 +54,8 @@ def compare(
     out: Annotated[Path | None, typer.Option(help="Output directory (default runs/compare-SCENARIO/…).")] = None,
     force: ForceOption = False,
     plot_format: PlotFormatOption = "png",
+    workers: WorkersOption = 1,
+    scheduler: SchedulerOption = None,
 ) -> None:
     """Run each feedback source given (default: every one) on the same scenario; write a table and one overlay
     figure."""
@@ -82,6 +84,8 @@ def compare(
     config = load_config(scenario, overrides)
     for feedback in chosen:  # every variant (a camera's included) must be able to run
         load_config(scenario, {**overrides, "feedback": feedback})
+    if scheduler is not None:
+        require("distributed", "cluster", "--scheduler")
     run_dir = new_run_dir(out, f"compare-{config.name}", force=force)
     with simulation_progress() as bar:
         task = bar.add_task(escape(f"{chosen[0]} (1/{len(chosen)})"), total=1.0, sim_t=0.0)
@@ -90,7 +94,9 @@ def compare(
             label = f"{feedback} ({chosen.index(feedback) + 1}/{len(chosen)})"
             bar.update(task, completed=done, sim_t=t, description=escape(label))
 
-        table = compare_feedback(config, run_dir, chosen, progress=progress, plot_format=plot_format)
+        table = compare_feedback(
+            config, run_dir, chosen, progress=progress, plot_format=plot_format, workers=workers, scheduler=scheduler
+        )
         bar.update(task, completed=1.0)
     files = (str(run_dir / "comparison.md"), str(run_dir / "comparison.csv"))
     title = f"{config.name}: feedback comparison"
