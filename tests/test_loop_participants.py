@@ -31,7 +31,7 @@ class OffsetTruth:
     """The ground truth of the same tick plus :data:`OFFSET` (it reads the truth participant built before it)."""
 
     name = "offset_truth"
-    columns = (Column(estimate_column("offset_truth"), "m", "truth + 5 cm"),)
+    columns = (Column.estimate("offset_truth", "truth + 5 cm"),)
 
     def __init__(self, truth: EstimatorParticipant) -> None:
         self.truth = truth

@@ -41,15 +41,28 @@ def truth_column(unit: int) -> str:
 
 
 def _columns(unit: int) -> tuple[Column, ...]:
+    state = {"role": "state", "vehicle_unit": unit}
     return (
-        Column(f"gamma{unit - 1}", "rad", f"articulation ψ{unit - 1} − ψ{unit} of unit {unit} against the unit ahead"),
-        Column(f"r{unit}", "rad/s", f"unit {unit} yaw rate"),
-        Column(f"psi{unit}", "rad", f"unit {unit} heading"),
-        Column(f"coupling{unit}_x", "m", f"unit {unit} front coupling (kingpin or drawbar eye), global X"),
-        Column(f"coupling{unit}_y", "m", f"unit {unit} front coupling, global Y"),
-        Column(f"follow{unit}_x", "m", f"unit {unit} follow point, global X"),
-        Column(f"follow{unit}_y", "m", f"unit {unit} follow point, global Y"),
-        Column(truth_column(unit), "m", f"unit {unit} true off-tracking against its own coupling's path"),
+        Column(
+            f"gamma{unit - 1}",
+            "rad",
+            f"articulation ψ{unit - 1} − ψ{unit} of unit {unit} against the unit ahead",
+            **state,
+        ),
+        Column(f"r{unit}", "rad/s", f"unit {unit} yaw rate", **state),
+        Column(f"psi{unit}", "rad", f"unit {unit} heading", **state),
+        Column(f"coupling{unit}_x", "m", f"unit {unit} front coupling (kingpin or drawbar eye), global X", **state),
+        Column(f"coupling{unit}_y", "m", f"unit {unit} front coupling, global Y", **state),
+        Column(f"follow{unit}_x", "m", f"unit {unit} follow point, global X", **state),
+        Column(f"follow{unit}_y", "m", f"unit {unit} follow point, global Y", **state),
+        Column(
+            truth_column(unit),
+            "m",
+            f"unit {unit} true off-tracking against its own coupling's path",
+            role="estimate",
+            vehicle_unit=unit,
+            estimator="truth",
+        ),
     )
 
 
@@ -86,7 +99,14 @@ class FurtherUnitsParticipant:
             else {}
         )
         self.columns += tuple(
-            Column(f"offtracking_zero_slip{unit}", "m", f"unit {unit} zero-slip (Cheng) off-tracking")
+            Column(
+                f"offtracking_zero_slip{unit}",
+                "m",
+                f"unit {unit} zero-slip (Cheng) off-tracking",
+                role="estimate",
+                vehicle_unit=unit,
+                estimator="zero_slip",
+            )
             for unit in self.zero_slip
         )
         self._previous: dict[int, tuple[np.ndarray, float]] = {}
