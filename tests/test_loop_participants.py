@@ -107,11 +107,16 @@ def test_every_participant_declares_its_columns_with_units_and_the_row_has_exact
     names = cosim.column_names
     assert len(names) == len(set(names)), "a column is declared twice"
     assert all(column.unit for column in cosim.columns)
+    assert all(column.role for column in cosim.columns)
     while not cosim.done:
         cosim.step()
+        for participant in cosim.cast:  # no camera here: every participant writes every column on every tick
+            assert set(participant.record()) == {c.name for c in participant.columns}, participant.name
     cosim.finish()
+    cosim.recorder.close()  # refuses a declared column left unwritten
+    assert not cosim.recorder.unwritten
     columns = cosim.recorder.arrays()
-    assert list(columns) == names
+    assert list(columns) == names and [c.name for c in columns.schema] == names
     assert all(np.isfinite(columns[name]).all() for name in ("time", "X", "kingpin_x", "steer_trailer3", "drive_force"))
 
 

@@ -120,7 +120,7 @@ class RowRecorder:
     def flush(self) -> None:
         """Write the rows whose parts are all ready, in order."""
         held = self._held
-        while held and all(part.ready for part in held[0][1]):
+        while held and all(part.ready for _, part in held[0][1]):
             self._write(*held.popleft())
 
     def close(self) -> None:

@@ -68,11 +68,11 @@ def roles_from_names(columns: Sequence[Column]) -> tuple[Column, ...]:
             out.append(column)
             continue
         name = column.name
-        role, unit, estimator = "diagnostic", None, None
+        role, unit, estimator, physical = "diagnostic", None, None, column.unit
         if name == "time":
             role = "time"
         elif name.startswith("steer_trailer"):
-            role, unit = "command", FIRST_TOWED_UNIT
+            role, unit, physical = "command", FIRST_TOWED_UNIT, column.unit or "rad"
         elif name == "offtracking_truth":
             role, unit, estimator = "estimate", FIRST_TOWED_UNIT, "truth"
         elif name.startswith("offtracking_truth"):
@@ -90,7 +90,7 @@ def roles_from_names(columns: Sequence[Column]) -> tuple[Column, ...]:
                 role, unit, estimator = "estimate", FIRST_TOWED_UNIT, estimate
             if not estimator:
                 role, unit, estimator = "diagnostic", None, None
-        out.append(dataclasses.replace(column, role=role, vehicle_unit=unit, estimator=estimator))
+        out.append(dataclasses.replace(column, unit=physical, role=role, vehicle_unit=unit, estimator=estimator))
     return tuple(out)
 
 
