@@ -112,8 +112,7 @@ def test_every_participant_declares_its_columns_with_units_and_the_row_has_exact
         cosim.step()
         for participant in cosim.cast:  # no camera here: every participant writes every column on every tick
             assert set(participant.record()) == {c.name for c in participant.columns}, participant.name
-    cosim.finish()
-    cosim.recorder.close()  # refuses a declared column left unwritten
+    cosim.finish()  # refuses a declared column left unwritten
     assert not cosim.recorder.unwritten
     columns = cosim.recorder.arrays()
     assert list(columns) == names and [c.name for c in columns.schema] == names

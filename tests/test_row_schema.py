@@ -15,6 +15,7 @@ import pytest
 import yaml
 
 from scenarios.config import load_scenario
+from scenarios.loop.cosimulation import CoSimulation
 from scenarios.loop.participant import ROLES, Column, SchemaError
 from scenarios.loop.recording import RowRecorder
 from scenarios.loop.schema import (
@@ -38,6 +39,7 @@ from scenarios.run.results import (
 )
 from scenarios.run.runner import run_scenario
 from scenarios.setup.build import build_scenario
+from vehicle_model.offtracking import OfftrackingEstimate
 
 QUARTER = {"vehicle": "lst", "path.turns": 0.25, "path.entry_length": 15.0, "path.exit_length": 5.0}
 B_DOUBLE = Path(__file__).parent / "data" / "combinations" / "b-double.yaml"
@@ -83,12 +85,34 @@ def test_a_pending_part_with_an_undeclared_key_is_refused_when_it_arrives() -> N
         recorder.add([{"time": 0.0}, Pending({"a": 1.0, "z": 0.0}, ready=True)])
 
 
-def test_a_declared_column_never_written_in_a_run_is_refused_at_close() -> None:
+def test_a_declared_column_never_written_in_a_run_is_refused() -> None:
     recorder = RowRecorder(_cast())
     for t in (0.0, 0.1):
         recorder.add([{"time": t}, {"a": 1.0}])  # "b" declared, never written
-    with pytest.raises(SchemaError, match=r"participant 'probe' declares 'b' but never wrote it in 2 rows"):
-        recorder.close()
+    with pytest.raises(SchemaError, match=r"participant 'probe' declares 'b' but never wrote it in a run of 2 rows"):
+        recorder.check_written()
+
+
+def test_a_participant_of_the_loop_that_leaves_a_declared_column_unwritten_fails_its_run() -> None:
+    class Silent:
+        name = "silent"
+        columns = (Column.estimate("silent", "declared, never written"),)
+
+        def update(self, tick: object) -> OfftrackingEstimate:
+            return OfftrackingEstimate.of(None)
+
+        def record(self) -> dict[str, float]:
+            return {}
+
+    setup = build_scenario(load_scenario("roundabout-3", {**QUARTER, "duration_s": 0.5}))
+    cosim = CoSimulation(setup)
+    cosim.estimators["silent"] = Silent()
+    cosim.cast = (*cosim.cast, cosim.estimators["silent"])
+    cosim.recorder = RowRecorder(cosim.cast)
+    while not cosim.done:
+        cosim.step()
+    with pytest.raises(SchemaError, match=r"participant 'silent' declares 'offtracking_silent' but never wrote it"):
+        cosim.finish()
 
 
 def test_a_column_written_on_some_ticks_or_as_nan_is_written() -> None:
@@ -104,12 +128,16 @@ def test_a_column_written_on_some_ticks_or_as_nan_is_written() -> None:
 def test_a_pending_part_that_never_arrives_is_the_recorders_nan_not_a_fault() -> None:
     recorder = RowRecorder(_cast())
     recorder.add([{"time": 0.0}, Pending({"a": 1.0, "b": 2.0}, ready=False)])
+    recorder.check_written()  # still in flight: not judged
     recorder.close()  # a stopped run: the frame never came
+    recorder.check_written()
     assert np.isnan(recorder.arrays()["a"]).all()
 
 
 def test_an_empty_run_has_nothing_to_report() -> None:
-    RowRecorder(_cast()).close()
+    recorder = RowRecorder(_cast())
+    recorder.close()
+    recorder.check_written()
 
 
 def test_a_column_without_a_role_or_declared_twice_is_refused() -> None:

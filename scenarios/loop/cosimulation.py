@@ -315,7 +315,13 @@ class CoSimulation:
         return self.tick
 
     def finish(self) -> None:
-        """The run has ended: record the last tick's row, and complete what is in flight (camera frames)."""
+        """The run has ended: record the last tick's row, and complete what is in flight (camera frames).
+
+        Raises
+        ------
+        SchemaError
+            A participant never wrote a column it declares (:meth:`.recording.RowRecorder.check_written`).
+        """
         if not self._final_recorded:
             self._command()
             self._record()
@@ -324,6 +330,7 @@ class CoSimulation:
             if callable(finish):
                 finish()
         self.recorder.flush()
+        self.recorder.check_written()  # every participant wrote every column it declares
 
     def reports(self) -> dict[str, dict[str, float]]:
         """What the participants report about the run (e.g. where a camera's time went), by name."""

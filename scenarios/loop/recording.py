@@ -9,8 +9,8 @@ writes what is left, with NaN for parts that never became ready (a stopped run d
 
 The recorder holds every participant to its declaration (:class:`~.participant.SchemaError`): a record with a key
 its participant did not declare is refused at once, naming both; a declared column that no record wrote in a run
-of at least one row is refused at :meth:`RowRecorder.close` — except those of a participant whose pending part
-never became ready, whose columns are the recorder's own NaN.
+of at least one row is refused by :meth:`RowRecorder.check_written` (the loop asks when the run ends) — except those
+of a participant whose pending part has not arrived, whose columns are the recorder's own NaN if it never does.
 """
 
 from __future__ import annotations
@@ -124,26 +124,34 @@ class RowRecorder:
             self._write(*held.popleft())
 
     def close(self) -> None:
-        """Write every row left; a part never ready leaves its columns NaN.
-
-        Raises
-        ------
-        SchemaError
-            A run of at least one row left a declared column unwritten (but for the columns of a participant whose
-            pending part never became ready).
-        """
+        """Write every row left; a part never ready leaves its columns NaN (and they count as written)."""
         while self._held:
             row, pending = self._held.popleft()
             for index, part in pending:
                 if not part.ready:
                     self.unwritten.difference_update(self._declared[index][1])
             self._write(row, [(index, part) for index, part in pending if part.ready])
-        if self.rows and self.unwritten:
-            missing = [c for c in self.columns if c in self.unwritten]
+
+    def check_written(self) -> None:
+        """Refuse a declared column that no record of the rows so far wrote (none before the first row).
+
+        The columns of a participant with a pending part still held are not judged: what it would write is not
+        known yet.
+
+        Raises
+        ------
+        SchemaError
+            One line naming the first such column and its participant, then all of them.
+        """
+        waiting = {index for _, pending in self._held for index, _ in pending}
+        excused = {name for index in waiting for name in self._declared[index][1]}
+        missing = [c for c in self.columns if c in self.unwritten and c not in excused]
+        if (self.rows or self._held) and missing:
             owner = next(name for name, declared in self._declared if missing[0] in declared)
             raise SchemaError(
-                f"participant {owner!r} declares {missing[0]!r} but never wrote it in {self.rows} rows "
-                f"(a value unknown on a tick is written as NaN); unwritten: {missing}"
+                f"participant {owner!r} declares {missing[0]!r} but never wrote it in a run of "
+                f"{self.rows + len(self._held)} rows (a value unknown on a tick is written as NaN); unwritten: "
+                f"{missing}"
             )
 
     def arrays(self) -> RecordedColumns:
