@@ -31,7 +31,7 @@ class OffsetTruth:
     """The ground truth of the same tick plus :data:`OFFSET` (it reads the truth participant built before it)."""
 
     name = "offset_truth"
-    columns = (Column(estimate_column("offset_truth"), "m", "truth + 5 cm"),)
+    columns = (Column.estimate("offset_truth", "truth + 5 cm"),)
 
     def __init__(self, truth: EstimatorParticipant) -> None:
         self.truth = truth
@@ -107,11 +107,15 @@ def test_every_participant_declares_its_columns_with_units_and_the_row_has_exact
     names = cosim.column_names
     assert len(names) == len(set(names)), "a column is declared twice"
     assert all(column.unit for column in cosim.columns)
+    assert all(column.role for column in cosim.columns)
     while not cosim.done:
         cosim.step()
-    cosim.finish()
+        for participant in cosim.cast:  # no camera here: every participant writes every column on every tick
+            assert set(participant.record()) == {c.name for c in participant.columns}, participant.name
+    cosim.finish()  # refuses a declared column left unwritten
+    assert not cosim.recorder.unwritten
     columns = cosim.recorder.arrays()
-    assert list(columns) == names
+    assert list(columns) == names and [c.name for c in columns.schema] == names
     assert all(np.isfinite(columns[name]).all() for name in ("time", "X", "kingpin_x", "steer_trailer3", "drive_force"))
 
 

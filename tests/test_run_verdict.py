@@ -79,8 +79,8 @@ class GrosslyWrong:
 
     name = "grossly_wrong"
     columns = (
-        Column(estimate_column("grossly_wrong"), "m", "truth + 0.30 m"),
-        Column(f"{estimate_column('grossly_wrong')}_std", "m", "the std it claims"),
+        Column.estimate("grossly_wrong", "truth + 0.30 m"),
+        Column.std("grossly_wrong", "the std it claims"),
     )
 
     def __init__(self, truth: EstimatorParticipant) -> None:

@@ -36,6 +36,7 @@ import pyarrow.parquet as pq
 from vehicle_model.errors import InputError
 
 from ..loop.participant import Column
+from ..loop.schema import schema_of
 from ..run.files import atomic_path
 from ..run.results import CONFIG_FILE, RUN_FILES, TIMESERIES_FILE, read_metrics, timeseries_columns
 from ..yaml_input import load_yaml
@@ -80,7 +81,7 @@ class RunTable:
     Attributes
     ----------
     columns : list of Column
-        The columns in order, each with its unit and description (``""`` where the file has none).
+        The columns in order, each with its unit and description (``""`` where the file has none) and its role.
     data : dict
         Each column's values by name (float64 arrays of one length).
     metadata : dict
@@ -181,7 +182,7 @@ def read_run_table(run_dir: Path) -> RunTable:
         table = pq.read_table(series)
     except (OSError, pa.ArrowException) as exc:
         raise InputError(f"{series} cannot be read: {exc}") from None
-    columns = timeseries_columns(table.schema)
+    columns = list(schema_of(timeseries_columns(table.schema)))  # each with its role, an older run's by its name
     data = {c.name: np.array(table.column(c.name).to_numpy(), dtype=float) for c in columns}
     return RunTable(columns, data, _metadata(run_dir))
 

@@ -22,15 +22,21 @@ from .participant import Column, LoopContext, Record, TickInput, estimate_column
 
 __all__ = ["CAMERA_COLUMNS", "VisoOt", "camera_row", "reason_code", "viso_ot"]
 
+_CAMERA = {"role": "diagnostic", "estimator": "viso_ot"}
 CAMERA_COLUMNS: tuple[Column, ...] = (
-    Column("vo_valid", "-", "1 when the frame's motion was accepted"),
-    Column("vo_reason", "-", "why not: index into sensor.vo.quality.REJECTION_REASONS"),
-    Column("vo_estimate_reason", "-", "why there is no estimate: index into REJECTION_REASONS"),
-    *(Column(f"vo_{name}", "-", "the frame's quality figure (sensor.vo.quality)") for name in QUALITY_COLUMNS),
-    Column("render_ms", "ms", "wall time of the frame's rendering"),
-    Column("vo_ms", "ms", "wall time of the frame's odometry and VISO-OT"),
+    Column("vo_valid", "-", "1 when the frame's motion was accepted", role="flag", estimator="viso_ot"),
+    Column("vo_reason", "-", "why not: index into sensor.vo.quality.REJECTION_REASONS", **_CAMERA),
+    Column("vo_estimate_reason", "-", "why there is no estimate: index into REJECTION_REASONS", **_CAMERA),
     *(
-        Column(f"selfcal_{name}", "-", "online self-calibration after the frame (sensor.vo.self_calibration)")
+        Column(f"vo_{name}", "-", "the frame's quality figure (sensor.vo.quality)", **_CAMERA)
+        for name in QUALITY_COLUMNS
+    ),
+    Column("render_ms", "ms", "wall time of the frame's rendering", **_CAMERA),
+    Column("vo_ms", "ms", "wall time of the frame's odometry and VISO-OT", **_CAMERA),
+    *(
+        Column(
+            f"selfcal_{name}", "-", "online self-calibration after the frame (sensor.vo.self_calibration)", **_CAMERA
+        )
         for name in SELF_CALIBRATION_COLUMNS
     ),
 )
@@ -99,7 +105,14 @@ class VisoOt:
 
     name = "viso_ot"
     columns: tuple[Column, ...] = (
-        Column(estimate_column("viso_ot"), "m", "VISO-OT off-tracking of the latest released frame"),
+        Column(
+            estimate_column("viso_ot"),
+            "m",
+            "VISO-OT off-tracking of the latest released frame",
+            role="estimate",
+            vehicle_unit=2,
+            estimator="viso_ot",
+        ),
         *CAMERA_COLUMNS,
     )
 

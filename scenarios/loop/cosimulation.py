@@ -29,7 +29,6 @@ from __future__ import annotations
 import copy
 import io
 import pickle
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -47,7 +46,7 @@ from ..setup.models import rebuild_setup
 from ..unit_feedback import estimate_key
 from .ends import RUN_LIMITS, LimitBreach, Limits
 from .further_units import FurtherUnitsParticipant
-from .participant import Column, EstimatorParticipant, LoopContext, PendingValues, TickInput, TrailerSteerSource
+from .participant import Column, EstimatorParticipant, LoopContext, TickInput, TrailerSteerSource
 from .plant import SignalsParticipant, SteerTyreParticipant, VehicleParticipant
 from .recording import RowRecorder, RowSink
 from .tractor import DriverParticipant, TractorCommand, constant_slip_step
@@ -230,7 +229,7 @@ class CoSimulation:
             *self.estimators.values(),
         )
         self.columns: tuple[Column, ...] = tuple(c for participant in self.cast for c in participant.columns)
-        self.recorder = RowRecorder([c.name for c in self.columns], self.sink)
+        self.recorder = RowRecorder(self.cast, self.sink)
         self.steer = np.zeros(len(setup.model.layout.steerable_axles))
         self.diverged: SimulationDivergedError | None = None
         self._final_recorded = False
@@ -316,7 +315,13 @@ class CoSimulation:
         return self.tick
 
     def finish(self) -> None:
-        """The run has ended: record the last tick's row, and complete what is in flight (camera frames)."""
+        """The run has ended: record the last tick's row, and complete what is in flight (camera frames).
+
+        Raises
+        ------
+        SchemaError
+            A participant never wrote a column it declares (:meth:`.recording.RowRecorder.check_written`).
+        """
         if not self._final_recorded:
             self._command()
             self._record()
@@ -325,6 +330,7 @@ class CoSimulation:
             if callable(finish):
                 finish()
         self.recorder.flush()
+        self.recorder.check_written()  # every participant wrote every column it declares
 
     def reports(self) -> dict[str, dict[str, float]]:
         """What the participants report about the run (e.g. where a camera's time went), by name."""
@@ -344,15 +350,7 @@ class CoSimulation:
         return steer
 
     def _record(self) -> None:
-        row: dict[str, float] = {}
-        pending: list[PendingValues] = []
-        for participant in self.cast:
-            values = participant.record()
-            if isinstance(values, Mapping):
-                row.update(values)
-            else:
-                pending.append(values)
-        self.recorder.add(row, pending)
+        self.recorder.add([participant.record() for participant in self.cast])
         self._final_recorded = self.done
 
     def _observe(self, state: VehicleState, index: int, trajectory: np.ndarray | None) -> Tick:

@@ -119,8 +119,22 @@ class GroundTruth:
 
     name = "truth"
     columns: tuple[Column, ...] = (
-        Column(estimate_column("truth"), "m", "true off-tracking (the buffer fed with exact increments)"),
-        Column("offtracking_truth_geometric", "m", "the same by intersecting the dense kingpin path (a check)"),
+        Column(
+            estimate_column("truth"),
+            "m",
+            "true off-tracking (the buffer fed with exact increments)",
+            role="estimate",
+            vehicle_unit=2,
+            estimator="truth",
+        ),
+        Column(
+            "offtracking_truth_geometric",
+            "m",
+            "the same by intersecting the dense kingpin path (a check)",
+            role="diagnostic",
+            vehicle_unit=2,
+            estimator="truth",
+        ),
     )
 
     def __init__(self, params: VehicleParams, geometric: bool = False) -> None:
@@ -173,7 +187,16 @@ class ZeroSlip:
     """
 
     name = "zero_slip"
-    columns: tuple[Column, ...] = (Column(estimate_column("zero_slip"), "m", "zero-slip (Cheng) off-tracking"),)
+    columns: tuple[Column, ...] = (
+        Column(
+            estimate_column("zero_slip"),
+            "m",
+            "zero-slip (Cheng) off-tracking",
+            role="estimate",
+            vehicle_unit=2,
+            estimator="zero_slip",
+        ),
+    )
 
     def __init__(
         self, params: VehicleParams, variant: str = "yaw_rate", rear_point: str = "axle_mean", unit: int = 1
@@ -219,11 +242,37 @@ class FusedVisoOtEstimator:
 
     name = "viso_ot_fused"
     columns: tuple[Column, ...] = (
-        Column(estimate_column("viso_ot_fused"), "m", "fused VISO-OT off-tracking"),
-        Column("offtracking_viso_ot_fused_std", "m", "its standard deviation"),
-        Column("fusion_kinematic_std", "m/s", "σ of the zero-slip kinematics in the filter: large where it saw slip"),
+        Column(
+            estimate_column("viso_ot_fused"),
+            "m",
+            "fused VISO-OT off-tracking",
+            role="estimate",
+            vehicle_unit=2,
+            estimator="viso_ot_fused",
+        ),
+        Column(
+            "offtracking_viso_ot_fused_std",
+            "m",
+            "its standard deviation",
+            role="std",
+            vehicle_unit=2,
+            estimator="viso_ot_fused",
+        ),
+        Column(
+            "fusion_kinematic_std",
+            "m/s",
+            "σ of the zero-slip kinematics in the filter: large where it saw slip",
+            role="diagnostic",
+            estimator="viso_ot_fused",
+        ),
         *(
-            Column(name, "m", f"the {part} term of the std, as the std it alone would give")
+            Column(
+                name,
+                "m",
+                f"the {part} term of the std, as the std it alone would give",
+                role="diagnostic",
+                estimator="viso_ot_fused",
+            )
             for part, name in zip(STD_PARTS, FUSION_STD_COLUMNS, strict=True)
         ),
     )

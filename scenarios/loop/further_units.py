@@ -43,15 +43,28 @@ def truth_column(unit: int) -> str:
 
 
 def _columns(unit: int) -> tuple[Column, ...]:
+    state = {"role": "state", "vehicle_unit": unit}
     return (
-        Column(f"gamma{unit - 1}", "rad", f"articulation ψ{unit - 1} − ψ{unit} of unit {unit} against the unit ahead"),
-        Column(f"r{unit}", "rad/s", f"unit {unit} yaw rate"),
-        Column(f"psi{unit}", "rad", f"unit {unit} heading"),
-        Column(f"coupling{unit}_x", "m", f"unit {unit} front coupling (kingpin or drawbar eye), global X"),
-        Column(f"coupling{unit}_y", "m", f"unit {unit} front coupling, global Y"),
-        Column(f"follow{unit}_x", "m", f"unit {unit} follow point, global X"),
-        Column(f"follow{unit}_y", "m", f"unit {unit} follow point, global Y"),
-        Column(truth_column(unit), "m", f"unit {unit} true off-tracking against its own coupling's path"),
+        Column(
+            f"gamma{unit - 1}",
+            "rad",
+            f"articulation ψ{unit - 1} − ψ{unit} of unit {unit} against the unit ahead",
+            **state,
+        ),
+        Column(f"r{unit}", "rad/s", f"unit {unit} yaw rate", **state),
+        Column(f"psi{unit}", "rad", f"unit {unit} heading", **state),
+        Column(f"coupling{unit}_x", "m", f"unit {unit} front coupling (kingpin or drawbar eye), global X", **state),
+        Column(f"coupling{unit}_y", "m", f"unit {unit} front coupling, global Y", **state),
+        Column(f"follow{unit}_x", "m", f"unit {unit} follow point, global X", **state),
+        Column(f"follow{unit}_y", "m", f"unit {unit} follow point, global Y", **state),
+        Column(
+            truth_column(unit),
+            "m",
+            f"unit {unit} true off-tracking against its own coupling's path",
+            role="estimate",
+            vehicle_unit=unit,
+            estimator="truth",
+        ),
     )
 
 
@@ -86,7 +99,16 @@ class FurtherUnitsParticipant:
             for unit in self.units if entry.build_unit is not None else ():
                 key = estimate_key(name, unit - 1)
                 self.unit_estimators[key] = (f"offtracking_{key}", entry.build_unit(context, unit - 1))
-                columns.append(Column(f"offtracking_{key}", "m", f"unit {unit} {entry.legend} off-tracking"))
+                columns.append(
+                    Column(
+                        f"offtracking_{key}",
+                        "m",
+                        f"unit {unit} {entry.legend} off-tracking",
+                        role="estimate",
+                        vehicle_unit=unit,
+                        estimator=name,
+                    )
+                )
         self.columns += tuple(columns)
         self._previous: dict[int, tuple[np.ndarray, float]] = {}
         self._row: dict[str, float] = {}

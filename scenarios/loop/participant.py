@@ -12,10 +12,13 @@ The co-simulation (:mod:`scenarios.loop.cosimulation`) ticks a fixed cast, each 
 * the **trailer-steer source** (:mod:`.trailer_steer`): the path-following controller on the chosen feedback,
   none, or an agent of the steering environment: ``command(tick, estimates) → steer angles``.
 
-Each declares its recorded :class:`Column` s (name, unit, meaning) and gives their values for the tick it last
-updated (:meth:`Participant.record`); the recorded row is the union of the participants' records, in the order
-of the cast. A record may be :class:`PendingValues` — a camera frame still being rendered in another process —
-which the recorder waits for (:mod:`.recording`).
+Each declares its recorded :class:`Column` s (name, unit, meaning, and its *role*: what kind of quantity it is, of
+which unit of the combination, from which estimator) and gives their values for the tick it last updated
+(:meth:`Participant.record`); the recorded row is the union of the participants' records, in the order of the cast.
+A participant records exactly its declared columns: the recorder refuses a key it did not declare and a declared
+column it never wrote in a run (:class:`SchemaError`); a value not known on a tick is written as NaN. A record may
+be :class:`PendingValues` — a camera frame still being rendered in another process — which the recorder waits for
+(:mod:`.recording`).
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ if TYPE_CHECKING:
     from ..setup.build import ScenarioSetup
 
 __all__ = [
+    "ROLES",
     "Column",
     "EstimatorParticipant",
     "LoopContext",
@@ -40,19 +44,78 @@ __all__ = [
     "Participant",
     "PendingValues",
     "Record",
+    "SchemaError",
     "TickInput",
     "TrailerSteerSource",
     "estimate_column",
 ]
 
 
+ROLES: dict[str, str] = {
+    "time": "the simulation time of the row",
+    "state": "a true state of the combination (a body's pose or velocity, a coupling, a follow point)",
+    "signal": "an on-board signal as measured",
+    "command": "an actuator command (a steer angle, the drive force)",
+    "estimate": "an off-tracking estimate of a unit (the ground truth is the estimator ``truth``)",
+    "std": "the standard deviation of an estimator's off-tracking estimate",
+    "flag": "0 or 1: whether something happened on the tick",
+    "diagnostic": "anything else recorded to explain a run (internals, quality figures, times, checks)",
+}
+"""What a recorded column can be (:attr:`Column.role`), with what each means."""
+
+
+class SchemaError(RuntimeError):
+    """A participant's record does not match its declared columns (a fault of the participant, not of the input)."""
+
+
 @dataclass(frozen=True)
 class Column:
-    """One recorded column: its name, its unit (SI; ``-`` for a count, flag or code) and what it holds."""
+    """One recorded column: its name, its unit (SI; ``-`` for a count, flag or code), what it holds and its role.
+
+    Attributes
+    ----------
+    name : str
+        The column's name.
+    unit : str
+        Its unit (SI; ``-`` for a count, flag or code).
+    description : str
+        What it holds, one line.
+    role : str
+        What kind of quantity it is: a key of :data:`ROLES` (``""``: not declared, as read from an older run).
+    vehicle_unit : int or None
+        The unit of the combination it belongs to (1 the tractor or truck, 2 the first towed unit, …), where it
+        belongs to one.
+    estimator : str or None
+        The estimator it comes from (an ``estimate`` or ``std`` column always names one).
+    """
 
     name: str
     unit: str
     description: str = ""
+    role: str = ""
+    vehicle_unit: int | None = None
+    estimator: str | None = None
+
+    @classmethod
+    def estimate(cls, estimator: str, description: str, vehicle_unit: int = 2) -> Column:
+        """The off-tracking estimate [m] of ``estimator`` of the first towed unit (``vehicle_unit`` 2), recorded
+        as :func:`estimate_column`; for another unit ``k``, as ``offtracking_<estimator><k>``."""
+        name = estimate_column(estimator) + ("" if vehicle_unit == 2 else str(vehicle_unit))
+        return cls(name, "m", description, role="estimate", vehicle_unit=vehicle_unit, estimator=estimator)
+
+    @classmethod
+    def std(cls, estimator: str, description: str = "its standard deviation") -> Column:
+        """The standard deviation [m] of ``estimator``'s estimate of the first towed unit:
+        ``offtracking_<estimator>_std``."""
+        return cls(
+            f"{estimate_column(estimator)}_std", "m", description, role="std", vehicle_unit=2, estimator=estimator
+        )
+
+    def __post_init__(self) -> None:
+        if self.role and self.role not in ROLES:
+            raise ValueError(f"column {self.name!r}: role {self.role!r} is not one of {', '.join(ROLES)}")
+        if self.role in ("estimate", "std") and (not self.estimator or self.vehicle_unit is None):
+            raise ValueError(f"column {self.name!r}: an {self.role} column names its estimator and vehicle unit")
 
 
 def estimate_column(name: str) -> str:
@@ -149,7 +212,8 @@ class Participant(Protocol):
     columns: tuple[Column, ...]
 
     def record(self) -> Record:
-        """The values of :attr:`columns` for the tick last updated (missing keys are recorded as NaN)."""
+        """The values of :attr:`columns` for the tick last updated: only declared keys; a column not written on a
+        tick is NaN there, and every one is written on some tick of a run."""
         ...
 
 

@@ -24,14 +24,14 @@ __all__ = [
 ]
 
 _STATE_COLUMNS = (
-    Column("X", "m", "tractor CG, global X"),
-    Column("Y", "m", "tractor CG, global Y"),
-    Column("psi1", "rad", "tractor heading"),
-    Column("u", "m/s", "tractor CG forward velocity"),
-    Column("v1", "m/s", "tractor CG lateral velocity (left +)"),
-    Column("r1", "rad/s", "tractor yaw rate"),
-    Column("gamma", "rad", "articulation Γ = ψ1 − ψ2"),
-    Column("r2", "rad/s", "trailer yaw rate"),
+    Column("X", "m", "tractor CG, global X", role="state", vehicle_unit=1),
+    Column("Y", "m", "tractor CG, global Y", role="state", vehicle_unit=1),
+    Column("psi1", "rad", "tractor heading", role="state", vehicle_unit=1),
+    Column("u", "m/s", "tractor CG forward velocity", role="state", vehicle_unit=1),
+    Column("v1", "m/s", "tractor CG lateral velocity (left +)", role="state", vehicle_unit=1),
+    Column("r1", "rad/s", "tractor yaw rate", role="state", vehicle_unit=1),
+    Column("gamma", "rad", "articulation Γ = ψ1 − ψ2", role="state", vehicle_unit=2),
+    Column("r2", "rad/s", "trailer yaw rate", role="state", vehicle_unit=2),
 )
 
 RECORDED_SIGNALS: tuple[tuple[str, str], ...] = (
@@ -43,6 +43,9 @@ RECORDED_SIGNALS: tuple[tuple[str, str], ...] = (
     ("tractor_lateral_acceleration", "m/s²"),
 )
 """The on-board signals recorded as ``signal_<name>`` (:mod:`sensor.signals`), with their units."""
+
+_SIGNAL_UNITS = {"articulation": 2, "trailer_yaw_rate": 2}
+"""The vehicle unit of a recorded signal that is not the tractor's."""
 
 
 class VehicleParticipant:
@@ -56,14 +59,14 @@ class VehicleParticipant:
 
     name = "vehicle"
     columns: tuple[Column, ...] = (
-        Column("time", "s", "simulation time"),
+        Column("time", "s", "simulation time", role="time"),
         *_STATE_COLUMNS,
-        Column("psi2", "rad", "trailer heading ψ1 − Γ"),
-        Column("kingpin_x", "m", "kingpin, global X"),
-        Column("kingpin_y", "m", "kingpin, global Y"),
-        Column("follow_x", "m", "follow point (L_fp behind the kingpin), global X"),
-        Column("follow_y", "m", "follow point, global Y"),
-        Column("camera_frame", "-", "1 on the ticks the camera clock ticked"),
+        Column("psi2", "rad", "trailer heading ψ1 − Γ", role="state", vehicle_unit=2),
+        Column("kingpin_x", "m", "kingpin, global X", role="state", vehicle_unit=2),
+        Column("kingpin_y", "m", "kingpin, global Y", role="state", vehicle_unit=2),
+        Column("follow_x", "m", "follow point (L_fp behind the kingpin), global X", role="state", vehicle_unit=2),
+        Column("follow_y", "m", "follow point, global Y", role="state", vehicle_unit=2),
+        Column("camera_frame", "-", "1 on the ticks the camera clock ticked", role="flag"),
     )
 
     def __init__(self, setup: ScenarioSetup) -> None:
@@ -109,7 +112,10 @@ class SignalsParticipant:
     """
 
     name = "signals"
-    columns: tuple[Column, ...] = tuple(Column(f"signal_{n}", unit, f"measured {n}") for n, unit in RECORDED_SIGNALS)
+    columns: tuple[Column, ...] = tuple(
+        Column(f"signal_{n}", unit, f"measured {n}", role="signal", vehicle_unit=_SIGNAL_UNITS.get(n, 1))
+        for n, unit in RECORDED_SIGNALS
+    )
 
     def __init__(self, setup: ScenarioSetup) -> None:
         cfg = setup.config
@@ -183,7 +189,9 @@ class SteerTyreParticipant:
         index = [i for i, n in enumerate(layout.axles) if n in steer]
         self._names = [layout.axles[i] for i in index]
         self.columns: tuple[Column, ...] = tuple(
-            Column(f"{q}_{n}", unit, what) for n in self._names for q, unit, what in STEER_TYRE_QUANTITIES
+            Column(f"{q}_{n}", unit, what, role="diagnostic", vehicle_unit=1)
+            for n in self._names
+            for q, unit, what in STEER_TYRE_QUANTITIES
         )
         self.model = model
         self._index = index

@@ -67,11 +67,17 @@ class DriverParticipant:
         self._driven_load = float(params.axle_table.static_load[driven].sum())
         front = setup.model.layout.steerable_axles[0]
         self.columns: tuple[Column, ...] = (
-            Column(f"steer_{front}", "rad", "the driver's steer-axle command"),
-            Column("drive_force", "N", "the speed controller's drive force"),
-            Column("speed_target", "m/s", "the speed profile's target"),
-            Column("path_progress", "m", "the control point's arc length along the path"),
-            Column("lateral_error", "m", "the control point's distance from the path (left +)"),
+            Column(f"steer_{front}", "rad", "the driver's steer-axle command", role="command", vehicle_unit=1),
+            Column("drive_force", "N", "the speed controller's drive force", role="command", vehicle_unit=1),
+            Column("speed_target", "m/s", "the speed profile's target", role="diagnostic", vehicle_unit=1),
+            Column("path_progress", "m", "the control point's arc length along the path", role="state", vehicle_unit=1),
+            Column(
+                "lateral_error",
+                "m",
+                "the control point's distance from the path (left +)",
+                role="state",
+                vehicle_unit=1,
+            ),
         )
         self._steer_column = self.columns[0].name
         self.command = TractorCommand(0.0, 0.0, 0.0)

@@ -40,14 +40,20 @@ def trailer_axles(setup: ScenarioSetup) -> tuple[str, ...]:
     return tuple(n for n in setup.model.layout.steerable_axles if n in towed)
 
 
-def _steer_columns(axles: tuple[str, ...]) -> tuple[Column, ...]:
-    return tuple(Column(f"steer_{name}", "rad", "steer command of a trailer axle") for name in axles)
+def _steer_columns(axles: tuple[str, ...], units: Mapping[str, int]) -> tuple[Column, ...]:
+    """``steer_<axle>``: commands to the axles of vehicle unit ``units[axle]`` (unknown where it is not given)."""
+    return tuple(
+        Column(f"steer_{name}", "rad", "steer command of a trailer axle", role="command", vehicle_unit=units.get(name))
+        for name in axles
+    )
 
 
-def _limit_columns(axles: tuple[str, ...], kinds: tuple[str, ...]) -> tuple[Column, ...]:
+def _limit_columns(axles: tuple[str, ...], kinds: tuple[str, ...], units: Mapping[str, int]) -> tuple[Column, ...]:
     words = {"saturated": "magnitude limit", "rate_limited": "rate limit", "slip_limited": "slip-angle limit"}
     return tuple(
-        Column(f"{kind}_{name}", "-", f"1 when the {words[kind]} clipped it") for kind in kinds for name in axles
+        Column(f"{kind}_{name}", "-", f"1 when the {words[kind]} clipped it", role="flag", vehicle_unit=units.get(name))
+        for kind in kinds
+        for name in axles
     )
 
 
@@ -65,7 +71,7 @@ class UnsteeredTrailer:
 
     def __init__(self, axles: tuple[str, ...]) -> None:
         self.axles = axles
-        self.columns: tuple[Column, ...] = _steer_columns(axles)
+        self.columns: tuple[Column, ...] = _steer_columns(axles, {})
         self._zero = np.zeros(len(axles))
         self._row = {c.name: 0.0 for c in self.columns}
 
@@ -115,22 +121,24 @@ class PathFollowingSteer:
         self.axles = own if axles is None else tuple(axles)
         index = {name: i for i, name in enumerate(self.axles)}
         self._slots = [np.array([index[n] for n in ctrl.axle_names], dtype=int) for ctrl, _ in self.steered]
-        columns: list[Column] = list(_steer_columns(self.axles))
+        units = {name: ctrl.unit + 1 for ctrl, _ in self.steered for name in ctrl.axle_names}
+        columns: list[Column] = list(_steer_columns(self.axles, units))
         for ctrl, _ in self.steered:
             p = telemetry_prefix(ctrl.unit)
+            internal = {"role": "diagnostic", "vehicle_unit": ctrl.unit + 1}
             columns += [
-                Column(f"{p}virtual_steer", "rad", "virtual-axle angle (feed-forward + feedback)"),
-                Column(f"{p}feedforward_steer", "rad", "its feed-forward part"),
-                Column(f"{p}feedback_steer", "rad", "its feedback part"),
-                Column(f"{p}integral", "m²", "∫e ds of the PID"),
-                Column(f"{p}fade", "-", "speed fade of the commands"),
-                Column(f"{p}estimate_used", "m", "the held estimate the PID used (NaN: none)"),
+                Column(f"{p}virtual_steer", "rad", "virtual-axle angle (feed-forward + feedback)", **internal),
+                Column(f"{p}feedforward_steer", "rad", "its feed-forward part", **internal),
+                Column(f"{p}feedback_steer", "rad", "its feedback part", **internal),
+                Column(f"{p}integral", "m²", "∫e ds of the PID", **internal),
+                Column(f"{p}fade", "-", "speed fade of the commands", **internal),
+                Column(f"{p}estimate_used", "m", "the held estimate the PID used (NaN: none)", **internal),
             ]
         for ctrl, _ in self.steered:
             columns += [
                 column
                 for name in ctrl.axle_names
-                for column in _limit_columns((name,), ("saturated", "rate_limited", "slip_limited"))
+                for column in _limit_columns((name,), ("saturated", "rate_limited", "slip_limited"), units)
             ]
         self.columns: tuple[Column, ...] = tuple(columns)
         self._commands = np.zeros(len(self.axles))
@@ -217,10 +225,16 @@ class AgentSteer:
         self.steered_axles = steered
         """The axles the agent steers, in the order of :attr:`steered_commands`."""
         self._virtual_columns = tuple(f"{telemetry_prefix(unit)}virtual_steer" for unit in self.units)
+        axle_units = {name: unit + 1 for unit, names in zip(self.units, own, strict=True) for name in names}
         self.columns: tuple[Column, ...] = (
-            *_steer_columns(self.axles),
-            *(Column(c, "rad", "the agent's virtual-axle angle after its clamp") for c in self._virtual_columns),
-            *_limit_columns(steered, ("saturated", "rate_limited")),
+            *_steer_columns(self.axles, axle_units),
+            *(
+                Column(
+                    c, "rad", "the agent's virtual-axle angle after its clamp", role="diagnostic", vehicle_unit=u + 1
+                )
+                for c, u in zip(self._virtual_columns, self.units, strict=True)
+            ),
+            *_limit_columns(steered, ("saturated", "rate_limited"), axle_units),
         )
         self._pending: np.ndarray | None = None
         self._commands = np.zeros(len(self.axles))

@@ -66,30 +66,64 @@ SAME_INSTANT = 1e-6
 Progress = Callable[[int, int], None]
 """``(frames done, frames in all)``."""
 
+_SIGNAL = {"role": "signal", "vehicle_unit": 1}
+_TRAILER_SIGNAL = {"role": "signal", "vehicle_unit": 2}
 _SIGNAL_COLUMNS: tuple[Column, ...] = (
-    Column("wheel_speed", "m/s", "the tractor's wheel speed, the recorded signal at the row's time"),
-    Column("tractor_yaw_rate", "rad/s", "the tractor's yaw rate, the recorded signal at the row's time"),
-    Column("articulation", "rad", "the articulation angle, the recorded signal at the row's time"),
-    Column("trailer_yaw_rate", "rad/s", "the trailer's yaw rate, the recorded signal at the row's time"),
-    Column("trailer_wheel_speed", "m/s", "the trailer's wheel speed, the recorded signal at the row's time"),
+    Column("wheel_speed", "m/s", "the tractor's wheel speed, the recorded signal at the row's time", **_SIGNAL),
+    Column("tractor_yaw_rate", "rad/s", "the tractor's yaw rate, the recorded signal at the row's time", **_SIGNAL),
+    Column("articulation", "rad", "the articulation angle, the recorded signal at the row's time", **_TRAILER_SIGNAL),
+    Column(
+        "trailer_yaw_rate", "rad/s", "the trailer's yaw rate, the recorded signal at the row's time", **_TRAILER_SIGNAL
+    ),
+    Column(
+        "trailer_wheel_speed",
+        "m/s",
+        "the trailer's wheel speed, the recorded signal at the row's time",
+        **_TRAILER_SIGNAL,
+    ),
     Column(
         "tractor_lateral_acceleration",
         "m/s²",
         "the tractor's lateral accelerometer, the recorded signal at the row's time (NaN: not recorded)",
+        **_SIGNAL,
     ),
 )
 _SIGNALS = tuple(column.name for column in _SIGNAL_COLUMNS)
+_VISO_OT = {"role": "diagnostic", "vehicle_unit": 2, "estimator": "viso_ot"}
+_REFERENCE = {"role": "state", "vehicle_unit": 2}
 _RECORDING_COLUMNS: tuple[Column, ...] = (
-    Column("frame", "-", "the frame's index in the recording"),
-    Column("frame_missing", "-", "1 on a row whose frame was missing or refused (the reason is in metrics.json)"),
-    Column("kingpin_x_viso_ot", "m", "the kingpin dead-reckoned from the accepted motions, first frame's trailer X"),
-    Column("kingpin_y_viso_ot", "m", "the same, Y"),
-    Column("trailer_heading_viso_ot", "rad", "the trailer's heading from the accepted motions"),
-    Column("kingpin_x", "m", "the reference's kingpin, first frame's trailer X"),
-    Column("kingpin_y", "m", "the reference's kingpin, Y"),
-    Column("trailer_heading", "rad", "the reference's trailer heading"),
-    Column("vo_rpe_translation_m", "m", "the frame's relative pose error in translation against the reference"),
-    Column("vo_rpe_rotation_rad", "rad", "the frame's relative pose error in rotation against the reference"),
+    Column("frame", "-", "the frame's index in the recording", role="diagnostic"),
+    Column(
+        "frame_missing",
+        "-",
+        "1 on a row whose frame was missing or refused (the reason is in metrics.json)",
+        role="flag",
+    ),
+    Column(
+        "kingpin_x_viso_ot",
+        "m",
+        "the kingpin dead-reckoned from the accepted motions, first frame's trailer X",
+        **_VISO_OT,
+    ),
+    Column("kingpin_y_viso_ot", "m", "the same, Y", **_VISO_OT),
+    Column("trailer_heading_viso_ot", "rad", "the trailer's heading from the accepted motions", **_VISO_OT),
+    Column("kingpin_x", "m", "the reference's kingpin, first frame's trailer X", **_REFERENCE),
+    Column("kingpin_y", "m", "the reference's kingpin, Y", **_REFERENCE),
+    Column("trailer_heading", "rad", "the reference's trailer heading", **_REFERENCE),
+    Column(
+        "vo_rpe_translation_m",
+        "m",
+        "the frame's relative pose error in translation against the reference",
+        role="diagnostic",
+        estimator="viso_ot",
+    ),
+    Column(
+        "vo_rpe_rotation_rad",
+        "rad",
+        "the frame's relative pose error in rotation against the reference",
+        role="diagnostic",
+        estimator="viso_ot",
+    ),
 )
 
 

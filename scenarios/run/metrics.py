@@ -3,7 +3,6 @@ verdict, the swept-path width (:mod:`.swept_geometry`) and the run's own verdict
 
 from __future__ import annotations
 
-import re
 from typing import Any
 
 import numpy as np
@@ -11,6 +10,9 @@ import numpy as np
 from vehicle_model.geometry import kingpin_position, radial_extent, towed_outlines, tractor_outline
 from vehicle_model.parameters import VehicleParams
 
+from ..loop.participant import estimate_column
+from ..loop.schema import FIRST_TOWED_UNIT, RecordedColumns, estimate_columns, schema_of, std_column
+from ..loop.schema import estimator_names as _estimator_names
 from .path_offtracking import combination_offtracking, rear_point_columns
 from .swept_geometry import swept_path_metrics
 from .verdicts import run_verdict
@@ -197,6 +199,7 @@ def compute_metrics(
     every figure is then NaN.
     """
     columns = _with_required_columns(columns, estimator_names)
+    estimates = estimate_columns(columns)
     truth = columns["offtracking_truth"]
     geometric = columns["offtracking_truth_geometric"]
     both = np.isfinite(truth) & np.isfinite(geometric)
@@ -215,7 +218,7 @@ def compute_metrics(
             "truth_after_warmup": {"rms": rms(truth[settled]), "max_abs": max_abs(truth[settled])},
             "truth_methods_max_disagreement": max_abs(truth[both] - geometric[both]) if both.any() else float("nan"),
             "estimators": {
-                name: estimator_errors(truth, columns[f"offtracking_{name}"], columns.get(f"offtracking_{name}_std"))
+                name: estimator_errors(truth, _estimate(columns, estimates, name), _std(columns, name))
                 for name in estimator_names
             },
         },
@@ -268,6 +271,24 @@ def compute_metrics(
     return metrics
 
 
+def _estimate(
+    columns: dict[str, np.ndarray],
+    estimates: dict[tuple[str, int], Any],
+    name: str,
+    unit: int = FIRST_TOWED_UNIT,
+) -> np.ndarray:
+    """The values of estimator ``name``'s estimate of unit ``unit`` (as the estimator names its column when the run
+    did not record it: an empty run's)."""
+    column = estimates.get((name, unit))
+    return columns[column.name if column is not None else estimate_column(name)]
+
+
+def _std(columns: dict[str, np.ndarray], name: str) -> np.ndarray | None:
+    """The standard deviation of estimator ``name``'s estimate of the first towed unit (``None``: none)."""
+    column = std_column(columns, name)
+    return None if column is None else columns[column.name]
+
+
 def combination_offtracking_metrics(params: VehicleParams, columns: dict[str, np.ndarray]) -> dict[str, Any]:
     """``offtracking.combination``: the last unit's rear against the steer axle's path (:mod:`.path_offtracking`).
 
@@ -300,14 +321,17 @@ def further_unit_offtracking(
     after the warm-up of the first towed unit once the unit's own is defined, and the errors of each estimate of
     that unit (``offtracking_<name><k>``) against it, by unit number (``"3"``, ``"4"``)."""
     out: dict[str, dict[str, Any]] = {}
+    recorded = estimate_columns(columns)
     for unit in range(3, params.n_units + 1):
-        truth = np.asarray(columns.get(f"offtracking_truth{unit}", np.zeros(0)), dtype=float)
+        truth_column = recorded.get(("truth", unit))
+        truth = np.asarray(columns[truth_column.name] if truth_column else np.zeros(0), dtype=float)
         if truth.shape != settled.shape:
             continue
         after = settled & np.isfinite(truth)
         estimates = {
-            name.removesuffix(str(unit)): np.asarray(columns[f"offtracking_{name}"], dtype=float)
-            for name in unit_estimator_names(columns, unit)
+            name: np.asarray(columns[column.name], dtype=float)
+            for (name, of), column in recorded.items()
+            if of == unit and name != "truth"
         }
         out[str(unit)] = {
             "rms": rms(truth),
@@ -325,10 +349,11 @@ _REQUIRED = ("time", "X", "Y", "psi1", "gamma", "kingpin_x", "kingpin_y", "path_
 
 def _with_required_columns(columns: dict[str, np.ndarray], estimator_names: list[str]) -> dict[str, np.ndarray]:
     """``columns`` with every column the metrics read (empty arrays for a run that recorded nothing)."""
-    estimators = (f"offtracking_{n}" for n in estimator_names)
+    recorded = estimate_columns(columns)
+    estimators = (estimate_column(n) for n in estimator_names if (n, FIRST_TOWED_UNIT) not in recorded)
     names = (*_REQUIRED, "offtracking_truth", "offtracking_truth_geometric", *estimators)
     empty = np.zeros(0)
-    return {**{name: empty for name in names}, **columns}
+    return RecordedColumns({**{name: empty for name in names}, **columns}, schema_of(columns))
 
 
 def camera_frame_metrics(columns: dict[str, np.ndarray]) -> dict[str, Any] | None:
@@ -372,35 +397,12 @@ def camera_frame_metrics(columns: dict[str, np.ndarray]) -> dict[str, Any] | Non
 
 
 def estimator_names(columns: dict[str, np.ndarray]) -> list[str]:
-    """The estimators of the first towed unit recorded in a run's columns (``offtracking_<name>`` other than the
-    truths, the standard deviations ``offtracking_<name>_std`` and the estimates of further units,
-    :func:`unit_estimator_names`)."""
-    further = {name for unit in _further_units(columns) for name in unit_estimator_names(columns, unit)}
-    return [
-        c.removeprefix("offtracking_")
-        for c in columns
-        if c.startswith("offtracking_")
-        and not c.startswith("offtracking_truth")
-        and not c.endswith("_std")
-        and c.removeprefix("offtracking_") not in further
-    ]
-
-
-def _further_units(columns: dict[str, np.ndarray]) -> list[int]:
-    """The units behind the first towed one whose truth the run recorded (``offtracking_truth<k>``)."""
-    return [int(c.removeprefix("offtracking_truth")) for c in columns if re.fullmatch(r"offtracking_truth[3-9]", c)]
+    """The estimators of the first towed unit recorded in a run's columns, other than the truth, in column order
+    (:func:`scenarios.loop.schema.estimator_names`)."""
+    return _estimator_names(columns)
 
 
 def unit_estimator_names(columns: dict[str, np.ndarray], unit: int) -> list[str]:
     """The estimates of unit ``unit`` (behind the first towed one) recorded in a run's columns, as ``<name><k>``
-    (``zero_slip3``: column ``offtracking_zero_slip3``)."""
-    suffix = str(unit)
-    return [
-        c.removeprefix("offtracking_")
-        for c in columns
-        if c.startswith("offtracking_")
-        and c.endswith(suffix)
-        and not c.startswith("offtracking_truth")
-        and c.removeprefix("offtracking_").removesuffix(suffix).isidentifier()
-        and not c.removeprefix("offtracking_").removesuffix(suffix)[-1:].isdigit()
-    ]
+    (``zero_slip3``: the zero-slip estimate of unit 3)."""
+    return [f"{name}{unit}" for name in _estimator_names(columns, unit)]

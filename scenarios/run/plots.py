@@ -17,17 +17,17 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-import pandas as pd
 from matplotlib.figure import Figure
 
 from vehicle_model.parameters import VehicleParams
 
 from ..config import ScenarioConfig
+from ..loop.schema import FIRST_TOWED_UNIT, command_columns, estimate_columns, std_column
 from ..registry import source_colour
 from ..setup.build import ScenarioSetup, build_scenario
 from .files import atomic_path
 from .metrics import estimator_names, max_abs, rms
-from .results import METRICS_FILE, TIMESERIES_FILE, read_config
+from .results import METRICS_FILE, TIMESERIES_FILE, read_config, read_timeseries
 from .swept_path import swept_path_figure
 
 
@@ -182,8 +182,9 @@ def load_run(run_dir: Path) -> SavedRun:
     """Read a run directory (``config.yaml``, ``timeseries.parquet``, ``metrics.json``) into a :class:`SavedRun`."""
     run_dir = Path(run_dir)
     config = read_config(run_dir)
-    frame = pd.read_parquet(run_dir / TIMESERIES_FILE)
-    columns = {c: frame[c].to_numpy(dtype=float) for c in frame.columns}
+    if not (run_dir / TIMESERIES_FILE).exists():
+        raise FileNotFoundError(f"{run_dir / TIMESERIES_FILE} does not exist")
+    columns = read_timeseries(run_dir)
     metrics_file = run_dir / METRICS_FILE
     metrics = json.loads(metrics_file.read_text()) if metrics_file.exists() else {}
     return SavedRun(run_dir, config, build_scenario(config), columns, metrics)
@@ -226,8 +227,8 @@ def offtracking_figure(
     t = columns["time"]
     truth = columns["offtracking_truth"]
     settled = np.isfinite(truth) if settled is None else np.asarray(settled, dtype=bool)
-    steer_axles = [c.removeprefix("steer_") for c in columns if c.startswith("steer_trailer")]
-    steer_axles = [a for a in steer_axles if np.any(np.abs(columns[f"steer_{a}"]) > 1e-9)]
+    steers = [c.name for c in command_columns(columns, FIRST_TOWED_UNIT, "rad")]
+    steer_axles = [c.removeprefix("steer_") for c in steers if np.any(np.abs(columns[c]) > 1e-9)]
     camera = bool("vo_matches" in columns and np.isfinite(columns["vo_matches"]).any())
     ratios = [2.0, 1.0] + [0.8] * bool(steer_axles) + [0.7] * camera
     fig, axes = plt.subplots(len(ratios), 1, figsize=(10, 2.2 + 2.2 * sum(ratios)), sharex=True, height_ratios=ratios)
@@ -235,12 +236,14 @@ def offtracking_figure(
     truth_rms, peak = rms(truth[settled]), max_abs(truth[settled])
     top.plot(t, truth, color="k", lw=1.6, label=f"truth: {truth_rms:.3f} m RMS, {peak:.3f} m max after warm-up")
     top.plot(t, columns["offtracking_truth_geometric"], color="0.5", lw=0.8, ls="--", label="truth (geometric)")
+    estimates = estimate_columns(columns)
     for name in estimator_names:
-        est = columns[f"offtracking_{name}"]
+        est = columns[estimates[name, FIRST_TOWED_UNIT].name]
         colour = source_colour(name)
         error = est - truth
         top.plot(t, est, lw=1.0, color=colour, label=f"{name}: error {rms(error[settled]):.3f} m RMS")
-        std = columns.get(f"offtracking_{name}_std")
+        std_of = std_column(columns, name)
+        std = None if std_of is None else columns[std_of.name]
         if std is not None and np.isfinite(std).any():
             top.fill_between(
                 t,

@@ -22,9 +22,12 @@ name and renamed when complete, leave everything up to the last flush readable a
 numbers keep that the row order) and skips the hidden temporary files.
 
 Each column is float64 and, when the writer is given the columns the loop's participants declare
-(:class:`~scenarios.loop.participant.Column`), carries that column's unit and description as Arrow field metadata
-(:data:`UNIT_KEY`, :data:`DESCRIPTION_KEY`, UTF-8), so the file says what its numbers are wherever it goes;
-:func:`timeseries_columns` reads them back.
+(:class:`~scenarios.loop.participant.Column`), carries that column's unit, description and role — with the vehicle
+unit and the estimator it belongs to, where it has them — as Arrow field metadata (:data:`UNIT_KEY`,
+:data:`DESCRIPTION_KEY`, :data:`ROLE_KEY`, :data:`VEHICLE_UNIT_KEY`, :data:`ESTIMATOR_KEY`, UTF-8), so the file
+says what its numbers are wherever it goes; :func:`timeseries_columns` reads them back and :func:`read_timeseries`
+gives the values with them (:class:`scenarios.loop.schema.RecordedColumns`). The writer refuses a row with a key
+it was not given as a column, and :attr:`TimeSeriesWriter.unwritten` names the columns no row has written.
 """
 
 from __future__ import annotations
@@ -48,7 +51,8 @@ import yaml
 from vehicle_model.errors import InputError, OutputError
 
 from ..config import ScenarioConfig, validate_config
-from ..loop.participant import Column
+from ..loop.participant import Column, SchemaError
+from ..loop.schema import RecordedColumns
 from ..yaml_input import load_yaml
 from .files import TEMPORARY_SUFFIX, atomic_path, cannot_write, jsonable, write_atomic
 
@@ -72,6 +76,12 @@ UNIT_KEY = b"unit"
 """Arrow field metadata key of a time-series column's unit (SI; ``-`` for a count, flag or code)."""
 DESCRIPTION_KEY = b"description"
 """Arrow field metadata key of a time-series column's one-line description."""
+ROLE_KEY = b"role"
+"""Arrow field metadata key of a time-series column's role (:data:`scenarios.loop.participant.ROLES`)."""
+VEHICLE_UNIT_KEY = b"vehicle_unit"
+"""Arrow field metadata key of the vehicle unit a time-series column belongs to (decimal; absent: none)."""
+ESTIMATOR_KEY = b"estimator"
+"""Arrow field metadata key of the estimator a time-series column comes from (absent: none)."""
 
 PART_NAME = "part-{:06d}.parquet"
 """Name of the ``k``-th part file of the time series (six digits: names sort in row order)."""
@@ -350,7 +360,8 @@ class TimeSeriesWriter:
     or more after the oldest unflushed one (a rendered run makes a few rows a second), so a killed run
     loses at most about that much of its work.
     :meth:`close` writes an empty part with the columns if no row was written, so an empty run still
-    leaves a readable, empty series with its columns.
+    leaves a readable, empty series with its columns. A row with a key that is not a column is refused
+    (:class:`~scenarios.loop.participant.SchemaError`); :attr:`unwritten` names the columns no row has held.
 
     Parameters
     ----------
@@ -400,9 +411,27 @@ class TimeSeriesWriter:
     def columns(self, columns: Sequence[str | Column]) -> None:
         self._fields = [_field(c) for c in columns]
         self._names = [f.name for f in self._fields]
+        self._known = frozenset(self._names)
+        self._unwritten = set(self._names)
+
+    @property
+    def unwritten(self) -> list[str]:
+        """The columns no row appended so far has held, in order."""
+        return [c for c in self._names if c in self._unwritten]
 
     def append(self, row: dict[str, float]) -> None:
-        """Add one row (missing columns are NaN); flush if enough rows or time have gone by since the oldest."""
+        """Add one row (missing columns are NaN); flush if enough rows or time have gone by since the oldest.
+
+        Raises
+        ------
+        SchemaError
+            The row has a key that is not one of :attr:`columns`.
+        """
+        if not self._known.issuperset(row):
+            key = next(k for k in row if k not in self._known)
+            raise SchemaError(f"the time series {self.path} has no column {key!r}: a row holds only its columns")
+        if self._unwritten:
+            self._unwritten.difference_update(row)
         if self.failure is not None:
             return  # the series ends where the first write failed
         now = time.monotonic()
@@ -448,15 +477,22 @@ class TimeSeriesWriter:
 
 
 def _field(column: str | Column) -> pa.Field:
-    """The float64 Arrow field of a column: a declared one with its unit and description as metadata."""
+    """The float64 Arrow field of a column: a declared one with its unit, description and role as metadata."""
     if isinstance(column, str):
         return pa.field(column, pa.float64())
     metadata = {UNIT_KEY: column.unit.encode(), DESCRIPTION_KEY: column.description.encode()}
+    if column.role:
+        metadata[ROLE_KEY] = column.role.encode()
+    if column.vehicle_unit is not None:
+        metadata[VEHICLE_UNIT_KEY] = str(column.vehicle_unit).encode()
+    if column.estimator:
+        metadata[ESTIMATOR_KEY] = column.estimator.encode()
     return pa.field(column.name, pa.float64(), metadata=metadata)
 
 
 def timeseries_columns(schema: pa.Schema) -> list[Column]:
-    """The columns of a time series' schema with the unit and description it carries (``""`` where it has none).
+    """The columns of a time series' schema with the unit, description and role it carries (``""`` where it has
+    none).
 
     Parameters
     ----------
@@ -466,20 +502,38 @@ def timeseries_columns(schema: pa.Schema) -> list[Column]:
     Returns
     -------
     list of Column
-        One per field, in order; a series written without declared columns (bare names) gives empty units.
+        One per field, in order; a series written without declared columns (bare names) gives empty units, one
+        written before columns had roles empty roles (:func:`scenarios.loop.schema.roles_from_names` reads those).
     """
     columns = []
     for field in schema:
         metadata = field.metadata or {}
-        unit = metadata.get(UNIT_KEY, b"").decode(errors="replace")
-        columns.append(Column(field.name, unit, metadata.get(DESCRIPTION_KEY, b"").decode(errors="replace")))
+
+        def text(key: bytes, metadata: dict[bytes, bytes] = metadata) -> str:
+            return metadata.get(key, b"").decode(errors="replace")
+
+        role, unit, estimator = text(ROLE_KEY), text(VEHICLE_UNIT_KEY), text(ESTIMATOR_KEY)
+        try:
+            column = Column(
+                field.name,
+                text(UNIT_KEY),
+                text(DESCRIPTION_KEY),
+                role=role,
+                vehicle_unit=int(unit) if unit else None,
+                estimator=estimator or None,
+            )
+        except ValueError:  # metadata this version does not know: the column as named
+            column = Column(field.name, text(UNIT_KEY), text(DESCRIPTION_KEY))
+        columns.append(column)
     return columns
 
 
-def read_timeseries(run_dir: Path) -> dict[str, np.ndarray]:
-    """The time series a run wrote, as float64 columns (empty if it has none or no row yet)."""
+def read_timeseries(run_dir: Path) -> RecordedColumns:
+    """The time series a run wrote, as float64 columns with their declarations (empty if it has none or no row
+    yet)."""
     path = Path(run_dir) / TIMESERIES_FILE
     if not path.exists():
-        return {}
+        return RecordedColumns({}, ())
     table = pq.read_table(path)
-    return {name: np.array(table.column(name).to_numpy(), dtype=float) for name in table.column_names}
+    values = {name: np.array(table.column(name).to_numpy(), dtype=float) for name in table.column_names}
+    return RecordedColumns(values, timeseries_columns(table.schema))

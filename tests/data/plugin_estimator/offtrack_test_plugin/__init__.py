@@ -34,12 +34,12 @@ class ShiftedTruth:
     name = NAME
 
     def __init__(self, truth: Any, shift: float) -> None:
-        from scenarios.loop.participant import Column, estimate_column
+        from scenarios.loop.participant import Column
         from vehicle_model.offtracking import OfftrackingEstimate
 
         self.columns = (
-            Column(estimate_column(NAME), "m", "the truth shifted by a constant"),
-            Column("shifted_truth_shift", "m", "the constant"),
+            Column.estimate(NAME, "the truth shifted by a constant"),
+            Column("shifted_truth_shift", "m", "the constant", role="diagnostic"),
         )
         self.truth, self.shift = truth, shift
         self._estimate_of = OfftrackingEstimate
@@ -60,11 +60,11 @@ class OfflineShiftedTruth:
     name = NAME
 
     def __init__(self, shift: float) -> None:
-        from scenarios.loop.participant import Column, estimate_column
+        from scenarios.loop.participant import Column
 
         self.columns = (
-            Column(estimate_column(NAME), "m", "the reference's off-tracking shifted by a constant"),
-            Column("shifted_truth_shift", "m", "the constant"),
+            Column.estimate(NAME, "the reference's off-tracking shifted by a constant"),
+            Column("shifted_truth_shift", "m", "the constant", role="diagnostic"),
         )
         self.shift = shift
         self.value = float("nan")
