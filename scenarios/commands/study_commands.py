@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.markup import escape
@@ -105,6 +105,20 @@ def compare(
     )
 
 
+def exit_if_cases_failed(table: Any, run_dir: Path) -> None:
+    """Say how many of a sweep's cases failed and where their errors are, and exit 3; nothing when none did."""
+    from scenarios.studies.records import CASES_DIR
+
+    failed = int((table["status"] == RunStatus.FAILED).sum()) if "status" in table.columns else 0
+    if failed:
+        errors.print(
+            f"{failed} case(s) failed (error and traceback in {run_dir / CASES_DIR}/); "
+            f"run the same command with --out {run_dir} to retry them",
+            markup=False,
+        )
+        raise typer.Exit(EXIT_FAILED)
+
+
 @handled
 def study(
     name: Annotated[str, typer.Argument(help="The study (an unknown name lists them all).")],
@@ -160,14 +174,7 @@ def study(
             settings=settings,
         )
     print_study_summary(table, run_dir, name)
-    failed = int((table["status"] == RunStatus.FAILED).sum()) if "status" in table.columns else 0
-    if failed:
-        errors.print(
-            f"{failed} case(s) failed (error and traceback in {run_dir / CASES_DIR}/); "
-            f"run the same command with --out {run_dir} to retry them",
-            markup=False,
-        )
-        raise typer.Exit(EXIT_FAILED)
+    exit_if_cases_failed(table, run_dir)
 
 
 @handled
@@ -223,14 +230,7 @@ def assess(
             plot_format=plot_format,
         )
     console.print(f"assessment: {run_dir / 'assessment.md'} (and .csv, .json, measure-*.{plot_format})")
-    failed = int((table["status"] == RunStatus.FAILED).sum()) if "status" in table.columns else 0
-    if failed:
-        errors.print(
-            f"{failed} case(s) failed (error and traceback in {run_dir / CASES_DIR}/); "
-            f"run the same command with --out {run_dir} to retry them",
-            markup=False,
-        )
-        raise typer.Exit(EXIT_FAILED)
+    exit_if_cases_failed(table, run_dir)
 
 
 @handled
