@@ -219,6 +219,16 @@ def test_a_stop_swallowed_in_a_case_and_followed_by_an_error_is_still_a_stop(
     assert set(_assert_stopped_cleanly(tmp_path, stopped)) == {CASES[0].name}
 
 
+def _as_from_a_terminal() -> None:
+    """In the child before it runs: SIGINT at its default and unblocked, as a shell starts a command.
+
+    A test process may have inherited an ignored or blocked SIGINT (a pytest-xdist worker, or an earlier test that
+    started workers the way a sweep does), and a child would inherit that too and never see the Ctrl-C.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 SIGINT_CASES = 32
 """Cases of the interrupted sweep: enough that it is still running when its first case file is seen, however
 loaded the machine (a Ctrl-C is what stops it, not its end)."""
@@ -240,7 +250,9 @@ def test_ctrl_c_to_the_process_group_stops_a_parallel_sweep_without_failed_recor
             sys.exit(130)
         """
     )
-    proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO, start_new_session=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script], cwd=REPO, start_new_session=True, preexec_fn=_as_from_a_terminal
+    )
     try:
         deadline = time.monotonic() + 60.0
         while not _case_files(tmp_path):
