@@ -28,14 +28,15 @@ $(STAMP): pyproject.toml
 run: setup
 	$(BIN)/offtrack run roundabout-test
 
-## Set up, lint and run the default test suite (slow tests excluded).
+## Set up, lint and run the default test suite (slow tests excluded), one worker process per core, each test
+## file on one worker (its module fixtures built once).
 test: setup
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto --dist loadfile
 
 ## Everything, slow tests included.
 test-all: setup
-	$(BIN)/python -m pytest -m ''
+	$(BIN)/python -m pytest -m '' -n auto --dist loadfile
 
 lint: setup
 	$(BIN)/ruff check .

@@ -13,9 +13,9 @@ circle, dense circle, outlier removal, prior ranges, bucketing, refinement)::
     .venv/bin/python benchmarks/vo_real_images.py [--frames 12] [--passes 3] [--refinement 1] [--json]
 
 With ``--baseline COMMIT`` it times the odometry of that commit (``sensor/`` extracted with ``git archive``, as
-``benchmarks/vo_speed_vs_ccc8e1e.py`` does) against this tree's on the same frames instead, the two interleaved pass
-by pass (per frame the fastest pass counts), checks that both give the same matches and motions, and prints the
-ratios current / baseline of the total, the matching stage's and each of its parts' CPU time per frame.
+``benchmarks/vo_speed_against_baseline.py`` does) against this tree's on the same frames instead, the two
+interleaved pass by pass (per frame the fastest pass counts), checks that both give the same matches and motions, and
+prints the ratios current / baseline of the total, the matching stage's and each of its parts' CPU time per frame.
 """
 
 from __future__ import annotations
@@ -259,7 +259,7 @@ def main() -> None:
     if args.baseline:
         import tempfile
 
-        from vo_speed_vs_ccc8e1e import load_baseline
+        from vo_speed_against_baseline import load_baseline
 
         with tempfile.TemporaryDirectory(prefix="offtrack-vo-baseline-") as tmp:
             old = load_baseline(Path(tmp), args.baseline)

@@ -157,12 +157,11 @@ class PathFollowingConfig(Settings):
         2.9° of slip; 16 % less force at 10°, 30 % less at 30°), so feedback that keeps pushing reverses its own
         sign and winds the axles to lock. The default, 8°, is a safeguard that does not need μ: on ice it stops
         an estimate a few centimetres off from walking the axles into that range (a fused-fed figure-of-eight on
-        ice with 5 % camber under field conditions went to the −25° lock and slid off the road without it, and
-        holds 0.041 / 0.113 m RMS / max with it), while the truth- and zero-slip-fed catalogue runs on dry, wet,
-        snow and ice never reach it (the same numbers with and without). At 6° it binds on the dry roundabout
-        test, where the fixed-axle compensation runs trailer2 at 6° of slip beside trailer3 at lock, and raises
-        the truth-fed off-tracking after warm-up from 0.17 / 0.46 m to 0.21 / 0.49 m (RMS / max); the dry
-        tyre's peak is near 21° (docs/vehicle_dynamics.md §3.2), so 8° keeps most of its force there.
+        ice with camber under field conditions goes to lock and slides off the road without it), while the
+        truth- and zero-slip-fed catalogue runs on dry, wet, snow and ice never reach it (the same numbers with
+        and without; docs/field_bias.md §6.1). A lower limit binds on the dry roundabout test, where the
+        fixed-axle compensation runs trailer2 at about 6° of slip beside trailer3 at lock, and costs off-tracking
+        there; the dry tyre's peak is near 21° (docs/vehicle_dynamics.md §3.2), so 8° keeps most of its force.
     """
 
     gains: PathFollowingGains | None = None

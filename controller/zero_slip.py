@@ -21,15 +21,14 @@ feeds the same :class:`~vehicle_model.offtracking.OfftrackingBuffer` as the grou
 blind to slip by construction: tractor crab on a camber, sideslip on ice and the scrub of the tractor's
 drive and tag axles under a trailer's hitch force all go unseen (docs/vehicle_dynamics.md §6.4–6.6). That is
 the phenomenon the product exists to show. With the equivalent wheelbase and a trailer that pushes nothing
-through the hitch it is within 2 cm RMS at walking pace (§6.6); the scrub of a fixed tri-axle, or of steered
+through the hitch it follows the truth closely at walking pace (§6.6); the scrub of a fixed tri-axle, or of steered
 trailer axles at their lock, moves the tractor's true rear point 0.1–0.2 m along its axis, which a follow point
 12–14 m behind shows as 0.1–0.2 m of off-tracking error whichever point the estimator assumes.
 
 Variants: Cheng's estimator used the measured yaw rate of the tractor with the articulation
 angle (unverified: the thesis could not be consulted, docs/vehicle_dynamics.md §7.1); here ``yaw_rate`` is the default
 because the steer-angle variant is additionally wrong for a 6x2 tractor with a tag axle, whose
-scrub makes the tractor turn tighter than ``tan δ/L1`` (docs/vehicle_dynamics.md §2.3: 8.8 m against
-10.1 m kingpin radius in a quick check).
+scrub makes the tractor turn tighter than ``tan δ/L1`` (docs/vehicle_dynamics.md §2.3 compares the kingpin radii).
 """
 
 from __future__ import annotations
@@ -46,14 +45,13 @@ from vehicle_model.parameters import VehicleParams
 ZeroSlipVariant = Literal["yaw_rate", "steer_angle"]
 REAR_POINT_NOTES = """Which rear point (:data:`~vehicle_model.kinematics.RearPoint`) the zero-slip estimator is best
 with. A trailer in a turn pushes on the fifth wheel and moves the real point ahead of the equivalent wheelbase
-(docs/vehicle_dynamics.md §6.6): on the LST at 15 km/h on a dry road the zero-slip-fed loop holds 0.041–0.047 m
-RMS with ``axle_mean`` and 0.067–0.072 m with ``equivalent`` (ideal and data-sheet signals, roundabout-3 and the
-figure-of-eight), while at walking pace with the trailer's axles at their lock (the roundabout test)
-``equivalent`` is the closer (0.19 against 0.30 m RMS). ``speed_compensated`` (``L1 − K·u²``), on the LST at
-15 km/h, steered on the truth: 0.015 m RMS against 0.044 m (``axle_mean``) on ``roundabout-3`` and 0.016 against
-0.044 m on the figure-of-eight; it does not see a camber's crab or the scrub of a fixed group at walking pace.
+(docs/vehicle_dynamics.md §6.6, which gives the figures): at speed on a dry road the zero-slip-fed loop is closer
+to the truth with ``axle_mean`` than with ``equivalent``, while at walking pace with the trailer's axles at their
+lock (the roundabout test) ``equivalent`` is the closer. ``speed_compensated`` (``L1 − K·u²``) is closer than
+either at speed; it does not see a camber's crab or the scrub of a fixed group at walking pace.
 ``lateral_acceleration`` sees the camber's crab through the tractor's accelerometer (docs/vehicle_dynamics.md
-§6.7). ``axle_mean`` is the default: every study of the project was measured with it."""
+§6.7). ``axle_mean`` is the default, and the rear point of every study of the project (README, "The zero-slip
+baseline")."""
 
 
 class ZeroSlipEstimator:

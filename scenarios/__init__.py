@@ -21,8 +21,8 @@ Rooms, lowest first (a room imports only the rooms above it in this list; ``test
 One thing happens on import, before numpy loads: its BLAS is held to one thread (``OPENBLAS_NUM_THREADS``,
 ``MKL_NUM_THREADS``; :data:`BLAS_THREADS`), unless the environment already says otherwise. A threaded BLAS splits
 the sums of a large product or solve between its threads, so their last bits depend on how many there are, and a
-closed loop grows a last-bit difference into a different run (measured: a field-conditions figure-of-eight 0.029 m
-RMS with two BLAS threads against 0.022 m with one). With one thread a run gives the same numbers on any machine, as
+closed loop grows a last-bit difference into a different run (benchmarks/README.md, "One BLAS thread", has a
+field-conditions figure-of-eight run both ways). With one thread a run gives the same numbers on any machine, as
 the studies' workers (:data:`scenarios.studies.workers.THREAD_LIMITS`) do; the model
 and the odometry are compiled code that does not use BLAS, and a second BLAS thread only competes with the render
 worker for the cores (benchmarks/README.md, "One BLAS thread").

@@ -300,8 +300,9 @@ def corner_window_for(corners: np.ndarray, pattern: BoardPattern) -> int:
 
     The window must hold the corner's four edges but none of its neighbours' (whose gradients pull the corner
     towards them). OpenCV's calibration sample uses 11 on every view; on the foreshortened views of its own stereo
-    set (corners 19–22 px apart) that window reaches the next corners: the view's RMS rises from 0.16 to 0.9–1.2 px
-    and the focal length moves by 0.5 %. A third of the spacing (here 6–11 px) gives 0.15–0.24 px on every view.
+    set (corners 19–22 px apart) that window reaches the next corners, and the view's reprojection error and the
+    focal length move with it; a third of the spacing keeps every view at the error of the others
+    (docs/real_cameras.md gives the figures).
     """
     grid = np.asarray(corners, dtype=float).reshape(pattern.rows, pattern.cols, 2)
     spacing = min(

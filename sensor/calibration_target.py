@@ -293,10 +293,10 @@ def sample_board_poses(
 def detect_corners(image: np.ndarray, board: Board) -> np.ndarray | None:
     """Checkerboard corners ``(rows·cols, 2)`` float64 in OpenCV's order, or None if not found.
 
-    ``cv2.findChessboardCorners`` (adaptive threshold, normalised; a few ms on 1344 × 391 px), falling back to
-    ``cv2.findChessboardCornersSB`` (Duda & Frese 2018; 50–100 times slower); refined by ``cv2.cornerSubPix``
-    with a window a quarter of the smallest corner spacing (2–7 px half-width). On the rendered target with
-    2 grey levels of noise the corners land 0.07 px RMS from their true projections.
+    ``cv2.findChessboardCorners`` (adaptive threshold, normalised), falling back to the much slower
+    ``cv2.findChessboardCornersSB`` (Duda & Frese 2018); refined by ``cv2.cornerSubPix`` with a window a quarter
+    of the smallest corner spacing (2–7 px half-width). How far the corners land from their true projections on
+    the rendered target, and what each detector costs: benchmarks/README.md, "Costs behind design choices".
     """
     found, corners = cv2.findChessboardCorners(
         image, board.pattern_size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE

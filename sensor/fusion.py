@@ -245,9 +245,10 @@ class FusionNoise(Settings):
         compensated rear points predict.
     kinematic_error_model : str
         How (K1)'s error ``ε_k`` enters: ``inflated`` (default: white, with the variance ``σ_k²·τ_c/dt`` of a
-        correlated error, with which the field-loop grid was measured) or ``state`` (an eighth state, a first-order
-        Gauss–Markov process with correlation time ``τ_c`` and standard deviation ``σ_k``, so that the camera
-        learns the kinematics' steady error and the kinematics carry what changes faster: (K3) in the module notes).
+        correlated error; the model of the field-loop grid in docs/field_bias.md) or ``state`` (an eighth state,
+        a first-order Gauss–Markov process with correlation time ``τ_c`` and standard deviation ``σ_k``, so that the
+        camera learns the kinematics' steady error and the kinematics carry what changes faster: (K3) in the module
+        notes).
     kinematic_white_noise : float
         With ``kinematic_error_model: state``, the white noise of one tick's (K1) [m/s]: the tractor's gyro,
         wheel-speed and articulation sensors' noise at the kingpin.
@@ -259,8 +260,8 @@ class FusionNoise(Settings):
         ``τ_a`` of (K2): how fast the kinematics' σ follows the evidence of slip [s].
     slip_evidence_hold : bool
         (K2'): the evidence of slip falls no faster than a stopped slip's would, so a slip that changes sign (a
-        change of turn on ice) keeps the kinematics de-weighted through the change (default off: the model the
-        field-loop grid was measured with).
+        change of turn on ice) keeps the kinematics de-weighted through the change (default off, as in the
+        field-loop grid of docs/field_bias.md).
     gate : float
         Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
     max_gated : int

@@ -21,8 +21,8 @@ This module turns a pinhole render into the distorted image (the camera's own K 
 2. :func:`distortion_maps` — the ``cv2.remap`` maps (computed once): for each distorted pixel, the pinhole pixel
    it sees, ``K'·undistort(K⁻¹·(u, v))`` with ``cv2.undistortPoints`` iterated to 1e-12 (its default five
    iterations leave 0.05–0.09 px at the corners of a 100° lens, and so does ``cv2.initInverseRectificationMap``
-   which uses them). Fixed-point maps (``cv2.convertMaps`` to CV_16SC2, 1/32 px) remap a 1344 × 391 pair in
-   7.7 ms against 9.9 ms for float maps (one core).
+   which uses them). Fixed-point maps (``cv2.convertMaps`` to CV_16SC2, 1/32 px) remap faster than float maps
+   (benchmarks/README.md, "Costs behind design choices").
 3. :class:`LensDistortion` — both cameras of a rig: the wide rig and the maps, and :meth:`LensDistortion.apply`.
 
 Image noise belongs to the sensor, i.e. after the remap: render noise-free, distort, then add noise.

@@ -82,40 +82,63 @@ def assert_one_line_error(result: subprocess.CompletedProcess, *words: str) -> N
 # --- bad input: exit 2, the option or field named, no traceback -----------------------------------------------
 
 
+BAD_INPUT = [
+    (["run", "roundabout-test", "--mu", "abc"], "--mu"),
+    (["run", "roundabout-test", "--seed", "1.5"], "--seed"),
+    (["run", "roundabout-test", "--no-such-option"], "--no-such-option"),
+    (["run"], "missing argument 'SCENARIO'"),
+    (["frobnicate"], "frobnicate"),
+    (["render", "roundabout-test", "--out", "/tmp/x", "--frames", "0"], "--frames"),
+    (["render", "roundabout-test", "--out", "/tmp/x", "--density", "2"], "--density"),
+    (["study", "paper-section3", "--workers", "0"], "--workers"),
+    (["study", "no-such-study"], "no-such-study"),
+    (["study", "field-loop", "--set", "fusion.kinematic_error_model=bogus"], "fusion.kinematic_error_model"),
+    (["compare", "roundabout-test", "--feedbacks", ""], "--feedbacks"),
+    (["compare", "roundabout-test", "--feedbacks", "truth,gps"], "--feedbacks"),
+    (["run", "roundabout-7"], "unknown scenario"),
+    (["run", "no-such-file.yaml"], "does not exist"),
+    (["run", "roundabout-test", "--mu", "-0.2", "--camber", "40"], "camber.percent"),
+    (["run", "roundabout-test", "--set", "rates.dynamics_step_s=1e-9"], "rates.dynamics_step_s"),
+    (["run", "roundabout-test", "--set", "rates.camera_hz=15"], "rates.camera_hz"),
+    (["run", "roundabout-test", "--set", "signals.wheel_speed.noise_std=.inf"], "signals.wheel_speed.noise_std"),
+    (["run", "roundabout-test", "--set", "signals.articulation.bias=.nan"], "signals.articulation.bias"),
+    (["run", "roundabout-test", "--set", "camera.right_misalignment_deg=[0,25,0]"], "right_misalignment_deg"),
+    (["run", "roundabout-test", "--set", "nosuch.field=1"], "nosuch"),
+    (
+        ["run", "roundabout-test", "--set", "estimators.viso_ot=true", "--set", "camera.baseline=0.01"],
+        "camera.baseline",
+    ),
+    (["run", "roundabout-3", "--set", "estimators.viso_ot=true", "--set", "camera.lens.k1=-0.2"], "camera.lens"),
+    (["run", "roundabout-3", "--set", "camera.calibration.mode=file"], "camera.calibration"),
+]
+"""Bad command lines and the option or field each error must name."""
+
+IN_A_PROCESS_BY_DEFAULT = {"--mu", "frobnicate", "rates.camera_hz", "fusion.kinematic_error_model"}
+"""The cases also run through a fresh ``offtrack`` process in the default suite (an option, a command, a field of
+a run and one of a study); every case does under ``make test-all``, and every case runs in-process by default."""
+
+
 @pytest.mark.parametrize(
     ("args", "named"),
-    [
-        (["run", "roundabout-test", "--mu", "abc"], "--mu"),
-        (["run", "roundabout-test", "--seed", "1.5"], "--seed"),
-        (["run", "roundabout-test", "--no-such-option"], "--no-such-option"),
-        (["run"], "missing argument 'SCENARIO'"),
-        (["frobnicate"], "frobnicate"),
-        (["render", "roundabout-test", "--out", "/tmp/x", "--frames", "0"], "--frames"),
-        (["render", "roundabout-test", "--out", "/tmp/x", "--density", "2"], "--density"),
-        (["study", "paper-section3", "--workers", "0"], "--workers"),
-        (["study", "no-such-study"], "no-such-study"),
-        (["study", "field-loop", "--set", "fusion.kinematic_error_model=bogus"], "fusion.kinematic_error_model"),
-        (["compare", "roundabout-test", "--feedbacks", ""], "--feedbacks"),
-        (["compare", "roundabout-test", "--feedbacks", "truth,gps"], "--feedbacks"),
-        (["run", "roundabout-7"], "unknown scenario"),
-        (["run", "no-such-file.yaml"], "does not exist"),
-        (["run", "roundabout-test", "--mu", "-0.2", "--camber", "40"], "camber.percent"),
-        (["run", "roundabout-test", "--set", "rates.dynamics_step_s=1e-9"], "rates.dynamics_step_s"),
-        (["run", "roundabout-test", "--set", "rates.camera_hz=15"], "rates.camera_hz"),
-        (["run", "roundabout-test", "--set", "signals.wheel_speed.noise_std=.inf"], "signals.wheel_speed.noise_std"),
-        (["run", "roundabout-test", "--set", "signals.articulation.bias=.nan"], "signals.articulation.bias"),
-        (["run", "roundabout-test", "--set", "camera.right_misalignment_deg=[0,25,0]"], "right_misalignment_deg"),
-        (["run", "roundabout-test", "--set", "nosuch.field=1"], "nosuch"),
-        (
-            ["run", "roundabout-test", "--set", "estimators.viso_ot=true", "--set", "camera.baseline=0.01"],
-            "camera.baseline",
-        ),
-        (["run", "roundabout-3", "--set", "estimators.viso_ot=true", "--set", "camera.lens.k1=-0.2"], "camera.lens"),
-        (["run", "roundabout-3", "--set", "camera.calibration.mode=file"], "camera.calibration"),
-    ],
+    [pytest.param(*case, marks=[] if case[1] in IN_A_PROCESS_BY_DEFAULT else [pytest.mark.slow]) for case in BAD_INPUT],
 )
 def test_bad_input_is_one_line_and_exit_2(args: list[str], named: str) -> None:
     result = offtrack(*args)
+    assert_one_line_error(result, named)
+
+
+@pytest.mark.parametrize(("args", "named"), BAD_INPUT)
+def test_bad_input_is_one_line_and_exit_2_in_process(
+    args: list[str], named: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The same property as above without a process start per case: ``main()`` exits 2 with one line naming it.
+    from scenarios.cli import main
+
+    monkeypatch.setattr(sys, "argv", ["offtrack", *args])
+    with pytest.raises(SystemExit) as stopped:
+        main()
+    captured = capsys.readouterr()
+    result = subprocess.CompletedProcess(args, stopped.value.code, captured.out, captured.err)
     assert_one_line_error(result, named)
 
 
@@ -215,6 +238,35 @@ def readme_exit_codes() -> dict[int, str]:
     return {int(m.group(1)): m.group(2).strip() for m in re.finditer(r"^\| `?(\d+)`? \| (.+?) \|", section, re.M)}
 
 
+EXIT_CODE_TESTS = {
+    0: "test_the_readme_exit_codes_0_2_and_4_are_what_the_command_does",
+    2: "test_the_readme_exit_codes_0_2_and_4_are_what_the_command_does",
+    3: "test_loss_of_control_is_a_status_with_exit_3",
+    4: "test_the_readme_exit_codes_0_2_and_4_are_what_the_command_does",
+    130: "test_a_stopped_run_keeps_its_data",
+    143: "test_a_stopped_run_keeps_its_data",
+}
+"""The default-suite test of this module that runs the command to each exit code of the README's table."""
+
+
+def test_the_readme_exit_codes_0_2_and_4_are_what_the_command_does(tmp_path: Path) -> None:
+    # The small version of the next test: the codes without a loss of control or a signal run here, the others in
+    # the tests EXIT_CODE_TESTS names, which must exist in the default suite.
+    table = readme_exit_codes()
+    assert set(table) == set(EXIT_CODE_TESTS)
+    tree = ast.parse(Path(__file__).read_text(encoding="utf-8"))
+    tests = {node.name: node for node in tree.body if isinstance(node, ast.FunctionDef)}
+    for name in set(EXIT_CODE_TESTS.values()):
+        assert name in tests, name
+        assert "slow" not in ast.unparse(tests[name].decorator_list), name
+    assert offtrack("list").returncode == 0
+    short = ("run", "roundabout-3", "--vehicle", "lst", "--feedback", "truth", "--duration", "5", "--no-plots")
+    missed = offtrack(*short, "--check", "--out", str(tmp_path / "c"))
+    assert missed.returncode == 4 and "check: the run missed 1" in missed.stderr, missed.stderr
+    assert offtrack("run", "roundabout-test", "--mu", "abc").returncode == 2
+
+
+@pytest.mark.slow
 def test_the_readme_exit_code_table_is_what_the_command_does(tmp_path: Path) -> None:
     table = readme_exit_codes()
     assert set(table) == {0, 2, 3, 4, 130, 143}

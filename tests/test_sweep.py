@@ -220,6 +220,21 @@ def test_a_stop_swallowed_in_a_case_and_followed_by_an_error_is_still_a_stop(
     assert set(_assert_stopped_cleanly(tmp_path, stopped)) == {CASES[0].name}
 
 
+def _as_from_a_terminal() -> None:
+    """In the child before it runs: SIGINT at its default and unblocked, as a shell starts a command.
+
+    A test process may have inherited an ignored or blocked SIGINT (a pytest-xdist worker, or an earlier test that
+    started workers the way a sweep does), and a child would inherit that too and never see the Ctrl-C.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+SIGINT_CASES = 32
+"""Cases of the interrupted sweep: enough that it is still running when its first case file is seen, however
+loaded the machine (a Ctrl-C is what stops it, not its end)."""
+
+
 def test_ctrl_c_to_the_process_group_stops_a_parallel_sweep_without_failed_records(tmp_path: Path) -> None:
     # A Ctrl-C at the terminal reaches the sweep process and its workers (one process group): the workers
     # ignore it, the sweep process stops them; nothing is recorded as failed.
@@ -229,14 +244,16 @@ def test_ctrl_c_to_the_process_group_stops_a_parallel_sweep_without_failed_recor
         from pathlib import Path
         from scenarios.studies.cases import model_only_cases
         from scenarios.studies.sweep import run_sweep
-        cases = model_only_cases(8, duration_s=6.0, study="test-sweep-sigint")
+        cases = model_only_cases({SIGINT_CASES}, duration_s=6.0, study="test-sweep-sigint")
         try:
             run_sweep(cases, Path({str(tmp_path)!r}), workers=2)
         except KeyboardInterrupt:
             sys.exit(130)
         """
     )
-    proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO, start_new_session=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script], cwd=REPO, start_new_session=True, preexec_fn=_as_from_a_terminal
+    )
     try:
         deadline = time.monotonic() + 60.0
         while not _case_files(tmp_path):
@@ -249,7 +266,7 @@ def test_ctrl_c_to_the_process_group_stops_a_parallel_sweep_without_failed_recor
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
     records = [read_record(tmp_path, path.stem) for path in _case_files(tmp_path)]
-    assert 1 <= len(records) < 8
+    assert 1 <= len(records) < SIGINT_CASES
     assert all(r is not None and r.status == "done" for r in records)
     assert not list((tmp_path / CASES_DIR).glob(".*"))
 

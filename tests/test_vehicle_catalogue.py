@@ -63,7 +63,7 @@ def _trailer_lst(mass: float, cg_x: float) -> TrailerParams:
     )
 
 
-TODAY = {
+SEMI_TRAILER_PRESETS = {
     "reference": VehicleParams(
         name="reference", tractor=_TRACTOR_6X2, trailer=_trailer_13_6(33_101.0, -4.3344, 5.7348e5)
     ),
@@ -80,6 +80,8 @@ TODAY = {
         trailer=_trailer_13_6(7_500.0, -4.0, _box(7_500.0, 1.6, -12.0, 2.55, -4.0), first=False),
     ),
 }
+"""The five tractor–semi-trailer presets written out in code, field by field: each catalogue file must give exactly
+its preset."""
 
 
 LONGER = {
@@ -93,7 +95,7 @@ units."""
 
 
 def test_the_catalogue_holds_the_five_tractor_semi_trailers_and_the_longer_combinations() -> None:
-    assert sorted(VEHICLE_PRESETS) == sorted([*TODAY, *LONGER])
+    assert sorted(VEHICLE_PRESETS) == sorted([*SEMI_TRAILER_PRESETS, *LONGER])
 
 
 @pytest.mark.parametrize("name", sorted(LONGER))
@@ -105,16 +107,16 @@ def test_a_longer_preset_is_within_its_limits_and_carries_its_weight(name: str) 
     assert all(u.width <= 2.55 for u in params.units)
 
 
-@pytest.mark.parametrize("name", sorted(TODAY))
-def test_each_catalogue_file_gives_exactly_the_preset_it_replaced(name: str) -> None:
+@pytest.mark.parametrize("name", sorted(SEMI_TRAILER_PRESETS))
+def test_each_catalogue_file_gives_exactly_its_preset(name: str) -> None:
     params = vehicle_preset(name)
-    assert params == TODAY[name]  # every field, bit for bit
-    assert params.model_dump_json() == TODAY[name].model_dump_json()
-    assert CombinationSpec.model_validate(catalogue_vehicle_data(name)).params() == TODAY[name]
+    assert params == SEMI_TRAILER_PRESETS[name]  # every field, bit for bit
+    assert params.model_dump_json() == SEMI_TRAILER_PRESETS[name].model_dump_json()
+    assert CombinationSpec.model_validate(catalogue_vehicle_data(name)).params() == SEMI_TRAILER_PRESETS[name]
 
 
 def test_each_preset_file_says_where_its_numbers_come_from() -> None:
-    for name in TODAY:
+    for name in SEMI_TRAILER_PRESETS:
         assert len(CombinationSpec.model_validate(catalogue_vehicle_data(name)).source) > 80, name
 
 
@@ -131,9 +133,9 @@ def test_a_unit_measured_from_elsewhere_gives_the_same_vehicle() -> None:
         axle["x"] -= 1.6
     trailer["coupling"] = {"kind": "fifth_wheel", "ahead_x": -3.4 - 1.4, "x": -1.6}
     moved = CombinationSpec.model_validate(data).params()
-    today = TODAY["lst"]
+    preset = SEMI_TRAILER_PRESETS["lst"]
     for unit in ("tractor", "trailer"):
-        a, b = getattr(moved, unit), getattr(today, unit)
+        a, b = getattr(moved, unit), getattr(preset, unit)
         for key in ("cg_x", "front_x", "rear_x", "yaw_inertia"):
             assert getattr(a, key) == pytest.approx(getattr(b, key), abs=1e-9), (unit, key)
         assert [x.x for x in a.axles] == pytest.approx([x.x for x in b.axles], abs=1e-12)
@@ -316,7 +318,7 @@ def test_the_documented_example_is_valid_and_gives_the_lst() -> None:
     text = (Path(__file__).resolve().parents[1] / "docs" / "vehicles.md").read_text(encoding="utf-8")
     block = text.split("```yaml\n", 1)[1].split("```", 1)[0]
     example = CombinationSpec.model_validate(yaml.safe_load(block)).params()
-    lst = TODAY["lst"]
+    lst = SEMI_TRAILER_PRESETS["lst"]
     for unit in ("tractor", "trailer"):
         a, b = getattr(example, unit).model_dump(), getattr(lst, unit).model_dump()
         for key, value in b.items():
@@ -371,5 +373,5 @@ def test_an_axle_keeps_its_own_tyre() -> None:
     params = CombinationSpec.model_validate(data).params()
     tyres = [a.tyre for a in params.trailer.axles]
     assert (tyres[2].pky1, tyres[2].fz_nominal) == (9.0, 40000.0)
-    assert tyres[0] == TODAY["reference"].trailer.axles[0].tyre
+    assert tyres[0] == SEMI_TRAILER_PRESETS["reference"].trailer.axles[0].tyre
     assert params.axle_cornering_stiffness()[-1] != params.axle_cornering_stiffness()[-2]  # the model sees it

@@ -1,6 +1,6 @@
 """Compile casadi functions to a shared library with the system C compiler, cached on disk.
 
-casadi's virtual machine evaluates the model about ten times slower than generated C, so the
+casadi's virtual machine evaluates the model much slower than generated C (README.md), so the
 functions are written out with :class:`casadi.CodeGenerator`, compiled once and cached under a
 name that hashes the generated source (so a change of parameters or model recompiles). The cache
 lives in ``$OFFTRACK_CACHE_DIR`` or ``~/.cache/offtrack``. Set ``OFFTRACK_NO_COMPILE=1`` to skip

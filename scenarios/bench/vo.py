@@ -3,7 +3,7 @@
 :func:`rendered_sequence` simulates a scenario (default ``roundabout-3``, seeded) long enough for its
 first camera frames, renders them and caches the pairs with the left camera's true poses (an ``.npz``
 under ``$OFFTRACK_CACHE_DIR`` or ``~/.cache/offtrack``, ``vo_bench/``), so that every benchmark run —
-and ``benchmarks/vo_speed_vs_ccc8e1e.py``, which compares with the VO of commit ``ccc8e1e`` — sees the
+and ``benchmarks/vo_speed_against_baseline.py``, which compares with the VO of a baseline commit — sees the
 same frames. :func:`bench_vo` times :meth:`sensor.vo.StereoOdometry.process` on them with OpenCV
 limited to one thread: thread CPU time per frame (median and p90, robust to other processes on a
 shared machine), wall time, and the stage breakdown (features; matching with bucketing and

@@ -5,8 +5,8 @@ A camera built with a frame cache (:func:`.build.stereo_camera`, ``frame_cache=`
 frame at the same pose and mount flex, reads it back instead of rendering it. ``TAG`` names the camera (its
 configuration, world and vehicle, :func:`.build.camera_tag`), so one directory serves several scenarios; a stored
 frame of another pose or flex is rendered again and replaced. ``OFFTRACK_FRAME_CACHE`` sets the directory of every
-camera run that is not given one (:func:`frame_cache_from_env`). The frames are those of this build's renderer:
-clear the directory when the renderer changes.
+camera run that is not given one (:func:`frame_cache_from_env`). The key holds the camera and its settings, not
+the renderer's code: clear the directory after changing the renderer.
 """
 
 from __future__ import annotations

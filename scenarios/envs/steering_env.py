@@ -209,9 +209,9 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
 
     * ``scenario``, ``overrides``: catalogue scenario and dotted configuration fields (``offtrack run --set``).
     * ``feedback``: the first towed unit's estimate: ``truth``, ``zero_slip`` (Cheng, blind to slip), ``viso_ot``
-      (renders the trailer's stereo camera and runs visual odometry: about 10× slower) or ``viso_ot_fused`` (the
-      same camera fused with the trailer's gyro and wheel speed in a Kalman filter, an estimate every control
-      tick). The camera sees the semi-trailer of a tractor–semi-trailer only: a longer combination takes
+      (renders the trailer's stereo camera and runs visual odometry: much slower, docs/environments.md) or
+      ``viso_ot_fused`` (the same camera fused with the trailer's gyro and wheel speed in a Kalman filter, an estimate
+      every control tick). The camera sees the semi-trailer of a tractor–semi-trailer only: a longer combination takes
       ``truth`` or ``zero_slip``.
     * ``rear_feedback``: the estimate of each towed unit behind the first, one per unit: ``none`` (not steered:
       its axles held straight, no action entry), ``truth`` or ``zero_slip`` (of that unit); ``None`` (default):

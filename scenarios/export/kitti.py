@@ -155,7 +155,7 @@ def export_kitti(
         wrote there is removed first, and a directory that also holds other files is refused
         (:func:`~scenarios.run.results.clear_run_dir`).
     antialias : bool
-        Render with 4× multisampling (about 2.5× slower).
+        Render with 4× multisampling (slower: benchmarks/README.md, "Rendering").
 
     Returns
     -------
@@ -285,7 +285,7 @@ def render_summary(summary: dict[str, Any]) -> str:
     str
         The frames, the simulation's status, the output directory and every file or folder in it, e.g.
         ``3 stereo pairs (simulation completed) in runs/k: left images in image_0/, right images in image_1/,
-        …; 41.2 ms per pair``.
+        …; <render time> ms per pair``.
     """
     out = Path(summary["out_dir"])
 

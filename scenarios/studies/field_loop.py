@@ -118,8 +118,8 @@ centimetre for the noise of the camera."""
 
 ICE_CAMBER_LIMITS_M = (0.039, 0.121)
 """On ice with camber the fused-fed loop under field conditions may be no worse than the fused-fed loop with ideal
-cameras was before the field work, RMS and max [m] (``CHANGELOG.md``): the field may not cost the loop where the
-camera matters most."""
+cameras, RMS and max [m]: the largest of those cells in the grid that set these limits (``CHANGELOG.md``, the entry
+of ``offtrack study field-loop``). The field may not cost the loop where the camera matters most."""
 
 COVERAGE_BAND = (0.85, 0.98)
 """Share of the fused estimate's errors within twice its standard deviation, least and most: the project's target

@@ -6,8 +6,8 @@ distance (``d² / (h·f)``: 1.5 m per pixel at 50 m), so beyond ~20 m an ordinar
 mipmap chain shows the flat mean colour of each field. With no roadside objects (scenery density 0)
 the rear camera then sees features only in the near field, where yaw and lateral translation are
 hard to tell apart, and VISO-OT drifts (de Saxe & Cebon 2018, §3.2.3, found rear cameras almost insensitive to
-scenery). Anisotropic filtering would keep the detail but costs ~100× the render time on llvmpipe (×4:
-5 s instead of 50 ms a stereo pair).
+scenery). Anisotropic filtering would keep the detail but multiplies the render time on llvmpipe by about a
+hundred (benchmarks/README.md, "Rendering").
 
 What: real ground has structure at every scale (natural textures have roughly ``1/f`` amplitude
 spectra, so an image of a field keeps its contrast with distance); our textures tile every 8–16 m and

@@ -1,16 +1,17 @@
-"""The visual odometry of this tree against the one of commit ``ccc8e1e``, on the same rendered frames.
+"""The visual odometry's CPU time and accuracy in this tree against a baseline commit's, on the same frames.
 
-Extracts ``sensor/`` of the baseline commit with ``git archive`` into a temporary folder, imports its
-odometry next to the current one (in this process, under its own module objects) and runs both, one
-thread each (OpenCV, BLAS and numba limited to one thread), on the cached rendered ``roundabout-3``
-sequences of :func:`scenarios.bench.vo.rendered_sequence` for several seeds. Each pass runs the
-baseline and then the current implementation over a sequence; per frame the fastest of the passes
-counts (thread CPU time, robust to other processes on a shared machine). Prints the CPU-time ratio
-and, per implementation, the relative pose error per frame (translation [mm], rotation [mdeg])
-against the rendered ground truth, mean inliers and valid frames, with the differences to the
-baseline (goal: within 3 %). Run from the repository root::
+The baseline (``--baseline``, default :data:`BASELINE`, the VO the speed target of ``offtrack bench vo`` is set
+against, benchmarks/README.md) is any commit of this repository. Extracts ``sensor/`` of the baseline commit
+with ``git archive`` into a temporary folder, imports its odometry next to the current one (in this process,
+under its own module objects) and runs both, one thread each (OpenCV, BLAS and numba limited to one thread), on the
+cached rendered ``roundabout-3`` sequences of :func:`scenarios.bench.vo.rendered_sequence` for several seeds. Each pass
+runs the baseline and then the current implementation over a sequence; per frame the fastest of the passes counts
+(thread CPU time, robust to other processes on a shared machine). Prints the CPU-time ratio and, per implementation, the
+relative pose error per frame (translation [mm], rotation [mdeg]) against the rendered ground truth, mean inliers and
+valid frames, with the differences to the baseline (goal: within 3 %). Run from the repository root::
 
-    .venv/bin/python benchmarks/vo_speed_vs_ccc8e1e.py [--seeds 5] [--frames 40] [--passes 3] [--json]
+    .venv/bin/python benchmarks/vo_speed_against_baseline.py [--baseline COMMIT] [--seeds 5] [--frames 40] \
+        [--passes 3] [--json]
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ import numpy as np  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 BASELINE = "ccc8e1e"
+"""The default baseline commit: the odometry before the speed work of benchmarks/README.md, "Visual odometry"."""
 HEADER = "| seed | CPU ms baseline | CPU ms current | t RPE mm (b / c) | r RPE mdeg (b / c) | inliers (b / c) | valid |"
 sys.path.insert(0, str(REPO))
 
@@ -98,7 +100,7 @@ def _accuracy(results: list, truth: np.ndarray) -> dict[str, Any]:
     }
 
 
-def compare(seeds: int = 5, frames: int = 40, passes: int = 3) -> dict[str, Any]:
+def compare(seeds: int = 5, frames: int = 40, passes: int = 3, baseline: str = BASELINE) -> dict[str, Any]:
     """Speed ratio and accuracy of the baseline and the current odometry over ``seeds`` sequences."""
     import cv2
 
@@ -107,7 +109,7 @@ def compare(seeds: int = 5, frames: int = 40, passes: int = 3) -> dict[str, Any]
 
     cv2.setNumThreads(1)
     with tempfile.TemporaryDirectory(prefix="offtrack-vo-baseline-") as tmp:
-        old_odometry, old_config = load_baseline(Path(tmp))
+        old_odometry, old_config = load_baseline(Path(tmp), baseline)
         rows, cpu_old, cpu_new = [], [], []
         for seed in range(seeds):
             sequence = rendered_sequence(frames, seed)
@@ -151,8 +153,8 @@ def compare(seeds: int = 5, frames: int = 40, passes: int = 3) -> dict[str, Any]
         new = float(np.mean([r["current"][key] for r in rows]))
         summary[key] = {"baseline": old, "current": new, "relative_change": (new - old) / old}
     return {
-        "benchmark": "vo_speed_vs_ccc8e1e",
-        "baseline": BASELINE,
+        "benchmark": "vo_speed_against_baseline",
+        "baseline": baseline,
         "seeds": seeds,
         "frames_per_seed": frames,
         "passes": passes,
@@ -172,7 +174,8 @@ def compare(seeds: int = 5, frames: int = 40, passes: int = 3) -> dict[str, Any]
 def _print_table(result: dict[str, Any]) -> None:
     print(
         f"VO CPU time per frame (median of {result['compared_frames']} frames, one thread): "
-        f"{BASELINE} {result['cpu_ms_median_baseline']:.2f} ms, current {result['cpu_ms_median_current']:.2f} ms, "
+        f"{result['baseline']} {result['cpu_ms_median_baseline']:.2f} ms, "
+        f"current {result['cpu_ms_median_current']:.2f} ms, "
         f"ratio {result['cpu_ratio']:.2f}× (total {result['cpu_ratio_total']:.2f}×); "
         f"identical matches and inliers in {result['identical_frames']}/{result['compared_frames']} frames"
     )
@@ -195,12 +198,13 @@ def _print_table(result: dict[str, Any]) -> None:
 def main(argv: list[str] | None = None) -> None:
     """Command-line entry."""
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--baseline", default=BASELINE, help=f"commit to compare with (default {BASELINE})")
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--frames", type=int, default=40)
     parser.add_argument("--passes", type=int, default=3)
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     args = parser.parse_args(argv)
-    result = compare(args.seeds, args.frames, args.passes)
+    result = compare(args.seeds, args.frames, args.passes, args.baseline)
     if args.json:
         print(json.dumps(result))
     else:
