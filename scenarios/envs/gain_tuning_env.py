@@ -17,7 +17,9 @@ from vehicle_model.geometry import follow_point_from_kingpin
 
 from ..loop.cosimulation import CoSimulation
 from ..loop.ends import ENVIRONMENT_LIMITS, Limits, RunStatus, StopReason
+from ..loop.schema import FIRST_TOWED_UNIT, estimate_columns
 from ..loop.trailer_steer import PathFollowingSteer, trailer_axles
+from ..registry import TRUTH
 from ..run.drive import run_loop
 from ..run.metrics import after_warmup, max_abs, rms
 from ..setup.build import ScenarioSetup
@@ -81,7 +83,8 @@ def unit_figures(columns: dict[str, np.ndarray], settled: np.ndarray, unit: int)
     """RMS and largest true off-tracking [m] and RMS feedback steer [rad] of unit ``unit`` of the combination (3 or
     4: behind the first towed one), over the first towed unit's settled samples on which the unit's own
     off-tracking exists (0.0 when none; the feedback steer 0.0 when the unit is not steered)."""
-    truth = np.asarray(columns.get(f"offtracking_truth{unit}", np.full(settled.size, np.nan)), dtype=float)
+    truth_column = estimate_columns(columns).get((TRUTH, unit))
+    truth = np.asarray(columns[truth_column.name] if truth_column else np.full(settled.size, np.nan), dtype=float)
     after = settled & np.isfinite(truth)
     feedback = np.asarray(columns.get(f"unit{unit}_feedback_steer", np.zeros(settled.size)), dtype=float)
 
@@ -106,12 +109,14 @@ def episode_figures(columns: dict[str, np.ndarray], follow_point_offset: float) 
     saturated = np.any(np.vstack(sat_cols) > 0.5, axis=0) if sat_cols else np.zeros_like(settled)
     feedback = columns.get("trailer_feedback_steer", np.zeros(settled.size))
 
+    truth = columns[estimate_columns(columns)[TRUTH, FIRST_TOWED_UNIT].name]
+
     def finite(x: float) -> float:
         return x if math.isfinite(x) else 0.0
 
     return {
-        "rms_offtracking": finite(rms(columns["offtracking_truth"][settled])),
-        "max_offtracking": finite(max_abs(columns["offtracking_truth"][settled])),
+        "rms_offtracking": finite(rms(truth[settled])),
+        "max_offtracking": finite(max_abs(truth[settled])),
         "rms_feedback_steer": finite(rms(feedback[settled])),
         "saturated_fraction": float(np.mean(saturated[settled])) if settled.any() else 0.0,
         "settled_samples": float(settled.sum()),
