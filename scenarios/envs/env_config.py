@@ -16,6 +16,8 @@ from typing import Any
 from vehicle_model.errors import InputError
 
 from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, ScenarioChoice
+from .units import EnvUnits, check_units
+from .validation import check_choice
 
 __all__ = ["SCENARIO_KEYS", "merge_config", "scenario_choice", "scenario_defaults"]
 
@@ -109,3 +111,22 @@ def scenario_choice(config: Mapping[str, Any]) -> ScenarioChoice:
         sensors=config["sensors"],
         rear_feedback=None if rear_feedback is None else tuple(rear_feedback),
     )
+
+
+def configure(
+    env: str,
+    defaults: Mapping[str, Any],
+    config: Mapping[str, Any] | ScenarioChoice | None,
+    keywords: Mapping[str, Any],
+) -> tuple[dict[str, Any], ScenarioChoice, EnvUnits]:
+    """An environment's settings (:func:`merge_config`), its checked scenario choice and the units it steers.
+
+    Raises
+    ------
+    InputError
+        A key that is not a setting, or a scenario setting the scenario refuses.
+    """
+    merged = merge_config(env, defaults, config, keywords)
+    choice = scenario_choice(merged)
+    check_choice(choice)
+    return merged, choice, check_units(choice)

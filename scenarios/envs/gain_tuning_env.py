@@ -25,10 +25,10 @@ from ..run.metrics import after_warmup, max_abs, rms
 from ..setup.build import ScenarioSetup
 from ..setup.models import rebuild_setup
 from ..unit_feedback import steered_units
-from .env_config import merge_config, scenario_choice, scenario_defaults
+from .env_config import configure, scenario_defaults
 from .plan_view import check_render_mode, draw_plan_view
 from .scenario import ScenarioChoice
-from .units import EnvUnits, check_episode_units, check_units
+from .units import check_episode_units, check_units
 from .validation import check_choice
 
 __all__ = ["GAIN_RANGES", "GainTuningEnv", "action_to_gains", "action_to_unit_gains", "gains_to_action", "unit_figures"]
@@ -252,11 +252,8 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         InputError
             A key that is not a setting (naming it and the allowed keys), or a setting out of its range.
         """
-        self.config = merge_config(type(self).__name__, self.default_config(), config, settings)
+        self.config, self.choice, self.units = configure(type(self).__name__, self.default_config(), config, settings)
         cfg = self.config
-        self.choice = scenario_choice(cfg)
-        check_choice(self.choice)
-        self.units: EnvUnits = check_units(self.choice)
         self.n_steered = self.units.n_steered
         effort_weight, saturation_weight, failure_cost = (
             cfg["effort_weight"],

@@ -20,11 +20,11 @@ from ..loop.ends import ENVIRONMENT_LIMITS, Limits, StopReason
 from ..loop.trailer_steer import AgentSteer, trailer_axles
 from ..setup.models import rebuild_setup
 from ..unit_feedback import estimate_key
-from .env_config import merge_config, scenario_choice, scenario_defaults
+from .env_config import configure, scenario_defaults
 from .plan_view import camera_strip, check_render_mode, draw_plan_view
 from .reward import OFFTRACKING_CLIP, OFFTRACKING_TOLERANCE, REWARD_WEIGHTS, SteeringReward, episode_summary
 from .scenario import ScenarioChoice
-from .units import EnvUnits, check_episode_units, check_units
+from .units import check_episode_units, check_units
 from .validation import check_choice
 
 __all__ = [
@@ -304,11 +304,8 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         InputError
             A key that is not a setting (naming it and the allowed keys), or a setting out of its range.
         """
-        self.config = merge_config(type(self).__name__, self.default_config(), config, settings)
+        self.config, self.choice, self.units = configure(type(self).__name__, self.default_config(), config, settings)
         cfg = self.config
-        self.choice = scenario_choice(cfg)
-        check_choice(self.choice)
-        self.units: EnvUnits = check_units(self.choice)
         self.n_steered = self.units.n_steered
         action_mode, residual_scale_deg = cfg["action_mode"], cfg["residual_scale_deg"]
         if action_mode not in ("direct", "residual"):
