@@ -16,7 +16,7 @@ This module gathers the names of :mod:`scenarios.configuration`, where each job 
 from __future__ import annotations
 
 from .configuration.errors import ConfigError, did_you_mean
-from .configuration.field_errors import SHOWN_CHARACTERS, dotted_name, field_name, format_errors
+from .configuration.field_errors import SHOWN_CHARACTERS, field_name
 from .configuration.loading import (
     CATALOGUE_PACKAGE,
     catalogue_names,
@@ -42,7 +42,6 @@ from .configuration.sections import (
 )
 from .configuration.vehicle_field import (
     VEHICLE_SUFFIXES,
-    VEHICLE_TAGS,
     Vehicle,
     check_vehicle,
     load_vehicle_file,
@@ -57,7 +56,6 @@ __all__ = [
     "COORDINATE_LIMIT_M",
     "SHOWN_CHARACTERS",
     "VEHICLE_SUFFIXES",
-    "VEHICLE_TAGS",
     "CamberConfig",
     "ConfigError",
     "ControllerConfig",
@@ -74,9 +72,7 @@ __all__ = [
     "catalogue_names",
     "check_vehicle",
     "did_you_mean",
-    "dotted_name",
     "field_name",
-    "format_errors",
     "load_scenario",
     "load_scenario_data",
     "load_vehicle_file",

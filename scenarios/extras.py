@@ -15,15 +15,11 @@ from vehicle_model.errors import InputError
 
 DISTRIBUTIONS = {
     "distributed": "dask",
-    "dask_jobqueue": "dask-jobqueue",
-    "optuna": "optuna",
-    "rosbags": "rosbags",
     "rosbags.image": "rosbags-image",
-    "pyxodr": "pyxodr",
     "stable_baselines3": "stable-baselines3",
-    "skimage": "scikit-image",
 }
-"""The package that provides an optional module, named as the error says it (``distributed`` comes with ``dask``)."""
+"""The package that provides an optional module where its name is not the module's, as the error says it
+(``distributed`` comes with ``dask``)."""
 
 
 def require(module: str, extra: str, purpose: str) -> ModuleType:

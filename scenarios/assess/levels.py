@@ -91,8 +91,6 @@ class Grade:
         The best (lowest-numbered) level whose limit the value meets; None when none is met, there are no verified
         thresholds, or the value is not finite.
     margin
-        That level's limit minus the value [the measure's unit]; None without a level.
-    margin
         How far inside that level's limit the value lies (positive, the measure's unit); None without a level.
     margin_level_1
         How far inside level 1's limit the value lies (negative: short of level 1); None without a level-1 threshold.

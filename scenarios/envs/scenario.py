@@ -31,9 +31,9 @@ import numpy as np
 from vehicle_model.errors import InputError
 
 from ..config import ScenarioConfig, load_scenario
-from ..registry import NO_FEEDBACK, feedback_sources
+from ..registry import NO_FEEDBACK, feedback_sources, unit_feedback_sources
 from ..scenario_shortcuts import SCENARIO_SHORTCUTS
-from ..unit_feedback import REAR_FEEDBACK, rear_feedbacks
+from ..unit_feedback import rear_feedbacks
 from .sensors import SensorMode, check_mode, draw_biases, sensor_fields
 
 __all__ = [
@@ -214,8 +214,8 @@ class ScenarioChoice:
         if rear is not None:
             if isinstance(rear, str) or not all(isinstance(v, str) for v in rear):
                 raise InputError(
-                    f"rear_feedback = {rear!r} must be a sequence of {', '.join(REAR_FEEDBACK)}, one per towed unit "
-                    "behind the first, or None"
+                    f"rear_feedback = {rear!r} must be a sequence of {', '.join(unit_feedback_sources())}, one per "
+                    "towed unit behind the first, or None"
                 )
             object.__setattr__(self, "rear_feedback", tuple(rear))
         if not isinstance(self.scenario, str):

@@ -61,7 +61,6 @@ BUILTIN_ESTIMATORS: tuple[EstimatorEntry, ...] = (
         "zero_slip",
         "Cheng's zero-slip estimate from the tractor's signals (blind to tyre slip)",
         _zero_slip,
-        enabled=True,
         colour="tab:orange",
         label="zero-slip (Cheng)",
         per_unit=True,

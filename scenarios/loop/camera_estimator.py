@@ -18,7 +18,7 @@ from sensor.vo.quality import QUALITY_COLUMNS, REJECTION_REASONS
 from sensor.vo.self_calibration import SELF_CALIBRATION_COLUMNS
 from vehicle_model.offtracking import BUFFER_FILLING, OfftrackingEstimate
 
-from .participant import Column, LoopContext, Record, TickInput, estimate_column
+from .participant import Column, LoopContext, Record, TickInput
 
 __all__ = ["CAMERA_COLUMNS", "VisoOt", "camera_row", "reason_code", "viso_ot"]
 
@@ -105,14 +105,7 @@ class VisoOt:
 
     name = "viso_ot"
     columns: tuple[Column, ...] = (
-        Column(
-            estimate_column("viso_ot"),
-            "m",
-            "VISO-OT off-tracking of the latest released frame",
-            role="estimate",
-            vehicle_unit=2,
-            estimator="viso_ot",
-        ),
+        Column.estimate("viso_ot", "VISO-OT off-tracking of the latest released frame"),
         *CAMERA_COLUMNS,
     )
 

@@ -29,7 +29,7 @@ from vehicle_model.offtracking import (
 )
 from vehicle_model.parameters import VehicleParams
 
-from .participant import Column, LoopContext, TickInput, estimate_column
+from .participant import Column, LoopContext, TickInput
 
 __all__ = [
     "FUSION_STD_COLUMNS",
@@ -119,14 +119,7 @@ class GroundTruth:
 
     name = "truth"
     columns: tuple[Column, ...] = (
-        Column(
-            estimate_column("truth"),
-            "m",
-            "true off-tracking (the buffer fed with exact increments)",
-            role="estimate",
-            vehicle_unit=2,
-            estimator="truth",
-        ),
+        Column.estimate("truth", "true off-tracking (the buffer fed with exact increments)"),
         Column(
             "offtracking_truth_geometric",
             "m",
@@ -187,16 +180,7 @@ class ZeroSlip:
     """
 
     name = "zero_slip"
-    columns: tuple[Column, ...] = (
-        Column(
-            estimate_column("zero_slip"),
-            "m",
-            "zero-slip (Cheng) off-tracking",
-            role="estimate",
-            vehicle_unit=2,
-            estimator="zero_slip",
-        ),
-    )
+    columns: tuple[Column, ...] = (Column.estimate("zero_slip", "zero-slip (Cheng) off-tracking"),)
 
     def __init__(
         self, params: VehicleParams, variant: str = "yaw_rate", rear_point: str = "axle_mean", unit: int = 1
@@ -242,22 +226,8 @@ class FusedVisoOtEstimator:
 
     name = "viso_ot_fused"
     columns: tuple[Column, ...] = (
-        Column(
-            estimate_column("viso_ot_fused"),
-            "m",
-            "fused VISO-OT off-tracking",
-            role="estimate",
-            vehicle_unit=2,
-            estimator="viso_ot_fused",
-        ),
-        Column(
-            "offtracking_viso_ot_fused_std",
-            "m",
-            "its standard deviation",
-            role="std",
-            vehicle_unit=2,
-            estimator="viso_ot_fused",
-        ),
+        Column.estimate("viso_ot_fused", "fused VISO-OT off-tracking"),
+        Column.std("viso_ot_fused"),
         Column(
             "fusion_kinematic_std",
             "m/s",

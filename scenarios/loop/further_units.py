@@ -97,18 +97,9 @@ class FurtherUnitsParticipant:
         for name in setup.config.enabled_estimators() if context is not None else ():
             entry = estimator_entry(name)
             for unit in self.units if entry.build_unit is not None else ():
-                key = estimate_key(name, unit - 1)
-                self.unit_estimators[key] = (f"offtracking_{key}", entry.build_unit(context, unit - 1))
-                columns.append(
-                    Column(
-                        f"offtracking_{key}",
-                        "m",
-                        f"unit {unit} {entry.legend} off-tracking",
-                        role="estimate",
-                        vehicle_unit=unit,
-                        estimator=name,
-                    )
-                )
+                column = Column.estimate(name, f"unit {unit} {entry.legend} off-tracking", vehicle_unit=unit)
+                self.unit_estimators[estimate_key(name, unit - 1)] = (column.name, entry.build_unit(context, unit - 1))
+                columns.append(column)
         self.columns += tuple(columns)
         self._previous: dict[int, tuple[np.ndarray, float]] = {}
         self._row: dict[str, float] = {}

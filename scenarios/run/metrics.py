@@ -11,8 +11,7 @@ from vehicle_model.geometry import kingpin_position, radial_extent, towed_outlin
 from vehicle_model.parameters import VehicleParams
 
 from ..loop.participant import estimate_column
-from ..loop.schema import FIRST_TOWED_UNIT, RecordedColumns, estimate_columns, schema_of, std_column
-from ..loop.schema import estimator_names as _estimator_names
+from ..loop.schema import FIRST_TOWED_UNIT, RecordedColumns, estimate_columns, estimator_names, schema_of, std_column
 from .path_offtracking import combination_offtracking, rear_point_columns
 from .swept_geometry import swept_path_metrics
 from .verdicts import run_verdict
@@ -275,11 +274,10 @@ def _estimate(
     columns: dict[str, np.ndarray],
     estimates: dict[tuple[str, int], Any],
     name: str,
-    unit: int = FIRST_TOWED_UNIT,
 ) -> np.ndarray:
-    """The values of estimator ``name``'s estimate of unit ``unit`` (as the estimator names its column when the run
-    did not record it: an empty run's)."""
-    column = estimates.get((name, unit))
+    """The values of estimator ``name``'s estimate of the first towed unit (as the estimator names its column when
+    the run did not record it: an empty run's)."""
+    column = estimates.get((name, FIRST_TOWED_UNIT))
     return columns[column.name if column is not None else estimate_column(name)]
 
 
@@ -396,13 +394,7 @@ def camera_frame_metrics(columns: dict[str, np.ndarray]) -> dict[str, Any] | Non
     }
 
 
-def estimator_names(columns: dict[str, np.ndarray]) -> list[str]:
-    """The estimators of the first towed unit recorded in a run's columns, other than the truth, in column order
-    (:func:`scenarios.loop.schema.estimator_names`)."""
-    return _estimator_names(columns)
-
-
 def unit_estimator_names(columns: dict[str, np.ndarray], unit: int) -> list[str]:
     """The estimates of unit ``unit`` (behind the first towed one) recorded in a run's columns, as ``<name><k>``
     (``zero_slip3``: the zero-slip estimate of unit 3)."""
-    return [f"{name}{unit}" for name in _estimator_names(columns, unit)]
+    return [f"{name}{unit}" for name in estimator_names(columns, unit)]

@@ -22,8 +22,8 @@ from vehicle_model.parameters import VehicleParams
 
 from ..config import load_scenario
 from ..loop.ends import RunStatus
-from ..registry import feedback_sources
-from ..unit_feedback import REAR_FEEDBACK, one_semi_trailer
+from ..registry import feedback_sources, unit_feedback_sources
+from ..unit_feedback import one_semi_trailer
 from .progress import ProgressCallback, SweepProgress
 from .records import CaseSpec
 from .registry import STUDIES, vehicle_studies
@@ -69,7 +69,7 @@ def check_study_vehicle(name: str, vehicle: str | None) -> list[str]:
         raise InputError(f"--vehicle {vehicle}: {name} takes no --vehicle ({why}); {takes} take one")
     resolved_vehicle = study_vehicle(vehicle, name)
     if name == "estimators-under-slip" and not one_semi_trailer(resolved_vehicle.params):
-        dropped = [f for f in feedback_sources() if f not in REAR_FEEDBACK]
+        dropped = [f for f in feedback_sources() if f not in unit_feedback_sources()]
         return [
             f"{name} --vehicle {resolved_vehicle.name}: the camera feedbacks ({', '.join(dropped)}) are left out; "
             "the camera sees the first towed unit of a tractor or rigid truck with one semi-trailer only"
