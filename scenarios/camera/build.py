@@ -292,12 +292,7 @@ def stereo_camera(
             raise InputError("the run's camera has the configured rig and lighting; pass ideal=True to change them")
         developer = pair_developer(cfg)
     if world is None:
-        kind = cfg.camera.world
-        world = (
-            world_for_scenario(setup, scenery_density)
-            if kind == "roadside"
-            else world_for_scenario(setup, scenery_density, kind=kind)
-        )
+        world = world_for_scenario(setup, scenery_density, kind=cfg.camera.world)
     store = None
     if frame_cache is not None:
         tag = camera_tag(

@@ -10,16 +10,16 @@ one of ``default_config()``'s is refused in one line naming it and listing the a
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import fields
+from dataclasses import MISSING, fields
 from typing import Any
 
 from vehicle_model.errors import InputError
 
-from .scenario import DEFAULT_OVERRIDES, DEFAULT_SCENARIO, DomainRandomisation, ScenarioChoice
+from .scenario import DEFAULT_OVERRIDES, DomainRandomisation, ScenarioChoice
 from .units import EnvUnits, check_units
 from .validation import check_choice
 
-__all__ = ["SCENARIO_KEYS", "merge_config", "scenario_choice", "scenario_defaults"]
+__all__ = ["SCENARIO_KEYS", "configure", "merge_config", "scenario_choice", "scenario_defaults"]
 
 SCENARIO_KEYS: tuple[str, ...] = tuple(f.name for f in fields(ScenarioChoice))
 """The configuration keys that make the environment's :class:`~scenarios.envs.scenario.ScenarioChoice`."""
@@ -29,20 +29,7 @@ def scenario_defaults() -> dict[str, Any]:
     """The scenario settings of a new environment (:class:`~scenarios.envs.scenario.ScenarioChoice`'s defaults;
     ``overrides`` ``None`` means :data:`~scenarios.envs.scenario.DEFAULT_OVERRIDES`, ``randomise`` ``None`` nothing
     randomised)."""
-    return {
-        "scenario": DEFAULT_SCENARIO,
-        "overrides": None,
-        "feedback": "truth",
-        "vehicle": "lst",
-        "mu": None,
-        "camber_percent": None,
-        "camber_direction": None,
-        "speed_kmh": None,
-        "direction": None,
-        "randomise": None,
-        "sensors": "datasheet",
-        "rear_feedback": None,
-    }
+    return {f.name: None if f.default is MISSING else f.default for f in fields(ScenarioChoice)}
 
 
 def _checked(env: str, what: str, mapping: Mapping[str, Any], allowed: Mapping[str, Any]) -> dict[str, Any]:

@@ -255,19 +255,13 @@ class GainTuningEnv(gym.Env[np.ndarray, np.ndarray]):
         self.config, self.choice, self.units = configure(type(self).__name__, self.default_config(), config, settings)
         cfg = self.config
         self.n_steered = self.units.n_steered
-        effort_weight, saturation_weight, failure_cost = (
-            cfg["effort_weight"],
-            cfg["saturation_weight"],
-            cfg["failure_cost"],
-        )
-        for name, value in (("effort_weight", effort_weight), ("saturation_weight", saturation_weight)):
+        for name in ("effort_weight", "saturation_weight", "failure_cost"):
+            value = cfg[name]
             if not (value >= 0 and math.isfinite(value)):
                 raise InputError(f"{name} = {value!r} must be a finite number ≥ 0")
-        if not (failure_cost >= 0 and math.isfinite(failure_cost)):
-            raise InputError(f"failure_cost = {failure_cost!r} must be a finite number ≥ 0")
-        self.effort_weight = float(effort_weight)
-        self.saturation_weight = float(saturation_weight)
-        self.failure_cost = float(failure_cost)
+        self.effort_weight = float(cfg["effort_weight"])
+        self.saturation_weight = float(cfg["saturation_weight"])
+        self.failure_cost = float(cfg["failure_cost"])
         self.limits = Limits(
             cfg["max_articulation_deg"], cfg["max_lateral_error"], cfg["max_offtracking"], every_unit=True
         )

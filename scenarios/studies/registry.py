@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import pandas as pd
 
@@ -128,8 +127,3 @@ STUDIES: dict[str, Study] = _studies(
 def vehicle_studies() -> tuple[str, ...]:
     """The names of the studies that take another combination (``vehicle``)."""
     return tuple(name for name, study in STUDIES.items() if study.takes_vehicle)
-
-
-def study_summaries() -> dict[str, Any]:
-    """Each study's name and its one-line summary, in the registry's order."""
-    return {name: study.summary for name, study in STUDIES.items()}
