@@ -42,7 +42,7 @@ import numpy as np
 from pydantic import Field
 
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import CombinationPose, kingpin_position, trailer_heading
+from vehicle_model.geometry import ChainPose, CombinationPose, kingpin_position, trailer_heading, unit_frame
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.settings import Settings
 
@@ -201,6 +201,8 @@ class StereoRig:
         lighting variation), e.g. 0.05 for ±5 %.
     znear, zfar : float
         Clipping distances of the renderer [m].
+    unit : int
+        The towed unit the rig is mounted on (1: the first; its kingpin is the origin of :attr:`station`).
 
     Use :meth:`from_degrees` to give angles in degrees.
     """
@@ -218,6 +220,7 @@ class StereoRig:
     exposure_std: float = 0.0
     znear: float = 0.5
     zfar: float = 3000.0
+    unit: int = 1
 
     def __post_init__(self) -> None:
         checks = [
@@ -232,6 +235,7 @@ class StereoRig:
             ("noise_std", 0.0 <= self.noise_std <= 100.0, "[0, 100] grey levels"),
             ("exposure_std", 0.0 <= self.exposure_std <= 0.5, "[0, 0.5]"),
             ("znear", 0.01 <= self.znear < self.zfar, "0.01 m ≤ znear < zfar"),
+            ("unit", isinstance(self.unit, int) and 1 <= self.unit <= 16, "a towed unit, 1 to 16"),
         ]
         for name, ok, allowed in checks:
             if not ok:
@@ -308,12 +312,14 @@ class StereoRig:
         return -self.psi_c2v
 
     def resolve_station(self, params: VehicleParams | None = None) -> float:
-        """The mount station [m]: :attr:`station`, or the rear of ``params``' trailer."""
+        """The mount station [m]: :attr:`station`, or the rear of the towed unit :attr:`unit` of ``params``."""
         if self.station is not None:
             return float(self.station)
         if params is None:
             raise InputError("rig.station is None (the trailer's rear): pass the vehicle params to resolve it")
-        return float(params.trailer.rear_x)
+        if not 1 <= self.unit <= len(params.trailers):
+            raise InputError(f"rig.unit = {self.unit}: a towed unit of {params.name!r}, 1 to {len(params.trailers)}")
+        return float(params.trailers[self.unit - 1].rear_x)
 
     def mount_rotation(self) -> np.ndarray:
         """``R_trailer←camera`` (3×3) of the ideal cameras: columns are the camera's x, y, z axes."""
@@ -345,23 +351,32 @@ class StereoRig:
             t[:3, :3] = r @ self.misalignment.rotation  # rotation about its own optical centre
         return t
 
-    def camera_in_world(self, params: VehicleParams, pose: CombinationPose, which: Which) -> np.ndarray:
+    def camera_in_world(
+        self, params: VehicleParams, pose: CombinationPose | ChainPose, which: Which
+    ) -> np.ndarray:
         """Pose ``T_world←camera`` of one camera at a combination pose, OpenCV camera axes.
 
         Parameters
         ----------
         params : VehicleParams
-            The combination (kingpin position, trailer rear).
-        pose : CombinationPose
+            The combination (kingpin positions, the unit's rear).
+        pose : CombinationPose or ChainPose
             Tractor CG position [m], tractor heading ψ1 [rad] and articulation Γ [rad]
-            (:attr:`vehicle_model.simulator.VehicleState.pose`); fields that are arrays of one shape ``S`` give
-            poses of shape ``S + (4, 4)``.
+            (:attr:`vehicle_model.simulator.VehicleState.pose`), or every coupling's articulation
+            (:attr:`~vehicle_model.simulator.VehicleState.chain_pose`, needed for a rig on a unit behind the first);
+            fields that are arrays of one shape ``S`` give poses of shape ``S + (4, 4)``.
         which : {"left", "right"}
             The camera.
         """
-        x, y, psi1, gamma = pose
-        kp = kingpin_position(params, x, y, psi1)
-        psi2 = np.asarray(trailer_heading(psi1, gamma))
+        if self.unit == 1 and isinstance(pose, ChainPose):
+            pose = pose.combination
+        if self.unit == 1:
+            x, y, psi1, gamma = pose
+            kp = kingpin_position(params, x, y, psi1)
+            psi2 = np.asarray(trailer_heading(psi1, gamma))
+        else:
+            kp, psi2 = unit_frame(params, pose, self.unit)
+            psi2 = np.asarray(psi2)
         c, s = np.cos(psi2), np.sin(psi2)
         world_trailer = np.zeros((*psi2.shape, 4, 4))
         world_trailer[..., 0, 0], world_trailer[..., 0, 1] = c, -s

@@ -40,6 +40,62 @@ class CombinationPose(NamedTuple):
         """Trailer heading ψ2 = ψ1 − Γ [rad]."""
         return self.psi1 - self.gamma
 
+    @property
+    def angles(self) -> tuple[float, ...]:
+        """The articulation angles of the towed units, front to rear (one: ``(Γ,)``)."""
+        return (self.gamma,)
+
+
+class ChainPose(NamedTuple):
+    """Where a combination of any length is in the ground plane: the tractor and every coupling's articulation.
+
+    Attributes
+    ----------
+    x, y : float
+        Tractor CG position in the global frame [m].
+    psi1 : float
+        Tractor heading [rad].
+    angles : tuple of float
+        Articulation ``Γ_k = ψ_k − ψ_{k+1}`` of every towed unit against the unit ahead, front to rear [rad].
+    """
+
+    x: float
+    y: float
+    psi1: float
+    angles: tuple[float, ...]
+
+    @property
+    def combination(self) -> CombinationPose:
+        """The tractor and the first towed unit (:class:`CombinationPose`)."""
+        return CombinationPose(self.x, self.y, self.psi1, self.angles[0])
+
+
+def chain_pose(pose: CombinationPose | ChainPose) -> ChainPose:
+    """A :class:`ChainPose` of either kind of pose (a :class:`CombinationPose` has one towed unit)."""
+    if isinstance(pose, ChainPose):
+        return pose
+    x, y, psi1, gamma = pose
+    return ChainPose(x, y, psi1, (gamma,))
+
+
+def unit_frame(params: VehicleParams, pose: CombinationPose | ChainPose, unit: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Kingpin position ``S + (2,)`` and heading ``S`` [rad] of towed unit ``unit`` (1: the first).
+
+    The kingpin of unit ``k > 1`` is the fifth wheel of unit ``k − 1`` (:func:`trailer_frames`); pose fields that are
+    arrays of one shape ``S`` give frames of that shape.
+    """
+    full = chain_pose(pose)
+    if not 1 <= unit <= len(params.trailers):
+        raise ValueError(f"unit = {unit}: a towed unit of {params.name!r}, 1 to {len(params.trailers)}")
+    if len(full.angles) < unit:
+        raise ValueError(f"the pose has {len(full.angles)} articulation angle(s); unit {unit} needs {unit}")
+    origin = kingpin_position(params, full.x, full.y, full.psi1)
+    heading = trailer_heading(full.psi1, full.angles[0])
+    for k in range(1, unit):
+        origin = place_points(origin, heading, np.array([[params.trailers[k - 1].fifth_wheel_x, 0.0]]))[..., 0, :]
+        heading = trailer_heading(heading, full.angles[k])
+    return origin, heading
+
 
 def trailer_heading(psi1, gamma):
     """Trailer heading ψ2 = ψ1 − Γ [rad] (scalars or arrays of one shape)."""

@@ -11,7 +11,7 @@ import numpy as np
 
 from .dynamics import VehicleModel, in_plane_gravity
 from .errors import InputError, SimulationDivergedError
-from .geometry import CombinationPose, place_points, tractor_points, trailer_frames, trailer_points
+from .geometry import ChainPose, CombinationPose, place_points, tractor_points, trailer_frames, trailer_points
 from .layout import BODY_STATES, Layout
 from .parameters import VehicleParams
 from .period import BAD_INPUT, DIVERGED, OK, context_views, load_period, new_context
@@ -78,6 +78,11 @@ class VehicleState:
     def pose(self) -> CombinationPose:
         """Where the combination is: ``(X, Y, ψ1, Γ)``."""
         return CombinationPose(self.X, self.Y, self.psi1, self.gamma)
+
+    @property
+    def chain_pose(self) -> ChainPose:
+        """Where every unit is: ``(X, Y, ψ1, (Γ, Γ2, …))``."""
+        return ChainPose(self.X, self.Y, self.psi1, tuple(self.articulations))
 
     def to_vector(self) -> np.ndarray:
         """State vector in :class:`Layout` order."""
