@@ -351,9 +351,7 @@ class StereoRig:
             t[:3, :3] = r @ self.misalignment.rotation  # rotation about its own optical centre
         return t
 
-    def camera_in_world(
-        self, params: VehicleParams, pose: CombinationPose | ChainPose, which: Which
-    ) -> np.ndarray:
+    def camera_in_world(self, params: VehicleParams, pose: CombinationPose | ChainPose, which: Which) -> np.ndarray:
         """Pose ``T_world←camera`` of one camera at a combination pose, OpenCV camera axes.
 
         Parameters

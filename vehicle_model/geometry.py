@@ -78,7 +78,9 @@ def chain_pose(pose: CombinationPose | ChainPose) -> ChainPose:
     return ChainPose(x, y, psi1, (gamma,))
 
 
-def unit_frame(params: VehicleParams, pose: CombinationPose | ChainPose, unit: int = 1) -> tuple[np.ndarray, np.ndarray]:
+def unit_frame(
+    params: VehicleParams, pose: CombinationPose | ChainPose, unit: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
     """Kingpin position ``S + (2,)`` and heading ``S`` [rad] of towed unit ``unit`` (1: the first).
 
     The kingpin of unit ``k > 1`` is the fifth wheel of unit ``k − 1`` (:func:`trailer_frames`); pose fields that are
