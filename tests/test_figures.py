@@ -339,9 +339,49 @@ def test_the_offtracking_figure_shows_targets_bands_steer_camera_and_warm_up() -
         assert spans[0].get_x() + spans[0].get_width() == pytest.approx(8.0)
         labels = [text.get_text() for text in fig.axes[0].get_legend().get_texts()]
         assert labels[0].startswith("truth: 0.0") and "RMS" in labels[0] and "max after warm-up" in labels[0]
-        assert "viso_ot_fused: error 0.010 m RMS" in labels
+        assert "viso_ot_fused: error 0.010 m RMS after warm-up" in labels
         steer_label = fig.axes[2].get_legend().get_texts()[0].get_text()
         assert steer_label == f"trailer2: at its lock {np.mean(t > 10.0):.0%} of the time"
+    finally:
+        plt.close(fig)
+
+
+def test_the_offtracking_figure_shows_every_towed_unit_and_every_steered_axle() -> None:
+    """A B-double's figure: each trailer's off-tracking and error panels (the rear one included, with its own RMS),
+    and one steer panel with the axles of both trailers."""
+    from scenarios.loop.participant import Column
+    from scenarios.loop.schema import RecordedColumns
+
+    t = np.arange(0.0, 20.001, 0.1)
+    lead, rear = np.where(t >= 4.0, 0.02, np.nan), np.where(t >= 6.0, 0.3, np.nan)
+    values = {
+        "time": t,
+        "offtracking_truth": lead,
+        "offtracking_zero_slip": lead + 0.01,
+        "offtracking_truth3": rear,
+        "offtracking_zero_slip3": rear - 0.1,
+        "steer_lead2": np.full(t.size, 0.05),
+        "steer_rear2": np.full(t.size, -0.07),
+    }
+    schema = [
+        Column("time", "s", "", role="time"),
+        Column.estimate("truth", ""),
+        Column.estimate("zero_slip", ""),
+        Column.estimate("truth", "", vehicle_unit=3),
+        Column.estimate("zero_slip", "", vehicle_unit=3),
+        Column("steer_lead2", "rad", "", role="command", vehicle_unit=2),
+        Column("steer_rear2", "rad", "", role="command", vehicle_unit=3),
+    ]
+    fig = offtracking_figure(RecordedColumns(values, schema), ["zero_slip"], "B-double", settled=t >= 5.0)
+    try:
+        assert len(fig.axes) == 5  # two panels per trailer, one steer panel
+        assert _gids(fig, "truth:3") and _gids(fig, "estimate:zero_slip:3")
+        rear_labels = [text.get_text() for text in fig.axes[2].get_legend().get_texts()]
+        assert rear_labels == [
+            "unit 3: truth: 0.300 m RMS, 0.300 m max after warm-up",
+            "unit 3: zero_slip: error 0.100 m RMS after warm-up",
+        ]
+        assert {"steer:lead2", "steer:rear2"} <= {str(a.get_gid()) for a in fig.axes[4].get_children()}
     finally:
         plt.close(fig)
 

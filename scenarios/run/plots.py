@@ -190,6 +190,84 @@ def load_run(run_dir: Path) -> SavedRun:
     return SavedRun(run_dir, config, build_scenario(config), columns, metrics)
 
 
+def _towed_units(columns: dict[str, np.ndarray]) -> list[int]:
+    """The vehicle units with a true off-tracking, front to rear (2: the first towed unit)."""
+    units = sorted(unit for name, unit in estimate_columns(columns) if name == "truth")
+    return units or [FIRST_TOWED_UNIT]
+
+
+def _unit_label(unit: int, label: str) -> str:
+    """``label`` for the first towed unit, ``unit k: label`` for a unit behind it."""
+    return label if unit == FIRST_TOWED_UNIT else f"unit {unit}: {label}"
+
+
+def _offtracking_panels(
+    top: Any,
+    bottom: Any,
+    columns: dict[str, np.ndarray],
+    names: list[str],
+    unit: int,
+    settled: np.ndarray,
+) -> None:
+    """One towed unit's off-tracking (truth and estimates, ±2σ bands) and the estimates' errors, with the targets."""
+    from .verdicts import OFFTRACKING_TARGET_MAX_M, OFFTRACKING_TARGET_RMS_M
+
+    t = columns["time"]
+    estimates = estimate_columns(columns)
+    truth = columns[estimates["truth", unit].name]
+    truth_rms, peak = rms(truth[settled]), max_abs(truth[settled])
+    top.plot(
+        t,
+        truth,
+        color="k",
+        lw=1.6,
+        label=_unit_label(unit, f"truth: {truth_rms:.3f} m RMS, {peak:.3f} m max after warm-up"),
+        gid=f"truth:{unit}",
+    )
+    geometric = "offtracking_truth_geometric" if unit == FIRST_TOWED_UNIT else None
+    if geometric in columns:
+        top.plot(t, columns[geometric], color="0.5", lw=0.8, ls="--", label="truth (geometric)")
+    for name in names:
+        est = columns[estimates[name, unit].name]
+        colour = source_colour(name)
+        error = est - truth
+        top.plot(
+            t,
+            est,
+            lw=1.0,
+            color=colour,
+            label=_unit_label(unit, f"{name}: error {rms(error[settled]):.3f} m RMS after warm-up"),
+            gid=f"estimate:{name}:{unit}",
+        )
+        std_of = std_column(columns, name, unit)
+        std = None if std_of is None else columns[std_of.name]
+        if std is not None and np.isfinite(std).any():
+            suffix = "" if unit == FIRST_TOWED_UNIT else f":{unit}"
+            top.fill_between(
+                t,
+                est - 2 * std,
+                est + 2 * std,
+                color=colour,
+                alpha=0.18,
+                lw=0,
+                label=_unit_label(unit, f"{name} ±2σ"),
+                gid=f"sigma2:{name}{suffix}",
+            )
+        bottom.plot(t, error, lw=1.0, color=colour, label=_unit_label(unit, f"{name} − truth"))
+    top.axhline(0.0, color="k", lw=0.5)
+    bottom.axhline(0.0, color="k", lw=0.5)
+    for band, style, what in ((OFFTRACKING_TARGET_RMS_M, ":", "RMS"), (OFFTRACKING_TARGET_MAX_M, "--", "max")):
+        bottom.axhline(
+            band, color="tab:red", lw=0.7, ls=style, label=f"±{band:.2f} m {what} target", gid=f"target:{band:.2f}"
+        )
+        bottom.axhline(-band, color="tab:red", lw=0.7, ls=style)
+    which = "" if unit == FIRST_TOWED_UNIT else f"unit {unit} "
+    top.set_ylabel(f"{which}off-tracking e_tr [m]\n(+: follow point right of kingpin path)")
+    bottom.set_ylabel(f"{which}error [m]")
+    top.legend(loc="best", fontsize=7)
+    bottom.legend(loc="best", fontsize=7)
+
+
 def offtracking_figure(
     columns: dict[str, np.ndarray],
     estimator_names: list[str],
@@ -200,76 +278,51 @@ def offtracking_figure(
 ) -> Figure:
     """Off-tracking of the truth and every estimator against time, their errors, and what the loop did.
 
-    Panels, top to bottom: the off-tracking (each estimate with its ±2σ band where it gives a standard deviation;
-    the truth's RMS and max after warm-up and each estimator's RMS error in the legend); the errors against the
-    truth with the 0.10 m RMS and 0.15 m max targets labelled; the trailer's steer angles with their lock and the
-    share of time each sat there (runs that steer the trailer); the camera's matches and inliers per frame (camera
-    runs). The warm-up, before the truth exists and one trailer length after, is shaded and named in every panel.
-    Artists carry ``gid`` s: ``warmup``, ``sigma2:NAME``, ``target:0.10``, ``target:0.15``, ``steer:AXLE``,
-    ``steer_limit``, ``camera:matches``, ``camera:inliers``.
+    Panels, top to bottom: for every towed unit with a true off-tracking (the first, then each unit behind it), its
+    off-tracking (each estimate with its ±2σ band where it gives a standard deviation; the truth's RMS and max after
+    warm-up and each estimator's RMS error after warm-up in the legend) and the errors against the truth with the
+    0.10 m RMS and 0.15 m max targets labelled; then the towed units' steer angles with their lock and the share of
+    time each axle sat there (runs that steer a trailer); the camera's matches and inliers per frame (camera runs).
+    The warm-up, before the truth exists and one trailer length after, is shaded and named in every panel.
+    Artists carry ``gid`` s: ``warmup``, ``truth:UNIT``, ``estimate:NAME:UNIT``, ``sigma2:NAME`` (``sigma2:NAME:UNIT``
+    behind the first unit), ``target:0.10``, ``target:0.15``, ``steer:AXLE``, ``steer_limit``, ``camera:matches``,
+    ``camera:inliers``.
 
     Parameters
     ----------
     columns
         The run's time series.
     estimator_names
-        The estimators to draw (``offtracking_NAME``, and ``offtracking_NAME_std`` where there is one).
+        The estimators to draw (``offtracking_NAME``, and ``offtracking_NAME_std`` where there is one); behind the
+        first towed unit, those of them that estimate the unit.
     title
         The figure's title.
     settled
         Mask of the samples after warm-up (:func:`~scenarios.run.metrics.after_warmup`); default: where the truth
-        is defined.
+        is defined. Behind the first unit: also where that unit's truth is defined.
     max_steer_deg
         The trailer axles' lock [°], drawn as a limit (default: none drawn).
     """
-    from .verdicts import OFFTRACKING_TARGET_MAX_M, OFFTRACKING_TARGET_RMS_M
-
     t = columns["time"]
     truth = columns["offtracking_truth"]
     settled = np.isfinite(truth) if settled is None else np.asarray(settled, dtype=bool)
-    steers = [c.name for c in command_columns(columns, FIRST_TOWED_UNIT, "rad")]
+    units = _towed_units(columns)
+    estimates = estimate_columns(columns)
+    steers = [c.name for unit in units for c in command_columns(columns, unit, "rad")]
     steer_axles = [c.removeprefix("steer_") for c in steers if np.any(np.abs(columns[c]) > 1e-9)]
     camera = bool("vo_matches" in columns and np.isfinite(columns["vo_matches"]).any())
-    ratios = [2.0, 1.0] + [0.8] * bool(steer_axles) + [0.7] * camera
+    ratios = [2.0, 1.0] * len(units) + [0.8] * bool(steer_axles) + [0.7] * camera
     fig, axes = plt.subplots(len(ratios), 1, figsize=(10, 2.2 + 2.2 * sum(ratios)), sharex=True, height_ratios=ratios)
-    top, bottom = axes[0], axes[1]
-    truth_rms, peak = rms(truth[settled]), max_abs(truth[settled])
-    top.plot(t, truth, color="k", lw=1.6, label=f"truth: {truth_rms:.3f} m RMS, {peak:.3f} m max after warm-up")
-    top.plot(t, columns["offtracking_truth_geometric"], color="0.5", lw=0.8, ls="--", label="truth (geometric)")
-    estimates = estimate_columns(columns)
-    for name in estimator_names:
-        est = columns[estimates[name, FIRST_TOWED_UNIT].name]
-        colour = source_colour(name)
-        error = est - truth
-        top.plot(t, est, lw=1.0, color=colour, label=f"{name}: error {rms(error[settled]):.3f} m RMS")
-        std_of = std_column(columns, name)
-        std = None if std_of is None else columns[std_of.name]
-        if std is not None and np.isfinite(std).any():
-            top.fill_between(
-                t,
-                est - 2 * std,
-                est + 2 * std,
-                color=colour,
-                alpha=0.18,
-                lw=0,
-                label=f"{name} ±2σ",
-                gid=f"sigma2:{name}",
-            )
-        bottom.plot(t, error, lw=1.0, color=colour, label=f"{name} − truth")
-    top.axhline(0.0, color="k", lw=0.5)
-    bottom.axhline(0.0, color="k", lw=0.5)
-    for band, style, what in ((OFFTRACKING_TARGET_RMS_M, ":", "RMS"), (OFFTRACKING_TARGET_MAX_M, "--", "max")):
-        bottom.axhline(
-            band, color="tab:red", lw=0.7, ls=style, label=f"±{band:.2f} m {what} target", gid=f"target:{band:.2f}"
+    for k, unit in enumerate(units):
+        unit_settled = (
+            settled if unit == FIRST_TOWED_UNIT else settled & np.isfinite(columns[estimates["truth", unit].name])
         )
-        bottom.axhline(-band, color="tab:red", lw=0.7, ls=style)
-    top.set_ylabel("off-tracking e_tr [m]\n(+: follow point right of kingpin path)")
-    bottom.set_ylabel("error [m]")
+        names = [name for name in estimator_names if (name, unit) in estimates]
+        _offtracking_panels(axes[2 * k], axes[2 * k + 1], columns, names, unit, unit_settled)
+    top = axes[0]
     top.set_title(title)
-    top.legend(loc="best", fontsize=7)
-    bottom.legend(loc="best", fontsize=7)
     if steer_axles:
-        ax = axes[2]
+        ax = axes[2 * len(units)]
         for axle in steer_axles:
             steer = np.degrees(columns[f"steer_{axle}"])
             saturated = columns.get(f"saturated_{axle}")
