@@ -23,6 +23,7 @@ from rich.console import Console
 
 from scenarios.config import load_scenario
 from scenarios.export.animation import OfftrackingTrace, animate_run, animation_title, frame_times
+from scenarios.run.metrics import after_warmup
 from scenarios.run.plots import load_run, offtracking_figure, plot_plan_view
 from scenarios.run.runner import run_scenario
 from scenarios.run.swept_path import LIMIT_COLOURS, envelope_samples, swept_path_figure
@@ -135,6 +136,21 @@ def test_comparison_figure_overlays_trailer_envelopes(roundabout_run: Path) -> N
         assert {"envelope:trailer:none", "envelope:trailer:truth"} <= gids
         assert "FAIL" in fig._suptitle.get_text()
         assert _gids(fig, "extreme:inner:none") and _gids(fig, "extreme:inner:truth")
+    finally:
+        plt.close(fig)
+
+
+def test_comparison_figure_shows_the_units_behind_the_first(roundabout_run: Path) -> None:
+    """A run with a second towed unit's truth draws it too, labelled with that unit's own RMS after warm-up."""
+    run = load_run(roundabout_run)
+    frame = pd.read_parquet(roundabout_run / "timeseries.parquet")
+    frame["offtracking_truth3"] = 2.0 * frame["offtracking_truth"]
+    fig = comparison_figure(run.config, {"none": frame})
+    try:
+        (line,) = _gids(fig, "offtracking:none:3")
+        settled = after_warmup({c: frame[c].to_numpy() for c in frame.columns}, run.params.follow_point_offset)
+        expected = np.sqrt(np.mean((2.0 * frame["offtracking_truth"].to_numpy()[settled]) ** 2))
+        assert line.get_label() == f"none, unit 3: RMS {expected:.3f} m"
     finally:
         plt.close(fig)
 

@@ -21,6 +21,7 @@ from matplotlib.figure import Figure
 from vehicle_model.errors import InputError
 
 from ..config import ScenarioConfig, validate_config
+from ..loop.schema import FIRST_TOWED_UNIT, estimate_columns
 from ..registry import feedback_sources, source_colour
 from ..run.drive import ProgressCallback
 from ..run.figure_scale import zoom_half_width, zoom_to
@@ -268,6 +269,11 @@ def widest_spread(paths: dict[str, tuple[np.ndarray, np.ndarray]], samples: int 
     return mean[k], float(spread[k])
 
 
+def _units_behind(columns: dict[str, np.ndarray]) -> list[int]:
+    """The vehicle units behind the first towed unit that have a true off-tracking (3: the second towed unit)."""
+    return sorted(unit for name, unit in estimate_columns(columns) if name == "truth" and unit != FIRST_TOWED_UNIT)
+
+
 def comparison_figure(
     config: ScenarioConfig,
     traces: dict[str, pd.DataFrame],
@@ -275,8 +281,9 @@ def comparison_figure(
 ) -> Figure:
     """The steered and unsteered runs of one manoeuvre overlaid; the caller saves and closes the figure.
 
-    Left: true off-tracking of every run against time (``gid`` ``offtracking:<feedback>``), with the ±0.10/0.15 m
-    bands and each run's RMS after warm-up in the legend; the unsteered run (``none``) on its own right-hand axis
+    Left: true off-tracking of every run against time (``gid`` ``offtracking:<feedback>``; each unit behind the
+    first towed unit dotted, ``offtracking:<feedback>:<unit>``), with the ±0.10/0.15 m bands and each run's RMS
+    after warm-up in the legend; the unsteered run (``none``) on its own right-hand axis
     when it would flatten the others (:func:`dominant_feedback`). Right: a zoom, scaled to the difference it
     shows and with a scale bar, where the runs' trailer envelopes differ: the tractor's envelope (first run,
     grey) and every run's trailer envelope shaded in its feedback's colour (``envelope:trailer:<feedback>``) with
@@ -326,6 +333,18 @@ def comparison_figure(
             label=f"{feedback}{side}: RMS {rms(truth[settled]):.3f} m",
             gid=f"offtracking:{feedback}",
         )
+        for rank, unit in enumerate(_units_behind(cols)):
+            unit_truth = cols[f"offtracking_truth{unit}"]
+            unit_settled = settled & np.isfinite(unit_truth)
+            ax.plot(
+                cols["time"],
+                unit_truth,
+                color=source_colour(feedback),
+                lw=1.0,
+                ls=(":", "-.")[rank % 2],
+                label=f"{feedback}{side}, unit {unit}: RMS {rms(unit_truth[unit_settled]):.3f} m",
+                gid=f"offtracking:{feedback}:{unit}",
+            )
     draw_envelopes(
         zoom,
         params,
