@@ -87,6 +87,17 @@ def test_swept_path_figure_shows_verdict_radii_envelopes_and_instants(roundabout
         per_vehicle = len(vehicle_polygons(run.params, 0.0, 0.0, 0.0, 0.0))
         assert len([p for p in main.patches if p.get_gid() == "instant"]) == 4 * per_vehicle
         assert len(fig.axes) == 3  # main panel and a zoom on each extreme point
+        for zoom in fig.axes[1:]:  # each zoom names its envelopes and points to the turn centre
+            labels = [t.get_text() for t in zoom.get_legend().get_texts()]
+            assert {"tractor swept envelope", "trailer swept envelope"} <= set(labels)
+            (arrow,) = [a for a in zoom.texts if a.get_gid() == "turn-centre"]
+            tip, tail = np.asarray(arrow.xy), np.asarray(arrow.xyann)
+            data = zoom.transData.inverted().transform(zoom.transAxes.transform(np.vstack([tail, tip])))
+            towards = centre - data[0]
+            pointing = (data[1] - data[0]) / np.hypot(*(data[1] - data[0]))
+            assert pointing @ towards / np.hypot(*towards) > 0.99  # aimed at the circles' centre within 8°
+        time_labels = [a for a in main.texts if a.get_gid() == "instant:label"]
+        assert len(time_labels) == 4 and all(a.get_bbox_patch() is not None for a in time_labels)
     finally:
         plt.close(fig)
 

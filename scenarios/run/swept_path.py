@@ -240,13 +240,18 @@ def draw_envelopes(
             hatch=hatches.get(unit),
             hatchcolor=to_rgba(colours[unit], min(1.0, 2.0 * alpha)),
             lw=0.0,
-            label=label.format(unit=unit),
+            label=label.format(unit=unit_label(unit)),
             zorder=1,
         )
         patch.set_gid(gid.format(unit=unit))
         ax.add_patch(patch)
         patches[unit] = patch
     return patches
+
+
+def unit_label(unit: str) -> str:
+    """How a figure's legend names a unit of :func:`unit_names`: ``unit3`` is ``unit 3``."""
+    return f"unit {unit.removeprefix('unit')}" if unit.startswith("unit") else unit
 
 
 def unit_colour(unit: str) -> str:
@@ -285,7 +290,17 @@ def draw_vehicle(
         patches.append(patch)
     if label:
         front = tractor_points(params, columns["X"][k], columns["Y"][k], columns["psi1"][k], [[0.0, 0.0]])[0]
-        ax.annotate(label, front, xytext=(3, 3), textcoords="offset points", fontsize=7, color="0.2", zorder=6)
+        text = ax.annotate(
+            label,
+            front,
+            xytext=(3, 3),
+            textcoords="offset points",
+            fontsize=7,
+            color="0.2",
+            zorder=6,
+            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85},
+        )
+        text.set_gid(f"{gid}:label")
     return patches
 
 
@@ -483,6 +498,43 @@ def verdict_line(ext: dict[str, Any]) -> str:
     )
 
 
+def _towards_turn_centre(
+    columns: dict[str, np.ndarray], k: int, point: np.ndarray, centre: tuple[float, float] | None, sign: int
+) -> np.ndarray:
+    """Unit vector from ``point`` towards the turn centre: the test circles' centre, or else the side the tractor
+    yaws towards at sample ``k`` (its yaw rate's sign; the run's turn direction where it does not yaw)."""
+    if centre is not None:
+        towards = np.asarray(centre, dtype=float) - np.asarray(point, dtype=float)
+        norm = float(np.hypot(*towards))
+        if norm > 0.0:
+            return towards / norm
+    yaw_rate = float(columns["r1"][k]) if "r1" in columns else 0.0
+    side = float(np.sign(yaw_rate)) if abs(yaw_rate) > 1e-6 else float(sign or 1)
+    psi = float(columns["psi1"][k])
+    return side * np.array([-np.sin(psi), np.cos(psi)])
+
+
+def mark_turn_centre(ax: Axes, direction: np.ndarray) -> None:
+    """An arrow at the edge of a zoom pointing towards the turn centre (``gid`` ``turn-centre``)."""
+    d = np.asarray(direction, dtype=float)
+    tip, tail = 0.5 + 0.46 * d, 0.5 + 0.30 * d
+    arrow = ax.annotate(
+        "turn centre",
+        xy=tuple(tip),
+        xytext=tuple(tail),
+        xycoords="axes fraction",
+        textcoords="axes fraction",
+        ha="center",
+        va="center",
+        fontsize=7,
+        color="0.25",
+        arrowprops={"arrowstyle": "->", "color": "0.25", "lw": 1.0},
+        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85},
+        zorder=8,
+    )
+    arrow.set_gid("turn-centre")
+
+
 def swept_path_figure(
     params: VehicleParams,
     columns: dict[str, np.ndarray],
@@ -546,8 +598,11 @@ def swept_path_figure(
         dimension = np.asarray(swept_path.get("inner_point") or (np.nan, np.nan), dtype=float)
         clear = [dimension] if np.all(np.isfinite(dimension)) else []  # the width's label sits there
         label_angle = free_angle(annulus_centre, track, [ext["outer_point"], ext["inner_point"]], clear)
+    zoom_envelopes = {}
     for ax in (main, *zooms):
-        draw_envelopes(ax, params, columns)
+        patches = draw_envelopes(ax, params, columns)
+        if ax is not main:
+            zoom_envelopes[ax] = list(patches.values())
         _draw_paths(ax, params, columns, reference, annulus_centre, sign)
         if annulus_centre is not None:
             draw_circles(ax, annulus_centre, label_angle if ax is main else None)
@@ -567,7 +622,7 @@ def swept_path_figure(
                 "", near, xytext=point, arrowprops={"arrowstyle": "<->", "color": "k", "lw": 1.0}, zorder=7
             )
             arrow.set_gid("effect")
-            ax.legend(handles=[path_line, follow], loc="lower left", fontsize=7)
+            ax.legend(handles=[path_line, follow, *zoom_envelopes[ax]], loc="lower left", fontsize=7)
             ax.set_title(
                 f"largest true off-tracking: {effect:+.3f} m\nat t = {times[k]:.1f} s (follow point, green)",
                 fontsize=10,
@@ -576,7 +631,9 @@ def swept_path_figure(
             effect = float(ext[f"{kind}_margin"])  # the distance from the point to its limit circle
             which = "tractor outermost" if kind == "outer" else f"{_inner_name(ext)} innermost"
             ax.set_title(f"{which} point", fontsize=10)
+            ax.legend(handles=zoom_envelopes[ax], loc="lower left", fontsize=7)
         zoom_to(ax, point, zoom_half_width(effect))
+        mark_turn_centre(ax, _towards_turn_centre(columns, int(k), point, annulus_centre, sign))
     if ext is not None:
         for ax in (main, *zooms):
             _mark_extremes(ax, annulus_centre, ext, zoom=None if ax is main else focus[zooms.index(ax)][0])
