@@ -162,6 +162,8 @@ def test_comparison_figure_shows_the_units_behind_the_first(roundabout_run: Path
         settled = after_warmup({c: frame[c].to_numpy() for c in frame.columns}, run.params.follow_point_offset)
         expected = np.sqrt(np.mean((2.0 * frame["offtracking_truth"].to_numpy()[settled]) ** 2))
         assert line.get_label() == f"none, unit 3: RMS {expected:.3f} m"
+        legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+        assert {"±0.10 m RMS target", "±0.15 m max target"} <= set(legend)  # the target lines are named
     finally:
         plt.close(fig)
 

@@ -37,6 +37,7 @@ from ..run.swept_path import (
     inner_trailer_path,
     turn_sign,
 )
+from ..run.verdicts import OFFTRACKING_TARGET_MAX_M, OFFTRACKING_TARGET_RMS_M
 from ..setup.build import build_scenario
 from .progress import SweepProgress
 from .records import CaseRecord, CaseSpec
@@ -370,10 +371,10 @@ def comparison_figure(
             cols,
             units=("trailer",),
             colours={"trailer": colour},
-            alpha=0.14,
+            alpha=0.10,
             label=f"trailer envelope, {feedback}",
             gid=f"envelope:trailer:{feedback}",
-            hatches={"trailer": ("///", "\\\\\\", "|||", "---", "xx")[rank % 5]},
+            hatches={"trailer": None},  # faint fills; each run's inner path line tells them apart
         )
         inner = inner_trailer_path(params, cols, sign, centre)
         inner_paths[feedback] = (cols.get("path_progress", cols["time"]), inner)
@@ -403,9 +404,11 @@ def comparison_figure(
         focus, reach = widest_spread(steered if len(steered) >= 2 else inner_paths)
         zoom.set_title(f"where the trailer paths differ most: {reach:.3f} m from their mean", fontsize=10)
     zoom_to(zoom, focus, zoom_half_width(reach))
-    for band in (0.10, 0.15):
-        top.axhline(band, color="tab:red", lw=0.5, ls=":")
-        top.axhline(-band, color="tab:red", lw=0.5, ls=":")
+    for band, style, what in ((OFFTRACKING_TARGET_RMS_M, ":", "RMS"), (OFFTRACKING_TARGET_MAX_M, "--", "max")):
+        top.axhline(
+            band, color="0.35", lw=0.6, ls=style, label=f"±{band:.2f} m {what} target", gid=f"target:{band:.2f}"
+        )
+        top.axhline(-band, color="0.35", lw=0.6, ls=style)
     top.axhline(0.0, color="k", lw=0.5)
     top.set_xlabel("time [s]")
     top.set_ylabel("true off-tracking e_tr [m]")
@@ -423,7 +426,7 @@ def comparison_figure(
     zoom.set_xlabel("X [m]")
     zoom.set_ylabel("Y [m]")
     zoom.grid(alpha=0.25)
-    zoom.legend(fontsize=6.5, loc="upper left")
+    zoom.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncols=2)  # below: the zoom stays clear
     return fig
 
 
