@@ -32,7 +32,7 @@ from scenarios.studies.field_loop import (
     pooled_coverage,
     run_field_loop_case,
 )
-from scenarios.studies.figures_field_loop import cell_label, field_loop_figures
+from scenarios.studies.figures_field_loop import cell_label, coverage_axes, field_loop_figures
 from scenarios.studies.registry import STUDIES
 from scenarios.studies.section4 import FIELD_CONDITIONS, PAPER_SECTION4_MISALIGNMENT_DEG
 from sensor.datasheet import DATASHEET_BIAS_LIMITS, DATASHEET_NOISE
@@ -240,8 +240,36 @@ def test_figures_and_table_on_a_synthetic_table(tmp_path: Path) -> None:
     assert "1 of 6 cells pass" in text and "## Every case" in text
     assert "| roundabout-3 | dry | 5 | ideal | paper | 0 | 0.040 / 0.090 |" in text
     assert "| ideal | 6 | 89.5 | 70.0 / 99.0 |" in text  # the synthetic cells' coverages, all ideal
-    assert cell_label(table.iloc[0]) == "r3 dry 5% ideal s0"
-    assert cell_label({**table.iloc[0].to_dict(), "conditions": "field"}) == "r3 dry 5% field paper s0"
+    assert cell_label(table.iloc[0]) == "roundabout-3, dry, camber 5 %, ideal camera, seed 0"
+    assert (
+        cell_label({**table.iloc[0].to_dict(), "conditions": "field"})
+        == "roundabout-3, dry, camber 5 %, field camera (the paper's misalignment), seed 0"
+    )
+
+
+def test_the_coverage_figure_spans_the_band_labels_bars_and_explains_over_coverage() -> None:
+    """The band takes at least a quarter of the axis (not squeezed into 0–100 %), every bar shows its value, and the
+    legend says what a bar above the band means; a bar above the band is drawn in its own colour."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cells = cell_table(_synthetic_table())
+    fig = coverage_axes(cells, plt)
+    try:
+        ax = fig.axes[0]
+        low, high = ax.get_ylim()
+        assert (98.0 - 85.0) / (high - low) >= 0.25
+        values = [t.get_text() for t in ax.texts if t.get_gid() == "coverage:value"]
+        assert values == [f"{100 * c:.0f} %" for c in cells["coverage"]]
+        legend = " ".join(t.get_text() for t in ax.get_legend().get_texts())
+        assert "above: the std is too large" in legend and "below: the std is too small" in legend
+        bars = [p for p in ax.patches if p.get_gid() == "coverage"] or list(ax.containers[0])
+        over = [b for b, c in zip(bars, cells["coverage"], strict=True) if c > 0.98]
+        assert over and all(b.get_facecolor() == matplotlib.colors.to_rgba("tab:purple") for b in over)
+    finally:
+        plt.close(fig)
 
 
 def test_one_model_only_case_through_the_case_runner(tmp_path: Path) -> None:
@@ -286,3 +314,25 @@ def test_the_case_runner_reads_metrics_and_the_kinematic_std(tmp_path: Path, mon
     )
     assert row["fallback_fraction"] == 0.1 and row["verdict_held"] is True and row["verdict_flags"] == ""
     assert row["kinematic_trusted_fraction"] == 0.5 and row["kinematic_std_median_mps"] == pytest.approx(0.035)
+
+
+def test_log_axes_of_the_study_figures_read_in_metres() -> None:
+    """The log axes show 0.05 m, 0.1 m, … rather than powers of ten."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from scenarios.studies.figures_field_loop import _metres
+
+    fig, ax = plt.subplots()
+    try:
+        ax.plot([0, 1], [0.01, 0.6])
+        ax.set_yscale("log")
+        _metres(ax)
+        fig.canvas.draw()
+        labels = [t.get_text() for t in ax.get_yticklabels() if t.get_text()]
+        assert {"0.05 m", "0.1 m", "0.2 m"} <= set(labels)
+        assert not any("10^" in text or "$" in text for text in labels)
+    finally:
+        plt.close(fig)

@@ -10,8 +10,8 @@
 * ``table.md`` — rewritten as one row per cell with its acceptance (:func:`~.field_loop.cell_table`), the
   coverage over groups of cells (:func:`~.field_loop.pooled_coverage`), then every case.
 
-Cells are labelled ``r3 dry 0% field aligned s0`` (manoeuvre, surface, camber, conditions, alignment, seed); an
-ideal cell leaves the alignment out (``r3 ice 5% ideal s0``).
+Cells are labelled ``roundabout-3, dry, camber 0 %, field camera (aligned), seed 0`` (:func:`cell_label`); an ideal
+cell leaves the alignment out (``roundabout-3, ice, camber 5 %, ideal camera, seed 0``).
 """
 
 from __future__ import annotations
@@ -36,9 +36,6 @@ from .field_loop import (
     pooled_coverage,
 )
 
-SHORT_SCENARIOS = {"roundabout-3": "r3", "figure-eight": "f8"}
-"""Short names of the manoeuvres in the cell labels."""
-
 FEEDBACK_STYLE = {
     "viso_ot_fused": ("fused VISO-OT", source_colour("viso_ot_fused"), "o"),
     "zero_slip": ("zero-slip", source_colour("zero_slip"), "s"),
@@ -54,13 +51,30 @@ ESTIMATOR_ERRORS = (
 """Column, legend name, colour and marker of the estimators in ``field_loop_errors.png``."""
 
 
+ALIGNMENT_WORDS = {"aligned": "aligned", "paper": "the paper's misalignment"}
+"""How a cell label names a field cell's alignment."""
+
+
 def cell_label(row: pd.Series | dict[str, Any]) -> str:
-    """``r3 dry 0% field aligned s0``: manoeuvre, surface, camber [%], conditions, alignment (field cells) and seed."""
-    scenario = str(row["scenario"])
-    camber = f"{float(row['camber']):g}%"
+    """``roundabout-3, dry, camber 5 %, field camera (the paper's misalignment), seed 0``: manoeuvre, surface,
+    adverse camber, the camera's conditions (with the alignment of a field camera) and seed."""
     conditions = str(row["conditions"])
-    setting = f"{conditions} {row['alignment']}" if conditions == "field" else conditions
-    return f"{SHORT_SCENARIOS.get(scenario, scenario)} {row['surface']} {camber} {setting} s{int(row['seed'])}"
+    alignment = str(row["alignment"])
+    camera = (
+        f"field camera ({ALIGNMENT_WORDS.get(alignment, alignment)})"
+        if conditions == "field"
+        else f"{conditions} camera"
+    )
+    return f"{row['scenario']}, {row['surface']}, camber {float(row['camber']):g} %, {camera}, seed {int(row['seed'])}"
+
+
+def _metres(ax: Any) -> None:
+    """Plain tick labels in metres on a log axis (1, 2 and 5 per decade), not powers of ten."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    ax.yaxis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g} m"))
+    ax.yaxis.set_minor_formatter(NullFormatter())
 
 
 def _positive(values: Any) -> np.ndarray:
@@ -70,7 +84,7 @@ def _positive(values: Any) -> np.ndarray:
 
 def _axes(plt: Any, n_cells: int, rows: int) -> tuple[Any, Any]:
     width = max(8.0, 0.42 * n_cells + 5.0)  # room for the legend on the right
-    fig, axes = plt.subplots(rows, 1, figsize=(width, 3.2 * rows + 1.2), squeeze=False, sharex=True)
+    fig, axes = plt.subplots(rows, 1, figsize=(width, 3.2 * rows + 3.0), squeeze=False, sharex=True)
     return fig, axes[:, 0]
 
 
@@ -93,7 +107,8 @@ def offtracking_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
             ax.plot(x + 0.2 * (k - 1), values, marker, color=colour, ms=6, label=f"{legend} feedback")
         ax.axhline(target, color="tab:red", lw=1.0, ls="--", label=f"target {target:.2f} m")
         ax.set_yscale("log")
-        ax.set_ylabel(f"true e_tr {name} after warm-up [m]")
+        _metres(ax)
+        ax.set_ylabel(f"true off-tracking, {name} after warm-up (log)")
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     _cell_ticks(axes[-1], labels)
@@ -103,8 +118,12 @@ def offtracking_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
     plt.close(fig)
 
 
-def coverage_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
-    """``field_loop_coverage.png``: the fused estimate's share of errors within 2σ per cell, with the target band."""
+def coverage_axes(cells: pd.DataFrame, plt: Any) -> Any:
+    """The figure of :func:`coverage_figure` (the caller saves and closes it).
+
+    The axis spans the cells' coverages and the band, not 0–100 %, so the band is not squeezed; each bar carries its
+    value; the legend says what a bar below or above the band means.
+    """
     labels = [cell_label(r) for _, r in cells.iterrows()]
     x = np.arange(len(cells))
     lo, hi = COVERAGE_BAND
@@ -113,14 +132,44 @@ def coverage_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
     ax.axhspan(100 * lo, 100 * hi, color="tab:green", alpha=0.15, lw=0, label=f"target {100 * lo:.0f}–{100 * hi:.0f} %")
     coverage = 100 * np.asarray(cells["coverage"], dtype=float)
     inside = (coverage >= 100 * lo) & (coverage <= 100 * hi)
-    ax.bar(x, coverage, 0.6, color=np.where(inside, "tab:blue", "tab:red"))
-    ax.set_ylim(0.0, 100.0)
+    colours = np.where(inside, "tab:blue", np.where(coverage > 100 * hi, "tab:purple", "tab:red"))
+    bottom = min(100 * lo, float(np.nanmin(coverage)) if np.isfinite(coverage).any() else 100 * lo) - 10.0
+    bottom = max(0.0, 5.0 * np.floor(bottom / 5.0))
+    bars = ax.bar(x, coverage - bottom, 0.6, bottom=bottom, color=colours, gid="coverage")
+    for bar, value in zip(bars, coverage, strict=True):
+        text = "—" if not np.isfinite(value) else f"{value:.0f} %"
+        ax.annotate(
+            text,
+            (bar.get_x() + bar.get_width() / 2, bottom + (value - bottom if np.isfinite(value) else 0.0)),
+            xytext=(0, 2),
+            textcoords="offset points",
+            ha="center",
+            va="bottom",
+            fontsize=7,
+            gid="coverage:value",
+        )
+    from matplotlib.patches import Patch
+
+    handles = [
+        *ax.get_legend_handles_labels()[0],
+        Patch(color="tab:blue", label="within the band: the std covers the error"),
+        Patch(color="tab:red", label="below: the std is too small (overconfident)"),
+        Patch(color="tab:purple", label="above: the std is too large (it hides\nhow good the estimate is)"),
+    ]
+    ax.set_ylim(bottom, 101.0)
     ax.set_ylabel("fused errors within 2σ [%]")
     ax.grid(alpha=0.3, axis="y")
-    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     _cell_ticks(ax, labels)
-    fig.suptitle("field-loop: coverage of the fused VISO-OT standard deviation (red: outside the band)")
+    fig.suptitle("field-loop: coverage of the fused VISO-OT standard deviation")
     fig.tight_layout()
+    return fig
+
+
+def coverage_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
+    """``field_loop_coverage.png``: the fused estimate's share of errors within 2σ per cell, with the target band
+    (:func:`coverage_axes`)."""
+    fig = coverage_axes(cells, plt)
     fig.savefig(out_dir / "field_loop_coverage.png", dpi=110)
     plt.close(fig)
 
@@ -141,7 +190,8 @@ def errors_figure(table: pd.DataFrame, cells: pd.DataFrame, out_dir: Path, plt: 
         ax.plot(x + 0.2 * (k - 1), _positive(values), marker, color=colour, ms=6, label=legend)
     ax.axhline(TARGET_RMS_M, color="tab:red", lw=1.0, ls="--", label=f"target {TARGET_RMS_M:.2f} m")
     ax.set_yscale("log")
-    ax.set_ylabel("off-tracking error RMS [m]")
+    _metres(ax)
+    ax.set_ylabel("off-tracking error, RMS after warm-up (log)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     _cell_ticks(ax, labels)
