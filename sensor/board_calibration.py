@@ -9,7 +9,7 @@ Heikkilä's distortion model, then the pair, all with OpenCV):
    and each left photo has a right partner — each failure is one :class:`~vehicle_model.errors.InputError` naming the
    files.
 3. **Detection** (:func:`detect_view`): a checkerboard by ``cv2.findChessboardCorners`` (``findChessboardCornersSB``
-   as a fallback) and ``cv2.cornerSubPix`` with a window fitted to the view (:func:`corner_window_for`), the right
+   as a fallback) and ``cv2.cornerSubPix`` with a window fitted to each corner (:func:`corner_windows`), the right
    photo's corners put in the left one's order (a checkerboard's corner list may start at either end); a ChArUco
    board by ``cv2.aruco.CharucoDetector``, keeping the corners both photos see (by their ids).
 4. **Solve** (:func:`calibrate_views`): ``cv2.calibrateCamera`` per camera (first with k3 fixed, then k3 freed from
@@ -49,7 +49,9 @@ __all__ = [
     "calibrate_photos",
     "calibrate_views",
     "corner_window_for",
+    "corner_windows",
     "detect_view",
+    "refine_corners",
 ]
 
 MIN_CHARUCO_CORNERS = 6
@@ -277,8 +279,8 @@ def _chessboard(image: np.ndarray, pattern: BoardPattern, corner_window: int | N
     """Checkerboard corners ``(rows·cols, 2)`` in OpenCV's order, or None if not found.
 
     ``cv2.findChessboardCorners`` (adaptive threshold, normalised), ``cv2.findChessboardCornersSB`` (Duda & Frese
-    2018) when it fails, then ``cv2.cornerSubPix`` with a half-window of ``corner_window`` px, by default
-    :func:`corner_window_for` the view.
+    2018) when it fails, then ``cv2.cornerSubPix`` with a half-window of ``corner_window`` px, by default fitted to
+    each corner (:func:`corner_windows`).
     """
     size = (pattern.cols, pattern.rows)
     found, corners = cv2.findChessboardCorners(
@@ -288,21 +290,19 @@ def _chessboard(image: np.ndarray, pattern: BoardPattern, corner_window: int | N
         found, corners = cv2.findChessboardCornersSB(image, size, flags=cv2.CALIB_CB_NORMALIZE_IMAGE)
         if not found:
             return None
-    corners = np.asarray(corners, dtype=np.float32).reshape(-1, 1, 2)
-    half = corner_window if corner_window is not None else corner_window_for(corners.reshape(-1, 2), pattern)
-    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-4)
-    corners = cv2.cornerSubPix(image, corners, (half, half), (-1, -1), criteria)
-    return corners.reshape(-1, 2).astype(np.float64)
+    corners = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
+    if corner_window is None:
+        windows = corner_windows(corners, pattern)
+    else:
+        windows = np.full(len(corners), int(corner_window))
+    return refine_corners(image, corners, windows)
 
 
 def corner_window_for(corners: np.ndarray, pattern: BoardPattern) -> int:
-    """``cv2.cornerSubPix``'s half-window for a view [px]: a third of its smallest corner spacing, 2–11 px.
+    """``cv2.cornerSubPix``'s half-window for a whole view [px]: a third of its smallest corner spacing, 2–11 px.
 
-    The window must hold the corner's four edges but none of its neighbours' (whose gradients pull the corner
-    towards them). OpenCV's calibration sample uses 11 on every view; on the foreshortened views of its own stereo
-    set (corners 19–22 px apart) that window reaches the next corners, and the view's reprojection error and the
-    focal length move with it; a third of the spacing keeps every view at the error of the others
-    (docs/real_cameras.md gives the figures).
+    The rule before :func:`corner_windows` (which fits the window to each corner); kept for ``--corner-window``'s
+    documentation of what a fixed window does and for comparison.
     """
     grid = np.asarray(corners, dtype=float).reshape(pattern.rows, pattern.cols, 2)
     spacing = min(
@@ -310,6 +310,80 @@ def corner_window_for(corners: np.ndarray, pattern: BoardPattern) -> int:
         float(np.linalg.norm(np.diff(grid, axis=0), axis=-1).min()),
     )
     return int(np.clip(spacing / 3.0, 2, 11))
+
+
+CORNER_WINDOW_RANGE = (2, 11)
+"""Smallest and largest half-window of :func:`corner_windows` [px]."""
+EDGE_CLEARANCE_PX = 1.5
+"""How far inside the nearest edge that does not pass through a corner its window stops [px] (blur spreads an
+edge's gradient over about a pixel each side)."""
+
+
+def _padded_grid(grid: np.ndarray) -> np.ndarray:
+    """The corner grid ``(rows, cols, 2)`` with one more row and column of corners on each side, extrapolated
+    linearly: the outer squares' far corners (the board's printed squares beyond the inner corners)."""
+    rows, cols, _ = grid.shape
+    out = np.empty((rows + 2, cols + 2, 2))
+    out[1:-1, 1:-1] = grid
+    out[0, 1:-1] = 2.0 * grid[0] - grid[1]
+    out[-1, 1:-1] = 2.0 * grid[-1] - grid[-2]
+    out[:, 0] = 2.0 * out[:, 1] - out[:, 2]
+    out[:, -1] = 2.0 * out[:, -2] - out[:, -3]
+    return out
+
+
+def corner_windows(corners: np.ndarray, pattern: BoardPattern, samples: int = 64) -> np.ndarray:
+    """``cv2.cornerSubPix``'s half-window for each corner [px]: as large as a third of its own spacing allows while
+    no edge that does not pass through the corner enters its window.
+
+    ``cornerSubPix`` finds the point where the image gradients of its window all point at it: a corner's four edges
+    do, any other edge in the window pulls the result towards it. Under strong foreshortening the squares become
+    slanted parallelograms and the far edges of the four squares about a corner come much nearer to it than the
+    corners do, so a rule on the spacing alone (:func:`corner_window_for`) lets them in. Here each corner's
+    half-window is the smaller of a third of the distance to its nearest neighbouring corner and the window's own
+    (Chebyshev) distance to the nearest of those far edges less :data:`EDGE_CLEARANCE_PX`, clipped to
+    :data:`CORNER_WINDOW_RANGE`. The squares beyond the outer corners are extrapolated (:func:`_padded_grid`).
+
+    Parameters
+    ----------
+    corners
+        ``(rows·cols, 2)`` detected corners in OpenCV's row-major order.
+    pattern
+        The board.
+    samples
+        Points per far edge at which the window's distance is measured.
+    """
+    rows, cols = pattern.rows, pattern.cols
+    grid = _padded_grid(np.asarray(corners, dtype=float).reshape(rows, cols, 2))
+    centre = grid[1:-1, 1:-1]  # (rows, cols, 2)
+    t = np.linspace(0.0, 1.0, samples)[:, None]
+    nearest_edge = np.full((rows, cols), np.inf)
+    nearest_corner = np.full((rows, cols), np.inf)
+    for di in (-1, 1):
+        for dj in (-1, 1):
+            a = grid[1 + di : rows + 1 + di, 1:-1]  # the neighbour along a column
+            b = grid[1:-1, 1 + dj : cols + 1 + dj]  # the neighbour along a row
+            d = grid[1 + di : rows + 1 + di, 1 + dj : cols + 1 + dj]  # the square's far corner
+            for start in (a, b):
+                points = start[..., None, :] + t * (d - start)[..., None, :]  # (rows, cols, samples, 2)
+                chebyshev = np.abs(points - centre[..., None, :]).max(axis=-1).min(axis=-1)
+                nearest_edge = np.minimum(nearest_edge, chebyshev)
+            for neighbour in (a, b):
+                nearest_corner = np.minimum(nearest_corner, np.linalg.norm(neighbour - centre, axis=-1))
+    lo, hi = CORNER_WINDOW_RANGE
+    window = np.minimum(nearest_corner / 3.0, nearest_edge - EDGE_CLEARANCE_PX)
+    return np.clip(np.floor(window), lo, hi).astype(int).ravel()
+
+
+def refine_corners(image: np.ndarray, corners: np.ndarray, windows: np.ndarray) -> np.ndarray:
+    """``cv2.cornerSubPix`` of each corner with its own half-window (:func:`corner_windows`), ``(n, 2)``."""
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-4)
+    out = np.asarray(corners, dtype=np.float32).reshape(-1, 1, 2).copy()
+    for half in np.unique(windows):
+        chosen = np.flatnonzero(windows == half)
+        refined = cv2.cornerSubPix(image, np.ascontiguousarray(out[chosen]), (int(half), int(half)), (-1, -1), criteria)
+        out[chosen] = refined
+    return out.reshape(-1, 2).astype(np.float64)
 
 
 def detect_view(

@@ -224,7 +224,8 @@ def calibrate(
     min_views: Annotated[int, typer.Option(help="Fewest views with the board in both photos.")] = 5,
     alpha: Annotated[float, typer.Option(help="stereoRectify's free scaling: 0 valid pixels only, 1 all.")] = 0.0,
     corner_window: Annotated[
-        int | None, typer.Option(help="cornerSubPix half-window [px] (default: a third of the corner spacing).")
+        int | None,
+        typer.Option(help="cornerSubPix half-window [px] for all corners (default: one per corner, 2–11 px)."),
     ] = None,
     reject_outliers: Annotated[
         bool, typer.Option("--reject-outliers/--keep-outliers", help="Reject views whose RMS is far above the median.")
