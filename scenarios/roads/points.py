@@ -70,7 +70,9 @@ def read_bounded(file: Path, source: str) -> bytes:
                 f"road file {source} is {size} bytes; a road file holds at most {MAX_FILE_BYTES} ({MAX_POINTS} points)"
             )
         with file.open("rb") as stream:
-            data = stream.read(MAX_FILE_BYTES + 1)
+            data = stream.read(size + 1)  # a read allocates what it asks for: the file's size, not the bound
+            if len(data) > size:  # grown since its stat: the rest, within the bound
+                data += stream.read(MAX_FILE_BYTES + 1 - len(data))
     except OSError as exc:
         raise RoadFileError(f"road file {source} cannot be read: {exc.strerror or exc}") from None
     if len(data) > MAX_FILE_BYTES:

@@ -26,6 +26,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.ndimage import gaussian_filter1d
 
+from ..extras import require
 from .points import RoadFileError, RoadPoints
 from .reading import read_road_points
 
@@ -160,7 +161,7 @@ def check_curve(
         i = int(np.argmax(turn > allowed))
         raise RoadFileError(
             f"road file {source}: the road turns by {math.degrees(turn[i]):.0f}° between two samples {at(i)}, "
-            "doubling back on itself; a road runs one way, with radii of at least {MIN_RADIUS:g} m: "
+            f"doubling back on itself; a road runs one way, with radii of at least {MIN_RADIUS:g} m: "
             "correct the points"
         )
 
@@ -203,6 +204,8 @@ def checked_road(file: str | Path, smoothing: float, road: str | None = None, la
     RoadFileError
         A bad file or a curve no combination can drive; one line naming the file and the place.
     """
+    if Path(file).suffix.lower() == ".xodr":  # asked every time: a remembered road does not hide a missing extra
+        require("pyxodr", "opendrive", f"road file {file}: reading OpenDRIVE")
     try:
         stat = Path(file).stat()
     except OSError:  # read_road_points names what is wrong with it
