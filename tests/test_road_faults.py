@@ -83,8 +83,16 @@ def test_a_non_utf8_or_oversized_road_file_is_named(tmp_path, monkeypatch):
     road = tmp_path / "road.csv"
     road.write_bytes(b"x,y\n0,0\n\xff\xfe,1\n")
     assert "is not UTF-8 text" in _refused(road)
+    road.write_text("x,y\n" + "\n".join(f"{x},0" for x in range(20)) + "\n")
+    geojson = tmp_path / "road.geojson"
+    geojson.write_text(json.dumps({"type": "LineString", "crs": CRS, "coordinates": LINE[:20]}))
+    for module in ("points", "polylines"):
+        monkeypatch.setattr(f"scenarios.roads.{module}.MAX_POINTS", 10)
+    assert "has more than 10 points" in _refused(road)
+    assert "has more than 10 points" in _refused(geojson)  # parsed, then counted
+    monkeypatch.setattr("scenarios.roads.polylines._OTHER_LISTS", 0)
+    assert "holds more than 10 positions" in _refused(geojson)  # counted before it is parsed
     monkeypatch.setattr("scenarios.roads.points.MAX_FILE_BYTES", 10)
-    road.write_text("x,y\n0,0\n100,0\n")
     assert "a road file holds at most 10" in _refused(road)
 
 

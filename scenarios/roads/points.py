@@ -83,7 +83,7 @@ def read_bounded(file: Path, source: str) -> bytes:
 def check_count(source: str, count: int) -> None:
     """Refuse more than :data:`MAX_POINTS` points before they are converted."""
     if count > MAX_POINTS:
-        raise RoadFileError(f"road file {source} has {count} points; a road has at most {MAX_POINTS}")
+        raise RoadFileError(f"road file {source} has more than {MAX_POINTS} points, the most a road has")
 
 
 def check_values(source: str, column: str, values: np.ndarray, label: Callable[[int], str]) -> None:

@@ -15,6 +15,7 @@ naming the member, never a traceback.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import re
@@ -23,11 +24,15 @@ from typing import Any
 
 import numpy as np
 
-from .points import COLUMNS, RoadFileError, RoadPoints, check_count, finite_number, read_bounded
+from .points import COLUMNS, MAX_POINTS, RoadFileError, RoadPoints, check_count, finite_number, read_bounded
 
 GEOGRAPHIC_CRS = ("crs84", "4326", "4258", "4269", "4979")
 """The endings (OGC CRS84 or an EPSG code) of the geographic (degree) coordinate systems a GeoJSON ``crs`` is refused
 for."""
+_OTHER_LISTS = 1024
+"""Lists a GeoJSON road may hold besides one a position (its features, properties, crs and the like)."""
+_ITEMS_A_POINT = 6
+"""Commas a GeoJSON road may hold a point: two for its position, three for its speed, crossfall and μ, one spare."""
 MAX_JSON_DEPTH = 64
 """Deepest nesting of a GeoJSON road: a FeatureCollection's coordinates nest five levels."""
 
@@ -50,31 +55,35 @@ def _number(text: str, source: str, row: int, column: str) -> float:
 
 
 def read_csv(file: Path, source: str) -> RoadPoints:
-    """The points of a CSV road (module docstring)."""
+    """The points of a CSV road (module docstring), converted row by row into an array bounded by the file's lines
+    and :data:`~scenarios.roads.points.MAX_POINTS`."""
     text = _text(file, source)
+    rows = (r for r in csv.reader(io.StringIO(text)) if any(c.strip() for c in r))
     try:
-        rows = [r for r in csv.reader(text.splitlines()) if any(c.strip() for c in r)]
+        first = next(rows, None)
+        if first is None:
+            raise RoadFileError(f"road file {source} is empty: it needs a header row x,y[,speed,crossfall,mu]")
+        header = [c.strip().lower() for c in first]
+        if "x" not in header or "y" not in header:
+            raise RoadFileError(
+                f"road file {source} row 1: no header naming the columns x and y (optional speed, crossfall, mu); "
+                f"found {first!r:.80}"
+            )
+        unknown = [c for c in header if c not in COLUMNS]
+        if unknown or len(set(header)) != len(header):
+            what = f"unknown column {unknown[0]!r:.80}" if unknown else "a column named twice"
+            raise RoadFileError(f"road file {source} row 1: {what}; the columns are {', '.join(COLUMNS)}")
+        values = np.empty((min(text.count("\n") + text.count("\r") + 1, MAX_POINTS + 1), len(header)))
+        count = 0
+        for i, row in enumerate(rows, start=2):
+            check_count(source, count + 1)
+            if len(row) != len(header):
+                raise RoadFileError(f"road file {source} row {i}: {len(row)} fields, the header has {len(header)}")
+            values[count] = [_number(t.strip(), source, i, c) for t, c in zip(row, header, strict=True)]
+            count += 1
     except csv.Error as exc:
         raise RoadFileError(f"road file {source} is not CSV: {exc}") from None
-    if not rows:
-        raise RoadFileError(f"road file {source} is empty: it needs a header row x,y[,speed,crossfall,mu]")
-    header = [c.strip().lower() for c in rows[0]]
-    if "x" not in header or "y" not in header:
-        raise RoadFileError(
-            f"road file {source} row 1: no header naming the columns x and y (optional speed, crossfall, mu); "
-            f"found {rows[0]!r:.80}"
-        )
-    unknown = [c for c in header if c not in COLUMNS]
-    if unknown or len(set(header)) != len(header):
-        what = f"unknown column {unknown[0]!r:.80}" if unknown else "a column named twice"
-        raise RoadFileError(f"road file {source} row 1: {what}; the columns are {', '.join(COLUMNS)}")
-    check_count(source, len(rows) - 1)
-    values = np.empty((len(rows) - 1, len(header)))
-    for i, row in enumerate(rows[1:], start=2):
-        if len(row) != len(header):
-            raise RoadFileError(f"road file {source} row {i}: {len(row)} fields, the header has {len(header)}")
-        values[i - 2] = [_number(t.strip(), source, i, c) for t, c in zip(row, header, strict=True)]
-    columns = {c: values[:, header.index(c)] for c in header}
+    columns = {c: values[:count, header.index(c)] for c in header}
     return RoadPoints(
         source,
         np.column_stack([columns["x"], columns["y"]]),
@@ -150,8 +159,14 @@ def _crs(data: dict[str, Any], source: str) -> str | None:
 
 def read_geojson(file: Path, source: str) -> RoadPoints:
     """The points of a GeoJSON road (module docstring)."""
+    text = _text(file, source)
+    if text.count("[") > MAX_POINTS + _OTHER_LISTS or text.count(",") > _ITEMS_A_POINT * MAX_POINTS:
+        raise RoadFileError(
+            f"road file {source} holds more than {MAX_POINTS} positions (counted by its brackets and commas, before "
+            "it is parsed), the most a road has"
+        )
     try:
-        data = json.loads(_text(file, source))
+        data = json.loads(text)
     except (ValueError, RecursionError) as exc:  # a syntax error, an integer beyond Python's digits, deep nesting
         raise RoadFileError(f"road file {source} is not readable JSON: {str(exc)[:120]}") from None
     _depth(data, source)
