@@ -194,8 +194,19 @@ XODR = (ROADS / "line-arc.xodr").read_text()
         ('<arc curvature="0.04"/>', '<spiral curvStart="0.04" curvEnd="0.04"/>', "curvStart = curvEnd = 0.04"),
         ('<arc curvature="0.04"/>', '<spiral curvStart="0" curvEnd="30"/>', "curvEnd = 30 1/m is beyond ±1"),
         ('hdg="0.0" length="30.0"', 'hdg="abc" length="30.0"', "hdg = 'abc' is not a number"),
+        ('<arc curvature="0.04"/>', "", "geometry 1: 0 shapes"),
     ],
-    ids=["tight-arc", "zero-arc", "nan-arc", "negative-length", "huge-length", "flat-spiral", "tight-spiral", "hdg"],
+    ids=[
+        "tight-arc",
+        "zero-arc",
+        "nan-arc",
+        "negative-length",
+        "huge-length",
+        "flat-spiral",
+        "tight-spiral",
+        "hdg",
+        "no-shape",
+    ],
 )
 def test_a_bad_opendrive_element_is_refused_and_pyxodr_writes_nothing(tmp_path, monkeypatch, old, new, message):
     pytest.importorskip("pyxodr")

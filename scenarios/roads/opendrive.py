@@ -5,13 +5,13 @@ chosen road (``path.road``, default the file's first), or the centre line of one
 direction of traffic. Speeds, superelevation and friction of the file are not read.
 
 Before pyxodr is given the file, its XML is parsed here and every ``planView/geometry`` of every road checked
-(:func:`check_plan_view`): a finite start and heading, a length in (0, :data:`~scenarios.roads.points.MAX_LENGTH`]
-(the roads' lengths together within it too), an arc's curvature and a spiral's end curvatures finite and at most
-:data:`MAX_CURVATURE` in magnitude, an arc's curvature not zero and a spiral's two ends not equal (pyxodr divides by
-both). pyxodr samples each element at :data:`XODR_RESOLUTION` and, when its first sample turns away from the
-element's heading (its unit direction 0.1 away from the heading's), plots the element into a PDF in the working
-directory and raises. An element's samples are less than ``3·XODR_RESOLUTION`` apart, so within these bounds its
-first sample turns by less than ``MAX_CURVATURE · 1.5·XODR_RESOLUTION`` rad (a unit direction under 0.08 away): that
+(:func:`check_plan_view`): a finite start and heading, a length in (0, :data:`~scenarios.roads.points.MAX_LENGTH`] (the
+roads' lengths together within it too), one shape of :data:`GEOMETRIES`, an arc's curvature and a spiral's end
+curvatures finite and at most :data:`MAX_CURVATURE` in magnitude, an arc's curvature not zero and a spiral's two ends
+not equal (pyxodr divides by both). pyxodr samples each element at :data:`XODR_RESOLUTION` and, when its first sample
+turns away from the element's heading (its unit direction 0.1 away from the heading's), plots the element into a PDF in
+the working directory and raises. An element's samples are less than ``3·XODR_RESOLUTION`` apart, so within these bounds
+its first sample turns by less than ``MAX_CURVATURE · 1.5·XODR_RESOLUTION`` rad (a unit direction under 0.08 away): that
 check never fires and nothing is written, without touching pyxodr's internals or the process's working directory.
 """
 
@@ -28,6 +28,8 @@ from .points import MAX_LENGTH, SAME_POINT, RoadFileError, RoadPoints, read_boun
 
 XODR_RESOLUTION = 0.05
 """Spacing [m] at which pyxodr samples an OpenDRIVE line (linear between samples: 0.3 µm off an arc of 1 km⁻¹)."""
+GEOMETRIES = ("line", "arc", "spiral", "poly3", "paramPoly3")
+"""The shapes of an OpenDRIVE plan-view geometry (OpenDRIVE 1.6, §7.4-7.8), one to a geometry."""
 MAX_CURVATURE = 1.0
 """Largest curvature [1/m] of an arc or a spiral's end anywhere in an OpenDRIVE file: a radius below 1 m is no road,
 not even a junction's kerb line (the road driven is held to a 5 m radius after smoothing besides)."""
@@ -67,6 +69,11 @@ def check_plan_view(root: Any, source: str) -> None:
                 raise RoadFileError(
                     f"road file {source} {where}: length = {length:g} m; an element is longer than 0 and the file's "
                     f"elements together at most {MAX_LENGTH:g} m"
+                )
+            shapes = [child.tag for child in geometry if child.tag in GEOMETRIES]
+            if len(shapes) != 1:
+                raise RoadFileError(
+                    f"road file {source} {where}: {len(shapes)} shapes; a geometry holds one of {', '.join(GEOMETRIES)}"
                 )
             for kind, names in (("arc", ("curvature",)), ("spiral", ("curvStart", "curvEnd"))):
                 element = geometry.find(kind)
@@ -111,7 +118,7 @@ def read_xodr(file: Path, source: str, road: str | None, lane: int | None) -> Ro
         roads = network.get_roads()
     except etree.XMLSyntaxError as exc:
         raise RoadFileError(f"road file {source} is not valid XML: {exc}") from None
-    except (KeyError, ValueError, TypeError, AttributeError, IndexError, ZeroDivisionError) as exc:
+    except (KeyError, ValueError, TypeError, AttributeError, IndexError, ZeroDivisionError, NotImplementedError) as exc:
         raise RoadFileError(f"road file {source} is not an OpenDRIVE file pyxodr can read: {exc!r:.200}") from None
     if not roads:
         raise RoadFileError(f"road file {source} has no road")
@@ -136,6 +143,8 @@ def read_xodr(file: Path, source: str, road: str | None, lane: int | None) -> Ro
             where = f"road {chosen.id} lane {lane}"
     except NotImplementedError:
         raise RoadFileError(f"road file {source}: road {chosen.id} has a geometry pyxodr does not read") from None
+    except RoadFileError:
+        raise
     except (KeyError, ValueError, TypeError, AttributeError, IndexError, ZeroDivisionError) as exc:
         raise RoadFileError(f"road file {source}: road {chosen.id} cannot be sampled by pyxodr: {exc!r:.200}") from None
     keep = np.concatenate([[True], np.hypot(*np.diff(line, axis=0).T) > SAME_POINT])

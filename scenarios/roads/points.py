@@ -25,8 +25,8 @@ MIN_LENGTH = 10.0
 """Shortest road [m], along its points: a road shorter than the shortest combination ends the run before its first
 trailer is on it, and its smoothed curve is mostly the straight extensions of its ends."""
 MAX_LENGTH = 100_000.0
-"""Longest road [m], along its points: the smoothing holds the curve every centimetre, so its memory grows with the
-length; 100 km is over an hour at a truck's 90 km/h."""
+"""Longest road [m], along its points: beyond an hour's drive at a truck's 90 km/h (``duration_s`` holds at most an
+hour); the smoothing holds the curve every centimetre, so its memory grows with the length."""
 MAX_POINTS = 1_000_000
 """Most points a road file may give: ten a metre over the longest road."""
 MAX_FILE_BYTES = 64 * 1024 * 1024

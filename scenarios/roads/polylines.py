@@ -39,7 +39,7 @@ MAX_JSON_DEPTH = 64
 
 def _text(file: Path, source: str) -> str:
     try:
-        return read_bounded(file, source).decode("utf-8")
+        return read_bounded(file, source).decode("utf-8-sig")  # a byte-order mark (spreadsheets write one) is not text
     except UnicodeDecodeError as exc:
         raise RoadFileError(f"road file {source} is not UTF-8 text: {exc.reason} at byte {exc.start}") from None
 
