@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 
 from scenarios.cli import app
 from scenarios.config import load_scenario
-from scenarios.roads.points import RoadFileError
+from scenarios.setup.roads import RoadFileError, load_road
 
 ROADS = Path(__file__).parent / "data" / "roads"
 CRS = {"type": "name", "properties": {"name": "EPSG:25832"}}
@@ -31,11 +31,14 @@ def _scenario(folder: Path, road: Path) -> Path:
 
 
 def _refused(road: Path) -> str:
-    """The one line a configuration naming ``road`` is refused with, by the configuration's loading."""
-    with pytest.raises(RoadFileError) as info:
+    """The one line ``road`` is refused with by its reading, and by the loading of a configuration naming it."""
+    with pytest.raises(RoadFileError) as reading:
+        load_road(road, 2.0)
+    with pytest.raises(RoadFileError) as loading:
         load_scenario(str(_scenario(road.parent, road)))
-    text = str(info.value)
+    text = str(reading.value)
     assert str(road) in text and "\n" not in text, text
+    assert str(loading.value) == text
     return text
 
 
