@@ -35,6 +35,7 @@ SCENARIO_ROOMS: tuple[str, ...] = (
     "unit_feedback",
     "estimator_settings",
     "scenario_shortcuts",
+    "roads",
     "configuration",
     "config",
     "config_fields",

@@ -304,6 +304,19 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
         "test_config_validation.py::test_an_empty_yaml_file_is_refused_not_run_as_a_default_scenario",
         "test_config_validation.py::test_an_alias_bomb_given_with_set_is_refused_naming_the_option",
     ),
+    "a road file is malformed or beyond its bounds": (
+        "test_road_faults.py::test_malformed_geojson_is_one_line_naming_the_member",
+        "test_road_faults.py::test_an_outlier_point_is_refused_before_the_smoothing_allocates",
+        "test_road_faults.py::test_a_non_utf8_or_oversized_road_file_is_named",
+        "test_road_faults.py::test_a_bad_opendrive_element_is_refused_and_pyxodr_writes_nothing",
+        "test_road_faults.py::test_a_bad_road_is_refused_before_the_run_directory_and_by_config_render_and_study",
+        "test_road_files.py::test_bad_road_files_are_refused_in_one_line",
+    ),
+    "a road file gives a road no combination can drive": (
+        "test_road_faults.py::test_a_road_too_short_to_drive_is_refused",
+        "test_road_faults.py::test_a_road_doubling_back_on_itself_is_refused",
+        "test_road_faults.py::test_a_bad_road_is_refused_before_the_run_directory_and_by_config_render_and_study",
+    ),
     "`--out` is a file": (
         "test_faults.py::test_an_unusable_out_is_named",
         "test_run_files.py::test_an_output_path_that_is_a_file_under_a_file_or_not_writable_is_refused",

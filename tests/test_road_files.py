@@ -166,7 +166,7 @@ BAD_FILES = [
     ("road.csv", "x,y\n0,0\n1,0\n1,0\n2,0\n", "row 4: the same point as row 3"),
     ("road.csv", "x,y,slope\n0,0,1\n1,0,1\n", "unknown column 'slope'"),
     ("road.csv", "x,y,mu\n0,0,0.8\n1,0,0\n", "row 3: mu = 0 is not a friction coefficient"),
-    ("road.csv", "x,y\n0,0\n2,0\n1,0.1\n", "below 5 m"),
+    ("road.csv", "x,y\n0,0\n10,0\n10,10\n", "below 5 m"),
     ("road.geojson", json.dumps({"type": "LineString", "coordinates": [[0, 0], [1, 0]]}), "no crs member"),
     (
         "road.geojson",

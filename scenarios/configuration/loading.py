@@ -13,6 +13,7 @@ from pydantic import ValidationError
 from vehicle_model.errors import InputError
 
 from ..camera_checks import check_camera
+from ..roads.smoothing import checked_road
 from ..yaml_input import RefusedDocument, load_yaml
 from .errors import ConfigError, did_you_mean
 from .field_errors import dotted_name, format_errors
@@ -164,7 +165,12 @@ def parse_assignment(text: str) -> tuple[str, Any]:
 
 
 def load_scenario(name_or_path: str, overrides: dict[str, Any] | None = None) -> ScenarioConfig:
-    """Load a scenario from the catalogue (or a YAML file) and apply dotted overrides."""
+    """Load a scenario from the catalogue (or a YAML file), apply dotted overrides, validate it and check its road file.
+
+    A road file is read and checked here (:func:`check_road_file`), with the configuration, so a bad road is refused
+    before any command writes anything; :func:`validate_config` alone does not open it (a finished run's
+    ``config.yaml`` is read back without its road).
+    """
     data = load_scenario_data(name_or_path)
     data.setdefault("name", Path(name_or_path).stem)
     default_vehicle = ScenarioConfig.model_fields["vehicle"].default
@@ -172,4 +178,20 @@ def load_scenario(name_or_path: str, overrides: dict[str, Any] | None = None) ->
         if key.startswith(("vehicle.", "vehicle[")):  # a field of the vehicle: its preset or file as a mapping
             data["vehicle"] = vehicle_data(data.get("vehicle", default_vehicle))
         set_dotted(data, key, value)
-    return validate_config(data)
+    config = validate_config(data)
+    check_road_file(config)
+    return config
+
+
+def check_road_file(config: ScenarioConfig) -> None:
+    """Read, smooth and check the road file a configuration names, if it names one (:mod:`scenarios.roads`).
+
+    Raises
+    ------
+    scenarios.roads.points.RoadFileError
+        One line naming the file and the row, field or station; the road is read once for the check and the run's
+        build (:func:`scenarios.roads.smoothing.checked_road`).
+    """
+    spec = config.path
+    if spec.file is not None:
+        checked_road(spec.file, spec.smoothing, spec.road, spec.lane)

@@ -7,8 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-SAMPLE_SPACING = 0.05
-"""Distance between stored path samples [m]."""
+from ..roads.smoothing import SAMPLE_SPACING
 
 
 @dataclass(frozen=True)
