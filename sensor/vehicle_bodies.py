@@ -269,7 +269,7 @@ def _wheel_mesh(box: BodyBox) -> tuple[np.ndarray, ...]:
     for k in range(WHEEL_SIDES):
         (xa, za), (xb, zb) = ring[k], ring[k + 1]
         p = np.array([[xa, y1, za], [xb, y1, zb], [xb, y0, zb], [xa, y0, za]])
-        u = np.array([[th[k] * r, 0.0], [th[k + 1] * r, 0.0], [th[k + 1] * r, 0.5], [th[k] * r, 0.5]]) / 1.0
+        u = np.array([[th[k] * r, 0.0], [th[k + 1] * r, 0.0], [th[k + 1] * r, 0.5], [th[k] * r, 0.5]])
         shade = 0.5 + 0.4 * max(0.0, math.sin(0.5 * (th[k] + th[k + 1])))
         (
             pos.append(p),
