@@ -11,7 +11,9 @@ over the same poses along the scenario's path:
   of the other units (:func:`sensor.vehicle_bodies.exclusion_masks`) and runs the visual odometry of every rig on
   frame ``k``.
 
-``loop_to_ceiling`` is the loop's frame rate over the ceiling's.
+``loop_to_ceiling`` is the loop's frame rate over the ceiling's; ``loop_to_cpu_bound`` the loop's frame rate over what
+the CPU time per frame (rendering, every thread of the render process; masks and odometry, this thread) allows on
+two cores — the figure that survives other work on a shared machine.
 """
 
 from __future__ import annotations
@@ -51,11 +53,12 @@ def _render_main(scenario: str, vehicle: str, rigs: tuple[StereoRig, ...], conn:
         if job is None:
             return
         frame, pose = job
+        cpu0 = time.process_time()
         images = []
         for camera in cameras:
             raw = camera.render(pose, frame)
             images.extend(camera.develop(raw, frame))
-        conn.send(images)
+        conn.send((images, time.process_time() - cpu0))
 
 
 def _poses(scenario: str, vehicle: str, frames: int) -> tuple[Any, list[ChainPose]]:
@@ -79,7 +82,8 @@ def bench_rigs(
     dict
         ``ceiling_fps`` (every rig of a frame rendered, nothing else), ``loop_fps`` (rendering pipelined with the
         masks and the odometry of every rig), ``loop_to_ceiling``, ``vo_ms_per_frame`` and ``mask_ms_per_frame``
-        (this process, all rigs), ``rigs``, ``width``, ``height``, ``frames``.
+        (this process, all rigs), ``render_cpu_ms_per_frame`` and ``main_cpu_ms_per_frame`` (CPU time),
+        ``cpu_bound_fps`` and ``loop_to_cpu_bound``, ``rigs``, ``width``, ``height``, ``frames``.
     """
     from sensor.vehicle_bodies import exclusion_masks
     from sensor.vo import StereoOdometry, VOConfig
@@ -102,15 +106,18 @@ def bench_rigs(
             here.send((k, poses[k]))
             here.recv()
         ceiling_s = time.perf_counter() - t0
+        render_cpu_s = 0.0
         odometry = [
             StereoOdometry(VOConfig.from_horizontal_fov(r.width, r.height, r.hfov, r.baseline), seed=0) for r in rigs
         ]
         k_matrices = [r.intrinsics() for r in rigs]
-        vo_s = mask_s = 0.0
+        vo_s = mask_s = main_cpu_s = 0.0
         here.send((0, poses[0]))
         t0 = time.perf_counter()
         for k in range(frames + 1):
-            images = here.recv()
+            images, cpu = here.recv()
+            render_cpu_s += cpu
+            cpu0 = time.thread_time()
             if k + 1 <= frames:
                 here.send((k + 1, poses[k + 1]))  # rendered while this frame's odometry runs
             for i, (rig, vo) in enumerate(zip(rigs, odometry, strict=True)):
@@ -124,6 +131,7 @@ def bench_rigs(
                 vo.process(images[2 * i], images[2 * i + 1], mask)
                 mask_s += t2 - t1
                 vo_s += time.perf_counter() - t2
+            main_cpu_s += time.thread_time() - cpu0
         loop_s = time.perf_counter() - t0
         here.send(None)
     finally:
@@ -132,6 +140,8 @@ def bench_rigs(
             proc.terminate()
     ceiling_fps = frames / ceiling_s
     loop_fps = (frames + 1) / loop_s
+    cpu_per_frame = (render_cpu_s + main_cpu_s) / (frames + 1)
+    cores = min(os.cpu_count() or 1, 2)  # the render process and this one
     return {
         "benchmark": "rigs",
         "scenario": scenario,
@@ -144,6 +154,10 @@ def bench_rigs(
         "ceiling_fps": ceiling_fps,
         "loop_fps": loop_fps,
         "loop_to_ceiling": loop_fps / ceiling_fps,
+        "render_cpu_ms_per_frame": 1e3 * render_cpu_s / (frames + 1),
+        "main_cpu_ms_per_frame": 1e3 * main_cpu_s / (frames + 1),
+        "cpu_bound_fps": cores / cpu_per_frame,
+        "loop_to_cpu_bound": loop_fps / (cores / cpu_per_frame),
         "vo_ms_per_frame": 1e3 * vo_s / (frames + 1),
         "mask_ms_per_frame": 1e3 * mask_s / (frames + 1),
         "python": platform.python_version(),
