@@ -13,7 +13,9 @@ over the same poses along the scenario's path:
 
 ``loop_to_ceiling`` is the loop's frame rate over the ceiling's; ``loop_to_cpu_bound`` the loop's frame rate over what
 the CPU time per frame (rendering, every thread of the render process; masks and odometry, this thread) allows on
-two cores — the figure that survives other work on a shared machine.
+two cores; ``cpu_bound_loop_to_ceiling`` the same ratio as the CPU times alone bound it (rendering alone against
+rendering with the masks and odometry, on the same cores) — the figures that survive other work on a shared
+machine.
 """
 
 from __future__ import annotations
@@ -83,7 +85,8 @@ def bench_rigs(
         ``ceiling_fps`` (every rig of a frame rendered, nothing else), ``loop_fps`` (rendering pipelined with the
         masks and the odometry of every rig), ``loop_to_ceiling``, ``vo_ms_per_frame`` and ``mask_ms_per_frame``
         (this process, all rigs), ``render_cpu_ms_per_frame`` and ``main_cpu_ms_per_frame`` (CPU time),
-        ``cpu_bound_fps`` and ``loop_to_cpu_bound``, ``rigs``, ``width``, ``height``, ``frames``.
+        ``cpu_bound_fps``, ``loop_to_cpu_bound`` and ``cpu_bound_loop_to_ceiling``, ``rigs``, ``width``, ``height``,
+        ``frames``.
     """
     from sensor.vehicle_bodies import exclusion_masks
     from sensor.vo import StereoOdometry, VOConfig
@@ -158,6 +161,7 @@ def bench_rigs(
         "main_cpu_ms_per_frame": 1e3 * main_cpu_s / (frames + 1),
         "cpu_bound_fps": cores / cpu_per_frame,
         "loop_to_cpu_bound": loop_fps / (cores / cpu_per_frame),
+        "cpu_bound_loop_to_ceiling": render_cpu_s / (render_cpu_s + main_cpu_s),
         "vo_ms_per_frame": 1e3 * vo_s / (frames + 1),
         "mask_ms_per_frame": 1e3 * mask_s / (frames + 1),
         "python": platform.python_version(),
