@@ -412,4 +412,4 @@ def exclusion_masks(
     if margin_px > 0:
         kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * margin_px + 1, 2 * margin_px + 1))
         filled = [cv2.dilate(m, kernel) for m in filled]
-    return tuple(m.astype(bool) for m in filled)
+    return tuple(m.view(bool) for m in filled)  # 0 or 1: the same bytes as bools
