@@ -30,10 +30,10 @@ from .options import (
     VehicleOption,
 )
 from .scenario_input import load_config, scenario_overrides, scenario_pairs
-
-ASSESSMENT_SCENARIO = "roundabout-test"
-"""The scenario a vehicle given alone is checked in (any catalogue scenario that takes every combination)."""
 from .terminal import console, exit_for_checks, exit_for_status, handled, print_summary, simulation_progress
+
+VEHICLE_CHECK_SCENARIO = "roundabout-test"
+"""The scenario a vehicle given alone is checked in (any catalogue scenario that takes every combination)."""
 
 
 @handled
@@ -51,7 +51,7 @@ def list_presets(
     if vehicle is not None:
         from scenarios.catalogue.vehicle_spec import specification_tables, unit_kinds, vehicle_specification
 
-        config = load_config(ASSESSMENT_SCENARIO, {"vehicle": vehicle})
+        config = load_config(VEHICLE_CHECK_SCENARIO, {"vehicle": vehicle})
         spec = vehicle_specification(config.vehicle_params(), unit_kinds(config.vehicle))
         for table in specification_tables(spec):
             console.print(table)
