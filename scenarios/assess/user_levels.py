@@ -156,8 +156,9 @@ def _number(value: Any, source: str, field: str) -> float:
     return float(value)
 
 
-def _bands(entry: Any, source: str, field: str, key: str, level: int, scale: float) -> list[Threshold]:
-    """The thresholds of one level entry (a mapping, a list of length bands, or null)."""
+def _bands(entry: Any, source: str, field: str, key: str, level: int, unit: str) -> list[Threshold]:
+    """The thresholds of one level entry (a mapping, a list of length bands, or null), limits given in ``unit``."""
+    scale = UNIT_SCALES[ASSESSED[key].unit][unit]
     if entry is None:
         return []
     items = entry if isinstance(entry, list) else [entry]
@@ -170,11 +171,13 @@ def _bands(entry: Any, source: str, field: str, key: str, level: int, scale: flo
             raise bad
         if item.get("limit") is None:
             continue
-        limit = _number(item["limit"], source, f"{where}.limit") * scale
+        given = _number(item["limit"], source, f"{where}.limit")
+        limit = given * scale
         low, high = LIMIT_RANGES[key]
         if not low <= limit <= high:
-            unit = ASSESSED[key].unit
-            raise _fail(source, f"{where}.limit", f"{limit:g} {unit} is outside [{low:g}, {high:g}] {unit}")
+            raise _fail(
+                source, f"{where}.limit", f"{given:g} {unit} is outside [{low / scale:g}, {high / scale:g}] {unit}"
+            )
         clause = item.get("clause")
         if not isinstance(clause, str) or not clause.strip():
             raise _fail(source, f"{where}.clause", "give the clause and table of the rules the limit is quoted from")
@@ -191,8 +194,10 @@ def _bands(entry: Any, source: str, field: str, key: str, level: int, scale: flo
     return out
 
 
-def _monotone(source: str, key: str, thresholds: list[Threshold], better: str) -> None:
-    """Refuse a level whose limit is more demanding than a more demanding level's, where their length bands meet."""
+def _monotone(source: str, key: str, thresholds: list[Threshold], better: str, unit: str) -> None:
+    """Refuse a level whose limit is more demanding than a more demanding level's, where their length bands meet
+    (the limits said in the file's ``unit``)."""
+    scale = UNIT_SCALES[ASSESSED[key].unit][unit]
     for a in thresholds:
         for b in thresholds:
             if b.level <= a.level or b.min_length >= a.max_length or a.min_length >= b.max_length:
@@ -203,7 +208,8 @@ def _monotone(source: str, key: str, thresholds: list[Threshold], better: str) -
                 raise _fail(
                     source,
                     f"standards.{key}.levels.{b.level}.limit",
-                    f"{b.limit:g} is more demanding than level {a.level}'s {a.limit:g}; from level 1 to 4 a "
+                    f"{b.limit / scale:g} is more demanding than level {a.level}'s {a.limit / scale:g} {unit}; from "
+                    f"level 1 to 4 a "
                     f"{'maximum' if better == 'lower' else 'minimum'} {rule}",
                 )
 
@@ -236,8 +242,8 @@ def _standard(key: str, spec: Any, source: str) -> Standard:
         level = int(given) if isinstance(given, str) and given.strip().isdigit() else given
         if level not in LEVELS:
             raise _fail(source, f"{field}.levels.{given}", "not a level: the levels are 1, 2, 3 and 4")
-        thresholds += _bands(entry, source, f"{field}.levels.{level}", key, int(level), scales[unit])
-    _monotone(source, key, thresholds, program.better)
+        thresholds += _bands(entry, source, f"{field}.levels.{level}", key, int(level), unit)
+    _monotone(source, key, thresholds, program.better, unit)
     return Standard(program.measure, program.unit, program.definition, tuple(thresholds), program.better)
 
 
