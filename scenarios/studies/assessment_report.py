@@ -212,7 +212,7 @@ def steering_at_speed(records: pd.DataFrame) -> list[str]:
         lines.append("")
         for f in steered:
             if verdicts[f]:
-                lines.append(f"- {surface}, steered on {f}: {', '.join(verdicts[f])} against unsteered.")
+                lines.append(f"- {surface}, steered on {f}, against unsteered: {'; '.join(verdicts[f])}.")
         lines.append("")
     return lines
 
