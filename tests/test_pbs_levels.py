@@ -176,6 +176,10 @@ def test_grading_gives_the_best_level_met_and_cites_its_clause(
     graded = grade_record(_record(measure, value), example, length)
     assert graded["level"] == level
     assert graded["margin"] == pytest.approx(margin, abs=1e-9)
+    if level == 1:
+        assert graded["margin_level_1"] == pytest.approx(margin, abs=1e-9)
+    else:
+        assert graded["margin_level_1"] < 0.0  # short of level 1
     assert clause in graded["grade"] and graded["threshold_source"].endswith(clause)
     assert graded["threshold_source"].startswith("EXAMPLE ONLY")
 

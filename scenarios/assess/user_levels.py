@@ -327,8 +327,10 @@ def grade_record(record: dict[str, Any], levels: UserLevels | None, length: floa
     Returns
     -------
     dict
-        A new record. A measure the levels do not cover keeps ``level`` None; a record of no standard (the turning
-        circle) is returned as it is.
+        A new record with ``level`` (the best level met, ``"none"`` when none is, None when not graded),
+        ``margin`` (to that level's limit, or negative to the least demanding one), ``margin_level_1``,
+        ``threshold_source`` (the document and clause) and ``grade``. A record of no standard (the turning circle)
+        is returned as it is.
     """
     key = standard_key(str(record.get("measure", "")))
     if key is None:
@@ -336,7 +338,8 @@ def grade_record(record: dict[str, Any], levels: UserLevels | None, length: floa
     standard = None if levels is None else levels.standard(key)
     if standard is None:
         why = NO_LEVELS if levels is None else f"{levels.source} gives no limit for it"
-        return {**record, "level": None, "margin": None, "threshold_source": why, "grade": why}
+        return {**record, "level": None, "margin": None, "margin_level_1": None, "threshold_source": why, "grade": why}
+    assert levels is not None  # a standard comes only from a levels file
     value = record.get("value")
     value = math.nan if value is None else float(value)
     g = grade(value, standard, length)
@@ -345,19 +348,20 @@ def grade_record(record: dict[str, Any], levels: UserLevels | None, length: floa
         met = _met(standard, g.level, length)
         assert met is not None
         text = f"level {g.level} ({met.clause})"
-        source = f"{levels.document}, {met.clause}"  # type: ignore[union-attr]
+        source = f"{levels.document}, {met.clause}"
         level: int | str | None = g.level
         margin = g.margin
     elif g.shortfall is not None:
         worst = applicable[-1]
         text = f"no level met: {g.reason} ({worst.clause})"
-        source = f"{levels.document}, {worst.clause}"  # type: ignore[union-attr]
+        source = f"{levels.document}, {worst.clause}"
         level, margin = "none", g.shortfall
     else:
-        text = f"not graded: {g.reason}" if applicable else f"{levels.source} gives no limit for this length"  # type: ignore[union-attr]
-        source = levels.document  # type: ignore[union-attr]
+        text = f"not graded: {g.reason}" if applicable else f"{levels.source} gives no limit for this length"
+        source = levels.document
         level, margin = None, None
-    return {**record, "level": level, "margin": margin, "threshold_source": source, "grade": text}
+    graded = {"level": level, "margin": margin, "margin_level_1": g.margin_level_1}
+    return {**record, **graded, "threshold_source": source, "grade": text}
 
 
 def template_text() -> str:
