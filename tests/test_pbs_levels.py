@@ -292,3 +292,21 @@ def test_list_vehicle_prints_the_axle_group_loads() -> None:
         line.split()[-1] for line in result.stdout.splitlines() if line.startswith("unit ") and "main" in line
     ]
     assert len(spec_loads) == 2
+
+
+def test_a_missing_unsteered_value_is_said_in_its_own_cell_not_the_steered_one() -> None:
+    from scenarios.studies.assessment_report import steering_at_speed
+
+    lost = "the run ended lost_control: lost control at t = 8 s"
+    records = pd.DataFrame(
+        [
+            {"surface": "ice", "feedback": "none", "measure": "rearward amplification", "value": None, "note": lost},
+            {"surface": "ice", "feedback": "truth", "measure": "rearward amplification", "value": 1.03, "note": "x"},
+        ]
+    )
+    text = "\n".join(steering_at_speed(records))
+    assert (
+        "| rearward amplification (lower is better) | — (the run ended lost control) | 1.030 (nothing to compare) |"
+        in text
+    )
+    assert "gives a rearward amplification where the unsteered run gave none (the run ended lost control)" in text

@@ -159,6 +159,39 @@ def column_notes(rows: pd.DataFrame, labels: dict[tuple[str, str], str]) -> list
     return lines
 
 
+def _why_none(rows: pd.DataFrame, feedback: str) -> str:
+    """Why ``feedback``'s record in ``rows`` (indexed by feedback) has no value: the first clause of its note."""
+    return str(rows.loc[feedback, "note"] or "").split(":")[0].replace("_", " ").strip()
+
+
+def _compared(measure: str, rows: pd.DataFrame, steered: list[str]) -> tuple[str, dict[str, str]]:
+    """One row of the steering comparison (``rows``: the measure's records by feedback, the unsteered among them)
+    and what each steered column does to the measure, in words."""
+    better = MEASURES[str(standard_key(measure))].better
+    base = rows.loc[NO_FEEDBACK, "value"]
+    base_cell = _number(base) if _finite(base) else f"— ({_why_none(rows, NO_FEEDBACK)})"
+    cells, said = [], {}
+    for f in steered:
+        value = rows.loc[f, "value"] if f in rows.index else None
+        if not _finite(value):
+            reason = _why_none(rows, f) if f in rows.index else "not run"
+            cells.append(f"— ({reason})")
+            said[f] = f"gives no {measure} ({reason})"
+        elif not _finite(base):
+            cells.append(f"{float(value):.3f} (nothing to compare)")
+            said[f] = f"gives a {measure} where the unsteered run gave none ({_why_none(rows, NO_FEEDBACK)})"
+        else:
+            change = float(value) - float(base)
+            worse = change > 0.0 if better == "lower" else change < 0.0
+            word = "same" if change == 0.0 else ("worse" if worse else "better")
+            relative = f"{100.0 * change / abs(float(base)):+.0f} %, " if float(base) != 0.0 else ""
+            cells.append(f"{float(value):.3f} ({relative}{word})")
+            if word != "same":
+                said[f] = f"{'raises' if change > 0 else 'lowers'} the {measure} ({word})"
+    arrow = "lower is better" if better == "lower" else "higher is better"
+    return f"| {measure} ({arrow}) | {base_cell} | " + " | ".join(cells) + " |", said
+
+
 def steering_at_speed(records: pd.DataFrame) -> list[str]:
     """Markdown comparing each steered column with the unsteered one on the high-speed measures (:data:`AT_SPEED`),
     per surface: the values, the change and whether it is better or worse, then in words what steering does there."""
@@ -176,7 +209,7 @@ def steering_at_speed(records: pd.DataFrame) -> list[str]:
         "want (rearward amplification and transient off-tracking up, yaw damping down).",
         "",
     ]
-    names = {MEASURES[k].measure: k for k in AT_SPEED}
+    names = [MEASURES[k].measure for k in AT_SPEED]
     for surface in dict.fromkeys(records["surface"]):
         part = records[(records["surface"] == surface) & (records["measure"].isin(names))]
         if part.empty:
@@ -184,31 +217,14 @@ def steering_at_speed(records: pd.DataFrame) -> list[str]:
         lines += [f"### {surface}", "", "| measure | unsteered | " + " | ".join(steered) + " |"]
         lines.append("|---|---|" + "---|" * len(steered))
         verdicts: dict[str, list[str]] = {f: [] for f in steered}
-        for measure, key in names.items():
+        for measure in names:
             rows = part[part["measure"] == measure].set_index("feedback")
             if NO_FEEDBACK not in rows.index:
                 continue
-            base = rows.loc[NO_FEEDBACK, "value"]
-            better = MEASURES[key].better
-            cells = []
-            for f in steered:
-                value = rows.loc[f, "value"] if f in rows.index else None
-                if not (_finite(value) and _finite(base)):
-                    missing = f if not _finite(value) else NO_FEEDBACK
-                    why = str(rows.loc[missing, "note"] or "").split(":")[0] if missing in rows.index else ""
-                    cells.append(_number(value) + (f" ({why})" if why else ""))
-                    if why and missing == f:
-                        verdicts[f].append(f"gives no {measure} ({why})")
-                    continue
-                change = float(value) - float(base)
-                worse = change > 0.0 if better == "lower" else change < 0.0
-                word = "same" if change == 0.0 else ("worse" if worse else "better")
-                relative = f"{100.0 * change / abs(float(base)):+.0f} %, " if float(base) != 0.0 else ""
-                cells.append(f"{float(value):.3f} ({relative}{word})")
-                if word != "same":
-                    verdicts[f].append(f"{'raises' if change > 0 else 'lowers'} the {measure} ({word})")
-            arrow = "lower is better" if better == "lower" else "higher is better"
-            lines.append(f"| {measure} ({arrow}) | {_number(base)} | " + " | ".join(cells) + " |")
+            line, said = _compared(measure, rows, steered)
+            lines.append(line)
+            for f, words in said.items():
+                verdicts[f].append(words)
         lines.append("")
         for f in steered:
             if verdicts[f]:
