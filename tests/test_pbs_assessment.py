@@ -65,6 +65,16 @@ def test_every_manoeuvre_runs_once_and_gives_its_measures(reference) -> None:
     assert (out / "measure-rearward-amplification.png").stat().st_size > 5_000
 
 
+def test_the_levels_template_names_exactly_the_standards_the_assessment_measures(reference) -> None:
+    from scenarios.assess.user_levels import ASSESSED, standard_key
+    from scenarios.yaml_input import load_yaml
+
+    _, _, records = reference
+    measured = {standard_key(m) for m in records["measure"]} - {None}
+    template = load_yaml((Path(__file__).parents[1] / "docs" / "pbs_levels_template.yaml").read_text(), "template")
+    assert measured == set(ASSESSED) == set(template["standards"])
+
+
 def test_the_turning_circle_is_the_roundabout_tests_own_verdict(reference) -> None:
     out, table, records = reference
     run = table.set_index("manoeuvre").loc["turning_circle", "run"]

@@ -10,7 +10,8 @@
 * Bad steer-input settings are refused in one line naming the field.
 * Levels: every limit in the level tables has a test here quoting its clause (:data:`TESTED_LEVELS`). No limit could
   be checked against the rules (the stored copy held only the contents), so the tables are empty and every record
-  says "threshold not verified"; the grading itself is tested on an illustrative table that is not PBS's.
+  says "no levels given" (the user's levels file grades them: tests/test_pbs_levels.py); the grading itself is tested
+  on an illustrative table that is not PBS's.
 
 The manoeuvre frequency 0.4 Hz and the speed 88 km/h are the test's choices, not quoted from the rules.
 """
@@ -26,7 +27,6 @@ import pytest
 from controller.steer_input import OpenLoopSteer
 from scenarios.assess.high_speed import (
     MEASURES,
-    NOT_VERIFIED_NOTE,
     high_speed_assessment,
     logarithmic_decrement_damping,
     rearward_amplification,
@@ -34,7 +34,7 @@ from scenarios.assess.high_speed import (
     unassessable_records,
     yaw_damping_coefficient,
 )
-from scenarios.assess.levels import Standard, Threshold
+from scenarios.assess.levels import NO_LEVELS, Standard, Threshold
 from scenarios.config import ConfigError, validate_config
 from scenarios.run.drive import simulate
 from scenarios.setup.build import ScenarioSetup, build_scenario
@@ -191,13 +191,14 @@ def test_an_open_loop_input_on_a_kinematic_run_is_refused_naming_the_field() -> 
 def test_every_level_limit_has_a_test_quoting_its_clause() -> None:
     # Each limit in the tables must come with a test here that quotes its clause and checks values either side of
     # it. None could be verified against the NTC rules (as at 10 November 2008: the stored copy held only the
-    # title page and contents), so the tables are empty and so is TESTED_LEVELS.
+    # title page and contents), so the tables are empty and so is TESTED_LEVELS: the user's levels file gives them
+    # (tests/test_pbs_levels.py).
     in_tables = {(key, t.level) for key, m in MEASURES.items() for t in m.thresholds}
     assert in_tables == TESTED_LEVELS
     assert all(t.clause for m in MEASURES.values() for t in m.thresholds)
 
 
-def test_every_record_says_its_threshold_is_not_verified_and_gives_no_level(sine_run, pulse_run) -> None:
+def test_every_record_says_no_levels_are_given_and_gives_no_level(sine_run, pulse_run) -> None:
     setup, sine = sine_run
     _, pulse = pulse_run
     records = [
@@ -209,8 +210,8 @@ def test_every_record_says_its_threshold_is_not_verified_and_gives_no_level(sine
     keys = {"measure", "value", "unit", "level", "margin", "threshold_source", "note"}
     for record in records:
         assert set(record) == keys
-        assert record["level"] is None and record["margin"] is None and NOT_VERIFIED_NOTE in record["note"]
-        assert "10 November 2008" in record["threshold_source"]
+        assert record["level"] is None and record["margin"] is None and record["threshold_source"] == NO_LEVELS
+        assert "not verified" not in record["note"] and NO_LEVELS not in record["note"]  # said once, by the report
     measured = [r for r in records if r["value"] is not None]
     assert len(measured) == 3 and all(math.isfinite(r["value"]) and r["value"] > 0.0 for r in measured)
 

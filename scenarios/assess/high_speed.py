@@ -21,11 +21,10 @@ can be assessed after the fact. docs/pbs_high_speed.md says what each measure is
 Every lateral acceleration is the second time derivative of the point's recorded position (central differences),
 turned into the unit's own axes: ``a_y = −sin ψ·Ẍ + cos ψ·Ÿ``.
 
-*Levels.* :data:`MEASURES` holds, per measure, a :class:`~.levels.Standard` with the limit of each performance level
-and the clause and table of the rules it is quoted from. A limit enters the table only once checked against the
-document; the stored copy of the rules consulted here gave only the document's title page and contents, so no limit
-could be checked and every table is empty: each record says ``threshold not verified`` and carries no level (never a
-number from memory). :func:`record_level` gives the level from a table once it has limits (:func:`.levels.grade`).
+*Levels.* :data:`MEASURES` holds, per measure, a :class:`~.levels.Standard`: its unit and which way is better, and no
+limit: the rules' tables of levels could not be read here and none is written from memory. Each record says
+``no levels given``; the assessment grades the values with the user's levels file (:mod:`.user_levels`).
+:func:`record_level` gives the level of a value against a table that has limits (:func:`.levels.grade`).
 """
 
 from __future__ import annotations
@@ -40,13 +39,12 @@ from vehicle_model.geometry import place_points, tractor_points, trailer_frames
 from vehicle_model.parameters import VehicleParams
 
 from ..run.path_offtracking import offsets_from_path
-from .levels import NOT_VERIFIED, Standard, grade
+from .levels import NO_LEVELS, Standard, grade
 
 __all__ = [
     "MANOEUVRES",
     "MEASURES",
-    "NOT_VERIFIED_NOTE",
-    "THRESHOLD_SOURCE",
+    "UNASSESSABLE_REASONS",
     "Manoeuvre",
     "articulation_columns",
     "high_speed_assessment",
@@ -64,15 +62,17 @@ Manoeuvre = Literal["lane_change", "pulse_steer", "steady_turn", "straight"]
 """The manoeuvre a run was: which measures it gives."""
 MANOEUVRES: tuple[str, ...] = ("lane_change", "pulse_steer", "steady_turn", "straight")
 
-THRESHOLD_SOURCE = (
-    "NTC, Performance Based Standards Scheme — The Standards and Vehicle Assessment Rules, as at 10 November 2008"
-)
-"""The document the levels are to be quoted from."""
-NOT_VERIFIED_NOTE = (
-    f"{NOT_VERIFIED}: the stored copy of the rules consulted held only its title page and contents, not the "
-    "standard's table of levels, so no level is given"
-)
-"""The note of a measure whose levels could not be checked against :data:`THRESHOLD_SOURCE`."""
+UNASSESSABLE_REASONS: dict[str, str] = {
+    "static_rollover_threshold": (
+        "the model has no roll degree of freedom, suspension or CG height, so it cannot say at what lateral "
+        "acceleration a unit rolls over"
+    ),
+    "tracking_ability_on_a_straight_path": (
+        "the prescribed road roughness disturbs a combination through bounce, roll and roll steer, which a "
+        "yaw-plane model does not have; crossfall alone (the camber section) would understate the swept width"
+    ),
+}
+"""Why each high-speed standard of :data:`MEASURES` that the model cannot support is not assessed."""
 
 
 MEASURES: dict[str, Standard] = {
@@ -108,7 +108,7 @@ MEASURES: dict[str, Standard] = {
         better="higher",
     ),
 }
-"""Every high-speed measure by key, with its levels (none verified: module docstring)."""
+"""Every high-speed measure by key, with no levels (module docstring)."""
 
 
 def record_level(standard: Standard, value: float) -> tuple[str | None, float | None]:
@@ -142,15 +142,13 @@ def _record(key: str, value: float | None, note: str) -> dict[str, Any]:
     """The record of measure ``key`` (the keys :func:`high_speed_assessment` returns)."""
     measure = MEASURES[key]
     level, margin = record_level(measure, value) if value is not None else (None, None)
-    if not measure.thresholds:
-        note = f"{note}; {NOT_VERIFIED_NOTE}" if note else NOT_VERIFIED_NOTE
     return {
         "measure": measure.measure,
         "value": value,
         "unit": measure.unit,
         "level": level,
         "margin": margin,
-        "threshold_source": THRESHOLD_SOURCE,
+        "threshold_source": NO_LEVELS,
         "note": note,
     }
 
@@ -393,21 +391,7 @@ def steady_offtracking(params: VehicleParams, columns: Mapping[str, Any]) -> tup
 
 def unassessable_records() -> list[dict[str, Any]]:
     """The measures a yaw-plane model cannot support, each as a record with its reason and no value."""
-    return [
-        _record(
-            "static_rollover_threshold",
-            None,
-            "not assessed: the model has no roll degree of freedom, suspension or CG height, so it cannot say at "
-            "what lateral acceleration a unit rolls over",
-        ),
-        _record(
-            "tracking_ability_on_a_straight_path",
-            None,
-            "not assessed: the prescribed road roughness disturbs a combination through bounce, roll and roll "
-            "steer, which a yaw-plane model does not have; crossfall alone (the camber section) would understate "
-            "the swept width",
-        ),
-    ]
+    return [_record(key, None, f"not assessed: {reason}") for key, reason in UNASSESSABLE_REASONS.items()]
 
 
 def high_speed_assessment(

@@ -1,10 +1,10 @@
 """Performance levels: the thresholds of a standard, with the clause each is quoted from, and the grading of a value.
 
 The PBS scheme grades each standard in four levels, level 1 the most demanding. A :class:`Standard` holds its
-measure's :class:`Threshold` s (none until they are verified against :data:`DOCUMENT`); :func:`grade` gives the level
-a value reaches and its margins. The low-speed (:mod:`.low_speed`) and high-speed (:mod:`.high_speed`) measures are
-both graded here. Every threshold names its clause and table; one that could not be verified is left
-out, and the measure is reported without a level (:data:`NOT_VERIFIED`).
+measure's :class:`Threshold` s; :func:`grade` gives the level a value reaches and its margins. The program holds no
+threshold of its own: the rules' tables of levels could not be read here, and none is written from memory. The
+thresholds come from the user's levels file (:mod:`.user_levels`, ``offtrack assess --levels FILE``), each with the
+document and clause it was quoted from; without one a measure is reported without a level (:data:`NO_LEVELS`).
 """
 
 from __future__ import annotations
@@ -13,22 +13,22 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-__all__ = ["DOCUMENT", "NOT_VERIFIED", "SUMMARY_SOURCE", "Grade", "Standard", "Threshold", "grade"]
+__all__ = ["DOCUMENT", "NO_LEVELS", "SUMMARY_SOURCE", "Grade", "Standard", "Threshold", "grade"]
 
 DOCUMENT = (
     "National Transport Commission, Performance Based Standards Scheme - The Standards and Vehicle Assessment "
     "Rules, as at 10 November 2008"
 )
-"""The document the thresholds are to be quoted from, with its version."""
+"""The version of the rules the definitions here were written against (their tables of levels could not be read)."""
 SUMMARY_SOURCE = "NHVR, PBS vehicle standards (nhvr.gov.au/road-access/performance-based-standards/vehicle-standards)"
 """The one-line summaries of the standards the definitions here follow."""
-NOT_VERIFIED = "threshold not verified"
-"""The note of a measure whose level thresholds could not be read from :data:`DOCUMENT`."""
+NO_LEVELS = "no levels given"
+"""The grade of a measure without thresholds: no levels file was given, or it gives no limit for the standard."""
 
 
 @dataclass(frozen=True)
 class Threshold:
-    """The limit of one performance level of a standard, as :data:`DOCUMENT` gives it.
+    """The limit of one performance level of a standard, as the user's copy of the rules gives it.
 
     Attributes
     ----------
@@ -38,7 +38,7 @@ class Threshold:
         The level's limit in the standard's unit (SI): the largest value that meets it where lower is better, the
         smallest where higher is.
     clause
-        Where the document gives it: clause and table.
+        Where the document gives it: clause and table (the user's citation).
     min_length, max_length
         The overall lengths of combination [m] the limit applies to (a level's limit may depend on the length).
     """
@@ -52,7 +52,8 @@ class Threshold:
 
 @dataclass(frozen=True)
 class Standard:
-    """One measure: its unit, what it measures, its level thresholds (none when not verified) and which way is better.
+    """One measure: its unit, what it measures, its level thresholds (none until a levels file gives them) and which
+    way is better.
 
     Attributes
     ----------
@@ -63,7 +64,7 @@ class Standard:
     definition
         What it measures, in words.
     thresholds
-        The level thresholds; empty where no limit was verified.
+        The level thresholds; empty where none is given.
     better
         ``"lower"``: a value at or below a level's limit meets it; ``"higher"``: at or above.
     """
@@ -88,7 +89,7 @@ class Grade:
     Attributes
     ----------
     level
-        The best (lowest-numbered) level whose limit the value meets; None when none is met, there are no verified
+        The best (lowest-numbered) level whose limit the value meets; None when none is met, there are no
         thresholds, or the value is not finite.
     margin
         How far inside that level's limit the value lies (positive, the measure's unit); None without a level.
@@ -97,7 +98,7 @@ class Grade:
     reason
         Why, in words.
     threshold_source
-        The clauses the thresholds come from, or the document and :data:`NOT_VERIFIED`.
+        The clauses the thresholds come from, or :data:`NO_LEVELS`.
     shortfall
         When thresholds apply but no level is met: how far inside the least demanding level's limit the value lies
         (negative); None otherwise.
@@ -129,7 +130,7 @@ def grade(value: float, standard: Standard, length: float | None = None) -> Grad
     """
     thresholds = standard.applicable(length)
     if not thresholds:
-        return Grade(None, None, None, NOT_VERIFIED, f"{DOCUMENT}: {NOT_VERIFIED}")
+        return Grade(None, None, None, NO_LEVELS, NO_LEVELS)
     source = "; ".join(f"level {t.level}: {t.clause}" for t in thresholds)
     level_1 = next((t for t in thresholds if t.level == 1), None)
     if not math.isfinite(value):

@@ -7,18 +7,15 @@ demand, each measured in the prescribed low-speed turn (a 90° turn, the path ki
 :class:`~scenarios.setup.paths.ReferencePath`) and returns the measure in SI units; :func:`low_speed_assessment`
 gathers them into records for a report.
 
-What could be verified. The stored copy of the document that could be searched holds its title page and its table
+What the program holds. The stored copy of the document that could be searched holds its title page and its table
 of contents only: the sections of the low-speed standards — the wording of the manoeuvre, how each measure is
 measured, and the table of each standard's level thresholds — could not be read. So no threshold is in
-:data:`STANDARDS`: every measure is computed and reported without a level, its note saying
-``threshold not verified``, rather than with a number from memory. The definitions used follow the one-line
-summaries of the NHVR's page on the PBS vehicle standards (:data:`SUMMARY_SOURCE`), which name the 90° turn, and are
-each stated in words with their function; the 12.5 m radius of the outer steer tyre and the 5 km/h speed are the
-project's statement of the manoeuvre, not verified against the document either. docs/pbs.md lists all of this.
-
-A threshold, once read from the document, goes into :data:`STANDARDS` as a :class:`Threshold` with its clause and
-table; :func:`grade` then gives the level reached and the margins, and a test quoting the clause checks its
-boundaries (tests/test_pbs_low_speed.py).
+:data:`STANDARDS` and none is written from memory: every measure is computed and reported with ``no levels given``,
+and the assessment grades it with the user's levels file (:mod:`.user_levels`: the thresholds from the user's copy of
+the rules, each with its clause). The definitions used follow the one-line summaries of the NHVR's page on the PBS
+vehicle standards (:data:`SUMMARY_SOURCE`), which name the 90° turn, and are each stated in words with their
+function; the 12.5 m radius of the outer steer tyre and the 5 km/h speed are the project's statement of the
+manoeuvre, not verified against the document either. docs/pbs.md lists all of this.
 """
 
 from __future__ import annotations
@@ -32,18 +29,19 @@ import shapely
 from shapely.geometry.base import BaseGeometry
 
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import towed_outlines, tractor_outline, tractor_points
+from vehicle_model.geometry import tractor_points
 from vehicle_model.parameters import VehicleParams
 
+from ..catalogue.vehicle_spec import overall_length
 from ..run.swept_geometry import radial_width, unit_swept_areas
 from ..run.unit_shapes import unit_names, unit_outlines
 from ..setup.build import outer_steer_tyre
 from ..setup.paths import ReferencePath
-from .levels import DOCUMENT, NOT_VERIFIED, SUMMARY_SOURCE, Grade, Standard, Threshold, grade
+from .levels import DOCUMENT, NO_LEVELS, SUMMARY_SOURCE, Grade, Standard, Threshold, grade
 
 __all__ = [
     "DOCUMENT",
-    "NOT_VERIFIED",
+    "NO_LEVELS",
     "PRESCRIBED_SPEED",
     "PRESCRIBED_TURN_ANGLE",
     "PRESCRIBED_TURN_RADIUS",
@@ -122,7 +120,7 @@ STANDARDS: dict[str, Standard] = {
         "the steer-tyre friction demand as a fraction of the road's friction coefficient under the tyre",
     ),
 }
-"""Every low-speed measure by name. No level threshold could be verified against :data:`DOCUMENT`, so none is here."""
+"""Every low-speed measure by name, with no threshold (module docstring: they come from the user's levels file)."""
 
 
 # ---------------------------------------------------------------------------------------------- the turn
@@ -205,12 +203,9 @@ def turn_geometry(path: ReferencePath) -> TurnGeometry:
 
 
 def combination_length(params: VehicleParams) -> float:
-    """Overall length of the combination standing straight [m]: its frontmost to its rearmost point."""
-    zero = np.zeros(1)
-    corners = [tractor_outline(params, zero, zero, zero)]
-    corners += towed_outlines(params, zero, zero, zero, [zero] * (params.n_units - 1))
-    x = np.concatenate([c[..., 0].ravel() for c in corners])
-    return float(x.max() - x.min())
+    """Overall length of the combination standing straight [m]: its frontmost to its rearmost point
+    (:func:`scenarios.catalogue.vehicle_spec.overall_length`), against which a level's limit may be given."""
+    return overall_length(params)
 
 
 def _reach(params: VehicleParams, turn: TurnGeometry) -> float:
@@ -513,9 +508,9 @@ def low_speed_assessment(
     Returns
     -------
     list of dict
-        One record a measure: ``measure``, ``value`` (SI), ``unit``, ``level`` (None without verified thresholds
-        or when no level is met), ``margin`` (to the level reached), ``margin_level_1``, ``threshold_source`` and
-        ``note`` (the grade's reason, the measure's details and how the run's manoeuvre compares with the
+        One record a measure: ``measure``, ``value`` (SI), ``unit``, ``level`` (None without thresholds or when no
+        level is met), ``margin`` (to the level reached), ``margin_level_1``, ``threshold_source`` (the clauses, or
+        ``no levels given``) and ``note`` (the measure's details and how the run's manoeuvre compares with the
         prescribed one).
 
     Raises
@@ -576,7 +571,7 @@ def low_speed_assessment(
                 "margin": g.margin,
                 "margin_level_1": g.margin_level_1,
                 "threshold_source": g.threshold_source,
-                "note": f"{g.reason}; {detail}; {manoeuvre}",
+                "note": f"{detail}; {manoeuvre}" if g.reason == NO_LEVELS else f"{g.reason}; {detail}; {manoeuvre}",
             }
         )
     return records

@@ -32,10 +32,30 @@ from .options import (
 from .scenario_input import load_config, scenario_overrides, scenario_pairs
 from .terminal import console, exit_for_checks, exit_for_status, handled, print_summary, simulation_progress
 
+VEHICLE_CHECK_SCENARIO = "roundabout-test"
+"""The scenario a vehicle given alone is checked in (any catalogue scenario that takes every combination)."""
+
 
 @handled
-def list_presets() -> None:
-    """List scenarios, vehicle presets and surface presets (tables fitted to the terminal's width)."""
+def list_presets(
+    vehicle: Annotated[
+        str | None,
+        typer.Option(
+            help="Show this combination's specification instead (a preset or a combination file NAME.yaml): units, "
+            "dimensions, axle groups and their static loads, mass."
+        ),
+    ] = None,
+) -> None:
+    """List scenarios, vehicle presets and surface presets (tables fitted to the terminal's width), or with --vehicle
+    one combination's specification."""
+    if vehicle is not None:
+        from scenarios.catalogue.vehicle_spec import specification_tables, unit_kinds, vehicle_specification
+
+        config = load_config(VEHICLE_CHECK_SCENARIO, {"vehicle": vehicle})
+        spec = vehicle_specification(config.vehicle_params(), unit_kinds(config.vehicle))
+        for table in specification_tables(spec):
+            console.print(table)
+        return
     from scenarios.catalogue.listing import preset_tables
 
     for table in preset_tables():

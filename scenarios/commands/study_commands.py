@@ -198,15 +198,24 @@ def assess(
     scheduler: SchedulerOption = None,
     resume: ResumeOption = True,
     plot_format: PlotFormatOption = "png",
+    levels: Annotated[
+        Path | None,
+        typer.Option(
+            help="Your PBS thresholds per standard and level, each with its clause (docs/pbs_levels_template.yaml): "
+            "the assessment grades with them. Without: not graded."
+        ),
+    ] = None,
 ) -> None:
     """Assess one combination: the PBS measures a yaw-plane model supports and the UK/EU turning circle, each on its
     manoeuvre, into assessment.md / .csv / .json with a figure per measure (docs/pbs.md)."""
+    from scenarios.assess.user_levels import load_levels
     from scenarios.run.results import check_plot_format, new_run_dir
     from scenarios.studies.pbs_assessment import assessment_cases, run_assessment, side_by_side_feedbacks
     from scenarios.studies.progress import rich_progress
     from scenarios.studies.records import CASES_DIR
 
     plot_format = check_plot_format(plot_format)
+    user_levels = None if levels is None else load_levels(levels)  # checked before any work
     surfaces = tuple(surface or ("dry",))
     feedbacks = side_by_side_feedbacks(combination) if side_by_side else tuple(feedback or ("none",))
     assessment_cases(combination, feedbacks, surfaces)  # every option checked before any work
@@ -228,6 +237,7 @@ def assess(
             resume=resume,
             on_progress=progress,
             plot_format=plot_format,
+            levels=user_levels,
         )
     console.print(f"assessment: {run_dir / 'assessment.md'} (and .csv, .json, measure-*.{plot_format})")
     exit_if_cases_failed(table, run_dir)

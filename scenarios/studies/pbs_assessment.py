@@ -17,35 +17,38 @@ cluster, resumable), run for every steering feedback and surface asked for:
 * the static rollover threshold and tracking ability on a straight path are reported as not assessed, with the reason.
 
 The manoeuvres' speeds, pulse and radius are this module's choices where the rules could not be checked (each
-record's note says so), and no level is given where its threshold could not be checked against the rules.
+record's note says so). The program holds no PBS threshold: the values are graded with the user's levels file
+(``--levels``, :mod:`scenarios.assess.user_levels`), or not at all.
 
-The outputs, in the study directory: ``assessment.json`` (every record with its case, feedback and surface),
-``assessment.csv`` (the same, one row per record), ``assessment.md`` (a table per surface: a row per measure, a
-column per feedback, each cell the value and the level reached) and one figure per measure
-(``measure-<name>.png``: its value per feedback and surface), beside each case's own run directory.
+The outputs, in the study directory (:mod:`.assessment_report`): ``assessment.json`` (every record with its case,
+feedback and surface), ``assessment.csv`` (the same, one row per record), ``assessment.md`` (the combination's
+specification; a table per surface: a row per measure, a column per feedback, each cell the value and its grade)
+and one figure per measure (``measure-<name>.png``: its value per feedback and surface), beside each case's own run
+directory.
 """
 
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
 from vehicle_model.errors import InputError
 
-from ..assess.high_speed import high_speed_assessment, unassessable_records
+from ..assess.high_speed import high_speed_assessment
 from ..assess.low_speed import low_speed_assessment
+from ..assess.user_levels import UserLevels
+from ..catalogue.vehicle_spec import unit_kinds
 from ..config import load_scenario
 from ..loop.ends import RunStatus
 from ..registry import NO_FEEDBACK
 from ..run.metrics import ROUNDABOUT_INNER_RADIUS, ROUNDABOUT_OUTER_RADIUS
 from ..run.runner import run_scenario
 from ..setup.build import build_scenario
+from .assessment_report import strict_records, write_assessment
 from .progress import ProgressCallback
 from .records import CaseSpec
 from .sweep import run_sweep
@@ -219,29 +222,39 @@ def assessment_cases(vehicle: str, feedbacks: tuple[str, ...], surfaces: tuple[s
 
 
 def _turning_circle_records(metrics: dict[str, Any]) -> list[dict[str, Any]]:
-    """The UK/EU turning circle as two records (outer and inner radius, pass/fail and margin)."""
+    """The UK/EU turning circle as two records (outer and inner radius, pass/fail and margin), each note saying what
+    the test asks and what the run measured."""
     test = metrics.get("roundabout_test") or {}
     source = "97/27/EC Annex I §7.6.1; UK Road Vehicles (Construction and Use) Regulations, reg. 13A"
     outer, inner = test.get("outer_radius_max"), test.get("inner_radius_min")
+    outer_pass = outer is not None and outer <= ROUNDABOUT_OUTER_RADIUS
+    inner_pass = inner is not None and inner >= ROUNDABOUT_INNER_RADIUS
+    asks_outer = f"the test asks that the tractor's outermost point stay within {ROUNDABOUT_OUTER_RADIUS:.2f} m"
+    asks_inner = f"the test asks that no point of any unit come inside {ROUNDABOUT_INNER_RADIUS:.2f} m"
+    unit = f" (unit {test['inner_unit']})" if "inner_unit" in test else ""
     return [
         {
             "measure": "turning circle: outer radius",
             "value": outer,
             "unit": "m",
-            "level": None if outer is None else ("pass" if outer <= ROUNDABOUT_OUTER_RADIUS else "fail"),
+            "level": None if outer is None else ("pass" if outer_pass else "fail"),
             "margin": None if outer is None else ROUNDABOUT_OUTER_RADIUS - outer,
             "threshold_source": source,
-            "note": f"the tractor's outermost point within {ROUNDABOUT_OUTER_RADIUS:.2f} m",
+            "note": asks_outer
+            if outer is None
+            else f"{asks_outer}; measured: it reached {outer:.3f} m ({'pass' if outer_pass else 'fail'})",
         },
         {
             "measure": "turning circle: inner radius",
             "value": inner,
             "unit": "m",
-            "level": None if inner is None else ("pass" if inner >= ROUNDABOUT_INNER_RADIUS else "fail"),
+            "level": None if inner is None else ("pass" if inner_pass else "fail"),
             "margin": None if inner is None else inner - ROUNDABOUT_INNER_RADIUS,
             "threshold_source": source,
-            "note": f"no point of any unit inside {ROUNDABOUT_INNER_RADIUS:.2f} m (nearest: unit "
-            f"{test.get('inner_unit', 2)})",
+            "note": asks_inner
+            if inner is None
+            else f"{asks_inner}; measured: the innermost point came to {inner:.3f} m{unit} "
+            f"({'pass' if inner_pass else f'fail, {ROUNDABOUT_INNER_RADIUS - inner:.3f} m inside'})",
         },
     ]
 
@@ -276,114 +289,8 @@ def run_assessment_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     if metrics["status"] != RunStatus.COMPLETED:
         why = f"the run ended {metrics['status']}: {metrics.get('message', '')}".strip()
         records = [{**r, "value": None, "level": None, "margin": None, "note": why} for r in records]
-    row["records"] = json.dumps(records, allow_nan=True)
+    row["records"] = json.dumps(strict_records(records), allow_nan=False)
     return row
-
-
-def _number(value: Any) -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "—"
-    return f"{value:.3f}"
-
-
-def assessment_records(table: pd.DataFrame) -> pd.DataFrame:
-    """One row per record of every case that gave records, with its case's labels, and the not-assessed measures."""
-    rows = []
-    for case in table.to_dict("records"):
-        for record in json.loads(case.get("records") or "[]"):
-            record = {**record, "measure": str(record["measure"]).replace("_", " ")}
-            rows.append({k: case[k] for k in ("manoeuvre", "feedback", "surface", "status", "run")} | record)
-    for surface in dict.fromkeys(table["surface"]):
-        for feedback in dict.fromkeys(table["feedback"]):
-            for record in unassessable_records():
-                labels = {"manoeuvre": "—", "feedback": feedback, "surface": surface, "status": "—", "run": ""}
-                rows.append(labels | record)
-    return pd.DataFrame(rows)
-
-
-def write_assessment(table: pd.DataFrame, out_dir: Path, vehicle: str, plot_format: str = "png") -> Path:
-    """Write ``assessment.json``, ``assessment.csv``, ``assessment.md`` and a figure per measure into ``out_dir``.
-
-    Returns
-    -------
-    pathlib.Path
-        ``assessment.md``.
-    """
-    records = assessment_records(table)
-    (out_dir / "assessment.json").write_text(
-        json.dumps({"vehicle": vehicle, "records": records.to_dict("records")}, indent=2, default=str) + "\n"
-    )
-    records.to_csv(out_dir / "assessment.csv", index=False)
-    feedbacks = list(dict.fromkeys(records["feedback"]))
-    lines = [f"# Assessment of {vehicle}", ""]
-    lines += [
-        "Each cell: the measured value, then the level it reaches (`pass`/`fail` for the turning circle; PBS levels",
-        "only where a threshold was checked against the rules — see the notes) and the margin; a run that did not",
-        "complete its manoeuvre (lost control, diverged) gives no value and says so. Measured by `offtrack assess`;",
-        "each case's run directory holds its time series, metrics and plots.",
-        "",
-    ]
-    for surface in dict.fromkeys(records["surface"]):
-        part = records[records["surface"] == surface]
-        lines += [f"## Surface: {surface}", "", "| measure | unit | " + " | ".join(feedbacks) + " |"]
-        lines.append("|---|---|" + "---|" * len(feedbacks))
-        for measure in dict.fromkeys(part["measure"]):
-            rows = part[part["measure"] == measure]
-            cells = []
-            for feedback in feedbacks:
-                match = rows[rows["feedback"] == feedback]
-                if match.empty:
-                    cells.append("")
-                    continue
-                r = match.iloc[0]
-                text = _number(r["value"])
-                if text == "—" and r["status"] not in ("—", RunStatus.COMPLETED):
-                    text += f" (run {str(r['status']).replace('_', ' ')})"
-                if r["level"] not in (None, "") and not (isinstance(r["level"], float) and math.isnan(r["level"])):
-                    text += f" ({r['level']}, margin {_number(r['margin'])})"
-                cells.append(text)
-            lines.append(f"| {measure} | {rows.iloc[0]['unit']} | " + " | ".join(cells) + " |")
-        lines.append("")
-    lines += ["## Notes", ""]
-    for measure, note in dict.fromkeys(zip(records["measure"], records["note"], strict=True)):
-        lines.append(f"- **{measure}**: {note}")
-    lines.append("")
-    path = out_dir / "assessment.md"
-    path.write_text("\n".join(lines))
-    _measure_figures(records, out_dir, plot_format)
-    return path
-
-
-def _measure_figures(records: pd.DataFrame, out_dir: Path, plot_format: str) -> None:
-    """One bar chart per measure with a value: the value per feedback, a bar per surface."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    valued = records[pd.to_numeric(records["value"], errors="coerce").notna()]
-    surfaces = list(dict.fromkeys(records["surface"]))
-    for measure in dict.fromkeys(valued["measure"]):
-        rows = valued[valued["measure"] == measure]
-        feedbacks = list(dict.fromkeys(rows["feedback"]))
-        fig, ax = plt.subplots(figsize=(1.6 + 1.3 * len(feedbacks) * max(1, len(surfaces)) ** 0.5, 3.2))
-        width = 0.8 / len(surfaces)
-        for i, surface in enumerate(surfaces):
-            values = [
-                float(rows[(rows["feedback"] == f) & (rows["surface"] == surface)]["value"].astype(float).mean())
-                for f in feedbacks
-            ]
-            ax.bar(np.arange(len(feedbacks)) + (i - (len(surfaces) - 1) / 2) * width, values, width, label=surface)
-        ax.set_xticks(np.arange(len(feedbacks)), feedbacks)
-        unit = rows.iloc[0]["unit"]
-        ax.set_ylabel(f"{measure} [{unit}]" if unit != "-" else measure)
-        ax.set_title(measure)
-        if len(surfaces) > 1:
-            ax.legend(title="surface")
-        fig.tight_layout()
-        name = "".join(c if c.isalnum() else "-" for c in measure).strip("-")
-        fig.savefig(out_dir / f"measure-{name}.{plot_format}", dpi=110)
-        plt.close(fig)
 
 
 def run_assessment(
@@ -397,6 +304,7 @@ def run_assessment(
     resume: bool = True,
     on_progress: ProgressCallback | None = None,
     plot_format: str = "png",
+    levels: UserLevels | None = None,
 ) -> pd.DataFrame:
     """Assess one combination: run every case (:func:`assessment_cases`) on the sweep runner, then write the
     assessment (:func:`write_assessment`).
@@ -414,6 +322,8 @@ def run_assessment(
         As :func:`scenarios.studies.sweep.run_sweep`.
     plot_format
         ``png``, ``svg`` or ``pdf``.
+    levels
+        The user's PBS levels (:func:`scenarios.assess.user_levels.load_levels`), checked before; None: not graded.
 
     Returns
     -------
@@ -432,5 +342,15 @@ def run_assessment(
     table = result.table
     ok = table[table["status"] != RunStatus.FAILED] if "status" in table.columns else table
     if not ok.empty:
-        write_assessment(ok.reset_index(drop=True), out_dir, assessment_vehicle(vehicle).name, plot_format)
+        combination = assessment_vehicle(vehicle)
+        kinds = unit_kinds(load_scenario(MANOEUVRES[1].scenario, {"vehicle": vehicle}).vehicle)
+        write_assessment(
+            ok.reset_index(drop=True),
+            out_dir,
+            combination.name,
+            plot_format,
+            params=combination.params,
+            kinds=kinds,
+            levels=levels,
+        )
     return table
