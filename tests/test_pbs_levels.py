@@ -310,3 +310,44 @@ def test_a_missing_unsteered_value_is_said_in_its_own_cell_not_the_steered_one()
         in text
     )
     assert "gives a rearward amplification where the unsteered run gave none (the run ended lost control)" in text
+
+
+def test_a_measure_figure_shows_values_limits_missing_cases_and_what_negative_means() -> None:
+    """Tail swing of three cases: each value written on its bar with its level, the example file's limits drawn with
+    their clauses, the diverged case kept as a hatched bar with its reason, and the negative bar explained."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from scenarios.assess.user_levels import load_levels
+    from scenarios.studies.assessment_report import measure_figure
+
+    levels = load_levels(Path(__file__).parent / "data" / "pbs_levels_example.yaml")
+    rows = pd.DataFrame(
+        {
+            "measure": ["tail swing"] * 3,
+            "unit": ["m"] * 3,
+            "feedback": ["none", "truth", "zero_slip"],
+            "surface": ["dry"] * 3,
+            "value": [0.276, -0.05, float("nan")],
+            "level": [2, 1, None],
+            "status": ["completed", "completed", "diverged"],
+        }
+    )
+    fig = measure_figure(rows, ["dry"], levels, 20.0)
+    try:
+        ax = fig.axes[0]
+        texts = {t.get_text() for t in ax.texts if t.get_gid() == "value"}
+        assert texts == {"0.276\nlevel 2", "-0.050\nlevel 1"}
+        missing = [t.get_text() for t in ax.texts if t.get_gid() == "no-value"]
+        assert missing == ["no value: run diverged"]
+        limits = [line for line in ax.get_lines() if str(line.get_gid()).startswith("limit:")]
+        standard = levels.standard("tail_swing")
+        assert sorted(line.get_ydata()[0] for line in limits) == sorted(t.limit for t in standard.applicable(20.0))
+        assert any("cl. B" in t.get_text() for t in ax.get_legend().get_texts())
+        assert [t.get_text() for t in ax.texts if t.get_gid() == "negative"] == [
+            "below 0: the rear corner moves inward, not out"
+        ]
+    finally:
+        plt.close(fig)

@@ -343,37 +343,133 @@ def write_assessment(
     lines.append("")
     path = out_dir / "assessment.md"
     path.write_text("\n".join(lines))
-    _measure_figures(records[~records["measure"].isin(not_assessed)], out_dir, plot_format)
+    length = None if spec is None else spec.overall_length
+    _measure_figures(records[~records["measure"].isin(not_assessed)], out_dir, plot_format, levels, length)
     return path
 
 
-def _measure_figures(records: pd.DataFrame, out_dir: Path, plot_format: str) -> None:
-    """One bar chart per measure with a value: the value per feedback, a bar per surface."""
+NEGATIVE_MEANS = {
+    "frontal_swing": "below 0: the corner stays inside the path it is measured against (no swing out)",
+    "frontal_swing_max_of_difference": "below 0: the towed unit's front corner stays inside the prime mover's",
+    "frontal_swing_difference_of_maxima": "below 0: the towed unit's front corner stays inside the prime mover's",
+    "tail_swing": "below 0: the rear corner moves inward, not out",
+}
+"""What a negative value of a measure means, said on its figure when a bar goes below zero."""
+
+
+def measure_figure(rows: pd.DataFrame, surfaces: list[str], levels: UserLevels | None, length: float | None) -> Any:
+    """The bar chart of one measure (the caller saves and closes it): its value per feedback, a bar per surface.
+
+    Every bar carries its value (``gid`` ``value``); a case without a value gets an empty hatched bar and the reason
+    (``gid`` ``no-value``) instead of vanishing; the user's level limits are drawn and labelled with their clauses
+    (``gid`` ``limit:<level>``), and a turning circle's pass or fail is written on its bar; a negative bar is
+    explained (:data:`NEGATIVE_MEANS`).
+    """
+    import matplotlib.pyplot as plt
+
+    measure = str(rows.iloc[0]["measure"])
+    feedbacks = list(dict.fromkeys(rows["feedback"]))
+    fig, ax = plt.subplots(figsize=(2.6 + 1.4 * len(feedbacks) * max(1, len(surfaces)) ** 0.5, 3.6))
+    width = 0.8 / len(surfaces)
+    values_all = pd.to_numeric(rows["value"], errors="coerce")
+    scale = float(np.nanmax(np.abs(values_all))) if values_all.notna().any() else 1.0
+    labelled: set[str] = set()
+    for i, surface in enumerate(surfaces):
+        x = np.arange(len(feedbacks)) + (i - (len(surfaces) - 1) / 2) * width
+        for xi, feedback in zip(x, feedbacks, strict=True):
+            match = rows[(rows["feedback"] == feedback) & (rows["surface"] == surface)]
+            if match.empty:
+                continue
+            row = match.iloc[0]
+            value = pd.to_numeric(pd.Series([row["value"]]), errors="coerce").iloc[0]
+            if pd.isna(value):
+                ax.bar(xi, 0.05 * scale, width, fill=False, hatch="//", edgecolor="0.5", gid="no-value")
+                status = str(row.get("status", "")).replace("_", " ")
+                why = f"no value: run {status}" if status not in ("", "—", RunStatus.COMPLETED) else "no value"
+                ax.annotate(
+                    why,
+                    (xi, 0.05 * scale),
+                    xytext=(0, 3),
+                    textcoords="offset points",
+                    ha="center",
+                    va="bottom",
+                    fontsize=7,
+                    rotation=90,
+                    gid="no-value",
+                )
+                continue
+            ax.bar(xi, float(value), width, color=f"C{i}", label=None if surface in labelled else surface)
+            labelled.add(surface)
+            level = row.get("level")
+            text = f"{float(value):.3f}"
+            if level in ("pass", "fail"):
+                text += f"\n{str(level).upper()}"
+            elif isinstance(level, (int, np.integer)) or (isinstance(level, float) and not math.isnan(level)):
+                text += f"\nlevel {int(level)}"
+            elif level == "none":
+                text += "\nno level"
+            ax.annotate(
+                text,
+                (xi, float(value)),
+                xytext=(0, 2 if value >= 0 else -2),
+                textcoords="offset points",
+                ha="center",
+                va="bottom" if value >= 0 else "top",
+                fontsize=7,
+                gid="value",
+            )
+    key = standard_key(measure)
+    standard = None if levels is None or key is None else levels.standard(key)
+    if standard is not None:
+        for threshold in standard.applicable(length):
+            ax.axhline(
+                threshold.limit,
+                color="0.3",
+                lw=0.8,
+                ls=("-", "--", "-.", ":")[(threshold.level - 1) % 4],
+                label=f"level {threshold.level} limit ({threshold.clause})",
+                gid=f"limit:{threshold.level}",
+            )
+    if values_all.notna().any() and float(np.nanmin(values_all)) < 0.0:
+        ax.axhline(0.0, color="k", lw=0.6)
+        ax.text(
+            0.01,
+            0.01,
+            NEGATIVE_MEANS.get(key or "", "below 0: the measure's sense reversed"),
+            transform=ax.transAxes,
+            fontsize=7,
+            va="bottom",
+            ha="left",
+            gid="negative",
+        )
+    ax.set_xticks(np.arange(len(feedbacks)), feedbacks)
+    unit = rows.iloc[0]["unit"]
+    ax.set_ylabel(f"{measure} [{unit}]" if unit != "-" else measure)
+    ax.set_title(measure if standard is not None or levels is None else f"{measure} (no level limit given)")
+    ax.margins(y=0.25)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7, title="surface / limits" if standard is not None else "surface")
+    fig.tight_layout()
+    return fig
+
+
+def _measure_figures(
+    records: pd.DataFrame,
+    out_dir: Path,
+    plot_format: str,
+    levels: UserLevels | None = None,
+    length: float | None = None,
+) -> None:
+    """One bar chart per measure (:func:`measure_figure`), ``measure-<name>.<format>``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    valued = records[pd.to_numeric(records["value"], errors="coerce").notna()]
     surfaces = list(dict.fromkeys(records["surface"]))
-    for measure in dict.fromkeys(valued["measure"]):
-        rows = valued[valued["measure"] == measure]
-        feedbacks = list(dict.fromkeys(rows["feedback"]))
-        fig, ax = plt.subplots(figsize=(1.6 + 1.3 * len(feedbacks) * max(1, len(surfaces)) ** 0.5, 3.2))
-        width = 0.8 / len(surfaces)
-        for i, surface in enumerate(surfaces):
-            values = [
-                float(rows[(rows["feedback"] == f) & (rows["surface"] == surface)]["value"].astype(float).mean())
-                for f in feedbacks
-            ]
-            ax.bar(np.arange(len(feedbacks)) + (i - (len(surfaces) - 1) / 2) * width, values, width, label=surface)
-        ax.set_xticks(np.arange(len(feedbacks)), feedbacks)
-        unit = rows.iloc[0]["unit"]
-        ax.set_ylabel(f"{measure} [{unit}]" if unit != "-" else measure)
-        ax.set_title(measure)
-        if len(surfaces) > 1:
-            ax.legend(title="surface")
-        fig.tight_layout()
+    for measure in dict.fromkeys(records["measure"]):
+        rows = records[records["measure"] == measure]
+        fig = measure_figure(rows, surfaces, levels, length)
         name = "".join(c if c.isalnum() else "-" for c in measure).strip("-")
         fig.savefig(out_dir / f"measure-{name}.{plot_format}", dpi=110)
         plt.close(fig)
