@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -257,6 +256,7 @@ def tune(
     from scenarios.envs.scenario import DEFAULT_OVERRIDES
     from scenarios.envs.tuning import tune_gains
     from scenarios.envs.tuning_report import gains_table, held_out_table, set_options, write_tuning
+    from scenarios.run.json_output import strict_json
     from scenarios.run.results import new_run_dir
 
     require("optuna", "tune", "tuning the gains")
@@ -273,7 +273,7 @@ def tune(
     paths = None if out_dir is None else write_tuning(result, out_dir, base)
     if as_json:
         files = None if paths is None else {key: str(path) for key, path in paths.items()}
-        print(json.dumps({"benchmark": "tune_gains", **result.to_dict(), "files": files}))
+        print(strict_json({"benchmark": "tune_gains", **result.to_dict(), "files": files}, indent=None))
         return
     console.print(gains_table(result))
     console.print(held_out_table(result))
