@@ -241,7 +241,7 @@ def offtracking_figure(
         est = columns[estimates[name, FIRST_TOWED_UNIT].name]
         colour = source_colour(name)
         error = est - truth
-        top.plot(t, est, lw=1.0, color=colour, label=f"{name}: error {rms(error[settled]):.3f} m RMS")
+        top.plot(t, est, lw=1.0, color=colour, label=f"{name}: error {rms(error[settled]):.3f} m RMS after warm-up")
         std_of = std_column(columns, name)
         std = None if std_of is None else columns[std_of.name]
         if std is not None and np.isfinite(std).any():

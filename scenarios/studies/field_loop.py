@@ -144,6 +144,20 @@ ROW_KEYS = (
 """The columns :func:`run_field_loop_case` adds to :func:`~scenarios.studies.cases.run_case`'s row (NaN where
 the run did not give them)."""
 
+FIELD_LOOP_COLUMNS = (
+    "viso_ot_fused_true_rms_m",
+    "viso_ot_fused_true_max_m",
+    "zero_slip_true_rms_m",
+    "truth_true_rms_m",
+    "fused_rms_error_m",
+    "coverage",
+    "verdict",
+    "acceptance",
+)
+"""The study's terminal columns, one row per cell (:func:`field_loop_terminal_rows`): the fused-fed loop's true
+off-tracking beside the zero-slip- and truth-fed loops', the fused estimate's error and coverage, the fused-fed
+run's own verdict and the cell's acceptance (the study's criteria, stricter than the run's verdict)."""
+
 
 def field_signals(seed: int) -> tuple[tuple[str, Any], ...]:
     """The on-board signals of a field cell: every channel's data-sheet noise and a bias drawn from ``seed``
@@ -408,6 +422,20 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
         )
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def field_loop_terminal_rows(table: pd.DataFrame) -> tuple[pd.DataFrame, str]:
+    """The terminal's rows of a field-loop table: one per cell with its acceptance (:func:`cell_table`, the rows of
+    ``table.md``), and how many cells pass.
+
+    Parameters
+    ----------
+    table
+        The study's case rows, failed ones included (their cells fail).
+    """
+    cells = cell_table(table)
+    passed = int((cells["acceptance"] == "pass").sum()) if "acceptance" in cells.columns else 0
+    return cells, f"{passed} of {len(cells)} cells pass"
 
 
 def pooled_coverage(cells: pd.DataFrame) -> pd.DataFrame:
