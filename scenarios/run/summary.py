@@ -149,6 +149,8 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
         for flag in verdict.get("flags", []):
             reason = "the roundabout test above" if flag["flag"] == ROUNDABOUT_FLAG else flag["reason"]
             out.append(f"[red]{flag['flag']}[/]: {escape(reason)}")
+    for note in metrics.get("notes") or ():
+        out.append(f"[yellow]note[/]: {escape(str(note.get('text')))}")
     wall = metrics.get("wall_time_s")
     wall_text = f"{number(wall, '.1f', 's')}" if number(wall) != MISSING else "an unknown"
     out.append(f"simulated {number(metrics.get('simulated_s'), '.1f', 's')} in {wall_text} wall time")

@@ -30,6 +30,7 @@ LABELS = (
     "scenario",
     "sweep",
     "camera",
+    "camera_conditions",
     "conditions",
     "surface",
     "camber",
@@ -50,8 +51,10 @@ PRIORITY = (
     "status",
     "roundabout_pass",
     "true_offtracking_rms_m",
+    "vs_unsteered_rms_m",
     "true_offtracking_max_m",
     "inner_radius_min_m",
+    "viso_ot_fused_rms_error_m",
     "true_offtracking_rms_after_warmup_m",
     "true_offtracking_max_after_warmup_m",
     *(  # each towed unit of the unit-steering study (2 the first, as many as a combination has)
@@ -74,6 +77,7 @@ PRIORITY = (
     "truth_rms_m",
     "mean_inliers",
     "wall_time_s",
+    "reason",
     "error",
 )
 """Columns after the labels, most important first; any others follow in the table's order. A study's columns and
@@ -88,6 +92,9 @@ HEADERS = {
     "viso_ot_valid_fraction": "VISO-OT valid [%]",
     "zero_slip_rms_error_m": "zero-slip err RMS all ticks [m]",
     "fused_rms_error_m": "fused err RMS all ticks [m]",
+    "viso_ot_fused_rms_error_m": "fused err RMS all ticks [m]",
+    "vs_unsteered_rms_m": "true e_tr RMS − unsteered [m]",
+    "camera_conditions": "camera",
     "fused_within_2sigma": "fused within 2σ [%]",
     "verdict_held": "verdict held",
     "truth_rms_m": "true e_tr RMS all ticks [m]",
@@ -118,6 +125,9 @@ HEADERS = {
     "verdict_flags": "verdict flags",
 }
 """Short headers with units for the known columns (others: :func:`header_for`)."""
+
+TITLE_WORDS = {"camera_conditions": "camera"}
+"""How a label with one value in every row is named in the title, where it differs from the column's name."""
 
 PERCENT = {"viso_ot_valid_fraction", "saturated_fraction", "fused_within_2sigma", "coverage"}
 """Fractions shown as percentages."""
@@ -235,7 +245,7 @@ def summary_table(
     heading = title or ""
     if constant:
         heading += (" — " if heading else "") + ", ".join(
-            f"{k} {format_cell(k, v, missing)}" for k, v in constant.items()
+            f"{TITLE_WORDS.get(k, k)} {format_cell(k, v, missing)}" for k, v in constant.items()
         )
     caption = f"{len(table)} {rows}"
     if left_out:
