@@ -38,14 +38,17 @@ SCRUB_MAX_SPEED_KMH = 10.0
 """Largest cornering speed [km/h] of the walking-pace regime, where the lateral acceleration hardly moves the
 tractor's rear point (docs/vehicle_dynamics.md §6.6) and the scrub of fixed groups is what remains."""
 
+LOCKED_FRACTION = 0.2
+"""Share of the time at its lock above which a steered axle is named as pushing the unit's turning point back."""
+
 
 def _fixed_groups(params: Any) -> list[str]:
-    """Each unit with two or more unsteered axles, as ``unit K (n fixed axles)`` (1 the tractor or truck)."""
+    """Each unit with two or more unsteered axles, as ``unit K: n fixed axles`` (1 the tractor or truck)."""
     out = []
     for number, unit in enumerate(params.units, start=1):
         fixed = sum(1 for axle in unit.axles if not axle.steerable)
         if fixed >= 2:
-            out.append(f"unit {number} ({fixed} fixed axles)")
+            out.append(f"unit {number}: {fixed} fixed axles")
     return out
 
 
@@ -80,10 +83,15 @@ def scrub_note(metrics: dict[str, Any], params: Any, mu: float, speed_kmh: float
     shown = ", ".join(f"unit {unit} {e:.3f} m RMS" for unit, e in sorted(errors.items()))
     note = (
         f"the zero-slip estimate is off ({shown}) at {speed_kmh:g} km/h on μ {mu:.2f}, where no tyre nears its "
-        f"friction limit: the fixed axle groups ({', '.join(groups)}) cannot all roll without side-slip in a turn, "
+        f"friction limit: the fixed axle groups ({'; '.join(groups)}) cannot all roll without side-slip in a turn, "
         "they scrub and push on the coupling ahead, so each unit turns about a point the zero-slip kinematics do not "
         "use (docs/vehicle_dynamics.md §2.3, §6.6)"
     )
+    locked = [
+        axle for axle, m in (metrics.get("trailer_steering") or {}).items() if m.get("saturated_fraction", 0) > 0.2
+    ]
+    if locked:
+        note += f"; steered axles at their lock ({', '.join(locked)}) push the other way"
     if params.n_units > 2:
         note += "; each unit's estimate starts from the coupling the unit ahead gives it, so the chain carries it back"
     return note
