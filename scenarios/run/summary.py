@@ -19,6 +19,10 @@ from .verdicts import ROUNDABOUT_FLAG, inner_limit_reason, with_roundabout_test
 MISSING = "–"
 """How a number the run did not produce (None, not a number) is shown."""
 
+UNPHYSICAL_END = ("diverged",)
+"""Statuses whose last recorded states left the model's valid region, so that extremes over them are not
+measurements."""
+
 ALL_TICKS = "all ticks"
 """The window of an RMS over every tick on which the truth is defined."""
 AFTER_WARMUP = "after warm-up"
@@ -127,6 +131,11 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
             f"roundabout test {verdict}: outer radius max {number(test.get('outer_radius_max'), unit='m')} "
             f"(limit 12.50), inner radius min {number(test.get('inner_radius_min'), unit='m')} (limit 5.30)"
             + (f": {escape(reason)}" if reason else "")
+            + (
+                f" (the run {metrics.get('status')}: these radii include its last, unphysical states)"
+                if metrics.get("status") in UNPHYSICAL_END
+                else ""
+            )
         )
     swept = metrics.get("swept_path")
     if swept:
