@@ -19,7 +19,7 @@ from typing import Any
 
 from .files import write_atomic
 
-__all__ = ["NULL_REASONS_KEY", "loads_strict", "strict_json", "strict_value", "write_json"]
+__all__ = ["NULL_REASONS_KEY", "loads_strict", "native_value", "strict_json", "strict_value", "write_json"]
 
 NULL_REASONS_KEY = "null_reasons"
 """The field of a written object that says why each of its non-finite numbers was written as ``null``."""
@@ -63,6 +63,21 @@ def strict_value(value: Any, path: str = "", nulls: dict[str, str] | None = None
             nulls[path or "/"] = NAN_REASON if math.isnan(value) else _infinite_reason(value)
         return None
     return str(value)
+
+
+def native_value(value: Any) -> Any:
+    """A copy of ``value`` in Python's own types (numpy scalars and arrays to numbers and lists, paths to text), its
+    non-finite floats kept: for a value held in memory and written later by :func:`strict_json`, which then gives
+    each of them its reason."""
+    if isinstance(value, dict):
+        return {str(k): native_value(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [native_value(v) for v in value]
+    if isinstance(value, float):
+        return float(value)
+    if isinstance(value, int | bool | str) or value is None:
+        return value
+    return strict_value(value) if not hasattr(value, "tolist") else native_value(value.tolist())
 
 
 def strict_json(value: Any, *, indent: int | None = 2, reasons: bool = True, sort_keys: bool = False) -> str:

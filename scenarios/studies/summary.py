@@ -93,7 +93,7 @@ HEADERS = {
     "zero_slip_rms_error_m": "zero-slip err RMS all ticks [m]",
     "fused_rms_error_m": "fused err RMS all ticks [m]",
     "viso_ot_fused_rms_error_m": "fused err RMS all ticks [m]",
-    "vs_unsteered_rms_m": "true e_tr RMS − unsteered [m]",
+    "vs_unsteered_rms_m": "true e_tr RMS after warm-up − unsteered [m]",
     "camera_conditions": "camera",
     "fused_within_2sigma": "fused within 2σ [%]",
     "verdict_held": "verdict held",
