@@ -3,7 +3,8 @@
 * One verdict: a failed roundabout test is a flag of ``metrics.json``'s verdict, so the summary, ``--check`` and
   ``metrics.json`` say the same thing.
 * Every JSON offtrack writes parses with a strict parser (no bare ``NaN``): a ``compare`` of two short runs, one of
-  them made to end ``diverged``, is parsed file by file with ``parse_constant`` raising.
+  them made to end ``diverged``, and a ``report`` of one of its runs are parsed file by file with ``parse_constant``
+  raising.
 * ``compare`` exits 3 when a run did not complete, gives its radii as missing with a reason, shows each estimator's
   error and the camera's conditions, and says when a steered run is worse than the unsteered one.
 * Every RMS a table or the summary shows names its window (all ticks, or after warm-up).
@@ -120,6 +121,8 @@ def compared(tmp_path_factory: pytest.TempPathFactory) -> tuple[object, Path]:
         result = CliRunner().invoke(app, args, env={"COLUMNS": "200"}, prog_name="offtrack")
     finally:
         monkeypatch.undo()
+    rebuilt = CliRunner().invoke(app, ["report", str(out / "zero_slip"), "--no-plots"], prog_name="offtrack")
+    assert rebuilt.exit_code == 0, rebuilt.output  # metrics.json written a second time, by another command
     return result, out
 
 
