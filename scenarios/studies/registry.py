@@ -52,7 +52,8 @@ class Study:
         The study runs on another combination given as ``vehicle``; the others keep their own vehicle.
     columns : tuple of str
         The columns of its terminal table after the labels that vary, in order: the ones that answer the study's
-        question (empty: :data:`scenarios.studies.summary.PRIORITY`). The full table is in ``table.md``.
+        question (empty: :data:`scenarios.studies.summary.PRIORITY`, which already leads with the off-tracking and
+        each unit's columns of the model-only studies). The full table is in ``table.md``.
     terminal_rows : callable or None
         ``terminal_rows(table) -> (rows, note)``: the rows the terminal shows instead of the cases (field-loop: one
         per cell with its acceptance, as its ``table.md``) and a note for the title (e.g. how many cells pass);
@@ -105,6 +106,17 @@ STUDIES: dict[str, Study] = _studies(
         paper_section4_cases,
         section4_figures,
         run_section4_case,
+        columns=(
+            "status",
+            "viso_ot_rms_error_m",
+            "viso_ot_max_abs_error_m",
+            "viso_ot_mean_error_m",
+            "neg_mean_error_m",
+            "pos_mean_error_m",
+            "mean_matches",
+            "inlier_percent",
+            "failed_frames",
+        ),
     ),
     Study(
         "field-loop",
@@ -123,6 +135,17 @@ STUDIES: dict[str, Study] = _studies(
         field_bias_cases,
         field_bias_figures,
         run_field_bias_case,
+        columns=(
+            "status",
+            "vo_yaw_error_mrad_per_m",
+            "vo_lateral_error_mm_per_m",
+            "vo_scale_error_percent",
+            "viso_ot_mean_error_m",
+            "viso_ot_rms_error_m",
+            "fused_mean_error_m",
+            "fused_rms_error_m",
+            "fused_within_2sigma",
+        ),
     ),
     Study(
         "unit-steering",
