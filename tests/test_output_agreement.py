@@ -270,3 +270,9 @@ def test_no_message_is_written_with_a_capital_error_prefix() -> None:
         if pattern.search(path.read_text(encoding="utf-8"))
     ]
     assert offenders == []
+
+
+def test_every_declared_study_column_has_a_header_with_its_unit() -> None:
+    for name, study in STUDIES.items():
+        for column in study.columns:
+            assert column == "status" or column in HEADERS, (name, column)
