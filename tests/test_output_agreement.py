@@ -146,7 +146,7 @@ def test_compare_exits_3_on_a_run_that_did_not_complete(compared) -> None:
     diverged = table[table["feedback"] == "zero_slip"].iloc[0]
     assert math.isnan(diverged["inner_radius_min_m"]) and diverged["reason"].startswith("diverged: the simulation")
     assert "zero_slip_rms_error_m" in table.columns  # the estimators' errors
-    assert set(table["camera_conditions"]) == {"no camera"}
+    assert set(table["camera_conditions"]) == {"none rendered"}
 
 
 def test_a_steered_run_worse_than_the_unsteered_one_is_said() -> None:

@@ -43,7 +43,7 @@ from .progress import SweepProgress
 from .records import CaseRecord, CaseSpec
 from .sweep import run_sweep
 
-NO_CAMERA = "no camera"
+NO_CAMERA = "none rendered"
 """``camera_conditions`` of a run that rendered no camera."""
 
 CompareProgress = Callable[[str, float, float], None]
