@@ -4,10 +4,10 @@ A steered run is asked to keep the trailer's true off-tracking within the target
 (docs/design.md §11: 0.10 m RMS and 0.15 m at most after warm-up; de Saxe & Cebon 2018, §2, after Jujnovich &
 Cebon 2013), and to steer on an estimate it can trust: one that was there when the controller needed it, whose
 error stayed within that target and whose standard deviation, where it gives one, covered its error (85 % of the
-errors within 2σ, docs/design.md §11). Every run on the roundabout test, steered or not, is asked to pass it. Each
-miss is a flag with a sentence; a run that raises none *held*. The
-status (``completed``, ``lost_control``, …) says how the run went; the verdict says whether its result is one to
-trust.
+errors within 2σ, docs/design.md §11). Every run on the roundabout test, steered or not, is asked to pass it
+(:func:`with_roundabout_test`). Each miss is a flag with a sentence; a run that raises none *held*. The status
+(``completed``, ``lost_control``, …) says how the run went; the verdict says whether its result is one to trust. The
+summary, ``metrics.json``, ``offtrack report`` and ``--check`` all give this one verdict.
 """
 
 from __future__ import annotations
