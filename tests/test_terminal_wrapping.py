@@ -66,7 +66,7 @@ def test_the_verdict_lines_wrap_between_words(width: int) -> None:
     plain.print(next(r for r in run_summary(METRICS, Path("x")) if isinstance(r, str) and "roundabout" in r))
     # the words of the wrapped verdict are those of the unwrapped line, none cut
     assert _words(verdict) == _words(plain.export_text())
-    flag = text[text.index("offtracking_above_target") : text.index("simulated")]
+    flag = text[text.index("offtracking_above_target") : text.index("roundabout_test_failed")]
     assert _words(flag) == _words("offtracking_above_target: " + METRICS["verdict"]["flags"][0]["reason"])
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from typing import Annotated
 
 import typer
@@ -12,6 +11,7 @@ from rich.table import Table
 
 from ..camera.workers import DEFAULT_WORKERS
 from ..cli_format import OfftrackCommand, OfftrackGroup
+from ..run.json_output import strict_json
 
 bench_app = typer.Typer(
     help="Benchmarks printing machine-readable results.",
@@ -117,7 +117,7 @@ def bench_env_cmd(
 
 def _print_bench(result: dict, as_json: bool, title: str) -> None:
     if as_json:
-        print(json.dumps(result))
+        print(strict_json(result, indent=None))
         return
     table = Table(title=title)
     table.add_column("figure")

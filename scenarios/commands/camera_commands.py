@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -46,7 +45,7 @@ def render(
     from rich.progress import Progress
 
     from scenarios.export.kitti import export_kitti, render_summary
-    from scenarios.run.files import jsonable
+    from scenarios.run.json_output import strict_json
     from scenarios.run.results import check_output_dir
 
     pairs = (*shortcut_pairs(seed=seed, duration_s=duration), ("camera.scenery_density", density))
@@ -65,7 +64,7 @@ def render(
             progress=lambda done, total: bar.update(task, completed=done, total=total),
         )
     if as_json:
-        print(json.dumps(jsonable(summary), allow_nan=False))
+        print(strict_json(summary, indent=None))
         return
     console.print(render_summary(summary), markup=False, highlight=False, soft_wrap=True)
 
@@ -171,7 +170,7 @@ def vo_eval(
     from rich.progress import Progress
 
     from scenarios.recorded.vo_eval import evaluate_vo, plot_drift, result_lines
-    from scenarios.run.files import jsonable, write_atomic
+    from scenarios.run.json_output import strict_json, write_json
     from scenarios.run.results import check_output_dir, new_run_dir
 
     if out is not None:
@@ -189,10 +188,10 @@ def vo_eval(
         )
     if out is not None:
         run_dir = new_run_dir(out, "vo-eval", force=force)
-        write_atomic(run_dir / "vo_eval.json", json.dumps(jsonable(result), indent=2, allow_nan=False))
+        write_json(run_dir / "vo_eval.json", result)
         plot_drift(run_dir / "drift.png", result, arrays)
     if as_json:
-        print(json.dumps(jsonable(result), allow_nan=False))
+        print(strict_json(result, indent=None))
         return
     for line in result_lines(result):
         console.print(escape(line))
@@ -264,7 +263,7 @@ def calibrate(
     if scenario is None:
         raise InputError("give a SCENARIO (its rendered camera), or photos with --images DIR or --left/--right GLOB")
     from scenarios.camera.build import calibration_target_rig, lenses, rig_from_config, run_calibration
-    from scenarios.run.files import write_atomic
+    from scenarios.run.json_output import write_json
     from scenarios.run.results import new_run_dir
     from sensor.calibration_report import calibration_line, calibration_summary
 
@@ -275,7 +274,7 @@ def calibrate(
         result = run_calibration(rig, config)
     path = result.write(run_dir / "calibration.yaml")
     summary = calibration_summary(result, calibration_target_rig(rig, config), *lenses(config))
-    write_atomic(run_dir / "residuals.json", json.dumps(summary, indent=2, default=float))
+    write_json(run_dir / "residuals.json", summary)
     console.print(escape(f"calibration → {path}; residuals → {run_dir / 'residuals.json'}"))
     console.print(calibration_line(summary))
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -103,6 +102,29 @@ def compare(
     console.print(
         summary_table(display_table(table), console.width, files=files, title=title, rows="runs", missing=MISSING)
     )
+    exit_for_compare(table, run_dir)
+
+
+def exit_for_compare(table: Any, run_dir: Path) -> None:
+    """After ``compare``'s table: each steered run worse than the unsteered one and each run's notes, one line each;
+    then, if a run did not complete (diverged, lost control, failed), one line for each and exit 3."""
+    from scenarios.run.notes import COMPARE_NOTE
+    from scenarios.run.results import read_metrics
+    from scenarios.studies.compare import unsteered_comparison
+
+    for note in unsteered_comparison(table)[1]:
+        console.print(f"[yellow]worse than unsteered[/]: {escape(note)}")
+    for feedback in table["feedback"]:
+        for note in (read_metrics(run_dir / str(feedback)) or {}).get("notes") or ():
+            if note.get("note") != COMPARE_NOTE:  # the comparison is this table
+                console.print(f"[yellow]note[/] ({escape(str(feedback))}): {escape(str(note.get('text')))}")
+    unfinished = table[table["status"] != RunStatus.COMPLETED] if "status" in table.columns else table.iloc[:0]
+    for _, row in unfinished.iterrows():
+        why = row.get("reason") if isinstance(row.get("reason"), str) else row.get("error")
+        errors.print(f"run {row['feedback']} {row['status']}: {why}", markup=False)
+    if len(unfinished):
+        errors.print(f"{len(unfinished)} of {len(table)} runs did not complete (exit 3)", markup=False)
+        raise typer.Exit(EXIT_FAILED)
 
 
 def exit_if_cases_failed(table: Any, run_dir: Path) -> None:
@@ -267,6 +289,7 @@ def tune(
     from scenarios.envs.scenario import DEFAULT_OVERRIDES
     from scenarios.envs.tuning import tune_gains
     from scenarios.envs.tuning_report import gains_table, held_out_table, set_options, write_tuning
+    from scenarios.run.json_output import strict_json
     from scenarios.run.results import new_run_dir
 
     require("optuna", "tune", "tuning the gains")
@@ -283,7 +306,7 @@ def tune(
     paths = None if out_dir is None else write_tuning(result, out_dir, base)
     if as_json:
         files = None if paths is None else {key: str(path) for key, path in paths.items()}
-        print(json.dumps({"benchmark": "tune_gains", **result.to_dict(), "files": files}))
+        print(strict_json({"benchmark": "tune_gains", **result.to_dict(), "files": files}, indent=None))
         return
     console.print(gains_table(result))
     console.print(held_out_table(result))

@@ -108,11 +108,20 @@ def exit_for_status(metrics: dict) -> None:
 
 
 def print_study_summary(table, run_dir: Path, name: str) -> None:
-    """The columns that matter, to the terminal's width; the rest is in table.md / table.csv."""
+    """The study's own columns (:attr:`~scenarios.studies.registry.Study.columns`, on its terminal rows), to the
+    terminal's width; the rest is in table.md / table.csv."""
+    from scenarios.studies.registry import STUDIES
     from scenarios.studies.summary import summary_table
 
+    study = STUDIES.get(name)
+    title = f"{name}: {len(table)} cases"
+    rows, what = table, "cases"
+    if study is not None and study.terminal_rows is not None:
+        rows, note = study.terminal_rows(table)
+        title, what = f"{name}: {len(table)} cases, {note}", "cells"
     files = (str(run_dir / "table.md"), str(run_dir / "table.csv"))
-    console.print(summary_table(table, console.width, files=files, title=f"{name}: {len(table)} cases"))
+    columns = study.columns if study is not None else ()
+    console.print(summary_table(rows, console.width, files=files, title=title, rows=what, columns=columns))
 
 
 def print_summary(metrics: dict, run_dir: Path) -> None:

@@ -23,7 +23,6 @@ odometry's rectification are left out.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Callable
@@ -41,6 +40,7 @@ from ..camera.build import lighting_from_config, resolve_scenery_density, rig_fr
 from ..config import ScenarioConfig, load_scenario
 from ..loop.trailer_steer import UnsteeredTrailer, trailer_axles
 from ..run.drive import simulate
+from ..run.json_output import write_json
 from ..run.results import check_output_dir, clear_run_dir
 from ..setup.build import build_scenario
 from .video import StereoVideoWriter
@@ -250,7 +250,7 @@ def export_kitti(
     }
     if camera.developer.lighting is not None:  # a sun: its settings (flat lighting adds nothing)
         meta["lighting"] = camera.developer.lighting.model_dump(mode="json")
-    (out / "offtrack.json").write_text(json.dumps(meta, indent=2) + "\n")
+    write_json(out / "offtrack.json", meta)
     files = {
         "left": out / "image_0",
         "right": out / "image_1",

@@ -13,7 +13,6 @@ directory
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +23,7 @@ from sensor.board_calibration import BoardPattern, PhotoCalibration, calibrate_p
 from sensor.photo_pairs import check_images, stereo_pairs
 from vehicle_model.errors import InputError
 
-from ..run.files import jsonable, write_atomic
+from ..run.json_output import write_json
 from .calibration_figure import corner_coverage, plot_calibration
 
 CALIBRATION_FILE = "calibration.yaml"
@@ -79,7 +78,7 @@ def calibrate_from_photos(
     report = calibration.summary()
     report["coverage"] = {side: corner_coverage(calibration, side)[0] for side in ("left", "right")}
     report["notes"] = calibration.notes
-    write_atomic(out / RESIDUALS_FILE, json.dumps(jsonable(report), indent=2, allow_nan=False))
+    write_json(out / RESIDUALS_FILE, report)
     if plots:
         plot_calibration(out / FIGURE_FILE, calibration)
     return calibration, report

@@ -53,7 +53,7 @@ def is_recorded_run(run_dir: Path) -> bool:
 
 def write_recording_file(run_dir: Path, record: dict[str, Any]) -> None:
     """``recording.yaml``: the inputs' record (:attr:`.inputs.EstimateInputs.record`)."""
-    write_atomic(Path(run_dir) / RECORDING_FILE, yaml.safe_dump(jsonable(record), sort_keys=False))
+    write_atomic(Path(run_dir) / RECORDING_FILE, yaml.safe_dump(jsonable(record), sort_keys=False, allow_unicode=True))
 
 
 def read_recording_file(run_dir: Path) -> dict[str, Any]:

@@ -86,8 +86,8 @@ def cannot_write(path: Path, exc: OSError) -> OutputError:
 
 
 def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a synced temporary file and a rename (:func:`atomic_path`)."""
-    with atomic_path(path) as tmp, open(tmp, "w") as fh:
+    """Write ``text`` to ``path`` as UTF-8 through a synced temporary file and a rename (:func:`atomic_path`)."""
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
         fh.write(text)
         fh.flush()
         os.fsync(fh.fileno())

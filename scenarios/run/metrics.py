@@ -14,7 +14,7 @@ from ..loop.participant import estimate_column
 from ..loop.schema import FIRST_TOWED_UNIT, RecordedColumns, estimate_columns, estimator_names, schema_of, std_column
 from .path_offtracking import combination_offtracking, rear_point_columns
 from .swept_geometry import swept_path_metrics
-from .verdicts import run_verdict
+from .verdicts import run_verdict, with_roundabout_test
 
 ROUNDABOUT_OUTER_RADIUS = 12.50
 """97/27/EC Annex I §7.6.1 / UK C&U regs 13A: outer circle [m]."""
@@ -265,6 +265,7 @@ def compute_metrics(
                 annulus_centre,
                 further=[columns[name][in_turn] for name in further_angles(params)],
             )
+    metrics["verdict"] = with_roundabout_test(verdict, metrics["roundabout_test"])
     if reference is not None and truth.size:
         metrics["swept_path"] = swept_path_metrics(params, columns, reference, turn_centre, turn_span)
     return metrics

@@ -25,6 +25,7 @@ from ..config import ScenarioConfig
 from ..loop.ends import RunStatus
 from ..unit_feedback import rear_feedbacks
 from .metrics import after_warmup, compute_metrics, estimator_names
+from .notes import run_notes
 from .results import plot_files, read_config, read_metrics, read_timeseries, write_metrics
 from .stopping import deferred_stops, raise_pending_stop, stop_message, stop_signal_name
 from .swept_geometry import turn_centre
@@ -156,6 +157,7 @@ def write_report(
         metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})
         _flag_unfinished_path(metrics, config, setup.path.length, columns)
         metrics.update({"vehicle": config.vehicle_name, "seed": config.seed})
+        metrics["notes"] = run_notes(metrics, setup.params, config)
         write_metrics(run_dir, metrics)
     raise_pending_stop()  # a stop held meanwhile takes effect now: before the plots
     if plots and len(time) > 1:

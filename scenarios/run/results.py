@@ -54,7 +54,8 @@ from ..config import ScenarioConfig, validate_config
 from ..loop.participant import Column, SchemaError
 from ..loop.schema import RecordedColumns
 from ..yaml_input import load_yaml
-from .files import TEMPORARY_SUFFIX, atomic_path, cannot_write, jsonable, write_atomic
+from .files import TEMPORARY_SUFFIX, atomic_path, cannot_write, write_atomic
+from .json_output import write_json
 
 TIMESERIES_FILE = "timeseries.parquet"
 METRICS_FILE = "metrics.json"
@@ -302,7 +303,7 @@ def config_yaml(config: Any) -> str:
     str
         The YAML text; :func:`scenarios.config.validate_config` of its loaded form gives ``config`` back.
     """
-    return yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False)
+    return yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False, allow_unicode=True)
 
 
 def write_config(run_dir: Path, config: Any) -> None:
@@ -333,8 +334,8 @@ def read_config(run_dir: Path) -> ScenarioConfig:
 
 
 def write_metrics(run_dir: Path, metrics: dict[str, Any]) -> None:
-    """``metrics.json``, NaN written as null."""
-    write_atomic(run_dir / METRICS_FILE, json.dumps(jsonable(metrics), indent=2, allow_nan=False))
+    """``metrics.json``, strict JSON: NaN written as null, with its reason (:mod:`.json_output`)."""
+    write_json(run_dir / METRICS_FILE, metrics)
 
 
 def read_metrics(run_dir: Path) -> dict[str, Any] | None:

@@ -4,9 +4,10 @@ A steered run is asked to keep the trailer's true off-tracking within the target
 (docs/design.md §11: 0.10 m RMS and 0.15 m at most after warm-up; de Saxe & Cebon 2018, §2, after Jujnovich &
 Cebon 2013), and to steer on an estimate it can trust: one that was there when the controller needed it, whose
 error stayed within that target and whose standard deviation, where it gives one, covered its error (85 % of the
-errors within 2σ, docs/design.md §11). Each miss is a flag with a sentence; a run that raises none *held*. The
-status (``completed``, ``lost_control``, …) says how the run went; the verdict says whether its result is one to
-trust.
+errors within 2σ, docs/design.md §11). Every run on the roundabout test, steered or not, is asked to pass it
+(:func:`with_roundabout_test`). Each miss is a flag with a sentence; a run that raises none *held*. The status
+(``completed``, ``lost_control``, …) says how the run went; the verdict says whether its result is one to trust. The
+summary, ``metrics.json``, ``offtrack report`` and ``--check`` all give this one verdict.
 """
 
 from __future__ import annotations
@@ -20,9 +21,12 @@ __all__ = [
     "MIN_COVERAGE",
     "OFFTRACKING_TARGET_MAX_M",
     "OFFTRACKING_TARGET_RMS_M",
+    "ROUNDABOUT_FLAG",
     "inner_limit_reason",
     "missed_checks",
+    "roundabout_flag",
     "run_verdict",
+    "with_roundabout_test",
 ]
 
 OFFTRACKING_TARGET_RMS_M = 0.10
@@ -33,6 +37,8 @@ MIN_COVERAGE = 0.85
 """Least share of an estimator's errors within twice its standard deviation for that std to be honest."""
 FALLBACK_LIMIT = 0.05
 """Largest share of the ticks after warm-up on which a steered run may lack a usable feedback estimate."""
+ROUNDABOUT_FLAG = "roundabout_test_failed"
+"""The flag of a failed roundabout test, steered or not: the test is what the run was asked to pass."""
 
 
 def _flag(flag: str, reason: str) -> dict[str, str]:
@@ -152,24 +158,46 @@ def inner_limit_reason(test: dict[str, Any] | None) -> str | None:
     )
 
 
+def roundabout_flag(test: dict[str, Any] | None) -> dict[str, str] | None:
+    """The verdict's flag for a failed roundabout test (its radii against the limits and, where known, why the
+    trailer came inside); None when the test passed or was not driven.
+
+    Parameters
+    ----------
+    test
+        The ``roundabout_test`` of ``metrics.json`` (:func:`scenarios.run.metrics.roundabout_verdict`).
+    """
+    if not test or test.get("pass", True):
+        return None
+    reason = inner_limit_reason(test)
+    return _flag(
+        ROUNDABOUT_FLAG,
+        f"tractor max r {test['outer_radius_max']:.3f} m (margin {test['outer_margin']:+.3f} m), trailer min r "
+        f"{test['inner_radius_min']:.3f} m (margin {test['inner_margin']:+.3f} m)" + (f": {reason}" if reason else ""),
+    )
+
+
+def with_roundabout_test(verdict: dict[str, Any], test: dict[str, Any] | None) -> dict[str, Any]:
+    """``verdict`` (:func:`run_verdict`) with a failed roundabout test as one more flag: one verdict for the run,
+    the one the summary, ``metrics.json``, ``offtrack report`` and ``--check`` all give."""
+    flag = roundabout_flag(test)
+    flags = [f for f in verdict.get("flags", []) if f.get("flag") != ROUNDABOUT_FLAG]
+    flags += [flag] if flag else []
+    return {**verdict, "held": not flags, "flags": flags}
+
+
 def missed_checks(metrics: dict[str, Any]) -> list[str]:
     """What a completed run missed of what it was asked to hold, a sentence each (empty: nothing missed).
 
-    The verdict's flags (:func:`run_verdict`) and, on the roundabout test, a failed test (its radii against the
-    limits); ``offtrack run --check`` and ``offtrack report --check`` exit with their own code when this is not
-    empty, so that a script can gate on a result and not only on a run that went.
+    The verdict's flags (:func:`run_verdict`, a failed roundabout test among them: :func:`with_roundabout_test`);
+    ``offtrack run --check`` and ``offtrack report --check`` exit with their own code when this is not empty, so
+    that a script can gate on a result and not only on a run that went. A ``metrics.json`` written before the
+    roundabout test was a flag of the verdict still gives its failed test here.
 
     Parameters
     ----------
     metrics
         A run's ``metrics.json``.
     """
-    missed = [f"{flag['flag']}: {flag['reason']}" for flag in (metrics.get("verdict") or {}).get("flags", [])]
-    test = metrics.get("roundabout_test")
-    if test and not test.get("pass", True):
-        missed.append(
-            f"roundabout_test_failed: tractor max r {test['outer_radius_max']:.3f} m "
-            f"(margin {test['outer_margin']:+.3f} m), trailer min r {test['inner_radius_min']:.3f} m "
-            f"(margin {test['inner_margin']:+.3f} m)" + (f": {reason}" if (reason := inner_limit_reason(test)) else "")
-        )
-    return missed
+    verdict = with_roundabout_test(metrics.get("verdict") or {}, metrics.get("roundabout_test"))
+    return [f"{flag['flag']}: {flag['reason']}" for flag in verdict["flags"]]

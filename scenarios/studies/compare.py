@@ -21,8 +21,10 @@ from matplotlib.figure import Figure
 from vehicle_model.errors import InputError
 
 from ..config import ScenarioConfig, validate_config
+from ..loop.ends import RunStatus
 from ..loop.schema import FIRST_TOWED_UNIT, estimate_columns
 from ..registry import feedback_sources, source_colour
+from ..run.camera_conditions import camera_conditions
 from ..run.drive import ProgressCallback
 from ..run.figure_scale import zoom_half_width, zoom_to
 from ..run.files import write_atomic
@@ -43,31 +45,102 @@ from .progress import SweepProgress
 from .records import CaseRecord, CaseSpec
 from .sweep import run_sweep
 
+NO_CAMERA = "none rendered"
+"""``camera_conditions`` of a run that rendered no camera."""
+
 CompareProgress = Callable[[str, float, float], None]
 """Called during the runs with ``(feedback of the run, its simulated time [s], fraction of all runs done)``."""
 
 
-def summary_row(feedback: str, metrics: dict[str, Any]) -> dict[str, Any]:
-    """One table row from a run's metrics (the first towed unit's true off-tracking, then each further unit's)."""
+def summary_row(feedback: str, metrics: dict[str, Any], camera: str = NO_CAMERA) -> dict[str, Any]:
+    """One table row from a run's metrics: its status, the first towed unit's true off-tracking after warm-up, the
+    steering, the roundabout test, each estimator's error (all ticks), the camera's conditions, then each further
+    unit's true off-tracking.
+
+    A run that did not complete (diverged, lost control) has no roundabout verdict: the radii of a state that left
+    the model's valid region are not measurements, so they are NaN and ``reason`` says why.
+
+    Parameters
+    ----------
+    feedback
+        The run's feedback source.
+    metrics
+        Its ``metrics.json``.
+    camera
+        The camera's conditions (:func:`scenarios.run.camera_conditions.camera_conditions`), or :data:`NO_CAMERA`.
+    """
     settled = metrics["offtracking"]["truth_after_warmup"]
     steering = metrics.get("trailer_steering") or {}
-    test = metrics.get("roundabout_test")
-    return {
+    completed = metrics["status"] == RunStatus.COMPLETED
+    test = metrics.get("roundabout_test") if completed else None
+    row: dict[str, Any] = {
         "feedback": feedback,
         "status": metrics["status"],
+        "camera_conditions": camera,
         "true_offtracking_rms_m": settled["rms"],
         "true_offtracking_max_m": settled["max_abs"],
+        **{
+            f"{name}_rms_error_m": errors.get("rms_error", math.nan)
+            for name, errors in (metrics["offtracking"].get("estimators") or {}).items()
+            if name != "truth"
+        },
         "max_trailer_steer_deg": max((v["max_abs_steer_deg"] for v in steering.values()), default=0.0),
         "saturated_fraction": max((v["saturated_fraction"] for v in steering.values()), default=0.0),
         "roundabout_pass": None if test is None else test["pass"],
-        "outer_radius_max_m": None if test is None else test["outer_radius_max"],
-        "inner_radius_min_m": None if test is None else test["inner_radius_min"],
+        "outer_radius_max_m": math.nan if test is None else test["outer_radius_max"],
+        "inner_radius_min_m": math.nan if test is None else test["inner_radius_min"],
         **{  # each unit behind the first towed one, against its own coupling's path
             f"unit{unit}_true_offtracking_{kind}_m": truth[f"{key}_after_warmup"]
             for unit, truth in (metrics["offtracking"].get("units") or {}).items()
             for kind, key in (("rms", "rms"), ("max", "max_abs"))
         },
     }
+    if not completed:
+        row["reason"] = f"{metrics['status']}: {metrics.get('message') or 'no message'}" + (
+            "; no roundabout verdict from a run that did not complete" if metrics.get("roundabout_test") else ""
+        )
+    return row
+
+
+def unsteered_comparison(table: pd.DataFrame) -> tuple[list[float], list[str]]:
+    """Each run's true off-tracking RMS after warm-up less the unsteered run's, and a sentence for each steered run
+    that is worse than not steering.
+
+    Parameters
+    ----------
+    table
+        The comparison's rows (:func:`summary_row`).
+
+    Returns
+    -------
+    tuple
+        ``vs_unsteered_rms_m`` per row [m] (positive: worse than unsteered; NaN without a completed unsteered run,
+        for it and for runs that did not complete), and the sentences (empty when no steered run is worse).
+    """
+    n = len(table)
+    if "feedback" not in table.columns or "true_offtracking_rms_m" not in table.columns:
+        return [math.nan] * n, []
+    completed = table["status"].eq(RunStatus.COMPLETED).to_numpy()
+    rms_m = pd.to_numeric(table["true_offtracking_rms_m"], errors="coerce").to_numpy(dtype=float)
+    unsteered = [i for i, fb in enumerate(table["feedback"]) if fb == "none" and completed[i]]
+    if not unsteered or not np.isfinite(rms_m[unsteered[0]]):
+        return [math.nan] * n, []
+    base = rms_m[unsteered[0]]
+    difference = [float(rms_m[i] - base) if completed[i] else math.nan for i in range(n)]
+    notes = []
+    for i, feedback in enumerate(table["feedback"]):
+        if feedback == "none" or not difference[i] > 0.0:
+            continue
+        error = table.get(f"{feedback}_rms_error_m")
+        error_m = float(error.iloc[i]) if error is not None else math.nan
+        note = (
+            f"{feedback}-fed steering is worse than not steering: true off-tracking {rms_m[i]:.3f} m RMS after "
+            f"warm-up against {base:.3f} m unsteered"
+        )
+        if np.isfinite(error_m):
+            note += f"; its estimate was off by {error_m:.3f} m RMS (all ticks), and the loop steers onto that error"
+        notes.append(note)
+    return difference, notes
 
 
 COMPARE_STUDY = "compare"
@@ -113,11 +186,13 @@ def run_compare_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
         progress, order = shared
         told = _share(progress, feedback, order.index(feedback), len(order))
     metrics = run_scenario(config, run_dir, progress=told, plots=False)
-    return summary_row(feedback, metrics)
+    camera = camera_conditions(config.camera) if metrics.get("camera") is not None else NO_CAMERA
+    return summary_row(feedback, metrics, camera)
 
 
-NULLABLE = ("roundabout_pass", "outer_radius_max_m", "inner_radius_min_m")
-"""Columns of :func:`summary_row` that are ``None`` without a roundabout test (the others' nulls are NaN)."""
+NULLABLE = ("roundabout_pass", "reason")
+"""Columns of :func:`summary_row` that are ``None`` without a roundabout test or a reason (the others' nulls are
+NaN)."""
 
 
 def _row(record: CaseRecord) -> dict[str, Any]:
@@ -190,6 +265,9 @@ def compare_feedback(
     finally:
         _RUN_PROGRESS.reset(token)
     table = pd.DataFrame([_row(record) for record in result.records])
+    difference, notes = unsteered_comparison(table)
+    if any(np.isfinite(difference)):
+        table["vs_unsteered_rms_m"] = difference
     traces, verdicts = {}, {}
     for record, feedback in zip(result.records, order, strict=True):
         run_dir = out_dir / feedback
@@ -197,7 +275,8 @@ def compare_feedback(
             traces[feedback] = pd.read_parquet(run_dir / TIMESERIES_FILE)
             verdicts[feedback] = json.loads((run_dir / METRICS_FILE).read_text()).get("roundabout_test")
     write_atomic(out_dir / "comparison.csv", table.to_csv(index=False))
-    write_atomic(out_dir / "comparison.md", table.to_markdown(index=False, floatfmt=".3f"))
+    markdown = table.to_markdown(index=False, floatfmt=".3f")
+    write_atomic(out_dir / "comparison.md", markdown + "".join(f"\n\n{note}" for note in notes) + "\n")
     _plot(out_dir / plot_file("comparison.png", plot_format), config, traces, verdicts)
     return table
 

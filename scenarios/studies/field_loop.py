@@ -144,6 +144,21 @@ ROW_KEYS = (
 """The columns :func:`run_field_loop_case` adds to :func:`~scenarios.studies.cases.run_case`'s row (NaN where
 the run did not give them)."""
 
+FIELD_LOOP_COLUMNS = (
+    "viso_ot_fused_true_rms_m",
+    "zero_slip_true_rms_m",
+    "truth_true_rms_m",
+    "fused_rms_error_m",
+    "coverage",
+    "acceptance",
+    "viso_ot_fused_true_max_m",
+    "verdict",
+)
+"""The study's terminal columns, one row per cell (:func:`field_loop_terminal_rows`), most important first: the
+fused-fed loop's true off-tracking beside the zero-slip- and truth-fed loops', the fused estimate's error and
+coverage, the cell's acceptance (the study's criteria, stricter than the run's verdict), then the fused-fed loop's
+largest off-tracking and its run's own verdict."""
+
 
 def field_signals(seed: int) -> tuple[tuple[str, Any], ...]:
     """The on-board signals of a field cell: every channel's data-sheet noise and a bias drawn from ``seed``
@@ -408,6 +423,32 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
         )
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def field_loop_terminal_rows(table: pd.DataFrame) -> tuple[pd.DataFrame, str]:
+    """The terminal's rows of a field-loop table: one per cell with its acceptance (:func:`cell_table`, the rows of
+    ``table.md``; the acceptance as the names of the failed criteria, :func:`short_acceptance`), and how many cells
+    pass.
+
+    Parameters
+    ----------
+    table
+        The study's case rows, failed ones included (their cells fail).
+    """
+    cells = cell_table(table)
+    if "acceptance" not in cells.columns:
+        return cells, "0 cells"
+    passed = int((cells["acceptance"] == "pass").sum())
+    cells["acceptance"] = [short_acceptance(text) for text in cells["acceptance"]]
+    return cells, f"{passed} of {len(cells)} cells pass"
+
+
+def short_acceptance(text: str) -> str:
+    """:func:`acceptance`'s text cut to the criteria's names for a terminal cell: ``pass`` or ``fail: RMS, dry``."""
+    if text == "pass":
+        return text
+    names = [part.split(":")[0].split(" ")[0] if not part.startswith("ice") else "ice" for part in text.split("; ")]
+    return "fail: " + ", ".join(names)
 
 
 def pooled_coverage(cells: pd.DataFrame) -> pd.DataFrame:

@@ -14,6 +14,7 @@ from typing import Any
 
 from ..loop.ends import RunStatus
 from ..run.files import jsonable
+from ..run.json_output import strict_json
 
 CASES_DIR = "cases"
 """Subdirectory of a sweep's output directory holding one JSON file per finished case."""
@@ -83,7 +84,7 @@ class CaseRecord:
 
     def to_json(self) -> str:
         """The record as strict JSON (non-finite floats as null)."""
-        return json.dumps(jsonable(dataclasses.asdict(self)), indent=1, allow_nan=False)
+        return strict_json(dataclasses.asdict(self), indent=1)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> CaseRecord:

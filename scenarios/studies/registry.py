@@ -17,14 +17,14 @@ import pandas as pd
 from .cases import run_case
 from .estimators_under_slip import estimators_under_slip_cases, run_estimators_under_slip_case
 from .field_bias import field_bias_cases, run_field_bias_case
-from .field_loop import field_loop_cases, run_field_loop_case
+from .field_loop import FIELD_LOOP_COLUMNS, field_loop_cases, field_loop_terminal_rows, run_field_loop_case
 from .figures import grid_figures, paper_figures
 from .figures_field_bias import field_bias_figures
 from .figures_field_loop import field_loop_figures
 from .figures_section4 import section4_figures
 from .figures_unit_steering import unit_steering_figures
 from .records import CaseSpec
-from .section3 import paper_section3_cases
+from .section3 import SECTION3_COLUMNS, paper_section3_cases
 from .section4 import paper_section4_cases, run_section4_case
 from .unit_steering import run_unit_steering_case, unit_steering_cases
 from .workers import RunFunction
@@ -50,6 +50,14 @@ class Study:
         :func:`scenarios.studies.cases.run_case`, a study's own adds its columns.
     takes_vehicle : bool
         The study runs on another combination given as ``vehicle``; the others keep their own vehicle.
+    columns : tuple of str
+        The columns of its terminal table after the labels that vary, in order: the ones that answer the study's
+        question (empty: :data:`scenarios.studies.summary.PRIORITY`, which already leads with the off-tracking and
+        each unit's columns of the model-only studies). The full table is in ``table.md``.
+    terminal_rows : callable or None
+        ``terminal_rows(table) -> (rows, note)``: the rows the terminal shows instead of the cases (field-loop: one
+        per cell with its acceptance, as its ``table.md``) and a note for the title (e.g. how many cells pass);
+        None: the cases.
     """
 
     name: str
@@ -58,6 +66,8 @@ class Study:
     figures: Callable[[pd.DataFrame, Path], None]
     run_case: RunFunction = run_case
     takes_vehicle: bool = False
+    columns: tuple[str, ...] = ()
+    terminal_rows: Callable[[pd.DataFrame], tuple[pd.DataFrame, str]] | None = None
 
     def case_specs(self, full: bool = False, vehicle: str | None = None) -> list[CaseSpec]:
         """The cases (a subset unless ``full``), on ``vehicle`` when given (only for :attr:`takes_vehicle`)."""
@@ -79,6 +89,7 @@ STUDIES: dict[str, Study] = _studies(
         "density (Figs 6–8)",
         paper_section3_cases,
         paper_figures,
+        columns=SECTION3_COLUMNS,
     ),
     Study(
         "estimators-under-slip",
@@ -95,6 +106,17 @@ STUDIES: dict[str, Study] = _studies(
         paper_section4_cases,
         section4_figures,
         run_section4_case,
+        columns=(
+            "status",
+            "viso_ot_rms_error_m",
+            "viso_ot_max_abs_error_m",
+            "viso_ot_mean_error_m",
+            "neg_mean_error_m",
+            "pos_mean_error_m",
+            "mean_matches",
+            "inlier_percent",
+            "failed_frames",
+        ),
     ),
     Study(
         "field-loop",
@@ -103,6 +125,8 @@ STUDIES: dict[str, Study] = _studies(
         field_loop_cases,
         field_loop_figures,
         run_field_loop_case,
+        columns=FIELD_LOOP_COLUMNS,
+        terminal_rows=field_loop_terminal_rows,
     ),
     Study(
         "field-bias",
@@ -111,6 +135,17 @@ STUDIES: dict[str, Study] = _studies(
         field_bias_cases,
         field_bias_figures,
         run_field_bias_case,
+        columns=(
+            "status",
+            "vo_yaw_error_mrad_per_m",
+            "vo_lateral_error_mm_per_m",
+            "vo_scale_error_percent",
+            "viso_ot_mean_error_m",
+            "viso_ot_rms_error_m",
+            "fused_mean_error_m",
+            "fused_rms_error_m",
+            "fused_within_2sigma",
+        ),
     ),
     Study(
         "unit-steering",

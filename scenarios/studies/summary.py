@@ -4,7 +4,9 @@ A study's full table (``table.md``, ``table.csv``, ``table.parquet``) has a colu
 wider than a terminal. :func:`summary_table` keeps the labels that vary, the status and the error and
 off-tracking columns in order of importance (:data:`PRIORITY`) while they fit, never wraps a cell, and says
 in its caption which columns it left out and where the rest is. Headers carry units (``RMS [m]``), escaped so
-rich prints the brackets instead of reading them as markup.
+rich prints the brackets instead of reading them as markup. Every RMS header names its window, one per label:
+``after warm-up`` (once one more trailer length has been driven after the truth is defined) or ``all ticks`` (every
+tick on which the truth is defined), as the run's summary and figures do.
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ LABELS = (
     "scenario",
     "sweep",
     "camera",
+    "camera_conditions",
+    "conditions",
     "surface",
     "camber",
     "baseline",
@@ -47,8 +51,10 @@ PRIORITY = (
     "status",
     "roundabout_pass",
     "true_offtracking_rms_m",
+    "vs_unsteered_rms_m",
     "true_offtracking_max_m",
     "inner_radius_min_m",
+    "viso_ot_fused_rms_error_m",
     "true_offtracking_rms_after_warmup_m",
     "true_offtracking_max_after_warmup_m",
     *(  # each towed unit of the unit-steering study (2 the first, as many as a combination has)
@@ -71,23 +77,33 @@ PRIORITY = (
     "truth_rms_m",
     "mean_inliers",
     "wall_time_s",
+    "reason",
     "error",
 )
 """Columns after the labels, most important first; any others follow in the table's order. A study's columns and
 ``offtrack compare``'s (:func:`scenarios.studies.compare.summary_row`): a table has the one set or the other."""
 
 HEADERS = {
-    "true_offtracking_rms_after_warmup_m": "true e_tr RMS [m]",
-    "true_offtracking_max_after_warmup_m": "true e_tr max [m]",
-    "viso_ot_rms_error_m": "VISO-OT err RMS [m]",
+    "true_offtracking_rms_after_warmup_m": "true e_tr RMS after warm-up [m]",
+    "true_offtracking_max_after_warmup_m": "true e_tr max after warm-up [m]",
+    "viso_ot_rms_error_m": "VISO-OT err RMS all ticks [m]",
     "viso_ot_max_abs_error_m": "VISO-OT err max [m]",
     "viso_ot_mean_error_m": "VISO-OT err mean [m]",
     "viso_ot_valid_fraction": "VISO-OT valid [%]",
-    "zero_slip_rms_error_m": "zero-slip err RMS [m]",
-    "fused_rms_error_m": "fused err RMS [m]",
+    "zero_slip_rms_error_m": "zero-slip err RMS all ticks [m]",
+    "fused_rms_error_m": "fused err RMS all ticks [m]",
+    "viso_ot_fused_rms_error_m": "fused err RMS all ticks [m]",
+    "vo_yaw_error_mrad_per_m": "VO yaw err [mrad/m]",
+    "vo_lateral_error_mm_per_m": "VO lateral err [mm/m]",
+    "vo_scale_error_percent": "VO scale err [%]",
+    "neg_mean_error_m": "VISO-OT err mean, e_tr < 0 [m]",
+    "pos_mean_error_m": "VISO-OT err mean, e_tr > 0 [m]",
+    "fused_mean_error_m": "fused err mean [m]",
+    "vs_unsteered_rms_m": "true e_tr RMS after warm-up − unsteered [m]",
+    "camera_conditions": "camera",
     "fused_within_2sigma": "fused within 2σ [%]",
     "verdict_held": "verdict held",
-    "truth_rms_m": "true e_tr RMS all [m]",
+    "truth_rms_m": "true e_tr RMS all ticks [m]",
     "saturated_fraction": "steer saturated [%]",
     "mean_matches": "matches",
     "mean_inliers": "inliers",
@@ -97,19 +113,29 @@ HEADERS = {
     "camber": "camber [%]",
     "baseline": "baseline [m]",
     "slip": "slip [deg]",
-    "true_offtracking_rms_m": "true e_tr RMS [m]",
-    "true_offtracking_max_m": "true e_tr max [m]",
+    "true_offtracking_rms_m": "true e_tr RMS after warm-up [m]",
+    "true_offtracking_max_m": "true e_tr max after warm-up [m]",
+    "viso_ot_fused_true_rms_m": "fused-fed true e_tr RMS after warm-up [m]",
+    "viso_ot_fused_true_max_m": "fused-fed true e_tr max after warm-up [m]",
+    "zero_slip_true_rms_m": "zero-slip-fed true e_tr RMS after warm-up [m]",
+    "truth_true_rms_m": "truth-fed true e_tr RMS after warm-up [m]",
+    "coverage": "fused within 2σ [%]",
+    "verdict": "fused-fed run's verdict",
+    "acceptance": "cell acceptance",
     "max_trailer_steer_deg": "max trailer steer [deg]",
     "roundabout_pass": "round-about test",
     "outer_radius_max_m": "R out max [m]",
     "inner_radius_min_m": "R in min [m]",
-    "feedback_rms_error_m": "fed-back err RMS [m]",
+    "feedback_rms_error_m": "fed-back err RMS all ticks [m]",
     "max_steer_deg": "max steer [deg]",
     "verdict_flags": "verdict flags",
 }
 """Short headers with units for the known columns (others: :func:`header_for`)."""
 
-PERCENT = {"viso_ot_valid_fraction", "saturated_fraction", "fused_within_2sigma"}
+TITLE_WORDS = {"camera_conditions": "camera"}
+"""How a label with one value in every row is named in the title, where it differs from the column's name."""
+
+PERCENT = {"viso_ot_valid_fraction", "saturated_fraction", "fused_within_2sigma", "coverage"}
 """Fractions shown as percentages."""
 
 MIN_HEADER_WIDTH = 7
@@ -119,7 +145,8 @@ UNIT_SUFFIXES = (("_deg", "deg"), ("_kmh", "km/h"), ("_ms", "ms"), ("_m", "m"), 
 
 
 def header_for(column: str) -> str:
-    """The header of a column, with its unit in brackets (``viso_ot_rms_error_m`` → ``VISO-OT err RMS [m]``)."""
+    """The header of a column, with its unit in brackets (``zero_slip_rms_error_m`` → ``zero-slip err RMS all ticks
+    [m]``)."""
     if column in HEADERS:
         return HEADERS[column]
     unit = re.fullmatch(r"unit(\d)_(.+)", column)
@@ -172,6 +199,7 @@ def summary_table(
     max_cell: int = 40,
     rows: str = "cases",
     missing: str = MISSING,
+    columns: Sequence[str] = (),
 ) -> Table:
     """The columns of a study's table that fit ``width`` terminal columns, as a rich table.
 
@@ -192,6 +220,10 @@ def summary_table(
         What a row is, for the caption (``2 cases``, ``2 runs``).
     missing
         How a missing value is shown.
+    columns
+        The columns after the labels that answer the study's question, in order
+        (:attr:`scenarios.studies.registry.Study.columns`); the others are left to ``files``. Empty: every column,
+        in :data:`PRIORITY` order.
 
     Returns
     -------
@@ -200,7 +232,11 @@ def summary_table(
         with units (``[m]`` escaped); a caption naming the columns left out and ``files``.
     """
     constant = {c: table[c].iloc[0] for c in LABELS if c in table.columns and len(table) and table[c].nunique() <= 1}
-    candidates = [c for c in _ordered(table) if c not in constant and not (table[c].isna().all() and c != "status")]
+    ordered = _ordered(table)
+    if columns:  # the study's own columns after its labels, then its error
+        labels = [c for c in ordered if c in LABELS]
+        ordered = labels + [c for c in columns if c in table.columns] + (["error"] if "error" in table.columns else [])
+    candidates = [c for c in ordered if c not in constant and not (table[c].isna().all() and c != "status")]
     cells = {c: [format_cell(c, v, missing)[:max_cell] for v in table[c].tolist()] for c in candidates}
     headers = {c: _header_lines(header_for(c), max(map(len, cells[c]), default=0)) for c in candidates}
     chosen: list[str] = []
@@ -215,7 +251,7 @@ def summary_table(
     heading = title or ""
     if constant:
         heading += (" — " if heading else "") + ", ".join(
-            f"{k} {format_cell(k, v, missing)}" for k, v in constant.items()
+            f"{TITLE_WORDS.get(k, k)} {format_cell(k, v, missing)}" for k, v in constant.items()
         )
     caption = f"{len(table)} {rows}"
     if left_out:

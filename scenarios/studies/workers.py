@@ -33,7 +33,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..loop.ends import RunStatus
-from ..run.files import jsonable, write_atomic
+from ..run.files import write_atomic
+from ..run.json_output import native_value
 from ..run.stopping import Terminated
 from .records import CaseRecord, CaseSpec, case_path, fingerprint, marker_path, spec_dict
 
@@ -240,7 +241,7 @@ def execute(task: Task) -> dict[str, Any]:
                 name=task.spec.name,
                 index=task.index,
                 status=RunStatus.FAILED if failed else "done",
-                row=jsonable(dict(row)),
+                row=native_value(dict(row)),
                 error=_run_failure(row) if failed else None,
                 spec=spec_dict(task.spec),
                 fingerprint=fingerprint(task.spec),
