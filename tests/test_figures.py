@@ -24,9 +24,10 @@ from rich.console import Console
 from scenarios.config import load_scenario
 from scenarios.export.animation import OfftrackingTrace, animate_run, animation_title, frame_times
 from scenarios.run.metrics import after_warmup
+from scenarios.run.plan_marks import LIMIT_COLOURS
 from scenarios.run.plots import load_run, offtracking_figure, plot_plan_view
 from scenarios.run.runner import run_scenario
-from scenarios.run.swept_path import LIMIT_COLOURS, envelope_samples, swept_path_figure
+from scenarios.run.swept_path import envelope_samples, swept_path_figure
 from scenarios.run.unit_shapes import vehicle_polygons
 from scenarios.studies.compare import comparison_figure
 from scenarios.studies.figures import grid_figure

@@ -34,11 +34,11 @@ from vehicle_model.errors import InputError
 from vehicle_model.simulator import VehicleState
 
 from ..registry import source_colour
+from ..run.plan_marks import draw_circles
 from ..run.plots import SavedRun, load_run
 from ..run.swept_path import (
     TRACTOR_COLOUR,
     UNIT_COLOURS,
-    draw_circles,
     draw_envelopes,
     envelope_path,
     envelope_samples,

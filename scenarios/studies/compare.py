@@ -29,11 +29,11 @@ from ..run.drive import ProgressCallback
 from ..run.figure_scale import zoom_half_width, zoom_to
 from ..run.files import write_atomic
 from ..run.metrics import after_warmup, max_abs, rms
+from ..run.plan_marks import draw_circles
 from ..run.plots import save_figure
 from ..run.results import METRICS_FILE, TIMESERIES_FILE, check_plot_format, plot_file
 from ..run.runner import run_scenario
 from ..run.swept_path import (
-    draw_circles,
     draw_envelopes,
     extreme_points,
     inner_trailer_path,
