@@ -3,7 +3,7 @@
 :func:`stereo_pairs` finds the left and right photo of each view in one folder (``left01.jpg`` / ``right01.jpg``,
 or sub-folders ``left/`` and ``right/`` or ``image_0/`` and ``image_1/``) or from two glob patterns; partners are
 found by name (the file name with ``left``/``right`` taken out), else in sorted order. :func:`check_images` reads
-every photo's header before any work. Each failure is one :class:`~vehicle_model.errors.InputError` naming the
+every photo whole before any work (its structure and all its pixels: a truncated file of any format is refused). Each failure is one :class:`~vehicle_model.errors.InputError` naming the
 files.
 """
 
@@ -113,12 +113,14 @@ def stereo_pairs(
 def check_images(pairs: Sequence[tuple[Path, Path]]) -> tuple[int, int]:
     """Every photo is an image and all have one size; return it ``(width, height)`` (module notes, step 2).
 
-    The headers are read (Pillow) and each file's structure verified, without decoding the pixels.
+    Each file's structure is verified and its pixels decoded to the end (Pillow), so a truncated or corrupt photo
+    of any format is refused here, not later taken for a view without the board.
 
     Raises
     ------
     InputError
-        One line naming the files that are not images, or the sizes found and the files of the odd ones out.
+        One line naming the files that are not whole images, or the sizes found and the files of the odd ones
+        out.
     """
     from PIL import Image
 
@@ -128,9 +130,11 @@ def check_images(pairs: Sequence[tuple[Path, Path]]) -> tuple[int, int]:
         try:
             with Image.open(path) as im:
                 size = (int(im.size[0]), int(im.size[1]))
-                im.verify()
+                im.verify()  # the structure: a PNG's chunks and their checksums
+            with Image.open(path) as im:
+                im.load()  # the pixels to the end: a truncated JPEG is refused as a truncated PNG is
         except Exception as exc:  # Pillow raises many kinds for a file that is not an image
-            bad.append(f"{path} ({type(exc).__name__})")
+            bad.append(f"{path} ({type(exc).__name__}: {str(exc)[:60]})")
             continue
         sizes.setdefault(size, []).append(path.name)
     if bad:

@@ -20,7 +20,7 @@ from typing import Any
 from rich.markup import escape
 from rich.table import Table
 
-from sensor.board_calibration import BoardPattern, PhotoCalibration, calibrate_photos
+from sensor.board_calibration import BoardPattern, PhotoCalibration, calibrate_photos, check_photo_size
 from sensor.photo_pairs import check_images, stereo_pairs
 from vehicle_model.errors import InputError
 
@@ -96,9 +96,10 @@ def board_pattern(
     return BoardPattern(pattern, cols, rows, square, marker, dictionary)  # type: ignore[arg-type]
 
 
-def check_photos(images: Path | None, left: str | None, right: str | None) -> None:
-    """Refuse bad photos before any work: no pairs, a photo without a partner, a file not an image, mixed sizes."""
-    check_images(stereo_pairs(images, left, right))
+def check_photos(images: Path | None, left: str | None, right: str | None, pattern: BoardPattern) -> None:
+    """Refuse bad photos before any work: no pairs, a photo without a partner, a file not a whole image, mixed
+    sizes, photos too small for the board."""
+    check_photo_size(check_images(stereo_pairs(images, left, right)), pattern)
 
 
 def report_lines(calibration: PhotoCalibration, report: dict[str, Any], run_dir: Path) -> list[Any]:
