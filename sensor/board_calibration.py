@@ -43,10 +43,10 @@ from vehicle_model.errors import InputError
 
 __all__ = [
     "MIN_CHARUCO_CORNERS",
-    "OUTLIER_FACTOR",
-    "OUTLIER_FLOOR_PX",
     "MIN_PHOTO_SIDE",
     "MIN_SQUARE_PX",
+    "OUTLIER_FACTOR",
+    "OUTLIER_FLOOR_PX",
     "BoardPattern",
     "PhotoCalibration",
     "ViewRecord",
@@ -55,8 +55,8 @@ __all__ = [
     "check_options",
     "check_photo_size",
     "corner_window_for",
-    "smallest_photo",
     "detect_view",
+    "smallest_photo",
 ]
 
 MIN_CHARUCO_CORNERS = 6

@@ -3,8 +3,8 @@
 :func:`stereo_pairs` finds the left and right photo of each view in one folder (``left01.jpg`` / ``right01.jpg``,
 or sub-folders ``left/`` and ``right/`` or ``image_0/`` and ``image_1/``) or from two glob patterns; partners are
 found by name (the file name with ``left``/``right`` taken out), else in sorted order. :func:`check_images` reads
-every photo whole before any work (its structure and all its pixels: a truncated file of any format is refused). Each failure is one :class:`~vehicle_model.errors.InputError` naming the
-files.
+every photo whole before any work (its structure and all its pixels: a truncated file of any format is refused).
+Each failure is one :class:`~vehicle_model.errors.InputError` naming the files.
 """
 
 from __future__ import annotations

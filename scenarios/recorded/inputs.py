@@ -165,7 +165,8 @@ def camera_model(
             f"{recording.source}: no camera model; allowed: --calibration FILE.yaml (raw images, from offtrack "
             "calibrate) or a KITTI calib.txt with P0 and P1 (rectified images; in the folder or --calib FILE)"
         )
-    check_baseline(camera, str(calib_file if calib_file is not None else Path(getattr(recording, "folder", ".")) / "calib.txt"))
+    folder_calib = Path(getattr(recording, "folder", ".")) / "calib.txt"
+    check_baseline(camera, str(calib_file if calib_file is not None else folder_calib))
     if not (0.0 < camera.cu < width and 0.0 < camera.cv < height):
         raise InputError(
             f"calib: principal point ({camera.cu:g}, {camera.cv:g}) px lies outside the {width}×{height} px images"

@@ -23,6 +23,7 @@ After the run (:func:`motion_flags`), from its time series, two flags for its ve
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any
 
@@ -104,7 +105,7 @@ def _frame_steps(columns: dict[str, np.ndarray]) -> list[tuple[int, int]]:
         return []
     seen = (frame > 0.5) & ((missing < 0.5) if missing is not None else True)
     rows = np.flatnonzero(seen)
-    return [(int(a), int(b)) for a, b in zip(rows[:-1], rows[1:], strict=True) if valid[b] > 0.5]
+    return [(int(a), int(b)) for a, b in itertools.pairwise(rows) if valid[b] > 0.5]
 
 
 def motion_flags(columns: dict[str, np.ndarray]) -> tuple[dict[str, Any], list[dict[str, str]]]:
