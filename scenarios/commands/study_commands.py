@@ -295,6 +295,7 @@ def tune(
     base = load_config(scenario, {"feedback": feedback, "vehicle": "lst"})  # the gains' scenario, refused before tuning
     if out is not None:
         check_output_dir(out)
+    made = out is not None and not out.exists()
     out_dir = None if out is None else new_run_dir(out, "tune", force=force)
     with Progress(console=console, transient=True, disable=as_json) as bar:
         task = bar.add_task("tuning", total=trials)
@@ -306,9 +307,16 @@ def tune(
         try:
             result = tune_gains(n_trials=trials, train_draws=draws, seed=seed, env_kwargs=env_kwargs, progress=progress)
         except TuningStopped as stopped:  # the finished trials are the data computed so far
+            finished = len(stopped.trial_rows)
             if out_dir is not None:
                 path = write_trials(stopped.trial_rows, out_dir)
-                errors.print(f"{len(stopped.trial_rows)} finished trial(s) → {path}", markup=False)
+                errors.print(f"{finished} finished trial(s) → {path}", markup=False)
+            else:
+                errors.print(f"{finished} finished trial(s); without --out they are not kept", markup=False)
+            raise
+        except InputError:  # refused by the environment: no empty --out left behind
+            if made and out_dir is not None and not any(out_dir.iterdir()):
+                out_dir.rmdir()
             raise
     paths = None if out_dir is None else write_tuning(result, out_dir, base)
     if as_json:
