@@ -6,9 +6,9 @@ Heikkilä's distortion model, then the pair, all with OpenCV):
 
 1. **Pairs** (:func:`sensor.photo_pairs.stereo_pairs`): the left and right photos of each view.
 2. **Checks before any work** (:func:`check_options`, :func:`sensor.photo_pairs.check_images`,
-   :func:`check_photo_size`): the settings are in range, every file is a whole image (decoded in full, so a truncated
-   JPEG is refused as a truncated PNG is), all have one size large enough for the board, and each left photo has a
-   right partner — each failure is one :class:`~vehicle_model.errors.InputError` naming the
+   :func:`sensor.photo_pairs.check_photo_size`): the settings are in range, every file is a whole image (decoded in
+   full, so a truncated JPEG is refused as a truncated PNG is), all have one size large enough for the board, and
+   each left photo has a right partner — each failure is one :class:`~vehicle_model.errors.InputError` naming the
    files.
 3. **Detection** (:func:`detect_view`): a checkerboard by ``cv2.findChessboardCorners`` (``findChessboardCornersSB``
    as a fallback) and ``cv2.cornerSubPix`` with a window fitted to the view (:func:`corner_window_for`), the right
@@ -38,13 +38,11 @@ import numpy as np
 
 from sensor.calibration import CalibrationResult, one_opencv_thread, solve_stereo_calibration
 from sensor.calibration_target import Board
-from sensor.photo_pairs import check_images
+from sensor.photo_pairs import check_images, check_photo_size
 from vehicle_model.errors import InputError
 
 __all__ = [
     "MIN_CHARUCO_CORNERS",
-    "MIN_PHOTO_SIDE",
-    "MIN_SQUARE_PX",
     "OUTLIER_FACTOR",
     "OUTLIER_FLOOR_PX",
     "BoardPattern",
@@ -53,10 +51,8 @@ __all__ = [
     "calibrate_photos",
     "calibrate_views",
     "check_options",
-    "check_photo_size",
     "corner_window_for",
     "detect_view",
-    "smallest_photo",
 ]
 
 MIN_CHARUCO_CORNERS = 6
@@ -65,12 +61,6 @@ OUTLIER_FACTOR = 3.0
 """A view whose stereo RMS exceeds this many times the median view's (and :data:`OUTLIER_FLOOR_PX`) is rejected."""
 OUTLIER_FLOOR_PX = 1.0
 """… and is at least this large [px]: corners found to a pixel are not outliers however sharp the other views are."""
-MIN_SQUARE_PX = 4
-"""Fewest pixels a square of the board must span for its corners to be found: a corner's ``cornerSubPix`` window
-(at least 2 px each side, :func:`corner_window_for`) must not reach the next corner."""
-MIN_PHOTO_SIDE = 16
-"""Shortest photo side [px]: ``cv2.findChessboardCorners`` thresholds with a block of a tenth of the shorter side,
-which must be 3 px or more (an odd size above 1)."""
 
 
 @dataclass(frozen=True)
@@ -447,23 +437,6 @@ def check_options(*, min_views: int = 5, alpha: float = 0.0, corner_window: int 
         raise InputError(f"--corner-window {corner_window!r}: allowed: an integer in [2, 50] px")
 
 
-def smallest_photo(pattern: BoardPattern) -> tuple[int, int]:
-    """The smallest photo ``(long side, short side)`` [px] the board can be found in (:data:`MIN_SQUARE_PX` a
-    square, and :data:`MIN_PHOTO_SIDE`)."""
-    squares = sorted((pattern.cols + 1, pattern.rows + 1), reverse=True)
-    return (max(MIN_SQUARE_PX * squares[0], MIN_PHOTO_SIDE), max(MIN_SQUARE_PX * squares[1], MIN_PHOTO_SIDE))
-
-
-def check_photo_size(size: tuple[int, int], pattern: BoardPattern) -> None:
-    """Refuse photos too small to hold the board (:func:`smallest_photo`, either way up), before any detection."""
-    long_side, short_side = smallest_photo(pattern)
-    if max(size) < long_side or min(size) < short_side:
-        raise InputError(
-            f"the photos are {size[0]}×{size[1]} px; allowed: at least {long_side}×{short_side} px (either way up) "
-            f"for the {pattern.label}, {MIN_SQUARE_PX} px a square"
-        )
-
-
 def calibrate_photos(
     pairs: Sequence[tuple[Path, Path]],
     pattern: BoardPattern,
@@ -501,7 +474,7 @@ def calibrate_photos(
     """
     check_options(min_views=min_views, alpha=alpha, corner_window=corner_window)
     size = check_images(pairs)
-    check_photo_size(size, pattern)
+    check_photo_size(size, pattern.cols, pattern.rows, pattern.label)
     detector = pattern.charuco_detector() if pattern.kind == "charuco" else None
     with one_opencv_thread():
         views = [detect_view(left, right, pattern, detector, corner_window=corner_window) for left, right in pairs]

@@ -20,8 +20,8 @@ from typing import Any
 from rich.markup import escape
 from rich.table import Table
 
-from sensor.board_calibration import BoardPattern, PhotoCalibration, calibrate_photos, check_photo_size
-from sensor.photo_pairs import check_images, stereo_pairs
+from sensor.board_calibration import BoardPattern, PhotoCalibration, calibrate_photos
+from sensor.photo_pairs import check_images, check_photo_size, stereo_pairs
 from vehicle_model.errors import InputError
 
 from ..run.files import jsonable, write_atomic
@@ -99,7 +99,8 @@ def board_pattern(
 def check_photos(images: Path | None, left: str | None, right: str | None, pattern: BoardPattern) -> None:
     """Refuse bad photos before any work: no pairs, a photo without a partner, a file not a whole image, mixed
     sizes, photos too small for the board."""
-    check_photo_size(check_images(stereo_pairs(images, left, right)), pattern)
+    size = check_images(stereo_pairs(images, left, right))
+    check_photo_size(size, pattern.cols, pattern.rows, pattern.label)
 
 
 def report_lines(calibration: PhotoCalibration, report: dict[str, Any], run_dir: Path) -> list[Any]:
