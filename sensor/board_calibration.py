@@ -5,8 +5,10 @@ camera pair's photos of a printed board and solves the same way (de Saxe & Cebon
 Heikkilä's distortion model, then the pair, all with OpenCV):
 
 1. **Pairs** (:func:`sensor.photo_pairs.stereo_pairs`): the left and right photos of each view.
-2. **Checks before any work** (:func:`sensor.photo_pairs.check_images`): every file is an image, all have one size,
-   and each left photo has a right partner — each failure is one :class:`~vehicle_model.errors.InputError` naming the
+2. **Checks before any work** (:func:`check_options`, :func:`sensor.photo_pairs.check_images`,
+   :func:`sensor.photo_pairs.check_photo_size`): the settings are in range, every file is a whole image (decoded in
+   full, so a truncated JPEG is refused as a truncated PNG is), all have one size large enough for the board, and
+   each left photo has a right partner — each failure is one :class:`~vehicle_model.errors.InputError` naming the
    files.
 3. **Detection** (:func:`detect_view`): a checkerboard by ``cv2.findChessboardCorners`` (``findChessboardCornersSB``
    as a fallback) and ``cv2.cornerSubPix`` with a window fitted to each corner (:func:`corner_windows`), the right
@@ -36,7 +38,7 @@ import numpy as np
 
 from sensor.calibration import CalibrationResult, one_opencv_thread, solve_stereo_calibration
 from sensor.calibration_target import Board
-from sensor.photo_pairs import check_images
+from sensor.photo_pairs import check_images, check_photo_size
 from vehicle_model.errors import InputError
 
 __all__ = [
@@ -48,6 +50,7 @@ __all__ = [
     "ViewRecord",
     "calibrate_photos",
     "calibrate_views",
+    "check_options",
     "corner_window_for",
     "corner_windows",
     "detect_view",
@@ -498,6 +501,16 @@ def calibrate_views(
     return PhotoCalibration(result, views, pattern, size, notes)
 
 
+def check_options(*, min_views: int = 5, alpha: float = 0.0, corner_window: int | None = None) -> None:
+    """Refuse calibration settings out of range (one line naming the option), before any photo is read."""
+    if not (isinstance(min_views, int) and min_views >= 3):
+        raise InputError(f"--min-views {min_views!r}: allowed: an integer ≥ 3")
+    if not (0.0 <= alpha <= 1.0 or alpha == -1.0):  # also NaN
+        raise InputError(f"--alpha {alpha!r}: allowed: [0, 1] or -1 (OpenCV's default scaling)")
+    if corner_window is not None and not (isinstance(corner_window, int) and 2 <= corner_window <= 50):
+        raise InputError(f"--corner-window {corner_window!r}: allowed: an integer in [2, 50] px")
+
+
 def calibrate_photos(
     pairs: Sequence[tuple[Path, Path]],
     pattern: BoardPattern,
@@ -533,13 +546,9 @@ def calibrate_photos(
     InputError
         A file that is not an image, mixed sizes, too few views — one line each, naming the files.
     """
-    if not (isinstance(min_views, int) and min_views >= 3):
-        raise InputError(f"--min-views {min_views!r}: allowed: an integer ≥ 3")
-    if not (0.0 <= alpha <= 1.0 or alpha == -1.0):
-        raise InputError(f"--alpha {alpha!r}: allowed: [0, 1] or -1 (OpenCV's default scaling)")
-    if corner_window is not None and not (isinstance(corner_window, int) and 2 <= corner_window <= 50):
-        raise InputError(f"--corner-window {corner_window!r}: allowed: an integer in [2, 50] px")
+    check_options(min_views=min_views, alpha=alpha, corner_window=corner_window)
     size = check_images(pairs)
+    check_photo_size(size, pattern.cols, pattern.rows, pattern.label)
     detector = pattern.charuco_detector() if pattern.kind == "charuco" else None
     with one_opencv_thread():
         views = [detect_view(left, right, pattern, detector, corner_window=corner_window) for left, right in pairs]

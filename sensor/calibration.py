@@ -179,7 +179,10 @@ class CalibrationResult:
         path = Path(path)
         if not path.is_file():
             raise InputError(f"calibration file {path}: not found")
-        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+        try:
+            fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+        except (cv2.error, SystemError):  # OpenCV's parser on a file that is not YAML/XML/JSON text
+            raise InputError(f"calibration file {path}: not an OpenCV YAML file (offtrack calibrate's)") from None
         try:
             if fs.getNode("format").string() != FORMAT:
                 raise InputError(f"calibration file {path}: format is not {FORMAT!r}")

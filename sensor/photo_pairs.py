@@ -3,8 +3,9 @@
 :func:`stereo_pairs` finds the left and right photo of each view in one folder (``left01.jpg`` / ``right01.jpg``,
 or sub-folders ``left/`` and ``right/`` or ``image_0/`` and ``image_1/``) or from two glob patterns; partners are
 found by name (the file name with ``left``/``right`` taken out), else in sorted order. :func:`check_images` reads
-every photo's header before any work. Each failure is one :class:`~vehicle_model.errors.InputError` naming the
-files.
+every photo whole before any work (its structure and all its pixels: a truncated file of any format is refused);
+:func:`check_photo_size` refuses photos too small for the board. Each failure is one
+:class:`~vehicle_model.errors.InputError` naming the files.
 """
 
 from __future__ import annotations
@@ -15,10 +16,24 @@ from pathlib import Path
 
 from vehicle_model.errors import InputError
 
-__all__ = ["IMAGE_SUFFIXES", "check_images", "stereo_pairs"]
+__all__ = [
+    "IMAGE_SUFFIXES",
+    "MIN_PHOTO_SIDE",
+    "MIN_SQUARE_PX",
+    "check_images",
+    "check_photo_size",
+    "smallest_photo",
+    "stereo_pairs",
+]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 """File suffixes taken as photos (case-insensitive)."""
+MIN_SQUARE_PX = 4
+"""Fewest pixels a square of the board must span for its corners to be found: a corner's ``cornerSubPix`` window
+(at least 2 px each side, :func:`sensor.board_calibration.corner_window_for`) must not reach the next corner."""
+MIN_PHOTO_SIDE = 16
+"""Shortest photo side [px]: ``cv2.findChessboardCorners`` thresholds with a block of a tenth of the shorter side,
+which must be 3 px or more (an odd size above 1)."""
 
 _SIDE = re.compile(r"left|right", re.IGNORECASE)
 
@@ -113,12 +128,14 @@ def stereo_pairs(
 def check_images(pairs: Sequence[tuple[Path, Path]]) -> tuple[int, int]:
     """Every photo is an image and all have one size; return it ``(width, height)`` (module notes, step 2).
 
-    The headers are read (Pillow) and each file's structure verified, without decoding the pixels.
+    Each file's structure is verified and its pixels decoded to the end (Pillow), so a truncated or corrupt photo
+    of any format is refused here, not later taken for a view without the board.
 
     Raises
     ------
     InputError
-        One line naming the files that are not images, or the sizes found and the files of the odd ones out.
+        One line naming the files that are not whole images, or the sizes found and the files of the odd ones
+        out.
     """
     from PIL import Image
 
@@ -128,9 +145,11 @@ def check_images(pairs: Sequence[tuple[Path, Path]]) -> tuple[int, int]:
         try:
             with Image.open(path) as im:
                 size = (int(im.size[0]), int(im.size[1]))
-                im.verify()
+                im.verify()  # the structure: a PNG's chunks and their checksums
+            with Image.open(path) as im:
+                im.load()  # the pixels to the end: a truncated JPEG is refused as a truncated PNG is
         except Exception as exc:  # Pillow raises many kinds for a file that is not an image
-            bad.append(f"{path} ({type(exc).__name__})")
+            bad.append(f"{path} ({type(exc).__name__}: {str(exc)[:60]})")
             continue
         sizes.setdefault(size, []).append(path.name)
     if bad:
@@ -145,3 +164,21 @@ def check_images(pairs: Sequence[tuple[Path, Path]]) -> tuple[int, int]:
             + "; allowed: one size for every photo"
         )
     return next(iter(sizes))
+
+
+def smallest_photo(cols: int, rows: int) -> tuple[int, int]:
+    """The smallest photo ``(long side, short side)`` [px] a board of ``cols`` × ``rows`` inner corners can be found
+    in (:data:`MIN_SQUARE_PX` a square, and :data:`MIN_PHOTO_SIDE`)."""
+    squares = sorted((cols + 1, rows + 1), reverse=True)
+    return (max(MIN_SQUARE_PX * squares[0], MIN_PHOTO_SIDE), max(MIN_SQUARE_PX * squares[1], MIN_PHOTO_SIDE))
+
+
+def check_photo_size(size: tuple[int, int], cols: int, rows: int, board: str) -> None:
+    """Refuse photos too small to hold the board (:func:`smallest_photo`, either way up), before any detection;
+    ``board`` names it in the message."""
+    long_side, short_side = smallest_photo(cols, rows)
+    if max(size) < long_side or min(size) < short_side:
+        raise InputError(
+            f"the photos are {size[0]}×{size[1]} px; allowed: at least {long_side}×{short_side} px (either way up) "
+            f"for the {board}, {MIN_SQUARE_PX} px a square"
+        )

@@ -296,6 +296,9 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
         "test_faults.py::test_bad_input_is_refused_before_any_work",
         "test_config_validation.py::test_every_bad_field_is_listed_at_once",
         "test_config_validation.py::test_a_missing_yaml_file_is_named_as_such",
+        "test_recording_faults.py::test_a_reference_or_calibration_that_is_missing_a_directory_or_binary_is_named",
+        "test_recording_faults.py::test_calibrate_refuses_its_settings_before_reading_a_photo_and_leaves_no_empty_out",
+        "test_recording_faults.py::test_assess_refuses_feedback_with_side_by_side_before_any_case",
     ),
     "a configuration file is not UTF-8": (
         "test_config_validation.py::test_a_yaml_alias_bomb_is_refused_in_one_line_without_exhausting_memory",
@@ -359,6 +362,25 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
     "the camera sees too little": (
         "test_vo_quality.py::test_heavy_image_noise_is_refused_not_reported",
         "test_vo_quality.py::test_a_20_degree_pitch_misalignment_fails_cleanly_with_a_reason",
+    ),
+    "a recording's camera model is implausible": (
+        "test_recording_faults.py::test_a_calib_txt_holding_b_for_f_times_b_is_refused_naming_the_file",
+        "test_recording_faults.py::test_one_bag_topic_twice_and_signals_on_another_clock_are_refused",
+        "test_recording_faults.py::test_signals_beyond_the_models_limits_are_refused_naming_file_line_and_column",
+    ),
+    "a recording's odometry disagrees with its wheel speed": (
+        "test_recording_faults.py::test_odometry_against_its_wheel_speed_and_the_rigs_facing_are_flags",
+        "test_recorded_estimate.py::test_a_rig_facing_against_the_cameras_motion_is_flagged_in_the_verdict",
+    ),
+    "calibration photos that are truncated": (
+        "test_recording_faults.py::test_tiny_and_truncated_photos_are_refused_by_one_rule_before_any_detection",
+        "test_recording_faults.py::test_calibrate_refuses_its_settings_before_reading_a_photo_and_leaves_no_empty_out",
+    ),
+    "Ctrl-C / SIGTERM in `offtrack tune`": (
+        "test_recording_faults.py::test_ctrl_c_in_tune_keeps_the_finished_trials_without_a_traceback",
+    ),
+    "SIGKILL during `offtrack export`": (
+        "test_recording_faults.py::test_the_temporary_a_killed_export_left_is_removed_by_the_next_one",
     ),
     "a file cannot be written": (
         "test_output_faults.py::test_a_full_disk_mid_run_fails_the_run_and_keeps_what_was_written",

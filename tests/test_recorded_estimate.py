@@ -252,6 +252,8 @@ def test_the_runs_own_signals_give_its_fused_and_zero_slip_series(rendered: Simp
         "estimate", str(rendered.folder), "--rig", str(rendered.rig), "--out", str(out), "--signals", str(signals)
     )
     assert "viso_ot_fused error" in printed and "zero_slip error" in printed
+    motion = json.loads((out / "metrics.json").read_text())["motion"]  # the odometry's distance is the wheels'
+    assert motion["odometry_over_wheel"] == pytest.approx(1.0, abs=0.05)  # (measured 0.99), no odometry_scale flag
     series = pd.read_parquet(out / "timeseries.parquet")
     assert len(series) == len(cols["time"])  # one row per control tick from the first frame to the last
     np.testing.assert_allclose(series["time"], cols["time"], atol=1e-9)
@@ -272,6 +274,23 @@ def test_the_runs_own_signals_give_its_fused_and_zero_slip_series(rendered: Simp
         "vo_valid": "-",
         "frame": "-",
     }
+
+
+def test_a_rig_facing_against_the_cameras_motion_is_flagged_in_the_verdict(rendered: SimpleNamespace) -> None:
+    # The rendered camera looks rearwards; a rig that says it looks forwards (psi_c2v_deg 0) has the trailer
+    # driving backwards: no off-tracking, and the run says why.
+    rig = rendered.tmp / "forward.yaml"
+    rig.write_text(RIG.replace("psi_c2v_deg: 180", "psi_c2v_deg: 0"))
+    out = rendered.tmp / "forward"
+    printed = _cli("estimate", str(rendered.folder), "--rig", str(rig), "--out", str(out), "--no-plots")
+    metrics = json.loads((out / "metrics.json").read_text())
+    flags = {flag["flag"]: flag["reason"] for flag in metrics["verdict"]["flags"]}
+    assert metrics["verdict"]["held"] is False and "camera_against_rig" in flags
+    assert metrics["motion"]["backward_m"] > 20.0 > metrics["motion"]["forward_m"]  # 25 km/h for 4 s, backwards
+    assert "the camera moved against the rig's facing" in " ".join(printed.split())
+    own = json.loads((rendered.estimate / "metrics.json").read_text())  # the rig as rendered: forwards, held
+    assert own["motion"]["forward_m"] > 20.0 > own["motion"]["backward_m"]
+    assert "camera_against_rig" not in {flag["flag"] for flag in own["verdict"]["flags"]}
 
 
 def test_the_accelerometers_rear_point_takes_the_recorded_accelerometer(rendered: SimpleNamespace) -> None:

@@ -283,13 +283,22 @@ def _calibrate_photos(out: Path, force: bool, corners: str, **options: Any) -> N
     """``offtrack calibrate`` on photos (:mod:`scenarios.recorded.calibrate`): files, then a table of the views."""
     from scenarios.recorded.calibrate import board_pattern, calibrate_from_photos, check_photos, report_lines
     from scenarios.run.results import check_output_dir, new_run_dir
+    from sensor.board_calibration import check_options
+    from vehicle_model.errors import InputError
 
     board = board_pattern(corners, **{k: options.pop(k) for k in ("pattern", "square", "marker", "dictionary")})
+    check_options(**{k: options[k] for k in ("min_views", "alpha", "corner_window")})  # before any photo is read
     check_output_dir(out)
-    check_photos(options["images"], options["left"], options["right"])  # refused before the directory is made
+    check_photos(options["images"], options["left"], options["right"], board)  # before the directory is made
+    made = not out.exists()
     run_dir = new_run_dir(out, "calibration", force=force)
-    with console.status("calibrating: finding the board and solving"):
-        calibration, report = calibrate_from_photos(run_dir, board, **options)
+    try:
+        with console.status("calibrating: finding the board and solving"):
+            calibration, report = calibrate_from_photos(run_dir, board, **options)
+    except InputError:  # too few views with the board: no empty directory left behind
+        if made and not any(run_dir.iterdir()):
+            run_dir.rmdir()
+        raise
     for line in report_lines(calibration, report, run_dir):
         console.print(line)
 

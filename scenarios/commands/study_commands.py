@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -10,7 +12,7 @@ from rich.markup import escape
 
 from scenarios.extras import require
 from scenarios.loop.ends import RunStatus
-from scenarios.registry import feedback_sources
+from scenarios.registry import NO_FEEDBACK, feedback_sources
 from scenarios.scenario_shortcuts import shortcut_pairs
 
 from .options import (
@@ -127,6 +129,24 @@ def exit_for_compare(table: Any, run_dir: Path) -> None:
         raise typer.Exit(EXIT_FAILED)
 
 
+@contextmanager
+def scheduler_client(scheduler: str | None) -> Iterator[Any]:
+    """The Dask client of ``--scheduler``, connected before any directory is made (an address that cannot be
+    reached is refused in one line, :func:`scenarios.studies.executors.dask_client`) and closed after; None
+    without one."""
+    if scheduler is None:
+        yield None
+        return
+    from scenarios.studies.executors import dask_client
+
+    client, owned = dask_client(scheduler)
+    try:
+        yield client
+    finally:
+        if owned:
+            client.close()
+
+
 def exit_if_cases_failed(table: Any, run_dir: Path) -> None:
     """Say how many of a sweep's cases failed and where their errors are, and exit 3; nothing when none did."""
     from scenarios.studies.records import CASES_DIR
@@ -179,22 +199,23 @@ def study(
     settings = dict(parse_assignment(item) for item in set_ or [])
     if settings:
         study_cases(name, full, vehicle, settings)  # settings a case refuses: one line, before any work
-    if out is not None and resume and (out / CASES_DIR).is_dir():
-        run_dir = out  # an earlier run of the study: finish it
-    else:
-        run_dir = new_run_dir(out, f"study-{name}", force=force)
-    with rich_progress(name, console=console) as progress:
-        table = run_study(
-            name,
-            run_dir,
-            full=full,
-            workers=workers,
-            scheduler=scheduler,
-            resume=resume,
-            on_progress=progress,
-            vehicle=vehicle,
-            settings=settings,
-        )
+    with scheduler_client(scheduler) as client:
+        if out is not None and resume and (out / CASES_DIR).is_dir():
+            run_dir = out  # an earlier run of the study: finish it
+        else:
+            run_dir = new_run_dir(out, f"study-{name}", force=force)
+        with rich_progress(name, console=console) as progress:
+            table = run_study(
+                name,
+                run_dir,
+                full=full,
+                workers=workers,
+                scheduler=client,
+                resume=resume,
+                on_progress=progress,
+                vehicle=vehicle,
+                settings=settings,
+            )
     print_study_summary(table, run_dir, name)
     exit_if_cases_failed(table, run_dir)
 
@@ -235,32 +256,39 @@ def assess(
     from scenarios.studies.pbs_assessment import assessment_cases, run_assessment, side_by_side_feedbacks
     from scenarios.studies.progress import rich_progress
     from scenarios.studies.records import CASES_DIR
+    from vehicle_model.errors import InputError
 
     plot_format = check_plot_format(plot_format)
     user_levels = None if levels is None else load_levels(levels)  # checked before any work
+    if side_by_side and feedback:
+        raise InputError(
+            f"--feedback {' --feedback '.join(feedback)} with --side-by-side: the comparison chooses its own "
+            "feedbacks; allowed: --side-by-side or --feedback F …, not both"
+        )
     surfaces = tuple(surface or ("dry",))
     feedbacks = side_by_side_feedbacks(combination) if side_by_side else tuple(feedback or ("none",))
     assessment_cases(combination, feedbacks, surfaces)  # every option checked before any work
     if scheduler is not None:
         require("distributed", "cluster", "--scheduler")
     name = Path(combination).stem if combination.endswith((".yaml", ".yml")) else combination
-    if out is not None and resume and (out / CASES_DIR).is_dir():
-        run_dir = out
-    else:
-        run_dir = new_run_dir(out, f"assess-{name}", force=force)
-    with rich_progress(f"assess {name}", console=console) as progress:
-        table = run_assessment(
-            combination,
-            run_dir,
-            feedbacks,
-            surfaces,
-            workers=workers,
-            scheduler=scheduler,
-            resume=resume,
-            on_progress=progress,
-            plot_format=plot_format,
-            levels=user_levels,
-        )
+    with scheduler_client(scheduler) as client:
+        if out is not None and resume and (out / CASES_DIR).is_dir():
+            run_dir = out
+        else:
+            run_dir = new_run_dir(out, f"assess-{name}", force=force)
+        with rich_progress(f"assess {name}", console=console) as progress:
+            table = run_assessment(
+                combination,
+                run_dir,
+                feedbacks,
+                surfaces,
+                workers=workers,
+                scheduler=client,
+                resume=resume,
+                on_progress=progress,
+                plot_format=plot_format,
+                levels=user_levels,
+            )
     console.print(f"assessment: {run_dir / 'assessment.md'} (and .csv, .json, measure-*.{plot_format})")
     exit_if_cases_failed(table, run_dir)
 
@@ -287,13 +315,20 @@ def tune(
     from rich.progress import Progress
 
     from scenarios.envs.scenario import DEFAULT_OVERRIDES
-    from scenarios.envs.tuning import tune_gains
-    from scenarios.envs.tuning_report import gains_table, held_out_table, set_options, write_tuning
+    from scenarios.envs.tuning import TuningStopped, tune_gains
+    from scenarios.envs.tuning_report import gains_table, held_out_table, set_options, write_trials, write_tuning
     from scenarios.run.json_output import strict_json
-    from scenarios.run.results import new_run_dir
+    from scenarios.run.results import check_output_dir, new_run_dir
+    from vehicle_model.errors import InputError
 
     require("optuna", "tune", "tuning the gains")
+    steering = [source for source in feedback_sources() if source != NO_FEEDBACK]
+    if feedback not in steering:  # the tuned gains steer the trailer on an estimate
+        raise InputError(f"--feedback {feedback!r}: allowed: {', '.join(steering)}")
     base = load_config(scenario, {"feedback": feedback, "vehicle": "lst"})  # the gains' scenario, refused before tuning
+    if out is not None:
+        check_output_dir(out)
+    made = out is not None and not out.exists()
     out_dir = None if out is None else new_run_dir(out, "tune", force=force)
     with Progress(console=console, transient=True, disable=as_json) as bar:
         task = bar.add_task("tuning", total=trials)
@@ -302,7 +337,20 @@ def tune(
             bar.update(task, completed=done, description=f"tuning: best training cost {best:.5f}")
 
         env_kwargs = {"feedback": feedback, "scenario": scenario, "overrides": dict(DEFAULT_OVERRIDES)}
-        result = tune_gains(n_trials=trials, train_draws=draws, seed=seed, env_kwargs=env_kwargs, progress=progress)
+        try:
+            result = tune_gains(n_trials=trials, train_draws=draws, seed=seed, env_kwargs=env_kwargs, progress=progress)
+        except TuningStopped as stopped:  # the finished trials are the data computed so far
+            finished = len(stopped.trial_rows)
+            if out_dir is not None:
+                path = write_trials(stopped.trial_rows, out_dir)
+                errors.print(f"{finished} finished trial(s) → {path}", markup=False)
+            else:
+                errors.print(f"{finished} finished trial(s); without --out they are not kept", markup=False)
+            raise
+        except InputError:  # refused by the environment: no empty --out left behind
+            if made and out_dir is not None and not any(out_dir.iterdir()):
+                out_dir.rmdir()
+            raise
     paths = None if out_dir is None else write_tuning(result, out_dir, base)
     if as_json:
         files = None if paths is None else {key: str(path) for key, path in paths.items()}

@@ -25,7 +25,22 @@ from ..extras import require
 from . import register_envs
 from .gain_tuning_env import GAIN_RANGES, GainTuningEnv, action_to_gains, gains_to_action
 
-__all__ = ["HELD_OUT", "TRAIN_RANDOMISATION", "TuningResult", "tune_gains"]
+__all__ = ["HELD_OUT", "TRAIN_RANDOMISATION", "TuningResult", "TuningStopped", "tune_gains"]
+
+
+class TuningStopped(Exception):
+    """Ctrl-C or SIGTERM stopped :func:`tune_gains`; raised from the stop (its ``__cause__``).
+
+    Attributes
+    ----------
+    trial_rows : list of dict
+        The trials finished before the stop, as :attr:`TuningResult.trial_rows`.
+    """
+
+    def __init__(self, trial_rows: list[dict[str, Any]]) -> None:
+        super().__init__(f"tuning stopped after {len(trial_rows)} finished trial(s)")
+        self.trial_rows = trial_rows
+
 
 TRAIN_RANDOMISATION: dict[str, Any] = {
     "mu": (0.4, 0.8),
@@ -186,6 +201,8 @@ def tune_gains(
     InputError
         Bad budget, Optuna is not installed, or the combination steers more than one towed unit (the designed
         gains it starts from and compares with are the first towed unit's).
+    TuningStopped
+        Ctrl-C or SIGTERM: the trials finished so far, raised from the stop.
     """
     if n_trials < 1 or train_draws < 1:
         raise InputError("tune_gains needs n_trials ≥ 1 and train_draws ≥ 1")
@@ -220,9 +237,25 @@ def tune_gains(
     designed = design_gains(setup.params, setup.speed_profile.cornering).gains
     names = list(GAIN_RANGES)
 
+    stops: list[KeyboardInterrupt] = []
+
     def objective(trial: optuna.Trial) -> float:
         action = np.array([trial.suggest_float(name, -1.0, 1.0) for name in names], dtype=np.float32)
-        return train_cost(action)
+        try:
+            return train_cost(action)
+        except KeyboardInterrupt as stop:  # Optuna would log it with a traceback: end the study quietly instead
+            stops.append(stop)
+            trial.study.stop()
+            raise optuna.TrialPruned() from None
+
+    def finished_rows(study: optuna.Study) -> list[dict[str, Any]]:
+        rows = []
+        for trial in study.trials:
+            gains = action_to_gains(np.array([trial.params[n] for n in names], dtype=np.float32))
+            cost = None if trial.value is None else float(trial.value)
+            row = {"trial": trial.number, "kp": gains.kp, "ki": gains.ki, "kd": gains.kd, "train_cost": cost}
+            rows.append({**row, "state": trial.state.name.lower()})
+        return [row for row in rows if row["state"] == "complete"] if stops else rows
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.create_study(direction="minimize", sampler=optuna.samplers.TPESampler(seed=seed))
@@ -230,7 +263,13 @@ def tune_gains(
     callbacks = []
     if progress is not None:
         callbacks.append(lambda s, t: progress(len(s.trials), n_trials, float(s.best_value)))
-    study.optimize(objective, n_trials=n_trials, callbacks=callbacks)
+    try:
+        study.optimize(objective, n_trials=n_trials, callbacks=callbacks)
+    except KeyboardInterrupt as stop:  # between trials (the sampler, a callback)
+        stops.append(stop)
+    if stops:
+        env.close()
+        raise TuningStopped(finished_rows(study)) from stops[0]
     best_action = np.array([study.best_params[n] for n in names], dtype=np.float32)
     tuned = action_to_gains(best_action)
 
@@ -243,19 +282,19 @@ def tune_gains(
             evaluations += 1
         return float(np.mean(costs))
 
-    result = TuningResult(designed, tuned, mean_train(designed), mean_train(tuned), trials=len(study.trials))
-    for trial in study.trials:
-        gains = action_to_gains(np.array([trial.params[n] for n in names], dtype=np.float32))
-        cost = None if trial.value is None else float(trial.value)
-        row = {"trial": trial.number, "kp": gains.kp, "ki": gains.ki, "kd": gains.kd, "train_cost": cost}
-        result.trial_rows.append({**row, "state": trial.state.name.lower()})
-    for label, options in (HELD_OUT if held_out is None else held_out).items():
-        env.reset(seed=seed + 10_000, options={**options, "randomise": None})
-        row = {"condition": label}
-        for which, gains in (("designed", designed), ("tuned", tuned)):
-            row[which] = _figures(tuning_env.evaluate(gains)[1])
-            evaluations += 1
-        result.held_out.append(row)
+    try:
+        result = TuningResult(designed, tuned, mean_train(designed), mean_train(tuned), trials=len(study.trials))
+        result.trial_rows.extend(finished_rows(study))
+        for label, options in (HELD_OUT if held_out is None else held_out).items():
+            env.reset(seed=seed + 10_000, options={**options, "randomise": None})
+            row = {"condition": label}
+            for which, gains in (("designed", designed), ("tuned", tuned)):
+                row[which] = _figures(tuning_env.evaluate(gains)[1])
+                evaluations += 1
+            result.held_out.append(row)
+    except KeyboardInterrupt as stop:  # in the comparison: every trial is finished
+        env.close()
+        raise TuningStopped(finished_rows(study)) from stop
     env.close()
     result.evaluations = evaluations
     result.wall_s = time.perf_counter() - t0

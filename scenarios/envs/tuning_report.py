@@ -33,6 +33,7 @@ __all__ = [
     "held_out_table",
     "set_options",
     "trials_frame",
+    "write_trials",
     "write_tuning",
 ]
 
@@ -84,14 +85,23 @@ def gains_config(base: ScenarioConfig, gains: PathFollowingGains) -> ScenarioCon
     return validate_config(data)
 
 
-def trials_frame(result: TuningResult) -> pd.DataFrame:
-    """One row per trial: ``trial``, the gains with their units in the column names, ``train_cost``, ``state``."""
+def trials_frame(result: TuningResult | list[dict[str, Any]]) -> pd.DataFrame:
+    """One row per trial: ``trial``, the gains with their units in the column names, ``train_cost``, ``state``
+    (of a result, or of its :attr:`~scenarios.envs.tuning.TuningResult.trial_rows` alone)."""
     columns = ["trial", *(f"{n} [{u}]" for n, u in GAIN_UNITS.items()), "train_cost", "state"]
+    trial_rows = result if isinstance(result, list) else result.trial_rows
     rows = [
         [r["trial"], *(r[n] for n in GAIN_UNITS), r["train_cost"], r["state"]]
-        for r in result.trial_rows  # a result made without them (an older one) gives an empty table
+        for r in trial_rows  # a result made without them (an older one) gives an empty table
     ]
     return pd.DataFrame(rows, columns=columns)
+
+
+def write_trials(trial_rows: list[dict[str, Any]], out_dir: Path) -> Path:
+    """Write the trials of a stopped tuning (``trials.csv`` alone) into ``out_dir``; return its path."""
+    path = Path(out_dir) / TUNING_FILES["trials"]
+    write_atomic(path, trials_frame(trial_rows).to_csv(index=False))
+    return path
 
 
 def comparison_frame(result: TuningResult) -> pd.DataFrame:

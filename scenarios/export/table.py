@@ -16,12 +16,15 @@ participants), the run's description from ``config.yaml`` and ``metrics.json``:
 :func:`export_target` checks everything a user gives — a run directory with a time series, a known format, an
 output that can be written and is not a file already there (unless ``force``) — before anything is read, each
 refusal one line (:class:`~vehicle_model.errors.InputError`). The file is written whole (temporary name, then
-rename).
+rename); the temporary a killed export left beside the file is removed by the next export of it
+(:func:`remove_stale_temporaries`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import fcntl
 import math
 import os
 import re
@@ -37,7 +40,7 @@ from vehicle_model.errors import InputError
 
 from ..loop.participant import Column
 from ..loop.schema import schema_of
-from ..run.files import atomic_path
+from ..run.files import TEMPORARY_SUFFIX, atomic_path
 from ..run.results import CONFIG_FILE, RUN_FILES, TIMESERIES_FILE, read_metrics, timeseries_columns
 from ..yaml_input import load_yaml
 
@@ -49,6 +52,7 @@ __all__ = [
     "export_target",
     "matlab_names",
     "read_run_table",
+    "remove_stale_temporaries",
     "write_csv",
     "write_mat",
 ]
@@ -243,6 +247,7 @@ def write_csv(table: RunTable, path: Path) -> None:
     """
     values = [table.data[c.name].tolist() for c in table.columns]
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)  # held while written: a temporary no one holds is a killed export's
         writer = csv.writer(fh, lineterminator="\n")
         writer.writerow([csv_header(c) for c in table.columns])
         writer.writerows([_csv_number(v) for v in row] for row in zip(*values, strict=True))
@@ -303,7 +308,34 @@ def write_mat(table: RunTable, path: Path) -> None:
     variables["variable_names"] = np.array([names[c.name] for c in table.columns], dtype=object)
     variables["metadata"] = dict(table.metadata)
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)  # held while written (:func:`remove_stale_temporaries`)
         savemat(fh, variables, oned_as="column", long_field_names=True)
+
+
+def remove_stale_temporaries(target: Path) -> list[Path]:
+    """Remove the temporary files an earlier export of ``target`` left when it was killed; return them.
+
+    An export writes ``.<name>.<random>.tmp`` beside ``target`` (:func:`~scenarios.run.files.atomic_path`) and holds
+    an exclusive lock (``flock``) on it while it writes; the kernel drops the lock when its process ends, however it
+    ends (SIGKILL included). A temporary of ``target`` whose lock can be taken is no one's: it is removed. One
+    still locked belongs to an export under way and is left.
+    """
+    target = Path(target)
+    removed = []
+    if not target.parent.is_dir():
+        return removed
+    for path in target.parent.glob(f".{target.name}.*{TEMPORARY_SUFFIX}"):
+        if path.is_symlink() or not path.is_file():
+            continue
+        try:
+            with open(path, "rb") as fh:
+                fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                with contextlib.suppress(FileNotFoundError):
+                    path.unlink()
+                removed.append(path)
+        except (BlockingIOError, FileNotFoundError, PermissionError):
+            continue
+    return removed
 
 
 def export_run(run_dir: Path, to: str, out: Path | None = None, force: bool = False) -> Path:
@@ -334,5 +366,6 @@ def export_run(run_dir: Path, to: str, out: Path | None = None, force: bool = Fa
     """
     target = export_target(run_dir, to, out, force)
     table = read_run_table(run_dir)
+    remove_stale_temporaries(target)
     (write_csv if to == "csv" else write_mat)(table, target)
     return target

@@ -20,7 +20,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from sensor.board_calibration import BoardPattern, PhotoCalibration, calibrate_photos
-from sensor.photo_pairs import check_images, stereo_pairs
+from sensor.photo_pairs import check_images, check_photo_size, stereo_pairs
 from vehicle_model.errors import InputError
 
 from ..run.json_output import write_json
@@ -95,9 +95,11 @@ def board_pattern(
     return BoardPattern(pattern, cols, rows, square, marker, dictionary)  # type: ignore[arg-type]
 
 
-def check_photos(images: Path | None, left: str | None, right: str | None) -> None:
-    """Refuse bad photos before any work: no pairs, a photo without a partner, a file not an image, mixed sizes."""
-    check_images(stereo_pairs(images, left, right))
+def check_photos(images: Path | None, left: str | None, right: str | None, pattern: BoardPattern) -> None:
+    """Refuse bad photos before any work: no pairs, a photo without a partner, a file not a whole image, mixed
+    sizes, photos too small for the board."""
+    size = check_images(stereo_pairs(images, left, right))
+    check_photo_size(size, pattern.cols, pattern.rows, pattern.label)
 
 
 def report_lines(calibration: PhotoCalibration, report: dict[str, Any], run_dir: Path) -> list[Any]:

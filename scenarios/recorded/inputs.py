@@ -36,9 +36,10 @@ from vehicle_model.errors import InputError
 from vehicle_model.kinematics import RearPoint
 
 from ..extras import require
+from .plausibility import check_baseline, check_road_disparity
 from .rig import RecordingRig, load_rig
 
-__all__ = ["EstimateInputs", "camera_model", "open_recording", "resolve_inputs"]
+__all__ = ["EstimateInputs", "camera_model", "check_signals_clock", "open_recording", "resolve_inputs"]
 
 
 @dataclass
@@ -102,6 +103,10 @@ def open_recording(
     if is_bag(path):
         if not left_topic or not right_topic:
             raise InputError(f"RECORDING {path} is a bag: give --left-topic and --right-topic (its image topics)")
+        if left_topic == right_topic:
+            raise InputError(
+                f"--left-topic and --right-topic are both {left_topic}; allowed: the two cameras' different topics"
+            )
         require("rosbags", "ros", "reading a ROS bag")
         require("rosbags.image", "ros", "reading a ROS bag")
         return BagPair(path, left_topic, right_topic, pair_tolerance)
@@ -112,7 +117,25 @@ def open_recording(
             f"RECORDING {path}: a file that is not a bag; allowed: a KITTI-odometry folder, a ROS bag, or a left video "
             "with --right-video FILE and --times FILE"
         )
+    if Path(right_video).resolve() == path.resolve():
+        raise InputError(f"--right-video {right_video} is RECORDING itself; allowed: the right camera's own video")
     return VideoPair(path, Path(right_video), Path(times))
+
+
+def check_signals_clock(series: SignalSeries, recording: StereoRecording, option: str = "--signals") -> None:
+    """Refuse signals that cover none of the recording's frames: they are on another clock (or of another drive).
+
+    The frames' times are ``recording.t0 + recording.times`` on the recording's own clock; the signals must share
+    it (module notes of :mod:`sensor.recordings.signals`), so their span must hold at least one frame.
+    """
+    frames = recording.t0 + recording.times
+    start, end = float(series.time[0]), float(series.time[-1])
+    if not np.any((frames >= start) & (frames <= end)):
+        raise InputError(
+            f"{option} {series.source}: time_s spans [{start:.6g}, {end:.6g}] s, the recording's frames "
+            f"[{frames[0]:.6g}, {frames[-1]:.6g}] s: no frame inside; allowed: signals on the recording's clock "
+            "(times.txt, the bag's stamps) over its frames"
+        )
 
 
 def camera_model(
@@ -130,7 +153,9 @@ def camera_model(
                 f"--calibration {calibration_file} is for {w}×{h} px images; the recording's are {width}×{height} px"
             )
         par = calibration.rectified_rig_parameters()
-        return RectifiedCamera(par.f, par.cu, par.cv, par.baseline), calibration
+        camera = RectifiedCamera(par.f, par.cu, par.cv, par.baseline)
+        check_baseline(camera, str(calibration_file))
+        return camera, calibration
     if calib_file is not None:
         camera = read_kitti_calib(Path(calib_file))
     elif isinstance(recording, KittiFolder) and recording.camera is not None:
@@ -140,11 +165,26 @@ def camera_model(
             f"{recording.source}: no camera model; allowed: --calibration FILE.yaml (raw images, from offtrack "
             "calibrate) or a KITTI calib.txt with P0 and P1 (rectified images; in the folder or --calib FILE)"
         )
+    folder_calib = Path(getattr(recording, "folder", ".")) / "calib.txt"
+    check_baseline(camera, str(calib_file if calib_file is not None else folder_calib))
     if not (0.0 < camera.cu < width and 0.0 < camera.cv < height):
         raise InputError(
             f"calib: principal point ({camera.cu:g}, {camera.cv:g}) px lies outside the {width}×{height} px images"
         )
     return camera, None
+
+
+def _reference_text(path: Path) -> str:
+    """The text of a ``--reference`` poses file (InputError naming it: missing, a directory, not text)."""
+    allowed = "allowed: a text file of camera poses, KITTI (12 numbers a line) or TUM (8)"
+    if not path.is_file():
+        raise InputError(f"--reference {path}: {'a directory' if path.is_dir() else 'not found'}; {allowed}")
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"--reference {path}: not text (byte {exc.start} is not UTF-8); {allowed}") from None
+    except OSError as exc:
+        raise InputError(f"--reference {path}: cannot be read ({exc.strerror}); {allowed}") from None
 
 
 def _reference(
@@ -166,7 +206,7 @@ def _reference(
         return None, None, ""
     fmt = reference_format
     if fmt is None:  # by the numbers on its first line: 12 (KITTI) or 8 (TUM)
-        first = next((ln for ln in Path(reference).read_text().splitlines() if ln.split("#")[0].strip()), "")
+        first = next((ln for ln in _reference_text(Path(reference)).splitlines() if ln.split("#")[0].strip()), "")
         fmt = "tum" if len(first.split("#")[0].replace(",", " ").split()) == 8 else "kitti"
     if fmt == "kitti":
         return (times, read_kitti_poses(Path(reference), len(times))), None, str(reference)
@@ -225,8 +265,12 @@ def resolve_inputs(
         pair_tolerance=pair_tolerance,
     )
     camera, cal = camera_model(rec, calibration, calib)
+    model_file = calibration or calib or Path(getattr(rec, "folder", ".")) / "calib.txt"
+    check_road_disparity(camera, rec.size, rig_, str(model_file))
     par = cal.rectified_rig_parameters() if cal is not None else None
     series = read_signals(Path(signals)) if signals is not None else None
+    if series is not None:
+        check_signals_clock(series, rec)
     if rear_point == "lateral_acceleration" and (series is None or series.lateral_acceleration is None):
         raise InputError(
             "--rear-point lateral_acceleration needs the tractor's accelerometer: a --signals CSV with a "

@@ -5,7 +5,9 @@ rig file's fields — where a simulated run has ``config.yaml``; :func:`is_recor
 ``offtrack report`` and ``offtrack animate`` take either. :func:`write_recorded_report` computes ``metrics.json``
 with the simulated runs' own :func:`scenarios.run.metrics.compute_metrics` (the same errors against the truth, the
 same camera frame statistics and verdict), adds what only a recording has (``recording``: frames missing, refused
-and why, gaps; ``vo_rpe``: the odometry's relative pose error against reference poses) and draws
+and why, gaps; ``vo_rpe``: the odometry's relative pose error against reference poses; ``motion``: the kingpin's
+travel forwards and backwards and its distance against the wheel speed's, whose implausible values are flags of the
+verdict, :func:`.plausibility.motion_flags`) and draws
 ``offtracking.png`` (:func:`scenarios.run.plots.plot_offtracking`) and ``plan_view.png`` (:mod:`.plots`).
 :func:`rebuild_recorded_report` does it again from the directory alone.
 """
@@ -30,6 +32,7 @@ from ..run.metrics import after_warmup, compute_metrics, estimator_names
 from ..run.report import INCOMPLETE_MESSAGE
 from ..run.results import plot_files, read_metrics, read_timeseries, write_metrics
 from ..yaml_input import load_yaml
+from .plausibility import motion_flags
 from .rig import rig_from_fields
 
 __all__ = [
@@ -138,6 +141,13 @@ def write_recorded_report(
     rpe = _vo_rpe(columns)
     if rpe is not None:
         metrics["vo_rpe"] = rpe
+    motion, flags = motion_flags(columns)
+    if motion:
+        metrics["motion"] = motion
+    if flags:  # the odometry's scale or direction is implausible: the run did not hold what it was asked
+        verdict = metrics.setdefault("verdict", {"held": True, "flags": []})
+        verdict["flags"] = [*verdict.get("flags", []), *flags]
+        verdict["held"] = False
     write_metrics(run_dir, metrics)
     if plots and len(time) > 1:
         from ..run.plots import plot_offtracking

@@ -13,6 +13,7 @@ file (docs/vehicles.md, held inline once read, so a recorded run's files describ
     follow_point_offset_m: 14.05    # optional: kingpin to follow point (default: the vehicle's, its trailer's rear)
     pitch_deg: 0.0                  # optional: the cameras tilted down about their x axis
     roll_deg: 0.0                   # optional: the cameras rolled about their optical axis
+    baseline_m: 0.5                 # optional: the baseline measured on the rig, checked against the calibration's
 
 The numbers are those of a scenario's ``camera`` section (``psi_c2v_deg``; ``station``, ``lateral``,
 ``mount_height`` as the lever arm). The left camera — whose motion the odometry reports — sits half the calibrated
@@ -61,6 +62,9 @@ class RigFile(Settings):
     follow_point_offset_m: Real | None = Field(None, gt=0.0, le=30.0, description="kingpin to follow point [m]")
     pitch_deg: Real = Field(0.0, ge=-60.0, le=60.0, description="down-tilt [°]; beyond 60° the road fills the image")
     roll_deg: Real = Field(0.0, ge=-45.0, le=45.0, description="roll about the optical axis [°]")
+    baseline_m: Real | None = Field(
+        None, gt=0.0, le=5.0, description="the stereo baseline as measured on the rig [m], checked against the camera's"
+    )
 
     _vehicle_file = field_validator("vehicle", mode="before")(read_vehicle_file)
     _known = field_validator("vehicle")(check_vehicle)
@@ -82,6 +86,8 @@ class RecordingRig:
         The cameras' down-tilt and roll [rad].
     file : dict
         The rig file's fields as given (for the run's record).
+    baseline : float or None
+        The baseline measured on the rig [m] (None: not given).
     """
 
     params: VehicleParams
@@ -90,6 +96,7 @@ class RecordingRig:
     pitch: float
     roll: float
     file: dict[str, Any]
+    baseline: float | None = None
 
     def camera_in_trailer(self, baseline: float, rectification: RectifiedParameters | None = None) -> np.ndarray:
         """``T_trailer←camera`` (4×4) of the frame the odometry's motion is in: the left camera of a pair
@@ -175,4 +182,5 @@ def rig_from_fields(data: dict[str, Any], source: str) -> RecordingRig:
         math.radians(rig.pitch_deg),
         math.radians(rig.roll_deg),
         rig.model_dump(mode="json"),
+        rig.baseline_m,
     )

@@ -32,8 +32,9 @@ import numpy as np
 from vehicle_model.errors import InputError
 from vehicle_model.kinematics import zero_slip_kingpin_velocity
 from vehicle_model.parameters import VehicleParams
+from vehicle_model.simulator import STATE_LIMITS
 
-__all__ = ["SIGNAL_COLUMNS", "SignalSeries", "read_signals"]
+__all__ = ["SIGNAL_COLUMNS", "SIGNAL_LIMITS", "SignalSeries", "read_signals"]
 
 SIGNAL_COLUMNS = {
     "time": ("time_s",),
@@ -46,6 +47,19 @@ SIGNAL_COLUMNS = {
 }
 """Each signal and the column names it may have (the first unit given is the usual one)."""
 _REQUIRED = ("time", "speed", "yaw_rate", "articulation")
+
+SIGNAL_LIMITS = {
+    "speed": STATE_LIMITS["u"],
+    "yaw_rate": STATE_LIMITS["r1"],
+    "articulation": STATE_LIMITS["gamma"],
+    "trailer_yaw_rate": STATE_LIMITS["r2"],
+    "trailer_speed": STATE_LIMITS["u"],
+    "lateral_acceleration": 50.0,
+}
+"""Largest magnitude of each signal, SI: the vehicle model's state limits
+(:data:`vehicle_model.simulator.STATE_LIMITS`: speed, yaw rates, articulation) and 50 m/s² (5 g, an
+accelerometer's full scale, several times any tyre's grip) for the lateral acceleration. A value beyond is a column
+in other units or a corrupt file, refused before any work."""
 
 
 @dataclass(frozen=True)
@@ -109,8 +123,8 @@ def read_signals(path: Path) -> SignalSeries:
     Raises
     ------
     InputError
-        The file is missing or unreadable, a required column is missing, a value is not a finite number, or the
-        times do not increase — one line naming the file, the column and the line.
+        The file is missing or unreadable, a required column is missing, a value is not a finite number or lies
+        beyond :data:`SIGNAL_LIMITS`, or the times do not increase — one line naming the file, the column and the line.
     """
     path = Path(path)
     if not path.is_file():
@@ -145,6 +159,12 @@ def read_signals(path: Path) -> SignalSeries:
                 raise InputError(f"{path}: line {number}, column {header[index]}: not a number") from None
             if not math.isfinite(value):
                 raise InputError(f"{path}: line {number}, column {header[index]}: {value} is not finite")
+            limit = SIGNAL_LIMITS.get(name)
+            if limit is not None and not abs(value * scale) <= limit:
+                bound = limit / scale
+                raise InputError(
+                    f"{path}: line {number}, column {header[index]}: {value:g}; allowed: [{-bound:.4g}, {bound:.4g}]"
+                )
             values.append(value * scale)
         data[name] = np.array(values, dtype=float)
     time = data["time"]
