@@ -88,3 +88,51 @@ def test_four_runs_started_together_into_one_out_leave_one_run(tmp_path: Path) -
     config = (out / "config.yaml").read_text()
     assert f"seed: {winner}\n" in config
     assert json.loads((out / "metrics.json").read_text())["rows"] > 0
+
+
+# --- report --check of a run that did not complete ---------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A completed two-second run of the roundabout test, unsteered (asked to hold nothing)."""
+    from scenarios.config import load_scenario
+    from scenarios.run.results import new_run_dir
+    from scenarios.run.runner import run_scenario
+
+    out = tmp_path_factory.mktemp("short") / "r"
+    metrics = run_scenario(load_scenario("roundabout-test", {"duration_s": 2.0}), new_run_dir(out, "x"), plots=False)
+    assert metrics["status"] == "completed" and metrics["verdict"]["held"] is True
+    return out
+
+
+@pytest.mark.parametrize(
+    ("recorded", "code", "said"),
+    [
+        ({"status": "running"}, 3, "run incomplete: the run stopped without writing its metrics"),  # SIGKILLed
+        ({"status": "interrupted", "message": "stopped by SIGTERM", "stop_signal": "SIGTERM"}, 143, "SIGTERM"),
+        ({"status": "interrupted", "message": "stopped by Ctrl-C", "stop_signal": "SIGINT"}, 130, "Ctrl-C"),
+        ({"status": "diverged", "message": "diverged at t = 1.5 s: gamma2 = 3.503"}, 3, "gamma2 = 3.503"),
+        ({"status": "lost_control", "message": "jackknife: articulation 91° at 1.5 s"}, 3, "jackknife"),
+    ],
+)
+def test_report_check_of_a_run_that_did_not_complete_exits_with_its_status(
+    short_run: Path, tmp_path: Path, recorded: dict, code: int, said: str
+) -> None:
+    import shutil
+
+    run = tmp_path / "r"
+    shutil.copytree(short_run, run)
+    (run / "metrics.json").write_text(json.dumps(recorded))
+    result = invoke("report", str(run), "--no-plots", "--check")
+    assert result.exit_code == code, result.output
+    assert said in result.output and "Traceback" not in result.output
+    verdict = json.loads((run / "metrics.json").read_text())["verdict"]
+    assert verdict["held"] is False and verdict["flags"][0]["flag"] == "not_completed"
+    assert invoke("report", str(run), "--no-plots").exit_code == 0  # without --check a rebuild is no failure
+
+
+def test_report_check_of_a_completed_run_that_held_exits_0(short_run: Path) -> None:
+    result = invoke("report", str(short_run), "--no-plots", "--check")
+    assert result.exit_code == 0, result.output
+    assert json.loads((short_run / "metrics.json").read_text())["verdict"] == {"held": True, "flags": []}

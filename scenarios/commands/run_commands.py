@@ -8,8 +8,6 @@ from typing import Annotated
 import typer
 from rich.markup import escape
 
-from scenarios.loop.ends import RunStatus
-
 from .options import (
     FEEDBACKS,
     CamberDirectionOption,
@@ -152,7 +150,8 @@ def report(
         else rebuild_report(run_dir, plots=plots, plot_format=plot_format)
     )
     print_summary(metrics, run_dir)
-    if check and metrics.get("status") == RunStatus.COMPLETED:
+    if check:  # a run that did not complete has not held what it was asked: its own exit code, as `run` gives
+        exit_for_status(metrics)
         exit_for_checks(metrics)
 
 

@@ -102,6 +102,18 @@ def _flag_unfinished_path(
     verdict["held"] = False
 
 
+def _flag_not_completed(metrics: dict[str, Any]) -> None:
+    """Flag a run that did not complete (killed, interrupted, diverged, lost control, failed): whatever its numbers
+    up to the stop, it has not held what it was asked over the manoeuvre it was asked to drive."""
+    status = metrics.get("status")
+    if status == RunStatus.COMPLETED:
+        return
+    verdict = metrics["verdict"]
+    message = metrics.get("message") or "no message"
+    verdict["flags"].insert(0, {"flag": "not_completed", "reason": f"the run did not complete ({status}: {message})"})
+    verdict["held"] = False
+
+
 def write_report(
     run_dir: Path,
     setup: ScenarioSetup,
@@ -155,6 +167,7 @@ def write_report(
         metrics.update({key: None for key in RUN_FIELDS})
         metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})
         _flag_unfinished_path(metrics, config, setup.path.length, columns)
+        _flag_not_completed(metrics)
         metrics.update({"vehicle": config.vehicle_name, "seed": config.seed})
         write_metrics(run_dir, metrics)
     raise_pending_stop()  # a stop held meanwhile takes effect now: before the plots
