@@ -297,6 +297,10 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
         "test_config_validation.py::test_every_bad_field_is_listed_at_once",
         "test_config_validation.py::test_a_missing_yaml_file_is_named_as_such",
     ),
+    "`true` / `false` given for a number": (
+        "test_faults_runs.py::test_true_or_false_for_a_number_is_refused_naming_the_field",
+        "test_faults_runs.py::test_a_switch_still_takes_true_and_a_number_file_refuses_a_bool",
+    ),
     "a configuration file is not UTF-8": (
         "test_config_validation.py::test_a_yaml_alias_bomb_is_refused_in_one_line_without_exhausting_memory",
         "test_config_validation.py::test_a_yaml_file_out_of_bounds_is_refused_naming_it",

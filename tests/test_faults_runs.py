@@ -136,3 +136,44 @@ def test_report_check_of_a_completed_run_that_held_exits_0(short_run: Path) -> N
     result = invoke("report", str(short_run), "--no-plots", "--check")
     assert result.exit_code == 0, result.output
     assert json.loads((short_run / "metrics.json").read_text())["verdict"] == {"held": True, "flags": []}
+
+
+# --- strict numbers ----------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "field",
+    [
+        "vehicle.units[1].mass",
+        "vehicle.units[0].axles[0].x",
+        "surface.mu",
+        "seed",
+        "duration_s",
+        "rates.control_hz",
+        "camera.baseline",
+        "controller.max_steer_deg",
+        "fusion.kinematic_error_time",
+    ],
+)
+def test_true_or_false_for_a_number_is_refused_naming_the_field(field: str) -> None:
+    for value in ("true", "false"):
+        result = invoke("config", "roundabout-test", "--set", f"{field}={value}")
+        assert result.exit_code == 2, (field, result.output)
+        lines = [line for line in result.output.splitlines() if line.startswith("  ")]
+        assert len(lines) == 1 and lines[0].startswith(f"  {field} = {value.title()}: must be a number"), result.output
+
+
+def test_a_switch_still_takes_true_and_a_number_file_refuses_a_bool(tmp_path: Path) -> None:
+    from pydantic import ValidationError
+
+    from vehicle_model.presets import vehicle_preset
+
+    assert invoke("config", "roundabout-test", "--set", "estimators.viso_ot=true").exit_code == 0
+    assert invoke("config", "roundabout-test", "--set", "roundabout_test=false").exit_code == 0
+    trailer = vehicle_preset("reference").trailer
+    with pytest.raises(ValidationError, match="mass\n.*must be a number, not true/false"):
+        type(trailer).model_validate({**trailer.model_dump(), "mass": True})
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text("name: s\nsurface:\n  mu: [true]\n")
+    result = invoke("config", str(scenario))
+    assert result.exit_code == 2 and "surface.mu" in result.output, result.output

@@ -21,10 +21,12 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+
+from .settings import no_bool_for_a_number
 
 GRAVITY = 9.81
 """Standard gravity used throughout [m/s²]."""
@@ -59,6 +61,11 @@ DragArea = Annotated[
 
 class _Frozen(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", validate_default=True)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _strict_numbers(cls, value: Any, info: ValidationInfo) -> Any:
+        return no_bool_for_a_number(cls, value, info.field_name)  # `true` is no mass
 
 
 class TyreParams(_Frozen):
