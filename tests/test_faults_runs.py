@@ -171,7 +171,7 @@ def test_a_switch_still_takes_true_and_a_number_file_refuses_a_bool(tmp_path: Pa
     assert invoke("config", "roundabout-test", "--set", "estimators.viso_ot=true").exit_code == 0
     assert invoke("config", "roundabout-test", "--set", "roundabout_test=false").exit_code == 0
     trailer = vehicle_preset("reference").trailer
-    with pytest.raises(ValidationError, match="mass\n.*must be a number, not true/false"):
+    with pytest.raises(ValidationError, match=r"mass\n.*must be a number, not true/false"):
         type(trailer).model_validate({**trailer.model_dump(), "mass": True})
     scenario = tmp_path / "s.yaml"
     scenario.write_text("name: s\nsurface:\n  mu: [true]\n")
