@@ -177,3 +177,40 @@ def test_a_switch_still_takes_true_and_a_number_file_refuses_a_bool(tmp_path: Pa
     scenario.write_text("name: s\nsurface:\n  mu: [true]\n")
     result = invoke("config", str(scenario))
     assert result.exit_code == 2 and "surface.mu" in result.output, result.output
+
+
+# --- static axle loads ---------------------------------------------------------------------------------------------
+
+
+def _with_loads(tractor: list[float] | None, trailer: list[float] | None):
+    """The reference combination with explicit static loads on the tractor's and the trailer's axles."""
+    from vehicle_model.parameters import VehicleParams
+    from vehicle_model.presets import vehicle_preset
+
+    data = vehicle_preset("reference").model_dump()
+    for unit, loads in (("tractor", tractor), ("trailer", trailer)):
+        for axle, load in zip(data[unit]["axles"], loads or [None] * len(data[unit]["axles"]), strict=True):
+            axle["static_load"] = load
+    return VehicleParams.model_validate(data)
+
+
+def test_static_axle_loads_that_break_the_moment_balance_are_refused_in_one_line() -> None:
+    from vehicle_model.presets import vehicle_preset
+
+    solved = vehicle_preset("reference").axle_table.static_load  # what statics give: balanced, so accepted
+    tractor, trailer = list(solved[:3]), list(solved[3:])
+    assert _with_loads(tractor, trailer).axle_table.static_load == pytest.approx(solved, rel=1e-12)
+    weight = float(sum(trailer) + vehicle_preset("reference").kingpin_load)
+    with pytest.raises(ValueError, match=r"trailer\.axles: .*moment balance.*station -7\.70 m.*-4\.33 m.*0\.10 m"):
+        _with_loads(None, [weight / 3] * 3)  # the kingpin carries nothing: the loads' centre 3.4 m behind the CG
+    with pytest.raises(ValueError, match=r"tractor\.axles: .*moment balance"):
+        _with_loads([tractor[1], tractor[0], tractor[2]], trailer)  # the steer and drive loads swapped
+    with pytest.raises(ValueError, match=r"tractor\.axles: .*sum to .* kN.*force balance, tolerance 1%"):
+        _with_loads([1.05 * f for f in tractor], trailer)
+    assert _with_loads([1.005 * f for f in tractor], None)  # within a weighbridge's 1 %
+    third = f"{weight / 3!r}"
+    sets = [f"--set=vehicle.units[1].axles[{i}].static_load={third}" for i in range(3)]
+    result = invoke("config", "roundabout-test", *sets)
+    assert result.exit_code == 2, result.output
+    lines = [line for line in result.output.splitlines() if line.startswith("  ")]
+    assert len(lines) == 1 and lines[0].startswith("  vehicle.units[1].axles: explicit static loads break"), lines
