@@ -214,3 +214,24 @@ def test_static_axle_loads_that_break_the_moment_balance_are_refused_in_one_line
     assert result.exit_code == 2, result.output
     lines = [line for line in result.output.splitlines() if line.startswith("  ")]
     assert len(lines) == 1 and lines[0].startswith("  vehicle.units[1].axles: explicit static loads break"), lines
+
+
+# --- the steer tyres' columns: what the docs say is what a run records --------------------------------------------
+
+
+def test_the_steer_tyre_columns_are_recorded_when_turned_on_as_the_docs_say(short_run: Path, tmp_path: Path) -> None:
+    import pandas as pd
+
+    from scenarios.config import load_scenario
+    from scenarios.run.runner import run_scenario
+
+    names = {"fx_steer", "fy_steer", "fz_steer", "mu_steer"}
+    assert not names & set(pd.read_parquet(short_run / "timeseries.parquet").columns)  # off by default
+    config = load_scenario("roundabout-test", {"duration_s": 1.0, "record_steer_tyres": True})
+    run_scenario(config, tmp_path, plots=False)
+    frame = pd.read_parquet(tmp_path / "timeseries.parquet")
+    assert names <= set(frame.columns) and (frame["fz_steer"] > 0).all()
+    for doc in ("docs/usage.md", "docs/pbs.md"):
+        text = " ".join((REPO / doc).read_text().split())
+        assert "record_steer_tyres=true" in text and "off by default" in text, doc
+        assert "Every run records" not in text, doc
