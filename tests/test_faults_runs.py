@@ -235,3 +235,38 @@ def test_the_steer_tyre_columns_are_recorded_when_turned_on_as_the_docs_say(shor
         text = " ".join((REPO / doc).read_text().split())
         assert "record_steer_tyres=true" in text and "off by default" in text, doc
         assert "Every run records" not in text, doc
+
+
+# --- a road file's speed and mu columns: which wins, and what the run says ran ------------------------------------
+
+
+def test_a_road_files_speed_and_mu_win_and_the_run_reports_them(tmp_path: Path) -> None:
+    import pandas as pd
+    import yaml
+
+    from scenarios.config import load_scenario
+    from scenarios.run.plots import run_title
+    from scenarios.setup.build import build_scenario
+
+    road = tmp_path / "road.csv"
+    road.write_text("x,y,speed,mu\n" + "".join(f"{x},0,{10 + x / 10:g},{0.1 + x / 1000:g}\n" for x in range(0, 61, 5)))
+    out = tmp_path / "r"
+    result = invoke(
+        "run", "roundabout-3", "--set", "path.kind=file", "--set", f"path.file={road}", "--surface", "dry",
+        "--speed", "40", "--duration", "1", "--no-plots", "--out", str(out),
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert "from the road file's columns" in result.output and "μ 0.1–0.16" in result.output
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["road_columns"]["mu"] == pytest.approx([0.1, 0.16])
+    assert metrics["road_columns"]["speed_kmh"] == pytest.approx([10.0, 16.0])
+    text = (out / "config.yaml").read_text()
+    assert text.startswith("# the road file's speed column ran (10–16 km/h), not the speed below")
+    assert "# the road file's mu column ran (0.1–0.16), not the surface below" in text
+    assert yaml.safe_load(text)["speed"]["cornering_kmh"] == 40.0  # the comments are no fields: it reruns as given
+    series = pd.read_parquet(out / "timeseries.parquet")
+    assert series["u"].max() < 16.5 / 3.6  # the road's speed ran (within 0.5 km/h), not --speed 40
+    config = load_scenario("roundabout-3", {"path.kind": "file", "path.file": str(road), "surface.preset": "dry"})
+    setup = build_scenario(config)
+    title = run_title(setup.config, setup.road_columns)
+    assert "μ 0.10–0.16 (road file)" in title and "10–16 km/h (road file)" in title and "0.80" not in title

@@ -169,12 +169,14 @@ def write_report(
         _flag_unfinished_path(metrics, config, setup.path.length, columns)
         _flag_not_completed(metrics)
         metrics.update({"vehicle": config.vehicle_name, "seed": config.seed})
+        if setup.road_columns:  # what ran instead of the scenario's speed and surface
+            metrics["road_columns"] = {name: list(span) for name, span in setup.road_columns.items()}
         write_metrics(run_dir, metrics)
     raise_pending_stop()  # a stop held meanwhile takes effect now: before the plots
     if plots and len(time) > 1:
         from .plots import plot_offtracking, plot_plan_view, run_title  # matplotlib only when plots are drawn
 
-        title = run_title(config)
+        title = run_title(config, setup.road_columns)
         plan_file, offtracking_file = plot_files(plot_format)
         plot_plan_view(
             run_dir / plan_file,

@@ -305,25 +305,42 @@ def _remove(entry: Path) -> None:
 # ------------------------------------------------------------------------------------- config, metrics
 
 
-def config_yaml(config: Any) -> str:
+def config_yaml(config: Any, road_columns: dict[str, tuple[float, float]] | None = None) -> str:
     """The resolved configuration as the YAML a run writes (every field, in the schema's order).
 
     Parameters
     ----------
     config : ScenarioConfig
         The validated configuration.
+    road_columns
+        The road file's columns that ran instead of the scenario's speed and surface
+        (:attr:`scenarios.setup.build.ScenarioSetup.road_columns`): a comment above the fields says so.
 
     Returns
     -------
     str
         The YAML text; :func:`scenarios.config.validate_config` of its loaded form gives ``config`` back.
     """
-    return yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False)
+    text = yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False)
+    return road_note(road_columns) + text
 
 
-def write_config(run_dir: Path, config: Any) -> None:
+def road_note(road_columns: dict[str, tuple[float, float]] | None) -> str:
+    """YAML comment lines saying which of the scenario's fields a road file's columns replaced, and with what."""
+    spans = {"speed_kmh": ("speed", "km/h", "speed"), "mu": ("mu", "", "surface")}
+    lines = [
+        f"# the road file's {column} column ran ({low:.3g}–{high:.3g}{' ' + unit if unit else ''}), "
+        f"not the {section} below: a road file's columns win\n"
+        for name, (column, unit, section) in spans.items()
+        if name in (road_columns or {})
+        for low, high in [road_columns[name]]  # type: ignore[index]
+    ]
+    return "".join(lines)
+
+
+def write_config(run_dir: Path, config: Any, road_columns: dict[str, tuple[float, float]] | None = None) -> None:
     """The resolved configuration as YAML (:func:`config_yaml`)."""
-    write_atomic(run_dir / CONFIG_FILE, config_yaml(config))
+    write_atomic(run_dir / CONFIG_FILE, config_yaml(config, road_columns))
 
 
 def read_config(run_dir: Path) -> ScenarioConfig:

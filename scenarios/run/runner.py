@@ -70,6 +70,8 @@ def run_scenario(
         write_config(run_dir, config)
         mark_running(run_dir, config)
         setup = build_scenario(config, model=model)
+        if setup.road_columns:  # the road file's speed or μ ran: config.yaml says so
+            write_config(run_dir, config, setup.road_columns)
     except BaseException as exc:  # a stop, or a failure that a stop caused (e.g. inside numba's loading)
         if (stop := stop_behind(exc)) is None:
             raise
