@@ -330,6 +330,10 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
         "test_faults.py::test_a_stopped_run_keeps_its_data",
         "test_stop_faults.py::test_a_stop_that_comes_out_as_another_error_is_a_stop",
     ),
+    "a run stopped early on a long road": (
+        "test_faults_runs.py::test_the_lateral_swept_width_walks_only_the_part_driven",
+        "test_faults_runs.py::test_sigterm_on_a_50_km_road_exits_promptly",
+    ),
     "Ctrl-C / SIGTERM while a finished run": (
         "test_stop_faults.py::test_a_stop_at_the_end_of_a_run_waits_for_its_files",
     ),

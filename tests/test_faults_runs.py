@@ -270,3 +270,47 @@ def test_a_road_files_speed_and_mu_win_and_the_run_reports_them(tmp_path: Path) 
     setup = build_scenario(config)
     title = run_title(setup.config, setup.road_columns)
     assert "μ 0.10–0.16 (road file)" in title and "10–16 km/h (road file)" in title and "0.80" not in title
+
+
+# --- the swept-path width of a run stopped early on a long road walks only the part driven ------------------------
+
+
+def test_the_lateral_swept_width_walks_only_the_part_driven(monkeypatch: pytest.MonkeyPatch) -> None:
+    import numpy as np
+
+    from scenarios.run import swept_geometry
+
+    front = np.linspace(10.0, 60.0, 201)  # a 10 m by 2.5 m box driven 50 m along a straight road
+    box = np.array([[0.0, -1.25], [0.0, 1.25], [-10.0, 1.25], [-10.0, -1.25]])
+    outlines = box[None] + np.column_stack([front, np.zeros_like(front)])[:, None, :]
+    calls: list[int] = []
+    extent = swept_geometry._extent_along
+    monkeypatch.setattr(swept_geometry, "_extent_along", lambda *a: calls.append(1) or extent(*a))
+    widths = {}
+    for length in (200.0, 20_000.0):  # the road driven, and a 20 km road of which the run drove 60 m
+        road = np.column_stack([np.linspace(0.0, length, int(length / 0.05) + 1), np.zeros(int(length / 0.05) + 1)])
+        calls.clear()
+        widths[length] = swept_geometry.lateral_width([outlines], front, road).width
+        assert len(calls) <= 20, (length, len(calls))  # 5 m chunks over the 60 m and the bodies' reach, not 4000
+    assert widths[200.0] == widths[20_000.0] == pytest.approx(2.5, abs=1e-9)
+
+
+@pytest.mark.slow
+def test_sigterm_on_a_50_km_road_exits_promptly(tmp_path: Path) -> None:
+    import time
+
+    road = tmp_path / "road.csv"
+    road.write_text("x,y\n0,0\n50000,0\n")
+    out = tmp_path / "r"
+    args = ["run", "roundabout-3", "--set", "path.kind=file", "--set", f"path.file={road}", "--no-plots"]
+    proc = subprocess.Popen([*CLI, *args, "--out", str(out)], stderr=subprocess.PIPE, text=True, cwd=REPO)
+    deadline = time.monotonic() + 300
+    while not any((out / "timeseries.parquet").glob("part-*.parquet")):
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.2)
+    stopped = time.monotonic()
+    proc.send_signal(signal.SIGTERM)
+    proc.communicate(timeout=120)
+    assert proc.returncode == 143
+    assert time.monotonic() - stopped < 20.0  # the metrics of the part driven, not of 50 km of road
+    assert json.loads((out / "metrics.json").read_text())["status"] == "interrupted"
