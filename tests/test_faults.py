@@ -369,6 +369,7 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
         "test_output_faults.py::test_metrics_that_cannot_be_written_are_one_line_and_exit_3",
         "test_output_faults.py::test_a_series_that_cannot_be_made_is_one_line_and_exit_3",
         "test_output_faults.py::test_a_full_disk_that_no_writer_named_is_still_one_line_and_exit_3",
+        "test_faults_runs.py::test_a_quota_on_the_model_cache_names_the_file_and_the_run_is_failed",
     ),
     "the plots cannot be written": (
         "test_output_faults.py::test_plots_that_cannot_be_written_are_one_line_naming_the_file_and_exit_3",

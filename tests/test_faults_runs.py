@@ -314,3 +314,28 @@ def test_sigterm_on_a_50_km_road_exits_promptly(tmp_path: Path) -> None:
     assert proc.returncode == 143
     assert time.monotonic() - stopped < 20.0  # the metrics of the part driven, not of 50 km of road
     assert json.loads((out / "metrics.json").read_text())["status"] == "interrupted"
+
+
+# --- a quota hit on the model cache -------------------------------------------------------------------------------
+
+
+def test_a_quota_on_the_model_cache_names_the_file_and_the_run_is_failed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import errno
+
+    from vehicle_model import codegen
+
+    def no_room(path: Path, source: str) -> None:  # write() past a quota: an OSError without a file name
+        raise OSError(errno.EDQUOT, "Disk quota exceeded")
+
+    monkeypatch.setenv("OFFTRACK_CACHE_DIR", str(tmp_path / "cache"))  # empty: the model is compiled into it
+    monkeypatch.setattr(codegen, "_write_source", no_room)
+    out = tmp_path / "r"
+    result = invoke("run", "roundabout-test", "--duration", "1", "--no-plots", "--out", str(out))
+    assert result.exit_code == 3, result.output
+    assert "Traceback" not in result.output and "a file could not be written" not in result.output
+    assert f"cannot write {tmp_path / 'cache'}" in result.output and "model.c: Disk quota exceeded" in result.output
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "failed" and "Disk quota exceeded" in metrics["message"]
+    assert not [p for p in (tmp_path / "cache").iterdir() if p.suffix == ".so"]

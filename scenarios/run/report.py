@@ -13,6 +13,7 @@ directory whose run was killed is recognisable; :func:`rebuild_report` reports s
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import os
 import socket
@@ -73,6 +74,23 @@ def mark_interrupted(run_dir: Path, config: ScenarioConfig, exc: BaseException) 
             "stop_signal": stop_signal_name(exc),
         },
     )
+
+
+def mark_failed(run_dir: Path, config: ScenarioConfig, exc: BaseException) -> None:
+    """Write the ``metrics.json`` of a run that failed (``exc``: a file of the model cache that could not be written,
+    a road refused) before it simulated anything, so that it does not say ``running``. If even that cannot be
+    written, ``exc`` is what the caller reports: the ``running`` file stays."""
+    with contextlib.suppress(OSError):
+        write_metrics(
+            run_dir,
+            {
+                **_identity(config),
+                "status": RunStatus.FAILED,
+                "message": str(exc) or type(exc).__name__,
+                "rows": 0,
+                "simulated_s": 0.0,
+            },
+        )
 
 
 PATH_END_TOLERANCE_M = 1.0
