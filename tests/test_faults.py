@@ -351,7 +351,10 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
         "test_cosim.py::test_a_divergence_is_reported_and_the_run_kept",
         "test_simulator.py::test_divergence_is_reported_with_time_and_state",
     ),
-    "loss of control": ("test_faults.py::test_loss_of_control_is_a_status_with_exit_3",),
+    "loss of control": (
+        "test_faults.py::test_loss_of_control_is_a_status_with_exit_3",
+        "test_faults_runs.py::test_a_rear_coupling_past_the_articulation_limit_ends_the_run_there",
+    ),
     "a run completes but misses what it was asked to hold": (
         "test_faults.py::test_the_readme_exit_code_table_is_what_the_command_does",
         "test_run_verdict.py::test_a_run_steered_on_a_grossly_wrong_estimate_flags_itself",

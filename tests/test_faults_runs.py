@@ -339,3 +339,52 @@ def test_a_quota_on_the_model_cache_names_the_file_and_the_run_is_failed(
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["status"] == "failed" and "Disk quota exceeded" in metrics["message"]
     assert not [p for p in (tmp_path / "cache").iterdir() if p.suffix == ".so"]
+
+
+# --- every coupling held to the articulation limit -------------------------------------------------------------------
+
+
+def test_a_rear_coupling_past_the_articulation_limit_ends_the_run_there() -> None:
+    import dataclasses
+    import math
+
+    import numpy as np
+
+    from scenarios.config import load_scenario
+    from scenarios.loop.ends import RUN_LIMITS, RunStatus, StopReason
+    from scenarios.run.drive import simulate
+    from scenarios.setup.build import build_scenario
+
+    breach = RUN_LIMITS.check_units([0.1, math.radians(90.5)], 0.0, [float("nan")] * 2)
+    assert (
+        breach is not None
+        and breach.reason == StopReason.JACKKNIFE
+        and "unit 3's articulation +90.5°" in (breach.message)
+    )
+    assert RUN_LIMITS.check_units([0.1, math.radians(89.5)], 0.0, [float("nan")] * 2) is None
+    # A B-double whose rear trailer starts folded 95° against the lead one: the run ends on its first tick.
+    setup = build_scenario(load_scenario("roundabout-test", {"vehicle": "au-b-double", "duration_s": 2.0}))
+    trailing = np.array(setup.initial_state.trailing, dtype=float)
+    trailing[0] = math.radians(95.0)
+    folded = dataclasses.replace(setup, initial_state=dataclasses.replace(setup.initial_state, trailing=trailing))
+    outcome, columns = simulate(folded)
+    assert outcome.status == RunStatus.LOST_CONTROL, outcome.message
+    assert "unit 3's articulation +95.0° beyond ±90°" in outcome.message and outcome.stop_time < 0.1
+    assert len(columns["time"]) <= 2
+
+
+@pytest.mark.slow
+def test_a_b_double_on_the_roundabout_test_stops_where_its_rear_trailer_passes_90_degrees(tmp_path: Path) -> None:
+    import math
+
+    import pandas as pd
+
+    out = tmp_path / "r"
+    result = invoke("run", "roundabout-test", "--vehicle", "au-b-double", "--no-plots", "--out", str(out))
+    assert result.exit_code == 3, result.output
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "lost_control" and "unit 3's articulation" in metrics["message"]
+    series = pd.read_parquet(out / "timeseries.parquet")
+    assert len(series) == metrics["rows"] and series["time"].iloc[-1] == pytest.approx(metrics["stop_time"], abs=0.05)
+    assert series["gamma2"].abs().iloc[:-1].max() <= math.radians(90.0) < abs(series["gamma2"].iloc[-1])
+    assert metrics["verdict"]["flags"][0]["flag"] == "not_completed"
