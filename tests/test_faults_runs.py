@@ -111,7 +111,6 @@ def short_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     [
         ({"status": "running"}, 3, "run incomplete: the run stopped without writing its metrics"),  # SIGKILLed
         ({"status": "interrupted", "message": "stopped by SIGTERM", "stop_signal": "SIGTERM"}, 143, "SIGTERM"),
-        ({"status": "interrupted", "message": "stopped by Ctrl-C", "stop_signal": "SIGINT"}, 130, "Ctrl-C"),
         ({"status": "diverged", "message": "diverged at t = 1.5 s: gamma2 = 3.503"}, 3, "gamma2 = 3.503"),
         ({"status": "lost_control", "message": "jackknife: articulation 91° at 1.5 s"}, 3, "jackknife"),
     ],

@@ -27,6 +27,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from .settings import no_bool_for_a_number
+from .static_loads import check_moments, check_sum
 
 GRAVITY = 9.81
 """Standard gravity used throughout [m/s²]."""
@@ -57,31 +58,6 @@ DragArea = Annotated[
     float, Field(ge=0, le=20.0, description="[m²] C_d·A; a truck's is 5–7 m², 20 m² is beyond any road vehicle")
 ]
 """The aerodynamic drag area ``C_d·A`` of a combination [m²]."""
-
-
-LOAD_BALANCE_TOLERANCE = 0.01
-"""Explicit static axle loads of a tractor may miss its weight plus the kingpin load by this share (a weighbridge's
-accuracy); a towed unit's front coupling takes the rest of its weight, so its loads balance the forces exactly."""
-LOAD_CENTRE_TOLERANCE_M = 0.10
-"""Explicit static axle loads must put their centre (Σ F·x / Σ F) within this distance of the station where the
-unit's weight and coupling loads need it: their moments balance (a weighbridge's 1 % on axles metres apart moves
-the centre by centimetres)."""
-
-
-def _check_moments(field: str, unit: _UnitParams, loads: np.ndarray, moment: float) -> None:
-    """Refuse ``unit``'s explicit axle ``loads`` unless their moment about station 0 equals ``moment`` (that of its
-    weight and coupling loads; the front coupling, at station 0 of a towed unit, has none) within
-    :data:`LOAD_CENTRE_TOLERANCE_M` of the loads' centre."""
-    stations = np.array([a.x for a in unit.axles], dtype=float)
-    total = float(loads.sum())
-    centre, needed = float(loads @ stations) / total, moment / total
-    if abs(centre - needed) > LOAD_CENTRE_TOLERANCE_M:
-        raise ValueError(
-            f"{field}.axles: explicit static loads break the moment balance: their centre lies at station "
-            f"{centre:.2f} m, the weight and coupling loads need it at {needed:.2f} m (tolerance "
-            f"{LOAD_CENTRE_TOLERANCE_M:.2f} m); give loads whose moments balance, or leave static_load out for "
-            "statics to solve them"
-        )
 
 
 class _Frozen(BaseModel):
@@ -414,7 +390,7 @@ class VehicleParams(_Frozen):
                     raise ValueError(f"{field}.axles: explicit static loads do not carry the weight on them")
                 # Moments about the kingpin (station 0, where the kingpin load acts): Σ F_j·x_j = W·cg + K_behind·x_5w
                 fifth = tl.fifth_wheel_x if tl.fifth_wheel_x is not None else 0.0
-                _check_moments(field, tl, loads, tl.mass * GRAVITY * tl.cg_x + behind * fifth)
+                check_moments(field, [a.x for a in tl.axles], loads, tl.mass * GRAVITY * tl.cg_x + behind * fifth)
             else:
                 groups = _groups(tl.axles)
                 if len(groups) != 1:
@@ -440,14 +416,9 @@ class VehicleParams(_Frozen):
         kingpin = kingpins[0]
         if all(a.static_load is not None for a in tr.axles):
             tractor_loads = np.array([a.static_load for a in tr.axles], dtype=float)
-            carried = tr.mass * GRAVITY + kingpin  # its weight and the first towed unit's kingpin load
-            if abs(tractor_loads.sum() - carried) > LOAD_BALANCE_TOLERANCE * carried:
-                raise ValueError(
-                    f"tractor.axles: explicit static loads sum to {tractor_loads.sum() / 1e3:.1f} kN, but the "
-                    f"tractor's weight and the kingpin load are {carried / 1e3:.1f} kN (force balance, tolerance "
-                    f"{LOAD_BALANCE_TOLERANCE:.0%}); give loads that carry them, or leave static_load out"
-                )
-            _check_moments("tractor", tr, tractor_loads, tr.mass * GRAVITY * tr.cg_x + kingpin * tr.fifth_wheel_x)
+            check_sum("tractor", tractor_loads, tr.mass * GRAVITY + kingpin)  # its weight and the kingpin load
+            moment = tr.mass * GRAVITY * tr.cg_x + kingpin * tr.fifth_wheel_x
+            check_moments("tractor", [a.x for a in tr.axles], tractor_loads, moment)
         else:
             groups = _groups(tr.axles)
             if len(groups) != 2:

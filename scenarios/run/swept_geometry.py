@@ -21,7 +21,12 @@ A run that is not a turn about one centre (a figure of eight, a straight or a la
 width is measured across the reference path instead (``definition`` ``"lateral"``): at stations along the path, the
 extent of the swept area along the path's normal, from the samples near that station only (so that another part of
 the path crossing the normal, as at a figure of eight's crossing, is not counted), and the largest over the
-stations (:func:`lateral_width`).
+stations (:func:`lateral_width`). Only the part of the path the run drove is walked: a run stopped a minute into a
+long road measures that minute's part of it, and writes its metrics at once.
+
+Why this module is long: the swept areas, the radial and the lateral width share one set of primitives (the
+outlines put in and thinned, the edges of the pieces swept, the crossings of a line with them), which a split would
+export across modules for no other user.
 """
 
 from __future__ import annotations
