@@ -386,3 +386,20 @@ def test_a_b_double_on_the_roundabout_test_stops_where_its_rear_trailer_passes_9
     assert len(series) == metrics["rows"] and series["time"].iloc[-1] == pytest.approx(metrics["stop_time"], abs=0.05)
     assert series["gamma2"].abs().iloc[:-1].max() <= math.radians(90.0) < abs(series["gamma2"].iloc[-1])
     assert metrics["verdict"]["flags"][0]["flag"] == "not_completed"
+
+
+def test_a_roundabout_test_cut_short_by_a_lost_control_is_no_pass() -> None:
+    import numpy as np
+
+    from scenarios.run.report import _fail_an_unfinished_roundabout_test
+
+    passed = {"pass": True, "outer_radius_max": 12.4, "inner_radius_min": 5.4, "outer_margin": 0.1, "inner_margin": 0.1}
+    cases = (("lost_control", 80.0, False), ("lost_control", 119.5, True), ("completed", 80.0, True))
+    for status, reached, expected in cases:  # the turn runs to 120 m; the path's end tolerance is 1 m
+        metrics = {"status": status, "roundabout_test": dict(passed)}
+        _fail_an_unfinished_roundabout_test(metrics, (40.0, 120.0), {"path_progress": np.array([0.0, reached])})
+        assert metrics["roundabout_test"]["pass"] is expected, (status, reached)
+        if not expected:
+            assert metrics["roundabout_test"]["incomplete"] == (
+                "the run ended (lost_control) at 80.0 m, before the assessed turn's end at 120.0 m"
+            )

@@ -132,6 +132,25 @@ def _flag_not_completed(metrics: dict[str, Any]) -> None:
     verdict["held"] = False
 
 
+def _fail_an_unfinished_roundabout_test(
+    metrics: dict[str, Any], turn_span: tuple[float, float], columns: dict[str, np.ndarray]
+) -> None:
+    """A roundabout test whose run ended (lost control, diverged, stopped) before the assessed turn did has not
+    passed, whatever its radii up to there: ``pass`` false and ``incomplete`` says where it ended."""
+    test = metrics.get("roundabout_test")
+    progress = np.asarray(columns.get("path_progress", np.zeros(0)), dtype=float)
+    if not test or metrics.get("status") == RunStatus.COMPLETED or not progress.size:
+        return
+    reached = float(np.nanmax(progress)) if np.isfinite(progress).any() else 0.0
+    if reached >= turn_span[1] - PATH_END_TOLERANCE_M:
+        return
+    test["pass"] = False
+    test["incomplete"] = (
+        f"the run ended ({metrics.get('status')}) at {reached:.1f} m, before the assessed turn's end at "
+        f"{turn_span[1]:.1f} m"
+    )
+
+
 def write_report(
     run_dir: Path,
     setup: ScenarioSetup,
@@ -186,6 +205,7 @@ def write_report(
         metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})
         _flag_unfinished_path(metrics, config, setup.path.length, columns)
         _flag_not_completed(metrics)
+        _fail_an_unfinished_roundabout_test(metrics, setup.path.turn_span, columns)
         metrics.update({"vehicle": config.vehicle_name, "seed": config.seed})
         if setup.road_columns:  # what ran instead of the scenario's speed and surface
             metrics["road_columns"] = {name: list(span) for name, span in setup.road_columns.items()}
