@@ -262,6 +262,8 @@ def test_a_road_files_speed_and_mu_win_and_the_run_reports_them(tmp_path: Path) 
     assert text.startswith("# the road file's speed column ran (10–16 km/h), not the speed below")
     assert "# the road file's mu column ran (0.1–0.16), not the surface below" in text
     assert yaml.safe_load(text)["speed"]["cornering_kmh"] == 40.0  # the comments are no fields: it reruns as given
+    shown = invoke("config", "roundabout-3", "--set", "path.kind=file", "--set", f"path.file={road}", "--speed", "40")
+    assert shown.exit_code == 0 and shown.output.startswith("# the road file's speed column ran (10–16 km/h)")
     series = pd.read_parquet(out / "timeseries.parquet")
     assert series["u"].max() < 16.5 / 3.6  # the road's speed ran (within 0.5 km/h), not --speed 40
     config = load_scenario("roundabout-3", {"path.kind": "file", "path.file": str(road), "surface.preset": "dry"})

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.markup import escape
@@ -29,6 +29,9 @@ from .options import (
 )
 from .scenario_input import load_config, scenario_overrides, scenario_pairs
 from .terminal import console, exit_for_checks, exit_for_status, handled, print_summary, simulation_progress
+
+if TYPE_CHECKING:
+    from scenarios.config import ScenarioConfig
 
 
 @handled
@@ -127,7 +130,20 @@ def config_command(
         raise InputError("give a SCENARIO (a catalogue name or a YAML file), or --fields [SECTION]")
     from scenarios.run.results import config_yaml
 
-    print(config_yaml(load_config(scenario, scenario_overrides(pairs, surface, mu, set_))), end="")
+    config = load_config(scenario, scenario_overrides(pairs, surface, mu, set_))
+    print(config_yaml(config, _road_columns(config)), end="")
+
+
+def _road_columns(config: ScenarioConfig) -> dict[str, tuple[float, float]] | None:
+    """The road file's speed and μ columns that a run of ``config`` drives instead of its speed and surface (the
+    road is read and checked as the run reads it), or None without a road file."""
+    if config.path.file is None:
+        return None
+    from scenarios.setup.build import road_columns
+    from scenarios.setup.roads import load_road
+
+    spec = config.path
+    return road_columns(load_road(spec.file, spec.smoothing, spec.road, spec.lane))
 
 
 @handled
