@@ -405,3 +405,41 @@ def test_a_roundabout_test_cut_short_by_a_lost_control_is_no_pass() -> None:
             assert metrics["roundabout_test"]["incomplete"] == (
                 "the run ended (lost_control) at 80.0 m, before the assessed turn's end at 120.0 m"
             )
+
+
+def test_a_file_system_that_cannot_lock_a_directory_is_claimed_through_a_lock_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import errno
+    import fcntl
+    import os
+    import stat
+
+    from scenarios.run import claim
+
+    real = fcntl.flock
+
+    def no_directory_locks(fd: int, operation: int) -> None:  # as NFS: exclusive locks only on files open to write
+        if stat.S_ISDIR(os.fstat(fd).st_mode):
+            raise OSError(errno.EBADF, "Bad file descriptor")
+        real(fd, operation)
+
+    monkeypatch.setattr(claim.fcntl, "flock", no_directory_locks)
+    out = tmp_path / "nfs"
+    out.mkdir()
+    claim.claim_directory(out)
+    lock = out / claim.LOCK_FILE
+    assert lock.read_text() == f"{os.getpid()}\n"
+    other = os.open(lock, os.O_RDWR)
+    try:
+        with pytest.raises(BlockingIOError):  # held: another open file description cannot lock it
+            real(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    finally:
+        os.close(other)
+
+    def no_locks(fd: int, operation: int) -> None:  # Lustre without -o flock
+        raise OSError(errno.ENOSYS, "Function not implemented")
+
+    monkeypatch.setattr(claim.fcntl, "flock", no_locks)
+    claim.claim_directory(tmp_path)
+    assert "cannot lock, so another process writing into it is not kept out" in capsys.readouterr().err

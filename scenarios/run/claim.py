@@ -52,7 +52,10 @@ def claim_directory(directory: Path, option: str = "--out") -> None:
     key = os.path.realpath(directory)
     if key in _claimed:
         return
-    fd = os.open(key, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        fd = os.open(key, os.O_RDONLY | os.O_DIRECTORY)
+    except OSError as exc:
+        raise InputError(f"{option} {key} cannot be opened: {exc.strerror or exc}") from None
     try:
         _lock(fd, key, option)
     except OSError as exc:
@@ -71,7 +74,10 @@ def claim_directory(directory: Path, option: str = "--out") -> None:
 def _claim_by_file(key: str, option: str) -> int | None:
     """Claim ``key`` through its :data:`LOCK_FILE`; None where the file system cannot lock at all."""
     path = os.path.join(key, LOCK_FILE)
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    except OSError as exc:
+        raise InputError(f"{option} {key}: its lock file {path} cannot be made: {exc.strerror or exc}") from None
     try:
         _lock(fd, path, option, directory=key)
     except OSError as exc:
