@@ -300,6 +300,13 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
         "test_recording_faults.py::test_calibrate_refuses_its_settings_before_reading_a_photo_and_leaves_no_empty_out",
         "test_recording_faults.py::test_assess_refuses_feedback_with_side_by_side_before_any_case",
     ),
+    "`true` / `false` given for a number": (
+        "test_faults_runs.py::test_true_or_false_for_a_number_is_refused_naming_the_field",
+        "test_faults_runs.py::test_a_switch_still_takes_true_and_a_number_file_refuses_a_bool",
+    ),
+    "explicit static axle loads that break": (
+        "test_faults_runs.py::test_static_axle_loads_that_break_the_moment_balance_are_refused_in_one_line",
+    ),
     "a configuration file is not UTF-8": (
         "test_config_validation.py::test_a_yaml_alias_bomb_is_refused_in_one_line_without_exhausting_memory",
         "test_config_validation.py::test_a_yaml_file_out_of_bounds_is_refused_naming_it",
@@ -324,6 +331,9 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
         "test_faults.py::test_an_unusable_out_is_named",
         "test_run_files.py::test_an_output_path_that_is_a_file_under_a_file_or_not_writable_is_refused",
     ),
+    "two processes (runs, studies, assessments, resumed or not) given one `--out`": (
+        "test_faults_runs.py::test_a_second_process_into_a_claimed_out_is_refused_before_any_work",
+    ),
     "`--force` on a directory holding a file it cannot remove": (
         "test_run_files.py::test_force_on_a_file_it_cannot_remove_is_one_line_naming_it",
         "test_run_files.py::test_force_on_an_immutable_file_is_one_line_and_exit_2",
@@ -335,6 +345,10 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
     "Ctrl-C / SIGTERM during a run": (
         "test_faults.py::test_a_stopped_run_keeps_its_data",
         "test_stop_faults.py::test_a_stop_that_comes_out_as_another_error_is_a_stop",
+    ),
+    "a run stopped early on a long road": (
+        "test_faults_runs.py::test_the_lateral_swept_width_walks_only_the_part_driven",
+        "test_faults_runs.py::test_sigterm_on_a_50_km_road_exits_promptly",
     ),
     "Ctrl-C / SIGTERM while a finished run": (
         "test_stop_faults.py::test_a_stop_at_the_end_of_a_run_waits_for_its_files",
@@ -353,11 +367,18 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
         "test_cosim.py::test_a_divergence_is_reported_and_the_run_kept",
         "test_simulator.py::test_divergence_is_reported_with_time_and_state",
     ),
-    "loss of control": ("test_faults.py::test_loss_of_control_is_a_status_with_exit_3",),
+    "loss of control": (
+        "test_faults.py::test_loss_of_control_is_a_status_with_exit_3",
+        "test_faults_runs.py::test_a_rear_coupling_past_the_articulation_limit_ends_the_run_there",
+        "test_faults_runs.py::test_a_roundabout_test_cut_short_by_a_lost_control_is_no_pass",
+    ),
     "a run completes but misses what it was asked to hold": (
         "test_faults.py::test_the_readme_exit_code_table_is_what_the_command_does",
         "test_run_verdict.py::test_a_run_steered_on_a_grossly_wrong_estimate_flags_itself",
         "test_run_verdict.py::test_a_failed_roundabout_test_and_each_flag_is_a_missed_check",
+    ),
+    "`--check` on a run that did not complete": (
+        "test_faults_runs.py::test_report_check_of_a_run_that_did_not_complete_exits_with_its_status",
     ),
     "the camera sees too little": (
         "test_vo_quality.py::test_heavy_image_noise_is_refused_not_reported",
@@ -387,6 +408,7 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
         "test_output_faults.py::test_metrics_that_cannot_be_written_are_one_line_and_exit_3",
         "test_output_faults.py::test_a_series_that_cannot_be_made_is_one_line_and_exit_3",
         "test_output_faults.py::test_a_full_disk_that_no_writer_named_is_still_one_line_and_exit_3",
+        "test_faults_runs.py::test_a_quota_on_the_model_cache_names_the_file_and_the_run_is_failed",
     ),
     "the plots cannot be written": (
         "test_output_faults.py::test_plots_that_cannot_be_written_are_one_line_naming_the_file_and_exit_3",

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import casadi as ca
 
+from .errors import OutputError
+
 
 def cache_dir() -> Path:
     """Directory holding compiled model libraries."""
@@ -69,10 +71,37 @@ def compile_library(functions: list[ca.Function], tag: str, extra_source: str = 
     safe_tag = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in tag)
     lib = cache_dir() / f"{safe_tag}_{digest}.so"
     if not lib.exists():
+        try:
+            return _build(lib, source, compiler)
+        except OSError as exc:  # a full disk, a quota: say which file of the cache, not only that one failed
+            where = exc.filename or getattr(exc, "cache_file", lib)
+            raise OutputError(
+                f"cannot write {where}: {exc.strerror or exc} (the compiled-model cache; free room there or set "
+                "OFFTRACK_CACHE_DIR to another directory)"
+            ) from exc
+    return lib
+
+
+def _write_source(path: Path, source: str) -> None:
+    """Write the generated C source ``source`` to ``path``."""
+    path.write_text(source)
+
+
+def _build(lib: Path, source: str, compiler: str) -> Path | None:
+    """Compile ``source`` into the cached library ``lib`` through a temporary directory beside it; None (with a
+    warning) if the compiler fails.
+
+    Raises
+    ------
+    OSError
+        A file of the cache could not be written; ``cache_file`` (or ``filename``) names it.
+    """
+    step = lib.parent
+    try:
         lib.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(dir=lib.parent) as tmp:
-            src = Path(tmp) / "model.c"
-            src.write_text(source)
+            src = step = Path(tmp) / "model.c"
+            _write_source(src, source)
             out = Path(tmp) / lib.name
             cmd = [compiler, "-O2", "-fPIC", "-shared", str(src), "-o", str(out), "-lm"]
             proc = subprocess.run(cmd, capture_output=True, text=True)
@@ -81,8 +110,12 @@ def compile_library(functions: list[ca.Function], tag: str, extra_source: str = 
                     f"compiling the vehicle model failed ({' '.join(cmd)}): {proc.stderr.strip()[:500]}; "
                     "running in casadi's virtual machine instead",
                     RuntimeWarning,
-                    stacklevel=3,
+                    stacklevel=4,
                 )
                 return None
+            step = lib
             os.replace(out, lib)  # atomic: concurrent workers never load a half-written library
+    except OSError as exc:
+        exc.cache_file = step  # type: ignore[attr-defined]
+        raise
     return lib

@@ -21,10 +21,13 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+
+from .settings import no_bool_for_a_number
+from .static_loads import check_moments, check_sum
 
 GRAVITY = 9.81
 """Standard gravity used throughout [m/s²]."""
@@ -59,6 +62,11 @@ DragArea = Annotated[
 
 class _Frozen(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", validate_default=True)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _strict_numbers(cls, value: Any, info: ValidationInfo) -> Any:
+        return no_bool_for_a_number(cls, value, info.field_name)  # `true` is no mass
 
 
 class TyreParams(_Frozen):
@@ -380,6 +388,9 @@ class VehicleParams(_Frozen):
                 kingpin = weight - loads.sum()
                 if kingpin < 0 or (not tl.front_load and abs(kingpin) > 1e-9 * weight):
                     raise ValueError(f"{field}.axles: explicit static loads do not carry the weight on them")
+                # Moments about the kingpin (station 0, where the kingpin load acts): Σ F_j·x_j = W·cg + K_behind·x_5w
+                fifth = tl.fifth_wheel_x if tl.fifth_wheel_x is not None else 0.0
+                check_moments(field, [a.x for a in tl.axles], loads, tl.mass * GRAVITY * tl.cg_x + behind * fifth)
             else:
                 groups = _groups(tl.axles)
                 if len(groups) != 1:
@@ -405,6 +416,9 @@ class VehicleParams(_Frozen):
         kingpin = kingpins[0]
         if all(a.static_load is not None for a in tr.axles):
             tractor_loads = np.array([a.static_load for a in tr.axles], dtype=float)
+            check_sum("tractor", tractor_loads, tr.mass * GRAVITY + kingpin)  # its weight and the kingpin load
+            moment = tr.mass * GRAVITY * tr.cg_x + kingpin * tr.fifth_wheel_x
+            check_moments("tractor", [a.x for a in tr.axles], tractor_loads, moment)
         else:
             groups = _groups(tr.axles)
             if len(groups) != 2:

@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.markup import escape
-
-from scenarios.loop.ends import RunStatus
 
 from .options import (
     FEEDBACKS,
@@ -34,6 +32,9 @@ from .terminal import console, exit_for_checks, exit_for_status, handled, print_
 
 VEHICLE_CHECK_SCENARIO = "roundabout-test"
 """The scenario a vehicle given alone is checked in (any catalogue scenario that takes every combination)."""
+
+if TYPE_CHECKING:
+    from scenarios.config import ScenarioConfig
 
 
 @handled
@@ -149,7 +150,20 @@ def config_command(
         raise InputError("give a SCENARIO (a catalogue name or a YAML file), or --fields [SECTION]")
     from scenarios.run.results import config_yaml
 
-    print(config_yaml(load_config(scenario, scenario_overrides(pairs, surface, mu, set_))), end="")
+    config = load_config(scenario, scenario_overrides(pairs, surface, mu, set_))
+    print(config_yaml(config, _road_columns(config)), end="")
+
+
+def _road_columns(config: ScenarioConfig) -> dict[str, tuple[float, float]] | None:
+    """The road file's speed and μ columns that a run of ``config`` drives instead of its speed and surface (the
+    road is read and checked as the run reads it), or None without a road file."""
+    if config.path.file is None:
+        return None
+    from scenarios.setup.build import road_columns
+    from scenarios.setup.roads import load_road
+
+    spec = config.path
+    return road_columns(load_road(spec.file, spec.smoothing, spec.road, spec.lane))
 
 
 @handled
@@ -172,7 +186,8 @@ def report(
         else rebuild_report(run_dir, plots=plots, plot_format=plot_format)
     )
     print_summary(metrics, run_dir)
-    if check and metrics.get("status") == RunStatus.COMPLETED:
+    if check:  # a run that did not complete has not held what it was asked: its own exit code, as `run` gives
+        exit_for_status(metrics)
         exit_for_checks(metrics)
 
 

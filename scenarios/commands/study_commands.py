@@ -184,6 +184,7 @@ def study(
 ) -> None:
     """Run a study: every case into its own directory, then one table and the figures."""
     from scenarios.config import parse_assignment
+    from scenarios.run.claim import claim_directory
     from scenarios.run.results import new_run_dir
     from scenarios.studies.definitions import STUDIES, check_study_vehicle, run_study, study_cases
     from scenarios.studies.progress import rich_progress
@@ -201,6 +202,7 @@ def study(
         study_cases(name, full, vehicle, settings)  # settings a case refuses: one line, before any work
     with scheduler_client(scheduler) as client:
         if out is not None and resume and (out / CASES_DIR).is_dir():
+            claim_directory(out)  # one process resumes it: a second is refused before any case runs
             run_dir = out  # an earlier run of the study: finish it
         else:
             run_dir = new_run_dir(out, f"study-{name}", force=force)
@@ -252,6 +254,7 @@ def assess(
     """Assess one combination: the PBS measures a yaw-plane model supports and the UK/EU turning circle, each on its
     manoeuvre, into assessment.md / .csv / .json with a figure per measure (docs/pbs.md)."""
     from scenarios.assess.user_levels import load_levels
+    from scenarios.run.claim import claim_directory
     from scenarios.run.results import check_plot_format, new_run_dir
     from scenarios.studies.pbs_assessment import assessment_cases, run_assessment, side_by_side_feedbacks
     from scenarios.studies.progress import rich_progress
@@ -273,6 +276,7 @@ def assess(
     name = Path(combination).stem if combination.endswith((".yaml", ".yml")) else combination
     with scheduler_client(scheduler) as client:
         if out is not None and resume and (out / CASES_DIR).is_dir():
+            claim_directory(out)  # one process resumes it: a second is refused before any case runs
             run_dir = out
         else:
             run_dir = new_run_dir(out, f"assess-{name}", force=force)

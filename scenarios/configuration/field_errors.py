@@ -10,12 +10,21 @@ from typing import Any, get_args
 from pydantic import BaseModel, ValidationError
 
 from vehicle_model.combination import INERTIA_TAGS, CombinationSpec
+from vehicle_model.settings import BOOL_FOR_A_NUMBER
 
 from .errors import did_you_mean
 from .scenario_config import ScenarioConfig
 from .vehicle_field import VEHICLE_TAGS
 
-_RANGE_ERRORS = {"greater_than", "greater_than_equal", "less_than", "less_than_equal", "finite_number", "too_long"}
+_RANGE_ERRORS = {
+    "greater_than",
+    "greater_than_equal",
+    "less_than",
+    "less_than_equal",
+    "finite_number",
+    "too_long",
+    BOOL_FOR_A_NUMBER,
+}
 
 
 def field_name(loc: tuple[int | str, ...]) -> str:

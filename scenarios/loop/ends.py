@@ -4,9 +4,13 @@ A model that stays finite can still be meaningless: a combination spiralling off
 folded past the tractor, integrates happily. The loop checks every tick against :class:`Limits` and ends the
 run with the :class:`StopReason` and a sentence saying what happened:
 
-* **jackknife** — the articulation angle beyond ``max_articulation_deg``. At 90° (the default of a run) the
-  trailer's front corner reaches the tractor's rear for every preset's geometry (kingpin ahead of the drive axle,
-  trailer front overhang ~1.6 m), so the real combination would have collided with itself.
+* **jackknife** — the articulation angle of any coupling beyond ``max_articulation_deg``. At 90° (the default of a
+  run) the trailer's front corner reaches the tractor's rear for every preset's geometry (kingpin ahead of the drive
+  axle, trailer front overhang ~1.6 m), so the real combination would have collided with itself. The same 90° holds
+  each coupling behind: a B-double's rear trailer hangs on a fifth wheel under the lead trailer's body, so at 90° its
+  front overhang swings into that body; a dolly's or a centre-axle trailer's drawbar is hitched under the rear
+  overhang of the unit ahead, so at 90° it lies across that unit's rear. Beyond it a yaw-plane model integrates
+  states no combination can reach (one unit through another).
 * **left the road** — the driver's control point more than ``max_lateral_error`` from its path. A 3.5 m lane (the
   usual width of a trunk-road lane, UK DMRB CD 127 / EU practice) with the 2.55 m-wide combination centred in
   it: once the control point is 3.0 m (the default of a run) off the centre line, no part of the tractor's
@@ -14,8 +18,9 @@ run with the :class:`StopReason` and a sentence saying what happened:
 * **the trailer left the road** — the true off-tracking beyond ``max_offtracking`` (not checked in a run by
   default; the environments check 3.5 m).
 
-A run checks the first towed unit; with ``every_unit`` (the environments') each unit behind it is held to the
-articulation and off-tracking limits as well (:meth:`Limits.check_units`).
+With ``every_unit`` (a run's and the environments') each unit behind the first towed one is held to the
+articulation and off-tracking limits as well (:meth:`Limits.check_units`); a run checks no off-tracking, so it holds
+every coupling to the articulation limit.
 
 The Gymnasium environments pass stricter limits (:data:`ENVIRONMENT_LIMITS`): an episode that an agent steers
 should end well before the physical limits.
@@ -83,14 +88,14 @@ class Limits:
         The trailer off the road: true off-tracking ``|e_tr|`` above this [m] (``None``: not checked).
     every_unit : bool
         Also hold every towed unit behind the first to the articulation and off-tracking limits (its articulation
-        against the unit ahead, its off-tracking against its own coupling's path: :meth:`check_units`); ``False``
-        (a run's default): the first towed unit's only.
+        against the unit ahead, its off-tracking against its own coupling's path: :meth:`check_units`), as a run
+        and the environments do; ``False``: the first towed unit's only.
     """
 
     max_articulation_deg: float = 90.0
     max_lateral_error: float = 3.0
     max_offtracking: float | None = None
-    every_unit: bool = False
+    every_unit: bool = True
 
     def __post_init__(self) -> None:
         if not (0.0 < self.max_articulation_deg <= 180.0):
@@ -171,7 +176,8 @@ class Limits:
 
 
 RUN_LIMITS = Limits()
-"""The limits of a run (``offtrack run``, the studies): the physical ones of the module docstring."""
+"""The limits of a run (``offtrack run``, the studies): the physical ones of the module docstring, every coupling
+held to the articulation limit."""
 
 ENVIRONMENT_LIMITS = Limits(max_articulation_deg=80.0, max_lateral_error=2.0, max_offtracking=3.5, every_unit=True)
 """The Gymnasium environments' default limits: stricter, so an episode ends before the physical ones, and on every

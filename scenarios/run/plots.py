@@ -57,12 +57,24 @@ def save_figure(fig: Figure, path: Path, **options: Any) -> None:
         plt.close(fig)
 
 
-def run_title(config: ScenarioConfig) -> str:
-    """The one-line description of a run that heads its figures."""
+def run_title(config: ScenarioConfig, road_columns: dict[str, tuple[float, float]] | None = None) -> str:
+    """The one-line description of a run that heads its figures: what ran, so a road file's ``speed`` and ``mu``
+    columns (``road_columns``, :attr:`~scenarios.setup.build.ScenarioSetup.road_columns`) in place of the scenario's
+    speed and surface."""
+    road = road_columns or {}
+    mu = (
+        f"μ {road['mu'][0]:.2f}–{road['mu'][1]:.2f} (road file)"
+        if "mu" in road
+        else f"μ = {config.surface.base_mu:.2f}"
+    )
+    speed = (
+        f"{road['speed_kmh'][0]:.3g}–{road['speed_kmh'][1]:.3g} km/h (road file)"
+        if "speed_kmh" in road
+        else f"{config.speed.cornering_kmh:g} km/h"
+    )
     return (
-        f"{config.name} ({config.direction}), {config.vehicle_name}, μ = {config.surface.base_mu:.2f}, "
-        f"camber {config.camber.percent:g} % {config.camber.direction}, {config.speed.cornering_kmh:g} km/h, "
-        f"feedback {config.feedback}"
+        f"{config.name} ({config.direction}), {config.vehicle_name}, {mu}, "
+        f"camber {config.camber.percent:g} % {config.camber.direction}, {speed}, feedback {config.feedback}"
     )
 
 

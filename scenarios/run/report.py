@@ -13,6 +13,7 @@ directory whose run was killed is recognisable; :func:`rebuild_report` reports s
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import os
 import socket
@@ -76,6 +77,23 @@ def mark_interrupted(run_dir: Path, config: ScenarioConfig, exc: BaseException) 
     )
 
 
+def mark_failed(run_dir: Path, config: ScenarioConfig, exc: BaseException) -> None:
+    """Write the ``metrics.json`` of a run that failed (``exc``: a file of the model cache that could not be written,
+    a road refused) before it simulated anything, so that it does not say ``running``. If even that cannot be
+    written, ``exc`` is what the caller reports: the ``running`` file stays."""
+    with contextlib.suppress(OSError):
+        write_metrics(
+            run_dir,
+            {
+                **_identity(config),
+                "status": RunStatus.FAILED,
+                "message": str(exc) or type(exc).__name__,
+                "rows": 0,
+                "simulated_s": 0.0,
+            },
+        )
+
+
 PATH_END_TOLERANCE_M = 1.0
 """How far short of its path's end a run may stop and still count as having driven it [m]."""
 
@@ -101,6 +119,37 @@ def _flag_unfinished_path(
         }
     )
     verdict["held"] = False
+
+
+def _flag_not_completed(metrics: dict[str, Any]) -> None:
+    """Flag a run that did not complete (killed, interrupted, diverged, lost control, failed): whatever its numbers
+    up to the stop, it has not held what it was asked over the manoeuvre it was asked to drive."""
+    status = metrics.get("status")
+    if status == RunStatus.COMPLETED:
+        return
+    verdict = metrics["verdict"]
+    message = metrics.get("message") or "no message"
+    verdict["flags"].insert(0, {"flag": "not_completed", "reason": f"the run did not complete ({status}: {message})"})
+    verdict["held"] = False
+
+
+def _fail_an_unfinished_roundabout_test(
+    metrics: dict[str, Any], turn_span: tuple[float, float], columns: dict[str, np.ndarray]
+) -> None:
+    """A roundabout test whose run ended (lost control, diverged, stopped) before the assessed turn did has not
+    passed, whatever its radii up to there: ``pass`` false and ``incomplete`` says where it ended."""
+    test = metrics.get("roundabout_test")
+    progress = np.asarray(columns.get("path_progress", np.zeros(0)), dtype=float)
+    if not test or metrics.get("status") == RunStatus.COMPLETED or not progress.size:
+        return
+    reached = float(np.nanmax(progress)) if np.isfinite(progress).any() else 0.0
+    if reached >= turn_span[1] - PATH_END_TOLERANCE_M:
+        return
+    test["pass"] = False
+    test["incomplete"] = (
+        f"the run ended ({metrics.get('status')}) at {reached:.1f} m, before the assessed turn's end at "
+        f"{turn_span[1]:.1f} m"
+    )
 
 
 def write_report(
@@ -156,14 +205,18 @@ def write_report(
         metrics.update({key: None for key in RUN_FIELDS})
         metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})
         _flag_unfinished_path(metrics, config, setup.path.length, columns)
+        _flag_not_completed(metrics)
+        _fail_an_unfinished_roundabout_test(metrics, setup.path.turn_span, columns)
         metrics.update({"vehicle": config.vehicle_name, "seed": config.seed})
         metrics["notes"] = run_notes(metrics, setup.params, config)
+        if setup.road_columns:  # what ran instead of the scenario's speed and surface
+            metrics["road_columns"] = {name: list(span) for name, span in setup.road_columns.items()}
         write_metrics(run_dir, metrics)
     raise_pending_stop()  # a stop held meanwhile takes effect now: before the plots
     if plots and len(time) > 1:
         from .plots import plot_offtracking, plot_plan_view, run_title  # matplotlib only when plots are drawn
 
-        title = run_title(config)
+        title = run_title(config, setup.road_columns)
         plan_file, offtracking_file = plot_files(plot_format)
         plot_plan_view(
             run_dir / plan_file,

@@ -54,6 +54,7 @@ from ..config import ScenarioConfig, validate_config
 from ..loop.participant import Column, SchemaError
 from ..loop.schema import RecordedColumns
 from ..yaml_input import load_yaml
+from .claim import LOCK_FILE, claim_directory
 from .files import TEMPORARY_SUFFIX, atomic_path, cannot_write, write_atomic
 from .json_output import write_json
 
@@ -188,33 +189,48 @@ def check_output_dir(path: Path, option: str = "--out") -> None:
 def new_run_dir(out: Path | None, scenario: str, root: Path = Path("runs"), force: bool = False) -> Path:
     """Create the directory of a run.
 
-    Without ``out`` a fresh ``runs/<scenario>/<timestamp>`` is made. An explicit ``out`` that already
-    holds files is refused unless ``force`` (a run never silently overwrites an earlier one); with
+    Without ``out`` a fresh ``runs/<scenario>/<timestamp>`` is made. The directory is claimed for this process
+    first (:func:`scenarios.run.claim.claim_directory`): another process writing there is refused. An explicit
+    ``out`` that already holds files is refused unless ``force`` (a run never silently overwrites an earlier one); with
     ``force`` the earlier run's files are removed first (:func:`clear_run_dir`).
 
     Raises
     ------
     InputError
-        ``out`` cannot be a directory (:func:`check_output_dir`), holds files and not ``force``, or
-        holds files offtrack did not write.
+        ``out`` cannot be a directory (:func:`check_output_dir`), another process holds it, it holds files and
+        not ``force``, or it holds files offtrack did not write.
     """
     if out is None:
         stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
         base = root / scenario / stamp
         out, n = base, 1
-        while out.exists():
+        while out.exists() or not _made(out):  # made here, so two runs started in one second get two directories
             out = base.with_name(f"{stamp}-{n}")
             n += 1
     check_output_dir(out)
-    if out.is_dir() and any(out.iterdir()):
-        if not force:
-            raise InputError(f"output directory {out} already holds files; choose another --out or pass --force")
-        clear_run_dir(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"--out {out} cannot be created: {exc.strerror}") from None
+    claim_directory(out)  # before anything is read or cleared: a second process into it is refused here
+    if any(entry.name != LOCK_FILE for entry in out.iterdir()):
+        if not force:
+            raise InputError(f"output directory {out} already holds files; choose another --out or pass --force")
+        clear_run_dir(out)
     return out
+
+
+def _made(directory: Path) -> bool:
+    """Make ``directory`` (and its parents); False if it exists already. A path that cannot be made is left to
+    :func:`check_output_dir` to refuse."""
+    try:
+        directory.parent.mkdir(parents=True, exist_ok=True)
+        directory.mkdir()
+    except FileExistsError:
+        return False
+    except OSError:
+        return True
+    return True
 
 
 def _owned(entry: Path, top: bool) -> bool:
@@ -255,7 +271,7 @@ def clear_run_dir(directory: Path, option: str = "--out") -> list[Path]:
         a directory not writable): one line naming it. What was removed before it stays removed.
     """
     directory = Path(directory)
-    entries = sorted(directory.iterdir())
+    entries = sorted(e for e in directory.iterdir() if e.name != LOCK_FILE)  # the claim stays (scenarios.run.claim)
     foreign = [e for e in entries if not _owned(e, top=True)]
     if foreign:
         more = f" (and {len(foreign) - 1} more)" if len(foreign) > 1 else ""
@@ -290,25 +306,42 @@ def _remove(entry: Path) -> None:
 # ------------------------------------------------------------------------------------- config, metrics
 
 
-def config_yaml(config: Any) -> str:
+def config_yaml(config: Any, road_columns: dict[str, tuple[float, float]] | None = None) -> str:
     """The resolved configuration as the YAML a run writes (every field, in the schema's order).
 
     Parameters
     ----------
     config : ScenarioConfig
         The validated configuration.
+    road_columns
+        The road file's columns that ran instead of the scenario's speed and surface
+        (:attr:`scenarios.setup.build.ScenarioSetup.road_columns`): a comment above the fields says so.
 
     Returns
     -------
     str
         The YAML text; :func:`scenarios.config.validate_config` of its loaded form gives ``config`` back.
     """
-    return yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False, allow_unicode=True)
+    text = yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False, allow_unicode=True)
+    return road_note(road_columns) + text
 
 
-def write_config(run_dir: Path, config: Any) -> None:
+def road_note(road_columns: dict[str, tuple[float, float]] | None) -> str:
+    """YAML comment lines saying which of the scenario's fields a road file's columns replaced, and with what."""
+    spans = {"speed_kmh": ("speed", "km/h", "speed"), "mu": ("mu", "", "surface")}
+    lines = [
+        f"# the road file's {column} column ran ({low:.3g}–{high:.3g}{' ' + unit if unit else ''}), "
+        f"not the {section} below: a road file's columns win\n"
+        for name, (column, unit, section) in spans.items()
+        if name in (road_columns or {})
+        for low, high in [road_columns[name]]  # type: ignore[index]
+    ]
+    return "".join(lines)
+
+
+def write_config(run_dir: Path, config: Any, road_columns: dict[str, tuple[float, float]] | None = None) -> None:
     """The resolved configuration as YAML (:func:`config_yaml`)."""
-    write_atomic(run_dir / CONFIG_FILE, config_yaml(config))
+    write_atomic(run_dir / CONFIG_FILE, config_yaml(config, road_columns))
 
 
 def read_config(run_dir: Path) -> ScenarioConfig:

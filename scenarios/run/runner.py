@@ -10,7 +10,7 @@ from ..loop.cosimulation import CoSimulation
 from ..loop.participant import TrailerSteerSource
 from ..setup.build import build_scenario
 from .drive import ProgressCallback, run_loop
-from .report import mark_interrupted, mark_running, write_report
+from .report import mark_failed, mark_interrupted, mark_running, write_report
 from .results import PLOT_FORMATS, TIMESERIES_FILE, TimeSeriesWriter, check_plot_format, plot_files, write_config
 from .stopping import stop_behind
 
@@ -70,8 +70,12 @@ def run_scenario(
         write_config(run_dir, config)
         mark_running(run_dir, config)
         setup = build_scenario(config, model=model)
+        if setup.road_columns:  # the road file's speed or μ ran: config.yaml says so
+            write_config(run_dir, config, setup.road_columns)
     except BaseException as exc:  # a stop, or a failure that a stop caused (e.g. inside numba's loading)
         if (stop := stop_behind(exc)) is None:
+            if isinstance(exc, Exception):  # e.g. a full model cache: metrics.json says failed, not running
+                mark_failed(run_dir, config, exc)
             raise
         mark_interrupted(run_dir, config, stop)
         if stop is exc:

@@ -148,6 +148,12 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
             + (f" ({how})" if how else "")
             + (f"; each unit's own: {units}" if units else "")
         )
+    if road := metrics.get("road_columns"):  # what ran instead of the scenario's speed and surface
+        spans = [
+            f"{'μ' if k == 'mu' else 'speed'} {v[0]:.3g}–{v[1]:.3g}{' km/h' if k != 'mu' else ''}"
+            for k, v in road.items()
+        ]
+        out.append(f"from the road file's columns (they win over the scenario's speed and surface): {', '.join(spans)}")
     verdict = metrics.get("verdict")
     if verdict is not None:
         verdict = with_roundabout_test(verdict, test)  # a metrics.json from before the test was one of its flags

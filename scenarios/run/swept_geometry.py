@@ -21,7 +21,12 @@ A run that is not a turn about one centre (a figure of eight, a straight or a la
 width is measured across the reference path instead (``definition`` ``"lateral"``): at stations along the path, the
 extent of the swept area along the path's normal, from the samples near that station only (so that another part of
 the path crossing the normal, as at a figure of eight's crossing, is not counted), and the largest over the
-stations (:func:`lateral_width`).
+stations (:func:`lateral_width`). Only the part of the path the run drove is walked: a run stopped a minute into a
+long road measures that minute's part of it, and writes its metrics at once.
+
+Why this module is long: the swept areas, the radial and the lateral width share one set of primitives (the
+outlines put in and thinned, the edges of the pieces swept, the crossings of a line with them), which a split would
+export across modules for no other user.
 """
 
 from __future__ import annotations
@@ -422,20 +427,22 @@ def lateral_width(
     ref = np.asarray(reference, dtype=float)
     if not len(prog) or len(ref) < 2 or not np.isfinite(prog).any():
         return nan
-    s, at, points, normals = _stations(ref, station_spacing)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(ref, axis=0).T))])
+    at = np.arange(0.0, s[-1] + 0.5 * station_spacing, station_spacing) if s[-1] > 0 else np.zeros(1)
     if span is not None:
-        keep = (at >= span[0]) & (at <= span[1])
-        at, points, normals = at[keep], points[keep], normals[keep]
-    side = _turn_side(ref, s, at)
+        at = at[(at >= span[0]) & (at <= span[1])]
     dense = [_densify(o, prog, spacing) for o in outlines]
     dense = [(p[envelope_samples(p, spacing)], v[envelope_samples(p, spacing)]) for p, v in dense if len(p)]
     if not dense or not len(at):
         return nan
+    # Only the part of the path the run drove is walked (a run stopped early on a long road costs its own part).
+    driven = np.concatenate([v for _, v in dense])
+    near = _window(s, float(np.nanmin(driven)), float(np.nanmax(driven)))
+    s_near, heading = s[near], _heading(ref[near])
     ahead, behind, reach = 0.0, 0.0, 0.0
-    heading = np.unwrap(np.arctan2(*np.gradient(ref, axis=0)[:, ::-1].T))
     for polys, values in dense:
-        control = np.column_stack([np.interp(values, s, ref[:, 0]), np.interp(values, s, ref[:, 1])])
-        h = np.interp(values, s, heading)
+        control = np.column_stack([np.interp(values, s_near, ref[near, 0]), np.interp(values, s_near, ref[near, 1])])
+        h = np.interp(values, s_near, heading)
         rel = polys - control[:, None, :]
         along = rel[..., 0] * np.cos(h)[:, None] + rel[..., 1] * np.sin(h)[:, None]
         dist = np.linalg.norm(rel, axis=-1)
@@ -444,14 +451,25 @@ def lateral_width(
         reach = max(reach, float(np.max(dist)))
     ahead, behind, reach = REACH_MARGIN * ahead + 1.0, REACH_MARGIN * behind + 1.0, reach + 1.0
     edge_a, edge_b, edge_at = (np.concatenate(e) for e in zip(*(_sweep_edges(p, v) for p, v in dense), strict=True))
-    widths, lo, hi = np.full(len(at), np.nan), np.zeros(len(at)), np.zeros(len(at))
     chunk_length = max(5.0, 20.0 * station_spacing)
-    for first in np.arange(at[0], at[-1] + 1e-9, chunk_length):
+    firsts = np.arange(at[0], at[-1] + 1e-9, chunk_length)
+    # A chunk no edge is near has no width (NaN): only those the swept area reaches are measured.
+    firsts = firsts[(firsts + chunk_length + behind >= edge_at.min()) & (firsts - ahead <= edge_at.max())]
+    if not len(firsts):
+        return nan
+    at = at[(at >= firsts[0]) & (at < firsts[-1] + chunk_length)]
+    if not len(at):
+        return nan
+    frame = _window(s, float(at[0]), float(at[-1]))
+    points, normals = _station_frames(ref[frame], s[frame], at)
+    side = _turn_side(ref[frame], s[frame], at)
+    widths, lo, hi = np.full(len(at), np.nan), np.zeros(len(at)), np.zeros(len(at))
+    for first in firsts:
         chunk = (at >= first) & (at < first + chunk_length)
         if not chunk.any():
             continue
-        near = (edge_at >= first - ahead) & (edge_at <= first + chunk_length + behind)
-        edges = (edge_a[near], edge_b[near])
+        near_edges = (edge_at >= first - ahead) & (edge_at <= first + chunk_length + behind)
+        edges = (edge_a[near_edges], edge_b[near_edges])
         extent = _extent_along(edges, points[chunk], normals[chunk], -reach, reach)
         widths[chunk], lo[chunk], hi[chunk] = extent[:, 1] - extent[:, 0], extent[:, 0], extent[:, 1]
     if not np.isfinite(widths).any():
@@ -462,20 +480,28 @@ def lateral_width(
     return SweptWidth(float(widths[k]), "lateral", inner, outer)
 
 
-def _stations(reference: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Arc length of every reference point, and stations every ``spacing``: arc length, point, unit normal (left)."""
-    ref = np.asarray(reference, dtype=float)
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(ref, axis=0).T))])
-    at = np.arange(0.0, s[-1] + 0.5 * spacing, spacing) if s[-1] > 0 else np.zeros(1)
-    points = np.column_stack([np.interp(at, s, ref[:, 0]), np.interp(at, s, ref[:, 1])])
-    heading = np.unwrap(np.arctan2(*np.gradient(ref, axis=0)[:, ::-1].T))
-    h = np.interp(at, s, heading)
-    return s, at, points, np.column_stack([-np.sin(h), np.cos(h)])
+def _window(s: np.ndarray, low: float, high: float, margin: int = 3) -> slice:
+    """The reference points whose arc length ``s`` spans ``[low, high]``, with ``margin`` more each side (so that a
+    central difference at every point used is the whole path's)."""
+    first = max(0, int(np.searchsorted(s, low, side="right")) - margin)
+    return slice(first, min(len(s), int(np.searchsorted(s, high, side="left")) + margin))
+
+
+def _heading(reference: np.ndarray) -> np.ndarray:
+    """The heading of a reference path at its points [rad], unwrapped."""
+    return np.unwrap(np.arctan2(*np.gradient(reference, axis=0)[:, ::-1].T))
+
+
+def _station_frames(reference: np.ndarray, s: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The point and the unit normal (left) of the path ``reference`` (arc lengths ``s``) at the stations ``at``."""
+    points = np.column_stack([np.interp(at, s, reference[:, 0]), np.interp(at, s, reference[:, 1])])
+    h = np.interp(at, s, _heading(reference))
+    return points, np.column_stack([-np.sin(h), np.cos(h)])
 
 
 def _turn_side(reference: np.ndarray, s: np.ndarray, at: np.ndarray) -> np.ndarray:
     """+1 where the path turns left at the stations ``at`` (or runs straight), −1 where it turns right."""
-    heading = np.unwrap(np.arctan2(*np.gradient(reference, axis=0)[:, ::-1].T))
+    heading = _heading(reference)
     turning = np.gradient(heading, s) if len(s) > 1 else np.zeros(len(s))
     return np.where(np.interp(at, s, turning) < 0.0, -1.0, 1.0)
 

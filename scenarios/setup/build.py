@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import root_scalar
@@ -96,6 +96,9 @@ class ScenarioSetup:
     initial_state: VehicleState
     annulus_centre: tuple[float, float] | None
     kinematic_slip: float | None
+    road_columns: dict[str, tuple[float, float]] = field(default_factory=dict)
+    """The road file's columns that ran instead of the scenario's speed and surface (they win): ``speed_kmh`` and
+    ``mu`` with their least and greatest value; empty without a road file or without those columns."""
 
     @property
     def direction_sign(self) -> int:
@@ -314,7 +317,19 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
         initial_state=state,
         annulus_centre=annulus,  # type: ignore[arg-type]
         kinematic_slip=kinematic_slip,
+        road_columns=road_columns(road),
     )
+
+
+def road_columns(road: Road | None) -> dict[str, tuple[float, float]]:
+    """The road file's ``speed`` [km/h] and ``mu`` columns that a run drives instead of the scenario's speed and
+    surface, as (least, greatest); empty without them."""
+    out: dict[str, tuple[float, float]] = {}
+    if road is not None and road.speed is not None:
+        out["speed_kmh"] = (float(np.min(road.speed)) * 3.6, float(np.max(road.speed)) * 3.6)
+    if road is not None and road.mu is not None:
+        out["mu"] = (float(np.min(road.mu)), float(np.max(road.mu)))
+    return out
 
 
 def run_duration(setup: ScenarioSetup) -> float:
