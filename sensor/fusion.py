@@ -176,16 +176,17 @@ import numpy as np
 from pydantic import Field
 
 from vehicle_model.errors import InputError
-from vehicle_model.kinematics import RearPoint, modelled_rear_slip, tractor_kingpin_velocity
+from vehicle_model.kinematics import RearPoint
 from vehicle_model.offtracking import OfftrackingBuffer, offtracking_from_path
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.rigid import invert_rigid
 from vehicle_model.settings import Settings
 
+from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics
 from .viso_ot import VisoOtEstimator
 from .vo.motion import params_to_transform, transform_to_params
 
-__all__ = ["STD_PARTS", "FusedVisoOt", "FusionNoise", "TractorSignals", "slip_kinematics"]
+__all__ = ["STD_PARTS", "ChainSignals", "FusedVisoOt", "FusionNoise", "TractorSignals", "slip_kinematics"]
 
 #: The five terms of the off-tracking's variance, eq (5), in its order: the increments' own covariance, the
 #: biases' remaining uncertainty, the bias coupling's, the kinematics' carried disagreement and the constant
@@ -348,32 +349,6 @@ class FusionNoise(Settings):
     )
 
 
-@dataclass(frozen=True)
-class TractorSignals:
-    """The tractor's signals the zero-slip kinematics (K2) take: wheel speed [m/s], yaw rate [rad/s], articulation
-    Γ = ψ1 − ψ2 [rad] and the lateral specific force its accelerometer reads [m/s²] (NaN: none; needed by the
-    ``lateral_acceleration`` rear point)."""
-
-    speed: float
-    yaw_rate: float
-    articulation: float
-    lateral_acceleration: float = math.nan
-
-
-def slip_kinematics(params: VehicleParams) -> tuple[float, np.ndarray]:
-    """``L_c`` [m] and the weights ``w_j`` of the steerable trailer axles (layout order) of eq (1).
-
-    Static cornering stiffness per axle, as :meth:`VehicleParams.equivalent_wheelbase`.
-    """
-    table = params.axle_table
-    trailer = table.unit == 1
-    stiff = params.axle_cornering_stiffness()[trailer]
-    lengths = params.trailer_axle_distances()
-    weights = stiff / stiff.sum()
-    steerable = np.array([a.steerable for a in params.trailer.axles])
-    return float(np.sum(weights * lengths)), weights[steerable]
-
-
 @dataclass
 class _Tick:
     """One control tick since the anchor: its number, the inputs of the step into it, its zero-slip measurements
@@ -395,11 +370,17 @@ class FusedVisoOt:
     Parameters
     ----------
     params
-        Vehicle parameters (the follow point, the trailer's axles of eq (1), the tractor's rear point of (K2)).
+        Vehicle parameters (the follow point, the unit's axles of eq (1), the tractor's rear point of (K2)).
     camera_in_trailer
-        4×4 pose ``T_trailer←camera`` of the left camera (as :class:`~sensor.viso_ot.VisoOtEstimator`).
+        4×4 pose ``T_trailer←camera`` of the left camera in the unit's frame (as
+        :class:`~sensor.viso_ot.VisoOtEstimator`).
     noise
         Noise model and tuning (default :class:`FusionNoise`).
+    unit
+        The towed unit it estimates: 1 the first (default), 2 the one it tows, … Its own gyro, wheel speed and steer
+        angles propagate it (:meth:`propagate`), its front coupling is its "kingpin" and its follow point its own;
+        the zero-slip measurement takes the tractor's signals carried down the chain (:class:`ChainSignals`,
+        :mod:`sensor.unit_kinematics`).
 
     Attributes
     ----------
@@ -419,12 +400,21 @@ class FusedVisoOt:
         estimate); :meth:`std_contributions` gives them as standard deviations.
     """
 
-    def __init__(self, params: VehicleParams, camera_in_trailer: np.ndarray, noise: FusionNoise | None = None) -> None:
+    def __init__(
+        self,
+        params: VehicleParams,
+        camera_in_trailer: np.ndarray,
+        noise: FusionNoise | None = None,
+        unit: int = 1,
+    ) -> None:
         self.noise = noise if noise is not None else FusionNoise()
         self.params = params
-        self.geometry = VisoOtEstimator(params, camera_in_trailer)  # eqs (1)–(2): camera motion → kingpin increment
-        self.follow_point_offset = params.follow_point_offset
-        self.slip_point, self.steer_weights = slip_kinematics(params)
+        # eqs (1)–(2): camera motion → kingpin increment (it also checks the unit)
+        self.geometry = VisoOtEstimator(params, camera_in_trailer, unit=unit)
+        self.unit = self.geometry.unit
+        self.follow_point_offset = params.follow_point_offset_of(self.unit)
+        self.slip_point, self.steer_weights = slip_kinematics(params, self.unit)
+        self._chain = ChainKinematics(params, self.unit, self.noise.kinematic_rear_point)  # (K1)'s z_c
         self.buffer = OfftrackingBuffer(self.follow_point_offset)
         n = self.noise
         self._sample_variance = np.array([n.gyro_noise**2, n.wheel_speed_noise**2])
@@ -482,6 +472,7 @@ class FusedVisoOt:
         self._expected_power = math.nan
         self._slip_evidence = 0.0
         self._modelled_slip = 0.0  # v_m of (K2)
+        self._chain.reset()
         self._frame_interval = 0.0
         self.kinematic_share = 0.0
         self._coupling = np.zeros(2)  # the last frame's (c_x, c_y)
@@ -502,7 +493,7 @@ class FusedVisoOt:
             return 0.0
         s = np.asarray(steer, dtype=float).reshape(-1)
         if s.size != self.steer_weights.size:
-            raise InputError(f"steer needs {self.steer_weights.size} trailer steer angles, got {s.size}")
+            raise InputError(f"steer needs {self.steer_weights.size} steer angles of unit {self.unit}, got {s.size}")
         return float(np.dot(self.steer_weights, np.tan(s)))
 
     def propagate(
@@ -512,7 +503,7 @@ class FusedVisoOt:
         yaw_rate: float,
         wheel_speed: float,
         steer: np.ndarray | None = None,
-        tractor: TractorSignals | None = None,
+        tractor: TractorSignals | ChainSignals | None = None,
     ) -> None:
         """Advance to control tick ``tick`` with this tick's signals; update :attr:`estimate`.
 
@@ -523,11 +514,13 @@ class FusedVisoOt:
         dt
             Time since the previous tick [s] (ignored on the first).
         yaw_rate, wheel_speed
-            Measured trailer yaw rate [rad/s] and trailer wheel speed [m/s].
+            Measured yaw rate [rad/s] and wheel speed [m/s] of the unit (its own gyro, and an unsteered axle's
+            wheel-speed sensor).
         steer
-            Measured steer of the steerable trailer axles [rad] (layout order; empty or ``None`` for none).
+            Measured steer of the unit's steerable axles [rad] (layout order; empty or ``None`` for none).
         tractor
-            The tractor's signals for the zero-slip measurement (K1) (``None``: none this tick).
+            The signals of the zero-slip measurement (K1) (``None``: none this tick): :class:`TractorSignals` for
+            the first towed unit, :class:`ChainSignals` for any (:mod:`sensor.unit_kinematics`).
         """
         sample = (float(yaw_rate), float(wheel_speed), self._steer_term(steer))
         if not all(math.isfinite(v) for v in sample):
@@ -546,9 +539,13 @@ class FusedVisoOt:
         kinematic: tuple[tuple[np.ndarray, float, float], ...] = ()
         lateral = math.nan
         if tractor is not None and self.noise.kinematics and self._previous_input is not None:
-            lateral = self._tractor_lateral(tractor)
-            kinematic = self._kinematic_rows(sample, lateral, float(dt))
-            x, p = _apply_rows(x, p, kinematic)
+            lateral = self._chain.lateral(tractor, float(dt))
+            self._modelled_slip = self._chain.modelled_slip  # the rear slip the compensated points predict, (K2)
+            if math.isfinite(lateral):
+                kinematic = self._kinematic_rows(sample, lateral, float(dt))
+                x, p = _apply_rows(x, p, kinematic)
+        elif tractor is not None and self.noise.kinematics:
+            self._chain.remember(tractor)
         self._history.append(_Tick(tick, inputs, x, p, kinematic, lateral, kinematic_variance))
         self._previous_input = sample
         self._read()
@@ -594,22 +591,6 @@ class FusedVisoOt:
             f[_EK, _EK] = phi
             q[_EK, _EK] += kinematic_variance * (1.0 - phi * phi)
         return out, f @ p @ f.T + q
-
-    def _tractor_lateral(self, tractor: TractorSignals) -> float:
-        """``z_c``: the kingpin's lateral velocity in trailer axes if no tractor tyre slips (Cheng 2009)."""
-        values = (tractor.speed, tractor.yaw_rate, tractor.articulation)
-        if not all(math.isfinite(v) for v in values):
-            raise InputError(f"tractor signals {values} must be finite")
-        point, params = self.noise.kinematic_rear_point, self.params
-        vx1, vy1 = tractor_kingpin_velocity(
-            params, point, tractor.speed, tractor.yaw_rate, tractor.lateral_acceleration
-        )
-        # the rear slip the compensated points predict, for its share of (K2)
-        self._modelled_slip = modelled_rear_slip(
-            params, point, tractor.speed, tractor.yaw_rate, tractor.lateral_acceleration
-        )
-        gamma = tractor.articulation
-        return math.sin(gamma) * vx1 + math.cos(gamma) * vy1  # into trailer axes
 
     def _kinematic_rows(
         self, sample: tuple[float, float, float], lateral: float, dt: float
