@@ -34,6 +34,17 @@ def _heading(origin: np.ndarray, slip_point: float) -> float:
     return math.atan2(origin[1], origin[0]) + math.acos(slip_point / math.hypot(*origin))
 
 
+_SLIP_POINTS: dict[tuple[str, int], float] = {}
+
+
+def _slip_point(params, unit: int) -> float:
+    """``L_c`` of the unit (eq (1) of :mod:`sensor.fusion`), computed once per preset."""
+    key = (params.name, unit)
+    if key not in _SLIP_POINTS:
+        _SLIP_POINTS[key] = slip_kinematics(params, unit)[0]
+    return _SLIP_POINTS[key]
+
+
 def steady_pose(params, t: float) -> ChainPose:
     """The combination at time ``t`` of a steady left turn about (0, 0) without slip (module notes)."""
     r = SPEED / RADIUS
@@ -45,7 +56,7 @@ def steady_pose(params, t: float) -> ChainPose:
     origin = rear + (params.tractor.fifth_wheel_x + ahead) * forward
     heading, angles = psi1, []
     for unit, towed in enumerate(params.trailers, start=1):
-        psi = _heading(origin, slip_kinematics(params, unit)[0])
+        psi = _heading(origin, _slip_point(params, unit))
         angles.append(heading - psi)
         heading = psi
         if towed.fifth_wheel_x is not None:
@@ -228,10 +239,7 @@ def test_a_blinded_rear_unit_is_carried_by_the_chains_kinematics():
         (a, psi_a), (b, psi_b) = (unit_frame(params, _swinging(params, t + s), unit) for s in (-h, h))
         velocity, rate = (b - a) / (2 * h), (psi_b - psi_a) / (2 * h)
         speed = math.cos(psi) * velocity[0] + math.sin(psi) * velocity[1]
-        rates = (
-            (unit_frame(params, _swinging(params, t + h), 1)[1] - unit_frame(params, _swinging(params, t - h), 1)[1])
-            / (2 * h),
-        )
+        rates = (r1 - 0.008 * math.cos(0.4 * t),)  # ψ_2 = ψ_1 − Γ_1, the swing's rate
         if previous is not None:
             truth.push(*increments_from_poses(np.vstack([previous[0], origin]), np.array([previous[1], psi]))[0])
         previous = (origin, psi)
