@@ -160,14 +160,18 @@ the motions are noisier than their covariances say and down (to a quarter at mos
 coupling ``κ`` of (3) is itself known only to a relative ``u_κ`` (``vo_bias_coupling_uncertainty``: the regression
 of the measured errors, docs/field_bias.md), so the translation the filter removes for the estimated ``β_ψ``,
 ``β_ψ·G_κ`` (``G_κ`` the coupled part of ``G``'s second entry), is uncertain by ``u_κ·β_ψ·G_κ``: a large
-estimated odometry error widens the std. The share of the kinematics' disagreement with the camera that the
+estimated odometry error widens the std. A camera that looks across its motion (a side camera) has its weakest
+direction along its optical axis ``o`` instead: a disparity offset scales its translation along ``o`` by a relative
+error, known to ``u_z`` (``vo_axial_scale_uncertainty``, 0 by default), which enters coherently over the path
+through ``A_z = Σ (o·Δ_c)·(g_xy·o)`` (``Δ_c`` each increment's camera displacement) and adds ``(u_z·A_z)²`` to
+the coupling term. The share of the kinematics' disagreement with the camera that the
 estimate carries, ``s_k·m_k`` (K2), enters over the path as a slip velocity would, through ``Λ``, the sum of the
 increments' lateral sensitivities times their durations (with (K3) the kinematics' error is a state, its
 uncertainty is in the increments' own covariance, and this term is zero). What no state explains — the part of
 the odometry's error that changes with the scenery faster than ``β_ψ`` follows — is the constant
 ``offtracking_bias_std`` ``σ_b``::
 
-    σ_e² = (ρ/3)·(Σ gᵀ Q g + G·P_b·Gᵀ) + (u_κ·β_ψ·G_κ)² + (s_k·m_k·Λ)² + σ_b²                       (5)
+    σ_e² = (ρ/3)·(Σ gᵀ Q g + G·P_b·Gᵀ) + (u_κ·β_ψ·G_κ)² + (u_z·A_z)² + (s_k·m_k·Λ)² + σ_b²          (5)
 
 Why this module is long: this docstring states the filter's model in full beside the code that carries it out,
 and the propagation, the delayed measurements, the commit and the reading of the off-tracking share one state.
@@ -195,7 +199,7 @@ from .vo.motion import params_to_transform, transform_to_params
 __all__ = ["STD_PARTS", "ChainSignals", "FusedVisoOt", "FusionNoise", "TractorSignals", "slip_kinematics"]
 
 #: The five terms of the off-tracking's variance, eq (5), in its order: the increments' own covariance, the
-#: biases' remaining uncertainty, the bias coupling's, the kinematics' carried disagreement and the constant
+#: biases' remaining uncertainty, the bias coupling's (with the optical axis's scale), the kinematics' carried disagreement and the constant
 #: ``offtracking_bias_std``.
 STD_PARTS: tuple[str, ...] = ("increments", "biases", "coupling", "kinematics", "unexplained")
 
@@ -272,6 +276,8 @@ class FusedVisoOt:
         self.follow_point_offset = params.follow_point_offset_of(self.unit)
         self.slip_point, self.steer_weights = slip_kinematics(params, self.unit)
         self._chain = ChainKinematics(params, self.unit, self.noise.kinematic_rear_point)  # (K1)'s z_c
+        axis = self.geometry.mount_rotation[:2, 2]  # the optical axis in the unit's ground plane
+        self._optical_axis = axis / max(float(np.hypot(*axis)), 1e-12)
         self.buffer = OfftrackingBuffer(self.follow_point_offset)
         n = self.noise
         self._sample_variance = np.array([n.gyro_noise**2, n.wheel_speed_noise**2])
@@ -643,6 +649,7 @@ class FusedVisoOt:
         independent = 0.0
         coherent = np.zeros(3)  # G of eq (5): ∂e_tr/∂(b_g, β_ψ), and the coupled part of the second
         lever = 0.0  # ∂e_tr/∂v_s, a slip velocity error held over the window [s]
+        axial = 0.0  # ∂e_tr/∂u_z: the change of e_tr per relative error of the translation along the optical axis
         if len(self._covs):
             starts, ends = self._starts, self._ends
             ahead = c * (starts[:, 0] - d[0]) + s * (starts[:, 1] - d[1]) > -lfp
@@ -654,9 +661,14 @@ class FusedVisoOt:
                 length = np.hypot(ends[ahead, 0] - starts[ahead, 0], ends[ahead, 1] - starts[ahead, 1])
                 coherent = self._bias_effect(g, length, self._durations[ahead])
                 lever += float(np.sum(g[:, 1] * self._durations[ahead]))
+                if self.noise.vo_axial_scale_uncertainty > 0.0:
+                    turns = np.diff(np.append(starts[:, 2], 0.0))[ahead]  # each increment's Δψ (it ends at the next)
+                    axial = self._axial_effect(g, starts[ahead], ends[ahead], turns)
         # ... and the current one, from the anchor (heading −Δψ in the current frame) to the kingpin.
         g_now = np.array([s, -c, lfp])
         independent += float(g_now @ now.p[:3, :3] @ g_now)
+        if self.noise.vo_axial_scale_uncertainty > 0.0:
+            axial += self._axial_effect(g_now[None, :], np.zeros((1, 3)), d[None, :2], np.array([d[2]]))
         elapsed = sum(t.inputs[0] for t in list(self._history)[1:])
         coherent += self._bias_effect(g_now[None, :], np.array([math.hypot(d[0], d[1])]), np.array([elapsed]))
         self._lateral_lever = lever + g_now[1] * elapsed
@@ -668,7 +680,7 @@ class FusedVisoOt:
         self.std_parts = {
             "increments": self.innovation_ratio * independent,
             "biases": self.innovation_ratio * float(coherent[:2] @ biases @ coherent[:2]),
-            "coupling": coupling**2,
+            "coupling": coupling**2 + (self.noise.vo_axial_scale_uncertainty * axial) ** 2,
             "kinematics": disagreement**2,
             "unexplained": self.noise.offtracking_bias_std**2,
         }
@@ -686,6 +698,21 @@ class FusedVisoOt:
         odometry's increments, the biases, the bias coupling, the kinematics' disagreement, the constant).
         """
         return {part: math.sqrt(max(self.std_parts[part], 0.0)) for part in STD_PARTS}
+
+    def _axial_effect(self, g: np.ndarray, starts: np.ndarray, ends: np.ndarray, turns: np.ndarray) -> float:
+        """``A_z`` of eq (5): the change of ``e_tr`` per relative error ``u_z`` of the odometry's translation along the
+        camera's optical axis ``o``, coherent over increments with sensitivities ``g`` (n×3), start poses and end
+        points in one frame and turns ``Δψ``: each increment's camera displacement (its kingpin's, plus the lever
+        ``(R(Δψ) − I)·p_c`` of the camera at ``p_c``) has the component ``a = o·Δ_c`` along the axis, and the error
+        ``u_z·a·o`` of the increment moves ``e_tr`` by ``g_xy·o`` times that."""
+        axis, camera = self._optical_axis, self.geometry.camera_position
+        c, s = np.cos(starts[:, 2]), np.sin(starts[:, 2])
+        dx, dy = ends[:, 0] - starts[:, 0], ends[:, 1] - starts[:, 1]
+        local = np.column_stack([c * dx + s * dy, -s * dx + c * dy])  # in each increment's start frame
+        ct, st = np.cos(turns), np.sin(turns)
+        lever = np.column_stack([(ct - 1.0) * camera[0] - st * camera[1], st * camera[0] + (ct - 1.0) * camera[1]])
+        along = (local + lever) @ axis
+        return float(np.sum(along * (g[:, :2] @ axis)))
 
     def _bias_effect(self, g: np.ndarray, length: np.ndarray, duration: np.ndarray) -> np.ndarray:
         """``G`` of eq (5): the change of ``e_tr`` per unit error of ``(b_g, β_ψ)``, coherent over increments

@@ -46,6 +46,10 @@ class FusionNoise(Settings):
     vo_bias_coupling_uncertainty : float
         Relative standard deviation of ``vo_bias_coupling``: the off-tracking's std carries this share of the
         correction the coupling applies for the estimated ``β_ψ`` (eq (5)).
+    vo_axial_scale_uncertainty : float
+        Relative standard deviation of the odometry's translation along the camera's optical axis ``u_z`` (the
+        depth scale a disparity offset gives: a side camera's drift along its optical axis, docs/field_bias.md §7),
+        carried into the off-tracking's std coherently over the path (eq (5); 0: none, the default).
     kinematics : bool
         Fuse the zero-slip kinematics (K1) when the tractor's signals are given.
     kinematic_rear_point : str
@@ -126,6 +130,12 @@ class FusionNoise(Settings):
         ge=0.0,
         le=1.0,
         description="relative std of vo_bias_coupling, carried into the off-tracking's std; 1: the coupling unknown",
+    )
+    vo_axial_scale_uncertainty: float = Field(
+        0.0,
+        ge=0.0,
+        le=0.5,
+        description="relative std of the VO's translation along the optical axis, in the std; 0.5: half of it unknown",
     )
     kinematics: bool = True
     kinematic_rear_point: RearPoint = "axle_mean"
