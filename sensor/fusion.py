@@ -199,8 +199,8 @@ from .vo.motion import params_to_transform, transform_to_params
 __all__ = ["STD_PARTS", "ChainSignals", "FusedVisoOt", "FusionNoise", "TractorSignals", "slip_kinematics"]
 
 #: The five terms of the off-tracking's variance, eq (5), in its order: the increments' own covariance, the
-#: biases' remaining uncertainty, the bias coupling's (with the optical axis's scale), the kinematics' carried disagreement and the constant
-#: ``offtracking_bias_std``.
+#: biases' remaining uncertainty, the bias coupling's (with the optical axis's scale), the kinematics' carried
+#: disagreement and the constant ``offtracking_bias_std``.
 STD_PARTS: tuple[str, ...] = ("increments", "biases", "coupling", "kinematics", "unexplained")
 
 _STATES = 7
