@@ -47,7 +47,8 @@ def test_a_longer_combination_has_side_rigs_on_units_that_tow_and_a_rear_rig_on_
 
 def test_a_rig_sets_its_own_fields_over_the_sections() -> None:
     rigs = [{"unit": 1}, {"unit": 2, "facing": "right", "baseline": 1.0, "flex": {"vibration_rms_deg": [0.01] * 3}}]
-    config = load_scenario("roundabout-3", {**CAMERA, "vehicle": "au-b-double", "camera.width": 640, "camera.rigs": rigs})
+    settings = {**CAMERA, "vehicle": "au-b-double", "camera.width": 640, "camera.rigs": rigs}
+    config = load_scenario("roundabout-3", settings)
     first, second = rig_settings(config, 0), rig_settings(config, 1)
     assert (first.width, first.baseline, first.psi_c2v_deg) == (640, 0.5, 180.0)
     assert (second.width, second.baseline, second.psi_c2v_deg, second.lateral) == (640, 1.0, 90.0, -1.25)
@@ -86,12 +87,9 @@ def test_a_run_wide_field_in_a_rig_is_refused_naming_it() -> None:
 
 def test_every_unit_steered_on_its_own_camera_and_a_unit_without_a_rig_refused() -> None:
     steered = {"vehicle.units[1].axles[2].steerable": True, "vehicle.units[2].axles[2].steerable": True}
-    config = load_scenario("roundabout-3", {"vehicle": "au-b-double", **steered, "feedback": "viso_ot_fused"})
+    config = load_scenario("roundabout-3", {"vehicle": "au-b-double", **steered, "feedback": "viso_ot"})
     assert config.uses_camera
-    mixed = {"feedback": "viso_ot_fused", "rear_feedback": ["zero_slip"], "camera.rigs": [{"unit": 1}]}
+    mixed = {"feedback": "viso_ot", "rear_feedback": ["zero_slip"], "camera.rigs": [{"unit": 1}]}
     load_scenario("roundabout-3", {"vehicle": "au-b-double", **steered, **mixed})  # unit 2 on zero-slip: no rig needed
-    with pytest.raises(ConfigError, match=r"rear_feedback\[0\] = 'viso_ot_fused' steers towed unit 2 on its camera"):
-        load_scenario(
-            "roundabout-3",
-            {"vehicle": "au-b-double", **steered, **mixed, "rear_feedback": ["viso_ot_fused"]},
-        )
+    with pytest.raises(ConfigError, match=r"rear_feedback\[0\] = 'viso_ot' steers towed unit 2 on its camera"):
+        load_scenario("roundabout-3", {"vehicle": "au-b-double", **steered, **mixed, "rear_feedback": ["viso_ot"]})

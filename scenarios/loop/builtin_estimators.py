@@ -44,6 +44,12 @@ def _viso_ot(context: Any) -> Any:
     return viso_ot(context)
 
 
+def _viso_ot_unit(context: Any, unit: int) -> Any:
+    from .camera_estimator import viso_ot_unit
+
+    return viso_ot_unit(context, unit)
+
+
 def _fused_viso_ot(context: Any) -> Any:
     from .estimators import fused_viso_ot
 
@@ -69,11 +75,13 @@ BUILTIN_ESTIMATORS: tuple[EstimatorEntry, ...] = (
     ),
     EstimatorEntry(
         "viso_ot",
-        "VISO-OT: the trailer's stereo camera, visual odometry and the kingpin path (renders; slow)",
+        "VISO-OT: each towed unit's stereo camera, visual odometry and the kingpin path (renders; slow)",
         _viso_ot,
         needs_camera=True,
         colour="tab:green",
         label="VISO-OT",
+        per_unit=True,
+        build_unit=_viso_ot_unit,
     ),
     EstimatorEntry(
         "viso_ot_fused",

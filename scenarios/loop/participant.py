@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -194,6 +194,9 @@ class LoopContext:
         Render worker processes of a camera (0: render in this process).
     estimators : dict
         The estimators built so far, by name (an entry's requirements come before it).
+    unit_estimators : dict
+        The estimators of the towed units behind the first built so far, by estimate key (``viso_ot3``, …;
+        :func:`scenarios.unit_feedback.estimate_key`).
     """
 
     setup: ScenarioSetup
@@ -202,6 +205,7 @@ class LoopContext:
     geometric_truth: bool = False
     camera_workers: int = 0
     estimators: dict[str, EstimatorParticipant] = field(default_factory=dict)
+    unit_estimators: dict[str, Any] = field(default_factory=dict)
 
 
 @runtime_checkable
