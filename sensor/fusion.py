@@ -11,6 +11,12 @@ state. The kingpin increments it produces feed the one path buffer
 (:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)). docs/field_bias.md says why each part is
 there and what it removes under field conditions.
 
+Any towed unit. Everything below is written for the first towed unit (the semi-trailer behind the tractor), and
+holds for any towed unit ``k`` of a longer combination (``unit``): "the trailer" is unit ``k`` with its own gyro,
+wheel speed, steerable axles and follow point, "the kingpin" its front coupling (the fifth wheel of unit ``k − 1``,
+or a dolly's drawbar eye), and "the tractor's signals" of the zero-slip measurement are carried down the chain of
+units ahead of it (:mod:`sensor.unit_kinematics`).
+
 Model (trailer frame ISO 8855, origin at the kingpin; docs/design.md §5–6)
 --------------------------------------------------------------------------
 State, kept relative to the *anchor* (the time of the last camera frame that was committed)::
@@ -47,7 +53,10 @@ data sheet leaves (:mod:`sensor.datasheet`).
 Zero-slip measurement (every control tick, when the tractor's signals are given). If no tractor tyre slips
 sideways, the kingpin moves at ``(u_1, −e·r_1)`` in tractor axes (:func:`vehicle_model.kinematics.
 zero_slip_kingpin_velocity`; Cheng 2009): turned by the articulation Γ into trailer axes its lateral component is
-``z_c = sin Γ·u_1 + cos Γ·(−e·r_1)`` (``u_1``, ``r_1`` the tractor's wheel speed and yaw rate). ``e`` is the
+``z_c = sin Γ·u_1 + cos Γ·(−e·r_1)`` (``u_1``, ``r_1`` the tractor's wheel speed and yaw rate). For a unit behind
+the first the kingpin's velocity is carried down the chain as rigid-body motion, with the measured articulations
+and yaw rates of the units ahead, before it is turned into the unit's axes (:class:`ChainSignals`,
+:mod:`sensor.unit_kinematics`): the tractor's slip stays the only error. ``e`` is the
 kingpin's distance behind the tractor's rear point, which is not fixed: in a steady turn the rear tyres carry the
 tractor's lateral acceleration and the trailer's pull at the fifth wheel, and with linear tyres the point without
 lateral velocity lies ``L1' = L1 − K·u_1²`` behind the steer axle (``L1`` the equivalent wheelbase, ``K`` from the
@@ -170,22 +179,20 @@ import itertools
 import math
 from collections import deque
 from dataclasses import dataclass, replace
-from typing import Literal
 
 import numpy as np
-from pydantic import Field
 
 from vehicle_model.errors import InputError
-from vehicle_model.kinematics import RearPoint, modelled_rear_slip, tractor_kingpin_velocity
 from vehicle_model.offtracking import OfftrackingBuffer, offtracking_from_path
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.rigid import invert_rigid
-from vehicle_model.settings import Settings
 
+from .fusion_noise import FusionNoise
+from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics
 from .viso_ot import VisoOtEstimator
 from .vo.motion import params_to_transform, transform_to_params
 
-__all__ = ["STD_PARTS", "FusedVisoOt", "FusionNoise", "TractorSignals", "slip_kinematics"]
+__all__ = ["STD_PARTS", "ChainSignals", "FusedVisoOt", "FusionNoise", "TractorSignals", "slip_kinematics"]
 
 #: The five terms of the off-tracking's variance, eq (5), in its order: the increments' own covariance, the
 #: biases' remaining uncertainty, the bias coupling's, the kinematics' carried disagreement and the constant
@@ -197,181 +204,6 @@ _VS, _BG, _BW, _BPSI, _EK = 3, 4, 5, 6, 7
 _BIASES = [_BG, _BPSI]
 MIN_INNOVATION_RATIO = 0.25
 """Least ``ρ/3`` of eq (5): a run of well-matched motions may shrink the std by half, not to nothing."""
-
-
-class FusionNoise(Settings):
-    """Noise model and tuning of :class:`FusedVisoOt` (SI units); each field's range and its reason is declared here.
-
-    Parameters
-    ----------
-    gyro_noise : float
-        White noise of one trailer yaw-rate sample [rad/s].
-    wheel_speed_noise : float
-        White noise of one trailer wheel-speed sample [m/s].
-    slip_velocity_walk : float
-        Random walk of the kingpin slip velocity ``v_s`` [m/s/√s]: how fast slip can build up (turn entry on ice).
-    gyro_bias_walk, wheel_speed_bias_walk : float
-        Random walks of the biases [rad/s/√s, m/s/√s].
-    initial_slip_velocity, initial_gyro_bias, initial_wheel_speed_bias : float
-        Standard deviations at the start [m/s, rad/s, m/s]; ``initial_gyro_bias`` is that of a gyro that was not
-        zeroed (:meth:`FusedVisoOt.zero_gyro`).
-    gyro_zeroing_s : float
-        The standstill before the run over which a run zeroes the trailer's gyro [s] (0: it does not).
-    vo_covariance_scale : float
-        Variance factor on the odometry's Gauss–Newton covariance (≥ 1: it is a floor).
-    vo_translation_floor, vo_rotation_floor : float
-        Standard deviations added to every frame's increment [m, rad].
-    vo_yaw_bias : float
-        Standard deviation at the start of the odometry's systematic yaw error per metre [rad/m].
-    vo_yaw_bias_walk : float
-        Its random walk per metre travelled [rad/m/√m] (the scenery changes along the road).
-    vo_bias_coupling : float
-        The odometry's systematic translation error per unit of its yaw error, as a multiple of the regression of
-        its random translation error on its yaw error (its covariance; docs/field_bias.md).
-    vo_bias_coupling_uncertainty : float
-        Relative standard deviation of ``vo_bias_coupling``: the off-tracking's std carries this share of the
-        correction the coupling applies for the estimated ``β_ψ`` (eq (5)).
-    kinematics : bool
-        Fuse the zero-slip kinematics (K1) when the tractor's signals are given.
-    kinematic_rear_point : str
-        The tractor's rear point of (K1), :data:`~vehicle_model.kinematics.RearPoint`: ``axle_mean`` (default: the
-        rear axles' mean station, fixed, with which the filter's noise model was set and the field-loop grid
-        measured), ``equivalent``, ``speed_compensated`` (where a steady turn's lateral acceleration puts it,
-        ``L1 − K·u²``) or ``lateral_acceleration`` (moving sideways at the slip the tractor's accelerometer asks
-        of its rear tyres; it needs :attr:`TractorSignals.lateral_acceleration`). docs/field_bias.md §6.3–6.4 say
-        what the compensated points change.
-    tractor_stiffness_uncertainty : float
-        ``u_C`` of (K2): the relative uncertainty of the tractor's cornering stiffnesses, so of the rear slip the
-        compensated rear points predict.
-    kinematic_error_model : str
-        How (K1)'s error ``ε_k`` enters: ``inflated`` (default: white, with the variance ``σ_k²·τ_c/dt`` of a
-        correlated error; the model of the field-loop grid in docs/field_bias.md) or ``state`` (an eighth state,
-        a first-order Gauss–Markov process with correlation time ``τ_c`` and standard deviation ``σ_k``, so that the
-        camera learns the kinematics' steady error and the kinematics carry what changes faster: (K3) in the module
-        notes).
-    kinematic_white_noise : float
-        With ``kinematic_error_model: state``, the white noise of one tick's (K1) [m/s]: the tractor's gyro,
-        wheel-speed and articulation sensors' noise at the kingpin.
-    tractor_slip : float
-        ``σ_0`` of (K2): the lateral slip velocity of the tractor's rolling tyres at the kingpin [m/s].
-    kinematic_error_time : float
-        ``τ_c``: the correlation time of the kinematic errors [s].
-    slip_evidence_time : float
-        ``τ_a`` of (K2): how fast the kinematics' σ follows the evidence of slip [s].
-    slip_evidence_hold : bool
-        (K2'): the evidence of slip falls no faster than a stopped slip's would, so a slip that changes sign (a
-        change of turn on ice) keeps the kinematics de-weighted through the change (default off, as in the
-        field-loop grid of docs/field_bias.md).
-    gate : float
-        Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
-    max_gated : int
-        Refused motions in a row after which the next one is accepted (with its covariance inflated).
-    max_std : float
-        No estimate (``None``) while the off-tracking's standard deviation exceeds this [m].
-    offtracking_bias_std : float
-        ``σ_b`` of eq (5) [m]: what no state of the filter explains of the odometry's off-tracking error, added in
-        quadrature (0: none; a run's ``fusion`` settings add 0.005 m).
-    innovation_window : int
-        Camera motions over which the mean normalised innovation squared ``ρ`` of eq (5) is taken.
-    """
-
-    gyro_noise: float = Field(
-        1.2e-3, gt=0.0, le=0.1, description="[rad/s] per sample (sensor/datasheet.py); 0.1 is beyond any gyro"
-    )
-    wheel_speed_noise: float = Field(0.05, gt=0.0, le=1.0, description="[m/s] per sample; 1 m/s is a broken sensor")
-    slip_velocity_walk: float = Field(0.1, gt=0.0, le=5.0, description="[m/s/√s] slip build-up; 5 spins in 1 s")
-    gyro_bias_walk: float = Field(
-        1e-6, ge=0.0, le=0.1, description="[rad/s/√s] in-run drift (a few °/h); 0.1 is a gyro without a bias"
-    )
-    wheel_speed_bias_walk: float = Field(2e-3, ge=0.0, le=1.0, description="[m/s/√s]; 1 is a sensor without a bias")
-    initial_slip_velocity: float = Field(0.3, ge=0.0, le=10.0, description="[m/s]; 10 m/s of slip is a spin")
-    initial_gyro_bias: float = Field(
-        1e-3, ge=0.0, le=1.0, description="[rad/s] the offset of a gyro not zeroed (0.06°/s); 1 rad/s is no gyro"
-    )
-    gyro_zeroing_s: float = Field(
-        10.0,
-        ge=0.0,
-        le=600.0,
-        description="[s] the standstill before the run over which the trailer's gyro is zeroed; 0: not zeroed, "
-        "600 s is a long stop",
-    )
-    initial_wheel_speed_bias: float = Field(0.2, ge=0.0, le=10.0, description="[m/s]; 10 m/s is no wheel speed")
-    vo_covariance_scale: float = Field(4.0, ge=1.0, le=1e4, description="on the VO covariance (a floor); 1e4: no VO")
-    vo_translation_floor: float = Field(1e-3, ge=0.0, le=1.0, description="[m] per frame; 1 m is no translation")
-    vo_rotation_floor: float = Field(1e-4, ge=0.0, le=0.1, description="[rad] per frame; 0.1 rad is no rotation")
-    vo_yaw_bias: float = Field(
-        1e-3, ge=0.0, le=0.01, description="[rad/m] start std of the VO's yaw error; 0.01 rad/m turns 57° in 100 m"
-    )
-    vo_yaw_bias_walk: float = Field(2e-5, ge=0.0, le=1e-3, description="[rad/m/√m]; 1e-3 forgets in a metre")
-    vo_bias_coupling: float = Field(
-        1.15, ge=0.0, le=3.0, description="× the covariance's yaw–translation regression; 0 ties no translation to it"
-    )
-    vo_bias_coupling_uncertainty: float = Field(
-        0.15,
-        ge=0.0,
-        le=1.0,
-        description="relative std of vo_bias_coupling, carried into the off-tracking's std; 1: the coupling unknown",
-    )
-    kinematics: bool = True
-    kinematic_rear_point: RearPoint = "axle_mean"
-    tractor_stiffness_uncertainty: float = Field(
-        0.2,
-        ge=0.0,
-        le=1.0,
-        description="relative; a tyre's cornering stiffness is known to 10–30 % (load, wear, pressure); 1: unknown",
-    )
-    kinematic_error_model: Literal["inflated", "state"] = "inflated"
-    kinematic_white_noise: float = Field(
-        0.005, gt=0.0, le=1.0, description="[m/s] per tick, the tractor's sensor noise at the kingpin; 1 m/s is none"
-    )
-    tractor_slip: float = Field(
-        0.02, gt=0.0, le=1.0, description="[m/s] slip of rolling tractor tyres; 1 m/s is a slide, not a roll"
-    )
-    kinematic_error_time: float = Field(
-        10.0, gt=0.0, le=60.0, description="[s] correlation time of a steady slip; 60 s is a whole manoeuvre"
-    )
-    slip_evidence_time: float = Field(
-        1.0, gt=0.0, le=30.0, description="[s] how fast the kinematics' σ follows the slip; 30 s misses a turn entry"
-    )
-    slip_evidence_hold: bool = False
-    gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
-    max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")
-    max_std: float = Field(0.5, gt=0.0, le=10.0, description="[m] of off-tracking std; 10 m says nothing")
-    offtracking_bias_std: float = Field(
-        0.0,
-        ge=0.0,
-        le=0.5,
-        description="[m] the VO's error no state explains, added to the filter's std; 0.5 m swamps any estimate",
-    )
-    innovation_window: int = Field(
-        50, ge=1, le=10000, description="camera motions in ρ of eq (5); one is no statistic, 10000 never adapts"
-    )
-
-
-@dataclass(frozen=True)
-class TractorSignals:
-    """The tractor's signals the zero-slip kinematics (K2) take: wheel speed [m/s], yaw rate [rad/s], articulation
-    Γ = ψ1 − ψ2 [rad] and the lateral specific force its accelerometer reads [m/s²] (NaN: none; needed by the
-    ``lateral_acceleration`` rear point)."""
-
-    speed: float
-    yaw_rate: float
-    articulation: float
-    lateral_acceleration: float = math.nan
-
-
-def slip_kinematics(params: VehicleParams) -> tuple[float, np.ndarray]:
-    """``L_c`` [m] and the weights ``w_j`` of the steerable trailer axles (layout order) of eq (1).
-
-    Static cornering stiffness per axle, as :meth:`VehicleParams.equivalent_wheelbase`.
-    """
-    table = params.axle_table
-    trailer = table.unit == 1
-    stiff = params.axle_cornering_stiffness()[trailer]
-    lengths = params.trailer_axle_distances()
-    weights = stiff / stiff.sum()
-    steerable = np.array([a.steerable for a in params.trailer.axles])
-    return float(np.sum(weights * lengths)), weights[steerable]
 
 
 @dataclass
@@ -395,11 +227,17 @@ class FusedVisoOt:
     Parameters
     ----------
     params
-        Vehicle parameters (the follow point, the trailer's axles of eq (1), the tractor's rear point of (K2)).
+        Vehicle parameters (the follow point, the unit's axles of eq (1), the tractor's rear point of (K2)).
     camera_in_trailer
-        4×4 pose ``T_trailer←camera`` of the left camera (as :class:`~sensor.viso_ot.VisoOtEstimator`).
+        4×4 pose ``T_trailer←camera`` of the left camera in the unit's frame (as
+        :class:`~sensor.viso_ot.VisoOtEstimator`).
     noise
         Noise model and tuning (default :class:`FusionNoise`).
+    unit
+        The towed unit it estimates: 1 the first (default), 2 the one it tows, … Its own gyro, wheel speed and steer
+        angles propagate it (:meth:`propagate`), its front coupling is its "kingpin" and its follow point its own;
+        the zero-slip measurement takes the tractor's signals carried down the chain (:class:`ChainSignals`,
+        :mod:`sensor.unit_kinematics`).
 
     Attributes
     ----------
@@ -419,12 +257,21 @@ class FusedVisoOt:
         estimate); :meth:`std_contributions` gives them as standard deviations.
     """
 
-    def __init__(self, params: VehicleParams, camera_in_trailer: np.ndarray, noise: FusionNoise | None = None) -> None:
+    def __init__(
+        self,
+        params: VehicleParams,
+        camera_in_trailer: np.ndarray,
+        noise: FusionNoise | None = None,
+        unit: int = 1,
+    ) -> None:
         self.noise = noise if noise is not None else FusionNoise()
         self.params = params
-        self.geometry = VisoOtEstimator(params, camera_in_trailer)  # eqs (1)–(2): camera motion → kingpin increment
-        self.follow_point_offset = params.follow_point_offset
-        self.slip_point, self.steer_weights = slip_kinematics(params)
+        # eqs (1)–(2): camera motion → kingpin increment (it also checks the unit)
+        self.geometry = VisoOtEstimator(params, camera_in_trailer, unit=unit)
+        self.unit = self.geometry.unit
+        self.follow_point_offset = params.follow_point_offset_of(self.unit)
+        self.slip_point, self.steer_weights = slip_kinematics(params, self.unit)
+        self._chain = ChainKinematics(params, self.unit, self.noise.kinematic_rear_point)  # (K1)'s z_c
         self.buffer = OfftrackingBuffer(self.follow_point_offset)
         n = self.noise
         self._sample_variance = np.array([n.gyro_noise**2, n.wheel_speed_noise**2])
@@ -482,6 +329,7 @@ class FusedVisoOt:
         self._expected_power = math.nan
         self._slip_evidence = 0.0
         self._modelled_slip = 0.0  # v_m of (K2)
+        self._chain.reset()
         self._frame_interval = 0.0
         self.kinematic_share = 0.0
         self._coupling = np.zeros(2)  # the last frame's (c_x, c_y)
@@ -502,7 +350,7 @@ class FusedVisoOt:
             return 0.0
         s = np.asarray(steer, dtype=float).reshape(-1)
         if s.size != self.steer_weights.size:
-            raise InputError(f"steer needs {self.steer_weights.size} trailer steer angles, got {s.size}")
+            raise InputError(f"steer needs {self.steer_weights.size} steer angles of unit {self.unit}, got {s.size}")
         return float(np.dot(self.steer_weights, np.tan(s)))
 
     def propagate(
@@ -512,7 +360,7 @@ class FusedVisoOt:
         yaw_rate: float,
         wheel_speed: float,
         steer: np.ndarray | None = None,
-        tractor: TractorSignals | None = None,
+        tractor: TractorSignals | ChainSignals | None = None,
     ) -> None:
         """Advance to control tick ``tick`` with this tick's signals; update :attr:`estimate`.
 
@@ -523,11 +371,13 @@ class FusedVisoOt:
         dt
             Time since the previous tick [s] (ignored on the first).
         yaw_rate, wheel_speed
-            Measured trailer yaw rate [rad/s] and trailer wheel speed [m/s].
+            Measured yaw rate [rad/s] and wheel speed [m/s] of the unit (its own gyro, and an unsteered axle's
+            wheel-speed sensor).
         steer
-            Measured steer of the steerable trailer axles [rad] (layout order; empty or ``None`` for none).
+            Measured steer of the unit's steerable axles [rad] (layout order; empty or ``None`` for none).
         tractor
-            The tractor's signals for the zero-slip measurement (K1) (``None``: none this tick).
+            The signals of the zero-slip measurement (K1) (``None``: none this tick): :class:`TractorSignals` for
+            the first towed unit, :class:`ChainSignals` for any (:mod:`sensor.unit_kinematics`).
         """
         sample = (float(yaw_rate), float(wheel_speed), self._steer_term(steer))
         if not all(math.isfinite(v) for v in sample):
@@ -546,9 +396,13 @@ class FusedVisoOt:
         kinematic: tuple[tuple[np.ndarray, float, float], ...] = ()
         lateral = math.nan
         if tractor is not None and self.noise.kinematics and self._previous_input is not None:
-            lateral = self._tractor_lateral(tractor)
-            kinematic = self._kinematic_rows(sample, lateral, float(dt))
-            x, p = _apply_rows(x, p, kinematic)
+            lateral = self._chain.lateral(tractor, float(dt))
+            self._modelled_slip = self._chain.modelled_slip  # the rear slip the compensated points predict, (K2)
+            if math.isfinite(lateral):
+                kinematic = self._kinematic_rows(sample, lateral, float(dt))
+                x, p = _apply_rows(x, p, kinematic)
+        elif tractor is not None and self.noise.kinematics:
+            self._chain.remember(tractor)
         self._history.append(_Tick(tick, inputs, x, p, kinematic, lateral, kinematic_variance))
         self._previous_input = sample
         self._read()
@@ -594,22 +448,6 @@ class FusedVisoOt:
             f[_EK, _EK] = phi
             q[_EK, _EK] += kinematic_variance * (1.0 - phi * phi)
         return out, f @ p @ f.T + q
-
-    def _tractor_lateral(self, tractor: TractorSignals) -> float:
-        """``z_c``: the kingpin's lateral velocity in trailer axes if no tractor tyre slips (Cheng 2009)."""
-        values = (tractor.speed, tractor.yaw_rate, tractor.articulation)
-        if not all(math.isfinite(v) for v in values):
-            raise InputError(f"tractor signals {values} must be finite")
-        point, params = self.noise.kinematic_rear_point, self.params
-        vx1, vy1 = tractor_kingpin_velocity(
-            params, point, tractor.speed, tractor.yaw_rate, tractor.lateral_acceleration
-        )
-        # the rear slip the compensated points predict, for its share of (K2)
-        self._modelled_slip = modelled_rear_slip(
-            params, point, tractor.speed, tractor.yaw_rate, tractor.lateral_acceleration
-        )
-        gamma = tractor.articulation
-        return math.sin(gamma) * vx1 + math.cos(gamma) * vy1  # into trailer axes
 
     def _kinematic_rows(
         self, sample: tuple[float, float, float], lateral: float, dt: float

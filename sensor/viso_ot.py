@@ -130,11 +130,11 @@ class VisoOtEstimator:
     Parameters
     ----------
     params
-        Vehicle parameters (the follow point).
+        Vehicle parameters (the follow point of the towed unit ``unit``).
     camera_in_trailer
         4×4 pose ``T_trailer←camera`` of the camera whose motion the odometry reports (the left
-        camera), trailer frame ISO (origin on the ground below the kingpin, x forward, y left,
-        z up), camera axes OpenCV.
+        camera), in the frame of the towed unit ``unit``: ISO (origin on the ground below the unit's front
+        coupling, x forward, y left, z up), camera axes OpenCV.
     max_consecutive_failures
         Failed frames bridged by prediction before the buffer is cleared.
     frame_interval
@@ -143,6 +143,11 @@ class VisoOtEstimator:
         Physical limits of a step (default :class:`MotionBounds`).
     max_bridged_distance
         Kingpin travel [m] that may be bridged by prediction in one gap (default ``L_fp/4``).
+    unit
+        The towed unit the camera is mounted on and whose off-tracking is estimated: 1 the first (default), 2 the
+        one it tows, … Its "kingpin" is its front coupling (for ``unit > 1`` the fifth wheel of the unit ahead)
+        and ``L_fp`` its own follow point (:meth:`~vehicle_model.parameters.VehicleParams.follow_point_offset_of`):
+        eqs (1)–(7) hold for any rigid towed unit.
 
     Attributes
     ----------
@@ -163,6 +168,7 @@ class VisoOtEstimator:
         frame_interval: float | None = None,
         bounds: MotionBounds | None = None,
         max_bridged_distance: float | None = None,
+        unit: int = 1,
     ) -> None:
         t = np.asarray(camera_in_trailer, dtype=float)
         if t.shape != (4, 4) or not np.allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-9):
@@ -171,13 +177,16 @@ class VisoOtEstimator:
             raise InputError("max_consecutive_failures must be ≥ 0")
         if frame_interval is not None and not (math.isfinite(frame_interval) and frame_interval > 0.0):
             raise InputError(f"frame_interval = {frame_interval!r} must be a finite time > 0 s")
+        if unit != int(unit) or not 1 <= unit < params.n_units:
+            raise InputError(f"unit = {unit!r}: a towed unit of {params.name!r}, 1 to {params.n_units - 1}")
+        self.unit = int(unit)
         self.mount_rotation = t[:3, :3]
-        self.camera_position = t[:2, 3].copy()  # camera in trailer axes, kingpin at the origin
-        self.buffer = OfftrackingBuffer(params.follow_point_offset)
+        self.camera_position = t[:2, 3].copy()  # camera in the unit's axes, its front coupling at the origin
+        l_fp = params.follow_point_offset_of(unit)
+        self.buffer = OfftrackingBuffer(l_fp)
         self.max_consecutive_failures = max_consecutive_failures
         self.frame_interval = frame_interval
         self.bounds = bounds if bounds is not None else MotionBounds()
-        l_fp = params.follow_point_offset
         self.max_bridged_distance = 0.25 * l_fp if max_bridged_distance is None else float(max_bridged_distance)
         if not self.max_bridged_distance >= 0.0:
             raise InputError(f"max_bridged_distance = {max_bridged_distance!r} must be ≥ 0 m")

@@ -361,6 +361,11 @@ class VehicleParams(_Frozen):
         """Kingpin to follow point ``L_fp`` [m]."""
         return self.trailer.follow_point_offset
 
+    def follow_point_offset_of(self, unit: int = 1) -> float:
+        """Front coupling to follow point ``L_fp`` [m] of towed unit ``unit`` (1 the first, as
+        :attr:`AxleTable.unit`; its front coupling is the kingpin, or the fifth wheel of the unit ahead)."""
+        return self._towed(unit).follow_point_offset
+
     @property
     def kingpin_load(self) -> float:
         """Static vertical load on the (first) fifth wheel [N]."""

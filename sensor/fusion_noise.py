@@ -1,0 +1,163 @@
+"""The noise model and tuning of the fused VISO-OT filter (:class:`~sensor.fusion.FusedVisoOt`, whose module notes
+state the equations each field enters)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from vehicle_model.kinematics import RearPoint
+from vehicle_model.settings import Settings
+
+__all__ = ["FusionNoise"]
+
+
+class FusionNoise(Settings):
+    """Noise model and tuning of :class:`~sensor.fusion.FusedVisoOt` (SI units); each field's range and its reason
+    is declared here.
+
+    Parameters
+    ----------
+    gyro_noise : float
+        White noise of one trailer yaw-rate sample [rad/s].
+    wheel_speed_noise : float
+        White noise of one trailer wheel-speed sample [m/s].
+    slip_velocity_walk : float
+        Random walk of the kingpin slip velocity ``v_s`` [m/s/√s]: how fast slip can build up (turn entry on ice).
+    gyro_bias_walk, wheel_speed_bias_walk : float
+        Random walks of the biases [rad/s/√s, m/s/√s].
+    initial_slip_velocity, initial_gyro_bias, initial_wheel_speed_bias : float
+        Standard deviations at the start [m/s, rad/s, m/s]; ``initial_gyro_bias`` is that of a gyro that was not
+        zeroed (:meth:`~sensor.fusion.FusedVisoOt.zero_gyro`).
+    gyro_zeroing_s : float
+        The standstill before the run over which a run zeroes the trailer's gyro [s] (0: it does not).
+    vo_covariance_scale : float
+        Variance factor on the odometry's Gauss–Newton covariance (≥ 1: it is a floor).
+    vo_translation_floor, vo_rotation_floor : float
+        Standard deviations added to every frame's increment [m, rad].
+    vo_yaw_bias : float
+        Standard deviation at the start of the odometry's systematic yaw error per metre [rad/m].
+    vo_yaw_bias_walk : float
+        Its random walk per metre travelled [rad/m/√m] (the scenery changes along the road).
+    vo_bias_coupling : float
+        The odometry's systematic translation error per unit of its yaw error, as a multiple of the regression of
+        its random translation error on its yaw error (its covariance; docs/field_bias.md).
+    vo_bias_coupling_uncertainty : float
+        Relative standard deviation of ``vo_bias_coupling``: the off-tracking's std carries this share of the
+        correction the coupling applies for the estimated ``β_ψ`` (eq (5)).
+    kinematics : bool
+        Fuse the zero-slip kinematics (K1) when the tractor's signals are given.
+    kinematic_rear_point : str
+        The tractor's rear point of (K1), :data:`~vehicle_model.kinematics.RearPoint`: ``axle_mean`` (default: the
+        rear axles' mean station, fixed, with which the filter's noise model was set and the field-loop grid
+        measured), ``equivalent``, ``speed_compensated`` (where a steady turn's lateral acceleration puts it,
+        ``L1 − K·u²``) or ``lateral_acceleration`` (moving sideways at the slip the tractor's accelerometer asks
+        of its rear tyres; it needs :attr:`~sensor.unit_kinematics.ChainSignals.lateral_acceleration`).
+        docs/field_bias.md §6.3–6.4 say what the compensated points change.
+    tractor_stiffness_uncertainty : float
+        ``u_C`` of (K2): the relative uncertainty of the tractor's cornering stiffnesses, so of the rear slip the
+        compensated rear points predict.
+    kinematic_error_model : str
+        How (K1)'s error ``ε_k`` enters: ``inflated`` (default: white, with the variance ``σ_k²·τ_c/dt`` of a
+        correlated error; the model of the field-loop grid in docs/field_bias.md) or ``state`` (an eighth state,
+        a first-order Gauss–Markov process with correlation time ``τ_c`` and standard deviation ``σ_k``, so that the
+        camera learns the kinematics' steady error and the kinematics carry what changes faster: (K3) in the module
+        notes).
+    kinematic_white_noise : float
+        With ``kinematic_error_model: state``, the white noise of one tick's (K1) [m/s]: the tractor's gyro,
+        wheel-speed and articulation sensors' noise at the kingpin.
+    tractor_slip : float
+        ``σ_0`` of (K2): the lateral slip velocity of the tractor's rolling tyres at the kingpin [m/s].
+    kinematic_error_time : float
+        ``τ_c``: the correlation time of the kinematic errors [s].
+    slip_evidence_time : float
+        ``τ_a`` of (K2): how fast the kinematics' σ follows the evidence of slip [s].
+    slip_evidence_hold : bool
+        (K2'): the evidence of slip falls no faster than a stopped slip's would, so a slip that changes sign (a
+        change of turn on ice) keeps the kinematics de-weighted through the change (default off, as in the
+        field-loop grid of docs/field_bias.md).
+    gate : float
+        Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
+    max_gated : int
+        Refused motions in a row after which the next one is accepted (with its covariance inflated).
+    max_std : float
+        No estimate (``None``) while the off-tracking's standard deviation exceeds this [m].
+    offtracking_bias_std : float
+        ``σ_b`` of eq (5) [m]: what no state of the filter explains of the odometry's off-tracking error, added in
+        quadrature (0: none; a run's ``fusion`` settings add 0.005 m).
+    innovation_window : int
+        Camera motions over which the mean normalised innovation squared ``ρ`` of eq (5) is taken.
+    """
+
+    gyro_noise: float = Field(
+        1.2e-3, gt=0.0, le=0.1, description="[rad/s] per sample (sensor/datasheet.py); 0.1 is beyond any gyro"
+    )
+    wheel_speed_noise: float = Field(0.05, gt=0.0, le=1.0, description="[m/s] per sample; 1 m/s is a broken sensor")
+    slip_velocity_walk: float = Field(0.1, gt=0.0, le=5.0, description="[m/s/√s] slip build-up; 5 spins in 1 s")
+    gyro_bias_walk: float = Field(
+        1e-6, ge=0.0, le=0.1, description="[rad/s/√s] in-run drift (a few °/h); 0.1 is a gyro without a bias"
+    )
+    wheel_speed_bias_walk: float = Field(2e-3, ge=0.0, le=1.0, description="[m/s/√s]; 1 is a sensor without a bias")
+    initial_slip_velocity: float = Field(0.3, ge=0.0, le=10.0, description="[m/s]; 10 m/s of slip is a spin")
+    initial_gyro_bias: float = Field(
+        1e-3, ge=0.0, le=1.0, description="[rad/s] the offset of a gyro not zeroed (0.06°/s); 1 rad/s is no gyro"
+    )
+    gyro_zeroing_s: float = Field(
+        10.0,
+        ge=0.0,
+        le=600.0,
+        description="[s] the standstill before the run over which the trailer's gyro is zeroed; 0: not zeroed, "
+        "600 s is a long stop",
+    )
+    initial_wheel_speed_bias: float = Field(0.2, ge=0.0, le=10.0, description="[m/s]; 10 m/s is no wheel speed")
+    vo_covariance_scale: float = Field(4.0, ge=1.0, le=1e4, description="on the VO covariance (a floor); 1e4: no VO")
+    vo_translation_floor: float = Field(1e-3, ge=0.0, le=1.0, description="[m] per frame; 1 m is no translation")
+    vo_rotation_floor: float = Field(1e-4, ge=0.0, le=0.1, description="[rad] per frame; 0.1 rad is no rotation")
+    vo_yaw_bias: float = Field(
+        1e-3, ge=0.0, le=0.01, description="[rad/m] start std of the VO's yaw error; 0.01 rad/m turns 57° in 100 m"
+    )
+    vo_yaw_bias_walk: float = Field(2e-5, ge=0.0, le=1e-3, description="[rad/m/√m]; 1e-3 forgets in a metre")
+    vo_bias_coupling: float = Field(
+        1.15, ge=0.0, le=3.0, description="× the covariance's yaw–translation regression; 0 ties no translation to it"
+    )
+    vo_bias_coupling_uncertainty: float = Field(
+        0.15,
+        ge=0.0,
+        le=1.0,
+        description="relative std of vo_bias_coupling, carried into the off-tracking's std; 1: the coupling unknown",
+    )
+    kinematics: bool = True
+    kinematic_rear_point: RearPoint = "axle_mean"
+    tractor_stiffness_uncertainty: float = Field(
+        0.2,
+        ge=0.0,
+        le=1.0,
+        description="relative; a tyre's cornering stiffness is known to 10–30 % (load, wear, pressure); 1: unknown",
+    )
+    kinematic_error_model: Literal["inflated", "state"] = "inflated"
+    kinematic_white_noise: float = Field(
+        0.005, gt=0.0, le=1.0, description="[m/s] per tick, the tractor's sensor noise at the kingpin; 1 m/s is none"
+    )
+    tractor_slip: float = Field(
+        0.02, gt=0.0, le=1.0, description="[m/s] slip of rolling tractor tyres; 1 m/s is a slide, not a roll"
+    )
+    kinematic_error_time: float = Field(
+        10.0, gt=0.0, le=60.0, description="[s] correlation time of a steady slip; 60 s is a whole manoeuvre"
+    )
+    slip_evidence_time: float = Field(
+        1.0, gt=0.0, le=30.0, description="[s] how fast the kinematics' σ follows the slip; 30 s misses a turn entry"
+    )
+    slip_evidence_hold: bool = False
+    gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
+    max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")
+    max_std: float = Field(0.5, gt=0.0, le=10.0, description="[m] of off-tracking std; 10 m says nothing")
+    offtracking_bias_std: float = Field(
+        0.0,
+        ge=0.0,
+        le=0.5,
+        description="[m] the VO's error no state explains, added to the filter's std; 0.5 m swamps any estimate",
+    )
+    innovation_window: int = Field(
+        50, ge=1, le=10000, description="camera motions in ρ of eq (5); one is no statistic, 10000 never adapts"
+    )
