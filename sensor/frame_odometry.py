@@ -158,8 +158,18 @@ class FrameOdometry:
             else self_calibration(vo_config, camera_in_trailer, self_calibration_settings)
         )
 
-    def process(self, left: np.ndarray, right: np.ndarray, render_s: float = math.nan) -> CameraFrame:
-        """Odometry and VISO-OT on the next pair; ``render_s`` is what rendering it took [s] (for the record)."""
+    def process(
+        self,
+        left: np.ndarray,
+        right: np.ndarray,
+        render_s: float = math.nan,
+        masks: tuple[np.ndarray | None, np.ndarray | None] | None = None,
+    ) -> CameraFrame:
+        """Odometry and VISO-OT on the next pair; ``render_s`` is what rendering it took [s] (for the record).
+
+        ``masks``: the left and right images' regions where the odometry takes no features (True; the other units of
+        the combination, :func:`sensor.vehicle_bodies.exclusion_masks`); None: every feature.
+        """
         t1 = wallclock.perf_counter()
         cpu1 = wallclock.thread_time()
         calibration = self.self_calibration
@@ -169,7 +179,7 @@ class FrameOdometry:
             if warp is not None:  # the estimate of the frames before this one (causal)
                 size = (right.shape[1], right.shape[0])
                 right = cv2.warpPerspective(right, warp, size, flags=cv2.INTER_LINEAR)
-        result = self.vo.process(left, right)
+        result = self.vo.process(left, right) if masks is None else self.vo.process(left, right, masks)
         calibrated = dict.fromkeys(SELF_CALIBRATION_COLUMNS, math.nan)
         if calibration is not None:
             inliers = result.inliers if result.n_inliers > 0 else None

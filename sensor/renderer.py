@@ -46,14 +46,15 @@ import cv2
 import numpy as np
 
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import CombinationPose
+from vehicle_model.geometry import ChainPose, CombinationPose
 from vehicle_model.parameters import VehicleParams
 
 from .camera import StereoRig, Which, opencv_to_opengl
 from .exposure import AutoExposure, FrameLight
 from .gl_context import GLContext, import_pyrender
 from .lighting import Lighting, light_world
-from .scene import scene_for
+from .scene import body_nodes, scene_for
+from .vehicle_bodies import unit_poses
 from .world import World
 
 __all__ = ["StereoPair", "StereoRenderer"]
@@ -114,6 +115,10 @@ class StereoRenderer:
         come in order).
     frame_interval_s : float
         Time between frames [s] (1 / camera rate), over which the auto-exposure lags.
+    bodies : bool
+        Draw the combination's units (boxes and wheels, :mod:`sensor.vehicle_bodies`) at the vehicle pose of each
+        render, all but the rig's own unit (:attr:`StereoRig.unit`); False: the world alone. Renders from camera
+        poses alone (:meth:`render_poses` without ``vehicle``) draw no units.
 
     Notes
     -----
@@ -135,8 +140,10 @@ class StereoRenderer:
         cull_distance: float = 600.0,
         lighting: Lighting | None = None,
         frame_interval_s: float = 0.1,
+        bodies: bool = True,
     ) -> None:
         self.world = world
+        self.bodies = bool(bodies)
         self.rig = rig if rig is not None else StereoRig()
         self.params = params
         self.seed = int(world.config.seed if seed is None else seed)
@@ -170,6 +177,7 @@ class StereoRenderer:
         state.setdefault("_lit", None)
         state.setdefault("_alpha", None)
         state.setdefault("last_gain", 1.0)
+        state.setdefault("bodies", True)
         self.__dict__.update(state)
 
     def _lit_parts(self) -> tuple[World, FrameLight, AutoExposure] | None:
@@ -208,20 +216,41 @@ class StereoRenderer:
         cam.znear, cam.zfar = rig.znear, rig.zfar
         return ctx
 
+    def _place_bodies(self, vehicle: CombinationPose | ChainPose | None) -> None:
+        """Pose the combination's units in the scene for the next view (all hidden without a vehicle pose)."""
+        table = getattr(self._scene, "offtrack_bodies", {})
+        if vehicle is None or not self.bodies or self.params is None:
+            for entry in table.values():
+                entry.place(None)
+            return
+        nodes = body_nodes(self._scene, self.params)
+        for entry in getattr(self._scene, "offtrack_bodies", {}).values():
+            if entry is not nodes:
+                entry.place(None)
+        nodes.place(unit_poses(self.params, vehicle), hidden=self.rig.unit)
+
     def render_view(
-        self, pose: CombinationPose | np.ndarray, *, depth: bool = False, which: Which = "left"
+        self,
+        pose: CombinationPose | ChainPose | np.ndarray,
+        *,
+        depth: bool = False,
+        which: Which = "left",
+        vehicle: CombinationPose | ChainPose | None = None,
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """Render one camera without noise or exposure.
 
         Parameters
         ----------
-        pose : CombinationPose or numpy.ndarray
+        pose : CombinationPose, ChainPose or numpy.ndarray
             Where the combination is (the camera ``which`` of the rig is rendered; needs the vehicle params), or
             directly the camera's pose ``T_world←camera`` (4×4, OpenCV axes).
         depth : bool
             Also read the depth buffer.
         which : {"left", "right"}
             The camera, for a combination pose.
+        vehicle : CombinationPose or ChainPose, optional
+            Where the combination's units are drawn when ``pose`` is a camera pose (default: the combination pose
+            ``pose``, or none drawn for a camera pose).
 
         Returns
         -------
@@ -229,12 +258,14 @@ class StereoRenderer:
             ``(height, width)`` uint8 image and, if ``depth``, float32 depth along the optical axis
             [m] (0 for the sky), else None.
         """
-        if isinstance(pose, CombinationPose):
+        if isinstance(pose, CombinationPose | ChainPose):
+            vehicle = pose if vehicle is None else vehicle
             pose = self.rig.camera_in_world(self._params(None), pose, which)
         pyrender = import_pyrender()
         t0 = time.perf_counter()
         ctx = self._context()
         scene = self._scene
+        self._place_bodies(vehicle)
         scene.set_pose(self._camera_node, opencv_to_opengl(pose))
         r = ctx.renderer
         r.want_depth = depth
@@ -273,8 +304,10 @@ class StereoRenderer:
         depth: bool = False,
         frame: int | None = None,
         expose: bool = True,
+        vehicle: CombinationPose | ChainPose | None = None,
     ) -> StereoPair:
-        """Render the pair from two camera poses (``T_world←camera``, OpenCV axes).
+        """Render the pair from two camera poses (``T_world←camera``, OpenCV axes), the combination's units drawn at
+        ``vehicle`` (None: not drawn).
 
         Image noise and exposure variation of the rig are applied (frame ``frame``, default the
         renderer's running frame counter). With a sun and ``expose=False`` the pair is the radiance before
@@ -283,9 +316,9 @@ class StereoRenderer:
         """
         k = self.frame if frame is None else int(frame)
         self.frame = k + 1
-        left, dl = self.render_view(pose_left, depth=depth)
+        left, dl = self.render_view(pose_left, depth=depth, vehicle=vehicle)
         alpha_left = self._alpha
-        right, dr = self.render_view(pose_right, depth=depth)
+        right, dr = self.render_view(pose_right, depth=depth, vehicle=vehicle)
         t0 = time.perf_counter()
         lit = self._lit_parts()
         if lit is not None:  # sky, shade, glare, then one lagging exposure for the pair (sensor.exposure)
@@ -305,20 +338,21 @@ class StereoRenderer:
 
     def render(
         self,
-        pose: CombinationPose,
+        pose: CombinationPose | ChainPose,
         *,
         depth: bool = False,
         frame: int | None = None,
         params: VehicleParams | None = None,
         expose: bool = True,
     ) -> StereoPair:
-        """Render the pair at a combination pose (tractor CG position [m], heading ψ1 and articulation Γ [rad]).
+        """Render the pair at a combination pose (tractor CG position [m], heading ψ1 and articulation Γ [rad], or
+        every coupling's articulation: :class:`~vehicle_model.geometry.ChainPose`), the units drawn at it.
 
         ``expose``: see :meth:`render_poses`."""
         params = self._params(params)
         pl = self.rig.camera_in_world(params, pose, "left")
         pr = self.rig.camera_in_world(params, pose, "right")
-        return self.render_poses(pl, pr, depth=depth, frame=frame, expose=expose)
+        return self.render_poses(pl, pr, depth=depth, frame=frame, expose=expose, vehicle=pose)
 
     def _params(self, params: VehicleParams | None) -> VehicleParams:
         params = params if params is not None else self.params

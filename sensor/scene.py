@@ -11,7 +11,7 @@ import numpy as np
 from .gl_context import import_pyrender
 from .world import World
 
-__all__ = ["BAKE_MAX_INSTANCES", "InstanceCuller", "build_scene", "scene_for"]
+__all__ = ["BAKE_MAX_INSTANCES", "BodyNodes", "InstanceCuller", "body_nodes", "build_scene", "scene_for"]
 
 
 BAKE_MAX_INSTANCES = 32
@@ -245,3 +245,66 @@ def scene_for(world: World) -> tuple[Any, Any]:
     scene, node = build_scene(world)
     _SCENES[id(world)] = (weakref.ref(world), scene, node)
     return scene, node
+
+
+class BodyNodes:
+    """The combination's units as dynamic nodes of a world's scene: built once per scene and vehicle, posed per view.
+
+    The static world stays as :func:`build_scene` made it; each unit (:func:`sensor.vehicle_bodies.unit_mesh`) is one
+    node drawn before the world (opaque and near: the ground behind it then fails the depth test early).
+    :meth:`place` sets every node's pose and visibility before a view; a hidden or unplaced unit draws nothing.
+
+    Parameters
+    ----------
+    scene : pyrender.Scene
+        A scene of :func:`build_scene` (its ``offtrack_draw_order`` gets the nodes in front).
+    params : VehicleParams
+        The combination.
+    """
+
+    def __init__(self, scene: Any, params: Any) -> None:
+        from .vehicle_bodies import TEXTURE_TILE, body_textures, unit_boxes, unit_mesh
+
+        pyrender = import_pyrender()
+        sampler = pyrender.Sampler(wrapS=pyrender.GLTF.REPEAT, wrapT=pyrender.GLTF.REPEAT)
+        materials = {
+            name: pyrender.MetallicRoughnessMaterial(
+                baseColorTexture=pyrender.Texture(source=img, source_channels="RGB", sampler=sampler),
+                metallicFactor=0.0,
+                roughnessFactor=1.0,
+            )
+            for name, img in body_textures().items()
+            if name in TEXTURE_TILE
+        }
+        self.params = params
+        self.nodes = []
+        for k, boxes in enumerate(unit_boxes(params)):
+            prims = [
+                pyrender.Primitive(positions=p, texcoord_0=u, color_0=c, indices=i, material=materials[texture])
+                for texture, (p, u, i, c) in unit_mesh(boxes).items()
+            ]
+            mesh = pyrender.Mesh(prims, name=f"vehicle_unit_{k}")
+            mesh.is_visible = False
+            self.nodes.append(scene.add(mesh, pose=np.eye(4)))
+        scene.offtrack_draw_order = [*self.nodes, *scene.offtrack_draw_order]
+        self.scene = scene
+
+    def place(self, poses: list[np.ndarray | None] | None, hidden: int | None = None) -> None:
+        """Pose every unit (``T_world←unit`` of :func:`sensor.vehicle_bodies.unit_poses`, ``None``: not drawn) and
+        hide unit ``hidden`` (the rig's own); ``poses=None`` hides them all."""
+        for k, node in enumerate(self.nodes):
+            pose = None if poses is None or k == hidden else poses[k]
+            node.mesh.is_visible = pose is not None
+            if pose is not None:
+                self.scene.set_pose(node, pose)
+
+
+def body_nodes(scene: Any, params: Any) -> BodyNodes:
+    """The :class:`BodyNodes` of ``params`` in ``scene``, added on first use and shared by every renderer of it."""
+    table = getattr(scene, "offtrack_bodies", None)
+    if table is None:
+        table = scene.offtrack_bodies = {}
+    entry = table.get(id(params))
+    if entry is None or entry.params is not params:
+        entry = table[id(params)] = BodyNodes(scene, params)
+    return entry

@@ -3,7 +3,7 @@
 A frame is made in two parts, because one of them may need the frames in order:
 
 * :meth:`StereoCamera.render` — what can be made out of frame order, in whichever process owns the OpenGL
-  renderer (:mod:`sensor.renderer`): the renderer's pair at the :class:`~vehicle_model.geometry.CombinationPose`,
+  renderer (:mod:`sensor.renderer`): the renderer's pair at the combination pose,
   through the right camera's flex warp of this frame and the lens (:meth:`sensor.field_optics.FieldOptics.optical`).
   Frame ``k``'s pair depends only on the pose, ``k`` and its flex (the renderer seeds its noise per frame). With
   auto-exposure it is the unexposed radiance (float32); otherwise the renderer's exposed grey levels.
@@ -27,7 +27,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 
-from vehicle_model.geometry import CombinationPose
+from vehicle_model.geometry import ChainPose, CombinationPose
 from vehicle_model.parameters import VehicleParams
 
 from .calibration import CalibrationResult
@@ -82,11 +82,15 @@ class CachedPair:
 class FrameStore(Protocol):
     """Where :meth:`StereoCamera.pair` keeps developed frames, keyed by frame number, pose and mount flex."""
 
-    def load(self, frame: int, pose: CombinationPose, right_rotation: Misalignment | None) -> CachedPair | None:
+    def load(
+        self, frame: int, pose: CombinationPose | ChainPose, right_rotation: Misalignment | None
+    ) -> CachedPair | None:
         """The stored frame ``frame`` if it was taken at this pose and flex, else ``None``."""
         ...
 
-    def save(self, frame: int, pose: CombinationPose, right_rotation: Misalignment | None, pair: CachedPair) -> None:
+    def save(
+        self, frame: int, pose: CombinationPose | ChainPose, right_rotation: Misalignment | None, pair: CachedPair
+    ) -> None:
         """Keep frame ``frame`` taken at this pose and flex."""
         ...
 
@@ -191,6 +195,8 @@ class StereoCamera:
         Render with 4× multisampling (:class:`~sensor.renderer.StereoRenderer`).
     frame_store : FrameStore, optional
         Where :meth:`pair` keeps the developed frames and takes them back instead of rendering them again.
+    bodies : bool
+        Draw the combination's other units at each frame's pose (:class:`~sensor.renderer.StereoRenderer`).
     """
 
     def __init__(
@@ -201,6 +207,7 @@ class StereoCamera:
         *,
         antialias: bool = False,
         frame_store: FrameStore | None = None,
+        bodies: bool = True,
     ) -> None:
         self.developer = developer
         self.optics = developer.optics
@@ -215,6 +222,7 @@ class StereoCamera:
             antialias=antialias,
             lighting=developer.lighting,
             frame_interval_s=developer.frame_interval_s,
+            bodies=bodies,
         )
 
     @property
@@ -227,7 +235,9 @@ class StereoCamera:
         """Whether :meth:`develop` must see the frames in order (auto-exposure); otherwise any process may."""
         return self.developer.develops_in_order
 
-    def render(self, pose: CombinationPose, frame: int, right_rotation: Misalignment | None = None) -> RawStereoPair:
+    def render(
+        self, pose: CombinationPose | ChainPose, frame: int, right_rotation: Misalignment | None = None
+    ) -> RawStereoPair:
         """Frame ``frame`` at ``pose`` as far as it can be made out of order (module docstring).
 
         ``right_rotation`` is the right camera's mount flex of this frame
@@ -253,7 +263,7 @@ class StereoCamera:
         return self.developer.develop(raw, frame)
 
     def pair(
-        self, pose: CombinationPose, frame: int, right_rotation: Misalignment | None = None
+        self, pose: CombinationPose | ChainPose, frame: int, right_rotation: Misalignment | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """Frame ``frame`` rendered and developed (:meth:`render` then :meth:`develop`), through the
         :attr:`frame_store` when there is one: a stored frame of this pose and flex is taken back, not rendered.
@@ -273,7 +283,7 @@ class StereoCamera:
             store.save(frame, pose, right_rotation, CachedPair(left, right, metered))
         return left, right
 
-    def view_image(self, pose: CombinationPose) -> np.ndarray:
+    def view_image(self, pose: CombinationPose | ChainPose) -> np.ndarray:
         """The left camera's grey image at ``pose``, as the renderer draws it (no noise, exposure or lens)."""
         grey, _ = self.renderer.render_view(pose)
         return grey

@@ -34,7 +34,9 @@ from sensor.camera import Misalignment
 from sensor.frame_odometry import CameraFrame
 from sensor.renderer import StereoRenderer
 from sensor.stereo_camera import RawStereoPair, StereoCamera
-from vehicle_model.geometry import CombinationPose
+from sensor.vehicle_bodies import exclusion_masks
+from vehicle_model.errors import InputError
+from vehicle_model.geometry import ChainPose, CombinationPose
 from vehicle_model.simulator import VehicleState
 
 from ..setup.build import ScenarioSetup
@@ -67,12 +69,16 @@ class CapturedFrame:
         Control tick its estimate reaches the controller on.
     frame : CameraFrame or None
         What the odometry made of it; ``None`` while it is still being rendered or processed.
+    masks : tuple of numpy.ndarray or None
+        Where the other units of the combination were in the left and right images (no features taken there;
+        ``None``: nowhere).
     """
 
     index: int
     tick: int
     release_tick: int
     frame: CameraFrame | None = None
+    masks: tuple[np.ndarray, ...] | None = None
 
 
 class CameraFeed:
@@ -88,6 +94,12 @@ class CameraFeed:
         Keep the developed frames in this directory and take them back instead of rendering them again
         (:mod:`.frame_cache`; default: ``OFFTRACK_FRAME_CACHE``, unset: none). Frames are then rendered in this
         process (no workers).
+    rig_index
+        Which rig of the configuration this feed renders (0: the first).
+    body_masks
+        Keep the odometry off the other units of the combination: their boxes, placed by the known articulation,
+        are projected into each image (:func:`sensor.vehicle_bodies.exclusion_masks`) and no features are taken
+        there (docs/combination_view.md). No effect while no other unit is in view.
 
     Attributes
     ----------
@@ -106,7 +118,20 @@ class CameraFeed:
         (``None`` before one, and with render workers).
     """
 
-    def __init__(self, setup: ScenarioSetup, workers: int = 0, frame_cache: Path | None = None) -> None:
+    def __init__(
+        self,
+        setup: ScenarioSetup,
+        workers: int = 0,
+        frame_cache: Path | None = None,
+        rig_index: int = 0,
+        *,
+        body_masks: bool = True,
+    ) -> None:
+        if not isinstance(rig_index, int) or rig_index != 0:
+            # one rig per configuration until the camera section lists rigs (scenarios.camera.build.rig_from_config)
+            raise InputError(f"rig_index = {rig_index!r} is out of range; allowed: 0 (the configuration has one rig)")
+        self.rig_index = rig_index
+        self.body_masks = bool(body_masks)
         frame_cache = frame_cache if frame_cache is not None else frame_cache_from_env()
         workers = 0 if frame_cache is not None else workers
         self.latency_ticks = latency_ticks(setup)
@@ -115,7 +140,9 @@ class CameraFeed:
         self._camera: StereoCamera | None = None
         self._workers: RenderWorkers | None = None
         if workers > 0:
-            self._workers = RenderWorkers(setup.config, workers)  # start them first: they take a while
+            self._workers = RenderWorkers(
+                setup.config, workers, rig_index=rig_index
+            )  # start them first: they take a while
             self._developer = pair_developer(setup.config)
         else:
             self._camera = stereo_camera(setup, frame_cache=frame_cache)
@@ -123,6 +150,8 @@ class CameraFeed:
         self._odometry = frame_odometry(setup, self._developer.optics)
         self.rig = self._developer.rig
         self.camera_in_trailer = self._developer.optics.left_in_trailer(setup.params)
+        vo = self._odometry.vo.config
+        self._vo_k = np.array([[vo.f, 0.0, vo.cu], [0.0, vo.f, vo.cv], [0.0, 0.0, 1.0]])
         self.released: list[CapturedFrame] = []
         self.last_pair: tuple[np.ndarray, np.ndarray] | None = None
         self._flex = flex_schedule(setup)
@@ -144,7 +173,7 @@ class CameraFeed:
         """This process's :class:`~sensor.renderer.StereoRenderer` (``None`` when the workers render)."""
         return self._camera.renderer if self._camera is not None and self._workers is None else None
 
-    def view_image(self, pose: CombinationPose) -> np.ndarray:
+    def view_image(self, pose: CombinationPose | ChainPose) -> np.ndarray:
         """The left camera's grey image at ``pose`` as the renderer draws it (no noise, exposure or lens), e.g. for
         a display; with render workers a camera is built in this process for it on the first call."""
         if self._camera is None:
@@ -161,14 +190,27 @@ class CameraFeed:
         shot = CapturedFrame(self._count, tick, tick + self.latency_ticks)
         self._count += 1
         flex = self._flex.rotation(state)  # in frame order, in this process: the twist and the seeded vibration
+        pose = state.chain_pose
+        shot.masks = self.masks(pose)
         if self._workers is None:
-            shot.frame = self._frame(state.pose, shot.index, flex)
+            shot.frame = self._frame(pose, shot.index, flex, shot.masks)
             self._account(shot.frame)
         else:
-            self._workers.submit(shot.index, state.pose, right_rotation=flex)
+            self._workers.submit(shot.index, pose, right_rotation=flex)
             self._unprocessed.append(shot)
         self._captured.append(shot)
         return shot
+
+    def masks(self, pose: CombinationPose | ChainPose) -> tuple[np.ndarray, ...] | None:
+        """Where the combination's other units are in the left and right odometry images at ``pose`` (``None``: in
+        neither, or :attr:`body_masks` off)."""
+        params = self._setup.params
+        if not self.body_masks:
+            return None
+        rig = self.rig
+        cameras = (rig.camera_in_world(params, pose, "left"), rig.camera_in_world(params, pose, "right"))
+        size = (rig.width, rig.height)  # the odometry's images have the rig's size
+        return exclusion_masks(params, pose, cameras, self._vo_k, size, skip_unit=rig.unit)
 
     def deliver(self, tick: int) -> float | None:
         """Release the estimates due by control tick ``tick`` (waiting for them if need be); return :attr:`estimate`.
@@ -218,7 +260,13 @@ class CameraFeed:
         if self._workers is not None:
             self._workers.close()
 
-    def _frame(self, pose: CombinationPose, index: int, flex: Misalignment | None) -> CameraFrame:
+    def _frame(
+        self,
+        pose: CombinationPose | ChainPose,
+        index: int,
+        flex: Misalignment | None,
+        masks: tuple[np.ndarray, ...] | None = None,
+    ) -> CameraFrame:
         """Render, develop and process frame ``index`` in this process (serial)."""
         assert self._camera is not None
         t0 = wallclock.perf_counter()
@@ -227,7 +275,7 @@ class CameraFeed:
         self.last_pair = (left, right)
         render_s = wallclock.perf_counter() - t0
         render_cpu_s = wallclock.process_time() - cpu0
-        frame = self._odometry.process(left, right, render_s)
+        frame = self._odometry.process(left, right, render_s, masks=masks)
         frame.render_cpu_s = render_cpu_s
         return frame
 
@@ -237,7 +285,7 @@ class CameraFeed:
         left, right, render_s, render_cpu_s = self._workers.result(shot.index)
         if self._developer.develops_in_order:  # the workers leave the exposure to the frames' order
             left, right = self._developer.develop(RawStereoPair(left, right, exposed=False), shot.index)
-        frame = self._odometry.process(left, right, render_s)
+        frame = self._odometry.process(left, right, render_s, masks=shot.masks)
         frame.render_cpu_s = render_cpu_s
         shot.frame = frame
         if self._processed < self._startup_frames:

@@ -3,7 +3,7 @@
 A camera built with a frame cache (:func:`.build.stereo_camera`, ``frame_cache=``) keeps each frame it develops
 (:meth:`sensor.stereo_camera.StereoCamera.pair`) in ``DIRECTORY/TAG/NNNNNN.npz`` and, when a later run takes the same
 frame at the same pose and mount flex, reads it back instead of rendering it. ``TAG`` names the camera (its
-configuration, world and vehicle, :func:`.build.camera_tag`), so one directory serves several scenarios; a stored
+configuration, rig, world and vehicle, :func:`.build.camera_tag`), so one directory serves several scenarios; a stored
 frame of another pose or flex is rendered again and replaced. ``OFFTRACK_FRAME_CACHE`` sets the directory of every
 camera run that is not given one (:func:`frame_cache_from_env`). The key holds the camera and its settings, not
 the renderer's code: clear the directory after changing the renderer.
@@ -18,7 +18,7 @@ import numpy as np
 
 from sensor.camera import Misalignment
 from sensor.stereo_camera import CachedPair
-from vehicle_model.geometry import CombinationPose
+from vehicle_model.geometry import ChainPose, CombinationPose, chain_pose
 
 __all__ = ["FRAME_CACHE_ENV", "FrameCache", "frame_cache_from_env"]
 
@@ -32,10 +32,13 @@ def frame_cache_from_env() -> Path | None:
     return Path(value) if value else None
 
 
-def _key(pose: CombinationPose, right_rotation: Misalignment | None) -> np.ndarray:
-    """The pose and the flex of a frame as one float64 vector (the flex NaN when there is none)."""
+def _key(pose: CombinationPose | ChainPose, right_rotation: Misalignment | None) -> np.ndarray:
+    """The pose (every unit's: the other units are drawn) and the flex of a frame as one float64 vector (the flex NaN
+    when there is none); the rig is in the cache's tag."""
     flex = (np.nan,) * 3 if right_rotation is None else (right_rotation.roll, right_rotation.pitch, right_rotation.yaw)
-    return np.array([*(float(v) for v in pose), *(float(v) for v in flex)], dtype=np.float64)
+    full = chain_pose(pose)
+    values = (full.x, full.y, full.psi1, *full.angles, *flex)
+    return np.array([float(v) for v in values], dtype=np.float64)
 
 
 class FrameCache:
@@ -57,7 +60,9 @@ class FrameCache:
     def _file(self, frame: int) -> Path:
         return self.directory / f"{int(frame):06d}.npz"
 
-    def load(self, frame: int, pose: CombinationPose, right_rotation: Misalignment | None) -> CachedPair | None:
+    def load(
+        self, frame: int, pose: CombinationPose | ChainPose, right_rotation: Misalignment | None
+    ) -> CachedPair | None:
         """The stored frame ``frame`` if it was taken at exactly this pose and flex, else ``None``."""
         path = self._file(frame)
         if not path.is_file():
@@ -69,7 +74,9 @@ class FrameCache:
         self.loaded += 1
         return pair
 
-    def save(self, frame: int, pose: CombinationPose, right_rotation: Misalignment | None, pair: CachedPair) -> None:
+    def save(
+        self, frame: int, pose: CombinationPose | ChainPose, right_rotation: Misalignment | None, pair: CachedPair
+    ) -> None:
         """Keep frame ``frame`` (written whole to a temporary file first, so a reader never sees half a frame)."""
         self.directory.mkdir(parents=True, exist_ok=True)
         path = self._file(frame)

@@ -39,7 +39,7 @@ import numpy as np
 
 from sensor.camera import Misalignment
 from vehicle_model.errors import OfftrackError
-from vehicle_model.geometry import CombinationPose
+from vehicle_model.geometry import ChainPose, CombinationPose, chain_pose
 
 DEFAULT_WORKERS = 1
 """Render workers of a pipelined run. One: its llvmpipe threads use the core the odometry leaves free, where two
@@ -79,7 +79,9 @@ def _exit_with_parent(parent: int) -> None:
         time.sleep(PARENT_CHECK_S)
 
 
-def _worker_main(config: Any, conn: Connection, threads: str | None = None, parent: int | None = None) -> None:
+def _worker_main(
+    config: Any, conn: Connection, threads: str | None = None, parent: int | None = None, rig_index: int = 0
+) -> None:
     """Body of one render worker (runs in the spawned process); ``threads``: llvmpipe's, unless set; ``parent``: the
     process id of the co-simulation process, whose death ends the worker (:func:`_exit_with_parent`)."""
     if parent is not None:  # first of all: a world being built, or a frame being rendered, is no one's any more
@@ -151,6 +153,8 @@ class RenderWorkers:
         scenario from it.
     workers
         Number of worker processes.
+    rig_index
+        Which rig of the configuration the workers render (:class:`.delivery.CameraFeed`).
 
     Attributes
     ----------
@@ -160,7 +164,7 @@ class RenderWorkers:
         Wall time the co-simulation spent waiting for the workers' answers [s].
     """
 
-    def __init__(self, config: Any, workers: int = DEFAULT_WORKERS) -> None:
+    def __init__(self, config: Any, workers: int = DEFAULT_WORKERS, rig_index: int = 0) -> None:
         if workers < 1:
             raise ValueError(f"workers = {workers} must be at least 1")
         ctx = multiprocessing.get_context("spawn")
@@ -182,7 +186,7 @@ class RenderWorkers:
                     threads = RENDER_THREADS if workers >= 2 else None
                     proc = ctx.Process(
                         target=_worker_main,
-                        args=(config, there, threads, os.getpid()),
+                        args=(config, there, threads, os.getpid(), rig_index),
                         name=f"offtrack-render-{i}",
                         daemon=True,
                     )
@@ -200,15 +204,18 @@ class RenderWorkers:
     def __len__(self) -> int:
         return len(self._procs)
 
-    def submit(self, frame: int, pose: CombinationPose, right_rotation: Misalignment | None = None) -> None:
-        """Have worker ``frame mod workers`` render frame ``frame`` at the combination pose ``pose``.
+    def submit(self, frame: int, pose: CombinationPose | ChainPose, right_rotation: Misalignment | None = None) -> None:
+        """Have worker ``frame mod workers`` render frame ``frame`` at the combination pose ``pose`` (every unit's
+        articulation: the other units are drawn).
 
         ``right_rotation``: the frame's mount flex (or ``None``).
         """
         i = frame % len(self._conns)
         flex = None if right_rotation is None else (right_rotation.roll, right_rotation.pitch, right_rotation.yaw)
         try:
-            self._conns[i].send((frame, CombinationPose(*(float(v) for v in pose)), flex))
+            full = chain_pose(pose)
+            angles = tuple(float(a) for a in full.angles)
+            self._conns[i].send((frame, ChainPose(float(full.x), float(full.y), float(full.psi1), angles), flex))
         except (BrokenPipeError, EOFError, OSError):
             raise self._failure(i, frame, "") from None
         self._outstanding[frame] = i

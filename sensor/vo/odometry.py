@@ -29,6 +29,7 @@ import numpy as np
 from sensor.vo.config import VOConfig
 from sensor.vo.features import ImageFeatures, extract_features
 from sensor.vo.kalman import MotionKalmanFilter
+from sensor.vo.masks import mask_features
 from sensor.vo.match_columns import U1C, U2C, V1C, V2C
 from sensor.vo.matching import match_frames
 from sensor.vo.motion import estimate_motion, params_to_transform, transform_to_params
@@ -195,13 +196,18 @@ class StereoOdometry:
         if self._prior is not None and ratio != 1.0:
             self._prior = params_to_transform(ratio * transform_to_params(self._prior))
 
-    def process(self, left: np.ndarray, right: np.ndarray) -> VOResult:
+    def process(
+        self, left: np.ndarray, right: np.ndarray, masks: tuple[np.ndarray | None, np.ndarray | None] | None = None
+    ) -> VOResult:
         """Estimate the motion from the previous stereo pair to this one.
 
         Parameters
         ----------
         left, right : numpy.ndarray
             Rectified (H, W) uint8 images of the left and right camera.
+        masks : (numpy.ndarray or None, numpy.ndarray or None), optional
+            ``(H, W)`` bool masks of the left and right image, True where no feature may be taken
+            (:mod:`sensor.vo.masks`); None: every feature.
 
         Returns
         -------
@@ -216,6 +222,8 @@ class StereoOdometry:
         cfg = self.config
         t0 = _Clock()
         current = (extract_features(left, cfg), extract_features(right, cfg))
+        if masks is not None:
+            current = (mask_features(current[0], masks[0]), mask_features(current[1], masks[1]))
         t1 = _Clock()
         previous, self._previous = self._previous, current
         if previous is None or previous[0].shape != current[0].shape:
