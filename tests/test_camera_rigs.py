@@ -87,8 +87,8 @@ def test_a_run_wide_field_in_a_rig_is_refused_naming_it() -> None:
 
 def test_every_unit_steered_on_its_own_camera_and_a_unit_without_a_rig_refused() -> None:
     steered = {"vehicle.units[1].axles[2].steerable": True, "vehicle.units[2].axles[2].steerable": True}
-    config = load_scenario("roundabout-3", {"vehicle": "au-b-double", **steered, "feedback": "viso_ot"})
-    assert config.uses_camera
+    config = load_scenario("roundabout-3", {"vehicle": "au-b-double", **steered, "feedback": "viso_ot_fused"})
+    assert config.uses_camera and config.rear_feedback is None  # the rear trailer on its own fused camera too
     mixed = {"feedback": "viso_ot", "rear_feedback": ["zero_slip"], "camera.rigs": [{"unit": 1}]}
     load_scenario("roundabout-3", {"vehicle": "au-b-double", **steered, **mixed})  # unit 2 on zero-slip: no rig needed
     with pytest.raises(ConfigError, match=r"rear_feedback\[0\] = 'viso_ot' steers towed unit 2 on its camera"):

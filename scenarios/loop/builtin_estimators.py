@@ -56,6 +56,12 @@ def _fused_viso_ot(context: Any) -> Any:
     return fused_viso_ot(context)
 
 
+def _fused_viso_ot_unit(context: Any, unit: int) -> Any:
+    from .estimators import fused_viso_ot_unit
+
+    return fused_viso_ot_unit(context, unit)
+
+
 def _ground_truth(context: Any) -> Any:
     from .estimators import ground_truth
 
@@ -85,12 +91,14 @@ BUILTIN_ESTIMATORS: tuple[EstimatorEntry, ...] = (
     ),
     EstimatorEntry(
         "viso_ot_fused",
-        "fused VISO-OT: a Kalman filter of the trailer's gyro, wheel speed and steer with the camera (renders)",
+        "fused VISO-OT: a Kalman filter of each unit's gyro, wheel speed and steer with its camera (renders)",
         _fused_viso_ot,
         requires=("viso_ot",),
         needs_camera=True,
         colour="tab:purple",
         label="fused VISO-OT",
+        per_unit=True,
+        build_unit=_fused_viso_ot_unit,
         offline=_fused_viso_ot_offline,
     ),
     EstimatorEntry(

@@ -104,12 +104,11 @@ class Column:
         return cls(name, "m", description, role="estimate", vehicle_unit=vehicle_unit, estimator=estimator)
 
     @classmethod
-    def std(cls, estimator: str, description: str = "its standard deviation") -> Column:
-        """The standard deviation [m] of ``estimator``'s estimate of the first towed unit:
-        ``offtracking_<estimator>_std``."""
-        return cls(
-            f"{estimate_column(estimator)}_std", "m", description, role="std", vehicle_unit=2, estimator=estimator
-        )
+    def std(cls, estimator: str, description: str = "its standard deviation", vehicle_unit: int = 2) -> Column:
+        """The standard deviation [m] of ``estimator``'s estimate of the first towed unit (``vehicle_unit`` 2):
+        ``offtracking_<estimator>_std``; for another unit ``k``, ``offtracking_<estimator><k>_std``."""
+        name = estimate_column(estimator) + ("" if vehicle_unit == 2 else str(vehicle_unit)) + "_std"
+        return cls(name, "m", description, role="std", vehicle_unit=vehicle_unit, estimator=estimator)
 
     def __post_init__(self) -> None:
         if self.role and self.role not in ROLES:
