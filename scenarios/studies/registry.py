@@ -103,6 +103,7 @@ STUDIES: dict[str, Study] = _studies(
         field_loop_cases,
         field_loop_figures,
         run_field_loop_case,
+        takes_vehicle=True,
     ),
     Study(
         "field-bias",
