@@ -249,9 +249,26 @@ def default_rigs(params: VehicleParams) -> tuple[Any, ...]:
     return (*(RigSettings(unit=unit, facing="left") for unit in range(1, last)), RigSettings(unit=last, facing="rear"))
 
 
+def side_station(params: VehicleParams, unit: int) -> float:
+    """Where a side rig of towed unit ``unit`` sits along it [m from its front coupling]: midway between the rear of
+    the unit ahead and the front of the unit it tows, both as they stand when straight (a side camera at the rear of
+    a unit that tows another would sit beside, or inside, the next unit's front), within the unit's own body; for
+    the last unit, midway between the rear of the unit ahead and its own rear."""
+    own = params.units[unit]
+    ahead = params.units[unit - 1]
+    coupling = ahead.fifth_wheel_x if ahead.fifth_wheel_x is not None else 0.0
+    ahead_rear = ahead.rear_x - coupling
+    if unit + 1 < len(params.units) and own.fifth_wheel_x is not None:
+        next_front = own.fifth_wheel_x + params.units[unit + 1].front_x
+    else:
+        next_front = own.rear_x
+    return float(min(max(0.5 * (min(ahead_rear, 0.0) + next_front), own.rear_x), own.front_x))
+
+
 def rig_configs(camera: CameraConfig, params: VehicleParams) -> tuple[RigConfig, ...]:
     """Every rig of the run, resolved: the section's fields, then each rig's own, its facing's ψ_c2v and, for a side
-    rig without its own ``lateral``, the edge of its unit (half its width, at most :data:`MAX_LATERAL_M`)."""
+    rig without its own ``lateral``, the edge of its unit (half its width, at most :data:`MAX_LATERAL_M`); a side
+    rig with no station of its own or the section's sits at :func:`side_station`."""
     section = {name: getattr(camera, name) for name in StereoRigConfig.model_fields}
     out = []
     for rig in camera.rigs if camera.rigs is not None else default_rigs(params):
@@ -259,9 +276,13 @@ def rig_configs(camera: CameraConfig, params: VehicleParams) -> tuple[RigConfig,
         facing = own.get("facing")
         if facing is not None:
             own["psi_c2v_deg"] = FACING_PSI_DEG[facing]
-        if facing in ("left", "right") and "lateral" not in own and 1 <= own.get("unit", 1) < params.n_units:
-            edge = min(0.5 * params.trailers[own.get("unit", 1) - 1].width, MAX_LATERAL_M)
-            own["lateral"] = edge if facing == "left" else -edge
+        unit = own.get("unit", 1)
+        if facing in ("left", "right") and 1 <= unit < params.n_units:
+            if "lateral" not in own:
+                edge = min(0.5 * params.trailers[unit - 1].width, MAX_LATERAL_M)
+                own["lateral"] = edge if facing == "left" else -edge
+            if "station" not in own and camera.station is None:
+                own["station"] = round(side_station(params, unit), 3)
         out.append(RigConfig.model_validate({**section, **own}))
     return tuple(out)
 

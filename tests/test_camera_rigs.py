@@ -42,6 +42,9 @@ def test_a_longer_combination_has_side_rigs_on_units_that_tow_and_a_rear_rig_on_
         (3, "rear", 180.0),
     ]
     assert rigs[0].lateral == pytest.approx(1.25) and rigs[2].lateral == 0.0  # the 2.5 m unit's left edge
+    # the lead trailer's side rig midway between the tractor's rear (1.75 m behind the kingpin) and the dolly's
+    # front (12.0 + 2.2 m behind it), not beside the unit it tows; the rear rig at its unit's rear
+    assert rigs[0].station == pytest.approx(-0.5 * (1.75 + 14.2)) and rigs[2].station is None
     assert [r.unit for r in rigs_from_config(config)] == [1, 2, 3]
 
 
@@ -54,8 +57,8 @@ def test_a_rig_sets_its_own_fields_over_the_sections() -> None:
     assert (second.width, second.baseline, second.psi_c2v_deg, second.lateral) == (640, 1.0, 90.0, -1.25)
     assert second.flex.vibration_rms_deg == (0.01, 0.01, 0.01) and first.flex.vibration_rms_deg == (0.0, 0.0, 0.0)
     assert rig_from_config(config, 1) == StereoRig.from_degrees(
-        hfov_deg=100.0, psi_c2v_deg=90.0, width=640, height=391, baseline=1.0, lateral=-1.25, unit=2
-    )
+        hfov_deg=100.0, psi_c2v_deg=90.0, width=640, height=391, baseline=1.0, lateral=-1.25, unit=2, station=-6.075
+    )  # a side rig on the last unit: midway between the lead trailer's rear (1.15 m behind it) and its own (11.0 m)
     dumped = config.camera.model_dump(mode="json")["rigs"]
     assert dumped[1]["baseline"] == 1.0 and "width" not in dumped[1]  # only what the rig sets
     with pytest.raises(InputError, match="rig_index = 2"):
