@@ -131,6 +131,15 @@ def test_each_steered_unit_runs_on_its_own_fused_camera() -> None:
         both = np.isfinite(estimate) & np.isfinite(truth)
         assert both.sum() > 20 and np.isfinite(std[both]).all()
         assert np.abs(estimate[both] - truth[both]).max() < 0.03
+    # offtracking.png draws the rear trailer's fused estimate with its band in a panel of its own
+    import matplotlib.pyplot as plt
+
+    from scenarios.run.plots import offtracking_figure
+
+    fig = offtracking_figure(rows, ["viso_ot_fused"], "title")
+    gids = {artist.get_gid() for ax in fig.axes for artist in ax.get_children()}
+    assert {"sigma2:viso_ot_fused", "sigma2:viso_ot_fused3"} <= gids
+    plt.close(fig)
 
 
 @pytest.mark.slow

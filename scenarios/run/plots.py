@@ -202,7 +202,8 @@ def offtracking_figure(
 
     Panels, top to bottom: the off-tracking (each estimate with its ±2σ band where it gives a standard deviation;
     the truth's RMS and max after warm-up and each estimator's RMS error in the legend); the errors against the
-    truth with the 0.10 m RMS and 0.15 m max targets labelled; the trailer's steer angles with their lock and the
+    truth with the 0.10 m RMS and 0.15 m max targets labelled; for a longer combination, each further unit's truth
+    and estimates with their bands (``gid`` ``sigma2:NAME<k>``); the trailer's steer angles with their lock and the
     share of time each sat there (runs that steer the trailer); the camera's matches and inliers per frame (camera
     runs). The warm-up, before the truth exists and one trailer length after, is shaded and named in every panel.
     Artists carry ``gid`` s: ``warmup``, ``sigma2:NAME``, ``target:0.10``, ``target:0.15``, ``steer:AXLE``,
@@ -230,13 +231,14 @@ def offtracking_figure(
     steers = [c.name for c in command_columns(columns, FIRST_TOWED_UNIT, "rad")]
     steer_axles = [c.removeprefix("steer_") for c in steers if np.any(np.abs(columns[c]) > 1e-9)]
     camera = bool("vo_matches" in columns and np.isfinite(columns["vo_matches"]).any())
-    ratios = [2.0, 1.0] + [0.8] * bool(steer_axles) + [0.7] * camera
+    estimates = estimate_columns(columns)
+    further = sorted({unit for (_, unit) in estimates if unit > FIRST_TOWED_UNIT})
+    ratios = [2.0, 1.0] + [1.2] * len(further) + [0.8] * bool(steer_axles) + [0.7] * camera
     fig, axes = plt.subplots(len(ratios), 1, figsize=(10, 2.2 + 2.2 * sum(ratios)), sharex=True, height_ratios=ratios)
     top, bottom = axes[0], axes[1]
     truth_rms, peak = rms(truth[settled]), max_abs(truth[settled])
     top.plot(t, truth, color="k", lw=1.6, label=f"truth: {truth_rms:.3f} m RMS, {peak:.3f} m max after warm-up")
     top.plot(t, columns["offtracking_truth_geometric"], color="0.5", lw=0.8, ls="--", label="truth (geometric)")
-    estimates = estimate_columns(columns)
     for name in estimator_names:
         est = columns[estimates[name, FIRST_TOWED_UNIT].name]
         colour = source_colour(name)
@@ -268,8 +270,10 @@ def offtracking_figure(
     top.set_title(title)
     top.legend(loc="best", fontsize=7)
     bottom.legend(loc="best", fontsize=7)
+    for ax, unit in zip(axes[2 : 2 + len(further)], further, strict=True):
+        _unit_panel(ax, t, columns, estimates, unit, settled)
     if steer_axles:
-        ax = axes[2]
+        ax = axes[2 + len(further)]
         for axle in steer_axles:
             steer = np.degrees(columns[f"steer_{axle}"])
             saturated = columns.get(f"saturated_{axle}")
@@ -316,6 +320,33 @@ def offtracking_figure(
         )
     axes[-1].set_xlabel("time [s]")
     return fig
+
+
+def _unit_panel(
+    ax: Any,
+    t: np.ndarray,
+    columns: dict[str, np.ndarray],
+    estimates: dict[tuple[str, int], Any],
+    unit: int,
+    settled: np.ndarray,
+) -> None:
+    """Unit ``unit``'s truth and every estimate of it, each with its ±2σ band where it gives a standard deviation
+    (``gid`` ``sigma2:NAME<unit>``)."""
+    truth = columns[estimates["truth", unit].name] if ("truth", unit) in estimates else np.full_like(t, np.nan)
+    after = settled & np.isfinite(truth)
+    ax.plot(t, truth, color="k", lw=1.4, label=f"unit {unit} truth: {rms(truth[after]):.3f} m RMS after warm-up")
+    for (name, of), column in estimates.items():
+        if of != unit or name == "truth":
+            continue
+        est, colour = columns[column.name], source_colour(name)
+        ax.plot(t, est, lw=1.0, color=colour, label=f"{name}{unit}: error {rms((est - truth)[after]):.3f} m RMS")
+        std_of = std_column(columns, name, unit)
+        std = None if std_of is None else columns[std_of.name]
+        if std is not None and np.isfinite(std).any():
+            ax.fill_between(t, est - 2 * std, est + 2 * std, color=colour, alpha=0.18, lw=0, gid=f"sigma2:{name}{unit}")
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_ylabel(f"unit {unit} e_tr [m]")
+    ax.legend(loc="best", fontsize=7)
 
 
 def plot_offtracking(
