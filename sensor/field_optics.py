@@ -23,6 +23,7 @@ correction of the right image. :class:`sensor.stereo_camera.StereoCamera` puts t
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -139,12 +140,17 @@ class FieldOptics:
         return None if self.calibration is None else self.calibration.rectified_rig_parameters()
 
     def vo_config(self) -> VOConfig:
-        """The odometry's camera model for the images :meth:`prepare` gives."""
+        """The odometry's camera model for the images :meth:`prepare` gives, its stereo search wide enough for the
+        nearest road point in view (:func:`road_disparity_search`)."""
         rectified = self.rectified()
-        if rectified is not None:
-            return rectified.vo_config()
         rig = self.rig
-        return VOConfig.from_horizontal_fov(rig.width, rig.height, rig.hfov, rig.baseline)
+        if rectified is not None:
+            config = rectified.vo_config()
+            left = rectified.rectified_left_in_trailer(rig.replace(station=0.0).camera_in_trailer("left"))
+        else:
+            config = VOConfig.from_horizontal_fov(rig.width, rig.height, rig.hfov, rig.baseline)
+            left = rig.replace(station=0.0).camera_in_trailer("left")
+        return road_disparity_search(config, left, rig.width, rig.height)
 
     def vo_k(self) -> np.ndarray:
         """Camera matrix of the images the odometry gets (for the eq (8)–(9) correction)."""
@@ -198,3 +204,40 @@ class FieldOptics:
         """Rendered pinhole pair → the pair the odometry gets (steps 2–4 of the module docstring)."""
         left, right = self.optical(left, right, right_rotation=right_rotation)
         return self.electronic(left, right, seed=seed, frame=frame)
+
+
+NEAR_FEATURE_MARGIN = 1.25
+"""The stereo search of :func:`road_disparity_search` reaches this multiple of the nearest road point's disparity:
+scenery standing on the road a little nearer than the image's bottom edge (a post, a verge)."""
+
+
+def road_disparity_search(config: VOConfig, camera_in_trailer: np.ndarray, width: int, height: int) -> VOConfig:
+    """``config`` with :attr:`~sensor.vo.config.VOConfig.max_disparity` covering the nearest road point in view.
+
+    A road point seen at pixel ``(u, v)`` of a camera ``h`` above the road, whose downward unit normal is ``n`` in
+    camera axes, lies at depth ``z = h / (n·ρ)``, ``ρ = ((u − c_u)/f, (v − c_v)/f, 1)``, so its disparity is
+    ``f·b·(n·ρ)/h``: largest at a bottom corner of the image (the nearest road in view; linear in ``u`` along the
+    row). The stereo search must reach it (times :data:`NEAR_FEATURE_MARGIN`) or those features are never matched:
+    a side camera looks across its motion at scenery a few metres away, and with a wide baseline only the far
+    features would be left to fix its motion along the optical axis. A search the default radius already covers
+    leaves ``config`` as it is.
+
+    Parameters
+    ----------
+    config
+        The odometry's camera model (``f``, ``cu``, ``cv``, ``baseline``).
+    camera_in_trailer
+        ``T_trailer←camera`` of the left camera (its height above the road and its orientation; the station does
+        not matter).
+    width, height
+        Image size [px].
+    """
+    rotation, mount_height = camera_in_trailer[:3, :3], float(camera_in_trailer[2, 3])
+    down = -rotation.T @ np.array([0.0, 0.0, 1.0])  # the road's downward normal in camera axes
+    bottom = height - 1.0
+    rays = np.array([[(u - config.cu) / config.f, (bottom - config.cv) / config.f, 1.0] for u in (0.0, width - 1.0)])
+    nearest = float(np.max(rays @ down)) * config.f * config.baseline / mount_height  # [px]
+    reach = math.ceil(NEAR_FEATURE_MARGIN * nearest)
+    if reach <= config.search_radius:
+        return config
+    return config.model_copy(update={"max_disparity": reach})

@@ -44,6 +44,12 @@ class VOConfig(Settings):
         internally when ``half_resolution`` is on (so the default searches ±100 px). libviso2: 200.
     match_disp_tolerance : int
         Row tolerance [px] of the stereo (left↔right) steps, |Δv| ≤ tolerance. libviso2: 2.
+    max_disparity : int or None
+        Largest disparity [full-resolution px] the stereo steps of the first pass search; ``None``: the flow
+        steps' :attr:`search_radius`, as libviso2. A feature whose disparity exceeds it is never matched (nor by
+        the second pass, whose ranges come from the first pass's matches), so a rig whose nearest features lie
+        closer than ``f·baseline / search_radius`` — a wide baseline, a side camera's near scenery — sees only
+        its far features (:func:`sensor.field_optics.road_disparity_search`).
     outlier_disp_tolerance : float
         Delaunay outlier removal: disparity consistency along an edge [px]. libviso2: 5.
     outlier_flow_tolerance : float
@@ -108,6 +114,7 @@ class VOConfig(Settings):
     match_binsize: Count = Field(50, ge=1)
     match_radius: Count = Field(200, ge=2)
     match_disp_tolerance: Count = Field(2, ge=0)
+    max_disparity: Count | None = Field(None, ge=1, description="[px]; None: the search radius (libviso2)")
     outlier_disp_tolerance: Real = Field(5.0, gt=0.0)
     outlier_flow_tolerance: Real = Field(5.0, gt=0.0)
     multi_stage: Flag = True
@@ -146,6 +153,12 @@ class VOConfig(Settings):
     def search_radius(self) -> int:
         """Effective flow search radius [full-resolution px]: libviso2 halves it at half resolution."""
         return self.match_radius // 2 if self.half_resolution else self.match_radius
+
+    @property
+    def stereo_search_radius(self) -> int:
+        """Largest disparity the first pass's stereo steps search [full-resolution px]: :attr:`max_disparity`, or
+        the flow steps' :attr:`search_radius`."""
+        return self.search_radius if self.max_disparity is None else self.max_disparity
 
     @classmethod
     def from_horizontal_fov(

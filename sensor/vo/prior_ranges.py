@@ -66,23 +66,23 @@ def _bin_extremes(xy: np.ndarray, binsize: int, n_bv: int, n_bu: int) -> tuple[n
 def default_ranges(config: VOConfig) -> tuple[np.ndarray, np.ndarray]:
     """First-pass search ranges of the four circle steps (docs/visual_odometry.md §5).
 
-    Stereo steps (0: 1p→2p, 2: 2c→1c) search ± ``search_radius`` in u on the side of non-negative
-    disparity and ± ``match_disp_tolerance`` in v; flow steps (1: 2p→2c, 3: 1c→1p) search
+    Stereo steps (0: 1p→2p, 2: 2c→1c) search up to ``stereo_search_radius`` in u on the side of
+    non-negative disparity and ± ``match_disp_tolerance`` in v; flow steps (1: 2p→2c, 3: 1c→1p) search
     ± ``search_radius`` in both.
 
     Parameters
     ----------
     config : VOConfig
-        ``search_radius`` and ``match_disp_tolerance``.
+        ``search_radius``, ``stereo_search_radius`` and ``match_disp_tolerance``.
 
     Returns
     -------
     lo, hi : numpy.ndarray
         (4, 2) int64 lower/upper offsets (du, dv) [px] per step.
     """
-    r, tol = config.search_radius, config.match_disp_tolerance
-    lo = np.array([[-r, -tol], [-r, -r], [0, -tol], [-r, -r]], dtype=np.int64)
-    hi = np.array([[0, tol], [r, r], [r, tol], [r, r]], dtype=np.int64)
+    r, d, tol = config.search_radius, config.stereo_search_radius, config.match_disp_tolerance
+    lo = np.array([[-d, -tol], [-r, -r], [0, -tol], [-r, -r]], dtype=np.int64)
+    hi = np.array([[0, tol], [r, r], [d, tol], [r, r]], dtype=np.int64)
     return lo, hi
 
 
