@@ -21,6 +21,7 @@ camera's image, for the odometry to take no features on them (:mod:`sensor.vo.ma
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -97,6 +98,11 @@ def _wheel_boxes(axles, width: float) -> list[BodyBox]:
             ys = sorted((sign * inner, sign * outer))
             out.append(BodyBox((axle.x - r, ys[0], 0.0), (axle.x + r, ys[1], 2.0 * r), "wheel"))
     return out
+
+
+@functools.lru_cache(maxsize=16)
+def _unit_boxes(params: VehicleParams) -> tuple[tuple[BodyBox, ...], ...]:
+    return tuple(tuple(boxes) for boxes in unit_boxes(params))
 
 
 def unit_boxes(params: VehicleParams) -> list[list[BodyBox]]:
@@ -375,9 +381,9 @@ def exclusion_masks(
         sees any unit (nothing to exclude).
     """
     width, height = size
-    boxes = unit_boxes(params)
+    boxes = _unit_boxes(params)
     frames = unit_poses(params, pose)
-    masks = [np.zeros((height, width), np.uint8) for _ in cameras]
+    masks: list[np.ndarray | None] = [None for _ in cameras]
     corners_bits = np.array([[(b >> 2) & 1, (b >> 1) & 1, b & 1] for b in range(8)], float)
     for unit, (unit_box, frame) in enumerate(zip(boxes, frames, strict=True)):
         if frame is None or unit == skip_unit:
@@ -386,10 +392,13 @@ def exclusion_masks(
             lo, hi = np.asarray(box.lo), np.asarray(box.hi)
             local = lo + corners_bits * (hi - lo)
             world = local @ frame[:3, :3].T + frame[:3, 3]
-            for mask, cam in zip(masks, cameras, strict=True):
+            for c, cam in enumerate(cameras):
                 pc = (world - cam[:3, 3]) @ cam[:3, :3]
                 if (pc[:, 2] < z_min).all():
                     continue
+                mask = masks[c]
+                if mask is None:
+                    mask = masks[c] = np.zeros((height, width), np.uint8)
                 for face in _FACES:
                     poly = _clip_near(pc[list(face)], z_min)
                     if len(poly) < 3:
@@ -397,9 +406,10 @@ def exclusion_masks(
                     uv = (poly[:, :2] / poly[:, 2:3]) * [k[0, 0], k[1, 1]] + [k[0, 2], k[1, 2]]
                     uv = np.clip(uv, -4.0 * (width + height), 4.0 * (width + height))
                     cv2.fillConvexPoly(mask, np.round(uv * 16).astype(np.int32), 1, cv2.LINE_8, shift=4)
-    if not any(m.any() for m in masks):
+    if not any(m is not None and m.any() for m in masks):
         return None
+    filled = [np.zeros((height, width), np.uint8) if m is None else m for m in masks]
     if margin_px > 0:
         kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * margin_px + 1, 2 * margin_px + 1))
-        masks = [cv2.dilate(m, kernel) for m in masks]
-    return tuple(m.astype(bool) for m in masks)
+        filled = [cv2.dilate(m, kernel) for m in filled]
+    return tuple(m.view(bool) for m in filled)  # 0 or 1: the same bytes as bools

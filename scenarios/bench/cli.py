@@ -90,6 +90,20 @@ def bench_loop_cmd(
     _print_bench(bench_loop(duration, workers, compare_serial=serial), as_json, "Closed-loop benchmark")
 
 
+@bench_app.command("rigs", cls=OfftrackCommand)
+def bench_rigs_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    frames: Annotated[int, typer.Option(help="Frames (every rig rendered in each).", min=5)] = 30,
+    vehicle: Annotated[str, typer.Option(help="The combination (a catalogue name).")] = "au-b-double",
+    masks: Annotated[bool, typer.Option(help="Mask the other units out of the odometry.")] = True,
+) -> None:
+    """Two rigs (lead trailer's left side, rear trailer's rear) by one render process's context: pipelined loop
+    frame rate against the render-only ceiling."""
+    from scenarios.bench.rigs import bench_rigs
+
+    _print_bench(bench_rigs(frames, vehicle=vehicle, masks=masks), as_json, "Rigs benchmark")
+
+
 @bench_app.command("env", cls=OfftrackCommand)
 def bench_env_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
