@@ -99,7 +99,9 @@ push; the distribution is monotone in ``δ_v``, so one direction serves all axle
 angle is clamped. Without an integrator (``k_i = 0``) nothing winds up; the output leaves saturation as
 soon as the proportional term does, at the rate limit. The slip-angle limit
 (``PathFollowingConfig.max_slip_angle``, 8° by default) clips each axle to ``β_j ± α_max`` about the direction
-of its velocity before the magnitude limit and counts as a limit here.
+of its velocity, widened to hold straight ahead, before the magnitude limit and counts as a limit here. ``β_j``
+comes from zero-slip kinematics of the tractor's signals, wrong when the tractor's own tyres slide; a window that
+excluded straight ahead then drove the axles to the wrong lock (docs/controller_design.md, *At the limits*).
 """
 
 from __future__ import annotations

@@ -152,7 +152,9 @@ class PathFollowingConfig(Settings):
     max_slip_angle : float or None
         Largest slip angle ``|δ_j − β_j|`` [rad] a steerable axle is commanded to, ``β_j`` the direction of its
         velocity from the same kinematics as the feed-forward (:func:`~controller.axle_steer_distribution.
-        axle_velocity_directions`); the integrator freezes while every axle is held by it. ``None``: no limit.
+        axle_velocity_directions`), except that straight ahead is always allowed (the limit never steers an axle
+        across it against the command; :func:`~controller.axle_steer_distribution.slip_angle_window`); the
+        integrator freezes while every axle is held by it. ``None``: no limit.
         Beyond the Magic Formula's peak more steer gives *less* lateral force (on ice, μ = 0.1, the peak is at
         2.9° of slip; 16 % less force at 10°, 30 % less at 30°), so feedback that keeps pushing reverses its own
         sign and winds the axles to lock. The default, 8°, is a safeguard that does not need μ: on ice it stops

@@ -5,7 +5,7 @@ agent of the steering environment — the commands are made the same way, here::
 
     δ_v ← clip(δ_v, ±δ_v,max)                                   (keeps tan δ_v finite)
     δ_j = f(u) · distribution(tan δ_v, tan β_k)                 (:mod:`controller.axle_steer_distribution`)
-    δ_j ← clip(δ_j, β_j ± α_max)                                (optional slip-angle limit)
+    δ_j ← clip(δ_j, [min(β_j − α_max, 0), max(β_j + α_max, 0)])  (optional slip-angle limit)
     δ_j ← clip(δ_j, ±δ_max), then within ±δ̇_max·Δt of the last command
 
 with the speed fade ``f(u) = clip((u − u0)/(u1 − u0), 0, 1)`` (zero when reversing) and ``tan β_k`` the direction
