@@ -91,6 +91,14 @@ predicted away. A missing estimate (``None``: not yet one trailer length driven,
 feedback to zero and freezes the integrator: the trailer is steered by the feed-forward alone until
 estimates return.
 
+Reach
+-----
+Where the chord law itself needs an axle past its lock, no feedback can hold the follow point on the kingpin's
+path: the trailer cuts in by whatever the lock leaves. The controller flags those ticks, and the ticks after them
+while every axle stays at its lock removing the error they left (``beyond_reach``, recorded as
+``<prefix>beyond_reach``); the run reports their share of the path. Off-tracking there measures the manoeuvre,
+not the controller.
+
 Anti-windup
 -----------
 Conditional integration: the integral is not advanced when that would push the command further into a
@@ -190,6 +198,11 @@ class TrailerSteeringController:
         Whether the last tick received a new sample.
     kingpin_curvature : float
         Last ``κ5`` [1/m].
+    beyond_reach : bool
+        On the last tick the path's own steer (the feed-forward, which holds the follow point on the kingpin's
+        path when the tyres do not slip) needed an axle past its lock, or every axle was still at its lock since
+        such a tick: the path there is beyond the steering's reach
+        (:meth:`~.steer_output.TrailerSteerOutput.beyond_reach`).
 
     Examples
     --------
@@ -240,6 +253,7 @@ class TrailerSteeringController:
         self.estimate: float | None = None
         self.new_sample = False
         self.kingpin_curvature = 0.0
+        self.beyond_reach = False
         self.distance = 0.0
         self._derivative = 0.0
         self._last_sample: tuple[float, float] | None = None  # (value, distance) of the previous new sample
@@ -285,6 +299,7 @@ class TrailerSteeringController:
             f"{p}integral": self.integral,
             f"{p}fade": self.fade,
             f"{p}estimate_used": math.nan if self.estimate is None else self.estimate,
+            f"{p}beyond_reach": float(self.beyond_reach),
         }
         for name, sat, rate, slip in zip(
             self.axle_names, self.saturated, self.rate_limited, self.slip_limited, strict=True
@@ -341,6 +356,7 @@ class TrailerSteeringController:
             self.feedforward_steer = math.atan(self._chord_feedforward()) if self._path else 0.0
         else:
             self.feedforward_steer = 0.0
+        path_beyond_reach = self.fade > 0 and self.output.beyond_reach(self.feedforward_steer, tan_kingpin)
 
         # Feedback on the held sample.
         error = self._sample(estimate)
@@ -357,7 +373,10 @@ class TrailerSteeringController:
             feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         self.integral = integral_new
         self.feedback_steer = feedback
-        return self.output.commit(step)
+        commands = self.output.commit(step)
+        # Beyond reach: the path needs more than the lock, or the axles are still at their lock recovering from it.
+        self.beyond_reach = path_beyond_reach or (self.beyond_reach and bool(np.all(self.output.saturated)))
+        return commands
 
     def _command(
         self,

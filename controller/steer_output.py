@@ -148,6 +148,23 @@ class TrailerSteerOutput:
         vx, vy = coupling_velocity(self.params, unit, (vx, vy), articulations, rates)
         return CouplingMotion(rates[unit - 2], vx, vy, articulations[unit - 1], rates[unit - 1])
 
+    def beyond_reach(self, virtual: float, tan_kingpin: float) -> bool:
+        """Whether the virtual-axle angle ``virtual`` [rad] needs a steerable axle past its lock (or the virtual angle
+        past its clamp), unfaded and before any other limit: the steer that angle asks for is out of the axles'
+        range.
+
+        Parameters
+        ----------
+        virtual
+            ``δ_v`` [rad].
+        tan_kingpin
+            ``tan β_k``, the direction of the kingpin velocity in the trailer frame.
+        """
+        cfg = self.config
+        if abs(virtual) > cfg.max_virtual_steer:
+            return True
+        return bool(np.any(np.abs(self.distribution(math.tan(virtual), tan_kingpin)) > cfg.max_steer))
+
     def propose(
         self,
         virtual: float,

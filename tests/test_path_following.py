@@ -414,3 +414,17 @@ def test_slip_window_always_holds_straight_ahead():
     assert lo == pytest.approx(np.zeros(2), abs=0.0) and hi == pytest.approx(beta + math.radians(8.0), abs=1e-12)
     lo, hi = slip_angle_window(distances, 0.0, 4.0, -4.0, 0.0, math.radians(8.0), 1.0)  # mirrored
     assert hi == pytest.approx(np.zeros(2), abs=0.0) and lo == pytest.approx(-beta - math.radians(8.0), abs=1e-12)
+
+
+@pytest.mark.parametrize(("kingpin_radius", "beyond"), [(25.0, False), (8.0, True)])
+def test_beyond_reach_flags_a_turn_whose_steady_steer_needs_an_axle_past_its_lock(kingpin_radius, beyond):
+    params = lst_laden()
+    cfg = PathFollowingConfig(max_steer_rate=FAST, feedforward="steady", max_slip_angle=None)
+    ctrl = TrailerSteeringController(params, cfg)
+    st = steady_turn(params, kingpin_radius, speed=2.0)
+    ctrl(st, OfftrackingEstimate.of(0.0))
+    dist = AxleSteerDistribution.for_vehicle(params)
+    _, needed = path_following_steer(dist, ctrl.kingpin_curvature, params.follow_point_offset)
+    # the flag is exactly "the steady steer needs more than the 25° lock" (R5 = 25 m: a few degrees; 8 m: past it)
+    assert bool(np.abs(needed).max() > cfg.max_steer) is beyond
+    assert ctrl.beyond_reach is beyond and ctrl.telemetry()["trailer_beyond_reach"] == float(beyond)

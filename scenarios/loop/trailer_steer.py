@@ -133,6 +133,7 @@ class PathFollowingSteer:
                 Column(f"{p}integral", "m²", "∫e ds of the PID", **internal),
                 Column(f"{p}fade", "-", "speed fade of the commands", **internal),
                 Column(f"{p}estimate_used", "m", "the held estimate the PID used (NaN: none)", **internal),
+                Column(f"{p}beyond_reach", "-", "1 when the feed-forward needed an axle past its lock", **internal),
             ]
         for ctrl, _ in self.steered:
             columns += [
