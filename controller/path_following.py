@@ -80,6 +80,20 @@ command is faded in with speed, ``f(u) = clip((u − u0)/(u1 − u0), 0, 1)``, d
 full above 1 m/s (and zero when reversing). The integral is over distance, so it stops by itself at
 standstill. No high-speed fade-out is needed with the schedule.
 
+Speed and objective
+-------------------
+Path following is a low-speed objective: at highway speed the off-tracking of any trailer is small, and what
+matters is how the rear unit amplifies the tractor's lateral acceleration (rearward amplification) and how its sway
+decays (yaw damping). A trailer that tracks the tractor's path through a lane change is asked to move its rear
+sideways as fast as the tractor moves its front, and the feedback adds phase lag to the trailer's yaw mode, so
+path following raises rearward amplification and lowers yaw damping at speed. The literature changes objective
+with speed (Kural et al. 2017 schedule one controller from low-speed path following to high-speed rearward
+amplification; Cheng et al. 2011 and Jujnovich & Cebon 2013 in full were not available here). This controller's
+high-speed mode is the unsteered trailer: between the two speeds of ``high_speed_crossover`` the whole command
+(feed-forward and feedback) fades linearly to zero, and above it the axles stay straight, so at speed the trailer
+is never worse than unsteered; the integrator stops with the fade. The crossover's default and the measurements
+behind it are in docs/controller_design.md (*Speed: the crossover*).
+
 Measurement timing: HOLD
 ------------------------
 The controller runs every control period; an estimate may arrive less often (the camera rate) and late.
@@ -127,7 +141,7 @@ from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
-from .steer_output import OutputStep, TrailerSteerOutput, speed_fade
+from .steer_output import OutputStep, TrailerSteerOutput, high_speed_fade, speed_fade
 
 __all__ = ["TrailerSteeringController", "telemetry_prefix"]
 
@@ -191,7 +205,8 @@ class TrailerSteeringController:
     integral : float
         ``∫e ds`` [m²].
     fade : float
-        Last speed fade factor ``f(u)`` in [0, 1].
+        Last speed fade factor in [0, 1]: ``f(u)`` times the high-speed crossover's share
+        (:func:`~.steer_output.high_speed_fade`).
     estimate : float or None
         The held off-tracking sample in use [m] (``None``: no estimate).
     new_sample : bool
@@ -343,7 +358,7 @@ class TrailerSteeringController:
         tan_kingpin = tan_kingpin_direction(gamma, vx, vy)
         ds = speed * dt if forward else 0.0
         self.distance += ds
-        self.fade = speed_fade(state.u, cfg.fade_speeds)
+        self.fade = speed_fade(state.u, cfg.fade_speeds) * high_speed_fade(state.u, cfg.high_speed_crossover)
 
         # Feed-forward (the steady law in its exact form, or the chord law).
         self._record_path(motion.tow_yaw_rate, vx, vy, dt, forward)

@@ -29,7 +29,7 @@ from vehicle_model.simulator import VehicleState
 from .axle_steer_distribution import AxleSteerDistribution, limit_axle_commands
 from .path_following_config import PathFollowingConfig
 
-__all__ = ["CouplingMotion", "OutputStep", "TrailerSteerOutput", "speed_fade"]
+__all__ = ["CouplingMotion", "OutputStep", "TrailerSteerOutput", "high_speed_fade", "speed_fade"]
 
 
 def speed_fade(speed: float, fade_speeds: tuple[float, float]) -> float:
@@ -38,6 +38,16 @@ def speed_fade(speed: float, fade_speeds: tuple[float, float]) -> float:
         return 0.0
     lo, hi = fade_speeds
     return min(max((speed - lo) / (hi - lo), 0.0), 1.0)
+
+
+def high_speed_fade(speed: float, crossover: tuple[float, float] | None) -> float:
+    """The path-following share of the command at speed: 1 up to ``crossover[0]``, 0 from ``crossover[1]`` [m/s] on,
+    linear in between (``None``: always 1). Above the crossover the trailer runs as unsteered
+    (:mod:`controller.path_following`, *Speed and objective*)."""
+    if crossover is None:
+        return 1.0
+    lo, hi = crossover
+    return min(max((hi - speed) / (hi - lo), 0.0), 1.0)
 
 
 class CouplingMotion(NamedTuple):
