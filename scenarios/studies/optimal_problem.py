@@ -43,7 +43,8 @@ make the optimum unique where the off-tracking does not depend on the steer (a s
 @dataclass(frozen=True)
 class OptimalSteer:
     """The solution: node times [s], steer [rad] ``(nodes, axles)`` of the first towed unit's steerable axles
-    (layout order), the follow point's off-tracking [m] at the nodes, the cost and the solver's status."""
+    (layout order), the follow point's off-tracking [m] at the nodes (NaN before the kingpin has driven one trailer
+    length: not counted), the cost and the solver's status."""
 
     times: np.ndarray
     steer: np.ndarray
@@ -167,9 +168,13 @@ def solve_optimal_steer(
     opti.subject_to(X[:, 0] == x_nodes[0])
     opti.subject_to(D[:, 0] == 0.0)  # straight axles at the start, as every run starts
     weights = (np.arange(m) + 0.5) / m
-    offtracking = []
-    for k in range(n + 1):
-        offtracking.append(ca.dot(normals_p[:, k], follow(X[:, k]) - anchors_p[:, k]))
+    # Counted once the kingpin has driven one trailer length: before that the follow point has no kingpin path.
+    kingpin = np.column_stack([columns["kingpin_x"], columns["kingpin_y"]])
+    driven = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(kingpin, axis=0).T))])
+    counted = np.flatnonzero(np.interp(nodes, time, driven) >= params.follow_point_offset)
+    if counted.size == 0:
+        raise InputError("the run is too short for the optimal reference: its kingpin never drove one trailer length")
+    offtracking = [ca.dot(normals_p[:, k], follow(X[:, k]) - anchors_p[:, k]) for k in counted]
     for k in range(n):
         u_k = ca.MX(ca.DM(fixed[:, k * m : (k + 1) * m]))
         steer = ca.repmat(D[:, k], 1, m) + ca.mtimes(D[:, k + 1] - D[:, k], ca.DM(weights).T)
@@ -190,7 +195,11 @@ def solve_optimal_steer(
     increments = D[:, 1:] - D[:, :-1]
     cost = ca.sumsqr(e) + STEER_SMOOTHING * ca.sumsqr(increments)
     opti.minimize(cost)
-    opti.solver("ipopt", {"print_time": False, "expand": True}, {"max_iter": max_iter, "print_level": 0, "sb": "yes", "tol": 1e-6})
+    opti.solver(
+        "ipopt",
+        {"print_time": False, "expand": True},
+        {"max_iter": max_iter, "print_level": 0, "sb": "yes", "tol": 1e-6},
+    )
 
     path = np.column_stack([columns["kingpin_x"], columns["kingpin_y"]])
     guess_x = x_nodes.copy()
@@ -213,10 +222,12 @@ def solve_optimal_steer(
             status = str(opti.stats().get("return_status", "failed"))
         guess_x, guess_d = np.asarray(sol.value(X)).T, np.atleast_2d(sol.value(D))
         points = np.array([np.asarray(follow(x)).ravel() for x in guess_x])
+    offtracking_nodes = np.full(n + 1, np.nan)
+    offtracking_nodes[counted] = np.asarray(sol.value(e)).ravel()
     return OptimalSteer(
         times=nodes,
         steer=guess_d.T,
-        offtracking=np.asarray(sol.value(e)).ravel(),
+        offtracking=offtracking_nodes,
         cost=float(sol.value(cost)),
         status=status,
         axles=tuple(layout.steerable_axles[i] for i in steered),
