@@ -52,6 +52,8 @@ class OptimalSteer:
     cost: float
     status: str
     axles: tuple[str, ...]
+    slip: np.ndarray | None = None
+    """Slip angle [rad] of the steered axles at the nodes ``(nodes, axles)``, the model's transient slip state."""
 
     def at(self, time: float) -> np.ndarray:
         """The steer [rad] at ``time`` [s], linear between nodes, held beyond them."""
@@ -231,4 +233,5 @@ def solve_optimal_steer(
         cost=float(sol.value(cost)),
         status=status,
         axles=tuple(layout.steerable_axles[i] for i in steered),
+        slip=np.arctan(guess_x[:, [layout.slip_slice.start + i for i in axle_index]]),
     )

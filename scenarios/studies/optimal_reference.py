@@ -124,6 +124,7 @@ def run_optimal_reference(
         "pid_truth_after_warmup": pid_metrics["offtracking"]["truth_after_warmup"],
         "nlp_offtracking_rms": float(np.sqrt(np.nanmean(schedule.offtracking**2))),
         "nlp_offtracking_max_abs": float(np.nanmax(np.abs(schedule.offtracking))),
+        "nlp_max_abs_slip_deg": float(np.degrees(np.max(np.abs(schedule.slip)))) if schedule.slip is not None else None,
         "times": schedule.times.tolist(),
         "steer_deg": {a: np.degrees(schedule.steer[:, i]).tolist() for i, a in enumerate(schedule.axles)},
     }
