@@ -3,6 +3,7 @@ high-speed mode (the trailer runs unsteered above the crossover)."""
 
 from __future__ import annotations
 
+import json
 import math
 import tempfile
 from pathlib import Path
@@ -18,6 +19,11 @@ from scenarios.config import ConfigError, load_scenario
 from scenarios.run.metrics import steering_reach
 from scenarios.run.runner import run_scenario
 from scenarios.setup.build import build_scenario
+from scenarios.studies.controller_limits import (
+    controller_limits_cases,
+    controller_limits_figures,
+    run_controller_limits_case,
+)
 from scenarios.studies.pbs_assessment import MANOEUVRES
 from vehicle_model.offtracking import OfftrackingEstimate
 from vehicle_model.presets import lst_laden
@@ -91,3 +97,35 @@ def test_single_lane_change_at_88_kmh_steered_no_worse_than_unsteered():
     # Above the crossover the axles stay straight: the same run to the solver's repeatability (1e-9).
     assert ra_truth <= ra_none + 1e-9
     assert zeta_truth >= zeta_none - 1e-9
+
+
+def test_controller_limits_cases_and_the_check_of_each_cell(tmp_path: Path):
+    cases = controller_limits_cases()
+    assert [dict(c.labels)["feedback"] for c in cases] == ["none", "truth", "zero_slip"]
+    assert {c.scenario for c in cases} == {"field-figure-eight"}
+    assert len(controller_limits_cases(full=True)) == 3 * 3 * 3
+    cell = {"scenario": "field-figure-eight", "surface": "wet", "vehicle": "lst", "status": "completed"}
+    table = pd.DataFrame(
+        [
+            {**cell, "feedback": "none", "truth_rms_m": 2.4, "truth_max_m": 3.9},
+            {**cell, "feedback": "truth", "truth_rms_m": 0.22, "truth_max_m": 1.1},
+            {**cell, "feedback": "zero_slip", "truth_rms_m": 0.26, "truth_max_m": 0.79},
+        ]
+    )
+    controller_limits_figures(table, tmp_path)
+    assert (tmp_path / "controller_limits.png").stat().st_size > 0
+    (check,) = json.loads((tmp_path / "controller_limits.json").read_text(encoding="utf-8"))
+    assert check["held"] is True and check["cell"] == ["field-figure-eight", "wet", "lst"]
+    table.loc[1, "truth_rms_m"] = 0.3  # worse than the zero-slip-fed loop: not held
+    controller_limits_figures(table, tmp_path)
+    assert json.loads((tmp_path / "controller_limits.json").read_text(encoding="utf-8"))[0]["held"] is False
+
+
+@pytest.mark.slow
+def test_controller_limits_default_subset_truth_fed_no_worse(tmp_path: Path):
+    # The default subset (the wet field figure-of-eight, LST): truth-fed RMS ≤ zero-slip-fed and ≤ unsteered.
+    rows = {dict(c.labels)["feedback"]: run_controller_limits_case(c, tmp_path) for c in controller_limits_cases()}
+    assert rows["truth"]["truth_rms_m"] <= rows["zero_slip"]["truth_rms_m"]
+    assert rows["truth"]["truth_rms_m"] <= rows["none"]["truth_rms_m"]
+    assert rows["truth"]["truth_max_m"] <= rows["none"]["truth_max_m"]
+    assert rows["truth"]["beyond_reach_share"] > 0.0  # the figure-of-eight is beyond the LST's reach in places
