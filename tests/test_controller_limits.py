@@ -105,18 +105,19 @@ def test_controller_limits_cases_and_the_check_of_each_cell(tmp_path: Path):
     assert {c.scenario for c in cases} == {"field-figure-eight"}
     assert len(controller_limits_cases(full=True)) == 3 * 3 * 3
     cell = {"scenario": "field-figure-eight", "surface": "wet", "vehicle": "lst", "status": "completed"}
+    rms, peak = "true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"
     table = pd.DataFrame(
         [
-            {**cell, "feedback": "none", "truth_rms_m": 2.4, "truth_max_m": 3.9},
-            {**cell, "feedback": "truth", "truth_rms_m": 0.22, "truth_max_m": 1.1},
-            {**cell, "feedback": "zero_slip", "truth_rms_m": 0.26, "truth_max_m": 0.79},
+            {**cell, "feedback": "none", rms: 2.4, peak: 3.9},
+            {**cell, "feedback": "truth", rms: 0.22, peak: 1.1},
+            {**cell, "feedback": "zero_slip", rms: 0.26, peak: 0.79},
         ]
     )
     controller_limits_figures(table, tmp_path)
     assert (tmp_path / "controller_limits.png").stat().st_size > 0
     (check,) = json.loads((tmp_path / "controller_limits.json").read_text(encoding="utf-8"))
     assert check["held"] is True and check["cell"] == ["field-figure-eight", "wet", "lst"]
-    table.loc[1, "truth_rms_m"] = 0.3  # worse than the zero-slip-fed loop: not held
+    table.loc[1, rms] = 0.3  # worse than the zero-slip-fed loop: not held
     controller_limits_figures(table, tmp_path)
     assert json.loads((tmp_path / "controller_limits.json").read_text(encoding="utf-8"))[0]["held"] is False
 
@@ -125,7 +126,8 @@ def test_controller_limits_cases_and_the_check_of_each_cell(tmp_path: Path):
 def test_controller_limits_default_subset_truth_fed_no_worse(tmp_path: Path):
     # The default subset (the wet field figure-of-eight, LST): truth-fed RMS ≤ zero-slip-fed and ≤ unsteered.
     rows = {dict(c.labels)["feedback"]: run_controller_limits_case(c, tmp_path) for c in controller_limits_cases()}
-    assert rows["truth"]["truth_rms_m"] <= rows["zero_slip"]["truth_rms_m"]
-    assert rows["truth"]["truth_rms_m"] <= rows["none"]["truth_rms_m"]
-    assert rows["truth"]["truth_max_m"] <= rows["none"]["truth_max_m"]
+    rms, peak = "true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"
+    assert rows["truth"][rms] <= rows["zero_slip"][rms]
+    assert rows["truth"][rms] <= rows["none"][rms]
+    assert rows["truth"][peak] <= rows["none"][peak]
     assert rows["truth"]["beyond_reach_share"] > 0.0  # the figure-of-eight is beyond the LST's reach in places

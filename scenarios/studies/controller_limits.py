@@ -68,8 +68,8 @@ def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     steering = metrics.get("trailer_steering") or {}
     row.update(
         {
-            "truth_rms_m": settled["rms"],
-            "truth_max_m": settled["max_abs"],
+            "true_offtracking_rms_after_warmup_m": settled["rms"],
+            "true_offtracking_max_after_warmup_m": settled["max_abs"],
             "beyond_reach_share": reach.get("share_of_path", 0.0),
             "at_lock_share": max((m.get("saturated_fraction", 0.0) for m in steering.values()), default=0.0),
         }
@@ -96,7 +96,10 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
     cells = list(dict.fromkeys(zip(done["scenario"], done["surface"], done["vehicle"], strict=True)))
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.5 + 0.3 * len(cells)), sharey=True)
     checks = []
-    labels = (("truth_rms_m", "RMS after warm-up"), ("truth_max_m", "max after warm-up"))
+    labels = (
+        ("true_offtracking_rms_after_warmup_m", "RMS after warm-up"),
+        ("true_offtracking_max_after_warmup_m", "max after warm-up"),
+    )
     for ax, (column, title) in zip(axes, labels, strict=True):
         for i, feedback in enumerate(FEEDBACKS):
             values = []
@@ -114,12 +117,12 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
     plt.close(fig)
     for cell in cells:
         rows = _rows(done, cell)
-        rms = {r["feedback"]: r["truth_rms_m"] for _, r in rows.iterrows()}
+        rms = {r["feedback"]: r["true_offtracking_rms_after_warmup_m"] for _, r in rows.iterrows()}
         if {"truth", "zero_slip", "none"} <= rms.keys():
             checks.append(
                 {
                     "cell": list(cell),
-                    "truth_rms_m": rms["truth"],
+                    "true_offtracking_rms_after_warmup_m": rms["truth"],
                     "held": bool(rms["truth"] <= rms["zero_slip"] and rms["truth"] <= rms["none"]),
                 }
             )
