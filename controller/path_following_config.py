@@ -152,10 +152,9 @@ class PathFollowingConfig(Settings):
     high_speed_crossover : tuple of float or None
         ``(u_a, u_b)`` [m/s]: the command is full up to ``u_a`` and fades linearly to zero at ``u_b``, above which
         the trailer runs unsteered (:mod:`controller.path_following`, *Speed and objective*); ``None``: path
-        following at every speed. The default, 35 to 55 km/h, starts above the catalogue's low-speed manoeuvres
-        (their approaches reach about 30 km/h) and ends where path following has raised rearward amplification
-        well above the unsteered trailer's in the single lane change (docs/controller_design.md, *Speed: the
-        crossover*).
+        following at every speed. The default, 35 to 55 km/h, starts above the speeds the catalogue's low-speed
+        manoeuvres reach and ends where path following has raised rearward amplification well above the
+        unsteered trailer's in the single lane change (docs/controller_design.md §3.5, *Speed: the crossover*).
     max_slip_angle : float or None
         Largest slip angle ``|δ_j − β_j|`` [rad] a steerable axle is commanded to, ``β_j`` the direction of its
         velocity from the same kinematics as the feed-forward (:func:`~controller.axle_steer_distribution.
