@@ -226,9 +226,15 @@ def slip_angle_window(
     max_slip: float | None,
     min_speed: float,
 ) -> tuple[np.ndarray, np.ndarray] | None:
-    """Steer bounds ``(β_j − α_max, β_j + α_max)`` [rad] of the slip-angle limit, or ``None`` (no limit).
+    """Steer bounds ``(min(β_j − α_max, 0), max(β_j + α_max, 0))`` [rad] of the slip-angle limit, or ``None``.
 
-    ``None`` when ``max_slip`` is ``None`` or the kingpin's forward speed in the trailer frame is below
+    The window always holds straight ahead. ``β_j`` comes from the kingpin velocity the caller passes, which the
+    tractor's signals give by zero-slip kinematics; when the tractor itself slides (a wet tight turn) that
+    direction is wrong by tens of degrees, and a window wholly on one side of straight ahead would drive every
+    axle to the lock on that side, against the command. Held to straight ahead at worst, an axle slips no more
+    than the unsteered trailer's.
+
+    Returns ``None`` when ``max_slip`` is ``None`` or the kingpin's forward speed in the trailer frame is below
     ``min_speed`` [m/s] (a slip angle is not defined by the kinematics at walking pace). ``vx, vy``: kingpin
     velocity in tractor axes [m/s]; ``gamma``: articulation [rad]; ``yaw_rate``: trailer yaw rate [rad/s].
     """
@@ -237,7 +243,8 @@ def slip_angle_window(
     if max_slip is None or forward_speed < min_speed:
         return None
     beta = axle_velocity_directions(distances, tan_kingpin_direction(gamma, vx, vy), yaw_rate, forward_speed)
-    return beta - max_slip, beta + max_slip
+    # Straight ahead is always inside the window: the limit never steers an axle across it against the command.
+    return np.minimum(beta - max_slip, 0.0), np.maximum(beta + max_slip, 0.0)
 
 
 def limit_axle_commands(

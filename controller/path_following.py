@@ -80,6 +80,20 @@ command is faded in with speed, ``f(u) = clip((u − u0)/(u1 − u0), 0, 1)``, d
 full above 1 m/s (and zero when reversing). The integral is over distance, so it stops by itself at
 standstill. No high-speed fade-out is needed with the schedule.
 
+Speed and objective
+-------------------
+Path following is a low-speed objective: at highway speed the off-tracking of any trailer is small, and what
+matters is how the rear unit amplifies the tractor's lateral acceleration (rearward amplification) and how its sway
+decays (yaw damping). A trailer that tracks the tractor's path through a lane change is asked to move its rear
+sideways as fast as the tractor moves its front, and the feedback adds phase lag to the trailer's yaw mode, so
+path following raises rearward amplification and lowers yaw damping at speed. The literature changes objective
+with speed (Kural et al. 2017 schedule one controller from low-speed path following to high-speed rearward
+amplification; Cheng et al. 2011 and Jujnovich & Cebon 2013 in full were not available here). This controller's
+high-speed mode is the unsteered trailer: between the two speeds of ``high_speed_crossover`` the whole command
+(feed-forward and feedback) fades linearly to zero, and above it the axles stay straight, so at speed the trailer
+is never worse than unsteered; the integrator stops with the fade. The crossover's default and the measurements
+behind it are in docs/controller_design.md (*Speed: the crossover*).
+
 Measurement timing: HOLD
 ------------------------
 The controller runs every control period; an estimate may arrive less often (the camera rate) and late.
@@ -91,6 +105,14 @@ predicted away. A missing estimate (``None``: not yet one trailer length driven,
 feedback to zero and freezes the integrator: the trailer is steered by the feed-forward alone until
 estimates return.
 
+Reach
+-----
+Where the chord law itself needs an axle past its lock, no feedback can hold the follow point on the kingpin's
+path: the trailer cuts in by whatever the lock leaves. The controller flags those ticks, and the ticks after them
+while every axle stays at its lock removing the error they left (``beyond_reach``, recorded as
+``<prefix>beyond_reach``); the run reports their share of the path. Off-tracking there measures the manoeuvre,
+not the controller.
+
 Anti-windup
 -----------
 Conditional integration: the integral is not advanced when that would push the command further into a
@@ -99,7 +121,9 @@ push; the distribution is monotone in ``δ_v``, so one direction serves all axle
 angle is clamped. Without an integrator (``k_i = 0``) nothing winds up; the output leaves saturation as
 soon as the proportional term does, at the rate limit. The slip-angle limit
 (``PathFollowingConfig.max_slip_angle``, 8° by default) clips each axle to ``β_j ± α_max`` about the direction
-of its velocity before the magnitude limit and counts as a limit here.
+of its velocity, widened to hold straight ahead, before the magnitude limit and counts as a limit here. ``β_j``
+comes from zero-slip kinematics of the tractor's signals, wrong when the tractor's own tyres slide; a window that
+excluded straight ahead then drove the axles to the wrong lock (docs/controller_design.md, *At the limits*).
 """
 
 from __future__ import annotations
@@ -117,7 +141,7 @@ from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
-from .steer_output import OutputStep, TrailerSteerOutput, speed_fade
+from .steer_output import OutputStep, TrailerSteerOutput, high_speed_fade, speed_fade
 
 __all__ = ["TrailerSteeringController", "telemetry_prefix"]
 
@@ -181,13 +205,19 @@ class TrailerSteeringController:
     integral : float
         ``∫e ds`` [m²].
     fade : float
-        Last speed fade factor ``f(u)`` in [0, 1].
+        Last speed fade factor in [0, 1]: ``f(u)`` times the high-speed crossover's share
+        (:func:`~.steer_output.high_speed_fade`).
     estimate : float or None
         The held off-tracking sample in use [m] (``None``: no estimate).
     new_sample : bool
         Whether the last tick received a new sample.
     kingpin_curvature : float
         Last ``κ5`` [1/m].
+    beyond_reach : bool
+        On the last tick the path's own steer (the feed-forward, which holds the follow point on the kingpin's
+        path when the tyres do not slip) needed an axle past its lock, or every axle was still at its lock since
+        such a tick: the path there is beyond the steering's reach
+        (:meth:`~.steer_output.TrailerSteerOutput.beyond_reach`).
 
     Examples
     --------
@@ -238,6 +268,7 @@ class TrailerSteeringController:
         self.estimate: float | None = None
         self.new_sample = False
         self.kingpin_curvature = 0.0
+        self.beyond_reach = False
         self.distance = 0.0
         self._derivative = 0.0
         self._last_sample: tuple[float, float] | None = None  # (value, distance) of the previous new sample
@@ -283,6 +314,7 @@ class TrailerSteeringController:
             f"{p}integral": self.integral,
             f"{p}fade": self.fade,
             f"{p}estimate_used": math.nan if self.estimate is None else self.estimate,
+            f"{p}beyond_reach": float(self.beyond_reach),
         }
         for name, sat, rate, slip in zip(
             self.axle_names, self.saturated, self.rate_limited, self.slip_limited, strict=True
@@ -326,7 +358,7 @@ class TrailerSteeringController:
         tan_kingpin = tan_kingpin_direction(gamma, vx, vy)
         ds = speed * dt if forward else 0.0
         self.distance += ds
-        self.fade = speed_fade(state.u, cfg.fade_speeds)
+        self.fade = speed_fade(state.u, cfg.fade_speeds) * high_speed_fade(state.u, cfg.high_speed_crossover)
 
         # Feed-forward (the steady law in its exact form, or the chord law).
         self._record_path(motion.tow_yaw_rate, vx, vy, dt, forward)
@@ -339,6 +371,7 @@ class TrailerSteeringController:
             self.feedforward_steer = math.atan(self._chord_feedforward()) if self._path else 0.0
         else:
             self.feedforward_steer = 0.0
+        path_beyond_reach = self.fade > 0 and self.output.beyond_reach(self.feedforward_steer, tan_kingpin)
 
         # Feedback on the held sample.
         error = self._sample(estimate)
@@ -355,7 +388,10 @@ class TrailerSteeringController:
             feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         self.integral = integral_new
         self.feedback_steer = feedback
-        return self.output.commit(step)
+        commands = self.output.commit(step)
+        # Beyond reach: the path needs more than the lock, or the axles are still at their lock recovering from it.
+        self.beyond_reach = path_beyond_reach or (self.beyond_reach and bool(np.all(self.output.saturated)))
+        return commands
 
     def _command(
         self,

@@ -149,10 +149,18 @@ class PathFollowingConfig(Settings):
         fused VISO-OT) at which it is used; above it the controller steers by feed-forward only, integrator
         frozen. At 0.075 m an estimate's 2σ reaches the 0.15 m largest off-tracking of the target (docs/design.md
         §11): less certain than that, it would steer the trailer by as much error as it removes.
+    high_speed_crossover : tuple of float or None
+        ``(u_a, u_b)`` [m/s]: the command is full up to ``u_a`` and fades linearly to zero at ``u_b``, above which
+        the trailer runs unsteered (:mod:`controller.path_following`, *Speed and objective*); ``None``: path
+        following at every speed. The default, 35 to 55 km/h, starts above the speeds the catalogue's low-speed
+        manoeuvres reach and ends where path following has raised rearward amplification well above the
+        unsteered trailer's in the single lane change (docs/controller_design.md §3.5, *Speed: the crossover*).
     max_slip_angle : float or None
         Largest slip angle ``|δ_j − β_j|`` [rad] a steerable axle is commanded to, ``β_j`` the direction of its
         velocity from the same kinematics as the feed-forward (:func:`~controller.axle_steer_distribution.
-        axle_velocity_directions`); the integrator freezes while every axle is held by it. ``None``: no limit.
+        axle_velocity_directions`), except that straight ahead is always allowed (the limit never steers an axle
+        across it against the command; :func:`~controller.axle_steer_distribution.slip_angle_window`); the
+        integrator freezes while every axle is held by it. ``None``: no limit.
         Beyond the Magic Formula's peak more steer gives *less* lateral force (on ice, μ = 0.1, the peak is at
         2.9° of slip; 16 % less force at 10°, 30 % less at 30°), so feedback that keeps pushing reverses its own
         sign and winds the axles to lock. The default, 8°, is a safeguard that does not need μ: on ice it stops
@@ -180,10 +188,17 @@ class PathFollowingConfig(Settings):
     control_period: float = Field(0.02, gt=0.0, le=1.0)
     feedback_max_std: float = Field(0.075, gt=0.0)
     max_slip_angle: float | None = Field(math.radians(8.0), gt=0.0, le=math.radians(45.0))
+    high_speed_crossover: tuple[float, float] | None = (35.0 / 3.6, 55.0 / 3.6)
 
     @model_validator(mode="after")
     def _ordered_fade_speeds(self) -> PathFollowingConfig:
         lo, hi = self.fade_speeds
         if not 0 <= lo < hi:
             raise ValueError(f"fade_speeds = {self.fade_speeds!r} must satisfy 0 ≤ u0 < u1")
+        if self.high_speed_crossover is not None:
+            ua, ub = self.high_speed_crossover
+            if not hi <= ua < ub:
+                raise ValueError(
+                    f"high_speed_crossover = {self.high_speed_crossover!r} must satisfy fade_speeds[1] ≤ u_a < u_b"
+                )
         return self

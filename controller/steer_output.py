@@ -5,7 +5,7 @@ agent of the steering environment — the commands are made the same way, here::
 
     δ_v ← clip(δ_v, ±δ_v,max)                                   (keeps tan δ_v finite)
     δ_j = f(u) · distribution(tan δ_v, tan β_k)                 (:mod:`controller.axle_steer_distribution`)
-    δ_j ← clip(δ_j, β_j ± α_max)                                (optional slip-angle limit)
+    δ_j ← clip(δ_j, [min(β_j − α_max, 0), max(β_j + α_max, 0)])  (optional slip-angle limit)
     δ_j ← clip(δ_j, ±δ_max), then within ±δ̇_max·Δt of the last command
 
 with the speed fade ``f(u) = clip((u − u0)/(u1 − u0), 0, 1)`` (zero when reversing) and ``tan β_k`` the direction
@@ -29,7 +29,7 @@ from vehicle_model.simulator import VehicleState
 from .axle_steer_distribution import AxleSteerDistribution, limit_axle_commands
 from .path_following_config import PathFollowingConfig
 
-__all__ = ["CouplingMotion", "OutputStep", "TrailerSteerOutput", "speed_fade"]
+__all__ = ["CouplingMotion", "OutputStep", "TrailerSteerOutput", "high_speed_fade", "speed_fade"]
 
 
 def speed_fade(speed: float, fade_speeds: tuple[float, float]) -> float:
@@ -38,6 +38,16 @@ def speed_fade(speed: float, fade_speeds: tuple[float, float]) -> float:
         return 0.0
     lo, hi = fade_speeds
     return min(max((speed - lo) / (hi - lo), 0.0), 1.0)
+
+
+def high_speed_fade(speed: float, crossover: tuple[float, float] | None) -> float:
+    """The path-following share of the command at speed: 1 up to ``crossover[0]``, 0 from ``crossover[1]`` [m/s] on,
+    linear in between (``None``: always 1). Above the crossover the trailer runs as unsteered
+    (:mod:`controller.path_following`, *Speed and objective*)."""
+    if crossover is None:
+        return 1.0
+    lo, hi = crossover
+    return min(max((hi - speed) / (hi - lo), 0.0), 1.0)
 
 
 class CouplingMotion(NamedTuple):
@@ -147,6 +157,23 @@ class TrailerSteerOutput:
         articulations, rates = state.articulations, state.towed_yaw_rates
         vx, vy = coupling_velocity(self.params, unit, (vx, vy), articulations, rates)
         return CouplingMotion(rates[unit - 2], vx, vy, articulations[unit - 1], rates[unit - 1])
+
+    def beyond_reach(self, virtual: float, tan_kingpin: float) -> bool:
+        """Whether the virtual-axle angle ``virtual`` [rad] needs a steerable axle past its lock (or the virtual angle
+        past its clamp), unfaded and before any other limit: the steer that angle asks for is out of the axles'
+        range.
+
+        Parameters
+        ----------
+        virtual
+            ``δ_v`` [rad].
+        tan_kingpin
+            ``tan β_k``, the direction of the kingpin velocity in the trailer frame.
+        """
+        cfg = self.config
+        if abs(virtual) > cfg.max_virtual_steer:
+            return True
+        return bool(np.any(np.abs(self.distribution(math.tan(virtual), tan_kingpin)) > cfg.max_steer))
 
     def propose(
         self,

@@ -24,6 +24,7 @@ import typer
 from scenarios.bench.cli import bench_app
 from scenarios.cli_format import OfftrackCommand, OfftrackGroup, offtrack_version
 from scenarios.commands.camera_commands import animate, calibrate, estimate, render, vo_eval
+from scenarios.commands.optimal_command import optimal
 from scenarios.commands.run_commands import config_command, export, list_presets, report, run
 from scenarios.commands.study_commands import assess, compare, study, tune
 from scenarios.commands.terminal import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_MISSED
@@ -56,6 +57,7 @@ COMMANDS = (
     ("calibrate", calibrate),
     ("animate", animate),
     ("tune", tune),
+    ("optimal", optimal),
 )
 """Every command's name and body, in the order ``offtrack --help`` lists them."""
 for _name, _body in COMMANDS:

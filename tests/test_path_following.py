@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from controller.axle_steer_distribution import AxleSteerDistribution, path_following_steer
+from controller.axle_steer_distribution import AxleSteerDistribution, path_following_steer, slip_angle_window
 from controller.path_following import TrailerSteeringController
 from controller.path_following_config import PathFollowingConfig, PathFollowingGains
 from scenarios.config import ConfigError, load_scenario
@@ -304,9 +304,12 @@ def test_slip_limit_holds_each_axle_within_its_velocity_direction_and_freezes_th
     assert ctrl.slip_limited.all() and not ctrl.saturated.any()
     assert ctrl.integral == 0.0  # every axle held: conditional integration does not wind up
     assert ctrl.telemetry()["slip_limited_trailer3"] == 1.0
-    # The reversed error leaves the limit on the first tick (nothing wound up) and mirrors about β_j.
+    # The reversed error leaves the limit on the first tick (nothing wound up). β_j + α_max is right of straight
+    # ahead here, and the window always holds straight ahead: the axles stop there, not at β_j + α_max (the limit
+    # never steers an axle across straight ahead against the command; it would be 3° right while the PID asks left).
     back = ctrl(dataclasses.replace(st, time=1.0), OfftrackingEstimate.of(+5.0))
-    assert back == pytest.approx(beta + limit, abs=1e-12)
+    assert np.all(beta + limit < 0.0)
+    assert back == pytest.approx(np.zeros(2), abs=1e-12)
     # Without the limit the same error drives the axles to the 25° lock.
     unlimited = PathFollowingConfig(max_steer_rate=FAST, feedforward="none", max_slip_angle=None)
     free_ctrl = TrailerSteeringController(params, unlimited)
@@ -399,3 +402,29 @@ def test_unsteered_trailer_offtracks_by_metres_on_the_roundabout_test_and_the_co
     # The rear axle works near −20° (docs/vehicle_dynamics.md §5.3) without reaching the ±25° limit.
     assert np.nanmin(cols["steer_trailer3"]) == pytest.approx(math.radians(-20.2), abs=math.radians(1.5))
     assert not ctrl.saturated.any()
+
+
+def test_slip_window_always_holds_straight_ahead():
+    # A kingpin moving 45° left of the trailer's axis: every axle's velocity points far left, so β_j − 8° > 0 and a
+    # window β_j ± 8° alone would force each axle left whatever the command; the window keeps straight ahead in.
+    distances = np.array([9.3, 10.6])
+    lo, hi = slip_angle_window(distances, 0.0, 4.0, 4.0, 0.0, math.radians(8.0), 1.0)
+    beta = np.arctan(np.ones(2))
+    assert np.all(beta - math.radians(8.0) > 0.0)
+    assert lo == pytest.approx(np.zeros(2), abs=0.0) and hi == pytest.approx(beta + math.radians(8.0), abs=1e-12)
+    lo, hi = slip_angle_window(distances, 0.0, 4.0, -4.0, 0.0, math.radians(8.0), 1.0)  # mirrored
+    assert hi == pytest.approx(np.zeros(2), abs=0.0) and lo == pytest.approx(-beta - math.radians(8.0), abs=1e-12)
+
+
+@pytest.mark.parametrize(("kingpin_radius", "beyond"), [(25.0, False), (8.0, True)])
+def test_beyond_reach_flags_a_turn_whose_steady_steer_needs_an_axle_past_its_lock(kingpin_radius, beyond):
+    params = lst_laden()
+    cfg = PathFollowingConfig(max_steer_rate=FAST, feedforward="steady", max_slip_angle=None)
+    ctrl = TrailerSteeringController(params, cfg)
+    st = steady_turn(params, kingpin_radius, speed=2.0)
+    ctrl(st, OfftrackingEstimate.of(0.0))
+    dist = AxleSteerDistribution.for_vehicle(params)
+    _, needed = path_following_steer(dist, ctrl.kingpin_curvature, params.follow_point_offset)
+    # the flag is exactly "the steady steer needs more than the 25° lock" (R5 = 25 m: a few degrees; 8 m: past it)
+    assert bool(np.abs(needed).max() > cfg.max_steer) is beyond
+    assert ctrl.beyond_reach is beyond and ctrl.telemetry()["trailer_beyond_reach"] == float(beyond)

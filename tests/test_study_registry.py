@@ -17,6 +17,7 @@ def test_every_study_is_one_record_named_by_its_key() -> None:
         "field-loop",
         "field-bias",
         "unit-steering",
+        "controller-limits",
     ]
     for name, study in STUDIES.items():
         assert isinstance(study, Study) and study.name == name and study.summary

@@ -368,6 +368,22 @@ class ControllerConfig(Settings):
         description="[°] largest slip angle a steered axle is commanded to, null for none (why 8°: "
         "controller.path_following_config); beyond 45° no tyre gives force that grows with slip",
     )
+    high_speed_crossover_kmh: tuple[float, float] | None = Field(
+        (35.0, 55.0),
+        description="[km/h] (start, end) of the fade from path following to the unsteered trailer at speed, null "
+        "for path following at every speed (why: controller.path_following_config)",
+    )
+
+    @field_validator("high_speed_crossover_kmh")
+    @classmethod
+    def _ordered_crossover(cls, crossover: tuple[float, float] | None) -> tuple[float, float] | None:
+        if crossover is not None and not 3.6 <= crossover[0] < crossover[1] <= 150.0:
+            raise PydanticCustomError(
+                "crossover",
+                "must be (start, end) with 3.6 ≤ start < end ≤ 150 km/h (path following is full up to the "
+                "low-speed fade's 3.6 km/h at least)",
+            )
+        return crossover
 
     def path_following(self, control_hz: float) -> PathFollowingConfig:
         """The controller's own settings (SI units) from this section (degrees and km/h) and the control rate."""
@@ -385,4 +401,7 @@ class ControllerConfig(Settings):
             control_period=1.0 / control_hz,
             feedback_max_std=self.feedback_max_std_m,
             max_slip_angle=None if self.max_slip_angle_deg is None else math.radians(self.max_slip_angle_deg),
+            high_speed_crossover=None
+            if self.high_speed_crossover_kmh is None
+            else (self.high_speed_crossover_kmh[0] / 3.6, self.high_speed_crossover_kmh[1] / 3.6),
         )

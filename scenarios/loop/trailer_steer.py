@@ -21,7 +21,7 @@ import numpy as np
 from controller.axle_steer_distribution import tan_kingpin_direction
 from controller.path_following import TrailerSteeringController, telemetry_prefix
 from controller.path_following_config import PathFollowingConfig
-from controller.steer_output import TrailerSteerOutput, speed_fade
+from controller.steer_output import TrailerSteerOutput, high_speed_fade, speed_fade
 from vehicle_model.errors import InputError
 from vehicle_model.layout import Layout
 from vehicle_model.offtracking import OfftrackingEstimate
@@ -133,6 +133,7 @@ class PathFollowingSteer:
                 Column(f"{p}integral", "m²", "∫e ds of the PID", **internal),
                 Column(f"{p}fade", "-", "speed fade of the commands", **internal),
                 Column(f"{p}estimate_used", "m", "the held estimate the PID used (NaN: none)", **internal),
+                Column(f"{p}beyond_reach", "-", "1 when the feed-forward needed an axle past its lock", **internal),
             ]
         for ctrl, _ in self.steered:
             columns += [
@@ -290,7 +291,7 @@ class AgentSteer:
             return self.commands.copy()
         virtual, self._pending = self._pending, None
         state = tick.state
-        fade = speed_fade(state.u, self.config.fade_speeds)
+        fade = speed_fade(state.u, self.config.fade_speeds) * high_speed_fade(state.u, self.config.high_speed_crossover)
         commands = np.zeros(len(self.axles))
         for out, slots, angle in zip(self.outputs, self._slots, virtual, strict=True):
             dt = out.period(state.time)

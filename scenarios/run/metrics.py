@@ -168,6 +168,23 @@ def trailer_steering_metrics(columns: dict[str, np.ndarray], steerable_trailer_a
     return out
 
 
+def steering_reach(columns: dict[str, np.ndarray], settled: np.ndarray) -> dict[str, float] | None:
+    """Where the path was beyond the trailer steering's reach, after warm-up: ``share_of_path`` (of the distance
+    the kingpin drove) and ``distance_m`` on which the controller's feed-forward needed an axle past its lock
+    (``trailer_beyond_reach``, :attr:`controller.path_following.TrailerSteeringController.beyond_reach`); ``None``
+    for a run without the column (unsteered)."""
+    flag = columns.get("trailer_beyond_reach")
+    if flag is None or not settled.any():
+        return None
+    step = np.hypot(
+        np.diff(columns["kingpin_x"], prepend=columns["kingpin_x"][:1]),
+        np.diff(columns["kingpin_y"], prepend=columns["kingpin_y"][:1]),
+    )
+    driven = float(np.sum(step[settled]))
+    beyond = float(np.sum(step[settled & (flag > 0.5)]))
+    return {"share_of_path": beyond / driven if driven > 0 else 0.0, "distance_m": beyond}
+
+
 def compute_metrics(
     scenario: str,
     feedback: str,
@@ -224,6 +241,9 @@ def compute_metrics(
         "roundabout_test": None,
         "trailer_steering": trailer_steering_metrics(columns, steerable),
     }
+    reach = steering_reach(columns, settled)
+    if reach is not None:
+        metrics["steering_reach"] = reach
     units = further_unit_offtracking(params, columns, settled)
     if units:
         metrics["offtracking"]["units"] = units

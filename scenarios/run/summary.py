@@ -123,6 +123,12 @@ def run_summary(metrics: dict[str, Any], run_dir: Path) -> list[Any]:
                 for axle, m in steering.items()
             )
         )
+    reach = metrics.get("steering_reach")
+    if reach and reach.get("share_of_path", 0.0) > 0.0:
+        out.append(
+            f"beyond the steering's reach on {number(reach.get('share_of_path'), '.0%')} of the path after warm-up "
+            f"({number(reach.get('distance_m'), '.1f')} m): holding the follow point there needs an axle past its lock"
+        )
     test = metrics.get("roundabout_test")
     if test:
         verdict = "[green]PASS[/]" if test.get("pass") else "[red]FAIL[/]"

@@ -15,6 +15,7 @@ from pathlib import Path
 import pandas as pd
 
 from .cases import run_case
+from .controller_limits import controller_limits_cases, controller_limits_figures, run_controller_limits_case
 from .estimators_under_slip import estimators_under_slip_cases, run_estimators_under_slip_case
 from .field_bias import field_bias_cases, run_field_bias_case
 from .field_loop import FIELD_LOOP_COLUMNS, field_loop_cases, field_loop_terminal_rows, run_field_loop_case
@@ -155,6 +156,14 @@ STUDIES: dict[str, Study] = _studies(
         unit_steering_figures,
         run_unit_steering_case,
         takes_vehicle=True,
+    ),
+    Study(
+        "controller-limits",
+        "the path-following controller where its axles run out of reach: unsteered, truth-fed and zero-slip-fed, "
+        "with the share of the path beyond the steering's reach",
+        controller_limits_cases,
+        controller_limits_figures,
+        run_controller_limits_case,
     ),
 )
 """Every study by name, in the order they are listed."""

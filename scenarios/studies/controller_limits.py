@@ -1,0 +1,129 @@
+"""The study ``controller-limits``: the path-following controller where its axles run out of reach.
+
+Each cell is a manoeuvre × surface × vehicle; each runs unsteered and with the controller fed by the true
+off-tracking and by the zero-slip estimate. A row holds the true off-tracking after warm-up (RMS, max), the share
+of the path beyond the steering's reach (:func:`scenarios.run.metrics.steering_reach`) and the axles' time at lock.
+The check of the study (docs/controller_design.md §3.5): on every cell the truth-fed loop's RMS is no more than the
+zero-slip-fed loop's and the unsteered loop's.
+
+The default subset is the paper's 11.5 m field figure-of-eight, wet, the LST; ``full`` adds the field roundabout
+and the UK roundabout test on dry, wet and ice. The optimal reference (``offtrack optimal``) and the fused camera
+feedback are not cells of this study.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from ..config import load_scenario
+from ..loop.ends import RunStatus
+from ..run.runner import run_scenario
+from .records import CaseSpec
+from .workers import worker_models
+
+__all__ = ["FEEDBACKS", "controller_limits_cases", "controller_limits_figures", "run_controller_limits_case"]
+
+STUDY = "controller-limits"
+FEEDBACKS = ("none", "truth", "zero_slip")
+"""The steering of each cell: unsteered, fed by the true off-tracking, fed by the zero-slip estimate."""
+SUBSET = (("field-figure-eight", "wet", "lst"),)
+"""The default subset's cells: (scenario, surface, vehicle)."""
+FULL_SCENARIOS = ("field-figure-eight", "field-roundabout-left", "roundabout-test")
+FULL_SURFACES = ("dry", "wet", "ice")
+
+
+def controller_limits_cases(full: bool = False) -> list[CaseSpec]:
+    """The cases: every cell × :data:`FEEDBACKS` (feedback fastest); the default subset unless ``full``."""
+    cells = [(s, surface, "lst") for s in FULL_SCENARIOS for surface in FULL_SURFACES] if full else list(SUBSET)
+    cases = []
+    for scenario, surface, vehicle in cells:
+        for feedback in FEEDBACKS:
+            overrides: tuple[tuple[str, Any], ...] = (
+                ("vehicle", vehicle),
+                ("surface.preset", surface),
+                ("feedback", feedback),
+                ("estimators.zero_slip", True),
+            )
+            labels = (("scenario", scenario), ("surface", surface), ("vehicle", vehicle), ("feedback", feedback))
+            cases.append(CaseSpec(STUDY, scenario, overrides, labels))
+    return cases
+
+
+def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
+    """Run one case into ``out_dir/<case name>/`` and return its row (labels, status and the figures above)."""
+    config = load_scenario(spec.scenario, dict(spec.overrides))
+    run_dir = out_dir / spec.name
+    run_dir.mkdir(parents=True, exist_ok=True)
+    metrics = run_scenario(config, run_dir, plots=False, model=worker_models().model(config.vehicle_params()))
+    row: dict[str, Any] = {**dict(spec.labels), "status": metrics["status"]}
+    if metrics["status"] in (RunStatus.INTERRUPTED, RunStatus.FAILED):
+        row.update({k: metrics.get(k) for k in ("stop_signal", "message", "stop_time")})
+        return row
+    settled = metrics["offtracking"]["truth_after_warmup"]
+    reach = metrics.get("steering_reach") or {}
+    steering = metrics.get("trailer_steering") or {}
+    row.update(
+        {
+            "true_offtracking_rms_after_warmup_m": settled["rms"],
+            "true_offtracking_max_after_warmup_m": settled["max_abs"],
+            "beyond_reach_share": reach.get("share_of_path", 0.0),
+            "at_lock_share": max((m.get("saturated_fraction", 0.0) for m in steering.values()), default=0.0),
+        }
+    )
+    return row
+
+
+def _rows(table: pd.DataFrame, cell: tuple[str, str, str]) -> pd.DataFrame:
+    """The rows of one cell (scenario, surface, vehicle)."""
+    return table[(table["scenario"] == cell[0]) & (table["surface"] == cell[1]) & (table["vehicle"] == cell[2])]
+
+
+def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
+    """``controller_limits.png``: the true off-tracking after warm-up (RMS and max) of each cell by steering, and
+    ``controller_limits.json``: each cell's check (truth-fed RMS ≤ zero-slip-fed and ≤ unsteered)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    done = table[table["status"] == RunStatus.COMPLETED] if "status" in table else table
+    if done.empty:
+        return
+    cells = list(dict.fromkeys(zip(done["scenario"], done["surface"], done["vehicle"], strict=True)))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.5 + 0.3 * len(cells)), sharey=True)
+    checks = []
+    labels = (
+        ("true_offtracking_rms_after_warmup_m", "RMS after warm-up"),
+        ("true_offtracking_max_after_warmup_m", "max after warm-up"),
+    )
+    for ax, (column, title) in zip(axes, labels, strict=True):
+        for i, feedback in enumerate(FEEDBACKS):
+            values = []
+            for cell in cells:
+                match = _rows(done, cell)
+                match = match[match["feedback"] == feedback][column]
+                values.append(float(match.iloc[0]) if len(match) else float("nan"))
+            ax.barh([k + 0.27 * (i - 1) for k in range(len(cells))], values, height=0.25, label=feedback)
+        ax.set_xscale("log")
+        ax.set_xlabel(f"true off-tracking, {title} [m]")
+    axes[0].set_yticks(range(len(cells)), [f"{s}, {surface}, {v}" for s, surface, v in cells])
+    axes[1].legend(title="steering", loc="lower right")
+    fig.tight_layout()
+    fig.savefig(out_dir / "controller_limits.png", dpi=120)
+    plt.close(fig)
+    for cell in cells:
+        rows = _rows(done, cell)
+        rms = {r["feedback"]: r["true_offtracking_rms_after_warmup_m"] for _, r in rows.iterrows()}
+        if {"truth", "zero_slip", "none"} <= rms.keys():
+            checks.append(
+                {
+                    "cell": list(cell),
+                    "true_offtracking_rms_after_warmup_m": rms["truth"],
+                    "held": bool(rms["truth"] <= rms["zero_slip"] and rms["truth"] <= rms["none"]),
+                }
+            )
+    (out_dir / "controller_limits.json").write_text(json.dumps(checks, indent=1), encoding="utf-8")

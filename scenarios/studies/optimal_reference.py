@@ -1,0 +1,133 @@
+"""``offtrack optimal``: the optimal trailer steer of a manoeuvre, written as a run like any run.
+
+Three steps, each in the output directory:
+
+1. ``pid/`` — the scenario run as configured (the path-following PID on its feedback): the tractor as driven, and
+   the PID's result to compare with;
+2. the NLP (:func:`scenarios.studies.optimal_problem.solve_optimal_steer`) over that run: the steer of the
+   semi-trailer's steerable axles minimising the follow point's off-tracking, within the controller's lock, rate
+   and slip-angle limit;
+3. the run directory itself — the same scenario with that steer schedule replayed through the normal
+   co-simulation (:class:`ScheduledSteer`), the tractor's driver steering as in every run; ``optimal.json`` beside
+   ``metrics.json`` holds the schedule, the NLP's status and cost, and the PID's cost on the same nodes.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from vehicle_model.offtracking import OfftrackingEstimate
+from vehicle_model.simulator import Simulator
+
+from ..config import ScenarioConfig
+from ..loop.participant import Column, TickInput
+from ..run.results import TIMESERIES_FILE
+from ..run.runner import run_scenario
+from ..setup.build import build_scenario
+from .optimal_problem import STEER_SMOOTHING, OptimalSteer, path_reference, solve_optimal_steer
+
+__all__ = ["OPTIMAL_FILE", "ScheduledSteer", "run_optimal_reference"]
+
+OPTIMAL_FILE = "optimal.json"
+"""The optimal reference's own record in its run directory."""
+
+
+class ScheduledSteer:
+    """A trailer-steer source replaying a steer schedule: the optimum's steer at each tick's time, linear between
+    its nodes; a steerable towed axle the schedule does not name is held straight."""
+
+    name = "trailer_steer"
+    feedback: str | None = None
+
+    def __init__(self, schedule: OptimalSteer, axles: tuple[str, ...]) -> None:
+        self.schedule = schedule
+        self.axles = axles
+        self.columns: tuple[Column, ...] = tuple(
+            Column(f"steer_{name}", "rad", "steer command of a trailer axle", role="command") for name in axles
+        )
+        self._slots = [axles.index(name) for name in schedule.axles]
+        self._row: dict[str, float] = {}
+
+    def reset(self) -> None:
+        """Nothing to forget: the schedule is a function of time."""
+        self._row = {}
+
+    def command(self, tick: TickInput, estimates: Mapping[str, OfftrackingEstimate]) -> np.ndarray:
+        """The schedule's steer at the tick's time."""
+        out = np.zeros(len(self.axles))
+        out[self._slots] = self.schedule.at(tick.time)
+        self._row = {f"steer_{name}": float(v) for name, v in zip(self.axles, out, strict=True)}
+        return out
+
+    def record(self) -> Mapping[str, float]:
+        """The tick's commands."""
+        return self._row
+
+
+def _columns(run_dir: Path) -> dict[str, np.ndarray]:
+    frame = pd.read_parquet(run_dir / TIMESERIES_FILE)
+    return {name: frame[name].to_numpy() for name in frame.columns}
+
+
+def pid_cost(schedule: OptimalSteer, columns: dict[str, np.ndarray]) -> float:
+    """The NLP's cost of the recorded run ``columns`` on the schedule's nodes: its follow point's distance from the
+    kingpin's path, squared and summed, plus the same steer-increment term."""
+    time = columns["time"]
+    points = np.column_stack(
+        [np.interp(schedule.times, time, columns["follow_x"]), np.interp(schedule.times, time, columns["follow_y"])]
+    )
+    path = np.column_stack([columns["kingpin_x"], columns["kingpin_y"]])
+    anchors, normals = path_reference(path, points)
+    offtracking = np.sum(normals * (points - anchors), axis=1)
+    steer = np.column_stack([np.interp(schedule.times, time, columns[f"steer_{a}"]) for a in schedule.axles])
+    return float(np.sum(offtracking**2) + STEER_SMOOTHING * np.sum(np.diff(steer, axis=0) ** 2))
+
+
+def run_optimal_reference(
+    config: ScenarioConfig, run_dir: Path, interval: float = 0.2, plots: bool = False
+) -> dict[str, Any]:
+    """The three steps of the module docstring into ``run_dir`` (created by the caller); returns ``metrics.json``'s
+    content of the optimal run with an ``optimal_reference`` block (also in ``optimal.json``).
+
+    Raises
+    ------
+    vehicle_model.errors.InputError
+        A combination the NLP does not handle (more than one towed unit, no steerable semi-trailer axle).
+    """
+    pid_dir = run_dir / "pid"
+    pid_dir.mkdir(parents=True, exist_ok=True)
+    setup = build_scenario(config)
+    pid_metrics = run_scenario(config, pid_dir, plots=False, model=setup.model)
+    recorded = _columns(pid_dir)
+    rates = config.rates
+    simulator = Simulator(setup.params, setup.surface, dt=rates.dynamics_step_s, model=setup.model)
+    limits = config.controller.path_following(rates.control_hz)
+    schedule = solve_optimal_steer(setup.params, recorded, simulator, limits, interval=interval)
+    axles = tuple(
+        n for n in setup.model.layout.steerable_axles if n not in {a.name for a in setup.params.tractor.axles}
+    )
+    metrics = run_scenario(
+        config, run_dir, trailer_steer_source=ScheduledSteer(schedule, axles), plots=plots, model=setup.model
+    )
+    record = {
+        "status": schedule.status,
+        "interval_s": interval,
+        "cost": schedule.cost,
+        "pid_cost": pid_cost(schedule, recorded),
+        "pid_feedback": config.feedback,
+        "pid_truth_after_warmup": pid_metrics["offtracking"]["truth_after_warmup"],
+        "nlp_offtracking_rms": float(np.sqrt(np.nanmean(schedule.offtracking**2))),
+        "nlp_offtracking_max_abs": float(np.nanmax(np.abs(schedule.offtracking))),
+        "nlp_max_abs_slip_deg": float(np.degrees(np.max(np.abs(schedule.slip)))) if schedule.slip is not None else None,
+        "times": schedule.times.tolist(),
+        "steer_deg": {a: np.degrees(schedule.steer[:, i]).tolist() for i, a in enumerate(schedule.axles)},
+    }
+    (run_dir / OPTIMAL_FILE).write_text(json.dumps(record, indent=1), encoding="utf-8")
+    metrics["optimal_reference"] = {k: v for k, v in record.items() if k not in ("times", "steer_deg")}
+    return metrics
