@@ -49,10 +49,12 @@ def test_a_b_double_is_tuned_with_a_gain_set_per_steered_unit(b_double_tuned: Tu
     assert result.designed == designed  # exactly what a run without gains uses, unit by unit
     assert designed[0] != designed[1]  # each unit's own geometry: a shared set would not be the design
     first = result.trial_rows[0]
-    assert (first["kd"], first["unit3_kd"]) == (0.0, 0.0) == (designed[0].kd, designed[1].kd)
-    assert (first["kp"], first["unit3_kp"]) == (designed[0].kp, designed[1].kp)
+    assert (first["unit2_kd"], first["unit3_kd"]) == (0.0, 0.0) == (designed[0].kd, designed[1].kd)
+    assert (first["unit2_kp"], first["unit3_kp"]) == (designed[0].kp, designed[1].kp)
     assert result.train_cost_tuned <= result.train_cost_designed  # trial 0 is the designed gains
-    assert set(result.verdicts()) == {"snow"}
+    assert set(result.verdicts()) == {"snow"} and result.further_units() == [3]
+    rear = result.held_out[0]["designed"]["unit3_rms_offtracking"]
+    assert 0.0 < rear < 0.1  # the rear trailer's own RMS off-tracking [m] is reported, within the road's scale
 
 
 def test_the_b_double_tuned_gains_file_runs_each_unit_on_its_own_set(

@@ -35,6 +35,7 @@ __all__ = [
     "TuningResult",
     "TuningStopped",
     "held_out_conditions",
+    "parameter_names",
     "training_randomisation",
     "training_vehicles",
     "tune_gains",
@@ -155,12 +156,13 @@ class TuningResult:
         Mean training cost of each.
     held_out : list of dict
         One row per held-out condition: ``condition``, and for ``designed`` and ``tuned`` the cost, RMS and
-        largest true off-tracking of the first towed unit after warm-up [m], saturated fraction and status.
+        largest true off-tracking of the first towed unit after warm-up [m] (of each unit ``k`` behind it as
+        ``unit<k>_rms_offtracking``, …), saturated fraction and status.
     trials : int
         Trials run (trial 0 is the designed gains).
     trial_rows : list of dict
-        One row per trial: ``trial`` (0 is the designed gains), each steered unit's ``kp`` [rad/m], ``ki``
-        [rad/m²], ``kd`` [rad] (the first steered unit's unprefixed, a further unit ``k``'s as ``unit<k>_kp``, …),
+        One row per trial: ``trial`` (0 is the designed gains), the gains ``kp`` [rad/m], ``ki`` [rad/m²], ``kd``
+        [rad] (of more than one steered unit, each unit ``k``'s as ``unit<k>_kp``, …; :func:`parameter_names`),
         ``train_cost`` (mean over the draws; missing for a trial that did not finish) and ``state``.
     evaluations : int
         Scenario runs in all.
@@ -205,18 +207,33 @@ class TuningResult:
             f"training cost (mean of the draws): designed {self.train_cost_designed:.5f}, "
             f"tuned {self.train_cost_tuned:.5f}",
             "",
-            "| held-out condition | gains | RMS e_tr [mm] | max e_tr [mm] | saturated | cost | status |",
-            "|---|---|---:|---:|---:|---:|---|",
+            "| held-out condition | gains | RMS e_tr [mm] | max e_tr [mm] | "
+            + "".join(f"RMS e unit {k} [mm] | " for k in self.further_units())
+            + "saturated | cost | status |",
+            "|---|---|---:|---:|" + "---:|" * len(self.further_units()) + "---:|---:|---|",
         ]
         for row in self.held_out:
             for which in ("designed", "tuned"):
                 r = row[which]
+                further = "".join(f"{_milli(r.get(f'unit{k}_rms_offtracking'))} | " for k in self.further_units())
                 lines.append(
                     f"| {row['condition']} | {which} | {_milli(r['rms_offtracking'])} | "
-                    f"{_milli(r['max_offtracking'])} | {_percent(r['saturated_fraction'])} | {_cost(r['cost'])} | "
-                    f"{r['status']} |"
+                    f"{_milli(r['max_offtracking'])} | {further}{_percent(r['saturated_fraction'])} | "
+                    f"{_cost(r['cost'])} | {r['status']} |"
                 )
         return "\n".join([*lines, "", *self.advice()])
+
+    def further_units(self) -> list[int]:
+        """The units behind the first towed one whose held-out figures the rows hold (as the combination numbers
+        them)."""
+        found = {
+            int(key.removeprefix("unit").removesuffix("_rms_offtracking"))
+            for row in self.held_out
+            for which in ("designed", "tuned")
+            for key in row[which]
+            if key.startswith("unit") and key.endswith("_rms_offtracking")
+        }
+        return sorted(found)
 
     def to_dict(self) -> dict[str, Any]:
         """Everything as plain values (one JSON object)."""
@@ -304,14 +321,21 @@ def _cost(value: Any) -> str:
 
 
 def parameter_names(units: Sequence[int]) -> list[str]:
-    """The trial parameters: ``kp``, ``ki``, ``kd`` of the first steered unit, ``unit<k>_kp``, … of each further one
-    (``units`` as the combination numbers them)."""
-    return [name if i == 0 else f"unit{unit}_{name}" for i, unit in enumerate(units) for name in GAIN_NAMES]
+    """The trial parameters: ``kp``, ``ki``, ``kd`` of a single steered unit; of more, ``unit<k>_kp``, … of each
+    steered unit ``k`` (as the combination numbers them: 2 the first towed unit)."""
+    if len(units) == 1:
+        return list(GAIN_NAMES)
+    return [f"unit{unit}_{name}" for unit in units for name in GAIN_NAMES]
 
 
 def _figures(info: dict[str, Any]) -> dict[str, Any]:
+    """A held-out run's figures: the first towed unit's, then ``unit<k>_rms_offtracking`` and
+    ``unit<k>_max_offtracking`` [m] of each unit ``k`` behind it."""
     keys = ("cost", "rms_offtracking", "max_offtracking", "saturated_fraction", "status")
-    return {k: info[k] for k in keys}
+    out = {k: info[k] for k in keys}
+    for unit, figures in info.get("units", {}).items():
+        out.update({f"unit{unit}_{k}": figures[k] for k in ("rms_offtracking", "max_offtracking")})
+    return out
 
 
 def tune_gains(

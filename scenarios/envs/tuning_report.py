@@ -145,6 +145,11 @@ def comparison_frame(result: TuningResult) -> pd.DataFrame:
                     "gains": which,
                     "rms_offtracking [m]": r["rms_offtracking"],
                     "max_offtracking [m]": r["max_offtracking"],
+                    **{
+                        f"{key} [m]": value
+                        for key, value in r.items()
+                        if key.startswith("unit") and key.endswith("_offtracking")
+                    },
                     "saturated_fraction": r["saturated_fraction"],
                     "cost": r["cost"],
                     "status": r["status"],
@@ -178,7 +183,7 @@ def write_tuning(result: TuningResult, out_dir: Path, base: ScenarioConfig) -> d
     header = (
         f"# Scenario {base.name} with the gains offtrack tune found for steered unit(s) {units} (controller.kp "
         "[rad/m], ki [rad/m²], kd [rad]; unit_gains: one set per steered unit, front to rear).\n"
-        f"# The held-out roads: {result.advice()[-1]}\n"
+        f"# From the held-out roads, {result.advice()[-1]}\n"
         f"# Run it with: offtrack run {paths['gains']}\n"
         f"# Or give another scenario of this vehicle these gains with: {set_options(result.tuned)}\n"
     )
@@ -188,10 +193,10 @@ def write_tuning(result: TuningResult, out_dir: Path, base: ScenarioConfig) -> d
 
 def gains_table(result: TuningResult) -> Table:
     """The designed and the tuned gains with their units, as a rich table."""
-    view = Table(title="gains (per metre travelled; designed exactly as a run uses them)")
+    view = Table(title="gains (per metre travelled)")
     view.add_column("gain")
     view.add_column("unit")
-    view.add_column("designed", justify="right")
+    view.add_column("designed (exact)", justify="right")
     view.add_column("tuned", justify="right")
     for vehicle_unit, designed, tuned in zip(result.units, result.designed, result.tuned, strict=True):
         for name, unit in GAIN_UNITS.items():
@@ -215,7 +220,9 @@ def held_out_table(result: TuningResult) -> Table:
     view = Table(title="held-out conditions (outside the training ranges)")
     view.add_column("condition", min_width=10)
     view.add_column("gains", no_wrap=True)
-    for header in ("e_tr RMS\n[mm]", "e_tr max\n[mm]", "satu-\nrated\n[%]", "cost"):
+    further = result.further_units()
+    headers = ["e_tr RMS\n[mm]", "e_tr max\n[mm]", *(f"unit {k}\nRMS\n[mm]" for k in further)]
+    for header in (*headers, "satu-\nrated\n[%]", "cost"):
         view.add_column(escape(header), justify="right")
     if with_status:
         view.add_column("status")
@@ -227,6 +234,7 @@ def held_out_table(result: TuningResult) -> Table:
                 which,
                 _scaled(r["rms_offtracking"], 1e3, ".1f"),
                 _scaled(r["max_offtracking"], 1e3, ".1f"),
+                *(_scaled(r.get(f"unit{k}_rms_offtracking"), 1e3, ".1f") for k in further),
                 _scaled(r["saturated_fraction"], 1e2, ".0f"),
                 number(r["cost"], ".4f"),
             ]
