@@ -136,3 +136,18 @@ def test_training_vehicles_are_laden_and_unladen_only_where_the_catalogue_has_bo
     assert list(held_out_conditions("lst")) == list(tuning.HELD_OUT)
     for label, options in held_out_conditions(B_DOUBLE).items():
         assert "laden" not in label and options["vehicle"] == B_DOUBLE
+
+
+def test_the_held_out_table_shows_the_rear_unit_and_fits_80_columns() -> None:
+    from rich.console import Console
+
+    from scenarios.envs.tuning_report import held_out_table
+
+    result = _result([0.01])
+    for which in ("designed", "tuned"):
+        result.held_out[0][which]["unit3_rms_offtracking"] = 0.0123
+    console = Console(width=80, record=True)
+    console.print(held_out_table(result))
+    text = console.export_text()
+    assert max(len(line) for line in text.splitlines()) <= 80 and "unit 3" in text and "12.3" in text
+    assert "RMS e unit 3 [mm]" in result.table()
