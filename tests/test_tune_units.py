@@ -107,6 +107,7 @@ def test_the_advice_follows_the_held_out_results() -> None:
     assert worse.verdicts() == {"road 0": "tuned", "road 1": "designed", "road 2": "designed"}
     assert worse.advice()[-1] == "advice: keep the designed gains (the tuned ones are worse on road 1; road 2)"
     assert "advice: keep the designed gains" in worse.table()
+    assert worse.to_dict()["apply_tuned"] is False and worse.to_dict()["advice"] == worse.advice()[-1]
     same = _result([0.02], tuned=PathFollowingGains(kp=0.286, ki=0.0745, kd=0.0))
     assert not same.apply_tuned() and "no trial beat them" in same.advice()[-1]
 

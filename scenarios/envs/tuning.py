@@ -174,6 +174,7 @@ class TuningResult:
             "held_out": self.held_out,
             "better": self.verdicts(),
             "apply_tuned": self.apply_tuned(),
+            "advice": self.advice()[-1],
             "trials": self.trials,
             "trial_rows": self.trial_rows,
             "evaluations": self.evaluations,
