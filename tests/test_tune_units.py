@@ -152,3 +152,18 @@ def test_the_held_out_table_shows_the_rear_unit_and_fits_80_columns() -> None:
     text = console.export_text()
     assert max(len(line) for line in text.splitlines()) <= 80 and "unit 3" in text and "12.3" in text
     assert "RMS e unit 3 [mm]" in result.table()
+
+
+def test_the_residual_environment_runs_each_unit_on_its_unit_gains() -> None:
+    import gymnasium as gym
+
+    from scenarios.envs import register_envs
+
+    register_envs()
+    sets = [{"kp": 0.3, "ki": 0.08, "kd": 0.0}, {"kp": 0.2, "ki": 0.05, "kd": 0.01}]
+    overrides = {**SHORT, "controller.unit_gains": sets}
+    env = gym.make("offtrack/TrailerSteering-v0", vehicle=B_DOUBLE, overrides=overrides, action_mode="residual")
+    env.reset(seed=0)
+    gains = [ctrl.gains for ctrl in env.unwrapped._controllers]
+    assert gains == [PathFollowingGains(**g) for g in sets]
+    env.close()
