@@ -198,7 +198,7 @@ def train_and_compare(
         result = tune_gains(
             n_trials=trials, train_draws=2, seed=seed, randomise=TRAIN_ROADS, held_out={}, env_kwargs=tuning_kwargs
         )
-        tuned = {"kp": result.tuned.kp, "ki": result.tuned.ki, "kd": result.tuned.kd}
+        tuned = {"kp": result.tuned[0].kp, "ki": result.tuned[0].ki, "kd": result.tuned[0].kd}
         log(f"Optuna: {trials} trials in {time.perf_counter() - t1:.0f} s → {tuned}")
         gains = {f"controller.{k}": v for k, v in tuned.items()}
         tuned_kwargs = {**kwargs, "overrides": {**kwargs.get("overrides", {"path.turns": 0.25}), **gains}}

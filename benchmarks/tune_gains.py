@@ -43,9 +43,7 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps({"benchmark": "tune_gains", **result.to_dict()}))
         return 0
     print(file=sys.stderr)
-    print(result.table())
-    for condition, better in result.verdicts().items():
-        print(f"{condition}: {'tuned' if better else 'designed'} gains better")
+    print(result.table())  # ends with the held-out verdicts and the advice
     print(f"{result.trials} trials, {result.evaluations} scenario runs, {result.wall_s:.0f} s")
     return 0
 

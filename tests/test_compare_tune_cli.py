@@ -76,7 +76,7 @@ def test_tuning_outputs_give_a_run_the_tuned_gains(tmp_path: Path) -> None:
     assert list(trials["trial"]) == [0, 1] and "kp [rad/m]" in trials.columns
     assert set(pd.read_csv(paths["comparison"])["gains"]) == {"designed", "tuned"}
     loaded = load_scenario(str(paths["gains"]))  # what `offtrack run DIR/tuned_gains.yaml` runs
-    tuned = result.tuned
+    (tuned,) = result.tuned
     assert (loaded.controller.kp, loaded.controller.ki, loaded.controller.kd) == (tuned.kp, tuned.ki, tuned.kd)
     gains = loaded.controller.path_following(loaded.rates.control_hz).gains
     assert gains == tuned
@@ -84,7 +84,7 @@ def test_tuning_outputs_give_a_run_the_tuned_gains(tmp_path: Path) -> None:
 
 
 def test_the_printed_set_line_parses_to_the_tuned_gains() -> None:
-    tuned = _result().tuned
+    (tuned,) = _result().tuned
     words = shlex.split(set_options(tuned))
     assert words[::2] == ["--set"] * 3
     overrides = dict(parse_assignment(item) for item in words[1::2])
@@ -110,7 +110,7 @@ def test_tune_cli_writes_its_outputs_and_fits_80_columns(tmp_path: Path, monkeyp
     assert max(len(line) for line in table_lines) <= 80, result.stdout
     assert "rad/m²" in result.stdout and "None" not in result.stdout
     config = validate_config(yaml.safe_load((out / "tuned_gains.yaml").read_text()))
-    assert config.controller.kp == _result().tuned.kp
+    assert config.controller.kp == _result().tuned[0].kp
     assert {p.name for p in out.iterdir()} >= {"trials.csv", "comparison.csv", "comparison.md", "tuned_gains.yaml"}
     as_json = invoke("tune", "--trials", "2", "--json")
     assert as_json.exit_code == 0 and '"tuned"' in as_json.stdout

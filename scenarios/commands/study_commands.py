@@ -308,6 +308,13 @@ def tune(
     scenario: Annotated[
         str, typer.Option(help="Scenario driven (catalogue name or YAML file), a quarter turn of it: path.turns=0.25.")
     ] = "roundabout-3",
+    vehicle: Annotated[
+        str,
+        typer.Option(
+            help="Vehicle preset or combination file NAME.yaml; each steered towed unit gets its own gains "
+            "(a preset with an -unladen variant is trained laden and unladen, any other as given)."
+        ),
+    ] = "lst",
     out: Annotated[
         Path | None,
         typer.Option(help="Write trials.csv, comparison.csv/.md and tuned_gains.yaml (a scenario a run loads) here."),
@@ -315,7 +322,8 @@ def tune(
     force: ForceOption = False,
     as_json: JsonOption = False,
 ) -> None:
-    """Tune the trailer PID gains with Optuna (offtrack/GainTuning-v0); compare them on held-out roads."""
+    """Tune the trailer PID gains, one set per steered unit, with Optuna (offtrack/GainTuning-v0); compare them
+    with the designed gains on held-out roads and advise the tuned ones only where those support them."""
     from rich.progress import Progress
 
     from scenarios.envs.scenario import DEFAULT_OVERRIDES
@@ -329,7 +337,9 @@ def tune(
     steering = [source for source in feedback_sources() if source != NO_FEEDBACK]
     if feedback not in steering:  # the tuned gains steer the trailer on an estimate
         raise InputError(f"--feedback {feedback!r}: allowed: {', '.join(steering)}")
-    base = load_config(scenario, {"feedback": feedback, "vehicle": "lst"})  # the gains' scenario, refused before tuning
+    base = load_config(
+        scenario, {"feedback": feedback, "vehicle": vehicle}
+    )  # the gains' scenario, refused before tuning
     if out is not None:
         check_output_dir(out)
     made = out is not None and not out.exists()
@@ -342,7 +352,9 @@ def tune(
 
         env_kwargs = {"feedback": feedback, "scenario": scenario, "overrides": dict(DEFAULT_OVERRIDES)}
         try:
-            result = tune_gains(n_trials=trials, train_draws=draws, seed=seed, env_kwargs=env_kwargs, progress=progress)
+            result = tune_gains(
+                n_trials=trials, train_draws=draws, seed=seed, env_kwargs=env_kwargs, progress=progress, vehicle=vehicle
+            )
         except TuningStopped as stopped:  # the finished trials are the data computed so far
             finished = len(stopped.trial_rows)
             if out_dir is not None:
@@ -362,10 +374,12 @@ def tune(
         return
     console.print(gains_table(result))
     console.print(held_out_table(result))
-    for condition, better in result.verdicts().items():
-        console.print(f"{condition}: {'tuned' if better else 'designed'} gains better", markup=False)
     console.print(f"{result.trials} trials, {result.evaluations} scenario runs, {result.wall_s:.0f} s wall time")
-    console.print(f"apply the tuned gains: {set_options(result.tuned)}", markup=False, highlight=False, soft_wrap=True)
+    for line in result.advice():
+        console.print(line, markup=False, highlight=False)
+    if result.tuned_differs():
+        head = "apply the tuned gains" if result.apply_tuned() else "the tuned gains, not advised"
+        console.print(f"{head}: {set_options(result.tuned)}", markup=False, highlight=False, soft_wrap=True)
     if paths is not None:
         console.print(
             f"trials, comparison and gains in {paths['gains'].parent}; offtrack run {paths['gains']} runs {scenario} "

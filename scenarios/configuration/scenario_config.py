@@ -140,6 +140,8 @@ class ScenarioConfig(Settings):
                 f"axle on its first towed unit; use one of {steerable} or make one steerable "
                 f"(--set vehicle.units[1].axles[0].steerable=true){behind}"
             )
+        if steered:  # unit_gains: one set per steered unit (unused by a run that steers none)
+            self.controller.unit_settings(self.rates.control_hz, len(steered))
         if self.path.slip_deg is not None and steered:
             raise ValueError("a kinematic constant-slip run cannot be steered; use feedback none")
         if self.path.slip_deg is not None and self.driver.open_loop:

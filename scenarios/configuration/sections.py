@@ -332,16 +332,28 @@ class FusionConfig(FusionNoise):
     )
 
 
+class UnitGains(Settings):
+    """The PID gains of one steered towed unit (per metre travelled)."""
+
+    kp: float = Field(ge=0.0, le=10.0, description="[rad/m] " + _GAIN)
+    ki: float = Field(ge=0.0, le=10.0, description="[rad/m²] " + _GAIN)
+    kd: float = Field(ge=0.0, le=10.0, description="[rad] " + _GAIN)
+
+
 class ControllerConfig(Settings):
     """Trailer path-following controller (``controller.path_following``); degrees and km/h at this edge.
 
-    Gains ``kp`` [rad/m], ``ki`` [rad/m²], ``kd`` [rad] are per metre travelled; leave them out to place
-    the poles at ``natural_frequency`` [1/m] and ``damping``.
+    Gains ``kp`` [rad/m], ``ki`` [rad/m²], ``kd`` [rad] are per metre travelled and serve every steered unit;
+    ``unit_gains`` gives each steered towed unit its own (front to rear, instead of ``kp``/``ki``/``kd``); leave
+    both out to place each unit's poles at ``natural_frequency`` [1/m] and ``damping``.
     """
 
     kp: float | None = Field(None, ge=0.0, le=10.0, description=_GAIN)
     ki: float | None = Field(None, ge=0.0, le=10.0, description=_GAIN)
     kd: float | None = Field(None, ge=0.0, le=10.0, description=_GAIN)
+    unit_gains: tuple[UnitGains, ...] | None = Field(
+        None, description="one {kp, ki, kd} per steered towed unit, front to rear (instead of kp, ki, kd)"
+    )
     natural_frequency: float = Field(
         1.0 / 3.0, gt=0.0, le=5.0, description="[1/m]; 5 per metre is far beyond the steering actuator's bandwidth"
     )
@@ -405,3 +417,31 @@ class ControllerConfig(Settings):
             if self.high_speed_crossover_kmh is None
             else (self.high_speed_crossover_kmh[0] / 3.6, self.high_speed_crossover_kmh[1] / 3.6),
         )
+
+    @model_validator(mode="after")
+    def _one_kind_of_gains(self) -> ControllerConfig:
+        if self.unit_gains is not None and (self.kp is not None or self.ki is not None or self.kd is not None):
+            raise ValueError(
+                "controller.unit_gains: give either kp/ki/kd (every steered unit) or unit_gains (one set per steered "
+                "unit), not both"
+            )
+        return self
+
+    def unit_settings(self, control_hz: float, n_steered: int) -> tuple[PathFollowingConfig, ...]:
+        """The controller's settings of each of ``n_steered`` steered towed units, front to rear: ``unit_gains``
+        when given, else :meth:`path_following` for every unit.
+
+        Raises
+        ------
+        ValueError
+            ``unit_gains`` does not hold ``n_steered`` sets.
+        """
+        settings = self.path_following(control_hz)
+        if self.unit_gains is None:
+            return (settings,) * n_steered
+        if len(self.unit_gains) != n_steered:
+            raise ValueError(
+                f"controller.unit_gains holds {len(self.unit_gains)} gain set(s); the run steers {n_steered} towed "
+                "unit(s): give one {kp, ki, kd} per steered unit, front to rear"
+            )
+        return tuple(settings.replace(gains=PathFollowingGains(kp=g.kp, ki=g.ki, kd=g.kd)) for g in self.unit_gains)

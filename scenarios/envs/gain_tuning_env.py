@@ -31,7 +31,15 @@ from .scenario import ScenarioChoice
 from .units import check_episode_units, check_units
 from .validation import check_choice
 
-__all__ = ["GAIN_RANGES", "GainTuningEnv", "action_to_gains", "action_to_unit_gains", "gains_to_action", "unit_figures"]
+__all__ = [
+    "GAIN_RANGES",
+    "GainTuningEnv",
+    "action_to_gains",
+    "action_to_unit_gains",
+    "configured_unit_gains",
+    "gains_to_action",
+    "unit_figures",
+]
 
 GAIN_RANGES: dict[str, tuple[float, float]] = {"kp": (0.01, 3.0), "ki": (0.001, 1.0), "kd": (0.001, 3.0)}
 """Ranges of the gains the action spans (log-scaled): ``kp`` [rad/m], ``ki`` [rad/m²], ``kd`` [rad], per metre
@@ -77,6 +85,19 @@ def gains_to_action(gains: PathFollowingGains, ranges: Mapping[str, tuple[float,
         value = max(getattr(gains, name), lo)
         out.append(2.0 * math.log(value / lo) / math.log(hi / lo) - 1.0)
     return np.clip(np.array(out, dtype=np.float32), -1.0, 1.0)
+
+
+def configured_unit_gains(setup: ScenarioSetup) -> tuple[PathFollowingGains, ...]:
+    """The gains each steered towed unit of ``setup`` runs with (front to rear), exactly as ``offtrack run`` sets
+    them: the ``controller`` section's ``unit_gains`` or ``kp``/``ki``/``kd`` when given, else each unit's own pole
+    placement for its geometry (the designed gains, ``kd = 0``;
+    :func:`~controller.path_following_config.kinematic_pole_placement`)."""
+    cfg = setup.config
+    units = steered_units(setup.params, cfg.feedback, cfg.rear_feedback)
+    settings = cfg.controller.unit_settings(cfg.rates.control_hz, len(units))
+    return tuple(
+        TrailerSteeringController(setup.params, s, unit).gains for (unit, _), s in zip(units, settings, strict=True)
+    )
 
 
 def unit_figures(columns: dict[str, np.ndarray], settled: np.ndarray, unit: int) -> dict[str, float]:

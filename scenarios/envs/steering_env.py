@@ -387,7 +387,12 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         self._episode_units = units
         self._feedback = config.feedback
         self._controllers = (
-            tuple(TrailerSteeringController(setup.params, settings_si, unit) for unit in units.units)
+            tuple(
+                TrailerSteeringController(setup.params, unit_settings, unit)
+                for unit, unit_settings in zip(
+                    units.units, config.controller.unit_settings(config.rates.control_hz, len(units.units)), strict=True
+                )
+            )
             if self.action_mode == "residual"
             else ()
         )

@@ -1,14 +1,18 @@
 """What ``offtrack tune`` shows and writes: the gains with their units, the tables, and the gains as a run's config.
 
 A run takes controller gains as ``controller.kp``, ``controller.ki`` and ``controller.kd`` [rad/m, rad/m², rad;
-per metre travelled]: on the command line as ``--set controller.kp=…`` (:func:`set_options`), or in a scenario
-file's ``controller:`` section. A scenario file is a whole scenario (there is no file of overrides alone), so the
-gains are written as the scenario they were tuned on with its ``controller:`` section set (:func:`gains_config`):
-``offtrack run DIR/tuned_gains.yaml`` runs it, and the ``--set`` line applies the gains to any other scenario.
+per metre travelled], the same for every steered unit, or as ``controller.unit_gains``, one ``{kp, ki, kd}`` per
+steered towed unit front to rear: on the command line as ``--set`` (:func:`set_options`), or in a scenario file's
+``controller:`` section. One steered unit is written with ``kp``/``ki``/``kd``, more with ``unit_gains``. A
+scenario file is a whole scenario (there is no file of overrides alone), so the gains are written as the scenario
+they were tuned on with its ``controller:`` section set (:func:`gains_config`): ``offtrack run
+DIR/tuned_gains.yaml`` runs it, and the ``--set`` line applies the gains to any other scenario of that vehicle.
 """
 
 from __future__ import annotations
 
+import shlex
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -49,23 +53,45 @@ TUNING_FILES: dict[str, str] = {
 """The files :func:`write_tuning` writes, by what they hold."""
 
 
-def set_options(gains: PathFollowingGains) -> str:
+def _sets(gains: PathFollowingGains | Sequence[PathFollowingGains]) -> tuple[PathFollowingGains, ...]:
+    return (gains,) if isinstance(gains, PathFollowingGains) else tuple(gains)
+
+
+def _controller_fields(gains: PathFollowingGains | Sequence[PathFollowingGains]) -> dict[str, Any]:
+    """The ``controller`` fields giving a run ``gains``: ``kp``/``ki``/``kd`` for one set, ``unit_gains`` for more."""
+    sets = _sets(gains)
+    if len(sets) == 1:
+        return {**{name: float(getattr(sets[0], name)) for name in GAIN_UNITS}, "unit_gains": None}
+    return {
+        **dict.fromkeys(GAIN_UNITS),
+        "unit_gains": [{name: float(getattr(g, name)) for name in GAIN_UNITS} for g in sets],
+    }
+
+
+def set_options(gains: PathFollowingGains | Sequence[PathFollowingGains]) -> str:
     """The ``--set`` options that give a run ``gains`` (full precision: the run gets exactly these numbers).
 
     Parameters
     ----------
     gains
-        The gains.
+        One set (every steered unit), or one per steered towed unit, front to rear.
 
     Returns
     -------
     str
-        ``--set controller.kp=… --set controller.ki=… --set controller.kd=…``.
+        ``--set controller.kp=… --set controller.ki=… --set controller.kd=…`` for one set; for more,
+        ``--set 'controller.unit_gains=[{kp: …, ki: …, kd: …}, …]'`` (quoted for a POSIX shell).
     """
-    return " ".join(f"--set controller.{name}={float(getattr(gains, name))!r}" for name in GAIN_UNITS)
+    sets = _sets(gains)
+    if len(sets) == 1:
+        return " ".join(f"--set controller.{name}={float(getattr(sets[0], name))!r}" for name in GAIN_UNITS)
+    items = ", ".join(
+        "{" + ", ".join(f"{name}: {float(getattr(g, name))!r}" for name in GAIN_UNITS) + "}" for g in sets
+    )
+    return "--set " + shlex.quote(f"controller.unit_gains=[{items}]")
 
 
-def gains_config(base: ScenarioConfig, gains: PathFollowingGains) -> ScenarioConfig:
+def gains_config(base: ScenarioConfig, gains: PathFollowingGains | Sequence[PathFollowingGains]) -> ScenarioConfig:
     """``base`` with its controller driven by ``gains``.
 
     Parameters
@@ -73,25 +99,28 @@ def gains_config(base: ScenarioConfig, gains: PathFollowingGains) -> ScenarioCon
     base
         The scenario the gains are for.
     gains
-        The gains [rad/m, rad/m², rad].
+        One set, or one per steered towed unit front to rear [rad/m, rad/m², rad].
 
     Returns
     -------
     ScenarioConfig
-        Validated; its ``controller`` section holds ``kp``, ``ki`` and ``kd``.
+        Validated; its ``controller`` section holds ``kp``, ``ki`` and ``kd`` (one set) or ``unit_gains``.
     """
     data = base.model_dump(mode="json")
-    data["controller"].update({name: float(getattr(gains, name)) for name in GAIN_UNITS})
+    data["controller"].update(_controller_fields(gains))
     return validate_config(data)
 
 
 def trials_frame(result: TuningResult | list[dict[str, Any]]) -> pd.DataFrame:
     """One row per trial: ``trial``, the gains with their units in the column names, ``train_cost``, ``state``
     (of a result, or of its :attr:`~scenarios.envs.tuning.TuningResult.trial_rows` alone)."""
-    columns = ["trial", *(f"{n} [{u}]" for n, u in GAIN_UNITS.items()), "train_cost", "state"]
     trial_rows = result if isinstance(result, list) else result.trial_rows
+    names = [
+        k for k in (trial_rows[0] if trial_rows else dict.fromkeys(GAIN_UNITS)) if k.rsplit("_", 1)[-1] in GAIN_UNITS
+    ]
+    columns = ["trial", *(f"{n} [{GAIN_UNITS[n.rsplit('_', 1)[-1]]}]" for n in names), "train_cost", "state"]
     rows = [
-        [r["trial"], *(r[n] for n in GAIN_UNITS), r["train_cost"], r["state"]]
+        [r["trial"], *(r[n] for n in names), r["train_cost"], r["state"]]
         for r in trial_rows  # a result made without them (an older one) gives an empty table
     ]
     return pd.DataFrame(rows, columns=columns)
@@ -116,6 +145,11 @@ def comparison_frame(result: TuningResult) -> pd.DataFrame:
                     "gains": which,
                     "rms_offtracking [m]": r["rms_offtracking"],
                     "max_offtracking [m]": r["max_offtracking"],
+                    **{
+                        f"{key} [m]": value
+                        for key, value in r.items()
+                        if key.startswith("unit") and key.endswith("_offtracking")
+                    },
                     "saturated_fraction": r["saturated_fraction"],
                     "cost": r["cost"],
                     "status": r["status"],
@@ -145,10 +179,13 @@ def write_tuning(result: TuningResult, out_dir: Path, base: ScenarioConfig) -> d
     write_atomic(paths["trials"], trials_frame(result).to_csv(index=False))
     write_atomic(paths["comparison"], comparison_frame(result).to_csv(index=False))
     write_atomic(paths["comparison_md"], result.table() + "\n")
+    units = ", ".join(str(u) for u in result.units)
     header = (
-        f"# Scenario {base.name} with the gains offtrack tune found (controller.kp [rad/m], ki [rad/m²], kd [rad]).\n"
+        f"# Scenario {base.name} with the gains offtrack tune found for steered unit(s) {units} (controller.kp "
+        "[rad/m], ki [rad/m²], kd [rad]; unit_gains: one set per steered unit, front to rear).\n"
+        f"# From the held-out roads, {result.advice()[-1]}\n"
         f"# Run it with: offtrack run {paths['gains']}\n"
-        f"# Or give any scenario these gains with: {set_options(result.tuned)}\n"
+        f"# Or give another scenario of this vehicle these gains with: {set_options(result.tuned)}\n"
     )
     write_atomic(paths["gains"], header + config_yaml(gains_config(base, result.tuned)))
     return paths
@@ -159,12 +196,16 @@ def gains_table(result: TuningResult) -> Table:
     view = Table(title="gains (per metre travelled)")
     view.add_column("gain")
     view.add_column("unit")
-    view.add_column("designed", justify="right")
+    view.add_column("designed (exact)", justify="right")
     view.add_column("tuned", justify="right")
-    for name, unit in GAIN_UNITS.items():
-        view.add_row(
-            name, unit, number(getattr(result.designed, name), ".4f"), number(getattr(result.tuned, name), ".4f")
-        )
+    for vehicle_unit, designed, tuned in zip(result.units, result.designed, result.tuned, strict=True):
+        for name, unit in GAIN_UNITS.items():
+            view.add_row(
+                f"unit {vehicle_unit} {name}",
+                unit,
+                repr(float(getattr(designed, name))),
+                number(getattr(tuned, name), ".4f"),
+            )
     view.add_row("training cost", "", number(result.train_cost_designed, ".5f"), number(result.train_cost_tuned, ".5f"))
     return view
 
@@ -179,7 +220,9 @@ def held_out_table(result: TuningResult) -> Table:
     view = Table(title="held-out conditions (outside the training ranges)")
     view.add_column("condition", min_width=10)
     view.add_column("gains", no_wrap=True)
-    for header in ("e_tr RMS\n[mm]", "e_tr max\n[mm]", "satu-\nrated\n[%]", "cost"):
+    further = result.further_units()
+    headers = ["e_tr RMS\n[mm]", "e_tr max\n[mm]", *(f"unit {k}\nRMS\n[mm]" for k in further)]
+    for header in (*headers, "satu-\nrated\n[%]", "cost"):
         view.add_column(escape(header), justify="right")
     if with_status:
         view.add_column("status")
@@ -191,6 +234,7 @@ def held_out_table(result: TuningResult) -> Table:
                 which,
                 _scaled(r["rms_offtracking"], 1e3, ".1f"),
                 _scaled(r["max_offtracking"], 1e3, ".1f"),
+                *(_scaled(r.get(f"unit{k}_rms_offtracking"), 1e3, ".1f") for k in further),
                 _scaled(r["saturated_fraction"], 1e2, ".0f"),
                 number(r["cost"], ".4f"),
             ]

@@ -149,9 +149,12 @@ class PathFollowingSteer:
         """The configured controllers (``controller`` section) on every steered unit: the first towed unit on
         ``feedback`` (default: the configured one), the units behind it on ``rear_feedback``."""
         cfg = setup.config
-        settings = cfg.controller.path_following(cfg.rates.control_hz)
         units = steered_units(setup.params, feedback or cfg.feedback, cfg.rear_feedback)
-        controllers = tuple((TrailerSteeringController(setup.params, settings, unit), key) for unit, key in units)
+        settings = cfg.controller.unit_settings(cfg.rates.control_hz, len(units))
+        controllers = tuple(
+            (TrailerSteeringController(setup.params, s, unit), key)
+            for (unit, key), s in zip(units, settings, strict=True)
+        )
         return cls(*controllers[0], rear=controllers[1:], axles=trailer_axles(setup))
 
     def reset(self) -> None:
