@@ -244,3 +244,27 @@ def test_a_scenario_files_road_and_vehicle_are_the_ones_beside_it(tmp_path, monk
     (folder / "road.csv").unlink()
     with pytest.raises(RoadFileError, match=r"road file road\.csv does not exist"):  # nowhere: refused
         build_scenario(load_scenario(str(folder / "scenario.yaml")))
+
+
+def test_a_file_roads_plan_view_draws_its_lane_edges_and_a_catalogue_manoeuvre_none() -> None:
+    """On a road from a file the plan view draws the edges of a 3.5 m lane about the path: every point of either edge
+    is 1.75 m from the path (to 2 cm against the path sampled every 0.25 m), left and right of it; a catalogue manoeuvre
+    gets none."""
+    import matplotlib.pyplot as plt
+
+    from scenarios.run.plots import lane_width_of
+    from scenarios.run.swept_path import LANE_WIDTH_M, lane_edges
+
+    data = Path(__file__).parent / "data" / "roads" / "line-arc.csv"
+    config = validate_config({"path": {"kind": "file", "file": str(data)}})
+    assert lane_width_of(config) == LANE_WIDTH_M == 3.5
+    assert lane_width_of(validate_config({})) is None
+    reference = build_scenario(config).path.points
+    left, right = lane_edges(reference, LANE_WIDTH_M)
+    for edge, side in ((left, 1.0), (right, -1.0)):
+        distance = np.min(np.linalg.norm(edge[:, None, :] - reference[None, ::5, :], axis=-1), axis=1)
+        assert np.all(np.abs(distance[5:-5] - 1.75) < 0.02)  # the path sampled every fifth point
+        heading = np.gradient(reference, axis=0)
+        cross = heading[:, 0] * (edge - reference)[:, 1] - heading[:, 1] * (edge - reference)[:, 0]
+        assert np.all(side * cross > 0)
+    plt.close("all")

@@ -28,7 +28,7 @@ from ..setup.build import ScenarioSetup, build_scenario
 from .files import atomic_path
 from .metrics import estimator_names, max_abs, rms
 from .results import METRICS_FILE, TIMESERIES_FILE, read_config, read_timeseries
-from .swept_path import swept_path_figure
+from .swept_path import LANE_WIDTH_M, swept_path_figure
 
 
 def save_figure(fig: Figure, path: Path, **options: Any) -> None:
@@ -86,6 +86,12 @@ def run_title(config: ScenarioConfig, road_columns: dict[str, tuple[float, float
     )
 
 
+def lane_width_of(config: ScenarioConfig) -> float | None:
+    """The lane a run's plan view draws about its reference path: on a road from a file (which gives a centre line
+    only), a lane of :data:`~scenarios.run.swept_path.LANE_WIDTH_M`; None for a catalogue manoeuvre."""
+    return LANE_WIDTH_M if config.path.kind == "file" else None
+
+
 def plot_plan_view(
     path: Path,
     params: VehicleParams,
@@ -100,6 +106,7 @@ def plot_plan_view(
     instants: int = 6,
     dpi: int = 130,
     swept_path: dict[str, Any] | None = None,
+    lane_width: float | None = None,
 ) -> Figure:
     """Write the swept-path plan view of a run (:func:`~scenarios.run.swept_path.swept_path_figure`) to ``path``.
 
@@ -123,6 +130,9 @@ def plot_plan_view(
     swept_path
         ``metrics.json["swept_path"]``: the swept-path width drawn as a dimension (measured from the columns when
         None).
+    lane_width
+        Draw the edges of a lane this wide [m] about the reference path (a road from a file:
+        :func:`lane_width_of`); None: none drawn.
 
     Returns
     -------
@@ -142,6 +152,7 @@ def plot_plan_view(
         turn_span=turn_span,
         instants=instants,
         swept_path=swept_path,
+        lane_width=lane_width,
     )
     save_figure(fig, path, dpi=dpi, bbox_inches="tight")
     return fig
@@ -195,6 +206,7 @@ class SavedRun:
             turn_span=self.setup.path.turn_span,
             instants=instants,
             swept_path=self.metrics.get("swept_path"),
+            lane_width=lane_width_of(self.config),
         )
 
 

@@ -214,7 +214,12 @@ def write_report(
         write_metrics(run_dir, metrics)
     raise_pending_stop()  # a stop held meanwhile takes effect now: before the plots
     if plots and len(time) > 1:
-        from .plots import plot_offtracking, plot_plan_view, run_title  # matplotlib only when plots are drawn
+        from .plots import (
+            lane_width_of,
+            plot_offtracking,
+            plot_plan_view,
+            run_title,
+        )  # matplotlib only when plots are drawn
 
         title = run_title(config, setup.road_columns)
         plan_file, offtracking_file = plot_files(plot_format)
@@ -228,6 +233,7 @@ def write_report(
             roundabout_test=metrics.get("roundabout_test"),
             turn_span=setup.path.turn_span,
             swept_path=metrics.get("swept_path"),
+            lane_width=lane_width_of(config),
         )
         plot_offtracking(
             run_dir / offtracking_file,

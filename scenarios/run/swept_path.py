@@ -418,6 +418,20 @@ def verdict_line(ext: dict[str, Any]) -> str:
     )
 
 
+LANE_WIDTH_M = 3.5
+"""The lane drawn about a road file's path (a file gives its centre line only): the usual width of a trunk-road lane
+(UK DMRB CD 127 / EU practice), the width the loss-of-control limit is set from (:mod:`scenarios.loop.ends`)."""
+
+
+def lane_edges(reference: np.ndarray, width: float) -> list[np.ndarray]:
+    """The left and right edges ``(n, 2)`` of a lane ``width`` wide centred on the path ``reference (n, 2)``."""
+    points = np.asarray(reference, dtype=float)
+    tangent = np.gradient(points, axis=0)
+    tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-12)
+    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])  # to the left of the direction of travel
+    return [points + 0.5 * width * normal, points - 0.5 * width * normal]
+
+
 def swept_path_figure(
     params: VehicleParams,
     columns: dict[str, np.ndarray],
@@ -429,6 +443,7 @@ def swept_path_figure(
     turn_span: tuple[float, float] | None = None,
     instants: int = 6,
     swept_path: dict[str, Any] | None = None,
+    lane_width: float | None = None,
 ) -> Figure:
     """The swept-path figure of a run (module docstring); the caller saves and closes it.
 
@@ -454,6 +469,9 @@ def swept_path_figure(
     swept_path
         ``metrics.json["swept_path"]``: the width drawn as a dimension (:func:`draw_swept_width`). When None it is
         measured here, radially about ``annulus_centre`` or, without one, across ``reference``.
+    lane_width
+        The edges of a lane this wide [m] centred on ``reference`` are drawn (``gid`` ``lane-edge``) in every panel;
+        None: none.
 
     Returns
     -------
@@ -482,7 +500,11 @@ def swept_path_figure(
         clear = [dimension] if np.all(np.isfinite(dimension)) else []  # the width's label sits there
         label_angle = free_angle(annulus_centre, track, [ext["outer_point"], ext["inner_point"]], clear)
     zoom_envelopes = {}
+    edges = lane_edges(reference, lane_width) if lane_width else []
     for ax in (main, *zooms):
+        for side, edge in enumerate(edges):
+            label = f"lane edges ({lane_width:g} m lane about the path)" if side == 0 else None
+            ax.plot(*edge.T, color="0.35", lw=0.9, ls=(0, (6, 3)), label=label, gid="lane-edge", zorder=2)
         patches = draw_envelopes(ax, params, columns)
         if ax is not main:
             zoom_envelopes[ax] = list(patches.values())
