@@ -284,7 +284,10 @@ class FusedVisoOt:
         self._walk_time = np.diag([n.slip_velocity_walk**2, n.gyro_bias_walk**2, n.wheel_speed_bias_walk**2])
         self._walk_distance = n.vo_yaw_bias_walk**2
         self._error_state = n.kinematic_error_model == "state"  # ε_k of (K1) an eighth state, (K3)
-        self._states = _STATES + 1 if self._error_state else _STATES
+        self._axial_state = n.vo_axial_scale > 0.0  # s_z of (3') the last state
+        self._states = _STATES + int(self._error_state) + int(self._axial_state)
+        self._sz = self._states - 1 if self._axial_state else None
+        self._biases = [*_BIASES, self._sz] if self._sz is not None else _BIASES
         self._f = np.eye(self._states)  # work arrays of _step
         self._g = np.zeros((self._states, 2))
         self._gyro_zero: tuple[float, int] | None = None
@@ -325,6 +328,7 @@ class FusedVisoOt:
                 *(n.initial_slip_velocity**2, n.initial_gyro_bias**2, n.initial_wheel_speed_bias**2),
                 n.vo_yaw_bias**2,
                 *((n.tractor_slip**2,) if self._error_state else ()),
+                *((n.vo_axial_scale**2,) if self._axial_state else ()),
             ]
         )
         if self._gyro_zero is not None:  # zeroed at standstill: the mean reading and its variance
@@ -453,6 +457,8 @@ class FusedVisoOt:
             out[_EK] = phi * x[_EK]
             f[_EK, _EK] = phi
             q[_EK, _EK] += kinematic_variance * (1.0 - phi * phi)
+        if self._sz is not None:  # (3'): s_z a random walk in distance
+            q[self._sz, self._sz] += self.noise.vo_axial_scale_walk**2 * abs(u) * dt
         return out, f @ p @ f.T + q
 
     def _kinematic_rows(
@@ -569,6 +575,8 @@ class FusedVisoOt:
             )  # the yaw–translation ambiguity of this frame (module notes)
             h[:2, _BPSI] = x[0] * coupling  # the odometry's error per metre over the distance since the anchor
             h[2, _BPSI] = x[0]
+            if self._sz is not None:  # (3'): the camera's displacement along its axis, scaled by s_z
+                h[:2, self._sz] = self._axial_displacement(x[:3]) * self._optical_axis
             self._coupling = coupling
             innovation = z - h @ x
             innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
@@ -579,6 +587,8 @@ class FusedVisoOt:
             kinematic_y = self._kinematic_lateral_step(index, x)
             if kinematic_y is not None:  # (K2): the camera's lateral motion against the tractor's kinematics
                 camera_y = z[1] - h[1, _BPSI] * x[_BPSI]
+                if self._sz is not None:  # less the estimated error along the optical axis, (3')
+                    camera_y -= h[1, self._sz] * x[self._sz]
                 self._weigh_slip_evidence(camera_y - kinematic_y, float(r[1, 1]), interval)
             if nis > self.noise.gate and self._gated < self.noise.max_gated:
                 self._gated += 1
@@ -661,25 +671,26 @@ class FusedVisoOt:
                 length = np.hypot(ends[ahead, 0] - starts[ahead, 0], ends[ahead, 1] - starts[ahead, 1])
                 coherent = self._bias_effect(g, length, self._durations[ahead])
                 lever += float(np.sum(g[:, 1] * self._durations[ahead]))
-                if self.noise.vo_axial_scale_uncertainty > 0.0:
+                if self.noise.vo_axial_scale_uncertainty > 0.0 or self._axial_state:
                     turns = np.diff(np.append(starts[:, 2], 0.0))[ahead]  # each increment's Δψ (it ends at the next)
                     axial = self._axial_effect(g, starts[ahead], ends[ahead], turns)
         # ... and the current one, from the anchor (heading −Δψ in the current frame) to the kingpin.
         g_now = np.array([s, -c, lfp])
         independent += float(g_now @ now.p[:3, :3] @ g_now)
-        if self.noise.vo_axial_scale_uncertainty > 0.0:
+        if self.noise.vo_axial_scale_uncertainty > 0.0 or self._axial_state:
             axial += self._axial_effect(g_now[None, :], np.zeros((1, 3)), d[None, :2], np.array([d[2]]))
         elapsed = sum(t.inputs[0] for t in list(self._history)[1:])
         coherent += self._bias_effect(g_now[None, :], np.array([math.hypot(d[0], d[1])]), np.array([elapsed]))
         self._lateral_lever = lever + g_now[1] * elapsed
-        biases = now.p[np.ix_(_BIASES, _BIASES)]
+        biases = now.p[np.ix_(self._biases, self._biases)]
+        effects = np.append(coherent[:2], axial) if self._axial_state else coherent[:2]  # (3'): s_z coherent too
         # the disagreement the kinematics' share carries into the slip velocity, coherent over the window
         disagreement = self.kinematic_share * math.sqrt(max(self._slip_evidence, 0.0)) * self._lateral_lever
         # the coupling is known to vo_bias_coupling_uncertainty: so is the correction it applies for β_ψ
         coupling = self.noise.vo_bias_coupling_uncertainty * now.x[_BPSI] * coherent[2]
         self.std_parts = {
             "increments": self.innovation_ratio * independent,
-            "biases": self.innovation_ratio * float(coherent[:2] @ biases @ coherent[:2]),
+            "biases": self.innovation_ratio * float(effects @ biases @ effects),
             "coupling": coupling**2 + (self.noise.vo_axial_scale_uncertainty * axial) ** 2,
             "kinematics": disagreement**2,
             "unexplained": self.noise.offtracking_bias_std**2,
@@ -713,6 +724,13 @@ class FusedVisoOt:
         lever = np.column_stack([(ct - 1.0) * camera[0] - st * camera[1], st * camera[0] + (ct - 1.0) * camera[1]])
         along = (local + lever) @ axis
         return float(np.sum(along * (g[:, :2] @ axis)))
+
+    def _axial_displacement(self, delta: np.ndarray) -> float:
+        """The camera's displacement along its optical axis over a kingpin increment ``(dx, dy, dψ)`` [m]: the
+        kingpin's, plus the lever ``(R(dψ) − I)·p_c`` of the camera at ``p_c`` (as :meth:`_axial_effect`)."""
+        camera, ct, st = self.geometry.camera_position, math.cos(delta[2]), math.sin(delta[2])
+        lever = ((ct - 1.0) * camera[0] - st * camera[1], st * camera[0] + (ct - 1.0) * camera[1])
+        return float((delta[0] + lever[0]) * self._optical_axis[0] + (delta[1] + lever[1]) * self._optical_axis[1])
 
     def _bias_effect(self, g: np.ndarray, length: np.ndarray, duration: np.ndarray) -> np.ndarray:
         """``G`` of eq (5): the change of ``e_tr`` per unit error of ``(b_g, β_ψ)``, coherent over increments

@@ -50,6 +50,12 @@ class FusionNoise(Settings):
         Relative standard deviation of the odometry's translation along the camera's optical axis ``u_z`` (the
         depth scale a disparity offset gives: a side camera's drift along its optical axis, docs/field_bias.md §7),
         carried into the off-tracking's std coherently over the path (eq (5); 0: none, the default).
+    vo_axial_scale : float
+        Standard deviation at the start of the odometry's relative error along the optical axis as a state ``s_z``
+        (eq (3'), estimated against the zero-slip kinematics and the trailer's signals; 0: no such state, the
+        default). For a camera that looks across its motion (a side camera); docs/field_bias.md §7.4.
+    vo_axial_scale_walk : float
+        Its random walk per metre travelled [1/√m] (a disparity offset that follows the mount's flex in a turn).
     kinematics : bool
         Fuse the zero-slip kinematics (K1) when the tractor's signals are given.
     kinematic_rear_point : str
@@ -136,6 +142,12 @@ class FusionNoise(Settings):
         ge=0.0,
         le=0.5,
         description="relative std of the VO's translation along the optical axis, in the std; 0.5: half of it unknown",
+    )
+    vo_axial_scale: float = Field(
+        0.0, ge=0.0, le=0.5, description="start std of the VO's relative error along the optical axis, a state; 0: none"
+    )
+    vo_axial_scale_walk: float = Field(
+        0.0, ge=0.0, le=0.1, description="[1/√m] its random walk per metre; 0.1 forgets a 3 % error in a few cm"
     )
     kinematics: bool = True
     kinematic_rear_point: RearPoint = "axle_mean"
