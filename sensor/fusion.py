@@ -21,7 +21,8 @@ Model (trailer frame ISO 8855, origin at the kingpin; docs/design.md §5–6)
 --------------------------------------------------------------------------
 State, kept relative to the *anchor* (the time of the last camera frame that was committed)::
 
-    x = [Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]     (and ε_k of (K3) with ``kinematic_error_model: state``)
+    x = [Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]     (and ε_k of (K3) with ``kinematic_error_model: state``,
+                                             then s_z and s_f of (3') when they are on)
 
 ``(Δx, Δy, Δψ)`` is the kingpin's displacement and the trailer's heading change since the anchor, in the
 anchor's trailer frame; ``v_s`` is the lateral *slip velocity* of the kingpin [m/s] (what the trailer's zero-slip
@@ -128,6 +129,21 @@ motion: a yaw error comes with the translation error that keeps the far features
 exceeds ``gate`` is refused (``max_gated`` in a row are accepted with the covariance inflated, so the filter cannot
 lock itself out).
 
+A camera that looks across its motion (a side camera) has its weakest direction along its optical axis ``o``, the
+off-tracking direction, instead. Two optional states, appended after the others, model the odometry's systematic
+error along it: ``s_z`` (``vo_axial_scale`` its start std), a relative error of the camera's displacement along the
+axis (a disparity offset scaling the depths), and ``s_f`` [1/m] (``vo_axial_flow``), an error that grows with the
+square of the camera's displacement across the axis between two frames (the image's flow through a calibration's
+residual: features crossing the image change their disparity error with the distance they move, docs/field_bias.md
+§7.4). With ``Δ_c`` the camera's displacement over the frame (the kingpin's plus the lever ``(R(Δψ) − I)·p_c`` of the
+camera at ``p_c``) and ``t = (o_y, −o_x)``::
+
+    z_xy = (Δx, Δy) + [eq (3)'s term] + (s_z·(o·Δ_c) + s_f·(t·Δ_c)·|t·Δ_c|)·o                    (3')
+
+Both are random walks in distance (``vo_axial_scale_walk``) and are found against the zero-slip kinematics (K1)
+where those are trusted (the disagreement of (K2) is taken less their estimated part): a side camera on a straight
+road must report no lateral motion. Both are off by default (no such states).
+
 Delayed measurements. A frame taken on tick ``k`` is released ``latency`` ticks later
 (:mod:`scenarios.camera.delivery`). The filter keeps the state, covariance, inputs and zero-slip measurements of
 every tick since the anchor; :meth:`FusedVisoOt.measure` updates the stored state of tick ``k`` and re-filters to
@@ -164,7 +180,8 @@ estimated odometry error widens the std. A camera that looks across its motion (
 direction along its optical axis ``o`` instead: a disparity offset scales its translation along ``o`` by a relative
 error, known to ``u_z`` (``vo_axial_scale_uncertainty``, 0 by default), which enters coherently over the path
 through ``A_z = Σ (o·Δ_c)·(g_xy·o)`` (``Δ_c`` each increment's camera displacement) and adds ``(u_z·A_z)²`` to
-the coupling term. The share of the kinematics' disagreement with the camera that the
+the coupling term; the states ``s_z`` and ``s_f`` of (3') enter the biases' term with ``A_z`` and
+``A_f = Σ (t·Δ_c)·|t·Δ_c|·(g_xy·o)`` beside ``G``. The share of the kinematics' disagreement with the camera that the
 estimate carries, ``s_k·m_k`` (K2), enters over the path as a slip velocity would, through ``Λ``, the sum of the
 increments' lateral sensitivities times their durations (with (K3) the kinematics' error is a state, its
 uncertainty is in the increments' own covariance, and this term is zero). What no state explains — the part of
@@ -767,13 +784,13 @@ class FusedVisoOt:
 
     @property
     def state(self) -> np.ndarray:
-        """Newest state ``[Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]`` and ``ε_k`` with (K3) (module notes; before the first tick,
-        the start)."""
+        """Newest state ``[Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]``, then ``ε_k`` with (K3) and ``s_z``, ``s_f`` of (3') when
+        on (module notes; before the first tick, the start)."""
         return (self._history[-1].x if self._history else self._start[0]).copy()
 
     @property
     def covariance(self) -> np.ndarray:
-        """Newest state covariance, 7×7 or 8×8 with (K3) (before the first tick, the start)."""
+        """Newest state covariance, 7×7 and one more row per state that is on (before the first tick, the start)."""
         return (self._history[-1].p if self._history else self._start[1]).copy()
 
 
