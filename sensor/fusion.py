@@ -21,7 +21,8 @@ Model (trailer frame ISO 8855, origin at the kingpin; docs/design.md §5–6)
 --------------------------------------------------------------------------
 State, kept relative to the *anchor* (the time of the last camera frame that was committed)::
 
-    x = [Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]     (and ε_k of (K3) with ``kinematic_error_model: state``)
+    x = [Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]     (and ε_k of (K3) with ``kinematic_error_model: state``,
+                                             then s_z and s_f of (3') when they are on)
 
 ``(Δx, Δy, Δψ)`` is the kingpin's displacement and the trailer's heading change since the anchor, in the
 anchor's trailer frame; ``v_s`` is the lateral *slip velocity* of the kingpin [m/s] (what the trailer's zero-slip
@@ -128,6 +129,21 @@ motion: a yaw error comes with the translation error that keeps the far features
 exceeds ``gate`` is refused (``max_gated`` in a row are accepted with the covariance inflated, so the filter cannot
 lock itself out).
 
+A camera that looks across its motion (a side camera) has its weakest direction along its optical axis ``o``, the
+off-tracking direction, instead. Two optional states, appended after the others, model the odometry's systematic
+error along it: ``s_z`` (``vo_axial_scale`` its start std), a relative error of the camera's displacement along the
+axis (a disparity offset scaling the depths), and ``s_f`` [1/m] (``vo_axial_flow``), an error that grows with the
+square of the camera's displacement across the axis between two frames (the image's flow through a calibration's
+residual: features crossing the image change their disparity error with the distance they move, docs/field_bias.md
+§7.4). With ``Δ_c`` the camera's displacement over the frame (the kingpin's plus the lever ``(R(Δψ) − I)·p_c`` of the
+camera at ``p_c``) and ``t = (o_y, −o_x)``::
+
+    z_xy = (Δx, Δy) + [eq (3)'s term] + (s_z·(o·Δ_c) + s_f·(t·Δ_c)·|t·Δ_c|)·o                    (3')
+
+Both are random walks in distance (``vo_axial_scale_walk``) and are found against the zero-slip kinematics (K1)
+where those are trusted (the disagreement of (K2) is taken less their estimated part): a side camera on a straight
+road must report no lateral motion. Both are off by default (no such states).
+
 Delayed measurements. A frame taken on tick ``k`` is released ``latency`` ticks later
 (:mod:`scenarios.camera.delivery`). The filter keeps the state, covariance, inputs and zero-slip measurements of
 every tick since the anchor; :meth:`FusedVisoOt.measure` updates the stored state of tick ``k`` and re-filters to
@@ -164,7 +180,8 @@ estimated odometry error widens the std. A camera that looks across its motion (
 direction along its optical axis ``o`` instead: a disparity offset scales its translation along ``o`` by a relative
 error, known to ``u_z`` (``vo_axial_scale_uncertainty``, 0 by default), which enters coherently over the path
 through ``A_z = Σ (o·Δ_c)·(g_xy·o)`` (``Δ_c`` each increment's camera displacement) and adds ``(u_z·A_z)²`` to
-the coupling term. The share of the kinematics' disagreement with the camera that the
+the coupling term; the states ``s_z`` and ``s_f`` of (3') enter the biases' term with ``A_z`` and
+``A_f = Σ (t·Δ_c)·|t·Δ_c|·(g_xy·o)`` beside ``G``. The share of the kinematics' disagreement with the camera that the
 estimate carries, ``s_k·m_k`` (K2), enters over the path as a slip velocity would, through ``Λ``, the sum of the
 increments' lateral sensitivities times their durations (with (K3) the kinematics' error is a state, its
 uncertainty is in the increments' own covariance, and this term is zero). What no state explains — the part of
@@ -284,7 +301,13 @@ class FusedVisoOt:
         self._walk_time = np.diag([n.slip_velocity_walk**2, n.gyro_bias_walk**2, n.wheel_speed_bias_walk**2])
         self._walk_distance = n.vo_yaw_bias_walk**2
         self._error_state = n.kinematic_error_model == "state"  # ε_k of (K1) an eighth state, (K3)
-        self._states = _STATES + 1 if self._error_state else _STATES
+        self._axial_state = n.vo_axial_scale > 0.0  # s_z of (3') a state
+        self._flow_state = n.vo_axial_flow > 0.0  # s_f of (3') a state
+        states = _STATES + int(self._error_state)
+        self._sz = states if self._axial_state else None
+        self._sf = states + int(self._axial_state) if self._flow_state else None
+        self._states = states + int(self._axial_state) + int(self._flow_state)
+        self._biases = [*_BIASES, *(i for i in (self._sz, self._sf) if i is not None)]
         self._f = np.eye(self._states)  # work arrays of _step
         self._g = np.zeros((self._states, 2))
         self._gyro_zero: tuple[float, int] | None = None
@@ -325,6 +348,8 @@ class FusedVisoOt:
                 *(n.initial_slip_velocity**2, n.initial_gyro_bias**2, n.initial_wheel_speed_bias**2),
                 n.vo_yaw_bias**2,
                 *((n.tractor_slip**2,) if self._error_state else ()),
+                *((n.vo_axial_scale**2,) if self._axial_state else ()),
+                *((n.vo_axial_flow**2,) if self._flow_state else ()),
             ]
         )
         if self._gyro_zero is not None:  # zeroed at standstill: the mean reading and its variance
@@ -453,6 +478,9 @@ class FusedVisoOt:
             out[_EK] = phi * x[_EK]
             f[_EK, _EK] = phi
             q[_EK, _EK] += kinematic_variance * (1.0 - phi * phi)
+        for i in (self._sz, self._sf):  # (3'): s_z and s_f random walks in distance
+            if i is not None:
+                q[i, i] += self.noise.vo_axial_scale_walk**2 * abs(u) * dt
         return out, f @ p @ f.T + q
 
     def _kinematic_rows(
@@ -569,6 +597,12 @@ class FusedVisoOt:
             )  # the yaw–translation ambiguity of this frame (module notes)
             h[:2, _BPSI] = x[0] * coupling  # the odometry's error per metre over the distance since the anchor
             h[2, _BPSI] = x[0]
+            if self._sz is not None or self._sf is not None:  # (3'): the camera's displacement, along its axis
+                along, across = self._camera_displacement(x[:3])
+                if self._sz is not None:
+                    h[:2, self._sz] = along * self._optical_axis
+                if self._sf is not None:
+                    h[:2, self._sf] = across * abs(across) * self._optical_axis
             self._coupling = coupling
             innovation = z - h @ x
             innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
@@ -579,6 +613,9 @@ class FusedVisoOt:
             kinematic_y = self._kinematic_lateral_step(index, x)
             if kinematic_y is not None:  # (K2): the camera's lateral motion against the tractor's kinematics
                 camera_y = z[1] - h[1, _BPSI] * x[_BPSI]
+                for i in (self._sz, self._sf):  # less the estimated error along the optical axis, (3')
+                    if i is not None:
+                        camera_y -= h[1, i] * x[i]
                 self._weigh_slip_evidence(camera_y - kinematic_y, float(r[1, 1]), interval)
             if nis > self.noise.gate and self._gated < self.noise.max_gated:
                 self._gated += 1
@@ -649,6 +686,7 @@ class FusedVisoOt:
         independent = 0.0
         coherent = np.zeros(3)  # G of eq (5): ∂e_tr/∂(b_g, β_ψ), and the coupled part of the second
         lever = 0.0  # ∂e_tr/∂v_s, a slip velocity error held over the window [s]
+        cross = 0.0  # ∂e_tr/∂s_f
         axial = 0.0  # ∂e_tr/∂u_z: the change of e_tr per relative error of the translation along the optical axis
         if len(self._covs):
             starts, ends = self._starts, self._ends
@@ -661,25 +699,29 @@ class FusedVisoOt:
                 length = np.hypot(ends[ahead, 0] - starts[ahead, 0], ends[ahead, 1] - starts[ahead, 1])
                 coherent = self._bias_effect(g, length, self._durations[ahead])
                 lever += float(np.sum(g[:, 1] * self._durations[ahead]))
-                if self.noise.vo_axial_scale_uncertainty > 0.0:
+                if self.noise.vo_axial_scale_uncertainty > 0.0 or self._axial_state or self._flow_state:
                     turns = np.diff(np.append(starts[:, 2], 0.0))[ahead]  # each increment's Δψ (it ends at the next)
-                    axial = self._axial_effect(g, starts[ahead], ends[ahead], turns)
+                    axial, cross = self._axial_effect(g, starts[ahead], ends[ahead], turns)
         # ... and the current one, from the anchor (heading −Δψ in the current frame) to the kingpin.
         g_now = np.array([s, -c, lfp])
         independent += float(g_now @ now.p[:3, :3] @ g_now)
-        if self.noise.vo_axial_scale_uncertainty > 0.0:
-            axial += self._axial_effect(g_now[None, :], np.zeros((1, 3)), d[None, :2], np.array([d[2]]))
+        if self.noise.vo_axial_scale_uncertainty > 0.0 or self._axial_state or self._flow_state:
+            now_axial, now_cross = self._axial_effect(g_now[None, :], np.zeros((1, 3)), d[None, :2], np.array([d[2]]))
+            axial, cross = axial + now_axial, cross + now_cross
         elapsed = sum(t.inputs[0] for t in list(self._history)[1:])
         coherent += self._bias_effect(g_now[None, :], np.array([math.hypot(d[0], d[1])]), np.array([elapsed]))
         self._lateral_lever = lever + g_now[1] * elapsed
-        biases = now.p[np.ix_(_BIASES, _BIASES)]
+        biases = now.p[np.ix_(self._biases, self._biases)]
+        effects = np.array(  # (3'): s_z and s_f are coherent over the path too
+            [*coherent[:2], *((axial,) if self._axial_state else ()), *((cross,) if self._flow_state else ())]
+        )
         # the disagreement the kinematics' share carries into the slip velocity, coherent over the window
         disagreement = self.kinematic_share * math.sqrt(max(self._slip_evidence, 0.0)) * self._lateral_lever
         # the coupling is known to vo_bias_coupling_uncertainty: so is the correction it applies for β_ψ
         coupling = self.noise.vo_bias_coupling_uncertainty * now.x[_BPSI] * coherent[2]
         self.std_parts = {
             "increments": self.innovation_ratio * independent,
-            "biases": self.innovation_ratio * float(coherent[:2] @ biases @ coherent[:2]),
+            "biases": self.innovation_ratio * float(effects @ biases @ effects),
             "coupling": coupling**2 + (self.noise.vo_axial_scale_uncertainty * axial) ** 2,
             "kinematics": disagreement**2,
             "unexplained": self.noise.offtracking_bias_std**2,
@@ -699,20 +741,36 @@ class FusedVisoOt:
         """
         return {part: math.sqrt(max(self.std_parts[part], 0.0)) for part in STD_PARTS}
 
-    def _axial_effect(self, g: np.ndarray, starts: np.ndarray, ends: np.ndarray, turns: np.ndarray) -> float:
+    def _axial_effect(
+        self, g: np.ndarray, starts: np.ndarray, ends: np.ndarray, turns: np.ndarray
+    ) -> tuple[float, float]:
         """``A_z`` of eq (5): the change of ``e_tr`` per relative error ``u_z`` of the odometry's translation along the
         camera's optical axis ``o``, coherent over increments with sensitivities ``g`` (n×3), start poses and end
         points in one frame and turns ``Δψ``: each increment's camera displacement (its kingpin's, plus the lever
         ``(R(Δψ) − I)·p_c`` of the camera at ``p_c``) has the component ``a = o·Δ_c`` along the axis, and the error
-        ``u_z·a·o`` of the increment moves ``e_tr`` by ``g_xy·o`` times that."""
+        ``u_z·a·o`` of the increment moves ``e_tr`` by ``g_xy·o`` times that. The second value is the same for
+        ``s_f`` of (3'), the square ``(t·Δ_c)·|t·Δ_c|`` of the component across the axis in its place."""
         axis, camera = self._optical_axis, self.geometry.camera_position
         c, s = np.cos(starts[:, 2]), np.sin(starts[:, 2])
         dx, dy = ends[:, 0] - starts[:, 0], ends[:, 1] - starts[:, 1]
         local = np.column_stack([c * dx + s * dy, -s * dx + c * dy])  # in each increment's start frame
         ct, st = np.cos(turns), np.sin(turns)
         lever = np.column_stack([(ct - 1.0) * camera[0] - st * camera[1], st * camera[0] + (ct - 1.0) * camera[1]])
-        along = (local + lever) @ axis
-        return float(np.sum(along * (g[:, :2] @ axis)))
+        moved = local + lever
+        along, across = moved @ axis, moved @ np.array([axis[1], -axis[0]])
+        across = across * np.abs(across)
+        sensitivity = g[:, :2] @ axis
+        return float(np.sum(along * sensitivity)), float(np.sum(across * sensitivity))
+
+    def _camera_displacement(self, delta: np.ndarray) -> tuple[float, float]:
+        """The camera's displacement along and across its optical axis over a kingpin increment ``(dx, dy, dψ)``
+        [m]: the kingpin's, plus the lever ``(R(dψ) − I)·p_c`` of the camera at ``p_c`` (as :meth:`_axial_effect`);
+        "across" is along ``t = (o_y, −o_x)``, the axis turned a right angle clockwise."""
+        camera, ct, st = self.geometry.camera_position, math.cos(delta[2]), math.sin(delta[2])
+        mx = delta[0] + (ct - 1.0) * camera[0] - st * camera[1]
+        my = delta[1] + st * camera[0] + (ct - 1.0) * camera[1]
+        o = self._optical_axis
+        return float(mx * o[0] + my * o[1]), float(mx * o[1] - my * o[0])
 
     def _bias_effect(self, g: np.ndarray, length: np.ndarray, duration: np.ndarray) -> np.ndarray:
         """``G`` of eq (5): the change of ``e_tr`` per unit error of ``(b_g, β_ψ)``, coherent over increments
@@ -726,13 +784,13 @@ class FusedVisoOt:
 
     @property
     def state(self) -> np.ndarray:
-        """Newest state ``[Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]`` and ``ε_k`` with (K3) (module notes; before the first tick,
-        the start)."""
+        """Newest state ``[Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]``, then ``ε_k`` with (K3) and ``s_z``, ``s_f`` of (3') when
+        on (module notes; before the first tick, the start)."""
         return (self._history[-1].x if self._history else self._start[0]).copy()
 
     @property
     def covariance(self) -> np.ndarray:
-        """Newest state covariance, 7×7 or 8×8 with (K3) (before the first tick, the start)."""
+        """Newest state covariance, 7×7 and one more row per state that is on (before the first tick, the start)."""
         return (self._history[-1].p if self._history else self._start[1]).copy()
 
 

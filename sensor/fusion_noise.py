@@ -50,6 +50,16 @@ class FusionNoise(Settings):
         Relative standard deviation of the odometry's translation along the camera's optical axis ``u_z`` (the
         depth scale a disparity offset gives: a side camera's drift along its optical axis, docs/field_bias.md §7),
         carried into the off-tracking's std coherently over the path (eq (5); 0: none, the default).
+    vo_axial_scale : float
+        Standard deviation at the start of the odometry's relative error along the optical axis as a state ``s_z``
+        (eq (3'), estimated against the zero-slip kinematics and the trailer's signals; 0: no such state, the
+        default). For a camera that looks across its motion (a side camera); docs/field_bias.md §7.4.
+    vo_axial_flow : float
+        Standard deviation at the start of the odometry's error along the optical axis per square metre of the
+        camera's motion across it between two frames, a state ``s_f`` [1/m] (eq (3'): the image's flow between frames
+        through the calibration's residual; 0: no such state, the default). docs/field_bias.md §7.4.
+    vo_axial_scale_walk : float
+        The random walk of ``s_z`` and ``s_f`` per metre travelled [1/√m] (an error that follows the mount's flex).
     kinematics : bool
         Fuse the zero-slip kinematics (K1) when the tractor's signals are given.
     kinematic_rear_point : str
@@ -136,6 +146,18 @@ class FusionNoise(Settings):
         ge=0.0,
         le=0.5,
         description="relative std of the VO's translation along the optical axis, in the std; 0.5: half of it unknown",
+    )
+    vo_axial_scale: float = Field(
+        0.0, ge=0.0, le=0.5, description="start std of the VO's relative error along the optical axis, a state; 0: none"
+    )
+    vo_axial_flow: float = Field(
+        0.0,
+        ge=0.0,
+        le=0.5,
+        description="[1/m] start std of the VO's axial error per m² of frame motion across it; 0: none",
+    )
+    vo_axial_scale_walk: float = Field(
+        0.0, ge=0.0, le=0.1, description="[1/√m] its random walk per metre; 0.1 forgets a 3 % error in a few cm"
     )
     kinematics: bool = True
     kinematic_rear_point: RearPoint = "axle_mean"
