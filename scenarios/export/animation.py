@@ -10,8 +10,9 @@ Each frame shows
   mount flex and odometry) is fed the recorded states of every camera tick in order, so the images and the
   features are those the run's odometry saw; inliers green with their flow since the previous frame, outliers
   red. Without the camera the panel is an overview of the whole run with the current position;
-* beneath, the off-tracking of the truth and of every estimator (columns ``offtracking_*``) scrolling with
-  time, with a cursor at the current instant.
+* beneath, for every towed unit with a true off-tracking (the first, then each unit behind it, one panel each),
+  the off-tracking of the truth and of every estimator of that unit, each estimate's ±2σ band where it gives a
+  standard deviation, scrolling with time, with a cursor at the current instant.
 
 Frames are written as an H.264 mp4 through imageio-ffmpeg (or a GIF, by the file's suffix). One renderer per
 process: it is kept between calls and replaced only for a run of another world or rig.
@@ -28,11 +29,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.collections import PolyCollection
 from matplotlib.patches import PathPatch, Polygon
 
 from vehicle_model.errors import InputError
 from vehicle_model.simulator import VehicleState
 
+from ..loop.schema import FIRST_TOWED_UNIT, estimate_columns, estimator_names, std_column
 from ..registry import source_colour
 from ..run.plan_marks import draw_circles
 from ..run.plots import SavedRun, load_run
@@ -201,9 +204,23 @@ def check_animation_settings(fps: float, speed: float, size: tuple[int, int]) ->
     return int(size[0]) // 2 * 2, int(size[1]) // 2 * 2
 
 
+def band_polygons(time: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+    """The polygons of a band between ``lo`` and ``hi`` over ``time``, one per run of samples where both are finite."""
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], finite.astype(np.int8), [0]])))
+    polygons = []
+    for start, stop in zip(edges[::2], edges[1::2], strict=True):
+        x = time[start:stop]
+        polygons.append(
+            np.concatenate([np.column_stack([x, hi[start:stop]]), np.column_stack([x[::-1], lo[start:stop][::-1]])])
+        )
+    return polygons
+
+
 class OfftrackingTrace:
-    """The scrolling off-tracking panel of an animation: the truth and every estimator drawn up to the frame's
-    time and no further, a cursor there, each legend entry showing its current value.
+    """The scrolling off-tracking panel of one towed unit in an animation: the truth and every estimator drawn up
+    to the frame's time and no further, each estimate's ±2σ band where it gives a standard deviation, a cursor
+    there, each legend entry showing its current value.
 
     Parameters
     ----------
@@ -212,22 +229,42 @@ class OfftrackingTrace:
     time
         The run's times [s].
     cols
-        The run's columns; ``offtracking_NAME`` for each of ``names``.
+        The run's columns; the estimate of unit ``unit`` by each of ``names`` (found through
+        :func:`~scenarios.loop.schema.estimate_columns`; ``offtracking_NAME`` for the first towed unit) and its
+        standard deviation where there is one (:func:`~scenarios.loop.schema.std_column`).
     names
         The series to draw, ``"truth"`` in black, the estimators in their registry colours.
     window_s
         Width of the scrolling window [s].
+    unit
+        The vehicle unit drawn (2: the first towed unit); its number names the panel's axis behind the first.
     """
 
-    def __init__(self, axes: Any, time: np.ndarray, cols: dict[str, np.ndarray], names: list[str], window_s: float):
-        self._axes, self._time, self._cols, self._names, self._window = axes, time, cols, names, window_s
-        lines = []
-        for name in names:
+    def __init__(
+        self,
+        axes: Any,
+        time: np.ndarray,
+        cols: dict[str, np.ndarray],
+        names: list[str],
+        window_s: float,
+        unit: int = FIRST_TOWED_UNIT,
+    ):
+        self._axes, self._time, self._names, self._window = axes, time, names, window_s
+        estimates = estimate_columns(cols)
+        self._series = [self._column(cols, estimates, name, unit) for name in names]
+        lines, bands = [], []
+        for name, series in zip(names, self._series, strict=True):
             colour = "k" if name == "truth" else source_colour(name)
             (line,) = axes.plot([], [], lw=1.6 if name == "truth" else 1.0, color=colour)
             lines.append(line)
-        self._lines = lines
-        values = np.concatenate([cols[f"offtracking_{n}"] for n in names]) if names else np.zeros(0)
+            std_of = None if name == "truth" else std_column(cols, name, unit)
+            std = None if std_of is None else np.asarray(cols[std_of.name], dtype=float)
+            if std is not None and np.isfinite(std).any():
+                band = PolyCollection([], facecolors=colour, alpha=0.18, linewidths=0, gid=f"sigma2:{name}:{unit}")
+                axes.add_collection(band)
+                bands.append((band, series - 2.0 * std, series + 2.0 * std))
+        self._lines, self._bands = lines, bands
+        values = np.concatenate(self._series) if names else np.zeros(0)
         values = values[np.isfinite(values)]
         lo, hi = (float(values.min()), float(values.max())) if values.size else (-0.2, 0.2)
         pad = max(0.05, 0.1 * (hi - lo))
@@ -236,20 +273,41 @@ class OfftrackingTrace:
         self._cursor = axes.axvline(time[0], color="0.3", lw=0.8)
         self._legend = axes.legend(lines, names, loc="upper left", fontsize=7, ncols=max(len(names), 1))
         axes.set_xlabel("time [s]", fontsize=8)
-        axes.set_ylabel("off-tracking e_tr [m]", fontsize=8)
+        label = "off-tracking e_tr [m]" if unit == FIRST_TOWED_UNIT else f"unit {unit} e_tr [m]"
+        axes.set_ylabel(label, fontsize=8)
         axes.tick_params(labelsize=7)
 
+    @staticmethod
+    def _column(cols: dict[str, np.ndarray], estimates: dict[tuple[str, int], Any], name: str, unit: int) -> np.ndarray:
+        """Unit ``unit``'s series ``name``: its declared estimate, else ``offtracking_NAME`` for the first unit."""
+        if (name, unit) in estimates:
+            return np.asarray(cols[estimates[name, unit].name], dtype=float)
+        if unit == FIRST_TOWED_UNIT:
+            return np.asarray(cols[f"offtracking_{name}"], dtype=float)
+        raise KeyError(f"no off-tracking of unit {unit} by {name!r} among the columns")
+
     def show(self, k: int) -> None:
-        """Draw each series up to sample ``k`` (nothing ahead of the cursor), scroll there and show its values."""
+        """Draw each series and band up to sample ``k`` (nothing ahead of the cursor), scroll there and show its
+        values."""
         t = self._time[k]
         start = t - 0.75 * self._window
         self._axes.set_xlim(start, start + self._window)
         self._cursor.set_xdata([t, t])
-        for line, name in zip(self._lines, self._names, strict=True):
-            line.set_data(self._time[: k + 1], self._cols[f"offtracking_{name}"][: k + 1])
-        for text, name in zip(self._legend.get_texts(), self._names, strict=True):
-            v = self._cols[f"offtracking_{name}"][k]
+        for line, series in zip(self._lines, self._series, strict=True):
+            line.set_data(self._time[: k + 1], series[: k + 1])
+        for band, lo, hi in self._bands:
+            band.set_verts(band_polygons(self._time[: k + 1], lo[: k + 1], hi[: k + 1]))
+        for text, name, series in zip(self._legend.get_texts(), self._names, self._series, strict=True):
+            v = series[k]
             text.set_text(f"{name} {v:+.3f} m" if np.isfinite(v) else f"{name} —")
+
+
+def towed_unit_traces(cols: dict[str, np.ndarray]) -> list[tuple[int, list[str]]]:
+    """Every towed unit with a true off-tracking, front to rear, with the estimators of it: ``(unit, names)``,
+    the names ``"truth"`` first. The first towed unit is always among them (its columns by name)."""
+    estimates = estimate_columns(cols)
+    units = sorted({unit for name, unit in estimates if name == "truth"} | {FIRST_TOWED_UNIT})
+    return [(unit, ["truth", *estimator_names(cols, unit)]) for unit in units]
 
 
 def grab_frame(fig: Any, width: int, height: int) -> np.ndarray:
@@ -368,10 +426,16 @@ def animate_run(
     times = frame_times(time, fps, speed, max_frames)
     samples = np.clip(np.searchsorted(time, times + 1e-9, side="right") - 1, 0, time.size - 1)
 
+    traced = towed_unit_traces(cols)
     fig = plt.figure(figsize=(width / 100.0, height / 100.0), dpi=100)
-    grid = fig.add_gridspec(2, 2, height_ratios=[1.9, 1], width_ratios=[1, 2.1 if cam else 1.4])
+    rows_traced = len(traced)
+    grid = fig.add_gridspec(
+        2, 2, height_ratios=[1.9, 1.0 + 0.6 * (rows_traced - 1)], width_ratios=[1, 2.1 if cam else 1.4]
+    )
     grid.update(left=0.06, right=0.99, bottom=0.08, top=0.93, wspace=0.12, hspace=0.25)
-    plan, side, trace = fig.add_subplot(grid[0, 0]), fig.add_subplot(grid[0, 1]), fig.add_subplot(grid[1, :])
+    plan, side = fig.add_subplot(grid[0, 0]), fig.add_subplot(grid[0, 1])
+    trace_grid = grid[1, :].subgridspec(rows_traced, 1, hspace=0.08)
+    traces = [fig.add_subplot(trace_grid[i, 0]) for i in range(rows_traced)]
     centre = run.setup.annulus_centre
     ref = run.setup.path.points
     outlines = unit_outlines(params, cols)
@@ -434,7 +498,13 @@ def animate_run(
         side.set_ylabel("Y [m]", fontsize=8)
         side_title = side.set_title("whole run", fontsize=9)
 
-    panel = OfftrackingTrace(trace, time, cols, ["truth", *run.estimator_names()], window_s)
+    panels = [
+        OfftrackingTrace(axes, time, cols, names, window_s, unit=unit)
+        for axes, (unit, names) in zip(traces, traced, strict=True)
+    ]
+    for axes in traces[:-1]:
+        axes.tick_params(labelbottom=False)
+        axes.set_xlabel("")
     fig.text(0.01, 0.995, animation_title(run), ha="left", va="top", fontsize=9)
 
     append, close = _writer(out, fps, (width, height))
@@ -461,7 +531,8 @@ def animate_run(
                 side_title.set_text(cam.info)
             elif marker is not None:
                 marker.set_data([cols["X"][k]], [cols["Y"][k]])
-            panel.show(k)
+            for panel in panels:
+                panel.show(k)
             append(grab_frame(fig, width, height))
             if progress is not None:
                 progress(i + 1, len(samples))
