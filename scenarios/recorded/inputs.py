@@ -219,7 +219,7 @@ def _reference(
 def resolve_inputs(
     recording: Path,
     *,
-    rig: Path,
+    rig: Path | RecordingRig,
     calibration: Path | None = None,
     calib: Path | None = None,
     right_video: Path | None = None,
@@ -242,14 +242,15 @@ def resolve_inputs(
     and ``seed`` its RANSAC's seed (a run's ``seed``, 0 by default): with both as a run had them, the odometry
     repeats the run's. ``rear_point`` is the tractor's rear point of the zero-slip and fused estimators
     (:data:`~vehicle_model.kinematics.RearPoint`; a run's ``estimators.zero_slip_rear_point`` and
-    ``fusion.kinematic_rear_point``); ``lateral_acceleration`` needs the signals' accelerometer column.
+    ``fusion.kinematic_rear_point``); ``lateral_acceleration`` needs the signals' accelerometer column. ``rig`` is a
+    rig file or a rig already read (one of a rigs file, :mod:`.rigs`).
 
     Raises
     ------
     InputError
         Any input that cannot work, one line naming it.
     """
-    rig_ = load_rig(Path(rig))
+    rig_ = rig if isinstance(rig, RecordingRig) else load_rig(Path(rig))
     if refinement not in (0, 1, 2):
         raise InputError(f"--refinement {refinement!r}: allowed: 0 (none), 1 (pixel), 2 (sub-pixel)")
     if not (isinstance(seed, int) and seed >= 0):
@@ -271,6 +272,11 @@ def resolve_inputs(
     series = read_signals(Path(signals)) if signals is not None else None
     if series is not None:
         check_signals_clock(series, rec)
+        if rig_.unit != 1:
+            raise InputError(
+                f"--signals {signals} with a rig on towed unit {rig_.unit}: the fused and zero-slip estimates take "
+                "the first towed unit's signals; allowed: signals with a rig on unit 1, VISO-OT alone behind it"
+            )
     if rear_point == "lateral_acceleration" and (series is None or series.lateral_acceleration is None):
         raise InputError(
             "--rear-point lateral_acceleration needs the tractor's accelerometer: a --signals CSV with a "
@@ -287,7 +293,7 @@ def resolve_inputs(
         "left_topic": left_topic,
         "right_topic": right_topic,
         "pair_tolerance_s": pair_tolerance,
-        "rig": str(Path(rig).resolve()),
+        "rig": None if isinstance(rig, RecordingRig) else str(Path(rig).resolve()),
         "rig_file": rig_.file,
         "calibration": str(Path(calibration).resolve()) if calibration else None,
         "calib": str(Path(calib).resolve()) if calib else None,
