@@ -1,0 +1,152 @@
+"""``offtrack estimate --rigs``: a B-double recorded with one stereo rig per towed unit, each unit estimated.
+
+A short B-double drive into a 30 m roundabout (25 km/h, 3 s, unsteered) is exported twice with ``export_kitti``:
+a left-looking side rig on the lead trailer (the trailer behind it and the tractor drawn in the scene) and a rear
+rig on the rear trailer, small images (672 × 196 px). ``offtrack estimate --rigs`` on the two folders gives each
+unit's VISO-OT series; each is checked against the simulation's own true off-tracking of that unit (the run's
+``offtracking_truth`` and ``offtracking_truth3``, not the recording's reference), so a rig put on the wrong unit, the
+wrong coupling or the wrong follow point would fail.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from scenarios.cli import app
+from scenarios.config import load_scenario
+from scenarios.export.kitti import export_kitti
+from scenarios.loop.trailer_steer import UnsteeredTrailer, trailer_axles
+from scenarios.run.drive import simulate
+from scenarios.setup.build import build_scenario
+from sensor.camera import StereoRig
+
+pytestmark = pytest.mark.rendering
+
+B_DOUBLE = Path(__file__).parent / "data" / "combinations" / "b-double.yaml"
+OVERRIDES = {
+    "path.radius": 30.0,
+    "path.entry_length": 1.0,
+    "speed.cornering_kmh": 25.0,
+    "camera.latency_s": 0.0,
+    "duration_s": 3.0,
+    "feedback": "none",
+}
+SIDE = {"unit": 1, "recording": "lead", "psi_c2v_deg": 270.0, "lever_arm_m": [-4.0, 1.3, 2.5]}
+
+
+def _vehicle() -> dict:
+    return {"name": "b-double", **yaml.safe_load(B_DOUBLE.read_text(encoding="utf-8"))}
+
+
+def _rigs_file(folder: Path, rigs: list[dict], name: str = "rigs.yaml") -> Path:
+    path = folder / name
+    path.write_text(yaml.safe_dump({"vehicle": _vehicle(), "rigs": rigs}), encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> SimpleNamespace:
+    """The two rigs' KITTI folders, the rigs file, the estimate's directory and the simulation's columns."""
+    tmp = tmp_path_factory.mktemp("rigs")
+    config = load_scenario("roundabout-3", {"vehicle": _vehicle(), **OVERRIDES})
+    params = config.vehicle_params()
+    size = {"width": 672, "height": 196}
+    side = StereoRig(**size, station=-4.0, lateral=1.3, mount_height=2.5, psi_c2v=math.radians(270.0), unit=1)
+    rear = StereoRig(**size, station=None, mount_height=3.0, psi_c2v=math.pi, unit=2)
+    export_kitti(config, tmp / "lead", rig=side)
+    export_kitti(config, tmp / "rear", rig=rear)
+    rear_arm = [float(params.trailers[1].rear_x), 0.0, 3.0]
+    rigs = _rigs_file(tmp, [SIDE, {"unit": 2, "recording": "rear", "psi_c2v_deg": 180.0, "lever_arm_m": rear_arm}])
+    out = tmp / "estimate"
+    result = CliRunner().invoke(app, ["estimate", "--rigs", str(rigs), "--out", str(out), "--no-plots"])
+    assert result.exit_code == 0, result.output
+    setup = build_scenario(config)
+    outcome, cols = simulate(setup, UnsteeredTrailer(trailer_axles(setup)))
+    assert outcome.status == "completed"
+    frames = np.flatnonzero(np.asarray(cols["camera_frame"]) > 0.5)
+    return SimpleNamespace(tmp=tmp, out=out, output=result.output, cols=cols, frames=frames, rigs=rigs)
+
+
+@pytest.mark.parametrize(("unit", "truth"), [(2, "offtracking_truth"), (3, "offtracking_truth3")])
+def test_each_units_camera_estimate_follows_that_units_true_offtracking(
+    recorded: SimpleNamespace, unit: int, truth: str
+) -> None:
+    series = pd.read_parquet(recorded.out / f"unit{unit}" / "timeseries.parquet")
+    true = np.asarray(recorded.cols[truth])[recorded.frames]
+    assert len(series) == len(true)
+    # the reference from the rig's exported camera poses is the simulation's own truth of that unit (within 3 mm)
+    reference = series["offtracking_truth"].to_numpy()
+    assert np.isfinite(reference).sum() >= 10 and np.nanmax(np.abs(reference - true)) < 3e-3
+    estimate = series["offtracking_viso_ot"].to_numpy()
+    error = (estimate - true)[np.isfinite(estimate) & np.isfinite(true)]
+    assert error.size >= 10
+    # the issue's targets on small images: ≤ 0.10 m RMS, ≤ 0.15 m max (measured 0.05 / 0.09 m)
+    assert float(np.sqrt(np.mean(error**2))) <= 0.10 and float(np.max(np.abs(error))) <= 0.15
+    assert abs(float(np.nanmax(np.abs(true)))) > 0.05  # the unit off-tracks: the check is not of zeros
+
+
+def test_the_directory_holds_every_units_metrics_and_the_synchronisation(recorded: SimpleNamespace) -> None:
+    summary = json.loads((recorded.out / "metrics.json").read_text())
+    assert summary["status"] == "completed" and set(summary["units"]) == {"2", "3"}
+    for key, unit in summary["units"].items():
+        assert unit["run"] == f"unit{key}" and unit["rig_unit"] == int(key) - 1
+        assert unit["offtracking"]["estimators"]["viso_ot"]["rms_error"] <= 0.10
+        own = json.loads((recorded.out / unit["run"] / "metrics.json").read_text())
+        assert own["offtracking"] == unit["offtracking"]
+    assert summary["synchronisation"]["span_s"] == pytest.approx([0.0, 3.0])
+    assert "unit 3 (unit3/): completed" in recorded.output
+    record = yaml.safe_load((recorded.out / "unit3" / "recording.yaml").read_text())
+    assert record["rig_file"]["unit"] == 2 and record["rig"] is None
+
+
+def _refused(*args: str) -> str:
+    result = CliRunner().invoke(app, ["estimate", *args])
+    assert result.exit_code == 2, result.output
+    return result.output
+
+
+def test_rigs_that_share_no_instant_are_refused_before_any_work(recorded: SimpleNamespace, tmp_path: Path) -> None:
+    late = tmp_path / "late"
+    shutil.copytree(recorded.tmp / "rear", late)
+    times = np.loadtxt(late / "times.txt") + 100.0  # the rear rig's clock 100 s on: no frame beside the lead's
+    (late / "times.txt").write_text("".join(f"{t:.6f}\n" for t in times))
+    shutil.copytree(recorded.tmp / "lead", tmp_path / "lead")
+    arm = [-11.0, 0.0, 3.0]
+    rigs = _rigs_file(tmp_path, [SIDE, {"unit": 2, "recording": "late", "psi_c2v_deg": 180.0, "lever_arm_m": arm}])
+    output = _refused("--rigs", str(rigs), "--out", str(tmp_path / "out"))
+    assert "synchronised" in output and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("rigs", "says"),
+    [
+        ([SIDE, SIDE], "unit 1 given twice"),
+        ([{**SIDE, "unit": 3}], "unit = 3"),
+        ([{**SIDE, "unit": 2, "signals": "signals.csv"}], "signals"),
+        ([{**SIDE, "vehicle": "lst"}], "vehicle"),
+        ([], "rigs"),
+    ],
+)
+def test_a_rigs_file_that_cannot_work_is_refused_naming_the_field(
+    recorded: SimpleNamespace, tmp_path: Path, rigs: list[dict], says: str
+) -> None:
+    shutil.copytree(recorded.tmp / "lead", tmp_path / "lead")
+    (tmp_path / "signals.csv").write_text("time_s,speed_m_s,yaw_rate_deg_s,articulation_deg\n0,7,0,0\n3,7,0,0\n")
+    if rigs and rigs[0].get("unit") == 2:
+        rigs = [{**rigs[0], "lever_arm_m": [-10.0, 1.3, 2.5]}]
+    output = _refused("--rigs", str(_rigs_file(tmp_path, rigs)), "--out", str(tmp_path / "out"))
+    assert says in output
+
+
+def test_rigs_and_a_recording_are_refused_together(recorded: SimpleNamespace) -> None:
+    assert "not with --rigs" in _refused(str(recorded.tmp / "lead"), "--rigs", str(recorded.rigs))
