@@ -47,10 +47,18 @@ from __future__ import annotations
 import math
 
 from vehicle_model.errors import InputError
+from vehicle_model.parameters import VehicleParams
 
-from .camera_schema import CameraConfig
+from .camera_schema import CameraConfig, StereoRigConfig, rig_configs
 
-__all__ = ["MIN_ROAD_DISPARITY_PX", "check_camera", "check_camera_feasible", "check_lenses", "nearest_road_disparity"]
+__all__ = [
+    "MIN_ROAD_DISPARITY_PX",
+    "check_camera",
+    "check_camera_feasible",
+    "check_lenses",
+    "check_rigs",
+    "nearest_road_disparity",
+]
 
 #: Disparity [px] the odometry needs on the nearest visible road (module notes).
 MIN_ROAD_DISPARITY_PX = 4.0
@@ -85,13 +93,46 @@ def nearest_road_disparity(width: int, height: int, hfov_deg: float, baseline: f
     return f * baseline / z_near
 
 
-def check_camera(camera: CameraConfig) -> None:
-    """Refuse a camera that cannot work: :func:`check_camera_feasible`, then :func:`check_lenses`."""
-    check_camera_feasible(camera)
-    check_lenses(camera)
+def check_camera(camera: CameraConfig, params: VehicleParams | None = None) -> None:
+    """Refuse a camera that cannot work: :func:`check_rigs` (with the combination), then every rig's
+    :func:`check_camera_feasible` and :func:`check_lenses` (the section itself without ``params``)."""
+    if params is None:
+        check_camera_feasible(camera)
+        check_lenses(camera)
+        return
+    check_rigs(camera, params)
+    for index, rig in enumerate(rig_configs(camera, params)):
+        field = "camera" if camera.rigs is None else f"camera.rigs[{index}]"
+        check_camera_feasible(rig, field)
+        check_lenses(rig, field)
 
 
-def check_lenses(camera: CameraConfig) -> None:
+def check_rigs(camera: CameraConfig, params: VehicleParams) -> None:
+    """Refuse rigs the combination cannot carry, in one line naming the field: a unit it does not have, two rigs on
+    one unit (each unit's camera estimate is its one rig's), or none on the first towed unit (whose estimate every
+    camera estimator gives).
+
+    Raises
+    ------
+    InputError
+        ``camera.rigs[i].unit`` out of range or taken, or ``camera.rigs`` without unit 1.
+    """
+    towed = params.n_units - 1
+    seen: dict[int, int] = {}
+    for index, rig in enumerate(camera.rigs or ()):
+        if not 1 <= rig.unit <= towed:
+            raise InputError(f"camera.rigs[{index}].unit = {rig.unit}: a towed unit of {params.name!r}, 1 to {towed}")
+        if rig.unit in seen:
+            raise InputError(
+                f"camera.rigs[{index}].unit = {rig.unit}: unit {rig.unit} has a rig already (camera.rigs"
+                f"[{seen[rig.unit]}]); one rig per towed unit"
+            )
+        seen[rig.unit] = index
+    if camera.rigs is not None and 1 not in seen:
+        raise InputError("camera.rigs: no rig on towed unit 1; the camera estimators need one on the first towed unit")
+
+
+def check_lenses(camera: StereoRigConfig, field: str = "camera") -> None:
     """Refuse a lens whose model folds over inside the image (one line naming ``camera.lens`` or ``right_lens``)."""
     left, right = camera.lens_pair()
     if left.is_zero and right.is_zero:
@@ -100,18 +141,21 @@ def check_lenses(camera: CameraConfig) -> None:
     from sensor.lens import check_invertible
 
     k = StereoRig.from_degrees(hfov_deg=camera.hfov_deg, width=camera.width, height=camera.height).intrinsics()
-    for lens, name in ((left, "camera.lens"), (right, "camera.right_lens" if camera.right_lens else "camera.lens")):
+    named = ((left, f"{field}.lens"), (right, f"{field}.right_lens" if camera.right_lens else f"{field}.lens"))
+    for lens, name in named:
         if not lens.is_zero:
             check_invertible(k, lens, camera.width, camera.height, name)
 
 
-def check_camera_feasible(camera: CameraConfig) -> None:
+def check_camera_feasible(camera: StereoRigConfig, field: str = "camera") -> None:
     """Raise :class:`InputError` if the stereo camera cannot support visual odometry.
 
     Parameters
     ----------
-    camera : CameraConfig
-        The scenario's ``camera`` section (module notes give the reasoning).
+    camera : StereoRigConfig
+        The scenario's ``camera`` section, or one of its rigs (module notes give the reasoning).
+    field : str
+        Its name in the configuration (``camera``, ``camera.rigs[1]``).
 
     Raises
     ------
@@ -126,14 +170,14 @@ def check_camera_feasible(camera: CameraConfig) -> None:
     capacity = _PER_BUCKET * math.ceil(cam.width / _BUCKET_PX) * math.ceil(cam.height / _BUCKET_PX)
     if capacity < 2 * _MIN_INLIERS:
         raise InputError(
-            f"camera.width × camera.height = {cam.width}×{cam.height} px holds at most {capacity} matches "
+            f"{field}.width × {field}.height = {cam.width}×{cam.height} px holds at most {capacity} matches "
             f"({_PER_BUCKET} per {_BUCKET_PX:g} px bucket); VO needs ≥ {_MIN_INLIERS} inliers: use an image of "
             f"at least {2 * _MIN_INLIERS // _PER_BUCKET} buckets, e.g. 400×200 px"
         )
     if disparity < MIN_ROAD_DISPARITY_PX:
         need = MIN_ROAD_DISPARITY_PX * cam.mount_height / cv
         raise InputError(
-            f"camera.baseline = {cam.baseline:g} m gives at most {disparity:.2g} px of disparity on the road "
+            f"{field}.baseline = {cam.baseline:g} m gives at most {disparity:.2g} px of disparity on the road "
             f"{z_near:.1f} m behind the camera; VO needs ≥ {MIN_ROAD_DISPARITY_PX:g} px: use a baseline "
-            f"≥ {math.ceil(need * 1000.0) / 1000.0:g} m (or a lower camera.mount_height)"
+            f"≥ {math.ceil(need * 1000.0) / 1000.0:g} m (or a lower {field}.mount_height)"
         )

@@ -1,22 +1,32 @@
-"""The ``camera`` section of the scenario schema: the rig and its field conditions.
+"""The ``camera`` section of the scenario schema: the rigs and their field conditions.
 
-The rig (size, field of view, baseline, mounting, misalignment, noise, latency) and the field conditions —
+A rig (size, field of view, baseline, mounting, misalignment, noise, latency) and its field conditions —
 lens, calibration, mount flex, lighting, world, online self-calibration — all off by default, so the ideal
 simulation of de Saxe & Cebon 2018, §3, is unchanged; its §4 (the field tests) needs them. Every section is a
 :class:`vehicle_model.settings.Settings`; this module sits below :mod:`scenarios.config`, which includes
 :class:`CameraConfig` as ``camera``. Degrees at this edge; the camera pipeline converts to SI.
+
+The section's own fields are one rig's (:class:`StereoRigConfig`). ``camera.rigs`` lists the rigs of a run, one
+per towed unit at most (:class:`RigSettings`: the towed unit, its facing, and any of the section's fields it sets
+for itself; a field it leaves out is the section's). Left out, the rigs are the combination's defaults
+(:func:`default_rigs`): the section's rig on the semi-trailer of a tractor–semi-trailer — the one-camera form —
+and for a longer combination a left-side rig on every towed unit that tows another (its left edge, looking left,
+as the paper's field tests) and a rear rig on the last. :func:`rig_configs` resolves them into one
+:class:`RigConfig` per rig.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, create_model, model_serializer, model_validator
+from pydantic.fields import FieldInfo
 
 from sensor.camera import Lens
 from sensor.lighting import Lighting
 from sensor.mount_flex import MountFlex
 from sensor.vo.self_calibration import SelfCalibrationSettings
+from vehicle_model.parameters import VehicleParams
 from vehicle_model.settings import Settings
 
 MAX_RIG_ROTATION_DEG = 20.0
@@ -79,8 +89,8 @@ class SelfCalibrationConfig(SelfCalibrationSettings):
     enabled: bool = False
 
 
-class CameraConfig(Settings):
-    """The trailer's stereo camera (defaults: the paper's simulation, §3.1).
+class StereoRigConfig(Settings):
+    """One stereo rig and its field conditions (defaults: the paper's simulation, §3.1).
 
     ``station`` is measured from the kingpin (negative behind it; default: the trailer's rear),
     ``lateral`` is positive to the left, ``psi_c2v_deg`` is the paper's camera-to-vehicle angle,
@@ -104,7 +114,10 @@ class CameraConfig(Settings):
         3.0, gt=0.2, le=6.0, description="[m] above the road; between the ground and above the tallest trailer"
     )
     station: float | None = Field(
-        None, ge=-20.0, le=2.0, description="[m] from the kingpin; no trailer is longer than 20 m behind it"
+        None,
+        ge=-20.0,
+        le=2.0,
+        description="[m] from the kingpin of its unit; no trailer is longer than 20 m behind it",
     )
     lateral: float = Field(0.0, ge=-2.0, le=2.0, description="[m]; the trailer is 2.55 m wide")
     psi_c2v_deg: float = Field(180.0, ge=0.0, lt=360.0, description="[°] one full turn")
@@ -150,3 +163,130 @@ class CameraConfig(Settings):
     def lens_pair(self) -> tuple[Lens, Lens]:
         """The left and right :class:`sensor.camera.Lens` (``right_lens`` defaults to ``lens``)."""
         return self.lens, self.lens if self.right_lens is None else self.right_lens
+
+
+Facing = Literal["rear", "left", "right"]
+"""Where a rig looks: back along its unit, or out of its left or right side."""
+
+FACING_PSI_DEG: dict[str, float] = {"rear": 180.0, "right": 90.0, "left": 270.0}
+"""ψ_c2v [°] of each facing (clockwise from the unit's forward axis, as ``psi_c2v_deg``)."""
+
+MAX_LATERAL_M = 2.0
+"""The largest ``lateral`` a rig takes [m] (:attr:`StereoRigConfig.lateral`); a side rig at a unit's edge is
+mounted at most this far out."""
+
+
+class _RigChoice(Settings):
+    """What every rig of ``camera.rigs`` says besides the section's fields: its unit and its facing."""
+
+    unit: int = Field(1, ge=1, le=16, description="the towed unit it is mounted on: 1 the first, 2 the one it tows, …")
+    facing: Facing | None = Field(
+        None,
+        description="rear (ψ_c2v 180°), left (270°) or right (90°); a side rig without its own lateral is at the "
+        "unit's edge; None: psi_c2v_deg",
+    )
+
+    @model_serializer(mode="wrap")
+    def _given_only(self, handler: Any) -> Any:
+        """Only what the rig sets (a field left out is the camera section's)."""
+        return {k: v for k, v in handler(self).items() if v is not None}
+
+
+RUN_WIDE = ("world", "scenery_density", "latency_s")
+"""Fields of the camera section that are the run's, not a rig's: every rig sees one world and releases its frames
+after one latency."""
+
+
+def _optional(info: FieldInfo) -> tuple[Any, FieldInfo]:
+    """A field of :class:`StereoRigConfig` as a rig's own: the same type and range, or None (the section's)."""
+    return info.annotation | None, FieldInfo.merge_field_infos(info, default=None)
+
+
+RigSettings = create_model(  # type: ignore[call-overload]
+    "RigSettings",
+    __base__=_RigChoice,
+    __doc__="One rig of ``camera.rigs``: its unit, its facing and any of the camera section's fields it sets for "
+    "itself (None or left out: the section's).",
+    **{name: _optional(info) for name, info in StereoRigConfig.model_fields.items() if name not in RUN_WIDE},
+)
+
+
+class RigConfig(StereoRigConfig):
+    """One resolved rig: the camera section's fields with the rig's own, its unit and its facing
+    (:func:`rig_configs`)."""
+
+    unit: int = Field(1, ge=1, le=16, description="the towed unit it is mounted on: 1 the first")
+    facing: Facing | None = None
+
+
+class CameraConfig(StereoRigConfig):
+    """The stereo cameras of a run: the section's own fields are one rig's (:class:`StereoRigConfig`), every
+    rig's defaults; ``rigs`` lists the rigs (module docstring; left out: :func:`default_rigs`)."""
+
+    rigs: tuple[RigSettings, ...] | None = Field(  # type: ignore[valid-type]
+        None,
+        min_length=1,
+        max_length=16,
+        description="one rig per towed unit at most: unit, facing and any camera field of its own; null: a rig on "
+        "a tractor–semi-trailer's semi-trailer, or a side rig on every unit that tows another and a rear rig on the "
+        "last",
+    )
+
+    @model_serializer(mode="wrap")
+    def _one_camera_form(self, handler: Any) -> Any:
+        """Without ``rigs`` the section is written as the one camera it is."""
+        data = handler(self)
+        if isinstance(data, dict) and data.get("rigs") is None:
+            data.pop("rigs", None)
+        return data
+
+
+def default_rigs(params: VehicleParams) -> tuple[Any, ...]:
+    """The rigs of a combination without ``camera.rigs`` (module docstring), as :class:`RigSettings`."""
+    last = params.n_units - 1
+    if last == 1:
+        return (RigSettings(),)
+    return (*(RigSettings(unit=unit, facing="left") for unit in range(1, last)), RigSettings(unit=last, facing="rear"))
+
+
+def side_station(params: VehicleParams, unit: int) -> float:
+    """Where a side rig of towed unit ``unit`` sits along it [m from its front coupling]: midway between the rear of
+    the unit ahead and the front of the unit it tows, both as they stand when straight (a side camera at the rear of
+    a unit that tows another would sit beside, or inside, the next unit's front), within the unit's own body; for
+    the last unit, midway between the rear of the unit ahead and its own rear."""
+    own = params.units[unit]
+    ahead = params.units[unit - 1]
+    coupling = ahead.fifth_wheel_x if ahead.fifth_wheel_x is not None else 0.0
+    ahead_rear = ahead.rear_x - coupling
+    if unit + 1 < len(params.units) and own.fifth_wheel_x is not None:
+        next_front = own.fifth_wheel_x + params.units[unit + 1].front_x
+    else:
+        next_front = own.rear_x
+    return float(min(max(0.5 * (min(ahead_rear, 0.0) + next_front), own.rear_x), own.front_x))
+
+
+def rig_configs(camera: CameraConfig, params: VehicleParams) -> tuple[RigConfig, ...]:
+    """Every rig of the run, resolved: the section's fields, then each rig's own, its facing's ψ_c2v and, for a side
+    rig without its own ``lateral``, the edge of its unit (half its width, at most :data:`MAX_LATERAL_M`); a side
+    rig with no station of its own or the section's sits at :func:`side_station`."""
+    section = {name: getattr(camera, name) for name in StereoRigConfig.model_fields}
+    out = []
+    for rig in camera.rigs if camera.rigs is not None else default_rigs(params):
+        own = {name: getattr(rig, name) for name in type(rig).model_fields if getattr(rig, name) is not None}
+        facing = own.get("facing")
+        if facing is not None:
+            own["psi_c2v_deg"] = FACING_PSI_DEG[facing]
+        unit = own.get("unit", 1)
+        if facing in ("left", "right") and 1 <= unit < params.n_units:
+            if "lateral" not in own:
+                edge = min(0.5 * params.trailers[unit - 1].width, MAX_LATERAL_M)
+                own["lateral"] = edge if facing == "left" else -edge
+            if "station" not in own and camera.station is None:
+                own["station"] = round(side_station(params, unit), 3)
+        out.append(RigConfig.model_validate({**section, **own}))
+    return tuple(out)
+
+
+def rig_units(camera: CameraConfig, params: VehicleParams) -> tuple[int, ...]:
+    """The towed units that carry a rig, in the order of the rigs (``camera.rigs``, or :func:`default_rigs`)."""
+    return tuple(rig.unit for rig in (camera.rigs if camera.rigs is not None else default_rigs(params)))

@@ -118,10 +118,13 @@ class EstimatorEntry:
         It estimates every towed unit along the chain (recorded as ``offtracking_<name><k>`` for unit ``k`` of the
         combination) and may steer the units behind the first (``rear_feedback``).
     build_unit : callable or None
-        With ``per_unit``: ``build_unit(context, unit) -> UnitEstimator`` for towed unit ``unit`` ≥ 2 (2: the unit
-        behind the first), an object whose ``update(tick)`` returns that unit's
-        :class:`~vehicle_model.offtracking.OfftrackingEstimate`. Only the ground truth, whose units' truths are the
-        loop's own (:mod:`scenarios.loop.further_units`), is per unit without one.
+        With ``per_unit``: ``build_unit(context, unit) -> UnitEstimator or None`` for towed unit ``unit`` ≥ 2 (2: the
+        unit behind the first), an object whose ``update(tick)`` returns that unit's
+        :class:`~vehicle_model.offtracking.OfftrackingEstimate` (``None``: it cannot estimate that unit, e.g. no
+        camera rig is on it). A unit estimator may declare its own ``columns`` and ``record()`` (and ``finish``,
+        ``report``, ``close``), as a participant; without them its estimate is recorded as
+        ``offtracking_<name><k>``. Only the ground truth, whose units' truths are the loop's own
+        (:mod:`scenarios.loop.further_units`), is per unit without one.
     offline : callable or None
         Its adapter to recorded rows, ``offline(context) -> OfflineEstimator or None``
         (:mod:`scenarios.loop.offline`): ``offtrack estimate`` runs it over a recording beside the recording's own

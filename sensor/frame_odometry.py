@@ -137,6 +137,9 @@ class FrameOdometry:
         Seed of the odometry's RANSAC.
     self_calibration_settings : SelfCalibrationSettings, optional
         Estimate the right camera's rotation online and remove it (``None``: off).
+    unit : int
+        The towed unit the camera is on, whose off-tracking VISO-OT estimates (1: the first;
+        :class:`~sensor.viso_ot.VisoOtEstimator`).
     """
 
     def __init__(
@@ -147,9 +150,10 @@ class FrameOdometry:
         frame_interval: float,
         seed: int,
         self_calibration_settings: SelfCalibrationSettings | None = None,
+        unit: int = 1,
     ) -> None:
         self.vo = StereoOdometry(vo_config, seed=seed)
-        self.estimator = VisoOtEstimator(params, camera_in_trailer, frame_interval=frame_interval)
+        self.estimator = VisoOtEstimator(params, camera_in_trailer, frame_interval=frame_interval, unit=unit)
         self.frames = 0
         self.estimate: float | None = None
         self.self_calibration = (

@@ -208,9 +208,13 @@ def test_frame_cache_key_holds_every_units_pose() -> None:
     assert not np.array_equal(a, b, equal_nan=True)
 
 
-def test_a_feed_of_another_rig_is_refused() -> None:
+def test_a_feed_of_a_rig_the_configuration_lacks_is_refused() -> None:
+    from types import SimpleNamespace
+
     from scenarios.camera.delivery import CameraFeed
+    from scenarios.config import load_scenario
     from vehicle_model.errors import InputError
 
-    with pytest.raises(InputError, match="rig_index = 1 is out of range"):
-        CameraFeed(None, rig_index=1)  # type: ignore[arg-type]
+    setup = SimpleNamespace(config=load_scenario("roundabout-3"))  # a tractor–semi-trailer: one rig
+    with pytest.raises(InputError, match=r"rig_index = 1: the run has 1 camera rig\(s\), 0 to 0"):
+        CameraFeed(setup, rig_index=1)  # type: ignore[arg-type]

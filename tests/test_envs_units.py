@@ -252,10 +252,10 @@ def test_a_randomisation_whose_vehicles_steer_other_units_is_refused(tmp_path: P
 @pytest.mark.parametrize(
     ("kwargs", "field"),
     [
-        ({"rear_feedback": ["viso_ot"]}, "rear_feedback"),
+        ({"rear_feedback": ["lidar"]}, "rear_feedback"),  # the camera's viso_ot is a unit's own estimate now
         ({"rear_feedback": ["truth", "truth"]}, "rear_feedback"),
         ({"rear_feedback": "truth"}, "rear_feedback"),
-        ({"feedback": "viso_ot"}, "feedback"),
+        ({"feedback": "lidar"}, "feedback"),
     ],
 )
 def test_bad_feedback_for_a_unit_is_one_line_naming_the_field(kwargs: dict, field: str) -> None:

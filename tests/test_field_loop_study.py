@@ -36,6 +36,7 @@ from scenarios.studies.figures_field_loop import cell_label, coverage_axes, fiel
 from scenarios.studies.registry import STUDIES
 from scenarios.studies.section4 import FIELD_CONDITIONS, PAPER_SECTION4_MISALIGNMENT_DEG
 from sensor.datasheet import DATASHEET_BIAS_LIMITS, DATASHEET_NOISE
+from vehicle_model.errors import InputError
 
 FIELD_KEYS = {k for k, _ in FIELD_CONDITIONS}
 
@@ -47,7 +48,7 @@ def _rendered(case) -> bool:
 def test_the_study_is_registered() -> None:
     study = STUDIES["field-loop"]
     assert study.cases is field_loop_cases and study.run_case is run_field_loop_case
-    assert study.figures is field_loop_figures and not study.takes_vehicle
+    assert study.figures is field_loop_figures and study.takes_vehicle  # --vehicle: a combination's grid
 
 
 def test_full_grid_is_144_cases_of_which_48_render() -> None:
@@ -336,3 +337,57 @@ def test_log_axes_of_the_study_figures_read_in_metres() -> None:
         assert not any("10^" in text or "$" in text for text in labels)
     finally:
         plt.close(fig)
+
+
+def test_a_combinations_grid_steers_every_unit_on_its_own_camera() -> None:
+    cases = field_loop_cases(False, "au-b-double-steered")
+    assert len(cases) == 9 and all(dict(c.overrides)["vehicle"] == "au-b-double-steered" for c in cases)
+    config = load_scenario(cases[0].scenario, dict(cases[0].overrides))
+    assert config.feedback == "viso_ot_fused" and config.rear_feedback is None and config.uses_camera
+    with pytest.raises(InputError, match=r"^--vehicle au-b-double: field-loop steers the towed units"):
+        field_loop_cases(False, "au-b-double")  # no steerable axle
+    with pytest.raises(InputError, match=r"^--vehicle eu-truck-centre-axle"):
+        field_loop_cases(False, "eu-truck-centre-axle")
+
+
+def test_a_further_units_figures_are_judged_and_pooled_per_unit() -> None:
+    table = _synthetic_table()
+    for feedback, true_rms in zip(FEEDBACKS, (0.20, 0.05, 0.01), strict=True):  # unit 3 fails its RMS when fused
+        rows = table["feedback"] == feedback
+        table.loc[rows, "unit3_true_rms_m"] = true_rms
+        table.loc[rows, "unit3_true_max_m"] = 0.1
+    table.loc[table["feedback"] == "viso_ot_fused", "unit3_fused_within_2sigma"] = 0.9
+    cells = cell_table(table)
+    pass_cell = cells.iloc[0]  # passes on its first towed unit
+    assert pass_cell["viso_ot_fused_unit3_true_rms_m"] == 0.20 and pass_cell["unit3_coverage"] == 0.9
+    assert pass_cell["acceptance"] == "unit 3: RMS 0.200 > 0.10 m; dry: RMS 0.200 > zero-slip-fed 0.050 + 0.01 m"
+    pooled = pooled_coverage(cells).set_index("group")
+    assert pooled.loc["unit 3: all", "cells"] == len(cells) and pooled.loc["unit 3: all", "mean"] == pytest.approx(0.9)
+    assert list(pooled.index[:4]) == ["field, aligned", "field, the paper's rotation", "ideal", "all"]
+
+
+def test_unit_columns_read_each_further_unit() -> None:
+    from scenarios.studies.field_loop_units import unit_columns
+
+    metrics = {
+        "offtracking": {
+            "units": {
+                "3": {
+                    "rms_after_warmup": 0.04,
+                    "max_abs_after_warmup": 0.09,
+                    "estimators": {"viso_ot_fused": {"rms_error": 0.02, "mean_error": 0.01, "within_2sigma": 0.9}},
+                    "feedback_fallback": {"fraction": 0.0, "seconds": 0.0},
+                }
+            }
+        }
+    }
+    row = unit_columns(metrics)
+    assert row == {
+        "unit3_true_rms_m": 0.04,
+        "unit3_true_max_m": 0.09,
+        "unit3_fused_rms_error_m": 0.02,
+        "unit3_fused_mean_error_m": 0.01,
+        "unit3_fused_within_2sigma": 0.9,
+        "unit3_fallback_s": 0.0,
+    }
+    assert unit_columns({}) == {}

@@ -67,8 +67,8 @@ def rendered(tmp_path_factory: pytest.TempPathFactory) -> SimpleNamespace:
     motions: list[np.ndarray | None] = []
     process = FrameOdometry.process
 
-    def spy(self: FrameOdometry, left: np.ndarray, right: np.ndarray, render_s: float = math.nan) -> object:
-        frame = process(self, left, right, render_s)
+    def spy(self: FrameOdometry, left: np.ndarray, right: np.ndarray, render_s: float = math.nan, **kw) -> object:
+        frame = process(self, left, right, render_s, **kw)  # the masks of the other units, if any
         motions.append(frame.vo.motion)
         return frame
 

@@ -90,7 +90,7 @@ def gnss() -> Iterator[EstimatorEntry]:
 
 def test_a_registered_estimator_gets_a_switch_settings_a_colour_and_per_unit_feedback(gnss: EstimatorEntry) -> None:
     assert feedback_sources()[-1] == "gnss" and source_colour("gnss") == "#123456"
-    assert unit_feedback_sources() == ("none", "truth", "zero_slip", "gnss")
+    assert unit_feedback_sources() == ("none", "truth", "zero_slip", "viso_ot", "viso_ot_fused", "gnss")
     assert load_scenario("roundabout-3").enabled_estimators() == ("zero_slip", "truth")  # off unless turned on
     config = load_scenario("roundabout-3", {"estimators.gnss": True})
     assert config.enabled_estimators() == ("zero_slip", "truth", "gnss")
@@ -129,7 +129,7 @@ def test_the_built_in_switches_load_as_before() -> None:
     assert load_scenario("roundabout-3", {"estimators.viso_ot_fused": True}).enabled_estimators() == (
         "zero_slip", "viso_ot", "viso_ot_fused", "truth"
     )  # fmt: skip
-    assert REAR_FEEDBACK == ("none", "truth", "zero_slip")
+    assert REAR_FEEDBACK == ("none", "truth", "zero_slip", "viso_ot", "viso_ot_fused")  # on each unit's own rig
     assert [e.name for e in estimator_entries() if e.switch is None] == ["truth"]
 
 

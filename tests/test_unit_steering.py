@@ -174,7 +174,7 @@ def test_the_coupling_velocity_down_the_chain_is_the_derivative_of_the_coupling_
 def test_bad_feedback_for_a_unit_is_one_line_naming_the_field() -> None:
     vehicle = _vehicle("b-double", {2: (1,)})
     cases = (
-        ({"rear_feedback": ["viso_ot"]}, "rear_feedback[0] = 'viso_ot' must be one of none, truth, zero_slip"),
+        ({"rear_feedback": ["lidar"]}, "rear_feedback[0] = 'lidar' must be one of none, truth, zero_slip, viso_ot"),
         ({"rear_feedback": ["truth", "truth"]}, "rear_feedback: one estimate per towed unit behind the first"),
         ({"feedback": "zero_slip", "rear_feedback": ["truth"]}, "no steerable axle on its first towed unit"),
     )

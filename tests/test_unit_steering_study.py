@@ -187,6 +187,6 @@ def test_estimators_under_slip_runs_the_feedbacks_a_longer_combination_supports(
     assert len(cases) == 2 * 2 * 3
     assert dict(cases[0].overrides)["vehicle"]["name"] == "b-double-steered"  # the file read once, into the case
     assert check_study_vehicle("estimators-under-slip", "lst") == []  # one semi-trailer: its camera stays
-    for name in ("paper-section4", "field-loop", "field-bias"):
+    for name in ("paper-section4", "field-bias"):
         with pytest.raises(InputError, match=f"--vehicle lst: {name} takes no --vehicle"):
             check_study_vehicle(name, "lst")

@@ -87,11 +87,24 @@ its preset."""
 LONGER = {
     "au-b-double": (24.45, "tractor + semi + semi"),
     "au-a-double": (34.55, "tractor + semi + dolly + semi"),
+    "au-b-double-steered": (24.45, "tractor + semi + semi"),
+    "au-a-double-steered": (34.55, "tractor + semi + dolly + semi"),
     "nordic-truck-dolly-semi": (25.05, "truck + dolly + semi"),
     "eu-truck-centre-axle": (18.70, "truck + centre-axle"),
 }
 """The catalogue's other combinations: overall length [m] (within 25, 53.5, 25.25 and 18.75 m, their limits) and
 units."""
+
+
+def test_the_steered_doubles_are_the_doubles_with_the_rear_two_axles_of_each_semi_trailer_steerable() -> None:
+    for name in ("au-b-double", "au-a-double"):
+        plain, steered = VEHICLE_PRESETS[name](), VEHICLE_PRESETS[f"{name}-steered"]()
+        flags = [[a.steerable for a in unit.axles] for unit in steered.trailers]
+        semi = [unit.front_load for unit in steered.trailers]
+        assert flags == [[False, True, True] if s else [False] * len(f) for s, f in zip(semi, flags, strict=True)]
+        unsteer = [[a.model_copy(update={"steerable": False}) for a in unit.axles] for unit in steered.trailers]
+        assert unsteer == [list(unit.axles) for unit in plain.trailers]  # nothing else differs on the axles
+        assert steered.trailers[0].mass == plain.trailers[0].mass and steered.tractor == plain.tractor
 
 
 def test_the_catalogue_holds_the_five_tractor_semi_trailers_and_the_longer_combinations() -> None:

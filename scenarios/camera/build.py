@@ -1,8 +1,11 @@
-"""The scenario's camera as sensor objects: the ``camera`` section of the configuration mapped to :mod:`sensor`.
+"""The scenario's cameras as sensor objects: the ``camera`` section of the configuration mapped to :mod:`sensor`.
 
-Degrees and configuration models stop here; what comes out is SI and made of sensor objects:
+Degrees and configuration models stop here; what comes out is SI and made of sensor objects. A run has one rig per
+camera-carrying towed unit (:func:`rig_settings`, ``camera.rigs``); every function of a rig takes its ``rig_index``
+(0: the first rig, the one camera of a tractor–semi-trailer). Each rig's random draws — its calibration, image
+noise and exposure, mount flex and odometry — are seeded by :func:`rig_seed`, which is the run's seed for rig 0:
 
-* :func:`rig_from_config` — the :class:`~sensor.camera.StereoRig`;
+* :func:`rig_from_config` — the :class:`~sensor.camera.StereoRig` (:func:`rigs_from_config`: every one);
 * :func:`world_for_scenario` — the procedural :class:`~sensor.world.World` around the reference path (the
   scenario's seed, ``camera.scenery_density`` and ``camera.world``);
 * :func:`lenses`, :func:`calibration_for` (``camera.calibration``: ideal, estimated once per
@@ -33,6 +36,7 @@ from sensor.mount_flex import FlexSchedule, MountFlex
 from sensor.world import World, build_world
 from vehicle_model.errors import InputError
 
+from ..camera_schema import RigConfig, rig_configs
 from ..config import ScenarioConfig
 from ..setup.build import ScenarioSetup, build_scenario
 
@@ -54,22 +58,54 @@ __all__ = [
     "pair_developer",
     "resolve_scenery_density",
     "rig_from_config",
+    "rig_seed",
+    "rig_settings",
+    "rigs_from_config",
     "run_calibration",
     "stereo_camera",
     "world_for_scenario",
 ]
 
 
-def rig_from_config(config: ScenarioConfig | Any) -> StereoRig:
-    """The stereo rig of a scenario's ``camera`` section (degrees at this edge, SI inside).
+RIG_SEED_STREAM: Final = 0x5219
+"""Mixed with the run's seed and a rig's index (≥ 1) into that rig's seed (:func:`rig_seed`)."""
+
+
+def rig_seed(seed: int, rig_index: int) -> int:
+    """The seed of rig ``rig_index``'s random draws: the run's ``seed`` for rig 0 (the one camera draws exactly what
+    it always did), else drawn from ``(seed, RIG_SEED_STREAM, rig_index)``."""
+    if rig_index == 0:
+        return int(seed)
+    return int(np.random.SeedSequence([int(seed), RIG_SEED_STREAM, int(rig_index)]).generate_state(1)[0])
+
+
+def rig_settings(config: ScenarioConfig, rig_index: int = 0) -> RigConfig:
+    """The resolved settings of rig ``rig_index`` (:func:`scenarios.camera_schema.rig_configs`).
+
+    Raises
+    ------
+    InputError
+        The run has no such rig.
+    """
+    rigs = rig_configs(config.camera, config.vehicle_params())
+    if not 0 <= rig_index < len(rigs):
+        raise InputError(f"rig_index = {rig_index}: the run has {len(rigs)} camera rig(s), 0 to {len(rigs) - 1}")
+    return rigs[rig_index]
+
+
+def rig_from_config(config: ScenarioConfig | Any, rig_index: int = 0) -> StereoRig:
+    """The stereo rig of a scenario's camera rig ``rig_index`` (degrees at this edge, SI inside).
 
     Parameters
     ----------
     config : ScenarioConfig or CameraConfig
-        A scenario configuration (its ``camera``) or the camera section itself; a configuration
+        A scenario configuration (its rig ``rig_index``) or a camera section or rig itself; a configuration
         without one gives the default rig (de Saxe & Cebon 2018, §3.1).
+    rig_index : int
+        The rig of a scenario configuration (:func:`rig_settings`).
     """
-    camera = getattr(config, "camera", config)
+    scenario = isinstance(config, ScenarioConfig)
+    camera = rig_settings(config, rig_index) if scenario else getattr(config, "camera", config)
     if camera is None or not hasattr(camera, "psi_c2v_deg"):
         return StereoRig()
     roll, pitch, yaw = getattr(camera, "right_misalignment_deg", (0.0, 0.0, 0.0))
@@ -87,7 +123,14 @@ def rig_from_config(config: ScenarioConfig | Any) -> StereoRig:
         mount_height=camera.mount_height,
         noise_std=getattr(camera, "noise_std", 0.0),
         exposure_std=getattr(camera, "brightness_jitter", 0.0),
+        unit=getattr(camera, "unit", 1),
     )
+
+
+def rigs_from_config(config: ScenarioConfig) -> tuple[StereoRig, ...]:
+    """Every stereo rig of the run, in the order of its rigs (:func:`rig_from_config`)."""
+    count = len(rig_configs(config.camera, config.vehicle_params()))
+    return tuple(rig_from_config(config, index) for index in range(count))
 
 
 def resolve_scenery_density(config: ScenarioConfig, override: float | None = None) -> float:
@@ -124,41 +167,43 @@ def world_for_scenario(
     return build_world(setup.path, scenery_density=density, seed=int(seed), **world_settings)
 
 
-def lenses(config: ScenarioConfig) -> tuple[Lens, Lens]:
-    """The left and right lenses of the configuration (:meth:`~scenarios.camera_schema.CameraConfig.lens_pair`)."""
-    return config.camera.lens_pair()
+def lenses(config: ScenarioConfig, rig_index: int = 0) -> tuple[Lens, Lens]:
+    """The left and right lenses of a rig (:meth:`~scenarios.camera_schema.StereoRigConfig.lens_pair`)."""
+    return rig_settings(config, rig_index).lens_pair()
 
 
-def calibration_target_rig(rig: StereoRig, config: ScenarioConfig) -> StereoRig:
-    """The rig as it was when calibrated: the right camera rotated by ``camera.calibration.misalignment_deg``."""
-    return rig.replace(misalignment=Misalignment.from_degrees(*config.camera.calibration.misalignment_deg))
+def calibration_target_rig(rig: StereoRig, config: ScenarioConfig, rig_index: int = 0) -> StereoRig:
+    """The rig as it was when calibrated: the right camera rotated by its ``calibration.misalignment_deg``."""
+    misalignment = rig_settings(config, rig_index).calibration.misalignment_deg
+    return rig.replace(misalignment=Misalignment.from_degrees(*misalignment))
 
 
-def run_calibration(rig: StereoRig, config: ScenarioConfig) -> CalibrationResult:
-    """Calibrate the rig as configured (``camera.calibration``; seeded by the run's seed)."""
-    cal = config.camera.calibration
-    left, right = lenses(config)
+def run_calibration(rig: StereoRig, config: ScenarioConfig, rig_index: int = 0) -> CalibrationResult:
+    """Calibrate the rig as configured (its ``calibration``; seeded by the rig's seed, :func:`rig_seed`)."""
+    cal = rig_settings(config, rig_index).calibration
+    left, right = lenses(config, rig_index)
     return calibrate_rig(
-        calibration_target_rig(rig, config),
+        calibration_target_rig(rig, config, rig_index),
         left,
         right,
         views=cal.views,
         target=(cal.target_cols, cal.target_rows),
         square_size=cal.square_size,
         corner_noise_px=cal.corner_noise_px,
-        seed=config.seed,
+        seed=rig_seed(config.seed, rig_index),
     )
 
 
 @functools.lru_cache(maxsize=4)
-def _calibration_cached(config_json: str) -> CalibrationResult:
+def _calibration_cached(config_json: str, rig_index: int) -> CalibrationResult:
     config = ScenarioConfig.model_validate(json.loads(config_json))
-    return run_calibration(rig_from_config(config), config)
+    return run_calibration(rig_from_config(config, rig_index), config, rig_index)
 
 
-def calibration_for(rig: StereoRig, config: ScenarioConfig) -> CalibrationResult | None:
-    """The calibration the odometry uses (``None``: ideal). Estimated once per process and configuration."""
-    cal = config.camera.calibration
+def calibration_for(rig: StereoRig, config: ScenarioConfig, rig_index: int = 0) -> CalibrationResult | None:
+    """The calibration the odometry of rig ``rig_index`` uses (``None``: ideal). Estimated once per process,
+    configuration and rig."""
+    cal = rig_settings(config, rig_index).calibration
     if cal.mode == "ideal":
         return None
     if cal.mode == "file":
@@ -171,38 +216,39 @@ def calibration_for(rig: StereoRig, config: ScenarioConfig) -> CalibrationResult
             )
         return result
     # the camera and the seed decide the calibration: one per process for every run that shares them
-    return _calibration_cached(json.dumps(config.model_dump(mode="json"), sort_keys=True))
+    return _calibration_cached(json.dumps(config.model_dump(mode="json"), sort_keys=True), rig_index)
 
 
-def lighting_from_config(config: ScenarioConfig) -> Lighting | None:
-    """The renderer's lighting (``None``: the flat lighting of the ideal study) from ``camera.lighting``."""
-    light = config.camera.lighting  # the schema's section is the sensor's Lighting
+def lighting_from_config(config: ScenarioConfig, rig_index: int = 0) -> Lighting | None:
+    """The renderer's lighting (``None``: the flat lighting of the ideal study) from a rig's ``lighting``."""
+    light = rig_settings(config, rig_index).lighting  # the schema's section is the sensor's Lighting
     return light if light.sun else None
 
 
-def mount_flex(config: ScenarioConfig) -> MountFlex:
-    """The right camera's mount flex settings (``camera.flex``)."""
-    return config.camera.flex  # the schema's section is the sensor's MountFlex
+def mount_flex(config: ScenarioConfig, rig_index: int = 0) -> MountFlex:
+    """The right camera's mount flex settings of a rig (its ``flex``)."""
+    return rig_settings(config, rig_index).flex  # the schema's section is the sensor's MountFlex
 
 
-def flex_schedule(setup: ScenarioSetup) -> FlexSchedule:
-    """The right camera's flex frame by frame: ``camera.flex`` at ``camera.station``, vibration seeded by
-    ``(seed, 0xF1E8)``."""
+def flex_schedule(setup: ScenarioSetup, rig_index: int = 0) -> FlexSchedule:
+    """The right camera's flex frame by frame: the rig's ``flex`` at its ``station``, vibration seeded by
+    ``(rig seed, 0xF1E8)``."""
     cfg = setup.config
-    rng = np.random.default_rng([cfg.seed, 0xF1E8])
-    return FlexSchedule(mount_flex(cfg), setup.params, cfg.camera.station, cfg.rates.frame_interval_s, rng)
+    rng = np.random.default_rng([rig_seed(cfg.seed, rig_index), 0xF1E8])
+    station = rig_settings(cfg, rig_index).station
+    return FlexSchedule(mount_flex(cfg, rig_index), setup.params, station, cfg.rates.frame_interval_s, rng)
 
 
-def _camera_settings(config: ScenarioConfig) -> dict[str, Any]:
-    """The keyword arguments of :class:`~sensor.stereo_camera.PairDeveloper` (and the camera) of ``config``."""
-    rig = rig_from_config(config)
+def _camera_settings(config: ScenarioConfig, rig_index: int = 0) -> dict[str, Any]:
+    """The keyword arguments of :class:`~sensor.stereo_camera.PairDeveloper` (and the camera) of a rig."""
+    rig = rig_from_config(config, rig_index)
     return {
-        "lenses": lenses(config),
-        "calibration": calibration_for(rig, config),
-        "lighting": lighting_from_config(config),
-        "flex": mount_flex(config),
-        "right_correction_deg": tuple(config.camera.right_correction_deg),
-        "seed": config.seed,
+        "lenses": lenses(config, rig_index),
+        "calibration": calibration_for(rig, config, rig_index),
+        "lighting": lighting_from_config(config, rig_index),
+        "flex": mount_flex(config, rig_index),
+        "right_correction_deg": tuple(rig_settings(config, rig_index).right_correction_deg),
+        "seed": rig_seed(config.seed, rig_index),
         "frame_interval_s": 1.0 / config.rates.camera_hz,
     }
 
@@ -211,11 +257,14 @@ CONFIGURED: Final = "configured"
 """``lighting`` of :func:`stereo_camera`: the configuration's (flat for an ideal camera)."""
 
 
-def _ideal_developer(config: ScenarioConfig, rig: StereoRig, lighting: Lighting | None) -> PairDeveloper:
+def _ideal_developer(
+    config: ScenarioConfig, rig: StereoRig, lighting: Lighting | None, rig_index: int = 0
+) -> PairDeveloper:
     """An ideal pinhole rig's development: no lens, ideal calibration, no mount flex, no right-image correction."""
     from sensor.stereo_camera import PairDeveloper
 
-    return PairDeveloper(rig, lighting=lighting, seed=config.seed, frame_interval_s=1.0 / config.rates.camera_hz)
+    seed = rig_seed(config.seed, rig_index)
+    return PairDeveloper(rig, lighting=lighting, seed=seed, frame_interval_s=1.0 / config.rates.camera_hz)
 
 
 def camera_tag(setup: ScenarioSetup, **settings: Any) -> str:
@@ -229,6 +278,8 @@ def camera_tag(setup: ScenarioSetup, **settings: Any) -> str:
         "vehicle": repr(setup.params),
         "settings": {k: repr(v) for k, v in sorted(settings.items())},
     }
+    if settings.get("rig_index", 0) == 0:
+        described["settings"].pop("rig_index", None)  # the first rig's frames are named as the one camera's were
     digest = hashlib.sha256(json.dumps(described, sort_keys=True).encode())
     digest.update(np.ascontiguousarray(setup.path.points, dtype=np.float64).tobytes())
     return digest.hexdigest()[:16]
@@ -244,6 +295,7 @@ def stereo_camera(
     world: World | None = None,
     antialias: bool = False,
     frame_cache: Path | None = None,
+    rig_index: int = 0,
 ) -> StereoCamera:
     """The scenario's stereo camera in its world: the one place a camera of a run is assembled.
 
@@ -273,6 +325,8 @@ def stereo_camera(
     frame_cache : Path, optional
         Keep the developed frames in this directory and take them back on a later run
         (:class:`.frame_cache.FrameCache`, :meth:`sensor.stereo_camera.StereoCamera.pair`).
+    rig_index : int
+        The rig (:func:`rig_settings`; 0: the first).
 
     Raises
     ------
@@ -286,11 +340,12 @@ def stereo_camera(
     cfg = setup.config
     if ideal:
         light = None if isinstance(lighting, str) else lighting
-        developer = _ideal_developer(cfg, rig if rig is not None else rig_from_config(cfg), light)
+        chosen = rig if rig is not None else rig_from_config(cfg, rig_index)
+        developer = _ideal_developer(cfg, chosen, light, rig_index)
     else:
         if rig is not None or not isinstance(lighting, str):
             raise InputError("the run's camera has the configured rig and lighting; pass ideal=True to change them")
-        developer = pair_developer(cfg)
+        developer = pair_developer(cfg, rig_index)
     if world is None:
         world = world_for_scenario(setup, scenery_density, kind=cfg.camera.world)
     store = None
@@ -302,30 +357,36 @@ def stereo_camera(
             lighting=developer.lighting,
             world=world.config,
             antialias=antialias,
+            rig_index=rig_index,
         )
         store = FrameCache(frame_cache, tag)
     return StereoCamera(developer, world, setup.params, antialias=antialias, frame_store=store)
 
 
-def pair_developer(config: ScenarioConfig) -> PairDeveloper:
-    """The camera's development alone, for a process that gets the raw pairs from render workers."""
+def pair_developer(config: ScenarioConfig, rig_index: int = 0) -> PairDeveloper:
+    """A rig's development alone, for a process that gets the raw pairs from render workers."""
     from sensor.stereo_camera import PairDeveloper
 
-    return PairDeveloper(rig_from_config(config), **_camera_settings(config))
+    return PairDeveloper(rig_from_config(config, rig_index), **_camera_settings(config, rig_index))
 
 
-def frame_odometry(setup: ScenarioSetup, optics: FieldOptics) -> FrameOdometry:
-    """The per-frame estimator on the images ``optics`` gives (``camera.self_calibration``, rates, seed)."""
+def frame_odometry(setup: ScenarioSetup, optics: FieldOptics, rig_index: int = 0) -> FrameOdometry:
+    """The per-frame estimator of rig ``rig_index`` on the images ``optics`` gives (the rig's
+    ``self_calibration`` and ``vo_refinement``, rates, the rig's seed), estimating the off-tracking of the towed
+    unit the rig is on."""
     from sensor.frame_odometry import FrameOdometry
 
     cfg = setup.config
-    self_cal = cfg.camera.self_calibration
+    rig = rig_settings(cfg, rig_index)
+    self_cal = rig.self_calibration
     settings = self_cal if self_cal.enabled else None  # the schema's section is the sensor's settings
+    unit = {"unit": rig.unit} if rig.unit != 1 else {}  # the first towed unit is the odometry's default
     return FrameOdometry(
         setup.params,
-        optics.vo_config().model_copy(update={"refinement": cfg.camera.vo_refinement}),
+        optics.vo_config().model_copy(update={"refinement": rig.vo_refinement}),
         optics.left_in_trailer(setup.params),
         cfg.rates.frame_interval_s,
-        cfg.seed,
+        rig_seed(cfg.seed, rig_index),
         settings,
+        **unit,
     )

@@ -35,12 +35,11 @@ from sensor.frame_odometry import CameraFrame
 from sensor.renderer import StereoRenderer
 from sensor.stereo_camera import RawStereoPair, StereoCamera
 from sensor.vehicle_bodies import exclusion_masks
-from vehicle_model.errors import InputError
 from vehicle_model.geometry import ChainPose, CombinationPose
 from vehicle_model.simulator import VehicleState
 
 from ..setup.build import ScenarioSetup
-from .build import flex_schedule, frame_odometry, pair_developer, stereo_camera
+from .build import flex_schedule, frame_odometry, pair_developer, rig_settings, stereo_camera
 from .frame_cache import frame_cache_from_env
 from .workers import CameraWorkerError, RenderWorkers
 
@@ -127,9 +126,7 @@ class CameraFeed:
         *,
         body_masks: bool = True,
     ) -> None:
-        if not isinstance(rig_index, int) or rig_index != 0:
-            # one rig per configuration until the camera section lists rigs (scenarios.camera.build.rig_from_config)
-            raise InputError(f"rig_index = {rig_index!r} is out of range; allowed: 0 (the configuration has one rig)")
+        rig_settings(setup.config, rig_index)  # refuses a rig the configuration does not have
         self.rig_index = rig_index
         self.body_masks = bool(body_masks)
         frame_cache = frame_cache if frame_cache is not None else frame_cache_from_env()
@@ -143,18 +140,18 @@ class CameraFeed:
             self._workers = RenderWorkers(
                 setup.config, workers, rig_index=rig_index
             )  # start them first: they take a while
-            self._developer = pair_developer(setup.config)
+            self._developer = pair_developer(setup.config, rig_index)
         else:
-            self._camera = stereo_camera(setup, frame_cache=frame_cache)
+            self._camera = stereo_camera(setup, frame_cache=frame_cache, rig_index=rig_index)
             self._developer = self._camera.developer
-        self._odometry = frame_odometry(setup, self._developer.optics)
+        self._odometry = frame_odometry(setup, self._developer.optics, rig_index)
         self.rig = self._developer.rig
         self.camera_in_trailer = self._developer.optics.left_in_trailer(setup.params)
         vo = self._odometry.vo.config
         self._vo_k = np.array([[vo.f, 0.0, vo.cu], [0.0, vo.f, vo.cv], [0.0, 0.0, 1.0]])
         self.released: list[CapturedFrame] = []
         self.last_pair: tuple[np.ndarray, np.ndarray] | None = None
-        self._flex = flex_schedule(setup)
+        self._flex = flex_schedule(setup, rig_index)
         self._captured: deque[CapturedFrame] = deque()  # taken, not yet released
         self._unprocessed: deque[CapturedFrame] = deque()  # taken, not yet processed (pipelined)
         self._count = 0
@@ -177,7 +174,7 @@ class CameraFeed:
         """The left camera's grey image at ``pose`` as the renderer draws it (no noise, exposure or lens), e.g. for
         a display; with render workers a camera is built in this process for it on the first call."""
         if self._camera is None:
-            self._camera = stereo_camera(self._setup)
+            self._camera = stereo_camera(self._setup, rig_index=self.rig_index)
         return self._camera.view_image(pose)
 
     @property

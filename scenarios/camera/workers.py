@@ -100,7 +100,7 @@ def _worker_main(
         from ..setup.build import build_scenario
         from .build import stereo_camera
 
-        camera = stereo_camera(build_scenario(config))
+        camera = stereo_camera(build_scenario(config), rig_index=rig_index)
     except BaseException:
         _send_error(conn, traceback.format_exc())
         return

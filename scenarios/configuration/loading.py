@@ -35,7 +35,7 @@ def validate_config(data: dict[str, Any]) -> ScenarioConfig:
     except ValidationError as exc:
         raise ConfigError(format_errors(exc)) from None
     if config.uses_camera:
-        check_camera(config.camera)
+        check_camera(config.camera, config.vehicle_params())
     return config
 
 

@@ -13,7 +13,7 @@ from vehicle_model.parameters import VehicleParams
 from vehicle_model.presets import VEHICLE_PRESETS
 from vehicle_model.settings import Settings
 
-from ..camera_schema import CameraConfig
+from ..camera_schema import CameraConfig, rig_units
 from ..estimator_settings import switch_is_on, turn_on
 from ..registry import NO_FEEDBACK, estimator_entries, estimator_entry, feedback_sources
 from ..unit_feedback import check_unit_feedback, steered_units
@@ -128,7 +128,8 @@ class ScenarioConfig(Settings):
         if self.roundabout_test and self.path.kind != "roundabout":
             raise ValueError("roundabout_test needs path.kind = roundabout")
         params = self.vehicle_params()
-        check_unit_feedback(params, self.feedback, self.rear_feedback, self.uses_camera)
+        camera_units = rig_units(self.camera, params) if self.uses_camera else None
+        check_unit_feedback(params, self.feedback, self.rear_feedback, self.uses_camera, camera_units)
         first_steered = any(a.steerable for a in params.trailer.axles)
         steered = steered_units(params, self.feedback, self.rear_feedback)
         if self.feedback != "none" and not first_steered and (self.rear_feedback is not None or not steered):

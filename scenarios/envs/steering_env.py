@@ -146,8 +146,9 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
 
     | name | unit | bound |
     |---|---|---|
-    | ``unit<k>_offtracking_estimate``: the estimate it is steered on (``truth<k>`` or ``zero_slip<k>``, its
-      ``rear_feedback``; 0 when invalid or the unit is not steered) | m | ±5 |
+    | ``unit<k>_offtracking_estimate``: the estimate it is steered on (``truth<k>``, ``zero_slip<k>`` or its own
+      camera's ``viso_ot<k>`` / ``viso_ot_fused<k>``, its ``rear_feedback``; 0 when invalid or the unit is not
+      steered) | m | ±5 |
     | ``unit<k>_estimate_valid`` | - | 0..1 |
     | ``unit<k>_articulation`` against the unit ahead (its coupling's sensor, ``rear_articulation``) | rad | ±π |
     | ``unit<k>_yaw_rate`` (true: the signals have no gyro on the units behind the first towed one) | rad/s | ±6 |
@@ -211,10 +212,11 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
     * ``feedback``: the first towed unit's estimate: ``truth``, ``zero_slip`` (Cheng, blind to slip), ``viso_ot``
       (renders the trailer's stereo camera and runs visual odometry: much slower, docs/environments.md) or
       ``viso_ot_fused`` (the same camera fused with the trailer's gyro and wheel speed in a Kalman filter, an estimate
-      every control tick). The camera sees the semi-trailer of a tractor–semi-trailer only: a longer combination takes
-      ``truth`` or ``zero_slip``.
+      every control tick). On a longer combination each towed unit with a camera rig (``camera.rigs``; by default
+      every one) has its own camera estimates.
     * ``rear_feedback``: the estimate of each towed unit behind the first, one per unit: ``none`` (not steered:
-      its axles held straight, no action entry), ``truth`` or ``zero_slip`` (of that unit); ``None`` (default):
+      its axles held straight, no action entry), ``truth``, ``zero_slip``, ``viso_ot`` or ``viso_ot_fused`` (of
+      that unit, on its own camera); ``None`` (default):
       each one with a steerable axle on the kind of ``feedback``. The configuration's ``rear_feedback``
       (:mod:`scenarios.unit_feedback`), validated with its messages.
     * ``vehicle``, ``mu``, ``camber_percent``, ``camber_direction``, ``speed_kmh``, ``direction``: fixed settings

@@ -44,10 +44,22 @@ def _viso_ot(context: Any) -> Any:
     return viso_ot(context)
 
 
+def _viso_ot_unit(context: Any, unit: int) -> Any:
+    from .camera_estimator import viso_ot_unit
+
+    return viso_ot_unit(context, unit)
+
+
 def _fused_viso_ot(context: Any) -> Any:
     from .estimators import fused_viso_ot
 
     return fused_viso_ot(context)
+
+
+def _fused_viso_ot_unit(context: Any, unit: int) -> Any:
+    from .estimators import fused_viso_ot_unit
+
+    return fused_viso_ot_unit(context, unit)
 
 
 def _ground_truth(context: Any) -> Any:
@@ -69,20 +81,24 @@ BUILTIN_ESTIMATORS: tuple[EstimatorEntry, ...] = (
     ),
     EstimatorEntry(
         "viso_ot",
-        "VISO-OT: the trailer's stereo camera, visual odometry and the kingpin path (renders; slow)",
+        "VISO-OT: each towed unit's stereo camera, visual odometry and the kingpin path (renders; slow)",
         _viso_ot,
         needs_camera=True,
         colour="tab:green",
         label="VISO-OT",
+        per_unit=True,
+        build_unit=_viso_ot_unit,
     ),
     EstimatorEntry(
         "viso_ot_fused",
-        "fused VISO-OT: a Kalman filter of the trailer's gyro, wheel speed and steer with the camera (renders)",
+        "fused VISO-OT: a Kalman filter of each unit's gyro, wheel speed and steer with its camera (renders)",
         _fused_viso_ot,
         requires=("viso_ot",),
         needs_camera=True,
         colour="tab:purple",
         label="fused VISO-OT",
+        per_unit=True,
+        build_unit=_fused_viso_ot_unit,
         offline=_fused_viso_ot_offline,
     ),
     EstimatorEntry(

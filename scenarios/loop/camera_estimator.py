@@ -6,6 +6,11 @@ whether its motion was accepted, why not and its quality figures — goes in the
 taken on, which waits for the frame when a worker still renders it. Between frames those columns are NaN.
 Reasons are stored as indices into :data:`sensor.vo.quality.REJECTION_REASONS` (NaN when there is none), so the
 Parquet series stays numeric and :func:`scenarios.run.metrics.camera_frame_metrics` can count them by name.
+
+Each rig of the run (``camera.rigs``) is one :class:`VisoOt` on the towed unit it is mounted on: the first towed
+unit's records the columns above; a unit ``k`` of the combination behind it records the same columns with ``k``
+appended (``offtracking_viso_ot3``, ``vo_valid3``, …; :func:`camera_columns`), through
+:class:`~.further_units.FurtherUnitsParticipant`.
 """
 
 from __future__ import annotations
@@ -18,28 +23,57 @@ from sensor.vo.quality import QUALITY_COLUMNS, REJECTION_REASONS
 from sensor.vo.self_calibration import SELF_CALIBRATION_COLUMNS
 from vehicle_model.offtracking import BUFFER_FILLING, OfftrackingEstimate
 
+from ..camera_schema import rig_units
 from .participant import Column, LoopContext, Record, TickInput
 
-__all__ = ["CAMERA_COLUMNS", "VisoOt", "camera_row", "reason_code", "viso_ot"]
+__all__ = [
+    "CAMERA_COLUMNS",
+    "VisoOt",
+    "camera_columns",
+    "camera_row",
+    "column_suffix",
+    "reason_code",
+    "rig_index_of",
+    "viso_ot",
+    "viso_ot_unit",
+]
 
-_CAMERA = {"role": "diagnostic", "estimator": "viso_ot"}
-CAMERA_COLUMNS: tuple[Column, ...] = (
-    Column("vo_valid", "-", "1 when the frame's motion was accepted", role="flag", estimator="viso_ot"),
-    Column("vo_reason", "-", "why not: index into sensor.vo.quality.REJECTION_REASONS", **_CAMERA),
-    Column("vo_estimate_reason", "-", "why there is no estimate: index into REJECTION_REASONS", **_CAMERA),
-    *(
-        Column(f"vo_{name}", "-", "the frame's quality figure (sensor.vo.quality)", **_CAMERA)
-        for name in QUALITY_COLUMNS
-    ),
-    Column("render_ms", "ms", "wall time of the frame's rendering", **_CAMERA),
-    Column("vo_ms", "ms", "wall time of the frame's odometry and VISO-OT", **_CAMERA),
-    *(
-        Column(
-            f"selfcal_{name}", "-", "online self-calibration after the frame (sensor.vo.self_calibration)", **_CAMERA
-        )
-        for name in SELF_CALIBRATION_COLUMNS
-    ),
-)
+
+def column_suffix(unit: int) -> str:
+    """What the columns of towed unit ``unit``'s estimators append to the first's: nothing for the first, the unit's
+    number in the combination (``unit + 1``) for the others."""
+    return "" if unit == 1 else str(unit + 1)
+
+
+def camera_columns(unit: int = 1) -> tuple[Column, ...]:
+    """The per-frame camera columns of the rig on towed unit ``unit`` (:data:`CAMERA_COLUMNS` for the first)."""
+    k = column_suffix(unit)
+    camera: dict[str, Any] = {"role": "diagnostic", "estimator": "viso_ot"}
+    if unit > 1:  # the first towed unit's are declared as they always were
+        camera["vehicle_unit"] = unit + 1
+    return (
+        Column(f"vo_valid{k}", "-", "1 when the frame's motion was accepted", **{**camera, "role": "flag"}),
+        Column(f"vo_reason{k}", "-", "why not: index into sensor.vo.quality.REJECTION_REASONS", **camera),
+        Column(f"vo_estimate_reason{k}", "-", "why there is no estimate: index into REJECTION_REASONS", **camera),
+        *(
+            Column(f"vo_{name}{k}", "-", "the frame's quality figure (sensor.vo.quality)", **camera)
+            for name in QUALITY_COLUMNS
+        ),
+        Column(f"render_ms{k}", "ms", "wall time of the frame's rendering", **camera),
+        Column(f"vo_ms{k}", "ms", "wall time of the frame's odometry and VISO-OT", **camera),
+        *(
+            Column(
+                f"selfcal_{name}{k}",
+                "-",
+                "online self-calibration after the frame (sensor.vo.self_calibration)",
+                **camera,
+            )
+            for name in SELF_CALIBRATION_COLUMNS
+        ),
+    )
+
+
+CAMERA_COLUMNS: tuple[Column, ...] = camera_columns(1)
 """Per camera frame (NaN between frames): whether its motion was accepted, why not and why there is no
 estimate, its quality figures, its times, and the online self-calibration after the frame (``selfcal_roll_deg``,
 ``_pitch_deg``, ``_yaw_deg`` of the right camera's residual rotation, ``selfcal_sigma_deg`` its worst standard
@@ -56,10 +90,11 @@ def reason_code(reason: str | None) -> float:
     return _REASON_CODES.get(reason, float(_REASON_CODES["vo_failed"])) if reason else math.nan
 
 
-def camera_row(frame: Any) -> dict[str, float]:
-    """The camera columns of one processed frame (:class:`~sensor.frame_odometry.CameraFrame`)."""
+def camera_row(frame: Any, unit: int = 1) -> dict[str, float]:
+    """The camera columns of one processed frame (:class:`~sensor.frame_odometry.CameraFrame`) of the rig on towed
+    unit ``unit`` (:func:`camera_columns`)."""
     calibration = getattr(frame, "self_calibration", None) or {}
-    return {
+    row = {
         "vo_valid": float(frame.valid),
         "vo_reason": reason_code(frame.reason),
         "vo_estimate_reason": reason_code(frame.estimate_reason),
@@ -68,23 +103,27 @@ def camera_row(frame: Any) -> dict[str, float]:
         "vo_ms": 1e3 * frame.vo_s,
         **{f"selfcal_{name}": float(calibration.get(name, math.nan)) for name in SELF_CALIBRATION_COLUMNS},
     }
+    k = column_suffix(unit)
+    return row if not k else {f"{name}{k}": value for name, value in row.items()}
 
 
 class _FrameValues:
     """A tick's camera columns, known once its frame is processed (a :class:`~.participant.PendingValues`)."""
 
-    __slots__ = ("estimate", "shot")
+    __slots__ = ("column", "estimate", "shot", "unit")
 
-    def __init__(self, shot: Any, estimate: float) -> None:
+    def __init__(self, shot: Any, estimate: float, column: str, unit: int) -> None:
         self.shot = shot
         self.estimate = estimate
+        self.column = column
+        self.unit = unit
 
     @property
     def ready(self) -> bool:
         return self.shot.frame is not None
 
     def values(self) -> Mapping[str, float]:
-        return {"offtracking_viso_ot": self.estimate, **camera_row(self.shot.frame)}
+        return {self.column: self.estimate, **camera_row(self.shot.frame, self.unit)}
 
 
 class VisoOt:
@@ -94,13 +133,15 @@ class VisoOt:
     ----------
     feed
         The camera (:class:`scenarios.camera.delivery.CameraFeed`).
+    unit
+        The towed unit its rig is on (1: the first; :func:`camera_columns` for the others' columns).
 
     Attributes
     ----------
     released : list
         The frames the latency released on the last tick, oldest first (fused VISO-OT reads their motions).
     camera_in_trailer : numpy.ndarray
-        4×4 pose of the left camera on the trailer, as VISO-OT uses it.
+        4×4 pose of the left camera on its unit, as VISO-OT uses it.
     """
 
     name = "viso_ot"
@@ -108,8 +149,16 @@ class VisoOt:
         Column.estimate("viso_ot", "VISO-OT off-tracking of the latest released frame"),
         *CAMERA_COLUMNS,
     )
+    """The first towed unit's columns (an instance on another unit declares its own, :func:`camera_columns`)."""
 
-    def __init__(self, feed: Any) -> None:
+    def __init__(self, feed: Any, unit: int = 1) -> None:
+        self.unit = unit
+        if unit != 1:
+            self.columns = (
+                Column.estimate("viso_ot", "VISO-OT off-tracking of the latest released frame", vehicle_unit=unit + 1),
+                *camera_columns(unit),
+            )
+        self.column = self.columns[0].name
         self.feed = feed
         self.camera_in_trailer = feed.camera_in_trailer
         self.shot: Any = None
@@ -134,8 +183,8 @@ class VisoOt:
     def record(self) -> Record:
         """The estimate, and on a frame's tick the frame's columns (pending while it is rendered elsewhere)."""
         if self.shot is None:
-            return {"offtracking_viso_ot": self.estimate.value}
-        return _FrameValues(self.shot, self.estimate.value)
+            return {self.column: self.estimate.value}
+        return _FrameValues(self.shot, self.estimate.value, self.column, self.unit)
 
     def finish(self) -> None:
         """Process every frame still in flight (their estimates stay unreleased)."""
@@ -150,8 +199,30 @@ class VisoOt:
         self.feed.close()
 
 
-def viso_ot(context: LoopContext) -> VisoOt:
-    """The registry's builder of VISO-OT: the scenario's camera, rendered here or by ``camera_workers`` processes."""
+def rig_index_of(config: Any, params: Any, unit: int) -> int | None:
+    """The index of the rig on towed unit ``unit`` (``camera.rigs``, or the defaults), or ``None``: no rig there."""
+    units = rig_units(config.camera, params)
+    return units.index(unit) if unit in units else None
+
+
+def _feed(context: LoopContext, rig_index: int) -> Any:
+    """The camera of rig ``rig_index`` (:class:`scenarios.camera.delivery.CameraFeed`), rendered here or by
+    ``camera_workers`` processes."""
     from ..camera.delivery import CameraFeed  # rendering and OpenGL only when a camera runs
 
-    return VisoOt(CameraFeed(context.setup, workers=context.camera_workers))
+    rig = {"rig_index": rig_index} if rig_index else {}  # rig 0 is the camera's default
+    return CameraFeed(context.setup, workers=context.camera_workers, **rig)
+
+
+def viso_ot(context: LoopContext) -> VisoOt:
+    """The registry's builder of VISO-OT on the first towed unit: the rig mounted on it."""
+    setup = context.setup
+    index = rig_index_of(setup.config, setup.params, 1)
+    return VisoOt(_feed(context, 0 if index is None else index))
+
+
+def viso_ot_unit(context: LoopContext, unit: int) -> VisoOt | None:
+    """The registry's builder of VISO-OT on towed unit ``unit`` ≥ 2: its rig's camera (``None``: no rig on it)."""
+    setup = context.setup
+    index = rig_index_of(setup.config, setup.params, unit)
+    return None if index is None else VisoOt(_feed(context, index), unit)

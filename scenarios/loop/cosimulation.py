@@ -249,6 +249,9 @@ class CoSimulation:
 
     def close(self) -> None:
         """Stop what the participants run outside this process (a camera's render workers). Safe to call twice."""
+        further = getattr(self, "further_units", None)
+        if further is not None:
+            further.close()
         for participant in self.estimators.values():
             close = getattr(participant, "close", None)
             if callable(close):
@@ -329,6 +332,8 @@ class CoSimulation:
             finish = getattr(participant, "finish", None)
             if callable(finish):
                 finish()
+        if self.further_units is not None:
+            self.further_units.finish()
         self.recorder.flush()
         self.recorder.check_written()  # every participant wrote every column it declares
 
@@ -339,6 +344,8 @@ class CoSimulation:
             report = getattr(participant, "report", None)
             if callable(report):
                 out[name] = report()
+        if self.further_units is not None:
+            out.update(self.further_units.report())
         return out
 
     def _command(self) -> np.ndarray:

@@ -17,7 +17,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from controller.zero_slip import ZeroSlipEstimator
-from sensor.fusion import STD_PARTS, FusedVisoOt, FusionNoise, TractorSignals
+from sensor.fusion import STD_PARTS, ChainSignals, FusedVisoOt, FusionNoise, TractorSignals
 from sensor.signals import standstill_reading
 from vehicle_model.geometry import kingpin_position
 from vehicle_model.offtracking import (
@@ -38,6 +38,7 @@ __all__ = [
     "GroundTruth",
     "ZeroSlip",
     "fused_viso_ot",
+    "fused_viso_ot_unit",
     "fusion_std_record",
     "ground_truth",
     "zero_slip",
@@ -210,8 +211,31 @@ def fusion_std_record(fused: FusedVisoOt) -> dict[str, float]:
     return {name: parts[part] for part, name in zip(STD_PARTS, FUSION_STD_COLUMNS, strict=True)}
 
 
+def _fused_columns(unit: int) -> tuple[Column, ...]:
+    """The columns of the fused estimate of towed unit ``unit`` (the first's as they always were; unit ``k`` of the
+    combination behind it with ``k`` appended)."""
+    k = "" if unit == 1 else str(unit + 1)
+    diagnostic: dict[str, object] = {"role": "diagnostic", "estimator": "viso_ot_fused"}
+    if unit > 1:
+        diagnostic["vehicle_unit"] = unit + 1
+    return (
+        Column.estimate("viso_ot_fused", "fused VISO-OT off-tracking", vehicle_unit=unit + 1),
+        Column.std("viso_ot_fused", vehicle_unit=unit + 1),
+        Column(
+            f"fusion_kinematic_std{k}",
+            "m/s",
+            "σ of the zero-slip kinematics in the filter: large where it saw slip",
+            **diagnostic,  # type: ignore[arg-type]
+        ),
+        *(
+            Column(f"{name}{k}", "m", f"the {part} term of the std, as the std it alone would give", **diagnostic)  # type: ignore[arg-type]
+            for part, name in zip(STD_PARTS, FUSION_STD_COLUMNS, strict=True)
+        ),
+    )
+
+
 class FusedVisoOtEstimator:
-    """Fused VISO-OT (:class:`sensor.fusion.FusedVisoOt`): the trailer's signals every tick, the camera's motions
+    """Fused VISO-OT (:class:`sensor.fusion.FusedVisoOt`): a towed unit's signals every tick, its camera's motions
     as the camera latency releases them.
 
     Parameters
@@ -219,52 +243,51 @@ class FusedVisoOtEstimator:
     params
         The combination.
     camera
-        The VISO-OT participant (:class:`~.camera_estimator.VisoOt`): its camera pose and its released frames.
+        The VISO-OT participant of the same unit (:class:`~.camera_estimator.VisoOt`): its camera pose and its
+        released frames.
     noise
         The filter's noise model and tuning.
+    unit
+        The towed unit it estimates (1: the first). A unit behind the first propagates on its own gyro, wheel speed
+        and steer (the signals ``trailer_yaw_rate<k>``, … of :mod:`.plant`) and takes the tractor's zero-slip
+        kinematics carried down the chain (:class:`sensor.fusion.ChainSignals`, with the gyros of the units ahead).
     """
 
     name = "viso_ot_fused"
-    columns: tuple[Column, ...] = (
-        Column.estimate("viso_ot_fused", "fused VISO-OT off-tracking"),
-        Column.std("viso_ot_fused"),
-        Column(
-            "fusion_kinematic_std",
-            "m/s",
-            "σ of the zero-slip kinematics in the filter: large where it saw slip",
-            role="diagnostic",
-            estimator="viso_ot_fused",
-        ),
-        *(
-            Column(
-                name,
-                "m",
-                f"the {part} term of the std, as the std it alone would give",
-                role="diagnostic",
-                estimator="viso_ot_fused",
-            )
-            for part, name in zip(STD_PARTS, FUSION_STD_COLUMNS, strict=True)
-        ),
-    )
+    columns: tuple[Column, ...] = _fused_columns(1)
 
-    def __init__(self, params: VehicleParams, camera: object, noise: FusionNoise) -> None:
+    def __init__(self, params: VehicleParams, camera: object, noise: FusionNoise, unit: int = 1) -> None:
         self.camera = camera
-        self.filter = FusedVisoOt(params, camera.camera_in_trailer, noise)  # type: ignore[attr-defined]
+        self.unit = unit
+        self._suffix = "" if unit == 1 else str(unit + 1)
+        if unit != 1:
+            self.columns = _fused_columns(unit)
+        own = {"unit": unit} if unit != 1 else {}  # the first towed unit is the filter's default
+        self.filter = FusedVisoOt(params, camera.camera_in_trailer, noise, **own)  # type: ignore[attr-defined]
         self.estimate = OfftrackingEstimate.of(None)
 
+    def _signals(self, measured: Mapping[str, np.ndarray]) -> tuple[float, float, np.ndarray, object]:
+        """The unit's yaw rate, wheel speed and steer, and the zero-slip kinematics' signals, of this tick."""
+        tractor_speed, tractor_rate = float(measured["wheel_speed"][0]), float(measured["tractor_yaw_rate"][0])
+        lateral = float(measured["tractor_lateral_acceleration"][0])
+        if self.unit == 1:
+            articulation = float(measured["articulation"][0])
+            signals: object = TractorSignals(tractor_speed, tractor_rate, articulation, lateral)
+            rate, speed = measured["trailer_yaw_rate"][0], measured["trailer_wheel_speed"][0]
+            return float(rate), float(speed), measured["trailer_steer"], signals
+        k = self._suffix
+        articulations = (float(measured["articulation"][0]), *map(float, measured["rear_articulation"]))
+        ahead = [float(measured["trailer_yaw_rate"][0])]
+        ahead += [float(measured[f"trailer_yaw_rate{u + 1}"][0]) for u in range(2, self.unit)]
+        signals = ChainSignals(tractor_speed, tractor_rate, articulations, lateral, tuple(ahead))
+        rate, speed = measured[f"trailer_yaw_rate{k}"][0], measured[f"trailer_wheel_speed{k}"][0]
+        return float(rate), float(speed), measured[f"trailer_steer{k}"], signals
+
     def update(self, tick: TickInput) -> OfftrackingEstimate:
-        """Propagate with the trailer's signals, then correct with the frames the camera released on this tick."""
-        fused, measured = self.filter, tick.measured
-        steer = measured["trailer_steer"]
-        tractor = TractorSignals(
-            float(measured["wheel_speed"][0]),
-            float(measured["tractor_yaw_rate"][0]),
-            float(measured["articulation"][0]),
-            float(measured["tractor_lateral_acceleration"][0]),
-        )
-        fused.propagate(
-            tick.index, tick.period, measured["trailer_yaw_rate"][0], measured["trailer_wheel_speed"][0], steer, tractor
-        )
+        """Propagate with the unit's signals, then correct with the frames the camera released on this tick."""
+        fused = self.filter
+        rate, speed, steer, signals = self._signals(tick.measured)
+        fused.propagate(tick.index, tick.period, rate, speed, steer, signals)  # type: ignore[arg-type]
         for shot in self.camera.released:  # type: ignore[attr-defined]
             frame = shot.frame
             fused.measure(
@@ -279,11 +302,12 @@ class FusedVisoOtEstimator:
 
     def record(self) -> Mapping[str, float]:
         """The estimate, its standard deviation, the kinematics' σ and the terms of the standard deviation."""
+        k = self._suffix
         return {
-            "offtracking_viso_ot_fused": self.estimate.value,
-            "offtracking_viso_ot_fused_std": self.estimate.std,
-            "fusion_kinematic_std": self.filter.kinematic_std,
-            **fusion_std_record(self.filter),
+            f"offtracking_viso_ot_fused{k}": self.estimate.value,
+            f"offtracking_viso_ot_fused{k}_std": self.estimate.std,
+            f"fusion_kinematic_std{k}": self.filter.kinematic_std,
+            **{f"{name}{k}": value for name, value in fusion_std_record(self.filter).items()},
         }
 
 
@@ -316,11 +340,23 @@ def fused_viso_ot(context: LoopContext) -> FusedVisoOtEstimator:
     are drawn from its own channel (``signals.trailer_yaw_rate``: bias and noise; :func:`sensor.signals.
     standstill_reading`).
     """
+    return _fused(context, context.estimators["viso_ot"], 1)
+
+
+def fused_viso_ot_unit(context: LoopContext, unit: int) -> FusedVisoOtEstimator | None:
+    """The registry's builder of fused VISO-OT of towed unit ``unit`` ≥ 2, on that unit's VISO-OT camera (``None``:
+    no camera on it). Its gyro is zeroed as the first's, from a stream of its own."""
+    camera = context.unit_estimators.get(f"viso_ot{unit + 1}")
+    return None if camera is None else _fused(context, camera, unit)
+
+
+def _fused(context: LoopContext, camera: object, unit: int) -> FusedVisoOtEstimator:
     config = context.setup.config
     fusion = config.fusion  # a FusionNoise with a run's defaults
-    estimator = FusedVisoOtEstimator(context.setup.params, context.estimators["viso_ot"], fusion)
+    estimator = FusedVisoOtEstimator(context.setup.params, camera, fusion, unit)
     if fusion.gyro_zeroing_s > 0.0:
-        rng = np.random.default_rng([config.seed, GYRO_ZEROING_STREAM])
+        stream = [config.seed, GYRO_ZEROING_STREAM] + ([] if unit == 1 else [unit])
+        rng = np.random.default_rng(stream)
         mean, samples = standstill_reading(config.signals.trailer_yaw_rate, fusion.gyro_zeroing_s, rng)
         if samples > 0:
             estimator.filter.zero_gyro(mean, samples)

@@ -27,7 +27,7 @@ from vehicle_model.offtracking import OfftrackingBuffer, OfftrackingEstimate, in
 from ..registry import estimator_entry
 from ..setup.build import ScenarioSetup
 from ..unit_feedback import estimate_key
-from .participant import Column, LoopContext, TickInput
+from .participant import Column, LoopContext, PendingValues, Record, TickInput
 
 __all__ = ["FurtherUnitsParticipant", "further_units", "truth_column"]
 
@@ -93,13 +93,23 @@ class FurtherUnitsParticipant:
         self.columns: tuple[Column, ...] = tuple(c for unit in self.units for c in _columns(unit))
         self.buffers = {unit: OfftrackingBuffer(params.trailers[unit - 2].follow_point_offset) for unit in self.units}
         self.unit_estimators: dict[str, tuple[str, Any]] = {}  # by estimate key: its column and unit estimator
-        columns = []
+        self._own_records: dict[str, bool] = {}  # by estimate key: whether it records its own columns
+        columns: list[Column] = []
         for name in setup.config.enabled_estimators() if context is not None else ():
             entry = estimator_entry(name)
             for unit in self.units if entry.build_unit is not None else ():
+                built = entry.build_unit(context, unit - 1)
+                if built is None:  # it cannot estimate this unit (e.g. no camera rig on it)
+                    continue
+                key = estimate_key(name, unit - 1)
                 column = Column.estimate(name, f"unit {unit} {entry.legend} off-tracking", vehicle_unit=unit)
-                self.unit_estimators[estimate_key(name, unit - 1)] = (column.name, entry.build_unit(context, unit - 1))
-                columns.append(column)
+                own = tuple(getattr(built, "columns", ()))
+                records = column.name in {c.name for c in own}  # it declares this unit's columns: it records them
+                self.unit_estimators[key] = (column.name, built)
+                self._own_records[key] = records
+                assert context is not None
+                context.unit_estimators[key] = built
+                columns.extend(own if records else (column,))
         self.columns += tuple(columns)
         self._previous: dict[int, tuple[np.ndarray, float]] = {}
         self._row: dict[str, float] = {}
@@ -140,12 +150,61 @@ class FurtherUnitsParticipant:
                 }
             )
             estimates[estimate_key("truth", unit - 1)] = OfftrackingEstimate.of(value)
+        records: list[Record] = []
         for key, (column, estimator) in self.unit_estimators.items():
             estimate = estimates[key] = estimator.update(tick)
-            row[column] = estimate.value
+            if self._own_records[key]:  # it records its own columns (a camera's frames among them)
+                records.append(estimator.record())
+            else:
+                row[column] = estimate.value
         self._row = row
+        self._records = records
         self.estimates = estimates
 
-    def record(self) -> Mapping[str, float]:
-        """The tick's values."""
-        return self._row
+    def record(self) -> Record:
+        """The tick's values (pending while a unit's camera frame is rendered elsewhere)."""
+        records = getattr(self, "_records", [])
+        if not any(isinstance(r, PendingValues) for r in records):
+            return {**self._row, **{k: v for r in records for k, v in r.items()}}  # type: ignore[union-attr]
+        return _Joined(self._row, records)
+
+    def _each(self, method: str) -> dict[str, Any]:
+        """Call ``method`` of every unit estimator that has it; what each returned, by estimate key."""
+        out = {}
+        for key, (_, estimator) in self.unit_estimators.items():
+            call = getattr(estimator, method, None)
+            if callable(call):
+                out[key] = call()
+        return out
+
+    def finish(self) -> None:
+        """The run has ended: every unit estimator completes what is in flight (a camera's frames)."""
+        self._each("finish")
+
+    def report(self) -> dict[str, Any]:
+        """What the unit estimators report (a camera's times), by estimate key."""
+        return {key: value for key, value in self._each("report").items() if value is not None}
+
+    def close(self) -> None:
+        """Stop what the unit estimators run outside this process (a camera's render workers)."""
+        self._each("close")
+
+
+class _Joined:
+    """A tick's values of every unit, some of them pending (a :class:`~.participant.PendingValues`)."""
+
+    __slots__ = ("parts", "row")
+
+    def __init__(self, row: Mapping[str, float], parts: list[Record]) -> None:
+        self.row = row
+        self.parts = parts
+
+    @property
+    def ready(self) -> bool:
+        return all(not isinstance(p, PendingValues) or p.ready for p in self.parts)
+
+    def values(self) -> Mapping[str, float]:
+        out = dict(self.row)
+        for part in self.parts:
+            out.update(part.values() if isinstance(part, PendingValues) else part)
+        return out

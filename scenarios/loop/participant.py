@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -104,12 +104,11 @@ class Column:
         return cls(name, "m", description, role="estimate", vehicle_unit=vehicle_unit, estimator=estimator)
 
     @classmethod
-    def std(cls, estimator: str, description: str = "its standard deviation") -> Column:
-        """The standard deviation [m] of ``estimator``'s estimate of the first towed unit:
-        ``offtracking_<estimator>_std``."""
-        return cls(
-            f"{estimate_column(estimator)}_std", "m", description, role="std", vehicle_unit=2, estimator=estimator
-        )
+    def std(cls, estimator: str, description: str = "its standard deviation", vehicle_unit: int = 2) -> Column:
+        """The standard deviation [m] of ``estimator``'s estimate of the first towed unit (``vehicle_unit`` 2):
+        ``offtracking_<estimator>_std``; for another unit ``k``, ``offtracking_<estimator><k>_std``."""
+        name = estimate_column(estimator) + ("" if vehicle_unit == 2 else str(vehicle_unit)) + "_std"
+        return cls(name, "m", description, role="std", vehicle_unit=vehicle_unit, estimator=estimator)
 
     def __post_init__(self) -> None:
         if self.role and self.role not in ROLES:
@@ -194,6 +193,9 @@ class LoopContext:
         Render worker processes of a camera (0: render in this process).
     estimators : dict
         The estimators built so far, by name (an entry's requirements come before it).
+    unit_estimators : dict
+        The estimators of the towed units behind the first built so far, by estimate key (``viso_ot3``, …;
+        :func:`scenarios.unit_feedback.estimate_key`).
     """
 
     setup: ScenarioSetup
@@ -202,6 +204,7 @@ class LoopContext:
     geometric_truth: bool = False
     camera_workers: int = 0
     estimators: dict[str, EstimatorParticipant] = field(default_factory=dict)
+    unit_estimators: dict[str, Any] = field(default_factory=dict)
 
 
 @runtime_checkable

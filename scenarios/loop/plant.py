@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import casadi as ca
 import numpy as np
 
-from sensor.signals import OnboardSignals
+from sensor.signals import CHANNELS, OnboardSignals
 from vehicle_model.geometry import follow_point_from_kingpin
-from vehicle_model.kinematics import trailer_axle_speed
+from vehicle_model.kinematics import coupling_velocity, kingpin_velocity, trailer_axle_speed
+from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import Simulator, VehicleState
 
 from ..setup.build import ScenarioSetup
@@ -102,6 +104,29 @@ class VehicleParticipant:
         return self._row
 
 
+UNIT_CHANNELS = ("trailer_yaw_rate", "trailer_wheel_speed", "trailer_steer")
+"""The signals every towed unit behind the first carries as the first does (its gyro, an unsteered axle's wheel
+speed, its steer angles), measured as ``<channel><k>`` for unit ``k`` of the combination (``trailer_yaw_rate3``)."""
+
+UNIT_SIGNALS_STREAM = 0x7E57
+"""Mixed with the run's seed and a towed unit's number into the generator of that unit's signals."""
+
+
+def unit_axle_speed(params: VehicleParams, state: VehicleState, unit: int) -> float:
+    """Longitudinal speed [m/s] of towed unit ``unit``'s axles along its centre line (that of its front coupling):
+    the first towed unit's kingpin velocity carried down the chain (:func:`~vehicle_model.kinematics.
+    coupling_velocity`) and turned by the unit's articulation into its axes (as :func:`~vehicle_model.kinematics.
+    trailer_axle_speed` for the first)."""
+    if unit == 1:
+        return trailer_axle_speed(params, state)
+    articulations, rates = state.articulations, state.towed_yaw_rates
+    vx, vy = coupling_velocity(
+        params, unit, kingpin_velocity(params, state.u, state.v1, state.r1), articulations, rates
+    )
+    gamma = articulations[unit - 1]
+    return math.cos(gamma) * vx - math.sin(gamma) * vy
+
+
 class SignalsParticipant:
     """The on-board signals (:class:`sensor.signals.OnboardSignals`) sampled from the true state every tick.
 
@@ -125,6 +150,17 @@ class SignalsParticipant:
         steerable = setup.model.layout.steerable_axles
         trailer = {a.name for a in setup.params.trailer.axles}
         self._trailer_index = [i for i, n in enumerate(steerable) if n in trailer]
+        # each unit behind the first carries the first's gyro, wheel-speed and steer sensors, drawn from its own
+        # stream so that the run's generator draws what it always did
+        own = {name: specs[name] for name in UNIT_CHANNELS}
+        self.unit_sensors = {
+            unit: OnboardSignals(own, np.random.default_rng([cfg.seed, UNIT_SIGNALS_STREAM, unit]))
+            for unit in range(2, setup.params.n_units)
+        }
+        self._unit_index = {
+            unit: [i for i, n in enumerate(steerable) if n in {a.name for a in setup.params.trailers[unit - 1].axles}]
+            for unit in self.unit_sensors
+        }
         self.measured: dict[str, np.ndarray] = {}
 
     def measure(
@@ -146,6 +182,14 @@ class SignalsParticipant:
             "tractor_lateral_acceleration": lateral_acceleration,
         }
         self.measured = self.sensors.measure(time, truth)
+        for unit, sensors in self.unit_sensors.items():
+            own = {
+                "trailer_yaw_rate": state.towed_yaw_rates[unit - 1],
+                "trailer_wheel_speed": unit_axle_speed(self.params, state, unit),
+                "trailer_steer": steer[self._unit_index[unit]] if self._unit_index[unit] else np.zeros(0),
+            }
+            measured = sensors.measure(time, {**dict.fromkeys(CHANNELS, 0.0), **own})
+            self.measured.update({f"{name}{unit + 1}": measured[name] for name in UNIT_CHANNELS})
         return self.measured
 
     def record(self) -> Mapping[str, float]:

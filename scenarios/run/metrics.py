@@ -244,6 +244,8 @@ def compute_metrics(
             unit_metrics["feedback_fallback"] = unit_fallback
         settled_truth = {"rms": unit_metrics["rms_after_warmup"], "max_abs": unit_metrics["max_abs_after_warmup"]}
         unit_verdict = run_verdict(unit_feedback, settled_truth, unit_metrics["estimators"], unit_fallback)
+        unit_metrics["feedback"] = unit_feedback
+        unit_metrics["verdict"] = unit_verdict
         verdict["flags"] += [{**f, "reason": f"unit {unit}: {f['reason']}"} for f in unit_verdict["flags"]]
         verdict["held"] = not verdict["flags"]
     metrics["verdict"] = verdict
@@ -252,6 +254,10 @@ def compute_metrics(
     camera = camera_frame_metrics(columns)
     if camera is not None:
         metrics["camera"] = camera
+    for unit, unit_metrics in units.items():
+        unit_camera = camera_frame_metrics(columns, unit)
+        if unit_camera is not None:
+            unit_metrics["camera"] = unit_camera
     if annulus_centre is not None and truth.size:
         s = columns["path_progress"]
         in_turn = (s >= turn_span[0]) & (s <= turn_span[1])
@@ -318,7 +324,8 @@ def further_unit_offtracking(
 ) -> dict[str, dict[str, float]]:
     """Each further unit's true off-tracking (against its own coupling's path): RMS and largest, over the run and
     after the warm-up of the first towed unit once the unit's own is defined, and the errors of each estimate of
-    that unit (``offtracking_<name><k>``) against it, by unit number (``"3"``, ``"4"``)."""
+    that unit (``offtracking_<name><k>``) against it — with its standard deviation (``offtracking_<name><k>_std``),
+    the share within 2σ — by unit number (``"3"``, ``"4"``)."""
     out: dict[str, dict[str, Any]] = {}
     recorded = estimate_columns(columns)
     for unit in range(3, params.n_units + 1):
@@ -338,9 +345,18 @@ def further_unit_offtracking(
             "rms_after_warmup": rms(truth[after]),
             "max_abs_after_warmup": max_abs(truth[after]),
             "defined_fraction": float(np.isfinite(truth).mean()) if truth.size else 0.0,
-            "estimators": {name: estimator_errors(truth, values) for name, values in estimates.items()},
+            "estimators": {
+                name: estimator_errors(truth, values, _unit_std(columns, name, unit))
+                for name, values in estimates.items()
+            },
         }
     return out
+
+
+def _unit_std(columns: dict[str, np.ndarray], name: str, unit: int) -> np.ndarray | None:
+    """The standard deviation of estimator ``name``'s estimate of unit ``unit`` (``None``: none recorded)."""
+    column = std_column(columns, name, unit)
+    return None if column is None else np.asarray(columns[column.name], dtype=float)
 
 
 _REQUIRED = ("time", "X", "Y", "psi1", "gamma", "kingpin_x", "kingpin_y", "path_progress")
@@ -355,15 +371,16 @@ def _with_required_columns(columns: dict[str, np.ndarray], estimator_names: list
     return RecordedColumns({**{name: empty for name in names}, **columns}, schema_of(columns))
 
 
-def camera_frame_metrics(columns: dict[str, np.ndarray]) -> dict[str, Any] | None:
-    """Visual-odometry frame statistics of a camera run (``None`` without a camera).
+def camera_frame_metrics(columns: dict[str, np.ndarray], suffix: str = "") -> dict[str, Any] | None:
+    """Visual-odometry frame statistics of a camera run (``None`` without a camera); ``suffix``: of the rig on unit
+    ``k`` of the combination behind the first towed one (``"3"``: its columns ``vo_valid3``, ``vo_reason3``).
 
     ``frames`` counts the camera frames after the first (which has no previous pair), ``valid_fraction`` the
     share whose motion was accepted, ``rejections`` how many were refused for each reason (the codes of
     :data:`sensor.vo.quality.REJECTION_REASONS`), and ``message`` says in words why there was no valid
     estimate at all when that happened.
     """
-    valid = columns.get("vo_valid")
+    valid = columns.get(f"vo_valid{suffix}")
     if valid is None:
         return None
     from sensor.vo.quality import REJECTION_REASONS  # light: a table of words
@@ -374,7 +391,7 @@ def camera_frame_metrics(columns: dict[str, np.ndarray]) -> dict[str, Any] | Non
     n = int(frame.sum())
     accepted = int((valid[frame] > 0.5).sum())
     codes = list(REJECTION_REASONS)
-    reason = columns.get("vo_reason", np.full(valid.shape, np.nan))
+    reason = columns.get(f"vo_reason{suffix}", np.full(valid.shape, np.nan))
     counts: dict[str, int] = {}
     for value in reason[frame & (valid < 0.5)]:
         code = codes[int(value)] if np.isfinite(value) and 0 <= int(value) < len(codes) else "unknown"

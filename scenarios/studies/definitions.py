@@ -23,7 +23,7 @@ from vehicle_model.parameters import VehicleParams
 from ..config import load_scenario
 from ..loop.ends import RunStatus
 from ..registry import feedback_sources, unit_feedback_sources
-from ..unit_feedback import one_semi_trailer
+from ..unit_feedback import one_semi_trailer, uses_camera
 from .progress import ProgressCallback, SweepProgress
 from .records import CaseSpec
 from .registry import STUDIES, vehicle_studies
@@ -69,10 +69,10 @@ def check_study_vehicle(name: str, vehicle: str | None) -> list[str]:
         raise InputError(f"--vehicle {vehicle}: {name} takes no --vehicle ({why}); {takes} take one")
     resolved_vehicle = study_vehicle(vehicle, name)
     if name == "estimators-under-slip" and not one_semi_trailer(resolved_vehicle.params):
-        dropped = [f for f in feedback_sources() if f not in unit_feedback_sources()]
+        dropped = [f for f in feedback_sources() if f not in unit_feedback_sources() or uses_camera(f)]
         return [
             f"{name} --vehicle {resolved_vehicle.name}: the camera feedbacks ({', '.join(dropped)}) are left out; "
-            "the camera sees the first towed unit of a tractor or rigid truck with one semi-trailer only"
+            "the study is model-only on a longer combination (field-loop --vehicle runs one on its cameras)"
         ]
     return []
 

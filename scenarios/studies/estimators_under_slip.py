@@ -14,7 +14,7 @@ from typing import Any
 from ..config import load_scenario
 from ..loop.ends import RunStatus
 from ..registry import feedback_sources, unit_feedback_sources
-from ..unit_feedback import one_semi_trailer
+from ..unit_feedback import one_semi_trailer, uses_camera
 from .cases import run_case
 from .records import CaseSpec
 from .unit_steering import study_vehicle, unit_columns
@@ -42,7 +42,7 @@ def estimators_under_slip_cases(full: bool = False, vehicle: str | None = None) 
         resolved = study_vehicle(vehicle, "estimators-under-slip")
         combination = resolved.value
         if not one_semi_trailer(resolved.params):
-            feedbacks = tuple(f for f in feedbacks if f in unit_feedback_sources())
+            feedbacks = tuple(f for f in feedbacks if f in unit_feedback_sources() and not uses_camera(f))
     cases = []
     for scenario in scenarios:
         for surface in surfaces:

@@ -26,6 +26,12 @@ The default subset is the three-turn roundabout with seed 0 in three cells, (fie
 ice, 5 %, paper) and (ideal, ice, 5 %), with the three feedbacks each and ``duration_s`` :data:`SHORT_DURATION_S`:
 9 cases, 3 rendered. ``full`` drives the complete manoeuvres.
 
+With ``--vehicle`` the grid drives another combination (``offtrack study field-loop --vehicle au-b-double-steered``):
+every steered unit on its own fused camera (a rig per unit, ``camera.rigs``' defaults: a left-side rig on every unit
+that tows another and a rear rig on the last; the field conditions on every rig), or on its own zero-slip estimate
+or truth; each further unit's true off-tracking, fused errors, coverage and fallback join the row
+(``unit<k>_…``, :func:`unit_columns`), and the cell's acceptance and the pooled coverage are taken per unit.
+
 :func:`run_field_loop_case` adds to the common row (:func:`~scenarios.studies.cases.run_case`) the fused filter's
 errors and coverage, the feedback's fallback, the run's verdict and how far the filter trusted the zero-slip
 kinematics; :func:`cell_table` gathers the rows into one per cell with the study's acceptance
@@ -44,12 +50,16 @@ import numpy as np
 import pandas as pd
 
 from sensor.datasheet import datasheet_fields, draw_biases
+from vehicle_model.errors import InputError
 
+from ..config import load_scenario
 from ..loop.ends import RunStatus
 from ..run.results import read_timeseries
 from .cases import run_case
+from .field_loop_units import further_units_of, unit_columns
 from .records import CaseSpec
 from .section4 import FIELD_CONDITIONS, PAPER_SECTION4_MISALIGNMENT_DEG
+from .unit_steering import study_vehicle, vehicle_problem
 
 STUDY = "field-loop"
 
@@ -167,11 +177,38 @@ def field_signals(seed: int) -> tuple[tuple[str, Any], ...]:
     return tuple(datasheet_fields(biases).items())
 
 
+def field_loop_vehicle(vehicle: str | None) -> Any:
+    """The combination of the grid: the LST (``None``), or a preset's name or combination file that can be steered
+    on its own cameras (its first towed unit a steerable semi-trailer).
+
+    Raises
+    ------
+    InputError
+        One line naming ``--vehicle``.
+    """
+    if vehicle is None:
+        return VEHICLE
+    resolved = study_vehicle(vehicle, STUDY)
+    try:
+        load_scenario(SCENARIOS[0], {"vehicle": resolved.value, "feedback": RENDERED_FEEDBACK})
+    except (InputError, ValueError) as exc:
+        raise InputError(f"--vehicle {vehicle}: {STUDY}: {vehicle_problem(exc)}") from None
+    return resolved.value
+
+
 def _case(
-    scenario: str, surface: str, camber: float, conditions: str, alignment: str, seed: int, feedback: str, full: bool
+    scenario: str,
+    surface: str,
+    camber: float,
+    conditions: str,
+    alignment: str,
+    seed: int,
+    feedback: str,
+    full: bool,
+    vehicle: Any = VEHICLE,
 ) -> CaseSpec:
     overrides: tuple[tuple[str, Any], ...] = (
-        ("vehicle", VEHICLE),
+        ("vehicle", vehicle),
         ("surface.preset", surface),
         ("camber.percent", float(camber)),
         ("seed", int(seed)),
@@ -202,7 +239,7 @@ def _case(
     return CaseSpec(STUDY, scenario, overrides, labels)
 
 
-def field_loop_cases(full: bool = False) -> list[CaseSpec]:
+def field_loop_cases(full: bool = False, vehicle: str | None = None) -> list[CaseSpec]:
     """Cases of the field-loop study (the default subset unless ``full``).
 
     Parameters
@@ -211,6 +248,8 @@ def field_loop_cases(full: bool = False) -> list[CaseSpec]:
         All 144 cases (:data:`SCENARIOS` × :data:`SURFACES` × :data:`CAMBERS_PERCENT` × (the ``field`` conditions
         × :data:`ALIGNMENTS`, and ``ideal`` aligned) × :data:`SEEDS` × :data:`FEEDBACKS`, the complete manoeuvres)
         instead of the 9 of :data:`DEFAULT_CELLS` (three feedbacks each, :data:`SHORT_DURATION_S` long).
+    vehicle
+        Another combination (:func:`field_loop_vehicle`; default: the LST).
 
     Returns
     -------
@@ -230,7 +269,8 @@ def field_loop_cases(full: bool = False) -> list[CaseSpec]:
         ]
     else:
         cells = list(DEFAULT_CELLS)
-    return [_case(*cell, feedback, full) for cell in cells for feedback in FEEDBACKS]
+    combination = field_loop_vehicle(vehicle)
+    return [_case(*cell, feedback, full, combination) for cell in cells for feedback in FEEDBACKS]
 
 
 def _number(mapping: Any, key: str) -> float:
@@ -319,6 +359,7 @@ def run_field_loop_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     metrics = json.loads(metrics_file.read_text()) if metrics_file.is_file() else {}
     row.update(metrics_columns(metrics))
     row.update(kinematic_trust(read_timeseries(run_dir).get("fusion_kinematic_std")))
+    row.update(unit_columns(metrics))
     return row
 
 
@@ -398,6 +439,7 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
         order of cells.
     """
     rows = []
+    units = further_units_of(table)
     for keys, cell in table.groupby(list(CELL_LABELS), sort=False, dropna=False):
         by_feedback = {str(fb): part.iloc[0] for fb, part in cell.groupby("feedback", sort=False)}
         row: dict[str, Any] = dict(zip(CELL_LABELS, keys, strict=True))
@@ -413,14 +455,37 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
         row["verdict"] = _verdict_text(
             None if fused is None else fused.get("verdict_held"), None if fused is None else fused.get("verdict_flags")
         )
-        row["acceptance"] = acceptance(
-            row["viso_ot_fused_true_rms_m"],
-            row["viso_ot_fused_true_max_m"],
-            row["zero_slip_true_rms_m"],
-            row["coverage"],
-            dry=row["surface"] == "dry",
-            ice_camber=row["surface"] == "ice" and row["camber"] > 0.0 and row["conditions"] == "field",
-        )
+        dry = row["surface"] == "dry"
+        ice_camber = row["surface"] == "ice" and row["camber"] > 0.0 and row["conditions"] == "field"
+        verdicts = [
+            acceptance(
+                row["viso_ot_fused_true_rms_m"],
+                row["viso_ot_fused_true_max_m"],
+                row["zero_slip_true_rms_m"],
+                row["coverage"],
+                dry=dry,
+                ice_camber=ice_camber,
+            )
+        ]
+        for unit in units:
+            for feedback in FEEDBACKS:
+                case = by_feedback.get(feedback)
+                row[f"{feedback}_unit{unit}_true_rms_m"] = _get(case, f"unit{unit}_true_rms_m")
+                row[f"{feedback}_unit{unit}_true_max_m"] = _get(case, f"unit{unit}_true_max_m")
+            row[f"unit{unit}_fused_rms_error_m"] = _get(fused, f"unit{unit}_fused_rms_error_m")
+            row[f"unit{unit}_coverage"] = _get(fused, f"unit{unit}_fused_within_2sigma")
+            unit_acceptance = acceptance(
+                row[f"viso_ot_fused_unit{unit}_true_rms_m"],
+                row[f"viso_ot_fused_unit{unit}_true_max_m"],
+                row[f"zero_slip_unit{unit}_true_rms_m"],
+                row[f"unit{unit}_coverage"],
+                dry=dry,
+                ice_camber=ice_camber,
+            )
+            if unit_acceptance != "pass":
+                verdicts.append(f"unit {unit}: {unit_acceptance}")
+        passed = [v for v in verdicts if v != "pass"]
+        row["acceptance"] = "pass" if not passed else "; ".join(passed)
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -469,10 +534,14 @@ def pooled_coverage(cells: pd.DataFrame) -> pd.DataFrame:
     -------
     pandas.DataFrame
         ``group``, ``cells`` (how many had a coverage), ``mean``, ``least`` and ``most`` (shares; NaN without
-        cells), one row per group in the order above.
+        cells), one row per group in the order above; with a combination's cells the same groups again for each
+        further unit ``k`` (``unit<k>_coverage``), named ``unit k: …``.
     """
-    cells = cells.reindex(columns=["conditions", "alignment", "coverage"])  # an empty table may have no columns
-    coverage = cells["coverage"].to_numpy(dtype=float)
+    units = sorted(
+        int(k) for k in (str(c).removeprefix("unit").removesuffix("_coverage") for c in cells.columns) if k.isdigit()
+    )
+    columns = {"": "coverage", **{f"unit {unit}: ": f"unit{unit}_coverage" for unit in units}}
+    cells = cells.reindex(columns=["conditions", "alignment", *columns.values()])  # an empty table may have none
     field = cells["conditions"].eq("field").to_numpy()
     paper = cells["alignment"].eq("paper").to_numpy()
     groups = {
@@ -482,17 +551,19 @@ def pooled_coverage(cells: pd.DataFrame) -> pd.DataFrame:
         "all": np.ones_like(field),
     }
     rows = []
-    for group, members in groups.items():
-        shares = coverage[members & np.isfinite(coverage)]
-        rows.append(
-            {
-                "group": group,
-                "cells": int(shares.size),
-                "mean": float(shares.mean()) if shares.size else math.nan,
-                "least": float(shares.min()) if shares.size else math.nan,
-                "most": float(shares.max()) if shares.size else math.nan,
-            }
-        )
+    for prefix, column in columns.items():
+        coverage = cells[column].to_numpy(dtype=float)
+        for group, members in groups.items():
+            shares = coverage[members & np.isfinite(coverage)]
+            rows.append(
+                {
+                    "group": prefix + group,
+                    "cells": int(shares.size),
+                    "mean": float(shares.mean()) if shares.size else math.nan,
+                    "least": float(shares.min()) if shares.size else math.nan,
+                    "most": float(shares.max()) if shares.size else math.nan,
+                }
+            )
     return pd.DataFrame(rows)
 
 

@@ -127,6 +127,7 @@ STUDIES: dict[str, Study] = _studies(
         run_field_loop_case,
         columns=FIELD_LOOP_COLUMNS,
         terminal_rows=field_loop_terminal_rows,
+        takes_vehicle=True,
     ),
     Study(
         "field-bias",
