@@ -22,14 +22,8 @@ from matplotlib.patches import PathPatch
 from rich.console import Console
 
 from scenarios.config import load_scenario
-from scenarios.export.animation import (
-    OfftrackingTrace,
-    animate_run,
-    animation_title,
-    band_polygons,
-    frame_times,
-    towed_unit_traces,
-)
+from scenarios.export.animation import OfftrackingTrace, animate_run, animation_title, frame_times
+from scenarios.export.trace_panel import band_polygons, towed_unit_traces
 from scenarios.loop.participant import Column
 from scenarios.loop.schema import RecordedColumns
 from scenarios.run.metrics import after_warmup

@@ -40,7 +40,6 @@ import numpy as np
 from sensor.frame_odometry import FrameOdometry
 from sensor.recordings.sequence import GAP_FACTOR, MISSING_REASONS, time_gaps
 from sensor.recordings.vo_metrics import relative_pose_error
-from sensor.viso_ot import VisoOtEstimator
 
 from ..loop.camera_estimator import CAMERA_COLUMNS, VisoOt, camera_row
 from ..loop.ends import RunStatus
@@ -227,11 +226,9 @@ def estimate_recording(
     times, slots = row_times(inputs)
     frame_times = inputs.recording.times
     first_interval = float(frame_times[1] - frame_times[0]) if frame_times.size > 1 else 0.1
-    odometry = FrameOdometry(params, inputs.vo_config, inputs.camera_in_trailer, first_interval, inputs.seed)
-    if inputs.rig.unit != 1:  # the rig on a unit behind the first: VISO-OT of that unit, its coupling and follow point
-        odometry.estimator = VisoOtEstimator(
-            params, inputs.camera_in_trailer, frame_interval=first_interval, unit=inputs.rig.unit
-        )
+    odometry = FrameOdometry(
+        params, inputs.vo_config, inputs.camera_in_trailer, first_interval, inputs.seed, unit=inputs.rig.unit
+    )
     truth = reference_columns(
         times,
         inputs.rig.follow_point_offset,
