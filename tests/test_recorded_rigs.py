@@ -2,10 +2,11 @@
 
 A short B-double drive into a 30 m roundabout (25 km/h, 3 s, unsteered) is exported twice with ``export_kitti``:
 a left-looking side rig on the lead trailer (the trailer behind it and the tractor drawn in the scene) and a rear
-rig on the rear trailer, small images (672 × 196 px). ``offtrack estimate --rigs`` on the two folders gives each
-unit's VISO-OT series; each is checked against the simulation's own true off-tracking of that unit (the run's
-``offtracking_truth`` and ``offtracking_truth3``, not the recording's reference), so a rig put on the wrong unit, the
-wrong coupling or the wrong follow point would fail.
+rig on the rear trailer, small images (672 × 196 px), each with a signals file of its unit written from the
+simulation (the rear one: the tractor's, both articulations, the rear trailer's gyro and wheel speed).
+``offtrack estimate --rigs`` on the two folders gives each unit's VISO-OT and fused series; each is checked against
+the simulation's own true off-tracking of that unit (the run's ``offtracking_truth`` and ``offtracking_truth3``, not
+the recording's reference), so a rig put on the wrong unit, the wrong coupling or the wrong follow point would fail.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from scenarios.loop.trailer_steer import UnsteeredTrailer, trailer_axles
 from scenarios.run.drive import simulate
 from scenarios.setup.build import build_scenario
 from sensor.camera import StereoRig
+from vehicle_model.geometry import ChainPose, unit_frame
 
 pytestmark = pytest.mark.rendering
 
@@ -54,6 +56,21 @@ def _rigs_file(folder: Path, rigs: list[dict], name: str = "rigs.yaml") -> Path:
     return path
 
 
+def _signals(path: Path, cols: dict, params: object, unit: int) -> None:
+    """The signals beside the rig on towed unit ``unit``, from the simulation's columns (times on the frames' clock:
+    the first camera frame at 0 s)."""
+    t = np.asarray(cols["time"]) - float(np.asarray(cols["time"])[np.argmax(np.asarray(cols["camera_frame"]) > 0.5)])
+    table = {"time_s": t, "speed_m_s": cols["u"], "yaw_rate_rad_s": cols["r1"], "articulation_rad": cols["gamma"]}
+    if unit == 2:
+        pose = ChainPose(*(np.asarray(cols[k]) for k in ("X", "Y", "psi1")), (cols["gamma"], cols["gamma2"]))
+        coupling, heading = unit_frame(params, pose, 2)
+        velocity = np.gradient(coupling, t, axis=0)  # the unit's longitudinal speed: that of any point on its axis
+        table["articulation2_rad"] = cols["gamma2"]
+        table["trailer_yaw_rate_rad_s"] = cols["r3"]
+        table["trailer_speed_m_s"] = velocity[:, 0] * np.cos(heading) + velocity[:, 1] * np.sin(heading)
+    pd.DataFrame({k: np.asarray(v, dtype=float) for k, v in table.items()}).to_csv(path, index=False)
+
+
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> SimpleNamespace:
     """The two rigs' KITTI folders, the rigs file, the estimate's directory and the simulation's columns."""
@@ -65,15 +82,18 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> SimpleNamespace:
     rear = StereoRig(**size, station=None, mount_height=3.0, psi_c2v=math.pi, unit=2)
     export_kitti(config, tmp / "lead", rig=side)
     export_kitti(config, tmp / "rear", rig=rear)
-    rear_arm = [float(params.trailers[1].rear_x), 0.0, 3.0]
-    rigs = _rigs_file(tmp, [SIDE, {"unit": 2, "recording": "rear", "psi_c2v_deg": 180.0, "lever_arm_m": rear_arm}])
-    out = tmp / "estimate"
-    result = CliRunner().invoke(app, ["estimate", "--rigs", str(rigs), "--out", str(out), "--no-plots"])
-    assert result.exit_code == 0, result.output
     setup = build_scenario(config)
     outcome, cols = simulate(setup, UnsteeredTrailer(trailer_axles(setup)))
     assert outcome.status == "completed"
     frames = np.flatnonzero(np.asarray(cols["camera_frame"]) > 0.5)
+    _signals(tmp / "lead.csv", cols, params, unit=1)
+    _signals(tmp / "rear.csv", cols, params, unit=2)
+    rear_arm = [float(params.trailers[1].rear_x), 0.0, 3.0]
+    rear_rig = {"unit": 2, "recording": "rear", "psi_c2v_deg": 180.0, "lever_arm_m": rear_arm, "signals": "rear.csv"}
+    rigs = _rigs_file(tmp, [{**SIDE, "signals": "lead.csv"}, rear_rig])
+    out = tmp / "estimate"
+    result = CliRunner().invoke(app, ["estimate", "--rigs", str(rigs), "--out", str(out), "--no-plots"])
+    assert result.exit_code == 0, result.output
     return SimpleNamespace(tmp=tmp, out=out, output=result.output, cols=cols, frames=frames, rigs=rigs)
 
 
@@ -82,6 +102,7 @@ def test_each_units_camera_estimate_follows_that_units_true_offtracking(
     recorded: SimpleNamespace, unit: int, truth: str
 ) -> None:
     series = pd.read_parquet(recorded.out / f"unit{unit}" / "timeseries.parquet")
+    series = series[series["camera_frame"] > 0.5]  # the frames' rows (the signals add rows between them)
     true = np.asarray(recorded.cols[truth])[recorded.frames]
     assert len(series) == len(true)
     # the reference from the rig's exported camera poses is the simulation's own truth of that unit (within 3 mm)
@@ -93,6 +114,13 @@ def test_each_units_camera_estimate_follows_that_units_true_offtracking(
     # the issue's targets on small images: ≤ 0.10 m RMS, ≤ 0.15 m max (measured 0.05 / 0.09 m)
     assert float(np.sqrt(np.mean(error**2))) <= 0.10 and float(np.max(np.abs(error))) <= 0.15
     assert abs(float(np.nanmax(np.abs(true)))) > 0.05  # the unit off-tracks: the check is not of zeros
+    fused = series["offtracking_viso_ot_fused"].to_numpy()
+    std = series["offtracking_viso_ot_fused_std"].to_numpy()
+    ok = np.isfinite(fused) & np.isfinite(true)
+    assert ok.sum() >= 10
+    # the unit's own fused filter on its signals: within the same targets, and its std a finite positive number
+    assert float(np.sqrt(np.mean((fused - true)[ok] ** 2))) <= 0.10 and float(np.max(np.abs(fused - true)[ok])) <= 0.15
+    assert np.all(std[ok] > 0.0)
 
 
 def test_the_directory_holds_every_units_metrics_and_the_synchronisation(recorded: SimpleNamespace) -> None:

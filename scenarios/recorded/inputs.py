@@ -39,7 +39,14 @@ from ..extras import require
 from .plausibility import check_baseline, check_road_disparity
 from .rig import RecordingRig, load_rig
 
-__all__ = ["EstimateInputs", "camera_model", "check_signals_clock", "open_recording", "resolve_inputs"]
+__all__ = [
+    "EstimateInputs",
+    "camera_model",
+    "check_signals_clock",
+    "check_unit_signals",
+    "open_recording",
+    "resolve_inputs",
+]
 
 
 @dataclass
@@ -135,6 +142,22 @@ def check_signals_clock(series: SignalSeries, recording: StereoRecording, option
             f"{option} {series.source}: time_s spans [{start:.6g}, {end:.6g}] s, the recording's frames "
             f"[{frames[0]:.6g}, {frames[-1]:.6g}] s: no frame inside; allowed: signals on the recording's clock "
             "(times.txt, the bag's stamps) over its frames"
+        )
+
+
+def check_unit_signals(series: SignalSeries, unit: int) -> None:
+    """Refuse signals beside a rig on towed unit ``unit`` behind the first that lack what its fused filter takes:
+    every coupling's articulation down to the unit's own and the unit's own gyro and wheel speed
+    (:mod:`sensor.recordings.signals`)."""
+    missing = [f"articulation{k}_deg" for k in range(len(series.rear_articulations) + 2, unit + 1)]
+    if series.trailer_yaw_rate is None:
+        missing.append("trailer_yaw_rate_deg_s (the unit's gyro)")
+    if series.trailer_speed is None:
+        missing.append("trailer_speed_m_s (the unit's wheel speed)")
+    if missing:
+        raise InputError(
+            f"signals {series.source} beside a rig on towed unit {unit}: no column {', '.join(missing)}; allowed: "
+            "the tractor's signals, every coupling's articulation down to the unit's, its own gyro and wheel speed"
         )
 
 
@@ -273,10 +296,7 @@ def resolve_inputs(
     if series is not None:
         check_signals_clock(series, rec)
         if rig_.unit != 1:
-            raise InputError(
-                f"--signals {signals} with a rig on towed unit {rig_.unit}: the fused and zero-slip estimates take "
-                "the first towed unit's signals; allowed: signals with a rig on unit 1, VISO-OT alone behind it"
-            )
+            check_unit_signals(series, rig_.unit)
     if rear_point == "lateral_acceleration" and (series is None or series.lateral_acceleration is None):
         raise InputError(
             "--rear-point lateral_acceleration needs the tractor's accelerometer: a --signals CSV with a "
