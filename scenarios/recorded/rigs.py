@@ -12,7 +12,7 @@ and lists the rigs; paths are relative to the file (YAML; degrees at this edge, 
         recording: lead/            # KITTI folder, bag or left video, as offtrack estimate's RECORDING
         psi_c2v_deg: 90             # the rig file's fields (scenarios.recorded.rig), in the unit's own axes
         lever_arm_m: [-3.0, 1.3, 2.5]
-        signals: signals.csv        # optional: the first towed unit's signals (fused and zero-slip estimates)
+        signals: lead.csv           # optional: the unit's signals (sensor.recordings.signals)
       - unit: 2
         recording: rear/
         psi_c2v_deg: 180
@@ -24,8 +24,9 @@ are synchronised when their recordings overlap on the shared clock: frames of ev
 rigs that share no instant are refused before any image is decoded, naming both spans.
 
 :func:`estimate_rigs` runs :func:`.estimate.estimate_recording` on each rig — VISO-OT of its own unit
-(:class:`sensor.viso_ot.VisoOtEstimator` with the unit's front coupling and follow point) and, on the first towed
-unit's rig with signals, the fused and zero-slip estimates — each into ``unitK/`` (``K`` the vehicle unit, 2 the
+(:class:`sensor.viso_ot.VisoOtEstimator` with the unit's front coupling and follow point) and, with the rig's
+signals, the unit's fused estimate (the first towed unit's also Cheng's zero-slip estimate; a unit behind it
+:mod:`.unit_fusion`) — each into ``unitK/`` (``K`` the vehicle unit, 2 the
 first towed unit, as a run's ``metrics.json`` numbers them), a recorded run of its own that ``offtrack report`` and
 ``offtrack animate`` take. The directory's ``metrics.json`` holds each unit's off-tracking metrics and the
 synchronisation: the span every rig covers and each rig's first and last frame on the clock.
