@@ -32,7 +32,7 @@ run: setup
 ## file on one worker (its module fixtures built once).
 test: setup
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -n auto --dist loadfile
+	$(BIN)/python -m pytest -n auto --dist loadfile --durations=25
 
 ## Everything, slow tests included.
 test-all: setup

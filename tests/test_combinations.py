@@ -143,12 +143,17 @@ def test_a_lane_change_mirrors_and_keeps_every_force_within_friction(combination
 
 
 @pytest.mark.parametrize("name", COMBINATIONS)
-def test_a_run_of_a_longer_combination_refuses_the_camera_naming_the_field(name: str) -> None:
+def test_a_longer_combination_takes_a_camera_per_unit_and_refuses_feedback_it_cannot_steer_on(name: str) -> None:
     assert validate_config({"vehicle": _data(name), "feedback": "none"}).vehicle_params().n_units >= 3
+    camera = {"vehicle": _data(name), "estimators": {"viso_ot": True}}
+    if validate_config(camera | {"estimators": {}}).vehicle_params().trailer.front_load:
+        assert validate_config(camera).uses_camera  # a rig on every towed unit by default
+    else:  # a dolly first: its kingpin path is not what VISO-OT follows
+        with pytest.raises(ConfigError, match="first towed unit is not one"):
+            validate_config(camera)
     refused = (
-        ({"feedback": "viso_ot_fused"}, "feedback = 'viso_ot_fused'", "steered on truth or zero_slip"),
-        ({"estimators": {"viso_ot": True}}, "estimators", "steered on truth or zero_slip"),
-        ({"feedback": "truth"}, "feedback 'truth'", "no steerable axle"),  # the test layouts steer no axle
+        ({"feedback": "viso_ot_fused"}, "'viso_ot_fused'", "steer"),  # no steerable axle, or a dolly first
+        ({"feedback": "truth"}, "feedback 'truth'", "no steerable axle"),
         ({"rear_feedback": ["truth"] * 5}, "rear_feedback", "one estimate per towed unit behind the first"),
     )
     for settings, field, reason in refused:

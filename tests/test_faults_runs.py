@@ -51,6 +51,7 @@ def test_a_second_process_into_a_claimed_out_is_refused_before_any_work(tmp_path
             ("run", "roundabout-test", "--duration", "1", "--no-plots", "--force", "--out", str(out)),
             ("study", "unit-steering", "--out", str(out)),  # resuming into it
             ("assess", "reference", "--out", str(out)),
+            ("render", "roundabout-test", "--frames", "2", "--force", "--out", str(out)),  # a KITTI dataset
         ):
             result = invoke(*args)
             assert result.exit_code == 2, (args, result.output)

@@ -27,7 +27,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from .settings import no_bool_for_a_number
-from .static_loads import check_moments, check_sum
+from .static_loads import solve_loads
 
 GRAVITY = 9.81
 """Standard gravity used throughout [m/s²]."""
@@ -380,70 +380,8 @@ class VehicleParams(_Frozen):
         return self._loads()[1][0]
 
     def _loads(self) -> tuple[list[np.ndarray], list[float]]:
-        """Static axle loads per unit and each semi-trailer's kingpin load [N], solved from the rear forward."""
-        trailer_loads: list[np.ndarray] = []
-        kingpins: list[float] = []
-        behind = 0.0  # the kingpin load of the trailer behind, on this one's fifth wheel
-        for i in range(len(self.trailers) - 1, -1, -1):
-            tl = self.trailers[i]
-            field = "trailer" if i == 0 else f"rear_trailers[{i - 1}]"
-            weight = tl.mass * GRAVITY + behind
-            if all(a.static_load is not None for a in tl.axles):
-                loads = np.array([a.static_load for a in tl.axles], dtype=float)
-                kingpin = weight - loads.sum()
-                if kingpin < 0 or (not tl.front_load and abs(kingpin) > 1e-9 * weight):
-                    raise ValueError(f"{field}.axles: explicit static loads do not carry the weight on them")
-                # Moments about the kingpin (station 0, where the kingpin load acts): Σ F_j·x_j = W·cg + K_behind·x_5w
-                fifth = tl.fifth_wheel_x if tl.fifth_wheel_x is not None else 0.0
-                check_moments(field, [a.x for a in tl.axles], loads, tl.mass * GRAVITY * tl.cg_x + behind * fifth)
-            else:
-                groups = _groups(tl.axles)
-                if len(groups) != 1:
-                    raise ValueError(
-                        f"{field}.axles: statics need exactly one load group on a towed unit "
-                        f"(found {sorted(groups)}); give static_load on every axle of it instead"
-                    )
-                if tl.front_load:
-                    x_group = float(np.mean([a.x for a in tl.axles]))
-                    # Moments about the axle-group centre: W·(cg − x_g) + K_behind·(x_5w − x_g) = K·(0 − x_g)
-                    fifth = tl.fifth_wheel_x if tl.fifth_wheel_x is not None else x_group
-                    moment = tl.mass * GRAVITY * (tl.cg_x - x_group) + behind * (fifth - x_group)
-                    if x_group >= 0 or moment <= 0:
-                        raise ValueError(f"{field}.cg_x must lie ahead of the axle group for a positive kingpin load")
-                    kingpin = moment / (0.0 - x_group)
-                else:  # a drawbar hinged in pitch: the axles carry everything
-                    kingpin = 0.0
-                loads = np.full(len(tl.axles), (weight - kingpin) / len(tl.axles))
-            trailer_loads.insert(0, loads)
-            kingpins.insert(0, float(kingpin))
-            behind = kingpin
-        tr = self.tractor
-        kingpin = kingpins[0]
-        if all(a.static_load is not None for a in tr.axles):
-            tractor_loads = np.array([a.static_load for a in tr.axles], dtype=float)
-            check_sum("tractor", tractor_loads, tr.mass * GRAVITY + kingpin)  # its weight and the kingpin load
-            moment = tr.mass * GRAVITY * tr.cg_x + kingpin * tr.fifth_wheel_x
-            check_moments("tractor", [a.x for a in tr.axles], tractor_loads, moment)
-        else:
-            groups = _groups(tr.axles)
-            if len(groups) != 2:
-                raise ValueError(
-                    "tractor.axles: statics need exactly two load groups on a tractor "
-                    f"(found {sorted(groups)}); give static_load on every tractor axle instead"
-                )
-            (_ga, ia), (_gb, ib) = sorted(groups.items(), key=lambda kv: -np.mean([tr.axles[i].x for i in kv[1]]))
-            xa = float(np.mean([tr.axles[i].x for i in ia]))
-            xb = float(np.mean([tr.axles[i].x for i in ib]))
-            w = tr.mass * GRAVITY
-            # Two supports at xa (front group) and xb (rear group): weight at cg_x, kingpin at fifth_wheel_x.
-            load_b = (w * (xa - tr.cg_x) + kingpin * (xa - tr.fifth_wheel_x)) / (xa - xb)
-            load_a = w + kingpin - load_b
-            if load_a <= 0 or load_b <= 0:
-                raise ValueError("tractor: CG and fifth wheel give a non-positive axle-group load")
-            tractor_loads = np.zeros(len(tr.axles))
-            tractor_loads[ia] = load_a / len(ia)
-            tractor_loads[ib] = load_b / len(ib)
-        return [tractor_loads, *trailer_loads], kingpins
+        """Static axle loads per unit and each semi-trailer's kingpin load [N] (:func:`.static_loads.solve_loads`)."""
+        return solve_loads(self.tractor, self.trailers, GRAVITY)
 
     @property
     def axle_table(self) -> AxleTable:
@@ -595,10 +533,3 @@ class VehicleParams(_Frozen):
         (:func:`~vehicle_model.kinematics.zero_slip_kingpin_velocity`).
         """
         return -self.tractor_wheelbase() - self.tractor.fifth_wheel_x
-
-
-def _groups(axles: tuple[AxleParams, ...]) -> dict[str, list[int]]:
-    groups: dict[str, list[int]] = {}
-    for i, a in enumerate(axles):
-        groups.setdefault(a.load_group, []).append(i)
-    return groups

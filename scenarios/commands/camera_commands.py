@@ -45,12 +45,15 @@ def render(
     from rich.progress import Progress
 
     from scenarios.export.kitti import export_kitti, render_summary
+    from scenarios.run.claim import claim_directory
     from scenarios.run.json_output import strict_json
     from scenarios.run.results import check_output_dir
 
     pairs = (*shortcut_pairs(seed=seed, duration_s=duration), ("camera.scenery_density", density))
     config = load_config(scenario, scenario_overrides(pairs, None, None, set_))
     check_output_dir(out)
+    out.mkdir(parents=True, exist_ok=True)
+    claim_directory(out)  # one process writes a dataset: another into it is refused before any work
     with Progress(console=console, transient=True, disable=as_json) as bar:
         task = bar.add_task(escape(f"rendering {config.name}"), total=None)
         summary = export_kitti(

@@ -57,10 +57,12 @@ def save_figure(fig: Figure, path: Path, **options: Any) -> None:
         plt.close(fig)
 
 
-def run_title(config: ScenarioConfig, road_columns: dict[str, tuple[float, float]] | None = None) -> str:
-    """The one-line description of a run that heads its figures: what ran, so a road file's ``speed`` and ``mu``
-    columns (``road_columns``, :attr:`~scenarios.setup.build.ScenarioSetup.road_columns`) in place of the scenario's
-    speed and surface."""
+def friction_and_speed(
+    config: ScenarioConfig, road_columns: dict[str, tuple[float, float]] | None = None
+) -> tuple[str, str]:
+    """The friction and the speed a run drove at, as its figures say them: a road file's ``mu`` and ``speed`` columns
+    (``road_columns``, :attr:`~scenarios.setup.build.ScenarioSetup.road_columns`) where it has them, else the
+    scenario's surface and cornering speed."""
     road = road_columns or {}
     mu = (
         f"μ {road['mu'][0]:.2f}–{road['mu'][1]:.2f} (road file)"
@@ -72,6 +74,12 @@ def run_title(config: ScenarioConfig, road_columns: dict[str, tuple[float, float
         if "speed_kmh" in road
         else f"{config.speed.cornering_kmh:g} km/h"
     )
+    return mu, speed
+
+
+def run_title(config: ScenarioConfig, road_columns: dict[str, tuple[float, float]] | None = None) -> str:
+    """The one-line description of a run that heads its figures: what ran (:func:`friction_and_speed`)."""
+    mu, speed = friction_and_speed(config, road_columns)
     return (
         f"{config.name} ({config.direction}), {config.vehicle_name}, {mu}, "
         f"camber {config.camber.percent:g} % {config.camber.direction}, {speed}, feedback {config.feedback}"

@@ -30,7 +30,7 @@ from ..run.figure_scale import zoom_half_width, zoom_to
 from ..run.files import write_atomic
 from ..run.metrics import after_warmup, max_abs, rms
 from ..run.plan_marks import draw_circles
-from ..run.plots import save_figure
+from ..run.plots import friction_and_speed, save_figure
 from ..run.results import METRICS_FILE, TIMESERIES_FILE, check_plot_format, plot_file
 from ..run.runner import run_scenario
 from ..run.swept_path import (
@@ -494,9 +494,10 @@ def comparison_figure(
     if right is not None:
         right.set_ylabel("true off-tracking e_tr, none (unsteered) [m]", color=source_colour("none"))
         right.tick_params(axis="y", colors=source_colour("none"))
+    mu, speed = friction_and_speed(config, setup.road_columns)  # a road file's columns where they ran
     top.set_title(
-        f"{config.name}: μ = {config.surface.base_mu:.2f}, camber {config.camber.percent:g} % "
-        f"{config.camber.direction}, {config.speed.cornering_kmh:g} km/h, {config.vehicle_name}",
+        f"{config.name}: {mu}, camber {config.camber.percent:g} % {config.camber.direction}, {speed}, "
+        f"{config.vehicle_name}",
         fontsize=10,
     )
     handles = [h for ax in (top, right) if ax is not None for h in ax.get_lines() if h.get_gid()]
