@@ -178,3 +178,27 @@ def test_a_rigs_file_that_cannot_work_is_refused_naming_the_field(
 
 def test_rigs_and_a_recording_are_refused_together(recorded: SimpleNamespace) -> None:
     assert "not with --rigs" in _refused(str(recorded.tmp / "lead"), "--rigs", str(recorded.rigs))
+
+
+def test_a_longer_combinations_export_draws_the_other_units(tmp_path: Path) -> None:
+    """A forward-looking rig on the rear trailer, 1.5 m behind the lead trailer's rear: its exported image is that
+    trailer's body where the same camera poses rendered without the units see the road and the scenery."""
+    import cv2
+
+    from scenarios.camera.build import lighting_from_config, stereo_camera
+    from scenarios.export.kitti import combination_poses
+
+    config = load_scenario("roundabout-3", {"vehicle": _vehicle(), **OVERRIDES, "duration_s": 0.5})
+    rig = StereoRig(width=96, height=48, station=-3.0, mount_height=2.0, psi_c2v=0.0, unit=2)
+    export_kitti(config, tmp_path / "k", rig=rig, max_frames=1)
+    drawn = cv2.imread(str(tmp_path / "k" / "image_0" / "000000.png"), cv2.IMREAD_GRAYSCALE).astype(float)
+    setup = build_scenario(config)
+    _, cols = simulate(setup, UnsteeredTrailer(trailer_axles(setup)))
+    pose = combination_poses(setup.params, cols, np.flatnonzero(np.asarray(cols["camera_frame"]) > 0.5)[:1])
+    left, right = (rig.camera_in_world(setup.params, pose, which)[0] for which in ("left", "right"))
+    camera = stereo_camera(setup, ideal=True, rig=rig, lighting=lighting_from_config(config))
+    bare, _ = camera.develop(camera.render_poses(left, right, 0), 0)
+    centre = (slice(12, 36), slice(24, 72))
+    difference = np.abs(drawn - bare.astype(float))
+    assert np.mean(difference[centre]) > 10.0, np.mean(difference[centre])  # grey levels: another picture there
+    assert np.median(difference[:, :8]) < 1.0  # and the same road and sky at the image's edge
