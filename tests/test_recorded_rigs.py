@@ -162,6 +162,7 @@ def test_rigs_that_share_no_instant_are_refused_before_any_work(recorded: Simple
         ([{**SIDE, "unit": 3}], "unit = 3"),
         ([{**SIDE, "unit": 2, "signals": "signals.csv"}], "signals"),
         ([{**SIDE, "vehicle": "lst"}], "vehicle"),
+        ([{**SIDE, "unit": [1]}], "unit"),
         ([], "rigs"),
     ],
 )

@@ -139,10 +139,16 @@ class CameraPanel:
         self.drawn = (0, 0)
 
     def _state(self, r: int) -> VehicleState:
-        """The recorded state of row ``r`` (the camera reads the pose and, for the mount flex, the velocities)."""
+        """The recorded state of row ``r`` (the camera reads the pose — every unit's, for a rig behind the first
+        and the other units in view — and, for the mount flex, the velocities)."""
         c = self.columns
         values = {k: float(c[k][r]) for k in ("time", "X", "Y", "psi1", "u", "v1", "r1", "gamma", "r2")}
-        return VehicleState(**values, slip=np.zeros(0))
+        trailing = []
+        j = 2
+        while f"gamma{j}" in c and f"r{j + 1}" in c:  # the further units' (Γ_k, r_{k+1}) pairs
+            trailing += [float(c[f"gamma{j}"][r]), float(c[f"r{j + 1}"][r])]
+            j += 1
+        return VehicleState(**values, slip=np.zeros(0), trailing=np.array(trailing))
 
     def _replay(self, j: int) -> tuple[np.ndarray, Any]:
         """Feed the camera ticks up to frame ``j`` in order; frame ``j``'s left image and odometry result."""

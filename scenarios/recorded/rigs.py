@@ -147,7 +147,7 @@ def load_rigs(path: Path, **options: Any) -> RigsInputs:
     if not isinstance(rigs, list) or not rigs:
         raise InputError(f"{source}: rigs: {rigs!r}; allowed: a list of one rig or more, each with its unit")
     units = [entry.get("unit", 1) if isinstance(entry, dict) else None for entry in rigs]
-    twice = sorted({u for u in units if u is not None and units.count(u) > 1})
+    twice = sorted({u for u in units if isinstance(u, int) and units.count(u) > 1})
     if twice:
         raise InputError(f"{source}: rigs: unit {twice[0]} given twice; allowed: one rig per towed unit")
     vehicle = data.get("vehicle", "reference")
