@@ -23,6 +23,9 @@ from rich.console import Console
 
 from scenarios.config import load_scenario
 from scenarios.export.animation import OfftrackingTrace, animate_run, animation_title, frame_times
+from scenarios.export.trace_panel import band_polygons, towed_unit_traces
+from scenarios.loop.participant import Column
+from scenarios.loop.schema import RecordedColumns
 from scenarios.run.metrics import after_warmup
 from scenarios.run.plan_marks import LIMIT_COLOURS
 from scenarios.run.plots import load_run, offtracking_figure, plot_plan_view
@@ -338,6 +341,70 @@ def test_the_offtracking_trace_draws_nothing_ahead_of_its_cursor() -> None:
         assert axes.get_legend().get_texts()[1].get_text() == "zero_slip —"
     finally:
         plt.close(fig)
+
+
+def test_every_towed_unit_has_its_trace_with_its_band_up_to_the_cursor() -> None:
+    time = np.arange(0.0, 20.001, 0.1)
+    values = {
+        "time": time,
+        "offtracking_truth": 0.1 * np.sin(time),
+        "offtracking_viso_ot_fused": 0.1 * np.sin(time) + 0.01,
+        "offtracking_viso_ot_fused_std": np.full(time.size, 0.02),
+        "rear_truth": 0.2 * np.sin(time),
+        "rear_fused": np.where(time >= 5.0, 0.2 * np.sin(time) - 0.02, np.nan),
+        "rear_fused_std": np.where(time >= 5.0, 0.03, np.nan),
+    }
+    schema = [
+        Column("rear_truth", "m", role="estimate", vehicle_unit=3, estimator="truth"),
+        Column("rear_fused", "m", role="estimate", vehicle_unit=3, estimator="viso_ot_fused"),
+        Column("rear_fused_std", "m", role="std", vehicle_unit=3, estimator="viso_ot_fused"),
+    ]
+    cols = RecordedColumns(values, schema)
+    traced = towed_unit_traces(cols)
+    assert traced == [(2, ["truth", "viso_ot_fused"]), (3, ["truth", "viso_ot_fused"])]
+    fig, axes = plt.subplots(2, 1)
+    try:
+        panels = [
+            OfftrackingTrace(ax, time, cols, names, 10.0, unit=u) for ax, (u, names) in zip(axes, traced, strict=True)
+        ]
+        k = 100  # t = 10 s
+        for panel in panels:
+            panel.show(k)
+        for ax, sigma in zip(axes, (0.02, 0.03), strict=True):
+            (band,) = [c for c in ax.collections if str(c.get_gid()).startswith("sigma2:viso_ot_fused")]
+            vertices = np.concatenate([path.vertices for path in band.get_paths()])
+            assert vertices[:, 0].max() == pytest.approx(time[k])  # the band ends at the cursor
+            width = vertices[:, 1].max() - vertices[:, 1].min()
+            assert width > 4 * sigma  # a 4σ-wide band around the estimate (plus its swing)
+        unit3 = [t.get_text() for t in axes[1].get_legend().get_texts()]
+        assert unit3 == [f"truth {0.2 * np.sin(10.0):+.3f} m", f"viso_ot_fused {0.2 * np.sin(10.0) - 0.02:+.3f} m"]
+        assert "unit 3" in axes[1].get_ylabel()
+        panels[1].show(30)  # before unit 3's estimate: no band, a dash
+        band = next(c for c in axes[1].collections if str(c.get_gid()).startswith("sigma2:"))
+        assert len(band.get_paths()) == 0 and axes[1].get_legend().get_texts()[1].get_text() == "viso_ot_fused —"
+    finally:
+        plt.close(fig)
+
+
+def test_a_band_is_split_where_its_standard_deviation_is_missing() -> None:
+    time = np.arange(10.0)
+    lo, hi = -np.ones(10), np.ones(10)
+    hi[4] = np.nan
+    polygons = band_polygons(time, lo, hi)
+    assert [p[:, 0].min() for p in polygons] == [0.0, 5.0] and [p[:, 0].max() for p in polygons] == [3.0, 9.0]
+
+
+def test_the_animation_of_a_b_double_traces_both_trailers(tmp_path: Path) -> None:
+    import yaml
+
+    data = Path(__file__).parent / "data" / "combinations" / "b-double.yaml"
+    vehicle = {"name": "b-double", **yaml.safe_load(data.read_text(encoding="utf-8"))}
+    overrides = {"vehicle": vehicle, "feedback": "none", "duration_s": 3.0, "estimators.viso_ot": False}
+    config = load_scenario("roundabout-test", {**overrides, "estimators.zero_slip": True})
+    assert run_scenario(config, tmp_path, plots=False)["status"] == "completed"
+    assert [u for u, _ in towed_unit_traces(load_run(tmp_path).columns)] == [2, 3]
+    out = animate_run(tmp_path, tmp_path / "run.gif", fps=5.0, max_frames=2, size=(200, 160))
+    assert iio.imread(out).shape[:3] == (2, 160, 200)
 
 
 def test_the_offtracking_figure_shows_targets_bands_steer_camera_and_warm_up() -> None:

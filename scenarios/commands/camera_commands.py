@@ -75,9 +75,16 @@ def render(
 @handled
 def estimate(
     recording: Annotated[
-        Path, typer.Argument(help="KITTI-odometry folder, ROS 1/2 bag, or the left video (with --right-video).")
-    ],
-    rig: Annotated[Path, typer.Option(help="Rig YAML: vehicle, psi_c2v_deg, lever_arm_m [, follow_point_offset_m].")],
+        Path | None,
+        typer.Argument(help="KITTI-odometry folder, ROS 1/2 bag, or the left video (with --right-video)."),
+    ] = None,
+    rig: Annotated[
+        Path | None, typer.Option(help="Rig YAML: vehicle, psi_c2v_deg, lever_arm_m [, follow_point_offset_m].")
+    ] = None,
+    rigs: Annotated[
+        Path | None,
+        typer.Option(help="Rigs YAML: vehicle and one rig per towed unit, each with its recording (no RECORDING)."),
+    ] = None,
     out: Annotated[Path | None, typer.Option(help="Run directory (default runs/recording-NAME/TIMESTAMP).")] = None,
     force: ForceRunOption = False,
     calibration: Annotated[
@@ -114,16 +121,26 @@ def estimate(
     plots: PlotsOption = True,
 ) -> None:
     """VISO-OT (and with --signals the fused and zero-slip estimates) on a recorded stereo sequence: a run directory
-    like a simulated run's (offtrack report and offtrack animate take it)."""
+    like a simulated run's (offtrack report and offtrack animate take it). With --rigs, one rig per towed unit:
+    each unit's run in unitK/ of the directory."""
     from rich.progress import Progress
 
     from scenarios.recorded.estimate import estimate_recording
     from scenarios.recorded.inputs import resolve_inputs
     from scenarios.recorded.report import recording_lines
     from scenarios.run.results import check_output_dir, new_run_dir
+    from vehicle_model.errors import InputError
 
     if out is not None:
         check_output_dir(out)
+    if rigs is not None:
+        given = [name for name, value in (("RECORDING", recording), ("--rig", rig), ("--signals", signals)) if value]
+        if given:
+            raise InputError(f"--rigs names each rig's recording and signals; {', '.join(given)}: not with --rigs")
+        _estimate_rigs(rigs, out, force, refinement, seed, rear_point, folder_poses, plots)
+        return
+    if recording is None or rig is None:
+        raise InputError("offtrack estimate needs RECORDING and --rig RIG.yaml, or --rigs RIGS.yaml")
     inputs = resolve_inputs(
         recording,
         rig=rig,
@@ -153,6 +170,35 @@ def estimate(
     for line in recording_lines(metrics):
         console.print(escape(line))
     exit_for_status(metrics)
+
+
+def _estimate_rigs(
+    rigs: Path,
+    out: Path | None,
+    force: bool,
+    refinement: int,
+    seed: int,
+    rear_point: str,
+    folder_poses: bool,
+    plots: bool,
+) -> None:
+    """``offtrack estimate --rigs``: every rig's unit estimated (:mod:`scenarios.recorded.rigs`)."""
+    from rich.progress import Progress
+
+    from scenarios.recorded.rigs import estimate_rigs, load_rigs, rigs_lines
+    from scenarios.run.results import new_run_dir
+
+    inputs = load_rigs(rigs, refinement=refinement, seed=seed, rear_point=rear_point, use_folder_poses=folder_poses)
+    run_dir = new_run_dir(out, f"recording-{rigs.resolve().stem}", force=force)
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task(escape(f"estimating on {rigs.name}"), total=None)
+        summary = estimate_rigs(
+            inputs, run_dir, plots=plots, progress=lambda done, total: bar.update(task, completed=done, total=total)
+        )
+    console.print(escape(f"{run_dir}: {summary['status']} — {summary['message']}"))
+    for line in rigs_lines(summary):
+        console.print(escape(line))
+    exit_for_status(summary)
 
 
 @handled

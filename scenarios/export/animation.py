@@ -10,8 +10,9 @@ Each frame shows
   mount flex and odometry) is fed the recorded states of every camera tick in order, so the images and the
   features are those the run's odometry saw; inliers green with their flow since the previous frame, outliers
   red. Without the camera the panel is an overview of the whole run with the current position;
-* beneath, the off-tracking of the truth and of every estimator (columns ``offtracking_*``) scrolling with
-  time, with a cursor at the current instant.
+* beneath, for every towed unit with a true off-tracking (the first, then each unit behind it, one panel each),
+  the off-tracking of the truth and of every estimator of that unit, each estimate's ±2σ band where it gives a
+  standard deviation, scrolling with time, with a cursor at the current instant.
 
 Frames are written as an H.264 mp4 through imageio-ffmpeg (or a GIF, by the file's suffix). One renderer per
 process: it is kept between calls and replaced only for a run of another world or rig.
@@ -33,7 +34,6 @@ from matplotlib.patches import PathPatch, Polygon
 from vehicle_model.errors import InputError
 from vehicle_model.simulator import VehicleState
 
-from ..registry import source_colour
 from ..run.plan_marks import draw_circles
 from ..run.plots import SavedRun, load_run
 from ..run.swept_path import (
@@ -47,6 +47,7 @@ from ..run.swept_path import (
     unit_colour,
 )
 from ..run.unit_shapes import pose_polygons, unit_names, unit_outlines
+from .trace_panel import OfftrackingTrace, towed_unit_traces
 
 ANIMATION_FILE = "animation.mp4"
 """Default output file in the run directory."""
@@ -138,10 +139,16 @@ class CameraPanel:
         self.drawn = (0, 0)
 
     def _state(self, r: int) -> VehicleState:
-        """The recorded state of row ``r`` (the camera reads the pose and, for the mount flex, the velocities)."""
+        """The recorded state of row ``r`` (the camera reads the pose — every unit's, for a rig behind the first
+        and the other units in view — and, for the mount flex, the velocities)."""
         c = self.columns
         values = {k: float(c[k][r]) for k in ("time", "X", "Y", "psi1", "u", "v1", "r1", "gamma", "r2")}
-        return VehicleState(**values, slip=np.zeros(0))
+        trailing = []
+        j = 2
+        while f"gamma{j}" in c and f"r{j + 1}" in c:  # the further units' (Γ_k, r_{k+1}) pairs
+            trailing += [float(c[f"gamma{j}"][r]), float(c[f"r{j + 1}"][r])]
+            j += 1
+        return VehicleState(**values, slip=np.zeros(0), trailing=np.array(trailing))
 
     def _replay(self, j: int) -> tuple[np.ndarray, Any]:
         """Feed the camera ticks up to frame ``j`` in order; frame ``j``'s left image and odometry result."""
@@ -199,57 +206,6 @@ def check_animation_settings(fps: float, speed: float, size: tuple[int, int]) ->
             f"animation needs fps > 0, speed > 0 and a size of at least 16 px (got {fps}, {speed}, {size})"
         )
     return int(size[0]) // 2 * 2, int(size[1]) // 2 * 2
-
-
-class OfftrackingTrace:
-    """The scrolling off-tracking panel of an animation: the truth and every estimator drawn up to the frame's
-    time and no further, a cursor there, each legend entry showing its current value.
-
-    Parameters
-    ----------
-    axes
-        The panel.
-    time
-        The run's times [s].
-    cols
-        The run's columns; ``offtracking_NAME`` for each of ``names``.
-    names
-        The series to draw, ``"truth"`` in black, the estimators in their registry colours.
-    window_s
-        Width of the scrolling window [s].
-    """
-
-    def __init__(self, axes: Any, time: np.ndarray, cols: dict[str, np.ndarray], names: list[str], window_s: float):
-        self._axes, self._time, self._cols, self._names, self._window = axes, time, cols, names, window_s
-        lines = []
-        for name in names:
-            colour = "k" if name == "truth" else source_colour(name)
-            (line,) = axes.plot([], [], lw=1.6 if name == "truth" else 1.0, color=colour)
-            lines.append(line)
-        self._lines = lines
-        values = np.concatenate([cols[f"offtracking_{n}"] for n in names]) if names else np.zeros(0)
-        values = values[np.isfinite(values)]
-        lo, hi = (float(values.min()), float(values.max())) if values.size else (-0.2, 0.2)
-        pad = max(0.05, 0.1 * (hi - lo))
-        axes.set_ylim(lo - pad, hi + pad)
-        axes.axhline(0.0, color="k", lw=0.5)
-        self._cursor = axes.axvline(time[0], color="0.3", lw=0.8)
-        self._legend = axes.legend(lines, names, loc="upper left", fontsize=7, ncols=max(len(names), 1))
-        axes.set_xlabel("time [s]", fontsize=8)
-        axes.set_ylabel("off-tracking e_tr [m]", fontsize=8)
-        axes.tick_params(labelsize=7)
-
-    def show(self, k: int) -> None:
-        """Draw each series up to sample ``k`` (nothing ahead of the cursor), scroll there and show its values."""
-        t = self._time[k]
-        start = t - 0.75 * self._window
-        self._axes.set_xlim(start, start + self._window)
-        self._cursor.set_xdata([t, t])
-        for line, name in zip(self._lines, self._names, strict=True):
-            line.set_data(self._time[: k + 1], self._cols[f"offtracking_{name}"][: k + 1])
-        for text, name in zip(self._legend.get_texts(), self._names, strict=True):
-            v = self._cols[f"offtracking_{name}"][k]
-            text.set_text(f"{name} {v:+.3f} m" if np.isfinite(v) else f"{name} —")
 
 
 def grab_frame(fig: Any, width: int, height: int) -> np.ndarray:
@@ -368,10 +324,16 @@ def animate_run(
     times = frame_times(time, fps, speed, max_frames)
     samples = np.clip(np.searchsorted(time, times + 1e-9, side="right") - 1, 0, time.size - 1)
 
+    traced = towed_unit_traces(cols)
     fig = plt.figure(figsize=(width / 100.0, height / 100.0), dpi=100)
-    grid = fig.add_gridspec(2, 2, height_ratios=[1.9, 1], width_ratios=[1, 2.1 if cam else 1.4])
+    rows_traced = len(traced)
+    grid = fig.add_gridspec(
+        2, 2, height_ratios=[1.9, 1.0 + 0.6 * (rows_traced - 1)], width_ratios=[1, 2.1 if cam else 1.4]
+    )
     grid.update(left=0.06, right=0.99, bottom=0.08, top=0.93, wspace=0.12, hspace=0.25)
-    plan, side, trace = fig.add_subplot(grid[0, 0]), fig.add_subplot(grid[0, 1]), fig.add_subplot(grid[1, :])
+    plan, side = fig.add_subplot(grid[0, 0]), fig.add_subplot(grid[0, 1])
+    trace_grid = grid[1, :].subgridspec(rows_traced, 1, hspace=0.08)
+    traces = [fig.add_subplot(trace_grid[i, 0]) for i in range(rows_traced)]
     centre = run.setup.annulus_centre
     ref = run.setup.path.points
     outlines = unit_outlines(params, cols)
@@ -434,7 +396,13 @@ def animate_run(
         side.set_ylabel("Y [m]", fontsize=8)
         side_title = side.set_title("whole run", fontsize=9)
 
-    panel = OfftrackingTrace(trace, time, cols, ["truth", *run.estimator_names()], window_s)
+    panels = [
+        OfftrackingTrace(axes, time, cols, names, window_s, unit=unit)
+        for axes, (unit, names) in zip(traces, traced, strict=True)
+    ]
+    for axes in traces[:-1]:
+        axes.tick_params(labelbottom=False)
+        axes.set_xlabel("")
     fig.text(0.01, 0.995, animation_title(run), ha="left", va="top", fontsize=9)
 
     append, close = _writer(out, fps, (width, height))
@@ -461,7 +429,8 @@ def animate_run(
                 side_title.set_text(cam.info)
             elif marker is not None:
                 marker.set_data([cols["X"][k]], [cols["Y"][k]])
-            panel.show(k)
+            for panel in panels:
+                panel.show(k)
             append(grab_frame(fig, width, height))
             if progress is not None:
                 progress(i + 1, len(samples))

@@ -18,7 +18,9 @@ The calibration is the *ideal* rig's (rectified, ``P1 = K·[I | −b·e_x]``): a
 tests. The frames are those of the scenario's camera as an ideal pinhole rig
 (:func:`scenarios.camera.build.stereo_camera`, ``ideal=True``) in its world and under its lighting
 (``camera.lighting``: sun, shadows, sky and the auto-exposure, frame by frame in order); lenses, mount flex and the
-odometry's rectification are left out.
+odometry's rectification are left out. For a combination longer than a tractor–semi-trailer the rig may sit on
+any towed unit (:attr:`sensor.camera.StereoRig.unit`) and the other units are drawn in its view at each frame's pose
+(:class:`sensor.renderer.StereoRenderer`, ``bodies``).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import numpy as np
 
 from sensor.camera import StereoRig
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import CombinationPose
+from vehicle_model.geometry import ChainPose, CombinationPose
 from vehicle_model.parameters import VehicleParams
 
 from ..camera.build import lighting_from_config, resolve_scenery_density, rig_from_config, stereo_camera
@@ -104,6 +106,19 @@ def rig_summary(rig: StereoRig, params: VehicleParams | None = None) -> dict[str
         "noise_std": rig.noise_std,
         "exposure_std": rig.exposure_std,
     }
+
+
+def combination_poses(
+    params: VehicleParams, cols: dict[str, np.ndarray], frames: np.ndarray
+) -> CombinationPose | ChainPose:
+    """The combination's poses at the rows ``frames`` of a run's columns: a :class:`CombinationPose` of arrays for a
+    tractor–semi-trailer, a :class:`ChainPose` (every coupling's articulation: ``gamma``, ``gamma2``, …) for a
+    longer combination."""
+    x, y, psi1, gamma = (np.asarray(cols[k])[frames] for k in ("X", "Y", "psi1", "gamma"))
+    if params.n_units <= 2:
+        return CombinationPose(x, y, psi1, gamma)
+    further = tuple(np.asarray(cols[f"gamma{j}"])[frames] for j in range(2, params.n_units))
+    return ChainPose(x, y, psi1, (gamma, *further))
 
 
 def _enough_for(config: ScenarioConfig, frames: int) -> ScenarioConfig:
@@ -210,14 +225,19 @@ def export_kitti(
         (out / sub).mkdir(parents=True, exist_ok=True)
     import cv2
 
-    poses = CombinationPose(*(np.asarray(cols[k])[frames] for k in ("X", "Y", "psi1", "gamma")))
+    poses = combination_poses(setup.params, cols, frames)
+    longer = isinstance(poses, ChainPose)  # the other units drawn in the view (a tractor-semi-trailer's as it was)
     left_poses = rig.camera_in_world(setup.params, poses, "left")
     right_poses = rig.camera_in_world(setup.params, poses, "right")
     writer = StereoVideoWriter(out / "stereo.mp4", config.rates.camera_hz) if video else None
     t1 = time.perf_counter()
     try:
         for k in range(len(frames)):
-            left, right = camera.develop(camera.render_poses(left_poses[k], right_poses[k], k), k)  # in order
+            if longer:
+                raw = camera.render(ChainPose(*(np.asarray(v)[k] for v in poses[:3]), tuple(a[k] for a in poses[3])), k)
+            else:
+                raw = camera.render_poses(left_poses[k], right_poses[k], k)
+            left, right = camera.develop(raw, k)  # in order
             cv2.imwrite(str(out / "image_0" / f"{k:06d}.png"), left)
             cv2.imwrite(str(out / "image_1" / f"{k:06d}.png"), right)
             if writer is not None:

@@ -56,7 +56,7 @@ def _inputs(record: dict[str, Any]) -> EstimateInputs:
 
     return resolve_inputs(
         Path(record["recording"]),
-        rig=Path(record["rig"]),
+        rig=Path(record["rig"]) if record.get("rig") else rig_from_fields(record["rig_file"], "recording.yaml"),
         calibration=path("calibration"),
         calib=path("calib"),
         right_video=path("right_video"),

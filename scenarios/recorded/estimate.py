@@ -52,6 +52,7 @@ from ..run.results import TIMESERIES_FILE, TimeSeriesWriter, write_metrics
 from .inputs import EstimateInputs
 from .reference import reference_columns
 from .report import write_recorded_report, write_recording_file
+from .unit_fusion import UnitFusedVisoOt
 
 __all__ = ["estimate_recording", "offline_estimators", "row_times"]
 
@@ -226,17 +227,23 @@ def estimate_recording(
     times, slots = row_times(inputs)
     frame_times = inputs.recording.times
     first_interval = float(frame_times[1] - frame_times[0]) if frame_times.size > 1 else 0.1
-    odometry = FrameOdometry(params, inputs.vo_config, inputs.camera_in_trailer, first_interval, inputs.seed)
+    odometry = FrameOdometry(
+        params, inputs.vo_config, inputs.camera_in_trailer, first_interval, inputs.seed, unit=inputs.rig.unit
+    )
     truth = reference_columns(
         times,
-        params.follow_point_offset,
+        inputs.rig.follow_point_offset,
         inputs.camera_in_trailer,
         inputs.reference_poses,
         inputs.reference_offtracking,
     )
     camera_pose = truth.pop("camera_pose", None)
     signals = None if inputs.signals is None else inputs.signals.at(times + inputs.recording.t0, params)
-    offline = offline_estimators(OfflineContext(inputs, times, signals))
+    context = OfflineContext(inputs, times, signals)
+    if inputs.rig.unit == 1:
+        offline = offline_estimators(context)
+    else:  # a unit behind the first: its own fused filter on the chain's signals (the registry's are the first's)
+        offline = [] if signals is None else [UnitFusedVisoOt(context)]
     path = _DeadReckoning()
     writer = TimeSeriesWriter(run_dir / TIMESERIES_FILE, _columns(inputs, offline))
     refused: list[list[Any]] = []

@@ -39,7 +39,14 @@ from ..extras import require
 from .plausibility import check_baseline, check_road_disparity
 from .rig import RecordingRig, load_rig
 
-__all__ = ["EstimateInputs", "camera_model", "check_signals_clock", "open_recording", "resolve_inputs"]
+__all__ = [
+    "EstimateInputs",
+    "camera_model",
+    "check_signals_clock",
+    "check_unit_signals",
+    "open_recording",
+    "resolve_inputs",
+]
 
 
 @dataclass
@@ -138,6 +145,22 @@ def check_signals_clock(series: SignalSeries, recording: StereoRecording, option
         )
 
 
+def check_unit_signals(series: SignalSeries, unit: int) -> None:
+    """Refuse signals beside a rig on towed unit ``unit`` behind the first that lack what its fused filter takes:
+    every coupling's articulation down to the unit's own and the unit's own gyro and wheel speed
+    (:mod:`sensor.recordings.signals`)."""
+    missing = [f"articulation{k}_deg" for k in range(len(series.rear_articulations) + 2, unit + 1)]
+    if series.trailer_yaw_rate is None:
+        missing.append("trailer_yaw_rate_deg_s (the unit's gyro)")
+    if series.trailer_speed is None:
+        missing.append("trailer_speed_m_s (the unit's wheel speed)")
+    if missing:
+        raise InputError(
+            f"signals {series.source} beside a rig on towed unit {unit}: no column {', '.join(missing)}; allowed: "
+            "the tractor's signals, every coupling's articulation down to the unit's, its own gyro and wheel speed"
+        )
+
+
 def camera_model(
     recording: StereoRecording, calibration_file: Path | None, calib_file: Path | None
 ) -> tuple[RectifiedCamera, CalibrationResult | None]:
@@ -219,7 +242,7 @@ def _reference(
 def resolve_inputs(
     recording: Path,
     *,
-    rig: Path,
+    rig: Path | RecordingRig,
     calibration: Path | None = None,
     calib: Path | None = None,
     right_video: Path | None = None,
@@ -242,14 +265,15 @@ def resolve_inputs(
     and ``seed`` its RANSAC's seed (a run's ``seed``, 0 by default): with both as a run had them, the odometry
     repeats the run's. ``rear_point`` is the tractor's rear point of the zero-slip and fused estimators
     (:data:`~vehicle_model.kinematics.RearPoint`; a run's ``estimators.zero_slip_rear_point`` and
-    ``fusion.kinematic_rear_point``); ``lateral_acceleration`` needs the signals' accelerometer column.
+    ``fusion.kinematic_rear_point``); ``lateral_acceleration`` needs the signals' accelerometer column. ``rig`` is a
+    rig file or a rig already read (one of a rigs file, :mod:`.rigs`).
 
     Raises
     ------
     InputError
         Any input that cannot work, one line naming it.
     """
-    rig_ = load_rig(Path(rig))
+    rig_ = rig if isinstance(rig, RecordingRig) else load_rig(Path(rig))
     if refinement not in (0, 1, 2):
         raise InputError(f"--refinement {refinement!r}: allowed: 0 (none), 1 (pixel), 2 (sub-pixel)")
     if not (isinstance(seed, int) and seed >= 0):
@@ -271,6 +295,8 @@ def resolve_inputs(
     series = read_signals(Path(signals)) if signals is not None else None
     if series is not None:
         check_signals_clock(series, rec)
+        if rig_.unit != 1:
+            check_unit_signals(series, rig_.unit)
     if rear_point == "lateral_acceleration" and (series is None or series.lateral_acceleration is None):
         raise InputError(
             "--rear-point lateral_acceleration needs the tractor's accelerometer: a --signals CSV with a "
@@ -287,7 +313,7 @@ def resolve_inputs(
         "left_topic": left_topic,
         "right_topic": right_topic,
         "pair_tolerance_s": pair_tolerance,
-        "rig": str(Path(rig).resolve()),
+        "rig": None if isinstance(rig, RecordingRig) else str(Path(rig).resolve()),
         "rig_file": rig_.file,
         "calibration": str(Path(calibration).resolve()) if calibration else None,
         "calib": str(Path(calib).resolve()) if calib else None,

@@ -156,7 +156,8 @@ def write_recorded_report(
         title = recorded_run_title(record)
         plan_file, offtracking_file = plot_files(plot_format)
         plot_recorded_plan_view(run_dir / plan_file, params, columns, title)
-        settled = after_warmup(columns, params.follow_point_offset) if "kingpin_x" in columns else None
+        follow_point = rig_from_fields(record["rig_file"], RECORDING_FILE).follow_point_offset
+        settled = after_warmup(columns, follow_point) if "kingpin_x" in columns else None
         plot_offtracking(run_dir / offtracking_file, columns, names, title, settled=settled)
     return metrics
 

@@ -14,9 +14,13 @@ file (docs/vehicles.md, held inline once read, so a recorded run's files describ
     pitch_deg: 0.0                  # optional: the cameras tilted down about their x axis
     roll_deg: 0.0                   # optional: the cameras rolled about their optical axis
     baseline_m: 0.5                 # optional: the baseline measured on the rig, checked against the calibration's
+    unit: 1                         # optional: the towed unit carrying the rig (1 the first, 2 the one it tows, …)
 
 The numbers are those of a scenario's ``camera`` section (``psi_c2v_deg``; ``station``, ``lateral``,
-``mount_height`` as the lever arm). The left camera — whose motion the odometry reports — sits half the calibrated
+``mount_height`` as the lever arm). On a unit behind the first (``unit`` 2, 3, …: :attr:`sensor.camera.StereoRig.unit`)
+the "kingpin" is that unit's front coupling — the fifth wheel of the unit ahead — and the axes, the body, the
+follow point and the lever arm are that unit's (VISO-OT holds for any rigid towed unit,
+:class:`sensor.viso_ot.VisoOtEstimator`). The left camera — whose motion the odometry reports — sits half the calibrated
 baseline to the left of the mount point along the cameras' x axis (:meth:`sensor.camera.StereoRig.camera_in_trailer`).
 A lever arm that puts the camera off the trailer is refused naming the field and the body's extent.
 """
@@ -65,6 +69,7 @@ class RigFile(Settings):
     baseline_m: Real | None = Field(
         None, gt=0.0, le=5.0, description="the stereo baseline as measured on the rig [m], checked against the camera's"
     )
+    unit: int = Field(1, ge=1, le=16, description="the towed unit carrying the rig: 1 the first, 2 the one it tows, …")
 
     _vehicle_file = field_validator("vehicle", mode="before")(read_vehicle_file)
     _known = field_validator("vehicle")(check_vehicle)
@@ -88,6 +93,8 @@ class RecordingRig:
         The rig file's fields as given (for the run's record).
     baseline : float or None
         The baseline measured on the rig [m] (None: not given).
+    unit : int
+        The towed unit carrying the rig (1 the first; :attr:`sensor.camera.StereoRig.unit`).
     """
 
     params: VehicleParams
@@ -97,6 +104,12 @@ class RecordingRig:
     roll: float
     file: dict[str, Any]
     baseline: float | None = None
+    unit: int = 1
+
+    @property
+    def follow_point_offset(self) -> float:
+        """Front coupling to follow point ``L_fp`` [m] of the rig's unit."""
+        return self.params.follow_point_offset_of(self.unit)
 
     def camera_in_trailer(self, baseline: float, rectification: RectifiedParameters | None = None) -> np.ndarray:
         """``T_trailer←camera`` (4×4) of the frame the odometry's motion is in: the left camera of a pair
@@ -115,30 +128,46 @@ class RecordingRig:
         return pose if rectification is None else rectification.rectified_left_in_trailer(pose)
 
 
-def _params(vehicle: str | CombinationSpec, follow_point_offset: float | None, source: str) -> VehicleParams:
+def _params(
+    vehicle: str | CombinationSpec, follow_point_offset: float | None, source: str, unit: int = 1
+) -> VehicleParams:
     params = params_of(vehicle)
+    towed = len(params.trailers)
+    if unit > towed:
+        raise InputError(f"{source}: unit = {unit}: the {vehicle_name(vehicle)} tows {towed}; allowed: 1 to {towed}")
     if follow_point_offset is None:
         return params
-    rear = params.trailer.rear_x
+    rear = params.trailers[unit - 1].rear_x
     if not follow_point_offset <= -rear:
         raise InputError(
             f"{source}: follow_point_offset_m = {follow_point_offset:g} m lies behind the {vehicle_name(vehicle)} "
-            "trailer's rear; "
+            f"{_unit_name(unit)}'s rear; "
             f"allowed: (0, {-rear:g}] m"
         )
     data = params.model_dump()
-    data["trailer"]["follow_point_x"] = -float(follow_point_offset)
+    if unit == 1:
+        data["trailer"]["follow_point_x"] = -float(follow_point_offset)
+    else:
+        data["rear_trailers"][unit - 2]["follow_point_x"] = -float(follow_point_offset)
     return VehicleParams.model_validate(data)
 
 
-def _check_lever_arm(arm: tuple[float, float, float], params: VehicleParams, vehicle: str, source: str) -> None:
-    trailer = params.trailer
+def _unit_name(unit: int) -> str:
+    """``trailer`` for the first towed unit, ``towed unit k`` behind it."""
+    return "trailer" if unit == 1 else f"towed unit {unit}"
+
+
+def _check_lever_arm(
+    arm: tuple[float, float, float], params: VehicleParams, vehicle: str, source: str, unit: int = 1
+) -> None:
+    trailer = params.trailers[unit - 1]
     lo, hi = trailer.rear_x - MOUNT_REACH, trailer.front_x + MOUNT_REACH
     side = 0.5 * trailer.width + MOUNT_REACH
     x, y, z = arm
     if not (lo <= x <= hi and abs(y) <= side and MOUNT_LOW <= z <= MOUNT_TOP):
         raise InputError(
-            f"{source}: lever_arm_m = [{x:g}, {y:g}, {z:g}] puts the camera off the {vehicle} trailer; allowed: "
+            f"{source}: lever_arm_m = [{x:g}, {y:g}, {z:g}] puts the camera off the {vehicle} {_unit_name(unit)}; "
+            "allowed: "
             f"x in [{lo:g}, {hi:g}] m (the body {trailer.rear_x:g}…{trailer.front_x:g} m from the kingpin, "
             f"{MOUNT_REACH:g} m of bracket), |y| ≤ {side:g} m, z in [{MOUNT_LOW:g}, {MOUNT_TOP:g}] m"
         )
@@ -173,14 +202,18 @@ def rig_from_fields(data: dict[str, Any], source: str) -> RecordingRig:
         first = exc.errors()[0]
         field = field_name(first["loc"]) or "file"
         raise InputError(f"{source}: {field}: {first['msg'].removeprefix('Value error, ')}") from None
-    params = _params(rig.vehicle, rig.follow_point_offset_m, source)
-    _check_lever_arm(rig.lever_arm_m, params, vehicle_name(rig.vehicle), source)
+    params = _params(rig.vehicle, rig.follow_point_offset_m, source, rig.unit)
+    _check_lever_arm(rig.lever_arm_m, params, vehicle_name(rig.vehicle), source, rig.unit)
+    fields = rig.model_dump(mode="json")
+    if rig.unit == 1 and "unit" not in data:
+        del fields["unit"]  # a rig on the first towed unit is written as it was given
     return RecordingRig(
         params,
         math.radians(rig.psi_c2v_deg),
         np.array(rig.lever_arm_m, dtype=float),
         math.radians(rig.pitch_deg),
         math.radians(rig.roll_deg),
-        rig.model_dump(mode="json"),
+        fields,
         rig.baseline_m,
+        rig.unit,
     )

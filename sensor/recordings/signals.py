@@ -12,7 +12,15 @@ Columns (a header line, units in the names; degrees at this edge, SI inside):
 ``lateral_acceleration_m_s2``  optional: the tractor's lateral accelerometer (specific force, left positive)
                                [m/s²], for the ``lateral_acceleration`` rear point
                                (:data:`vehicle_model.kinematics.RearPoint`)
+``articulation2_deg``, …       optional: the articulation of the couplings behind the first, Γ_k = ψ_k − ψ_{k+1}
+                               [°] (or ``_rad``; ``articulation2`` the coupling of the second towed unit, up to
+                               ``articulation4``), for a rig on a unit behind the first
 ============================== ==========================================================================
+
+The signals beside a rig on towed unit ``k`` behind the first (``offtrack estimate --rigs``) are that unit's: the
+tractor's three, the articulations ``Γ_1 … Γ_k`` of every coupling down to the unit's own, and the unit's own gyro
+and wheel speed in ``trailer_yaw_rate_*`` and ``trailer_speed_m_s`` (required there: the derivation below holds for
+the first towed unit only).
 
 The fused filter (:mod:`sensor.fusion`) propagates with the trailer's yaw rate and wheel speed; without their
 columns they come from the tractor's signals: ``r2 = r1 − dΓ/dt`` (Γ = ψ1 − ψ2, docs/design.md §5) and the
@@ -44,6 +52,7 @@ SIGNAL_COLUMNS = {
     "trailer_yaw_rate": ("trailer_yaw_rate_deg_s", "trailer_yaw_rate_rad_s"),
     "trailer_speed": ("trailer_speed_m_s",),
     "lateral_acceleration": ("lateral_acceleration_m_s2",),
+    **{f"articulation{k}": (f"articulation{k}_deg", f"articulation{k}_rad") for k in range(2, 5)},
 }
 """Each signal and the column names it may have (the first unit given is the usual one)."""
 _REQUIRED = ("time", "speed", "yaw_rate", "articulation")
@@ -55,6 +64,7 @@ SIGNAL_LIMITS = {
     "trailer_yaw_rate": STATE_LIMITS["r2"],
     "trailer_speed": STATE_LIMITS["u"],
     "lateral_acceleration": 50.0,
+    **{f"articulation{k}": STATE_LIMITS["gamma"] for k in range(2, 5)},
 }
 """Largest magnitude of each signal, SI: the vehicle model's state limits
 (:data:`vehicle_model.simulator.STATE_LIMITS`: speed, yaw rates, articulation) and 50 m/s² (5 g, an
@@ -78,6 +88,8 @@ class SignalSeries:
         The tractor's lateral specific force [m/s²], when recorded.
     source : str
         The file.
+    rear_articulations : tuple of numpy.ndarray
+        ``Γ_2, Γ_3, …`` [rad] of the couplings behind the first, as far as recorded without a gap.
     """
 
     time: np.ndarray
@@ -88,11 +100,12 @@ class SignalSeries:
     trailer_speed: np.ndarray | None
     lateral_acceleration: np.ndarray | None
     source: str
+    rear_articulations: tuple[np.ndarray, ...] = ()
 
     def at(self, times: np.ndarray, params: VehicleParams) -> dict[str, np.ndarray]:
         """The signals at ``times`` (linear interpolation; NaN outside the recorded span): ``speed``, ``yaw_rate``,
         ``articulation``, ``trailer_yaw_rate`` and ``trailer_speed`` (derived as the module notes say when not
-        recorded), and ``lateral_acceleration`` (NaN when not recorded)."""
+        recorded), ``lateral_acceleration`` (NaN when not recorded) and ``articulation2``, … as recorded."""
         times = np.asarray(times, dtype=float)
         inside = (times >= self.time[0]) & (times <= self.time[-1])
 
@@ -114,6 +127,8 @@ class SignalSeries:
             out["trailer_speed"] = np.cos(gamma) * u1 - np.sin(gamma) * (lateral_per_rate * r1)
         recorded = self.lateral_acceleration
         out["lateral_acceleration"] = sample(recorded) if recorded is not None else np.full(times.shape, np.nan)
+        for k, values in enumerate(self.rear_articulations, 2):
+            out[f"articulation{k}"] = sample(values)
         return out
 
 
@@ -182,4 +197,7 @@ def read_signals(path: Path) -> SignalSeries:
         data.get("trailer_speed"),
         data.get("lateral_acceleration"),
         str(path),
+        tuple(
+            data[f"articulation{k}"] for k in range(2, 5) if all(f"articulation{j}" in data for j in range(2, k + 1))
+        ),
     )
