@@ -331,7 +331,7 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
         "test_faults.py::test_an_unusable_out_is_named",
         "test_run_files.py::test_an_output_path_that_is_a_file_under_a_file_or_not_writable_is_refused",
     ),
-    "two processes (runs, studies, assessments, resumed or not) given one `--out`": (
+    "two processes (runs, studies, assessments, resumed or not, `render` datasets) given one `--out`": (
         "test_faults_runs.py::test_a_second_process_into_a_claimed_out_is_refused_before_any_work",
     ),
     "`--force` on a directory holding a file it cannot remove": (
