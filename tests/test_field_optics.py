@@ -172,6 +172,7 @@ def test_a_calibration_from_offtrack_calibrate_is_what_a_run_loads(tmp_path: Pat
         pair_developer(wrong)  # made for 672×196 images, the camera is 1344×391
 
 
+@pytest.mark.slow  # pipelined = serial runs by default in test_loop_pipelining; this adds the field optics
 @pytest.mark.rendering
 def test_pipelined_and_serial_field_runs_are_identical() -> None:
     # Flex (twist and seeded vibration), lens, estimated calibration and a low sun: the flex is drawn in frame order

@@ -67,6 +67,7 @@ def test_pipelined_and_serial_runs_are_identical_at_the_default_latency() -> Non
     assert np.isfinite(serial["vo_valid"][serial["camera_frame"] > 0.5]).all()  # every frame's row complete
 
 
+@pytest.mark.slow  # the default latency's identity runs in the default suite
 @pytest.mark.parametrize(("latency", "workers"), [(0.0, 1), (0.25, 2)])
 def test_pipelined_and_serial_runs_are_identical_at_any_latency(latency: float, workers: int) -> None:
     over = {**SMALL_CAMERA, "camera.latency_s": latency}

@@ -522,6 +522,7 @@ def test_study_with_one_and_two_workers_gives_identical_tables_and_runs(tmp_path
         pd.testing.assert_frame_equal(_series(one / name), _series(two / name), check_exact=True)
 
 
+@pytest.mark.slow  # same seed, same images: test_rendering; same seed, same model run: the sweep tests
 @pytest.mark.rendering
 def test_the_same_seed_gives_a_bit_identical_rendered_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from test_faults import offtrack
