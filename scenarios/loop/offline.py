@@ -150,23 +150,26 @@ class OfflineFusedVisoOt(_OnSignals):
 
     def update(self, row: int, frame: Any, reference: Mapping[str, float]) -> None:
         """Propagate to ``row``; then the frame's motion (or none, if refused) on the same row."""
-        from sensor.fusion import TractorSignals
-
         dt = self.step(row)
         if dt is None:
             return
-        tractor = TractorSignals(
+        self.fused.propagate(
+            row, dt, self.value(row, "trailer_yaw_rate"), self.value(row, "trailer_speed"), None, self.kinematics(row)
+        )
+        if frame is not None:
+            usable = frame.valid
+            self.fused.measure(row, frame.vo.camera_motion if usable else None, frame.vo.covariance if usable else None)
+
+    def kinematics(self, row: int) -> Any:
+        """The zero-slip measurement's signals at ``row``: the tractor's (:class:`sensor.fusion.TractorSignals`)."""
+        from sensor.fusion import TractorSignals
+
+        return TractorSignals(
             self.value(row, "speed"),
             self.value(row, "yaw_rate"),
             self.value(row, "articulation"),
             self.value(row, "lateral_acceleration"),
         )
-        self.fused.propagate(
-            row, dt, self.value(row, "trailer_yaw_rate"), self.value(row, "trailer_speed"), None, tractor
-        )
-        if frame is not None:
-            usable = frame.valid
-            self.fused.measure(row, frame.vo.camera_motion if usable else None, frame.vo.covariance if usable else None)
 
     def record(self) -> Mapping[str, float]:
         """The estimate, its standard deviation and its terms, within the signals' span."""
