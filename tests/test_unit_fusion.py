@@ -136,6 +136,24 @@ def test_viso_ot_of_a_rear_unit_is_its_geometric_offtracking(preset, unit, psi_c
     assert np.max(np.abs(est[both] - ref[both])) < 1e-9
 
 
+def test_the_a_doubles_lead_trailer_default_side_rig_gives_its_geometric_offtracking():
+    """Unit 1 of a four-unit combination through its default rig (a left rig midway along the lead trailer,
+    at its edge, as :func:`scenarios.camera_schema.rig_configs` resolves it): exact camera motions give the lead
+    trailer's off-tracking to 1e-9 m, its follow point, kingpin and lever arm being the unit's own."""
+    from scenarios.camera.build import rig_from_config
+    from scenarios.camera_schema import CameraConfig, rig_configs
+
+    params = VEHICLE_PRESETS["au-a-double"]()
+    resolved = rig_configs(CameraConfig(), params)[0]
+    rig = rig_from_config(resolved)
+    assert rig.unit == 1 and rig.psi_c2v == pytest.approx(1.5 * math.pi) and rig.lateral == pytest.approx(1.25)
+    assert params.trailers[0].rear_x < rig.station < params.trailers[0].front_x
+    est, _, ref, _ = drive(params, 1, rig, fused=False, ticks=400)
+    both = (np.arange(len(est)) % EVERY == 0) & np.isfinite(est) & np.isfinite(ref)
+    assert both.sum() > 30 and np.min(np.abs(ref[both])) > 0.2
+    assert np.max(np.abs(est[both] - ref[both])) < 1e-9
+
+
 @pytest.mark.parametrize(("preset", "unit"), [("au-b-double", 2), ("au-a-double", 3)])
 def test_the_fused_filter_of_a_rear_unit_converges_to_its_offtracking(preset, unit):
     """Exact motions and exact signals: the fused estimate of unit ``unit`` equals the truth to 1e-6 m, its σ (over
