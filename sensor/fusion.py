@@ -94,6 +94,15 @@ takes ``m_k`` through zero, and (K2) would trust the kinematics just as their er
 
     e_k = max(m_k² − V_k·α/(2 − α), (1 − α)²·e_{k−1}),   σ_k² = max(σ_0² + (u_C·v_m)², e_k)           (K2')
 
+A trailer whose own tyres slip sideways — its axles steered hard towards their lock, scrubbing — carries a lateral
+force that the kingpin passes to the tractor's rear, so the tractor's rear tyres slip with it and (K1) errs in
+proportion to the trailer's slip ``v_s``; that error may lie below what the disagreement can tell from the camera's
+noise. With ``trailer_push_share`` ``u_p`` > 0 the estimated slip itself is that evidence::
+
+    σ_k² = max(σ_0² + (u_C·v_m)², e_k, (u_p·v_s)²)                                                 (K4)
+
+(off by default: ``u_p`` = 0).
+
 On a dry road the disagreement stays within the noise, σ_k stays at σ_0 and the
 kinematics share the estimate with the camera; where the camera sees slip — ice, a cambered road — σ_k follows the
 slip within ``τ_a`` and the camera carries the estimate. σ_k is recorded (:attr:`FusedVisoOt.kinematic_std`): the
@@ -184,7 +193,8 @@ the coupling term; the states ``s_z`` and ``s_f`` of (3') enter the biases' term
 ``A_f = Σ (t·Δ_c)·|t·Δ_c|·(g_xy·o)`` beside ``G``. The share of the kinematics' disagreement with the camera that the
 estimate carries, ``s_k·m_k`` (K2), enters over the path as a slip velocity would, through ``Λ``, the sum of the
 increments' lateral sensitivities times their durations (with (K3) the kinematics' error is a state, its
-uncertainty is in the increments' own covariance, and this term is zero). What no state explains — the part of
+uncertainty is in the increments' own covariance, and this term is zero; with (K4) ``m_k²`` is at least
+``(u_p·v_s)²``). What no state explains — the part of
 the odometry's error that changes with the scenery faster than ``β_ψ`` follows — is the constant
 ``offtracking_bias_std`` ``σ_b``::
 
@@ -414,7 +424,10 @@ class FusedVisoOt:
         if not all(math.isfinite(v) for v in sample):
             raise InputError(f"trailer signals {sample} must be finite")
         # σ_k² of (K3) on this step, kept for re-filtering (the inflated model has no such state)
-        kinematic_variance = self._kinematic_variance() if self._error_state else 0.0
+        if self._error_state:
+            kinematic_variance = self._kinematic_variance(self._history[-1].x if self._history else self._start[0])
+        else:
+            kinematic_variance = 0.0
         if self._previous_input is None:
             x, p = self._start
             x, p = x.copy(), p.copy()
@@ -430,7 +443,7 @@ class FusedVisoOt:
             lateral = self._chain.lateral(tractor, float(dt))
             self._modelled_slip = self._chain.modelled_slip  # the rear slip the compensated points predict, (K2)
             if math.isfinite(lateral):
-                kinematic = self._kinematic_rows(sample, lateral, float(dt))
+                kinematic = self._kinematic_rows(sample, lateral, float(dt), x)
                 x, p = _apply_rows(x, p, kinematic)
         elif tractor is not None and self.noise.kinematics:
             self._chain.remember(tractor)
@@ -484,9 +497,10 @@ class FusedVisoOt:
         return out, f @ p @ f.T + q
 
     def _kinematic_rows(
-        self, sample: tuple[float, float, float], lateral: float, dt: float
+        self, sample: tuple[float, float, float], lateral: float, dt: float, x: np.ndarray
     ) -> tuple[tuple[np.ndarray, float, float], ...]:
-        """(K1) of this tick as an ``(H, z, R)`` row, with σ from the slip evidence (K2)."""
+        """(K1) of this tick as an ``(H, z, R)`` row, with σ from the slip evidence (K2) and the push (K4) of the
+        predicted state ``x``."""
         r_m, w_m, tan_steer = sample
         h = np.zeros(self._states)
         h[_VS] = 1.0
@@ -494,7 +508,7 @@ class FusedVisoOt:
         h[_BW] = -tan_steer
         z = lateral - (r_m * self.slip_point + w_m * tan_steer)  # (K1): the slip velocity the tractor implies
         n = self.noise
-        variance = self._kinematic_variance()
+        variance = self._kinematic_variance(x)
         self.kinematic_std = math.sqrt(variance)
         if self._error_state:  # (K3): ε_k is a state, the tick's own noise white
             h[_EK] = 1.0
@@ -515,9 +529,14 @@ class FusedVisoOt:
         modelled = n.tractor_stiffness_uncertainty * self._modelled_slip
         return n.tractor_slip**2 + modelled * modelled
 
-    def _kinematic_variance(self) -> float:
-        """σ_k² of (K2): the slip evidence so far, at least its floor [m²/s²]."""
-        return max(self._kinematic_floor(), self._slip_evidence)  # (K2)
+    def _kinematic_variance(self, x: np.ndarray) -> float:
+        """σ_k² of (K2): the slip evidence so far, at least its floor and (K4)'s push of the state ``x`` [m²/s²]."""
+        return max(self._kinematic_floor(), self._slip_evidence, self._push_variance(x))  # (K2), (K4)
+
+    def _push_variance(self, x: np.ndarray) -> float:
+        """(K4): ``(u_p·v_s)²``, the tractor's rear slip a trailer slipping at ``v_s`` pushes it into [m²/s²]."""
+        push = self.noise.trailer_push_share * float(x[_VS])
+        return push * push
 
     def _kinematic_lateral_step(self, index: int, x: np.ndarray) -> float | None:
         """The kingpin's lateral displacement from the anchor to history ``index`` in the anchor's frame, had no
@@ -716,7 +735,10 @@ class FusedVisoOt:
             [*coherent[:2], *((axial,) if self._axial_state else ()), *((cross,) if self._flow_state else ())]
         )
         # the disagreement the kinematics' share carries into the slip velocity, coherent over the window
-        disagreement = self.kinematic_share * math.sqrt(max(self._slip_evidence, 0.0)) * self._lateral_lever
+        evidence = max(self._slip_evidence, 0.0)
+        if self.noise.trailer_push_share > 0.0:  # (K4): the kinematics may err by the push they cannot see
+            evidence = max(evidence, self._push_variance(now.x))
+        disagreement = self.kinematic_share * math.sqrt(evidence) * self._lateral_lever
         # the coupling is known to vo_bias_coupling_uncertainty: so is the correction it applies for β_ψ
         coupling = self.noise.vo_bias_coupling_uncertainty * now.x[_BPSI] * coherent[2]
         self.std_parts = {

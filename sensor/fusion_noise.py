@@ -91,6 +91,11 @@ class FusionNoise(Settings):
         (K2'): the evidence of slip falls no faster than a stopped slip's would, so a slip that changes sign (a
         change of turn on ice) keeps the kinematics de-weighted through the change (default off, as in the
         field-loop grid of docs/field_bias.md).
+    trailer_push_share : float
+        ``u_p`` of (K4): the least σ_k of (K2) per unit of the estimated slip velocity ``v_s`` (0: none). A trailer
+        whose tyres slip sideways (axles steered towards their lock, scrubbing) carries a lateral force that its
+        kingpin passes to the tractor's rear, so the tractor's rear tyres slip in proportion and the zero-slip
+        kinematics (K1) err with them, too slowly for the camera's disagreement to show it (docs/fusion.md).
     gate : float
         Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
     max_gated : int
@@ -181,6 +186,9 @@ class FusionNoise(Settings):
         1.0, gt=0.0, le=30.0, description="[s] how fast the kinematics' σ follows the slip; 30 s misses a turn entry"
     )
     slip_evidence_hold: bool = False
+    trailer_push_share: float = Field(
+        0.0, ge=0.0, le=2.0, description="σ_k per unit of the trailer's slip velocity; 0: none, 2 is a tractor on ice"
+    )
     gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
     max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")
     max_std: float = Field(0.5, gt=0.0, le=10.0, description="[m] of off-tracking std; 10 m says nothing")
