@@ -24,6 +24,7 @@ from ..assess.high_speed import MEASURES, unassessable_records
 from ..assess.levels import NO_LEVELS
 from ..assess.user_levels import ASSESSED, NOT_ASSESSED, UserLevels, grade_record, standard_key
 from ..catalogue.vehicle_spec import specification_lines, vehicle_specification
+from ..config import ControllerConfig
 from ..loop.ends import RunStatus
 from ..registry import NO_FEEDBACK
 
@@ -202,11 +203,18 @@ def steering_at_speed(records: pd.DataFrame) -> list[str]:
     lines = ["## Steering against unsteered at speed", ""]
     if NO_FEEDBACK not in feedbacks:
         return [*lines, "No unsteered column to compare with: add `--feedback none` (or `--side-by-side`).", ""]
+    crossover = ControllerConfig().high_speed_crossover_kmh
+    fade = (
+        "The trailer steering follows the path at every speed (the high-speed fade is off)."
+        if crossover is None
+        else f"Path following fades out between {crossover[0]:g} and {crossover[1]:g} km/h "
+        "(`controller.high_speed_crossover_kmh`, docs/controller_design.md): at 88 km/h a steered column runs "
+        "unsteered unless its cases turn the fade off."
+    )
     lines += [
-        "The trailer steering follows the path at every speed (its feedback is scaled down above its bandwidth "
-        "speed, not switched off: docs/controller_design.md). Here each steered column against the unsteered one "
-        "in the 88 km/h manoeuvres; a change is worse when it moves the measure the way the standard does not "
-        "want (rearward amplification and transient off-tracking up, yaw damping down).",
+        f"{fade} Here each steered column against the unsteered one in the 88 km/h manoeuvres; a change is worse "
+        "when it moves the measure the way the standard does not want (rearward amplification and transient "
+        "off-tracking up, yaw damping down).",
         "",
     ]
     names = [MEASURES[k].measure for k in AT_SPEED]
