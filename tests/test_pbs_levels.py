@@ -351,3 +351,19 @@ def test_a_measure_figure_shows_values_limits_missing_cases_and_what_negative_me
         ]
     finally:
         plt.close(fig)
+
+
+def test_the_assessment_says_what_its_runs_noted(tmp_path) -> None:
+    """A case whose run wrote a note (the scrub note of a zero-slip estimate) has it under "What the runs said",
+    labelled by its case; an assessment whose runs noted nothing has no such section."""
+    table = _table()
+    run = tmp_path / str(table.loc[0, "run"])
+    run.mkdir()
+    text = "the zero-slip estimate is 0.280 m RMS off: the fixed groups scrub"
+    (run / "metrics.json").write_text(json.dumps({"notes": [{"note": "scrub", "text": text}]}))
+    written = write_assessment(table, tmp_path, "lst").read_text()
+    section = written[written.index("## What the runs said") : written.index("## Notes")]
+    assert f"- low speed turn, dry, none: {text}" in section and section.count("\n- ") == 1
+    quiet = tmp_path / "quiet"
+    quiet.mkdir()
+    assert "## What the runs said" not in write_assessment(table, quiet, "lst").read_text()

@@ -27,6 +27,7 @@ from ..catalogue.vehicle_spec import specification_lines, vehicle_specification
 from ..config import ControllerConfig
 from ..loop.ends import RunStatus
 from ..registry import NO_FEEDBACK
+from ..run.results import read_metrics
 
 __all__ = [
     "AT_SPEED",
@@ -340,6 +341,7 @@ def write_assessment(
         lines.append("")
     lines += steering_at_speed(records)
     lines += _not_assessed()
+    lines += run_notes_section(table, out_dir)
     lines += ["## Notes", "", "Each measure's notes: first what every column shares, then each column's own.", ""]
     labels = _labels(surfaces, feedbacks)
     measured = records[~records["measure"].isin(not_assessed)]
@@ -459,6 +461,21 @@ def measure_figure(rows: pd.DataFrame, surfaces: list[str], levels: UserLevels |
         ax.legend(fontsize=7, title="surface / limits" if standard is not None else "surface")
     fig.tight_layout()
     return fig
+
+
+def run_notes_section(table: pd.DataFrame, out_dir: Path) -> list[str]:
+    """``## What the runs said``: the notes each case's run wrote (``metrics.json["notes"]``,
+    :mod:`scenarios.run.notes`: e.g. why a zero-slip estimate is off where fixed axle groups scrub), labelled by
+    case; nothing when no run wrote one."""
+    lines = []
+    for case in table.to_dict("records"):
+        metrics = read_metrics(Path(out_dir) / str(case.get("run", ""))) or {}
+        for note in metrics.get("notes") or ():
+            label = f"{case['manoeuvre']}, {case['surface']}, {case['feedback']}"
+            lines.append(f"- {label.replace('_', ' ')}: {note.get('text')}")
+    if not lines:
+        return []
+    return ["## What the runs said", "", *lines, ""]
 
 
 def _measure_figures(
