@@ -183,6 +183,19 @@ class SimulatorSnapshot:
     surface_filled: bool
 
 
+def axle_weights(params: VehicleParams) -> np.ndarray:
+    """``(units, axles)`` matrix whose row ``k`` averages per-axle values over unit ``k``'s axles, weighted by their
+    static loads (each row sums to 1)."""
+    table = params.axle_table
+    load = np.asarray(table.static_load, dtype=float)
+    unit = np.asarray(table.unit)
+    weights = np.zeros((params.n_units, len(load)))
+    for k in range(params.n_units):
+        on = unit == k
+        weights[k, on] = load[on] / load[on].sum()
+    return weights
+
+
 class Simulator:
     """Advance the model with fixed RK4 steps; surface look-ups held over one control period.
 
@@ -261,6 +274,8 @@ class Simulator:
         self.time = 0.0
         self._surface_filled = False  # uniform surfaces are looked up once
         self._surface_uniform = self.surface.is_uniform
+        # A slope field asked per axle (a terrain's): each body takes its axles' vectors weighted by static load.
+        self._axle_weights = axle_weights(params) if getattr(self.surface.slope, "per_axle", False) else None
         friction = self.surface.friction
         self._uniform_mu = float(friction.mu) if isinstance(friction, UniformFriction) else None
         self.reset(state)
@@ -332,9 +347,17 @@ class Simulator:
         return [tractor, trailer, *rear]
 
     def surface_inputs(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """μ per axle and the slope vector per body at state vector ``x``."""
+        """μ per axle and the slope vector per body at state vector ``x``.
+
+        The slope is the field's at each body's centre of gravity or, for a field with ``per_axle`` set (a terrain's,
+        :class:`vehicle_model.terrain.TerrainSlope`), the mean of the field under the body's axles weighted by their
+        static loads (:func:`axle_weights`).
+        """
         units = self._ground_points(x)
-        mu = self.surface.friction(np.concatenate([p[:-1] for p in units]))
+        axles = np.concatenate([p[:-1] for p in units])
+        mu = self.surface.friction(axles)
+        if self._axle_weights is not None:
+            return mu, (self._axle_weights @ self.surface.slope(axles)).ravel()
         slope = self.surface.slope(np.stack([p[-1] for p in units]))
         return mu, slope.ravel()
 

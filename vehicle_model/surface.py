@@ -9,17 +9,25 @@ steepest-descent direction has global azimuth ψ_d pulls each unit mass downhill
 by g, i.e. ``sinθ·(cos ψ_d, sin ψ_d)``, in the global frame. Grades are given in percent at the edges
 (``θ = atan(grade/100)``).
 
-Friction presets (peak tyre–road friction coefficient, typical ranges from the road-friction
-literature, e.g. Pacejka 2012 §1, Wallman & Åström 2001 VTI report 911A):
+Friction presets (peak tyre–road friction coefficient). The sealed ones are typical ranges from the road-friction
+literature, e.g. Pacejka 2012 §1, Wallman & Åström 2001 VTI report 911A. Of the unsealed ones, ``gravel`` and
+``dirt`` take the peak values Wong (*Theory of Ground Vehicles*, ch. 1, table of average road-adhesion coefficients)
+gives for gravel and a dry earth road; ``mud`` and ``wet_clay`` have no single source: their values are the
+project's choice inside the range the vehicle-dynamics literature typically quotes for soft wet ground, below
+Wong's wet earth road (peak 0.55), which is a firm surface:
 
-========  =====  ==================
-preset    μ      typical range
-========  =====  ==================
+========  =====  ===========================================================
+preset    μ      source or typical range
+========  =====  ===========================================================
 dry       0.80   0.8–1.0 dry asphalt
 wet       0.50   0.4–0.7 wet asphalt
 snow      0.25   0.2–0.3 packed snow
 ice       0.10   0.05–0.15 ice
-========  =====  ==================
+gravel    0.60   Wong: gravel, peak 0.6
+dirt      0.68   Wong: earth road (dry), peak 0.68
+mud       0.30   project's choice; typical range 0.2–0.4 (churned wet earth)
+wet_clay  0.20   project's choice; typical range 0.15–0.3 (wet clay)
+========  =====  ===========================================================
 """
 
 from __future__ import annotations
@@ -31,7 +39,16 @@ from typing import Literal, Protocol
 import numpy as np
 from scipy.spatial import cKDTree
 
-FRICTION_PRESETS: dict[str, float] = {"dry": 0.80, "wet": 0.50, "snow": 0.25, "ice": 0.10}
+FRICTION_PRESETS: dict[str, float] = {
+    "dry": 0.80,
+    "wet": 0.50,
+    "snow": 0.25,
+    "ice": 0.10,
+    "gravel": 0.60,
+    "dirt": 0.68,
+    "mud": 0.30,
+    "wet_clay": 0.20,
+}
 """Named surfaces and their peak friction coefficient μ."""
 
 
@@ -42,7 +59,8 @@ def _check_mu(mu: float, name: str = "mu") -> float:
 
 
 def friction_preset(name: str) -> float:
-    """μ of a named surface preset (``dry``, ``wet``, ``snow``, ``ice``)."""
+    """μ of a named surface preset (:data:`FRICTION_PRESETS`: ``dry``, ``wet``, ``snow``, ``ice`` and the unsealed
+    ``gravel``, ``dirt``, ``mud``, ``wet_clay``)."""
     try:
         return FRICTION_PRESETS[name]
     except KeyError:

@@ -171,7 +171,7 @@ class PatchConfig(Settings):
 class SurfaceConfig(Settings):
     """Road friction: a named preset or an explicit ``mu`` (which wins), plus low-μ patches."""
 
-    preset: Literal["dry", "wet", "snow", "ice"] = "dry"
+    preset: Literal["dry", "wet", "snow", "ice", "gravel", "dirt", "mud", "wet_clay"] = "dry"
     mu: float | None = Field(None, gt=0.0, le=1.5, description=_MU)
     patches: tuple[PatchConfig, ...] = Field(
         (), max_length=1000, description="at most 1000: every patch is tested at every tyre on every dynamics step"
