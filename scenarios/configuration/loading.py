@@ -14,6 +14,7 @@ from vehicle_model.errors import InputError
 
 from ..camera_checks import check_camera
 from ..roads.smoothing import checked_road
+from ..roads.terrain_files import checked_terrain
 from ..yaml_input import RefusedDocument, load_yaml
 from .errors import ConfigError, did_you_mean
 from .field_errors import dotted_name, format_errors
@@ -86,9 +87,9 @@ def load_scenario_data(name_or_path: str) -> dict[str, Any]:
 
 
 def _files_beside(data: dict[str, Any], folder: Path) -> None:
-    """Make a scenario file's relative ``vehicle`` file and ``path.file`` road the ones beside it, where they exist
-    there (a scenario, its vehicle and its road kept in one folder run from anywhere); others stay as written,
-    relative to the working directory."""
+    """Make a scenario file's relative ``vehicle`` file, ``path.file`` road and ``terrain.file`` grid the ones beside
+    it, where they exist there (a scenario, its vehicle and its road kept in one folder run from anywhere); others
+    stay as written, relative to the working directory."""
 
     def beside(value: Any) -> Any:
         if isinstance(value, str) and value and not Path(value).is_absolute() and (folder / value).is_file():
@@ -97,8 +98,9 @@ def _files_beside(data: dict[str, Any], folder: Path) -> None:
 
     if isinstance(data.get("vehicle"), str) and data["vehicle"].endswith(VEHICLE_SUFFIXES):
         data["vehicle"] = beside(data["vehicle"])
-    if isinstance(data.get("path"), dict) and "file" in data["path"]:
-        data["path"]["file"] = beside(data["path"]["file"])
+    for section in ("path", "terrain"):
+        if isinstance(data.get(section), dict) and "file" in data[section]:
+            data[section]["file"] = beside(data[section]["file"])
 
 
 _KEY = re.compile(r"^([^.\[\]]+)((?:\[\d+\])*)$")
@@ -180,7 +182,21 @@ def load_scenario(name_or_path: str, overrides: dict[str, Any] | None = None) ->
         set_dotted(data, key, value)
     config = validate_config(data)
     check_road_file(config)
+    check_terrain_file(config)
     return config
+
+
+def check_terrain_file(config: ScenarioConfig) -> None:
+    """Read and check the height grid a configuration names, if it names one (:mod:`scenarios.roads.terrain_files`).
+
+    Raises
+    ------
+    scenarios.roads.terrain_files.TerrainFileError
+        One line naming the file and the header field, line or row; the grid is read once for the check and the
+        run's build (:func:`scenarios.roads.terrain_files.checked_terrain`).
+    """
+    if config.terrain.file is not None:
+        checked_terrain(config.terrain.file)
 
 
 def check_road_file(config: ScenarioConfig) -> None:

@@ -28,6 +28,7 @@ from .sections import (
     SpeedConfig,
     SurfaceConfig,
 )
+from .terrain_section import TerrainConfig
 from .vehicle_field import Vehicle, check_vehicle, params_of, read_vehicle_file, vehicle_name
 
 
@@ -45,6 +46,7 @@ class ScenarioConfig(Settings):
     path: PathConfig = PathConfig()
     surface: SurfaceConfig = SurfaceConfig()
     camber: CamberConfig = CamberConfig()
+    terrain: TerrainConfig = TerrainConfig()
     speed: SpeedConfig = SpeedConfig()
     rates: RatesConfig = RatesConfig()
     signals: SignalsConfig = SignalsConfig()
@@ -125,6 +127,11 @@ class ScenarioConfig(Settings):
 
     @model_validator(mode="after")
     def _check(self) -> ScenarioConfig:
+        if self.terrain.kind != "flat" and self.camber.percent != 0.0:
+            raise ValueError(
+                f"camber.percent = {self.camber.percent:g} with terrain.kind = {self.terrain.kind}: the terrain gives "
+                "the crossfall (terrain.crossfall_percent); camber.percent must be 0 with it"
+            )
         if self.roundabout_test and self.path.kind != "roundabout":
             raise ValueError("roundabout_test needs path.kind = roundabout")
         params = self.vehicle_params()

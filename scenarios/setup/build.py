@@ -26,9 +26,19 @@ from vehicle_model.surface import (
     UniformCrossfall,
     UniformFriction,
 )
+from vehicle_model.terrain import (
+    FlatTerrain,
+    GridTerrain,
+    PathTerrain,
+    PlaneTerrain,
+    RoughnessSpec,
+    Terrain,
+    TerrainSlope,
+)
 from vehicle_model.trim import trim
 
 from ..config import ScenarioConfig
+from ..roads.terrain_files import TerrainFileError, checked_terrain
 from .lane_changes import double_lane_change_path, single_lane_change_path
 from .paths import ReferencePath, figure_eight_path, roundabout_path, straight_path, turn_path
 from .roads import Road, RoadFileError, load_road
@@ -99,6 +109,9 @@ class ScenarioSetup:
     road_columns: dict[str, tuple[float, float]] = field(default_factory=dict)
     """The road file's columns that ran instead of the scenario's speed and surface (they win): ``speed_kmh`` and
     ``mu`` with their least and greatest value; empty without a road file or without those columns."""
+    terrain: Terrain = field(default_factory=FlatTerrain)
+    """The ground's height under and around the path (:func:`build_terrain`); flat unless ``terrain.kind`` says
+    otherwise."""
 
     @property
     def direction_sign(self) -> int:
@@ -139,12 +152,76 @@ def feedforward_curvatures(curvature: np.ndarray) -> np.ndarray:
     return np.concatenate(levels) if levels else np.zeros(1)
 
 
-def _slope(config: ScenarioConfig, path: ReferencePath, sign: int, road: Road | None = None) -> SlopeField:
+def _profile(pairs: tuple[tuple[float, float], ...], constant: float) -> tuple[np.ndarray, np.ndarray]:
+    """Stations and values of a ``[[station, percent], …]`` profile, or the constant when none is given."""
+    if not pairs:
+        return np.zeros(1), np.array([constant])
+    table = np.asarray(pairs, dtype=float)
+    return table[:, 0], table[:, 1]
+
+
+def build_terrain(config: ScenarioConfig, path: ReferencePath) -> Terrain:
+    """The terrain a configuration's ``terrain`` section describes, over the scenario's reference path.
+
+    Raises
+    ------
+    scenarios.roads.terrain_files.TerrainFileError
+        A height grid that cannot be read, or one the path leaves (one line naming the file, its extent and the
+        first path point off it).
+    """
+    spec = config.terrain
+    if spec.kind == "flat":
+        return FlatTerrain()
+    if spec.kind == "plane":
+        return PlaneTerrain(spec.grade_percent, spec.crossfall_percent, math.radians(spec.heading_deg))
+    if spec.kind == "path":
+        roughness = RoughnessSpec(
+            undulation_amplitude=spec.undulation_amplitude_m,
+            undulation_wavelength=spec.undulation_wavelength_m,
+            rut_depth=spec.rut_depth_m,
+            rut_width=spec.rut_width_m,
+            rut_track=spec.rut_track_m,
+            pothole_count=round(spec.potholes_per_100m * path.length / 100.0),
+            pothole_depth=spec.pothole_depth_m,
+            pothole_radius=spec.pothole_radius_m,
+            pothole_spread=spec.pothole_spread_m,
+            seed=config.seed,
+        )
+        return PathTerrain(
+            path.points,
+            path.heading,
+            path.s,
+            path.curvature,
+            *_profile(spec.grade_profile, spec.grade_percent),
+            *_profile(spec.crossfall_profile, spec.crossfall_percent),
+            roughness=roughness,
+        )
+    assert spec.file is not None
+    grid = checked_terrain(spec.file)
+    terrain = GridTerrain(grid.x0 - spec.origin_m[0], grid.y0 - spec.origin_m[1], grid.dx, grid.dy, grid.z)
+    off = np.flatnonzero(~terrain.covers(path.points))
+    if len(off):
+        x_min, x_max, y_min, y_max = terrain.extent
+        x, y = path.points[off[0]]
+        raise TerrainFileError(
+            f"terrain file {spec.file} covers x [{x_min:.1f}, {x_max:.1f}] m, y [{y_min:.1f}, {y_max:.1f}] m (less "
+            f"terrain.origin_m); the path leaves it at station {path.s[off[0]]:.1f} m, ({x:.1f}, {y:.1f})"
+        )
+    return terrain
+
+
+def _slope(
+    config: ScenarioConfig, path: ReferencePath, sign: int, road: Road | None = None, terrain: Terrain | None = None
+) -> SlopeField:
     camber = config.camber
     if road is not None and road.crossfall is not None:
         if camber.percent != 0.0:
             raise RoadFileError(f"road file {config.path.file} gives a crossfall; camber.percent must be 0 with it")
+        if config.terrain.kind != "flat":
+            raise RoadFileError(f"road file {config.path.file} gives a crossfall; terrain.kind must be flat with it")
         return StationCrossfall(path.points, path.heading, road.crossfall)
+    if terrain is not None and not isinstance(terrain, FlatTerrain):
+        return TerrainSlope(terrain)
     if camber.percent == 0.0:
         return FlatRoad()
     if len(path.centres):
@@ -262,7 +339,8 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
         if config.surface.patches or config.surface.mu is not None:
             raise RoadFileError(f"road file {spec.file} gives mu; surface.mu and surface.patches must be unset with it")
         friction = StationFriction(path.points, road.mu)
-    surface = Surface(friction, _slope(config, path, sign, road))
+    terrain = build_terrain(config, path)
+    surface = Surface(friction, _slope(config, path, sign, road, terrain))
     if config.path.control_point == "outer_front_corner":
         control_point = (params.tractor.front_x, -sign * 0.5 * params.tractor.width)
     elif config.path.control_point == "outer_steer_tyre":
@@ -318,6 +396,7 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
         annulus_centre=annulus,  # type: ignore[arg-type]
         kinematic_slip=kinematic_slip,
         road_columns=road_columns(road),
+        terrain=terrain,
     )
 
 
