@@ -38,10 +38,14 @@ class SpeedController:
         """Clear the integral."""
         self.integral = 0.0
 
-    def __call__(self, speed_ref: float, speed: float, dt: float, force_limit: float | None = None) -> float:
+    def __call__(
+        self, speed_ref: float, speed: float, dt: float, force_limit: float | None = None, feedforward: float = 0.0
+    ) -> float:
         """Drive force [N] for the next control period of length ``dt``.
 
-        ``force_limit`` lowers the limit for this period (traction control: see :func:`traction_limit`).
+        ``force_limit`` lowers the limit for this period (traction control: see :func:`traction_limit`);
+        ``feedforward`` [N] is added before the limit (a grade's load, :func:`grade_feedforward`), so the integral
+        only takes up what it does not foresee.
         """
         # Called every control tick: the comparisons below are min/max (same operands, same order,
         # NaN included) without the builtins' call overhead.
@@ -51,6 +55,8 @@ class SpeedController:
             limit = force_limit
         integral = self.integral
         unsat = self.mass * (self.kp * error + self.ki * (integral + error * dt))
+        if feedforward:
+            unsat += feedforward
         force = -limit if -limit > unsat else unsat  # max(unsat, -limit)
         if limit < force:  # min(force, limit)
             force = limit
@@ -66,3 +72,12 @@ def traction_limit(mu: float, drive_axle_load: float, fraction: float = 0.6) -> 
     friction ellipse leaves them ``sqrt(1 − fraction²)`` of their lateral grip (80 % at 0.6).
     """
     return fraction * mu * drive_axle_load
+
+
+def grade_feedforward(mass: float, gravity_along: float) -> float:
+    """Drive force [N] that holds ``mass`` [kg] against gravity's part along the direction of travel.
+
+    ``gravity_along`` [m/s²] is that part per unit mass (negative uphill: it pulls the vehicle back; the simulator's
+    ``tractor_gravity()[0]``), so the force is ``−m·g_x``: ``m·g·sin θ`` up a grade θ, a braking force down one.
+    """
+    return -mass * gravity_along

@@ -61,6 +61,14 @@ def surface_length(terrain: Terrain, points: np.ndarray) -> float:
     return float(np.sqrt((step * step).sum(axis=1)).sum())
 
 
+def along_slope_factor(terrain: Terrain, points: np.ndarray, heading: np.ndarray | float) -> np.ndarray:
+    """``1 / cos θ_t = sqrt(1 + (∇z·t)²)`` at ``points`` for motion along the azimuth ``heading`` [rad]: the ratio of
+    the speed along the ground (a wheel's) to the horizontal speed, ``θ_t`` the grade in that direction."""
+    h = np.asarray(heading, dtype=float)
+    rise = (terrain.gradient(np.asarray(points, dtype=float)) * np.column_stack([np.cos(h), np.sin(h)])).sum(axis=1)
+    return np.sqrt(1.0 + rise * rise)
+
+
 @dataclass(frozen=True)
 class TerrainSlope:
     """The slope field of a terrain (:class:`vehicle_model.surface.SlopeField`): ``slope_vectors(∇z)`` at points.

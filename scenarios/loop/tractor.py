@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from controller.driver import PathFollowingDriver
-from controller.speed import SpeedController, traction_limit
+from controller.speed import SpeedController, grade_feedforward, traction_limit
 from vehicle_model.simulator import Simulator, VehicleState
 
 from ..setup.build import ScenarioSetup
@@ -62,6 +62,8 @@ class DriverParticipant:
         self.open_loop = steer_input.steer() if steer_input.open_loop else None
         self._sign = setup.direction_sign
         self.speed_control = SpeedController(params.tractor.mass + params.trailer.mass)
+        # On a terrain the speed controller foresees the grade's load on the whole combination (docs/terrain.md).
+        self._grade_mass = sum(unit.mass for unit in params.units) if setup.config.terrain.kind != "flat" else None
         driven = np.flatnonzero(params.axle_table.driven)
         self._driven = driven
         self._driven_load = float(params.axle_table.static_load[driven].sum())
@@ -123,7 +125,12 @@ class DriverParticipant:
             front = self._sign * self.open_loop(tick.time)
         target = setup.speed_profile(driver.progress)
         mu_drive = self.simulator.min_friction(self._driven)
-        drive = self.speed_control(target, state.u, period, traction_limit(mu_drive, self._driven_load))
+        limit = traction_limit(mu_drive, self._driven_load)
+        if self._grade_mass is None:
+            drive = self.speed_control(target, state.u, period, limit)
+        else:
+            grade = grade_feedforward(self._grade_mass, self.simulator.tractor_gravity()[0])
+            drive = self.speed_control(target, state.u, period, limit, grade)
         self.command = TractorCommand(front, drive, target)
         return self.command
 

@@ -1,0 +1,209 @@
+"""Terrains, their slope under the vehicle, and the terrain section: flat runs unchanged, a constant crossfall is
+the camber, a constant grade's distances and gravity in closed form, a doubly tilted plane's steady state balances."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from controller.speed import SpeedController, grade_feedforward
+from scenarios.config import ConfigError, load_scenario
+from scenarios.setup.build import build_scenario, build_terrain
+from scenarios.setup.paths import roundabout_path, straight_path
+from vehicle_model.dynamics import AIR_DENSITY, in_plane_gravity
+from vehicle_model.parameters import GRAVITY
+from vehicle_model.simulator import Controls, Simulator, axle_weights
+from vehicle_model.surface import FlatRoad, Surface, UniformCrossfall, UniformFriction
+from vehicle_model.terrain import (
+    FlatTerrain,
+    GridTerrain,
+    PathTerrain,
+    PlaneTerrain,
+    RoughnessSpec,
+    TerrainSlope,
+    along_slope_factor,
+    slope_vectors,
+    surface_length,
+)
+from vehicle_model.trim import trim
+
+
+def _finite_difference(terrain, points: np.ndarray, h: float = 1e-5) -> np.ndarray:
+    dx, dy = np.array([h, 0.0]), np.array([0.0, h])
+    return np.column_stack(
+        [
+            (terrain.height(points + dx) - terrain.height(points - dx)) / (2 * h),
+            (terrain.height(points + dy) - terrain.height(points - dy)) / (2 * h),
+        ]
+    )
+
+
+# --- the fields ----------------------------------------------------------------------------------------------------
+
+
+def test_slope_vector_is_the_steepest_descent_with_sin_theta():
+    g = np.array([[0.08, -0.06], [0.0, 0.0]])
+    v = slope_vectors(g)
+    theta = math.atan(0.1)
+    assert v[0] == pytest.approx(math.sin(theta) * np.array([-0.8, 0.6]), rel=1e-12)
+    assert np.all(v[1] == 0.0)
+
+
+def test_a_plane_crossfall_is_the_uniform_crossfall_to_1e_9():
+    # falling 4 % to the right of +x: UniformCrossfall(4, -π/2), today's camber on a straight
+    pts = np.random.default_rng(1).uniform(-50, 50, (20, 2))
+    camber = UniformCrossfall(4.0, -math.pi / 2)(pts)
+    terrain = TerrainSlope(PlaneTerrain(crossfall_percent=4.0))(pts)
+    assert np.max(np.abs(terrain - camber)) <= 1e-9 * np.max(np.abs(camber))
+
+
+def test_constant_grade_distances_along_the_slope_and_on_the_horizontal_are_exact():
+    grade = 0.12
+    path = straight_path(100.0, 10.0)
+    heading = float(path.heading[0])
+    terrain = PlaneTerrain(grade_percent=100 * grade, heading=heading)
+    horizontal = float(np.sum(np.hypot(*np.diff(path.points, axis=0).T)))
+    assert horizontal == pytest.approx(path.length, rel=1e-12)
+    assert surface_length(terrain, path.points) == pytest.approx(horizontal * math.sqrt(1 + grade**2), rel=1e-12)
+    assert along_slope_factor(terrain, path.points[:3], heading) == pytest.approx(math.sqrt(1 + grade**2), rel=1e-12)
+
+
+def test_path_terrain_gradient_is_its_heights_derivative_on_a_curve():
+    path = roundabout_path(20.0, 1.0, 1, 20.0, 20.0, 0.0)
+    roughness = RoughnessSpec(0.05, 15.0, 0.05, 0.3, 2.0, 20, 0.08, 0.5, 1.5, 3)
+    terrain = PathTerrain(
+        path.points, path.heading, path.s, path.curvature, np.array([0.0, 50.0, 100.0]),
+        np.array([0.0, 10.0, -8.0]), np.array([0.0, 80.0]), np.array([2.0, 6.0]), roughness,
+    )  # fmt: skip
+    rng = np.random.default_rng(0)
+    pts = path.points[rng.integers(0, len(path.s), 300)] + rng.normal(0, 1.0, (300, 2))
+    # the projection on the nearest sample's tangent is second-order off the exact station: 1e-3 of a 0.1 slope
+    assert np.max(np.abs(terrain.gradient(pts) - _finite_difference(terrain, pts))) < 1e-3
+    # the grade along the path: the height gained over the first 50 m is the integral of the 0 → 10 % ramp
+    on_path = np.array([path.at(0.0)[:2], path.at(50.0)[:2]])
+    rise = np.diff(PathTerrain(path.points, path.heading, path.s, path.curvature,
+                               np.array([0.0, 50.0, 100.0]), np.array([0.0, 10.0, -8.0])).height(on_path))  # fmt: skip
+    assert rise[0] == pytest.approx(0.5 * 0.10 * 50.0, abs=1e-3)
+
+
+def test_grid_bilinear_is_exact_on_a_plane():
+    plane = PlaneTerrain(grade_percent=7.0, crossfall_percent=-3.0, heading=0.4, z0=12.0)
+    xs, ys = np.arange(5) * 2.5 - 3.0, np.arange(4) * 4.0 + 1.0
+    nodes = np.array([[x, y] for y in ys for x in xs])
+    grid = GridTerrain(xs[0], ys[0], 2.5, 4.0, plane.height(nodes).reshape(len(ys), len(xs)))
+    pts = np.random.default_rng(2).uniform([xs[0], ys[0]], [xs[-1], ys[-1]], (50, 2))
+    assert grid.height(pts) == pytest.approx(plane.height(pts), abs=1e-12)
+    assert grid.gradient(pts) == pytest.approx(plane.gradient(pts), abs=1e-12)
+
+
+# --- the vehicle on it ---------------------------------------------------------------------------------------------
+
+
+def test_axle_weights_average_each_units_axles_by_static_load(reference):
+    w = axle_weights(reference)
+    table = reference.axle_table
+    assert w.sum(axis=1) == pytest.approx(np.ones(reference.n_units), rel=1e-15)
+    for k in range(reference.n_units):
+        on = np.asarray(table.unit) == k
+        assert np.all(w[k, ~on] == 0.0)
+        assert w[k, on] == pytest.approx(table.static_load[on] / table.static_load[on].sum(), rel=1e-15)
+
+
+def _run(sim: Simulator, steer: float, periods: int) -> np.ndarray:
+    controls = Controls(np.array([steer] + [0.0] * (len(sim.layout.steerable_axles) - 1)), 2000.0)
+    for _ in range(periods):
+        sim.step(controls)
+    return sim.state_vector
+
+
+def test_a_constant_crossfall_terrain_drives_as_the_camber_to_1e_9(reference, reference_model):
+    start = reference_model.layout
+    camber = Simulator(
+        reference, Surface(UniformFriction(0.5), UniformCrossfall(4.0, -math.pi / 2)), model=reference_model
+    )
+    terrain = Simulator(reference, Surface(UniformFriction(0.5), TerrainSlope(PlaneTerrain(crossfall_percent=4.0))),
+                        model=reference_model)  # fmt: skip
+    for sim in (camber, terrain):
+        sim.reset(
+            sim.state.__class__.from_vector(np.r_[0, 0, 0, 5.0, np.zeros(start.n_states - 4)], 0.0, len(start.axles))
+        )
+    a, b = _run(camber, 0.1, 50), _run(terrain, 0.1, 50)  # 1 s of a turn
+    assert np.max(np.abs(a - b)) <= 1e-9 * np.max(np.abs(a))
+
+
+def test_constant_grade_gravity_and_loads_are_the_closed_form(reference, reference_model):
+    grade = 0.10
+    sim = Simulator(reference, Surface(slope=TerrainSlope(PlaneTerrain(grade_percent=100 * grade, heading=0.3))),
+                    model=reference_model)  # fmt: skip
+    state = sim.state.__class__.from_vector(
+        np.r_[0, 0, 0.3, 0, np.zeros(sim.layout.n_states - 4)], 0.0, len(sim.layout.axles)
+    )
+    sim.reset(state)
+    gx, gy = sim.tractor_gravity()
+    assert gx == pytest.approx(-GRAVITY * grade / math.sqrt(1 + grade**2), rel=1e-12)  # uphill: pulls back
+    assert gy == pytest.approx(0.0, abs=1e-12)
+    fz = sim.outputs()["fz"]
+    assert fz == pytest.approx(reference.axle_table.static_load / math.sqrt(1 + grade**2), rel=1e-12)  # cos θ
+    mass = sum(u.mass for u in reference.units)
+    assert grade_feedforward(mass, gx) == pytest.approx(mass * GRAVITY * math.sin(math.atan(grade)), rel=1e-12)
+
+
+def test_speed_controller_feedforward_adds_before_the_limit_and_zero_changes_nothing():
+    plain, fed = SpeedController(1000.0), SpeedController(1000.0)
+    assert plain(5.0, 4.0, 0.02) == SpeedController(1000.0)(5.0, 4.0, 0.02, None, 0.0)
+    assert fed(5.0, 4.0, 0.02, None, 3000.0) == pytest.approx(plain.__class__(1000.0)(5.0, 4.0, 0.02) + 3000.0)
+    assert SpeedController(1000.0)(5.0, 4.0, 0.02, 2000.0, 3000.0) == 2000.0
+
+
+def test_a_plane_tilted_both_ways_holds_a_straight_steady_state_whose_forces_sum_to_zero(reference, reference_model):
+    """A slope is steady only on a straight (a turn rotates it in the body's axes): the crab on a plane with 8 % grade
+    and 5 % crossfall; every force on the combination, in the tractor's axes, sums to zero."""
+    speed = 5.0
+    slope = TerrainSlope(PlaneTerrain(grade_percent=8.0, crossfall_percent=5.0))(np.zeros((1, 2)))[0]
+    op = trim(reference, speed, kingpin_curvature=0.0, slope=(float(slope[0]), float(slope[1])), model=reference_model)
+    layout = reference_model.layout
+    values = dict(zip(reference_model.output_names, reference_model.outputs(op.state, op.inputs), strict=True))
+    fx, fy = np.asarray(values["fx"]).ravel(), np.asarray(values["fy"]).ravel()
+    steer = np.zeros(len(layout.axles))
+    for name in layout.steerable_axles:
+        steer[list(layout.axles).index(name)] = op.get(f"steer_{name}")
+    unit = np.asarray(reference.axle_table.unit)
+    heading = np.array([0.0, -op.get("gamma")])[unit]  # each axle's unit heading, tractor axes
+    angle = heading + steer
+    total = np.array([np.sum(fx * np.cos(angle) - fy * np.sin(angle)), np.sum(fx * np.sin(angle) + fy * np.cos(angle))])
+    for k, body in enumerate(reference.units):
+        psi = 0.0 if k == 0 else -op.get("gamma")
+        gx, gy = in_plane_gravity(slope[0], slope[1], math.cos(psi), math.sin(psi))
+        total += body.mass * np.array(
+            [math.cos(psi) * gx - math.sin(psi) * gy, math.sin(psi) * gx + math.cos(psi) * gy]
+        )
+    total[0] -= 0.5 * AIR_DENSITY * reference.tractor.drag_area * speed**2
+    weight_along = sum(u.mass for u in reference.units) * GRAVITY * float(np.hypot(*slope))
+    assert np.all(np.abs(total) <= 1e-6 * weight_along)
+    assert abs(op.get("r1")) < 1e-12 and op.get("drive_force") > 0.9 * weight_along * 0.08 / np.hypot(0.08, 0.05)
+
+
+# --- the configuration ---------------------------------------------------------------------------------------------
+
+
+def test_flat_terrain_is_todays_road_object_for_object(reference):
+    setup = build_scenario(load_scenario("pbs-low-speed-turn"))
+    assert setup.terrain == FlatTerrain() and isinstance(setup.surface.slope, FlatRoad)
+    assert Simulator(reference, setup.surface, model=setup.model)._axle_weights is None  # the old look-up
+
+
+def test_terrain_kinds_build_and_refuse_the_camber_with_them():
+    rough = {"terrain.kind": "path", "terrain.grade_percent": 8.0, "terrain.potholes_per_100m": 2.0}
+    config = load_scenario("pbs-low-speed-turn", {**rough, "terrain.rut_depth_m": 0.05})
+    setup = build_scenario(config)
+    assert isinstance(setup.terrain, PathTerrain) and isinstance(setup.surface.slope, TerrainSlope)
+    assert isinstance(build_terrain(load_scenario("pbs-low-speed-turn", {"terrain.kind": "plane"}), setup.path),
+                      PlaneTerrain)  # fmt: skip
+    with pytest.raises(ConfigError, match=r"camber\.percent must be 0"):
+        load_scenario("pbs-low-speed-turn", {"terrain.kind": "plane", "camber.percent": 2.0})
+    with pytest.raises(ConfigError, match=r"terrain\.rut_depth_m"):
+        load_scenario("pbs-low-speed-turn", {"terrain.kind": "plane", "terrain.rut_depth_m": 0.05})
+    with pytest.raises(ConfigError, match=r"terrain\.grade_percent"):
+        load_scenario("pbs-low-speed-turn", {"terrain.kind": "path", "terrain.grade_percent": 16})
