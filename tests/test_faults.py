@@ -327,6 +327,13 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
         "test_road_faults.py::test_a_road_doubling_back_on_itself_is_refused",
         "test_road_faults.py::test_a_bad_road_is_refused_before_the_run_directory_and_by_config_render_and_study",
     ),
+    "a terrain file (`terrain.file`": (
+        "test_terrain_files.py::test_bad_esri_grids_are_refused_in_one_line",
+        "test_terrain_files.py::test_a_header_claiming_a_billion_cells_is_refused_before_anything_is_allocated",
+        "test_terrain_files.py::test_bad_csv_grids_are_refused_in_one_line",
+        "test_terrain_files.py::test_missing_or_unknown_files_are_named",
+        "test_terrain_files.py::test_a_bad_terrain_file_or_one_the_path_leaves_exits_2_in_one_line_before_the_run_directory",
+    ),
     "`--out` is a file": (
         "test_faults.py::test_an_unusable_out_is_named",
         "test_run_files.py::test_an_output_path_that_is_a_file_under_a_file_or_not_writable_is_refused",

@@ -28,8 +28,11 @@ def scenario_overrides(
 def load_config(scenario: str, overrides: dict[str, object]) -> ScenarioConfig:
     """The validated scenario (a camera that cannot work is refused by the validation itself)."""
     from scenarios.config import load_scenario
+    from scenarios.setup.build import check_terrain_cover
 
-    return load_scenario(scenario, overrides)
+    config = load_scenario(scenario, overrides)
+    check_terrain_cover(config)  # a height grid the path leaves: refused before any run directory
+    return config
 
 
 def scenario_pairs(

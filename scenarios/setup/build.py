@@ -210,6 +210,21 @@ def build_terrain(config: ScenarioConfig, path: ReferencePath) -> Terrain:
     return terrain
 
 
+def check_terrain_cover(config: ScenarioConfig) -> None:
+    """Refuse a height grid the scenario's path leaves (:func:`build_terrain`'s check, before a run is set up).
+
+    Raises
+    ------
+    scenarios.roads.terrain_files.TerrainFileError
+        One line naming the file, its extent and the first path point off it.
+    """
+    if config.terrain.kind != "file":
+        return
+    spec = config.path
+    road = load_road(spec.file, spec.smoothing, spec.road, spec.lane) if spec.file is not None else None
+    build_terrain(config, road.path if road is not None else _path(config, 1 if config.direction == "left" else -1))
+
+
 def _slope(
     config: ScenarioConfig, path: ReferencePath, sign: int, road: Road | None = None, terrain: Terrain | None = None
 ) -> SlopeField:
