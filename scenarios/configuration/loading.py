@@ -83,6 +83,8 @@ def load_scenario_data(name_or_path: str) -> dict[str, Any]:
         raise ConfigError(f"{source} must hold a mapping of fields, not a {type(data).__name__}")
     if path.suffix in (".yaml", ".yml"):
         _files_beside(data, path.parent)
+    else:  # a catalogue scenario's road or terrain file ships beside it in the package
+        _files_beside(data, Path(str(resources.files(CATALOGUE_PACKAGE))))
     return data
 
 
