@@ -53,10 +53,14 @@ class TerrainConfig(Settings):
     )
     heading_deg: float = Field(0.0, ge=-360.0, le=360.0, description="[°] the plane's uphill azimuth; one turn")
     grade_profile: tuple[tuple[_STATION, _GRADE], ...] = Field(
-        (), max_length=MAX_PROFILE_POINTS, description="[[m, %], …] grade by station, stations increasing"
+        (),
+        max_length=MAX_PROFILE_POINTS,
+        description="grade by station: pairs (station m, grade %), stations increasing; 1000 is one a 100 m",
     )
     crossfall_profile: tuple[tuple[_STATION, _CROSSFALL], ...] = Field(
-        (), max_length=MAX_PROFILE_POINTS, description="[[m, %], …] crossfall by station, stations increasing"
+        (),
+        max_length=MAX_PROFILE_POINTS,
+        description="crossfall by station: pairs (station m, crossfall %), stations increasing; 1000 is one a 100 m",
     )
     undulation_amplitude_m: float = Field(
         0.0, ge=0.0, le=0.5, description="[m] a sine along the path; 0.5 m is a whoop-de-doo no truck drives"
