@@ -75,7 +75,11 @@ def test_defaults_and_overrides():
         ({"surface.mu": 0.0}, "surface.mu", "greater than 0"),
         ({"camber.percent": 12}, "camber.percent", "less than or equal to 10"),
         ({"speed.cornering_kmh": -5}, "speed.cornering_kmh", "greater than 0"),
-        ({"surface.preset": "gravel"}, "surface.preset", "'dry', 'wet', 'snow' or 'ice'"),
+        (
+            {"surface.preset": "sand"},
+            "surface.preset",
+            "'dry', 'wet', 'snow', 'ice', 'gravel', 'dirt', 'mud' or 'wet_clay'",
+        ),
         ({"vehicle": "bus"}, "vehicle", "choose one of"),
         ({"rates.control_hz": 33}, "rates", "whole number of dynamics steps"),
         ({"path.kind": "spiral"}, "path.kind", "roundabout"),
