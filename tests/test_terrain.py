@@ -207,3 +207,43 @@ def test_terrain_kinds_build_and_refuse_the_camber_with_them():
         load_scenario("pbs-low-speed-turn", {"terrain.kind": "plane", "terrain.rut_depth_m": 0.05})
     with pytest.raises(ConfigError, match=r"terrain\.grade_percent"):
         load_scenario("pbs-low-speed-turn", {"terrain.kind": "path", "terrain.grade_percent": 16})
+
+
+def test_a_turn_on_a_plane_tilted_both_ways_balances_the_combinations_momentum(reference, reference_model):
+    """In a turn on a plane of 8 % grade and 5 % crossfall (not steady: the slope turns in the body axes), at an
+    instant the tyre, gravity and drag forces on the combination sum to the rate of its momentum ``Σ m_k a_k``."""
+    sim = Simulator(reference, Surface(slope=TerrainSlope(PlaneTerrain(grade_percent=8.0, crossfall_percent=5.0))),
+                    model=reference_model)  # fmt: skip
+    layout = reference_model.layout
+    start = np.r_[0.0, 0.0, 0.0, 4.0, np.zeros(layout.n_states - 4)]
+    sim.reset(sim.state.__class__.from_vector(start, 0.0, len(layout.axles)))
+    x = _run(sim, 0.15, 150)  # 3 s into the turn
+    u_in = sim.input_vector
+    slope = u_in[layout.slope_slice].reshape(-1, 2)
+
+    def velocities(state: np.ndarray) -> np.ndarray:
+        out = dict(zip(reference_model.output_names, reference_model.outputs(state, u_in), strict=True))
+        u2, v2 = np.asarray(out["trailer_velocity"]).ravel()
+        psi1, psi2 = state[2], state[2] - state[6]
+        rot = [np.array([[math.cos(p), -math.sin(p)], [math.sin(p), math.cos(p)]]) for p in (psi1, psi2)]
+        return np.stack([rot[0] @ state[3:5], rot[1] @ np.array([u2, v2])])
+
+    xdot = np.asarray(reference_model.rhs(x, u_in)).ravel()
+    eps = 1e-5
+    accel = (velocities(x + eps * xdot) - velocities(x - eps * xdot)) / (2 * eps)
+    masses = np.array([u.mass for u in reference.units])
+    momentum_rate = (masses[:, None] * accel).sum(axis=0)
+
+    out = dict(zip(reference_model.output_names, reference_model.outputs(x, u_in), strict=True))
+    fx, fy = np.asarray(out["fx"]).ravel(), np.asarray(out["fy"]).ravel()
+    steer = np.zeros(len(layout.axles))
+    for name in layout.steerable_axles:
+        steer[list(layout.axles).index(name)] = u_in[layout.input_index(f"steer_{name}")]
+    heading = np.array([x[2], x[2] - x[6]])[np.asarray(reference.axle_table.unit)]
+    angle = heading + steer
+    force = np.array([np.sum(fx * np.cos(angle) - fy * np.sin(angle)), np.sum(fx * np.sin(angle) + fy * np.cos(angle))])
+    force += GRAVITY * (masses[:, None] * slope).sum(axis=0)  # in-plane gravity, global axes
+    drag = -0.5 * AIR_DENSITY * reference.tractor.drag_area * x[3] * abs(x[3])
+    force += drag * np.array([math.cos(x[2]), math.sin(x[2])])
+    assert abs(x[5]) > 0.05  # turning: a yaw rate above 0.05 rad/s
+    assert np.all(np.abs(force - momentum_rate) <= 1e-6 * masses.sum() * GRAVITY)
