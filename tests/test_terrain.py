@@ -3,6 +3,7 @@ the camber, a constant grade's distances and gravity in closed form, a doubly ti
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -81,6 +82,16 @@ def test_path_terrain_gradient_is_its_heights_derivative_on_a_curve():
     pts = path.points[rng.integers(0, len(path.s), 300)] + rng.normal(0, 1.0, (300, 2))
     # the projection on the nearest sample's tangent is second-order off the exact station: 1e-3 of a 0.1 slope
     assert np.max(np.abs(terrain.gradient(pts) - _finite_difference(terrain, pts))) < 1e-3
+    # the potholes: the full depth at each centre, and the gradient of their slopes
+    holes = terrain._potholes
+    smooth = dataclasses.replace(terrain, roughness=dataclasses.replace(roughness, pothole_count=0))
+    dip = terrain.height(holes) - smooth.height(holes)
+    spacing = np.linalg.norm(holes[:, None] - holes[None], axis=-1) + np.eye(20) * 1e9
+    alone = spacing.min(axis=1) >= 1.0  # no other pothole reaches this centre (radius 0.5 m)
+    assert len(holes) == 20 and alone.sum() >= 15 and dip[alone] == pytest.approx(-0.08, abs=1e-9)
+    assert np.all((dip[~alone] < -0.08) & (dip[~alone] > -0.16))  # overlapping potholes add up
+    near = (holes[:, None, :] + rng.uniform(-0.6, 0.6, (20, 10, 2))).reshape(-1, 2)
+    assert np.max(np.abs(terrain.gradient(near) - _finite_difference(terrain, near))) < 1e-3
     # the grade along the path: the height gained over the first 50 m is the integral of the 0 → 10 % ramp
     on_path = np.array([path.at(0.0)[:2], path.at(50.0)[:2]])
     rise = np.diff(PathTerrain(path.points, path.heading, path.s, path.curvature,

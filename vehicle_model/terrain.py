@@ -238,7 +238,9 @@ class PathTerrain:
         object.__setattr__(self, "_tree", cKDTree(np.asarray(self.points, dtype=float)))
         object.__setattr__(self, "_z_along", z_along)
         object.__setattr__(self, "_tangent", np.column_stack([np.cos(self.heading), np.sin(self.heading)]))
-        object.__setattr__(self, "_potholes", self._place_potholes())
+        potholes = self._place_potholes()
+        object.__setattr__(self, "_potholes", potholes)
+        object.__setattr__(self, "_pothole_tree", cKDTree(potholes) if len(potholes) else None)
 
     def _place_potholes(self) -> np.ndarray:
         """Centres of the potholes ``(k, 2)`` [m], drawn once from the seed."""
@@ -296,13 +298,24 @@ class PathTerrain:
         pts = np.asarray(points, dtype=float)
         _, s, d, _ = self._local(pts)
         z = self._profile(s, d)[0]
-        for centre in self._potholes:  # type: ignore[attr-defined]
-            z = (
-                z
-                - self.roughness.pothole_depth
-                * _cosine_dip(np.hypot(*(pts - centre).T), self.roughness.pothole_radius)[0]
-            )
+        point, _, rho = self._near_potholes(pts)
+        if len(point):
+            dip = _cosine_dip(rho, self.roughness.pothole_radius)[0]
+            z = z - self.roughness.pothole_depth * np.bincount(point, dip, minlength=len(pts))
         return z
+
+    def _near_potholes(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every (point, pothole) pair closer than the radius: the point's index, its offset from the pothole's
+        centre and their distance (a k-d tree query: the cost follows the potholes near the points, not all)."""
+        tree = self._pothole_tree  # type: ignore[attr-defined]
+        if tree is None:
+            return np.zeros(0, dtype=int), np.zeros((0, 2)), np.zeros(0)
+        near = tree.query_ball_point(pts, self.roughness.pothole_radius)
+        counts = np.fromiter((len(n) for n in near), dtype=int, count=len(pts))
+        point = np.repeat(np.arange(len(pts)), counts)
+        hole = np.fromiter((j for n in near for j in n), dtype=int, count=int(counts.sum()))
+        rel = pts[point] - self._potholes[hole]  # type: ignore[attr-defined]
+        return point, rel, np.hypot(rel[:, 0], rel[:, 1])
 
     def gradient(self, points: np.ndarray) -> np.ndarray:
         """``∇z`` at ``points`` ``(N, 2)``: ``∂z/∂s · t/(1 − κd) + ∂z/∂d · n`` plus the potholes'."""
@@ -312,11 +325,11 @@ class PathTerrain:
         stretch = self._stretch(i, d)
         normal = np.column_stack([-t[:, 1], t[:, 0]])
         grad = t * (dz_ds / stretch)[:, None] + normal * dz_dd[:, None]
-        for centre in self._potholes:  # type: ignore[attr-defined]
-            rel = pts - centre
-            rho = np.hypot(rel[:, 0], rel[:, 1])
+        point, rel, rho = self._near_potholes(pts)
+        if len(point):
             rate = _cosine_dip(rho, self.roughness.pothole_radius)[1]
-            grad = grad - self.roughness.pothole_depth * (rate / np.maximum(rho, 1e-12))[:, None] * rel
+            pull = self.roughness.pothole_depth * (rate / np.maximum(rho, 1e-12))[:, None] * rel
+            grad = grad - np.column_stack([np.bincount(point, pull[:, k], minlength=len(pts)) for k in (0, 1)])
         return grad
 
 
