@@ -258,3 +258,21 @@ def test_a_turn_on_a_plane_tilted_both_ways_balances_the_combinations_momentum(r
     force += drag * np.array([math.cos(x[2]), math.sin(x[2])])
     assert abs(x[5]) > 0.05  # turning: a yaw rate above 0.05 rad/s
     assert np.all(np.abs(force - momentum_rate) <= 1e-6 * masses.sum() * GRAVITY)
+
+
+def test_wheel_speeds_are_measured_along_the_grade_and_unchanged_on_the_flat():
+    """A wheel rolls along the ground: on a plane rising 10 % along +x a combination heading +x at u = 5 m/s has its
+    tractor and trailer wheels turn at u·sqrt(1 + 0.1²) (noise-free signals, 1e-12); on a flat road exactly u."""
+    from scenarios.loop.plant import SignalsParticipant
+    from vehicle_model.simulator import VehicleState
+
+    quiet = {f"signals.{n}.noise_std": 0.0 for n in ("wheel_speed", "trailer_wheel_speed")}
+    graded = build_scenario(
+        load_scenario("pbs-low-speed-turn", {"terrain.kind": "plane", "terrain.grade_percent": 10.0, **quiet})
+    )
+    flat = build_scenario(load_scenario("pbs-low-speed-turn", quiet))
+    state = VehicleState(time=0.0, X=0.0, Y=0.0, psi1=0.0, u=5.0, v1=0.0, r1=0.0, gamma=0.0, r2=0.0, slip=np.zeros(0))
+    for setup, factor in ((graded, math.sqrt(1.01)), (flat, 1.0)):
+        measured = SignalsParticipant(setup).measure(0.0, state, np.zeros(8), 0.0)
+        assert float(measured["wheel_speed"][0]) == pytest.approx(5.0 * factor, rel=1e-12)
+        assert float(measured["trailer_wheel_speed"][0]) == pytest.approx(5.0 * factor, rel=1e-12)

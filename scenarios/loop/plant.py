@@ -9,10 +9,11 @@ import casadi as ca
 import numpy as np
 
 from sensor.signals import CHANNELS, OnboardSignals
-from vehicle_model.geometry import follow_point_from_kingpin
+from vehicle_model.geometry import follow_point_from_kingpin, unit_frame
 from vehicle_model.kinematics import coupling_velocity, kingpin_velocity, trailer_axle_speed
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import Simulator, VehicleState
+from vehicle_model.terrain import FlatTerrain, along_slope_factor
 
 from ..setup.build import ScenarioSetup
 from .participant import Column, TickInput
@@ -162,6 +163,21 @@ class SignalsParticipant:
             for unit in self.unit_sensors
         }
         self.measured: dict[str, np.ndarray] = {}
+        self._terrain = None if isinstance(setup.terrain, FlatTerrain) else setup.terrain
+        self._axle_station = [float(np.mean([a.x for a in trailer.axles])) for trailer in setup.params.trailers]
+
+    def _along_ground(self, state: VehicleState, unit: int) -> float:
+        """Wheel speed along the ground over horizontal speed at unit ``unit``'s axles (0: the tractor's CG),
+        ``1 / cos θ_t`` of the grade in its heading (docs/terrain.md); exactly 1 on flat terrain."""
+        if self._terrain is None:
+            return 1.0
+        if unit == 0:
+            point, heading = np.array([[state.X, state.Y]]), state.psi1
+        else:
+            origin, heading = unit_frame(self.params, state.chain_pose, unit)
+            station = self._axle_station[unit - 1]
+            point = (origin + station * np.array([math.cos(heading), math.sin(heading)]))[None, :]
+        return float(along_slope_factor(self._terrain, point, heading)[0])
 
     def measure(
         self, time: float, state: VehicleState, steer: np.ndarray, lateral_acceleration: float
@@ -171,12 +187,12 @@ class SignalsParticipant:
         (:func:`~vehicle_model.kinematics.tractor_lateral_specific_force`)."""
         index = self._trailer_index
         truth = {
-            "wheel_speed": state.u,
+            "wheel_speed": state.u * self._along_ground(state, 0),
             "front_steer": steer[0],
             "tractor_yaw_rate": state.r1,
             "articulation": state.gamma,
             "trailer_yaw_rate": state.r2,
-            "trailer_wheel_speed": trailer_axle_speed(self.params, state),
+            "trailer_wheel_speed": trailer_axle_speed(self.params, state) * self._along_ground(state, 1),
             "trailer_steer": steer[index] if index else np.zeros(0),
             "rear_articulation": state.trailing[0::2],
             "tractor_lateral_acceleration": lateral_acceleration,
@@ -185,7 +201,7 @@ class SignalsParticipant:
         for unit, sensors in self.unit_sensors.items():
             own = {
                 "trailer_yaw_rate": state.towed_yaw_rates[unit - 1],
-                "trailer_wheel_speed": unit_axle_speed(self.params, state, unit),
+                "trailer_wheel_speed": unit_axle_speed(self.params, state, unit) * self._along_ground(state, unit),
                 "trailer_steer": steer[self._unit_index[unit]] if self._unit_index[unit] else np.zeros(0),
             }
             measured = sensors.measure(time, {**dict.fromkeys(CHANNELS, 0.0), **own})
