@@ -37,6 +37,7 @@ from sensor.stereo_camera import RawStereoPair, StereoCamera
 from sensor.vehicle_bodies import exclusion_masks
 from vehicle_model.geometry import ChainPose, CombinationPose
 from vehicle_model.simulator import VehicleState
+from vehicle_model.terrain import Terrain
 
 from ..setup.build import ScenarioSetup
 from .build import flex_schedule, frame_odometry, pair_developer, rig_settings, stereo_camera
@@ -99,6 +100,9 @@ class CameraFeed:
         Keep the odometry off the other units of the combination: their boxes, placed by the known articulation,
         are projected into each image (:func:`sensor.vehicle_bodies.exclusion_masks`) and no features are taken
         there (docs/combination_view.md). No effect while no other unit is in view.
+    terrain
+        The ground the world is draped on and the combination stands on (docs/terrain_camera.md); ``None``: the
+        level road.
 
     Attributes
     ----------
@@ -125,10 +129,12 @@ class CameraFeed:
         rig_index: int = 0,
         *,
         body_masks: bool = True,
+        terrain: Terrain | None = None,
     ) -> None:
         rig_settings(setup.config, rig_index)  # refuses a rig the configuration does not have
         self.rig_index = rig_index
         self.body_masks = bool(body_masks)
+        self.terrain = terrain
         frame_cache = frame_cache if frame_cache is not None else frame_cache_from_env()
         workers = 0 if frame_cache is not None else workers
         self.latency_ticks = latency_ticks(setup)
@@ -138,11 +144,11 @@ class CameraFeed:
         self._workers: RenderWorkers | None = None
         if workers > 0:
             self._workers = RenderWorkers(
-                setup.config, workers, rig_index=rig_index
+                setup.config, workers, rig_index=rig_index, terrain=terrain
             )  # start them first: they take a while
             self._developer = pair_developer(setup.config, rig_index)
         else:
-            self._camera = stereo_camera(setup, frame_cache=frame_cache, rig_index=rig_index)
+            self._camera = stereo_camera(setup, frame_cache=frame_cache, rig_index=rig_index, terrain=terrain)
             self._developer = self._camera.developer
         self._odometry = frame_odometry(setup, self._developer.optics, rig_index)
         self.rig = self._developer.rig
@@ -174,7 +180,7 @@ class CameraFeed:
         """The left camera's grey image at ``pose`` as the renderer draws it (no noise, exposure or lens), e.g. for
         a display; with render workers a camera is built in this process for it on the first call."""
         if self._camera is None:
-            self._camera = stereo_camera(self._setup, rig_index=self.rig_index)
+            self._camera = stereo_camera(self._setup, rig_index=self.rig_index, terrain=self.terrain)
         return self._camera.view_image(pose)
 
     @property
@@ -205,9 +211,13 @@ class CameraFeed:
         if not self.body_masks:
             return None
         rig = self.rig
-        cameras = (rig.camera_in_world(params, pose, "left"), rig.camera_in_world(params, pose, "right"))
+        terrain = self.terrain
+        cameras = (
+            rig.camera_in_world(params, pose, "left", terrain),
+            rig.camera_in_world(params, pose, "right", terrain),
+        )
         size = (rig.width, rig.height)  # the odometry's images have the rig's size
-        return exclusion_masks(params, pose, cameras, self._vo_k, size, skip_unit=rig.unit)
+        return exclusion_masks(params, pose, cameras, self._vo_k, size, skip_unit=rig.unit, terrain=terrain)
 
     def deliver(self, tick: int) -> float | None:
         """Release the estimates due by control tick ``tick`` (waiting for them if need be); return :attr:`estimate`.

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from vehicle_model.errors import InputError
+from vehicle_model.terrain import Terrain
 
 LEVELS: dict[str, float] = {
     "road": 0.0,
@@ -289,6 +290,9 @@ class World:
     mipmaps : dict of str to tuple of numpy.ndarray
         Mipmap levels 1, 2, … to upload instead of OpenGL's box-filtered ones, by texture name
         (:func:`sensor.world.detail.detail_mipmaps`); textures not listed get ``glGenerateMipmap``'s.
+    terrain : Terrain or None
+        The ground the world was draped on (:func:`sensor.world.build_world`); the renderer places the cameras
+        and the combination's units on it. ``None``: the level road (Z = 0).
     """
 
     config: WorldConfig
@@ -299,6 +303,7 @@ class World:
     object_counts: dict[str, int] = field(default_factory=dict)
     sky_rgb: tuple[float, float, float] = SKY_RGB
     mipmaps: dict[str, tuple[np.ndarray, ...]] = field(default_factory=dict)
+    terrain: Terrain | None = None
 
     @property
     def triangle_count(self) -> int:
