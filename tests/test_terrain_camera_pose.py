@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from sensor.camera import StereoRig
+from sensor.vehicle_bodies import unit_poses
 from vehicle_model.geometry import ChainPose, CombinationPose, kingpin_position, tractor_points, unit_frame
 from vehicle_model.presets import reference_laden, vehicle_preset
 from vehicle_model.terrain import FlatTerrain
@@ -125,3 +126,41 @@ def test_flat_terrain_is_recognised():
     assert is_flat(None) and is_flat(FlatTerrain()) and not is_flat(TiltedPlane(0.0, 0.0))
     att = unit_attitude(reference_laden(), CombinationPose(3.0, 1.0, 0.4, 0.1), FlatTerrain())
     assert float(att.pitch) == 0.0 and float(att.roll) == 0.0 and float(att.z) == 0.0
+
+
+# -- the camera's 6-DoF pose ----------------------------------------------------------------------------------------
+
+
+def test_camera_poses_on_flat_terrain_are_bit_identical_to_the_level_road():
+    params = vehicle_preset("au-b-double")
+    psi = np.array([0.1, 1.2, -0.4])
+    chain = ChainPose(np.array([1.0, 5.0, -3.0]), np.zeros(3), psi, (np.full(3, 0.2), np.full(3, -0.1)))
+    for rig in (StereoRig(width=64, height=32), StereoRig(width=64, height=32, unit=2, lateral=0.3)):
+        for which in ("left", "right"):
+            level = rig.camera_in_world(params, chain, which)
+            assert np.array_equal(level, rig.camera_in_world(params, chain, which, FlatTerrain()))
+            assert np.array_equal(level, rig.camera_in_world(params, chain, which, None))
+    one = ChainPose(1.0, 5.0, 0.1, (0.2, -0.1))
+    frames = unit_poses(params, one)
+    flat = unit_poses(params, one, FlatTerrain())
+    assert all((a is None and b is None) or np.array_equal(a, b) for a, b in zip(frames, flat, strict=True))
+
+
+def test_camera_on_a_tilted_plane_is_mount_height_above_it_along_its_normal_and_turned_with_the_unit():
+    params = reference_laden()
+    plane = TiltedPlane(-0.08, 0.06, 1.5)
+    rig = StereoRig(width=64, height=32)
+    pose = CombinationPose(10.0, 2.0, 0.9, 0.25)
+    att = unit_attitude(params, pose, plane)
+    for which in ("left", "right"):
+        cam = rig.camera_in_world(params, pose, which, plane)
+        normal = att.rotation[:, 2]
+        ground = np.array([cam[0, 3], cam[1, 3], plane.height(cam[None, :2, 3])[0]])
+        assert abs((cam[:3, 3] - ground) @ normal - rig.mount_height) < 1e-9  # height above the plane, along normal
+        level = rig.camera_in_world(params, pose, which)
+        # the same camera in the unit's frame: rotation R_world←unit times the level rotation's unit part
+        yaw = np.array([[math.cos(0.65), -math.sin(0.65), 0.0], [math.sin(0.65), math.cos(0.65), 0.0], [0, 0, 1]])
+        assert np.allclose(cam[:3, :3], att.rotation @ yaw.T @ level[:3, :3], atol=1e-12)
+    frames = unit_poses(params, pose, plane)
+    assert np.allclose(frames[1][:3, :3], att.rotation, atol=1e-15)
+    assert abs(frames[1][2, 3] - float(att.z)) < 1e-12

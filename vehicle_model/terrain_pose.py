@@ -186,7 +186,8 @@ def _normal_of(attitude: UnitAttitude) -> np.ndarray:
 def unit_attitude(
     params: VehicleParams, pose: CombinationPose | ChainPose, terrain: Terrain, unit: int = 1
 ) -> UnitAttitude:
-    """The attitude of unit ``unit`` (0: the tractor, 1: the first towed unit, …) at ``pose`` (:func:`unit_attitudes`)."""
+    """The attitude of unit ``unit`` (0: the tractor, 1: the first towed unit, …) at ``pose``
+    (:func:`unit_attitudes`)."""
     if not 0 <= unit <= len(params.trailers):
         raise ValueError(f"unit = {unit}: a unit of {params.name!r}, 0 to {len(params.trailers)}")
     att = unit_attitudes(params, pose, terrain)[unit]
