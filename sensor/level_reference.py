@@ -35,7 +35,23 @@ import numpy as np
 
 from vehicle_model.errors import InputError
 
-__all__ = ["LEVEL_REFERENCES", "AccelerometerTilt", "split_yaw", "tilt_angles", "tilt_rotation"]
+__all__ = [
+    "LEVEL_REFERENCES",
+    "TRAILER_TILT_BIAS",
+    "TRAILER_TILT_NOISE",
+    "AccelerometerTilt",
+    "split_yaw",
+    "tilt_angles",
+    "tilt_rotation",
+    "trailer_accelerometer",
+]
+
+TRAILER_TILT_BIAS = 0.005
+"""Assumed residual tilt error of a trailer accelerometer [rad], in pitch and in roll: an offset of about 5 mg
+(0.05 m/s²) left after the unit's mounting is calibrated, plus what the kinematic acceleration's removal leaves."""
+
+TRAILER_TILT_NOISE = 0.001
+"""Assumed white noise of each tilt reading [rad] (the accelerometer averaged over one camera period)."""
 
 LEVEL_REFERENCES: tuple[str, ...] = ("planar", "odometry", "accelerometer")
 """How VISO-OT finds the level: ``planar`` (the paper's level road: no tilt), or a source of the unit's tilt."""
@@ -99,3 +115,9 @@ class AccelerometerTilt:
             n = self.noise * self._rng.standard_normal(2)
             return pitch + self.bias_pitch + float(n[0]), roll + self.bias_roll + float(n[1])
         return pitch + self.bias_pitch, roll + self.bias_roll
+
+
+def trailer_accelerometer(seed: int) -> AccelerometerTilt:
+    """The accelerometer a camera run assumes on its unit: :data:`TRAILER_TILT_BIAS` in pitch and roll and
+    :data:`TRAILER_TILT_NOISE`, seeded by ``seed``."""
+    return AccelerometerTilt(TRAILER_TILT_BIAS, TRAILER_TILT_BIAS, TRAILER_TILT_NOISE, seed=int(seed))

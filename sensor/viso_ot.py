@@ -246,6 +246,11 @@ class VisoOtEstimator:
         d_kingpin = d_camera + np.array([c * lever[0] - s * lever[1], s * lever[0] + c * lever[1]]) - lever
         return float(d_kingpin[0]), float(d_kingpin[1]), dpsi
 
+    def set_tilt(self, pitch: float, roll: float) -> None:
+        """Take the unit's (pitch, roll) [rad] as its tilt at the last frame (e.g. the first frame's reading, before
+        any motion)."""
+        self.tilt = tilt_rotation(float(pitch), float(roll))
+
     def level_increment(self, camera_motion: np.ndarray, tilt: np.ndarray | None = None) -> tuple[tuple, np.ndarray]:
         """Kingpin increment ``(dx, dy, dψ)`` in the previous **level** frame from one camera motion, and the unit's
         tilt at this frame: ``tilt`` (3×3, :func:`~sensor.level_reference.tilt_rotation`) when given, else split

@@ -10,6 +10,7 @@ motions are worse on the ramp and the waves by more than that (docs/terrain_came
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -95,7 +96,7 @@ def _steady_turn(params, radius: float, frames: int, speed: float = 5.0, dt: flo
 
 def _motions(rig, params, poses, terrain):
     cams = [rig.camera_in_world(params, p, "left", terrain) for p in poses]
-    return [np.linalg.inv(a) @ b for a, b in zip(cams[:-1], cams[1:], strict=True)]
+    return [np.linalg.inv(a) @ b for a, b in itertools.pairwise(cams)]
 
 
 def _run(estimator, motions, tilts=None):

@@ -145,7 +145,7 @@ def test_rendered_depth_on_a_tilted_plane_meets_the_plane_from_the_cameras_pose(
     rig = StereoRig(width=256, height=96)
     pose = CombinationPose(30.0, 0.0, 0.0, 0.0)
     renderer = StereoRenderer(plane_world, rig, params)
-    grey, depth = renderer.render_view(pose, depth=True)
+    _grey, depth = renderer.render_view(pose, depth=True)
     cam = rig.camera_in_world(params, pose, "left", PLANE)
     k = rig.intrinsics()
     v, u = np.mgrid[0 : rig.height, 0 : rig.width]

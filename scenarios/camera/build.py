@@ -381,10 +381,13 @@ def pair_developer(config: ScenarioConfig, rig_index: int = 0) -> PairDeveloper:
     return PairDeveloper(rig_from_config(config, rig_index), **_camera_settings(config, rig_index))
 
 
-def frame_odometry(setup: ScenarioSetup, optics: FieldOptics, rig_index: int = 0) -> FrameOdometry:
+def frame_odometry(
+    setup: ScenarioSetup, optics: FieldOptics, rig_index: int = 0, level_reference: str = "planar"
+) -> FrameOdometry:
     """The per-frame estimator of rig ``rig_index`` on the images ``optics`` gives (the rig's
     ``self_calibration`` and ``vo_refinement``, rates, the rig's seed), estimating the off-tracking of the towed
-    unit the rig is on."""
+    unit the rig is on; ``level_reference`` how VISO-OT finds the level on terrain (:mod:`sensor.level_reference`,
+    default the level road)."""
     from sensor.frame_odometry import FrameOdometry
 
     cfg = setup.config
@@ -400,4 +403,5 @@ def frame_odometry(setup: ScenarioSetup, optics: FieldOptics, rig_index: int = 0
         rig_seed(cfg.seed, rig_index),
         settings,
         **unit,
+        **({} if level_reference == "planar" else {"level_reference": level_reference}),
     )
