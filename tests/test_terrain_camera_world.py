@@ -176,3 +176,60 @@ def test_a_world_built_on_flat_terrain_renders_the_same_images_bit_for_bit():
         pair = StereoRenderer(world, rig, params).render(pose, frame=3)
         images.append((pair.left, pair.right))
     assert np.array_equal(images[0][0], images[1][0]) and np.array_equal(images[0][1], images[1][1])
+
+
+@dataclass(frozen=True)
+class Broken:
+    """A terrain whose height is not finite everywhere (a DEM with holes)."""
+
+    def height(self, p):
+        z = np.asarray(p, float)[:, 0] * 0.01
+        z[::7] = np.nan
+        return z
+
+    def gradient(self, p):
+        return np.zeros((len(p), 2))
+
+
+def test_a_terrain_without_finite_heights_is_refused_by_name():
+    from vehicle_model.terrain_pose import unit_attitude
+
+    with pytest.raises(InputError, match=r"terrain.height must give \d+ finite heights"):
+        build_world(ROAD, terrain=Broken(), **SMALL)
+
+    @dataclass(frozen=True)
+    class WrongShape:
+        def height(self, p):
+            return np.zeros((len(p), 1))
+
+        def gradient(self, p):
+            return np.zeros((len(p), 2))
+
+    with pytest.raises(ValueError, match=r"terrain.height returned shape"):
+        unit_attitude(reference_laden(), CombinationPose(0.0, 0.0, 0.0, 0.0), WrongShape())
+
+
+def test_the_runs_camera_feed_stands_on_the_terrain_and_reads_the_units_tilt():
+    from scenarios.camera.delivery import CameraFeed
+    from scenarios.config import load_scenario
+    from scenarios.setup.build import build_scenario
+    from sensor.level_reference import TRAILER_TILT_BIAS, TRAILER_TILT_NOISE
+    from vehicle_model.terrain_pose import unit_attitude
+
+    setup = build_scenario(load_scenario("constant-slip", {"camera.width": 336, "camera.height": 98}))
+    level = CameraFeed(setup)
+    assert level.terrain is None and level.level_reference == "planar" and level.tilt(None) is None
+    assert level._odometry.estimator.level_reference == "planar"
+    level.close()
+    feed = CameraFeed(setup, terrain=PLANE)
+    assert feed.renderer is not None and feed.renderer.world.terrain is PLANE
+    assert feed.level_reference == "accelerometer" and feed._odometry.estimator.level_reference == "accelerometer"
+    pose = CombinationPose(20.0, 1.0, 0.3, 0.1)
+    att = unit_attitude(setup.params, pose, PLANE, 1)
+    pitch, roll = feed.tilt(pose)
+    tol = 5 * TRAILER_TILT_NOISE
+    assert (
+        abs(pitch - float(att.pitch) - TRAILER_TILT_BIAS) < tol
+        and abs(roll - float(att.roll) - TRAILER_TILT_BIAS) < tol
+    )
+    feed.close()

@@ -19,7 +19,7 @@ from .layout import build_layout
 from .road import road_parts
 from .roundabout import roundabout_parts
 from .scenery import horizon_part, scenery_parts
-from .terrain_mesh import drape_parts
+from .terrain_mesh import drape_parts, terrain_heights
 from .types import PathLike, RoadPath, World, WorldConfig
 from .unsealed import unsealed_mipmaps, unsealed_textures
 
@@ -61,6 +61,8 @@ def build_world(
             raise InputError("world.kind = 'airfield' is level; allowed with a terrain: roadside")
         return airfield_world(road, cfg)
     streams = [np.random.default_rng(s) for s in np.random.SeedSequence([int(cfg.seed), 0x57]).spawn(5)]
+    if not flat:
+        terrain_heights(terrain, road.points)  # a terrain without heights under the path fails before any work
     lay = build_layout(road, cfg)
     lay.terrain = None if flat else terrain
     parts = road_parts(lay)

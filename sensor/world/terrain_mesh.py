@@ -34,6 +34,7 @@ __all__ = [
     "ground_grid",
     "ground_vertex_count",
     "lateral_divisions",
+    "terrain_heights",
 ]
 
 MAX_GROUND_VERTICES = 4_000_000
@@ -101,7 +102,8 @@ def check_ground_size(count: int, spacing: float) -> None:
         )
 
 
-def _heights(terrain: Terrain, xy: np.ndarray) -> np.ndarray:
+def terrain_heights(terrain: Terrain, xy: np.ndarray) -> np.ndarray:
+    """``terrain.height`` of points ``(n, 2)``, refused (:class:`InputError`) unless ``n`` finite heights."""
     z = np.asarray(terrain.height(np.asarray(xy, dtype=float)), dtype=float)
     if z.shape != (len(xy),) or not np.all(np.isfinite(z)):
         raise InputError(f"terrain.height must give {len(xy)} finite heights for the world's points")
@@ -127,7 +129,7 @@ def drape_parts(parts: tuple[Part, ...] | list[Part], terrain: Terrain) -> list[
     for part in parts:
         if part.poses is None:
             pos = part.positions.astype(np.float64)
-            pos[:, 2] += _heights(terrain, pos[:, :2])
+            pos[:, 2] += terrain_heights(terrain, pos[:, :2])
             out.append(_replace(part, positions=pos.astype(np.float32)))
             continue
         poses = np.array(part.poses, dtype=np.float64)
@@ -137,7 +139,7 @@ def drape_parts(parts: tuple[Part, ...] | list[Part], terrain: Terrain) -> list[
         base = poses[:, :2, 3]
         slope = np.hypot(*np.asarray(terrain.gradient(base), dtype=float).T)
         scale = np.linalg.norm(poses[:, :3, 0], axis=1)
-        poses[:, 2, 3] += _heights(terrain, base) - radius[_object_key(part.name)] * scale * slope
+        poses[:, 2, 3] += terrain_heights(terrain, base) - radius[_object_key(part.name)] * scale * slope
         out.append(_replace(part, poses=poses))
     return out
 
