@@ -74,7 +74,7 @@ class Undulation:
         )
 
 
-def _steady_turn(params, radius: float, frames: int, speed: float = 5.0, dt: float = 0.1) -> list[CombinationPose]:
+def steady_turn(params, radius: float, frames: int, speed: float = 5.0, dt: float = 0.1) -> list[CombinationPose]:
     """A kinematic tractor–semi-trailer: tractor CG on a circle (anticlockwise) from x = 0, heading +x; the trailer
     heading follows its kingpin without slip (sub-stepped)."""
     l_axle = float(np.mean(params.trailer_axle_distances(1)))
@@ -110,7 +110,7 @@ def _run(estimator, motions, tilts=None):
 def setting():
     params = reference_laden()
     rig = StereoRig(width=64, height=32)
-    poses = _steady_turn(params, 30.0, 140)
+    poses = steady_turn(params, 30.0, 140)
     level = _run(VisoOtEstimator(params, rig.camera_in_trailer("left", params)), _motions(rig, params, poses, None))
     assert np.isfinite(level[-40:]).all() and np.nanmax(np.abs(level)) > 0.3  # a real off-tracking in the turn
     return params, rig, poses, level
