@@ -1,4 +1,6 @@
 # vehicle_model/terrain.py
+"""The ground under the combination: a height field z(x, y) (the Terrain protocol) and the level plane."""
+
 from dataclasses import dataclass
 from typing import Protocol
 

@@ -14,15 +14,15 @@ import numpy as np
 from vehicle_model.terrain_pose import is_flat
 
 from .. import textures as tx
-from . import unsealed as us
 from .layout import Layout
 from .mesh import MeshBuilder, planar_uv
 from .terrain_mesh import check_ground_size, graded_lines, ground_grid, ground_vertex_count
 from .types import LEVELS, Part
+from .unsealed import CUT_FACE_SLOPE, CUT_TEXTURE, GROUND_TEXTURES, UNSEALED_TILE_SIZE
 
 
 def _tile(name: str) -> float:
-    return us.UNSEALED_TILE_SIZE[name] if name in us.UNSEALED_TILE_SIZE else tx.TILE_SIZE[name]
+    return UNSEALED_TILE_SIZE[name] if name in UNSEALED_TILE_SIZE else tx.TILE_SIZE[name]
 
 
 def ground_parts(lay: Layout, rng: np.random.Generator) -> tuple[list[Part], np.ndarray, np.ndarray]:
@@ -41,8 +41,8 @@ def ground_parts(lay: Layout, rng: np.random.Generator) -> tuple[list[Part], np.
     kinds = rng.integers(0, len(tx.FIELD_TEXTURES), (nx, ny))
     angles = rng.uniform(0, math.pi, (nx, ny))
     offsets = rng.random((nx, ny, 2))
-    names = tx.FIELD_TEXTURES if cfg.surface == "sealed" else us.GROUND_TEXTURES
-    builders = {name: MeshBuilder() for name in (*names, us.CUT_TEXTURE)}
+    names = tx.FIELD_TEXTURES if cfg.surface == "sealed" else GROUND_TEXTURES
+    builders = {name: MeshBuilder() for name in (*names, CUT_TEXTURE)}
     z = LEVELS["field"]
     quad = np.array([[0, 1, 2], [0, 2, 3]])
     terrain = lay.terrain
@@ -69,7 +69,7 @@ def ground_parts(lay: Layout, rng: np.random.Generator) -> tuple[list[Part], np.
                 builders[name].add(pos, uv, idx[~cut])
                 if cut.any():
                     rock_uv = _cut_face_uv(terrain, pos)
-                    builders[us.CUT_TEXTURE].add(pos, rock_uv, idx[cut])
+                    builders[CUT_TEXTURE].add(pos, rock_uv, idx[cut])
     parts = [b.part(f"field_{n}", "ground", n) for n, b in builders.items()]
     return [p for p in parts if p is not None], xs, ys
 
@@ -79,11 +79,11 @@ def _steep(terrain, pos: np.ndarray, idx: np.ndarray) -> np.ndarray:
     h = np.asarray(terrain.height(pos[:, :2]), dtype=float)
     p = np.column_stack([pos[:, :2], h])
     n = np.cross(p[idx[:, 1]] - p[idx[:, 0]], p[idx[:, 2]] - p[idx[:, 0]])
-    return np.hypot(n[:, 0], n[:, 1]) > us.CUT_FACE_SLOPE * np.abs(n[:, 2])
+    return np.hypot(n[:, 0], n[:, 1]) > CUT_FACE_SLOPE * np.abs(n[:, 2])
 
 
 def _cut_face_uv(terrain, pos: np.ndarray) -> np.ndarray:
     """Rock texture coordinates: u along the contour, v up the height (strata run level across a cut)."""
     h = np.asarray(terrain.height(pos[:, :2]), dtype=float)
-    tile = us.UNSEALED_TILE_SIZE[us.CUT_TEXTURE]
+    tile = UNSEALED_TILE_SIZE[CUT_TEXTURE]
     return np.column_stack([(pos[:, 0] + pos[:, 1]) / tile, h / tile])

@@ -10,11 +10,11 @@ from scipy.spatial import cKDTree
 from vehicle_model.terrain_pose import is_flat
 
 from .. import textures as tx
-from . import unsealed as us
 from .layout import Layout, polyline_normals, resample
 from .mesh import MeshBuilder, annulus, planar_uv, strip
 from .terrain_mesh import lateral_divisions
 from .types import DASH_PERIOD, LEVELS, Part
+from .unsealed import ROAD_TEXTURE, RUT_TILE_WIDTH, UNSEALED_TILE_SIZE, VERGE_TEXTURE
 
 
 def _line_strip(
@@ -37,8 +37,8 @@ def _along_road_uv(pos: np.ndarray, points: np.ndarray, normals: np.ndarray, div
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))])
     rel = pos[:, :2].reshape(len(points), m, 2) - points[:, None, :]
     lateral = np.einsum("nmk,nk->nm", rel, normals)
-    u = 0.5 + lateral / us.RUT_TILE_WIDTH
-    v = np.broadcast_to((s / us.UNSEALED_TILE_SIZE[us.ROAD_TEXTURE])[:, None], u.shape)
+    u = 0.5 + lateral / RUT_TILE_WIDTH
+    v = np.broadcast_to((s / UNSEALED_TILE_SIZE[ROAD_TEXTURE])[:, None], u.shape)
     return np.column_stack([u.ravel(), v.ravel()])
 
 
@@ -56,7 +56,7 @@ def road_parts(lay: Layout) -> list[Part]:
     road_div = 1 if flat else lateral_divisions(2.0 * half, spacing)
     verge_div = 1 if flat else lateral_divisions(3.1, spacing)
     if unsealed:
-        tile_v = us.UNSEALED_TILE_SIZE[us.VERGE_TEXTURE]
+        tile_v = UNSEALED_TILE_SIZE[VERGE_TEXTURE]
     run_trees = [cKDTree(lay.samples[a : b + 1]) for a, b in lay.runs]
 
     def outside_rings(mid: np.ndarray) -> np.ndarray:
@@ -112,9 +112,9 @@ def road_parts(lay: Layout) -> list[Part]:
                 builder, period = lines_b, tx.TILE_SIZE["paint_line"]
             builder.add(*_line_strip(ring, -unit, 0.0, w, period, keep))
     parts = (
-        asphalt.part("road", "road", us.ROAD_TEXTURE if unsealed else "asphalt"),
+        asphalt.part("road", "road", ROAD_TEXTURE if unsealed else "asphalt"),
         lines_b.part("road_lines", "road", "paint_line"),
         dashes_b.part("road_dashes", "road", "paint_dash"),
-        verge.part("verge", "ground", us.VERGE_TEXTURE if unsealed else "verge"),
+        verge.part("verge", "ground", VERGE_TEXTURE if unsealed else "verge"),
     )
     return [p for p in parts if p is not None]
