@@ -119,8 +119,8 @@ class StereoRenderer:
     bodies : bool
         Draw the combination's units (boxes and wheels, :mod:`sensor.vehicle_bodies`) at the vehicle pose of each
         render, all but the rig's own unit (:attr:`StereoRig.unit`), on the world's terrain (:attr:`terrain`);
-        False: the world alone. Renders from camera
-        poses alone (:meth:`render_poses` without ``vehicle``) draw no units.
+        False: the world alone. Renders from camera poses alone (:meth:`render_poses` without ``vehicle``) draw no
+        units.
 
     Notes
     -----
