@@ -164,3 +164,15 @@ def test_camera_on_a_tilted_plane_is_mount_height_above_it_along_its_normal_and_
     frames = unit_poses(params, pose, plane)
     assert np.allclose(frames[1][:3, :3], att.rotation, atol=1e-15)
     assert abs(frames[1][2, 3] - float(att.z)) < 1e-12
+
+
+@pytest.mark.parametrize("name", ["nordic-truck-dolly-semi", "au-a-double", "eu-truck-centre-axle"])
+def test_dollies_drawbar_trailers_and_long_chains_have_the_plane_attitude_exactly(name):
+    """A converter dolly rests on its own axles, a centre-axle trailer's eye on the truck: on a plane, all exact."""
+    params = vehicle_preset(name)
+    plane = TiltedPlane(0.07, -0.04, 2.0)
+    pose = ChainPose(3.0, 4.0, 0.5, tuple([0.1] * len(params.trailers)))
+    for k, att in enumerate(unit_attitudes(params, pose, plane)):
+        psi = 0.5 if k == 0 else float(unit_frame(params, pose, k)[1])
+        pitch, roll = _expected(plane.a, plane.b, psi)
+        assert abs(float(att.pitch) - pitch) < 1e-9 and abs(float(att.roll) - roll) < 1e-9
