@@ -125,8 +125,11 @@ def test_a_ground_grid_too_large_is_refused_before_it_is_built():
 
 
 def test_the_unsealed_world_has_gravel_ruts_scrub_and_rock_cut_faces():
-    world = build_world(ROAD, terrain=Ridge(), surface="unsealed", **SMALL)
+    world = build_world(ROAD, terrain=Ridge(), surface="unsealed", **{**SMALL, "scenery_density": 1.0})
     names = {p.name: p.texture for p in world.parts}
+    kinds = {p.name.rpartition("_")[0] or p.name for p in world.parts if p.category == "scenery"}
+    assert kinds <= {"post", "tree", "conifer", "boulder"} and world.object_counts["boulders"] > 0  # no farm, no signs
+    assert names["boulder"] == CUT_TEXTURE
     assert names["road"] == ROAD_TEXTURE and "road_lines" not in names and "road_dashes" not in names
     assert names["verge"] == "scrub" and f"field_{CUT_TEXTURE}" in names  # the ridge's flanks are steeper than 0.6
     for name, img in unsealed_textures(0).items():

@@ -21,7 +21,7 @@ from .roundabout import roundabout_parts
 from .scenery import horizon_part, scenery_parts
 from .terrain_mesh import drape_parts, terrain_heights
 from .types import PathLike, RoadPath, World, WorldConfig
-from .unsealed import unsealed_mipmaps, unsealed_textures
+from .unsealed import boulder_part, off_highway_parts, unsealed_mipmaps, unsealed_textures
 
 
 def build_world(
@@ -74,6 +74,10 @@ def build_world(
     landscape = landscape_parts(lay, streams[4], xs, ys) if cfg.landscape else []
     landscape += [horizon_part(lay, streams[3])] if cfg.horizon else []
     all_parts = ground + parts + rb_parts + scenery + landscape
+    if cfg.surface == "unsealed":  # an off-highway roadside: trees, posts and boulders (sensor.world.unsealed)
+        boulders = boulder_part(lay, np.random.default_rng([int(cfg.seed), 0xB01D]))
+        all_parts = off_highway_parts(all_parts) + ([] if boulders is None else [boulders])
+        counts = {**counts, "boulders": 0 if boulders is None else boulders.instances}
     textures = with_aliases(tx.texture_set(int(cfg.seed)))
     mipmaps = ground_mipmaps(int(cfg.seed)) if cfg.detailed_ground else {}
     if cfg.surface == "unsealed":

@@ -110,10 +110,10 @@ def terrain_heights(terrain: Terrain, xy: np.ndarray) -> np.ndarray:
     return z
 
 
-def _object_key(name: str) -> str:
-    """The object a part belongs to: parts ``kind_0``, ``kind_1`` … are one object's trunk, crown, roof …"""
-    head, _, tail = name.rpartition("_")
-    return head if head and tail.isdigit() else name
+def _object_key(part: Part) -> bytes:
+    """The objects a part belongs to: the parts of one kind of object (a tree's trunk and crown, a barn's walls and
+    roof) are instanced at the same poses."""
+    return np.ascontiguousarray(part.poses, dtype=np.float64).tobytes()
 
 
 def drape_parts(parts: tuple[Part, ...] | list[Part], terrain: Terrain) -> list[Part]:
@@ -123,7 +123,7 @@ def drape_parts(parts: tuple[Part, ...] | list[Part], terrain: Terrain) -> list[
     for part in parts:
         if part.poses is not None:
             r = float(np.hypot(part.positions[:, 0], part.positions[:, 1]).max()) if len(part.positions) else 0.0
-            key = _object_key(part.name)
+            key = _object_key(part)
             radius[key] = max(radius.get(key, 0.0), r)
     out = []
     for part in parts:
@@ -139,7 +139,7 @@ def drape_parts(parts: tuple[Part, ...] | list[Part], terrain: Terrain) -> list[
         base = poses[:, :2, 3]
         slope = np.hypot(*np.asarray(terrain.gradient(base), dtype=float).T)
         scale = np.linalg.norm(poses[:, :3, 0], axis=1)
-        poses[:, 2, 3] += terrain_heights(terrain, base) - radius[_object_key(part.name)] * scale * slope
+        poses[:, 2, 3] += terrain_heights(terrain, base) - radius[_object_key(part)] * scale * slope
         out.append(_replace(part, poses=poses))
     return out
 

@@ -147,8 +147,9 @@ class WorldConfig:
     surface : str
         ``sealed`` (asphalt with painted lines, grass verges, farm fields) or ``unsealed`` (an unsealed road of
         compacted gravel with wheel ruts and no paint, dry scrub verges, dirt, stony and scrub ground, and rock
-        cut faces where the terrain is steeper than :data:`sensor.world.unsealed.CUT_FACE_SLOPE`;
-        :mod:`sensor.world.unsealed`). Roadside objects are thinned by ``scenery_density`` either way.
+        cut faces where the terrain is steeper than :data:`sensor.world.unsealed.CUT_FACE_SLOPE`, posts, trees and
+        boulders beside the road and no buildings, signs, fences or hedgerows; :mod:`sensor.world.unsealed`).
+        Roadside objects are thinned by ``scenery_density`` either way.
     terrain_mesh_spacing : float
         On a terrain (:func:`sensor.world.build_world` with one that is not flat): the ground grid's spacing
         within ``terrain_detail_reach`` of the path's bounding box, and the largest lateral step of the road and

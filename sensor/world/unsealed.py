@@ -3,9 +3,11 @@
 What an off-highway camera sees on a haul road, a forestry track or a farm track: no paint and no kerbs; a running
 surface of compacted gravel with two darker, smoother wheel ruts, a ridge of loose stones between and beside them
 and the odd pothole; verges of dry scrub; ground of bare dirt, stony ground and scrub with bushes; and, where the
-terrain is cut steeper than :data:`CUT_FACE_SLOPE`, bare rock in strata. The features are sparser and of lower
-contrast than on the sealed road's farmland, which is the point: the odometry must find its corners in gravel and
-scrub (de Saxe & Cebon 2018, §3.2.3, on ground features in an off-highway setting).
+terrain is cut steeper than :data:`CUT_FACE_SLOPE`, bare rock in strata. Beside the road: delineator posts, trees and
+boulders (:func:`boulder_part`), no buildings, signs, fences or hedges; beyond it, distant trees and the horizon
+woods (:func:`off_highway_parts`). The features are sparser and of lower contrast than on the sealed road's
+farmland, which is the point: the odometry must find its corners in gravel and scrub (de Saxe & Cebon 2018, §3.2.3,
+on ground features in an off-highway setting).
 
 Textures follow the rules of :mod:`sensor.textures` (seamless, sides powers of two, one seed); they are a set of
 their own (:func:`unsealed_textures`), added to a world only when it is unsealed, so a sealed world's textures are
@@ -22,8 +24,12 @@ import numpy as np
 
 from ..textures import fractal_noise, speckle
 from .detail import detail_mipmaps
+from .layout import Layout
+from .mesh import crown, pose
+from .types import Part, make_part
 
 __all__ = [
+    "BOULDER_SPACING",
     "CUT_FACE_SLOPE",
     "CUT_TEXTURE",
     "GROUND_TEXTURES",
@@ -32,6 +38,8 @@ __all__ = [
     "RUT_TILE_WIDTH",
     "UNSEALED_TILE_SIZE",
     "VERGE_TEXTURE",
+    "boulder_part",
+    "off_highway_parts",
     "unsealed_mipmaps",
     "unsealed_textures",
 ]
@@ -53,6 +61,51 @@ RUT_TILE_WIDTH = 4.0
 
 RUT_OFFSET = 0.95
 """Lateral distance of each wheel rut's middle from the centre line [m] (about half a heavy vehicle's track)."""
+
+
+ROADSIDE_KEPT: tuple[str, ...] = ("post", "tree", "conifer")
+"""Roadside objects an unsealed road keeps (delineator posts and trees); its buildings, signs, fences and hedges go."""
+
+LANDSCAPE_KEPT: tuple[str, ...] = ("landscape_trees", "horizon")
+"""Landscape parts an unsealed world keeps: distant trees and the horizon woods (no hedgerows or farmsteads)."""
+
+BOULDER_SPACING = 15.0
+"""Mean distance along the road between boulders beside it at scenery density 1 [m]."""
+
+
+def off_highway_parts(parts: list[Part]) -> list[Part]:
+    """The parts of a world an unsealed road keeps (:data:`ROADSIDE_KEPT`, :data:`LANDSCAPE_KEPT`); the ground, road
+    and roundabout parts are kept."""
+    out = []
+    for part in parts:
+        head, _, tail = part.name.rpartition("_")
+        if part.category == "scenery" and (head if tail.isdigit() else part.name) not in ROADSIDE_KEPT:
+            continue
+        if part.name.startswith("landscape_") and part.name not in LANDSCAPE_KEPT:
+            continue
+        out.append(part)
+    return out
+
+
+def boulder_part(lay: Layout, rng: np.random.Generator) -> Part | None:
+    """Boulders (0.5–1.6 m across, half buried) scattered beside the road, one per :data:`BOULDER_SPACING` metres at
+    scenery density 1, thinned with the density; instanced, texture :data:`CUT_TEXTURE`."""
+    cfg = lay.cfg
+    pts, nrm = lay.samples, lay.normals
+    length = float(np.hypot(*np.diff(pts, axis=0).T).sum())
+    n = int(rng.poisson(cfg.scenery_density * length / BOULDER_SPACING))
+    poses = []
+    for _ in range(n):
+        i = int(rng.integers(len(pts)))
+        side = rng.choice([-1.0, 1.0])
+        p = pts[i] + side * (lay.half + 3.5 + rng.exponential(12.0)) * nrm[i]
+        scale = float(rng.uniform(0.5, 1.6))
+        if lay.free(p[None], 0.8 * scale, 1.0)[0]:
+            poses.append(pose(float(p[0]), float(p[1]), float(rng.uniform(0, 2 * np.pi)), scale))
+    if not poses:
+        return None
+    mesh = crown(rng, 0.5, 0.7, -0.25, UNSEALED_TILE_SIZE[CUT_TEXTURE])
+    return make_part("boulder", "scenery", CUT_TEXTURE, *mesh, poses=np.array(poses))
 
 
 def _blur(img: np.ndarray, sigma: float) -> np.ndarray:
