@@ -77,6 +77,15 @@ def test_every_surface_keeps_its_level_above_the_terrain(plane_world):
     assert len(np.unique(np.round(road.positions[:, 1], 3))) >= 15
 
 
+def test_a_world_on_a_terrain_pickles_with_it(plane_world):
+    import pickle
+
+    from sensor.renderer import StereoRenderer
+
+    renderer = pickle.loads(pickle.dumps(StereoRenderer(plane_world, StereoRig(width=64, height=32))))
+    assert renderer.terrain == PLANE and renderer.world.terrain == PLANE  # a render worker gets it whole
+
+
 def test_flat_terrain_builds_the_level_world_exactly():
     a = build_world(ROAD, **SMALL)
     b = build_world(ROAD, terrain=FlatTerrain(), **SMALL)
@@ -113,8 +122,11 @@ def test_graded_lines_keep_every_cell_edge_and_the_fine_spacing_near_the_path():
 
 
 def test_a_ground_grid_too_large_is_refused_before_it_is_built():
-    with pytest.raises(InputError, match=r"world.terrain_mesh_spacing = 0.25 m .* allowed at most"):
+    with pytest.raises(InputError, match=r"world.terrain_mesh_spacing = 0.25 m gives a ground grid of .* at most"):
         build_world(ROAD, terrain=PLANE, terrain_mesh_spacing=0.25, terrain_detail_reach=2000.0, ground_reach=2000.0)
+    long_road = RoadPath.straight(40_000.0)
+    with pytest.raises(InputError, match=r"world.terrain_mesh_spacing = 0.25 m gives road and verge strips of"):
+        build_world(long_road, terrain=PLANE, terrain_mesh_spacing=0.25)
     assert MAX_GROUND_VERTICES > 0
     with pytest.raises(InputError, match="terrain_mesh_spacing"):
         build_world(ROAD, terrain_mesh_spacing=0.1)

@@ -19,7 +19,7 @@ from .layout import build_layout
 from .road import road_parts
 from .roundabout import roundabout_parts
 from .scenery import horizon_part, scenery_parts
-from .terrain_mesh import drape_parts, terrain_heights
+from .terrain_mesh import check_mesh_sizes, drape_parts, terrain_heights
 from .types import PathLike, RoadPath, World, WorldConfig
 from .unsealed import boulder_part, off_highway_parts, unsealed_mipmaps, unsealed_textures
 
@@ -65,6 +65,8 @@ def build_world(
         terrain_heights(terrain, road.points)  # a terrain without heights under the path fails before any work
     lay = build_layout(road, cfg)
     lay.terrain = None if flat else terrain
+    if not flat:
+        check_mesh_sizes(lay.samples, cfg.road_width, cfg.terrain_mesh_spacing, cfg.terrain_detail_reach)
     parts = road_parts(lay)
     rb_parts, sites = roundabout_parts(lay, streams[0])
     ground, xs, ys = ground_parts(lay, streams[1])

@@ -29,6 +29,7 @@ __all__ = [
     "MAX_GROUND_VERTICES",
     "SPACING_GROWTH",
     "check_ground_size",
+    "check_mesh_sizes",
     "drape_parts",
     "graded_lines",
     "ground_grid",
@@ -91,6 +92,21 @@ def ground_grid(x_lines: np.ndarray, y_lines: np.ndarray, z: float) -> tuple[np.
     a = j * nx + i
     b, c, d = a + 1, a + 1 + nx, a + nx  # (x0,y0), (x1,y0), (x1,y1), (x0,y1)
     return pos, np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+
+
+def check_mesh_sizes(samples: np.ndarray, road_width: float, spacing: float, reach: float) -> None:
+    """Refuse, before anything is built, a terrain mesh whose road strips (centre line ``samples``, ``road_width``
+    and verges, :func:`lateral_divisions`) or whose ground grid's detailed region alone exceed
+    :data:`MAX_GROUND_VERTICES`."""
+    lanes = lateral_divisions(road_width, spacing) + 1 + 2 * (lateral_divisions(3.1, spacing) + 1)
+    road = len(samples) * lanes
+    if road > MAX_GROUND_VERTICES:
+        raise InputError(
+            f"world.terrain_mesh_spacing = {spacing:g} m gives road and verge strips of {road} vertices on this path; "
+            f"allowed at most {MAX_GROUND_VERTICES}: raise the spacing or shorten the path"
+        )
+    extent = samples.max(axis=0) - samples.min(axis=0) + 2.0 * reach
+    check_ground_size(int(np.prod(np.floor(extent / spacing) + 1.0)), spacing)
 
 
 def check_ground_size(count: int, spacing: float) -> None:
