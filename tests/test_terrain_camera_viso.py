@@ -167,3 +167,15 @@ def test_tilt_helpers_and_refused_inputs():
         VisoOtEstimator(params, left).update(np.eye(4), (0.0, 0.0))
     with pytest.raises(InputError, match="bias_roll"):
         AccelerometerTilt(bias_roll=0.5)
+
+
+def test_a_straight_drive_from_level_onto_a_ramp_with_the_tilt_integrated_from_the_level_start():
+    params = reference_laden()
+    rig = StereoRig(width=64, height=32)
+    left = rig.camera_in_trailer("left", params)
+    poses = [CombinationPose(-30.0 + 0.5 * k, 0.0, 0.0, 0.0) for k in range(160)]  # 80 m, the ramp from x = 5 m
+    level = _run(VisoOtEstimator(params, left), _motions(rig, params, poses, None))
+    ramp = _run(VisoOtEstimator(params, left, level_reference="odometry"), _motions(rig, params, poses, Ramp()))
+    ok = np.isfinite(level)
+    assert ok.sum() > 100 and np.array_equal(ok, np.isfinite(ramp))
+    assert np.max(np.abs(ramp[ok] - level[ok])) < 1e-9 and np.max(np.abs(level[ok])) < 1e-9  # straight: no off-tracking
