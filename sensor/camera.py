@@ -2,9 +2,11 @@
 
 Frames
 ------
-* **World**: ISO 8855 ground frame, X, Y in the road plane, Z up, ground at Z = 0.
+* **World**: ISO 8855 ground frame, X, Y in the road plane, Z up, ground at Z = 0 (on a terrain: X, Y
+  horizontal, the ground at the terrain's height, docs/terrain_camera.md).
 * **Trailer**: ISO, origin on the ground below the kingpin, x forward, y left, z up; heading
-  ψ2 = ψ1 − Γ.
+  ψ2 = ψ1 − Γ (on a terrain also lifted and turned by the unit's kinematic pitch and roll,
+  :mod:`vehicle_model.terrain_pose`).
 * **Camera (OpenCV)**: origin at the optical centre, x right, y down, z forward (the optical axis).
   Image coordinates: pixel (u, v) = (column, row), the centre of the top-left pixel at (0, 0).
 * **Camera (OpenGL/pyrender)**: x right, y up, looking down −z. :func:`opencv_to_opengl` is the one
@@ -45,6 +47,8 @@ from vehicle_model.errors import InputError
 from vehicle_model.geometry import ChainPose, CombinationPose, kingpin_position, trailer_heading, unit_frame
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.settings import Settings
+from vehicle_model.terrain import Terrain
+from vehicle_model.terrain_pose import is_flat, unit_attitude
 
 Which = Literal["left", "right"]
 
@@ -351,7 +355,9 @@ class StereoRig:
             t[:3, :3] = r @ self.misalignment.rotation  # rotation about its own optical centre
         return t
 
-    def camera_in_world(self, params: VehicleParams, pose: CombinationPose | ChainPose, which: Which) -> np.ndarray:
+    def camera_in_world(
+        self, params: VehicleParams, pose: CombinationPose | ChainPose, which: Which, terrain: Terrain | None = None
+    ) -> np.ndarray:
         """Pose ``T_world←camera`` of one camera at a combination pose, OpenCV camera axes.
 
         Parameters
@@ -365,7 +371,13 @@ class StereoRig:
             fields that are arrays of one shape ``S`` give poses of shape ``S + (4, 4)``.
         which : {"left", "right"}
             The camera.
+        terrain : Terrain, optional
+            The ground the combination stands on: the unit's frame is lifted to its height and turned by its pitch
+            and roll (:func:`vehicle_model.terrain_pose.unit_attitude`, docs/terrain_camera.md). ``None`` or a
+            :class:`~vehicle_model.terrain.FlatTerrain`: the level road, the pose exactly as without it.
         """
+        if not is_flat(terrain):
+            return self._camera_on_terrain(params, pose, which, terrain)
         if self.unit == 1 and isinstance(pose, ChainPose):
             pose = pose.combination
         if self.unit == 1:
@@ -382,6 +394,19 @@ class StereoRig:
         world_trailer[..., 2, 2] = world_trailer[..., 3, 3] = 1.0
         world_trailer[..., 0, 3], world_trailer[..., 1, 3] = kp[..., 0], kp[..., 1]
         return world_trailer @ self.camera_in_trailer(which, params)
+
+    def _camera_on_terrain(
+        self, params: VehicleParams, pose: CombinationPose | ChainPose, which: Which, terrain: Terrain
+    ) -> np.ndarray:
+        """:meth:`camera_in_world` on a terrain: the unit's frame at its kinematic height, pitch and roll."""
+        origin, _ = unit_frame(params, pose, self.unit)
+        att = unit_attitude(params, pose, terrain, self.unit)
+        world_unit = np.zeros((*np.shape(att.z), 4, 4))
+        world_unit[..., :3, :3] = att.rotation
+        world_unit[..., 0, 3], world_unit[..., 1, 3] = origin[..., 0], origin[..., 1]
+        world_unit[..., 2, 3] = att.z
+        world_unit[..., 3, 3] = 1.0
+        return world_unit @ self.camera_in_trailer(which, params)
 
     def misalignment_homography(self) -> np.ndarray:
         """``H = K·R_misᵀ·K⁻¹``: maps ideal right-image pixels to the misaligned ones (the paper's eq (8))."""

@@ -140,6 +140,9 @@ class FrameOdometry:
     unit : int
         The towed unit the camera is on, whose off-tracking VISO-OT estimates (1: the first;
         :class:`~sensor.viso_ot.VisoOtEstimator`).
+    level_reference : str
+        How VISO-OT finds the level on a road that is not a plane (:mod:`sensor.level_reference`): ``planar``
+        (default, the level road), ``odometry`` or ``accelerometer`` (each frame's tilt given to :meth:`process`).
     """
 
     def __init__(
@@ -151,9 +154,11 @@ class FrameOdometry:
         seed: int,
         self_calibration_settings: SelfCalibrationSettings | None = None,
         unit: int = 1,
+        level_reference: str = "planar",
     ) -> None:
         self.vo = StereoOdometry(vo_config, seed=seed)
-        self.estimator = VisoOtEstimator(params, camera_in_trailer, frame_interval=frame_interval, unit=unit)
+        level = {} if level_reference == "planar" else {"level_reference": level_reference}
+        self.estimator = VisoOtEstimator(params, camera_in_trailer, frame_interval=frame_interval, unit=unit, **level)
         self.frames = 0
         self.estimate: float | None = None
         self.self_calibration = (
@@ -168,11 +173,13 @@ class FrameOdometry:
         right: np.ndarray,
         render_s: float = math.nan,
         masks: tuple[np.ndarray | None, np.ndarray | None] | None = None,
+        tilt: tuple[float, float] | None = None,
     ) -> CameraFrame:
         """Odometry and VISO-OT on the next pair; ``render_s`` is what rendering it took [s] (for the record).
 
         ``masks``: the left and right images' regions where the odometry takes no features (True; the other units of
-        the combination, :func:`sensor.vehicle_bodies.exclusion_masks`); None: every feature.
+        the combination, :func:`sensor.vehicle_bodies.exclusion_masks`); None: every feature. ``tilt``: the unit's
+        (pitch, roll) [rad] at this frame, with ``level_reference="accelerometer"`` (else None).
         """
         t1 = wallclock.perf_counter()
         cpu1 = wallclock.thread_time()
@@ -192,11 +199,13 @@ class FrameOdometry:
         cpu2 = wallclock.thread_time()
         step = dict.fromkeys(STEP_COLUMNS, math.nan)
         if self.frames > 0:  # the first frame has no previous pair: nothing to estimate, nothing failed
-            self.estimate = self.estimator.update(result.camera_motion if result.valid else None)
+            self.estimate = self.estimator.update(result.camera_motion if result.valid else None, tilt)
             step = self.estimator.last_step
             reason = (result.code or "vo_failed") if not result.valid else self.estimator.last_reason
         else:
             reason = result.code or "no_previous_frame"
+            if tilt is not None:
+                self.estimator.set_tilt(*tilt)
         self.frames += 1
         return CameraFrame(
             self.estimate,

@@ -164,6 +164,7 @@ def shadow_part(world: World, lighting: Lighting, z: float | None = None):
     sun = sun_direction(lighting)
     z = LEVELS["paint"] + 0.004 if z is None else z
     shift = sun[:2] / sun[2]
+    terrain = getattr(world, "terrain", None)  # on a terrain: heights above the ground, decals at its height
     pos_all, idx_all, n = [], [], 0
     for part in world.parts:
         if part.category != "scenery" or part.name == "horizon":
@@ -172,7 +173,8 @@ def shadow_part(world: World, lighting: Lighting, z: float | None = None):
         poses = [np.eye(4)] if part.poses is None else part.poses
         for pose in poses:
             p = local @ pose[:3, :3].T + pose[:3, 3]
-            height = np.clip(p[:, 2], 0.0, None)
+            ground = 0.0 if terrain is None else terrain.height(p[:, :2])
+            height = np.clip(p[:, 2] - ground, 0.0, None)
             flat = p[:, :2] - height[:, None] * shift
             try:
                 hull = ConvexHull(flat)
@@ -180,7 +182,8 @@ def shadow_part(world: World, lighting: Lighting, z: float | None = None):
                 continue
             ring = flat[hull.vertices]
             m = len(ring)
-            pos_all.append(np.column_stack([ring, np.full(m, z)]))
+            lift = 0.0 if terrain is None else terrain.height(ring)
+            pos_all.append(np.column_stack([ring, np.full(m, z) + lift]))
             fan = np.column_stack([np.zeros(m - 2, int), np.arange(1, m - 1), np.arange(2, m)]) + n
             idx_all.append(fan)
             n += m

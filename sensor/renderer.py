@@ -48,6 +48,7 @@ import numpy as np
 from vehicle_model.errors import InputError
 from vehicle_model.geometry import ChainPose, CombinationPose
 from vehicle_model.parameters import VehicleParams
+from vehicle_model.terrain import Terrain
 
 from .camera import StereoRig, Which, opencv_to_opengl
 from .exposure import AutoExposure, FrameLight
@@ -117,8 +118,9 @@ class StereoRenderer:
         Time between frames [s] (1 / camera rate), over which the auto-exposure lags.
     bodies : bool
         Draw the combination's units (boxes and wheels, :mod:`sensor.vehicle_bodies`) at the vehicle pose of each
-        render, all but the rig's own unit (:attr:`StereoRig.unit`); False: the world alone. Renders from camera
-        poses alone (:meth:`render_poses` without ``vehicle``) draw no units.
+        render, all but the rig's own unit (:attr:`StereoRig.unit`), on the world's terrain (:attr:`terrain`);
+        False: the world alone. Renders from camera poses alone (:meth:`render_poses` without ``vehicle``) draw no
+        units.
 
     Notes
     -----
@@ -227,7 +229,7 @@ class StereoRenderer:
         for entry in getattr(self._scene, "offtrack_bodies", {}).values():
             if entry is not nodes:
                 entry.place(None)
-        nodes.place(unit_poses(self.params, vehicle), hidden=self.rig.unit)
+        nodes.place(unit_poses(self.params, vehicle, self.terrain), hidden=self.rig.unit)
 
     def render_view(
         self,
@@ -260,7 +262,7 @@ class StereoRenderer:
         """
         if isinstance(pose, CombinationPose | ChainPose):
             vehicle = pose if vehicle is None else vehicle
-            pose = self.rig.camera_in_world(self._params(None), pose, which)
+            pose = self.rig.camera_in_world(self._params(None), pose, which, self.terrain)
         pyrender = import_pyrender()
         t0 = time.perf_counter()
         ctx = self._context()
@@ -350,9 +352,15 @@ class StereoRenderer:
 
         ``expose``: see :meth:`render_poses`."""
         params = self._params(params)
-        pl = self.rig.camera_in_world(params, pose, "left")
-        pr = self.rig.camera_in_world(params, pose, "right")
+        pl = self.rig.camera_in_world(params, pose, "left", self.terrain)
+        pr = self.rig.camera_in_world(params, pose, "right", self.terrain)
         return self.render_poses(pl, pr, depth=depth, frame=frame, expose=expose, vehicle=pose)
+
+    @property
+    def terrain(self) -> Terrain | None:
+        """The ground the world is draped on (:attr:`World.terrain`): the cameras and units at a combination pose
+        stand on it (``None``: the level road)."""
+        return getattr(self.world, "terrain", None)
 
     def _params(self, params: VehicleParams | None) -> VehicleParams:
         params = params if params is not None else self.params

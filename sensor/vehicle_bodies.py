@@ -30,6 +30,8 @@ import numpy as np
 
 from vehicle_model.geometry import ChainPose, CombinationPose, chain_pose, unit_frame
 from vehicle_model.parameters import VehicleParams
+from vehicle_model.terrain import Terrain
+from vehicle_model.terrain_pose import is_flat, unit_attitudes
 
 __all__ = [
     "BOX_HEIGHT",
@@ -153,9 +155,25 @@ def _frame(origin: np.ndarray, heading: float) -> np.ndarray:
     return out
 
 
-def unit_poses(params: VehicleParams, pose: CombinationPose | ChainPose) -> list[np.ndarray | None]:
+def unit_poses(
+    params: VehicleParams, pose: CombinationPose | ChainPose, terrain: Terrain | None = None
+) -> list[np.ndarray | None]:
     """``T_world←unit`` (4×4) of every unit at ``pose``, the tractor first; ``None`` for a unit the pose does not
-    place (a :class:`~vehicle_model.geometry.CombinationPose` places the tractor and the first towed unit)."""
+    place (a :class:`~vehicle_model.geometry.CombinationPose` places the tractor and the first towed unit).
+
+    On a ``terrain`` (not flat) each unit's frame is lifted to its height and turned by its kinematic pitch and roll
+    (:func:`vehicle_model.terrain_pose.unit_attitudes`)."""
+    out = _level_unit_poses(params, pose)
+    if is_flat(terrain):
+        return out
+    for frame, att in zip(out, unit_attitudes(params, pose, terrain), strict=True):
+        if frame is not None and att is not None:
+            frame[:3, :3] = att.rotation
+            frame[2, 3] = float(att.z)
+    return out
+
+
+def _level_unit_poses(params: VehicleParams, pose: CombinationPose | ChainPose) -> list[np.ndarray | None]:
     full = chain_pose(pose)
     x, y, psi1 = float(full.x), float(full.y), float(full.psi1)
     tractor = _frame(np.array([x, y]), psi1)
@@ -352,6 +370,7 @@ def exclusion_masks(
     skip_unit: int | None,
     margin_px: int = 8,
     z_min: float = 0.05,
+    terrain: Terrain | None = None,
 ) -> tuple[np.ndarray, ...] | None:
     """Where the combination's units are in each camera's image: pixels the odometry should take no features from.
 
@@ -373,6 +392,8 @@ def exclusion_masks(
         The mask is grown by this many pixels (a feature's descriptor window reaches that far).
     z_min : float
         Faces are clipped to at least this distance in front of the camera [m].
+    terrain : Terrain, optional
+        The ground the units stand on (:func:`unit_poses`); ``None``: the level road.
 
     Returns
     -------
@@ -382,7 +403,7 @@ def exclusion_masks(
     """
     width, height = size
     boxes = _unit_boxes(params)
-    frames = unit_poses(params, pose)
+    frames = unit_poses(params, pose, terrain)
     masks: list[np.ndarray | None] = [None for _ in cameras]
     corners_bits = np.array([[(b >> 2) & 1, (b >> 1) & 1, b & 1] for b in range(8)], float)
     for unit, (unit_box, frame) in enumerate(zip(boxes, frames, strict=True)):

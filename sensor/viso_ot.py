@@ -12,6 +12,12 @@ Each camera frame the visual odometry gives the left camera's motion since the p
    kingpin on the centre line this is the paper's ``a·[cos Δψ − 1, sin Δψ]`` in ISO order), and
 4. feeds the shared :class:`~vehicle_model.offtracking.OfftrackingBuffer` (eqs (3)–(7)).
 
+Eqs (3)–(7) are planar. On a road that is not a plane (a grade, crossfall, undulations) steps 1–3 are taken in the
+unit's **level frame** instead (``level_reference``, :mod:`sensor.level_reference`): the motion is turned by the
+unit's tilt at the previous frame, the yaw change is the vertical-axis part of the rotation, and the lever arm is the
+camera's position turned by each frame's tilt, all projected onto the horizontal. The default ``planar`` is the
+paper's level road.
+
 Plausibility (when the frame interval is known): each frame's step is checked against what a
 trailer on a road can do (:class:`MotionBounds`) before it enters the buffer; a step that fails is
 treated as a failed frame, with a reason code (:data:`PLAUSIBILITY_REASONS`).
@@ -40,6 +46,8 @@ import numpy as np
 from vehicle_model.errors import InputError
 from vehicle_model.offtracking import OfftrackingBuffer
 from vehicle_model.parameters import VehicleParams
+
+from .level_reference import LEVEL_REFERENCES, split_yaw, tilt_rotation
 
 __all__ = ["ESTIMATE_REASONS", "PLAUSIBILITY_REASONS", "STEP_COLUMNS", "MotionBounds", "VisoOtEstimator"]
 
@@ -148,6 +156,13 @@ class VisoOtEstimator:
         one it tows, … Its "kingpin" is its front coupling (for ``unit > 1`` the fifth wheel of the unit ahead)
         and ``L_fp`` its own follow point (:meth:`~vehicle_model.parameters.VehicleParams.follow_point_offset_of`):
         eqs (1)–(7) hold for any rigid towed unit.
+    level_reference
+        ``planar`` (default): the road is level, eqs (1)–(2) as the paper has them. ``odometry``: the unit's tilt
+        integrated from the odometry's rotations from ``initial_tilt``; ``accelerometer``: the tilt given with each
+        frame (:meth:`update`'s ``tilt``). Either projects the motion onto the horizontal
+        (:mod:`sensor.level_reference`).
+    initial_tilt
+        The unit's (pitch, roll) [rad] at the first frame for ``odometry`` (default level).
 
     Attributes
     ----------
@@ -169,6 +184,8 @@ class VisoOtEstimator:
         bounds: MotionBounds | None = None,
         max_bridged_distance: float | None = None,
         unit: int = 1,
+        level_reference: str = "planar",
+        initial_tilt: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         t = np.asarray(camera_in_trailer, dtype=float)
         if t.shape != (4, 4) or not np.allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-9):
@@ -179,9 +196,14 @@ class VisoOtEstimator:
             raise InputError(f"frame_interval = {frame_interval!r} must be a finite time > 0 s")
         if unit != int(unit) or not 1 <= unit < params.n_units:
             raise InputError(f"unit = {unit!r}: a towed unit of {params.name!r}, 1 to {params.n_units - 1}")
+        if level_reference not in LEVEL_REFERENCES:
+            raise InputError(f"level_reference = {level_reference!r}; allowed: {', '.join(LEVEL_REFERENCES)}")
         self.unit = int(unit)
+        self.level_reference = level_reference
         self.mount_rotation = t[:3, :3]
         self.camera_position = t[:2, 3].copy()  # camera in the unit's axes, its front coupling at the origin
+        self.camera_position_3d = t[:3, 3].copy()
+        self.tilt = tilt_rotation(*initial_tilt)  # the unit's tilt at the last frame (level_reference not planar)
         l_fp = params.follow_point_offset_of(unit)
         self.buffer = OfftrackingBuffer(l_fp)
         self.max_consecutive_failures = max_consecutive_failures
@@ -224,6 +246,34 @@ class VisoOtEstimator:
         d_kingpin = d_camera + np.array([c * lever[0] - s * lever[1], s * lever[0] + c * lever[1]]) - lever
         return float(d_kingpin[0]), float(d_kingpin[1]), dpsi
 
+    def set_tilt(self, pitch: float, roll: float) -> None:
+        """Take the unit's (pitch, roll) [rad] as its tilt at the last frame (e.g. the first frame's reading, before
+        any motion)."""
+        self.tilt = tilt_rotation(float(pitch), float(roll))
+
+    def level_increment(self, camera_motion: np.ndarray, tilt: np.ndarray | None = None) -> tuple[tuple, np.ndarray]:
+        """Kingpin increment ``(dx, dy, dψ)`` in the previous **level** frame from one camera motion, and the unit's
+        tilt at this frame: ``tilt`` (3×3, :func:`~sensor.level_reference.tilt_rotation`) when given, else split
+        off the odometry's rotation (:mod:`sensor.level_reference`). The previous tilt is :attr:`tilt`."""
+        m = np.asarray(camera_motion, dtype=float)
+        r_mount = self.mount_rotation
+        a_prev = self.tilt
+        rot = r_mount @ m[:3, :3] @ r_mount.T  # the unit's rotation over the frame, in its previous axes
+        if tilt is None:
+            dpsi, a_curr = split_yaw(a_prev @ rot)
+        else:
+            a_curr = tilt
+            level = a_prev @ rot @ a_curr.T
+            dpsi = math.atan2(level[1, 0], level[0, 0])
+        # de Saxe & Cebon 2018, eq (1), in the level frame: the camera's displacement made horizontal.
+        d_camera = (a_prev @ (r_mount @ m[:3, 3]))[:2]
+        # eq (2) with the lever arm made horizontal by each frame's tilt.
+        lever_prev = -(a_prev @ self.camera_position_3d)[:2]
+        lever = -(a_curr @ self.camera_position_3d)[:2]
+        c, s = math.cos(dpsi), math.sin(dpsi)
+        d_kingpin = d_camera + np.array([c * lever[0] - s * lever[1], s * lever[0] + c * lever[1]]) - lever_prev
+        return (float(d_kingpin[0]), float(d_kingpin[1]), dpsi), a_curr
+
     def step_measures(self, camera_motion: np.ndarray, dt: float) -> dict[str, float]:
         """Rates implied by one camera motion over ``dt`` seconds (:data:`STEP_COLUMNS`).
 
@@ -245,26 +295,36 @@ class VisoOtEstimator:
             "step_vertical_m_s": dz / dt,
         }
 
-    def update(self, camera_motion: np.ndarray | None) -> float | None:
+    def update(self, camera_motion: np.ndarray | None, tilt: tuple[float, float] | None = None) -> float | None:
         """Feed one camera frame's motion (``None`` for a failed frame); return the estimate or ``None``.
 
         The motion is checked for plausibility (when ``frame_interval`` is set); a refused or missing
         motion is bridged or, after too long a gap, clears the buffer (module notes). The reasons are
         in :attr:`last_reason` and :attr:`estimate_reason`.
+
+        ``tilt``: the unit's (pitch, roll) [rad] at this frame, required with ``level_reference="accelerometer"``
+        (e.g. :class:`sensor.level_reference.AccelerometerTilt`), refused otherwise.
         """
+        given = self._given_tilt(tilt)
         self.frames += 1
         self.last_step = dict.fromkeys(STEP_COLUMNS, math.nan)
         if camera_motion is None:
-            return self._bridge("no_motion")
+            return self._bridge("no_motion", given)
         m = np.asarray(camera_motion, dtype=float)
         if m.shape != (4, 4) or not np.all(np.isfinite(m)):
-            return self._bridge("non_finite_motion")
-        increment = self.kingpin_increment(m)
+            return self._bridge("non_finite_motion", given)
+        tilt_now = None
+        if self.level_reference == "planar":
+            increment = self.kingpin_increment(m)
+        else:
+            increment, tilt_now = self.level_increment(m, given)
         if self.frame_interval is not None:
             self.last_step = self.step_measures(m, self.frame_interval)
             violation = self.bounds.violation(self.last_step)
             if violation:
-                return self._bridge(violation)
+                return self._bridge(violation, given)
+        if tilt_now is not None:
+            self.tilt = tilt_now
         self.last_reason = ""
         self.failures_in_a_row = 0
         self._bridged = 0.0
@@ -272,8 +332,21 @@ class VisoOtEstimator:
         self.buffer.push(*increment)
         return self._read()
 
-    def _bridge(self, reason: str) -> float | None:
-        """A frame without an accepted motion: predict over it, or clear the buffer after too long a gap."""
+    def _given_tilt(self, tilt: tuple[float, float] | None) -> np.ndarray | None:
+        """The frame's tilt as a rotation (``accelerometer``), after checking it is given exactly when needed."""
+        if self.level_reference == "accelerometer":
+            if tilt is None or len(tilt) != 2 or not all(math.isfinite(a) for a in tilt):
+                raise InputError(f"tilt = {tilt!r}: level_reference 'accelerometer' needs a finite (pitch, roll) [rad]")
+            return tilt_rotation(float(tilt[0]), float(tilt[1]))
+        if tilt is not None:
+            raise InputError(f"tilt given with level_reference = {self.level_reference!r}; allowed: None")
+        return None
+
+    def _bridge(self, reason: str, tilt: np.ndarray | None = None) -> float | None:
+        """A frame without an accepted motion: predict over it, or clear the buffer after too long a gap. A measured
+        tilt is kept; an integrated one is held over the gap."""
+        if tilt is not None:
+            self.tilt = tilt
         self.last_reason = reason
         self.failed_frames += 1
         self.failures_in_a_row += 1

@@ -35,6 +35,7 @@ from sensor.lighting import Lighting
 from sensor.mount_flex import FlexSchedule, MountFlex
 from sensor.world import World, build_world
 from vehicle_model.errors import InputError
+from vehicle_model.terrain import Terrain
 
 from ..camera_schema import RigConfig, rig_configs
 from ..config import ScenarioConfig
@@ -144,6 +145,7 @@ def world_for_scenario(
     setup_or_config: ScenarioSetup | ScenarioConfig,
     scenery_density: float | None = None,
     seed: int | None = None,
+    terrain: Terrain | None = None,
     **world_settings: Any,
 ) -> World:
     """The procedural world around a scenario's reference path.
@@ -157,6 +159,8 @@ def world_for_scenario(
         scenario's ``camera.scenery_density`` (1.0 unless set).
     seed : int, optional
         Seed of the world (default: the scenario's ``seed``).
+    terrain : Terrain, optional
+        The ground to drape the world on (:func:`sensor.world.build_world`); ``None``: the level road.
     **world_settings
         Other :class:`sensor.world.WorldConfig` fields (``road_width``, ``apron_width``,
         ``kind="airfield"`` for the Bourn-like airfield of the paper's §4, ``ground_detail``, …).
@@ -164,7 +168,7 @@ def world_for_scenario(
     setup = setup_or_config if isinstance(setup_or_config, ScenarioSetup) else build_scenario(setup_or_config)
     seed = setup.config.seed if seed is None else seed
     density = resolve_scenery_density(setup.config, scenery_density)
-    return build_world(setup.path, scenery_density=density, seed=int(seed), **world_settings)
+    return build_world(setup.path, scenery_density=density, seed=int(seed), terrain=terrain, **world_settings)
 
 
 def lenses(config: ScenarioConfig, rig_index: int = 0) -> tuple[Lens, Lens]:
@@ -296,6 +300,7 @@ def stereo_camera(
     antialias: bool = False,
     frame_cache: Path | None = None,
     rig_index: int = 0,
+    terrain: Terrain | None = None,
 ) -> StereoCamera:
     """The scenario's stereo camera in its world: the one place a camera of a run is assembled.
 
@@ -327,6 +332,9 @@ def stereo_camera(
         (:class:`.frame_cache.FrameCache`, :meth:`sensor.stereo_camera.StereoCamera.pair`).
     rig_index : int
         The rig (:func:`rig_settings`; 0: the first).
+    terrain : Terrain, optional
+        The ground the world is draped on and the combination stands on (docs/terrain_camera.md); ``None``: the
+        level road. Only when the world is built here (``world`` not given: a given world carries its own).
 
     Raises
     ------
@@ -347,7 +355,9 @@ def stereo_camera(
             raise InputError("the run's camera has the configured rig and lighting; pass ideal=True to change them")
         developer = pair_developer(cfg, rig_index)
     if world is None:
-        world = world_for_scenario(setup, scenery_density, kind=cfg.camera.world)
+        world = world_for_scenario(setup, scenery_density, kind=cfg.camera.world, terrain=terrain)
+    elif terrain is not None:
+        raise InputError("terrain: a given world carries its own terrain (build_world(..., terrain=...))")
     store = None
     if frame_cache is not None:
         tag = camera_tag(
@@ -358,6 +368,7 @@ def stereo_camera(
             world=world.config,
             antialias=antialias,
             rig_index=rig_index,
+            **({} if world.terrain is None else {"terrain": world.terrain}),
         )
         store = FrameCache(frame_cache, tag)
     return StereoCamera(developer, world, setup.params, antialias=antialias, frame_store=store)
@@ -370,10 +381,13 @@ def pair_developer(config: ScenarioConfig, rig_index: int = 0) -> PairDeveloper:
     return PairDeveloper(rig_from_config(config, rig_index), **_camera_settings(config, rig_index))
 
 
-def frame_odometry(setup: ScenarioSetup, optics: FieldOptics, rig_index: int = 0) -> FrameOdometry:
+def frame_odometry(
+    setup: ScenarioSetup, optics: FieldOptics, rig_index: int = 0, level_reference: str = "planar"
+) -> FrameOdometry:
     """The per-frame estimator of rig ``rig_index`` on the images ``optics`` gives (the rig's
     ``self_calibration`` and ``vo_refinement``, rates, the rig's seed), estimating the off-tracking of the towed
-    unit the rig is on."""
+    unit the rig is on; ``level_reference`` how VISO-OT finds the level on terrain (:mod:`sensor.level_reference`,
+    default the level road)."""
     from sensor.frame_odometry import FrameOdometry
 
     cfg = setup.config
@@ -389,4 +403,5 @@ def frame_odometry(setup: ScenarioSetup, optics: FieldOptics, rig_index: int = 0
         rig_seed(cfg.seed, rig_index),
         settings,
         **unit,
+        **({} if level_reference == "planar" else {"level_reference": level_reference}),
     )

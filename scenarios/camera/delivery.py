@@ -32,14 +32,17 @@ import numpy as np
 
 from sensor.camera import Misalignment
 from sensor.frame_odometry import CameraFrame
+from sensor.level_reference import AccelerometerTilt, trailer_accelerometer
 from sensor.renderer import StereoRenderer
 from sensor.stereo_camera import RawStereoPair, StereoCamera
 from sensor.vehicle_bodies import exclusion_masks
 from vehicle_model.geometry import ChainPose, CombinationPose
 from vehicle_model.simulator import VehicleState
+from vehicle_model.terrain import Terrain
+from vehicle_model.terrain_pose import is_flat, unit_attitude
 
 from ..setup.build import ScenarioSetup
-from .build import flex_schedule, frame_odometry, pair_developer, rig_settings, stereo_camera
+from .build import flex_schedule, frame_odometry, pair_developer, rig_seed, rig_settings, stereo_camera
 from .frame_cache import frame_cache_from_env
 from .workers import CameraWorkerError, RenderWorkers
 
@@ -71,6 +74,8 @@ class CapturedFrame:
     masks : tuple of numpy.ndarray or None
         Where the other units of the combination were in the left and right images (no features taken there;
         ``None``: nowhere).
+    tilt : (float, float) or None
+        The (pitch, roll) [rad] the unit's accelerometer read when it was taken (``level_reference`` accelerometer).
     """
 
     index: int
@@ -78,6 +83,7 @@ class CapturedFrame:
     release_tick: int
     frame: CameraFrame | None = None
     masks: tuple[np.ndarray, ...] | None = None
+    tilt: tuple[float, float] | None = None
 
 
 class CameraFeed:
@@ -99,6 +105,15 @@ class CameraFeed:
         Keep the odometry off the other units of the combination: their boxes, placed by the known articulation,
         are projected into each image (:func:`sensor.vehicle_bodies.exclusion_masks`) and no features are taken
         there (docs/combination_view.md). No effect while no other unit is in view.
+    terrain
+        The ground the world is draped on and the combination stands on (docs/terrain_camera.md); ``None``: the
+        level road.
+    level_reference
+        How VISO-OT finds the level (:mod:`sensor.level_reference`): default ``planar`` on the level road and
+        ``accelerometer`` on a terrain; ``odometry`` integrates the tilt from the odometry.
+    accelerometer
+        The tilt sensor of ``accelerometer`` (default :func:`sensor.level_reference.trailer_accelerometer` seeded
+        by the rig's seed).
 
     Attributes
     ----------
@@ -125,10 +140,20 @@ class CameraFeed:
         rig_index: int = 0,
         *,
         body_masks: bool = True,
+        terrain: Terrain | None = None,
+        level_reference: str | None = None,
+        accelerometer: AccelerometerTilt | None = None,
     ) -> None:
         rig_settings(setup.config, rig_index)  # refuses a rig the configuration does not have
         self.rig_index = rig_index
         self.body_masks = bool(body_masks)
+        self.terrain = None if is_flat(terrain) else terrain
+        if level_reference is None:
+            level_reference = "planar" if self.terrain is None else "accelerometer"
+        self.level_reference = level_reference
+        if accelerometer is None and level_reference == "accelerometer":
+            accelerometer = trailer_accelerometer(rig_seed(setup.config.seed, rig_index))
+        self.accelerometer = accelerometer
         frame_cache = frame_cache if frame_cache is not None else frame_cache_from_env()
         workers = 0 if frame_cache is not None else workers
         self.latency_ticks = latency_ticks(setup)
@@ -138,13 +163,13 @@ class CameraFeed:
         self._workers: RenderWorkers | None = None
         if workers > 0:
             self._workers = RenderWorkers(
-                setup.config, workers, rig_index=rig_index
+                setup.config, workers, rig_index=rig_index, terrain=self.terrain
             )  # start them first: they take a while
             self._developer = pair_developer(setup.config, rig_index)
         else:
-            self._camera = stereo_camera(setup, frame_cache=frame_cache, rig_index=rig_index)
+            self._camera = stereo_camera(setup, frame_cache=frame_cache, rig_index=rig_index, terrain=self.terrain)
             self._developer = self._camera.developer
-        self._odometry = frame_odometry(setup, self._developer.optics, rig_index)
+        self._odometry = frame_odometry(setup, self._developer.optics, rig_index, level_reference)
         self.rig = self._developer.rig
         self.camera_in_trailer = self._developer.optics.left_in_trailer(setup.params)
         vo = self._odometry.vo.config
@@ -174,7 +199,7 @@ class CameraFeed:
         """The left camera's grey image at ``pose`` as the renderer draws it (no noise, exposure or lens), e.g. for
         a display; with render workers a camera is built in this process for it on the first call."""
         if self._camera is None:
-            self._camera = stereo_camera(self._setup, rig_index=self.rig_index)
+            self._camera = stereo_camera(self._setup, rig_index=self.rig_index, terrain=self.terrain)
         return self._camera.view_image(pose)
 
     @property
@@ -189,8 +214,9 @@ class CameraFeed:
         flex = self._flex.rotation(state)  # in frame order, in this process: the twist and the seeded vibration
         pose = state.chain_pose
         shot.masks = self.masks(pose)
+        shot.tilt = self.tilt(pose)
         if self._workers is None:
-            shot.frame = self._frame(pose, shot.index, flex, shot.masks)
+            shot.frame = self._frame(pose, shot.index, flex, shot.masks, shot.tilt)
             self._account(shot.frame)
         else:
             self._workers.submit(shot.index, pose, right_rotation=flex)
@@ -205,9 +231,23 @@ class CameraFeed:
         if not self.body_masks:
             return None
         rig = self.rig
-        cameras = (rig.camera_in_world(params, pose, "left"), rig.camera_in_world(params, pose, "right"))
+        terrain = self.terrain
+        cameras = (
+            rig.camera_in_world(params, pose, "left", terrain),
+            rig.camera_in_world(params, pose, "right", terrain),
+        )
         size = (rig.width, rig.height)  # the odometry's images have the rig's size
-        return exclusion_masks(params, pose, cameras, self._vo_k, size, skip_unit=rig.unit)
+        return exclusion_masks(params, pose, cameras, self._vo_k, size, skip_unit=rig.unit, terrain=terrain)
+
+    def tilt(self, pose: CombinationPose | ChainPose) -> tuple[float, float] | None:
+        """What the accelerometer on the rig's unit reads at ``pose`` (:attr:`accelerometer`; ``None`` without one):
+        the unit's kinematic pitch and roll on the terrain (:func:`vehicle_model.terrain_pose.unit_attitude`)."""
+        if self.accelerometer is None:
+            return None
+        if self.terrain is None:
+            return self.accelerometer.read(0.0, 0.0)
+        att = unit_attitude(self._setup.params, pose, self.terrain, self.rig.unit)
+        return self.accelerometer.read(float(att.pitch), float(att.roll))
 
     def deliver(self, tick: int) -> float | None:
         """Release the estimates due by control tick ``tick`` (waiting for them if need be); return :attr:`estimate`.
@@ -263,6 +303,7 @@ class CameraFeed:
         index: int,
         flex: Misalignment | None,
         masks: tuple[np.ndarray, ...] | None = None,
+        tilt: tuple[float, float] | None = None,
     ) -> CameraFrame:
         """Render, develop and process frame ``index`` in this process (serial)."""
         assert self._camera is not None
@@ -272,7 +313,7 @@ class CameraFeed:
         self.last_pair = (left, right)
         render_s = wallclock.perf_counter() - t0
         render_cpu_s = wallclock.process_time() - cpu0
-        frame = self._odometry.process(left, right, render_s, masks=masks)
+        frame = self._odometry.process(left, right, render_s, masks=masks, tilt=tilt)
         frame.render_cpu_s = render_cpu_s
         return frame
 
@@ -282,7 +323,7 @@ class CameraFeed:
         left, right, render_s, render_cpu_s = self._workers.result(shot.index)
         if self._developer.develops_in_order:  # the workers leave the exposure to the frames' order
             left, right = self._developer.develop(RawStereoPair(left, right, exposed=False), shot.index)
-        frame = self._odometry.process(left, right, render_s, masks=shot.masks)
+        frame = self._odometry.process(left, right, render_s, masks=shot.masks, tilt=shot.tilt)
         frame.render_cpu_s = render_cpu_s
         shot.frame = frame
         if self._processed < self._startup_frames:

@@ -80,7 +80,12 @@ def _exit_with_parent(parent: int) -> None:
 
 
 def _worker_main(
-    config: Any, conn: Connection, threads: str | None = None, parent: int | None = None, rig_index: int = 0
+    config: Any,
+    conn: Connection,
+    threads: str | None = None,
+    parent: int | None = None,
+    rig_index: int = 0,
+    terrain: Any = None,
 ) -> None:
     """Body of one render worker (runs in the spawned process); ``threads``: llvmpipe's, unless set; ``parent``: the
     process id of the co-simulation process, whose death ends the worker (:func:`_exit_with_parent`)."""
@@ -100,7 +105,7 @@ def _worker_main(
         from ..setup.build import build_scenario
         from .build import stereo_camera
 
-        camera = stereo_camera(build_scenario(config), rig_index=rig_index)
+        camera = stereo_camera(build_scenario(config), rig_index=rig_index, terrain=terrain)
     except BaseException:
         _send_error(conn, traceback.format_exc())
         return
@@ -155,6 +160,9 @@ class RenderWorkers:
         Number of worker processes.
     rig_index
         Which rig of the configuration the workers render (:class:`.delivery.CameraFeed`).
+    terrain
+        The ground the workers' worlds are draped on (:func:`.build.stereo_camera`); pickled to each worker.
+        ``None``: the level road.
 
     Attributes
     ----------
@@ -164,7 +172,7 @@ class RenderWorkers:
         Wall time the co-simulation spent waiting for the workers' answers [s].
     """
 
-    def __init__(self, config: Any, workers: int = DEFAULT_WORKERS, rig_index: int = 0) -> None:
+    def __init__(self, config: Any, workers: int = DEFAULT_WORKERS, rig_index: int = 0, terrain: Any = None) -> None:
         if workers < 1:
             raise ValueError(f"workers = {workers} must be at least 1")
         ctx = multiprocessing.get_context("spawn")
@@ -186,7 +194,7 @@ class RenderWorkers:
                     threads = RENDER_THREADS if workers >= 2 else None
                     proc = ctx.Process(
                         target=_worker_main,
-                        args=(config, there, threads, os.getpid(), rig_index),
+                        args=(config, there, threads, os.getpid(), rig_index, terrain),
                         name=f"offtrack-render-{i}",
                         daemon=True,
                     )

@@ -8,7 +8,9 @@ Everything is generated from one seed: the same seed and settings give the ident
 World frame: ISO 8855 ground frame, X and Y in the road plane, Z up, the road surface at Z = 0
 (the plane the vehicle model drives on). Heights of the other surfaces (:data:`LEVELS`) keep
 overlapping surfaces apart in the depth buffer: verges 2 cm and fields 6 cm below the road, road
-paint 6 mm above it, the truck apron of a roundabout 2.5 cm and its central island 15 cm above.
+paint 6 mm above it, the truck apron of a roundabout 2.5 cm and its central island 15 cm above. On a terrain
+(``build_world(..., terrain=)``) every surface keeps that level above the terrain's height instead
+(:mod:`~sensor.world.terrain_mesh`, docs/terrain_camera.md).
 
 Contents
 --------
@@ -46,6 +48,8 @@ Modules
 * :mod:`~sensor.world.landscape`: the landscape beyond the roadside.
 * :mod:`~sensor.world.detail`: contrast-preserving mipmap chains.
 * :mod:`~sensor.world.airfield`: the airfield world of the paper's §4.
+* :mod:`~sensor.world.terrain_mesh`: the world on a terrain: the ground grid, the size checks, the drape.
+* :mod:`~sensor.world.unsealed`: the unsealed look (gravel and ruts, scrub, dirt, rock, boulders).
 * :mod:`~sensor.world.mesh`: the mesh primitives they are made of.
 """
 

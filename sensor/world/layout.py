@@ -8,6 +8,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from vehicle_model.terrain import Terrain
+
 from .types import Loop, RoadPath, WorldConfig
 
 
@@ -25,6 +27,7 @@ class Layout:
     # Junctions: (sample index, index direction ±1 pointing away from the loop, loop index, run index).
     run_ends: list[tuple[int, int, int, int]]
     obstacles: list[tuple[np.ndarray, float]] = field(default_factory=list)  # (centre, radius) of islands
+    terrain: Terrain | None = None  # the ground the world is draped on (None: the level road)
 
     @property
     def half(self) -> float:

@@ -49,13 +49,22 @@ def planar_uv(xy: np.ndarray, tile: float, angle: float = 0.0, offset: tuple[flo
 
 
 def strip(
-    points: np.ndarray, normals: np.ndarray, lo: float, hi: float, z: float, segment_mask: np.ndarray | None = None
+    points: np.ndarray,
+    normals: np.ndarray,
+    lo: float,
+    hi: float,
+    z: float,
+    segment_mask: np.ndarray | None = None,
+    divisions: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
     """A band between lateral offsets ``lo < hi`` (left +) along a polyline; triangles face up.
 
     Returns world positions ``(2n, 3)`` and triangles; segments where ``segment_mask`` is False
-    are left out.
+    are left out. ``divisions > 1`` splits the band into that many lanes of equal width (positions
+    ``(n·(divisions + 1), 3)``, sample by sample, right to left), for a band draped on a terrain.
     """
+    if divisions > 1:
+        return _divided_strip(points, normals, lo, hi, z, segment_mask, divisions)
     n = len(points)
     right = points + lo * normals
     left = points + hi * normals
@@ -70,6 +79,31 @@ def strip(
     return pos, idx
 
 
+def _divided_strip(
+    points: np.ndarray,
+    normals: np.ndarray,
+    lo: float,
+    hi: float,
+    z: float,
+    segment_mask: np.ndarray | None,
+    divisions: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`strip` split into ``divisions`` lanes."""
+    n, m = len(points), divisions + 1
+    offsets = np.linspace(lo, hi, m)
+    pos = np.empty((n, m, 3))
+    pos[..., :2] = points[:, None, :] + offsets[None, :, None] * normals[:, None, :]
+    pos[..., 2] = z
+    i = np.arange(n - 1)
+    if segment_mask is not None:
+        i = i[segment_mask]
+    i, j = (a.ravel() for a in np.meshgrid(i, np.arange(divisions), indexing="ij"))
+    r0, l0 = i * m + j, i * m + j + 1
+    r1, l1 = r0 + m, l0 + m
+    idx = np.concatenate([np.column_stack([r0, r1, l1]), np.column_stack([r0, l1, l0])])
+    return pos.reshape(-1, 3), idx
+
+
 def annulus(
     centre: np.ndarray,
     r_in: float,
@@ -77,8 +111,9 @@ def annulus(
     z: float,
     n: int,
     segment_mask_fn: Callable[[np.ndarray], np.ndarray] | None = None,
+    divisions: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """A flat ring between radii ``r_in < r_out`` (``n`` segments), facing up."""
+    """A flat ring between radii ``r_in < r_out`` (``n`` segments, ``divisions`` rings across), facing up."""
     th = np.linspace(0.0, 2.0 * math.pi, n + 1)
     pts = centre + r_out * np.column_stack([np.cos(th), np.sin(th)])
     normals = -np.column_stack([np.cos(th), np.sin(th)])  # "left" of an anticlockwise traversal: inwards
@@ -86,7 +121,7 @@ def annulus(
     if segment_mask_fn is not None:
         mid = 0.5 * (th[:-1] + th[1:])
         mask = segment_mask_fn(centre + 0.5 * (r_in + r_out) * np.column_stack([np.cos(mid), np.sin(mid)]))
-    return strip(pts, normals, 0.0, r_out - r_in, z, mask)
+    return strip(pts, normals, 0.0, r_out - r_in, z, mask, divisions)
 
 
 def disc(centre: np.ndarray, r: float, z: float, n: int) -> tuple[np.ndarray, np.ndarray]:

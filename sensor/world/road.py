@@ -7,10 +7,14 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
+from vehicle_model.terrain_pose import is_flat
+
 from .. import textures as tx
 from .layout import Layout, polyline_normals, resample
 from .mesh import MeshBuilder, annulus, planar_uv, strip
+from .terrain_mesh import lateral_divisions
 from .types import DASH_PERIOD, LEVELS, Part
+from .unsealed import ROAD_TEXTURE, RUT_TILE_WIDTH, UNSEALED_TILE_SIZE, VERGE_TEXTURE
 
 
 def _line_strip(
@@ -26,12 +30,33 @@ def _line_strip(
     return pos, uv, idx
 
 
+def _along_road_uv(pos: np.ndarray, points: np.ndarray, normals: np.ndarray, divisions: int) -> np.ndarray:
+    """Unsealed road texture coordinates of a :func:`strip` of ``divisions`` lanes: u across (the centre line at
+    0.5, :data:`~sensor.world.unsealed.RUT_TILE_WIDTH` metres per repeat), v along (one tile per its length)."""
+    m = divisions + 1 if divisions > 1 else 2
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))])
+    rel = pos[:, :2].reshape(len(points), m, 2) - points[:, None, :]
+    lateral = np.einsum("nmk,nk->nm", rel, normals)
+    u = 0.5 + lateral / RUT_TILE_WIDTH
+    v = np.broadcast_to((s / UNSEALED_TILE_SIZE[ROAD_TEXTURE])[:, None], u.shape)
+    return np.column_stack([u.ravel(), v.ravel()])
+
+
 def road_parts(lay: Layout) -> list[Part]:
-    """Asphalt, edge lines, centre-line dashes and verges of every run and loop (one part each)."""
+    """Asphalt, edge lines, centre-line dashes and verges of every run and loop (one part each); on an unsealed
+    world a gravel running surface and scrub verges without lines (:mod:`sensor.world.unsealed`); on a terrain the
+    surfaces are split into lanes across (:func:`~sensor.world.terrain_mesh.lateral_divisions`)."""
     half = lay.half
     z = LEVELS["road"]
     asphalt, lines_b, dashes_b, verge = MeshBuilder(), MeshBuilder(), MeshBuilder(), MeshBuilder()
     tile_a, tile_v = tx.TILE_SIZE["asphalt"], tx.TILE_SIZE["verge"]
+    unsealed = lay.cfg.surface == "unsealed"
+    flat = is_flat(lay.terrain)
+    spacing = lay.cfg.terrain_mesh_spacing
+    road_div = 1 if flat else lateral_divisions(2.0 * half, spacing)
+    verge_div = 1 if flat else lateral_divisions(3.1, spacing)
+    if unsealed:
+        tile_v = UNSEALED_TILE_SIZE[VERGE_TEXTURE]
     run_trees = [cKDTree(lay.samples[a : b + 1]) for a, b in lay.runs]
 
     def outside_rings(mid: np.ndarray) -> np.ndarray:
@@ -52,11 +77,13 @@ def road_parts(lay: Layout) -> list[Part]:
     lines = ((-edge_offset, edge_w, False), (edge_offset, edge_w, False), (0.0, centre_w, True))
     for a, b in lay.runs:
         pts, nrm = lay.samples[a : b + 1], lay.normals[a : b + 1]
-        pos, idx = strip(pts, nrm, -half, half, z)
-        asphalt.add(pos, planar_uv(pos[:, :2], tile_a), idx)
+        pos, idx = strip(pts, nrm, -half, half, z, divisions=road_div)
+        asphalt.add(pos, _along_road_uv(pos, pts, nrm, road_div) if unsealed else planar_uv(pos[:, :2], tile_a), idx)
         for lo, hi in ((-half - 3.0, -half + 0.1), (half - 0.1, half + 3.0)):
-            pos, idx = strip(pts, nrm, lo, hi, LEVELS["verge"])
+            pos, idx = strip(pts, nrm, lo, hi, LEVELS["verge"], divisions=verge_div)
             verge.add(pos, planar_uv(pos[:, :2], tile_v), idx)
+        if unsealed:
+            continue
         fine = resample(pts, 0.5)
         fn = polyline_normals(fine)
         keep = outside_rings(0.5 * (fine[1:] + fine[:-1]))
@@ -66,10 +93,12 @@ def road_parts(lay: Layout) -> list[Part]:
     for lp in lay.loops:
         c = np.asarray(lp.centre)
         n = max(180, math.ceil(2 * math.pi * lp.outer_edge / 0.75))
-        pos, idx = annulus(c, lp.radius - half, lp.radius + half, z, n)
+        pos, idx = annulus(c, lp.radius - half, lp.radius + half, z, n, divisions=road_div)
         asphalt.add(pos, planar_uv(pos[:, :2], tile_a), idx)
-        pos, idx = annulus(c, lp.radius + half - 0.1, lp.radius + half + 3.0, LEVELS["verge"], n)
+        pos, idx = annulus(c, lp.radius + half - 0.1, lp.radius + half + 3.0, LEVELS["verge"], n, divisions=verge_div)
         verge.add(pos, planar_uv(pos[:, :2], tile_v), idx)
+        if unsealed:
+            continue
         th = np.linspace(0.0, 2 * math.pi, max(360, math.ceil(2 * math.pi * lp.outer_edge / 0.5)) + 1)
         unit = np.column_stack([np.cos(th), np.sin(th)])
         for off, w, dashed in lines:
@@ -83,9 +112,9 @@ def road_parts(lay: Layout) -> list[Part]:
                 builder, period = lines_b, tx.TILE_SIZE["paint_line"]
             builder.add(*_line_strip(ring, -unit, 0.0, w, period, keep))
     parts = (
-        asphalt.part("road", "road", "asphalt"),
+        asphalt.part("road", "road", ROAD_TEXTURE if unsealed else "asphalt"),
         lines_b.part("road_lines", "road", "paint_line"),
         dashes_b.part("road_dashes", "road", "paint_dash"),
-        verge.part("verge", "ground", "verge"),
+        verge.part("verge", "ground", VERGE_TEXTURE if unsealed else "verge"),
     )
     return [p for p in parts if p is not None]

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from vehicle_model.errors import InputError
+from vehicle_model.terrain import Terrain
 
 LEVELS: dict[str, float] = {
     "road": 0.0,
@@ -143,6 +144,19 @@ class WorldConfig:
         Width of the airfield's tarmac apron [m] (Bourn: 40 m).
     airfield_field_size : float
         Side of the airfield's grain fields [m].
+    surface : str
+        ``sealed`` (asphalt with painted lines, grass verges, farm fields) or ``unsealed`` (an unsealed road of
+        compacted gravel with wheel ruts and no paint, dry scrub verges, dirt, stony and scrub ground, and rock
+        cut faces where the terrain is steeper than :data:`sensor.world.unsealed.CUT_FACE_SLOPE`, posts, trees and
+        boulders beside the road and no buildings, signs, fences or hedgerows; :mod:`sensor.world.unsealed`).
+        Roadside objects are thinned by ``scenery_density`` either way.
+    terrain_mesh_spacing : float
+        On a terrain (:func:`sensor.world.build_world` with one that is not flat): the ground grid's spacing
+        within ``terrain_detail_reach`` of the path's bounding box, and the largest lateral step of the road and
+        verge strips [m]; undulations need a few vertices per wavelength (docs/terrain_camera.md §3).
+    terrain_detail_reach : float
+        How far beyond the path's bounding box the ground grid keeps ``terrain_mesh_spacing`` [m]; farther out its
+        spacing grows by a tenth of the distance, up to ``field_size``.
     """
 
     road_width: float = 7.0
@@ -159,6 +173,9 @@ class WorldConfig:
     kind: str = "roadside"
     airfield_width: float = 40.0
     airfield_field_size: float = 200.0
+    surface: str = "sealed"
+    terrain_mesh_spacing: float = 1.0
+    terrain_detail_reach: float = 60.0
 
     def __post_init__(self) -> None:
         checks = [
@@ -173,6 +190,9 @@ class WorldConfig:
             ("kind", self.kind in ("roadside", "airfield"), "roadside or airfield"),
             ("airfield_width", 10.0 <= self.airfield_width <= 100.0, "[10, 100] m"),
             ("airfield_field_size", 20.0 <= self.airfield_field_size <= 1000.0, "[20, 1000] m"),
+            ("surface", self.surface in ("sealed", "unsealed"), "sealed or unsealed"),
+            ("terrain_mesh_spacing", 0.25 <= self.terrain_mesh_spacing <= 20.0, "[0.25, 20] m"),
+            ("terrain_detail_reach", 0.0 <= self.terrain_detail_reach <= 2000.0, "[0, 2000] m"),
         ]
         for name, ok, allowed in checks:
             if not ok:
@@ -289,6 +309,9 @@ class World:
     mipmaps : dict of str to tuple of numpy.ndarray
         Mipmap levels 1, 2, … to upload instead of OpenGL's box-filtered ones, by texture name
         (:func:`sensor.world.detail.detail_mipmaps`); textures not listed get ``glGenerateMipmap``'s.
+    terrain : Terrain or None
+        The ground the world was draped on (:func:`sensor.world.build_world`); the renderer places the cameras
+        and the combination's units on it. ``None``: the level road (Z = 0).
     """
 
     config: WorldConfig
@@ -299,6 +322,7 @@ class World:
     object_counts: dict[str, int] = field(default_factory=dict)
     sky_rgb: tuple[float, float, float] = SKY_RGB
     mipmaps: dict[str, tuple[np.ndarray, ...]] = field(default_factory=dict)
+    terrain: Terrain | None = None
 
     @property
     def triangle_count(self) -> int:
