@@ -248,3 +248,20 @@ def test_the_runs_camera_feed_stands_on_the_terrain_and_reads_the_units_tilt():
         and abs(roll - float(att.roll) - TRAILER_TILT_BIAS) < tol
     )
     feed.close()
+
+
+def test_frame_cache_tags_name_the_terrain_by_its_heights() -> None:
+    """Frames rendered on one terrain are never taken for another's or the flat road's: the camera tag changes with
+    the terrain's heights (two grades of the same section kind) and is the flat road's own without a terrain."""
+    from scenarios.camera.build import camera_tag
+    from scenarios.config import load_scenario
+    from scenarios.setup.build import build_scenario
+
+    def tag(overrides: dict) -> tuple[str, str]:
+        setup = build_scenario(load_scenario("pbs-low-speed-turn", overrides))
+        return camera_tag(setup, terrain=setup.terrain), camera_tag(setup)
+
+    flat_with, flat = tag({})
+    eight, _ = tag({"terrain.kind": "plane", "terrain.grade_percent": 8.0})
+    ten, ten_without = tag({"terrain.kind": "plane", "terrain.grade_percent": 10.0})
+    assert len({flat_with, eight, ten}) == 3 and flat == ten_without

@@ -282,10 +282,18 @@ def camera_tag(setup: ScenarioSetup, **settings: Any) -> str:
         "vehicle": repr(setup.params),
         "settings": {k: repr(v) for k, v in sorted(settings.items())},
     }
+    terrain = settings.get("terrain")
+    described["settings"].pop("terrain", None)  # named below by its section and its heights
     if settings.get("rig_index", 0) == 0:
         described["settings"].pop("rig_index", None)  # the first rig's frames are named as the one camera's were
+    if terrain is not None:  # the section, and the heights themselves (a file's content, seeded potholes)
+        described["terrain"] = cfg.terrain.model_dump(mode="json")
     digest = hashlib.sha256(json.dumps(described, sort_keys=True).encode())
     digest.update(np.ascontiguousarray(setup.path.points, dtype=np.float64).tobytes())
+    if terrain is not None:
+        points = np.asarray(setup.path.points, dtype=float)
+        for offset in (-6.0, -2.0, 0.0, 2.0, 6.0):
+            digest.update(np.ascontiguousarray(terrain.height(points + offset), dtype=np.float64).tobytes())
     return digest.hexdigest()[:16]
 
 

@@ -211,7 +211,8 @@ def _feed(context: LoopContext, rig_index: int) -> Any:
     from ..camera.delivery import CameraFeed  # rendering and OpenGL only when a camera runs
 
     rig = {"rig_index": rig_index} if rig_index else {}  # rig 0 is the camera's default
-    return CameraFeed(context.setup, workers=context.camera_workers, **rig)
+    # on a terrain the world is draped on it and VISO-OT runs in the level frame (docs/terrain_camera.md)
+    return CameraFeed(context.setup, workers=context.camera_workers, terrain=context.setup.terrain, **rig)
 
 
 def viso_ot(context: LoopContext) -> VisoOt:
