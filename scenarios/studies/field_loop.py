@@ -54,9 +54,10 @@ from vehicle_model.errors import InputError
 
 from ..config import load_scenario
 from ..loop.ends import RunStatus
+from ..loop.schema import FIRST_TOWED_UNIT
 from ..run.results import read_timeseries
 from .cases import run_case
-from .field_loop_units import further_units_of, unit_columns
+from .field_loop_units import further_units_of, unit_columns, verdict_flag_names
 from .records import CaseSpec
 from .section4 import FIELD_CONDITIONS, PAPER_SECTION4_MISALIGNMENT_DEG
 from .unit_steering import study_vehicle, vehicle_problem
@@ -295,7 +296,8 @@ def metrics_columns(metrics: dict[str, Any]) -> dict[str, Any]:
         ``fused_rms_error_m``, ``fused_mean_error_m``, ``fused_max_abs_error_m`` [m], ``fused_within_2sigma``
         (share), ``fused_mean_std_m`` [m] of ``offtracking.estimators.viso_ot_fused``; ``fallback_fraction`` and
         ``fallback_s`` [s] of ``feedback_fallback``; ``verdict_held`` (bool) and ``verdict_flags`` (the flag
-        names joined by ``;``, empty when it held) of ``verdict``.
+        names joined by ``;``, a further unit's named with it, :func:`verdict_flag_names`; empty when it held) of
+        ``verdict``.
     """
     fused = ((metrics.get("offtracking") or {}).get("estimators") or {}).get("viso_ot_fused") or {}
     fallback = metrics.get("feedback_fallback") or {}
@@ -313,7 +315,7 @@ def metrics_columns(metrics: dict[str, Any]) -> dict[str, Any]:
     }
     if isinstance(verdict, dict) and "held" in verdict:
         row["verdict_held"] = bool(verdict["held"])
-        row["verdict_flags"] = ";".join(str(f.get("flag", "")) for f in verdict.get("flags") or ())
+        row["verdict_flags"] = ";".join(verdict_flag_names(metrics))
     return row
 
 
@@ -420,6 +422,18 @@ def _verdict_text(held: Any, flags: Any) -> str:
     return "—"
 
 
+def _unit_verdict_text(fused: pd.Series | None, unit: int) -> str:
+    """The fused-fed run's verdict on one further unit: ``held`` or that unit's flags (:func:`verdict_flag_names`)."""
+    held = None if fused is None else fused.get("verdict_held")
+    if not isinstance(held, bool | np.bool_):
+        return "—"
+    flags = fused.get("verdict_flags")
+    prefix = f"unit {unit}: "
+    names = flags.split(";") if isinstance(flags, str) else []
+    own = [f.removeprefix(prefix) for f in names if f.startswith(prefix)]
+    return ", ".join(own) if own else "held"
+
+
 def cell_table(table: pd.DataFrame) -> pd.DataFrame:
     """One row per cell of a field-loop table (:func:`run_field_loop_case` rows), with its :func:`acceptance`.
 
@@ -434,9 +448,12 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
     -------
     pandas.DataFrame
         The cell labels, then for each feedback ``{feedback}_true_rms_m`` and ``{feedback}_true_max_m`` [m], the
-        fused-fed run's ``fused_rms_error_m``, ``fused_mean_error_m`` [m], ``coverage`` (share within 2σ),
-        ``fallback_s`` [s] and ``verdict`` (``held``, its flags or ``—``), and ``acceptance``; in the table's
-        order of cells.
+        fused-fed run's ``fused_rms_error_m``, ``fused_mean_error_m``, ``viso_ot_rms_error_m`` (the raw
+        estimate's) [m], ``coverage`` (share within 2σ), ``fallback_s`` [s] and ``verdict`` (``held``, its flags or
+        ``—``), and ``acceptance``; with a combination's cases the same figures of each further unit ``k``
+        (``{feedback}_unit<k>_true_rms_m``, ``unit<k>_coverage``, ``unit<k>_verdict``, ``unit<k>_acceptance``, …;
+        :func:`.field_loop_units.unit_view` reads them under the first towed unit's names), its acceptance joining
+        the cell's; in the table's order of cells.
     """
     rows = []
     units = further_units_of(table)
@@ -450,6 +467,7 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
         fused = by_feedback.get(RENDERED_FEEDBACK)
         row["fused_rms_error_m"] = _get(fused, "fused_rms_error_m")
         row["fused_mean_error_m"] = _get(fused, "fused_mean_error_m")
+        row["viso_ot_rms_error_m"] = _get(fused, "viso_ot_rms_error_m")
         row["coverage"] = _get(fused, "fused_within_2sigma")
         row["fallback_s"] = _get(fused, "fallback_s")
         row["verdict"] = _verdict_text(
@@ -472,7 +490,8 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
                 case = by_feedback.get(feedback)
                 row[f"{feedback}_unit{unit}_true_rms_m"] = _get(case, f"unit{unit}_true_rms_m")
                 row[f"{feedback}_unit{unit}_true_max_m"] = _get(case, f"unit{unit}_true_max_m")
-            row[f"unit{unit}_fused_rms_error_m"] = _get(fused, f"unit{unit}_fused_rms_error_m")
+            for key in ("fused_rms_error_m", "fused_mean_error_m", "viso_ot_rms_error_m", "fallback_s"):
+                row[f"unit{unit}_{key}"] = _get(fused, f"unit{unit}_{key}")
             row[f"unit{unit}_coverage"] = _get(fused, f"unit{unit}_fused_within_2sigma")
             unit_acceptance = acceptance(
                 row[f"viso_ot_fused_unit{unit}_true_rms_m"],
@@ -482,6 +501,8 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
                 dry=dry,
                 ice_camber=ice_camber,
             )
+            row[f"unit{unit}_verdict"] = _unit_verdict_text(fused, unit)
+            row[f"unit{unit}_acceptance"] = unit_acceptance
             if unit_acceptance != "pass":
                 verdicts.append(f"unit {unit}: {unit_acceptance}")
         passed = [v for v in verdicts if v != "pass"]
@@ -534,13 +555,15 @@ def pooled_coverage(cells: pd.DataFrame) -> pd.DataFrame:
     -------
     pandas.DataFrame
         ``group``, ``cells`` (how many had a coverage), ``mean``, ``least`` and ``most`` (shares; NaN without
-        cells), one row per group in the order above; with a combination's cells the same groups again for each
-        further unit ``k`` (``unit<k>_coverage``), named ``unit k: …``.
+        cells), one row per group in the order above; with a combination's cells the groups are named
+        ``unit 2: …`` (the first towed unit) and follow the same groups for each further unit ``k``
+        (``unit<k>_coverage``), named ``unit k: …``.
     """
     units = sorted(
         int(k) for k in (str(c).removeprefix("unit").removesuffix("_coverage") for c in cells.columns) if k.isdigit()
     )
-    columns = {"": "coverage", **{f"unit {unit}: ": f"unit{unit}_coverage" for unit in units}}
+    first = f"unit {FIRST_TOWED_UNIT}: " if units else ""
+    columns = {first: "coverage", **{f"unit {unit}: ": f"unit{unit}_coverage" for unit in units}}
     cells = cells.reindex(columns=["conditions", "alignment", *columns.values()])  # an empty table may have none
     field = cells["conditions"].eq("field").to_numpy()
     paper = cells["alignment"].eq("paper").to_numpy()
