@@ -31,6 +31,7 @@ from scenarios.studies.field_loop import (
     metrics_columns,
     pooled_coverage,
     run_field_loop_case,
+    short_acceptance,
 )
 from scenarios.studies.figures_field_loop import cell_label, coverage_axes, field_loop_figures
 from scenarios.studies.registry import STUDIES
@@ -360,14 +361,14 @@ def test_a_further_units_figures_are_judged_and_pooled_per_unit() -> None:
     cells = cell_table(table)
     pass_cell = cells.iloc[0]  # passes on its first towed unit
     assert pass_cell["viso_ot_fused_unit3_true_rms_m"] == 0.20 and pass_cell["unit3_coverage"] == 0.9
-    assert pass_cell["acceptance"] == "unit 3: RMS 0.200 > 0.10 m; dry: RMS 0.200 > zero-slip-fed 0.050 + 0.01 m"
+    assert (
+        pass_cell["acceptance"] == "unit 3: RMS 0.200 > 0.10 m; unit 3: dry: RMS 0.200 > zero-slip-fed 0.050 + 0.01 m"
+    )
+    assert short_acceptance(pass_cell["acceptance"]) == "fail: unit 3 RMS, unit 3 dry"
     pooled = pooled_coverage(cells).set_index("group")
     assert pooled.loc["unit 3: all", "cells"] == len(cells) and pooled.loc["unit 3: all", "mean"] == pytest.approx(0.9)
-    assert list(pooled.index[:4]) == [
-        "unit 2: field, aligned",
-        "unit 2: field, the paper's rotation",
-        "unit 2: ideal",
-    ] + ["unit 2: all"]
+    groups = ["field, aligned", "field, the paper's rotation", "ideal", "all"]
+    assert list(pooled.index[:4]) == [f"unit 2: {group}" for group in groups]
 
 
 def test_unit_columns_read_each_further_unit() -> None:

@@ -503,8 +503,8 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
             )
             row[f"unit{unit}_verdict"] = _unit_verdict_text(fused, unit)
             row[f"unit{unit}_acceptance"] = unit_acceptance
-            if unit_acceptance != "pass":
-                verdicts.append(f"unit {unit}: {unit_acceptance}")
+            if unit_acceptance != "pass":  # every failed criterion named with its unit
+                verdicts += [f"unit {unit}: {part}" for part in unit_acceptance.split("; ")]
         passed = [v for v in verdicts if v != "pass"]
         row["acceptance"] = "pass" if not passed else "; ".join(passed)
         rows.append(row)
@@ -530,11 +530,17 @@ def field_loop_terminal_rows(table: pd.DataFrame) -> tuple[pd.DataFrame, str]:
 
 
 def short_acceptance(text: str) -> str:
-    """:func:`acceptance`'s text cut to the criteria's names for a terminal cell: ``pass`` or ``fail: RMS, dry``."""
+    """:func:`acceptance`'s text cut to the criteria's names for a terminal cell: ``pass`` or ``fail: RMS, dry``
+    (a further unit's criterion named with it: ``fail: RMS, unit 3 coverage``)."""
     if text == "pass":
         return text
-    names = [part.split(":")[0].split(" ")[0] if not part.startswith("ice") else "ice" for part in text.split("; ")]
-    return "fail: " + ", ".join(names)
+
+    def name(part: str) -> str:
+        unit, _, rest = part.partition(": ") if part.startswith("unit ") else ("", "", part)
+        short = "ice" if rest.startswith("ice") else rest.split(":")[0].split(" ")[0]
+        return f"{unit} {short}" if unit else short
+
+    return "fail: " + ", ".join(name(part) for part in text.split("; "))
 
 
 def pooled_coverage(cells: pd.DataFrame) -> pd.DataFrame:
