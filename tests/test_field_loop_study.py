@@ -390,7 +390,7 @@ def test_unit_columns_read_each_further_unit() -> None:
         }
     }
     row = unit_columns(metrics)
-    nan = {k: row.pop(k) for k in ("unit3_fused_max_abs_error_m", "unit3_zero_slip_rms_error_m")}
+    nan = {k: row.pop(k) for k in ("unit3_fused_max_abs_error_m", "unit3_zero_slip_rms_error_m", "unit3_steered")}
     assert all(math.isnan(v) for v in nan.values())  # absent from the metrics: NaN, not another unit's figure
     assert row == {
         "unit3_true_rms_m": 0.04,

@@ -102,3 +102,26 @@ def test_every_unit_has_its_panels_and_its_table_of_cells(tmp_path: Path) -> Non
     assert "### unit 2" in text and "| unit 3: field, aligned | 1 | 90.0 |" in text
     for name in ("field_loop_offtracking.png", "field_loop_coverage.png", "field_loop_errors.png"):
         assert (tmp_path / name).stat().st_size > 0
+
+
+def test_a_unit_the_run_does_not_steer_is_judged_on_its_coverage_alone() -> None:
+    from scenarios.studies.field_loop_units import unit_columns
+
+    dolly = {"rms_after_warmup": 0.3, "max_abs_after_warmup": 0.4, "feedback": None}
+    assert unit_columns({"offtracking": {"units": {"3": dolly}}})["unit3_steered"] == 0.0
+    assert (
+        unit_columns({"offtracking": {"units": {"3": {**dolly, "feedback": "viso_ot_fused"}}}})["unit3_steered"] == 1.0
+    )
+    table = _b_double_table()
+    table["unit3_true_rms_m"] = 0.3  # far beyond the target under every feedback
+    steered = cell_table(table)
+    assert steered["unit3_acceptance"].str.startswith("RMS 0.300 > 0.10 m").all()
+    table["unit3_steered"] = 0.0
+    unsteered = cell_table(table)
+    assert (
+        unsteered["unit3_acceptance"].tolist() == ["pass"] * 2
+        and unsteered["unit3_verdict"].tolist() == ["not steered"] * 2
+    )
+    assert [p for p, _ in unit_panels(unsteered)] == ["unit 2: ", "unit 3 (not steered): "]
+    table["unit3_fused_within_2sigma"] = 0.5
+    assert cell_table(table)["unit3_acceptance"].tolist() == ["coverage 50 % outside 85–98 %"] * 2

@@ -369,7 +369,13 @@ def run_field_loop_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
 
 
 def acceptance(
-    fused_rms_m: float, fused_max_m: float, zero_slip_rms_m: float, coverage: float, dry: bool, ice_camber: bool = False
+    fused_rms_m: float,
+    fused_max_m: float,
+    zero_slip_rms_m: float,
+    coverage: float,
+    dry: bool,
+    ice_camber: bool = False,
+    steered: bool = True,
 ) -> str:
     """The study's acceptance of one cell: ``pass``, or the criteria it failed joined by ``; ``.
 
@@ -385,6 +391,10 @@ def acceptance(
         Whether the cell's road is dry.
     ice_camber
         Whether the cell is a field cell on ice with camber.
+    steered
+        Whether the unit is steered on its estimate; an unsteered unit (an A-double's converter dolly, which
+        carries a camera because it tows a trailer) is judged on its estimate's coverage alone: its off-tracking
+        is its geometry's, whatever the feedback.
 
     Returns
     -------
@@ -394,6 +404,8 @@ def acceptance(
         :data:`ICE_CAMBER_LIMITS_M`, and coverage within :data:`COVERAGE_BAND`; a missing value fails its criterion.
     """
     failed = []
+    if not steered:
+        fused_rms_m = fused_max_m = zero_slip_rms_m = 0.0  # no off-tracking criterion applies
     if not fused_rms_m <= TARGET_RMS_M:
         failed.append(f"RMS {_m(fused_rms_m)} > {TARGET_RMS_M:.2f} m")
     if not fused_max_m <= TARGET_MAX_M:
@@ -452,6 +464,7 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
         estimate's) [m], ``coverage`` (share within 2σ), ``fallback_s`` [s] and ``verdict`` (``held``, its flags or
         ``—``), and ``acceptance``; with a combination's cases the same figures of each further unit ``k``
         (``{feedback}_unit<k>_true_rms_m``, ``unit<k>_coverage``, ``unit<k>_verdict``, ``unit<k>_acceptance``, …;
+        a unit the run did not steer judged on its coverage alone, its verdict ``not steered``;
         :func:`.field_loop_units.unit_view` reads them under the first towed unit's names), its acceptance joining
         the cell's; in the table's order of cells.
     """
@@ -493,6 +506,7 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
             for key in ("fused_rms_error_m", "fused_mean_error_m", "viso_ot_rms_error_m", "fallback_s"):
                 row[f"unit{unit}_{key}"] = _get(fused, f"unit{unit}_{key}")
             row[f"unit{unit}_coverage"] = _get(fused, f"unit{unit}_fused_within_2sigma")
+            steered = _get(fused, f"unit{unit}_steered") != 0.0  # unknown counts as steered
             unit_acceptance = acceptance(
                 row[f"viso_ot_fused_unit{unit}_true_rms_m"],
                 row[f"viso_ot_fused_unit{unit}_true_max_m"],
@@ -500,8 +514,10 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
                 row[f"unit{unit}_coverage"],
                 dry=dry,
                 ice_camber=ice_camber,
+                steered=steered,
             )
-            row[f"unit{unit}_verdict"] = _unit_verdict_text(fused, unit)
+            row[f"unit{unit}_steered"] = float(steered)
+            row[f"unit{unit}_verdict"] = _unit_verdict_text(fused, unit) if steered else "not steered"
             row[f"unit{unit}_acceptance"] = unit_acceptance
             if unit_acceptance != "pass":  # every failed criterion named with its unit
                 verdicts += [f"unit {unit}: {part}" for part in unit_acceptance.split("; ")]

@@ -89,12 +89,18 @@ def unit_panels(frame: pd.DataFrame, labels: tuple[str, ...] = CELL_LABELS) -> l
     -------
     list of (str, pandas.DataFrame)
         ``[("", frame)]`` for a tractor–semi-trailer; otherwise ``unit 2: `` with ``frame`` and ``unit <k>: `` with
-        :func:`~.field_loop_units.unit_view` of each further unit ``k``.
+        :func:`~.field_loop_units.unit_view` of each further unit ``k`` (``unit <k> (not steered): `` for a unit no
+        run of the table steered).
     """
     units = further_units_of(frame)
     if not units:
         return [("", frame)]
-    return [(f"unit {FIRST_TOWED_UNIT}: ", frame), *((f"unit {k}: ", unit_view(frame, k, labels)) for k in units)]
+    panels = [(f"unit {FIRST_TOWED_UNIT}: ", frame)]
+    for unit in units:
+        view = unit_view(frame, unit, labels)
+        unsteered = "steered" in view.columns and bool(view["steered"].eq(0.0).all())
+        panels.append((f"unit {unit} (not steered): " if unsteered else f"unit {unit}: ", view))
+    return panels
 
 
 def _metres(ax: Any) -> None:
@@ -321,7 +327,7 @@ def field_loop_markdown(cells: pd.DataFrame) -> str:
                 if view is cells
                 else "its figures, the fused-fed run's verdict on it and its own acceptance"
             )
-            lines += [f"### {prefix.rstrip(': ')} ({which})", ""]
+            lines += [f"### {prefix.removesuffix(': ')} ({which})", ""]
         lines += [*_cell_rows(view), ""]
     lines += [
         "Fused errors within 2σ over groups of cells (each cell counts once; a calibrated std puts 95 % of a normal "
