@@ -7,6 +7,7 @@ its lead trailer's, so a unit shown with another unit's figures is caught.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pandas as pd
@@ -107,11 +108,10 @@ def test_every_unit_has_its_panels_and_its_table_of_cells(tmp_path: Path) -> Non
 def test_a_unit_the_run_does_not_steer_is_judged_on_its_coverage_alone() -> None:
     from scenarios.studies.field_loop_units import unit_columns
 
-    dolly = {"rms_after_warmup": 0.3, "max_abs_after_warmup": 0.4, "feedback": None}
-    assert unit_columns({"offtracking": {"units": {"3": dolly}}})["unit3_steered"] == 0.0
-    assert (
-        unit_columns({"offtracking": {"units": {"3": {**dolly, "feedback": "viso_ot_fused"}}}})["unit3_steered"] == 1.0
-    )
+    units = {"3": {"rms_after_warmup": 0.3}, "4": {"rms_after_warmup": 0.02}}  # an A-double's dolly, rear trailer
+    row = unit_columns({"offtracking": {"units": units}, "rear_feedback": ["none", "viso_ot_fused"]})
+    assert (row["unit3_steered"], row["unit4_steered"]) == (0.0, 1.0)
+    assert math.isnan(unit_columns({"offtracking": {"units": units}})["unit3_steered"])  # not said
     table = _b_double_table()
     table["unit3_true_rms_m"] = 0.3  # far beyond the target under every feedback
     steered = cell_table(table)
@@ -122,6 +122,6 @@ def test_a_unit_the_run_does_not_steer_is_judged_on_its_coverage_alone() -> None
         unsteered["unit3_acceptance"].tolist() == ["pass"] * 2
         and unsteered["unit3_verdict"].tolist() == ["not steered"] * 2
     )
-    assert [p for p, _ in unit_panels(unsteered)] == ["unit 2: ", "unit 3 (not steered): "]
+    assert [p for p, _ in unit_panels(unsteered)] == ["unit 2: ", "unit 3, not steered: "]
     table["unit3_fused_within_2sigma"] = 0.5
     assert cell_table(table)["unit3_acceptance"].tolist() == ["coverage 50 % outside 85–98 %"] * 2

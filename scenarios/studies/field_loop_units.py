@@ -67,8 +67,8 @@ def unit_columns(metrics: dict[str, Any]) -> dict[str, float]:
         the raw VISO-OT estimate's ``_viso_ot_rms_error_m``, ``_viso_ot_mean_error_m``, ``_viso_ot_max_abs_error_m``
         and the zero-slip estimate's ``_zero_slip_rms_error_m`` [m] (both open loop beside the feedback); and
         ``_fallback_s`` [s]; ``_steered`` (1.0 when the run steered the unit on a feedback, 0.0 when its
-        ``feedback`` is none, e.g. an A-double's converter dolly; NaN when not said). NaN where absent; nothing for
-        a tractor–semi-trailer.
+        ``rear_feedback`` entry is ``none``, e.g. an A-double's converter dolly; NaN when not said). NaN where
+        absent; nothing for a tractor–semi-trailer.
     """
     out: dict[str, float] = {}
     for unit, figures in sorted(((metrics.get("offtracking") or {}).get("units") or {}).items()):
@@ -81,9 +81,20 @@ def unit_columns(metrics: dict[str, Any]) -> dict[str, float]:
             values.update({f"{prefix}_{key}_m": _number(estimators.get(name) or {}, key) for key in keys})
         values["fused_within_2sigma"] = _number(estimators.get("viso_ot_fused") or {}, "within_2sigma")
         values["fallback_s"] = _number(figures.get("feedback_fallback") or {}, "seconds")
-        values["steered"] = math.nan if "feedback" not in figures else float(figures["feedback"] is not None)
+        values["steered"] = _steered(metrics, int(unit))
         out.update({f"unit{unit}_{key}": values[key] for key in UNIT_KEYS})
     return out
+
+
+def _steered(metrics: dict[str, Any], unit: int) -> float:
+    """1.0 if the run steered further unit ``unit`` on a feedback, 0.0 if not, NaN if the metrics do not say.
+
+    ``rear_feedback`` of ``metrics.json`` holds each unit's feedback from unit 3 on (``none``: not steered).
+    """
+    rear = metrics.get("rear_feedback")
+    if isinstance(rear, list) and 0 <= unit - 3 < len(rear):
+        return float(rear[unit - 3] != "none")
+    return math.nan
 
 
 def verdict_flag_names(metrics: dict[str, Any]) -> list[str]:

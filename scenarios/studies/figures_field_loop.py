@@ -89,7 +89,7 @@ def unit_panels(frame: pd.DataFrame, labels: tuple[str, ...] = CELL_LABELS) -> l
     -------
     list of (str, pandas.DataFrame)
         ``[("", frame)]`` for a tractor–semi-trailer; otherwise ``unit 2: `` with ``frame`` and ``unit <k>: `` with
-        :func:`~.field_loop_units.unit_view` of each further unit ``k`` (``unit <k> (not steered): `` for a unit no
+        :func:`~.field_loop_units.unit_view` of each further unit ``k`` (``unit <k>, not steered: `` for a unit no
         run of the table steered).
     """
     units = further_units_of(frame)
@@ -99,7 +99,7 @@ def unit_panels(frame: pd.DataFrame, labels: tuple[str, ...] = CELL_LABELS) -> l
     for unit in units:
         view = unit_view(frame, unit, labels)
         unsteered = "steered" in view.columns and bool(view["steered"].eq(0.0).all())
-        panels.append((f"unit {unit} (not steered): " if unsteered else f"unit {unit}: ", view))
+        panels.append((f"unit {unit}, not steered: " if unsteered else f"unit {unit}: ", view))
     return panels
 
 
