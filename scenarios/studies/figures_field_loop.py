@@ -154,7 +154,7 @@ def offtracking_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
     _cell_ticks(axes[-1], labels)
     fig.suptitle("field-loop: true off-tracking with fused VISO-OT, zero-slip and truth feedback")
     fig.tight_layout()
-    fig.savefig(out_dir / "field_loop_offtracking.png", dpi=110)
+    fig.savefig(out_dir / "field_loop_offtracking.png", dpi=110, bbox_inches="tight")  # the first cell label is long
     plt.close(fig)
 
 
@@ -216,7 +216,7 @@ def coverage_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
     """``field_loop_coverage.png``: the fused estimate's share of errors within 2σ per cell, with the target band
     (:func:`coverage_axes`)."""
     fig = coverage_axes(cells, plt)
-    fig.savefig(out_dir / "field_loop_coverage.png", dpi=110)
+    fig.savefig(out_dir / "field_loop_coverage.png", dpi=110, bbox_inches="tight")  # the first cell label is long
     plt.close(fig)
 
 
@@ -244,7 +244,7 @@ def errors_figure(table: pd.DataFrame, cells: pd.DataFrame, out_dir: Path, plt: 
     _cell_ticks(axes[-1], labels)
     fig.suptitle("field-loop: estimator errors on the fused-fed runs")
     fig.tight_layout()
-    fig.savefig(out_dir / "field_loop_errors.png", dpi=110)
+    fig.savefig(out_dir / "field_loop_errors.png", dpi=110, bbox_inches="tight")  # the first cell label is long
     plt.close(fig)
 
 
