@@ -30,7 +30,8 @@ With ``--vehicle`` the grid drives another combination (``offtrack study field-l
 every steered unit on its own fused camera (a rig per unit, ``camera.rigs``' defaults: a left-side rig on every unit
 that tows another and a rear rig on the last; the field conditions on every rig), or on its own zero-slip estimate
 or truth; each further unit's true off-tracking, fused errors, coverage and fallback join the row
-(``unit<k>_…``, :func:`unit_columns`), and the cell's acceptance and the pooled coverage are taken per unit.
+(``unit<k>_…``, :func:`unit_columns`), and the cell's acceptance and the pooled coverage are taken per unit (a unit
+the run does not steer, such as an A-double's converter dolly, on its estimate's coverage alone).
 
 :func:`run_field_loop_case` adds to the common row (:func:`~scenarios.studies.cases.run_case`) the fused filter's
 errors and coverage, the feedback's fallback, the run's verdict and how far the filter trusted the zero-slip
