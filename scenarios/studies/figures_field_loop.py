@@ -13,7 +13,7 @@
 Cells are labelled ``roundabout-3, dry, camber 0 %, field camera (aligned), seed 0`` (:func:`cell_label`); an ideal
 cell leaves the alignment out (``roundabout-3, ice, camber 5 %, ideal camera, seed 0``).
 
-With a combination's cases (``--vehicle``) every figure has its panels once per steered unit, each named
+With a combination's cases (``--vehicle``) every figure has its panels once per towed unit with a camera, each named
 ``unit <k>:`` (the first towed unit, then each further one, :func:`unit_panels`), and ``table.md`` has a table of
 cells per unit.
 """
@@ -76,7 +76,7 @@ def cell_label(row: pd.Series | dict[str, Any]) -> str:
 
 
 def unit_panels(frame: pd.DataFrame, labels: tuple[str, ...] = CELL_LABELS) -> list[tuple[str, pd.DataFrame]]:
-    """The steered units a figure draws, each as (the panels' prefix, its rows under the first towed unit's names).
+    """The towed units a figure draws, each as (the panels' prefix, its rows under the first towed unit's names).
 
     Parameters
     ----------
