@@ -31,6 +31,7 @@ from scenarios.studies.field_loop import (
     metrics_columns,
     pooled_coverage,
     run_field_loop_case,
+    short_acceptance,
 )
 from scenarios.studies.figures_field_loop import cell_label, coverage_axes, field_loop_figures
 from scenarios.studies.registry import STUDIES
@@ -360,10 +361,14 @@ def test_a_further_units_figures_are_judged_and_pooled_per_unit() -> None:
     cells = cell_table(table)
     pass_cell = cells.iloc[0]  # passes on its first towed unit
     assert pass_cell["viso_ot_fused_unit3_true_rms_m"] == 0.20 and pass_cell["unit3_coverage"] == 0.9
-    assert pass_cell["acceptance"] == "unit 3: RMS 0.200 > 0.10 m; dry: RMS 0.200 > zero-slip-fed 0.050 + 0.01 m"
+    assert (
+        pass_cell["acceptance"] == "unit 3: RMS 0.200 > 0.10 m; unit 3: dry: RMS 0.200 > zero-slip-fed 0.050 + 0.01 m"
+    )
+    assert short_acceptance(pass_cell["acceptance"]) == "fail: unit 3 RMS, unit 3 dry"
     pooled = pooled_coverage(cells).set_index("group")
     assert pooled.loc["unit 3: all", "cells"] == len(cells) and pooled.loc["unit 3: all", "mean"] == pytest.approx(0.9)
-    assert list(pooled.index[:4]) == ["field, aligned", "field, the paper's rotation", "ideal", "all"]
+    groups = ["field, aligned", "field, the paper's rotation", "ideal", "all"]
+    assert list(pooled.index[:4]) == [f"unit 2: {group}" for group in groups]
 
 
 def test_unit_columns_read_each_further_unit() -> None:
@@ -375,19 +380,27 @@ def test_unit_columns_read_each_further_unit() -> None:
                 "3": {
                     "rms_after_warmup": 0.04,
                     "max_abs_after_warmup": 0.09,
-                    "estimators": {"viso_ot_fused": {"rms_error": 0.02, "mean_error": 0.01, "within_2sigma": 0.9}},
+                    "estimators": {
+                        "viso_ot_fused": {"rms_error": 0.02, "mean_error": 0.01, "within_2sigma": 0.9},
+                        "viso_ot": {"rms_error": 0.05, "mean_error": -0.03, "max_abs_error": 0.14},
+                    },
                     "feedback_fallback": {"fraction": 0.0, "seconds": 0.0},
                 }
             }
         }
     }
     row = unit_columns(metrics)
+    nan = {k: row.pop(k) for k in ("unit3_fused_max_abs_error_m", "unit3_zero_slip_rms_error_m", "unit3_steered")}
+    assert all(math.isnan(v) for v in nan.values())  # absent from the metrics: NaN, not another unit's figure
     assert row == {
         "unit3_true_rms_m": 0.04,
         "unit3_true_max_m": 0.09,
         "unit3_fused_rms_error_m": 0.02,
         "unit3_fused_mean_error_m": 0.01,
         "unit3_fused_within_2sigma": 0.9,
+        "unit3_viso_ot_rms_error_m": 0.05,
+        "unit3_viso_ot_mean_error_m": -0.03,
+        "unit3_viso_ot_max_abs_error_m": 0.14,
         "unit3_fallback_s": 0.0,
     }
     assert unit_columns({}) == {}

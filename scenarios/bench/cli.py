@@ -96,12 +96,13 @@ def bench_rigs_cmd(
     frames: Annotated[int, typer.Option(help="Frames (every rig rendered in each).", min=5)] = 30,
     vehicle: Annotated[str, typer.Option(help="The combination (a catalogue name).")] = "au-b-double",
     masks: Annotated[bool, typer.Option(help="Mask the other units out of the odometry.")] = True,
+    repeats: Annotated[int, typer.Option(help="Repetitions of ceiling and loop; ratios are their medians.", min=1)] = 3,
 ) -> None:
     """Two rigs (lead trailer's left side, rear trailer's rear) by one render process's context: pipelined loop
     frame rate against the render-only ceiling."""
     from scenarios.bench.rigs import bench_rigs
 
-    _print_bench(bench_rigs(frames, vehicle=vehicle, masks=masks), as_json, "Rigs benchmark")
+    _print_bench(bench_rigs(frames, vehicle=vehicle, masks=masks, repeats=repeats), as_json, "Rigs benchmark")
 
 
 @bench_app.command("env", cls=OfftrackCommand)

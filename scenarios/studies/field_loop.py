@@ -30,7 +30,8 @@ With ``--vehicle`` the grid drives another combination (``offtrack study field-l
 every steered unit on its own fused camera (a rig per unit, ``camera.rigs``' defaults: a left-side rig on every unit
 that tows another and a rear rig on the last; the field conditions on every rig), or on its own zero-slip estimate
 or truth; each further unit's true off-tracking, fused errors, coverage and fallback join the row
-(``unit<k>_…``, :func:`unit_columns`), and the cell's acceptance and the pooled coverage are taken per unit.
+(``unit<k>_…``, :func:`unit_columns`), and the cell's acceptance and the pooled coverage are taken per unit (a unit
+the run does not steer, such as an A-double's converter dolly, on its estimate's coverage alone).
 
 :func:`run_field_loop_case` adds to the common row (:func:`~scenarios.studies.cases.run_case`) the fused filter's
 errors and coverage, the feedback's fallback, the run's verdict and how far the filter trusted the zero-slip
@@ -54,8 +55,12 @@ from vehicle_model.errors import InputError
 
 from ..config import load_scenario
 from ..loop.ends import RunStatus
+from ..loop.schema import FIRST_TOWED_UNIT
 from ..run.results import read_timeseries
 from .cases import run_case
+from .field_loop_rows import KINEMATIC_TRUSTED_STD_MPS as KINEMATIC_TRUSTED_STD_MPS  # the study's names, kept here
+from .field_loop_rows import ROW_KEYS as ROW_KEYS
+from .field_loop_rows import kinematic_trust, metrics_columns
 from .field_loop_units import further_units_of, unit_columns
 from .records import CaseSpec
 from .section4 import FIELD_CONDITIONS, PAPER_SECTION4_MISALIGNMENT_DEG
@@ -134,25 +139,6 @@ of ``offtrack study field-loop``). The field may not cost the loop where the cam
 COVERAGE_BAND = (0.85, 0.98)
 """Share of the fused estimate's errors within twice its standard deviation, least and most: the project's target
 for an honest std, neither understating nor grossly overstating the error (docs/design.md §11)."""
-
-KINEMATIC_TRUSTED_STD_MPS = 0.03
-"""``fusion_kinematic_std`` at or below which the fused filter counts as trusting the zero-slip kinematics [m/s]."""
-
-ROW_KEYS = (
-    "fused_rms_error_m",
-    "fused_mean_error_m",
-    "fused_max_abs_error_m",
-    "fused_within_2sigma",
-    "fused_mean_std_m",
-    "fallback_fraction",
-    "fallback_s",
-    "verdict_held",
-    "verdict_flags",
-    "kinematic_std_median_mps",
-    "kinematic_trusted_fraction",
-)
-"""The columns :func:`run_field_loop_case` adds to :func:`~scenarios.studies.cases.run_case`'s row (NaN where
-the run did not give them)."""
 
 FIELD_LOOP_COLUMNS = (
     "viso_ot_fused_true_rms_m",
@@ -273,76 +259,6 @@ def field_loop_cases(full: bool = False, vehicle: str | None = None) -> list[Cas
     return [_case(*cell, feedback, full, combination) for cell in cells for feedback in FEEDBACKS]
 
 
-def _number(mapping: Any, key: str) -> float:
-    value = mapping.get(key) if isinstance(mapping, dict) else None
-    try:
-        return float(value) if value is not None else math.nan
-    except (TypeError, ValueError):
-        return math.nan
-
-
-def metrics_columns(metrics: dict[str, Any]) -> dict[str, Any]:
-    """The study's columns from a run's ``metrics.json``: fused errors, fallback and verdict (NaN where absent).
-
-    Parameters
-    ----------
-    metrics
-        The run's metrics (:func:`~scenarios.run.metrics.compute_metrics`).
-
-    Returns
-    -------
-    dict
-        ``fused_rms_error_m``, ``fused_mean_error_m``, ``fused_max_abs_error_m`` [m], ``fused_within_2sigma``
-        (share), ``fused_mean_std_m`` [m] of ``offtracking.estimators.viso_ot_fused``; ``fallback_fraction`` and
-        ``fallback_s`` [s] of ``feedback_fallback``; ``verdict_held`` (bool) and ``verdict_flags`` (the flag
-        names joined by ``;``, empty when it held) of ``verdict``.
-    """
-    fused = ((metrics.get("offtracking") or {}).get("estimators") or {}).get("viso_ot_fused") or {}
-    fallback = metrics.get("feedback_fallback") or {}
-    verdict = metrics.get("verdict")
-    row: dict[str, Any] = {
-        "fused_rms_error_m": _number(fused, "rms_error"),
-        "fused_mean_error_m": _number(fused, "mean_error"),
-        "fused_max_abs_error_m": _number(fused, "max_abs_error"),
-        "fused_within_2sigma": _number(fused, "within_2sigma"),
-        "fused_mean_std_m": _number(fused, "mean_std"),
-        "fallback_fraction": _number(fallback, "fraction"),
-        "fallback_s": _number(fallback, "seconds"),
-        "verdict_held": math.nan,
-        "verdict_flags": math.nan,
-    }
-    if isinstance(verdict, dict) and "held" in verdict:
-        row["verdict_held"] = bool(verdict["held"])
-        row["verdict_flags"] = ";".join(str(f.get("flag", "")) for f in verdict.get("flags") or ())
-    return row
-
-
-def kinematic_trust(std: np.ndarray | None, trusted: float = KINEMATIC_TRUSTED_STD_MPS) -> dict[str, float]:
-    """Median of the fused filter's zero-slip-kinematics σ and the share of ticks on which it trusted them.
-
-    Parameters
-    ----------
-    std
-        ``fusion_kinematic_std`` per tick [m/s] (NaN where the filter gave none), or None if not recorded.
-    trusted
-        σ at or below which a tick counts as trusted [m/s].
-
-    Returns
-    -------
-    dict
-        ``kinematic_std_median_mps`` [m/s] and ``kinematic_trusted_fraction`` (of the ticks with a finite σ);
-        NaN without any.
-    """
-    values = np.asarray(std if std is not None else [], dtype=float)
-    values = values[np.isfinite(values)]
-    if not values.size:
-        return {"kinematic_std_median_mps": math.nan, "kinematic_trusted_fraction": math.nan}
-    return {
-        "kinematic_std_median_mps": float(np.median(values)),
-        "kinematic_trusted_fraction": float(np.mean(values <= trusted)),
-    }
-
-
 def run_field_loop_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     """:func:`~scenarios.studies.cases.run_case`, plus the columns of :data:`ROW_KEYS`.
 
@@ -367,7 +283,13 @@ def run_field_loop_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
 
 
 def acceptance(
-    fused_rms_m: float, fused_max_m: float, zero_slip_rms_m: float, coverage: float, dry: bool, ice_camber: bool = False
+    fused_rms_m: float,
+    fused_max_m: float,
+    zero_slip_rms_m: float,
+    coverage: float,
+    dry: bool,
+    ice_camber: bool = False,
+    steered: bool = True,
 ) -> str:
     """The study's acceptance of one cell: ``pass``, or the criteria it failed joined by ``; ``.
 
@@ -383,6 +305,10 @@ def acceptance(
         Whether the cell's road is dry.
     ice_camber
         Whether the cell is a field cell on ice with camber.
+    steered
+        Whether the unit is steered on its estimate; an unsteered unit (an A-double's converter dolly, which
+        carries a camera because it tows a trailer) is judged on its estimate's coverage alone: its off-tracking
+        is its geometry's, whatever the feedback.
 
     Returns
     -------
@@ -392,6 +318,8 @@ def acceptance(
         :data:`ICE_CAMBER_LIMITS_M`, and coverage within :data:`COVERAGE_BAND`; a missing value fails its criterion.
     """
     failed = []
+    if not steered:
+        fused_rms_m = fused_max_m = zero_slip_rms_m = 0.0  # no off-tracking criterion applies
     if not fused_rms_m <= TARGET_RMS_M:
         failed.append(f"RMS {_m(fused_rms_m)} > {TARGET_RMS_M:.2f} m")
     if not fused_max_m <= TARGET_MAX_M:
@@ -420,6 +348,18 @@ def _verdict_text(held: Any, flags: Any) -> str:
     return "—"
 
 
+def _unit_verdict_text(fused: pd.Series | None, unit: int) -> str:
+    """The fused-fed run's verdict on one further unit: ``held`` or that unit's flags (:func:`verdict_flag_names`)."""
+    held = None if fused is None else fused.get("verdict_held")
+    if not isinstance(held, bool | np.bool_):
+        return "—"
+    flags = fused.get("verdict_flags")
+    prefix = f"unit {unit}: "
+    names = flags.split(";") if isinstance(flags, str) else []
+    own = [f.removeprefix(prefix) for f in names if f.startswith(prefix)]
+    return ", ".join(own) if own else "held"
+
+
 def cell_table(table: pd.DataFrame) -> pd.DataFrame:
     """One row per cell of a field-loop table (:func:`run_field_loop_case` rows), with its :func:`acceptance`.
 
@@ -434,9 +374,13 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
     -------
     pandas.DataFrame
         The cell labels, then for each feedback ``{feedback}_true_rms_m`` and ``{feedback}_true_max_m`` [m], the
-        fused-fed run's ``fused_rms_error_m``, ``fused_mean_error_m`` [m], ``coverage`` (share within 2σ),
-        ``fallback_s`` [s] and ``verdict`` (``held``, its flags or ``—``), and ``acceptance``; in the table's
-        order of cells.
+        fused-fed run's ``fused_rms_error_m``, ``fused_mean_error_m``, ``viso_ot_rms_error_m`` (the raw
+        estimate's) [m], ``coverage`` (share within 2σ), ``fallback_s`` [s] and ``verdict`` (``held``, its flags or
+        ``—``), and ``acceptance``; with a combination's cases the same figures of each further unit ``k``
+        (``{feedback}_unit<k>_true_rms_m``, ``unit<k>_coverage``, ``unit<k>_verdict``, ``unit<k>_acceptance``, …;
+        a unit the run did not steer judged on its coverage alone, its verdict ``not steered``;
+        :func:`.field_loop_units.unit_view` reads them under the first towed unit's names), its acceptance joining
+        the cell's; in the table's order of cells.
     """
     rows = []
     units = further_units_of(table)
@@ -450,6 +394,7 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
         fused = by_feedback.get(RENDERED_FEEDBACK)
         row["fused_rms_error_m"] = _get(fused, "fused_rms_error_m")
         row["fused_mean_error_m"] = _get(fused, "fused_mean_error_m")
+        row["viso_ot_rms_error_m"] = _get(fused, "viso_ot_rms_error_m")
         row["coverage"] = _get(fused, "fused_within_2sigma")
         row["fallback_s"] = _get(fused, "fallback_s")
         row["verdict"] = _verdict_text(
@@ -472,8 +417,10 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
                 case = by_feedback.get(feedback)
                 row[f"{feedback}_unit{unit}_true_rms_m"] = _get(case, f"unit{unit}_true_rms_m")
                 row[f"{feedback}_unit{unit}_true_max_m"] = _get(case, f"unit{unit}_true_max_m")
-            row[f"unit{unit}_fused_rms_error_m"] = _get(fused, f"unit{unit}_fused_rms_error_m")
+            for key in ("fused_rms_error_m", "fused_mean_error_m", "viso_ot_rms_error_m", "fallback_s"):
+                row[f"unit{unit}_{key}"] = _get(fused, f"unit{unit}_{key}")
             row[f"unit{unit}_coverage"] = _get(fused, f"unit{unit}_fused_within_2sigma")
+            steered = _get(fused, f"unit{unit}_steered") != 0.0  # unknown counts as steered
             unit_acceptance = acceptance(
                 row[f"viso_ot_fused_unit{unit}_true_rms_m"],
                 row[f"viso_ot_fused_unit{unit}_true_max_m"],
@@ -481,9 +428,13 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
                 row[f"unit{unit}_coverage"],
                 dry=dry,
                 ice_camber=ice_camber,
+                steered=steered,
             )
-            if unit_acceptance != "pass":
-                verdicts.append(f"unit {unit}: {unit_acceptance}")
+            row[f"unit{unit}_steered"] = float(steered)
+            row[f"unit{unit}_verdict"] = _unit_verdict_text(fused, unit) if steered else "not steered"
+            row[f"unit{unit}_acceptance"] = unit_acceptance
+            if unit_acceptance != "pass":  # every failed criterion named with its unit
+                verdicts += [f"unit {unit}: {part}" for part in unit_acceptance.split("; ")]
         passed = [v for v in verdicts if v != "pass"]
         row["acceptance"] = "pass" if not passed else "; ".join(passed)
         rows.append(row)
@@ -509,11 +460,17 @@ def field_loop_terminal_rows(table: pd.DataFrame) -> tuple[pd.DataFrame, str]:
 
 
 def short_acceptance(text: str) -> str:
-    """:func:`acceptance`'s text cut to the criteria's names for a terminal cell: ``pass`` or ``fail: RMS, dry``."""
+    """:func:`acceptance`'s text cut to the criteria's names for a terminal cell: ``pass`` or ``fail: RMS, dry``
+    (a further unit's criterion named with it: ``fail: RMS, unit 3 coverage``)."""
     if text == "pass":
         return text
-    names = [part.split(":")[0].split(" ")[0] if not part.startswith("ice") else "ice" for part in text.split("; ")]
-    return "fail: " + ", ".join(names)
+
+    def name(part: str) -> str:
+        unit, _, rest = part.partition(": ") if part.startswith("unit ") else ("", "", part)
+        short = "ice" if rest.startswith("ice") else rest.split(":")[0].split(" ")[0]
+        return f"{unit} {short}" if unit else short
+
+    return "fail: " + ", ".join(name(part) for part in text.split("; "))
 
 
 def pooled_coverage(cells: pd.DataFrame) -> pd.DataFrame:
@@ -534,13 +491,15 @@ def pooled_coverage(cells: pd.DataFrame) -> pd.DataFrame:
     -------
     pandas.DataFrame
         ``group``, ``cells`` (how many had a coverage), ``mean``, ``least`` and ``most`` (shares; NaN without
-        cells), one row per group in the order above; with a combination's cells the same groups again for each
-        further unit ``k`` (``unit<k>_coverage``), named ``unit k: …``.
+        cells), one row per group in the order above; with a combination's cells the groups are named
+        ``unit 2: …`` (the first towed unit) and follow the same groups for each further unit ``k``
+        (``unit<k>_coverage``), named ``unit k: …``.
     """
     units = sorted(
         int(k) for k in (str(c).removeprefix("unit").removesuffix("_coverage") for c in cells.columns) if k.isdigit()
     )
-    columns = {"": "coverage", **{f"unit {unit}: ": f"unit{unit}_coverage" for unit in units}}
+    first = f"unit {FIRST_TOWED_UNIT}: " if units else ""
+    columns = {first: "coverage", **{f"unit {unit}: ": f"unit{unit}_coverage" for unit in units}}
     cells = cells.reindex(columns=["conditions", "alignment", *columns.values()])  # an empty table may have none
     field = cells["conditions"].eq("field").to_numpy()
     paper = cells["alignment"].eq("paper").to_numpy()
