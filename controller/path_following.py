@@ -372,13 +372,16 @@ class TrailerSteeringController:
         else:
             self.feedforward_steer = 0.0
         path_beyond_reach = self.fade > 0 and self.output.beyond_reach(self.feedforward_steer, tan_kingpin)
+        if slip_window is not None and cfg.slip_window_holds_feedforward:
+            slip_window = self._window_with_feedforward(slip_window, tan_kingpin)
 
         # Feedback on the held sample.
         error = self._sample(estimate)
         ki = self.gains.ki
         schedule = bandwidth_schedule(state.u, cfg.bandwidth_speed)
         integral_new = self.integral
-        if error is not None and ki > 0 and self.fade > 0:
+        outswing_beyond_reach = path_beyond_reach and error is not None and error * self.kingpin_curvature > 0
+        if error is not None and ki > 0 and self.fade > 0 and not (cfg.reach_freeze and outswing_beyond_reach):
             integral_new = self.integral + error * ds
 
         feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
@@ -393,6 +396,16 @@ class TrailerSteeringController:
         self.beyond_reach = path_beyond_reach or (self.beyond_reach and bool(np.all(self.output.saturated)))
         return commands
 
+    def _window_with_feedforward(
+        self, window: tuple[np.ndarray, np.ndarray], tan_kingpin: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The slip-angle window widened to hold each axle's share of the feed-forward (the path's own steer, which
+        no estimate moves): the limit bounds what the feedback adds."""
+        cfg = self.config
+        virtual = min(max(self.feedforward_steer, -cfg.max_virtual_steer), cfg.max_virtual_steer)
+        own = self.fade * self.distribution(math.tan(virtual), tan_kingpin)
+        return np.minimum(window[0], own), np.maximum(window[1], own)
+
     def _command(
         self,
         integral: float,
@@ -405,7 +418,17 @@ class TrailerSteeringController:
         """The feedback term and the output stage's step for a given integral."""
         gains = self.gains
         fb = 0.0 if error is None else schedule * (gains.kp * error + gains.ki * integral + gains.kd * self._derivative)
-        return fb, self.output.propose(self.feedforward_steer + fb, tan_kingpin, self.fade, dt, slip_window)
+        virtual = self._outswing_bound(self.feedforward_steer + fb, error)
+        return fb, self.output.propose(virtual, tan_kingpin, self.fade, dt, slip_window)
+
+    def _outswing_bound(self, virtual: float, error: float | None) -> float:
+        """The virtual angle with its outward part scaled down as the rear's outswing nears the bound."""
+        bound = self.config.max_outswing
+        turn = math.copysign(1.0, self.kingpin_curvature)
+        if bound is None or error is None or self.kingpin_curvature == 0.0 or virtual * turn >= 0.0:
+            return virtual
+        outswing = error * turn
+        return virtual * min(max((bound - outswing) / bound, 0.0), 1.0)
 
     def _record_path(self, tow_yaw_rate: float, vx: float, vy: float, dt: float, forward: bool) -> None:
         """Dead-reckon the kingpin path (the towing unit's yaw rate, kingpin velocity) over about one trailer length.

@@ -189,6 +189,9 @@ class PathFollowingConfig(Settings):
     feedback_max_std: float = Field(0.075, gt=0.0)
     max_slip_angle: float | None = Field(math.radians(8.0), gt=0.0, le=math.radians(45.0))
     high_speed_crossover: tuple[float, float] | None = (35.0 / 3.6, 55.0 / 3.6)
+    slip_window_holds_feedforward: bool = True
+    reach_freeze: bool = True
+    max_outswing: float | None = Field(None, gt=0.0, le=2.0)
 
     @model_validator(mode="after")
     def _ordered_fade_speeds(self) -> PathFollowingConfig:
