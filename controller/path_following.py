@@ -113,6 +113,13 @@ while every axle stays at its lock removing the error they left (``beyond_reach`
 ``<prefix>beyond_reach``); the run reports their share of the path. Off-tracking there measures the manoeuvre,
 not the controller.
 
+Where the path is beyond reach, the lock's transient can leave the follow point outside the turn (an outswing,
+``e·κ5 > 0``); the integral does not take that in (``reach_freeze``): it would carry it as a bias into the cut-in
+that follows once the path eases, where the trailer then steers too little. An error inside the turn is integrated
+as everywhere else (a turn beyond reach all the way round needs the integral against the tyres' slip).
+``max_outswing`` (off by default) bounds the outswing itself: the outward part of the command is scaled by
+``clip((b − o)/b, 0, 1)`` at an outswing ``o`` of the estimate.
+
 Anti-windup
 -----------
 Conditional integration: the integral is not advanced when that would push the command further into a
@@ -121,9 +128,11 @@ push; the distribution is monotone in ``δ_v``, so one direction serves all axle
 angle is clamped. Without an integrator (``k_i = 0``) nothing winds up; the output leaves saturation as
 soon as the proportional term does, at the rate limit. The slip-angle limit
 (``PathFollowingConfig.max_slip_angle``, 8° by default) clips each axle to ``β_j ± α_max`` about the direction
-of its velocity, widened to hold straight ahead, before the magnitude limit and counts as a limit here. ``β_j``
-comes from zero-slip kinematics of the tractor's signals, wrong when the tractor's own tyres slide; a window that
-excluded straight ahead then drove the axles to the wrong lock (docs/controller_design.md, *At the limits*).
+of its velocity, widened to hold straight ahead and the axle's share of the feed-forward (the path's own steer, which
+no estimate moves: the limit bounds what the feedback adds), before the magnitude limit and counts as a limit here.
+``β_j`` comes from zero-slip kinematics of the tractor's signals, wrong when the tractor's own tyres slide; a window
+that excluded straight ahead then drove the axles to the wrong lock, and one that excluded the feed-forward held them
+straight while the trailer cut in (docs/controller_design.md, *At the limits*).
 """
 
 from __future__ import annotations

@@ -3,8 +3,8 @@
 Each cell is a manoeuvre × surface × vehicle; each runs unsteered and with the controller fed by the true
 off-tracking and by the zero-slip estimate. A row holds the true off-tracking after warm-up (RMS, max), the share
 of the path beyond the steering's reach (:func:`scenarios.run.metrics.steering_reach`) and the axles' time at lock.
-The check of the study (docs/controller_design.md §3.5): on every cell the truth-fed loop's RMS is no more than the
-zero-slip-fed loop's and the unsteered loop's.
+The check of the study (docs/controller_design.md §3.5): on every cell the truth-fed loop's RMS and max are no more
+than the zero-slip-fed loop's and the unsteered loop's (:func:`truth_fed_check`).
 
 The default subset is the paper's 11.5 m field figure-of-eight, wet, the LST; ``full`` adds the field roundabout
 and the UK roundabout test on dry, wet and ice. The optimal reference (``offtrack optimal``) and the fused camera
@@ -25,7 +25,13 @@ from ..run.runner import run_scenario
 from .records import CaseSpec
 from .workers import worker_models
 
-__all__ = ["FEEDBACKS", "controller_limits_cases", "controller_limits_figures", "run_controller_limits_case"]
+__all__ = [
+    "FEEDBACKS",
+    "controller_limits_cases",
+    "controller_limits_figures",
+    "run_controller_limits_case",
+    "truth_fed_check",
+]
 
 STUDY = "controller-limits"
 FEEDBACKS = ("none", "truth", "zero_slip")
@@ -84,7 +90,8 @@ def _rows(table: pd.DataFrame, cell: tuple[str, str, str]) -> pd.DataFrame:
 
 def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
     """``controller_limits.png``: the true off-tracking after warm-up (RMS and max) of each cell by steering, and
-    ``controller_limits.json``: each cell's check (truth-fed RMS ≤ zero-slip-fed and ≤ unsteered)."""
+    ``controller_limits.json``: each cell's check (truth-fed RMS and max ≤ zero-slip-fed and ≤ unsteered,
+    :func:`truth_fed_check`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -116,14 +123,36 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
     fig.savefig(out_dir / "controller_limits.png", dpi=120)
     plt.close(fig)
     for cell in cells:
-        rows = _rows(done, cell)
-        rms = {r["feedback"]: r["true_offtracking_rms_after_warmup_m"] for _, r in rows.iterrows()}
-        if {"truth", "zero_slip", "none"} <= rms.keys():
-            checks.append(
-                {
-                    "cell": list(cell),
-                    "true_offtracking_rms_after_warmup_m": rms["truth"],
-                    "held": bool(rms["truth"] <= rms["zero_slip"] and rms["truth"] <= rms["none"]),
-                }
-            )
+        check = truth_fed_check({r["feedback"]: dict(r) for _, r in _rows(done, cell).iterrows()})
+        if check is not None:
+            checks.append({"cell": list(cell), **check})
     (out_dir / "controller_limits.json").write_text(json.dumps(checks, indent=1), encoding="utf-8")
+
+
+def truth_fed_check(rows: dict[str, dict[str, Any]], tolerance: float = 0.0) -> dict[str, Any] | None:
+    """The study's check on one cell: the truth-fed loop's RMS and max after warm-up are no more than the zero-slip-fed
+    and the unsteered loop's (``tolerance`` [m] more allowed).
+
+    Parameters
+    ----------
+    rows
+        The cell's rows by feedback (``none``, ``truth``, ``zero_slip``).
+    tolerance
+        Allowance [m] on each comparison.
+
+    Returns
+    -------
+    dict or None
+        The truth-fed RMS and max, each comparison's result and ``held`` (all of them); ``None`` when a feedback's row
+        is missing.
+    """
+    if not set(FEEDBACKS) <= rows.keys():
+        return None
+    out: dict[str, Any] = {}
+    for column in ("true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"):
+        truth = float(rows["truth"][column])
+        out[column] = truth
+        for other in ("zero_slip", "none"):
+            out[f"{column.split('_after')[0]}_within_{other}"] = bool(truth <= float(rows[other][column]) + tolerance)
+    out["held"] = all(v for k, v in out.items() if "_within_" in k)
+    return out
