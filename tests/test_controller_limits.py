@@ -22,6 +22,7 @@ from scenarios.setup.build import build_scenario
 from scenarios.studies.controller_limits import (
     controller_limits_cases,
     controller_limits_figures,
+    optimal_gap,
     run_controller_limits_case,
     truth_fed_check,
 )
@@ -105,7 +106,10 @@ def test_controller_limits_cases_and_the_check_of_each_cell(tmp_path: Path):
     cases = controller_limits_cases()
     assert [dict(c.labels)["feedback"] for c in cases] == ["none", "truth", "zero_slip"]
     assert {c.scenario for c in cases} == {"field-figure-eight"}
-    assert len(controller_limits_cases(full=True)) == 3 * 3 * 3
+    full = controller_limits_cases(full=True)
+    assert len(full) == 3 * 3 * 4  # every cell also runs its optimal reference, over the truth-fed PID's run
+    optimal = [c for c in full if dict(c.labels)["feedback"] == "optimal"]
+    assert len(optimal) == 9 and all(dict(c.overrides)["feedback"] == "truth" for c in optimal)
     cell = {"scenario": "field-figure-eight", "surface": "wet", "vehicle": "lst", "status": "completed"}
     rms, peak = "true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"
     table = pd.DataFrame(
@@ -126,6 +130,30 @@ def test_controller_limits_cases_and_the_check_of_each_cell(tmp_path: Path):
         (check,) = json.loads((tmp_path / "controller_limits.json").read_text(encoding="utf-8"))
         assert check["held"] is False
         assert check[f"{column.split('_after')[0]}_within_zero_slip"] is False
+
+
+@pytest.mark.parametrize(
+    ("reference", "ratio", "holds", "within"),
+    [(0.05, 3.2, True, False), (0.09, 0.16 / 0.09, True, True), (0.12, 0.16 / 0.12, False, None)],
+)
+def test_the_pids_gap_to_the_optimal_reference(tmp_path: Path, reference, ratio, holds, within):
+    # Truth-fed RMS 0.16 m over the reference's: checked against 2x only where the reference holds 0.10 m RMS.
+    rms, peak = "true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"
+    rows = {"truth": {rms: 0.16, peak: 0.7}, "optimal": {rms: reference, peak: 0.3}}
+    gap = optimal_gap(rows)
+    assert gap is not None and gap["pid_gap_rms_ratio"] == pytest.approx(ratio, rel=1e-12)
+    assert gap["reference_holds"] is holds and gap["gap_within_limit"] is within
+    assert optimal_gap({"truth": rows["truth"]}) is None  # no reference run: no gap
+    if not within:
+        return  # the figures' json once (matplotlib is slow to start)
+    cell = {"scenario": "roundabout-3", "surface": "dry", "vehicle": "lst", "status": "completed"}
+    table = pd.DataFrame(
+        [{**cell, "feedback": "none", rms: 1.0, peak: 2.0}, {**cell, "feedback": "zero_slip", rms: 0.3, peak: 0.9}]
+        + [{**cell, "feedback": f, **rows[f]} for f in ("truth", "optimal")]
+    )
+    controller_limits_figures(table, tmp_path)
+    (check,) = json.loads((tmp_path / "controller_limits.json").read_text(encoding="utf-8"))
+    assert check["pid_gap_rms_ratio"] == pytest.approx(ratio, rel=1e-12) and check["held"] is True
 
 
 @pytest.mark.slow
