@@ -113,12 +113,8 @@ while every axle stays at its lock removing the error they left (``beyond_reach`
 ``<prefix>beyond_reach``); the run reports their share of the path. Off-tracking there measures the manoeuvre,
 not the controller.
 
-Where the path is beyond reach, the lock's transient can leave the follow point outside the turn (an outswing,
-``e·κ5 > 0``); the integral does not take that in (``reach_freeze``): it would carry it as a bias into the cut-in
-that follows once the path eases, where the trailer then steers too little. An error inside the turn is integrated
-as everywhere else (a turn beyond reach all the way round needs the integral against the tyres' slip).
-``max_outswing`` (off by default) bounds the outswing itself: the outward part of the command is scaled by
-``clip((b − o)/b, 0, 1)`` at an outswing ``o`` of the estimate.
+Where the path is beyond reach an outswing (``e·κ5 > 0``) is not integrated (``reach_freeze``), and
+``max_outswing`` (off by default) bounds it: :mod:`controller.reach_rules`.
 
 Anti-windup
 -----------
@@ -126,13 +122,11 @@ Conditional integration: the integral is not advanced when that would push the c
 limit that every steerable axle has reached (magnitude saturation or rate limit, in the direction of the
 push; the distribution is monotone in ``δ_v``, so one direction serves all axles), nor while the virtual
 angle is clamped. Without an integrator (``k_i = 0``) nothing winds up; the output leaves saturation as
-soon as the proportional term does, at the rate limit. The slip-angle limit
-(``PathFollowingConfig.max_slip_angle``, 8° by default) clips each axle to ``β_j ± α_max`` about the direction
-of its velocity, widened to hold straight ahead and the axle's share of the feed-forward (the path's own steer, which
-no estimate moves: the limit bounds what the feedback adds), before the magnitude limit and counts as a limit here.
-``β_j`` comes from zero-slip kinematics of the tractor's signals, wrong when the tractor's own tyres slide; a window
-that excluded straight ahead then drove the axles to the wrong lock, and one that excluded the feed-forward held them
-straight while the trailer cut in (docs/controller_design.md, *At the limits*).
+soon as the proportional term does, at the rate limit. The slip-angle limit (``max_slip_angle``, 8° by default)
+clips each axle to ``β_j ± α_max`` about its velocity's direction, widened to hold straight ahead and the
+feed-forward's own steer (:mod:`controller.reach_rules`), before the magnitude limit, and counts as a limit here.
+``β_j`` comes from zero-slip kinematics of the tractor's signals, wrong when its tyres slide (docs/controller_design.md
+§3.5).
 """
 
 from __future__ import annotations
@@ -150,6 +144,7 @@ from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
+from .reach_rules import is_outswing, outswing_scale, window_holding
 from .steer_output import OutputStep, TrailerSteerOutput, high_speed_fade, speed_fade
 
 __all__ = ["TrailerSteeringController", "telemetry_prefix"]
@@ -381,16 +376,17 @@ class TrailerSteeringController:
         else:
             self.feedforward_steer = 0.0
         path_beyond_reach = self.fade > 0 and self.output.beyond_reach(self.feedforward_steer, tan_kingpin)
-        if slip_window is not None and cfg.slip_window_holds_feedforward:
-            slip_window = self._window_with_feedforward(slip_window, tan_kingpin)
+        if slip_window is not None and cfg.slip_window_holds_feedforward:  # the path's own steer is never clipped
+            virtual = min(max(self.feedforward_steer, -cfg.max_virtual_steer), cfg.max_virtual_steer)
+            slip_window = window_holding(slip_window, self.fade * self.distribution(math.tan(virtual), tan_kingpin))
 
         # Feedback on the held sample.
         error = self._sample(estimate)
         ki = self.gains.ki
         schedule = bandwidth_schedule(state.u, cfg.bandwidth_speed)
         integral_new = self.integral
-        outswing_beyond_reach = path_beyond_reach and error is not None and error * self.kingpin_curvature > 0
-        if error is not None and ki > 0 and self.fade > 0 and not (cfg.reach_freeze and outswing_beyond_reach):
+        frozen = cfg.reach_freeze and path_beyond_reach and is_outswing(error, self.kingpin_curvature)
+        if error is not None and ki > 0 and self.fade > 0 and not frozen:
             integral_new = self.integral + error * ds
 
         feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
@@ -405,16 +401,6 @@ class TrailerSteeringController:
         self.beyond_reach = path_beyond_reach or (self.beyond_reach and bool(np.all(self.output.saturated)))
         return commands
 
-    def _window_with_feedforward(
-        self, window: tuple[np.ndarray, np.ndarray], tan_kingpin: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The slip-angle window widened to hold each axle's share of the feed-forward (the path's own steer, which
-        no estimate moves): the limit bounds what the feedback adds."""
-        cfg = self.config
-        virtual = min(max(self.feedforward_steer, -cfg.max_virtual_steer), cfg.max_virtual_steer)
-        own = self.fade * self.distribution(math.tan(virtual), tan_kingpin)
-        return np.minimum(window[0], own), np.maximum(window[1], own)
-
     def _command(
         self,
         integral: float,
@@ -427,17 +413,8 @@ class TrailerSteeringController:
         """The feedback term and the output stage's step for a given integral."""
         gains = self.gains
         fb = 0.0 if error is None else schedule * (gains.kp * error + gains.ki * integral + gains.kd * self._derivative)
-        virtual = self._outswing_bound(self.feedforward_steer + fb, error)
+        virtual = outswing_scale(self.feedforward_steer + fb, error, self.kingpin_curvature, self.config.max_outswing)
         return fb, self.output.propose(virtual, tan_kingpin, self.fade, dt, slip_window)
-
-    def _outswing_bound(self, virtual: float, error: float | None) -> float:
-        """The virtual angle with its outward part scaled down as the rear's outswing nears the bound."""
-        bound = self.config.max_outswing
-        turn = math.copysign(1.0, self.kingpin_curvature)
-        if bound is None or error is None or self.kingpin_curvature == 0.0 or virtual * turn >= 0.0:
-            return virtual
-        outswing = error * turn
-        return virtual * min(max((bound - outswing) / bound, 0.0), 1.0)
 
     def _record_path(self, tow_yaw_rate: float, vx: float, vy: float, dt: float, forward: bool) -> None:
         """Dead-reckon the kingpin path (the towing unit's yaw rate, kingpin velocity) over about one trailer length.
