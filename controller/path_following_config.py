@@ -172,7 +172,7 @@ class PathFollowingConfig(Settings):
         there; the dry tyre's peak is near 21° (docs/vehicle_dynamics.md §3.2), so 8° keeps most of its force.
     slip_window_holds_feedforward : bool
         Widen the slip-angle window to hold each axle's share of the feed-forward: the limit bounds what the
-        feedback adds, never the path's own steer (:mod:`controller.path_following`, *At the limits*). Off: the
+        feedback adds, never the path's own steer (:mod:`controller.reach_rules`). Off: the
         window of ``max_slip_angle`` alone.
     reach_freeze : bool
         Where the feed-forward is beyond the axles' reach, do not integrate an error on the outside of the turn
