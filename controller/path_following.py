@@ -113,17 +113,20 @@ while every axle stays at its lock removing the error they left (``beyond_reach`
 ``<prefix>beyond_reach``); the run reports their share of the path. Off-tracking there measures the manoeuvre,
 not the controller.
 
+Where the path is beyond reach an outswing (``e·κ5 > 0``) is not integrated (``reach_freeze``), and
+``max_outswing`` (off by default) bounds it: :mod:`controller.reach_rules`.
+
 Anti-windup
 -----------
 Conditional integration: the integral is not advanced when that would push the command further into a
 limit that every steerable axle has reached (magnitude saturation or rate limit, in the direction of the
 push; the distribution is monotone in ``δ_v``, so one direction serves all axles), nor while the virtual
 angle is clamped. Without an integrator (``k_i = 0``) nothing winds up; the output leaves saturation as
-soon as the proportional term does, at the rate limit. The slip-angle limit
-(``PathFollowingConfig.max_slip_angle``, 8° by default) clips each axle to ``β_j ± α_max`` about the direction
-of its velocity, widened to hold straight ahead, before the magnitude limit and counts as a limit here. ``β_j``
-comes from zero-slip kinematics of the tractor's signals, wrong when the tractor's own tyres slide; a window that
-excluded straight ahead then drove the axles to the wrong lock (docs/controller_design.md, *At the limits*).
+soon as the proportional term does, at the rate limit. The slip-angle limit (``max_slip_angle``, 8° by default)
+clips each axle to ``β_j ± α_max`` about its velocity's direction, widened to hold straight ahead and the
+feed-forward's own steer (:mod:`controller.reach_rules`), before the magnitude limit, and counts as a limit here.
+``β_j`` comes from zero-slip kinematics of the tractor's signals, wrong when its tyres slide (docs/controller_design.md
+§3.5).
 """
 
 from __future__ import annotations
@@ -141,6 +144,7 @@ from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
+from .reach_rules import is_outswing, outswing_scale, window_holding
 from .steer_output import OutputStep, TrailerSteerOutput, high_speed_fade, speed_fade
 
 __all__ = ["TrailerSteeringController", "telemetry_prefix"]
@@ -372,13 +376,17 @@ class TrailerSteeringController:
         else:
             self.feedforward_steer = 0.0
         path_beyond_reach = self.fade > 0 and self.output.beyond_reach(self.feedforward_steer, tan_kingpin)
+        if slip_window is not None and cfg.slip_window_holds_feedforward:  # the path's own steer is never clipped
+            virtual = min(max(self.feedforward_steer, -cfg.max_virtual_steer), cfg.max_virtual_steer)
+            slip_window = window_holding(slip_window, self.fade * self.distribution(math.tan(virtual), tan_kingpin))
 
         # Feedback on the held sample.
         error = self._sample(estimate)
         ki = self.gains.ki
         schedule = bandwidth_schedule(state.u, cfg.bandwidth_speed)
         integral_new = self.integral
-        if error is not None and ki > 0 and self.fade > 0:
+        frozen = cfg.reach_freeze and path_beyond_reach and is_outswing(error, self.kingpin_curvature)
+        if error is not None and ki > 0 and self.fade > 0 and not frozen:
             integral_new = self.integral + error * ds
 
         feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
@@ -405,7 +413,8 @@ class TrailerSteeringController:
         """The feedback term and the output stage's step for a given integral."""
         gains = self.gains
         fb = 0.0 if error is None else schedule * (gains.kp * error + gains.ki * integral + gains.kd * self._derivative)
-        return fb, self.output.propose(self.feedforward_steer + fb, tan_kingpin, self.fade, dt, slip_window)
+        virtual = outswing_scale(self.feedforward_steer + fb, error, self.kingpin_curvature, self.config.max_outswing)
+        return fb, self.output.propose(virtual, tan_kingpin, self.fade, dt, slip_window)
 
     def _record_path(self, tow_yaw_rate: float, vx: float, vy: float, dt: float, forward: bool) -> None:
         """Dead-reckon the kingpin path (the towing unit's yaw rate, kingpin velocity) over about one trailer length.

@@ -170,6 +170,19 @@ class PathFollowingConfig(Settings):
         and without; docs/field_bias.md §6.1). A lower limit binds on the dry roundabout test, where the
         fixed-axle compensation runs trailer2 at about 6° of slip beside trailer3 at lock, and costs off-tracking
         there; the dry tyre's peak is near 21° (docs/vehicle_dynamics.md §3.2), so 8° keeps most of its force.
+    slip_window_holds_feedforward : bool
+        Widen the slip-angle window to hold each axle's share of the feed-forward: the limit bounds what the
+        feedback adds, never the path's own steer (:mod:`controller.reach_rules`). Off: the
+        window of ``max_slip_angle`` alone.
+    reach_freeze : bool
+        Where the feed-forward is beyond the axles' reach, do not integrate an error on the outside of the turn
+        (an outswing the lock's transient leaves, which the integral would otherwise carry into the cut-in that
+        follows). Off: conditional integration on the limits only.
+    max_outswing : float or None
+        Bound [m] on the follow point's outswing (off-tracking on the outside of the kingpin's turn): the outward
+        part of the virtual-axle command is scaled by ``clip((b − o)/b, 0, 1)`` for an outswing ``o`` of the estimate
+        fed back, so the rear is never steered further out at the bound. ``None`` (default): no bound. It trades a
+        larger cut-in later in a transient beyond reach for less outswing (docs/controller_design.md §3.5).
     """
 
     gains: PathFollowingGains | None = None
@@ -189,6 +202,9 @@ class PathFollowingConfig(Settings):
     feedback_max_std: float = Field(0.075, gt=0.0)
     max_slip_angle: float | None = Field(math.radians(8.0), gt=0.0, le=math.radians(45.0))
     high_speed_crossover: tuple[float, float] | None = (35.0 / 3.6, 55.0 / 3.6)
+    slip_window_holds_feedforward: bool = True
+    reach_freeze: bool = True
+    max_outswing: float | None = Field(None, gt=0.0, le=2.0)
 
     @model_validator(mode="after")
     def _ordered_fade_speeds(self) -> PathFollowingConfig:

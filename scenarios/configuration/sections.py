@@ -380,6 +380,13 @@ class ControllerConfig(Settings):
         description="[°] largest slip angle a steered axle is commanded to, null for none (why 8°: "
         "controller.path_following_config); beyond 45° no tyre gives force that grows with slip",
     )
+    max_outswing_m: float | None = Field(
+        None,
+        gt=0.0,
+        le=2.0,
+        description="[m] bound on the follow point's outswing outside the kingpin's turn, null for none; beyond 2 m "
+        "the bound no longer holds the rear within a lane",
+    )
     high_speed_crossover_kmh: tuple[float, float] | None = Field(
         (35.0, 55.0),
         description="[km/h] (start, end) of the fade from path following to the unsteered trailer at speed, null "
@@ -413,6 +420,7 @@ class ControllerConfig(Settings):
             control_period=1.0 / control_hz,
             feedback_max_std=self.feedback_max_std_m,
             max_slip_angle=None if self.max_slip_angle_deg is None else math.radians(self.max_slip_angle_deg),
+            max_outswing=self.max_outswing_m,
             high_speed_crossover=None
             if self.high_speed_crossover_kmh is None
             else (self.high_speed_crossover_kmh[0] / 3.6, self.high_speed_crossover_kmh[1] / 3.6),

@@ -3,12 +3,14 @@
 Each cell is a manoeuvre × surface × vehicle; each runs unsteered and with the controller fed by the true
 off-tracking and by the zero-slip estimate. A row holds the true off-tracking after warm-up (RMS, max), the share
 of the path beyond the steering's reach (:func:`scenarios.run.metrics.steering_reach`) and the axles' time at lock.
-The check of the study (docs/controller_design.md §3.5): on every cell the truth-fed loop's RMS is no more than the
-zero-slip-fed loop's and the unsteered loop's.
+The check of the study (docs/controller_design.md §3.5): on every cell the truth-fed loop's RMS and max are no more
+than the zero-slip-fed loop's and the unsteered loop's (:func:`truth_fed_check`).
 
 The default subset is the paper's 11.5 m field figure-of-eight, wet, the LST; ``full`` adds the field roundabout
-and the UK roundabout test on dry, wet and ice. The optimal reference (``offtrack optimal``) and the fused camera
-feedback are not cells of this study.
+and the UK roundabout test on dry, wet and ice, and on every cell the optimal reference (``offtrack optimal``,
+:mod:`scenarios.studies.optimal_reference`: the NLP's steer replayed as a run, several CPU-minutes per cell). A
+cell's check then also holds the PID's gap to it: the truth-fed RMS over the reference's
+(:func:`optimal_gap`). The fused camera feedback is not a cell of this study.
 """
 
 from __future__ import annotations
@@ -22,14 +24,28 @@ import pandas as pd
 from ..config import load_scenario
 from ..loop.ends import RunStatus
 from ..run.runner import run_scenario
+from .optimal_reference import run_optimal_reference
 from .records import CaseSpec
 from .workers import worker_models
 
-__all__ = ["FEEDBACKS", "controller_limits_cases", "controller_limits_figures", "run_controller_limits_case"]
+__all__ = [
+    "FEEDBACKS",
+    "controller_limits_cases",
+    "controller_limits_figures",
+    "optimal_gap",
+    "run_controller_limits_case",
+    "truth_fed_check",
+]
 
 STUDY = "controller-limits"
 FEEDBACKS = ("none", "truth", "zero_slip")
 """The steering of each cell: unsteered, fed by the true off-tracking, fed by the zero-slip estimate."""
+OPTIMAL = "optimal"
+"""The label of a cell's optimal reference (``full`` only): the NLP's steer over the truth-fed PID's run."""
+REFERENCE_HOLDS = 0.10
+"""[m] The RMS the optimal reference must reach for the PID's gap to it to be checked (the design's target RMS)."""
+GAP_LIMIT = 2.0
+"""The largest ratio of the truth-fed PID's RMS to the reference's where the reference holds :data:`REFERENCE_HOLDS`."""
 SUBSET = (("field-figure-eight", "wet", "lst"),)
 """The default subset's cells: (scenario, surface, vehicle)."""
 FULL_SCENARIOS = ("field-figure-eight", "field-roundabout-left", "roundabout-test")
@@ -37,15 +53,16 @@ FULL_SURFACES = ("dry", "wet", "ice")
 
 
 def controller_limits_cases(full: bool = False) -> list[CaseSpec]:
-    """The cases: every cell × :data:`FEEDBACKS` (feedback fastest); the default subset unless ``full``."""
+    """The cases: every cell × :data:`FEEDBACKS` (feedback fastest), and with ``full`` the cell's optimal reference
+    (:data:`OPTIMAL`); the default subset unless ``full``."""
     cells = [(s, surface, "lst") for s in FULL_SCENARIOS for surface in FULL_SURFACES] if full else list(SUBSET)
     cases = []
     for scenario, surface, vehicle in cells:
-        for feedback in FEEDBACKS:
+        for feedback in (*FEEDBACKS, OPTIMAL) if full else FEEDBACKS:
             overrides: tuple[tuple[str, Any], ...] = (
                 ("vehicle", vehicle),
                 ("surface.preset", surface),
-                ("feedback", feedback),
+                ("feedback", "truth" if feedback == OPTIMAL else feedback),
                 ("estimators.zero_slip", True),
             )
             labels = (("scenario", scenario), ("surface", surface), ("vehicle", vehicle), ("feedback", feedback))
@@ -54,11 +71,15 @@ def controller_limits_cases(full: bool = False) -> list[CaseSpec]:
 
 
 def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
-    """Run one case into ``out_dir/<case name>/`` and return its row (labels, status and the figures above)."""
+    """Run one case into ``out_dir/<case name>/`` and return its row (labels, status and the figures above; the
+    optimal reference's row holds its replay's off-tracking and the NLP's own)."""
     config = load_scenario(spec.scenario, dict(spec.overrides))
     run_dir = out_dir / spec.name
     run_dir.mkdir(parents=True, exist_ok=True)
-    metrics = run_scenario(config, run_dir, plots=False, model=worker_models().model(config.vehicle_params()))
+    if dict(spec.labels)["feedback"] == OPTIMAL:
+        metrics = run_optimal_reference(config, run_dir)
+    else:
+        metrics = run_scenario(config, run_dir, plots=False, model=worker_models().model(config.vehicle_params()))
     row: dict[str, Any] = {**dict(spec.labels), "status": metrics["status"]}
     if metrics["status"] in (RunStatus.INTERRUPTED, RunStatus.FAILED):
         row.update({k: metrics.get(k) for k in ("stop_signal", "message", "stop_time")})
@@ -74,6 +95,16 @@ def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
             "at_lock_share": max((m.get("saturated_fraction", 0.0) for m in steering.values()), default=0.0),
         }
     )
+    reference = metrics.get("optimal_reference")
+    if reference is not None:
+        row.update(
+            {
+                "optimal_status": reference["status"],
+                "optimal_nlp_rms_m": reference["nlp_offtracking_rms"],
+                "optimal_cost_m2": reference["cost"],
+                "pid_cost_m2": reference["pid_cost"],
+            }
+        )
     return row
 
 
@@ -84,7 +115,8 @@ def _rows(table: pd.DataFrame, cell: tuple[str, str, str]) -> pd.DataFrame:
 
 def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
     """``controller_limits.png``: the true off-tracking after warm-up (RMS and max) of each cell by steering, and
-    ``controller_limits.json``: each cell's check (truth-fed RMS ≤ zero-slip-fed and ≤ unsteered)."""
+    ``controller_limits.json``: each cell's check (truth-fed RMS and max ≤ zero-slip-fed and ≤ unsteered,
+    :func:`truth_fed_check`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -101,13 +133,20 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
         ("true_offtracking_max_after_warmup_m", "max after warm-up"),
     )
     for ax, (column, title) in zip(axes, labels, strict=True):
-        for i, feedback in enumerate(FEEDBACKS):
+        feedbacks = [f for f in (*FEEDBACKS, OPTIMAL) if f in set(done["feedback"])]
+        for i, feedback in enumerate(feedbacks):
             values = []
             for cell in cells:
                 match = _rows(done, cell)
                 match = match[match["feedback"] == feedback][column]
                 values.append(float(match.iloc[0]) if len(match) else float("nan"))
-            ax.barh([k + 0.27 * (i - 1) for k in range(len(cells))], values, height=0.25, label=feedback)
+            width = 0.8 / len(feedbacks)
+            ax.barh(
+                [k + width * (i - (len(feedbacks) - 1) / 2) for k in range(len(cells))],
+                values,
+                height=width,
+                label=feedback,
+            )
         ax.set_xscale("log")
         ax.set_xlabel(f"true off-tracking, {title} [m]")
     axes[0].set_yticks(range(len(cells)), [f"{s}, {surface}, {v}" for s, surface, v in cells])
@@ -116,14 +155,65 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
     fig.savefig(out_dir / "controller_limits.png", dpi=120)
     plt.close(fig)
     for cell in cells:
-        rows = _rows(done, cell)
-        rms = {r["feedback"]: r["true_offtracking_rms_after_warmup_m"] for _, r in rows.iterrows()}
-        if {"truth", "zero_slip", "none"} <= rms.keys():
-            checks.append(
-                {
-                    "cell": list(cell),
-                    "true_offtracking_rms_after_warmup_m": rms["truth"],
-                    "held": bool(rms["truth"] <= rms["zero_slip"] and rms["truth"] <= rms["none"]),
-                }
-            )
+        rows = {r["feedback"]: dict(r) for _, r in _rows(done, cell).iterrows()}
+        check = truth_fed_check(rows)
+        if check is not None:
+            checks.append({"cell": list(cell), **check, **(optimal_gap(rows) or {})})
     (out_dir / "controller_limits.json").write_text(json.dumps(checks, indent=1), encoding="utf-8")
+
+
+def truth_fed_check(rows: dict[str, dict[str, Any]], tolerance: float = 0.0) -> dict[str, Any] | None:
+    """The study's check on one cell: the truth-fed loop's RMS and max after warm-up are no more than the zero-slip-fed
+    and the unsteered loop's (``tolerance`` [m] more allowed).
+
+    Parameters
+    ----------
+    rows
+        The cell's rows by feedback (``none``, ``truth``, ``zero_slip``).
+    tolerance
+        Allowance [m] on each comparison.
+
+    Returns
+    -------
+    dict or None
+        The truth-fed RMS and max, each comparison's result and ``held`` (all of them); ``None`` when a feedback's row
+        is missing.
+    """
+    if not set(FEEDBACKS) <= rows.keys():
+        return None
+    out: dict[str, Any] = {}
+    for column in ("true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"):
+        truth = float(rows["truth"][column])
+        out[column] = truth
+        for other in ("zero_slip", "none"):
+            out[f"{column.split('_after')[0]}_within_{other}"] = bool(truth <= float(rows[other][column]) + tolerance)
+    out["held"] = all(v for k, v in out.items() if "_within_" in k)
+    return out
+
+
+def optimal_gap(rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
+    """The truth-fed PID's gap to the cell's optimal reference: its RMS after warm-up over the reference replay's.
+
+    Parameters
+    ----------
+    rows
+        The cell's rows by feedback (``truth`` and :data:`OPTIMAL` used).
+
+    Returns
+    -------
+    dict or None
+        ``pid_gap_rms_ratio``, ``reference_holds`` (the reference's RMS ≤ :data:`REFERENCE_HOLDS`) and
+        ``gap_within_limit`` (the ratio ≤ :data:`GAP_LIMIT`, or ``None`` where the reference does not hold);
+        ``None`` without both rows.
+    """
+    if not {"truth", OPTIMAL} <= rows.keys():
+        return None
+    column = "true_offtracking_rms_after_warmup_m"
+    pid, reference = float(rows["truth"][column]), float(rows[OPTIMAL][column])
+    ratio = pid / reference if reference > 0 else float("inf")
+    holds = reference <= REFERENCE_HOLDS
+    return {
+        "pid_gap_rms_ratio": ratio,
+        "reference_holds": holds,
+        "gap_within_limit": ratio <= GAP_LIMIT if holds else None,
+    }
