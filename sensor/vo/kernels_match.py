@@ -7,8 +7,8 @@
 * :func:`triangle_support` counts every match's consistent incident edges (docs/visual_odometry.md §6,
   ``removeOutliers``; :mod:`sensor.vo.outliers`), :func:`delaunay_support` on the Delaunay triangles it makes.
 * :func:`refine` moves the 1p, 2p and 2c positions to the SAD minimum of the 16-byte small
-  descriptor within ± radius px of full-resolution pixels, with sub-pixel parabolas for radius 3
-  (:mod:`sensor.vo.refinement`).
+  descriptor within ± radius px of full-resolution pixels, with a sub-pixel fit (parabola or equiangular V) for
+  radius 3 (:mod:`sensor.vo.refinement`).
 """
 
 from __future__ import annotations
@@ -23,7 +23,16 @@ from sensor.vo.jit import kernel
 from sensor.vo.kernels_delaunay import delaunay_fits, delaunay_triangles, z_order
 from sensor.vo.kernels_sort import radix_argsort
 
-__all__ = ["EQUIANGULAR", "PARABOLA", "REFINEMENT_TAPS", "bucket_choice", "delaunay_support", "positions", "refine", "triangle_support"]
+__all__ = [
+    "EQUIANGULAR",
+    "PARABOLA",
+    "REFINEMENT_TAPS",
+    "bucket_choice",
+    "delaunay_support",
+    "positions",
+    "refine",
+    "triangle_support",
+]
 
 _KEY_U = 1 << 16  # column stride of pixel keys (images narrower than 65536 px)
 
@@ -351,9 +360,9 @@ def refine(xy: np.ndarray, sobel: tuple, radius: int, taps: np.ndarray, fit: int
     The reference is the small descriptor at the (rounded, clamped) 1c position; each other image is
     searched at the (2·radius + 1)² integer offsets around its rounded, clamped position, the first
     minimum in row-major order winning (radius 2), or the minimum of the inner (2·radius − 1)² offsets
-    with a sub-pixel fit ``fit`` through its neighbours in u and in v (radius 3; :func:`_subpixel`). A row of offsets is costed at once (:func:`_row_costs`,
-    8 lanes of SIMD; exact integer sums, so the same costs as one by one) where its reads stay inside the planes,
-    else tap by tap.
+    with a sub-pixel fit ``fit`` through its neighbours in u and in v (radius 3; :func:`_subpixel`). A row of
+    offsets is costed at once (:func:`_row_costs`, 8 lanes of SIMD; exact integer sums, so the same costs as one by
+    one) where its reads stay inside the planes, else tap by tap.
     """
     n = xy.shape[0]
     height, width = sobel[2].shape[1], sobel[2].shape[2]
