@@ -181,7 +181,11 @@ def _yaw_ratio(world, params, rig: StereoRig, yaw: float, poses: list[ChainPose]
 
 
 @rendering
-@pytest.mark.xfail(strict=True, reason="open: the odometry under-measures a side rig's yaw (docs/camera.md)")
+@pytest.mark.xfail(
+    strict=True,
+    reason="open: aliased silhouettes lose small motions at the image edges and the matches keep a short tail; "
+    "the motion estimate amplifies both (docs/camera.md, a long lead trailer's side camera)",
+)
 def test_a_side_rigs_pure_yaw_is_measured_in_full(world, a_double) -> None:
     """The au-a-double lead trailer's side rig at its default station, 400×200 px, a pure yaw of 7.5 mrad (about
     1.3 px at the image centre) at six poses: the odometry's mean yaw within 3 % of the truth. A yaw it
