@@ -181,7 +181,11 @@ def _yaw_ratio(world, params, rig: StereoRig, yaw: float, poses: list[ChainPose]
 
 
 @rendering
-@pytest.mark.xfail(strict=True, reason="open: the odometry under-measures a side rig's yaw (docs/camera.md)")
+@pytest.mark.xfail(
+    strict=True,
+    reason="open: aliased silhouettes lose small motions at the image edges and the matches keep a short tail; "
+    "the motion estimate amplifies both (docs/camera.md, a long lead trailer's side camera)",
+)
 def test_a_side_rigs_pure_yaw_is_measured_in_full(world, a_double) -> None:
     """The au-a-double lead trailer's side rig at its default station, 400×200 px, a pure yaw of 7.5 mrad (about
     1.3 px at the image centre) at six poses: the odometry's mean yaw within 3 % of the truth. A yaw it
@@ -190,6 +194,46 @@ def test_a_side_rigs_pure_yaw_is_measured_in_full(world, a_double) -> None:
     rig = StereoRig.from_degrees(width=400, height=200, unit=1, psi_c2v_deg=270.0, station=-7.975, lateral=1.25)
     ratios = _yaw_ratio(world, a_double, rig, 0.0075, _turn(12)[::2])
     assert abs(float(np.mean(ratios)) - 1.0) <= 0.03, ratios
+
+
+@rendering
+def test_the_rendered_edges_lose_part_of_a_small_yaw(world, a_double) -> None:
+    """What docs/camera.md says of the side rig's images: for a pure yaw moving the image centre 1 px (400×200 px),
+    an optical flow independent of the odometry (OpenCV's Farnebäck) finds the textured content of the outer fifth
+    of the image, near the horizon, moving under 0.88 of the exact homography's motion (0.81–0.83 at the test's six
+    poses), while on the first frame warped by that homography it finds over 0.95 (0.975–0.98): the rendering, not
+    the flow, loses the motion."""
+    import cv2
+
+    rig = StereoRig.from_degrees(width=400, height=200, unit=1, psi_c2v_deg=270.0, station=-7.975, lateral=1.25)
+    renderer = _renderer(world, rig, a_double, bodies=False)
+    f = rig.focal_length
+    yaw = 1.0 / f
+    c, s = np.cos(yaw), np.sin(yaw)
+    turn = np.eye(4)
+    turn[:3, :3] = [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]
+    pose = _turn(12)[0]
+    left, right = rig.camera_in_world(a_double, pose, "left"), rig.camera_in_world(a_double, pose, "right")
+    before = renderer.render_poses(left, right, frame=0).left
+    after = renderer.render_poses(left @ turn, left @ turn @ invert_rigid(left) @ right, frame=1).left
+    k = rig.intrinsics()
+    homography = k @ turn[:3, :3] @ np.linalg.inv(k)  # a current pixel → where it was in the previous frame
+    warped = cv2.warpPerspective(
+        before, homography, (400, 200), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REFLECT
+    )
+    uu, vv = np.meshgrid(np.arange(400), np.arange(200))
+    moved = np.stack([uu, vv, np.ones_like(uu)], axis=-1) @ homography.T
+    true_du = moved[..., 0] / moved[..., 2] - uu
+    textured = np.hypot(*np.gradient(after.astype(float))) > 4
+    edges = (np.abs(uu - k[0, 2]) > 0.8 * f) & (vv > 60) & (vv < 115) & textured & (uu > 15) & (uu < 385)
+
+    def share(image: np.ndarray) -> float:
+        flow = cv2.calcOpticalFlowFarneback(image, before, None, 0.5, 3, 15, 5, 7, 1.5, 0)
+        return float(flow[..., 0][edges].sum() / true_du[edges].sum())
+
+    assert edges.sum() > 500
+    assert share(after) < 0.88
+    assert share(warped) > 0.95
 
 
 def test_a_mask_drops_only_the_features_inside_it() -> None:

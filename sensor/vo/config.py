@@ -9,6 +9,7 @@ full-resolution, rectified image; lengths are in metres.
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 from pydantic import Field
 
@@ -59,7 +60,12 @@ class VOConfig(Settings):
     half_resolution : bool
         Detect and match on the 2×2 box-downsampled image, refine at full resolution. libviso2: on.
     refinement : int
-        0 none, 1 pixel (5×5 relocation), 2 sub-pixel (parabolic fit over a 7×7 cost). libviso2: 1.
+        0 none, 1 pixel (5×5 relocation), 2 sub-pixel (a fit over a 7×7 cost). libviso2: 1.
+    subpixel : {"parabola", "equiangular"}
+        The sub-pixel fit of ``refinement=2`` through the cost at the minimum and its neighbours: libviso2's
+        parabola, or a symmetric V (equiangular lines; Shimizu & Okutomi 2005), the shape of a sum of absolute
+        differences near its minimum. A parabola through a V pulls the vertex towards the nearer integer
+        ("pixel locking"); the V does not (docs/visual_odometry.md §8). Default "parabola".
     bucket_width, bucket_height : float
         Bucket size [px] of the final match selection. libviso2: 50 × 50.
     bucket_max_features : int
@@ -120,6 +126,7 @@ class VOConfig(Settings):
     multi_stage: Flag = True
     half_resolution: Flag = True
     refinement: Count = Field(1, ge=0, le=2)
+    subpixel: Literal["parabola", "equiangular"] = "parabola"
     bucket_width: Real = Field(50.0, gt=0.0)
     bucket_height: Real = Field(50.0, gt=0.0)
     bucket_max_features: Count = Field(2, ge=1)

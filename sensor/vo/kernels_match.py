@@ -7,8 +7,8 @@
 * :func:`triangle_support` counts every match's consistent incident edges (docs/visual_odometry.md §6,
   ``removeOutliers``; :mod:`sensor.vo.outliers`), :func:`delaunay_support` on the Delaunay triangles it makes.
 * :func:`refine` moves the 1p, 2p and 2c positions to the SAD minimum of the 16-byte small
-  descriptor within ± radius px of full-resolution pixels, with sub-pixel parabolas for radius 3
-  (:mod:`sensor.vo.refinement`).
+  descriptor within ± radius px of full-resolution pixels, with a sub-pixel fit (parabola or equiangular V) for
+  radius 3 (:mod:`sensor.vo.refinement`).
 """
 
 from __future__ import annotations
@@ -23,7 +23,16 @@ from sensor.vo.jit import kernel
 from sensor.vo.kernels_delaunay import delaunay_fits, delaunay_triangles, z_order
 from sensor.vo.kernels_sort import radix_argsort
 
-__all__ = ["REFINEMENT_TAPS", "bucket_choice", "delaunay_support", "positions", "refine", "triangle_support"]
+__all__ = [
+    "EQUIANGULAR",
+    "PARABOLA",
+    "REFINEMENT_TAPS",
+    "bucket_choice",
+    "delaunay_support",
+    "positions",
+    "refine",
+    "triangle_support",
+]
 
 _KEY_U = 1 << 16  # column stride of pixel keys (images narrower than 65536 px)
 
@@ -194,12 +203,37 @@ REFINEMENT_TAPS = np.array(
 )  # fmt: skip
 
 
+#: Sub-pixel fits of :func:`refine` through the cost at the minimum and its two neighbours.
+PARABOLA, EQUIANGULAR = 0, 1
+
+
 @kernel
 def _parabola(left: float, centre: float, right: float) -> float:
     """Vertex offset of the parabola through (−1, left), (0, centre), (1, right), within ±0.5."""
     denom = left - 2.0 * centre + right
     offset = 0.5 * (left - right) / denom if denom > 0 else 0.0
     return min(max(offset, -0.5), 0.5)
+
+
+@kernel
+def _equiangular(left: float, centre: float, right: float) -> float:
+    """Vertex offset of the symmetric V through (−1, left), (0, centre), (1, right), within ±0.5.
+
+    The two lines of equal and opposite slope, the steeper side's slope, meet at the minimum (Shimizu & Okutomi
+    2005, equiangular line fitting): the shape of a sum of absolute differences near its minimum, where a parabola
+    pulls the vertex towards the nearer integer.
+    """
+    slope = max(left, right) - centre
+    offset = 0.5 * (left - right) / slope if slope > 0 else 0.0
+    return min(max(offset, -0.5), 0.5)
+
+
+@kernel
+def _subpixel(left: float, centre: float, right: float, fit: int) -> float:
+    """Vertex offset of the sub-pixel fit ``fit`` (:data:`PARABOLA` or :data:`EQUIANGULAR`), within ±0.5."""
+    if fit == EQUIANGULAR:
+        return _equiangular(left, centre, right)
+    return _parabola(left, centre, right)
 
 
 _ROW_LANES = 8  # candidates of one refinement row costed at once (2 · radius + 1 ≤ 8)
@@ -320,15 +354,15 @@ def _prefetch_window(plane: np.ndarray, u: int, v: int, width: int, plane_size: 
 
 
 @kernel
-def refine(xy: np.ndarray, sobel: tuple, radius: int, taps: np.ndarray) -> np.ndarray:
+def refine(xy: np.ndarray, sobel: tuple, radius: int, taps: np.ndarray, fit: int = PARABOLA) -> np.ndarray:
     """Refined copy of the (N, 8) matches; ``sobel`` holds the (2, H, W) uint8 planes of 1p, 2p, 1c, 2c.
 
     The reference is the small descriptor at the (rounded, clamped) 1c position; each other image is
     searched at the (2·radius + 1)² integer offsets around its rounded, clamped position, the first
     minimum in row-major order winning (radius 2), or the minimum of the inner (2·radius − 1)² offsets
-    with parabolas through its neighbours (radius 3). A row of offsets is costed at once (:func:`_row_costs`,
-    8 lanes of SIMD; exact integer sums, so the same costs as one by one) where its reads stay inside the planes,
-    else tap by tap.
+    with a sub-pixel fit ``fit`` through its neighbours in u and in v (radius 3; :func:`_subpixel`). A row of
+    offsets is costed at once (:func:`_row_costs`, 8 lanes of SIMD; exact integer sums, so the same costs as one by
+    one) where its reads stay inside the planes, else tap by tap.
     """
     n = xy.shape[0]
     height, width = sobel[2].shape[1], sobel[2].shape[2]
@@ -392,6 +426,6 @@ def refine(xy: np.ndarray, sobel: tuple, radius: int, taps: np.ndarray) -> np.nd
                     if cost[iy, ix] < best:
                         best, by, bx = cost[iy, ix], iy, ix
             c0 = float(cost[by, bx])
-            out[m, col] = u + (bx - radius) + _parabola(float(cost[by, bx - 1]), c0, float(cost[by, bx + 1]))
-            out[m, col + 1] = v + (by - radius) + _parabola(float(cost[by - 1, bx]), c0, float(cost[by + 1, bx]))
+            out[m, col] = u + (bx - radius) + _subpixel(float(cost[by, bx - 1]), c0, float(cost[by, bx + 1]), fit)
+            out[m, col + 1] = v + (by - radius) + _subpixel(float(cost[by - 1, bx]), c0, float(cost[by + 1, bx]), fit)
     return out

@@ -6,7 +6,7 @@ import numpy as np
 
 from sensor.vo.config import VOConfig
 from sensor.vo.features import ImageFeatures
-from sensor.vo.kernels_match import REFINEMENT_TAPS, refine
+from sensor.vo.kernels_match import EQUIANGULAR, PARABOLA, REFINEMENT_TAPS, refine
 
 __all__ = ["refine_matches"]
 
@@ -17,7 +17,8 @@ def refine_matches(xy: np.ndarray, images: tuple[ImageFeatures, ...], config: VO
     docs/visual_odometry.md §8 (``refinement``): the 16-byte small descriptor of 1c (ELAS-style: du at 12 offsets,
     dv at 4 of the 5×5 window) is compared (SAD) with the small descriptors of the other images within
     ±2 px at full resolution; ``refinement=1`` moves to the minimum, ``refinement=2`` searches ±3 px
-    and fits parabolas in u and v through the cost around the inner minimum for sub-pixel positions.
+    and fits, in u and in v, a parabola (``subpixel="parabola"``, libviso2's) or a symmetric V
+    (``subpixel="equiangular"``) through the cost around the inner minimum for sub-pixel positions.
     The search is compiled (:func:`sensor.vo.kernels_match.refine`).
 
     Parameters
@@ -27,7 +28,7 @@ def refine_matches(xy: np.ndarray, images: tuple[ImageFeatures, ...], config: VO
     images : tuple[ImageFeatures, ...]
         Features of (1p, 2p, 1c, 2c) with full-resolution Sobel responses.
     config : VOConfig
-        ``refinement`` level.
+        ``refinement`` level and ``subpixel`` fit.
 
     Returns
     -------
@@ -38,4 +39,5 @@ def refine_matches(xy: np.ndarray, images: tuple[ImageFeatures, ...], config: VO
         return xy
     radius = 2 if config.refinement == 1 else 3
     sobel = tuple(np.ascontiguousarray(f.sobel_full) for f in images)
-    return refine(np.ascontiguousarray(xy, dtype=np.float64), sobel, radius, REFINEMENT_TAPS)
+    fit = EQUIANGULAR if config.subpixel == "equiangular" else PARABOLA
+    return refine(np.ascontiguousarray(xy, dtype=np.float64), sobel, radius, REFINEMENT_TAPS, fit)
