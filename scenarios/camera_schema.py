@@ -130,6 +130,11 @@ class StereoRigConfig(Settings):
         0.0, ge=0.0, le=0.5, description="relative std of the per-frame brightness gain; at 0.5 it swings by half"
     )
     scenery_density: float = Field(1.0, ge=0.0, le=1.0, description="fraction of the scenery placed")
+    antialias: bool = Field(
+        False,
+        description="4× multisampling of the rendering: silhouettes that move by fractions of a pixel as a real "
+        "sensor's pixel area integrates them, at a coarse resolution most (slower; docs/camera.md)",
+    )
     lens: Lens = Field(Lens(), description="Brown–Conrady lens of the cameras (sensor.camera.Lens); zeros: pinhole")
     right_lens: Lens | None = Field(None, description="the right camera's lens; None: the same as lens")
     calibration: CalibrationConfig = CalibrationConfig()
@@ -192,7 +197,7 @@ class _RigChoice(Settings):
         return {k: v for k, v in handler(self).items() if v is not None}
 
 
-RUN_WIDE = ("world", "scenery_density", "latency_s")
+RUN_WIDE = ("world", "scenery_density", "antialias", "latency_s")
 """Fields of the camera section that are the run's, not a rig's: every rig sees one world and releases its frames
 after one latency."""
 

@@ -62,6 +62,21 @@ def test_ideal_switch_drops_lens_flex_lighting_and_correction() -> None:
         stereo_camera(setup, rig=run.rig, world=run.world)
 
 
+def test_the_configurations_antialias_reaches_the_renderer_and_is_the_runs() -> None:
+    """``camera.antialias`` is the renderer's multisampling unless a caller says otherwise; a rig cannot set it (one
+    GL context renders every rig of a run)."""
+    from scenarios.config import ConfigError
+
+    plain = build_scenario(load_scenario("constant-slip", {**TINY, "duration_s": 0.3}))
+    smooth = build_scenario(load_scenario("constant-slip", {**TINY, "duration_s": 0.3, "camera.antialias": True}))
+    world = stereo_camera(plain).world
+    assert not stereo_camera(plain, world=world).renderer.antialias
+    assert stereo_camera(smooth, world=world).renderer.antialias
+    assert not stereo_camera(smooth, world=world, antialias=False).renderer.antialias
+    with pytest.raises(ConfigError, match="antialias"):
+        load_scenario("constant-slip", {"camera.rigs": [{"unit": 1, "antialias": True}]})
+
+
 @pytest.mark.rendering
 def test_frame_cache_gives_back_the_frames_and_the_exposure(tmp_path: Path) -> None:
     config = load_scenario("constant-slip", {**TINY, "camera.lighting.sun": True, "duration_s": 0.3})

@@ -305,7 +305,7 @@ def stereo_camera(
     lighting: Lighting | str | None = CONFIGURED,
     scenery_density: float | None = None,
     world: World | None = None,
-    antialias: bool = False,
+    antialias: bool | None = None,
     frame_cache: Path | None = None,
     rig_index: int = 0,
     terrain: Terrain | None = None,
@@ -333,8 +333,8 @@ def stereo_camera(
         Fraction of roadside objects (default: ``camera.scenery_density``).
     world : World, optional
         The world to render (default: built from the scenario, :func:`world_for_scenario`).
-    antialias : bool
-        Render with 4× multisampling.
+    antialias : bool, optional
+        Render with 4× multisampling (default: ``camera.antialias``).
     frame_cache : Path, optional
         Keep the developed frames in this directory and take them back on a later run
         (:class:`.frame_cache.FrameCache`, :meth:`sensor.stereo_camera.StereoCamera.pair`).
@@ -354,6 +354,8 @@ def stereo_camera(
     from .frame_cache import FrameCache
 
     cfg = setup.config
+    if antialias is None:
+        antialias = cfg.camera.antialias
     if ideal:
         light = None if isinstance(lighting, str) else lighting
         chosen = rig if rig is not None else rig_from_config(cfg, rig_index)

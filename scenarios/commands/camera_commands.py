@@ -37,7 +37,9 @@ def render(
         list[str] | None, typer.Option("--set", help="Any config field, e.g. --set camera.baseline=1.5.")
     ] = None,
     video: Annotated[bool, typer.Option(help="Also write a side-by-side stereo video.")] = False,
-    antialias: Annotated[bool, typer.Option(help="4× multisampling (slower).")] = False,
+    antialias: Annotated[
+        bool | None, typer.Option(help="4× multisampling (slower); default: the configuration's camera.antialias.")
+    ] = None,
     force: Annotated[bool, typer.Option(help="Replace an earlier dataset in --out (offtrack's files only).")] = False,
     as_json: JsonOption = False,
 ) -> None:

@@ -143,7 +143,7 @@ def export_kitti(
     *,
     video: bool = False,
     overwrite: bool = False,
-    antialias: bool = False,
+    antialias: bool | None = None,
 ) -> dict[str, Any]:
     """Simulate a scenario and write its rendered camera frames as a KITTI-odometry-style dataset.
 
@@ -169,8 +169,8 @@ def export_kitti(
         Replace an earlier export in ``out_dir`` (``--force``; otherwise refused): everything offtrack
         wrote there is removed first, and a directory that also holds other files is refused
         (:func:`~scenarios.run.results.clear_run_dir`).
-    antialias : bool
-        Render with 4× multisampling (slower: benchmarks/README.md, "Rendering").
+    antialias : bool, optional
+        Render with 4× multisampling (slower: benchmarks/README.md, "Rendering"); default: ``camera.antialias``.
 
     Returns
     -------
