@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from analytic_terrains import TiltedPlane
 
 from sensor.camera import StereoRig
 from sensor.vehicle_bodies import unit_poses
@@ -14,22 +15,6 @@ from vehicle_model.geometry import ChainPose, CombinationPose, kingpin_position,
 from vehicle_model.presets import reference_laden, vehicle_preset
 from vehicle_model.terrain import FlatTerrain
 from vehicle_model.terrain_pose import is_flat, unit_attitude, unit_attitudes
-
-
-@dataclass(frozen=True)
-class TiltedPlane:
-    """z = a·x + b·y + c."""
-
-    a: float
-    b: float
-    c: float = 0.0
-
-    def height(self, points):
-        p = np.asarray(points, float)
-        return self.a * p[:, 0] + self.b * p[:, 1] + self.c
-
-    def gradient(self, points):
-        return np.tile([self.a, self.b], (len(points), 1))
 
 
 @dataclass(frozen=True)

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from analytic_terrains import TiltedPlane
 
 from scenarios.camera.build import frame_odometry, stereo_camera
 from scenarios.config import load_scenario
@@ -27,19 +27,6 @@ from vehicle_model.terrain_pose import unit_attitude
 pytestmark = pytest.mark.rendering
 
 SMALL = {"camera.width": 672, "camera.height": 196}
-
-
-@dataclass(frozen=True)
-class TiltedPlane:
-    a: float
-    b: float
-
-    def height(self, p):
-        p = np.asarray(p, float)
-        return self.a * p[:, 0] + self.b * p[:, 1]
-
-    def gradient(self, p):
-        return np.tile([self.a, self.b], (len(p), 1))
 
 
 PLANE = TiltedPlane(0.10, 0.03)

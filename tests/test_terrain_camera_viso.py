@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from analytic_terrains import TiltedPlane
 
 from sensor.camera import StereoRig
 from sensor.level_reference import AccelerometerTilt, split_yaw, tilt_angles, tilt_rotation
@@ -25,19 +26,6 @@ from vehicle_model.geometry import CombinationPose, kingpin_position
 from vehicle_model.presets import reference_laden
 from vehicle_model.terrain import FlatTerrain
 from vehicle_model.terrain_pose import unit_attitude
-
-
-@dataclass(frozen=True)
-class TiltedPlane:
-    a: float
-    b: float
-
-    def height(self, p):
-        p = np.asarray(p, float)
-        return self.a * p[:, 0] + self.b * p[:, 1]
-
-    def gradient(self, p):
-        return np.tile([self.a, self.b], (len(p), 1))
 
 
 @dataclass(frozen=True)
