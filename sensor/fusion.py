@@ -63,9 +63,9 @@ from .fusion_model import (
     camera_increment,
 )
 from .fusion_noise import FusionNoise
-from .fusion_slip import ZeroSlipNoise, push_variance
+from .fusion_slip import ScrubDemand, ZeroSlipNoise, push_variance
 from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects
-from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics
+from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics, unit_axles
 from .viso_ot import VisoOtEstimator
 
 __all__ = [
@@ -91,6 +91,7 @@ class _Tick:
     kinematic: tuple[tuple[np.ndarray, float, float], ...] = ()
     tractor_lateral: float = math.nan  # the kingpin's lateral velocity if no tractor tyre slips [m/s]
     kinematic_variance: float = 0.0  # σ_k² of (K3) on the step into this tick [m²/s²]
+    scrub: float = 0.0  # the scrub demand D of (K5) on the step into this tick
 
 
 class FusedVisoOt:
@@ -158,6 +159,7 @@ class FusedVisoOt:
         self._model = ProcessModel(self.noise, self.slip_point, layout)
         self._zero_slip = ZeroSlipNoise(self.noise, layout, self.slip_point)
         self._evidence = self._zero_slip.evidence
+        self._scrub = ScrubDemand(self.noise, *unit_axles(params, self.unit), self.slip_point, self.steer_weights)
         self._gyro_zero: tuple[float, int] | None = None
         self.reset()
 
@@ -197,6 +199,8 @@ class FusedVisoOt:
         self._zero_slip.reset()  # m_k, V_k, e_k and v_m of (K2)
         self._chain.reset()
         self._coupling = np.zeros(2)  # the last frame's (c_x, c_y)
+        self._coupling_scrub = 0.0  # D of (K5) at the last frame
+        self.scrub_demand = 0.0
         self._nis: deque[float] = deque(maxlen=n.innovation_window)
         self.innovation_ratio = 1.0
         # Committed increments still ahead of the follow point: start pose (x, y, ψ), end station x_e and
@@ -250,6 +254,9 @@ class FusedVisoOt:
             kinematic_variance = self._zero_slip.variance(self._history[-1].x if self._history else self._start[0])
         else:
             kinematic_variance = 0.0
+        before = self._history[-1].x if self._history else self._start[0]
+        scrub = self._scrub(sample[0] - before[BG], sample[1] - before[BW], steer, float(before[VS]))  # (K5)
+        self.scrub_demand = scrub
         if self._previous_input is None:
             x, p = self._start
             x, p = x.copy(), p.copy()
@@ -258,7 +265,7 @@ class FusedVisoOt:
             prev = self._previous_input
             inputs = (float(dt), *(0.5 * (a + b) for a, b in zip(prev, sample, strict=True)))
             last = self._history[-1]
-            x, p = self._step(last.x, last.p, inputs, kinematic_variance)
+            x, p = self._step(last.x, last.p, inputs, kinematic_variance, scrub)
         kinematic: tuple[tuple[np.ndarray, float, float], ...] = ()
         lateral = math.nan
         if tractor is not None and self.noise.kinematics and self._previous_input is not None:
@@ -271,15 +278,21 @@ class FusedVisoOt:
                 x, p = apply_rows(x, p, kinematic)
         elif tractor is not None and self.noise.kinematics:
             self._chain.remember(tractor)
-        self._history.append(_Tick(tick, inputs, x, p, kinematic, lateral, kinematic_variance))
+        self._history.append(_Tick(tick, inputs, x, p, kinematic, lateral, kinematic_variance, scrub))
         self._previous_input = sample
         self._read()
 
     def _step(
-        self, x: np.ndarray, p: np.ndarray, inputs: tuple[float, ...], kinematic_variance: float = 0.0
+        self,
+        x: np.ndarray,
+        p: np.ndarray,
+        inputs: tuple[float, ...],
+        kinematic_variance: float = 0.0,
+        scrub: float = 0.0,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """One control period of eqs (1)–(2) (:class:`~sensor.fusion_model.ProcessModel`)."""
-        return self._model.step(x, p, inputs, kinematic_variance)
+        """One control period of eqs (1)–(2) (:class:`~sensor.fusion_model.ProcessModel`), the slip velocity's walk
+        widened by the scrub demand ``scrub`` of (K5)."""
+        return self._model.step(x, p, inputs, kinematic_variance, scrub * self.noise.scrub_slip_walk)
 
     @property
     def kinematic_std(self) -> float:
@@ -334,6 +347,9 @@ class FusedVisoOt:
             coupling = (
                 self.noise.vo_bias_coupling * r[:2, 2] / r[2, 2]
             )  # the yaw–translation ambiguity of this frame (module notes)
+            self._coupling, self._coupling_scrub = coupling, entry.scrub
+            if entry.scrub > 0.0:  # (K5): scrubbing tyres, the coupling gives way to its uncertainty
+                coupling = coupling * (1.0 - entry.scrub)
             h[:2, BPSI] = x[0] * coupling  # the odometry's error per metre over the distance since the anchor
             h[2, BPSI] = x[0]
             if self._sz is not None or self._sf is not None:  # (3'): the camera's displacement, along its axis
@@ -342,7 +358,6 @@ class FusedVisoOt:
                     h[:2, self._sz] = along * self._optical_axis
                 if self._sf is not None:
                     h[:2, self._sf] = across * abs(across) * self._optical_axis
-            self._coupling = coupling
             innovation = z - h @ x
             innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
             ph = p @ h.T
@@ -401,7 +416,7 @@ class FusedVisoOt:
         self._history = deque([_Tick(self._history[index].tick, (0.0, 0.0, 0.0, 0.0), anchor_x, anchor_p)])
         for h in rest:  # re-filter to the present with the stored inputs and measurements (delayed measurement)
             last = self._history[-1]
-            nx, np_ = self._step(last.x, last.p, h.inputs, h.kinematic_variance)
+            nx, np_ = self._step(last.x, last.p, h.inputs, h.kinematic_variance, h.scrub)
             nx, np_ = apply_rows(nx, np_, h.kinematic)
             self._history.append(replace(h, x=nx, p=np_))
 
@@ -443,6 +458,11 @@ class FusedVisoOt:
         disagreement = self.kinematic_share * math.sqrt(evidence) * self._lateral_lever
         # the coupling is known to vo_bias_coupling_uncertainty: so is the correction it applies for β_ψ
         coupling = self.noise.vo_bias_coupling_uncertainty * now.x[BPSI] * coherent[2]
+        if self._coupling_scrub > 0.0:  # (K5): the correction applied with (1 − D)·κ, the whole of it uncertain
+            scrub = self._coupling_scrub
+            share = math.hypot(self.noise.vo_bias_coupling_uncertainty * (1.0 - scrub), scrub)
+            coupling = share * now.x[BPSI] * coherent[2]
+            coherent = coherent - scrub * np.array([0.0, coherent[2], coherent[2]])
         self.std_parts = {
             "increments": self.innovation_ratio * independent,
             "biases": self.innovation_ratio * float(effects @ biases @ effects),

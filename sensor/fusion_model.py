@@ -200,10 +200,16 @@ class ProcessModel:
         self._g = np.zeros((layout.size, 2))
 
     def step(
-        self, x: np.ndarray, p: np.ndarray, inputs: tuple[float, ...], kinematic_variance: float = 0.0
+        self,
+        x: np.ndarray,
+        p: np.ndarray,
+        inputs: tuple[float, ...],
+        kinematic_variance: float = 0.0,
+        extra_slip_walk: float = 0.0,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Eqs (1)–(2) over ``inputs = (dt, r_m, w_m, Σ w_j tan δ_j)`` (the period's mean samples), and (K3) with
-        ``σ_k²`` = ``kinematic_variance``: the state and covariance at the period's end."""
+        ``σ_k²`` = ``kinematic_variance``: the state and covariance at the period's end. ``extra_slip_walk``
+        [m/s/√s] widens ``v_s``'s random walk (the scrub demand of (K5), :mod:`sensor.fusion_slip`)."""
         dt, r_m, w_m, tan_steer = inputs
         r = r_m - x[BG]
         u = w_m - x[BW]
@@ -235,6 +241,8 @@ class ProcessModel:
         q = (g * self._sample_variance) @ g.T
         q[VS:BPSI, VS:BPSI] += self._walk_time * dt
         q[BPSI, BPSI] += self._walk_distance * abs(u) * dt
+        if extra_slip_walk > 0.0:  # (K5): scrubbing tyres change the slip velocity faster
+            q[VS, VS] += extra_slip_walk**2 * dt
         if self.layout.error_state:  # (K3): ε_k ← φ·ε_k, its variance relaxing to σ_k² with the correlation time
             phi = math.exp(-dt / self.noise.kinematic_error_time)
             out[EK] = phi * x[EK]

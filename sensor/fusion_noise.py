@@ -96,6 +96,13 @@ class FusionNoise(Settings):
         whose tyres slip sideways (axles steered towards their lock, scrubbing) carries a lateral force that its
         kingpin passes to the tractor's rear, so the tractor's rear tyres slip in proportion and the zero-slip
         kinematics (K1) err with them, too slowly for the camera's disagreement to show it (docs/fusion.md).
+    scrub_slip_angle : float
+        ``α_s`` of (K5) [rad]: the tyre slip angle of the unit's most loaded-sideways axle, from its own zero-slip
+        kinematics, at which its tyres leave their linear range; the scrub demand rises from 0 there to 1 at twice
+        it, and with it the odometry's yaw–translation coupling (eq (3)) gives way to its uncertainty and the slip
+        velocity's random walk widens by ``scrub_slip_walk`` (0: no scrub demand).
+    scrub_slip_walk : float
+        The slip velocity's random walk at full scrub demand [m/s/√s], added to ``slip_velocity_walk`` (K5).
     gate : float
         Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
     max_gated : int
@@ -188,6 +195,12 @@ class FusionNoise(Settings):
     slip_evidence_hold: bool = False
     trailer_push_share: float = Field(
         0.0, ge=0.0, le=2.0, description="σ_k per unit of the trailer's slip velocity; 0: none, 2 is a tractor on ice"
+    )
+    scrub_slip_angle: float = Field(
+        0.0, ge=0.0, le=0.5, description="[rad] onset of the scrub demand (K5); 0: none, 0.5 rad is a tyre on its side"
+    )
+    scrub_slip_walk: float = Field(
+        0.0, ge=0.0, le=5.0, description="[m/s/√s] added slip walk at full scrub demand; 5 spins in 1 s"
     )
     gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
     max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")

@@ -51,6 +51,23 @@ kinematics' steady error (the sensors' offsets, the linear tyre model's residual
 and where the disagreement says nothing slips the kinematics carry what changes faster than that; where it says the
 tyres slip, the white part de-weights the kinematics at once, before the state has learned the new error (a
 figure-of-eight's change of turn on ice; docs/field_bias.md §6.5).
+
+The trailer's own tyres at their limit. Eq (1) holds while every axle of the unit works in its tyres' linear
+range. An axle steered towards its lock, or a fixed axle ahead of steered ones in a tight turn, runs at a slip
+angle far beyond it: the tyres scrub, carry less force than the linear model says, and the trailer's slip velocity
+changes faster than ``v_s``'s random walk allows; the mount and the odometry then see a turn the free-rolling
+turns the coupling ``κ`` of eq (3) was measured on do not resemble. The filter sees this from its own signals:
+with its estimated rates and slip velocity the kingpin moves at ``(u, v_k)`` of eq (1), so axle ``j`` (steer
+``δ_j``, zero for a fixed one) runs at the slip angle::
+
+    α_j = δ_j − atan((v_k − r·L_j) / |u|),    D = clip(max_j |α_j| / α_s − 1, 0, 1)                  (K5)
+
+the *scrub demand* ``D`` (``α_s`` = ``scrub_slip_angle``, the linear range's end; ``|u|`` held to at least
+1 m/s, where a slip angle says little). With ``D`` > 0 the slip velocity's random walk widens by
+``D·scrub_slip_walk``, and eq (3)'s coupling gives way to its uncertainty: the motion is taken with ``(1 − D)·κ``
+and the off-tracking's std carries the whole coupled correction as uncertain in proportion, eq (5)'s coupling term
+``β_ψ·G_κ·√((u_κ·(1 − D))² + D²)`` with ``G_κ`` at the full ``κ`` (:mod:`sensor.fusion_std`). A free-rolling unit
+in an ordinary turn has slip angles of a degree or two and no demand.
 """
 
 from __future__ import annotations
@@ -62,7 +79,7 @@ import numpy as np
 from .fusion_model import BG, BW, EK, VS, StateLayout
 from .fusion_noise import FusionNoise
 
-__all__ = ["SlipEvidence", "ZeroSlipNoise", "kinematic_floor", "push_variance"]
+__all__ = ["ScrubDemand", "SlipEvidence", "ZeroSlipNoise", "kinematic_floor", "push_variance"]
 
 
 def kinematic_floor(noise: FusionNoise, modelled_slip: float) -> float:
@@ -195,3 +212,51 @@ class ZeroSlipNoise:
                 1.0 / (variance * n.kinematic_error_time) + camera
             )
         return ((h, z, variance * n.kinematic_error_time / max(dt, 1e-6)),)  # a time-correlated error
+
+
+class ScrubDemand:
+    """(K5): the scrub demand ``D`` of a unit's axles from its own signals and the filter's state.
+
+    Parameters
+    ----------
+    noise
+        The filter's noise model (``scrub_slip_angle`` ``α_s``; 0: ``D`` is always 0).
+    distances
+        ``L_j`` of every axle of the unit behind its front coupling [m].
+    steerable
+        Which axles are steerable (the measured steer angles are theirs, in order).
+    slip_point, steer_weights
+        ``L_c`` and ``w_j`` of eq (1).
+    """
+
+    MIN_SPEED = 1.0
+    """The least ``|u|`` [m/s] a slip angle is taken at."""
+
+    def __init__(
+        self,
+        noise: FusionNoise,
+        distances: np.ndarray,
+        steerable: np.ndarray,
+        slip_point: float,
+        steer_weights: np.ndarray,
+    ) -> None:
+        self.onset = noise.scrub_slip_angle
+        self.distances = np.asarray(distances, dtype=float)
+        self.steerable = np.asarray(steerable, dtype=bool)
+        self.slip_point = slip_point
+        self.steer_weights = np.asarray(steer_weights, dtype=float)
+
+    def __call__(self, yaw_rate: float, speed: float, steer: np.ndarray | None, slip_velocity: float) -> float:
+        """``D`` of (K5) for the unit's yaw rate [rad/s] and speed [m/s] (biases removed), its measured steer [rad]
+        (``None``: none) and the slip velocity ``v_s`` [m/s]."""
+        if self.onset <= 0.0:
+            return 0.0
+        delta = np.zeros(self.distances.size)
+        tan_steer = 0.0
+        if steer is not None and self.steer_weights.size:
+            angles = np.asarray(steer, dtype=float).reshape(-1)
+            delta[self.steerable] = angles
+            tan_steer = float(np.dot(self.steer_weights, np.tan(angles)))
+        lateral = yaw_rate * self.slip_point + speed * tan_steer + slip_velocity  # eq (1)
+        alpha = delta - np.arctan((lateral - yaw_rate * self.distances) / max(abs(speed), self.MIN_SPEED))
+        return float(np.clip(np.max(np.abs(alpha)) / self.onset - 1.0, 0.0, 1.0))

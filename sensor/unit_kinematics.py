@@ -38,7 +38,7 @@ from vehicle_model.errors import InputError
 from vehicle_model.kinematics import RearPoint, coupling_velocity, modelled_rear_slip, tractor_kingpin_velocity
 from vehicle_model.parameters import VehicleParams
 
-__all__ = ["ChainKinematics", "ChainSignals", "TractorSignals", "slip_kinematics"]
+__all__ = ["ChainKinematics", "ChainSignals", "TractorSignals", "slip_kinematics", "unit_axles"]
 
 
 @dataclass(frozen=True)
@@ -101,6 +101,14 @@ def slip_kinematics(params: VehicleParams, unit: int = 1) -> tuple[float, np.nda
     weights = stiff / stiff.sum()
     steerable = np.array([a.steerable for a in params.trailers[unit - 1].axles])
     return float(np.sum(weights * lengths)), weights[steerable]
+
+
+def unit_axles(params: VehicleParams, unit: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """The distances ``L_j`` of towed unit ``unit``'s axles behind its front coupling [m] and which are steerable
+    (layout order, as :func:`slip_kinematics`)."""
+    lengths = np.asarray(params.trailer_axle_distances(unit), dtype=float)
+    steerable = np.array([a.steerable for a in params.trailers[unit - 1].axles], dtype=bool)
+    return lengths, steerable
 
 
 class ChainKinematics:
