@@ -138,16 +138,17 @@ class FusedVisoOt:
         noise: FusionNoise | None = None,
         unit: int = 1,
     ) -> None:
-        self.noise = noise if noise is not None else FusionNoise()
         self.params = params
         # eqs (1)–(2): camera motion → kingpin increment (it also checks the unit)
         self.geometry = VisoOtEstimator(params, camera_in_trailer, unit=unit)
+        axis = self.geometry.mount_rotation[:2, 2]  # the optical axis in the unit's ground plane
+        self._optical_axis = axis / max(float(np.hypot(*axis)), 1e-12)
+        noise = noise if noise is not None else FusionNoise()
+        self.noise = noise.for_camera((float(self._optical_axis[0]), float(self._optical_axis[1])))  # a side rig's
         self.unit = self.geometry.unit
         self.follow_point_offset = params.follow_point_offset_of(self.unit)
         self.slip_point, self.steer_weights = slip_kinematics(params, self.unit)
         self._chain = ChainKinematics(params, self.unit, self.noise.kinematic_rear_point)  # (K1)'s z_c
-        axis = self.geometry.mount_rotation[:2, 2]  # the optical axis in the unit's ground plane
-        self._optical_axis = axis / max(float(np.hypot(*axis)), 1e-12)
         self.buffer = OfftrackingBuffer(self.follow_point_offset)
         layout = StateLayout.of(self.noise)
         self._layout = layout

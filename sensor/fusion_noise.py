@@ -10,7 +10,33 @@ from pydantic import Field
 from vehicle_model.kinematics import RearPoint
 from vehicle_model.settings import Settings
 
-__all__ = ["FusionNoise"]
+__all__ = ["FusionNoise", "SideRigFusion"]
+
+
+class SideRigFusion(Settings):
+    """The settings a camera that looks across its motion (a side rig) takes in place of the section's (``None``: the
+    section's own): the odometry's error along its optical axis as states (eq (3') of :mod:`sensor.fusion_model`,
+    docs/field_bias.md §7) and the zero-slip kinematics they are found against.
+
+    Parameters
+    ----------
+    vo_axial_flow, vo_axial_scale, vo_axial_scale_walk
+        As :class:`FusionNoise`'s.
+    kinematic_rear_point, kinematic_error_model
+        As :class:`FusionNoise`'s.
+    """
+
+    vo_axial_flow: float | None = Field(None, ge=0.0, le=1.0, description="[1/m] start std of s_f; 1 /m: 1 m per m²")
+    vo_axial_scale: float | None = Field(None, ge=0.0, le=0.5, description="start std of s_z; 0.5 halves the axis")
+    vo_axial_scale_walk: float | None = Field(
+        None, ge=0.0, le=0.1, description="[1/√m] their walk; 0.1 forgets in a metre"
+    )
+    kinematic_rear_point: RearPoint | None = None
+    kinematic_error_model: Literal["inflated", "state"] | None = None
+
+    def given(self) -> dict[str, object]:
+        """The settings it gives (those not ``None``)."""
+        return {name: value for name in type(self).model_fields if (value := getattr(self, name)) is not None}
 
 
 class FusionNoise(Settings):
@@ -114,6 +140,9 @@ class FusionNoise(Settings):
         quadrature (0: none; a run's ``fusion`` settings add 0.005 m).
     innovation_window : int
         Camera motions over which the mean normalised innovation squared ``ρ`` of eq (5) is taken.
+    side_rig : SideRigFusion
+        What a camera looking across its motion takes instead (:meth:`for_camera`; none by default, a run's
+        ``fusion`` settings give the side camera's states).
     """
 
     gyro_noise: float = Field(
@@ -214,3 +243,13 @@ class FusionNoise(Settings):
     innovation_window: int = Field(
         50, ge=1, le=10000, description="camera motions in ρ of eq (5); one is no statistic, 10000 never adapts"
     )
+    side_rig: SideRigFusion = Field(default_factory=SideRigFusion)
+
+    def for_camera(self, optical_axis: tuple[float, float]) -> FusionNoise:
+        """The settings of a filter whose camera's optical axis is ``optical_axis`` in the unit's ground plane: a
+        camera that looks across its motion (``|o_y| > |o_x|``, a side rig) takes :attr:`side_rig`'s, any other
+        these settings unchanged (the same object)."""
+        given = self.side_rig.given()
+        if not given or abs(optical_axis[1]) <= abs(optical_axis[0]):
+            return self
+        return self.replace(**given)
