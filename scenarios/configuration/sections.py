@@ -338,7 +338,7 @@ class FusionConfig(FusionNoise):
         0.04, ge=0.0, le=0.5, description="[rad] onset of the scrub demand (K5); 0: none, 0.5 rad is a tyre on its side"
     )
     scrub_slip_walk: float = Field(
-        0.3, ge=0.0, le=5.0, description="[m/s/√s] added slip walk at full scrub demand; 5 spins in 1 s"
+        0.5, ge=0.0, le=5.0, description="[m/s/√s] added slip walk at full scrub demand; 5 spins in 1 s"
     )
     side_rig: SideRigFusion = Field(
         default_factory=lambda: SideRigFusion(
