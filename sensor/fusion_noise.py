@@ -1,5 +1,5 @@
-"""The noise model and tuning of the fused VISO-OT filter (:class:`~sensor.fusion.FusedVisoOt`, whose module notes
-state the equations each field enters)."""
+"""The noise model and tuning of the fused VISO-OT filter (:class:`~sensor.fusion.FusedVisoOt`; the equations each
+field enters are stated in :mod:`sensor.fusion_model`, :mod:`sensor.fusion_slip` and :mod:`sensor.fusion_std`)."""
 
 from __future__ import annotations
 
