@@ -109,8 +109,8 @@ def run(
 
     ``frame_error``: per frame, an error ``(dx, dy, dψ)`` added to the increment the camera motion is made from.
     ``tractor``: per tick, the :class:`TractorSignals` (``None``: none). ``yaw_error_per_m``: a systematic odometry
-    error of this yaw per metre along the frame's yaw–translation ambiguity (eq (3) of :mod:`sensor.fusion_model`), whose
-    translation is ``coupling_scale`` times the one the filter assumes.
+    error of this yaw per metre along the frame's yaw–translation ambiguity (eq (3) of :mod:`sensor.fusion_model`),
+    whose translation is ``coupling_scale`` times the one the filter assumes.
     """
     truth = OfftrackingBuffer(PARAMS.follow_point_offset)
     est, std, ref = [], [], []
