@@ -61,9 +61,11 @@ from .fusion_model import (
     apply_rows,
     camera_displacement,
     camera_increment,
+    into_frame,
+    relative_pose,
 )
 from .fusion_noise import FusionNoise
-from .fusion_slip import ScrubDemand, ZeroSlipNoise, push_variance
+from .fusion_slip import ScrubDemand, ZeroSlipNoise, kinematic_lateral_step, push_variance
 from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects
 from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics, unit_axles
 from .viso_ot import VisoOtEstimator
@@ -305,20 +307,6 @@ class FusedVisoOt:
         """The share of the lateral information the zero-slip kinematics carry against the camera's (eq (5))."""
         return self._zero_slip.kinematic_share
 
-    def _kinematic_lateral_step(self, index: int, x: np.ndarray) -> float | None:
-        """The kingpin's lateral displacement from the anchor to history ``index`` in the anchor's frame, had no
-        tractor tyre slipped: Cheng's lateral velocity with the trailer's speed and the gyro (``None``: no
-        tractor signals on some tick)."""
-        heading = y = 0.0
-        for t in list(self._history)[1 : index + 1]:
-            dt, r_m, w_m, _ = t.inputs
-            if math.isnan(t.tractor_lateral):
-                return None
-            mid = heading + 0.5 * (r_m - x[BG]) * dt
-            y += (math.sin(mid) * (w_m - x[BW]) + math.cos(mid) * t.tractor_lateral) * dt
-            heading += (r_m - x[BG]) * dt
-        return y
-
     # ------------------------------------------------------------------ measurement
 
     def measurement(self, camera_motion: np.ndarray, covariance: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -347,7 +335,7 @@ class FusedVisoOt:
             h[:, :3] = np.eye(3)
             coupling = (
                 self.noise.vo_bias_coupling * r[:2, 2] / r[2, 2]
-            )  # the yaw–translation ambiguity of this frame (module notes)
+            )  # the yaw–translation ambiguity of this frame (eq (3) of :mod:`sensor.fusion_model`)
             self._coupling, self._coupling_scrub = coupling, entry.scrub
             if entry.scrub > 0.0:  # (K5): scrubbing tyres, the coupling gives way to its uncertainty
                 coupling = coupling * (1.0 - entry.scrub)
@@ -365,7 +353,9 @@ class FusedVisoOt:
             s = h @ ph + r
             nis = float(innovation @ np.linalg.solve(s, innovation))
             interval = sum(t.inputs[0] for t in list(self._history)[1 : index + 1])
-            kinematic_y = self._kinematic_lateral_step(index, x)
+            kinematic_y = kinematic_lateral_step(
+                [(t.inputs, t.tractor_lateral) for t in list(self._history)[1 : index + 1]], x
+            )
             if kinematic_y is not None:  # (K2): the camera's lateral motion against the tractor's kinematics
                 camera_y = z[1] - h[1, BPSI] * x[BPSI]
                 for i in (self._sz, self._sf):  # less the estimated error along the optical axis, (3')
@@ -396,15 +386,15 @@ class FusedVisoOt:
         poses = [h.x[:3] for h in list(self._history)[: index + 1]]
         poses[-1] = x[:3]
         for a, b in itertools.pairwise(poses):
-            self.buffer.push(*_relative(a, b))
+            self.buffer.push(*relative_pose(a, b))
         end = x[:3].copy()
         # Move the committed increments into the new anchor frame, add this one, drop those behind the follow point.
         starts = np.vstack([self._starts, [[0.0, 0.0, 0.0]]])
         ends = np.vstack([self._ends, end[None, :2]])
         covs = np.concatenate([self._covs, p[None, :3, :3]])
         durations = np.append(self._durations, sum(t.inputs[0] for t in list(self._history)[1 : index + 1]))
-        starts = _into(starts, end)
-        ends = _into(np.column_stack([ends, np.zeros(len(ends))]), end)[:, :2]
+        starts = into_frame(starts, end)
+        ends = into_frame(np.column_stack([ends, np.zeros(len(ends))]), end)[:, :2]
         keep = starts[:, 0] > -self.follow_point_offset - 2.0
         self._starts, self._ends, self._covs = starts[keep], ends[keep], covs[keep]
         self._durations = durations[keep]
@@ -424,7 +414,7 @@ class FusedVisoOt:
     # ------------------------------------------------------------------ estimate
 
     def _read(self) -> None:
-        """Off-tracking and its standard deviation at the newest tick (module notes, eqs (3)–(4))."""
+        """Off-tracking (eq (7) of the path buffer) and its std (eqs (4)–(5), :mod:`sensor.fusion_std`) now."""
         now = self._history[-1]
         d = now.x[:3]
         lfp = self.follow_point_offset
@@ -493,25 +483,10 @@ class FusedVisoOt:
     @property
     def state(self) -> np.ndarray:
         """Newest state ``[Δx, Δy, Δψ, v_s, b_g, b_w, β_ψ]``, then ``ε_k`` with (K3) and ``s_z``, ``s_f`` of (3') when
-        on (module notes; before the first tick, the start)."""
+        on (:mod:`sensor.fusion_model`; before the first tick, the start)."""
         return (self._history[-1].x if self._history else self._start[0]).copy()
 
     @property
     def covariance(self) -> np.ndarray:
         """Newest state covariance, 7×7 and one more row per state that is on (before the first tick, the start)."""
         return (self._history[-1].p if self._history else self._start[1]).copy()
-
-
-def _relative(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
-    """Increment ``(dx, dy, dψ)`` from pose ``a`` to pose ``b`` (both in one frame), in ``a``'s frame."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    return c * dx + s * dy, -s * dx + c * dy, float(b[2] - a[2])
-
-
-def _into(poses: np.ndarray, origin: np.ndarray) -> np.ndarray:
-    """Poses ``(n, 3)`` re-expressed in the frame of ``origin`` (a pose in their frame)."""
-    c, s = math.cos(origin[2]), math.sin(origin[2])
-    x = poses[:, 0] - origin[0]
-    y = poses[:, 1] - origin[1]
-    return np.column_stack([c * x + s * y, -s * x + c * y, poses[:, 2] - origin[2]])

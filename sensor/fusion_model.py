@@ -117,6 +117,8 @@ __all__ = [
     "apply_rows",
     "camera_displacement",
     "camera_increment",
+    "into_frame",
+    "relative_pose",
 ]
 
 STATES = 7
@@ -303,3 +305,18 @@ def apply_rows(
     if rows:
         p = 0.5 * (p + p.T)
     return x, p
+
+
+def relative_pose(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
+    """Increment ``(dx, dy, dψ)`` from pose ``a`` to pose ``b`` (both in one frame), in ``a``'s frame."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    return c * dx + s * dy, -s * dx + c * dy, float(b[2] - a[2])
+
+
+def into_frame(poses: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """Poses ``(n, 3)`` re-expressed in the frame of ``origin`` (a pose in their frame)."""
+    c, s = math.cos(origin[2]), math.sin(origin[2])
+    x = poses[:, 0] - origin[0]
+    y = poses[:, 1] - origin[1]
+    return np.column_stack([c * x + s * y, -s * x + c * y, poses[:, 2] - origin[2]])

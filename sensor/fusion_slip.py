@@ -79,7 +79,14 @@ import numpy as np
 from .fusion_model import BG, BW, EK, VS, StateLayout
 from .fusion_noise import FusionNoise
 
-__all__ = ["ScrubDemand", "SlipEvidence", "ZeroSlipNoise", "kinematic_floor", "push_variance"]
+__all__ = [
+    "ScrubDemand",
+    "SlipEvidence",
+    "ZeroSlipNoise",
+    "kinematic_floor",
+    "kinematic_lateral_step",
+    "push_variance",
+]
 
 
 def kinematic_floor(noise: FusionNoise, modelled_slip: float) -> float:
@@ -260,3 +267,19 @@ class ScrubDemand:
         lateral = yaw_rate * self.slip_point + speed * tan_steer + slip_velocity  # eq (1)
         alpha = delta - np.arctan((lateral - yaw_rate * self.distances) / max(abs(speed), self.MIN_SPEED))
         return float(np.clip(np.max(np.abs(alpha)) / self.onset - 1.0, 0.0, 1.0))
+
+
+def kinematic_lateral_step(ticks: list[tuple[tuple[float, ...], float]], x: np.ndarray) -> float | None:
+    """(K2)'s kinematic side: the kingpin's lateral displacement over ``ticks`` (each its inputs ``(dt, r_m, w_m,
+    …)`` and the kingpin's lateral velocity had no tractor tyre slipped) in the frame of their start, with the
+    biases of the state ``x``: Cheng's lateral velocity with the trailer's speed and the gyro (``None``: no tractor
+    signals on some tick)."""
+    heading = y = 0.0
+    for inputs, tractor_lateral in ticks:
+        dt, r_m, w_m = inputs[0], inputs[1], inputs[2]
+        if math.isnan(tractor_lateral):
+            return None
+        mid = heading + 0.5 * (r_m - x[BG]) * dt
+        y += (math.sin(mid) * (w_m - x[BW]) + math.cos(mid) * tractor_lateral) * dt
+        heading += (r_m - x[BG]) * dt
+    return y
