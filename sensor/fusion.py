@@ -131,6 +131,12 @@ class FusedVisoOt:
     std_parts : dict[str, float]
         The five variance terms of eq (5) at the last tick [m²], keyed by :data:`STD_PARTS` (NaN without an
         estimate); :meth:`std_contributions` gives them as standard deviations.
+    scrub_demand : float
+        ``D`` of (K5) on the last tick (:mod:`sensor.fusion_slip`): 0 while every axle rolls within its tyres'
+        linear range, 1 where one runs at twice ``scrub_slip_angle``.
+    noise : FusionNoise
+        The settings it runs with: ``noise``, or for a camera that looks across its motion ``noise``'s
+        :attr:`~sensor.fusion_noise.FusionNoise.side_rig` settings in their place.
     """
 
     def __init__(
