@@ -60,10 +60,12 @@ turns the coupling ``κ`` of eq (3) was measured on do not resemble. The filter 
 with its estimated rates and slip velocity the kingpin moves at ``(u, v_k)`` of eq (1), so axle ``j`` (steer
 ``δ_j``, zero for a fixed one) runs at the slip angle::
 
-    α_j = δ_j − atan((v_k − r·L_j) / |u|),    D = clip(max_j |α_j| / α_s − 1, 0, 1)                  (K5)
+    α_j = δ_j − atan((v_k − r·L_j) / |u|),    D = clip(max_j |α_j − Σ_i c_i α_i| / α_s − 1, 0, 1)    (K5)
 
-the *scrub demand* ``D`` (``α_s`` = ``scrub_slip_angle``, the linear range's end; ``|u|`` held to at least
-1 m/s, where a slip angle says little). With ``D`` > 0 the slip velocity's random walk widens by
+the *scrub demand* ``D`` (``c_i = C_i / Σ C`` the axles' stiffness shares, ``α_s`` = ``scrub_slip_angle``, the
+linear range's end; ``|u|`` held to at least 1 m/s, where a slip angle says little). It is the axles' disagreement
+about where the unit goes, not their common slip: a trailer sliding sideways on ice has every axle at the same slip
+angle, which ``v_s`` and (K2) already carry, and no demand. With ``D`` > 0 the slip velocity's random walk widens by
 ``D·scrub_slip_walk``, and eq (3)'s coupling gives way to its uncertainty: the motion is taken with ``(1 − D)·κ``
 and the off-tracking's std carries the whole coupled correction as uncertain in proportion, eq (5)'s coupling term
 ``β_ψ·G_κ·√((u_κ·(1 − D))² + D²)`` with ``G_κ`` at the full ``κ`` (:mod:`sensor.fusion_std`). A free-rolling unit
@@ -232,6 +234,8 @@ class ScrubDemand:
         ``L_j`` of every axle of the unit behind its front coupling [m].
     steerable
         Which axles are steerable (the measured steer angles are theirs, in order).
+    shares
+        Every axle's share ``c_j`` of the unit's cornering stiffness.
     slip_point, steer_weights
         ``L_c`` and ``w_j`` of eq (1).
     """
@@ -244,12 +248,14 @@ class ScrubDemand:
         noise: FusionNoise,
         distances: np.ndarray,
         steerable: np.ndarray,
+        shares: np.ndarray,
         slip_point: float,
         steer_weights: np.ndarray,
     ) -> None:
         self.onset = noise.scrub_slip_angle
         self.distances = np.asarray(distances, dtype=float)
         self.steerable = np.asarray(steerable, dtype=bool)
+        self.shares = np.asarray(shares, dtype=float)
         self.slip_point = slip_point
         self.steer_weights = np.asarray(steer_weights, dtype=float)
 
@@ -266,7 +272,8 @@ class ScrubDemand:
             tan_steer = float(np.dot(self.steer_weights, np.tan(angles)))
         lateral = yaw_rate * self.slip_point + speed * tan_steer + slip_velocity  # eq (1)
         alpha = delta - np.arctan((lateral - yaw_rate * self.distances) / max(abs(speed), self.MIN_SPEED))
-        return float(np.clip(np.max(np.abs(alpha)) / self.onset - 1.0, 0.0, 1.0))
+        spread = alpha - float(np.dot(self.shares, alpha))  # less the common slip
+        return float(np.clip(np.max(np.abs(spread)) / self.onset - 1.0, 0.0, 1.0))
 
 
 def kinematic_lateral_step(ticks: list[tuple[tuple[float, ...], float]], x: np.ndarray) -> float | None:

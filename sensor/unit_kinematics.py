@@ -103,12 +103,14 @@ def slip_kinematics(params: VehicleParams, unit: int = 1) -> tuple[float, np.nda
     return float(np.sum(weights * lengths)), weights[steerable]
 
 
-def unit_axles(params: VehicleParams, unit: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """The distances ``L_j`` of towed unit ``unit``'s axles behind its front coupling [m] and which are steerable
-    (layout order, as :func:`slip_kinematics`)."""
+def unit_axles(params: VehicleParams, unit: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distances ``L_j`` of towed unit ``unit``'s axles behind its front coupling [m], which are steerable and
+    their static cornering stiffnesses' shares ``C_j / Σ C`` (layout order, as :func:`slip_kinematics`)."""
+    towed = params.axle_table.unit == unit
+    stiff = params.axle_cornering_stiffness()[towed]
     lengths = np.asarray(params.trailer_axle_distances(unit), dtype=float)
     steerable = np.array([a.steerable for a in params.trailers[unit - 1].axles], dtype=bool)
-    return lengths, steerable
+    return lengths, steerable, stiff / stiff.sum()
 
 
 class ChainKinematics:
