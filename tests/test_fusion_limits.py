@@ -40,7 +40,7 @@ def _propagate(params, noise: FusionNoise, yaw_rate: float, steer: float) -> Fus
     return fused
 
 
-def test_the_demand_is_zero_free_rolling_and_full_at_the_lock(lst) -> None:
+def test_the_demand_is_zero_free_rolling_or_sliding_and_full_at_the_lock(lst) -> None:
     slip_point, weights = slip_kinematics(lst, 1)
     demand = ScrubDemand(FusionNoise(**SCRUB), *unit_axles(lst, 1), slip_point, weights)
     steer = np.zeros(weights.size)
@@ -49,6 +49,8 @@ def test_the_demand_is_zero_free_rolling_and_full_at_the_lock(lst) -> None:
     assert demand(SPEED / 50.0, SPEED, steer, 0.0) == 0.0
     # both steerable axles at 25° in the 11.5 m turn: far past twice the 0.05 rad onset
     assert demand(SPEED / 11.5, SPEED, np.full(weights.size, math.radians(25.0)), 0.0) == 1.0
+    # the whole trailer sliding sideways at 1 m/s, axles straight: one slip angle for all, no disagreement
+    assert demand(0.0, SPEED, steer, 1.0) == 0.0
     assert (
         ScrubDemand(FusionNoise(), *unit_axles(lst, 1), slip_point, weights)(
             SPEED / 11.5, SPEED, np.full(weights.size, math.radians(25.0)), 0.0
