@@ -1,5 +1,5 @@
-"""The noise model and tuning of the fused VISO-OT filter (:class:`~sensor.fusion.FusedVisoOt`, whose module notes
-state the equations each field enters)."""
+"""The noise model and tuning of the fused VISO-OT filter (:class:`~sensor.fusion.FusedVisoOt`; the equations each
+field enters are stated in :mod:`sensor.fusion_model`, :mod:`sensor.fusion_slip` and :mod:`sensor.fusion_std`)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,33 @@ from pydantic import Field
 from vehicle_model.kinematics import RearPoint
 from vehicle_model.settings import Settings
 
-__all__ = ["FusionNoise"]
+__all__ = ["FusionNoise", "SideRigFusion"]
+
+
+class SideRigFusion(Settings):
+    """The settings a camera that looks across its motion (a side rig) takes in place of the section's (``None``: the
+    section's own): the odometry's error along its optical axis as states (eq (3') of :mod:`sensor.fusion_model`,
+    docs/field_bias.md §7) and the zero-slip kinematics they are found against.
+
+    Parameters
+    ----------
+    vo_axial_flow, vo_axial_scale, vo_axial_scale_walk
+        As :class:`FusionNoise`'s.
+    kinematic_rear_point, kinematic_error_model
+        As :class:`FusionNoise`'s.
+    """
+
+    vo_axial_flow: float | None = Field(None, ge=0.0, le=1.0, description="[1/m] start std of s_f; 1 /m: 1 m per m²")
+    vo_axial_scale: float | None = Field(None, ge=0.0, le=0.5, description="start std of s_z; 0.5 halves the axis")
+    vo_axial_scale_walk: float | None = Field(
+        None, ge=0.0, le=0.1, description="[1/√m] their walk; 0.1 forgets in a metre"
+    )
+    kinematic_rear_point: RearPoint | None = None
+    kinematic_error_model: Literal["inflated", "state"] | None = None
+
+    def given(self) -> dict[str, object]:
+        """The settings it gives (those not ``None``)."""
+        return {name: value for name in type(self).model_fields if (value := getattr(self, name)) is not None}
 
 
 class FusionNoise(Settings):
@@ -96,6 +122,13 @@ class FusionNoise(Settings):
         whose tyres slip sideways (axles steered towards their lock, scrubbing) carries a lateral force that its
         kingpin passes to the tractor's rear, so the tractor's rear tyres slip in proportion and the zero-slip
         kinematics (K1) err with them, too slowly for the camera's disagreement to show it (docs/fusion.md).
+    scrub_slip_angle : float
+        ``α_s`` of (K5) [rad]: the tyre slip angle of the unit's most loaded-sideways axle, from its own zero-slip
+        kinematics, at which its tyres leave their linear range; the scrub demand rises from 0 there to 1 at twice
+        it, and with it the odometry's yaw–translation coupling (eq (3)) gives way to its uncertainty and the slip
+        velocity's random walk widens by ``scrub_slip_walk`` (0: no scrub demand).
+    scrub_slip_walk : float
+        The slip velocity's random walk at full scrub demand [m/s/√s], added to ``slip_velocity_walk`` (K5).
     gate : float
         Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
     max_gated : int
@@ -107,6 +140,9 @@ class FusionNoise(Settings):
         quadrature (0: none; a run's ``fusion`` settings add 0.005 m).
     innovation_window : int
         Camera motions over which the mean normalised innovation squared ``ρ`` of eq (5) is taken.
+    side_rig : SideRigFusion
+        What a camera looking across its motion takes instead (:meth:`for_camera`; none by default, a run's
+        ``fusion`` settings give the side camera's states).
     """
 
     gyro_noise: float = Field(
@@ -189,6 +225,12 @@ class FusionNoise(Settings):
     trailer_push_share: float = Field(
         0.0, ge=0.0, le=2.0, description="σ_k per unit of the trailer's slip velocity; 0: none, 2 is a tractor on ice"
     )
+    scrub_slip_angle: float = Field(
+        0.0, ge=0.0, le=0.5, description="[rad] onset of the scrub demand (K5); 0: none, 0.5 rad is a tyre on its side"
+    )
+    scrub_slip_walk: float = Field(
+        0.0, ge=0.0, le=5.0, description="[m/s/√s] added slip walk at full scrub demand; 5 spins in 1 s"
+    )
     gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
     max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")
     max_std: float = Field(0.5, gt=0.0, le=10.0, description="[m] of off-tracking std; 10 m says nothing")
@@ -201,3 +243,13 @@ class FusionNoise(Settings):
     innovation_window: int = Field(
         50, ge=1, le=10000, description="camera motions in ρ of eq (5); one is no statistic, 10000 never adapts"
     )
+    side_rig: SideRigFusion = Field(default_factory=SideRigFusion)
+
+    def for_camera(self, optical_axis: tuple[float, float]) -> FusionNoise:
+        """The settings of a filter whose camera's optical axis is ``optical_axis`` in the unit's ground plane: a
+        camera that looks across its motion (``|o_y| > |o_x|``, a side rig) takes :attr:`side_rig`'s, any other
+        these settings unchanged (the same object)."""
+        given = self.side_rig.given()
+        if not given or abs(optical_axis[1]) <= abs(optical_axis[0]):
+            return self
+        return self.replace(**given)

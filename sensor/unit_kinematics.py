@@ -2,11 +2,11 @@
 
 Two kinds, both from docs/vehicle_dynamics.md §1.1 and §2.3:
 
-* **The unit's own axles** (eq (1) of :mod:`sensor.fusion`). Zero lateral force on the unit's axles at zero slip,
+* **The unit's own axles** (eq (1) of :mod:`sensor.fusion_model`). Zero lateral force on the unit's axles at zero slip,
   stiffness-weighted, ``Σ C_j (v_k − r L_j − u tan δ_j) = 0``, gives its front coupling's lateral velocity
   ``v_k = r·L_c + u·Σ w_j tan δ_j`` with ``L_c = Σ C_j L_j / Σ C_j`` and ``w_j = C_j / Σ C_j`` over the unit's
   axles (``L_j`` behind its front coupling): :func:`slip_kinematics`.
-* **The tractor's, carried down the chain** ((K1) of :mod:`sensor.fusion`). If no tractor tyre slips sideways the
+* **The tractor's, carried down the chain** ((K1) of :mod:`sensor.fusion_model`). If no tractor tyre slips sideways the
   first towed unit's kingpin moves at ``(u_1, −e·r_1)`` in tractor axes (Cheng 2009;
   :func:`~vehicle_model.kinematics.tractor_kingpin_velocity`, with the tractor's rear point as set). Every unit
   behind is a rigid body hanging on the coupling of the unit ahead, so the motion is carried down the chain
@@ -38,7 +38,7 @@ from vehicle_model.errors import InputError
 from vehicle_model.kinematics import RearPoint, coupling_velocity, modelled_rear_slip, tractor_kingpin_velocity
 from vehicle_model.parameters import VehicleParams
 
-__all__ = ["ChainKinematics", "ChainSignals", "TractorSignals", "slip_kinematics"]
+__all__ = ["ChainKinematics", "ChainSignals", "TractorSignals", "slip_kinematics", "unit_axles"]
 
 
 @dataclass(frozen=True)
@@ -89,7 +89,7 @@ class TractorSignals:
 
 def slip_kinematics(params: VehicleParams, unit: int = 1) -> tuple[float, np.ndarray]:
     """``L_c`` [m] and the weights ``w_j`` of the steerable axles (layout order) of towed unit ``unit``, eq (1) of
-    :mod:`sensor.fusion` (module notes).
+    :mod:`sensor.fusion_model` (module notes).
 
     Static cornering stiffness per axle, as :meth:`VehicleParams.equivalent_wheelbase`; ``unit`` 1 the first towed
     unit, as :attr:`~vehicle_model.parameters.AxleTable.unit`.
@@ -101,6 +101,16 @@ def slip_kinematics(params: VehicleParams, unit: int = 1) -> tuple[float, np.nda
     weights = stiff / stiff.sum()
     steerable = np.array([a.steerable for a in params.trailers[unit - 1].axles])
     return float(np.sum(weights * lengths)), weights[steerable]
+
+
+def unit_axles(params: VehicleParams, unit: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distances ``L_j`` of towed unit ``unit``'s axles behind its front coupling [m], which are steerable and
+    their static cornering stiffnesses' shares ``C_j / Σ C`` (layout order, as :func:`slip_kinematics`)."""
+    towed = params.axle_table.unit == unit
+    stiff = params.axle_cornering_stiffness()[towed]
+    lengths = np.asarray(params.trailer_axle_distances(unit), dtype=float)
+    steerable = np.array([a.steerable for a in params.trailers[unit - 1].axles], dtype=bool)
+    return lengths, steerable, stiff / stiff.sum()
 
 
 class ChainKinematics:

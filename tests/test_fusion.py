@@ -1,7 +1,7 @@
 """The fused VISO-OT estimator: a Kalman filter of trailer signals and visual-odometry motions.
 
 Synthetic tests drive the filter with a trailer whose kingpin increments are known exactly (the filter's own
-arc rule, eq (2) of :mod:`sensor.fusion`) and camera motions made from them through a rear camera's pose;
+arc rule, eq (2) of :mod:`sensor.fusion_model`) and camera motions made from them through a rear camera's pose;
 one short rendered run closes the loop with the fused estimate.
 """
 
@@ -109,8 +109,8 @@ def run(
 
     ``frame_error``: per frame, an error ``(dx, dy, dψ)`` added to the increment the camera motion is made from.
     ``tractor``: per tick, the :class:`TractorSignals` (``None``: none). ``yaw_error_per_m``: a systematic odometry
-    error of this yaw per metre along the frame's yaw–translation ambiguity (eq (3) of :mod:`sensor.fusion`), whose
-    translation is ``coupling_scale`` times the one the filter assumes.
+    error of this yaw per metre along the frame's yaw–translation ambiguity (eq (3) of :mod:`sensor.fusion_model`),
+    whose translation is ``coupling_scale`` times the one the filter assumes.
     """
     truth = OfftrackingBuffer(PARAMS.follow_point_offset)
     est, std, ref = [], [], []
@@ -281,7 +281,7 @@ def test_a_short_rendered_run_steered_by_the_fused_estimate_beats_raw_viso_ot() 
 
 def test_the_odometrys_yaw_error_is_found_against_the_gyro_and_removed() -> None:
     # The yaw error per metre an estimated calibration leaves (0.5 mrad/m, docs/field_bias.md), with the translation
-    # error its ambiguity brings (eq (3) of sensor.fusion): raw, it bends the kingpin path by decimetres.
+    # error its ambiguity brings (eq (3) of sensor.fusion_model): raw, it bends the kingpin path by decimetres.
     r_m, w_m, incs = drive(n=2500)
     error = 5e-4
     fused = FusedVisoOt(PARAMS, CAMERA)

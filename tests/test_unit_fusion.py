@@ -38,7 +38,7 @@ _SLIP_POINTS: dict[tuple[str, int], float] = {}
 
 
 def _slip_point(params, unit: int) -> float:
-    """``L_c`` of the unit (eq (1) of :mod:`sensor.fusion`), computed once per preset."""
+    """``L_c`` of the unit (eq (1) of :mod:`sensor.fusion_model`), computed once per preset."""
     key = (params.name, unit)
     if key not in _SLIP_POINTS:
         _SLIP_POINTS[key] = slip_kinematics(params, unit)[0]
@@ -250,7 +250,7 @@ def _swinging(params, t: float) -> ChainPose:
 def test_a_blinded_rear_unit_is_carried_by_the_chains_kinematics():
     """The B-double's rear trailer in a turn whose articulations swing (its own axles slip, ``v_s`` changes by
     about 0.1 m/s), camera blind for 4 s: with the chain's signals the estimate stays within 0.15 m of the truth
-    (the kinematics are weighed as a slowly varying error, eq (K1) of :mod:`sensor.fusion`, so they follow a
+    (the kinematics are weighed as a slowly varying error, eq (K1) of :mod:`sensor.fusion_model`, so they follow a
     changing slip with a lag); without them it drifts more than three times as far."""
     params = VEHICLE_PRESETS["au-b-double"]()
     unit, h = 2, 1e-5

@@ -11,6 +11,7 @@ from pydantic_core import PydanticCustomError
 
 from controller.path_following_config import PathFollowingConfig, PathFollowingGains
 from sensor.fusion import FusionNoise
+from sensor.fusion_noise import SideRigFusion
 from sensor.signals import ChannelSpec
 from vehicle_model.kinematics import RearPoint
 from vehicle_model.settings import Settings
@@ -322,13 +323,32 @@ class EstimatorsConfig(Settings):
 
 class FusionConfig(FusionNoise):
     """The fused VISO-OT filter (``sensor.fusion.FusionNoise``: the data-sheet figures it is designed for, not the
-    ``signals``)."""
+    ``signals``). A run's filter takes the scrub demand of (K5) (``sensor.fusion_slip``) and, for a camera that looks
+    across its motion, ``side_rig``'s settings: the odometry's error along its optical axis as states, found against
+    the speed-compensated zero-slip kinematics with their error as a state (docs/field_bias.md §7.5); a rear rig's
+    filter is the section's alone."""
 
     offtracking_bias_std: float = Field(
         0.005,
         ge=0.0,
         le=0.5,
         description="[m] the VO's error no state of the filter explains, added to its std; 0.5 m swamps any estimate",
+    )
+    scrub_slip_angle: float = Field(
+        0.04, ge=0.0, le=0.5, description="[rad] onset of the scrub demand (K5); 0: none, 0.5 rad is a tyre on its side"
+    )
+    scrub_slip_walk: float = Field(
+        0.5, ge=0.0, le=5.0, description="[m/s/√s] added slip walk at full scrub demand; 5 spins in 1 s"
+    )
+    side_rig: SideRigFusion = Field(
+        default_factory=lambda: SideRigFusion(
+            vo_axial_flow=0.05,
+            vo_axial_scale=0.04,
+            vo_axial_scale_walk=0.001,
+            kinematic_rear_point="speed_compensated",
+            kinematic_error_model="state",
+        ),
+        description="what a side rig's filter takes instead (the odometry's error along its optical axis as states)",
     )
 
 

@@ -1,0 +1,208 @@
+"""The fused VISO-OT filter's off-tracking standard deviation: the increments' sensitivities (eq (4)) and the
+coherent effects of the biases and of the odometry's error along the optical axis, summed in eq (5).
+
+Off-tracking and its standard deviation. Every tick the off-tracking is read from the buffer moved by the
+current ``(Δx, Δy, Δψ)`` (eq (7), :func:`~vehicle_model.offtracking.offtracking_from_path`). Its variance has
+five parts. The committed increments newer than the follow-point station, and the current one, each contribute
+``gᵀ Q g`` with ``Q`` the increment's covariance and ``g`` the first-order effect of its error on ``e_tr``::
+
+    g = (−sin ψ_s, −cos ψ_s, x_e + L_fp)                                                        (4)
+
+(``ψ_s`` the heading of the increment's start frame and ``x_e`` the station of its end, both in the current
+trailer frame: a translation error moves the old path rigidly, a heading error turns it about the increment's
+end). The remaining uncertainty of the biases ``(b_g, β_ψ)`` is common to every increment, so it enters coherently,
+through ``G``, the change of ``e_tr`` per unit bias summed over the increments (a gyro bias turns each by its
+duration and, through (1), moves it by ``L_c`` times that; the odometry's error per metre along (3) by its length).
+Both parts follow the camera's evidence: ``ρ``, the mean normalised innovation squared of its recent motions, is 3
+when they agree with their covariances (Bar-Shalom, Li & Kirubarajan 2001, ch. 5), so ``ρ/3`` scales them up where
+the motions are noisier than their covariances say and down (to a quarter at most) where they are quieter. The
+coupling ``κ`` of (3) is itself known only to a relative ``u_κ`` (``vo_bias_coupling_uncertainty``: the regression
+of the measured errors, docs/field_bias.md), so the translation the filter removes for the estimated ``β_ψ``,
+``β_ψ·G_κ`` (``G_κ`` the coupled part of ``G``'s second entry), is uncertain by ``u_κ·β_ψ·G_κ``: a large
+estimated odometry error widens the std. A camera that looks across its motion (a side camera) has its weakest
+direction along its optical axis ``o`` instead: a disparity offset scales its translation along ``o`` by a relative
+error, known to ``u_z`` (``vo_axial_scale_uncertainty``, 0 by default), which enters coherently over the path
+through ``A_z = Σ (o·Δ_c)·(g_xy·o)`` (``Δ_c`` each increment's camera displacement) and adds ``(u_z·A_z)²`` to
+the coupling term; the states ``s_z`` and ``s_f`` of (3') enter the biases' term with ``A_z`` and
+``A_f = Σ (t·Δ_c)·|t·Δ_c|·(g_xy·o)`` beside ``G``. The share of the kinematics' disagreement with the camera that the
+estimate carries, ``s_k·m_k`` (K2), enters over the path as a slip velocity would, through ``Λ``, the sum of the
+increments' lateral sensitivities times their durations (with (K3) the kinematics' error is a state, its
+uncertainty is in the increments' own covariance, and this term is zero; with (K4) ``m_k²`` is at least
+``(u_p·v_s)²``). What no state explains — the part of
+the odometry's error that changes with the scenery faster than ``β_ψ`` follows — is the constant
+``offtracking_bias_std`` ``σ_b``::
+
+    σ_e² = (ρ/3)·(Σ gᵀ Q g + G·P_b·Gᵀ) + (u_κ·β_ψ·G_κ)² + (u_z·A_z)² + (s_k·m_k·Λ)² + σ_b²          (5)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "MIN_INNOVATION_RATIO",
+    "STD_PARTS",
+    "IncrementWindow",
+    "PathEffects",
+    "axial_effect",
+    "bias_effect",
+    "path_effects",
+]
+
+#: The five terms of the off-tracking's variance, eq (5), in its order: the increments' own covariance, the
+#: biases' remaining uncertainty, the bias coupling's (with the optical axis's scale), the kinematics' carried
+#: disagreement and the constant ``offtracking_bias_std``.
+STD_PARTS: tuple[str, ...] = ("increments", "biases", "coupling", "kinematics", "unexplained")
+
+MIN_INNOVATION_RATIO = 0.25
+"""Least ``ρ/3`` of eq (5): a run of well-matched motions may shrink the std by half, not to nothing."""
+
+
+def axial_effect(
+    g: np.ndarray, starts: np.ndarray, ends: np.ndarray, turns: np.ndarray, axis: np.ndarray, camera: np.ndarray
+) -> tuple[float, float]:
+    """``A_z`` of eq (5): the change of ``e_tr`` per relative error ``u_z`` of the odometry's translation along the
+    camera's optical axis ``o`` (``axis``), coherent over increments with sensitivities ``g`` (n×3), start poses
+    and end points in one frame and turns ``Δψ``: each increment's camera displacement (its kingpin's, plus the
+    lever ``(R(Δψ) − I)·p_c`` of the camera at ``p_c`` = ``camera``) has the component ``a = o·Δ_c`` along the
+    axis, and the error ``u_z·a·o`` of the increment moves ``e_tr`` by ``g_xy·o`` times that. The second value is
+    the same for ``s_f`` of (3'), the square ``(t·Δ_c)·|t·Δ_c|`` of the component across the axis in its place."""
+    c, s = np.cos(starts[:, 2]), np.sin(starts[:, 2])
+    dx, dy = ends[:, 0] - starts[:, 0], ends[:, 1] - starts[:, 1]
+    local = np.column_stack([c * dx + s * dy, -s * dx + c * dy])  # in each increment's start frame
+    ct, st = np.cos(turns), np.sin(turns)
+    lever = np.column_stack([(ct - 1.0) * camera[0] - st * camera[1], st * camera[0] + (ct - 1.0) * camera[1]])
+    moved = local + lever
+    along, across = moved @ axis, moved @ np.array([axis[1], -axis[0]])
+    across = across * np.abs(across)
+    sensitivity = g[:, :2] @ axis
+    return float(np.sum(along * sensitivity)), float(np.sum(across * sensitivity))
+
+
+def bias_effect(
+    g: np.ndarray, length: np.ndarray, duration: np.ndarray, slip_point: float, coupling: np.ndarray
+) -> np.ndarray:
+    """``G`` of eq (5): the change of ``e_tr`` per unit error of ``(b_g, β_ψ)``, coherent over increments with
+    sensitivities ``g`` (n×3), lengths [m] and durations [s]: a gyro bias turns and, through eq (1) with
+    ``L_c`` = ``slip_point``, moves each increment by its duration; an odometry error per metre along the frame's
+    ambiguity ``coupling`` = ``κ·(c_x, c_y)`` by its length. The third entry is the part of the second that the
+    coupling carries (the translation along the ambiguity)."""
+    gyro = -float(np.sum((g[:, 2] + g[:, 1] * slip_point) * duration))
+    c_x, c_y = coupling
+    coupled = float(np.sum((g[:, 0] * c_x + g[:, 1] * c_y) * length))
+    return np.array([gyro, coupled + float(np.sum(g[:, 2] * length)), coupled])
+
+
+@dataclass(frozen=True)
+class IncrementWindow:
+    """The committed increments still ahead of the follow point, in the anchor's frame.
+
+    Attributes
+    ----------
+    starts : numpy.ndarray
+        (n, 3) start poses ``(x, y, ψ)``.
+    ends : numpy.ndarray
+        (n, 2) end points.
+    covariances : numpy.ndarray
+        (n, 3, 3) each increment's covariance.
+    durations : numpy.ndarray
+        (n,) each increment's duration [s].
+    """
+
+    starts: np.ndarray
+    ends: np.ndarray
+    covariances: np.ndarray
+    durations: np.ndarray
+
+
+@dataclass(frozen=True)
+class PathEffects:
+    """The sensitivities of eq (5) over the window and the current increment.
+
+    Attributes
+    ----------
+    independent : float
+        ``Σ gᵀ Q g`` [m²].
+    coherent : numpy.ndarray
+        ``G``: ∂e_tr/∂(b_g, β_ψ) and the coupled part of the second.
+    lever : float
+        ``Λ``: ∂e_tr/∂v_s, a slip velocity error held over the window [s].
+    axial, cross : float
+        ``A_z`` and ``A_f`` (0 when not asked for).
+    """
+
+    independent: float
+    coherent: np.ndarray
+    lever: float
+    axial: float
+    cross: float
+
+
+def path_effects(
+    pose: np.ndarray,
+    current_covariance: np.ndarray,
+    elapsed: float,
+    window: IncrementWindow,
+    follow_point_offset: float,
+    slip_point: float,
+    coupling: np.ndarray,
+    axis: np.ndarray | None,
+    camera: np.ndarray,
+) -> PathEffects:
+    """Eq (4)'s sensitivities summed over the committed increments ahead of the follow point and the current one.
+
+    Parameters
+    ----------
+    pose
+        The current ``(Δx, Δy, Δψ)`` from the anchor.
+    current_covariance
+        Its 3×3 covariance.
+    elapsed
+        Time since the anchor [s].
+    window
+        The committed increments, in the anchor's frame.
+    follow_point_offset
+        ``L_fp`` [m].
+    slip_point
+        ``L_c`` of eq (1) [m].
+    coupling
+        The last frame's ``κ·(c_x, c_y)`` of eq (3).
+    axis
+        The camera's optical axis in the unit's ground plane (``None``: ``A_z`` and ``A_f`` not needed, zero).
+    camera
+        The camera's position in the unit's frame [m].
+    """
+    d, lfp = pose, follow_point_offset
+    c, s = math.cos(d[2]), math.sin(d[2])
+    independent = 0.0
+    coherent = np.zeros(3)
+    lever = axial = cross = 0.0
+    if len(window.covariances):
+        starts, ends = window.starts, window.ends
+        ahead = c * (starts[:, 0] - d[0]) + s * (starts[:, 1] - d[1]) > -lfp
+        if ahead.any():
+            heading = starts[ahead, 2] - d[2]
+            station = c * (ends[ahead, 0] - d[0]) + s * (ends[ahead, 1] - d[1])
+            g = np.column_stack([-np.sin(heading), -np.cos(heading), station + lfp])
+            independent = float(np.einsum("ni,nij,nj->", g, window.covariances[ahead], g))
+            length = np.hypot(ends[ahead, 0] - starts[ahead, 0], ends[ahead, 1] - starts[ahead, 1])
+            coherent = bias_effect(g, length, window.durations[ahead], slip_point, coupling)
+            lever += float(np.sum(g[:, 1] * window.durations[ahead]))
+            if axis is not None:
+                turns = np.diff(np.append(starts[:, 2], 0.0))[ahead]  # each increment's Δψ (it ends at the next)
+                axial, cross = axial_effect(g, starts[ahead], ends[ahead], turns, axis, camera)
+    # ... and the current one, from the anchor (heading −Δψ in the current frame) to the kingpin.
+    g_now = np.array([s, -c, lfp])
+    independent += float(g_now @ current_covariance @ g_now)
+    if axis is not None:
+        now_axial, now_cross = axial_effect(
+            g_now[None, :], np.zeros((1, 3)), d[None, :2], np.array([d[2]]), axis, camera
+        )
+        axial, cross = axial + now_axial, cross + now_cross
+    coherent += bias_effect(
+        g_now[None, :], np.array([math.hypot(d[0], d[1])]), np.array([elapsed]), slip_point, coupling
+    )
+    return PathEffects(independent, coherent, lever + g_now[1] * elapsed, axial, cross)
