@@ -114,6 +114,9 @@ class FusedVisoOt:
         angles propagate it (:meth:`propagate`), its front coupling is its "kingpin" and its follow point its own;
         the zero-slip measurement takes the tractor's signals carried down the chain (:class:`ChainSignals`,
         :mod:`sensor.unit_kinematics`).
+    level_reference
+        How the camera's motion is made horizontal (:class:`~sensor.viso_ot.VisoOtEstimator`): ``planar`` (default,
+        the level road), ``accelerometer`` (each frame's tilt given to :meth:`measure`) or ``odometry``.
 
     Attributes
     ----------
@@ -145,10 +148,11 @@ class FusedVisoOt:
         camera_in_trailer: np.ndarray,
         noise: FusionNoise | None = None,
         unit: int = 1,
+        level_reference: str = "planar",
     ) -> None:
         self.params = params
-        # eqs (1)–(2): camera motion → kingpin increment (it also checks the unit)
-        self.geometry = VisoOtEstimator(params, camera_in_trailer, unit=unit)
+        # eqs (1)–(2): camera motion → kingpin increment (it also checks the unit and the level reference)
+        self.geometry = VisoOtEstimator(params, camera_in_trailer, unit=unit, level_reference=level_reference)
         axis = self.geometry.mount_rotation[:2, 2]  # the optical axis in the unit's ground plane
         self._optical_axis = axis / max(float(np.hypot(*axis)), 1e-12)
         noise = noise if noise is not None else FusionNoise()
@@ -315,17 +319,46 @@ class FusedVisoOt:
 
     # ------------------------------------------------------------------ measurement
 
-    def measurement(self, camera_motion: np.ndarray, covariance: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    def measurement(
+        self, camera_motion: np.ndarray, covariance: np.ndarray | None, tilt: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Kingpin increment ``(dx, dy, dψ)`` of one camera motion and its 3×3 covariance
-        (:func:`~sensor.fusion_model.camera_increment`); ``covariance`` the odometry's 6×6 (``None``: the floor)."""
-        return camera_increment(self.geometry, self.noise, camera_motion, covariance)
+        (:func:`~sensor.fusion_model.camera_increment`); ``covariance`` the odometry's 6×6 (``None``: the floor);
+        ``tilt`` the unit's tilt at the frame (3×3) off the level road."""
+        return camera_increment(self.geometry, self.noise, camera_motion, covariance, tilt)
 
-    def measure(self, tick: int, camera_motion: np.ndarray | None, covariance: np.ndarray | None = None) -> bool:
+    def measure(
+        self,
+        tick: int,
+        camera_motion: np.ndarray | None,
+        covariance: np.ndarray | None = None,
+        tilt: tuple[float, float] | None = None,
+    ) -> bool:
         """The motion of the frame taken on control tick ``tick`` (since the frame before it), released now.
 
         ``None`` (a failed, refused or dropped frame) commits the prediction to that tick. Ticks at or before
-        the anchor are ignored. Returns whether the motion was used. Updates :attr:`estimate`.
+        the anchor are ignored. Returns whether the motion was used. Updates :attr:`estimate`. ``tilt``: the
+        unit's (pitch, roll) [rad] when the frame was taken, required with ``level_reference="accelerometer"``.
         """
+        given = self.geometry.given_tilt(tilt)
+        if camera_motion is not None and np.all(np.isfinite(camera_motion)) and given is None:
+            level_tilt = (
+                None
+                if self.geometry.level_reference == "planar"
+                else self.geometry.level_increment(np.asarray(camera_motion, dtype=float))[1]
+            )
+        else:
+            level_tilt = given
+        try:
+            return self._measure(tick, camera_motion, covariance, given)
+        finally:
+            if level_tilt is not None:  # the next frame's motion starts from this frame's tilt
+                self.geometry.tilt = level_tilt
+
+    def _measure(
+        self, tick: int, camera_motion: np.ndarray | None, covariance: np.ndarray | None, given: np.ndarray | None
+    ) -> bool:
+        """:meth:`measure` with the frame's tilt as a rotation (``None`` on the level road or integrated)."""
         if not self._history or tick <= self._history[0].tick:
             return False
         index = next((i for i, h in enumerate(self._history) if h.tick == tick), None)
@@ -336,7 +369,7 @@ class FusedVisoOt:
         x, p = entry.x.copy(), entry.p.copy()
         used = False
         if camera_motion is not None and np.all(np.isfinite(camera_motion)):
-            z, r = self.measurement(np.asarray(camera_motion, dtype=float), covariance)
+            z, r = self.measurement(np.asarray(camera_motion, dtype=float), covariance, given)
             h = np.zeros((3, self._states))
             h[:, :3] = np.eye(3)
             coupling = (

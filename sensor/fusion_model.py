@@ -268,17 +268,30 @@ def camera_displacement(delta: np.ndarray, camera: np.ndarray, axis: np.ndarray)
 
 
 def camera_increment(
-    geometry: VisoOtEstimator, noise: FusionNoise, camera_motion: np.ndarray, covariance: np.ndarray | None
+    geometry: VisoOtEstimator,
+    noise: FusionNoise,
+    camera_motion: np.ndarray,
+    covariance: np.ndarray | None,
+    tilt: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Kingpin increment ``z = (dx, dy, dψ)`` of one camera motion through the camera's pose (``geometry``, eqs
     (1)–(2) of :mod:`sensor.viso_ot`) and its 3×3 covariance ``R`` (the camera measurement above).
 
     ``covariance`` is the odometry's 6×6 covariance of ``(rx, ry, rz, tx, ty, tz)`` of Tr_delta, whose inverse is
     ``camera_motion``, mapped through a numerical Jacobian and scaled by ``vo_covariance_scale``; ``None``: the
-    floor alone.
+    floor alone. Off the level road (``geometry.level_reference`` not ``planar``) the increment is in the level
+    frame (:meth:`~sensor.viso_ot.VisoOtEstimator.level_increment`, ``tilt`` the unit's at this frame or ``None``
+    to integrate it), from the tilt ``geometry`` holds for the frame before.
     """
     n = noise
-    z = np.array(geometry.kingpin_increment(camera_motion))
+    if geometry.level_reference == "planar":
+        increment = geometry.kingpin_increment
+    else:
+
+        def increment(motion: np.ndarray) -> tuple[float, float, float]:
+            return geometry.level_increment(motion, tilt)[0]
+
+    z = np.array(increment(camera_motion))
     r = np.diag([n.vo_translation_floor**2, n.vo_translation_floor**2, n.vo_rotation_floor**2])
     if covariance is not None and np.all(np.isfinite(covariance)):
         theta = transform_to_params(invert_rigid(camera_motion))
@@ -287,7 +300,7 @@ def camera_increment(
         for i in range(6):
             d = theta.copy()
             d[i] += h
-            jac[:, i] = (np.array(geometry.kingpin_increment(invert_rigid(params_to_transform(d)))) - z) / h
+            jac[:, i] = (np.array(increment(invert_rigid(params_to_transform(d)))) - z) / h
         r = r + n.vo_covariance_scale * (jac @ np.asarray(covariance, dtype=float) @ jac.T)
     return z, r
 

@@ -305,7 +305,7 @@ class VisoOtEstimator:
         ``tilt``: the unit's (pitch, roll) [rad] at this frame, required with ``level_reference="accelerometer"``
         (e.g. :class:`sensor.level_reference.AccelerometerTilt`), refused otherwise.
         """
-        given = self._given_tilt(tilt)
+        given = self.given_tilt(tilt)
         self.frames += 1
         self.last_step = dict.fromkeys(STEP_COLUMNS, math.nan)
         if camera_motion is None:
@@ -332,7 +332,7 @@ class VisoOtEstimator:
         self.buffer.push(*increment)
         return self._read()
 
-    def _given_tilt(self, tilt: tuple[float, float] | None) -> np.ndarray | None:
+    def given_tilt(self, tilt: tuple[float, float] | None) -> np.ndarray | None:
         """The frame's tilt as a rotation (``accelerometer``), after checking it is given exactly when needed."""
         if self.level_reference == "accelerometer":
             if tilt is None or len(tilt) != 2 or not all(math.isfinite(a) for a in tilt):

@@ -262,7 +262,10 @@ class FusedVisoOtEstimator:
         self._suffix = "" if unit == 1 else str(unit + 1)
         if unit != 1:
             self.columns = _fused_columns(unit)
-        own = {"unit": unit} if unit != 1 else {}  # the first towed unit is the filter's default
+        own: dict[str, object] = {"unit": unit} if unit != 1 else {}  # the first towed unit is the filter's default
+        level = getattr(getattr(camera, "feed", None), "level_reference", "planar")
+        if level != "planar":  # on a terrain: the camera's motion made horizontal as its VISO-OT's
+            own["level_reference"] = level
         self.filter = FusedVisoOt(params, camera.camera_in_trailer, noise, **own)  # type: ignore[attr-defined]
         self.estimate = OfftrackingEstimate.of(None)
 
@@ -290,9 +293,8 @@ class FusedVisoOtEstimator:
         fused.propagate(tick.index, tick.period, rate, speed, steer, signals)  # type: ignore[arg-type]
         for shot in self.camera.released:  # type: ignore[attr-defined]
             frame = shot.frame
-            fused.measure(
-                shot.tick, frame.vo.camera_motion if frame.valid else None, frame.vo.covariance if frame.valid else None
-            )
+            motion, covariance = (frame.vo.camera_motion, frame.vo.covariance) if frame.valid else (None, None)
+            fused.measure(shot.tick, motion, covariance, getattr(shot, "tilt", None))
         if fused.estimate is not None:
             self.estimate = OfftrackingEstimate(float(fused.estimate), fused.std)
         else:
