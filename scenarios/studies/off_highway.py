@@ -241,7 +241,9 @@ def off_highway_cases(full: bool = False, vehicle: str | None = None) -> list[Ca
     """
     combination = off_highway_vehicle(vehicle)
     return [
-        off_highway_case(*cell, feedback, full, combination) for cell in off_highway_cells(full) for feedback in FEEDBACKS
+        off_highway_case(*cell, feedback, full, combination)
+        for cell in off_highway_cells(full)
+        for feedback in FEEDBACKS
     ]
 
 
@@ -342,7 +344,10 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
         held = None if fused is None else fused.get("verdict_held")
         row["run_verdict"] = "—" if not isinstance(held, bool | np.bool_) else ("held" if held else "not held")
         row["verdict"] = cell_verdict(
-            row["truth_true_rms_m"], row["truth_true_max_m"], row["viso_ot_fused_true_rms_m"], row["viso_ot_fused_true_max_m"]
+            row["truth_true_rms_m"],
+            row["truth_true_max_m"],
+            row["viso_ot_fused_true_rms_m"],
+            row["viso_ot_fused_true_max_m"],
         )
         rows.append(row)
     return pd.DataFrame(rows)
