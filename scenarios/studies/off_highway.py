@@ -139,7 +139,7 @@ OFF_HIGHWAY_COLUMNS = (
     "fused_max_abs_error_m",
     "fused_within_2sigma",
     "zero_slip_loop_error_rms_m",
-    "verdict",
+    "cell_verdict",
 )
 """The study's terminal columns, one row per cell (:func:`off_highway_terminal_rows`)."""
 
@@ -320,7 +320,7 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
         fused-fed run each estimator's ``{name}_rms_error_m``, ``{name}_max_abs_error_m`` [m] and the fused
         filter's ``fused_within_2sigma`` (share within 2σ); from the zero-slip-fed run its estimate's error
         ``zero_slip_loop_error_rms_m`` and ``zero_slip_loop_error_max_m`` [m]; the fused-fed run's verdict
-        ``run_verdict``; and ``verdict`` (:func:`cell_verdict`). In the table's order of cells.
+        ``run_verdict``; and ``cell_verdict`` (:func:`cell_verdict`). In the table's order of cells.
     """
     rows = []
     labels = [label for label in CELL_LABELS if label in table.columns]
@@ -343,7 +343,7 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
         row["zero_slip_loop_error_max_m"] = _get(zero_slip_loop, "zero_slip_max_abs_error_m")
         held = None if fused is None else fused.get("verdict_held")
         row["run_verdict"] = "—" if not isinstance(held, bool | np.bool_) else ("held" if held else "not held")
-        row["verdict"] = cell_verdict(
+        row["cell_verdict"] = cell_verdict(
             row["truth_true_rms_m"],
             row["truth_true_max_m"],
             row["viso_ot_fused_true_rms_m"],
@@ -357,10 +357,10 @@ def off_highway_terminal_rows(table: pd.DataFrame) -> tuple[pd.DataFrame, str]:
     """The terminal's rows of an off-highway table: one per cell (:func:`cell_table`), and how many cells pass of
     those the truth-fed loop holds."""
     cells = cell_table(table)
-    if "verdict" not in cells.columns:
+    if "cell_verdict" not in cells.columns:
         return cells, "0 cells"
-    judged = cells[~cells["verdict"].str.startswith("n/a")]
-    passed = int((judged["verdict"] == "pass").sum())
+    judged = cells[~cells["cell_verdict"].str.startswith("n/a")]
+    passed = int((judged["cell_verdict"] == "pass").sum())
     return cells, f"{passed} of {len(judged)} cells the truth-fed loop holds pass ({len(cells)} cells)"
 
 

@@ -81,6 +81,7 @@ ROUGHNESS_COLUMNS = (
     "planar_rms_error_m",
     "accelerometer_vs_level_max_m",
     "planar_vs_level_max_m",
+    "true_tilt_valid_fraction",
     "frames",
 )
 """The study's terminal columns."""
@@ -171,7 +172,9 @@ def ideal_camera_estimates(
 
 
 def estimate_columns(truth: np.ndarray, estimates: dict[str, np.ndarray]) -> dict[str, float]:
-    """Each estimate's ``<name>_rms_error_m`` and ``<name>_max_abs_error_m`` against ``truth``, and for the terrain's
+    """Each estimate's ``<name>_rms_error_m`` and ``<name>_max_abs_error_m`` against ``truth`` and the share of the
+    truth's frames it gave a value on (``<name>_valid_fraction``: VISO-OT bridges a frame whose motion is beyond
+    :class:`sensor.viso_ot.MotionBounds`), and for the terrain's
     ``<name>_vs_level_rms_m`` and ``<name>_vs_level_max_m`` against the level road's estimate [m] (NaN without a
     common value)."""
     row: dict[str, float] = {}
@@ -180,6 +183,7 @@ def estimate_columns(truth: np.ndarray, estimates: dict[str, np.ndarray]) -> dic
         errors = estimator_errors(truth, values)
         row[f"{name}_rms_error_m"] = errors["rms_error"]
         row[f"{name}_max_abs_error_m"] = errors["max_abs_error"]
+        row[f"{name}_valid_fraction"] = errors["valid_fraction"]
         if name != "level":
             both = np.isfinite(values) & np.isfinite(level)
             diff = values[both] - level[both]
