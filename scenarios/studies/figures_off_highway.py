@@ -37,7 +37,7 @@ FEEDBACK_STYLE = {
 """Legend name, colour and marker per feedback source."""
 
 ESTIMATOR_STYLE = (
-    ("viso_ot_fused", "fused VISO-OT (fused-fed run)", source_colour("viso_ot_fused"), "o"),
+    ("fused", "fused VISO-OT (fused-fed run)", source_colour("viso_ot_fused"), "o"),
     ("viso_ot", "raw VISO-OT (fused-fed run)", source_colour("viso_ot"), "D"),
     ("zero_slip", "zero-slip (fused-fed run)", source_colour("zero_slip"), "s"),
     ("zero_slip_loop", "zero-slip (zero-slip-fed run)", source_colour("zero_slip"), "v"),

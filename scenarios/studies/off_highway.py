@@ -317,10 +317,10 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
     -------
     pandas.DataFrame
         The cell labels; per feedback ``{feedback}_true_rms_m`` and ``{feedback}_true_max_m`` [m]; from the
-        fused-fed run each estimator's ``{name}_rms_error_m``, ``{name}_max_abs_error_m`` [m] and the fused
-        filter's ``fused_within_2sigma`` (share within 2σ); from the zero-slip-fed run its estimate's error
-        ``zero_slip_loop_error_rms_m`` and ``zero_slip_loop_error_max_m`` [m]; the fused-fed run's verdict
-        ``run_verdict``; and ``cell_verdict`` (:func:`cell_verdict`). In the table's order of cells.
+        fused-fed run each estimator's ``{name}_rms_error_m``, ``{name}_max_abs_error_m`` [m] (the fused filter's
+        named ``fused``) and its ``fused_within_2sigma`` (share within 2σ); from the zero-slip-fed run its
+        estimate's error ``zero_slip_loop_error_rms_m`` and ``zero_slip_loop_error_max_m`` [m]; the fused-fed
+        run's verdict ``run_verdict``; and ``cell_verdict`` (:func:`cell_verdict`). In the table's order of cells.
     """
     rows = []
     labels = [label for label in CELL_LABELS if label in table.columns]
@@ -333,10 +333,9 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
             row[f"{feedback}_true_max_m"] = _get(case, "true_offtracking_max_after_warmup_m")
         fused = by_feedback.get(RENDERED_FEEDBACK)
         for name in ESTIMATORS:
-            row[f"{name}_rms_error_m"] = _get(fused, f"{name}_rms_error_m")
-            row[f"{name}_max_abs_error_m"] = _get(fused, f"{name}_max_abs_error_m")
-        row["fused_rms_error_m"] = row["viso_ot_fused_rms_error_m"]
-        row["fused_max_abs_error_m"] = row["viso_ot_fused_max_abs_error_m"]
+            shown = "fused" if name == RENDERED_FEEDBACK else name
+            row[f"{shown}_rms_error_m"] = _get(fused, f"{name}_rms_error_m")
+            row[f"{shown}_max_abs_error_m"] = _get(fused, f"{name}_max_abs_error_m")
         row["fused_within_2sigma"] = _get(fused, "viso_ot_fused_within_2sigma")
         zero_slip_loop = by_feedback.get("zero_slip")
         row["zero_slip_loop_error_rms_m"] = _get(zero_slip_loop, "zero_slip_rms_error_m")
