@@ -23,7 +23,9 @@ catalogue's ideal signals.
 
 The vehicle (:func:`scenario_vehicle`): the LST on ``forest-road`` and ``gravel-yard``; on ``haul-road`` the
 unladen field combination with a steerable trailer axle, because a laden combination's drive axle cannot climb its
-8–12 % on gravel (docs/terrain.md, "Speed control"). ``--vehicle`` drives every scenario with another combination.
+8–12 % on gravel (docs/terrain.md, "Speed control"). ``--vehicle`` drives every scenario with another combination; on a longer one each further unit's true off-tracking
+and fused errors join the case rows (``unit<k>_…``) as in the field-loop study, the cell's verdict is the first
+towed unit's.
 
 The default subset (:data:`DEFAULT_CELLS`) is ``forest-road`` on dirt, rough, under field and ideal conditions,
 :data:`SHORT_DURATION_S` long: 8 cases, 2 rendered. ``full`` drives the complete scenarios.
@@ -50,6 +52,7 @@ from ..config import load_scenario
 from ..loop.ends import RunStatus
 from .cases import run_case
 from .field_loop import TARGET_MAX_M, TARGET_RMS_M, field_signals, metrics_columns
+from .field_loop_units import unit_columns
 from .records import CaseSpec
 from .section4 import FIELD_CONDITIONS
 from .unit_steering import study_vehicle, vehicle_problem
@@ -261,8 +264,10 @@ def estimator_columns(metrics: dict[str, Any]) -> dict[str, float]:
 
 
 def run_off_highway_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
-    """:func:`~scenarios.studies.cases.run_case`, plus :func:`estimator_columns` and the fused filter's errors,
-    fallback and verdict (:func:`~scenarios.studies.field_loop.metrics_columns`) from the run's ``metrics.json``.
+    """:func:`~scenarios.studies.cases.run_case`, plus :func:`estimator_columns`, the fused filter's errors,
+    fallback and verdict (:func:`~scenarios.studies.field_loop.metrics_columns`) and each unit behind the first
+    towed one's figures on a longer combination (:func:`~scenarios.studies.field_loop_units.unit_columns`, in the
+    case rows only) from the run's ``metrics.json``.
     An interrupted or failed run returns :func:`~scenarios.studies.cases.run_case`'s row as it is."""
     row = run_case(spec, out_dir)
     if row.get("status") in (RunStatus.INTERRUPTED, RunStatus.FAILED):
@@ -271,6 +276,7 @@ def run_off_highway_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     metrics = json.loads(metrics_file.read_text()) if metrics_file.is_file() else {}
     row.update(metrics_columns(metrics))
     row.update(estimator_columns(metrics))
+    row.update(unit_columns(metrics))
     return row
 
 
