@@ -23,9 +23,9 @@ catalogue's ideal signals.
 
 The vehicle (:func:`scenario_vehicle`): the LST on ``forest-road`` and ``gravel-yard``; on ``haul-road`` the
 unladen field combination with a steerable trailer axle, because a laden combination's drive axle cannot climb its
-8–12 % on gravel (docs/terrain.md, "Speed control"). ``--vehicle`` drives every scenario with another combination; on a longer one each further unit's true off-tracking
-and fused errors join the case rows (``unit<k>_…``) as in the field-loop study, the cell's verdict is the first
-towed unit's.
+8–12 % on gravel (docs/terrain.md, "Speed control"). ``--vehicle`` drives every scenario with another
+combination; on a longer one each further unit's true off-tracking and fused errors join the case rows
+(``unit<k>_…``) as in the field-loop study, and the cell's verdict is the first towed unit's.
 
 The default subset (:data:`DEFAULT_CELLS`) is ``forest-road`` on dirt, rough, under field and ideal conditions,
 :data:`SHORT_DURATION_S` long: 8 cases, 2 rendered. ``full`` drives the complete scenarios.
