@@ -18,6 +18,8 @@ def test_every_study_is_one_record_named_by_its_key() -> None:
         "field-bias",
         "unit-steering",
         "controller-limits",
+        "off-highway",
+        "off-highway-roughness",
     ]
     for name, study in STUDIES.items():
         assert isinstance(study, Study) and study.name == name and study.summary
@@ -26,7 +28,7 @@ def test_every_study_is_one_record_named_by_its_key() -> None:
 
 
 def test_only_the_vehicle_studies_take_a_vehicle() -> None:
-    assert set(vehicle_studies()) == {"unit-steering", "estimators-under-slip", "field-loop"}
+    assert set(vehicle_studies()) == {"unit-steering", "estimators-under-slip", "field-loop", "off-highway"}
     with pytest.raises(ValueError, match="paper-section3 takes no vehicle"):
         STUDIES["paper-section3"].case_specs(False, "au-b-double")
 

@@ -22,8 +22,11 @@ from .field_loop import FIELD_LOOP_COLUMNS, field_loop_cases, field_loop_termina
 from .figures import grid_figures, paper_figures
 from .figures_field_bias import field_bias_figures
 from .figures_field_loop import field_loop_figures
+from .figures_off_highway import off_highway_figures, roughness_figures
 from .figures_section4 import section4_figures
 from .figures_unit_steering import unit_steering_figures
+from .off_highway import OFF_HIGHWAY_COLUMNS, off_highway_cases, off_highway_terminal_rows, run_off_highway_case
+from .off_highway_roughness import ROUGHNESS_COLUMNS, roughness_cases, run_roughness_case
 from .records import CaseSpec
 from .section3 import SECTION3_COLUMNS, paper_section3_cases
 from .section4 import paper_section4_cases, run_section4_case
@@ -164,6 +167,26 @@ STUDIES: dict[str, Study] = _studies(
         controller_limits_cases,
         controller_limits_figures,
         run_controller_limits_case,
+    ),
+    Study(
+        "off-highway",
+        "the loop on terrain that is not a plane, on unsealed surfaces: fused VISO-OT (field and ideal camera) "
+        "beside the zero-slip-fed, truth-fed and unsteered loops, with a verdict per cell",
+        off_highway_cases,
+        off_highway_figures,
+        run_off_highway_case,
+        columns=OFF_HIGHWAY_COLUMNS,
+        terminal_rows=off_highway_terminal_rows,
+        takes_vehicle=True,
+    ),
+    Study(
+        "off-highway-roughness",
+        "VISO-OT's error against the road's undulation and potholes, ideal camera, in the level frame and with the "
+        "planar eqs (model only)",
+        roughness_cases,
+        roughness_figures,
+        run_roughness_case,
+        columns=ROUGHNESS_COLUMNS,
     ),
 )
 """Every study by name, in the order they are listed."""

@@ -129,13 +129,33 @@ HEADERS = {
     "feedback_rms_error_m": "fed-back err RMS all ticks [m]",
     "max_steer_deg": "max steer [deg]",
     "verdict_flags": "verdict flags",
+    "none_true_rms_m": "unsteered true e_tr RMS after warm-up [m]",
+    "fused_max_abs_error_m": "fused err max [m]",
+    "zero_slip_loop_error_rms_m": "zero-slip-fed run's zero-slip err RMS all ticks [m]",
+    "cell_verdict": "cell verdict",
+    "amplitude_m": "amplitude [m]",
+    "wavelength_m": "wavelength [m]",
+    "potholes_per_100m": "potholes per 100 m",
+    "level_rms_error_m": "level road err RMS all ticks [m]",
+    "accelerometer_rms_error_m": "level frame (accelerometer) err RMS all ticks [m]",
+    "planar_rms_error_m": "planar eqs err RMS all ticks [m]",
+    "accelerometer_vs_level_max_m": "level frame (accelerometer) − level road max [m]",
+    "planar_vs_level_max_m": "planar eqs − level road max [m]",
+    "true_tilt_valid_fraction": "true tilt valid [%]",
+    "frames": "frames",
 }
 """Short headers with units for the known columns (others: :func:`header_for`)."""
 
 TITLE_WORDS = {"camera_conditions": "camera"}
 """How a label with one value in every row is named in the title, where it differs from the column's name."""
 
-PERCENT = {"viso_ot_valid_fraction", "saturated_fraction", "fused_within_2sigma", "coverage"}
+PERCENT = {
+    "viso_ot_valid_fraction",
+    "saturated_fraction",
+    "fused_within_2sigma",
+    "coverage",
+    "true_tilt_valid_fraction",
+}
 """Fractions shown as percentages."""
 
 MIN_HEADER_WIDTH = 7

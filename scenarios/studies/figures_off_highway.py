@@ -1,0 +1,197 @@
+"""The figures and tables of the ``off-highway`` and ``off-highway-roughness`` studies
+(:mod:`scenarios.studies.off_highway`, :mod:`scenarios.studies.off_highway_roughness`).
+
+``off-highway``:
+
+* ``off_highway_offtracking.png`` — per cell the true off-tracking after warm-up, RMS and max, with fused VISO-OT,
+  zero-slip, truth and no feedback side by side, and the targets;
+* ``off_highway_errors.png`` — per cell the RMS and largest error against the truth of the fused and raw VISO-OT
+  and the zero-slip estimate on the fused-fed run, and of the zero-slip estimate on the zero-slip-fed run;
+* ``cells.csv`` and ``table.md`` — one row per cell with its verdict (:func:`~.off_highway.cell_table`), then every
+  case.
+
+``off-highway-roughness``: ``roughness_error.png`` — VISO-OT's error against the road's undulation amplitude, in the
+level frame (true tilt, accelerometer) and with the planar eqs, RMS and largest, one line per wavelength; the
+potholes, when run, in a panel of their own.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..registry import source_colour
+from ..run.files import write_atomic
+from .field_loop import TARGET_MAX_M, TARGET_RMS_M
+from .off_highway import FEEDBACKS, cell_table
+
+FEEDBACK_STYLE = {
+    "viso_ot_fused": ("fused VISO-OT", source_colour("viso_ot_fused"), "o"),
+    "zero_slip": ("zero-slip", source_colour("zero_slip"), "s"),
+    "truth": ("truth", source_colour("truth"), "^"),
+    "none": ("none (unsteered)", "0.4", "x"),
+}
+"""Legend name, colour and marker per feedback source."""
+
+ESTIMATOR_STYLE = (
+    ("fused", "fused VISO-OT (fused-fed run)", source_colour("viso_ot_fused"), "o"),
+    ("viso_ot", "raw VISO-OT (fused-fed run)", source_colour("viso_ot"), "D"),
+    ("zero_slip", "zero-slip (fused-fed run)", source_colour("zero_slip"), "s"),
+    ("zero_slip_loop", "zero-slip (zero-slip-fed run)", source_colour("zero_slip"), "v"),
+)
+"""Column prefix, legend name, colour and marker of the estimators in ``off_highway_errors.png``."""
+
+ROUGHNESS_STYLE = (
+    ("planar", "planar eqs (the paper's)", "tab:red", "s"),
+    ("accelerometer", "level frame, trailer accelerometer", "tab:blue", "o"),
+    ("true_tilt", "level frame, true tilt", "tab:green", "^"),
+)
+"""Estimate, legend name, colour and marker in ``roughness_error.png``."""
+
+
+def cell_label(row: pd.Series | dict[str, Any]) -> str:
+    """``forest-road, dirt, rough, field camera``."""
+    return f"{row['scenario']}, {row['surface']}, {row['roughness']}, {row['conditions']} camera"
+
+
+def _plt() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _column(cells: pd.DataFrame, column: str) -> np.ndarray:
+    return cells[column].to_numpy(dtype=float) if column in cells.columns else np.full(len(cells), np.nan)
+
+
+def _cells_axes(plt: Any, cells: pd.DataFrame) -> tuple[Any, Any, np.ndarray]:
+    width = max(8.0, 0.5 * len(cells) + 5.0)
+    fig, axes = plt.subplots(2, 1, figsize=(width, 9.0), squeeze=False, sharex=True)
+    axes = axes[:, 0]
+    x = np.arange(len(cells))
+    axes[-1].set_xticks(x, [cell_label(r) for _, r in cells.iterrows()], rotation=50, ha="right", fontsize=8)
+    axes[-1].set_xlim(-0.6, len(cells) - 0.4)
+    return fig, axes, x
+
+
+def offtracking_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
+    """``off_highway_offtracking.png``: true off-tracking RMS and max per cell for every feedback."""
+    fig, axes, x = _cells_axes(plt, cells)
+    for ax, (key, name, target) in zip(axes, (("rms", "RMS", TARGET_RMS_M), ("max", "max", TARGET_MAX_M)), strict=True):
+        for k, feedback in enumerate(FEEDBACKS):
+            legend, colour, marker = FEEDBACK_STYLE[feedback]
+            ax.plot(x + 0.15 * (k - 1.5), _column(cells, f"{feedback}_true_{key}_m"), marker, color=colour, ms=6,
+                    label=f"{legend} feedback")  # fmt: skip
+        ax.axhline(target, color="tab:red", lw=1.0, ls="--", label=f"target {target:.2f} m")
+        ax.set_ylabel(f"true off-tracking, {name} after warm-up [m]")
+        ax.set_ylim(bottom=0.0)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.suptitle("off-highway: true off-tracking of the loop on each feedback")
+    fig.tight_layout()
+    fig.savefig(out_dir / "off_highway_offtracking.png", dpi=110)
+    plt.close(fig)
+
+
+def errors_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
+    """``off_highway_errors.png``: each estimator's RMS and largest error against the truth per cell."""
+    fig, axes, x = _cells_axes(plt, cells)
+    for ax, (key, name) in zip(axes, (("rms", "RMS"), ("max", "max")), strict=True):
+        for k, (prefix, legend, colour, marker) in enumerate(ESTIMATOR_STYLE):
+            column = (
+                f"{prefix}_error_{key}_m"
+                if prefix == "zero_slip_loop"
+                else f"{prefix}_{key}{'' if key == 'rms' else '_abs'}_error_m"
+            )
+            ax.plot(x + 0.15 * (k - 1.5), _column(cells, column), marker, color=colour, ms=6, label=legend)
+        ax.set_ylabel(f"estimate − truth, {name} [m]")
+        ax.set_ylim(bottom=0.0)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.suptitle("off-highway: each estimator's error against the true off-tracking")
+    fig.tight_layout()
+    fig.savefig(out_dir / "off_highway_errors.png", dpi=110)
+    plt.close(fig)
+
+
+def off_highway_markdown(cells: pd.DataFrame) -> str:
+    """The cells as a markdown table: true off-tracking per feedback, estimator errors and coverage, verdict."""
+    shown = cells.copy()
+    return "## Cells\n\n" + shown.to_markdown(index=False, floatfmt=".3f") + "\n"
+
+
+def off_highway_figures(table: pd.DataFrame, out_dir: Path) -> None:
+    """Draw the off-highway study's figures into ``out_dir``, write ``cells.csv`` and rewrite ``table.md`` as the
+    cells, then every case.
+
+    Parameters
+    ----------
+    table
+        The study's case rows (:func:`~.off_highway.run_off_highway_case`), failed ones left out.
+    out_dir
+        The study directory.
+    """
+    out_dir = Path(out_dir)
+    cells = cell_table(table)
+    if cells.empty:
+        return
+    plt = _plt()
+    offtracking_figure(cells, out_dir, plt)
+    errors_figure(cells, out_dir, plt)
+    write_atomic(out_dir / "cells.csv", cells.to_csv(index=False))
+    full = table.to_markdown(index=False, floatfmt=".3f")
+    write_atomic(out_dir / "table.md", off_highway_markdown(cells) + "\n## Every case\n\n" + full + "\n")
+
+
+def roughness_figures(table: pd.DataFrame, out_dir: Path) -> None:
+    """``roughness_error.png``: VISO-OT's RMS and largest error against the truth over the undulation amplitude,
+    one line per estimate and wavelength; a second column over the pothole density when the table has any.
+
+    Parameters
+    ----------
+    table
+        The off-highway-roughness rows (:func:`~.off_highway_roughness.run_roughness_case`), failed ones left out.
+    out_dir
+        The study directory.
+    """
+    if "planar_rms_error_m" not in table.columns:
+        return
+    plt = _plt()
+    waves = table[table["potholes_per_100m"] == 0.0]
+    holes = table[(table["amplitude_m"] == 0.0)].sort_values("potholes_per_100m")
+    with_holes = bool((holes["potholes_per_100m"] > 0.0).any())
+    fig, axes = plt.subplots(2, 2 if with_holes else 1, figsize=(12.0 if with_holes else 7.5, 8.0), squeeze=False)
+    wavelengths = sorted(waves["wavelength_m"].unique())
+    line_styles = ("-", "--", ":", "-.")
+    for row, (key, name) in enumerate((("rms", "RMS"), ("max_abs", "max"))):
+        ax = axes[row, 0]
+        for prefix, legend, colour, marker in ROUGHNESS_STYLE:
+            for j, wavelength in enumerate(wavelengths):
+                part = waves[waves["wavelength_m"] == wavelength].sort_values("amplitude_m")
+                label = legend if len(wavelengths) == 1 else f"{legend}, λ {wavelength:g} m"
+                ax.plot(part["amplitude_m"], part[f"{prefix}_{key}_error_m"], marker=marker, color=colour,
+                        ls=line_styles[j % len(line_styles)], label=label)  # fmt: skip
+        ax.set_xlabel(
+            "undulation amplitude [m]" + (f" (wavelength {wavelengths[0]:g} m)" if len(wavelengths) == 1 else "")
+        )
+        ax.set_ylabel(f"VISO-OT − true off-tracking, {name} [m]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        if with_holes:
+            ax = axes[row, 1]
+            for prefix, legend, colour, marker in ROUGHNESS_STYLE:
+                ax.plot(holes["potholes_per_100m"], holes[f"{prefix}_{key}_error_m"], marker=marker, color=colour,
+                        label=legend)  # fmt: skip
+            ax.set_xlabel("potholes per 100 m (10 cm deep, no undulation)")
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8)
+    fig.suptitle("VISO-OT on undulating ground, ideal camera: level frame against the planar eqs")
+    fig.tight_layout()
+    fig.savefig(Path(out_dir) / "roughness_error.png", dpi=110)
+    plt.close(fig)

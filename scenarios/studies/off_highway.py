@@ -1,0 +1,386 @@
+"""The ``off-highway`` study: the path-following loop on terrain that is not a plane, on unsealed surfaces, fed the
+fused VISO-OT camera under field conditions and with ideal cameras, beside the zero-slip-fed, truth-fed and
+unsteered loops (docs/terrain.md, docs/terrain_camera.md).
+
+The grid (``full``): the catalogue's off-highway scenarios (:data:`SCENARIOS`) × two unsealed surfaces each
+(:data:`SURFACES`) × two roughness levels (:data:`ROUGHNESS`, terrain overrides; grade and crossfall stay the
+scenario's) × two camera conditions (:data:`CONDITIONS`) × the feedbacks of :data:`FEEDBACKS`:
+
+* ``viso_ot_fused`` — the fused VISO-OT filter on the rendered stereo camera, the world draped on the terrain and
+  VISO-OT in the level frame of the trailer's accelerometer (docs/terrain_camera.md §4); the raw VISO-OT and the
+  zero-slip estimators run beside it (open loop). The fused filter's own kinematics are those of
+  :mod:`sensor.fusion` as they are: a cell shows what it gives on the terrain, whatever they assume;
+* ``zero_slip`` — Cheng's zero-slip kinematics fed by wheel speeds measured along the grade (model only);
+* ``truth`` — the true off-tracking (model only): what a perfect estimate gives the loop;
+* ``none`` — the trailer axles not steered (model only).
+
+``field`` is the field-loop study's camera under every field condition of
+:data:`~scenarios.studies.section4.FIELD_CONDITIONS` except its world (the airfield is level and refuses a
+terrain: the roadside world is draped on the terrain instead), aligned, with the online self-calibration, and every
+on-board signal with its data sheet's noise and a bias drawn from the seed
+(:func:`~scenarios.studies.field_loop.field_signals`); ``ideal`` is the paper's simulated camera and the
+catalogue's ideal signals.
+
+The vehicle (:func:`scenario_vehicle`): the LST on ``forest-road`` and ``gravel-yard``; on ``haul-road`` the
+unladen field combination with a steerable trailer axle, because a laden combination's drive axle cannot climb its
+8–12 % on gravel (docs/terrain.md, "Speed control"). ``--vehicle`` drives every scenario with another
+combination; on a longer one each further unit's true off-tracking and fused errors join the case rows
+(``unit<k>_…``) as in the field-loop study, and the cell's verdict is the first towed unit's.
+
+The default subset (:data:`DEFAULT_CELLS`) is ``forest-road`` on dirt, rough, under field and ideal conditions,
+:data:`SHORT_DURATION_S` long: 8 cases, 2 rendered. ``full`` drives the complete scenarios.
+
+:func:`run_off_highway_case` adds to the common row each estimator's error against the truth and the run's verdict;
+:func:`cell_table` gathers one row per cell with :func:`cell_verdict`: the fused-fed loop within
+:data:`~scenarios.studies.field_loop.TARGET_RMS_M` / :data:`~scenarios.studies.field_loop.TARGET_MAX_M` RMS / max
+wherever the truth-fed loop is.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from vehicle_model.errors import InputError
+
+from ..config import load_scenario
+from ..loop.ends import RunStatus
+from .cases import run_case
+from .field_loop import TARGET_MAX_M, TARGET_RMS_M, field_signals, metrics_columns
+from .field_loop_units import unit_columns
+from .records import CaseSpec
+from .section4 import FIELD_CONDITIONS
+from .unit_steering import study_vehicle, vehicle_problem
+
+STUDY = "off-highway"
+
+SCENARIOS = ("haul-road", "forest-road", "gravel-yard")
+"""The catalogue's off-highway scenarios (docs/terrain.md, "Catalogue")."""
+
+SURFACES: dict[str, tuple[str, str]] = {
+    "haul-road": ("gravel", "dirt"),
+    "forest-road": ("dirt", "mud"),
+    "gravel-yard": ("gravel", "wet_clay"),
+}
+"""``surface.preset`` per scenario: its own and a second unsealed one. The haul road keeps to surfaces its grade can
+be climbed on (μ ≥ 0.4 for 12 % at the traction limit of docs/terrain.md); the others take a loose, wet one."""
+
+ROUGHNESS: dict[str, tuple[tuple[str, Any], ...]] = {
+    "smooth": (
+        ("terrain.undulation_amplitude_m", 0.0),
+        ("terrain.rut_depth_m", 0.0),
+        ("terrain.potholes_per_100m", 0.0),
+    ),
+    "rough": (
+        ("terrain.undulation_amplitude_m", 0.15),
+        ("terrain.undulation_wavelength_m", 12.0),
+        ("terrain.rut_depth_m", 0.08),
+        ("terrain.potholes_per_100m", 6.0),
+        ("terrain.pothole_depth_m", 0.10),
+    ),
+}
+"""Terrain overrides per roughness level: ``smooth`` is the scenario's grade and crossfall alone; ``rough`` adds
+0.15 m undulations over 12 m, 8 cm ruts and six 10 cm potholes per 100 m (seeded) — the project's choice of a
+poorly kept unsealed road, rougher than the catalogue's forest road."""
+
+FEEDBACKS = ("viso_ot_fused", "zero_slip", "truth", "none")
+"""The feedback sources of every cell; only the first renders."""
+
+RENDERED_FEEDBACK = "viso_ot_fused"
+"""The feedback whose cases render the stereo camera."""
+
+CONDITIONS = ("field", "ideal")
+"""The camera and signal conditions (module notes)."""
+
+ESTIMATORS = ("viso_ot_fused", "viso_ot", "zero_slip")
+"""The estimators whose errors against the truth join a case's row (those the run had)."""
+
+LST = "lst"
+"""The single steerable trailer of ``forest-road`` and ``gravel-yard``."""
+
+CLIMBING_VEHICLE: tuple[tuple[str, Any], ...] = (
+    ("vehicle", "field"),
+    ("vehicle.units[1].axles[1].steerable", True),
+)
+"""The combination of ``haul-road``: the paper's unladen field combination with a steerable trailer axle."""
+
+SELF_CALIBRATION: tuple[tuple[str, Any], ...] = (("camera.self_calibration.enabled", True),)
+"""The rendered field cases estimate the right camera's rotation online (as the field-loop study's)."""
+
+OFF_HIGHWAY_FIELD_CONDITIONS: tuple[tuple[str, Any], ...] = tuple(
+    (key, value) for key, value in FIELD_CONDITIONS if key != "camera.world"
+)
+""":data:`~scenarios.studies.section4.FIELD_CONDITIONS` without its airfield world, which is level."""
+
+DEFAULT_CELLS: tuple[tuple[str, str, str, str], ...] = (
+    ("forest-road", "dirt", "rough", "field"),
+    ("forest-road", "dirt", "rough", "ideal"),
+)
+"""(scenario, surface, roughness, conditions) of the default subset: the forest road made rough, under field
+conditions and with the ideal camera."""
+
+SHORT_DURATION_S = 20.0
+"""Simulated time of the default subset's cases [s]: the approach and the start of the bend, past the warm-up."""
+
+CELL_LABELS = ("scenario", "surface", "roughness", "conditions", "seed")
+"""The labels that make a cell; ``feedback`` tells a cell's cases apart."""
+
+SEED = 0
+"""``seed`` of every case (signal noise, field-condition draws, potholes)."""
+
+OFF_HIGHWAY_COLUMNS = (
+    "viso_ot_fused_true_rms_m",
+    "zero_slip_true_rms_m",
+    "truth_true_rms_m",
+    "none_true_rms_m",
+    "fused_rms_error_m",
+    "fused_max_abs_error_m",
+    "fused_within_2sigma",
+    "zero_slip_loop_error_rms_m",
+    "cell_verdict",
+)
+"""The study's terminal columns, one row per cell (:func:`off_highway_terminal_rows`)."""
+
+
+def scenario_vehicle(scenario: str, vehicle: Any | None) -> tuple[tuple[str, Any], ...]:
+    """The vehicle overrides of ``scenario``: ``vehicle`` when given, else :data:`CLIMBING_VEHICLE` on
+    ``haul-road`` and the LST on the others."""
+    if vehicle is not None:
+        return (("vehicle", vehicle),)
+    return CLIMBING_VEHICLE if scenario == "haul-road" else (("vehicle", LST),)
+
+
+def off_highway_vehicle(vehicle: str | None) -> Any:
+    """``None``, or the combination of ``--vehicle`` (a preset's name or combination file) checked on the first
+    scenario with the fused camera.
+
+    Raises
+    ------
+    InputError
+        One line naming ``--vehicle``.
+    """
+    if vehicle is None:
+        return None
+    resolved = study_vehicle(vehicle, STUDY)
+    try:
+        load_scenario(SCENARIOS[1], {"vehicle": resolved.value, "feedback": RENDERED_FEEDBACK})
+    except (InputError, ValueError) as exc:
+        raise InputError(f"--vehicle {vehicle}: {STUDY}: {vehicle_problem(exc)}") from None
+    return resolved.value
+
+
+def off_highway_case(
+    scenario: str,
+    surface: str,
+    roughness: str,
+    conditions: str,
+    feedback: str,
+    full: bool,
+    vehicle: Any | None = None,
+    seed: int = SEED,
+) -> CaseSpec:
+    """One case of the grid (module notes): its overrides and labels."""
+    overrides: tuple[tuple[str, Any], ...] = (
+        *scenario_vehicle(scenario, vehicle),
+        ("surface.preset", surface),
+        *ROUGHNESS[roughness],
+        ("seed", int(seed)),
+        ("feedback", feedback),
+        ("estimators.zero_slip", True),
+    )
+    if conditions == "field":
+        overrides += field_signals(seed)
+    if feedback == RENDERED_FEEDBACK:
+        overrides += (("estimators.viso_ot", True),)
+        if conditions == "field":
+            overrides += (*OFF_HIGHWAY_FIELD_CONDITIONS, *SELF_CALIBRATION)
+    if not full:
+        overrides += (("duration_s", SHORT_DURATION_S),)
+    labels = (
+        ("scenario", scenario),
+        ("surface", surface),
+        ("roughness", roughness),
+        ("conditions", conditions),
+        ("seed", int(seed)),
+        ("feedback", feedback),
+    )
+    return CaseSpec(STUDY, scenario, overrides, labels)
+
+
+def off_highway_cells(full: bool) -> list[tuple[str, str, str, str]]:
+    """(scenario, surface, roughness, conditions) of the grid (``full``) or of :data:`DEFAULT_CELLS`."""
+    if not full:
+        return list(DEFAULT_CELLS)
+    return [
+        (scenario, surface, roughness, conditions)
+        for scenario in SCENARIOS
+        for surface in SURFACES[scenario]
+        for roughness in ROUGHNESS
+        for conditions in CONDITIONS
+    ]
+
+
+def off_highway_cases(full: bool = False, vehicle: str | None = None) -> list[CaseSpec]:
+    """Cases of the off-highway study (the default subset unless ``full``).
+
+    Parameters
+    ----------
+    full
+        All 96 cases (3 scenarios × 2 surfaces × 2 roughness levels × 2 conditions × 4 feedbacks, the complete
+        scenarios) instead of the 8 of :data:`DEFAULT_CELLS` (:data:`SHORT_DURATION_S` long).
+    vehicle
+        Another combination for every scenario (:func:`off_highway_vehicle`; default :func:`scenario_vehicle`).
+
+    Returns
+    -------
+    list of CaseSpec
+        Labelled by ``scenario``, ``surface``, ``roughness``, ``conditions``, ``seed`` and ``feedback``, a cell's
+        feedbacks next to each other; the ``viso_ot_fused`` cases render.
+    """
+    combination = off_highway_vehicle(vehicle)
+    return [
+        off_highway_case(*cell, feedback, full, combination)
+        for cell in off_highway_cells(full)
+        for feedback in FEEDBACKS
+    ]
+
+
+def estimator_columns(metrics: dict[str, Any]) -> dict[str, float]:
+    """Each estimator of :data:`ESTIMATORS` against the truth from a run's ``metrics.json``: ``<name>_rms_error_m``,
+    ``<name>_max_abs_error_m`` [m] and ``<name>_within_2sigma`` (share; NaN without a std or an estimator)."""
+    estimators = (metrics.get("offtracking") or {}).get("estimators") or {}
+    row: dict[str, float] = {}
+    for name in ESTIMATORS:
+        errors = estimators.get(name) or {}
+        for key, column in (("rms_error", "rms_error_m"), ("max_abs_error", "max_abs_error_m")):
+            row[f"{name}_{column}"] = _float(errors.get(key))
+        row[f"{name}_within_2sigma"] = _float(errors.get("within_2sigma"))
+    return row
+
+
+def run_off_highway_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
+    """:func:`~scenarios.studies.cases.run_case`, plus :func:`estimator_columns`, the fused filter's errors,
+    fallback and verdict (:func:`~scenarios.studies.field_loop.metrics_columns`) and each unit behind the first
+    towed one's figures on a longer combination (:func:`~scenarios.studies.field_loop_units.unit_columns`, in the
+    case rows only) from the run's ``metrics.json``.
+    An interrupted or failed run returns :func:`~scenarios.studies.cases.run_case`'s row as it is."""
+    row = run_case(spec, out_dir)
+    if row.get("status") in (RunStatus.INTERRUPTED, RunStatus.FAILED):
+        return row
+    metrics_file = out_dir / spec.name / "metrics.json"
+    metrics = json.loads(metrics_file.read_text()) if metrics_file.is_file() else {}
+    row.update(metrics_columns(metrics))
+    row.update(estimator_columns(metrics))
+    row.update(unit_columns(metrics))
+    return row
+
+
+# ------------------------------------------------------------------------------------------- the cells
+
+
+def cell_verdict(truth_rms_m: float, truth_max_m: float, fused_rms_m: float, fused_max_m: float) -> str:
+    """The study's verdict on one cell.
+
+    Parameters
+    ----------
+    truth_rms_m, truth_max_m
+        RMS and largest magnitude of the true off-tracking after warm-up of the truth-fed loop [m].
+    fused_rms_m, fused_max_m
+        The same of the fused-fed loop [m].
+
+    Returns
+    -------
+    str
+        ``n/a: truth-fed …`` when the truth-fed loop is not within :data:`TARGET_RMS_M` / :data:`TARGET_MAX_M`
+        (or has no value): the controller, not the estimate, sets the cell; else ``pass`` when the fused-fed loop
+        is within both, or ``fail:`` and what it exceeded (a missing value fails).
+    """
+    if not (truth_rms_m <= TARGET_RMS_M and truth_max_m <= TARGET_MAX_M):
+        return f"n/a: truth-fed {_m(truth_rms_m)} / {_m(truth_max_m)} m"
+    failed = []
+    if not fused_rms_m <= TARGET_RMS_M:
+        failed.append(f"RMS {_m(fused_rms_m)} > {TARGET_RMS_M:.2f} m")
+    if not fused_max_m <= TARGET_MAX_M:
+        failed.append(f"max {_m(fused_max_m)} > {TARGET_MAX_M:.2f} m")
+    return "pass" if not failed else "fail: " + "; ".join(failed)
+
+
+def cell_table(table: pd.DataFrame) -> pd.DataFrame:
+    """One row per cell of an off-highway table (:func:`run_off_highway_case` rows), with its :func:`cell_verdict`.
+
+    Parameters
+    ----------
+    table
+        The study's case rows: the labels of :data:`CELL_LABELS` and ``feedback``, the true off-tracking after
+        warm-up and the estimator columns (absent ones are NaN; failed cases fail their cell).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The cell labels; per feedback ``{feedback}_true_rms_m`` and ``{feedback}_true_max_m`` [m]; from the
+        fused-fed run each estimator's ``{name}_rms_error_m``, ``{name}_max_abs_error_m`` [m] (the fused filter's
+        named ``fused``) and its ``fused_within_2sigma`` (share within 2σ); from the zero-slip-fed run its
+        estimate's error ``zero_slip_loop_error_rms_m`` and ``zero_slip_loop_error_max_m`` [m]; the fused-fed
+        run's verdict ``run_verdict``; and ``cell_verdict`` (:func:`cell_verdict`). In the table's order of cells.
+    """
+    rows = []
+    labels = [label for label in CELL_LABELS if label in table.columns]
+    for keys, cell in table.groupby(labels, sort=False, dropna=False):
+        by_feedback = {str(fb): part.iloc[0] for fb, part in cell.groupby("feedback", sort=False)}
+        row: dict[str, Any] = dict(zip(labels, keys if isinstance(keys, tuple) else (keys,), strict=True))
+        for feedback in FEEDBACKS:
+            case = by_feedback.get(feedback)
+            row[f"{feedback}_true_rms_m"] = _get(case, "true_offtracking_rms_after_warmup_m")
+            row[f"{feedback}_true_max_m"] = _get(case, "true_offtracking_max_after_warmup_m")
+        fused = by_feedback.get(RENDERED_FEEDBACK)
+        for name in ESTIMATORS:
+            shown = "fused" if name == RENDERED_FEEDBACK else name
+            row[f"{shown}_rms_error_m"] = _get(fused, f"{name}_rms_error_m")
+            row[f"{shown}_max_abs_error_m"] = _get(fused, f"{name}_max_abs_error_m")
+        row["fused_within_2sigma"] = _get(fused, "viso_ot_fused_within_2sigma")
+        zero_slip_loop = by_feedback.get("zero_slip")
+        row["zero_slip_loop_error_rms_m"] = _get(zero_slip_loop, "zero_slip_rms_error_m")
+        row["zero_slip_loop_error_max_m"] = _get(zero_slip_loop, "zero_slip_max_abs_error_m")
+        held = None if fused is None else fused.get("verdict_held")
+        row["run_verdict"] = "—" if not isinstance(held, bool | np.bool_) else ("held" if held else "not held")
+        row["cell_verdict"] = cell_verdict(
+            row["truth_true_rms_m"],
+            row["truth_true_max_m"],
+            row["viso_ot_fused_true_rms_m"],
+            row["viso_ot_fused_true_max_m"],
+        )
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def off_highway_terminal_rows(table: pd.DataFrame) -> tuple[pd.DataFrame, str]:
+    """The terminal's rows of an off-highway table: one per cell (:func:`cell_table`), and how many cells pass of
+    those the truth-fed loop holds."""
+    cells = cell_table(table)
+    if "cell_verdict" not in cells.columns:
+        return cells, "0 cells"
+    judged = cells[~cells["cell_verdict"].str.startswith("n/a")]
+    passed = int((judged["cell_verdict"] == "pass").sum())
+    return cells, f"{passed} of {len(judged)} cells the truth-fed loop holds pass ({len(cells)} cells)"
+
+
+def _m(value: float) -> str:
+    return "—" if not np.isfinite(value) else f"{value:.3f}"
+
+
+def _float(value: Any) -> float:
+    try:
+        return float(value) if value is not None else math.nan
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _get(case: pd.Series | None, column: str) -> float:
+    if case is None or column not in case.index:
+        return math.nan
+    return _float(case[column])
