@@ -148,9 +148,10 @@ def _recorded(run_dir: Path) -> dict[str, np.ndarray]:
 def largest_outswing(columns: dict[str, np.ndarray], follow_point_offset: float, span: float = OUTSWING_SPAN) -> float:
     """The follow point's largest true off-tracking to the outside of the turn after warm-up [m] (0 if never out).
 
-    The turn's side is the sign of the kingpin path's curvature, its heading change over ``span`` [m] of the path
-    either side of the sample; off-tracking is positive to the left, so outside is ``e·κ > 0`` (as the controller's
-    reach freeze and outswing bound, docs/controller_design.md §3.5). Samples on a path straighter than
+    The turn's side is the sign of the kingpin path's curvature beside the follow point (``follow_point_offset``
+    behind the kingpin along the path), its heading change over ``span`` [m] of the path either side; off-tracking
+    is positive to the left, so outside is ``e·κ > 0`` (as the controller's reach freeze and outswing bound,
+    docs/controller_design.md §3.5). Samples on a path straighter than
     :data:`STRAIGHT_CURVATURE` are not in a turn and not counted.
 
     Parameters
@@ -158,7 +159,8 @@ def largest_outswing(columns: dict[str, np.ndarray], follow_point_offset: float,
     columns
         ``offtracking_truth``, ``kingpin_x``, ``kingpin_y`` of a run.
     follow_point_offset
-        [m] The trailer's follow-point offset (the warm-up, :func:`scenarios.run.metrics.after_warmup`).
+        [m] The follow point's distance behind the kingpin (also the warm-up,
+        :func:`scenarios.run.metrics.after_warmup`).
     span
         [m] Half the length of path over which the curvature is taken.
     """
@@ -170,7 +172,8 @@ def largest_outswing(columns: dict[str, np.ndarray], follow_point_offset: float,
     if s.size < 3 or not settled.any():
         return 0.0
     heading = np.unwrap(np.arctan2(np.gradient(ym, s), np.gradient(xm, s)))
-    kappa = (np.interp(travelled + span, s, heading) - np.interp(travelled - span, s, heading)) / (2.0 * span)
+    behind = travelled - follow_point_offset  # the path beside the follow point, a trailer's length back
+    kappa = (np.interp(behind + span, s, heading) - np.interp(behind - span, s, heading)) / (2.0 * span)
     turning = settled & (np.abs(kappa) > STRAIGHT_CURVATURE)
     out = e[turning] * np.sign(kappa[turning])
     return float(max(np.nanmax(out), 0.0)) if out.size else 0.0
