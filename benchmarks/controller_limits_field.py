@@ -8,7 +8,8 @@ study's own (:func:`scenarios.studies.controller_limits.controller_limits_cases`
 by the study's sweep: ``table.csv``/``table.md``, ``controller_limits.png`` and ``controller_limits.json`` (each
 cell's check) as ``offtrack study controller-limits`` writes them (each row with its largest outswing after warm-up,
 :func:`scenarios.studies.controller_limits.largest_outswing`). All PID cases run before the
-optimal references, so a run cut short still holds every cell's check. Running it again into the same directory
+optimal references, and those in the order of :func:`_reference_order`, so a run cut short still holds every
+cell's check and the cells that matter most. Running it again into the same directory
 runs only the cases not yet finished.
 
 Usage::
@@ -29,10 +30,18 @@ from scenarios.studies.controller_limits import (
     controller_limits_figures,
     run_controller_limits_case,
 )
+from scenarios.studies.records import CaseSpec
 from scenarios.studies.sweep import run_sweep
 
 SCENARIOS = ("field-figure-eight", "field-roundabout-left", "field-roundabout-right")
 SURFACES = ("dry", "wet", "ice")
+REFERENCE_SURFACE_ORDER = ("wet", "dry", "ice")
+
+
+def _reference_order(case: CaseSpec) -> tuple[bool, int]:
+    """The optimal references' order: the mirrored roundabout last, and wet, dry, then ice (where the tractor
+    leaves the road before the first turn) within each."""
+    return case.scenario == SCENARIOS[-1], REFERENCE_SURFACE_ORDER.index(dict(case.labels)["surface"])
 
 
 def main() -> None:
@@ -44,9 +53,9 @@ def main() -> None:
     args = parser.parse_args()
     cells = [(s, surface, "lst") for s in SCENARIOS for surface in SURFACES]
     cases = controller_limits_cases(cells=cells, optimal=not args.no_optimal)
-    cases = [c for c in cases if dict(c.labels)["feedback"] != OPTIMAL] + [
-        c for c in cases if dict(c.labels)["feedback"] == OPTIMAL
-    ]
+    pid = [c for c in cases if dict(c.labels)["feedback"] != OPTIMAL]
+    references = sorted((c for c in cases if dict(c.labels)["feedback"] == OPTIMAL), key=_reference_order)
+    cases = pid + references
     start = time.perf_counter()
     result = run_sweep(cases, args.out_dir, run_controller_limits_case, workers=args.workers, resume=True)
     table = result.table
