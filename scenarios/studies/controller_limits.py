@@ -53,8 +53,8 @@ GAP_LIMIT = 2.0
 """The largest ratio of the truth-fed PID's RMS to the reference's where the reference holds :data:`REFERENCE_HOLDS`."""
 OUTSWING_SPAN = 2.5
 """[m] Half the path length over which :func:`largest_outswing` takes the kingpin path's curvature."""
-STRAIGHT_CURVATURE = 0.005
-"""[1/m] Below this curvature (a 200 m radius) the path counts as straight: no outside to swing to."""
+STRAIGHT_CURVATURE = 0.02
+"""[1/m] Below this curvature (a 50 m radius) the path counts as straight or between turns: no outside to swing to."""
 SUBSET = (("field-figure-eight", "wet", "lst"),)
 """The default subset's cells: (scenario, surface, vehicle)."""
 FULL_SCENARIOS = ("field-figure-eight", "field-roundabout-left", "roundabout-test")
