@@ -22,6 +22,7 @@ from scenarios.setup.build import build_scenario
 from scenarios.studies.controller_limits import (
     controller_limits_cases,
     controller_limits_figures,
+    largest_outswing,
     optimal_gap,
     run_controller_limits_case,
     truth_fed_check,
@@ -110,6 +111,13 @@ def test_controller_limits_cases_and_the_check_of_each_cell(tmp_path: Path):
     assert len(full) == 3 * 3 * 4  # every cell also runs its optimal reference, over the truth-fed PID's run
     optimal = [c for c in full if dict(c.labels)["feedback"] == "optimal"]
     assert len(optimal) == 9 and all(dict(c.overrides)["feedback"] == "truth" for c in optimal)
+    # Other cells (the field manoeuvres' selection), with or without the optimal reference.
+    cells = [("field-roundabout-right", "ice", "lst"), ("field-figure-eight", "dry", "lst")]
+    chosen = controller_limits_cases(cells=cells, optimal=True)
+    assert [(c.scenario, dict(c.labels)["surface"], dict(c.labels)["feedback"]) for c in chosen[:4]] == [
+        ("field-roundabout-right", "ice", f) for f in ("none", "truth", "zero_slip", "optimal")
+    ]
+    assert len(chosen) == 8 and len(controller_limits_cases(cells=cells)) == 6  # no reference unless asked
     cell = {"scenario": "field-figure-eight", "surface": "wet", "vehicle": "lst", "status": "completed"}
     rms, peak = "true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"
     table = pd.DataFrame(
@@ -177,6 +185,28 @@ def test_truth_fed_no_worse_than_zero_slip_fed_or_unsteered_on_a_short_subset(tm
     check = truth_fed_check(rows, tolerance=0.01)
     assert check is not None and check["held"], check
     assert rows["truth"]["beyond_reach_share"] > 0.0
+    for row in rows.values():  # an outswing is an off-tracking, never more than the largest
+        assert 0.0 <= row["largest_outswing_after_warmup_m"] <= row["true_offtracking_max_after_warmup_m"] + 1e-12
+
+
+@pytest.mark.parametrize("direction", [1.0, -1.0])
+def test_largest_outswing_is_the_off_tracking_outside_the_turn(direction):
+    # 20 m straight along x, then a 20 m radius turn (left for +1, right for -1), 0.1 m a sample. Off-tracking is
+    # positive to the left: outside a left turn is e > 0, outside a right turn e < 0. On the straight a larger
+    # error on either side is not an outswing; warm-up: the first 5 m (follow-point offset).
+    s = np.arange(0.0, 60.0, 0.1)
+    straight = s <= 20.0
+    angle = np.where(straight, 0.0, (s - 20.0) / 20.0)
+    x = np.where(straight, s, 20.0 + 20.0 * np.sin(angle))
+    y = np.where(straight, 0.0, direction * 20.0 * (1.0 - np.cos(angle)))
+    e = np.zeros_like(s)
+    e[(s > 8.0) & (s < 12.0)] = 0.9  # on the straight
+    e[(s > 34.0) & (s < 36.0)] = 0.3 * direction  # outside
+    e[(s > 44.0) & (s < 46.0)] = -0.6 * direction  # inside: a cut-in
+    columns = {"offtracking_truth": e, "kingpin_x": x, "kingpin_y": y}
+    assert largest_outswing(columns, 5.0) == pytest.approx(0.3, abs=1e-12)
+    # Only ever inside the turn: no outswing.
+    assert largest_outswing({**columns, "offtracking_truth": np.minimum(e * direction, 0.0) * direction}, 5.0) == 0.0
 
 
 def _left_turn(u: float, r1: float, gamma: float, k: int) -> VehicleState:

@@ -16,13 +16,17 @@ cell's check then also holds the PID's gap to it: the truth-fed RMS over the ref
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from ..config import load_scenario
 from ..loop.ends import RunStatus
+from ..run.metrics import after_warmup
+from ..run.results import TIMESERIES_FILE
 from ..run.runner import run_scenario
 from .optimal_reference import run_optimal_reference
 from .records import CaseSpec
@@ -32,6 +36,7 @@ __all__ = [
     "FEEDBACKS",
     "controller_limits_cases",
     "controller_limits_figures",
+    "largest_outswing",
     "optimal_gap",
     "run_controller_limits_case",
     "truth_fed_check",
@@ -46,19 +51,42 @@ REFERENCE_HOLDS = 0.10
 """[m] The RMS the optimal reference must reach for the PID's gap to it to be checked (the design's target RMS)."""
 GAP_LIMIT = 2.0
 """The largest ratio of the truth-fed PID's RMS to the reference's where the reference holds :data:`REFERENCE_HOLDS`."""
+OUTSWING_SPAN = 2.5
+"""[m] Half the path length over which :func:`largest_outswing` takes the kingpin path's curvature."""
+STRAIGHT_CURVATURE = 0.02
+"""[1/m] Below this curvature (a 50 m radius) the path counts as straight or between turns: no outside to swing to."""
 SUBSET = (("field-figure-eight", "wet", "lst"),)
 """The default subset's cells: (scenario, surface, vehicle)."""
 FULL_SCENARIOS = ("field-figure-eight", "field-roundabout-left", "roundabout-test")
 FULL_SURFACES = ("dry", "wet", "ice")
 
 
-def controller_limits_cases(full: bool = False) -> list[CaseSpec]:
-    """The cases: every cell × :data:`FEEDBACKS` (feedback fastest), and with ``full`` the cell's optimal reference
-    (:data:`OPTIMAL`); the default subset unless ``full``."""
-    cells = [(s, surface, "lst") for s in FULL_SCENARIOS for surface in FULL_SURFACES] if full else list(SUBSET)
+def controller_limits_cases(
+    full: bool = False,
+    *,
+    cells: Sequence[tuple[str, str, str]] | None = None,
+    optimal: bool | None = None,
+) -> list[CaseSpec]:
+    """The cases: every cell × :data:`FEEDBACKS` (feedback fastest), and with ``optimal`` the cell's optimal reference
+    (:data:`OPTIMAL`).
+
+    Parameters
+    ----------
+    full
+        The whole study's cells instead of the default subset (:data:`SUBSET`).
+    cells
+        Other cells, (scenario, surface, vehicle) each, instead of either (e.g.
+        ``benchmarks/controller_limits_field.py``'s field manoeuvres).
+    optimal
+        Add each cell's optimal reference; default: with ``full`` only.
+    """
+    if cells is None:
+        cells = [(s, surface, "lst") for s in FULL_SCENARIOS for surface in FULL_SURFACES] if full else list(SUBSET)
+    if optimal is None:
+        optimal = full
     cases = []
     for scenario, surface, vehicle in cells:
-        for feedback in (*FEEDBACKS, OPTIMAL) if full else FEEDBACKS:
+        for feedback in (*FEEDBACKS, OPTIMAL) if optimal else FEEDBACKS:
             overrides: tuple[tuple[str, Any], ...] = (
                 ("vehicle", vehicle),
                 ("surface.preset", surface),
@@ -85,12 +113,14 @@ def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
         row.update({k: metrics.get(k) for k in ("stop_signal", "message", "stop_time")})
         return row
     settled = metrics["offtracking"]["truth_after_warmup"]
+    outswing = largest_outswing(_recorded(run_dir), config.vehicle_params().follow_point_offset)
     reach = metrics.get("steering_reach") or {}
     steering = metrics.get("trailer_steering") or {}
     row.update(
         {
             "true_offtracking_rms_after_warmup_m": settled["rms"],
             "true_offtracking_max_after_warmup_m": settled["max_abs"],
+            "largest_outswing_after_warmup_m": outswing,
             "beyond_reach_share": reach.get("share_of_path", 0.0),
             "at_lock_share": max((m.get("saturated_fraction", 0.0) for m in steering.values()), default=0.0),
         }
@@ -106,6 +136,47 @@ def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
             }
         )
     return row
+
+
+def _recorded(run_dir: Path) -> dict[str, np.ndarray]:
+    """The columns :func:`largest_outswing` needs from a run directory's time series."""
+    names = ["offtracking_truth", "kingpin_x", "kingpin_y"]
+    frame = pd.read_parquet(run_dir / TIMESERIES_FILE, columns=names)
+    return {name: frame[name].to_numpy(dtype=float) for name in names}
+
+
+def largest_outswing(columns: dict[str, np.ndarray], follow_point_offset: float, span: float = OUTSWING_SPAN) -> float:
+    """The follow point's largest true off-tracking to the outside of the turn after warm-up [m] (0 if never out).
+
+    The turn's side is the sign of the kingpin path's curvature beside the follow point (``follow_point_offset``
+    behind the kingpin along the path), its heading change over ``span`` [m] of the path either side; off-tracking
+    is positive to the left, so outside is ``e·κ > 0`` (as the controller's reach freeze and outswing bound,
+    docs/controller_design.md §3.5). Samples on a path straighter than
+    :data:`STRAIGHT_CURVATURE` are not in a turn and not counted.
+
+    Parameters
+    ----------
+    columns
+        ``offtracking_truth``, ``kingpin_x``, ``kingpin_y`` of a run.
+    follow_point_offset
+        [m] The follow point's distance behind the kingpin (also the warm-up,
+        :func:`scenarios.run.metrics.after_warmup`).
+    span
+        [m] Half the length of path over which the curvature is taken.
+    """
+    settled = after_warmup(columns, follow_point_offset)
+    x, y, e = columns["kingpin_x"], columns["kingpin_y"], columns["offtracking_truth"]
+    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
+    moving = np.concatenate([[True], np.diff(travelled) > 1e-6])
+    s, xm, ym = travelled[moving], x[moving], y[moving]
+    if s.size < 3 or not settled.any():
+        return 0.0
+    heading = np.unwrap(np.arctan2(np.gradient(ym, s), np.gradient(xm, s)))
+    behind = travelled - follow_point_offset  # the path beside the follow point, a trailer's length back
+    kappa = (np.interp(behind + span, s, heading) - np.interp(behind - span, s, heading)) / (2.0 * span)
+    turning = settled & (np.abs(kappa) > STRAIGHT_CURVATURE)
+    out = e[turning] * np.sign(kappa[turning])
+    return float(max(np.nanmax(out), 0.0)) if out.size else 0.0
 
 
 def _rows(table: pd.DataFrame, cell: tuple[str, str, str]) -> pd.DataFrame:
