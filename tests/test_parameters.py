@@ -98,7 +98,7 @@ def test_invalid_friction_is_rejected(mu):
 def test_surface_presets():
     assert friction_preset("ice") < friction_preset("snow") < friction_preset("wet") < friction_preset("dry")
     with pytest.raises(ValueError, match="unknown surface"):
-        friction_preset("gravel")
+        friction_preset("sand")
     with pytest.raises(ValueError, match="direction"):
         RadialCamber((0, 0), 5.0, direction="sideways")  # type: ignore[arg-type]
 
