@@ -321,6 +321,20 @@ class EstimatorsConfig(Settings):
         return check_switches(data, cls.model_fields)
 
 
+class SideRigSettings(SideRigFusion):
+    """A run's side-rig settings (``fusion.side_rig``): the odometry's error along the optical axis as states, found
+    against the speed-compensated zero-slip kinematics with their error as a state (docs/field_bias.md §7.5). A field
+    left out keeps this default; ``null`` gives the section's own value instead."""
+
+    vo_axial_flow: float | None = Field(0.05, ge=0.0, le=1.0, description="[1/m] start std of s_f; 1 /m: 1 m per m²")
+    vo_axial_scale: float | None = Field(0.04, ge=0.0, le=0.5, description="start std of s_z; 0.5 halves the axis")
+    vo_axial_scale_walk: float | None = Field(
+        0.001, ge=0.0, le=0.1, description="[1/√m] their walk; 0.1 forgets in a metre"
+    )
+    kinematic_rear_point: RearPoint | None = "speed_compensated"
+    kinematic_error_model: Literal["inflated", "state"] | None = "state"
+
+
 class FusionConfig(FusionNoise):
     """The fused VISO-OT filter (``sensor.fusion.FusionNoise``: the data-sheet figures it is designed for, not the
     ``signals``). A run's filter takes the scrub demand of (K5) (``sensor.fusion_slip``) and, for a camera that looks
@@ -340,14 +354,8 @@ class FusionConfig(FusionNoise):
     scrub_slip_walk: float = Field(
         0.5, ge=0.0, le=5.0, description="[m/s/√s] added slip walk at full scrub demand; 5 spins in 1 s"
     )
-    side_rig: SideRigFusion = Field(
-        default_factory=lambda: SideRigFusion(
-            vo_axial_flow=0.05,
-            vo_axial_scale=0.04,
-            vo_axial_scale_walk=0.001,
-            kinematic_rear_point="speed_compensated",
-            kinematic_error_model="state",
-        ),
+    side_rig: SideRigSettings = Field(
+        default_factory=SideRigSettings,
         description="what a side rig's filter takes instead (the odometry's error along its optical axis as states)",
     )
 
