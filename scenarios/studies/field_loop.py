@@ -51,9 +51,7 @@ import numpy as np
 import pandas as pd
 
 from sensor.datasheet import datasheet_fields, draw_biases
-from vehicle_model.errors import InputError
 
-from ..config import load_scenario
 from ..loop.ends import RunStatus
 from ..loop.schema import FIRST_TOWED_UNIT
 from ..run.results import read_timeseries
@@ -64,7 +62,7 @@ from .field_loop_rows import kinematic_trust, metrics_columns
 from .field_loop_units import further_units_of, unit_columns
 from .records import CaseSpec
 from .section4 import FIELD_CONDITIONS, PAPER_SECTION4_MISALIGNMENT_DEG
-from .unit_steering import study_vehicle, vehicle_problem
+from .unit_steering import camera_study_vehicle
 
 STUDY = "field-loop"
 
@@ -174,12 +172,7 @@ def field_loop_vehicle(vehicle: str | None) -> Any:
     """
     if vehicle is None:
         return VEHICLE
-    resolved = study_vehicle(vehicle, STUDY)
-    try:
-        load_scenario(SCENARIOS[0], {"vehicle": resolved.value, "feedback": RENDERED_FEEDBACK})
-    except (InputError, ValueError) as exc:
-        raise InputError(f"--vehicle {vehicle}: {STUDY}: {vehicle_problem(exc)}") from None
-    return resolved.value
+    return camera_study_vehicle(vehicle, STUDY, SCENARIOS[0], RENDERED_FEEDBACK)
 
 
 def _case(

@@ -46,16 +46,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from vehicle_model.errors import InputError
-
-from ..config import load_scenario
 from ..loop.ends import RunStatus
 from .cases import run_case
 from .field_loop import TARGET_MAX_M, TARGET_RMS_M, field_signals, metrics_columns
 from .field_loop_units import unit_columns
 from .records import CaseSpec
 from .section4 import FIELD_CONDITIONS
-from .unit_steering import study_vehicle, vehicle_problem
+from .unit_steering import camera_study_vehicle
 
 STUDY = "off-highway"
 
@@ -166,12 +163,7 @@ def off_highway_vehicle(vehicle: str | None) -> Any:
     """
     if vehicle is None:
         return None
-    resolved = study_vehicle(vehicle, STUDY)
-    try:
-        load_scenario(SCENARIOS[1], {"vehicle": resolved.value, "feedback": RENDERED_FEEDBACK})
-    except (InputError, ValueError) as exc:
-        raise InputError(f"--vehicle {vehicle}: {STUDY}: {vehicle_problem(exc)}") from None
-    return resolved.value
+    return camera_study_vehicle(vehicle, STUDY, SCENARIOS[1], RENDERED_FEEDBACK)
 
 
 def off_highway_case(

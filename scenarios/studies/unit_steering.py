@@ -50,6 +50,7 @@ __all__ = [
     "DEFAULT_VEHICLE",
     "STEERINGS",
     "StudyVehicle",
+    "camera_study_vehicle",
     "run_unit_steering_case",
     "steering_feedback",
     "study_vehicle",
@@ -143,6 +144,23 @@ def study_vehicle(vehicle: str | None = None, study: str = STUDY) -> StudyVehicl
 def vehicle_problem(exc: BaseException) -> str:
     """The one line of a refused vehicle, without the configuration's preamble."""
     return " ".join(str(exc).split()).removeprefix("invalid scenario configuration: ")
+
+
+def camera_study_vehicle(vehicle: str, study: str, scenario: str, feedback: str) -> Any:
+    """The combination of ``--vehicle`` for a study that steers it on ``feedback``, checked on ``scenario``
+    (:func:`study_vehicle`, then the scenario loaded with it): its configuration value.
+
+    Raises
+    ------
+    InputError
+        One line naming ``--vehicle`` and the study.
+    """
+    resolved = study_vehicle(vehicle, study)
+    try:
+        load_scenario(scenario, {"vehicle": resolved.value, "feedback": feedback})
+    except (InputError, ValueError) as exc:
+        raise InputError(f"--vehicle {vehicle}: {study}: {vehicle_problem(exc)}") from None
+    return resolved.value
 
 
 def steering_feedback(steering: str, steerable: tuple[bool, ...]) -> tuple[str, tuple[str, ...]]:
