@@ -276,3 +276,31 @@ def test_wheel_speeds_are_measured_along_the_grade_and_unchanged_on_the_flat():
         measured = SignalsParticipant(setup).measure(0.0, state, np.zeros(8), 0.0)
         assert float(measured["wheel_speed"][0]) == pytest.approx(5.0 * factor, rel=1e-12)
         assert float(measured["trailer_wheel_speed"][0]) == pytest.approx(5.0 * factor, rel=1e-12)
+
+
+def test_an_axle_feels_the_ground_under_its_wheels_not_under_its_centre_point():
+    """``TerrainSlope.under_axles``: on a plane tilted both ways it is the plane's slope vector (1e-12, any heading);
+    over a groove narrower than the track, centred under the axle's centre point's wall, both wheels stand on the
+    flat and the axle has no slope (1e-15), where the centre point's own gradient is a steep crossfall."""
+
+    class Groove:
+        """A cosine groove 0.08 m deep, 0.3 m half-width, along x at y = 0."""
+
+        def height(self, p):
+            y = np.asarray(p, float)[:, 1]
+            return np.where(np.abs(y) < 0.3, -0.04 * (1 + np.cos(np.pi * y / 0.3)), 0.0)
+
+        def gradient(self, p):
+            y = np.asarray(p, float)[:, 1]
+            return np.column_stack(
+                [np.zeros(len(y)), np.where(np.abs(y) < 0.3, 0.04 * np.pi / 0.3 * np.sin(np.pi * y / 0.3), 0.0)]
+            )
+
+    plane = TerrainSlope(PlaneTerrain(8.0, 5.0, 0.3))
+    points = np.array([[3.0, -2.0], [10.0, 4.0], [-7.0, 1.0]])
+    headings = np.array([0.0, 1.0, -2.5])
+    np.testing.assert_allclose(plane.under_axles(points, headings, np.full(3, 0.9)), plane(points), rtol=0, atol=1e-12)
+    groove = TerrainSlope(Groove())
+    centre = np.array([[0.0, 0.15]])
+    assert abs(groove(centre)[0, 1]) > 0.3  # the centre point on the groove's wall: a 40 % crossfall
+    np.testing.assert_allclose(groove.under_axles(centre, np.zeros(1), np.array([0.9])), 0.0, atol=1e-15)

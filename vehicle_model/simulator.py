@@ -16,6 +16,7 @@ from .layout import BODY_STATES, Layout
 from .parameters import VehicleParams
 from .period import BAD_INPUT, DIVERGED, OK, context_views, load_period, new_context
 from .surface import Surface, UniformFriction
+from .terrain_pose import half_track
 
 STATE_LIMITS: dict[str, float] = {"u": 60.0, "v1": 30.0, "r1": 6.0, "r2": 6.0, "gamma": 3.5}
 """Magnitudes beyond which a state is taken as diverged (the model is meaningless there)."""
@@ -276,6 +277,10 @@ class Simulator:
         self._surface_uniform = self.surface.is_uniform
         # A slope field asked per axle (a terrain's): each body takes its axles' vectors weighted by static load.
         self._axle_weights = axle_weights(params) if getattr(self.surface.slope, "per_axle", False) else None
+        if self._axle_weights is not None:  # each axle's slope from its two wheels (TerrainSlope.under_axles)
+            units = [params.tractor, *params.trailers]
+            self._axle_unit = np.repeat(np.arange(len(units)), [len(u.axles) for u in units])
+            self._axle_half_track = np.repeat([half_track(u) for u in units], [len(u.axles) for u in units])
         friction = self.surface.friction
         self._uniform_mu = float(friction.mu) if isinstance(friction, UniformFriction) else None
         self.reset(state)
@@ -357,7 +362,10 @@ class Simulator:
         axles = np.concatenate([p[:-1] for p in units])
         mu = self.surface.friction(axles)
         if self._axle_weights is not None:
-            return mu, (self._axle_weights @ self.surface.slope(axles)).ravel()
+            angles = [x[6], *x[self.layout.trailing_slice][0::2]]
+            headings = np.array([x[2], *(h for _, h in trailer_frames(self.params, x[0], x[1], x[2], angles))])
+            slope = self.surface.slope.under_axles(axles, headings[self._axle_unit], self._axle_half_track)
+            return mu, (self._axle_weights @ slope).ravel()
         slope = self.surface.slope(np.stack([p[-1] for p in units]))
         return mu, slope.ravel()
 

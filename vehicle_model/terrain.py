@@ -83,6 +83,22 @@ class TerrainSlope:
     def __call__(self, points: np.ndarray) -> np.ndarray:
         return slope_vectors(self.terrain.gradient(np.asarray(points, dtype=float)))
 
+    def under_axles(self, points: np.ndarray, headings: np.ndarray, half_tracks: np.ndarray) -> np.ndarray:
+        """Slope vectors ``(N, 2)`` under axles centred at ``points`` ``(N, 2)`` heading ``headings`` [rad] with
+        their outer wheels ``half_tracks`` [m] either side: across the axle the gradient of the line through its
+        two wheels' contact points, along it the mean of the two wheels' gradients. On a plane it is the plane's; a
+        feature narrower than the track (a rut under one wheel, a pothole) tilts the axle as its wheels feel it,
+        not as the ground under its centre point slopes."""
+        p = np.asarray(points, dtype=float)
+        h = np.asarray(headings, dtype=float)
+        w = np.asarray(half_tracks, dtype=float)[:, None]
+        along = np.column_stack([np.cos(h), np.sin(h)])
+        across = np.column_stack([-np.sin(h), np.cos(h)])
+        left, right = p + w * across, p - w * across
+        rise = (self.terrain.height(left) - self.terrain.height(right)) / (2.0 * w[:, 0])
+        grade = 0.5 * ((self.terrain.gradient(left) + self.terrain.gradient(right)) * along).sum(axis=1)
+        return slope_vectors(grade[:, None] * along + rise[:, None] * across)
+
 
 @dataclass(frozen=True)
 class FlatTerrain:
