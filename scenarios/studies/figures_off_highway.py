@@ -89,14 +89,10 @@ def offtracking_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
             ax.plot(x + 0.15 * (k - 1.5), _column(cells, f"{feedback}_true_{key}_m"), marker, color=colour, ms=6,
                     label=f"{legend} feedback")  # fmt: skip
         ax.axhline(target, color="tab:red", lw=1.0, ls="--", label=f"target {target:.2f} m")
-        ax.set_ylabel(f"true off-tracking, {name} after warm-up [m]")
-        ax.set_ylim(bottom=0.0)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.suptitle("off-highway: true off-tracking of the loop on each feedback")
-    fig.tight_layout()
-    fig.savefig(out_dir / "off_highway_offtracking.png", dpi=110)
-    plt.close(fig)
+        _finish_axes(ax, f"true off-tracking, {name} after warm-up [m]")
+    _save(
+        plt, fig, "off-highway: true off-tracking of the loop on each feedback", out_dir / "off_highway_offtracking.png"
+    )
 
 
 def errors_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
@@ -110,13 +106,28 @@ def errors_figure(cells: pd.DataFrame, out_dir: Path, plt: Any) -> None:
                 else f"{prefix}_{key}{'' if key == 'rms' else '_abs'}_error_m"
             )
             ax.plot(x + 0.15 * (k - 1.5), _column(cells, column), marker, color=colour, ms=6, label=legend)
-        ax.set_ylabel(f"estimate − truth, {name} [m]")
-        ax.set_ylim(bottom=0.0)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.suptitle("off-highway: each estimator's error against the true off-tracking")
+        _finish_axes(ax, f"estimate − truth, {name} [m]")
+    _save(
+        plt,
+        fig,
+        "off-highway: each estimator's error against the true off-tracking",
+        out_dir / "off_highway_errors.png",
+    )
+
+
+def _finish_axes(ax: Any, ylabel: str) -> None:
+    """A cell panel's label, zero floor, grid and legend beside it."""
+    ax.set_ylabel(ylabel)
+    ax.set_ylim(bottom=0.0)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+
+
+def _save(plt: Any, fig: Any, title: str, path: Path) -> None:
+    """Title, lay out, write at 110 dpi and close ``fig``."""
+    fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(out_dir / "off_highway_errors.png", dpi=110)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
@@ -191,7 +202,5 @@ def roughness_figures(table: pd.DataFrame, out_dir: Path) -> None:
             ax.set_xlabel("potholes per 100 m (10 cm deep, no undulation)")
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)
-    fig.suptitle("VISO-OT on undulating ground, ideal camera: level frame against the planar eqs")
-    fig.tight_layout()
-    fig.savefig(Path(out_dir) / "roughness_error.png", dpi=110)
-    plt.close(fig)
+    _save(plt, fig, "VISO-OT on undulating ground, ideal camera: level frame against the planar eqs",
+          Path(out_dir) / "roughness_error.png")  # fmt: skip
