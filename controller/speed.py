@@ -1,4 +1,5 @@
-"""Longitudinal speed controller producing the tractor drive force."""
+"""Longitudinal speed controller producing the combination's force demand: drive when positive, service brake when
+negative."""
 
 from __future__ import annotations
 
@@ -10,7 +11,8 @@ class SpeedController:
     """PI speed controller with a force limit and conditional-integration anti-windup.
 
     ``F = m·(k_p·e + k_i·∫e dt)``, ``e = u_ref − u``, clipped to ``±max_force``; the integral is
-    frozen while the output saturates in the direction of the error.
+    frozen while the output saturates in the direction of the error. A positive ``F`` is the driven axles' drive
+    force, a negative one the service brake of every axle (the vehicle model shares each over its axles).
 
     Parameters
     ----------
@@ -21,7 +23,8 @@ class SpeedController:
     ki
         Integral gain [1/s²].
     max_force
-        Force limit [N] (positive); the vehicle model also caps drive force at its traction limit.
+        Force limit [N] (positive); the vehicle model also caps each axle's drive and brake force at its
+        friction.
     """
 
     mass: float
@@ -39,11 +42,18 @@ class SpeedController:
         self.integral = 0.0
 
     def __call__(
-        self, speed_ref: float, speed: float, dt: float, force_limit: float | None = None, feedforward: float = 0.0
+        self,
+        speed_ref: float,
+        speed: float,
+        dt: float,
+        force_limit: float | None = None,
+        feedforward: float = 0.0,
+        brake_limit: float | None = None,
     ) -> float:
-        """Drive force [N] for the next control period of length ``dt``.
+        """Force demand [N] for the next control period of length ``dt``: drive when positive, brake when negative.
 
         ``force_limit`` lowers the limit for this period (traction control: see :func:`traction_limit`);
+        ``brake_limit`` lowers the limit on braking (:func:`service_brake_limit`; ``force_limit`` when omitted);
         ``feedforward`` [N] is added before the limit (a grade's load, :func:`grade_feedforward`), so the integral
         only takes up what it does not foresee.
         """
@@ -53,11 +63,14 @@ class SpeedController:
         limit = self.max_force
         if force_limit is not None and force_limit < limit:
             limit = force_limit
+        lower = limit
+        if brake_limit is not None:
+            lower = self.max_force if brake_limit > self.max_force else brake_limit  # min(brake_limit, max_force)
         integral = self.integral
         unsat = self.mass * (self.kp * error + self.ki * (integral + error * dt))
         if feedforward:
             unsat += feedforward
-        force = -limit if -limit > unsat else unsat  # max(unsat, -limit)
+        force = -lower if -lower > unsat else unsat  # max(unsat, -lower)
         if limit < force:  # min(force, limit)
             force = limit
         if force == unsat or (force > 0) != (error > 0):
@@ -72,6 +85,17 @@ def traction_limit(mu: float, drive_axle_load: float, fraction: float = 0.6) -> 
     friction ellipse leaves them ``sqrt(1 − fraction²)`` of their lateral grip (80 % at 0.6).
     """
     return fraction * mu * drive_axle_load
+
+
+def service_brake_limit(mu: float, total_axle_load: float, fraction: float = 0.6) -> float:
+    """Brake force allowed by the anti-lock brakes [N]: ``fraction·μ·F_z`` of every axle together.
+
+    The service brake acts on every axle in proportion to its static load (:mod:`vehicle_model.dynamics`), so at
+    ``fraction`` of the combination's friction each axle is at the same ``fraction`` of its own: the anti-lock
+    system keeps the wheels' slip as small as traction control does (:func:`traction_limit`), with the same lateral
+    grip left.
+    """
+    return fraction * mu * total_axle_load
 
 
 def grade_feedforward(mass: float, gravity_along: float) -> float:

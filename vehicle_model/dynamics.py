@@ -31,7 +31,26 @@ AIR_DENSITY = 1.2
 """Air density for aerodynamic drag [kg/m³]."""
 
 TRACTION_MARGIN = 0.95
-"""Drive force per axle is capped at this fraction of μ·Fz (no wheel spin is modelled)."""
+"""Drive and brake force per axle are capped at this fraction of μ·Fz (no wheel spin or lock is modelled)."""
+
+ROLLING_SPEED = 0.1
+"""Contact-point speed [m/s] over which rolling resistance and brake force change sign (``tanh(v/ROLLING_SPEED)``):
+both oppose the wheel's travel and vanish at standstill instead of pushing the vehicle backwards."""
+
+
+def axle_force_demand(
+    force: ca.SX, static_load: float, driven: bool, driven_load: float, total_load: float, v_long: ca.SX
+) -> ca.SX:
+    """The longitudinal force asked of one axle [N] by the signed demand ``force`` (before its friction cap).
+
+    A positive demand drives: it is shared among the driven axles in proportion to their static load
+    (``force·F_z0/ΣF_z0,driven``; none on the others). A negative demand is the service brake of every axle of every
+    unit: shared among all axles in proportion to their static load (``force·F_z0/ΣF_z0``, docs/vehicle_dynamics.md
+    §1.5), against the contact point's forward speed ``v_long`` (``tanh(v_long/ROLLING_SPEED)``).
+    """
+    brake = force * static_load / total_load * ca.tanh(v_long / ROLLING_SPEED)
+    drive = force * static_load / driven_load if driven else ca.SX(0.0)
+    return ca.if_else(force >= 0.0, drive, brake)
 
 
 def in_plane_gravity(sx: Any, sy: Any, cos_psi: Any, sin_psi: Any) -> tuple[Any, Any]:
@@ -94,8 +113,9 @@ def define_model(params: VehicleParams) -> SymbolicModel:
 
     gravity = [body_gravity(slope[2 * k], slope[2 * k + 1], headings[k]) for k in range(n_units)]
 
-    # Drive force shared among driven axles in proportion to their static load.
+    # Drive force shared among the driven axles, brake force among all axles, in proportion to their static load.
     driven_load = float(np.sum(table.static_load[table.driven]))
+    total_load = float(np.sum(table.static_load))
 
     steer_iter = iter(range(len(layout.steerable_axles)))
     fx_body = [ca.SX(0.0) for _ in range(n_units)]
@@ -121,11 +141,13 @@ def define_model(params: VehicleParams) -> SymbolicModel:
         cd, sd = ca.cos(delta), ca.sin(delta)
         v_cx = cd * ub + sd * vy_body
         v_cy = -sd * ub + cd * vy_body
-        # Longitudinal wheel force: drive share (traction-limited) and rolling resistance.
-        fx_w = -tyre.rolling_resistance * fz * ca.tanh(v_cx / 0.1)
-        if table.driven[k]:
-            limit = TRACTION_MARGIN * mu[k] * fz
-            fx_w = fx_w + ca.fmin(ca.fmax(drive_force * table.static_load[k] / driven_load, -limit), limit)
+        # Longitudinal wheel force: rolling resistance and the drive or brake share, capped by the axle's friction.
+        fx_w = -tyre.rolling_resistance * fz * ca.tanh(v_cx / ROLLING_SPEED)
+        limit = TRACTION_MARGIN * mu[k] * fz
+        demand = axle_force_demand(
+            drive_force, table.static_load[k], bool(table.driven[k]), driven_load, total_load, v_cx
+        )
+        fx_w = fx_w + ca.fmin(ca.fmax(demand, -limit), limit)
         # Transient slip with low-speed carcass damping (see tyre.relaxation_rate).
         alpha_dot = tyre_model.relaxation_rate(slip_state[k], v_cx, v_cy, sigma)
         alpha_eff = ca.atan(slip_state[k] + tyre_model.low_speed_damping_time(tyre, v_cx) * alpha_dot)

@@ -138,7 +138,9 @@ class Controls:
         Steer angle of each steerable axle [rad], in ``Layout.steerable_axles`` order (the
         tractor's steer axle first, then steerable trailer axles). Positive to the left.
     drive_force : float
-        Total drive force at the driven axles [N]; negative brakes.
+        The longitudinal force demand [N]: when positive, the drive force shared by the driven axles; when
+        negative, the service brake shared by every axle of every unit in proportion to its static load
+        (:func:`vehicle_model.dynamics.axle_force_demand`); each axle's share capped by its friction.
     """
 
     steer: Sequence[float]
@@ -374,10 +376,14 @@ class Simulator:
 
         What :meth:`surface_inputs` gives, without the slope; a uniform friction field is not looked up.
         """
+        return self.min_frictions(axles)[0]
+
+    def min_frictions(self, *groups: np.ndarray) -> tuple[float, ...]:
+        """Smallest μ under each group of axles (layout indices) at the current state, from one look-up."""
         if self._uniform_mu is not None:
-            return self._uniform_mu
+            return (self._uniform_mu,) * len(groups)
         mu = self.surface.friction(np.concatenate([p[:-1] for p in self._ground_points(self._x)]))
-        return float(np.min(mu[axles]))
+        return tuple(float(np.min(mu[axles])) for axles in groups)
 
     def fill_inputs(self, controls: Controls) -> None:
         """Write ``controls`` and the surface at the current state into the input vector."""

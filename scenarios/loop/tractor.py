@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from controller.driver import PathFollowingDriver
-from controller.speed import SpeedController, grade_feedforward, traction_limit
+from controller.speed import SpeedController, grade_feedforward, service_brake_limit, traction_limit
 from vehicle_model.simulator import Simulator, VehicleState
 
 from ..setup.build import ScenarioSetup
@@ -33,7 +33,7 @@ class TractorCommand:
     front_steer: float
     """Steer-axle angle [rad]."""
     drive_force: float
-    """Drive force of the driven axles [N]."""
+    """Force demand [N]: the driven axles' drive force when positive, every axle's service brake when negative."""
     speed_target: float
     """The speed profile's target at the driver's progress [m/s]."""
 
@@ -67,10 +67,18 @@ class DriverParticipant:
         driven = np.flatnonzero(params.axle_table.driven)
         self._driven = driven
         self._driven_load = float(params.axle_table.static_load[driven].sum())
+        self._axles = np.arange(len(params.axle_table.static_load))
+        self._total_load = float(params.axle_table.static_load.sum())
         front = setup.model.layout.steerable_axles[0]
         self.columns: tuple[Column, ...] = (
             Column(f"steer_{front}", "rad", "the driver's steer-axle command", role="command", vehicle_unit=1),
-            Column("drive_force", "N", "the speed controller's drive force", role="command", vehicle_unit=1),
+            Column(
+                "drive_force",
+                "N",
+                "the speed controller's force demand (drive +, brake −)",
+                role="command",
+                vehicle_unit=1,
+            ),
             Column("speed_target", "m/s", "the speed profile's target", role="diagnostic", vehicle_unit=1),
             Column("path_progress", "m", "the control point's arc length along the path", role="state", vehicle_unit=1),
             Column(
@@ -124,13 +132,13 @@ class DriverParticipant:
             )
             front = self._sign * self.open_loop(tick.time)
         target = setup.speed_profile(driver.progress)
-        mu_drive = self.simulator.min_friction(self._driven)
+        mu_drive, mu_brake = self.simulator.min_frictions(self._driven, self._axles)
         limit = traction_limit(mu_drive, self._driven_load)
-        if self._grade_mass is None:
-            drive = self.speed_control(target, state.u, period, limit)
-        else:
+        brake = service_brake_limit(mu_brake, self._total_load)  # every axle brakes
+        grade = 0.0
+        if self._grade_mass is not None:
             grade = grade_feedforward(self._grade_mass, self.simulator.tractor_gravity()[0])
-            drive = self.speed_control(target, state.u, period, limit, grade)
+        drive = self.speed_control(target, state.u, period, limit, grade, brake)
         self.command = TractorCommand(front, drive, target)
         return self.command
 
