@@ -46,7 +46,7 @@ def axle_force_demand(
     A positive demand drives: it is shared among the driven axles in proportion to their static load
     (``force·F_z0/ΣF_z0,driven``; none on the others). A negative demand is the service brake of every axle of every
     unit: shared among all axles in proportion to their static load (``force·F_z0/ΣF_z0``, docs/vehicle_dynamics.md
-    §1.5), against the contact point's forward speed ``v_long`` (``tanh(v_long/ROLLING_SPEED)``).
+    §1.6), against the contact point's forward speed ``v_long`` (``tanh(v_long/ROLLING_SPEED)``).
     """
     brake = force * static_load / total_load * ca.tanh(v_long / ROLLING_SPEED)
     drive = force * static_load / driven_load if driven else ca.SX(0.0)
