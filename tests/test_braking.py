@@ -137,3 +137,28 @@ def test_speed_controller_brakes_to_the_brake_limit_and_drives_to_the_traction_l
     assert pi(0.0, 10.0, 0.1, drive_limit) == -drive_limit
     pi.reset()
     assert pi(0.0, 10.0, 0.1, brake_limit=1e9) == -pi.max_force  # max_force still bounds the brake
+
+
+def test_the_speed_controllers_stop_on_ice_brakes_at_its_limit(
+    reference: VehicleParams, reference_model: VehicleModel
+) -> None:
+    """The PI asked to stop from 10 m/s on ice, with the brake limit of every axle, decelerates over 3 s within 5 %
+    of ``0.6·μ·g`` plus rolling resistance and drag (analytic), more than twice the driven axle's traction limit
+    would allow."""
+    table = reference.axle_table
+    total_load = float(table.static_load.sum())
+    mass = sum(u.mass for u in reference.units)
+    sim = Simulator(reference, Surface(friction=UniformFriction(ICE)), model=reference_model, substeps=10)
+    sim.reset(initial_state(sim.layout, speed=SPEED))
+    pi = SpeedController(mass)
+    drive = traction_limit(ICE, float(table.static_load[table.driven].sum()))
+    brake = service_brake_limit(ICE, total_load)
+    for _ in range(150):  # 3 s
+        force = pi(0.0, sim.speed, sim.control_period, drive, brake_limit=brake)
+        assert force >= -brake
+        sim.step_inputs([0.0], force)
+    decel = (SPEED - sim.speed) / sim.time
+    rolling = float(np.sum([t.rolling_resistance * fz for t, fz in zip(table.tyres, table.static_load, strict=True)]))
+    drag = 0.5 * AIR_DENSITY * reference.tractor.drag_area * (0.5 * (SPEED + sim.speed)) ** 2
+    assert decel == pytest.approx((brake + rolling + drag) / mass, rel=0.05)
+    assert decel > 2.0 * (drive + rolling + drag) / mass
