@@ -191,12 +191,22 @@ class CamberConfig(Settings):
 
 
 class SpeedConfig(Settings):
-    """Speed profile: ``cornering_kmh`` on the manoeuvre, ``straight_kmh`` on entry and exit (default: the same)."""
+    """Speed profile: ``cornering_kmh`` on the manoeuvre, ``straight_kmh`` on entry and exit (default: the same),
+    with ``friction_share`` the driver slowing for the surface."""
 
     cornering_kmh: float = Field(15.0, gt=0.0, le=90.0, description=_SPEED)
     straight_kmh: float | None = Field(None, gt=0.0, le=90.0, description=_SPEED)
     acceleration: float = Field(
         0.5, gt=0.0, le=3.0, description="[m/s²]; 3 m/s² is beyond what a laden combination can do"
+    )
+    friction_share: float | None = Field(
+        None,
+        gt=0.0,
+        le=1.0,
+        description="share of the road's friction the driver plans with: the target speed capped so the lateral "
+        "acceleration on the path's curvature, and the acceleration and braking, stay within share·μ·g of the least "
+        "μ on the path (controller/friction_speed.py); unset: the profile as given; above 1 asks for more than the "
+        "road has",
     )
 
 

@@ -10,9 +10,10 @@ import numpy as np
 from scipy.optimize import root_scalar
 
 from controller.driver import SpeedProfile, StationSpeedProfile, kinematic_feedforward
+from controller.friction_speed import friction_limited_profile
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
-from vehicle_model.parameters import VehicleParams
+from vehicle_model.parameters import GRAVITY, VehicleParams
 from vehicle_model.simulator import VehicleState
 from vehicle_model.surface import (
     FlatRoad,
@@ -370,6 +371,13 @@ def build_scenario(config: ScenarioConfig, model: VehicleModel | None = None) ->
         cornering = profile.cornering
     else:
         profile = SpeedProfile(cornering, straight, path.turn_span[0], path.turn_span[1], config.speed.acceleration)
+    if config.speed.friction_share is not None:
+        # The driver plans for the least friction on the path (the base μ, a patch's or the road file's column).
+        least_mu = float(np.min(friction(path.points)))
+        profile = friction_limited_profile(
+            profile, path.s, path.curvature, least_mu, config.speed.friction_share, GRAVITY
+        )
+        cornering = profile.cornering if isinstance(profile, StationSpeedProfile) else cornering
     kinematic_slip = math.radians(config.path.slip_deg) if config.path.slip_deg is not None else None
     if kinematic_slip is None and config.path.kind != "straight":
         curvatures = feedforward_curvatures(path.curvature)

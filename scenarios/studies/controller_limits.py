@@ -1,8 +1,11 @@
 """The study ``controller-limits``: the path-following controller where its axles run out of reach.
 
 Each cell is a manoeuvre × surface × vehicle; each runs unsteered and with the controller fed by the true
-off-tracking and by the zero-slip estimate. A row holds the true off-tracking after warm-up (RMS, max), the share
-of the path beyond the steering's reach (:func:`scenarios.run.metrics.steering_reach`) and the axles' time at lock.
+off-tracking and by the zero-slip estimate. Every cell is driven as a driver who knows the surface would: the
+speed profile capped at :data:`FRICTION_SHARE` of the road's friction (``speed.friction_share``,
+:mod:`controller.friction_speed`), which leaves a profile the road allows untouched. A row holds the true
+off-tracking after warm-up (RMS, max), the share of the path beyond the steering's reach
+(:func:`scenarios.run.metrics.steering_reach`) and the axles' time at lock.
 The check of the study (docs/controller_design.md §3.5): on every cell the truth-fed loop's RMS and max are no more
 than the zero-slip-fed loop's and the unsteered loop's (:func:`truth_fed_check`).
 
@@ -34,6 +37,7 @@ from .workers import worker_models
 
 __all__ = [
     "FEEDBACKS",
+    "FRICTION_SHARE",
     "controller_limits_cases",
     "controller_limits_figures",
     "largest_outswing",
@@ -45,6 +49,9 @@ __all__ = [
 STUDY = "controller-limits"
 FEEDBACKS = ("none", "truth", "zero_slip")
 """The steering of each cell: unsteered, fed by the true off-tracking, fed by the zero-slip estimate."""
+FRICTION_SHARE = 0.6
+"""The share of the road's friction each cell's driver plans its speed with (``speed.friction_share``): the share the
+traction and brake limits use (:func:`controller.speed.traction_limit`)."""
 OPTIMAL = "optimal"
 """The label of a cell's optimal reference (``full`` only): the NLP's steer over the truth-fed PID's run."""
 REFERENCE_HOLDS = 0.10
@@ -66,6 +73,7 @@ def controller_limits_cases(
     *,
     cells: Sequence[tuple[str, str, str]] | None = None,
     optimal: bool | None = None,
+    friction_share: float | None = FRICTION_SHARE,
 ) -> list[CaseSpec]:
     """The cases: every cell × :data:`FEEDBACKS` (feedback fastest), and with ``optimal`` the cell's optimal reference
     (:data:`OPTIMAL`).
@@ -79,6 +87,8 @@ def controller_limits_cases(
         ``benchmarks/controller_limits_field.py``'s field manoeuvres).
     optimal
         Add each cell's optimal reference; default: with ``full`` only.
+    friction_share
+        ``speed.friction_share`` of every case; ``None``: the scenarios' speed profiles as they are.
     """
     if cells is None:
         cells = [(s, surface, "lst") for s in FULL_SCENARIOS for surface in FULL_SURFACES] if full else list(SUBSET)
@@ -93,6 +103,8 @@ def controller_limits_cases(
                 ("feedback", "truth" if feedback == OPTIMAL else feedback),
                 ("estimators.zero_slip", True),
             )
+            if friction_share is not None:
+                overrides += (("speed.friction_share", friction_share),)
             labels = (("scenario", scenario), ("surface", surface), ("vehicle", vehicle), ("feedback", feedback))
             cases.append(CaseSpec(STUDY, scenario, overrides, labels))
     return cases
