@@ -203,10 +203,9 @@ class SpeedConfig(Settings):
         None,
         gt=0.0,
         le=1.0,
-        description="share of the road's friction the driver plans with: the target speed capped so the lateral "
-        "acceleration on the path's curvature, and the acceleration and braking, stay within share·μ·g of the least "
-        "μ on the path (controller/friction_speed.py); unset: the profile as given; above 1 asks for more than the "
-        "road has",
+        description="share of the road's friction the driver plans with, in (0, 1]: the target speed capped so its "
+        "lateral acceleration, acceleration and braking stay within share·μ·g of the least μ on the path; unset: the "
+        "profile as given",
     )
 
 
