@@ -2,9 +2,9 @@
 stays within a share of the road's friction.
 
 Point-mass friction-circle speed planning (Kapania, Subosits & Gerdes 2016, "A sequential two-step algorithm for
-fast generation of vehicle racing trajectories", J. Dyn. Sys., Meas., Control 138(9), §3: the speed profile by a
-forward and a backward integration over the path). The vehicle is a point of mass that may use at most
-``a = share·μ·g`` of total acceleration, lateral and longitudinal together:
+fast generation of vehicle racing trajectories", J. Dyn. Sys., Meas., Control 138(9), 091005: its speed profile by
+a forward and a backward integration over the path, subject to the tyres' friction). The vehicle is a point of mass
+that may use at most ``a = share·μ·g`` of total acceleration, lateral and longitudinal together:
 
 * lateral: ``v²·|κ| ≤ a``, so ``v ≤ sqrt(a/|κ|)`` at a station of curvature ``κ``;
 * longitudinal: what the circle leaves, ``|a_x| ≤ sqrt(a² − (v²·κ)²)``, which is ``a`` on a straight;
