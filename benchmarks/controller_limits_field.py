@@ -3,7 +3,9 @@
 
 The cells are ``field-figure-eight``, ``field-roundabout-left`` and ``field-roundabout-right`` × dry, wet, ice × the
 LST; each runs unsteered, truth-fed and zero-slip-fed (:data:`scenarios.studies.controller_limits.FEEDBACKS`) and,
-unless ``--no-optimal``, its optimal reference (model-only; the study has no fused camera cell). The cases are the
+unless ``--no-optimal``, its optimal reference (model-only; the study has no fused camera cell), every case driven
+as the study drives it, slowing for the surface (``speed.friction_share`` at
+:data:`scenarios.studies.controller_limits.FRICTION_SHARE`). The cases are the
 study's own (:func:`scenarios.studies.controller_limits.controller_limits_cases` with ``cells``), run and gathered
 by the study's sweep: ``table.csv``/``table.md``, ``controller_limits.png`` and ``controller_limits.json`` (each
 cell's check) as ``offtrack study controller-limits`` writes them (each row with its largest outswing after warm-up,
