@@ -120,3 +120,40 @@ def test_the_estimates_uncertainty_widens_the_motion_covariance_along_the_optica
 def test_a_bad_baseline_is_refused(bad: float) -> None:
     with pytest.raises(ValueError, match="baseline"):
         RoadDisparityOffset(K, bad, PLANE)
+
+
+def test_the_odometry_with_the_correction_removes_a_growing_twist_end_to_end() -> None:
+    """Rendered planar pairs (camera 3 m up, pitched 8° down, 0.5 m forward per frame) whose right camera turns by a
+    further 0.03° every frame: the estimate is within 25 % of the injected yaw from the second frame on (the
+    odometry's sub-pixel matches compress fractions of a pixel a little), and the error of the motion along the
+    optical axis falls to under half of that without the correction."""
+    import cv2
+    from vo_synthetic import StereoRig, planar_sequence
+
+    from sensor.camera import rotation_rpy
+    from sensor.vo import StereoOdometry
+
+    rig = StereoRig()
+    sequence = planar_sequence(5, step=0.5, rig=rig)
+    yaws = [math.radians(0.03 * k) for k in range(5)]
+    size = (rig.width, rig.height)
+    rights = [
+        cv2.warpPerspective(image, rig.K @ rotation_rpy(0.0, 0.0, yaw).T @ np.linalg.inv(rig.K), size)
+        for image, yaw in zip(sequence.right, yaws, strict=True)
+    ]
+    normal = sequence.poses[0][:3, :3].T @ np.array([0.0, 1.0, 0.0])  # the ground's downward normal, camera axes
+    axial = {}
+    for corrected in (False, True):
+        offset = RoadDisparityOffset(rig.K, rig.baseline, RoadPlane(normal, 3.0)) if corrected else None
+        vo = StereoOdometry(rig.vo_config(), seed=0, match_correction=offset)
+        errors = []
+        for k in range(5):
+            result = vo.process(sequence.left[k], rights[k])
+            if k == 0:
+                continue
+            assert result.valid
+            errors.append(result.motion[2, 3] - sequence.true_motion(k)[2, 3])
+            if offset is not None:
+                assert abs(offset.last.yaw - yaws[k]) <= 0.25 * yaws[k]
+        axial[corrected] = float(np.sqrt(np.mean(np.square(errors))))
+    assert axial[True] < 0.5 * axial[False]
