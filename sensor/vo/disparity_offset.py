@@ -16,8 +16,7 @@ predicts the disparity of a road point seen on the left ray ``p_l = (x_l, y_l, 1
 which is affine in (u, v). A constant offset does not change the plane's slope in the image but its distance,
 which the mounting height fixes; so each road match measures ``ψ`` by ``d − d_plane = f·ψ·(1 + x_r²)``.
 Matches are road points when ``d_plane`` is at least ``min_road_disparity_px`` and ``d`` lies within
-``road_tolerance·d_plane`` of it with the filter's offset added (a relative height tolerance: kerbs, crops and
-bodies stand out; the offset so that a yaw that has grown keeps the road). The frame's
+``road_tolerance·d_plane`` of it (a relative height tolerance: kerbs, crops and bodies stand out). The frame's
 ``ψ`` is the Huber-weighted least-squares fit (Huber 1981; a few IRLS passes on residuals scaled by their MAD)
 and its variance the fit's ``s²/Σ w·a²`` with ``s`` the robust scale, floored at ``noise_px``.
 
@@ -164,12 +163,7 @@ class DisparityOffsetEstimate:
 
 
 def measure_road_yaw(
-    matches: np.ndarray,
-    k: np.ndarray,
-    baseline: float,
-    plane: RoadPlane,
-    settings: DisparityOffsetSettings,
-    expected: float = 0.0,
+    matches: np.ndarray, k: np.ndarray, baseline: float, plane: RoadPlane, settings: DisparityOffsetSettings
 ) -> tuple[float, float, int]:
     """One frame's right-camera yaw from its road matches ((DO1); module docstring).
 
@@ -185,9 +179,6 @@ def measure_road_yaw(
         The road plane in left-camera axes (its lateral window is not used).
     settings : DisparityOffsetSettings
         Road-point tolerances and the robust fit's parameters.
-    expected : float
-        The yaw expected [rad] (the filter's): road points are those within the tolerance of the plane's disparity
-        with this offset, so that a yaw that has grown does not push the road out of the tolerance.
 
     Returns
     -------
@@ -203,7 +194,7 @@ def measure_road_yaw(
     d_plane = f * baseline * ray / plane.height  # (DO1)
     z = (m[:, 0] - m[:, 2]) - d_plane
     road = (ray > 0.0) & (d_plane >= settings.min_road_disparity_px)
-    road &= np.abs(z - f * expected * (1.0 + xr**2)) <= settings.road_tolerance * np.maximum(d_plane, 1e-9)
+    road &= np.abs(z) <= settings.road_tolerance * np.maximum(d_plane, 1e-9)
     n = int(road.sum())
     if n < settings.min_road_points:
         return math.nan, math.nan, n
@@ -289,7 +280,7 @@ class RoadDisparityOffset:
         """Predict, then take this frame's road measurement if it has one ((DO1), the filter)."""
         s = self.settings
         self.variance += math.radians(s.walk_deg) ** 2
-        yaw, sigma, n = measure_road_yaw(stereo_matches, self.k, self.baseline, self.plane, s, self.yaw)
+        yaw, sigma, n = measure_road_yaw(stereo_matches, self.k, self.baseline, self.plane, s)
         reason = ""
         if not math.isfinite(yaw):
             reason = "too_few_road_points"
