@@ -25,6 +25,7 @@ from pydantic.fields import FieldInfo
 from sensor.camera import Lens
 from sensor.lighting import Lighting
 from sensor.mount_flex import MountFlex
+from sensor.vo.disparity_offset import DisparityOffsetSettings
 from sensor.vo.self_calibration import SelfCalibrationSettings
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.settings import Settings
@@ -89,6 +90,15 @@ class SelfCalibrationConfig(SelfCalibrationSettings):
     enabled: bool = False
 
 
+class DisparityOffsetConfig(DisparityOffsetSettings):
+    """The right camera's yaw (the pair's disparity offset) estimated from the road in every frame and taken out
+    of the odometry's matches (:mod:`sensor.vo.disparity_offset`, whose
+    :class:`~sensor.vo.disparity_offset.DisparityOffsetSettings` declare the ranges), and whether it runs. Off by
+    default (docs/field_bias.md §7.8)."""
+
+    enabled: bool = False
+
+
 class StereoRigConfig(Settings):
     """One stereo rig and its field conditions (defaults: the paper's simulation, §3.1).
 
@@ -148,6 +158,7 @@ class StereoRigConfig(Settings):
         description="sun, shadows, sky and auto-exposure (sensor.lighting.Lighting); sun: false is flat lighting",
     )
     self_calibration: SelfCalibrationConfig = SelfCalibrationConfig()
+    disparity_offset: DisparityOffsetConfig = DisparityOffsetConfig()
     vo_refinement: int = Field(
         2,
         ge=0,

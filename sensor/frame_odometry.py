@@ -29,6 +29,7 @@ from vehicle_model.parameters import VehicleParams
 
 from .viso_ot import STEP_COLUMNS, VisoOtEstimator
 from .vo import StereoOdometry, VOConfig, VOResult
+from .vo.disparity_offset import DISPARITY_OFFSET_COLUMNS, DisparityOffsetSettings, RoadDisparityOffset
 from .vo.quality import QUALITY_COLUMNS, REJECTION_REASONS
 from .vo.self_calibration import (
     SELF_CALIBRATION_COLUMNS,
@@ -42,6 +43,7 @@ __all__ = [
     "REJECTION_REASONS",
     "CameraFrame",
     "FrameOdometry",
+    "disparity_offset",
     "frame_quality",
     "self_calibration",
 ]
@@ -77,6 +79,9 @@ class CameraFrame:
     self_calibration : dict[str, float]
         Exactly the keys of :data:`sensor.vo.self_calibration.SELF_CALIBRATION_COLUMNS`: the online estimate of
         the right camera's residual rotation after this frame (NaN without a self-calibration).
+    disparity_offset : dict[str, float]
+        Exactly the keys of :data:`sensor.vo.disparity_offset.DISPARITY_OFFSET_COLUMNS`: the right camera's yaw
+        taken out of this frame's matches (NaN without the correction, or on a frame that had no matches).
     """
 
     estimate: float | None
@@ -91,6 +96,9 @@ class CameraFrame:
     vo_cpu_s: float = math.nan
     self_calibration: dict[str, float] = field(
         default_factory=lambda: dict.fromkeys(SELF_CALIBRATION_COLUMNS, math.nan)
+    )
+    disparity_offset: dict[str, float] = field(
+        default_factory=lambda: dict.fromkeys(DISPARITY_OFFSET_COLUMNS, math.nan)
     )
 
 
@@ -120,6 +128,15 @@ def self_calibration(
     return StereoSelfCalibration(k, vo_config.baseline, plane, settings)
 
 
+def disparity_offset(
+    vo_config: VOConfig, camera_in_trailer: np.ndarray, settings: DisparityOffsetSettings
+) -> RoadDisparityOffset:
+    """The right camera's yaw from the road (:mod:`sensor.vo.disparity_offset`) on the odometry's images: their
+    camera matrix and baseline (``vo_config``) and the road plane below their left camera (``camera_in_trailer``)."""
+    k = np.array([[vo_config.f, 0.0, vo_config.cu], [0.0, vo_config.f, vo_config.cv], [0.0, 0.0, 1.0]])
+    return RoadDisparityOffset(k, vo_config.baseline, RoadPlane.from_camera_pose(camera_in_trailer), settings)
+
+
 class FrameOdometry:
     """Visual odometry and VISO-OT on the pairs in frame order, with quality and reasons (module docstring).
 
@@ -143,6 +160,9 @@ class FrameOdometry:
     level_reference : str
         How VISO-OT finds the level on a road that is not a plane (:mod:`sensor.level_reference`): ``planar``
         (default, the level road), ``odometry`` or ``accelerometer`` (each frame's tilt given to :meth:`process`).
+    disparity_offset_settings : DisparityOffsetSettings, optional
+        Estimate the right camera's yaw (the pair's disparity offset) from the road in every frame and take it
+        out of the odometry's matches (:mod:`sensor.vo.disparity_offset`; ``None``: off).
     """
 
     def __init__(
@@ -155,8 +175,14 @@ class FrameOdometry:
         self_calibration_settings: SelfCalibrationSettings | None = None,
         unit: int = 1,
         level_reference: str = "planar",
+        disparity_offset_settings: DisparityOffsetSettings | None = None,
     ) -> None:
-        self.vo = StereoOdometry(vo_config, seed=seed)
+        self.disparity_offset = (
+            None
+            if disparity_offset_settings is None
+            else disparity_offset(vo_config, camera_in_trailer, disparity_offset_settings)
+        )
+        self.vo = StereoOdometry(vo_config, seed=seed, match_correction=self.disparity_offset)
         level = {} if level_reference == "planar" else {"level_reference": level_reference}
         self.estimator = VisoOtEstimator(params, camera_in_trailer, frame_interval=frame_interval, unit=unit, **level)
         self.frames = 0
@@ -191,6 +217,9 @@ class FrameOdometry:
                 size = (right.shape[1], right.shape[0])
                 right = cv2.warpPerspective(right, warp, size, flags=cv2.INTER_LINEAR)
         result = self.vo.process(left, right) if masks is None else self.vo.process(left, right, masks)
+        offset = dict.fromkeys(DISPARITY_OFFSET_COLUMNS, math.nan)
+        if self.disparity_offset is not None and result.n_matches > 0:  # the correction ran on this frame's matches
+            offset = self.disparity_offset.last.record()
         calibrated = dict.fromkeys(SELF_CALIBRATION_COLUMNS, math.nan)
         if calibration is not None:
             inliers = result.inliers if result.n_inliers > 0 else None
@@ -218,4 +247,5 @@ class FrameOdometry:
             estimate_reason="" if self.estimate is not None else (self.estimator.estimate_reason or "buffer_filling"),
             vo_cpu_s=cpu2 - cpu1,
             self_calibration=calibrated,
+            disparity_offset=offset,
         )

@@ -404,6 +404,7 @@ def frame_odometry(
     rig = rig_settings(cfg, rig_index)
     self_cal = rig.self_calibration
     settings = self_cal if self_cal.enabled else None  # the schema's section is the sensor's settings
+    offset = {"disparity_offset_settings": rig.disparity_offset} if rig.disparity_offset.enabled else {}
     unit = {"unit": rig.unit} if rig.unit != 1 else {}  # the first towed unit is the odometry's default
     return FrameOdometry(
         setup.params,
@@ -414,4 +415,5 @@ def frame_odometry(
         settings,
         **unit,
         **({} if level_reference == "planar" else {"level_reference": level_reference}),
+        **offset,
     )

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sensor.vo.config import VOConfig
+from sensor.vo.disparity_offset import MatchCorrection
 from sensor.vo.features import ImageFeatures, extract_features
 from sensor.vo.kalman import MotionKalmanFilter
 from sensor.vo.masks import mask_features
@@ -157,6 +158,10 @@ class StereoOdometry:
         Seed of the run's random generator (bucketing and RANSAC samples), or a generator to draw
         from. With an int seed, :meth:`reset` restarts the same random stream, so a reprocessed
         sequence gives identical output.
+    match_correction : MatchCorrection, optional
+        Corrects each frame's matches before the motion is estimated from them (e.g. the right camera's yaw,
+        :class:`sensor.vo.disparity_offset.RoadDisparityOffset`) and adds its own uncertainty to the accepted
+        motion's covariance; the result's ``matches`` stay as matched. None: the matches as they are.
 
     Examples
     --------
@@ -167,11 +172,14 @@ class StereoOdometry:
     ...         pose = pose @ result.camera_motion
     """
 
-    def __init__(self, config: VOConfig, seed: int | np.random.Generator = 0) -> None:
+    def __init__(
+        self, config: VOConfig, seed: int | np.random.Generator = 0, match_correction: MatchCorrection | None = None
+    ) -> None:
         if not isinstance(config, VOConfig):
             raise TypeError(f"config must be a VOConfig, got {type(config).__name__}")
         self.config = config
         self._seed = seed
+        self.match_correction = match_correction
         self._kalman = MotionKalmanFilter(config) if config.kalman_smoothing else None
         self.reset()
 
@@ -182,6 +190,8 @@ class StereoOdometry:
         self._prior: np.ndarray | None = None
         if self._kalman is not None:
             self._kalman.reset()
+        if self.match_correction is not None:
+            self.match_correction.reset()
 
     def scale_prior(self, ratio: float) -> None:
         """Stretch the next frame's motion prior to an interval ``ratio`` times the last one.
@@ -231,13 +241,19 @@ class StereoOdometry:
             return self._failed("no previous stereo pair (of this image size)", t0, t1, t1, code="no_previous_frame")
 
         xy = match_frames(previous, current, cfg, self._rng, self._prior).matches
+        correction = self.match_correction
+        used = xy if correction is None else correction.correct(xy)  # the recorded matches stay as matched
         t2 = _Clock()
-        estimate = estimate_motion(xy, cfg, self._rng)
+        estimate = estimate_motion(used, cfg, self._rng)
         quality = MotionQuality(estimate.n_inliers)
         code, reason = estimate.code or "vo_failed", estimate.reason
         if estimate.valid and estimate.params is not None:
-            quality = motion_quality(estimate.params, xy, estimate.inliers, cfg)
+            quality = motion_quality(estimate.params, used, estimate.inliers, cfg)
             code, reason = quality_failure(quality, cfg)
+            if not code and correction is not None and quality.covariance is not None:
+                # after the acceptance: the correction's own uncertainty widens the accepted motion's covariance
+                extra = correction.motion_covariance(estimate.params, used, estimate.inliers, cfg)
+                quality = MotionQuality(quality.n_inliers, quality.residual_px, quality.covariance + extra)
         if code:
             self._prior = None
             if self._kalman is not None:
