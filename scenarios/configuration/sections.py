@@ -333,6 +333,11 @@ class SideRigSettings(SideRigFusion):
     )
     kinematic_rear_point: RearPoint | None = "speed_compensated"
     kinematic_error_model: Literal["inflated", "state"] | None = "state"
+    coupling_reference: bool | None = Field(
+        True,
+        description="the following unit's camera (a rear rig) carried forward through the couplings as a slip-free "
+        "reference, where a unit behind has one (docs/field_bias.md §7.7)",
+    )
 
 
 class FusionConfig(FusionNoise):
