@@ -28,6 +28,16 @@ mapped through the Jacobian of (C1)::
 
     R_c = J_d·R_m·J_dᵀ + σ_Γ²·J_Γ·J_Γᵀ                                                                     (C2)
 
+The follower's odometry has its own systematic yaw error ``β_ψ`` per metre, with the translation error that comes
+with it (eq (3) of :mod:`sensor.fusion_model`); where the follower's own filter estimates it (against its gyro, which
+no slip affects) the follower's increment is taken less that error before (C1), and the estimate's variance
+``P_β`` is added to the follower's covariance::
+
+    z_m ← z_m − d·β̂_ψ·g,   R_m ← R_m + d²·P_β·g·gᵀ,   g = (κ·c_x, κ·c_y, 1),   d = z_m,x                 (C0)
+
+(``c`` the frame's yaw–translation regression from ``R_m``, ``κ`` = ``vo_bias_coupling``, as the follower's filter
+takes them).
+
 A follower camera that looks across its motion has the same axial errors as the lead's, so the follower is the
 nearest unit behind whose camera looks along its unit (a rear or front rig, :func:`looks_along`).
 """
@@ -179,13 +189,21 @@ class CouplingReference:
         covariance: np.ndarray | None,
         start: Sequence[float],
         end: Sequence[float],
+        yaw_bias: tuple[float, float] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """The lead's kingpin increment ``z`` and its 3×3 covariance ``R_c`` (C1)–(C2) from one follower camera
         motion (as :meth:`~sensor.fusion.FusedVisoOt.measure` takes it, with its 6×6 odometry covariance or
-        ``None``) and the articulations ``Γ_{j+1} … Γ_m`` at the frame's start and end (:meth:`articulations`)."""
+        ``None``) and the articulations ``Γ_{j+1} … Γ_m`` at the frame's start and end (:meth:`articulations`);
+        ``yaw_bias``: the follower's odometry yaw error ``β̂_ψ`` [rad/m] and its variance as its own filter
+        estimates them, taken out by (C0) (``None``: none)."""
         follower, r_follower = camera_increment(
             self.geometry, self.noise, np.asarray(camera_motion, dtype=float), covariance
         )
+        if yaw_bias is not None and all(math.isfinite(v) for v in yaw_bias):  # (C0)
+            g = np.array([*(self.noise.vo_bias_coupling * r_follower[:2, 2] / r_follower[2, 2]), 1.0])
+            d = float(follower[0])
+            follower = follower - d * yaw_bias[0] * g
+            r_follower = r_follower + d * d * yaw_bias[1] * np.outer(g, g)
         start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
         z = transport_increment(follower, self.rear_couplings, start, end)
         n = len(start)

@@ -19,7 +19,7 @@ from scenarios.loop.following_camera import FollowingCamera
 from sensor.camera import StereoRig
 from sensor.fusion import FusedVisoOt, FusionNoise, TractorSignals
 from sensor.fusion_coupling import CouplingReference, looks_along, transport_increment
-from sensor.fusion_model import relative_pose
+from sensor.fusion_model import camera_increment, relative_pose
 from sensor.fusion_noise import SideRigFusion
 from vehicle_model.errors import InputError
 from vehicle_model.geometry import ChainPose, unit_frame
@@ -63,6 +63,31 @@ def test_the_transport_is_the_rigid_bodies_motion(preset, lead, follower):
         np.testing.assert_allclose(z, truth, rtol=0.0, atol=1e-9)
         assert np.all(np.linalg.eigvalsh(r) > 0.0)
     assert np.max(np.abs(truth[:2])) > 0.3 and abs(truth[2]) > 0.01  # the frames move and turn
+
+
+def test_the_followers_yaw_error_is_taken_out_as_its_filter_estimates_it():
+    """(C0): with the follower's ``β̂_ψ`` the follower's increment is taken less ``d·β̂_ψ·(κc_x, κc_y, 1)`` before
+    the transport (the lead's yaw increment less ``d·β̂_ψ`` exactly), its variance widens the covariance, and
+    ``(0, 0)`` changes nothing to the bit."""
+    params = VEHICLE_PRESETS["au-b-double"]()
+    rig = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
+    noise = FusionNoise()
+    reference = CouplingReference(params, 1, 2, rig.camera_in_trailer("left", params), noise)
+    a, b = _swinging(1.0, 2), _swinging(1.2, 2)
+    motion = np.linalg.inv(rig.camera_in_world(params, a, "left")) @ rig.camera_in_world(params, b, "left")
+    covariance = np.diag([1e-6, 4e-6, 1e-6, 1e-4, 1e-5, 1e-4])
+    start, end = reference.articulations(a.angles), reference.articulations(b.angles)
+    z, r = reference.measurement(motion, covariance, start, end)
+    same = reference.measurement(motion, covariance, start, end, (0.0, 0.0))
+    np.testing.assert_array_equal(same[0], z)
+    np.testing.assert_array_equal(same[1], r)
+    corrected, widened = reference.measurement(motion, covariance, start, end, (1e-3, 1e-6))
+    follower, r_follower = camera_increment(reference.geometry, noise, motion, covariance)
+    g = np.array([*(noise.vo_bias_coupling * r_follower[:2, 2] / r_follower[2, 2]), 1.0])
+    taken = transport_increment(follower - follower[0] * 1e-3 * g, reference.rear_couplings, start, end)
+    np.testing.assert_allclose(corrected, taken, rtol=0.0, atol=1e-12)
+    assert corrected[2] - z[2] == pytest.approx(-follower[0] * 1e-3, abs=1e-12)  # the yaw error, d·β̂_ψ
+    assert widened[2, 2] - r[2, 2] == pytest.approx(follower[0] ** 2 * 1e-6, rel=1e-4)  # d²·P_β on the yaw
 
 
 def test_a_reference_needs_a_follower_behind_with_couplings():

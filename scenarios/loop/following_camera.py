@@ -16,13 +16,15 @@ interval does not start at the lead filter's anchor gives no measurement: the le
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import functools
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
 from sensor.fusion import CouplingMeasurement
 from sensor.fusion_coupling import CouplingReference, looks_along
+from sensor.fusion_model import BPSI
 from vehicle_model.parameters import VehicleParams
 
 from ..unit_feedback import estimate_key
@@ -47,6 +49,10 @@ class FollowingCamera:
         CouplingReference`).
     camera
         The follower's VISO-OT participant (:class:`~.camera_estimator.VisoOt`): its released frames.
+    follower_filter
+        Gives the follower's fused VISO-OT participant when there is one (``None``: none; looked up on every frame,
+        since it may be built after the lead's): its estimate of the follower odometry's yaw error is taken out of
+        each following frame ((C0) of :mod:`sensor.fusion_coupling`).
 
     Attributes
     ----------
@@ -54,9 +60,12 @@ class FollowingCamera:
         Following frames turned into a measurement so far.
     """
 
-    def __init__(self, reference: CouplingReference, camera: Any) -> None:
+    def __init__(
+        self, reference: CouplingReference, camera: Any, follower_filter: Callable[[], Any] | None = None
+    ) -> None:
         self.reference = reference
         self.camera = camera
+        self.follower_filter = follower_filter
         self.measurements = 0
         self._articulations: dict[int, tuple[float, ...]] = {}  # Γ_{j+1} … Γ_m by tick, from the last frame on
         self._last_frame: int | None = None  # the tick of the follower's last released frame
@@ -73,13 +82,23 @@ class FollowingCamera:
             before, after = self._articulations.get(start), self._articulations.get(int(shot.tick))
             if before is None or after is None:
                 continue
-            z, r = self.reference.measurement(frame.vo.camera_motion, frame.vo.covariance, before, after)
+            z, r = self.reference.measurement(
+                frame.vo.camera_motion, frame.vo.covariance, before, after, self._yaw_bias()
+            )
             if np.all(np.isfinite(z)) and np.all(np.isfinite(r)):
                 self._pending[int(shot.tick)] = CouplingMeasurement(start, z, r)
                 self.measurements += 1
         if self._last_frame is not None:  # the next frame's interval starts at the last frame
             for old in [t for t in self._articulations if t < self._last_frame]:
                 del self._articulations[old]
+
+    def _yaw_bias(self) -> tuple[float, float] | None:
+        """The follower's filter's ``β̂_ψ`` [rad/m] and its variance now (``None``: no such filter)."""
+        participant = self.follower_filter() if self.follower_filter is not None else None
+        fused = getattr(participant, "filter", None)
+        if fused is None:
+            return None
+        return float(fused.state[BPSI]), float(fused.covariance[BPSI, BPSI])
 
     def take(self, tick: int) -> CouplingMeasurement | None:
         """The measurement of the frame that ended on tick ``tick`` (``None``: none), forgetting older ones."""
@@ -94,7 +113,8 @@ def following_camera(
 ) -> FollowingCamera | None:
     """The reference of towed unit ``unit``'s filter: the nearest unit behind with a camera that looks along its unit
     (``unit_estimators``, the loop's per-unit estimators by key), or ``None`` — no such camera, or a camera or the
-    lead's motion made horizontal off the level road (``level`` not ``planar``), which (C1) does not model."""
+    lead's motion made horizontal off the level road (``level`` not ``planar``), which (C1) does not model. The
+    follower's fused filter, where it has one, gives its odometry's yaw error ((C0))."""
     if level != "planar":
         return None
     for follower in range(unit + 1, len(params.trailers) + 1):
@@ -103,5 +123,7 @@ def following_camera(
             continue
         if getattr(getattr(camera, "feed", None), "level_reference", "planar") != "planar":
             return None
-        return FollowingCamera(CouplingReference(params, unit, follower, camera.camera_in_trailer, noise), camera)
+        reference = CouplingReference(params, unit, follower, camera.camera_in_trailer, noise)
+        key = estimate_key("viso_ot_fused", follower)
+        return FollowingCamera(reference, camera, functools.partial(unit_estimators.get, key))
     return None
