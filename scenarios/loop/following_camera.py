@@ -8,9 +8,10 @@ increment over the same frame ((C1)–(C2) of :mod:`sensor.fusion_coupling`); th
 own frame of the same tick.
 
 Both cameras take their frames on the loop's one camera clock and release them after the one run-wide latency,
-so the two frames of a tick are released on the same tick; the following unit's participants update before the
-first unit's (:class:`~.further_units.FurtherUnitsParticipant` first, and within it front to rear), so its frames
-of the tick are there when the lead's filter takes its own. A following frame that failed, was refused, or whose
+so the two frames of a tick are released on the same tick; the following unit's camera updates before the lead's
+filter (:class:`~.further_units.FurtherUnitsParticipant` before the first unit's estimators, and within it every
+unit's camera before any unit's fused filter, the registry's order), so its frames of the tick are there when the
+lead's filter takes its own. A following frame that failed, was refused, or whose
 interval does not start at the lead filter's anchor gives no measurement: the lead takes its own frame alone.
 """
 
