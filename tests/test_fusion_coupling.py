@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from scenarios.loop.following_camera import FollowingCamera
+from scenarios.loop.following_camera import FollowingCamera, following_camera
 from sensor.camera import StereoRig
 from sensor.fusion import FusedVisoOt, FusionNoise, TractorSignals
 from sensor.fusion_coupling import CouplingReference, looks_along, transport_increment
@@ -208,3 +208,22 @@ def test_the_lead_runs_on_when_the_following_frames_fail():
     assert 200 < fused.coupling_updates <= fused.frames - 20
     assert len(errors) > 1000 and np.all(np.isfinite(errors))
     assert np.max(np.abs(errors[-100:])) < 0.02
+
+
+def test_the_follower_is_the_nearest_unit_behind_whose_camera_looks_along_it():
+    """The A-double's lead trailer skips the dolly's side rig for the rear trailer's rear rig; the dolly takes the
+    rear trailer's; the last unit, a run off the level road, or no camera behind give none."""
+    params = VEHICLE_PRESETS["au-a-double"]()
+
+    def camera(unit: int, psi: float) -> SimpleNamespace:
+        rig = StereoRig.from_degrees(psi_c2v_deg=psi, lateral=1.275 if psi == 270.0 else 0.0, unit=unit)
+        return SimpleNamespace(camera_in_trailer=rig.camera_in_trailer("left", params), released=[])
+
+    cameras = {"viso_ot3": camera(2, 270.0), "viso_ot4": camera(3, 180.0)}
+    noise = FusionNoise()
+    lead = following_camera(params, 1, cameras, noise, "planar")
+    assert lead is not None and lead.camera is cameras["viso_ot4"] and lead.reference.follower == 3
+    assert following_camera(params, 2, cameras, noise, "planar").reference.lead == 2  # the dolly
+    assert following_camera(params, 3, cameras, noise, "planar") is None
+    assert following_camera(params, 1, cameras, noise, "accelerometer") is None
+    assert following_camera(params, 1, {"viso_ot3": cameras["viso_ot3"]}, noise, "planar") is None
