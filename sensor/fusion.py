@@ -51,6 +51,7 @@ from vehicle_model.errors import InputError
 from vehicle_model.offtracking import OfftrackingBuffer, offtracking_from_path
 from vehicle_model.parameters import VehicleParams
 
+from .fusion_coupling import CouplingMeasurement
 from .fusion_model import (
     BG,
     BPSI,
@@ -74,6 +75,7 @@ __all__ = [
     "MIN_INNOVATION_RATIO",
     "STD_PARTS",
     "ChainSignals",
+    "CouplingMeasurement",
     "FusedVisoOt",
     "FusionNoise",
     "TractorSignals",
@@ -126,6 +128,8 @@ class FusedVisoOt:
         Its standard deviation [m] (NaN without an estimate).
     frames, updates, rejected : int
         Frames seen, motions used, motions refused by the gate.
+    coupling_updates, coupling_rejected : int
+        A following unit's measurements (:mod:`sensor.fusion_coupling`) used and refused by the gate.
     kinematic_std : float
         σ_k of (K2), the zero-slip measurement's standard deviation at the last tick [m/s] (NaN before the first):
         small where the filter trusts the kinematics, large where it has seen slip.
@@ -201,7 +205,8 @@ class FusedVisoOt:
         self.std = math.nan
         self.std_parts = dict.fromkeys(STD_PARTS, math.nan)
         self.frames = self.updates = self.rejected = 0
-        self._gated = 0
+        self.coupling_updates = self.coupling_rejected = 0
+        self._gated = self._coupling_gated = 0
         self._history: deque[_Tick] = deque()
         self._previous_input: tuple[float, float, float] | None = None
         x0, p0 = self._layout.start(n)
@@ -333,12 +338,16 @@ class FusedVisoOt:
         camera_motion: np.ndarray | None,
         covariance: np.ndarray | None = None,
         tilt: tuple[float, float] | None = None,
+        coupling: CouplingMeasurement | None = None,
     ) -> bool:
         """The motion of the frame taken on control tick ``tick`` (since the frame before it), released now.
 
         ``None`` (a failed, refused or dropped frame) commits the prediction to that tick. Ticks at or before
         the anchor are ignored. Returns whether the motion was used. Updates :attr:`estimate`. ``tilt``: the
         unit's (pitch, roll) [rad] when the frame was taken, required with ``level_reference="accelerometer"``.
+        ``coupling``: the kingpin increment over the same frame from a following unit's camera
+        (:mod:`sensor.fusion_coupling`), applied after the motion when ``noise.coupling_reference`` is on and it
+        starts at the anchor (otherwise, or ``None``, none).
         """
         given = self.geometry.given_tilt(tilt)
         if camera_motion is not None and np.all(np.isfinite(camera_motion)) and given is None:
@@ -350,13 +359,18 @@ class FusedVisoOt:
         else:
             level_tilt = given
         try:
-            return self._measure(tick, camera_motion, covariance, given)
+            return self._measure(tick, camera_motion, covariance, given, coupling)
         finally:
             if level_tilt is not None:  # the next frame's motion starts from this frame's tilt
                 self.geometry.tilt = level_tilt
 
     def _measure(
-        self, tick: int, camera_motion: np.ndarray | None, covariance: np.ndarray | None, given: np.ndarray | None
+        self,
+        tick: int,
+        camera_motion: np.ndarray | None,
+        covariance: np.ndarray | None,
+        given: np.ndarray | None,
+        reference: CouplingMeasurement | None = None,
     ) -> bool:
         """:meth:`measure` with the frame's tilt as a rotation (``None`` on the level road or integrated)."""
         if not self._history or tick <= self._history[0].tick:
@@ -416,9 +430,31 @@ class FusedVisoOt:
                 self.updates += 1
                 self._nis.append(min(nis, self.noise.gate))
                 self.innovation_ratio = max(MIN_INNOVATION_RATIO, float(np.mean(self._nis)) / 3.0)
+        if reference is not None and self.noise.coupling_reference and reference.start_tick == self._history[0].tick:
+            x, p = self._couple(x, p, reference)
         self._commit(index, x, p)
         self._read()
         return used
+
+    def _couple(self, x: np.ndarray, p: np.ndarray, coupling: CouplingMeasurement) -> tuple[np.ndarray, np.ndarray]:
+        """The following unit's measurement of ``(Δx, Δy, Δψ)`` ((C1) of :mod:`sensor.fusion_coupling`, ``H = [I₃ 0]``),
+        gated as the camera's motion."""
+        innovation = np.asarray(coupling.increment, dtype=float) - x[:3]
+        innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
+        s = p[:3, :3] + coupling.covariance
+        nis = float(innovation @ np.linalg.solve(s, innovation))
+        if nis > self.noise.gate and self._coupling_gated < self.noise.max_gated:
+            self._coupling_gated += 1
+            self.coupling_rejected += 1
+            return x, p
+        if nis > self.noise.gate:
+            s = p[:3, :3] + coupling.covariance * (nis / self.noise.gate)
+        self._coupling_gated = 0
+        k = np.linalg.solve(s, p[:3, :]).T  # P Hᵀ S⁻¹
+        x = x + k @ innovation
+        p = p - k @ p[:3, :]
+        self.coupling_updates += 1
+        return x, 0.5 * (p + p.T)
 
     def _commit(self, index: int, x: np.ndarray, p: np.ndarray) -> None:
         """Push the increments up to history ``index`` (ending at ``x``) and make that tick the anchor."""

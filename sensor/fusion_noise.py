@@ -22,7 +22,7 @@ class SideRigFusion(Settings):
     ----------
     vo_axial_flow, vo_axial_scale, vo_axial_scale_walk
         As :class:`FusionNoise`'s.
-    kinematic_rear_point, kinematic_error_model
+    kinematic_rear_point, kinematic_error_model, coupling_reference
         As :class:`FusionNoise`'s.
     """
 
@@ -33,6 +33,7 @@ class SideRigFusion(Settings):
     )
     kinematic_rear_point: RearPoint | None = None
     kinematic_error_model: Literal["inflated", "state"] | None = None
+    coupling_reference: bool | None = None
 
     def given(self) -> dict[str, object]:
         """The settings it gives (those not ``None``)."""
@@ -140,6 +141,13 @@ class FusionNoise(Settings):
         quadrature (0: none; a run's ``fusion`` settings add 0.005 m).
     innovation_window : int
         Camera motions over which the mean normalised innovation squared ``ρ`` of eq (5) is taken.
+    coupling_reference : bool
+        Take a following unit's camera, carried forward through the couplings with the measured articulations, as a
+        measurement of this unit's kingpin increment where the caller gives one (:mod:`sensor.fusion_coupling`;
+        off by default, a run's side rigs take it).
+    articulation_noise : float
+        White noise of one articulation sample [rad], in the covariance of that measurement ((C2) of
+        :mod:`sensor.fusion_coupling`).
     side_rig : SideRigFusion
         What a camera looking across its motion takes instead (:meth:`for_camera`; none by default, a run's
         ``fusion`` settings give the side camera's states).
@@ -242,6 +250,10 @@ class FusionNoise(Settings):
     )
     innovation_window: int = Field(
         50, ge=1, le=10000, description="camera motions in ρ of eq (5); one is no statistic, 10000 never adapts"
+    )
+    coupling_reference: bool = False
+    articulation_noise: float = Field(
+        8.7e-4, ge=0.0, le=0.1, description="[rad] per sample (sensor/datasheet.py); 0.1 rad is no articulation sensor"
     )
     side_rig: SideRigFusion = Field(default_factory=SideRigFusion)
 

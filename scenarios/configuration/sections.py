@@ -332,8 +332,10 @@ class EstimatorsConfig(Settings):
 
 class SideRigSettings(SideRigFusion):
     """A run's side-rig settings (``fusion.side_rig``): the odometry's error along the optical axis as states, found
-    against the speed-compensated zero-slip kinematics with their error as a state (docs/field_bias.md §7.5). A field
-    left out keeps this default; ``null`` gives the section's own value instead."""
+    against the speed-compensated zero-slip kinematics with their error as a state (docs/field_bias.md §7.5), and
+    against a following unit's rear camera carried forward through the couplings where a unit behind has one
+    (``coupling_reference``, :mod:`sensor.fusion_coupling`; docs/field_bias.md §7.7). A field left out keeps this
+    default; ``null`` gives the section's own value instead."""
 
     vo_axial_flow: float | None = Field(0.05, ge=0.0, le=1.0, description="[1/m] start std of s_f; 1 /m: 1 m per m²")
     vo_axial_scale: float | None = Field(0.04, ge=0.0, le=0.5, description="start std of s_z; 0.5 halves the axis")
@@ -342,6 +344,11 @@ class SideRigSettings(SideRigFusion):
     )
     kinematic_rear_point: RearPoint | None = "speed_compensated"
     kinematic_error_model: Literal["inflated", "state"] | None = "state"
+    coupling_reference: bool | None = Field(
+        True,
+        description="the following unit's camera (a rear rig) carried forward through the couplings as a slip-free "
+        "reference, where a unit behind has one (docs/field_bias.md §7.7)",
+    )
 
 
 class FusionConfig(FusionNoise):

@@ -29,6 +29,7 @@ from vehicle_model.offtracking import (
 )
 from vehicle_model.parameters import VehicleParams
 
+from .following_camera import FollowingCamera, following_camera
 from .participant import Column, LoopContext, TickInput
 
 __all__ = [
@@ -251,13 +252,24 @@ class FusedVisoOtEstimator:
         The towed unit it estimates (1: the first). A unit behind the first propagates on its own gyro, wheel speed
         and steer (the signals ``trailer_yaw_rate<k>``, … of :mod:`.plant`) and takes the tractor's zero-slip
         kinematics carried down the chain (:class:`sensor.fusion.ChainSignals`, with the gyros of the units ahead).
+    reference
+        A following unit's camera as a measurement of this unit's kingpin increments (:mod:`.following_camera`;
+        ``None``: none).
     """
 
     name = "viso_ot_fused"
     columns: tuple[Column, ...] = _fused_columns(1)
 
-    def __init__(self, params: VehicleParams, camera: object, noise: FusionNoise, unit: int = 1) -> None:
+    def __init__(
+        self,
+        params: VehicleParams,
+        camera: object,
+        noise: FusionNoise,
+        unit: int = 1,
+        reference: FollowingCamera | None = None,
+    ) -> None:
         self.camera = camera
+        self.reference = reference
         self.unit = unit
         self._suffix = "" if unit == 1 else str(unit + 1)
         if unit != 1:
@@ -291,10 +303,14 @@ class FusedVisoOtEstimator:
         fused = self.filter
         rate, speed, steer, signals = self._signals(tick.measured)
         fused.propagate(tick.index, tick.period, rate, speed, steer, signals)  # type: ignore[arg-type]
+        reference = self.reference
+        if reference is not None:
+            reference.observe(tick.index, tick.measured)
         for shot in self.camera.released:  # type: ignore[attr-defined]
             frame = shot.frame
             motion, covariance = (frame.vo.camera_motion, frame.vo.covariance) if frame.valid else (None, None)
-            fused.measure(shot.tick, motion, covariance, getattr(shot, "tilt", None))
+            coupling = reference.take(shot.tick) if reference is not None else None
+            fused.measure(shot.tick, motion, covariance, getattr(shot, "tilt", None), coupling)
         if fused.estimate is not None:
             self.estimate = OfftrackingEstimate(float(fused.estimate), fused.std)
         else:
@@ -356,6 +372,10 @@ def _fused(context: LoopContext, camera: object, unit: int) -> FusedVisoOtEstima
     config = context.setup.config
     fusion = config.fusion  # a FusionNoise with a run's defaults
     estimator = FusedVisoOtEstimator(context.setup.params, camera, fusion, unit)
+    fused = estimator.filter
+    if fused.noise.coupling_reference:  # a side rig's: the following unit's camera, where one looks along its unit
+        level = fused.geometry.level_reference
+        estimator.reference = following_camera(context.setup.params, unit, context.unit_estimators, fused.noise, level)
     if fusion.gyro_zeroing_s > 0.0:
         stream = [config.seed, GYRO_ZEROING_STREAM] + ([] if unit == 1 else [unit])
         rng = np.random.default_rng(stream)

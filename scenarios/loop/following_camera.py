@@ -1,0 +1,130 @@
+"""A following unit's camera as the reference of a side rig's filter in the loop (:mod:`sensor.fusion_coupling`).
+
+A towed unit whose fused filter has ``coupling_reference`` on (a side rig's, ``fusion.side_rig``) takes the camera of
+the nearest unit behind it whose camera looks along its unit (a rear rig: a side rig's motion has the axial errors
+the reference is to find). Each of that camera's released frames becomes, through the couplings between the two
+units and their measured articulations at the frame's start and end, a measurement of the lead unit's kingpin
+increment over the same frame ((C1)–(C2) of :mod:`sensor.fusion_coupling`); the lead's filter takes it with its
+own frame of the same tick.
+
+Both cameras take their frames on the loop's one camera clock and release them after the one run-wide latency,
+so the two frames of a tick are released on the same tick; the following unit's camera updates before the lead's
+filter (:class:`~.further_units.FurtherUnitsParticipant` before the first unit's estimators, and within it every
+unit's camera before any unit's fused filter, the registry's order), so its frames of the tick are there when the
+lead's filter takes its own. A following frame that failed, was refused, or whose
+interval does not start at the lead filter's anchor gives no measurement: the lead takes its own frame alone.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from sensor.fusion import CouplingMeasurement
+from sensor.fusion_coupling import CouplingReference, looks_along
+from sensor.fusion_model import BPSI
+from vehicle_model.parameters import VehicleParams
+
+from ..unit_feedback import estimate_key
+
+__all__ = ["FollowingCamera", "following_camera", "measured_articulations"]
+
+
+def measured_articulations(measured: Mapping[str, np.ndarray]) -> tuple[float, ...]:
+    """Every coupling's measured articulation from the tractor's fifth wheel back, ``Γ_1`` first [rad]
+    (``articulation``, then ``rear_articulation``)."""
+    rear = measured.get("rear_articulation")
+    return (float(measured["articulation"][0]), *(map(float, rear) if rear is not None else ()))
+
+
+class FollowingCamera:
+    """The measurements a following unit's camera gives the lead unit's filter, frame by frame (module notes).
+
+    Parameters
+    ----------
+    reference
+        The transport from the follower's camera to the lead's kingpin (:class:`~sensor.fusion_coupling.
+        CouplingReference`).
+    camera
+        The follower's VISO-OT participant (:class:`~.camera_estimator.VisoOt`): its released frames.
+    follower_filter
+        Gives the follower's fused VISO-OT participant when there is one (``None``: none; looked up on every frame,
+        since it may be built after the lead's): its estimate of the follower odometry's yaw error is taken out of
+        each following frame ((C0) of :mod:`sensor.fusion_coupling`).
+
+    Attributes
+    ----------
+    measurements : int
+        Following frames turned into a measurement so far.
+    """
+
+    def __init__(
+        self, reference: CouplingReference, camera: Any, follower_filter: Callable[[], Any] | None = None
+    ) -> None:
+        self.reference = reference
+        self.camera = camera
+        self.follower_filter = follower_filter
+        self.measurements = 0
+        self._articulations: dict[int, tuple[float, ...]] = {}  # Γ_{j+1} … Γ_m by tick, from the last frame on
+        self._last_frame: int | None = None  # the tick of the follower's last released frame
+        self._pending: dict[int, CouplingMeasurement] = {}  # by the tick of the frame's end
+
+    def observe(self, tick: int, measured: Mapping[str, np.ndarray]) -> None:
+        """Keep this tick's articulations; turn the follower's frames released on it into measurements."""
+        self._articulations[tick] = self.reference.articulations(measured_articulations(measured))
+        for shot in self.camera.released:
+            start, self._last_frame = self._last_frame, int(shot.tick)
+            frame = shot.frame
+            if start is None or frame is None or not frame.valid:
+                continue
+            before, after = self._articulations.get(start), self._articulations.get(int(shot.tick))
+            if before is None or after is None:
+                continue
+            z, r = self.reference.measurement(
+                frame.vo.camera_motion, frame.vo.covariance, before, after, self._yaw_bias()
+            )
+            if np.all(np.isfinite(z)) and np.all(np.isfinite(r)):
+                self._pending[int(shot.tick)] = CouplingMeasurement(start, z, r)
+                self.measurements += 1
+        if self._last_frame is not None:  # the next frame's interval starts at the last frame
+            for old in [t for t in self._articulations if t < self._last_frame]:
+                del self._articulations[old]
+
+    def _yaw_bias(self) -> tuple[float, float] | None:
+        """The follower's filter's ``β̂_ψ`` [rad/m] and its variance now (``None``: no such filter)."""
+        participant = self.follower_filter() if self.follower_filter is not None else None
+        fused = getattr(participant, "filter", None)
+        if fused is None:
+            return None
+        return float(fused.state[BPSI]), float(fused.covariance[BPSI, BPSI])
+
+    def take(self, tick: int) -> CouplingMeasurement | None:
+        """The measurement of the frame that ended on tick ``tick`` (``None``: none), forgetting older ones."""
+        found = self._pending.pop(tick, None)
+        for old in [t for t in self._pending if t < tick]:
+            del self._pending[old]
+        return found
+
+
+def following_camera(
+    params: VehicleParams, unit: int, unit_estimators: Mapping[str, Any], noise: Any, level: str
+) -> FollowingCamera | None:
+    """The reference of towed unit ``unit``'s filter: the nearest unit behind with a camera that looks along its unit
+    (``unit_estimators``, the loop's per-unit estimators by key), or ``None`` — no such camera, or a camera or the
+    lead's motion made horizontal off the level road (``level`` not ``planar``), which (C1) does not model. The
+    follower's fused filter, where it has one, gives its odometry's yaw error ((C0))."""
+    if level != "planar":
+        return None
+    for follower in range(unit + 1, len(params.trailers) + 1):
+        camera = unit_estimators.get(estimate_key("viso_ot", follower))
+        if camera is None or not looks_along(camera.camera_in_trailer):
+            continue
+        if getattr(getattr(camera, "feed", None), "level_reference", "planar") != "planar":
+            return None
+        reference = CouplingReference(params, unit, follower, camera.camera_in_trailer, noise)
+        key = estimate_key("viso_ot_fused", follower)
+        return FollowingCamera(reference, camera, functools.partial(unit_estimators.get, key))
+    return None

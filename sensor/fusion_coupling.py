@@ -1,0 +1,219 @@
+"""A following unit's camera as a reference for the unit ahead of it: its motion carried forward through the couplings.
+
+A side rig's filter (:class:`~sensor.fusion.FusedVisoOt` with a camera looking across its motion) has states of its
+odometry's error along the optical axis (eq (3') of :mod:`sensor.fusion_model`) that it finds against the zero-slip
+kinematics; where the tyres slide it learns the slide as that error (docs/field_bias.md §7.6). A coupling is a point
+shared by two rigid bodies, so the motion of a unit behind, measured by its own camera, gives the motion of the
+coupling it hangs on, and with the measured articulation the motion of the unit ahead, with no assumption about
+any tyre (docs/vehicle_dynamics.md §1.1; docs/fusion.md, *A following unit's camera*).
+
+Transport (ground plane, each unit's axes ISO 8855 with the origin at its front coupling). Units ``j`` (the lead,
+whose filter takes the reference) to ``m`` (the follower, whose camera moved), ``j < m``. Unit ``i`` has its rear
+coupling at ``p_i = (x5_i, 0)`` (its ``fifth_wheel_x``: a fifth wheel, a dolly's, or a tow hitch), which is the front
+coupling of unit ``i + 1``; ``Γ_{i+1} = ψ_i − ψ_{i+1}`` is the articulation of that coupling, ``Γ⁰`` at the frame's
+start and ``Γ¹`` at its end. The follower's front-coupling increment over the frame, ``(d_m, Δψ_m)`` in its axes at
+the frame's start (its camera's motion through eqs (1)–(2) of :mod:`sensor.viso_ot`), is carried forward unit by
+unit, ``i = m − 1, …, j``::
+
+    r_i  = R(−Γ⁰_{i+1})·d_{i+1}                    (the shared coupling's displacement, in unit i's start axes)
+    Δψ_i = Δψ_{i+1} + Γ¹_{i+1} − Γ⁰_{i+1}          (ψ_i = ψ_{i+1} + Γ_{i+1})
+    d_i  = r_i − (R(Δψ_i) − I)·p_i                  (rigid body i: its rear coupling is p_i from its front)     (C1)
+
+and ``(d_j, Δψ_j)`` measures the lead's kingpin increment ``(Δx, Δy, Δψ)`` since the frame's start directly
+(``H = [I₃ 0]``): it carries neither the lead camera's systematic errors nor the zero-slip assumption, so the
+lead's odometry states become observable against it on ice as on a dry road. Its covariance is the follower
+motion's 3×3 covariance (:func:`~sensor.fusion_model.camera_increment`, the follower camera's odometry
+covariance) and the articulation sensors' white noise ``σ_Γ`` (``articulation_noise``) on each ``Γ⁰``, ``Γ¹``,
+mapped through the Jacobian of (C1)::
+
+    R_c = J_d·R_m·J_dᵀ + σ_Γ²·J_Γ·J_Γᵀ                                                                     (C2)
+
+The follower's odometry has its own systematic yaw error ``β_ψ`` per metre, with the translation error that comes
+with it (eq (3) of :mod:`sensor.fusion_model`); where the follower's own filter estimates it (against its gyro, which
+no slip affects) the follower's increment is taken less that error before (C1), and the estimate's variance
+``P_β`` is added to the follower's covariance::
+
+    z_m ← z_m − d·β̂_ψ·g,   R_m ← R_m + d²·P_β·g·gᵀ,   g = (κ·c_x, κ·c_y, 1),   d = z_m,x                 (C0)
+
+(``c`` the frame's yaw–translation regression from ``R_m``, ``κ`` = ``vo_bias_coupling``, as the follower's filter
+takes them).
+
+A follower camera that looks across its motion has the same axial errors as the lead's, so the follower is the
+nearest unit behind whose camera looks along its unit (a rear or front rig, :func:`looks_along`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from vehicle_model.errors import InputError
+from vehicle_model.parameters import VehicleParams
+
+from .fusion_model import camera_increment
+from .fusion_noise import FusionNoise
+from .viso_ot import VisoOtEstimator
+
+__all__ = ["CouplingMeasurement", "CouplingReference", "looks_along", "transport_increment"]
+
+
+@dataclass(frozen=True)
+class CouplingMeasurement:
+    """The lead unit's kingpin increment over one frame from a following unit's camera, (C1)–(C2).
+
+    Attributes
+    ----------
+    start_tick : int
+        The control tick of the frame's start (the follower's previous frame): the filter takes it only where its
+        anchor is that tick.
+    increment : numpy.ndarray
+        ``(dx, dy, dψ)`` [m, m, rad] of the lead's kingpin, in its axes at the frame's start.
+    covariance : numpy.ndarray
+        Its 3×3 covariance ``R_c``.
+    """
+
+    start_tick: int
+    increment: np.ndarray
+    covariance: np.ndarray
+
+
+def _rotate(angle: float, v: np.ndarray) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+
+
+def transport_increment(
+    increment: Sequence[float],
+    rear_couplings: Sequence[float],
+    start: Sequence[float],
+    end: Sequence[float],
+) -> np.ndarray:
+    """The lead unit's front-coupling increment ``(dx, dy, dψ)`` from the follower's, (C1) of the module notes.
+
+    Parameters
+    ----------
+    increment
+        The follower's front-coupling increment ``(dx, dy, dψ)`` over the frame, in its axes at the frame's start
+        [m, m, rad].
+    rear_couplings
+        ``x5_i`` [m] of the units from the lead to the one ahead of the follower, front to rear: each one's rear
+        coupling station behind its front coupling (negative).
+    start, end
+        The articulations ``Γ_{j+1} … Γ_m`` [rad] of the couplings from the lead's rear to the follower's front,
+        front to rear, at the frame's start and end (one per entry of ``rear_couplings``).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(dx, dy, dψ)`` of the lead's front coupling, in its axes at the frame's start.
+    """
+    if not len(rear_couplings) == len(start) == len(end) >= 1:
+        raise InputError(
+            f"the transport needs one articulation at each end per coupling: {len(rear_couplings)} coupling(s), "
+            f"{len(start)} and {len(end)} articulation(s)"
+        )
+    d = np.array([float(increment[0]), float(increment[1])])
+    dpsi = float(increment[2])
+    for x5, g0, g1 in zip(reversed(rear_couplings), reversed(start), reversed(end), strict=True):
+        r = _rotate(-float(g0), d)
+        dpsi = dpsi + float(g1) - float(g0)
+        c, s = math.cos(dpsi), math.sin(dpsi)
+        d = r - np.array([(c - 1.0) * x5, s * x5])  # (R(Δψ) − I)·(x5, 0)
+    return np.array([d[0], d[1], dpsi])
+
+
+def looks_along(camera_in_unit: np.ndarray) -> bool:
+    """Whether a camera posed ``camera_in_unit`` (4×4, in its unit's frame) looks along its unit (a rear or front rig)
+    rather than across it (a side rig): its optical axis's ground-plane part nearer the unit's x axis."""
+    axis = np.asarray(camera_in_unit, dtype=float)[:2, 2]
+    return bool(abs(axis[1]) <= abs(axis[0]))
+
+
+class CouplingReference:
+    """(C1)–(C2): a following unit's camera motion as a measurement of the lead unit's kingpin increment.
+
+    Parameters
+    ----------
+    params
+        The combination (each unit's rear coupling, the follower's front coupling and camera geometry).
+    lead
+        The towed unit whose filter takes the measurement (1 the first).
+    follower
+        The towed unit behind it whose camera moved (``lead < follower``).
+    camera_in_follower
+        4×4 pose of the follower's left camera in the follower's frame.
+    noise
+        The covariance scale and floors of the follower's odometry (:func:`~sensor.fusion_model.camera_increment`)
+        and ``articulation_noise``.
+
+    Raises
+    ------
+    InputError
+        ``follower`` not behind ``lead`` within the combination, or a unit between them without a rear coupling.
+    """
+
+    def __init__(
+        self,
+        params: VehicleParams,
+        lead: int,
+        follower: int,
+        camera_in_follower: np.ndarray,
+        noise: FusionNoise,
+    ) -> None:
+        if not 1 <= lead < follower <= len(params.trailers):
+            raise InputError(
+                f"a coupling reference needs a follower behind the lead unit within the combination's "
+                f"{len(params.trailers)} towed unit(s): lead {lead}, follower {follower}"
+            )
+        stations = [params.trailers[i - 1].fifth_wheel_x for i in range(lead, follower)]
+        if any(x is None for x in stations):
+            raise InputError(f"units {lead}–{follower - 1} must each tow the one behind (a rear coupling)")
+        self.lead, self.follower = lead, follower
+        self.rear_couplings = [float(x) for x in stations if x is not None]
+        self.geometry = VisoOtEstimator(params, camera_in_follower, unit=follower)
+        self.noise = noise
+
+    def articulations(self, articulations: Sequence[float]) -> tuple[float, ...]:
+        """The articulations (C1) takes, ``Γ_{j+1} … Γ_m``, out of every coupling's from the tractor back
+        (:attr:`~sensor.unit_kinematics.ChainSignals.articulations`, ``Γ_1`` first)."""
+        if len(articulations) < self.follower:
+            raise InputError(f"the coupling reference needs {self.follower} articulations, got {len(articulations)}")
+        return tuple(float(g) for g in articulations[self.lead : self.follower])
+
+    def measurement(
+        self,
+        camera_motion: np.ndarray,
+        covariance: np.ndarray | None,
+        start: Sequence[float],
+        end: Sequence[float],
+        yaw_bias: tuple[float, float] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The lead's kingpin increment ``z`` and its 3×3 covariance ``R_c`` (C1)–(C2) from one follower camera
+        motion (as :meth:`~sensor.fusion.FusedVisoOt.measure` takes it, with its 6×6 odometry covariance or
+        ``None``) and the articulations ``Γ_{j+1} … Γ_m`` at the frame's start and end (:meth:`articulations`);
+        ``yaw_bias``: the follower's odometry yaw error ``β̂_ψ`` [rad/m] and its variance as its own filter
+        estimates them, taken out by (C0) (``None``: none)."""
+        follower, r_follower = camera_increment(
+            self.geometry, self.noise, np.asarray(camera_motion, dtype=float), covariance
+        )
+        if yaw_bias is not None and all(math.isfinite(v) for v in yaw_bias):  # (C0)
+            g = np.array([*(self.noise.vo_bias_coupling * r_follower[:2, 2] / r_follower[2, 2]), 1.0])
+            d = float(follower[0])
+            follower = follower - d * yaw_bias[0] * g
+            r_follower = r_follower + d * d * yaw_bias[1] * np.outer(g, g)
+        start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+        z = transport_increment(follower, self.rear_couplings, start, end)
+        n = len(start)
+        jac = np.empty((3, 3 + 2 * n))  # ∂z/∂(follower increment, Γ⁰, Γ¹), numerically
+        h = 1e-7
+        for i in range(3 + 2 * n):
+            args = np.concatenate([follower, start, end])
+            args[i] += h
+            moved = transport_increment(args[:3], self.rear_couplings, args[3 : 3 + n], args[3 + n :])
+            jac[:, i] = (moved - z) / h
+        j_d, j_g = jac[:, :3], jac[:, 3:]
+        r = j_d @ r_follower @ j_d.T + self.noise.articulation_noise**2 * (j_g @ j_g.T)  # (C2)
+        return z, 0.5 * (r + r.T)
