@@ -62,6 +62,7 @@ from .fusion_model import (
     apply_rows,
     camera_displacement,
     camera_increment,
+    gated_update,
     into_frame,
     relative_pose,
 )
@@ -402,9 +403,6 @@ class FusedVisoOt:
                     h[:2, self._sf] = across * abs(across) * self._optical_axis
             innovation = z - h @ x
             innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
-            ph = p @ h.T
-            s = h @ ph + r
-            nis = float(innovation @ np.linalg.solve(s, innovation))
             interval = sum(t.inputs[0] for t in list(self._history)[1 : index + 1])
             kinematic_y = kinematic_lateral_step(
                 [(t.inputs, t.tractor_lateral) for t in list(self._history)[1 : index + 1]], x
@@ -415,18 +413,13 @@ class FusedVisoOt:
                     if i is not None:
                         camera_y -= h[1, i] * x[i]
                 self._evidence.weigh(camera_y - kinematic_y, float(r[1, 1]), interval)
-            if nis > self.noise.gate and self._gated < self.noise.max_gated:
+            refuse = self._gated < self.noise.max_gated
+            x, p, nis, used = gated_update(x, p, h, innovation, r, self.noise.gate, refuse)
+            if not used:
                 self._gated += 1
                 self.rejected += 1
             else:
-                if nis > self.noise.gate:
-                    s = h @ ph + r * (nis / self.noise.gate)
                 self._gated = 0
-                k = np.linalg.solve(s, ph.T).T  # P Hᵀ S⁻¹
-                x = x + k @ innovation
-                p = p - k @ h @ p
-                p = 0.5 * (p + p.T)
-                used = True
                 self.updates += 1
                 self._nis.append(min(nis, self.noise.gate))
                 self.innovation_ratio = max(MIN_INNOVATION_RATIO, float(np.mean(self._nis)) / 3.0)
@@ -439,22 +432,19 @@ class FusedVisoOt:
     def _couple(self, x: np.ndarray, p: np.ndarray, coupling: CouplingMeasurement) -> tuple[np.ndarray, np.ndarray]:
         """The following unit's measurement of ``(Δx, Δy, Δψ)`` ((C1) of :mod:`sensor.fusion_coupling`, ``H = [I₃ 0]``),
         gated as the camera's motion."""
+        h = np.zeros((3, self._states))
+        h[:, :3] = np.eye(3)
         innovation = np.asarray(coupling.increment, dtype=float) - x[:3]
         innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
-        s = p[:3, :3] + coupling.covariance
-        nis = float(innovation @ np.linalg.solve(s, innovation))
-        if nis > self.noise.gate and self._coupling_gated < self.noise.max_gated:
+        refuse = self._coupling_gated < self.noise.max_gated
+        x, p, _, used = gated_update(x, p, h, innovation, coupling.covariance, self.noise.gate, refuse)
+        if not used:
             self._coupling_gated += 1
             self.coupling_rejected += 1
-            return x, p
-        if nis > self.noise.gate:
-            s = p[:3, :3] + coupling.covariance * (nis / self.noise.gate)
-        self._coupling_gated = 0
-        k = np.linalg.solve(s, p[:3, :]).T  # P Hᵀ S⁻¹
-        x = x + k @ innovation
-        p = p - k @ p[:3, :]
-        self.coupling_updates += 1
-        return x, 0.5 * (p + p.T)
+        else:
+            self._coupling_gated = 0
+            self.coupling_updates += 1
+        return x, p
 
     def _commit(self, index: int, x: np.ndarray, p: np.ndarray) -> None:
         """Push the increments up to history ``index`` (ending at ``x``) and make that tick the anchor."""

@@ -333,3 +333,25 @@ def into_frame(poses: np.ndarray, origin: np.ndarray) -> np.ndarray:
     x = poses[:, 0] - origin[0]
     y = poses[:, 1] - origin[1]
     return np.column_stack([c * x + s * y, -s * x + c * y, poses[:, 2] - origin[2]])
+
+
+def gated_update(
+    x: np.ndarray, p: np.ndarray, h: np.ndarray, innovation: np.ndarray, r: np.ndarray, gate: float, refuse: bool
+) -> tuple[np.ndarray, np.ndarray, float, bool]:
+    """One Kalman update behind a χ² gate: ``(x, p, nis, used)``.
+
+    ``nis`` is the normalised innovation squared against ``S = H P Hᵀ + R``. Above ``gate`` the measurement is refused
+    when ``refuse`` (the state comes back as it was), or else taken with ``R`` inflated by ``nis / gate`` so that it
+    sits on the gate (a run of refusals ends in a softened update rather than a filter that stops listening).
+    """
+    ph = p @ h.T
+    s = h @ ph + r
+    nis = float(innovation @ np.linalg.solve(s, innovation))
+    if nis > gate and refuse:
+        return x, p, nis, False
+    if nis > gate:
+        s = h @ ph + r * (nis / gate)
+    k = np.linalg.solve(s, ph.T).T  # P Hᵀ S⁻¹
+    x = x + k @ innovation
+    p = p - k @ h @ p
+    return x, 0.5 * (p + p.T), nis, True
