@@ -548,19 +548,20 @@ def _survivors(processes: list[psutil.Process], within: float) -> list[int]:
         time.sleep(0.05)
 
 
+@pytest.mark.parametrize("count", [1, pytest.param(2, marks=pytest.mark.slow)])  # one: the default
 @pytest.mark.parametrize("moment", ["while the workers start", "mid-run"])
 def test_no_render_worker_survives_a_sigkill_of_its_pipelined_camera_run(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, moment: str
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, moment: str, count: int
 ) -> None:
     # SIGKILL gives the run no chance to stop its workers: they must end by themselves, also while they are still
     # building their world and OpenGL context (several seconds, in which an idle worker's closed pipe is not read).
-    monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", "2")
+    monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", str(count))
     out = tmp_path / "r"
     proc = start(
         "run", "roundabout-3", "--set", "estimators.viso_ot=true", "--duration", "120", "--no-plots", "--out", str(out)
     )
     try:
-        workers = _render_workers(proc, 2, busy_s=0.5)
+        workers = _render_workers(proc, count, busy_s=0.5)
         if moment == "mid-run":
             wait_for_rows(out, proc, timeout=240.0)
             frame = pd.read_parquet(out / "timeseries.parquet")
