@@ -49,6 +49,20 @@ def offtrack(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
     )
 
 
+def offtrack_in_process(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], *args: str
+) -> subprocess.CompletedProcess:
+    """``offtrack ARGS`` through ``main()`` in this process, for a command that ends before any work: its exit code
+    and output as a process's."""
+    from scenarios.cli import main
+
+    monkeypatch.setattr(sys, "argv", ["offtrack", *args])
+    with pytest.raises(SystemExit) as stopped:
+        main()
+    captured = capsys.readouterr()
+    return subprocess.CompletedProcess(args, stopped.value.code, captured.out, captured.err)
+
+
 def start(*args: str) -> subprocess.Popen:
     return subprocess.Popen(
         [sys.executable, "-c", "from scenarios.cli import main; main()", *args],
@@ -132,14 +146,7 @@ def test_bad_input_is_one_line_and_exit_2_in_process(
     args: list[str], named: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     # The same property as above without a process start per case: ``main()`` exits 2 with one line naming it.
-    from scenarios.cli import main
-
-    monkeypatch.setattr(sys, "argv", ["offtrack", *args])
-    with pytest.raises(SystemExit) as stopped:
-        main()
-    captured = capsys.readouterr()
-    result = subprocess.CompletedProcess(args, stopped.value.code, captured.out, captured.err)
-    assert_one_line_error(result, named)
+    assert_one_line_error(offtrack_in_process(monkeypatch, capsys, *args), named)
 
 
 def test_bad_input_is_refused_before_any_work(tmp_path: Path) -> None:
@@ -156,13 +163,24 @@ def test_a_study_setting_a_case_refuses_stops_before_any_work(tmp_path: Path) ->
     assert not (tmp_path / "s").exists()
 
 
-@pytest.mark.parametrize("where", ["file", "under_file"])
-def test_an_unusable_out_is_named(tmp_path: Path, where: str) -> None:
+@pytest.mark.parametrize(
+    ("where", "in_a_process"),
+    [("file", True), ("under_file", False), pytest.param("under_file", True, marks=pytest.mark.slow)],
+)
+def test_an_unusable_out_is_named(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    where: str,
+    in_a_process: bool,
+) -> None:
     blocker = tmp_path / "blocker"
     blocker.write_text("not a directory")
     out = blocker if where == "file" else blocker / "run"
-    assert_one_line_error(offtrack("run", "roundabout-test", "--duration", "2", "--out", str(out)), "--out")
-    assert_one_line_error(offtrack("render", "roundabout-test", "--frames", "2", "--out", str(out)), "--out")
+    for args in (("run", "roundabout-test", "--duration", "2"), ("render", "roundabout-test", "--frames", "2")):
+        command = (*args, "--out", str(out))
+        result = offtrack(*command) if in_a_process else offtrack_in_process(monkeypatch, capsys, *command)
+        assert_one_line_error(result, "--out")
 
 
 def test_an_unreachable_scheduler_is_named_quickly(tmp_path: Path) -> None:
