@@ -49,6 +49,20 @@ def offtrack(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
     )
 
 
+def offtrack_in_process(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], *args: str
+) -> subprocess.CompletedProcess:
+    """``offtrack ARGS`` through ``main()`` in this process, for a command that ends before any work: its exit code
+    and output as a process's."""
+    from scenarios.cli import main
+
+    monkeypatch.setattr(sys, "argv", ["offtrack", *args])
+    with pytest.raises(SystemExit) as stopped:
+        main()
+    captured = capsys.readouterr()
+    return subprocess.CompletedProcess(args, stopped.value.code, captured.out, captured.err)
+
+
 def start(*args: str) -> subprocess.Popen:
     return subprocess.Popen(
         [sys.executable, "-c", "from scenarios.cli import main; main()", *args],
@@ -132,14 +146,7 @@ def test_bad_input_is_one_line_and_exit_2_in_process(
     args: list[str], named: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     # The same property as above without a process start per case: ``main()`` exits 2 with one line naming it.
-    from scenarios.cli import main
-
-    monkeypatch.setattr(sys, "argv", ["offtrack", *args])
-    with pytest.raises(SystemExit) as stopped:
-        main()
-    captured = capsys.readouterr()
-    result = subprocess.CompletedProcess(args, stopped.value.code, captured.out, captured.err)
-    assert_one_line_error(result, named)
+    assert_one_line_error(offtrack_in_process(monkeypatch, capsys, *args), named)
 
 
 def test_bad_input_is_refused_before_any_work(tmp_path: Path) -> None:
@@ -156,13 +163,24 @@ def test_a_study_setting_a_case_refuses_stops_before_any_work(tmp_path: Path) ->
     assert not (tmp_path / "s").exists()
 
 
-@pytest.mark.parametrize("where", ["file", "under_file"])
-def test_an_unusable_out_is_named(tmp_path: Path, where: str) -> None:
+@pytest.mark.parametrize(
+    ("where", "in_a_process"),
+    [("file", True), ("under_file", False), pytest.param("under_file", True, marks=pytest.mark.slow)],
+)
+def test_an_unusable_out_is_named(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    where: str,
+    in_a_process: bool,
+) -> None:
     blocker = tmp_path / "blocker"
     blocker.write_text("not a directory")
     out = blocker if where == "file" else blocker / "run"
-    assert_one_line_error(offtrack("run", "roundabout-test", "--duration", "2", "--out", str(out)), "--out")
-    assert_one_line_error(offtrack("render", "roundabout-test", "--frames", "2", "--out", str(out)), "--out")
+    for args in (("run", "roundabout-test", "--duration", "2"), ("render", "roundabout-test", "--frames", "2")):
+        command = (*args, "--out", str(out))
+        result = offtrack(*command) if in_a_process else offtrack_in_process(monkeypatch, capsys, *command)
+        assert_one_line_error(result, "--out")
 
 
 def test_an_unreachable_scheduler_is_named_quickly(tmp_path: Path) -> None:
@@ -490,11 +508,12 @@ def test_run_files_are_readable_by_others_and_force_clears_the_old_run(tmp_path:
     assert json.loads((out / "metrics.json").read_text())["simulated_s"] == pytest.approx(4.0, abs=0.05)
 
 
+@pytest.mark.parametrize("count", [1, pytest.param(2, marks=pytest.mark.slow)])  # one: the default
 def test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, count: int
 ) -> None:
     # The camera rendered by spawned worker processes; SIGTERM stops them and keeps the rows.
-    monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", "2")
+    monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", str(count))
     out = tmp_path / "r"
     proc = start(
         "run", "roundabout-3", "--set", "estimators.viso_ot=true", "--duration", "120", "--no-plots", "--out", str(out)
@@ -502,7 +521,7 @@ def test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers(
     wait_for_rows(out, proc, timeout=240.0)
     listed = subprocess.run(["ps", "-o", "pid=", "--ppid", str(proc.pid)], capture_output=True, text=True).stdout
     workers = [int(p) for p in listed.split()]
-    assert len(workers) >= 2  # the render workers
+    assert len(workers) >= count  # the render workers
     proc.send_signal(signal.SIGTERM)
     _stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 143, stderr
@@ -547,19 +566,20 @@ def _survivors(processes: list[psutil.Process], within: float) -> list[int]:
         time.sleep(0.05)
 
 
+@pytest.mark.parametrize("count", [1, pytest.param(2, marks=pytest.mark.slow)])  # one: the default
 @pytest.mark.parametrize("moment", ["while the workers start", "mid-run"])
 def test_no_render_worker_survives_a_sigkill_of_its_pipelined_camera_run(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, moment: str
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, moment: str, count: int
 ) -> None:
     # SIGKILL gives the run no chance to stop its workers: they must end by themselves, also while they are still
     # building their world and OpenGL context (several seconds, in which an idle worker's closed pipe is not read).
-    monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", "2")
+    monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", str(count))
     out = tmp_path / "r"
     proc = start(
         "run", "roundabout-3", "--set", "estimators.viso_ot=true", "--duration", "120", "--no-plots", "--out", str(out)
     )
     try:
-        workers = _render_workers(proc, 2, busy_s=0.5)
+        workers = _render_workers(proc, count, busy_s=0.5)
         if moment == "mid-run":
             wait_for_rows(out, proc, timeout=240.0)
             frame = pd.read_parquet(out / "timeseries.parquet")

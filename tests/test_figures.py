@@ -291,11 +291,16 @@ def _offtrack(*args: str) -> subprocess.CompletedProcess:
     )
 
 
-def test_format_svg_writes_svg_plots_and_a_bad_format_exits_2(tmp_path: Path) -> None:
+def test_format_svg_writes_svg_plots_and_a_bad_format_exits_2(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The refusals run in-process (the exit code a process gets from ``main()`` is tested in test_faults.py).
+    from test_faults import offtrack_in_process
+
     for command in (["run", "roundabout-test"], ["report", str(tmp_path)], ["compare", "roundabout-test"]):
-        bad = _offtrack(*command, "--format", "jpg", "--out", str(tmp_path / "bad"))
+        bad = offtrack_in_process(monkeypatch, capsys, *command, "--format", "jpg", "--out", str(tmp_path / "bad"))
         if command[0] == "report":
-            bad = _offtrack(*command, "--format", "jpg")
+            bad = offtrack_in_process(monkeypatch, capsys, *command, "--format", "jpg")
         assert bad.returncode == 2, command
         lines = bad.stderr.strip().splitlines()
         assert len(lines) == 1 and "--format" in lines[0] and "png, svg or pdf" in lines[0]

@@ -51,11 +51,12 @@ def assert_same_series(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> No
     assert differ == []
 
 
-def test_pipelined_and_serial_runs_are_identical_at_the_default_latency() -> None:
+@pytest.mark.parametrize("workers", [1, pytest.param(2, marks=pytest.mark.slow)])  # one: the default
+def test_pipelined_and_serial_runs_are_identical_at_the_default_latency(workers: int) -> None:
     serial_outcome, serial = camera_run(0)
-    piped_outcome, piped = camera_run(2)
+    piped_outcome, piped = camera_run(workers)
     assert serial_outcome.status == piped_outcome.status == "completed"
-    assert piped_outcome.camera["workers"] == 2 and piped_outcome.camera["latency_ticks"] == 5
+    assert piped_outcome.camera["workers"] == workers and piped_outcome.camera["latency_ticks"] == 5
     assert_same_series(serial, piped)
     # the first frames' one-off costs (OpenGL contexts, kernels) are kept apart for the benchmark
     for cam in (serial_outcome.camera, piped_outcome.camera):
@@ -119,7 +120,8 @@ def test_default_workers_follow_the_environment_and_the_run_length(monkeypatch: 
         default_workers(10)
 
 
-def test_a_render_worker_that_dies_ends_the_run_with_a_clear_status() -> None:
+@pytest.mark.parametrize("workers", [1, pytest.param(2, marks=pytest.mark.slow)])
+def test_a_render_worker_that_dies_ends_the_run_with_a_clear_status(workers: int) -> None:
     killed: list[int] = []
     niceness: list[int] = []
 
@@ -130,7 +132,7 @@ def test_a_render_worker_that_dies_ends_the_run_with_a_clear_status() -> None:
             os.kill(worker.pid, signal.SIGKILL)
             killed.append(worker.pid)
 
-    outcome, columns = camera_run(2, duration=30.0, progress=kill_a_worker)
+    outcome, columns = camera_run(workers, duration=30.0, progress=kill_a_worker)
     assert killed
     # the workers yield to the co-simulation process (the critical path)
     assert niceness == [min(os.getpriority(os.PRIO_PROCESS, 0) + RENDER_NICENESS, 19)]

@@ -1,4 +1,9 @@
-"""Every notebook runs top to bottom with its default parameters (outputs are not kept)."""
+"""Every notebook runs top to bottom with its default parameters (outputs are not kept).
+
+The default suite runs the two light notebooks with a smaller parameter set, given in a cell inserted after the
+notebook's ``parameters`` cell (as papermill does): every cell still runs, on fewer cases. Each notebook's own
+defaults run under ``make test-all``.
+"""
 
 from __future__ import annotations
 
@@ -10,7 +15,8 @@ import nbformat
 import pytest
 from nbclient import NotebookClient
 
-NOTEBOOKS = sorted((Path(__file__).parent.parent / "notebooks").glob("*.ipynb"))
+NOTEBOOK_DIR = Path(__file__).parent.parent / "notebooks"
+NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb"))
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +52,8 @@ def test_there_are_notebooks():
 HEAVY_NOTEBOOKS = {"paper_section4", "paper_section3", "estimators_under_slip"}
 """Run only with ``make test-all``: paper_section4 renders six field-condition cases (~4 min on 2 cores); the §3 and
 estimators-under-slip notebooks run their studies' subsets (~50 s each), whose code the default suite tests in
-``test_sweep.py`` and ``test_figures.py``."""
+``test_sweep.py`` and ``test_figures.py``. The light notebooks' own defaults also run only there (their small
+parameters run by default)."""
 
 
 def test_every_notebook_is_committed_without_outputs() -> None:
@@ -55,16 +62,56 @@ def test_every_notebook_is_committed_without_outputs() -> None:
         assert all(not cell.get("outputs") for cell in notebook.cells if cell.cell_type == "code"), path.name
 
 
+SMALL_PARAMETERS = {
+    # one surface (ice: the one that fails the unsteered trailer) and one unsteered and one steered combination
+    "roundabout_test": 'SURFACES = ["ice"]\nCASES = [("reference", "none"), ("lst", "truth")]',
+    # the designed gains and one Optuna proposal
+    "controller_design_and_tuning": "TUNING_TRIALS = 2",
+}
+"""The default suite's parameters of the light notebooks, run after each one's own parameter cell."""
+
 NOTEBOOK_PARAMS = [
-    pytest.param(p, id=p.stem, marks=[pytest.mark.slow] if p.stem in HEAVY_NOTEBOOKS else []) for p in NOTEBOOKS
+    pytest.param(p, id=p.stem, marks=[pytest.mark.slow] if p.stem in HEAVY_NOTEBOOKS | set(SMALL_PARAMETERS) else [])
+    for p in NOTEBOOKS
 ]
+
+
+def with_parameters(notebook: nbformat.NotebookNode, source: str) -> nbformat.NotebookNode:
+    """``notebook`` with a code cell of ``source`` inserted after its cell tagged ``parameters``."""
+    (index,) = [i for i, c in enumerate(notebook.cells) if "parameters" in c.get("metadata", {}).get("tags", [])]
+    cell = nbformat.v4.new_code_cell(source, metadata={"tags": ["injected-parameters"]})
+    notebook.cells.insert(index + 1, cell)
+    return notebook
+
+
+def test_the_small_parameters_name_only_the_notebooks_own_parameters() -> None:
+    # An injected name the notebook does not define would run the notebook's defaults under another name.
+    for stem, source in SMALL_PARAMETERS.items():
+        notebook = nbformat.read(NOTEBOOK_DIR / f"{stem}.ipynb", as_version=4)
+        (own,) = [c.source for c in notebook.cells if "parameters" in c.get("metadata", {}).get("tags", [])]
+        defined = {line.split("=")[0].strip() for line in own.splitlines() if "=" in line and line[0].isupper()}
+        injected = {line.split("=")[0].strip() for line in source.splitlines()}
+        assert injected and injected <= defined, (stem, injected - defined)
 
 
 @pytest.mark.rendering
 @pytest.mark.parametrize("path", NOTEBOOK_PARAMS)
 def test_notebook_runs(path, kernel_name, tmp_path):
+    run_notebook(path, kernel_name, tmp_path)
+
+
+@pytest.mark.rendering
+@pytest.mark.parametrize("stem", sorted(SMALL_PARAMETERS))
+def test_notebook_runs_with_small_parameters(stem, kernel_name, tmp_path):
+    run_notebook(NOTEBOOK_DIR / f"{stem}.ipynb", kernel_name, tmp_path, SMALL_PARAMETERS[stem])
+
+
+def run_notebook(path: Path, kernel_name: str, tmp_path: Path, parameters: str | None = None) -> None:
+    """Execute the notebook at ``path`` (after ``parameters``, if given) and check no cell raised."""
     notebook = nbformat.read(path, as_version=4)
     assert all(not cell.get("outputs") for cell in notebook.cells if cell.cell_type == "code"), "commit without outputs"
+    if parameters is not None:
+        notebook = with_parameters(notebook, parameters)
     client = NotebookClient(
         notebook, timeout=900, kernel_name=kernel_name, resources={"metadata": {"path": str(tmp_path)}}
     )

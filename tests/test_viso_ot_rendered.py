@@ -17,6 +17,8 @@ from sensor.field_optics import right_correction_homography
 
 pytestmark = pytest.mark.rendering
 
+TIMING_COLUMNS = {"render_ms", "vo_ms"}
+
 
 def constant_slip(**overrides):
     cfg = load_scenario("constant-slip", {"estimators.viso_ot": True, "estimators.zero_slip": False, **overrides})
@@ -42,15 +44,25 @@ def test_viso_ot_meets_the_paper_accuracy_on_the_reference_case(reference_case):
     assert np.nanmean(cols["vo_valid"][frames][1:]) > 0.95
 
 
-def test_same_seed_same_output():
+def test_same_seed_same_output(reference_case):
+    # A second run of the reference case's first 4 s records the reference run's rows, the timing columns aside
+    # (a run this short renders in-process, the reference run in worker processes).
     a = constant_slip(duration_s=4.0)
-    b = constant_slip(duration_s=4.0)
-    assert np.array_equal(a["vo_inliers"], b["vo_inliers"], equal_nan=True)
-    assert np.array_equal(a["offtracking_viso_ot"], b["offtracking_viso_ot"], equal_nan=True)
+    n = len(a["time"])
+    assert n == 201 and a.keys() == reference_case.keys()
+    differ = [
+        k for k in a if k not in TIMING_COLUMNS and not np.array_equal(a[k], reference_case[k][:n], equal_nan=True)
+    ]
+    assert differ == []
 
 
-def test_failed_frames_are_survived(monkeypatch):
-    # Every fifth frame of the odometry fails; the estimator bridges them and still meets the target.
+@pytest.mark.parametrize(
+    "duration", [pytest.param(10.0, id="10-s"), pytest.param(20.0, id="whole-case", marks=pytest.mark.slow)]
+)
+def test_failed_frames_are_survived(monkeypatch, duration):
+    # Every fifth frame of the odometry fails; the estimator bridges them and still meets the target (with the
+    # failures 0.048 m RMS in the first 10 s against 0.034 m without; a dropped estimate after a failure would
+    # show in the valid fraction).
     from sensor.vo import StereoOdometry, VOResult
 
     original = StereoOdometry.process
@@ -64,9 +76,10 @@ def test_failed_frames_are_survived(monkeypatch):
         return result
 
     monkeypatch.setattr(StereoOdometry, "process", flaky)
-    cols = constant_slip()
+    cols = constant_slip(duration_s=duration)
     frames = cols["camera_frame"] > 0.5
-    assert (cols["vo_valid"][frames] < 0.5).sum() >= 35
+    assert frames.sum() == pytest.approx(10.0 * duration + 1, abs=1)
+    assert (cols["vo_valid"][frames] < 0.5).sum() >= 0.17 * frames.sum()  # every fifth frame but the first
     err = estimator_errors(cols["offtracking_truth"], cols["offtracking_viso_ot"])
     assert err["valid_fraction"] > 0.9 and err["rms_error"] <= 0.06
 

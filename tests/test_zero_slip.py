@@ -210,12 +210,22 @@ def test_the_accelerometer_reads_the_turn_and_the_slopes_share_of_gravity() -> N
     assert sloped - turn == pytest.approx(math.copysign(share, turn), rel=0.02)
 
 
-def test_the_accelerometers_rear_point_sees_a_cambers_crab() -> None:
+@pytest.mark.parametrize(
+    "duration",
+    [
+        pytest.param(60.0, id="first-40-s-of-the-turn"),
+        pytest.param(None, id="three-turns", marks=pytest.mark.slow),
+    ],
+)
+def test_the_accelerometers_rear_point_sees_a_cambers_crab(duration: float | None) -> None:
     # docs/vehicle_dynamics.md §6.7. The LST steered on the truth round roundabout-3 on a dry road with 5 % adverse
     # camber, model only, ideal signals: the camber's share of gravity makes the tractor crab, which the
     # speed-compensated rear point does not see (measured 0.119 m RMS after 20 s) and the accelerometer's does
-    # (0.004 m): at least ten times closer, and within 1 cm.
+    # (0.004 m): at least ten times closer, and within 1 cm. The default suite drives the steady turn up to 60 s
+    # (the crab is steady from the turn's start); the catalogue's three turns run under ``make test-all``.
     overrides = {"vehicle": "lst", "feedback": "truth", "camber.percent": 5.0}
+    if duration is not None:
+        overrides["duration_s"] = duration
     errors, _, _ = zero_slip_errors("roundabout-3", ("speed_compensated", "lateral_acceleration"), overrides, 20.0)
     assert errors["lateral_acceleration"]["rms_error"] < 0.01
     assert errors["lateral_acceleration"]["rms_error"] < errors["speed_compensated"]["rms_error"] / 10.0
