@@ -8,7 +8,9 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from typer.testing import CliRunner
 
+from scenarios.cli import app
 from scenarios.config import load_scenario
 from scenarios.studies.controller_limits import (
     FRICTION_SHARE,
@@ -56,6 +58,10 @@ def test_the_camera_option_through_the_study_registry():
     assert len(study_cases("controller-limits")) == 3
     with pytest.raises(InputError, match="--camera: field-loop has no camera cases"):
         study_cases("field-loop", camera=True)
+    # On the command line: one line naming the option, exit 2, before any case runs (no study directory).
+    out = Path("/nonexistent/study")
+    result = CliRunner().invoke(app, ["study", "field-loop", "--camera", "--out", str(out)], env={"COLUMNS": "200"})
+    assert result.exit_code == 2 and "--camera: field-loop has no camera cases" in result.output
 
 
 def test_camera_columns_from_the_runs_metrics():
