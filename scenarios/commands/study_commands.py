@@ -181,6 +181,9 @@ def study(
         list[str] | None,
         typer.Option("--set", help="A run setting for every case, e.g. --set fusion.kinematic_error_model=state."),
     ] = None,
+    camera: Annotated[
+        bool, typer.Option(help="controller-limits: add each cell's fused camera case under field conditions.")
+    ] = False,
 ) -> None:
     """Run a study: every case into its own directory, then one table and the figures."""
     from scenarios.config import parse_assignment
@@ -198,8 +201,8 @@ def study(
     if scheduler is not None:
         require("distributed", "cluster", "--scheduler")
     settings = dict(parse_assignment(item) for item in set_ or [])
-    if settings:
-        study_cases(name, full, vehicle, settings)  # settings a case refuses: one line, before any work
+    if settings or camera:
+        study_cases(name, full, vehicle, settings, camera)  # settings a case refuses: one line, before any work
     with scheduler_client(scheduler) as client:
         if out is not None and resume and (out / CASES_DIR).is_dir():
             claim_directory(out)  # one process resumes it: a second is refused before any case runs
@@ -217,6 +220,7 @@ def study(
                 on_progress=progress,
                 vehicle=vehicle,
                 settings=settings,
+                camera=camera,
             )
     print_study_summary(table, run_dir, name)
     exit_if_cases_failed(table, run_dir)

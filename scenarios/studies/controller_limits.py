@@ -13,7 +13,13 @@ The default subset is the paper's 11.5 m field figure-of-eight, wet, the LST; ``
 and the UK roundabout test on dry, wet and ice, and on every cell the optimal reference (``offtrack optimal``,
 :mod:`scenarios.studies.optimal_reference`: the NLP's steer replayed as a run, several CPU-minutes per cell). A
 cell's check then also holds the PID's gap to it: the truth-fed RMS over the reference's
-(:func:`optimal_gap`). The fused camera feedback is not a cell of this study.
+(:func:`optimal_gap`).
+
+With ``camera`` every cell also runs on the fused VISO-OT estimate under the field-loop study's field conditions
+(:mod:`scenarios.studies.controller_limits_camera`: a rendered camera, minutes per case): its row adds the fused
+estimate's error, the share within 2σ and the raw camera's error, and ``controller_limits.json`` the check over the
+group of camera cells (coverage within the field-loop study's band, the fused RMS never more than the raw camera's,
+:func:`~scenarios.studies.controller_limits_camera.camera_check`), for all of them and for each manoeuvre.
 """
 
 from __future__ import annotations
@@ -31,13 +37,16 @@ from ..loop.ends import RunStatus
 from ..run.metrics import after_warmup
 from ..run.results import TIMESERIES_FILE
 from ..run.runner import run_scenario
+from .controller_limits_camera import CAMERA_COLUMNS, CAMERA_FEEDBACK, camera_check, camera_columns, camera_overrides
 from .optimal_reference import run_optimal_reference
 from .records import CaseSpec
 from .workers import worker_models
 
 __all__ = [
+    "CAMERA_FEEDBACK",
     "FEEDBACKS",
     "FRICTION_SHARE",
+    "camera_group_checks",
     "controller_limits_cases",
     "controller_limits_figures",
     "largest_outswing",
@@ -74,9 +83,11 @@ def controller_limits_cases(
     cells: Sequence[tuple[str, str, str]] | None = None,
     optimal: bool | None = None,
     friction_share: float | None = FRICTION_SHARE,
+    camera: bool = False,
 ) -> list[CaseSpec]:
-    """The cases: every cell × :data:`FEEDBACKS` (feedback fastest), and with ``optimal`` the cell's optimal reference
-    (:data:`OPTIMAL`).
+    """The cases: every cell × :data:`FEEDBACKS` (feedback fastest), with ``camera`` the cell's fused camera case
+    (:data:`~scenarios.studies.controller_limits_camera.CAMERA_FEEDBACK`) and with ``optimal`` the cell's optimal
+    reference (:data:`OPTIMAL`).
 
     Parameters
     ----------
@@ -89,14 +100,18 @@ def controller_limits_cases(
         Add each cell's optimal reference; default: with ``full`` only.
     friction_share
         ``speed.friction_share`` of every case; ``None``: the scenarios' speed profiles as they are.
+    camera
+        Add each cell's fused camera case under field conditions
+        (:func:`~scenarios.studies.controller_limits_camera.camera_overrides`); rendered, so off by default.
     """
     if cells is None:
         cells = [(s, surface, "lst") for s in FULL_SCENARIOS for surface in FULL_SURFACES] if full else list(SUBSET)
     if optimal is None:
         optimal = full
     cases = []
+    feedbacks = (*FEEDBACKS, *((CAMERA_FEEDBACK,) if camera else ()), *((OPTIMAL,) if optimal else ()))
     for scenario, surface, vehicle in cells:
-        for feedback in (*FEEDBACKS, OPTIMAL) if optimal else FEEDBACKS:
+        for feedback in feedbacks:
             overrides: tuple[tuple[str, Any], ...] = (
                 ("vehicle", vehicle),
                 ("surface.preset", surface),
@@ -105,6 +120,8 @@ def controller_limits_cases(
             )
             if friction_share is not None:
                 overrides += (("speed.friction_share", friction_share),)
+            if feedback == CAMERA_FEEDBACK:
+                overrides += camera_overrides()
             labels = (("scenario", scenario), ("surface", surface), ("vehicle", vehicle), ("feedback", feedback))
             cases.append(CaseSpec(STUDY, scenario, overrides, labels))
     return cases
@@ -112,7 +129,8 @@ def controller_limits_cases(
 
 def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     """Run one case into ``out_dir/<case name>/`` and return its row (labels, status and the figures above; the
-    optimal reference's row holds its replay's off-tracking and the NLP's own)."""
+    optimal reference's row holds its replay's off-tracking and the NLP's own, a camera case's the fused and raw
+    camera's errors, :data:`~scenarios.studies.controller_limits_camera.CAMERA_COLUMNS`)."""
     config = load_scenario(spec.scenario, dict(spec.overrides))
     run_dir = out_dir / spec.name
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -137,6 +155,8 @@ def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
             "at_lock_share": max((m.get("saturated_fraction", 0.0) for m in steering.values()), default=0.0),
         }
     )
+    if dict(spec.labels)["feedback"] == CAMERA_FEEDBACK:
+        row.update(camera_columns(metrics))
     reference = metrics.get("optimal_reference")
     if reference is not None:
         row.update(
@@ -199,7 +219,8 @@ def _rows(table: pd.DataFrame, cell: tuple[str, str, str]) -> pd.DataFrame:
 def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
     """``controller_limits.png``: the true off-tracking after warm-up (RMS and max) of each cell by steering, and
     ``controller_limits.json``: each cell's check (truth-fed RMS and max ≤ zero-slip-fed and ≤ unsteered,
-    :func:`truth_fed_check`)."""
+    :func:`truth_fed_check`; with its camera case's :data:`~scenarios.studies.controller_limits_camera.CAMERA_COLUMNS`),
+    then the camera cells' group checks (:func:`camera_group_checks`), if the table has camera cases."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -216,7 +237,7 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
         ("true_offtracking_max_after_warmup_m", "max after warm-up"),
     )
     for ax, (column, title) in zip(axes, labels, strict=True):
-        feedbacks = [f for f in (*FEEDBACKS, OPTIMAL) if f in set(done["feedback"])]
+        feedbacks = [f for f in (*FEEDBACKS, CAMERA_FEEDBACK, OPTIMAL) if f in set(done["feedback"])]
         for i, feedback in enumerate(feedbacks):
             values = []
             for cell in cells:
@@ -241,8 +262,47 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
         rows = {r["feedback"]: dict(r) for _, r in _rows(done, cell).iterrows()}
         check = truth_fed_check(rows)
         if check is not None:
-            checks.append({"cell": list(cell), **check, **(optimal_gap(rows) or {})})
+            fused = {k: _plain(rows[CAMERA_FEEDBACK].get(k)) for k in CAMERA_COLUMNS} if CAMERA_FEEDBACK in rows else {}
+            checks.append({"cell": list(cell), **check, **(optimal_gap(rows) or {}), **fused})
+    checks += camera_group_checks(done)
     (out_dir / "controller_limits.json").write_text(json.dumps(checks, indent=1), encoding="utf-8")
+
+
+def _plain(value: Any) -> Any:
+    """A table's value as JSON writes it (NaN as ``null``)."""
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer):
+        return int(value)
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return value
+    return number if np.isfinite(number) else None
+
+
+def camera_group_checks(table: pd.DataFrame) -> list[dict[str, Any]]:
+    """The camera cells' checks (:func:`~scenarios.studies.controller_limits_camera.camera_check`): over all of
+    them (``camera_group`` ``all``) and over each manoeuvre's (``camera_group`` the scenario), each with
+    ``camera_group`` first; empty without camera cases.
+
+    Parameters
+    ----------
+    table
+        The study's rows that did not fail.
+    """
+    if "feedback" not in table:
+        return []
+    camera = table[table["feedback"] == CAMERA_FEEDBACK]
+    if camera.empty:
+        return []
+    groups = {"all": camera, **{str(s): part for s, part in camera.groupby("scenario", sort=False)}}
+    out = []
+    for name, part in groups.items():
+        check = camera_check(part.to_dict("records"))
+        if check is not None:
+            out.append({"camera_group": name, **{k: _plain(v) for k, v in check.items()}})
+    return out
 
 
 def truth_fed_check(rows: dict[str, dict[str, Any]], tolerance: float = 0.0) -> dict[str, Any] | None:

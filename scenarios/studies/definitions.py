@@ -87,22 +87,33 @@ def study_vehicle_params(vehicle: str) -> VehicleParams:
 
 
 def study_cases(
-    name: str, full: bool = False, vehicle: str | None = None, settings: Mapping[str, Any] | None = None
+    name: str,
+    full: bool = False,
+    vehicle: str | None = None,
+    settings: Mapping[str, Any] | None = None,
+    camera: bool = False,
 ) -> list[CaseSpec]:
     """The cases of study ``name`` (a subset unless ``full``), for ``vehicle`` where it takes one
     (:func:`check_study_vehicle`), with ``settings`` (dotted run settings, e.g. the fused filter's) appended to
-    every case's own overrides.
+    every case's own overrides, and with ``camera`` its fused camera cases
+    (:attr:`~scenarios.studies.registry.Study.takes_camera`).
 
     Raises
     ------
     InputError
-        An unknown study, a ``vehicle`` it does not take, or ``settings`` that make some case's configuration
-        invalid (one line naming the field, from the configuration's own validation; before any case runs).
+        An unknown study, a ``vehicle`` it does not take, ``camera`` for a study without camera cases, or
+        ``settings`` that make some case's configuration invalid (one line naming the field, from the
+        configuration's own validation; before any case runs).
     """
     if name not in STUDIES:
         raise InputError(f"unknown study {name!r}; choose one of {', '.join(sorted(STUDIES))}")
     check_study_vehicle(name, vehicle)
-    cases = STUDIES[name].case_specs(full, vehicle)
+    if camera and (not STUDIES[name].takes_camera or vehicle is not None):
+        takes = ", ".join(n for n, study in STUDIES.items() if study.takes_camera)
+        raise InputError(
+            f"--camera: {name} has no camera cases" + (" with --vehicle" if vehicle else "") + f"; {takes} has"
+        )
+    cases = STUDIES[name].case_specs(full, vehicle, camera)
     if not settings:
         return cases
     extra = tuple(settings.items())
@@ -124,6 +135,7 @@ def run_study(
     on_progress: ProgressCallback | None = None,
     vehicle: str | None = None,
     settings: Mapping[str, Any] | None = None,
+    camera: bool = False,
 ) -> pd.DataFrame:
     """Run every case of a study; write ``table.parquet``, ``table.csv``, ``table.md`` and the figures.
 
@@ -154,6 +166,9 @@ def run_study(
     settings
         Dotted run settings appended to every case's overrides (:func:`study_cases`); a finished case whose spec
         they change is run again on resume.
+    camera
+        Add the study's fused camera cases (:attr:`~scenarios.studies.registry.Study.takes_camera`; refused for the
+        others, before any case runs).
 
     Returns
     -------
@@ -172,7 +187,7 @@ def run_study(
         is written, and running it again into ``out_dir`` runs the rest
         (:func:`~scenarios.studies.sweep.run_sweep`).
     """
-    cases = study_cases(name, full, vehicle, settings)
+    cases = study_cases(name, full, vehicle, settings, camera)
     by_name = {spec.name: spec for spec in cases}
 
     def report(p: SweepProgress) -> None:

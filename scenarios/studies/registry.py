@@ -58,6 +58,9 @@ class Study:
         The columns of its terminal table after the labels that vary, in order: the ones that answer the study's
         question (empty: :data:`scenarios.studies.summary.PRIORITY`, which already leads with the off-tracking and
         each unit's columns of the model-only studies). The full table is in ``table.md``.
+    takes_camera : bool
+        The study has fused camera cases its default leaves out (rendered, minutes each), added with ``camera``
+        (``cases(full, camera=True)``).
     terminal_rows : callable or None
         ``terminal_rows(table) -> (rows, note)``: the rows the terminal shows instead of the cases (field-loop: one
         per cell with its acceptance, as its ``table.md``) and a note for the title (e.g. how many cells pass);
@@ -72,9 +75,15 @@ class Study:
     takes_vehicle: bool = False
     columns: tuple[str, ...] = ()
     terminal_rows: Callable[[pd.DataFrame], tuple[pd.DataFrame, str]] | None = None
+    takes_camera: bool = False
 
-    def case_specs(self, full: bool = False, vehicle: str | None = None) -> list[CaseSpec]:
-        """The cases (a subset unless ``full``), on ``vehicle`` when given (only for :attr:`takes_vehicle`)."""
+    def case_specs(self, full: bool = False, vehicle: str | None = None, camera: bool = False) -> list[CaseSpec]:
+        """The cases (a subset unless ``full``), on ``vehicle`` when given (only for :attr:`takes_vehicle`), with the
+        camera cases when ``camera`` (only for :attr:`takes_camera`)."""
+        if camera:
+            if not self.takes_camera or vehicle is not None:
+                raise ValueError(f"{self.name} takes no camera option" + (" with a vehicle" if vehicle else ""))
+            return self.cases(full, camera=True)
         if vehicle is None:
             return self.cases(full)
         if not self.takes_vehicle:
@@ -163,10 +172,12 @@ STUDIES: dict[str, Study] = _studies(
     Study(
         "controller-limits",
         "the path-following controller where its axles run out of reach: unsteered, truth-fed and zero-slip-fed, "
-        "with the share of the path beyond the steering's reach",
+        "with the share of the path beyond the steering's reach (--camera: and the fused camera under field "
+        "conditions)",
         controller_limits_cases,
         controller_limits_figures,
         run_controller_limits_case,
+        takes_camera=True,
     ),
     Study(
         "off-highway",
