@@ -115,8 +115,8 @@ stereo matches' vertical disparities only. The default scale, ``mount_height``, 
 disparity against the plane the wheels stand on (:mod:`sensor.vo.self_calibration`); on a rutted or undulating
 track the road beside and between the wheel tracks stands above that plane, so the points look nearer than the
 plane puts them, and that is read as a yaw of the right camera (docs/terrain_camera.md §6). The yaw left after
-the vertical rows is the estimated calibration's, which the fused filter's odometry-yaw state takes up
-(docs/field_bias.md §4)."""
+the vertical rows is the estimated calibration's, for the fused filter's odometry-yaw state (docs/field_bias.md §4)
+to take up; on a tight circle it does so less well than the road plane does (docs/studies.md, "Off-highway")."""
 
 OFF_HIGHWAY_FIELD_CONDITIONS: tuple[tuple[str, Any], ...] = tuple(
     (key, value) for key, value in FIELD_CONDITIONS if key != "camera.world"
