@@ -98,6 +98,7 @@ def test_the_full_grid_is_every_scenario_surface_roughness_condition_and_feedbac
         if labels["feedback"] == "viso_ot_fused" and field:
             assert "camera.world" not in camera and "camera.lens" in camera  # the airfield world is level
             assert overrides["camera.self_calibration.enabled"] is True
+            assert overrides["camera.self_calibration.scale"] == "vertical_only"  # no road plane on a rutted track
         else:
             assert not camera
         if labels["scenario"] == "haul-road":  # the unladen field combination climbs it, one trailer axle steered

@@ -304,3 +304,39 @@ def test_an_axle_feels_the_ground_under_its_wheels_not_under_its_centre_point():
     centre = np.array([[0.0, 0.15]])
     assert abs(groove(centre)[0, 1]) > 0.3  # the centre point on the groove's wall: a 40 % crossfall
     np.testing.assert_allclose(groove.under_axles(centre, np.zeros(1), np.array([0.9])), 0.0, atol=1e-15)
+
+
+# --- the rendered world's look ---------------------------------------------------------------------------------------
+
+
+def test_the_unsealed_look_is_the_worlds_of_the_runs_camera_and_a_bad_look_exits_2_naming_the_field(
+    tmp_path, monkeypatch
+):
+    """``terrain.look`` reaches the world the run's camera builds (``sealed`` by default, as before it existed); a
+    look outside ``sealed | unsealed``, or ``unsealed`` on the airfield, is refused in the line naming the field,
+    exit 2, before any run directory."""
+    from typer.testing import CliRunner
+
+    import scenarios.camera.build as camera_build
+    from scenarios.cli import app
+
+    class Built(Exception):
+        pass
+
+    def capture(setup, scenery_density=None, seed=None, terrain=None, **settings):
+        raise Built(settings)
+
+    monkeypatch.setattr(camera_build, "world_for_scenario", capture)
+    for overrides, surface in (({}, "sealed"), ({"terrain.look": "unsealed"}, "unsealed")):
+        setup = build_scenario(load_scenario("pbs-low-speed-turn", overrides))
+        with pytest.raises(Built) as built:
+            camera_build.stereo_camera(setup)
+        assert built.value.args[0] == {"kind": "roadside", "surface": surface}
+    bad = [["--set", "terrain.look=gravel"], ["--set", "terrain.look=unsealed", "--set", "camera.world=airfield"]]
+    named = ["terrain.look = 'gravel': Input should be 'sealed' or 'unsealed'", "terrain.look = unsealed"]
+    for args, line in zip(bad, named, strict=True):
+        result = CliRunner().invoke(app, ["run", "pbs-low-speed-turn", *args, "--out", str(tmp_path / "run")])
+        assert result.exit_code == 2, result.output
+        assert sum(line in row for row in result.stderr.splitlines()) == 1, result.stderr
+    assert "allowed with camera.world = airfield: sealed" in result.stderr
+    assert not any(tmp_path.glob("run*"))

@@ -287,7 +287,7 @@ def camera_tag(setup: ScenarioSetup, **settings: Any) -> str:
     if settings.get("rig_index", 0) == 0:
         described["settings"].pop("rig_index", None)  # the first rig's frames are named as the one camera's were
     if terrain is not None:  # the section, and the heights themselves (a file's content, seeded potholes)
-        described["terrain"] = cfg.terrain.model_dump(mode="json")
+        described["terrain"] = cfg.terrain.model_dump(mode="json", exclude={"look"})  # the world names it
     digest = hashlib.sha256(json.dumps(described, sort_keys=True).encode())
     digest.update(np.ascontiguousarray(setup.path.points, dtype=np.float64).tobytes())
     if terrain is not None:
@@ -365,7 +365,9 @@ def stereo_camera(
             raise InputError("the run's camera has the configured rig and lighting; pass ideal=True to change them")
         developer = pair_developer(cfg, rig_index)
     if world is None:
-        world = world_for_scenario(setup, scenery_density, kind=cfg.camera.world, terrain=terrain)
+        world = world_for_scenario(
+            setup, scenery_density, kind=cfg.camera.world, surface=cfg.terrain.look, terrain=terrain
+        )
     elif terrain is not None:
         raise InputError("terrain: a given world carries its own terrain (build_world(..., terrain=...))")
     store = None

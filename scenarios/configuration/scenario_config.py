@@ -132,6 +132,11 @@ class ScenarioConfig(Settings):
                 f"camber.percent = {self.camber.percent:g} with terrain.kind = {self.terrain.kind}: the terrain gives "
                 "the crossfall (terrain.crossfall_percent); camber.percent must be 0 with it"
             )
+        if self.terrain.look == "unsealed" and self.camera.world != "roadside":
+            raise ValueError(
+                f"terrain.look = unsealed is a roadside world's; allowed with camera.world = "
+                f"{self.camera.world}: sealed"
+            )
         if self.roundabout_test and self.path.kind != "roundabout":
             raise ValueError("roundabout_test needs path.kind = roundabout")
         params = self.vehicle_params()

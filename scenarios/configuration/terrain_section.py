@@ -42,6 +42,11 @@ class TerrainConfig(Settings):
     direction of travel), with undulations, two ruts and seeded potholes (``seed``). ``file``: a height grid, ESRI
     ASCII (``.asc``) or CSV (``x,y,z``), bilinear between its nodes, its coordinates less ``origin_m`` (the file's
     coordinates of the scenario's origin); the path must lie on it.
+
+    ``look`` is how the rendered world's road and ground look on it (docs/terrain_camera.md §3): ``sealed`` (the
+    default: asphalt, paint, grass verges and farm fields) or ``unsealed`` (gravel with wheel ruts, scrub verges, dirt
+    and stony ground, rock cut faces and boulders; :mod:`sensor.world.unsealed`). It sets the world only; the tyres'
+    surface is ``surface.preset``.
     """
 
     kind: Literal["flat", "plane", "path", "file"] = "flat"
@@ -90,6 +95,10 @@ class TerrainConfig(Settings):
         Annotated[float, Field(ge=-1e8, le=1e8, description="[m] easting; beyond any projected system")],
         Annotated[float, Field(ge=-1e8, le=1e8, description="[m] northing; beyond any projected system")],
     ] = Field((0.0, 0.0), description="[m] the file's coordinates of the scenario's origin")
+
+    look: Literal["sealed", "unsealed"] = Field(
+        "sealed", description="the rendered road and ground: asphalt and fields, or gravel, dirt and scrub"
+    )
 
     @model_validator(mode="after")
     def _fields_of_the_kind(self) -> TerrainConfig:

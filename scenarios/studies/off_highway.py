@@ -15,10 +15,10 @@ scenario's) × two camera conditions (:data:`CONDITIONS`) × the feedbacks of :d
 * ``none`` — the trailer axles not steered (model only).
 
 ``field`` is the field-loop study's camera under every field condition of
-:data:`~scenarios.studies.section4.FIELD_CONDITIONS` except its world (the airfield is level and refuses a
-terrain: the roadside world is draped on the terrain instead), aligned, with the online self-calibration, and every
-on-board signal with its data sheet's noise and a bias drawn from the seed
-(:func:`~scenarios.studies.field_loop.field_signals`); ``ideal`` is the paper's simulated camera and the
+:data:`~scenarios.studies.section4.FIELD_CONDITIONS` except its world (the airfield is level and refuses a terrain:
+the roadside world is draped on the terrain instead), aligned, with the online self-calibration from the vertical
+disparities (:data:`SELF_CALIBRATION`), and every on-board signal with its data sheet's noise and a bias drawn from
+the seed (:func:`~scenarios.studies.field_loop.field_signals`); ``ideal`` is the paper's simulated camera and the
 catalogue's ideal signals.
 
 The vehicle (:func:`scenario_vehicle`): the LST on ``forest-road`` and ``gravel-yard``; on ``haul-road`` the
@@ -106,8 +106,17 @@ CLIMBING_VEHICLE: tuple[tuple[str, Any], ...] = (
 )
 """The combination of ``haul-road``: the paper's unladen field combination with a steerable trailer axle."""
 
-SELF_CALIBRATION: tuple[tuple[str, Any], ...] = (("camera.self_calibration.enabled", True),)
-"""The rendered field cases estimate the right camera's rotation online (as the field-loop study's)."""
+SELF_CALIBRATION: tuple[tuple[str, Any], ...] = (
+    ("camera.self_calibration.enabled", True),
+    ("camera.self_calibration.scale", "vertical_only"),
+)
+"""The rendered field cases estimate the right camera's rotation online (as the field-loop study's) from the
+stereo matches' vertical disparities only. The default scale, ``mount_height``, takes the yaw from the road points'
+disparity against the plane the wheels stand on (:mod:`sensor.vo.self_calibration`); on a rutted or undulating
+track the road beside and between the wheel tracks stands above that plane, so the points look nearer than the
+plane puts them, and that is read as a yaw of the right camera (docs/terrain_camera.md §6). The yaw left after
+the vertical rows is the estimated calibration's, for the fused filter's odometry-yaw state (docs/field_bias.md §4)
+to take up; on a tight circle it does so less well than the road plane does (docs/studies.md, "Off-highway")."""
 
 OFF_HIGHWAY_FIELD_CONDITIONS: tuple[tuple[str, Any], ...] = tuple(
     (key, value) for key, value in FIELD_CONDITIONS if key != "camera.world"
