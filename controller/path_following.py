@@ -213,6 +213,9 @@ class TrailerSteeringController:
         (:func:`~.steer_output.high_speed_fade`).
     estimate : float or None
         The held off-tracking sample in use [m] (``None``: no estimate).
+    feedback_weight : float
+        Weight ``w`` in (0, 1] the last estimate was multiplied by (``config.uncertain_feedback = "shrink"``; 1 when
+        it was used as given or there was none).
     new_sample : bool
         Whether the last tick received a new sample.
     kingpin_curvature : float
@@ -270,6 +273,7 @@ class TrailerSteeringController:
         self.integral = 0.0
         self.fade = 0.0
         self.estimate: float | None = None
+        self.feedback_weight = 1.0
         self.new_sample = False
         self.kingpin_curvature = 0.0
         self.beyond_reach = False
@@ -339,7 +343,8 @@ class TrailerSteeringController:
             Current (true) state.
         estimate
             The off-tracking estimate fed back (``None``, or one without a value: feed-forward only, integrator
-            frozen). An estimate whose standard deviation exceeds ``config.feedback_max_std`` is not used.
+            frozen). An estimate whose standard deviation exceeds ``config.feedback_max_std`` is not used, or with
+            ``config.uncertain_feedback = "shrink"`` is shrunk toward zero and the integrator frozen.
 
         Returns
         -------
@@ -386,6 +391,7 @@ class TrailerSteeringController:
         schedule = bandwidth_schedule(state.u, cfg.bandwidth_speed)
         integral_new = self.integral
         frozen = cfg.reach_freeze and path_beyond_reach and is_outswing(error, self.kingpin_curvature)
+        frozen = frozen or self.feedback_weight < 1.0  # a shrunk (uncertain) estimate does not wind the integrator
         if error is not None and ki > 0 and self.fade > 0 and not frozen:
             integral_new = self.integral + error * ds
 
@@ -475,19 +481,31 @@ class TrailerSteeringController:
         return tan_k - (self.virtual_axle_distance / lfp) * (tan_k - tan_f)
 
     def _sample(self, estimate: OfftrackingEstimate | None) -> float | None:
-        """Zero-order hold of the estimate; derivative on new samples only. ``None`` if missing."""
+        """Zero-order hold of the estimate; derivative on new samples only. ``None`` if missing.
+
+        An estimate whose std ``σ`` exceeds ``σ_max = config.feedback_max_std`` is dropped (``uncertain_feedback =
+        "drop"``) or shrunk (``"shrink"``) to the posterior mean ``w·e``, ``w = σ_max²/(σ_max² + σ²)``, of the
+        product of the estimate's Gaussian (mean ``e``, std ``σ``) and a prior of zero off-tracking with std
+        ``σ_max`` (:class:`~.path_following_config.PathFollowingConfig`); the hold and the derivative see ``w·e``.
+        """
         self.new_sample = False
+        self.feedback_weight = 1.0
         value: float | None = None if estimate is None else estimate.value
         std = math.nan if estimate is None else estimate.std
-        if math.isfinite(std) and std > self.config.feedback_max_std:
-            value = None  # too uncertain (PathFollowingConfig.feedback_max_std): feed-forward only
+        max_std = self.config.feedback_max_std
+        if math.isfinite(std) and std > max_std:
+            if self.config.uncertain_feedback == "shrink":
+                self.feedback_weight = max_std**2 / (max_std**2 + std**2)
+            else:
+                value = None  # too uncertain (PathFollowingConfig.feedback_max_std): feed-forward only
         if value is None or not math.isfinite(value):
+            self.feedback_weight = 1.0
             # Missing: feedback off, integrator frozen, derivative restarts when samples return.
             self.estimate = None
             self._last_sample = None
             self._derivative = 0.0
             return None
-        value = float(value)
+        value = float(value) if self.feedback_weight == 1.0 else self.feedback_weight * float(value)
         if self.estimate is None or value != self.estimate:
             self.new_sample = True
             if self._last_sample is not None:

@@ -417,6 +417,11 @@ class ControllerConfig(Settings):
         description="[m] std of the fed-back estimate above which the trailer is steered by feed-forward only: an "
         "estimate whose 2σ reaches the 0.15 m max target is not steered on; 1 m is ten times the 0.10 m RMS target",
     )
+    uncertain_feedback: Literal["drop", "shrink"] = Field(
+        "drop",
+        description="an estimate whose std is above feedback_max_std_m: drop (feed-forward only) or shrink (kept as "
+        "w·e, w = σ_max²/(σ_max² + σ²), zero off-tracking as a prior with std σ_max; integrator frozen)",
+    )
     max_slip_angle_deg: float | None = Field(
         math.degrees(PathFollowingConfig.model_fields["max_slip_angle"].default),
         gt=0.0,
@@ -463,6 +468,7 @@ class ControllerConfig(Settings):
             bandwidth_speed=None if self.bandwidth_speed_kmh is None else self.bandwidth_speed_kmh / 3.6,
             control_period=1.0 / control_hz,
             feedback_max_std=self.feedback_max_std_m,
+            uncertain_feedback=self.uncertain_feedback,
             max_slip_angle=None if self.max_slip_angle_deg is None else math.radians(self.max_slip_angle_deg),
             max_outswing=self.max_outswing_m,
             high_speed_crossover=None
