@@ -125,6 +125,7 @@ def solve_optimal_steer(
     step: float = 0.01,
     relinearisations: int = 2,
     max_iter: int = 300,
+    expand: bool = False,
 ) -> OptimalSteer:
     """Solve the NLP of the module docstring over the recorded run ``columns``.
 
@@ -147,6 +148,9 @@ def solve_optimal_steer(
         Solves, each on the kingpin path linearised at the previous solution's follow points.
     max_iter
         Ipopt's iteration limit per solve.
+    expand
+        Expand the whole NLP to one SX graph before the solve: the same problem, the interval's graph copied per
+        node, slower to build and to differentiate (kept to compare the two, ``offtrack bench optimal``).
 
     Raises
     ------
@@ -215,10 +219,11 @@ def solve_optimal_steer(
         opti.subject_to(opti.bounded(-bound, ca.vec(X[slip_rows, :]), bound))
     cost = ca.sumsqr(e) + STEER_SMOOTHING * ca.sumsqr(increments)
     opti.minimize(cost)
-    # Not expanded as a whole: the mapped interval is already SX, and expanding the NLP would copy its graph per node.
+    # Not expanded as a whole by default: the mapped interval is already SX, and expanding the NLP would copy its
+    # graph (and its derivatives' graphs) once per node.
     opti.solver(
         "ipopt",
-        {"print_time": False, "expand": False},
+        {"print_time": False, "expand": expand},
         {"max_iter": max_iter, "print_level": 0, "sb": "yes", "tol": 1e-6},
     )
 
