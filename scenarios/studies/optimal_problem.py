@@ -150,7 +150,7 @@ def solve_optimal_steer(
         Ipopt's iteration limit per solve.
     expand
         Expand the whole NLP to one SX graph before the solve: the same problem, the interval's graph copied per
-        node, slower to build and to differentiate (kept to compare the two, ``offtrack bench optimal``).
+        node, slower to build and to differentiate (kept to compare the two, :mod:`scenarios.bench.optimal`).
 
     Raises
     ------
