@@ -33,7 +33,7 @@ from vehicle_model.layout import BODY_STATES, Layout
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import Simulator
 
-__all__ = ["OptimalSteer", "path_reference", "solve_optimal_steer"]
+__all__ = ["OptimalSteer", "interval_integrator", "path_reference", "solve_optimal_steer"]
 
 STEER_SMOOTHING = 1e-2
 """Weight ``w`` [m²/rad²] of the steer increments in the cost: small beside a centimetre of off-tracking, enough to
@@ -71,6 +71,35 @@ def _follow_point(params: VehicleParams, x: Any) -> tuple[Any, Any]:
     return kx - lfp * ca.cos(psi2), ky - lfp * ca.sin(psi2)
 
 
+def _follow_function(params: VehicleParams, n_states: int) -> ca.Function:
+    """``x → (x, y)`` of the follow point, an SX function."""
+    xs = ca.SX.sym("x", n_states)
+    return ca.Function("follow", [xs], [ca.vertcat(*_follow_point(params, xs))])
+
+
+def interval_integrator(params: VehicleParams, steered: list[int], substeps: int, step: float) -> ca.Function:
+    """The shooting map ``Φ`` of one interval as one SX function ``(x_k, δ_k, δ_{k+1}, held) → x_{k+1}``.
+
+    ``substeps`` RK4 steps of length ``step`` (:func:`vehicle_model.dynamics.rk4_step_expr` on the model's own
+    right-hand side), unrolled; ``held`` ``(n_inputs, substeps)`` holds every input at each step's middle, and the
+    rows of the ``steered`` steer inputs are replaced by the trailer steer linear from ``δ_k`` to ``δ_{k+1}``,
+    taken at the step's middle.
+    """
+    layout = Layout.for_vehicle(params)
+    sym = define_model(params)
+    rhs = ca.Function("rhs", [sym.x, sym.u], [sym.xdot])  # the model's own right-hand side, uncompiled
+    x = x_start = ca.SX.sym("x", layout.n_states)
+    d_start, d_end = ca.SX.sym("d0", len(steered)), ca.SX.sym("d1", len(steered))
+    held = ca.SX.sym("held", layout.n_inputs, substeps)
+    for i in range(substeps):
+        weight = (i + 0.5) / substeps
+        rows = [held[j, i] for j in range(layout.n_inputs)]
+        for j, row in enumerate(steered):
+            rows[row] = d_start[j] + (d_end[j] - d_start[j]) * weight
+        x = rk4_step_expr(rhs, x, ca.vertcat(*rows), step)
+    return ca.Function("interval", [x_start, d_start, d_end, held], [x])
+
+
 def path_reference(path: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For each point ``(n, 2)``, the nearest point of the polyline ``path`` ``(m, 2)`` and the path's left normal
     there: ``(anchors (n, 2), normals (n, 2))``; the signed distance is ``normal·(point − anchor)``."""
@@ -96,6 +125,7 @@ def solve_optimal_steer(
     step: float = 0.01,
     relinearisations: int = 2,
     max_iter: int = 300,
+    expand: bool = False,
 ) -> OptimalSteer:
     """Solve the NLP of the module docstring over the recorded run ``columns``.
 
@@ -118,6 +148,9 @@ def solve_optimal_steer(
         Solves, each on the kingpin path linearised at the previous solution's follow points.
     max_iter
         Ipopt's iteration limit per solve.
+    expand
+        Expand the whole NLP to one SX graph before the solve: the same problem, the interval's graph copied per
+        node, slower to build and to differentiate (kept to compare the two, :mod:`scenarios.bench.optimal`).
 
     Raises
     ------
@@ -155,12 +188,8 @@ def solve_optimal_steer(
         fixed[layout.mu_slice, k * m : (k + 1) * m] = mu[:, None]
         fixed[layout.slope_slice, k * m : (k + 1) * m] = slope[:, None]
 
-    sym = define_model(params)
-    rhs = ca.Function("rhs", [sym.x, sym.u], [sym.xdot])  # the model's own right-hand side, uncompiled
-    xs, us, hs = ca.SX.sym("x", layout.n_states), ca.SX.sym("u", layout.n_inputs), ca.SX.sym("h")
-    rk4 = ca.Function("rk4", [xs, us, hs], [rk4_step_expr(rhs, xs, us, hs)])
-    advance = rk4.mapaccum("advance", m)
-    follow = ca.Function("follow", [xs], [ca.vertcat(*_follow_point(params, xs))])
+    follow = _follow_function(params, layout.n_states)
+    shoot = interval_integrator(params, steered, m, h).map(n)
 
     opti = ca.Opti()
     X = opti.variable(layout.n_states, n + 1)
@@ -169,37 +198,32 @@ def solve_optimal_steer(
     normals_p = opti.parameter(2, n + 1)
     opti.subject_to(X[:, 0] == x_nodes[0])
     opti.subject_to(D[:, 0] == 0.0)  # straight axles at the start, as every run starts
-    weights = (np.arange(m) + 0.5) / m
     # Counted once the kingpin has driven one trailer length: before that the follow point has no kingpin path.
     kingpin = np.column_stack([columns["kingpin_x"], columns["kingpin_y"]])
     driven = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(kingpin, axis=0).T))])
     counted = np.flatnonzero(np.interp(nodes, time, driven) >= params.follow_point_offset)
     if counted.size == 0:
         raise InputError("the run is too short for the optimal reference: its kingpin never drove one trailer length")
-    offtracking = [ca.dot(normals_p[:, k], follow(X[:, k]) - anchors_p[:, k]) for k in counted]
-    for k in range(n):
-        u_k = ca.MX(ca.DM(fixed[:, k * m : (k + 1) * m]))
-        steer = ca.repmat(D[:, k], 1, m) + ca.mtimes(D[:, k + 1] - D[:, k], ca.DM(weights).T)
-        rows = [u_k[i, :] for i in range(layout.n_inputs)]
-        for j, i in enumerate(steered):
-            rows[i] = steer[j, :]
-        trajectory = advance(X[:, k], ca.vertcat(*rows), ca.repmat(h, 1, m))
-        opti.subject_to(X[:, k + 1] == trajectory[:, -1])
-        opti.subject_to(
-            opti.bounded(-limits.max_steer_rate * interval, D[:, k + 1] - D[:, k], limits.max_steer_rate * interval)
-        )
+    cols = counted.tolist()
+    follow_points = follow.map(len(cols))(X[:, cols])
+    e = ca.sum1(normals_p[:, cols] * (follow_points - anchors_p[:, cols])).T
+    # Every interval in one mapped call: the interval's derivatives are built once, not once per node.
+    opti.subject_to(X[:, 1:] == shoot(X[:, :-1], D[:, :-1], D[:, 1:], ca.DM(fixed)))
+    increments = D[:, 1:] - D[:, :-1]
+    largest_increment = limits.max_steer_rate * interval
+    opti.subject_to(opti.bounded(-largest_increment, ca.vec(increments), largest_increment))
     opti.subject_to(opti.bounded(-limits.max_steer, ca.vec(D), limits.max_steer))
     if limits.max_slip_angle is not None:
         slip_rows = [layout.slip_slice.start + i for i in axle_index]
         bound = float(np.tan(limits.max_slip_angle))
         opti.subject_to(opti.bounded(-bound, ca.vec(X[slip_rows, :]), bound))
-    e = ca.vertcat(*offtracking)
-    increments = D[:, 1:] - D[:, :-1]
     cost = ca.sumsqr(e) + STEER_SMOOTHING * ca.sumsqr(increments)
     opti.minimize(cost)
+    # Not expanded as a whole by default: the mapped interval is already SX, and expanding the NLP would copy its
+    # graph (and its derivatives' graphs) once per node.
     opti.solver(
         "ipopt",
-        {"print_time": False, "expand": True},
+        {"print_time": False, "expand": expand},
         {"max_iter": max_iter, "print_level": 0, "sb": "yes", "tol": 1e-6},
     )
 

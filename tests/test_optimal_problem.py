@@ -1,0 +1,97 @@
+"""The optimal reference's NLP (scenarios/studies/optimal_problem.py): its shooting interval is the model's own RK4
+with the trailer steer linear in time; its solution keeps the lock, rate and slip-angle limits and costs no more
+than the PID's run; the mapped formulation solves the same problem as the NLP expanded as a whole."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from scenarios.config import load_scenario
+from scenarios.run.results import TIMESERIES_FILE
+from scenarios.run.runner import run_scenario
+from scenarios.setup.build import build_scenario
+from scenarios.studies.optimal_problem import interval_integrator, solve_optimal_steer
+from scenarios.studies.optimal_reference import pid_cost
+from vehicle_model.dynamics import VehicleModel
+from vehicle_model.layout import Layout
+from vehicle_model.simulator import Simulator
+
+TINY = {"vehicle": "lst", "feedback": "truth", "path.entry_length": 1.0, "duration_s": 4.5}
+"""4.5 s of the 50 m roundabout at 15 km/h: the kingpin drives the LST's follow-point offset (14 m) in about 3.4 s,
+so the last second's nodes count."""
+
+COARSE_STEP = 0.05
+"""[s] RK4 step of the tiny solves: few substeps, so the test stays cheap; the problem is the same at any step."""
+
+
+def test_interval_integrator_is_the_models_rk4_with_the_trailer_steer_linear_in_time():
+    params = load_scenario("roundabout-3", {"vehicle": "lst"}).vehicle_params()
+    layout = Layout.for_vehicle(params)
+    trailer = {a.name for a in params.trailers[0].axles if a.steerable}
+    steered = [i for i, name in enumerate(layout.steerable_axles) if name in trailer]
+    substeps, step = 3, 0.02
+    rng = np.random.default_rng(0)
+    x = np.zeros(layout.n_states)
+    x[3], x[4], x[5], x[6], x[7] = 4.0, 0.05, 0.2, 0.1, 0.18  # u, v1, r1, Γ, r2
+    x[layout.slip_slice] = rng.uniform(-0.02, 0.02, layout.slip_slice.stop - layout.slip_slice.start)
+    held = np.zeros((layout.n_inputs, substeps))
+    held[layout.steer_slice] = rng.uniform(-0.1, 0.1, (len(layout.steerable_axles), substeps))
+    held[layout.drive_index] = 2000.0
+    held[layout.mu_slice] = 0.8
+    d_start, d_end = rng.uniform(-0.2, 0.2, len(steered)), rng.uniform(-0.2, 0.2, len(steered))
+
+    got = np.asarray(interval_integrator(params, steered, substeps, step)(x, d_start, d_end, held)).ravel()
+
+    model = VehicleModel(params, compile=False)
+    expected = x.copy()
+    for i in range(substeps):
+        u = held[:, i].copy()
+        u[steered] = d_start + (d_end - d_start) * (i + 0.5) / substeps
+        expected = np.asarray(model.rk4_step(expected, u, step)).ravel()
+    assert got == pytest.approx(expected, rel=1e-12, abs=1e-12)
+    assert not np.allclose(got, x)  # the state moved: the comparison is not of two unchanged vectors
+
+
+@pytest.fixture(scope="module")
+def tiny_case(tmp_path_factory):
+    """The tiny run (the PID's, truth-fed), its columns, simulator and limits."""
+    run_dir: Path = tmp_path_factory.mktemp("optimal_tiny")
+    config = load_scenario("roundabout-3", TINY)
+    setup = build_scenario(config)
+    run_scenario(config, run_dir, plots=False, model=setup.model)
+    frame = pd.read_parquet(run_dir / TIMESERIES_FILE)
+    columns = {name: frame[name].to_numpy() for name in frame.columns}
+    simulator = Simulator(setup.params, setup.surface, dt=config.rates.dynamics_step_s, model=setup.model)
+    return setup.params, columns, simulator, config.controller.path_following(config.rates.control_hz)
+
+
+@pytest.fixture(scope="module")
+def tiny_solution(tiny_case):
+    params, columns, simulator, limits = tiny_case
+    return solve_optimal_steer(params, columns, simulator, limits, step=COARSE_STEP)
+
+
+def test_the_solution_keeps_every_limit_and_costs_no_more_than_the_pid(tiny_case, tiny_solution):
+    _, columns, _, limits = tiny_case
+    solution = tiny_solution
+    assert solution.status == "solved"
+    assert np.all(np.abs(solution.steer) <= limits.max_steer + 1e-9)  # [rad] Ipopt's bound tolerance
+    rate = np.abs(np.diff(solution.steer, axis=0)) / np.diff(solution.times)[:, None]
+    assert np.all(rate <= limits.max_steer_rate * (1 + 1e-6))
+    assert np.all(np.abs(solution.slip) <= limits.max_slip_angle + 1e-9)
+    assert solution.steer[0] == pytest.approx(0.0, abs=1e-12)
+    assert solution.cost <= pid_cost(solution, columns)
+
+
+@pytest.mark.slow
+def test_the_mapped_nlp_solves_the_same_problem_as_the_nlp_expanded_as_a_whole(tiny_case, tiny_solution):
+    params, columns, simulator, limits = tiny_case
+    expanded = solve_optimal_steer(params, columns, simulator, limits, step=COARSE_STEP, expand=True)
+    assert expanded.status == tiny_solution.status == "solved"
+    # Both stop at Ipopt's tolerance from the same start on the same problem: equal to far below a millimetre².
+    assert tiny_solution.cost == pytest.approx(expanded.cost, rel=1e-6, abs=1e-12)
+    assert tiny_solution.steer == pytest.approx(expanded.steer, abs=1e-6)  # [rad]
