@@ -152,6 +152,12 @@ def test_the_pids_gap_to_the_optimal_reference(tmp_path: Path, reference, ratio,
     assert gap is not None and gap["pid_gap_rms_ratio"] == pytest.approx(ratio, rel=1e-12)
     assert gap["reference_holds"] is holds and gap["gap_within_limit"] is within
     assert optimal_gap({"truth": rows["truth"]}) is None  # no reference run: no gap
+    # With the NLP's own figures the gap is taken on its nodes, the replay's ratio kept beside it.
+    nlp = {**rows["optimal"], "optimal_nlp_rms_m": reference / 2.0, "pid_nodes_rms_m": 0.16 / 2.0}
+    on_nodes = optimal_gap({"truth": rows["truth"], "optimal": nlp})
+    assert on_nodes is not None and on_nodes["pid_gap_rms_ratio"] == pytest.approx(ratio, rel=1e-12)
+    assert on_nodes["replay_rms_ratio"] == pytest.approx(ratio, rel=1e-12)
+    assert on_nodes["reference_holds"] is (reference / 2.0 <= 0.10)
     if not within:
         return  # the figures' json once (matplotlib is slow to start)
     cell = {"scenario": "roundabout-3", "surface": "dry", "vehicle": "lst", "status": "completed"}

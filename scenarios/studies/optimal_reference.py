@@ -75,9 +75,9 @@ def _columns(run_dir: Path) -> dict[str, np.ndarray]:
     return {name: frame[name].to_numpy() for name in frame.columns}
 
 
-def pid_cost(schedule: OptimalSteer, columns: dict[str, np.ndarray]) -> float:
-    """The NLP's cost of the recorded run ``columns`` on the schedule's nodes: its follow point's distance from the
-    kingpin's path, squared and summed, plus the same steer-increment term."""
+def pid_offtracking(schedule: OptimalSteer, columns: dict[str, np.ndarray]) -> np.ndarray:
+    """The recorded run's follow-point distance from its kingpin's path at the schedule's nodes [m], by the NLP's own
+    signed distance; NaN on the nodes the NLP does not count (the kingpin's first trailer length)."""
     time = columns["time"]
     points = np.column_stack(
         [np.interp(schedule.times, time, columns["follow_x"]), np.interp(schedule.times, time, columns["follow_y"])]
@@ -85,8 +85,16 @@ def pid_cost(schedule: OptimalSteer, columns: dict[str, np.ndarray]) -> float:
     path = np.column_stack([columns["kingpin_x"], columns["kingpin_y"]])
     anchors, normals = path_reference(path, points)
     offtracking = np.sum(normals * (points - anchors), axis=1)
+    return np.where(np.isfinite(schedule.offtracking), offtracking, np.nan)
+
+
+def pid_cost(schedule: OptimalSteer, columns: dict[str, np.ndarray]) -> float:
+    """The NLP's cost of the recorded run ``columns`` on the schedule's nodes: its follow point's distance from the
+    kingpin's path, squared and summed over the nodes the NLP counts, plus the same steer-increment term."""
+    offtracking = pid_offtracking(schedule, columns)
+    time = columns["time"]
     steer = np.column_stack([np.interp(schedule.times, time, columns[f"steer_{a}"]) for a in schedule.axles])
-    return float(np.sum(offtracking**2) + STEER_SMOOTHING * np.sum(np.diff(steer, axis=0) ** 2))
+    return float(np.nansum(offtracking**2) + STEER_SMOOTHING * np.sum(np.diff(steer, axis=0) ** 2))
 
 
 def run_optimal_reference(
@@ -123,6 +131,7 @@ def run_optimal_reference(
         "pid_feedback": config.feedback,
         "pid_truth_after_warmup": pid_metrics["offtracking"]["truth_after_warmup"],
         "nlp_offtracking_rms": float(np.sqrt(np.nanmean(schedule.offtracking**2))),
+        "pid_nodes_offtracking_rms": float(np.sqrt(np.nanmean(pid_offtracking(schedule, recorded) ** 2))),
         "nlp_offtracking_max_abs": float(np.nanmax(np.abs(schedule.offtracking))),
         "nlp_max_abs_slip_deg": float(np.degrees(np.max(np.abs(schedule.slip)))) if schedule.slip is not None else None,
         "times": schedule.times.tolist(),
