@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from .field_loop import ALIGNMENTS, COVERAGE_BAND, RENDERED_FEEDBACK, SELF_CALIBRATION, field_signals
+from .field_loop_units import metric_number
 from .section4 import FIELD_CONDITIONS
 
 __all__ = [
@@ -66,14 +67,6 @@ def camera_overrides(seed: int = CAMERA_SEED) -> tuple[tuple[str, Any], ...]:
     )
 
 
-def _number(mapping: Any, key: str) -> float:
-    value = mapping.get(key) if isinstance(mapping, dict) else None
-    try:
-        return float(value) if value is not None else math.nan
-    except (TypeError, ValueError):
-        return math.nan
-
-
 def camera_columns(metrics: dict[str, Any]) -> dict[str, float]:
     """A camera case's columns (:data:`CAMERA_COLUMNS`) from its run's metrics; NaN where the run gave none.
 
@@ -86,11 +79,11 @@ def camera_columns(metrics: dict[str, Any]) -> dict[str, float]:
     fused = estimators.get(CAMERA_FEEDBACK) or {}
     raw = estimators.get("viso_ot") or {}
     return {
-        "fused_rms_error_m": _number(fused, "rms_error"),
-        "fused_max_abs_error_m": _number(fused, "max_abs_error"),
-        "fused_within_2sigma": _number(fused, "within_2sigma"),
-        "fused_mean_std_m": _number(fused, "mean_std"),
-        "viso_ot_rms_error_m": _number(raw, "rms_error"),
+        "fused_rms_error_m": metric_number(fused, "rms_error"),
+        "fused_max_abs_error_m": metric_number(fused, "max_abs_error"),
+        "fused_within_2sigma": metric_number(fused, "within_2sigma"),
+        "fused_mean_std_m": metric_number(fused, "mean_std"),
+        "viso_ot_rms_error_m": metric_number(raw, "rms_error"),
     }
 
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from .field_loop_units import verdict_flag_names
+from .field_loop_units import metric_number, verdict_flag_names
 
 __all__ = ["KINEMATIC_TRUSTED_STD_MPS", "ROW_KEYS", "kinematic_trust", "metrics_columns"]
 
@@ -37,14 +37,6 @@ ROW_KEYS = (
 :func:`~scenarios.studies.cases.run_case`'s row (NaN where the run did not give them)."""
 
 
-def _number(mapping: Any, key: str) -> float:
-    value = mapping.get(key) if isinstance(mapping, dict) else None
-    try:
-        return float(value) if value is not None else math.nan
-    except (TypeError, ValueError):
-        return math.nan
-
-
 def metrics_columns(metrics: dict[str, Any]) -> dict[str, Any]:
     """The study's columns from a run's ``metrics.json``: fused errors, fallback and verdict (NaN where absent).
 
@@ -66,13 +58,13 @@ def metrics_columns(metrics: dict[str, Any]) -> dict[str, Any]:
     fallback = metrics.get("feedback_fallback") or {}
     verdict = metrics.get("verdict")
     row: dict[str, Any] = {
-        "fused_rms_error_m": _number(fused, "rms_error"),
-        "fused_mean_error_m": _number(fused, "mean_error"),
-        "fused_max_abs_error_m": _number(fused, "max_abs_error"),
-        "fused_within_2sigma": _number(fused, "within_2sigma"),
-        "fused_mean_std_m": _number(fused, "mean_std"),
-        "fallback_fraction": _number(fallback, "fraction"),
-        "fallback_s": _number(fallback, "seconds"),
+        "fused_rms_error_m": metric_number(fused, "rms_error"),
+        "fused_mean_error_m": metric_number(fused, "mean_error"),
+        "fused_max_abs_error_m": metric_number(fused, "max_abs_error"),
+        "fused_within_2sigma": metric_number(fused, "within_2sigma"),
+        "fused_mean_std_m": metric_number(fused, "mean_std"),
+        "fallback_fraction": metric_number(fallback, "fraction"),
+        "fallback_s": metric_number(fallback, "seconds"),
         "verdict_held": math.nan,
         "verdict_flags": math.nan,
     }

@@ -16,10 +16,11 @@ from typing import Any
 
 import pandas as pd
 
-__all__ = ["UNIT_KEYS", "further_units_of", "unit_columns", "unit_view", "verdict_flag_names"]
+__all__ = ["UNIT_KEYS", "further_units_of", "metric_number", "unit_columns", "unit_view", "verdict_flag_names"]
 
 
-def _number(mapping: Any, key: str) -> float:
+def metric_number(mapping: Any, key: str) -> float:
+    """``mapping[key]`` of a run's metrics as a float: NaN where the mapping, the key or a number is missing."""
     value = mapping.get(key) if isinstance(mapping, dict) else None
     try:
         return float(value) if value is not None else math.nan
@@ -74,13 +75,13 @@ def unit_columns(metrics: dict[str, Any]) -> dict[str, float]:
     for unit, figures in sorted(((metrics.get("offtracking") or {}).get("units") or {}).items()):
         estimators = figures.get("estimators") or {}
         values = {
-            "true_rms_m": _number(figures, "rms_after_warmup"),
-            "true_max_m": _number(figures, "max_abs_after_warmup"),
+            "true_rms_m": metric_number(figures, "rms_after_warmup"),
+            "true_max_m": metric_number(figures, "max_abs_after_warmup"),
         }
         for prefix, name, keys in _ESTIMATOR_KEYS:
-            values.update({f"{prefix}_{key}_m": _number(estimators.get(name) or {}, key) for key in keys})
-        values["fused_within_2sigma"] = _number(estimators.get("viso_ot_fused") or {}, "within_2sigma")
-        values["fallback_s"] = _number(figures.get("feedback_fallback") or {}, "seconds")
+            values.update({f"{prefix}_{key}_m": metric_number(estimators.get(name) or {}, key) for key in keys})
+        values["fused_within_2sigma"] = metric_number(estimators.get("viso_ot_fused") or {}, "within_2sigma")
+        values["fallback_s"] = metric_number(figures.get("feedback_fallback") or {}, "seconds")
         values["steered"] = _steered(metrics, int(unit))
         out.update({f"unit{unit}_{key}": values[key] for key in UNIT_KEYS})
     return out
