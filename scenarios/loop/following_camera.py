@@ -17,7 +17,6 @@ interval does not start at the lead filter's anchor gives no measurement: the le
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -30,7 +29,7 @@ from vehicle_model.parameters import VehicleParams
 
 from ..unit_feedback import estimate_key
 
-__all__ = ["FollowingCamera", "following_camera", "measured_articulations"]
+__all__ = ["FollowingCamera", "filter_yaw_bias", "following_camera", "measured_articulations"]
 
 
 def measured_articulations(measured: Mapping[str, np.ndarray]) -> tuple[float, ...]:
@@ -38,6 +37,14 @@ def measured_articulations(measured: Mapping[str, np.ndarray]) -> tuple[float, .
     (``articulation``, then ``rear_articulation``)."""
     rear = measured.get("rear_articulation")
     return (float(measured["articulation"][0]), *(map(float, rear) if rear is not None else ()))
+
+
+def filter_yaw_bias(fused: Any) -> tuple[float, float] | None:
+    """A fused filter's (:class:`sensor.fusion.FusedVisoOt`) estimate of its odometry's yaw error ``β̂_ψ`` [rad/m]
+    and its variance now, as (C0) of :mod:`sensor.fusion_coupling` takes them (``None``: no filter)."""
+    if fused is None:
+        return None
+    return float(fused.state[BPSI]), float(fused.covariance[BPSI, BPSI])
 
 
 class FollowingCamera:
@@ -50,10 +57,11 @@ class FollowingCamera:
         CouplingReference`).
     camera
         The follower's VISO-OT participant (:class:`~.camera_estimator.VisoOt`): its released frames.
-    follower_filter
-        Gives the follower's fused VISO-OT participant when there is one (``None``: none; looked up on every frame,
-        since it may be built after the lead's): its estimate of the follower odometry's yaw error is taken out of
-        each following frame ((C0) of :mod:`sensor.fusion_coupling`).
+    yaw_bias
+        Gives the follower's fused filter's estimate of its odometry's yaw error and its variance when there is one
+        (:func:`filter_yaw_bias`; ``None`` or a ``None`` result: none; asked on every frame, since the follower's
+        filter may be built after the lead's): taken out of each following frame ((C0) of
+        :mod:`sensor.fusion_coupling`).
 
     Attributes
     ----------
@@ -62,11 +70,14 @@ class FollowingCamera:
     """
 
     def __init__(
-        self, reference: CouplingReference, camera: Any, follower_filter: Callable[[], Any] | None = None
+        self,
+        reference: CouplingReference,
+        camera: Any,
+        yaw_bias: Callable[[], tuple[float, float] | None] | None = None,
     ) -> None:
         self.reference = reference
         self.camera = camera
-        self.follower_filter = follower_filter
+        self.yaw_bias = yaw_bias
         self.measurements = 0
         self._articulations: dict[int, tuple[float, ...]] = {}  # Γ_{j+1} … Γ_m by tick, from the last frame on
         self._last_frame: int | None = None  # the tick of the follower's last released frame
@@ -84,7 +95,7 @@ class FollowingCamera:
             if before is None or after is None:
                 continue
             z, r = self.reference.measurement(
-                frame.vo.camera_motion, frame.vo.covariance, before, after, self._yaw_bias()
+                frame.vo.camera_motion, frame.vo.covariance, before, after, self.yaw_bias() if self.yaw_bias else None
             )
             if np.all(np.isfinite(z)) and np.all(np.isfinite(r)):
                 self._pending[int(shot.tick)] = CouplingMeasurement(start, z, r)
@@ -92,14 +103,6 @@ class FollowingCamera:
         if self._last_frame is not None:  # the next frame's interval starts at the last frame
             for old in [t for t in self._articulations if t < self._last_frame]:
                 del self._articulations[old]
-
-    def _yaw_bias(self) -> tuple[float, float] | None:
-        """The follower's filter's ``β̂_ψ`` [rad/m] and its variance now (``None``: no such filter)."""
-        participant = self.follower_filter() if self.follower_filter is not None else None
-        fused = getattr(participant, "filter", None)
-        if fused is None:
-            return None
-        return float(fused.state[BPSI]), float(fused.covariance[BPSI, BPSI])
 
     def take(self, tick: int) -> CouplingMeasurement | None:
         """The measurement of the frame that ended on tick ``tick`` (``None``: none), forgetting older ones."""
@@ -126,5 +129,9 @@ def following_camera(
             return None
         reference = CouplingReference(params, unit, follower, camera.camera_in_trailer, noise)
         key = estimate_key("viso_ot_fused", follower)
-        return FollowingCamera(reference, camera, functools.partial(unit_estimators.get, key))
+
+        def yaw_bias(key: str = key) -> tuple[float, float] | None:
+            return filter_yaw_bias(getattr(unit_estimators.get(key), "filter", None))
+
+        return FollowingCamera(reference, camera, yaw_bias)
     return None

@@ -10,13 +10,17 @@ row, the frame processed on it (or ``None``) and the reference's columns at the 
 
 The built-in adapters: Cheng's zero-slip estimate (:class:`OfflineZeroSlip`) and fused VISO-OT
 (:class:`OfflineFusedVisoOt`: the filter propagates on every row and takes each frame's motion on the frame's own
-row; no latency), both on the signals at the rows and silent outside the signals' span.
+row; no latency), both on the signals at the rows and silent outside the signals' span. The fused filter takes a
+run's ``fusion`` settings (the context's, by default a run's defaults with the inputs' rear point), a side rig's
+``fusion.side_rig`` among them, and, where those have ``coupling_reference`` on and the context gives a following
+unit's camera, that camera's motion carried forward through the couplings with each of its own frames, as a run's
+filter does (:mod:`scenarios.recorded.following`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
@@ -55,11 +59,25 @@ class OfflineContext:
         The rows' times [s since the first frame].
     signals : dict or None
         The signals at the rows (:data:`SIGNAL_KEYS`; NaN outside the signals' span), or ``None`` without signals.
+    fusion : FusionConfig or None
+        The fused filter's settings (``None``: a run's defaults); the inputs' rear point replaces their
+        ``kinematic_rear_point``.
+    following : callable or None
+        Given the fused filter's settings (a side rig's in place where it is one), the following unit's camera as
+        its reference (an object with ``observe(row)`` and ``take(row)``, :class:`scenarios.recorded.following.
+        RecordedFollowingCamera`), or ``None``; ``None``: no unit behind is estimated.
     """
 
     inputs: Any
     times: np.ndarray
     signals: dict[str, np.ndarray] | None
+    fusion: FusionConfig | None = None
+    following: Callable[[Any], Any] | None = None
+
+    def fusion_settings(self) -> FusionConfig:
+        """The fused filter's settings: :attr:`fusion` (a run's defaults) with the inputs' rear point."""
+        fusion = self.fusion if self.fusion is not None else FusionConfig()
+        return fusion.replace(kinematic_rear_point=self.inputs.rear_point)
 
 
 @runtime_checkable
@@ -134,8 +152,15 @@ class OfflineZeroSlip(_OnSignals):
 
 
 class OfflineFusedVisoOt(_OnSignals):
-    """Fused VISO-OT (:class:`sensor.fusion.FusedVisoOt`, a run's ``fusion`` defaults with the inputs' rear point):
-    the trailer's and tractor's signals on every row, each frame's motion on its own row."""
+    """Fused VISO-OT (:class:`sensor.fusion.FusedVisoOt`, :meth:`OfflineContext.fusion_settings`): the trailer's
+    and tractor's signals on every row, each frame's motion on its own row with, for a filter whose settings have
+    ``coupling_reference`` on, the following unit's measurement of the same frame (:attr:`reference`).
+
+    Attributes
+    ----------
+    reference
+        The following unit's camera (:attr:`OfflineContext.following`; ``None``: none).
+    """
 
     name = "viso_ot_fused"
     columns = FusedVisoOtEstimator.columns
@@ -145,8 +170,14 @@ class OfflineFusedVisoOt(_OnSignals):
 
         super().__init__(context)
         inputs = context.inputs
-        fusion = FusionConfig(kinematic_rear_point=inputs.rear_point)
-        self.fused = FusedVisoOt(inputs.rig.params, inputs.camera_in_trailer, fusion)
+        self.fused = FusedVisoOt(inputs.rig.params, inputs.camera_in_trailer, context.fusion_settings())
+        self.reference = self.following_camera(context)
+
+    def following_camera(self, context: OfflineContext) -> Any:
+        """The following unit's camera, where the filter's settings take it and the context gives one."""
+        if context.following is None or not self.fused.noise.coupling_reference:
+            return None
+        return context.following(self.fused.noise)
 
     def update(self, row: int, frame: Any, reference: Mapping[str, float]) -> None:
         """Propagate to ``row``; then the frame's motion (or none, if refused) on the same row."""
@@ -156,9 +187,13 @@ class OfflineFusedVisoOt(_OnSignals):
         self.fused.propagate(
             row, dt, self.value(row, "trailer_yaw_rate"), self.value(row, "trailer_speed"), None, self.kinematics(row)
         )
+        if self.reference is not None:
+            self.reference.observe(row)
         if frame is not None:
             usable = frame.valid
-            self.fused.measure(row, frame.vo.camera_motion if usable else None, frame.vo.covariance if usable else None)
+            coupling = self.reference.take(row) if self.reference is not None else None
+            motion, covariance = (frame.vo.camera_motion, frame.vo.covariance) if usable else (None, None)
+            self.fused.measure(row, motion, covariance, None, coupling)
 
     def kinematics(self, row: int) -> Any:
         """The zero-slip measurement's signals at ``row``: the tractor's (:class:`sensor.fusion.TractorSignals`)."""

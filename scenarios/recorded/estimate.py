@@ -16,7 +16,8 @@ columns where they mean the same (``offtracking_*``, the per-frame ``vo_*`` qual
 ``camera_frame``), ``metrics.json`` (:func:`scenarios.run.metrics.compute_metrics`, so the errors against the
 reference are reported exactly as a run's), ``offtracking.png``, ``plan_view.png`` — plus ``recording.yaml`` (what
 was given; it stands for a run's ``config.yaml``) and, in ``metrics.json``, ``recording``: the frames missing,
-refused and why, and the gaps in the times.
+refused and why, and the gaps in the times; for a side rig's fused filter, ``coupling_reference``: the following unit
+whose camera it took and the measurements it used (:func:`.following.coupling_summary`).
 
 Columns of a recorded run besides a run's: ``frame`` (the frame's number in the recording), ``frame_missing``,
 ``kingpin_x_viso_ot``/``kingpin_y_viso_ot``/``trailer_heading_viso_ot`` (the kingpin's path dead-reckoned from the
@@ -29,6 +30,7 @@ follow, in registry order.
 
 from __future__ import annotations
 
+import functools
 import math
 import time as wallclock
 from collections.abc import Callable
@@ -41,14 +43,16 @@ from sensor.frame_odometry import FrameOdometry
 from sensor.recordings.sequence import GAP_FACTOR, MISSING_REASONS, time_gaps
 from sensor.recordings.vo_metrics import relative_pose_error
 
+from ..config import FusionConfig
 from ..loop.camera_estimator import CAMERA_COLUMNS, VisoOt, camera_row
 from ..loop.ends import RunStatus
 from ..loop.estimators import GroundTruth
-from ..loop.offline import SIGNAL_KEYS, OfflineContext, OfflineEstimator
+from ..loop.offline import SIGNAL_KEYS, OfflineContext, OfflineEstimator, OfflineFusedVisoOt
 from ..loop.participant import Column
 from ..loop.plant import VehicleParticipant
 from ..registry import estimator_entries
 from ..run.results import TIMESERIES_FILE, TimeSeriesWriter, write_metrics
+from .following import FollowerTrace, coupling_summary, following_reference
 from .inputs import EstimateInputs
 from .reference import reference_columns
 from .report import write_recorded_report, write_recording_file
@@ -202,7 +206,14 @@ class _DeadReckoning:
 
 
 def estimate_recording(
-    inputs: EstimateInputs, run_dir: Path, *, plots: bool = True, progress: Progress | None = None
+    inputs: EstimateInputs,
+    run_dir: Path,
+    *,
+    plots: bool = True,
+    progress: Progress | None = None,
+    fusion: FusionConfig | None = None,
+    followers: dict[int, FollowerTrace] | None = None,
+    trace: FollowerTrace | None = None,
 ) -> dict[str, Any]:
     """Run the estimators over the recording and write the run directory (module notes); return ``metrics.json``.
 
@@ -216,6 +227,13 @@ def estimate_recording(
         Draw ``offtracking.png`` and ``plan_view.png``.
     progress : callable, optional
         ``progress(frames done, frames in all)`` after every frame.
+    fusion : FusionConfig, optional
+        The fused filter's settings (a run's ``fusion``; default a run's defaults).
+    followers : dict, optional
+        The units behind already estimated, by towed unit (:class:`.following.FollowerTrace`): the nearest whose
+        camera looks along its unit is the reference of a side rig's filter (:mod:`.following`).
+    trace : FollowerTrace, optional
+        Filled with this unit's processed frames, for a unit ahead of it.
     """
     t_start = wallclock.perf_counter()
     params = inputs.rig.params
@@ -239,11 +257,15 @@ def estimate_recording(
     )
     camera_pose = truth.pop("camera_pose", None)
     signals = None if inputs.signals is None else inputs.signals.at(times + inputs.recording.t0, params)
-    context = OfflineContext(inputs, times, signals)
+    following = None
+    if followers:
+        following = functools.partial(following_reference, inputs, followers, times, slots, signals)
+    context = OfflineContext(inputs, times, signals, fusion, following)
     if inputs.rig.unit == 1:
         offline = offline_estimators(context)
     else:  # a unit behind the first: its own fused filter on the chain's signals (the registry's are the first's)
         offline = [] if signals is None else [UnitFusedVisoOt(context)]
+    fused = next((e.fused for e in offline if isinstance(e, OfflineFusedVisoOt)), None)
     path = _DeadReckoning()
     writer = TimeSeriesWriter(run_dir / TIMESERIES_FILE, _columns(inputs, offline))
     refused: list[list[Any]] = []
@@ -294,6 +316,8 @@ def estimate_recording(
             for estimator in offline:
                 estimator.update(row, frame, reference)
                 record.update(estimator.record())
+            if trace is not None and frame is not None:  # after the unit's filter has taken the row
+                trace.add(float(t) + inputs.recording.t0, frame, fused)
             record["offtracking_viso_ot"] = estimate  # held between frames, as a run's
             record.update(path.record())
             record.update(reference)
@@ -312,6 +336,9 @@ def estimate_recording(
             "wall_time_s": wallclock.perf_counter() - t_start,
             "recording": _recording_summary(inputs, missing, refused),
         }
+        coupling = next((c for e in offline if (c := coupling_summary(e)) is not None), None)
+        if coupling is not None:
+            run["coupling_reference"] = coupling
         metrics = write_recorded_report(run_dir, inputs.record, run, plots=plots and status == RunStatus.COMPLETED)
     return metrics
 

@@ -26,10 +26,11 @@ rigs that share no instant are refused before any image is decoded, naming both 
 :func:`estimate_rigs` runs :func:`.estimate.estimate_recording` on each rig — VISO-OT of its own unit
 (:class:`sensor.viso_ot.VisoOtEstimator` with the unit's front coupling and follow point) and, with the rig's
 signals, the unit's fused estimate (the first towed unit's also Cheng's zero-slip estimate; a unit behind it
-:mod:`.unit_fusion`) — each into ``unitK/`` (``K`` the vehicle unit, 2 the
-first towed unit, as a run's ``metrics.json`` numbers them), a recorded run of its own that ``offtrack report`` and
-``offtrack animate`` take. The directory's ``metrics.json`` holds each unit's off-tracking metrics and the
-synchronisation: the span every rig covers and each rig's first and last frame on the clock.
+:mod:`.unit_fusion`; a side rig's taking the rear rig of a unit behind as its reference, :mod:`.following`) —
+each into ``unitK/`` (``K`` the vehicle unit, 2 the first towed unit, as a run's ``metrics.json`` numbers them), a
+recorded run of its own that ``offtrack report`` and ``offtrack animate`` take. The directory's ``metrics.json``
+holds each unit's off-tracking metrics and the synchronisation: the span every rig covers and each rig's first and
+last frame on the clock.
 """
 
 from __future__ import annotations
@@ -42,10 +43,12 @@ import numpy as np
 
 from vehicle_model.errors import InputError
 
+from ..config import FusionConfig
 from ..loop.ends import RunStatus
 from ..run.results import write_metrics
 from ..yaml_input import MAX_BYTES, load_yaml
 from .estimate import Progress, estimate_recording
+from .following import FollowerTrace
 from .inputs import EstimateInputs, resolve_inputs
 from .rig import rig_from_fields
 
@@ -163,11 +166,19 @@ def unit_dir_name(towed_unit: int) -> str:
 
 
 def estimate_rigs(
-    rigs: RigsInputs, run_dir: Path, *, plots: bool = True, progress: Progress | None = None
+    rigs: RigsInputs,
+    run_dir: Path,
+    *,
+    plots: bool = True,
+    progress: Progress | None = None,
+    fusion: FusionConfig | None = None,
 ) -> dict[str, Any]:
     """Estimate every rig's unit into ``run_dir/unitK`` and write ``run_dir/metrics.json`` (module notes); return it.
 
-    ``progress(frames done, frames in all)`` counts the frames of every rig, in the order of the file.
+    The rearmost unit first: a unit's frames and fused filter are kept (:class:`.following.FollowerTrace`) for the
+    units ahead of it, whose side rig's filter takes them as a run's does (:mod:`.following`). ``progress(frames
+    done, frames in all)`` counts the frames of every rig, in that order; ``fusion``: the fused filters' settings
+    (a run's ``fusion``; default a run's defaults).
     """
     run_dir = Path(run_dir)
     total = sum(len(u.recording.times) for u in rigs.units)
@@ -175,7 +186,8 @@ def estimate_rigs(
     units: dict[str, Any] = {}
     clock: list[dict[str, Any]] = []
     status, message = RunStatus.COMPLETED, f"every rig's recording was processed to its end ({len(rigs.units)} rigs)"
-    for inputs in rigs.units:
+    traces: dict[int, FollowerTrace] = {}
+    for inputs in sorted(rigs.units, key=lambda u: -u.rig.unit):
         unit_dir = run_dir / unit_dir_name(inputs.rig.unit)
         unit_dir.mkdir(parents=True, exist_ok=False)
 
@@ -183,7 +195,11 @@ def estimate_rigs(
             if progress is not None:
                 progress(before + frames, total)
 
-        metrics = estimate_recording(inputs, unit_dir, plots=plots, progress=counted)
+        trace = FollowerTrace(inputs)
+        metrics = estimate_recording(
+            inputs, unit_dir, plots=plots, progress=counted, fusion=fusion, followers=dict(traces), trace=trace
+        )
+        traces[inputs.rig.unit] = trace
         done += len(inputs.recording.times)
         key = str(inputs.rig.unit + 1)
         units[key] = {
@@ -200,6 +216,9 @@ def estimate_rigs(
         )
         if metrics.get("status") != RunStatus.COMPLETED and status == RunStatus.COMPLETED:
             status, message = metrics.get("status", RunStatus.FAILED), f"{unit_dir.name}: {metrics.get('message')}"
+    order = [u.rig.unit + 1 for u in rigs.units]  # the file's order
+    units = {key: units[key] for key in sorted(units, key=lambda k: order.index(int(k)))}
+    clock.sort(key=lambda entry: order.index(entry["unit"]))
     summary = {
         "scenario": f"recording rigs {Path(rigs.source).name}",
         "status": status,

@@ -5,14 +5,14 @@ behind it gets :class:`sensor.fusion.FusedVisoOt` of that unit: its own gyro and
 (the signals' ``trailer_yaw_rate`` and ``trailer_speed``, the unit's own beside its rig), and the zero-slip
 measurement (K1) takes the tractor's signals carried down the chain through every coupling's articulation
 (:class:`sensor.unit_kinematics.ChainSignals`: ``articulation``, ``articulation2``, … ``articulation<k>``); each
-frame's motion is measured on its own row, as the first unit's adapter does.
+frame's motion is measured on its own row, with a following unit's measurement of the same frame where the
+settings take it, as the first unit's adapter does.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from ..config import FusionConfig
 from ..loop.offline import OfflineContext, OfflineFusedVisoOt
 
 __all__ = ["UnitFusedVisoOt", "chain_signal_keys"]
@@ -33,8 +33,9 @@ class UnitFusedVisoOt(OfflineFusedVisoOt):
         super().__init__(context)
         inputs = context.inputs
         self.keys = chain_signal_keys(inputs.rig.unit)
-        fusion = FusionConfig(kinematic_rear_point=inputs.rear_point)
+        fusion = context.fusion_settings()
         self.fused = FusedVisoOt(inputs.rig.params, inputs.camera_in_trailer, fusion, unit=inputs.rig.unit)
+        self.reference = self.following_camera(context)
 
     def kinematics(self, row: int) -> Any:
         """The tractor's signals and every coupling's articulation down to the unit
