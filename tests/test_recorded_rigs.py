@@ -24,9 +24,11 @@ import yaml
 from typer.testing import CliRunner
 
 from scenarios.cli import app
-from scenarios.config import load_scenario
+from scenarios.config import FusionConfig, load_scenario
 from scenarios.export.kitti import export_kitti
 from scenarios.loop.trailer_steer import UnsteeredTrailer, trailer_axles
+from scenarios.recorded.estimate import estimate_recording
+from scenarios.recorded.rigs import load_rigs
 from scenarios.run.drive import simulate
 from scenarios.setup.build import build_scenario
 from sensor.camera import StereoRig
@@ -135,6 +137,29 @@ def test_the_directory_holds_every_units_metrics_and_the_synchronisation(recorde
     assert "unit 3 (unit3/): completed" in recorded.output
     record = yaml.safe_load((recorded.out / "unit3" / "recording.yaml").read_text())
     assert record["rig_file"]["unit"] == 2 and record["rig"] is None
+
+
+def test_the_side_rigs_filter_takes_the_rear_rig_as_its_reference_as_a_run_does(
+    recorded: SimpleNamespace, tmp_path: Path
+) -> None:
+    """The lead trailer's side rig takes the rear trailer's rear rig through the couplings (a run's
+    ``fusion.side_rig.coupling_reference``, on by default): the rear rig's frames meet the lead's on every frame and
+    the filter uses their measurements; with the setting off, the same recording gives a different estimate."""
+    lead = json.loads((recorded.out / "unit2" / "metrics.json").read_text())["coupling_reference"]
+    assert lead["follower_unit"] == 2 and lead["frames_matched"] == len(recorded.frames)
+    assert lead["measurements"] >= len(recorded.frames) - 2 and lead["updates"] > len(recorded.frames) // 2
+    assert "coupling_reference" not in json.loads((recorded.out / "unit3" / "metrics.json").read_text())  # a rear rig
+    rigs = load_rigs(recorded.rigs)
+    side = next(inputs for inputs in rigs.units if inputs.rig.unit == 1)
+    off = FusionConfig(side_rig={"coupling_reference": False})
+    metrics = estimate_recording(side, tmp_path, plots=False, fusion=off)  # the lead alone, its own filter
+    assert "coupling_reference" not in metrics
+    with_reference = pd.read_parquet(recorded.out / "unit2" / "timeseries.parquet")["offtracking_viso_ot_fused"]
+    alone = pd.read_parquet(tmp_path / "timeseries.parquet")["offtracking_viso_ot_fused"]
+    both = np.isfinite(with_reference) & np.isfinite(alone)
+    assert both.sum() >= 10
+    # the reference moves the estimate (by more than 1 mm somewhere): it is not ignored
+    assert float(np.max(np.abs(with_reference[both] - alone[both]))) > 1e-3
 
 
 def _refused(*args: str) -> str:

@@ -1,0 +1,117 @@
+"""A following unit's recorded frames as the reference of a side rig's offline filter (scenarios/recorded/following.py).
+
+A B-double swings through a turn (every articulation changing, no unit moving as its tyres would let it); the rear
+trailer's rear rig sees its exact camera motions, kept as a recording's trace is, on the lead's clock with a
+constant offset well within the synchronisation tolerance. Each following frame released on the lead's frame row of
+the same instant gives, through the loop's following camera, the lead's exact kingpin increment over the frame; a
+frame missing from the follower's recording gives none, and the frame after it starts at the missing frame's
+predecessor, not at the lead's anchor, so a filter takes none there either.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from types import SimpleNamespace
+
+import numpy as np
+
+from scenarios.config import FusionConfig
+from scenarios.recorded.following import FollowerTrace, following_reference
+from sensor.camera import StereoRig
+from sensor.fusion_model import relative_pose
+from vehicle_model.geometry import ChainPose, unit_frame
+from vehicle_model.presets import VEHICLE_PRESETS
+
+PERIOD = 0.1  # frame interval [s]
+OFFSET = 0.002  # the follower's frames' offset on the shared clock [s] (within a tenth of the period)
+T0 = 5.0  # the lead recording's first frame on the shared clock [s]
+
+
+def _pose(t: float) -> ChainPose:
+    angles = tuple(0.2 * math.sin(0.7 * t + k) + 0.05 * k for k in range(2))
+    return ChainPose(3.0 * t + 0.4 * math.sin(t), 0.5 * t * t, 0.3 * t + 0.2 * math.sin(1.3 * t), angles)
+
+
+def _reference(missing: int | None, offset: float = OFFSET):
+    """The lead's reference over 12 frames with a signals' row between each two (the follower's frame ``missing``
+    not recorded, its frames ``offset`` after the lead's), the lead's rows and the B-double."""
+    params = VEHICLE_PRESETS["au-b-double"]()
+    rear = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
+    camera = rear.camera_in_trailer("left", params)
+    frames = np.arange(12) * PERIOD
+    times = np.sort(np.concatenate([frames, frames[:-1] + PERIOD / 2]))  # a signals' row between frames
+    slots = np.where(np.isin(times, frames), np.searchsorted(frames, times), -1)
+    follower = SimpleNamespace(rig=SimpleNamespace(unit=2, params=params), camera_in_trailer=camera, signals=None)
+    trace = FollowerTrace(follower)
+    last = None
+    for k, t in enumerate(frames):
+        world = rear.camera_in_world(params, _pose(t), "left")
+        if last is not None and k != missing:
+            motion = np.linalg.inv(last) @ world
+            frame = SimpleNamespace(valid=True, vo=SimpleNamespace(camera_motion=motion, covariance=None))
+            trace.add(T0 + t + offset, frame, None)
+        elif k == 0:
+            trace.add(T0 + t + offset, SimpleNamespace(valid=False, vo=None), None)
+        if k != missing:
+            last = world
+    angles = np.array([_pose(t).angles for t in times])
+    signals = {"articulation": angles[:, 0], "articulation2": angles[:, 1]}
+    lead = SimpleNamespace(
+        rig=SimpleNamespace(unit=1, params=params), recording=SimpleNamespace(t0=T0, times=frames), signals=None
+    )
+    reference = following_reference(lead, {2: trace}, times, slots, signals, FusionConfig())
+    return reference, times, slots, params
+
+
+def _measurements(reference, times, slots):
+    found = {}
+    for row in range(times.size):
+        reference.observe(row)
+        if slots[row] >= 0:
+            found[row] = reference.take(row)
+    return found
+
+
+def test_each_following_frame_gives_the_leads_exact_increment_over_the_same_frame() -> None:
+    reference, times, slots, params = _reference(missing=None)
+    assert reference is not None and reference.follower == 2 and reference.matched == 12
+    found = _measurements(reference, times, slots)
+    rows = np.flatnonzero(slots >= 0)
+    assert found[rows[0]] is None  # the first frame has no interval
+    for previous, row in itertools.pairwise(rows):
+        measurement = found[row]
+        assert measurement is not None and measurement.start_tick == previous
+        (pa, ha), (pb, hb) = (unit_frame(params, _pose(times[r]), 1) for r in (previous, row))
+        truth = relative_pose(np.array([*pa, ha]), np.array([*pb, hb]))
+        # the transport is exact on the rigid bodies' motion (1e-9 m, rad); the covariance a positive 3×3
+        np.testing.assert_allclose(measurement.increment, truth, rtol=0.0, atol=1e-9)
+        assert np.all(np.linalg.eigvalsh(measurement.covariance) > 0.0)
+    assert reference.following.measurements == rows.size - 1
+
+
+def test_a_missing_following_frame_gives_no_measurement_at_the_leads_anchor() -> None:
+    missing = 5
+    reference, times, slots, _ = _reference(missing=missing)
+    assert reference is not None and reference.matched == 11
+    found = _measurements(reference, times, slots)
+    rows = np.flatnonzero(slots >= 0)
+    assert found[rows[missing]] is None
+    after = found[rows[missing + 1]]
+    # the frame after the gap spans it: it starts on the frame before the missing one, not at the lead's anchor
+    assert after is not None and after.start_tick == rows[missing - 1]
+    assert all(found[rows[k]] is not None and found[rows[k]].start_tick == rows[k - 1] for k in (2, 4, 8, 11))
+
+
+def test_a_follower_off_the_shared_instant_or_across_its_unit_gives_no_reference() -> None:
+    # frames a third of a period apart are not the same instant: none is released, no measurement is made
+    reference, times, slots, params = _reference(missing=None, offset=PERIOD / 3)
+    assert reference is not None and reference.matched == 0
+    assert all(found is None for found in _measurements(reference, times, slots).values())
+    # a side rig behind has the lead's own axial errors: not a reference
+    side = StereoRig.from_degrees(psi_c2v_deg=270.0, lateral=1.275, unit=2, station=-4.0)
+    unit = SimpleNamespace(rig=SimpleNamespace(unit=2, params=params), camera_in_trailer=None, signals=None)
+    unit.camera_in_trailer = side.camera_in_trailer("left", params)
+    lead = SimpleNamespace(rig=SimpleNamespace(unit=1, params=params), recording=SimpleNamespace(t0=T0, times=times))
+    signals = {"articulation": np.zeros(times.size), "articulation2": np.zeros(times.size)}
+    assert following_reference(lead, {2: FollowerTrace(unit)}, times, slots, signals, FusionConfig()) is None
