@@ -28,7 +28,7 @@ from scenarios.config import FusionConfig, load_scenario
 from scenarios.export.kitti import export_kitti
 from scenarios.loop.trailer_steer import UnsteeredTrailer, trailer_axles
 from scenarios.recorded.estimate import estimate_recording
-from scenarios.recorded.rigs import load_rigs
+from scenarios.recorded.rigs import estimate_rigs, load_rigs
 from scenarios.run.drive import simulate
 from scenarios.setup.build import build_scenario
 from sensor.camera import StereoRig
@@ -160,6 +160,25 @@ def test_the_side_rigs_filter_takes_the_rear_rig_as_its_reference_as_a_run_does(
     assert both.sum() >= 10
     # the reference moves the estimate (by more than 1 mm somewhere): it is not ignored
     assert float(np.max(np.abs(with_reference[both] - alone[both]))) > 1e-3
+
+
+def test_a_missing_rear_rig_frame_leaves_the_side_rig_its_own_frames_there(
+    recorded: SimpleNamespace, tmp_path: Path
+) -> None:
+    """A frame of the rear rig not recorded: the lead takes no reference over it nor over the frame after it (which
+    spans the gap, so it does not start at the lead's anchor), and every other frame's as before."""
+    for name in ("lead", "rear", "lead.csv", "rear.csv", "rigs.yaml"):
+        copy = shutil.copytree if (recorded.tmp / name).is_dir() else shutil.copy
+        copy(recorded.tmp / name, tmp_path / name)
+    for sub in ("image_0", "image_1"):
+        (tmp_path / "rear" / sub / "000015.png").unlink()
+    summary = estimate_rigs(load_rigs(tmp_path / "rigs.yaml"), tmp_path / "out", plots=False)
+    assert summary["status"] == "completed"
+    full = json.loads((recorded.out / "unit2" / "metrics.json").read_text())["coupling_reference"]
+    gap = json.loads((tmp_path / "out" / "unit2" / "metrics.json").read_text())["coupling_reference"]
+    assert gap["frames_matched"] == full["frames_matched"] - 1 and gap["measurements"] == full["measurements"] - 1
+    # the frame after the gap is measured but not at the lead's anchor: the filter takes neither, refusing none
+    assert gap["updates"] + gap["rejected"] == full["updates"] + full["rejected"] - 2
 
 
 def _refused(*args: str) -> str:
