@@ -166,12 +166,16 @@ class OfflineFusedVisoOt(_OnSignals):
     columns = FusedVisoOtEstimator.columns
 
     def __init__(self, context: OfflineContext) -> None:
+        super().__init__(context)
+        self.fused = self.build_filter(context)
+        self.reference = self.following_camera(context)
+
+    def build_filter(self, context: OfflineContext) -> Any:
+        """The filter (:class:`sensor.fusion.FusedVisoOt` of the first towed unit)."""
         from sensor.fusion import FusedVisoOt
 
-        super().__init__(context)
         inputs = context.inputs
-        self.fused = FusedVisoOt(inputs.rig.params, inputs.camera_in_trailer, context.fusion_settings())
-        self.reference = self.following_camera(context)
+        return FusedVisoOt(inputs.rig.params, inputs.camera_in_trailer, context.fusion_settings())
 
     def following_camera(self, context: OfflineContext) -> Any:
         """The following unit's camera, where the filter's settings take it and the context gives one."""

@@ -28,14 +28,15 @@ class UnitFusedVisoOt(OfflineFusedVisoOt):
     adapter (:class:`scenarios.loop.offline.OfflineFusedVisoOt`) with the unit's filter and the chain's signals."""
 
     def __init__(self, context: OfflineContext) -> None:
+        self.keys = chain_signal_keys(context.inputs.rig.unit)
+        super().__init__(context)
+
+    def build_filter(self, context: OfflineContext) -> Any:
+        """The filter of the rig's unit (:class:`sensor.fusion.FusedVisoOt` with ``unit``)."""
         from sensor.fusion import FusedVisoOt
 
-        super().__init__(context)
         inputs = context.inputs
-        self.keys = chain_signal_keys(inputs.rig.unit)
-        fusion = context.fusion_settings()
-        self.fused = FusedVisoOt(inputs.rig.params, inputs.camera_in_trailer, fusion, unit=inputs.rig.unit)
-        self.reference = self.following_camera(context)
+        return FusedVisoOt(inputs.rig.params, inputs.camera_in_trailer, context.fusion_settings(), unit=inputs.rig.unit)
 
     def kinematics(self, row: int) -> Any:
         """The tractor's signals and every coupling's articulation down to the unit
