@@ -17,9 +17,10 @@ from types import SimpleNamespace
 import numpy as np
 
 from scenarios.config import FusionConfig
+from scenarios.loop.following_camera import filter_yaw_bias, following_camera
 from scenarios.recorded.following import FollowerTrace, following_reference
 from sensor.camera import StereoRig
-from sensor.fusion_model import relative_pose
+from sensor.fusion_model import BPSI, relative_pose
 from vehicle_model.geometry import ChainPose, unit_frame
 from vehicle_model.presets import VEHICLE_PRESETS
 
@@ -115,3 +116,17 @@ def test_a_follower_off_the_shared_instant_or_across_its_unit_gives_no_reference
     lead = SimpleNamespace(rig=SimpleNamespace(unit=1, params=params), recording=SimpleNamespace(t0=T0, times=times))
     signals = {"articulation": np.zeros(times.size), "articulation2": np.zeros(times.size)}
     assert following_reference(lead, {2: FollowerTrace(unit)}, times, slots, signals, FusionConfig()) is None
+
+
+def test_the_loops_following_camera_reads_the_followers_filter_when_asked() -> None:
+    """The run's follower yaw error (C0) comes from the follower's fused participant looked up when a frame is
+    measured (it may be built after the lead's), as the offline trace keeps it: ``β̂_ψ`` and its variance."""
+    params = VEHICLE_PRESETS["au-b-double"]()
+    rear = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
+    cameras: dict = {"viso_ot3": SimpleNamespace(camera_in_trailer=rear.camera_in_trailer("left", params), released=[])}
+    lead = following_camera(params, 1, cameras, FusionConfig(), "planar")
+    assert lead is not None and lead.yaw_bias is not None and lead.yaw_bias() is None  # no follower filter yet
+    state, covariance = np.arange(12.0), np.diag(np.arange(12.0) + 1.0)
+    cameras["viso_ot_fused3"] = SimpleNamespace(filter=SimpleNamespace(state=state, covariance=covariance))
+    assert lead.yaw_bias() == (state[BPSI], covariance[BPSI, BPSI])
+    assert filter_yaw_bias(cameras["viso_ot_fused3"].filter) == lead.yaw_bias()
