@@ -40,6 +40,20 @@ takes them).
 
 A follower camera that looks across its motion has the same axial errors as the lead's, so the follower is the
 nearest unit behind whose camera looks along its unit (a rear or front rig, :func:`looks_along`).
+
+Off the level road (``level_reference="accelerometer"``, :mod:`sensor.level_reference`) the lead's filter takes its
+increments in its **level frame** (its heading about the vertical, :meth:`~sensor.viso_ot.VisoOtEstimator.
+level_increment`), and so does the reference: the follower's camera motion is made horizontal exactly as its own
+filter makes it, from the follower's accelerometer tilt at the frame's start and end, and (C1) carries that
+horizontal increment forward unchanged. (C1) holds in the level frame when each ``Γ`` is the difference of the two
+units' headings about the vertical and each ``p_i`` is the rear coupling's horizontal station, as the yaw-plane model
+places them (:mod:`vehicle_model.terrain_pose`: every unit's heading is horizontal, its supports lifted onto the
+ground). A real articulation sensor turns about the coupling's axis, the units' common normal on a grade of
+inclination ``α``; a direction at an angle ``β`` in that plane from the fall line has the horizontal azimuth
+``atan2(sin β, cos β·cos α)``, whose slope in ``β`` lies within ``[cos α, 1/cos α]``, so the angle measured about the
+normal differs from its horizontal projection by at most ``(1/cos α − 1)·|Γ|`` (1.1 % of ``Γ`` on a 15 % grade).
+With the odometry's integrated tilt (``level_reference="odometry"``) the follower's tilt is its own filter's running
+state, which the reference does not reproduce: it is refused there.
 """
 
 from __future__ import annotations
@@ -148,11 +162,16 @@ class CouplingReference:
     noise
         The covariance scale and floors of the follower's odometry (:func:`~sensor.fusion_model.camera_increment`)
         and ``articulation_noise``.
+    level_reference
+        How the follower's camera motion is made horizontal, as the lead's filter makes its own: ``planar``
+        (default, the level road) or ``accelerometer`` (the follower's tilt at the frame's start and end given to
+        :meth:`measurement`; module notes).
 
     Raises
     ------
     InputError
-        ``follower`` not behind ``lead`` within the combination, or a unit between them without a rear coupling.
+        ``follower`` not behind ``lead`` within the combination, a unit between them without a rear coupling, or
+        ``level_reference`` neither ``planar`` nor ``accelerometer``.
     """
 
     def __init__(
@@ -162,7 +181,12 @@ class CouplingReference:
         follower: int,
         camera_in_follower: np.ndarray,
         noise: FusionNoise,
+        level_reference: str = "planar",
     ) -> None:
+        if level_reference not in ("planar", "accelerometer"):
+            raise InputError(
+                f"level_reference = {level_reference!r}: a coupling reference needs 'planar' or 'accelerometer'"
+            )
         if not 1 <= lead < follower <= len(params.trailers):
             raise InputError(
                 f"a coupling reference needs a follower behind the lead unit within the combination's "
@@ -173,7 +197,7 @@ class CouplingReference:
             raise InputError(f"units {lead}–{follower - 1} must each tow the one behind (a rear coupling)")
         self.lead, self.follower = lead, follower
         self.rear_couplings = [float(x) for x in stations if x is not None]
-        self.geometry = VisoOtEstimator(params, camera_in_follower, unit=follower)
+        self.geometry = VisoOtEstimator(params, camera_in_follower, unit=follower, level_reference=level_reference)
         self.noise = noise
 
     def articulations(self, articulations: Sequence[float]) -> tuple[float, ...]:
@@ -190,14 +214,27 @@ class CouplingReference:
         start: Sequence[float],
         end: Sequence[float],
         yaw_bias: tuple[float, float] | None = None,
+        tilts: tuple[tuple[float, float], tuple[float, float]] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """The lead's kingpin increment ``z`` and its 3×3 covariance ``R_c`` (C1)–(C2) from one follower camera
         motion (as :meth:`~sensor.fusion.FusedVisoOt.measure` takes it, with its 6×6 odometry covariance or
         ``None``) and the articulations ``Γ_{j+1} … Γ_m`` at the frame's start and end (:meth:`articulations`);
         ``yaw_bias``: the follower's odometry yaw error ``β̂_ψ`` [rad/m] and its variance as its own filter
-        estimates them, taken out by (C0) (``None``: none)."""
+        estimates them, taken out by (C0) (``None``: none). ``tilts``: the follower's (pitch, roll) [rad] at the
+        frame's start and end, required with ``level_reference="accelerometer"`` (the increment is then the lead's
+        in its level frame, module notes) and refused without it."""
+        tilt = None
+        if self.geometry.level_reference == "planar":
+            if tilts is not None:
+                raise InputError(f"tilts = {tilts!r} given with level_reference = 'planar'; allowed: None")
+        else:
+            if tilts is None or len(tilts) != 2:
+                raise InputError(f"tilts = {tilts!r}: level_reference 'accelerometer' needs the start and end tilts")
+            start_tilt = self.geometry.given_tilt(tilts[0])
+            tilt = self.geometry.given_tilt(tilts[1])
+            self.geometry.tilt = start_tilt  # the follower's level frame at the frame's start, as its filter holds it
         follower, r_follower = camera_increment(
-            self.geometry, self.noise, np.asarray(camera_motion, dtype=float), covariance
+            self.geometry, self.noise, np.asarray(camera_motion, dtype=float), covariance, tilt
         )
         if yaw_bias is not None and all(math.isfinite(v) for v in yaw_bias):  # (C0)
             g = np.array([*(self.noise.vo_bias_coupling * r_follower[:2, 2] / r_follower[2, 2]), 1.0])

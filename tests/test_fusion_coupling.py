@@ -14,6 +14,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from analytic_terrains import TiltedPlane
 
 from scenarios.loop.following_camera import FollowingCamera, following_camera
 from sensor.camera import StereoRig
@@ -25,6 +26,7 @@ from vehicle_model.errors import InputError
 from vehicle_model.geometry import ChainPose, unit_frame
 from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses
 from vehicle_model.presets import VEHICLE_PRESETS
+from vehicle_model.terrain_pose import unit_attitude
 
 DT = 0.02  # control period [s]
 EVERY = 5  # control ticks per camera frame
@@ -227,3 +229,94 @@ def test_the_follower_is_the_nearest_unit_behind_whose_camera_looks_along_it():
     assert following_camera(params, 3, cameras, noise, "planar") is None
     assert following_camera(params, 1, cameras, noise, "accelerometer") is None
     assert following_camera(params, 1, {"viso_ot3": cameras["viso_ot3"]}, noise, "planar") is None
+
+
+# ------------------------------------------------------------------------------------------- off the level road
+
+
+def _normal_articulations(params, pose: ChainPose, terrain, lead: int, follower: int) -> tuple[float, ...]:
+    """``Γ_{j+1} … Γ_m`` as a sensor turning about the coupling's axis reads them: the angle between the two units'
+    body x axes about the follower's normal (the units' common normal on a plane)."""
+    out = []
+    for k in range(lead, follower):
+        ahead, behind = (unit_attitude(params, pose, terrain, u).rotation for u in (k, k + 1))
+        x_ahead, x_behind, normal = ahead[:, 0], behind[:, 0], behind[:, 2]
+        out.append(math.atan2(float(normal @ np.cross(x_behind, x_ahead)), float(x_behind @ x_ahead)))
+    return tuple(out)
+
+
+@pytest.mark.parametrize("fall_line", [0.0, 0.7, 2.0])
+def test_on_a_tilted_plane_the_reference_is_the_leads_level_frame_increment(fall_line):
+    """On a 15 % plane (inclination ``α = atan 0.15``) the follower's rear camera motion, made horizontal with its
+    tilts at the frame's start and end and carried forward by (C1), is the lead's kingpin increment in its level
+    frame (the yaw-plane model's, which the lead's filter measures) to 1e-9 m, rad, with the articulations as the
+    model has them (the headings' difference about the vertical). With the articulations about the plane's normal
+    instead the error stays within what ``|δΓ| ≤ (1/cos α − 1)·|Γ|`` allows: ``|d_m|·|δΓ⁰| + |x5|·|δΓ¹ − δΓ⁰|``
+    in position, ``|δΓ¹ − δΓ⁰|`` in yaw."""
+    grade = 0.15
+    plane = TiltedPlane(grade * math.cos(fall_line), grade * math.sin(fall_line), 1.0)
+    slack = 1.0 / math.cos(math.atan(grade)) - 1.0
+    params = VEHICLE_PRESETS["au-b-double"]()
+    rig = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
+    reference = CouplingReference(params, 1, 2, rig.camera_in_trailer("left", params), FusionNoise(), "accelerometer")
+    x5 = abs(float(params.trailers[0].fifth_wheel_x))
+    normal_error = 0.0
+    for t in np.arange(0.0, 6.0, 0.6):
+        a, b = _swinging(t, 2), _swinging(t + 0.2, 2)
+        tilts = tuple((float(u.pitch), float(u.roll)) for u in (unit_attitude(params, p, plane, 2) for p in (a, b)))
+        motion = np.linalg.inv(rig.camera_in_world(params, a, "left", plane)) @ rig.camera_in_world(
+            params, b, "left", plane
+        )
+        truth = _increment(params, a, b, 1)
+        start, end = reference.articulations(a.angles), reference.articulations(b.angles)
+        z, r = reference.measurement(motion, np.eye(6) * 1e-8, start, end, None, tilts)
+        np.testing.assert_allclose(z, truth, rtol=0.0, atol=1e-9)
+        assert np.all(np.linalg.eigvalsh(r) > 0.0)
+        g0, g1 = (_normal_articulations(params, p, plane, 1, 2) for p in (a, b))
+        z_n, _ = reference.measurement(motion, None, g0, g1, None, tilts)
+        d_m = math.hypot(*_increment(params, a, b, 2)[:2])
+        yaw_bound = slack * (abs(start[0]) + abs(end[0]))
+        assert abs(z_n[2] - truth[2]) <= yaw_bound + 1e-9
+        assert math.hypot(*(z_n - truth)[:2]) <= slack * d_m * abs(start[0]) + x5 * yaw_bound + 1e-9
+        normal_error = max(normal_error, math.hypot(*(z_n - truth)[:2]))
+    assert normal_error > 1e-5  # the articulation about the normal is not the horizontal one: the bound is tested
+
+
+def test_off_the_level_road_the_reference_needs_the_accelerometers_tilts():
+    """With ``accelerometer`` the follower's start and end tilts are required (one line naming them); ``planar``
+    refuses tilts; the odometry's integrated tilt is refused, and so is a follower whose level differs from the
+    lead's; a follower with the accelerometer gives the lead on it a reference, whose frames without a tilt give
+    no measurement."""
+    params = VEHICLE_PRESETS["au-b-double"]()
+    rig = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
+    camera = rig.camera_in_trailer("left", params)
+    level = CouplingReference(params, 1, 2, camera, FusionNoise(), "accelerometer")
+    motion = np.eye(4)
+    motion[2, 3] = -1.0
+    with pytest.raises(InputError, match="tilts"):
+        level.measurement(motion, None, (0.1,), (0.1,))
+    with pytest.raises(InputError, match="tilt"):
+        level.measurement(motion, None, (0.1,), (0.1,), None, ((0.0, math.nan), (0.0, 0.0)))
+    with pytest.raises(InputError, match="tilts"):
+        CouplingReference(params, 1, 2, camera, FusionNoise()).measurement(
+            motion, None, (0.1,), (0.1,), None, ((0.0, 0.0), (0.0, 0.0))
+        )
+    with pytest.raises(InputError, match="level_reference"):
+        CouplingReference(params, 1, 2, camera, FusionNoise(), "odometry")
+
+    def follower(level_reference: str, tilts: list) -> SimpleNamespace:
+        feed = SimpleNamespace(level_reference=level_reference)
+        return SimpleNamespace(camera_in_trailer=camera, released=[], feed=feed, tilts=tilts)
+
+    noise = FusionNoise()
+    assert following_camera(params, 1, {"viso_ot3": follower("odometry", [])}, noise, "odometry") is None
+    assert following_camera(params, 1, {"viso_ot3": follower("planar", [])}, noise, "accelerometer") is None
+    cam = follower("accelerometer", [])
+    found = following_camera(params, 1, {"viso_ot3": cam}, noise, "accelerometer")
+    assert found is not None and found.reference.geometry.level_reference == "accelerometer"
+    frame = SimpleNamespace(valid=True, vo=SimpleNamespace(camera_motion=motion, covariance=None))
+    measured = {"articulation": np.array([0.0]), "rear_articulation": np.array([0.05])}
+    for tick, tilt in ((5, (0.01, 0.0)), (10, None), (15, (0.01, 0.0)), (20, (0.012, 0.001))):
+        cam.released = [SimpleNamespace(tick=tick, frame=frame, tilt=tilt)]
+        found.observe(tick, measured)
+    assert found.measurements == 1 and found.take(20) is not None  # 10 and 15 start or end without a tilt

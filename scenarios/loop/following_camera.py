@@ -81,21 +81,33 @@ class FollowingCamera:
         self.measurements = 0
         self._articulations: dict[int, tuple[float, ...]] = {}  # Γ_{j+1} … Γ_m by tick, from the last frame on
         self._last_frame: int | None = None  # the tick of the follower's last released frame
+        self._last_tilt: tuple[float, float] | None = None  # the follower's tilt at that frame (off the level road)
         self._pending: dict[int, CouplingMeasurement] = {}  # by the tick of the frame's end
 
     def observe(self, tick: int, measured: Mapping[str, np.ndarray]) -> None:
         """Keep this tick's articulations; turn the follower's frames released on it into measurements."""
         self._articulations[tick] = self.reference.articulations(measured_articulations(measured))
+        level = self.reference.geometry.level_reference != "planar"
         for shot in self.camera.released:
             start, self._last_frame = self._last_frame, int(shot.tick)
+            start_tilt, self._last_tilt = self._last_tilt, getattr(shot, "tilt", None)
             frame = shot.frame
             if start is None or frame is None or not frame.valid:
                 continue
             before, after = self._articulations.get(start), self._articulations.get(int(shot.tick))
             if before is None or after is None:
                 continue
+            tilts = None
+            if level:  # the follower's level frame at the frame's start and end, as its own filter takes them
+                if start_tilt is None or self._last_tilt is None:
+                    continue
+                tilts = (start_tilt, self._last_tilt)
             z, r = self.reference.measurement(
+<<<<<<< HEAD
                 frame.vo.camera_motion, frame.vo.covariance, before, after, self.yaw_bias() if self.yaw_bias else None
+=======
+                frame.vo.camera_motion, frame.vo.covariance, before, after, self._yaw_bias(), tilts
+>>>>>>> h-terref
             )
             if np.all(np.isfinite(z)) and np.all(np.isfinite(r)):
                 self._pending[int(shot.tick)] = CouplingMeasurement(start, z, r)
@@ -116,18 +128,20 @@ def following_camera(
     params: VehicleParams, unit: int, unit_estimators: Mapping[str, Any], noise: Any, level: str
 ) -> FollowingCamera | None:
     """The reference of towed unit ``unit``'s filter: the nearest unit behind with a camera that looks along its unit
-    (``unit_estimators``, the loop's per-unit estimators by key), or ``None`` — no such camera, or a camera or the
-    lead's motion made horizontal off the level road (``level`` not ``planar``), which (C1) does not model. The
-    follower's fused filter, where it has one, gives its odometry's yaw error ((C0))."""
-    if level != "planar":
+    (``unit_estimators``, the loop's per-unit estimators by key), or ``None`` — no such camera, or one whose motion
+    is made horizontal otherwise than the lead's (``level``), or with the odometry's integrated tilt, which the
+    reference does not reproduce. Off the level road with the accelerometer's tilt the follower's motion is made
+    horizontal with its own tilt readings and (C1) carries it in the level frame (:mod:`sensor.fusion_coupling`).
+    The follower's fused filter, where it has one, gives its odometry's yaw error ((C0))."""
+    if level not in ("planar", "accelerometer"):
         return None
     for follower in range(unit + 1, len(params.trailers) + 1):
         camera = unit_estimators.get(estimate_key("viso_ot", follower))
         if camera is None or not looks_along(camera.camera_in_trailer):
             continue
-        if getattr(getattr(camera, "feed", None), "level_reference", "planar") != "planar":
+        if getattr(getattr(camera, "feed", None), "level_reference", "planar") != level:
             return None
-        reference = CouplingReference(params, unit, follower, camera.camera_in_trailer, noise)
+        reference = CouplingReference(params, unit, follower, camera.camera_in_trailer, noise, level)
         key = estimate_key("viso_ot_fused", follower)
 
         def yaw_bias(key: str = key) -> tuple[float, float] | None:
