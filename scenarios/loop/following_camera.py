@@ -103,11 +103,12 @@ class FollowingCamera:
                     continue
                 tilts = (start_tilt, self._last_tilt)
             z, r = self.reference.measurement(
-<<<<<<< HEAD
-                frame.vo.camera_motion, frame.vo.covariance, before, after, self.yaw_bias() if self.yaw_bias else None
-=======
-                frame.vo.camera_motion, frame.vo.covariance, before, after, self._yaw_bias(), tilts
->>>>>>> h-terref
+                frame.vo.camera_motion,
+                frame.vo.covariance,
+                before,
+                after,
+                self.yaw_bias() if self.yaw_bias else None,
+                tilts,
             )
             if np.all(np.isfinite(z)) and np.all(np.isfinite(r)):
                 self._pending[int(shot.tick)] = CouplingMeasurement(start, z, r)
