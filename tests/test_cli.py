@@ -70,6 +70,13 @@ def test_bad_values_are_clear_errors(tmp_path):
     assert out.returncode == 2 and "unknown scenario" in out.stderr
 
 
+def test_bench_optimal_refuses_a_case_too_short_for_a_trailer_length_before_any_work():
+    # Below 6 s of the roundabout the kingpin has not driven the follow point's offset: no node the NLP counts.
+    out = run_cli("bench", "optimal", "--duration", "2")
+    assert out.returncode == 2 and "--duration" in out.stderr and "6" in out.stderr
+    assert "Traceback" not in out.stderr and out.stdout == ""
+
+
 def test_bench_model_prints_json():
     out = run_cli("bench", "model", "--json", "--duration", "5")
     assert out.returncode == 0, out.stderr

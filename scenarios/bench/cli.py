@@ -105,6 +105,21 @@ def bench_rigs_cmd(
     _print_bench(bench_rigs(frames, vehicle=vehicle, masks=masks, repeats=repeats), as_json, "Rigs benchmark")
 
 
+@bench_app.command("optimal", cls=OfftrackCommand)
+def bench_optimal_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    duration: Annotated[
+        float,
+        typer.Option(help="Simulated seconds of the roundabout (the kingpin must drive a trailer length).", min=6.0),
+    ] = 8.0,
+) -> None:
+    """The optimal reference's NLP: CPU seconds of the mapped formulation against the same NLP expanded as a whole,
+    on one case, with their ratio and both costs (minutes of CPU)."""
+    from scenarios.bench.optimal import bench_optimal
+
+    _print_bench(bench_optimal(duration), as_json, "Optimal reference benchmark")
+
+
 @bench_app.command("env", cls=OfftrackCommand)
 def bench_env_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,

@@ -3,9 +3,8 @@
 One case (the 50 m roundabout at 15 km/h, dry, LST, truth-fed, ``duration_s`` of driving): the PID run once, then
 :func:`scenarios.studies.optimal_problem.solve_optimal_steer` over it twice, ``expand=False`` (the shooting interval
 one SX function mapped over the nodes) and ``expand=True`` (the whole NLP one SX graph), each timed in this
-process's CPU time (build, derivatives and both Ipopt solves). Prints one JSON object::
-
-    python -m scenarios.bench.optimal [--duration 8]
+process's CPU time (build, derivatives and both Ipopt solves): ``offtrack bench optimal [--duration 8] [--json]``
+(or ``python -m scenarios.bench.optimal``), one JSON object.
 """
 
 from __future__ import annotations
