@@ -51,7 +51,7 @@ from pydantic import Field
 from vehicle_model.settings import Settings
 
 from .config import VOConfig
-from .self_calibration import RoadPlane
+from .self_calibration import MAD_SIGMA, RoadPlane, huber_weight, road_matches
 
 __all__ = [
     "DISPARITY_OFFSET_COLUMNS",
@@ -66,8 +66,6 @@ __all__ = [
 DISPARITY_OFFSET_COLUMNS: tuple[str, ...] = ("yaw_deg", "sigma_deg", "measured_deg", "road_points")
 """Per frame: the filtered right-camera yaw [°] and its std [°], the frame's own measurement [°] (NaN without one)
 and the road matches it used."""
-
-_MAD = 1.4826  # MAD → standard deviation of a normal distribution
 
 
 class MatchCorrection(Protocol):
@@ -188,13 +186,9 @@ def measure_road_yaw(
         Road matches found.
     """
     m = np.asarray(matches, dtype=float).reshape(-1, 4)
-    f, cu, cv = float(k[0, 0]), float(k[0, 2]), float(k[1, 2])
-    xl, yl, xr = (m[:, 0] - cu) / f, (m[:, 1] - cv) / f, (m[:, 2] - cu) / f
-    ray = plane.normal[0] * xl + plane.normal[1] * yl + plane.normal[2]
-    d_plane = f * baseline * ray / plane.height  # (DO1)
-    z = (m[:, 0] - m[:, 2]) - d_plane
-    road = (ray > 0.0) & (d_plane >= settings.min_road_disparity_px)
-    road &= np.abs(z) <= settings.road_tolerance * np.maximum(d_plane, 1e-9)
+    f, cu = float(k[0, 0]), float(k[0, 2])
+    xr = (m[:, 2] - cu) / f
+    z, road, _ = road_matches(m, k, baseline, plane, settings.min_road_disparity_px, settings.road_tolerance)  # (DO1)
     n = int(road.sum())
     if n < settings.min_road_points:
         return math.nan, math.nan, n
@@ -204,9 +198,8 @@ def measure_road_yaw(
     scale = settings.noise_px
     for _ in range(settings.irls_iterations):
         r = z - a * yaw
-        scale = max(settings.noise_px, _MAD * float(np.median(np.abs(r - np.median(r)))))
-        s = np.abs(r) / scale
-        w = np.where(s <= settings.huber_k, 1.0, settings.huber_k / np.maximum(s, 1e-12))
+        scale = max(settings.noise_px, MAD_SIGMA * float(np.median(np.abs(r - np.median(r)))))
+        w = huber_weight(r / scale, settings.huber_k)
         yaw = float(np.sum(w * a * z) / np.sum(w * a * a))
     sigma = scale / math.sqrt(float(np.sum(w * a * a)))
     return yaw, sigma, n

@@ -83,7 +83,7 @@ SELF_CALIBRATION_COLUMNS: tuple[str, ...] = (
 """Per frame: the estimated angles after the frame [°], the largest standard deviation of the three [°], the
 RMS vertical-disparity residual of the used matches [px], the rows used and how many were road points."""
 
-_MAD = 1.4826  # MAD → standard deviation of a normal distribution
+MAD_SIGMA = 1.4826  # MAD → standard deviation of a normal distribution
 
 
 class SelfCalibrationSettings(Settings):
@@ -238,12 +238,9 @@ def stereo_rows(
     z_v = f * (yr - yl)
     rows, values, kinds = [a_v], [z_v], [np.zeros(len(z_v), dtype=bool)]
     if plane is not None:
-        ray = plane.normal[0] * xl + plane.normal[1] * yl + plane.normal[2]  # n·p_l: 1/Z = n·p_l / h
-        d_plane = f * baseline * ray / plane.height
-        d = m[:, 0] - m[:, 2]
-        z_g = d - d_plane
-        road = (ray > 0) & (d_plane >= settings.min_ground_disparity_px)
-        road &= np.abs(z_g) <= settings.ground_tolerance * np.maximum(d_plane, 1e-9)
+        z_g, road, ray = road_matches(
+            m, k, baseline, plane, settings.min_ground_disparity_px, settings.ground_tolerance
+        )
         if plane.lateral is not None:  # on the trailer's own track: X = Z·p_l with Z = h/(n·p_l)
             depth = plane.height / np.maximum(ray, 1e-9)
             side = depth * (plane.lateral[0] * xl + plane.lateral[1] * yl + plane.lateral[2]) + plane.offset
@@ -255,7 +252,44 @@ def stereo_rows(
     return np.vstack(rows), np.concatenate(values), np.concatenate(kinds)
 
 
-def _huber(r: np.ndarray, k: float) -> np.ndarray:
+def road_matches(
+    matches: np.ndarray,
+    k: np.ndarray,
+    baseline: float,
+    plane: RoadPlane,
+    min_disparity_px: float,
+    tolerance: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The matches on the road plane: their disparity less the plane's [px], which are road points, and ``n·p_l``.
+
+    A match is a road point where the plane's disparity ``f·b·(n·p_l)/h`` at its left pixel is at least
+    ``min_disparity_px`` and its own disparity is within ``tolerance`` of it, relatively (a height error).
+
+    Parameters
+    ----------
+    matches : numpy.ndarray
+        (n, 4) stereo matches (u_l, v_l, u_r, v_r) [px] of rectified images with camera matrix ``k``.
+    k : numpy.ndarray
+        3×3 camera matrix.
+    baseline : float
+        Stereo baseline [m].
+    plane : RoadPlane
+        The road plane in left-camera axes.
+    min_disparity_px, tolerance : float
+        The classification's thresholds.
+    """
+    m = np.asarray(matches, dtype=float).reshape(-1, 4)
+    f, cu, cv = float(k[0, 0]), float(k[0, 2]), float(k[1, 2])
+    xl, yl = (m[:, 0] - cu) / f, (m[:, 1] - cv) / f
+    ray = plane.normal[0] * xl + plane.normal[1] * yl + plane.normal[2]  # n·p_l: 1/Z = n·p_l / h
+    d_plane = f * baseline * ray / plane.height
+    residual = (m[:, 0] - m[:, 2]) - d_plane
+    road = (ray > 0) & (d_plane >= min_disparity_px)
+    road &= np.abs(residual) <= tolerance * np.maximum(d_plane, 1e-9)
+    return residual, road, ray
+
+
+def huber_weight(r: np.ndarray, k: float) -> np.ndarray:
     """Huber IRLS weight of scaled residuals ``r``: 1 inside ±k, k/|r| outside."""
     a = np.abs(r)
     return np.where(a <= k, 1.0, k / np.maximum(a, 1e-12))
@@ -373,8 +407,8 @@ class StereoSelfCalibration:
                 if not sel.any():
                     continue
                 rk = r[sel]
-                scale = max(s.noise_px, _MAD * float(np.median(np.abs(rk - np.median(rk)))))
-                wk = _huber(rk / scale, s.huber_k) / s.noise_px**2  # information at the noise floor: a step counts
+                scale = max(s.noise_px, MAD_SIGMA * float(np.median(np.abs(rk - np.median(rk)))))
+                wk = huber_weight(rk / scale, s.huber_k) / s.noise_px**2  # information at the noise floor
                 if iteration > 0:
                     wk[np.abs(rk) > s.reject_sigma * scale] = 0.0
                 w[sel] = wk
