@@ -144,6 +144,7 @@ from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
+from .preview import preview_tangent
 from .reach_rules import is_outswing, outswing_scale, window_holding
 from .steer_output import OutputStep, TrailerSteerOutput, high_speed_fade, speed_fade
 
@@ -381,6 +382,19 @@ class TrailerSteeringController:
         else:
             self.feedforward_steer = 0.0
         path_beyond_reach = self.fade > 0 and self.output.beyond_reach(self.feedforward_steer, tan_kingpin)
+        if cfg.preview_distance is not None and self._path:  # the chord law a preview distance ahead
+            kingpin = (float(self._position[0]), float(self._position[1]), self._path_direction)
+            self.feedforward_steer = math.atan(
+                preview_tangent(
+                    self._path,
+                    kingpin,
+                    self.kingpin_curvature,
+                    cfg.preview_distance,
+                    self.follow_point_offset,
+                    self.virtual_axle_distance,
+                    PATH_SPACING,
+                )
+            )
         if slip_window is not None and cfg.slip_window_holds_feedforward:  # the path's own steer is never clipped
             virtual = min(max(self.feedforward_steer, -cfg.max_virtual_steer), cfg.max_virtual_steer)
             slip_window = window_holding(slip_window, self.fade * self.distribution(math.tan(virtual), tan_kingpin))

@@ -195,6 +195,12 @@ class PathFollowingConfig(Settings):
         part of the virtual-axle command is scaled by ``clip((b − o)/b, 0, 1)`` for an outswing ``o`` of the estimate
         fed back, so the rear is never steered further out at the bound. ``None`` (default): no bound. It trades a
         larger cut-in later in a transient beyond reach for less outswing (docs/controller_design.md §3.5).
+    preview_distance : float or None
+        Preview ``d`` [m] of the feed-forward: the chord law of the configuration the trailer will have ``d`` metres
+        further on, the kingpin extrapolated on its current curvature and the follow point's end of the chord on
+        the recorded kingpin path (:mod:`controller.preview`). ``None`` (default): the chord law of the present
+        configuration. Needs ``feedforward = "path"``. The reach (``beyond_reach``) stays judged on the present
+        chord law: it says what the path needs, not what the preview asks for.
     """
 
     gains: PathFollowingGains | None = None
@@ -218,9 +224,12 @@ class PathFollowingConfig(Settings):
     slip_window_holds_feedforward: bool = True
     reach_freeze: bool = True
     max_outswing: float | None = Field(None, gt=0.0, le=2.0)
+    preview_distance: float | None = Field(None, ge=0.0, le=30.0)
 
     @model_validator(mode="after")
     def _ordered_fade_speeds(self) -> PathFollowingConfig:
+        if self.preview_distance is not None and self.feedforward != "path":
+            raise ValueError(f"preview_distance needs feedforward = 'path', not {self.feedforward!r}")
         lo, hi = self.fade_speeds
         if not 0 <= lo < hi:
             raise ValueError(f"fade_speeds = {self.fade_speeds!r} must satisfy 0 ≤ u0 < u1")

@@ -436,6 +436,13 @@ class ControllerConfig(Settings):
         description="[m] bound on the follow point's outswing outside the kingpin's turn, null for none; beyond 2 m "
         "the bound no longer holds the rear within a lane",
     )
+    preview_m: float | None = Field(
+        None,
+        ge=0.0,
+        le=30.0,
+        description="[m] preview of the chord feed-forward (controller.preview), null for none; needs feedforward "
+        "path; 30 m is over two trailer lengths",
+    )
     high_speed_crossover_kmh: tuple[float, float] | None = Field(
         (35.0, 55.0),
         description="[km/h] (start, end) of the fade from path following to the unsteered trailer at speed, null "
@@ -471,10 +478,17 @@ class ControllerConfig(Settings):
             uncertain_feedback=self.uncertain_feedback,
             max_slip_angle=None if self.max_slip_angle_deg is None else math.radians(self.max_slip_angle_deg),
             max_outswing=self.max_outswing_m,
+            preview_distance=self.preview_m,
             high_speed_crossover=None
             if self.high_speed_crossover_kmh is None
             else (self.high_speed_crossover_kmh[0] / 3.6, self.high_speed_crossover_kmh[1] / 3.6),
         )
+
+    @model_validator(mode="after")
+    def _preview_on_the_chord_law(self) -> ControllerConfig:
+        if self.preview_m is not None and self.feedforward != "path":
+            raise ValueError(f"controller.preview_m needs controller.feedforward = path, not {self.feedforward!r}")
+        return self
 
     @model_validator(mode="after")
     def _one_kind_of_gains(self) -> ControllerConfig:
