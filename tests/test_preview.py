@@ -118,7 +118,7 @@ def test_preview_needs_the_chord_law():
         PathFollowingConfig(preview_distance=2.0, feedforward="steady")
     with pytest.raises(ValueError, match=r"preview_distance\s+Input should be greater than or equal to 0"):
         PathFollowingConfig(preview_distance=-1.0)
-    with pytest.raises(ConfigError, match="controller.preview_m needs controller.feedforward = path"):
+    with pytest.raises(ConfigError, match=r"controller\.preview_m needs controller\.feedforward = path"):
         load_scenario("roundabout-3", {"vehicle": "lst", "controller": {"preview_m": 2.0, "feedforward": "steady"}})
     cfg = load_scenario("roundabout-3", {"vehicle": "lst", "controller": {"preview_m": 2.5}})
     assert cfg.controller.path_following(50.0).preview_distance == 2.5
