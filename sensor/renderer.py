@@ -26,7 +26,8 @@ Speed (llvmpipe renders on the CPU; ``offtrack bench render`` measures it,
 Most of the time is llvmpipe's rasterisation (fill rate: ~525 k pixels per view with trilinear
 texture sampling); the rest is per-view CPU work in Python, PyOpenGL and llvmpipe's vertex stage. 4× multisampling
 (``antialias=True``) smooths object silhouettes but costs time (``benchmarks/README.md``); road lines are antialiased
-without it (soft-edged textures). Anisotropic filtering is very slow on llvmpipe and off by default; a LOD bias of −0.5
+without it (soft-edged textures). Supersampling (:attr:`~sensor.camera.StereoRig.supersample` ``k``) draws ``k²``
+times the pixels and averages them down, at roughly that multiple of the fill time. Anisotropic filtering is very slow on llvmpipe and off by default; a LOD bias of −0.5
 keeps the road texture sharper at grazing angles.
 
 Where things live: this module holds the public API (:class:`StereoRenderer`, :class:`StereoPair`);
