@@ -150,7 +150,7 @@ class StereoRigConfig(Settings):
         ge=1,
         le=4,
         description="samples per pixel side of the rendering: each view drawn at this many times the size and "
-        "averaged down, as a sensor's pixel integrates its area; slower by about its square (docs/camera.md)",
+        "averaged down, as a sensor's pixel integrates its area; several times slower (docs/camera.md)",
     )
     lens: Lens = Field(Lens(), description="Brown–Conrady lens of the cameras (sensor.camera.Lens); zeros: pinhole")
     right_lens: Lens | None = Field(None, description="the right camera's lens; None: the same as lens")

@@ -27,8 +27,8 @@ Most of the time is llvmpipe's rasterisation (fill rate: ~525 k pixels per view 
 texture sampling); the rest is per-view CPU work in Python, PyOpenGL and llvmpipe's vertex stage. 4× multisampling
 (``antialias=True``) smooths object silhouettes but costs time (``benchmarks/README.md``); road lines are antialiased
 without it (soft-edged textures). Supersampling (:attr:`~sensor.camera.StereoRig.supersample` ``k``) draws ``k²``
-times the pixels and averages them down, at roughly that multiple of the fill time. Anisotropic filtering is very slow on llvmpipe and off by default; a LOD bias of −0.5
-keeps the road texture sharper at grazing angles.
+times the pixels and averages them down, at several times the render time. Anisotropic filtering is very slow on
+llvmpipe and off by default; a LOD bias of −0.5 keeps the road texture sharper at grazing angles.
 
 Where things live: this module holds the public API (:class:`StereoRenderer`, :class:`StereoPair`);
 what it raises when OpenGL is unusable (:class:`~sensor.rendering_errors.RenderingUnavailableError`) is in
