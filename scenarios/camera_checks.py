@@ -49,7 +49,7 @@ import math
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
 
-from .camera_schema import CameraConfig, StereoRigConfig, rig_configs
+from .camera_schema import MAX_RENDER_PX, CameraConfig, StereoRigConfig, rig_configs
 
 __all__ = [
     "MIN_ROAD_DISPARITY_PX",
@@ -128,6 +128,13 @@ def check_rigs(camera: CameraConfig, params: VehicleParams) -> None:
                 f"[{seen[rig.unit]}]); one rig per towed unit"
             )
         seen[rig.unit] = index
+        side = max(rig.width or camera.width, rig.height or camera.height)
+        samples = rig.supersample or camera.supersample
+        if side * samples > MAX_RENDER_PX:
+            raise InputError(
+                f"camera.rigs[{index}].supersample = {samples}: width and height × supersample ≤ {MAX_RENDER_PX} px "
+                f"(the rendered size), here {side} px"
+            )
     if camera.rigs is not None and 1 not in seen:
         raise InputError("camera.rigs: no rig on towed unit 1; the camera estimators need one on the first towed unit")
 

@@ -22,7 +22,7 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, create_model, model_serializer, model_validator
 from pydantic.fields import FieldInfo
 
-from sensor.camera import Lens
+from sensor.camera import MAX_RENDER_PX, Lens
 from sensor.lighting import Lighting
 from sensor.mount_flex import MountFlex
 from sensor.vo.disparity_offset import DisparityOffsetSettings
@@ -145,6 +145,13 @@ class StereoRigConfig(Settings):
         description="4× multisampling of the rendering: silhouettes that move by fractions of a pixel as a real "
         "sensor's pixel area integrates them, at a coarse resolution most (slower; docs/camera.md)",
     )
+    supersample: int = Field(
+        1,
+        ge=1,
+        le=4,
+        description="samples per pixel side of the rendering: each view drawn at this many times the size and "
+        "averaged down, as a sensor's pixel integrates its area; several times slower (docs/camera.md)",
+    )
     lens: Lens = Field(Lens(), description="Brown–Conrady lens of the cameras (sensor.camera.Lens); zeros: pinhole")
     right_lens: Lens | None = Field(None, description="the right camera's lens; None: the same as lens")
     calibration: CalibrationConfig = CalibrationConfig()
@@ -175,6 +182,15 @@ class StereoRigConfig(Settings):
         "control tick at or after it); None: one frame period 1/rates.camera_hz, as a camera computer that "
         "processes each frame while the next is taken; a camera estimate a second old is useless for steering",
     )
+
+    @model_validator(mode="after")
+    def _rendered_size(self) -> StereoRigConfig:
+        if max(self.width, self.height) * self.supersample > MAX_RENDER_PX:
+            raise ValueError(
+                f"supersample = {self.supersample}: width and height × supersample ≤ {MAX_RENDER_PX} px "
+                f"(the rendered size), here {max(self.width, self.height)} px"
+            )
+        return self
 
     def lens_pair(self) -> tuple[Lens, Lens]:
         """The left and right :class:`sensor.camera.Lens` (``right_lens`` defaults to ``lens``)."""

@@ -52,6 +52,10 @@ from vehicle_model.terrain_pose import is_flat, unit_attitude
 
 Which = Literal["left", "right"]
 
+MAX_RENDER_PX = 8192
+"""The largest rendered image side [px] (a rig's width or height times its supersampling): the offscreen
+framebuffer's size, well inside what OpenGL drivers allocate."""
+
 _CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
 
 
@@ -207,6 +211,11 @@ class StereoRig:
         Clipping distances of the renderer [m].
     unit : int
         The towed unit the rig is mounted on (1: the first; its kingpin is the origin of :attr:`station`).
+    supersample : int
+        Samples per pixel side of the rendering, 1 to 4: the renderer draws ``supersample`` × the image size and
+        averages each ``supersample × supersample`` block (a sensor's pixel integrating the light over its area), so
+        an edge that moves by a fraction of a pixel moves the grey levels by that fraction; 1: one sample at the
+        pixel centre.
 
     Use :meth:`from_degrees` to give angles in degrees.
     """
@@ -225,6 +234,7 @@ class StereoRig:
     znear: float = 0.5
     zfar: float = 3000.0
     unit: int = 1
+    supersample: int = 1
 
     def __post_init__(self) -> None:
         checks = [
@@ -240,6 +250,12 @@ class StereoRig:
             ("exposure_std", 0.0 <= self.exposure_std <= 0.5, "[0, 0.5]"),
             ("znear", 0.01 <= self.znear < self.zfar, "0.01 m ≤ znear < zfar"),
             ("unit", isinstance(self.unit, int) and 1 <= self.unit <= 16, "a towed unit, 1 to 16"),
+            ("supersample", isinstance(self.supersample, int) and 1 <= self.supersample <= 4, "an integer, 1 to 4"),
+            (
+                "supersample",
+                max(self.width, self.height) * self.supersample <= MAX_RENDER_PX,
+                f"width and height × supersample ≤ {MAX_RENDER_PX} px (the rendered size)",
+            ),
         ]
         for name, ok, allowed in checks:
             if not ok:

@@ -26,8 +26,9 @@ Speed (llvmpipe renders on the CPU; ``offtrack bench render`` measures it,
 Most of the time is llvmpipe's rasterisation (fill rate: ~525 k pixels per view with trilinear
 texture sampling); the rest is per-view CPU work in Python, PyOpenGL and llvmpipe's vertex stage. 4× multisampling
 (``antialias=True``) smooths object silhouettes but costs time (``benchmarks/README.md``); road lines are antialiased
-without it (soft-edged textures). Anisotropic filtering is very slow on llvmpipe and off by default; a LOD bias of −0.5
-keeps the road texture sharper at grazing angles.
+without it (soft-edged textures). Supersampling (:attr:`~sensor.camera.StereoRig.supersample` ``k``) draws ``k²``
+times the pixels and averages them down, at several times the render time. Anisotropic filtering is very slow on
+llvmpipe and off by default; a LOD bias of −0.5 keeps the road texture sharper at grazing angles.
 
 Where things live: this module holds the public API (:class:`StereoRenderer`, :class:`StereoPair`);
 what it raises when OpenGL is unusable (:class:`~sensor.rendering_errors.RenderingUnavailableError`) is in
@@ -88,7 +89,8 @@ class StereoRenderer:
     world : World
         What the cameras see.
     rig : StereoRig
-        Cameras, mounting and image effects.
+        Cameras, mounting and image effects; its :attr:`~sensor.camera.StereoRig.supersample` renders each view at
+        that many times the size and averages it down (``cv2.INTER_AREA``).
     params : VehicleParams, optional
         The combination, for :meth:`render` at a :class:`~vehicle_model.geometry.CombinationPose` (kingpin
         position, trailer rear).
@@ -196,7 +198,8 @@ class StereoRenderer:
     # -- rendering ----------------------------------------------------------------------------------
     def _context(self) -> GLContext:
         rig = self.rig
-        ctx = GLContext.get(rig.width, rig.height, 4 if self.antialias else 1)
+        k = rig.supersample
+        ctx = GLContext.get(k * rig.width, k * rig.height, 4 if self.antialias else 1)
         ctx.renderer.anisotropy = self.anisotropy
         ctx.renderer.lod_bias = self.lod_bias
         if self._scene is None:
@@ -212,9 +215,11 @@ class StereoRenderer:
         cam = self._camera_node.camera
         f = rig.focal_length
         cx, cy = rig.principal_point
-        # pyrender measures pixels from the pixel edges; OpenCV from the centre of the first pixel.
-        cam.fx = cam.fy = f
-        cam.cx, cam.cy = cx + 0.5, cy + 0.5
+        # pyrender measures pixels from the pixel edges; OpenCV from the centre of the first pixel. Supersampled,
+        # every length in pixels from the image's corner grows k times, so each block of k × k samples covers
+        # exactly one pixel of the rig.
+        cam.fx = cam.fy = k * f
+        cam.cx, cam.cy = k * (cx + 0.5), k * (cy + 0.5)
         cam.znear, cam.zfar = rig.znear, rig.zfar
         return ctx
 
@@ -286,6 +291,8 @@ class StereoRenderer:
         grey = cv2.cvtColor(rgba, cv2.COLOR_RGBA2GRAY)
         grey = np.ascontiguousarray(grey[::-1])  # OpenGL rows run bottom-up
         self._alpha = np.ascontiguousarray(rgba[::-1, :, 3]) if self.lighting.sun else None
+        if self.rig.supersample > 1:
+            grey, dep = self._downsample(grey, dep)
         t3 = time.perf_counter()
         gl = r.timings
         for key, value in (
@@ -297,6 +304,20 @@ class StereoRenderer:
         ):
             self.timings[key] = self.timings.get(key, 0.0) + value
         return grey, dep
+
+    def _downsample(self, grey: np.ndarray, depth: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+        """A supersampled view at the rig's size: grey levels and alpha averaged over each pixel's k × k samples
+        (``cv2.INTER_AREA``); the depth is one sample's, the one nearest the pixel's centre (an average of depths
+        across a silhouette would be a surface that is not there)."""
+        rig = self.rig
+        k = rig.supersample
+        size = (rig.width, rig.height)
+        grey = cv2.resize(grey, size, interpolation=cv2.INTER_AREA)
+        if self._alpha is not None:
+            self._alpha = cv2.resize(self._alpha, size, interpolation=cv2.INTER_AREA)
+        if depth is not None:
+            depth = np.ascontiguousarray(depth[k // 2 :: k, k // 2 :: k])
+        return grey, depth
 
     def render_poses(
         self,

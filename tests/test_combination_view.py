@@ -181,17 +181,36 @@ def _yaw_ratio(world, params, rig: StereoRig, yaw: float, poses: list[ChainPose]
 
 
 @rendering
-@pytest.mark.xfail(
-    strict=True,
-    reason="open: aliased silhouettes lose small motions at the image edges and the matches keep a short tail; "
-    "the motion estimate amplifies both (docs/camera.md, a long lead trailer's side camera)",
+@pytest.mark.parametrize(
+    "samples",
+    [
+        pytest.param(
+            1,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="open: aliased silhouettes lose small motions at the image edges and the matches keep a short "
+                "tail; the motion estimate amplifies both (docs/camera.md, a long lead trailer's side camera)",
+            ),
+        ),
+        pytest.param(
+            4,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="open: with 4 × 4 samples a pixel the images keep the motion at the edges, but the matches' "
+                "short tail remains and the motion estimate amplifies it (docs/camera.md)",
+            ),
+        ),
+    ],
 )
-def test_a_side_rigs_pure_yaw_is_measured_in_full(world, a_double) -> None:
+def test_a_side_rigs_pure_yaw_is_measured_in_full(world, a_double, samples) -> None:
     """The au-a-double lead trailer's side rig at its default station, 400×200 px, a pure yaw of 7.5 mrad (about
-    1.3 px at the image centre) at six poses: the odometry's mean yaw within 3 % of the truth. A yaw it
+    1.3 px at the image centre) at six poses: the odometry's mean yaw within 3 % of the truth, with one sample a
+    pixel and with 4 × 4 (``supersample``, which removes the rendering's share of the shortfall). A yaw it
     under-measures leaks, through the 8 m lever arm to the kingpin and the 12.3 m follow point, into a biased
     off-tracking."""
-    rig = StereoRig.from_degrees(width=400, height=200, unit=1, psi_c2v_deg=270.0, station=-7.975, lateral=1.25)
+    rig = StereoRig.from_degrees(
+        width=400, height=200, unit=1, psi_c2v_deg=270.0, station=-7.975, lateral=1.25, supersample=samples
+    )
     ratios = _yaw_ratio(world, a_double, rig, 0.0075, _turn(12)[::2])
     assert abs(float(np.mean(ratios)) - 1.0) <= 0.03, ratios
 
@@ -202,11 +221,11 @@ def test_the_rendered_edges_lose_part_of_a_small_yaw(world, a_double) -> None:
     an optical flow independent of the odometry (OpenCV's Farnebäck) finds the textured content of the outer fifth
     of the image, near the horizon, moving under 0.88 of the exact homography's motion (0.81–0.83 at the test's six
     poses), while on the first frame warped by that homography it finds over 0.95 (0.975–0.98): the rendering, not
-    the flow, loses the motion."""
+    the flow, loses the motion. Rendered with 4 × 4 samples a pixel (``supersample=4``) the images keep it: over 0.93
+    (0.94–0.96 at the six poses)."""
     import cv2
 
     rig = StereoRig.from_degrees(width=400, height=200, unit=1, psi_c2v_deg=270.0, station=-7.975, lateral=1.25)
-    renderer = _renderer(world, rig, a_double, bodies=False)
     f = rig.focal_length
     yaw = 1.0 / f
     c, s = np.cos(yaw), np.sin(yaw)
@@ -214,8 +233,14 @@ def test_the_rendered_edges_lose_part_of_a_small_yaw(world, a_double) -> None:
     turn[:3, :3] = [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]
     pose = _turn(12)[0]
     left, right = rig.camera_in_world(a_double, pose, "left"), rig.camera_in_world(a_double, pose, "right")
-    before = renderer.render_poses(left, right, frame=0).left
-    after = renderer.render_poses(left @ turn, left @ turn @ invert_rigid(left) @ right, frame=1).left
+
+    def frames(samples: int) -> tuple[np.ndarray, np.ndarray]:
+        renderer = _renderer(world, rig.replace(supersample=samples), a_double, bodies=False)
+        before = renderer.render_poses(left, right, frame=0).left
+        after = renderer.render_poses(left @ turn, left @ turn @ invert_rigid(left) @ right, frame=1).left
+        return before, after
+
+    before, after = frames(1)
     k = rig.intrinsics()
     homography = k @ turn[:3, :3] @ np.linalg.inv(k)  # a current pixel → where it was in the previous frame
     warped = cv2.warpPerspective(
@@ -227,13 +252,14 @@ def test_the_rendered_edges_lose_part_of_a_small_yaw(world, a_double) -> None:
     textured = np.hypot(*np.gradient(after.astype(float))) > 4
     edges = (np.abs(uu - k[0, 2]) > 0.8 * f) & (vv > 60) & (vv < 115) & textured & (uu > 15) & (uu < 385)
 
-    def share(image: np.ndarray) -> float:
-        flow = cv2.calcOpticalFlowFarneback(image, before, None, 0.5, 3, 15, 5, 7, 1.5, 0)
+    def share(image: np.ndarray, first: np.ndarray) -> float:
+        flow = cv2.calcOpticalFlowFarneback(image, first, None, 0.5, 3, 15, 5, 7, 1.5, 0)
         return float(flow[..., 0][edges].sum() / true_du[edges].sum())
 
     assert edges.sum() > 500
-    assert share(after) < 0.88
-    assert share(warped) > 0.95
+    assert share(after, before) < 0.88
+    assert share(warped, before) > 0.95
+    assert share(*frames(4)[::-1]) > 0.93
 
 
 def test_a_mask_drops_only_the_features_inside_it() -> None:

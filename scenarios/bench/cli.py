@@ -28,11 +28,15 @@ def bench_render_cmd(
     frames: Annotated[int, typer.Option(help="Stereo pairs to render.", min=5)] = 50,
     antialias: Annotated[bool, typer.Option(help="4× multisampling.")] = False,
     field: Annotated[bool, typer.Option(help="Also time field-conditions pairs (sun, shadows, exposure).")] = True,
+    supersample: Annotated[
+        int, typer.Option(help="Also time pairs of this many samples a pixel side (2 to 4) against one.", min=1, max=4)
+    ] = 1,
 ) -> None:
     """Rendering speed: stereo pairs per second at 1344×391 on the default world, ideal and field conditions."""
     from scenarios.bench.render import bench_render
 
-    _print_bench(bench_render(frames, antialias=antialias, field=field), as_json, "Render benchmark")
+    figures = bench_render(frames, antialias=antialias, field=field, supersample=supersample)
+    _print_bench(figures, as_json, "Render benchmark")
 
 
 @bench_app.command("vo", cls=OfftrackCommand)

@@ -23,6 +23,7 @@ def bench_render(
     antialias: bool = False,
     scenery_density: float = 1.0,
     field: bool = True,
+    supersample: int = 1,
 ) -> dict[str, Any]:
     """Rendering speed of stereo pairs on a scenario's default world, at the default 1344 × 391.
 
@@ -46,7 +47,11 @@ def bench_render(
         :meth:`sensor.lighting.Lighting.field`) between two blocks of ideal pairs (the process has
         one GL context; switching scenes re-uploads them, so pairs are not interleaved):
         ``field_ms_per_pair`` (mean), ``field_ms_per_pair_median``, ``ideal_ms_per_pair_both_blocks``
-        (median over both ideal blocks) and ``field_ratio`` (field over ideal, medians).
+        (median over both ideal blocks) and ``field_ratio`` (field over ideal, medians). With ``supersample`` > 1,
+        the ideal pairs again, one sample a pixel and ``supersample`` × ``supersample`` samples a pixel
+        (:attr:`sensor.camera.StereoRig.supersample`) in alternating blocks of the same poses:
+        ``supersample_ms_per_pair_median`` and ``supersample_cpu_ms_per_pair`` against ``plain_ms_per_pair_median``
+        and ``plain_cpu_ms_per_pair`` (CPU of all threads), and ``supersample_ratio`` / ``supersample_cpu_ratio``.
     """
     config = load_scenario(scenario)
     setup = build_scenario(config)
@@ -74,6 +79,8 @@ def bench_render(
     times_a = np.array(times)
     tm = dict(renderer.timings)
     field_figures = _bench_field(renderer, setup, world, rig, (x, y, h), times) if field else {}
+    if supersample > 1:
+        field_figures |= _bench_supersample(renderer, setup, world, rig, (x, y, h), supersample)
     n = max(len(times), 1)
     info = renderer.gl_info
     return {
@@ -144,4 +151,36 @@ def _bench_field(
         "field_ms_per_pair_median": 1000.0 * field_m,
         "ideal_ms_per_pair_both_blocks": 1000.0 * ideal_m,
         "field_ratio": field_m / ideal_m,
+    }
+
+
+def _bench_supersample(
+    renderer: Any, setup: Any, world: Any, rig: StereoRig, xyh: tuple, samples: int
+) -> dict[str, Any]:
+    """Supersampled ideal pairs against one-sample ones on the same poses, in alternating blocks (each block's first
+    pair, which resizes the framebuffer, untimed; see :func:`bench_render`)."""
+    x, y, h = xyh
+    fine = stereo_camera(
+        setup, ideal=True, rig=rig.replace(supersample=samples), world=world, antialias=renderer.antialias
+    ).renderer
+    wall: dict[str, list[float]] = {"plain": [], "fine": []}
+    cpu = {"plain": 0.0, "fine": 0.0}
+    for name, r in (("plain", renderer), ("fine", fine), ("plain", renderer), ("fine", fine)):
+        r.render(CombinationPose(x[0], y[0], h[0], 0.0), frame=0)
+        c0 = time.process_time()
+        for k in range(1, len(x)):
+            t = time.perf_counter()
+            r.render(CombinationPose(x[k], y[k], h[k], 0.0), frame=k)
+            wall[name].append(time.perf_counter() - t)
+        cpu[name] += time.process_time() - c0
+    plain_m, fine_m = float(np.median(wall["plain"])), float(np.median(wall["fine"]))
+    plain_cpu, fine_cpu = (1000.0 * cpu[name] / len(wall[name]) for name in ("plain", "fine"))
+    return {
+        "supersample": samples,
+        "plain_ms_per_pair_median": 1000.0 * plain_m,
+        "supersample_ms_per_pair_median": 1000.0 * fine_m,
+        "plain_cpu_ms_per_pair": plain_cpu,
+        "supersample_cpu_ms_per_pair": fine_cpu,
+        "supersample_ratio": fine_m / plain_m,
+        "supersample_cpu_ratio": fine_cpu / plain_cpu,
     }

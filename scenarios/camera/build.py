@@ -125,6 +125,7 @@ def rig_from_config(config: ScenarioConfig | Any, rig_index: int = 0) -> StereoR
         noise_std=getattr(camera, "noise_std", 0.0),
         exposure_std=getattr(camera, "brightness_jitter", 0.0),
         unit=getattr(camera, "unit", 1),
+        supersample=getattr(camera, "supersample", 1),
     )
 
 
