@@ -5,12 +5,15 @@ off-tracking and by the zero-slip estimate. Every cell is driven as a driver who
 speed profile capped at :data:`FRICTION_SHARE` of the road's friction (``speed.friction_share``,
 :mod:`controller.friction_speed`), which leaves a profile the road allows untouched. A row holds the true
 off-tracking after warm-up (RMS, max), the share of the path beyond the steering's reach
-(:func:`scenarios.run.metrics.steering_reach`) and the axles' time at lock.
-The check of the study (docs/controller_design.md §3.5): on every cell the truth-fed loop's RMS and max are no more
-than the zero-slip-fed loop's and the unsteered loop's (:func:`truth_fed_check`).
+(:func:`scenarios.run.metrics.steering_reach`) and the axles' time at lock, for the first towed unit and as
+``unit<k>_…`` for every steered unit behind it (:mod:`scenarios.studies.controller_limits_units`).
+The check of the study (docs/controller_design.md §3.5): on every cell and every steered unit the truth-fed loop's RMS
+and max are no more than the zero-slip-fed loop's and the unsteered loop's (:func:`truth_fed_check`).
 
 The default subset is the paper's 11.5 m field figure-of-eight, wet, the LST; ``full`` adds the field roundabout
-and the UK roundabout test on dry, wet and ice, and on every cell the optimal reference (``offtrack optimal``,
+and the UK roundabout test on dry, wet and ice, each on the LST and on the steered B-double (:data:`VEHICLES`: both
+trailers steered, each on its own estimate of its own off-tracking; ``vehicle`` drives the cells on one other
+combination instead), and on every cell the optimal reference (``offtrack optimal``,
 :mod:`scenarios.studies.optimal_reference`: the NLP's steer replayed as a run, several CPU-minutes per cell). A
 cell's check then also holds the PID's gap to it: the truth-fed PID's RMS over the optimum's, both on the NLP's
 nodes (:func:`optimal_gap`).
@@ -31,6 +34,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 
 from ..config import load_scenario
 from ..loop.ends import RunStatus
@@ -38,14 +42,24 @@ from ..run.metrics import after_warmup
 from ..run.results import TIMESERIES_FILE
 from ..run.runner import run_scenario
 from .controller_limits_camera import CAMERA_COLUMNS, CAMERA_FEEDBACK, camera_check, camera_columns, camera_overrides
+from .controller_limits_units import (
+    at_lock_share,
+    further_steered_units,
+    further_unit_row,
+    outswing_inputs,
+    unit_prefixes,
+)
 from .optimal_reference import run_optimal_reference
 from .records import CaseSpec
+from .unit_steering import study_vehicle
 from .workers import worker_models
 
 __all__ = [
+    "B_DOUBLE",
     "CAMERA_FEEDBACK",
     "FEEDBACKS",
     "FRICTION_SHARE",
+    "VEHICLES",
     "camera_group_checks",
     "controller_limits_cases",
     "controller_limits_figures",
@@ -75,10 +89,16 @@ SUBSET = (("field-figure-eight", "wet", "lst"),)
 """The default subset's cells: (scenario, surface, vehicle)."""
 FULL_SCENARIOS = ("field-figure-eight", "field-roundabout-left", "roundabout-test")
 FULL_SURFACES = ("dry", "wet", "ice")
+B_DOUBLE = "au-b-double-steered"
+"""The steered B-double of the whole study: the rear two axles of each trailer steerable, both trailers steered on
+the cell's feedback (each on its own estimate of its own off-tracking, ``rear_feedback`` following ``feedback``)."""
+VEHICLES = ("lst", B_DOUBLE)
+"""The combinations of the whole study's cells (``full``), the LST's cells first."""
 
 
 def controller_limits_cases(
     full: bool = False,
+    vehicle: str | None = None,
     *,
     cells: Sequence[tuple[str, str, str]] | None = None,
     optimal: bool | None = None,
@@ -92,7 +112,12 @@ def controller_limits_cases(
     Parameters
     ----------
     full
-        The whole study's cells instead of the default subset (:data:`SUBSET`).
+        The whole study's cells instead of the default subset (:data:`SUBSET`): :data:`FULL_SCENARIOS` ×
+        :data:`FULL_SURFACES` × :data:`VEHICLES`.
+    vehicle
+        Drive the cells (the default subset's, or with ``full`` every scenario and surface) on this combination
+        alone: a preset's name or a combination file with a steerable towed unit
+        (:func:`~scenarios.studies.unit_steering.study_vehicle`); the label is its name.
     cells
         Other cells, (scenario, surface, vehicle) each, instead of either (e.g.
         ``benchmarks/controller_limits_field.py``'s field manoeuvres).
@@ -104,16 +129,26 @@ def controller_limits_cases(
         Add each cell's fused camera case under field conditions
         (:func:`~scenarios.studies.controller_limits_camera.camera_overrides`); rendered, so off by default.
     """
+    values: dict[str, Any] = {}
+    if vehicle is not None:
+        resolved = study_vehicle(vehicle, STUDY)
+        values[resolved.name] = resolved.value
+        vehicles: tuple[str, ...] = (resolved.name,)
+        subset = [(s, surface, resolved.name) for s, surface, _ in SUBSET]
+    else:
+        vehicles, subset = VEHICLES, list(SUBSET)
     if cells is None:
-        cells = [(s, surface, "lst") for s in FULL_SCENARIOS for surface in FULL_SURFACES] if full else list(SUBSET)
+        cells = (
+            [(s, surface, v) for v in vehicles for s in FULL_SCENARIOS for surface in FULL_SURFACES] if full else subset
+        )
     if optimal is None:
         optimal = full
     cases = []
     feedbacks = (*FEEDBACKS, *((CAMERA_FEEDBACK,) if camera else ()), *((OPTIMAL,) if optimal else ()))
-    for scenario, surface, vehicle in cells:
+    for scenario, surface, vehicle_label in cells:
         for feedback in feedbacks:
             overrides: tuple[tuple[str, Any], ...] = (
-                ("vehicle", vehicle),
+                ("vehicle", values.get(vehicle_label, vehicle_label)),
                 ("surface.preset", surface),
                 ("feedback", "truth" if feedback == OPTIMAL else feedback),
                 ("estimators.zero_slip", True),
@@ -122,7 +157,7 @@ def controller_limits_cases(
                 overrides += (("speed.friction_share", friction_share),)
             if feedback == CAMERA_FEEDBACK:
                 overrides += camera_overrides()
-            labels = (("scenario", scenario), ("surface", surface), ("vehicle", vehicle), ("feedback", feedback))
+            labels = (("scenario", scenario), ("surface", surface), ("vehicle", vehicle_label), ("feedback", feedback))
             cases.append(CaseSpec(STUDY, scenario, overrides, labels))
     return cases
 
@@ -142,19 +177,26 @@ def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     if metrics["status"] in (RunStatus.INTERRUPTED, RunStatus.FAILED):
         row.update({k: metrics.get(k) for k in ("stop_signal", "message", "stop_time")})
         return row
+    params = config.vehicle_params()
+    units = further_steered_units(params)
     settled = metrics["offtracking"]["truth_after_warmup"]
-    outswing = largest_outswing(_recorded(run_dir), config.vehicle_params().follow_point_offset)
+    recorded = _recorded(run_dir, units)
     reach = metrics.get("steering_reach") or {}
     steering = metrics.get("trailer_steering") or {}
     row.update(
         {
             "true_offtracking_rms_after_warmup_m": settled["rms"],
             "true_offtracking_max_after_warmup_m": settled["max_abs"],
-            "largest_outswing_after_warmup_m": outswing,
+            "largest_outswing_after_warmup_m": largest_outswing(recorded, params.follow_point_offset),
             "beyond_reach_share": reach.get("share_of_path", 0.0),
-            "at_lock_share": max((m.get("saturated_fraction", 0.0) for m in steering.values()), default=0.0),
+            "at_lock_share": at_lock_share(steering, params),
         }
     )
+    warm = after_warmup(recorded, params.follow_point_offset)
+    for unit in units:  # every steered unit behind the first, on its own coupling's path
+        e, x, y, own = outswing_inputs(recorded, unit, warm)
+        outswing = _outswing(e, x, y, own, params.follow_point_offset_of(unit - 1), OUTSWING_SPAN)
+        row.update(further_unit_row(metrics, recorded, params, unit, warm, outswing))
     if dict(spec.labels)["feedback"] == CAMERA_FEEDBACK:
         row.update(camera_columns(metrics))
     reference = metrics.get("optimal_reference")
@@ -171,9 +213,14 @@ def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     return row
 
 
-def _recorded(run_dir: Path) -> dict[str, np.ndarray]:
-    """The columns :func:`largest_outswing` needs from a run directory's time series."""
-    names = ["offtracking_truth", "kingpin_x", "kingpin_y"]
+def _recorded(run_dir: Path, units: Sequence[int] = ()) -> dict[str, np.ndarray]:
+    """The columns :func:`largest_outswing` needs from a run directory's time series, and those of each further
+    unit in ``units`` (its truth, its coupling's path and, where it was steered, its reach flag)."""
+    wanted = ["offtracking_truth", "kingpin_x", "kingpin_y"]
+    for unit in units:
+        wanted += [f"offtracking_truth{unit}", f"coupling{unit}_x", f"coupling{unit}_y", f"unit{unit}_beyond_reach"]
+    present = set(pq.ParquetDataset(run_dir / TIMESERIES_FILE).schema.names)
+    names = [name for name in wanted if name in present]
     frame = pd.read_parquet(run_dir / TIMESERIES_FILE, columns=names)
     return {name: frame[name].to_numpy(dtype=float) for name in names}
 
@@ -199,6 +246,14 @@ def largest_outswing(columns: dict[str, np.ndarray], follow_point_offset: float,
     """
     settled = after_warmup(columns, follow_point_offset)
     x, y, e = columns["kingpin_x"], columns["kingpin_y"], columns["offtracking_truth"]
+    return _outswing(e, x, y, settled, follow_point_offset, span)
+
+
+def _outswing(
+    e: np.ndarray, x: np.ndarray, y: np.ndarray, settled: np.ndarray, follow_point_offset: float, span: float
+) -> float:
+    """:func:`largest_outswing` of off-tracking ``e`` against the front coupling's path ``(x, y)`` over the samples
+    ``settled``."""
     travelled = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
     moving = np.concatenate([[True], np.diff(travelled) > 1e-6])
     s, xm, ym = travelled[moving], x[moving], y[moving]
@@ -231,7 +286,13 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
     if done.empty:
         return
     cells = list(dict.fromkeys(zip(done["scenario"], done["surface"], done["vehicle"], strict=True)))
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.5 + 0.3 * len(cells)), sharey=True)
+    bars = [  # a bar group per cell and steered unit: the first towed unit, then each further one the cell has
+        (cell, prefix)
+        for cell in cells
+        for prefix in unit_prefixes(done.columns)
+        if not prefix or _rows(done, cell)[prefix + "true_offtracking_rms_after_warmup_m"].notna().any()
+    ]
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.5 + 0.3 * len(bars)), sharey=True)
     checks = []
     labels = (
         ("true_offtracking_rms_after_warmup_m", "RMS after warm-up"),
@@ -241,20 +302,22 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
         feedbacks = [f for f in (*FEEDBACKS, CAMERA_FEEDBACK, OPTIMAL) if f in set(done["feedback"])]
         for i, feedback in enumerate(feedbacks):
             values = []
-            for cell in cells:
+            for cell, prefix in bars:
                 match = _rows(done, cell)
-                match = match[match["feedback"] == feedback][column]
+                match = match[match["feedback"] == feedback][prefix + column]
                 values.append(float(match.iloc[0]) if len(match) else float("nan"))
             width = 0.8 / len(feedbacks)
             ax.barh(
-                [k + width * (i - (len(feedbacks) - 1) / 2) for k in range(len(cells))],
+                [k + width * (i - (len(feedbacks) - 1) / 2) for k in range(len(bars))],
                 values,
                 height=width,
                 label=feedback,
             )
         ax.set_xscale("log")
         ax.set_xlabel(f"true off-tracking, {title} [m]")
-    axes[0].set_yticks(range(len(cells)), [f"{s}, {surface}, {v}" for s, surface, v in cells])
+    axes[0].set_yticks(
+        range(len(bars)), [f"{s}, {surface}, {v}" + (f", {p[:-1]}" if p else "") for (s, surface, v), p in bars]
+    )
     axes[1].legend(title="steering", loc="lower right")
     fig.tight_layout()
     fig.savefig(out_dir / "controller_limits.png", dpi=120)
@@ -307,32 +370,51 @@ def camera_group_checks(table: pd.DataFrame) -> list[dict[str, Any]]:
 
 
 def truth_fed_check(rows: dict[str, dict[str, Any]], tolerance: float = 0.0) -> dict[str, Any] | None:
-    """The study's check on one cell: the truth-fed loop's RMS and max after warm-up are no more than the zero-slip-fed
-    and the unsteered loop's (``tolerance`` [m] more allowed).
+    """The study's check on one cell: on every steered unit the truth-fed loop's RMS and max after warm-up are no more
+    than the zero-slip-fed and the unsteered loop's (``tolerance`` [m] more allowed).
 
     Parameters
     ----------
     rows
-        The cell's rows by feedback (``none``, ``truth``, ``zero_slip``).
+        The cell's rows by feedback (``none``, ``truth``, ``zero_slip``); a combination's rows hold each further
+        steered unit's figures as ``unit<k>_…`` (:mod:`scenarios.studies.controller_limits_units`).
     tolerance
         Allowance [m] on each comparison.
 
     Returns
     -------
     dict or None
-        The truth-fed RMS and max, each comparison's result and ``held`` (all of them); ``None`` when a feedback's row
-        is missing.
+        The truth-fed RMS and max, each comparison's result (the first towed unit's unprefixed, unit ``k``'s as
+        ``unit<k>_…``; a figure missing from a row fails its comparison), ``not_within`` (the comparisons that
+        failed) and ``held`` (all of them); ``None`` when a feedback's row is missing.
     """
     if not set(FEEDBACKS) <= rows.keys():
         return None
     out: dict[str, Any] = {}
-    for column in ("true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"):
-        truth = float(rows["truth"][column])
-        out[column] = truth
-        for other in ("zero_slip", "none"):
-            out[f"{column.split('_after')[0]}_within_{other}"] = bool(truth <= float(rows[other][column]) + tolerance)
-    out["held"] = all(v for k, v in out.items() if "_within_" in k)
+    for prefix in unit_prefixes(k for row in rows.values() for k in row):
+        rms = prefix + "true_offtracking_rms_after_warmup_m"
+        if prefix and not any(np.isfinite(_figure(rows[f], rms)) for f in FEEDBACKS):
+            continue  # a table's column of another vehicle's unit: not this cell's
+        for figure in ("true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"):
+            column = prefix + figure
+            truth = _figure(rows["truth"], column)
+            out[column] = truth
+            for other in ("zero_slip", "none"):
+                within = truth <= _figure(rows[other], column) + tolerance  # False for a NaN on either side
+                out[f"{prefix}{figure.split('_after')[0]}_within_{other}"] = bool(within)
+    failed = [k for k, v in out.items() if "_within_" in k and not v]
+    out["not_within"] = failed
+    out["held"] = not failed
     return out
+
+
+def _figure(row: dict[str, Any], column: str) -> float:
+    """A row's figure as a float, NaN where the row has none."""
+    value = row.get(column)
+    try:
+        return float(value) if value is not None else float("nan")
+    except (TypeError, ValueError):
+        return float("nan")
 
 
 def optimal_gap(rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
