@@ -20,6 +20,7 @@ from scenarios.run.metrics import steering_reach
 from scenarios.run.runner import run_scenario
 from scenarios.setup.build import build_scenario
 from scenarios.studies.controller_limits import (
+    B_DOUBLE,
     controller_limits_cases,
     controller_limits_figures,
     largest_outswing,
@@ -27,8 +28,11 @@ from scenarios.studies.controller_limits import (
     run_controller_limits_case,
     truth_fed_check,
 )
+from scenarios.studies.controller_limits_units import at_lock_share, further_steered_units, unit_prefixes
 from scenarios.studies.pbs_assessment import MANOEUVRES
 from scenarios.studies.records import CaseSpec
+from scenarios.unit_feedback import steered_units
+from vehicle_model.errors import InputError
 from vehicle_model.offtracking import OfftrackingEstimate
 from vehicle_model.presets import lst_laden
 from vehicle_model.simulator import VehicleState
@@ -108,9 +112,9 @@ def test_controller_limits_cases_and_the_check_of_each_cell(tmp_path: Path):
     assert [dict(c.labels)["feedback"] for c in cases] == ["none", "truth", "zero_slip"]
     assert {c.scenario for c in cases} == {"field-figure-eight"}
     full = controller_limits_cases(full=True)
-    assert len(full) == 3 * 3 * 4  # every cell also runs its optimal reference, over the truth-fed PID's run
+    assert len(full) == 3 * 3 * 2 * 4  # every cell also runs its optimal reference, over the truth-fed PID's run
     optimal = [c for c in full if dict(c.labels)["feedback"] == "optimal"]
-    assert len(optimal) == 9 and all(dict(c.overrides)["feedback"] == "truth" for c in optimal)
+    assert len(optimal) == 18 and all(dict(c.overrides)["feedback"] == "truth" for c in optimal)
     # Other cells (the field manoeuvres' selection), with or without the optimal reference.
     cells = [("field-roundabout-right", "ice", "lst"), ("field-figure-eight", "dry", "lst")]
     chosen = controller_limits_cases(cells=cells, optimal=True)
@@ -266,3 +270,76 @@ def test_outswing_bound_scales_the_outward_command(error, share):
         assert bound.virtual_steer == pytest.approx(share * free.virtual_steer, abs=1e-12)
     else:
         assert bound.virtual_steer == pytest.approx(free.virtual_steer, abs=1e-12)
+
+
+def test_the_b_double_cells_steer_every_unit():
+    full = controller_limits_cases(full=True)
+    vehicles = [dict(c.labels)["vehicle"] for c in full]
+    assert vehicles == ["lst"] * 36 + [B_DOUBLE] * 36  # the LST's cells first, as before
+    cell = [c for c in full if dict(c.labels)["vehicle"] == B_DOUBLE][:4]
+    assert [dict(c.labels)["feedback"] for c in cell] == ["none", "truth", "zero_slip", "optimal"]
+    expected = {"none": [], "truth": [(1, "truth"), (2, "truth3")], "zero_slip": [(1, "zero_slip"), (2, "zero_slip3")]}
+    for case in cell[:3]:  # both trailers steered, each on its own estimate of its own off-tracking
+        config = load_scenario(case.scenario, dict(case.overrides))
+        units = steered_units(config.vehicle_params(), config.feedback, config.rear_feedback)
+        assert units == expected[dict(case.labels)["feedback"]]
+    # --vehicle: the default subset's cell on that combination alone; without it the LST's cell as it was.
+    on = controller_limits_cases(vehicle=B_DOUBLE)
+    assert [dict(c.labels)["vehicle"] for c in on] == [B_DOUBLE] * 3
+    assert [c.overrides[1:] for c in on] == [c.overrides[1:] for c in controller_limits_cases()]
+    assert dict(controller_limits_cases()[0].overrides)["vehicle"] == "lst"
+    with pytest.raises(InputError, match="--vehicle no-such-vehicle"):
+        controller_limits_cases(vehicle="no-such-vehicle")
+
+
+def _unit_rows(unit3_truth_rms: float, unit3_truth_max: float = 0.2) -> dict[str, dict[str, float]]:
+    """A B-double cell's rows: the first trailer's figures within, unit 3's truth-fed ones as given."""
+    rms, peak = "true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"
+    figures = {"none": (1.0, 2.0, 1.2, 3.2), "zero_slip": (0.1, 0.3, 0.12, 0.29)}
+    rows = {f: {rms: a, peak: b, f"unit3_{rms}": c, f"unit3_{peak}": d} for f, (a, b, c, d) in figures.items()}
+    rows["truth"] = {rms: 0.01, peak: 0.04, f"unit3_{rms}": unit3_truth_rms, f"unit3_{peak}": unit3_truth_max}
+    return rows
+
+
+def test_truth_fed_check_holds_on_every_steered_unit():
+    check = truth_fed_check(_unit_rows(0.05))
+    assert check is not None and check["held"] is True and check["not_within"] == []
+    assert check["unit3_true_offtracking_rms_within_none"] is True
+    # The second trailer's truth-fed RMS above its unsteered (1.2 m) fails the cell though the first trailer holds.
+    worse = truth_fed_check(_unit_rows(1.3))
+    assert worse is not None and worse["held"] is False
+    assert worse["true_offtracking_rms_within_none"] is True
+    assert worse["not_within"] == [
+        "unit3_true_offtracking_rms_within_zero_slip",
+        "unit3_true_offtracking_rms_within_none",
+    ]
+    # Above the zero-slip-fed max only (0.29 m): the max's comparison alone fails.
+    assert truth_fed_check(_unit_rows(0.05, 0.3))["not_within"] == ["unit3_true_offtracking_max_within_zero_slip"]
+    # A unit's figure missing from the truth-fed row fails its comparisons; another vehicle's unit columns left
+    # empty (an LST cell in a table with B-double cells) are not this cell's.
+    missing = _unit_rows(0.05)
+    missing["truth"]["unit3_true_offtracking_rms_after_warmup_m"] = math.nan
+    assert truth_fed_check(missing)["held"] is False
+    lst = {
+        f: {k: (v if not k.startswith("unit3_") else math.nan) for k, v in r.items()}
+        for f, r in _unit_rows(9.0).items()
+    }
+    assert truth_fed_check(lst)["held"] is True and "unit3_true_offtracking_rms_within_none" not in truth_fed_check(lst)
+
+
+def test_a_units_time_at_lock_and_its_prefix():
+    params = load_scenario("field-figure-eight", {"vehicle": B_DOUBLE}).vehicle_params()
+    assert further_steered_units(params) == [3]
+    steering = {
+        "lead2": {"saturated_fraction": 0.1},
+        "lead3": {"saturated_fraction": 0.2},
+        "rear3": {"saturated_fraction": 0.4},
+    }
+    assert at_lock_share(steering, params) == 0.2 and at_lock_share(steering, params, 2) == 0.4
+    assert unit_prefixes(
+        ["unit4_true_offtracking_rms_after_warmup_m", "x", "unit3_true_offtracking_rms_after_warmup_m"]
+    ) == [
+        "",
+        "unit3_",
+        "unit4_",
+    ]
