@@ -210,6 +210,9 @@ def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
                 "pid_cost_m2": reference["pid_cost"],
             }
         )
+        for unit in units:  # each further steered unit's optimum and the PID's on the same nodes
+            row[f"unit{unit}_optimal_nlp_rms_m"] = reference.get(f"unit{unit}_nlp_offtracking_rms")
+            row[f"unit{unit}_pid_nodes_rms_m"] = reference.get(f"unit{unit}_pid_nodes_offtracking_rms")
     return row
 
 
@@ -436,7 +439,8 @@ def optimal_gap(rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
     dict or None
         ``pid_gap_rms_ratio``, ``reference_holds`` (the optimum's RMS ≤ :data:`REFERENCE_HOLDS`),
         ``gap_within_limit`` (the ratio ≤ :data:`GAP_LIMIT`, or ``None`` where the reference does not hold) and
-        ``replay_rms_ratio``; ``None`` without both rows.
+        ``replay_rms_ratio``; the first three as ``unit<k>_…`` for each further steered unit whose figures the
+        reference's row holds; ``None`` without both rows.
     """
     if not {"truth", OPTIMAL} <= rows.keys():
         return None
@@ -449,9 +453,23 @@ def optimal_gap(rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
         pid, reference = float(rows["truth"][column]), float(optimum[column])
     ratio = pid / reference if reference > 0 else float("inf")
     holds = reference <= REFERENCE_HOLDS
-    return {
+    out: dict[str, Any] = {
         "pid_gap_rms_ratio": ratio,
         "reference_holds": holds,
         "gap_within_limit": ratio <= GAP_LIMIT if holds else None,
         "replay_rms_ratio": replay,
     }
+    for prefix in unit_prefixes(k.replace("optimal_nlp_rms_m", "true_offtracking_rms_after_warmup_m") for k in optimum)[
+        1:
+    ]:
+        unit_pid, unit_reference = (
+            _figure(optimum, f"{prefix}pid_nodes_rms_m"),
+            _figure(optimum, f"{prefix}optimal_nlp_rms_m"),
+        )
+        if np.isfinite(unit_pid) and np.isfinite(unit_reference):  # a further steered unit, by the same measure
+            unit_ratio = unit_pid / unit_reference if unit_reference > 0 else float("inf")
+            unit_holds = unit_reference <= REFERENCE_HOLDS
+            out[f"{prefix}pid_gap_rms_ratio"] = unit_ratio
+            out[f"{prefix}reference_holds"] = unit_holds
+            out[f"{prefix}gap_within_limit"] = unit_ratio <= GAP_LIMIT if unit_holds else None
+    return out
