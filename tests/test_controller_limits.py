@@ -135,6 +135,18 @@ def test_controller_limits_cases_and_the_check_of_each_cell(tmp_path: Path):
     assert (tmp_path / "controller_limits.png").stat().st_size > 0
     (check,) = json.loads((tmp_path / "controller_limits.json").read_text(encoding="utf-8"))
     assert check["held"] is True and check["cell"] == ["field-figure-eight", "wet", "lst"]
+    # A cell whose unsteered loop stopped (the B-double jackknifes unsteered on the UK roundabout test): no check on
+    # part of a run, the stop said instead.
+    stopped = {**cell, "scenario": "roundabout-test", "vehicle": B_DOUBLE}
+    rows = [{**stopped, "feedback": f, rms: 1.0, peak: 2.0, "status": "completed"} for f in ("truth", "zero_slip")]
+    with_stop = pd.concat([table, pd.DataFrame([*rows, {**stopped, "feedback": "none", "status": "lost_control"}])])
+    controller_limits_figures(with_stop, tmp_path)
+    checks = json.loads((tmp_path / "controller_limits.json").read_text(encoding="utf-8"))
+    assert checks[1] == {
+        "cell": ["roundabout-test", "wet", B_DOUBLE],
+        "held": None,
+        "not_completed": {"none": "lost_control"},
+    }
     for column, worse in ((rms, 0.5), (peak, 1.5)):  # either worse than the zero-slip-fed loop: not held
         changed = table.copy()
         changed.loc[1, column] = worse
@@ -286,7 +298,10 @@ def test_the_b_double_cells_steer_every_unit():
     # --vehicle: the default subset's cell on that combination alone; without it the LST's cell as it was.
     on = controller_limits_cases(vehicle=B_DOUBLE)
     assert [dict(c.labels)["vehicle"] for c in on] == [B_DOUBLE] * 3
-    assert [c.overrides[1:] for c in on] == [c.overrides[1:] for c in controller_limits_cases()]
+    assert [c.overrides[1:-1] for c in on] == [c.overrides[1:-1] for c in controller_limits_cases()]
+    # Its driver plans with at most 0.4 of the road's friction (at 0.6 its tractor leaves the icy loops).
+    assert {dict(c.overrides)["speed.friction_share"] for c in on} == {0.4}
+    assert {dict(c.overrides)["speed.friction_share"] for c in controller_limits_cases(friction_share=0.3)} == {0.3}
     assert dict(controller_limits_cases()[0].overrides)["vehicle"] == "lst"
     with pytest.raises(InputError, match="--vehicle no-such-vehicle"):
         controller_limits_cases(vehicle="no-such-vehicle")

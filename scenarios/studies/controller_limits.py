@@ -94,6 +94,11 @@ B_DOUBLE = "au-b-double-steered"
 the cell's feedback (each on its own estimate of its own off-tracking, ``rear_feedback`` following ``feedback``)."""
 VEHICLES = ("lst", B_DOUBLE)
 """The combinations of the whole study's cells (``full``), the LST's cells first."""
+VEHICLE_FRICTION_SHARE = {B_DOUBLE: 0.4}
+"""The most of the road's friction a combination's driver plans with where :data:`FRICTION_SHARE` is more: at 0.6
+of ice's friction the B-double's tractor, its steer axle at lock, leaves the 11.5 m field loops whatever the trailers
+do (docs/studies.md, the controller-limits section). On dry and wet roads the share leaves those manoeuvres'
+profiles as they are."""
 
 
 def controller_limits_cases(
@@ -124,7 +129,8 @@ def controller_limits_cases(
     optimal
         Add each cell's optimal reference; default: with ``full`` only.
     friction_share
-        ``speed.friction_share`` of every case; ``None``: the scenarios' speed profiles as they are.
+        ``speed.friction_share`` of every case, at most :data:`VEHICLE_FRICTION_SHARE` of a combination listed
+        there; ``None``: the scenarios' speed profiles as they are.
     camera
         Add each cell's fused camera case under field conditions
         (:func:`~scenarios.studies.controller_limits_camera.camera_overrides`); rendered, so off by default.
@@ -154,7 +160,8 @@ def controller_limits_cases(
                 ("estimators.zero_slip", True),
             )
             if friction_share is not None:
-                overrides += (("speed.friction_share", friction_share),)
+                share = min(friction_share, VEHICLE_FRICTION_SHARE.get(vehicle_label, friction_share))
+                overrides += (("speed.friction_share", share),)
             if feedback == CAMERA_FEEDBACK:
                 overrides += camera_overrides()
             labels = (("scenario", scenario), ("surface", surface), ("vehicle", vehicle_label), ("feedback", feedback))
@@ -279,7 +286,9 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
     """``controller_limits.png``: the true off-tracking after warm-up (RMS and max) of each cell by steering, and
     ``controller_limits.json``: each cell's check (truth-fed RMS and max ≤ zero-slip-fed and ≤ unsteered,
     :func:`truth_fed_check`; with its camera case's :data:`~scenarios.studies.controller_limits_camera.CAMERA_COLUMNS`),
-    then the camera cells' group checks (:func:`camera_group_checks`), if the table has camera cases."""
+    or for a cell with a loop that did not complete ``held`` ``None`` and each such feedback's status
+    (``not_completed``: the check is not taken on part of a run), then the camera cells' group checks
+    (:func:`camera_group_checks`), if the table has camera cases."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -325,12 +334,18 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
     fig.tight_layout()
     fig.savefig(out_dir / "controller_limits.png", dpi=120)
     plt.close(fig)
-    for cell in cells:
+    every = list(dict.fromkeys(zip(table["scenario"], table["surface"], table["vehicle"], strict=True)))
+    for cell in every:
         rows = {r["feedback"]: dict(r) for _, r in _rows(done, cell).iterrows()}
         check = truth_fed_check(rows)
         if check is not None:
             fused = {k: _plain(rows[CAMERA_FEEDBACK].get(k)) for k in CAMERA_COLUMNS} if CAMERA_FEEDBACK in rows else {}
             checks.append({"cell": list(cell), **check, **(optimal_gap(rows) or {}), **fused})
+        elif "status" in table:  # a loop that did not complete (e.g. the unsteered combination jackknifed): said
+            ended = {str(r["feedback"]): str(r["status"]) for _, r in _rows(table, cell).iterrows()}
+            stopped = {f: v for f, v in ended.items() if v != RunStatus.COMPLETED and f in FEEDBACKS}
+            if stopped:
+                checks.append({"cell": list(cell), "held": None, "not_completed": stopped})
     checks += camera_group_checks(done)
     (out_dir / "controller_limits.json").write_text(json.dumps(checks, indent=1), encoding="utf-8")
 
