@@ -358,3 +358,23 @@ def test_a_units_time_at_lock_and_its_prefix():
         "unit3_",
         "unit4_",
     ]
+
+
+@pytest.mark.slow
+def test_the_b_doubles_rows_hold_each_trailers_figures_and_the_check(tmp_path: Path):
+    # The default subset's cell on the B-double, its first 20 s: both trailers' figures in every row, the rear
+    # trailer steered (its reach and lock taken) only when fed back, and the check held on both to 1 cm.
+    rows = {}
+    for case in controller_limits_cases(vehicle=B_DOUBLE):
+        short = CaseSpec(case.study, case.scenario, (*case.overrides, ("duration_s", 20.0)), case.labels)
+        rows[dict(case.labels)["feedback"]] = run_controller_limits_case(short, tmp_path)
+    for feedback, row in rows.items():
+        assert row["status"] == "completed"
+        assert (
+            0.0 <= row["unit3_true_offtracking_rms_after_warmup_m"] <= row["unit3_true_offtracking_max_after_warmup_m"]
+        )
+        assert 0.0 <= row["unit3_largest_outswing_after_warmup_m"] <= row["unit3_true_offtracking_max_after_warmup_m"]
+        assert (row["unit3_at_lock_share"] > 0.0) is (feedback != "none")
+    check = truth_fed_check(rows, tolerance=0.01)
+    assert check is not None and check["held"], check
+    assert "unit3_true_offtracking_max_within_none" in check
