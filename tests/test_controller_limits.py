@@ -15,12 +15,14 @@ import pytest
 from controller.path_following import TrailerSteeringController
 from controller.path_following_config import PathFollowingConfig
 from scenarios.assess.high_speed import rearward_amplification, yaw_damping_coefficient
+from scenarios.camera_schema import rig_units
 from scenarios.config import ConfigError, load_scenario
 from scenarios.run.metrics import steering_reach
 from scenarios.run.runner import run_scenario
 from scenarios.setup.build import build_scenario
 from scenarios.studies.controller_limits import (
     B_DOUBLE,
+    CAMERA_FEEDBACK,
     controller_limits_cases,
     controller_limits_figures,
     largest_outswing,
@@ -28,7 +30,12 @@ from scenarios.studies.controller_limits import (
     run_controller_limits_case,
     truth_fed_check,
 )
-from scenarios.studies.controller_limits_units import at_lock_share, further_steered_units, unit_prefixes
+from scenarios.studies.controller_limits_units import (
+    at_lock_share,
+    further_camera_columns,
+    further_steered_units,
+    unit_prefixes,
+)
 from scenarios.studies.pbs_assessment import MANOEUVRES
 from scenarios.studies.records import CaseSpec
 from scenarios.unit_feedback import steered_units
@@ -378,3 +385,24 @@ def test_the_b_doubles_rows_hold_each_trailers_figures_and_the_check(tmp_path: P
     check = truth_fed_check(rows, tolerance=0.01)
     assert check is not None and check["held"], check
     assert "unit3_true_offtracking_max_within_none" in check
+
+
+def test_the_b_doubles_camera_cases_steer_each_trailer_on_its_own_rig():
+    # --full --camera: a fused camera case per B-double cell too, both trailers on their own rig's fused estimate
+    # (camera.rigs' defaults: a left rig on the lead trailer, a rear rig on the rear one), the field settings on both.
+    cases = controller_limits_cases(full=True, camera=True)
+    camera = [
+        c for c in cases if dict(c.labels)["feedback"] == CAMERA_FEEDBACK and dict(c.labels)["vehicle"] == B_DOUBLE
+    ]
+    assert len(camera) == 9
+    config = load_scenario(camera[0].scenario, dict(camera[0].overrides))
+    params = config.vehicle_params()
+    assert steered_units(params, config.feedback, config.rear_feedback) == [(1, CAMERA_FEEDBACK), (2, "viso_ot_fused3")]
+    assert rig_units(config.camera, params) == (1, 2)
+    # Its row's further-unit camera columns: the rear trailer's own rig's figures, NaN where a run gave none.
+    metrics = {
+        "offtracking": {"units": {"3": {"estimators": {"viso_ot_fused": {"rms_error": 0.07, "within_2sigma": 0.9}}}}}
+    }
+    columns = further_camera_columns(metrics, [3])
+    assert columns["unit3_fused_rms_error_m"] == 0.07 and columns["unit3_fused_within_2sigma"] == 0.9
+    assert math.isnan(columns["unit3_viso_ot_rms_error_m"])

@@ -44,6 +44,7 @@ from ..run.runner import run_scenario
 from .controller_limits_camera import CAMERA_COLUMNS, CAMERA_FEEDBACK, camera_check, camera_columns, camera_overrides
 from .controller_limits_units import (
     at_lock_share,
+    further_camera_columns,
     further_steered_units,
     further_unit_row,
     outswing_inputs,
@@ -206,6 +207,7 @@ def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
         row.update(further_unit_row(metrics, recorded, params, unit, warm, outswing))
     if dict(spec.labels)["feedback"] == CAMERA_FEEDBACK:
         row.update(camera_columns(metrics))
+        row.update(further_camera_columns(metrics, units))
     reference = metrics.get("optimal_reference")
     if reference is not None:
         row.update(

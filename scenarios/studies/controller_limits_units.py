@@ -8,7 +8,9 @@ columns number the units of the combination: 3 the second towed unit) adds the s
 (:func:`further_unit_row`), from ``offtracking.units.<k>`` of the run's metrics and from its recorded columns
 (``offtracking_truth<k>``, ``coupling<k>_x/y``, ``unit<k>_beyond_reach`` and ``saturated_<axle>`` of its axles).
 The study's check on a cell (:func:`unit_prefixes` in :func:`scenarios.studies.controller_limits.truth_fed_check`)
-holds on every unit.
+holds on every unit. A camera case adds each further unit's own camera figures (:func:`further_camera_columns`,
+each steered unit on its own rig, ``camera.rigs``); the camera cells' group check
+(:func:`scenarios.studies.controller_limits_camera.camera_check`) is taken on the first towed unit's.
 """
 
 from __future__ import annotations
@@ -23,10 +25,13 @@ import numpy as np
 from vehicle_model.parameters import VehicleParams
 
 from ..run.metrics import steering_reach
+from .field_loop_units import unit_columns
 
 __all__ = [
+    "UNIT_CAMERA_KEYS",
     "UNIT_FIGURES",
     "at_lock_share",
+    "further_camera_columns",
     "further_steered_units",
     "further_unit_row",
     "outswing_inputs",
@@ -43,6 +48,10 @@ UNIT_FIGURES = (
 """The figures of a steered unit in a row: its true off-tracking after warm-up (RMS, max), its largest outswing, the
 share of its path beyond its steering's reach and its axles' time at lock (the first towed unit's without a prefix,
 unit ``k``'s as ``unit<k>_<figure>``)."""
+
+UNIT_CAMERA_KEYS = ("fused_rms_error_m", "fused_max_abs_error_m", "fused_within_2sigma", "viso_ot_rms_error_m")
+"""The camera figures a camera case adds for each further steered unit, as ``unit<k>_<key>``
+(:func:`scenarios.studies.field_loop_units.unit_columns`: the unit's own rig's fused and raw VISO-OT estimates)."""
 
 _PREFIX = re.compile(r"^(unit\d+_)true_offtracking_rms_after_warmup_m$")
 
@@ -138,3 +147,10 @@ def _number(value: Any) -> float:
         return float(value) if value is not None else math.nan
     except (TypeError, ValueError):
         return math.nan
+
+
+def further_camera_columns(metrics: Mapping[str, Any], units: Iterable[int]) -> dict[str, float]:
+    """A camera case's :data:`UNIT_CAMERA_KEYS` of each further steered unit in ``units`` as ``unit<k>_<key>``
+    (NaN where the run gave none)."""
+    columns = unit_columns(dict(metrics))
+    return {f"unit{u}_{key}": columns.get(f"unit{u}_{key}", math.nan) for u in units for key in UNIT_CAMERA_KEYS}
