@@ -3,7 +3,8 @@
 Each cell is a manoeuvre × surface × vehicle; each runs unsteered and with the controller fed by the true
 off-tracking and by the zero-slip estimate. Every cell is driven as a driver who knows the surface would: the
 speed profile capped at :data:`FRICTION_SHARE` of the road's friction (``speed.friction_share``,
-:mod:`controller.friction_speed`), which leaves a profile the road allows untouched. A row holds the true
+:mod:`controller.friction_speed`; less for a combination of :data:`VEHICLE_FRICTION_SHARE`), which leaves a profile
+the road allows untouched. A row holds the true
 off-tracking after warm-up (RMS, max), the share of the path beyond the steering's reach
 (:func:`scenarios.run.metrics.steering_reach`) and the axles' time at lock, for the first towed unit and as
 ``unit<k>_…`` for every steered unit behind it (:mod:`scenarios.studies.controller_limits_units`).
@@ -61,6 +62,7 @@ __all__ = [
     "FEEDBACKS",
     "FRICTION_SHARE",
     "VEHICLES",
+    "VEHICLE_FRICTION_SHARE",
     "camera_group_checks",
     "controller_limits_cases",
     "controller_limits_figures",
