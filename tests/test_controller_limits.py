@@ -406,3 +406,17 @@ def test_the_b_doubles_camera_cases_steer_each_trailer_on_its_own_rig():
     columns = further_camera_columns(metrics, [3])
     assert columns["unit3_fused_rms_error_m"] == 0.07 and columns["unit3_fused_within_2sigma"] == 0.9
     assert math.isnan(columns["unit3_viso_ot_rms_error_m"])
+
+
+def test_the_pids_gap_on_each_steered_unit():
+    # The rear trailer's gap by the same measure as the first's: its PID on the nodes over its optimum (0.3 / 0.1 m:
+    # 3x, the reference holding 0.10 m); a unit without the NLP's figures (NaN, another vehicle's column) has none.
+    rms = "true_offtracking_rms_after_warmup_m"
+    optimum = {rms: 0.05, "optimal_nlp_rms_m": 0.02, "pid_nodes_rms_m": 0.03}
+    rows = {"truth": {rms: 0.04}, "optimal": {**optimum, "unit3_optimal_nlp_rms_m": 0.1, "unit3_pid_nodes_rms_m": 0.3}}
+    gap = optimal_gap(rows)
+    assert gap is not None and gap["pid_gap_rms_ratio"] == pytest.approx(1.5, rel=1e-12)
+    assert gap["unit3_pid_gap_rms_ratio"] == pytest.approx(3.0, rel=1e-12)
+    assert gap["unit3_reference_holds"] is True and gap["unit3_gap_within_limit"] is False
+    lst = optimal_gap({**rows, "optimal": {**optimum, "unit3_optimal_nlp_rms_m": math.nan}})
+    assert lst is not None and "unit3_pid_gap_rms_ratio" not in lst
