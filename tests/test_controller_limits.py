@@ -15,11 +15,14 @@ import pytest
 from controller.path_following import TrailerSteeringController
 from controller.path_following_config import PathFollowingConfig
 from scenarios.assess.high_speed import rearward_amplification, yaw_damping_coefficient
+from scenarios.camera_schema import rig_units
 from scenarios.config import ConfigError, load_scenario
 from scenarios.run.metrics import steering_reach
 from scenarios.run.runner import run_scenario
 from scenarios.setup.build import build_scenario
 from scenarios.studies.controller_limits import (
+    B_DOUBLE,
+    CAMERA_FEEDBACK,
     controller_limits_cases,
     controller_limits_figures,
     largest_outswing,
@@ -27,8 +30,16 @@ from scenarios.studies.controller_limits import (
     run_controller_limits_case,
     truth_fed_check,
 )
+from scenarios.studies.controller_limits_units import (
+    at_lock_share,
+    further_camera_columns,
+    further_steered_units,
+    unit_prefixes,
+)
 from scenarios.studies.pbs_assessment import MANOEUVRES
 from scenarios.studies.records import CaseSpec
+from scenarios.unit_feedback import steered_units
+from vehicle_model.errors import InputError
 from vehicle_model.offtracking import OfftrackingEstimate
 from vehicle_model.presets import lst_laden
 from vehicle_model.simulator import VehicleState
@@ -108,9 +119,9 @@ def test_controller_limits_cases_and_the_check_of_each_cell(tmp_path: Path):
     assert [dict(c.labels)["feedback"] for c in cases] == ["none", "truth", "zero_slip"]
     assert {c.scenario for c in cases} == {"field-figure-eight"}
     full = controller_limits_cases(full=True)
-    assert len(full) == 3 * 3 * 4  # every cell also runs its optimal reference, over the truth-fed PID's run
+    assert len(full) == 3 * 3 * 2 * 4  # every cell also runs its optimal reference, over the truth-fed PID's run
     optimal = [c for c in full if dict(c.labels)["feedback"] == "optimal"]
-    assert len(optimal) == 9 and all(dict(c.overrides)["feedback"] == "truth" for c in optimal)
+    assert len(optimal) == 18 and all(dict(c.overrides)["feedback"] == "truth" for c in optimal)
     # Other cells (the field manoeuvres' selection), with or without the optimal reference.
     cells = [("field-roundabout-right", "ice", "lst"), ("field-figure-eight", "dry", "lst")]
     chosen = controller_limits_cases(cells=cells, optimal=True)
@@ -131,6 +142,18 @@ def test_controller_limits_cases_and_the_check_of_each_cell(tmp_path: Path):
     assert (tmp_path / "controller_limits.png").stat().st_size > 0
     (check,) = json.loads((tmp_path / "controller_limits.json").read_text(encoding="utf-8"))
     assert check["held"] is True and check["cell"] == ["field-figure-eight", "wet", "lst"]
+    # A cell whose unsteered loop stopped (the B-double jackknifes unsteered on the UK roundabout test): no check on
+    # part of a run, the stop said instead.
+    stopped = {**cell, "scenario": "roundabout-test", "vehicle": B_DOUBLE}
+    rows = [{**stopped, "feedback": f, rms: 1.0, peak: 2.0, "status": "completed"} for f in ("truth", "zero_slip")]
+    with_stop = pd.concat([table, pd.DataFrame([*rows, {**stopped, "feedback": "none", "status": "lost_control"}])])
+    controller_limits_figures(with_stop, tmp_path)
+    checks = json.loads((tmp_path / "controller_limits.json").read_text(encoding="utf-8"))
+    assert checks[1] == {
+        "cell": ["roundabout-test", "wet", B_DOUBLE],
+        "held": None,
+        "not_completed": {"none": "lost_control"},
+    }
     for column, worse in ((rms, 0.5), (peak, 1.5)):  # either worse than the zero-slip-fed loop: not held
         changed = table.copy()
         changed.loc[1, column] = worse
@@ -266,3 +289,134 @@ def test_outswing_bound_scales_the_outward_command(error, share):
         assert bound.virtual_steer == pytest.approx(share * free.virtual_steer, abs=1e-12)
     else:
         assert bound.virtual_steer == pytest.approx(free.virtual_steer, abs=1e-12)
+
+
+def test_the_b_double_cells_steer_every_unit():
+    full = controller_limits_cases(full=True)
+    vehicles = [dict(c.labels)["vehicle"] for c in full]
+    assert vehicles == ["lst"] * 36 + [B_DOUBLE] * 36  # the LST's cells first, as before
+    cell = [c for c in full if dict(c.labels)["vehicle"] == B_DOUBLE][:4]
+    assert [dict(c.labels)["feedback"] for c in cell] == ["none", "truth", "zero_slip", "optimal"]
+    expected = {"none": [], "truth": [(1, "truth"), (2, "truth3")], "zero_slip": [(1, "zero_slip"), (2, "zero_slip3")]}
+    for case in cell[:3]:  # both trailers steered, each on its own estimate of its own off-tracking
+        config = load_scenario(case.scenario, dict(case.overrides))
+        units = steered_units(config.vehicle_params(), config.feedback, config.rear_feedback)
+        assert units == expected[dict(case.labels)["feedback"]]
+    # --vehicle: the default subset's cell on that combination alone; without it the LST's cell as it was.
+    on = controller_limits_cases(vehicle=B_DOUBLE)
+    assert [dict(c.labels)["vehicle"] for c in on] == [B_DOUBLE] * 3
+    assert [c.overrides[1:-1] for c in on] == [c.overrides[1:-1] for c in controller_limits_cases()]
+    # Its driver plans with at most 0.4 of the road's friction (at 0.6 its tractor leaves the icy loops).
+    assert {dict(c.overrides)["speed.friction_share"] for c in on} == {0.4}
+    assert {dict(c.overrides)["speed.friction_share"] for c in controller_limits_cases(friction_share=0.3)} == {0.3}
+    assert dict(controller_limits_cases()[0].overrides)["vehicle"] == "lst"
+    with pytest.raises(InputError, match="--vehicle no-such-vehicle"):
+        controller_limits_cases(vehicle="no-such-vehicle")
+
+
+def _unit_rows(unit3_truth_rms: float, unit3_truth_max: float = 0.2) -> dict[str, dict[str, float]]:
+    """A B-double cell's rows: the first trailer's figures within, unit 3's truth-fed ones as given."""
+    rms, peak = "true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"
+    figures = {"none": (1.0, 2.0, 1.2, 3.2), "zero_slip": (0.1, 0.3, 0.12, 0.29)}
+    rows = {f: {rms: a, peak: b, f"unit3_{rms}": c, f"unit3_{peak}": d} for f, (a, b, c, d) in figures.items()}
+    rows["truth"] = {rms: 0.01, peak: 0.04, f"unit3_{rms}": unit3_truth_rms, f"unit3_{peak}": unit3_truth_max}
+    return rows
+
+
+def test_truth_fed_check_holds_on_every_steered_unit():
+    check = truth_fed_check(_unit_rows(0.05))
+    assert check is not None and check["held"] is True and check["not_within"] == []
+    assert check["unit3_true_offtracking_rms_within_none"] is True
+    # The second trailer's truth-fed RMS above its unsteered (1.2 m) fails the cell though the first trailer holds.
+    worse = truth_fed_check(_unit_rows(1.3))
+    assert worse is not None and worse["held"] is False
+    assert worse["true_offtracking_rms_within_none"] is True
+    assert worse["not_within"] == [
+        "unit3_true_offtracking_rms_within_zero_slip",
+        "unit3_true_offtracking_rms_within_none",
+    ]
+    # Above the zero-slip-fed max only (0.29 m): the max's comparison alone fails.
+    assert truth_fed_check(_unit_rows(0.05, 0.3))["not_within"] == ["unit3_true_offtracking_max_within_zero_slip"]
+    # A unit's figure missing from the truth-fed row fails its comparisons; another vehicle's unit columns left
+    # empty (an LST cell in a table with B-double cells) are not this cell's.
+    missing = _unit_rows(0.05)
+    missing["truth"]["unit3_true_offtracking_rms_after_warmup_m"] = math.nan
+    assert truth_fed_check(missing)["held"] is False
+    lst = {
+        f: {k: (v if not k.startswith("unit3_") else math.nan) for k, v in r.items()}
+        for f, r in _unit_rows(9.0).items()
+    }
+    assert truth_fed_check(lst)["held"] is True and "unit3_true_offtracking_rms_within_none" not in truth_fed_check(lst)
+
+
+def test_a_units_time_at_lock_and_its_prefix():
+    params = load_scenario("field-figure-eight", {"vehicle": B_DOUBLE}).vehicle_params()
+    assert further_steered_units(params) == [3]
+    steering = {
+        "lead2": {"saturated_fraction": 0.1},
+        "lead3": {"saturated_fraction": 0.2},
+        "rear3": {"saturated_fraction": 0.4},
+    }
+    assert at_lock_share(steering, params) == 0.2 and at_lock_share(steering, params, 2) == 0.4
+    assert unit_prefixes(
+        ["unit4_true_offtracking_rms_after_warmup_m", "x", "unit3_true_offtracking_rms_after_warmup_m"]
+    ) == [
+        "",
+        "unit3_",
+        "unit4_",
+    ]
+
+
+@pytest.mark.slow
+def test_the_b_doubles_rows_hold_each_trailers_figures_and_the_check(tmp_path: Path):
+    # The default subset's cell on the B-double, its first 20 s: both trailers' figures in every row, the rear
+    # trailer steered (its reach and lock taken) only when fed back, and the check held on both to 1 cm.
+    rows = {}
+    for case in controller_limits_cases(vehicle=B_DOUBLE):
+        short = CaseSpec(case.study, case.scenario, (*case.overrides, ("duration_s", 20.0)), case.labels)
+        rows[dict(case.labels)["feedback"]] = run_controller_limits_case(short, tmp_path)
+    for feedback, row in rows.items():
+        assert row["status"] == "completed"
+        assert (
+            0.0 <= row["unit3_true_offtracking_rms_after_warmup_m"] <= row["unit3_true_offtracking_max_after_warmup_m"]
+        )
+        assert 0.0 <= row["unit3_largest_outswing_after_warmup_m"] <= row["unit3_true_offtracking_max_after_warmup_m"]
+        assert (row["unit3_at_lock_share"] > 0.0) is (feedback != "none")
+    check = truth_fed_check(rows, tolerance=0.01)
+    assert check is not None and check["held"], check
+    assert "unit3_true_offtracking_max_within_none" in check
+
+
+def test_the_b_doubles_camera_cases_steer_each_trailer_on_its_own_rig():
+    # --full --camera: a fused camera case per B-double cell too, both trailers on their own rig's fused estimate
+    # (camera.rigs' defaults: a left rig on the lead trailer, a rear rig on the rear one), the field settings on both.
+    cases = controller_limits_cases(full=True, camera=True)
+    camera = [
+        c for c in cases if dict(c.labels)["feedback"] == CAMERA_FEEDBACK and dict(c.labels)["vehicle"] == B_DOUBLE
+    ]
+    assert len(camera) == 9
+    config = load_scenario(camera[0].scenario, dict(camera[0].overrides))
+    params = config.vehicle_params()
+    assert steered_units(params, config.feedback, config.rear_feedback) == [(1, CAMERA_FEEDBACK), (2, "viso_ot_fused3")]
+    assert rig_units(config.camera, params) == (1, 2)
+    # Its row's further-unit camera columns: the rear trailer's own rig's figures, NaN where a run gave none.
+    metrics = {
+        "offtracking": {"units": {"3": {"estimators": {"viso_ot_fused": {"rms_error": 0.07, "within_2sigma": 0.9}}}}}
+    }
+    columns = further_camera_columns(metrics, [3])
+    assert columns["unit3_fused_rms_error_m"] == 0.07 and columns["unit3_fused_within_2sigma"] == 0.9
+    assert math.isnan(columns["unit3_viso_ot_rms_error_m"])
+
+
+def test_the_pids_gap_on_each_steered_unit():
+    # The rear trailer's gap by the same measure as the first's: its PID on the nodes over its optimum (0.3 / 0.1 m:
+    # 3x, the reference holding 0.10 m); a unit without the NLP's figures (NaN, another vehicle's column) has none.
+    rms = "true_offtracking_rms_after_warmup_m"
+    optimum = {rms: 0.05, "optimal_nlp_rms_m": 0.02, "pid_nodes_rms_m": 0.03}
+    rows = {"truth": {rms: 0.04}, "optimal": {**optimum, "unit3_optimal_nlp_rms_m": 0.1, "unit3_pid_nodes_rms_m": 0.3}}
+    gap = optimal_gap(rows)
+    assert gap is not None and gap["pid_gap_rms_ratio"] == pytest.approx(1.5, rel=1e-12)
+    assert gap["unit3_pid_gap_rms_ratio"] == pytest.approx(3.0, rel=1e-12)
+    assert gap["unit3_reference_holds"] is True and gap["unit3_gap_within_limit"] is False
+    lst = optimal_gap({**rows, "optimal": {**optimum, "unit3_optimal_nlp_rms_m": math.nan}})
+    assert lst is not None and "unit3_pid_gap_rms_ratio" not in lst

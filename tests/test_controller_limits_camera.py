@@ -49,7 +49,7 @@ def test_camera_cases_are_opt_in_and_carry_the_field_cell_settings():
     assert config.seed == CAMERA_SEED and config.feedback == CAMERA_FEEDBACK
     # The whole study: one camera case per cell; the optimal reference still last in each cell.
     full = controller_limits_cases(full=True, camera=True)
-    assert sum(dict(c.labels)["feedback"] == CAMERA_FEEDBACK for c in full) == 9
+    assert sum(dict(c.labels)["feedback"] == CAMERA_FEEDBACK for c in full) == 18  # the LST's and the B-double's
     assert [dict(c.labels)["feedback"] for c in full[:5]] == ["none", "truth", "zero_slip", CAMERA_FEEDBACK, "optimal"]
 
 

@@ -4,6 +4,7 @@ than the PID's run; the mapped formulation solves the same problem as the NLP ex
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -14,9 +15,11 @@ from scenarios.config import load_scenario
 from scenarios.run.results import TIMESERIES_FILE
 from scenarios.run.runner import run_scenario
 from scenarios.setup.build import build_scenario
-from scenarios.studies.optimal_problem import interval_integrator, solve_optimal_steer
+from scenarios.studies.optimal_problem import _follow_function, interval_integrator, solve_optimal_steer
 from scenarios.studies.optimal_reference import pid_cost
 from vehicle_model.dynamics import VehicleModel
+from vehicle_model.errors import InputError
+from vehicle_model.geometry import follow_point_from_kingpin, trailer_frames
 from vehicle_model.layout import Layout
 from vehicle_model.simulator import Simulator
 
@@ -95,3 +98,46 @@ def test_the_mapped_nlp_solves_the_same_problem_as_the_nlp_expanded_as_a_whole(t
     # Both stop at Ipopt's tolerance from the same start on the same problem: equal to far below a millimetre².
     assert tiny_solution.cost == pytest.approx(expanded.cost, rel=1e-6, abs=1e-12)
     assert tiny_solution.steer == pytest.approx(expanded.steer, abs=1e-6)  # [rad]
+
+
+def test_each_units_follow_point_is_the_geometrys():
+    # The NLP's follow point of each towed unit of a B-double against vehicle_model.geometry.trailer_frames (the
+    # coupling of the rear trailer on the lead trailer's fifth wheel), on a random pose: equal to 1e-9 m.
+    params = load_scenario("roundabout-3", {"vehicle": "au-b-double-steered"}).vehicle_params()
+    layout = Layout.for_vehicle(params)
+    x = np.zeros(layout.n_states)
+    x[[0, 1, 2, 6]] = 3.0, -2.0, 0.7, 0.4
+    x[layout.state_index("gamma2")] = -0.3
+    frames = trailer_frames(params, x[0], x[1], x[2], (x[6], x[layout.state_index("gamma2")]))
+    for unit, (origin, heading) in enumerate(frames, start=1):
+        expected = follow_point_from_kingpin(origin, heading, params.follow_point_offset_of(unit))
+        got = np.asarray(_follow_function(params, layout.n_states, unit)(x)).ravel()
+        assert got == pytest.approx(expected, abs=1e-9)
+
+
+def test_a_combination_with_a_dolly_is_refused_in_one_line():
+    params = load_scenario("roundabout-3", {"vehicle": "au-a-double-steered"}).vehicle_params()
+    with pytest.raises(InputError, match="handles semi-trailers only; 'au-a-double-steered'"):
+        solve_optimal_steer(params, {}, None, None)  # type: ignore[arg-type]  # refused before any input is read
+
+
+@pytest.mark.slow
+def test_the_b_doubles_optimum_steers_both_trailers_within_the_limits():
+    # The tiny case on the steered B-double: all four steered axles within lock, rate and slip angle, each steered
+    # unit's follow point counted, and the optimum's cost (summed over both trailers) no more than the PID's.
+    config = load_scenario("roundabout-3", {**TINY, "vehicle": "au-b-double-steered"})
+    setup = build_scenario(config)
+    with tempfile.TemporaryDirectory() as tmp:
+        run_scenario(config, Path(tmp), plots=False, model=setup.model)
+        frame = pd.read_parquet(Path(tmp) / TIMESERIES_FILE)
+    columns = {name: frame[name].to_numpy() for name in frame.columns}
+    simulator = Simulator(setup.params, setup.surface, dt=config.rates.dynamics_step_s, model=setup.model)
+    limits = config.controller.path_following(config.rates.control_hz)
+    solution = solve_optimal_steer(setup.params, columns, simulator, limits, step=COARSE_STEP)
+    assert solution.status == "solved" and solution.axles == ("lead2", "lead3", "rear2", "rear3")
+    assert set(solution.further) == {3} and np.isfinite(solution.further[3]).sum() > 0
+    assert np.all(np.abs(solution.steer) <= limits.max_steer + 1e-9)
+    rate = np.abs(np.diff(solution.steer, axis=0)) / np.diff(solution.times)[:, None]
+    assert np.all(rate <= limits.max_steer_rate * (1 + 1e-6))
+    assert np.all(np.abs(solution.slip) <= limits.max_slip_angle + 1e-9)
+    assert solution.cost <= pid_cost(solution, columns)

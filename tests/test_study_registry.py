@@ -28,7 +28,13 @@ def test_every_study_is_one_record_named_by_its_key() -> None:
 
 
 def test_only_the_vehicle_studies_take_a_vehicle() -> None:
-    assert set(vehicle_studies()) == {"unit-steering", "estimators-under-slip", "field-loop", "off-highway"}
+    assert set(vehicle_studies()) == {
+        "unit-steering",
+        "estimators-under-slip",
+        "field-loop",
+        "controller-limits",
+        "off-highway",
+    }
     with pytest.raises(ValueError, match="paper-section3 takes no vehicle"):
         STUDIES["paper-section3"].case_specs(False, "au-b-double")
 

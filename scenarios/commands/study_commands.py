@@ -173,8 +173,9 @@ def study(
     vehicle: Annotated[
         str | None,
         typer.Option(
-            help="Another combination (preset or NAME.yaml) for unit-steering, estimators-under-slip or "
-            "field-loop (every steered unit on its own camera); it needs a steerable towed unit."
+            help="Another combination (preset or NAME.yaml) for unit-steering, estimators-under-slip, "
+            "field-loop (every steered unit on its own camera), controller-limits or off-highway; it needs a "
+            "steerable towed unit."
         ),
     ] = None,
     set_: Annotated[

@@ -3,14 +3,18 @@
 Each cell is a manoeuvre × surface × vehicle; each runs unsteered and with the controller fed by the true
 off-tracking and by the zero-slip estimate. Every cell is driven as a driver who knows the surface would: the
 speed profile capped at :data:`FRICTION_SHARE` of the road's friction (``speed.friction_share``,
-:mod:`controller.friction_speed`), which leaves a profile the road allows untouched. A row holds the true
+:mod:`controller.friction_speed`; less for a combination of :data:`VEHICLE_FRICTION_SHARE`), which leaves a profile
+the road allows untouched. A row holds the true
 off-tracking after warm-up (RMS, max), the share of the path beyond the steering's reach
-(:func:`scenarios.run.metrics.steering_reach`) and the axles' time at lock.
-The check of the study (docs/controller_design.md §3.5): on every cell the truth-fed loop's RMS and max are no more
-than the zero-slip-fed loop's and the unsteered loop's (:func:`truth_fed_check`).
+(:func:`scenarios.run.metrics.steering_reach`) and the axles' time at lock, for the first towed unit and as
+``unit<k>_…`` for every steered unit behind it (:mod:`scenarios.studies.controller_limits_units`).
+The check of the study (docs/controller_design.md §3.5): on every cell and every steered unit the truth-fed loop's RMS
+and max are no more than the zero-slip-fed loop's and the unsteered loop's (:func:`truth_fed_check`).
 
 The default subset is the paper's 11.5 m field figure-of-eight, wet, the LST; ``full`` adds the field roundabout
-and the UK roundabout test on dry, wet and ice, and on every cell the optimal reference (``offtrack optimal``,
+and the UK roundabout test on dry, wet and ice, each on the LST and on the steered B-double (:data:`VEHICLES`: both
+trailers steered, each on its own estimate of its own off-tracking; ``vehicle`` drives the cells on one other
+combination instead), and on every cell the optimal reference (``offtrack optimal``,
 :mod:`scenarios.studies.optimal_reference`: the NLP's steer replayed as a run, several CPU-minutes per cell). A
 cell's check then also holds the PID's gap to it: the truth-fed PID's RMS over the optimum's, both on the NLP's
 nodes (:func:`optimal_gap`).
@@ -31,6 +35,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 
 from ..config import load_scenario
 from ..loop.ends import RunStatus
@@ -38,14 +43,26 @@ from ..run.metrics import after_warmup
 from ..run.results import TIMESERIES_FILE
 from ..run.runner import run_scenario
 from .controller_limits_camera import CAMERA_COLUMNS, CAMERA_FEEDBACK, camera_check, camera_columns, camera_overrides
+from .controller_limits_units import (
+    at_lock_share,
+    further_camera_columns,
+    further_steered_units,
+    further_unit_row,
+    outswing_inputs,
+    unit_prefixes,
+)
 from .optimal_reference import run_optimal_reference
 from .records import CaseSpec
+from .unit_steering import study_vehicle
 from .workers import worker_models
 
 __all__ = [
+    "B_DOUBLE",
     "CAMERA_FEEDBACK",
     "FEEDBACKS",
     "FRICTION_SHARE",
+    "VEHICLES",
+    "VEHICLE_FRICTION_SHARE",
     "camera_group_checks",
     "controller_limits_cases",
     "controller_limits_figures",
@@ -75,10 +92,21 @@ SUBSET = (("field-figure-eight", "wet", "lst"),)
 """The default subset's cells: (scenario, surface, vehicle)."""
 FULL_SCENARIOS = ("field-figure-eight", "field-roundabout-left", "roundabout-test")
 FULL_SURFACES = ("dry", "wet", "ice")
+B_DOUBLE = "au-b-double-steered"
+"""The steered B-double of the whole study: the rear two axles of each trailer steerable, both trailers steered on
+the cell's feedback (each on its own estimate of its own off-tracking, ``rear_feedback`` following ``feedback``)."""
+VEHICLES = ("lst", B_DOUBLE)
+"""The combinations of the whole study's cells (``full``), the LST's cells first."""
+VEHICLE_FRICTION_SHARE = {B_DOUBLE: 0.4}
+"""The most of the road's friction a combination's driver plans with where :data:`FRICTION_SHARE` is more: at 0.6
+of ice's friction the B-double's tractor, its steer axle at lock, leaves the 11.5 m field loops whatever the trailers
+do (docs/studies.md, the controller-limits section). On dry and wet roads the share leaves those manoeuvres'
+profiles as they are."""
 
 
 def controller_limits_cases(
     full: bool = False,
+    vehicle: str | None = None,
     *,
     cells: Sequence[tuple[str, str, str]] | None = None,
     optimal: bool | None = None,
@@ -92,37 +120,54 @@ def controller_limits_cases(
     Parameters
     ----------
     full
-        The whole study's cells instead of the default subset (:data:`SUBSET`).
+        The whole study's cells instead of the default subset (:data:`SUBSET`): :data:`FULL_SCENARIOS` ×
+        :data:`FULL_SURFACES` × :data:`VEHICLES`.
+    vehicle
+        Drive the cells (the default subset's, or with ``full`` every scenario and surface) on this combination
+        alone: a preset's name or a combination file with a steerable towed unit
+        (:func:`~scenarios.studies.unit_steering.study_vehicle`); the label is its name.
     cells
         Other cells, (scenario, surface, vehicle) each, instead of either (e.g.
         ``benchmarks/controller_limits_field.py``'s field manoeuvres).
     optimal
         Add each cell's optimal reference; default: with ``full`` only.
     friction_share
-        ``speed.friction_share`` of every case; ``None``: the scenarios' speed profiles as they are.
+        ``speed.friction_share`` of every case, at most :data:`VEHICLE_FRICTION_SHARE` of a combination listed
+        there; ``None``: the scenarios' speed profiles as they are.
     camera
         Add each cell's fused camera case under field conditions
         (:func:`~scenarios.studies.controller_limits_camera.camera_overrides`); rendered, so off by default.
     """
+    values: dict[str, Any] = {}
+    if vehicle is not None:
+        resolved = study_vehicle(vehicle, STUDY)
+        values[resolved.name] = resolved.value
+        vehicles: tuple[str, ...] = (resolved.name,)
+        subset = [(s, surface, resolved.name) for s, surface, _ in SUBSET]
+    else:
+        vehicles, subset = VEHICLES, list(SUBSET)
     if cells is None:
-        cells = [(s, surface, "lst") for s in FULL_SCENARIOS for surface in FULL_SURFACES] if full else list(SUBSET)
+        cells = (
+            [(s, surface, v) for v in vehicles for s in FULL_SCENARIOS for surface in FULL_SURFACES] if full else subset
+        )
     if optimal is None:
         optimal = full
     cases = []
     feedbacks = (*FEEDBACKS, *((CAMERA_FEEDBACK,) if camera else ()), *((OPTIMAL,) if optimal else ()))
-    for scenario, surface, vehicle in cells:
+    for scenario, surface, vehicle_label in cells:
         for feedback in feedbacks:
             overrides: tuple[tuple[str, Any], ...] = (
-                ("vehicle", vehicle),
+                ("vehicle", values.get(vehicle_label, vehicle_label)),
                 ("surface.preset", surface),
                 ("feedback", "truth" if feedback == OPTIMAL else feedback),
                 ("estimators.zero_slip", True),
             )
             if friction_share is not None:
-                overrides += (("speed.friction_share", friction_share),)
+                share = min(friction_share, VEHICLE_FRICTION_SHARE.get(vehicle_label, friction_share))
+                overrides += (("speed.friction_share", share),)
             if feedback == CAMERA_FEEDBACK:
                 overrides += camera_overrides()
-            labels = (("scenario", scenario), ("surface", surface), ("vehicle", vehicle), ("feedback", feedback))
+            labels = (("scenario", scenario), ("surface", surface), ("vehicle", vehicle_label), ("feedback", feedback))
             cases.append(CaseSpec(STUDY, scenario, overrides, labels))
     return cases
 
@@ -142,21 +187,29 @@ def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     if metrics["status"] in (RunStatus.INTERRUPTED, RunStatus.FAILED):
         row.update({k: metrics.get(k) for k in ("stop_signal", "message", "stop_time")})
         return row
+    params = config.vehicle_params()
+    units = further_steered_units(params)
     settled = metrics["offtracking"]["truth_after_warmup"]
-    outswing = largest_outswing(_recorded(run_dir), config.vehicle_params().follow_point_offset)
+    recorded = _recorded(run_dir, units)
     reach = metrics.get("steering_reach") or {}
     steering = metrics.get("trailer_steering") or {}
     row.update(
         {
             "true_offtracking_rms_after_warmup_m": settled["rms"],
             "true_offtracking_max_after_warmup_m": settled["max_abs"],
-            "largest_outswing_after_warmup_m": outswing,
+            "largest_outswing_after_warmup_m": largest_outswing(recorded, params.follow_point_offset),
             "beyond_reach_share": reach.get("share_of_path", 0.0),
-            "at_lock_share": max((m.get("saturated_fraction", 0.0) for m in steering.values()), default=0.0),
+            "at_lock_share": at_lock_share(steering, params),
         }
     )
+    warm = after_warmup(recorded, params.follow_point_offset)
+    for unit in units:  # every steered unit behind the first, on its own coupling's path
+        e, x, y, own = outswing_inputs(recorded, unit, warm)
+        outswing = _outswing(e, x, y, own, params.follow_point_offset_of(unit - 1), OUTSWING_SPAN)
+        row.update(further_unit_row(metrics, recorded, params, unit, warm, outswing))
     if dict(spec.labels)["feedback"] == CAMERA_FEEDBACK:
         row.update(camera_columns(metrics))
+        row.update(further_camera_columns(metrics, units))
     reference = metrics.get("optimal_reference")
     if reference is not None:
         row.update(
@@ -168,12 +221,20 @@ def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
                 "pid_cost_m2": reference["pid_cost"],
             }
         )
+        for unit in units:  # each further steered unit's optimum and the PID's on the same nodes
+            row[f"unit{unit}_optimal_nlp_rms_m"] = reference.get(f"unit{unit}_nlp_offtracking_rms")
+            row[f"unit{unit}_pid_nodes_rms_m"] = reference.get(f"unit{unit}_pid_nodes_offtracking_rms")
     return row
 
 
-def _recorded(run_dir: Path) -> dict[str, np.ndarray]:
-    """The columns :func:`largest_outswing` needs from a run directory's time series."""
-    names = ["offtracking_truth", "kingpin_x", "kingpin_y"]
+def _recorded(run_dir: Path, units: Sequence[int] = ()) -> dict[str, np.ndarray]:
+    """The columns :func:`largest_outswing` needs from a run directory's time series, and those of each further
+    unit in ``units`` (its truth, its coupling's path and, where it was steered, its reach flag)."""
+    wanted = ["offtracking_truth", "kingpin_x", "kingpin_y"]
+    for unit in units:
+        wanted += [f"offtracking_truth{unit}", f"coupling{unit}_x", f"coupling{unit}_y", f"unit{unit}_beyond_reach"]
+    present = set(pq.ParquetDataset(run_dir / TIMESERIES_FILE).schema.names)
+    names = [name for name in wanted if name in present]
     frame = pd.read_parquet(run_dir / TIMESERIES_FILE, columns=names)
     return {name: frame[name].to_numpy(dtype=float) for name in names}
 
@@ -199,6 +260,14 @@ def largest_outswing(columns: dict[str, np.ndarray], follow_point_offset: float,
     """
     settled = after_warmup(columns, follow_point_offset)
     x, y, e = columns["kingpin_x"], columns["kingpin_y"], columns["offtracking_truth"]
+    return _outswing(e, x, y, settled, follow_point_offset, span)
+
+
+def _outswing(
+    e: np.ndarray, x: np.ndarray, y: np.ndarray, settled: np.ndarray, follow_point_offset: float, span: float
+) -> float:
+    """:func:`largest_outswing` of off-tracking ``e`` against the front coupling's path ``(x, y)`` over the samples
+    ``settled``."""
     travelled = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
     moving = np.concatenate([[True], np.diff(travelled) > 1e-6])
     s, xm, ym = travelled[moving], x[moving], y[moving]
@@ -221,7 +290,9 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
     """``controller_limits.png``: the true off-tracking after warm-up (RMS and max) of each cell by steering, and
     ``controller_limits.json``: each cell's check (truth-fed RMS and max ≤ zero-slip-fed and ≤ unsteered,
     :func:`truth_fed_check`; with its camera case's :data:`~scenarios.studies.controller_limits_camera.CAMERA_COLUMNS`),
-    then the camera cells' group checks (:func:`camera_group_checks`), if the table has camera cases."""
+    or for a cell with a loop that did not complete ``held`` ``None`` and each such feedback's status
+    (``not_completed``: the check is not taken on part of a run), then the camera cells' group checks
+    (:func:`camera_group_checks`), if the table has camera cases."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -231,7 +302,13 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
     if done.empty:
         return
     cells = list(dict.fromkeys(zip(done["scenario"], done["surface"], done["vehicle"], strict=True)))
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.5 + 0.3 * len(cells)), sharey=True)
+    bars = [  # a bar group per cell and steered unit: the first towed unit, then each further one the cell has
+        (cell, prefix)
+        for cell in cells
+        for prefix in unit_prefixes(done.columns)
+        if not prefix or _rows(done, cell)[prefix + "true_offtracking_rms_after_warmup_m"].notna().any()
+    ]
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.5 + 0.3 * len(bars)), sharey=True)
     checks = []
     labels = (
         ("true_offtracking_rms_after_warmup_m", "RMS after warm-up"),
@@ -241,30 +318,38 @@ def controller_limits_figures(table: pd.DataFrame, out_dir: Path) -> None:
         feedbacks = [f for f in (*FEEDBACKS, CAMERA_FEEDBACK, OPTIMAL) if f in set(done["feedback"])]
         for i, feedback in enumerate(feedbacks):
             values = []
-            for cell in cells:
+            for cell, prefix in bars:
                 match = _rows(done, cell)
-                match = match[match["feedback"] == feedback][column]
+                match = match[match["feedback"] == feedback][prefix + column]
                 values.append(float(match.iloc[0]) if len(match) else float("nan"))
             width = 0.8 / len(feedbacks)
             ax.barh(
-                [k + width * (i - (len(feedbacks) - 1) / 2) for k in range(len(cells))],
+                [k + width * (i - (len(feedbacks) - 1) / 2) for k in range(len(bars))],
                 values,
                 height=width,
                 label=feedback,
             )
         ax.set_xscale("log")
         ax.set_xlabel(f"true off-tracking, {title} [m]")
-    axes[0].set_yticks(range(len(cells)), [f"{s}, {surface}, {v}" for s, surface, v in cells])
+    axes[0].set_yticks(
+        range(len(bars)), [f"{s}, {surface}, {v}" + (f", {p[:-1]}" if p else "") for (s, surface, v), p in bars]
+    )
     axes[1].legend(title="steering", loc="lower right")
     fig.tight_layout()
     fig.savefig(out_dir / "controller_limits.png", dpi=120)
     plt.close(fig)
-    for cell in cells:
+    every = list(dict.fromkeys(zip(table["scenario"], table["surface"], table["vehicle"], strict=True)))
+    for cell in every:
         rows = {r["feedback"]: dict(r) for _, r in _rows(done, cell).iterrows()}
         check = truth_fed_check(rows)
         if check is not None:
             fused = {k: _plain(rows[CAMERA_FEEDBACK].get(k)) for k in CAMERA_COLUMNS} if CAMERA_FEEDBACK in rows else {}
             checks.append({"cell": list(cell), **check, **(optimal_gap(rows) or {}), **fused})
+        elif "status" in table:  # a loop that did not complete (e.g. the unsteered combination jackknifed): said
+            ended = {str(r["feedback"]): str(r["status"]) for _, r in _rows(table, cell).iterrows()}
+            stopped = {f: v for f, v in ended.items() if v != RunStatus.COMPLETED and f in FEEDBACKS}
+            if stopped:
+                checks.append({"cell": list(cell), "held": None, "not_completed": stopped})
     checks += camera_group_checks(done)
     (out_dir / "controller_limits.json").write_text(json.dumps(checks, indent=1), encoding="utf-8")
 
@@ -307,32 +392,51 @@ def camera_group_checks(table: pd.DataFrame) -> list[dict[str, Any]]:
 
 
 def truth_fed_check(rows: dict[str, dict[str, Any]], tolerance: float = 0.0) -> dict[str, Any] | None:
-    """The study's check on one cell: the truth-fed loop's RMS and max after warm-up are no more than the zero-slip-fed
-    and the unsteered loop's (``tolerance`` [m] more allowed).
+    """The study's check on one cell: on every steered unit the truth-fed loop's RMS and max after warm-up are no more
+    than the zero-slip-fed and the unsteered loop's (``tolerance`` [m] more allowed).
 
     Parameters
     ----------
     rows
-        The cell's rows by feedback (``none``, ``truth``, ``zero_slip``).
+        The cell's rows by feedback (``none``, ``truth``, ``zero_slip``); a combination's rows hold each further
+        steered unit's figures as ``unit<k>_…`` (:mod:`scenarios.studies.controller_limits_units`).
     tolerance
         Allowance [m] on each comparison.
 
     Returns
     -------
     dict or None
-        The truth-fed RMS and max, each comparison's result and ``held`` (all of them); ``None`` when a feedback's row
-        is missing.
+        The truth-fed RMS and max, each comparison's result (the first towed unit's unprefixed, unit ``k``'s as
+        ``unit<k>_…``; a figure missing from a row fails its comparison), ``not_within`` (the comparisons that
+        failed) and ``held`` (all of them); ``None`` when a feedback's row is missing.
     """
     if not set(FEEDBACKS) <= rows.keys():
         return None
     out: dict[str, Any] = {}
-    for column in ("true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"):
-        truth = float(rows["truth"][column])
-        out[column] = truth
-        for other in ("zero_slip", "none"):
-            out[f"{column.split('_after')[0]}_within_{other}"] = bool(truth <= float(rows[other][column]) + tolerance)
-    out["held"] = all(v for k, v in out.items() if "_within_" in k)
+    for prefix in unit_prefixes(k for row in rows.values() for k in row):
+        rms = prefix + "true_offtracking_rms_after_warmup_m"
+        if prefix and not any(np.isfinite(_figure(rows[f], rms)) for f in FEEDBACKS):
+            continue  # a table's column of another vehicle's unit: not this cell's
+        for figure in ("true_offtracking_rms_after_warmup_m", "true_offtracking_max_after_warmup_m"):
+            column = prefix + figure
+            truth = _figure(rows["truth"], column)
+            out[column] = truth
+            for other in ("zero_slip", "none"):
+                within = truth <= _figure(rows[other], column) + tolerance  # False for a NaN on either side
+                out[f"{prefix}{figure.split('_after')[0]}_within_{other}"] = bool(within)
+    failed = [k for k, v in out.items() if "_within_" in k and not v]
+    out["not_within"] = failed
+    out["held"] = not failed
     return out
+
+
+def _figure(row: dict[str, Any], column: str) -> float:
+    """A row's figure as a float, NaN where the row has none."""
+    value = row.get(column)
+    try:
+        return float(value) if value is not None else float("nan")
+    except (TypeError, ValueError):
+        return float("nan")
 
 
 def optimal_gap(rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
@@ -354,7 +458,8 @@ def optimal_gap(rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
     dict or None
         ``pid_gap_rms_ratio``, ``reference_holds`` (the optimum's RMS ≤ :data:`REFERENCE_HOLDS`),
         ``gap_within_limit`` (the ratio ≤ :data:`GAP_LIMIT`, or ``None`` where the reference does not hold) and
-        ``replay_rms_ratio``; ``None`` without both rows.
+        ``replay_rms_ratio``; the first three as ``unit<k>_…`` for each further steered unit whose figures the
+        reference's row holds; ``None`` without both rows.
     """
     if not {"truth", OPTIMAL} <= rows.keys():
         return None
@@ -367,9 +472,23 @@ def optimal_gap(rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
         pid, reference = float(rows["truth"][column]), float(optimum[column])
     ratio = pid / reference if reference > 0 else float("inf")
     holds = reference <= REFERENCE_HOLDS
-    return {
+    out: dict[str, Any] = {
         "pid_gap_rms_ratio": ratio,
         "reference_holds": holds,
         "gap_within_limit": ratio <= GAP_LIMIT if holds else None,
         "replay_rms_ratio": replay,
     }
+    for prefix in unit_prefixes(k.replace("optimal_nlp_rms_m", "true_offtracking_rms_after_warmup_m") for k in optimum)[
+        1:
+    ]:
+        unit_pid, unit_reference = (
+            _figure(optimum, f"{prefix}pid_nodes_rms_m"),
+            _figure(optimum, f"{prefix}optimal_nlp_rms_m"),
+        )
+        if np.isfinite(unit_pid) and np.isfinite(unit_reference):  # a further steered unit, by the same measure
+            unit_ratio = unit_pid / unit_reference if unit_reference > 0 else float("inf")
+            unit_holds = unit_reference <= REFERENCE_HOLDS
+            out[f"{prefix}pid_gap_rms_ratio"] = unit_ratio
+            out[f"{prefix}reference_holds"] = unit_holds
+            out[f"{prefix}gap_within_limit"] = unit_ratio <= GAP_LIMIT if unit_holds else None
+    return out

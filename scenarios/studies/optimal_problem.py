@@ -1,26 +1,30 @@
 """The optimal trailer-axle steer over a known path: a casadi NLP by direct multiple shooting.
 
 For one manoeuvre as it was driven (a recorded run: its states and the tractor's steer and drive force), the steer
-of the first towed unit's steerable axles that minimises the follow point's off-tracking over the whole path, for
-the same model (:func:`vehicle_model.dynamics.define_model`, its right-hand side used as is), within the axles'
-lock, rate and slip-angle limit::
+of every towed unit's steerable axles that minimises the steered units' follow points' off-tracking over the whole
+path, for the same model (:func:`vehicle_model.dynamics.define_model`, its right-hand side used as is), within the
+axles' lock, rate and slip-angle limit::
 
-    min  Σ_k e_k² + w·Σ_k |δ_{k+1} − δ_k|²
+    min  Σ_u Σ_k e_{u,k}² + w·Σ_k |δ_{k+1} − δ_k|²
     s.t. x_{k+1} = Φ(x_k, δ_k → δ_{k+1}, tractor inputs),   x_0 = the run's first state
          |δ_k| ≤ δ_max,  |δ_{k+1} − δ_k| ≤ δ̇_max·T,  |α_j(x_k)| ≤ α_max
 
 ``Φ`` is the model's RK4 over one shooting interval ``T`` in ``m`` steps, the trailer steer linear in time from
 ``δ_k`` to ``δ_{k+1}`` (so the rate limit holds at every instant) and the tractor's recorded inputs interpolated at
-each step. ``α_j`` is the transient slip angle of steered axle ``j`` (the model's state). ``e_k`` is the signed
-distance of the follow point from the kingpin's path: the kingpin path of the recorded run, linearised at the
-point nearest the follow point (each solve re-linearises at the last solution, :func:`solve_optimal_steer`). The
-tractor is driven open loop as recorded; its own path barely depends on the trailer's steer.
-Only a semi-trailer (one towed unit) is handled.
+each step. ``α_j`` is the transient slip angle of steered axle ``j`` (the model's state). ``e_{u,k}`` is the signed
+distance of steered unit ``u``'s follow point from its front coupling's path (the first towed unit's kingpin, a
+further unit's fifth wheel on the unit ahead, as the controller follows it): that path of the recorded run,
+linearised at the point nearest the follow point (each solve re-linearises at the last solution,
+:func:`solve_optimal_steer`). ``δ`` holds every steered axle of every towed unit (a B-double's four), the sum over
+``u`` every towed unit with a steerable axle, each counted once its coupling has driven its follow-point offset.
+The tractor is driven open loop as recorded; its own path barely depends on the trailers' steer.
+A combination of semi-trailers is handled (a tractor–semi-trailer, a B-double, a B-triple), its first towed unit
+steerable; a converter dolly or a drawbar trailer is not.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import casadi as ca
@@ -42,9 +46,10 @@ make the optimum unique where the off-tracking does not depend on the steer (a s
 
 @dataclass(frozen=True)
 class OptimalSteer:
-    """The solution: node times [s], steer [rad] ``(nodes, axles)`` of the first towed unit's steerable axles
-    (layout order), the follow point's off-tracking [m] at the nodes (NaN before the kingpin has driven one trailer
-    length: not counted), the cost and the solver's status."""
+    """The solution: node times [s], steer [rad] ``(nodes, axles)`` of every towed unit's steerable axles (layout
+    order), the first towed unit's follow point's off-tracking [m] at the nodes (NaN before the kingpin has driven
+    one trailer length: not counted), the cost and the solver's status; ``further`` holds each further steered
+    unit's off-tracking at the nodes by its number in the combination (3 the second towed unit)."""
 
     times: np.ndarray
     steer: np.ndarray
@@ -54,27 +59,46 @@ class OptimalSteer:
     axles: tuple[str, ...]
     slip: np.ndarray | None = None
     """Slip angle [rad] of the steered axles at the nodes ``(nodes, axles)``, the model's transient slip state."""
+    further: dict[int, np.ndarray] = field(default_factory=dict)
+    """Off-tracking [m] at the nodes of each steered unit behind the first, by its number in the combination."""
 
     def at(self, time: float) -> np.ndarray:
         """The steer [rad] at ``time`` [s], linear between nodes, held beyond them."""
         return np.array([np.interp(time, self.times, column) for column in self.steer.T])
 
 
-def _follow_point(params: VehicleParams, x: Any) -> tuple[Any, Any]:
-    """Global follow point of the first towed unit from the state vector (casadi or numbers): the kingpin on the
-    tractor's fifth wheel (vehicle_model.geometry.kingpin_position), the follow point ``L_fp`` behind it."""
-    x_cg, y_cg, psi1, gamma = x[0], x[1], x[2], x[6]
+def _follow_point(params: VehicleParams, x: Any, unit: int = 1, layout: Layout | None = None) -> tuple[Any, Any]:
+    """Global follow point of towed unit ``unit`` (1 the first) from the state vector (casadi or numbers): the
+    kingpin on the tractor's fifth wheel (vehicle_model.geometry.kingpin_position), each further unit's coupling on
+    the fifth wheel of the unit ahead (vehicle_model.geometry.trailer_frames), the follow point ``L_fp`` behind
+    the unit's own coupling."""
+    x_cg, y_cg, psi1 = x[0], x[1], x[2]
     rel = params.tractor.fifth_wheel_x - params.tractor.cg_x
     kx, ky = x_cg + rel * ca.cos(psi1), y_cg + rel * ca.sin(psi1)
-    psi2 = psi1 - gamma
-    lfp = params.follow_point_offset
-    return kx - lfp * ca.cos(psi2), ky - lfp * ca.sin(psi2)
+    heading = psi1 - x[6]
+    layout = layout if layout is not None or unit == 1 else Layout.for_vehicle(params)
+    for towed in range(2, unit + 1):  # the coupling of unit ``towed`` on the fifth wheel of the unit ahead
+        ahead = params.trailers[towed - 2].fifth_wheel_x
+        kx, ky = kx + ahead * ca.cos(heading), ky + ahead * ca.sin(heading)
+        heading = heading - x[layout.state_index(f"gamma{towed}")]
+    lfp = params.follow_point_offset_of(unit)
+    return kx - lfp * ca.cos(heading), ky - lfp * ca.sin(heading)
 
 
-def _follow_function(params: VehicleParams, n_states: int) -> ca.Function:
-    """``x → (x, y)`` of the follow point, an SX function."""
+def _follow_function(params: VehicleParams, n_states: int, unit: int = 1) -> ca.Function:
+    """``x → (x, y)`` of towed unit ``unit``'s follow point, an SX function."""
     xs = ca.SX.sym("x", n_states)
-    return ca.Function("follow", [xs], [ca.vertcat(*_follow_point(params, xs))])
+    layout = Layout.for_vehicle(params)
+    return ca.Function(f"follow{unit}", [xs], [ca.vertcat(*_follow_point(params, xs, unit, layout))])
+
+
+def _path_columns(unit: int) -> tuple[str, str, str, str]:
+    """The recorded columns of towed unit ``unit``'s front coupling and follow point (x, y each): ``kingpin_x``
+    and ``follow_x`` for the first, ``coupling<k>_x`` and ``follow<k>_x`` for unit ``k`` of the combination."""
+    if unit == 1:
+        return "kingpin_x", "kingpin_y", "follow_x", "follow_y"
+    k = unit + 1
+    return f"coupling{k}_x", f"coupling{k}_y", f"follow{k}_x", f"follow{k}_y"
 
 
 def interval_integrator(params: VehicleParams, steered: list[int], substeps: int, step: float) -> ca.Function:
@@ -132,10 +156,12 @@ def solve_optimal_steer(
     Parameters
     ----------
     params
-        The vehicle (one towed unit with at least one steerable axle).
+        The vehicle: semi-trailers, the first with at least one steerable axle.
     columns
-        The recorded run: ``time``, the body states, ``kingpin_x/y``, ``follow_x/y``, ``drive_force`` and
-        ``steer_<axle>`` of every steerable axle (the tractor's are replayed; the trailer's start the solver).
+        The recorded run: ``time``, the body states (and each further unit's ``gamma<k-1>``), ``kingpin_x/y``,
+        ``follow_x/y`` (and ``coupling<k>_x/y``, ``follow<k>_x/y`` of each further steered unit ``k``),
+        ``drive_force`` and ``steer_<axle>`` of every steerable axle (the tractor's are replayed; the trailers'
+        start the solver).
     simulator
         The scenario's simulator: the surface's friction and slope along the recorded states.
     limits
@@ -155,15 +181,17 @@ def solve_optimal_steer(
     Raises
     ------
     InputError
-        A combination of more than one towed unit, or without a steerable axle on it.
+        A towed unit that is not a semi-trailer (a dolly, a drawbar trailer), or a first towed unit without a
+        steerable axle.
     """
     layout = Layout.for_vehicle(params)
-    if params.n_units != 2:
-        raise InputError(f"the optimal reference handles a semi-trailer only; {params.name!r} tows more units")
-    trailer = {a.name for a in params.trailers[0].axles if a.steerable}
-    steered = [i for i, name in enumerate(layout.steerable_axles) if name in trailer]
-    if not steered:
-        raise InputError(f"vehicle {params.name!r} has no steerable axle on its semi-trailer")
+    if not all(unit.front_load for unit in params.trailers):
+        raise InputError(f"the optimal reference handles semi-trailers only; {params.name!r} tows another kind of unit")
+    if not any(a.steerable for a in params.trailers[0].axles):
+        raise InputError(f"vehicle {params.name!r} has no steerable axle on its first semi-trailer")
+    units = [k + 1 for k, unit in enumerate(params.trailers) if any(a.steerable for a in unit.axles)]
+    towed = {a.name for unit in params.trailers for a in unit.axles if a.steerable}
+    steered = [i for i, name in enumerate(layout.steerable_axles) if name in towed]
     tractor_steer = [i for i in range(len(layout.steerable_axles)) if i not in steered]
     axle_index = [layout.axles.index(layout.steerable_axles[i]) for i in steered]
     time = np.asarray(columns["time"], dtype=float)
@@ -178,6 +206,9 @@ def solve_optimal_steer(
     states = np.column_stack([np.interp(nodes, time, columns[name]) for name in BODY_STATES])
     x_nodes = np.zeros((n + 1, layout.n_states))
     x_nodes[:, : len(BODY_STATES)] = states
+    for name in layout.states[len(BODY_STATES) :]:  # a further unit's articulation and yaw rate, as recorded
+        if name in columns and not name.startswith("slip_"):
+            x_nodes[:, layout.state_index(name)] = np.interp(nodes, time, columns[name])
     surface = [simulator.surface_inputs(x) for x in x_nodes]
     fixed = np.zeros((layout.n_inputs, n * m))
     for i in tractor_steer:
@@ -188,25 +219,33 @@ def solve_optimal_steer(
         fixed[layout.mu_slice, k * m : (k + 1) * m] = mu[:, None]
         fixed[layout.slope_slice, k * m : (k + 1) * m] = slope[:, None]
 
-    follow = _follow_function(params, layout.n_states)
+    follows = {u: _follow_function(params, layout.n_states, u) for u in units}
     shoot = interval_integrator(params, steered, m, h).map(n)
 
     opti = ca.Opti()
     X = opti.variable(layout.n_states, n + 1)
     D = opti.variable(len(steered), n + 1)
-    anchors_p = opti.parameter(2, n + 1)
-    normals_p = opti.parameter(2, n + 1)
+    anchors_p = {u: opti.parameter(2, n + 1) for u in units}
+    normals_p = {u: opti.parameter(2, n + 1) for u in units}
     opti.subject_to(X[:, 0] == x_nodes[0])
     opti.subject_to(D[:, 0] == 0.0)  # straight axles at the start, as every run starts
-    # Counted once the kingpin has driven one trailer length: before that the follow point has no kingpin path.
-    kingpin = np.column_stack([columns["kingpin_x"], columns["kingpin_y"]])
-    driven = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(kingpin, axis=0).T))])
-    counted = np.flatnonzero(np.interp(nodes, time, driven) >= params.follow_point_offset)
-    if counted.size == 0:
-        raise InputError("the run is too short for the optimal reference: its kingpin never drove one trailer length")
-    cols = counted.tolist()
-    follow_points = follow.map(len(cols))(X[:, cols])
-    e = ca.sum1(normals_p[:, cols] * (follow_points - anchors_p[:, cols])).T
+    # Counted once the unit's coupling has driven its trailer length: before that its follow point has no path.
+    counted: dict[int, np.ndarray] = {}
+    errors: dict[int, Any] = {}
+    for u in units:
+        cx, cy, _, _ = _path_columns(u)
+        coupling = np.column_stack([columns[cx], columns[cy]])
+        driven = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(coupling, axis=0).T))])
+        counted[u] = np.flatnonzero(np.interp(nodes, time, driven) >= params.follow_point_offset_of(u))
+        if counted[u].size == 0:
+            raise InputError(
+                f"the run is too short for the optimal reference: towed unit {u}'s coupling never drove one trailer "
+                "length"
+            )
+        cols = counted[u].tolist()
+        follow_points = follows[u].map(len(cols))(X[:, cols])
+        errors[u] = ca.sum1(normals_p[u][:, cols] * (follow_points - anchors_p[u][:, cols])).T
+    e = ca.vertcat(*errors.values())
     # Every interval in one mapped call: the interval's derivatives are built once, not once per node.
     opti.subject_to(X[:, 1:] == shoot(X[:, :-1], D[:, :-1], D[:, 1:], ca.DM(fixed)))
     increments = D[:, 1:] - D[:, :-1]
@@ -227,17 +266,21 @@ def solve_optimal_steer(
         {"max_iter": max_iter, "print_level": 0, "sb": "yes", "tol": 1e-6},
     )
 
-    path = np.column_stack([columns["kingpin_x"], columns["kingpin_y"]])
+    paths, points = {}, {}
+    for u in units:
+        cx, cy, fx, fy = _path_columns(u)
+        paths[u] = np.column_stack([columns[cx], columns[cy]])
+        points[u] = np.column_stack([np.interp(nodes, time, columns[fx]), np.interp(nodes, time, columns[fy])])
     guess_x = x_nodes.copy()
     guess_d = np.column_stack(
         [np.interp(nodes, time, columns[f"steer_{layout.steerable_axles[i]}"]) for i in steered]
     ).T
-    points = np.column_stack([np.interp(nodes, time, columns["follow_x"]), np.interp(nodes, time, columns["follow_y"])])
     status = "not solved"
     for _ in range(max(1, relinearisations)):
-        anchors, normals = path_reference(path, points)
-        opti.set_value(anchors_p, anchors.T)
-        opti.set_value(normals_p, normals.T)
+        for u in units:
+            anchors, normals = path_reference(paths[u], points[u])
+            opti.set_value(anchors_p[u], anchors.T)
+            opti.set_value(normals_p[u], normals.T)
         opti.set_initial(X, guess_x.T)
         opti.set_initial(D, guess_d)
         try:
@@ -247,15 +290,17 @@ def solve_optimal_steer(
             sol = opti.debug
             status = str(opti.stats().get("return_status", "failed"))
         guess_x, guess_d = np.asarray(sol.value(X)).T, np.atleast_2d(sol.value(D))
-        points = np.array([np.asarray(follow(x)).ravel() for x in guess_x])
-    offtracking_nodes = np.full(n + 1, np.nan)
-    offtracking_nodes[counted] = np.asarray(sol.value(e)).ravel()
+        points = {u: np.array([np.asarray(follows[u](x)).ravel() for x in guess_x]) for u in units}
+    offtracking_nodes = {u: np.full(n + 1, np.nan) for u in units}
+    for u in units:
+        offtracking_nodes[u][counted[u]] = np.atleast_1d(np.asarray(sol.value(errors[u])).ravel())
     return OptimalSteer(
         times=nodes,
         steer=guess_d.T,
-        offtracking=offtracking_nodes,
+        offtracking=offtracking_nodes[1],
         cost=float(sol.value(cost)),
         status=status,
         axles=tuple(layout.steerable_axles[i] for i in steered),
         slip=np.arctan(guess_x[:, [layout.slip_slice.start + i for i in axle_index]]),
+        further={u + 1: offtracking_nodes[u] for u in units if u > 1},
     )

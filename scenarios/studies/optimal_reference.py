@@ -4,12 +4,13 @@ Three steps, each in the output directory:
 
 1. ``pid/`` — the scenario run as configured (the path-following PID on its feedback): the tractor as driven, and
    the PID's result to compare with;
-2. the NLP (:func:`scenarios.studies.optimal_problem.solve_optimal_steer`) over that run: the steer of the
-   semi-trailer's steerable axles minimising the follow point's off-tracking, within the controller's lock, rate
-   and slip-angle limit;
+2. the NLP (:func:`scenarios.studies.optimal_problem.solve_optimal_steer`) over that run: the steer of every
+   semi-trailer's steerable axles minimising the steered units' follow points' off-tracking, within the
+   controller's lock, rate and slip-angle limit;
 3. the run directory itself — the same scenario with that steer schedule replayed through the normal
    co-simulation (:class:`ScheduledSteer`), the tractor's driver steering as in every run; ``optimal.json`` beside
-   ``metrics.json`` holds the schedule, the NLP's status and cost, and the PID's cost on the same nodes.
+   ``metrics.json`` holds the schedule, the NLP's status and cost, and the PID's cost on the same nodes (and for a
+   combination each further steered unit's figures as ``unit<k>_…``).
 """
 
 from __future__ import annotations
@@ -75,26 +76,35 @@ def _columns(run_dir: Path) -> dict[str, np.ndarray]:
     return {name: frame[name].to_numpy() for name in frame.columns}
 
 
-def pid_offtracking(schedule: OptimalSteer, columns: dict[str, np.ndarray]) -> np.ndarray:
+def pid_offtracking(schedule: OptimalSteer, columns: dict[str, np.ndarray], unit: int | None = None) -> np.ndarray:
     """The recorded run's follow-point distance from its kingpin's path at the schedule's nodes [m], by the NLP's own
-    signed distance; NaN on the nodes the NLP does not count (the kingpin's first trailer length)."""
+    signed distance; NaN on the nodes the NLP does not count (the kingpin's first trailer length). With ``unit``
+    (3 the second towed unit, a key of ``schedule.further``) that unit's follow point from its own coupling's path."""
     time = columns["time"]
+    if unit is None:
+        names, counted = ("follow_x", "follow_y", "kingpin_x", "kingpin_y"), schedule.offtracking
+    else:
+        names, counted = (
+            (f"follow{unit}_x", f"follow{unit}_y", f"coupling{unit}_x", f"coupling{unit}_y"),
+            (schedule.further[unit]),
+        )
     points = np.column_stack(
-        [np.interp(schedule.times, time, columns["follow_x"]), np.interp(schedule.times, time, columns["follow_y"])]
+        [np.interp(schedule.times, time, columns[names[0]]), np.interp(schedule.times, time, columns[names[1]])]
     )
-    path = np.column_stack([columns["kingpin_x"], columns["kingpin_y"]])
+    path = np.column_stack([columns[names[2]], columns[names[3]]])
     anchors, normals = path_reference(path, points)
     offtracking = np.sum(normals * (points - anchors), axis=1)
-    return np.where(np.isfinite(schedule.offtracking), offtracking, np.nan)
+    return np.where(np.isfinite(counted), offtracking, np.nan)
 
 
 def pid_cost(schedule: OptimalSteer, columns: dict[str, np.ndarray]) -> float:
-    """The NLP's cost of the recorded run ``columns`` on the schedule's nodes: its follow point's distance from the
-    kingpin's path, squared and summed over the nodes the NLP counts, plus the same steer-increment term."""
-    offtracking = pid_offtracking(schedule, columns)
+    """The NLP's cost of the recorded run ``columns`` on the schedule's nodes: each steered unit's follow point's
+    distance from its coupling's path, squared and summed over the nodes the NLP counts, plus the same
+    steer-increment term."""
+    squares = sum(float(np.nansum(pid_offtracking(schedule, columns, u) ** 2)) for u in (None, *schedule.further))
     time = columns["time"]
     steer = np.column_stack([np.interp(schedule.times, time, columns[f"steer_{a}"]) for a in schedule.axles])
-    return float(np.nansum(offtracking**2) + STEER_SMOOTHING * np.sum(np.diff(steer, axis=0) ** 2))
+    return float(squares + STEER_SMOOTHING * np.sum(np.diff(steer, axis=0) ** 2))
 
 
 def run_optimal_reference(
@@ -106,7 +116,8 @@ def run_optimal_reference(
     Raises
     ------
     vehicle_model.errors.InputError
-        A combination the NLP does not handle (more than one towed unit, no steerable semi-trailer axle).
+        A combination the NLP does not handle (a towed unit that is not a semi-trailer, no steerable axle on the
+        first).
     """
     pid_dir = run_dir / "pid"
     pid_dir.mkdir(parents=True, exist_ok=True)
@@ -123,7 +134,7 @@ def run_optimal_reference(
     metrics = run_scenario(
         config, run_dir, trailer_steer_source=ScheduledSteer(schedule, axles), plots=plots, model=setup.model
     )
-    record = {
+    record: dict[str, Any] = {
         "status": schedule.status,
         "interval_s": interval,
         "cost": schedule.cost,
@@ -137,6 +148,11 @@ def run_optimal_reference(
         "times": schedule.times.tolist(),
         "steer_deg": {a: np.degrees(schedule.steer[:, i]).tolist() for i, a in enumerate(schedule.axles)},
     }
+    for unit, offtracking in schedule.further.items():  # each further steered unit, by its number
+        record[f"unit{unit}_nlp_offtracking_rms"] = float(np.sqrt(np.nanmean(offtracking**2)))
+        record[f"unit{unit}_nlp_offtracking_max_abs"] = float(np.nanmax(np.abs(offtracking)))
+        pid = pid_offtracking(schedule, recorded, unit)
+        record[f"unit{unit}_pid_nodes_offtracking_rms"] = float(np.sqrt(np.nanmean(pid**2)))
     (run_dir / OPTIMAL_FILE).write_text(json.dumps(record, indent=1), encoding="utf-8")
     metrics["optimal_reference"] = {k: v for k, v in record.items() if k not in ("times", "steer_deg")}
     return metrics

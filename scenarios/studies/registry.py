@@ -177,6 +177,7 @@ STUDIES: dict[str, Study] = _studies(
         controller_limits_cases,
         controller_limits_figures,
         run_controller_limits_case,
+        takes_vehicle=True,
         takes_camera=True,
     ),
     Study(
