@@ -96,6 +96,37 @@ def _row(scenario: str, surface: str, fused: float, raw: float, within: float) -
     }
 
 
+def test_each_steered_trailers_camera_is_checked_over_its_own_cells():
+    """A B-double's camera cells: the rear trailer's own rig (``unit3_…``) is checked over the group on its own
+    figures, not the lead trailer's: its fused estimate worse than its raw camera on one cell fails its groups and
+    names that cell, while the lead's groups, on its figures alone, hold."""
+    rms = "unit3_true_offtracking_rms_after_warmup_m"
+    rows = []
+    for scenario, unit3_fused in (("field-figure-eight", 0.05), ("field-roundabout-left", 0.20)):
+        row = {**_row(scenario, "wet", 0.04, 0.06, 0.92), "vehicle": "au-b-double-steered", rms: 0.1}
+        row |= {
+            "unit3_fused_rms_error_m": unit3_fused,
+            "unit3_fused_max_abs_error_m": 2 * unit3_fused,
+            "unit3_fused_within_2sigma": 0.90,
+            "unit3_viso_ot_rms_error_m": 0.10,
+        }
+        rows.append(row)
+    groups = {g["camera_group"]: g for g in camera_group_checks(pd.DataFrame(rows))}
+    assert list(groups) == [
+        "all",
+        "field-figure-eight",
+        "field-roundabout-left",
+        "unit 3: all",
+        "unit 3: field-figure-eight",
+        "unit 3: field-roundabout-left",
+    ]
+    assert groups["all"]["held"] is True
+    assert groups["unit 3: all"]["held"] is False
+    assert groups["unit 3: all"]["fused_worse_cells"] == ["field-roundabout-left/wet/au-b-double-steered"]
+    assert groups["unit 3: field-figure-eight"]["held"] is True
+    assert groups["unit 3: all"]["coverage_mean"] == pytest.approx(0.90, abs=1e-12)
+
+
 @pytest.mark.parametrize(
     ("shares", "fused_raw", "covered", "not_worse"),
     [

@@ -44,6 +44,7 @@ from ..run.results import TIMESERIES_FILE
 from ..run.runner import run_scenario
 from .controller_limits_camera import CAMERA_COLUMNS, CAMERA_FEEDBACK, camera_check, camera_columns, camera_overrides
 from .controller_limits_units import (
+    UNIT_CAMERA_KEYS,
     at_lock_share,
     further_camera_columns,
     further_steered_units,
@@ -370,7 +371,9 @@ def _plain(value: Any) -> Any:
 def camera_group_checks(table: pd.DataFrame) -> list[dict[str, Any]]:
     """The camera cells' checks (:func:`~scenarios.studies.controller_limits_camera.camera_check`): over all of
     them (``camera_group`` ``all``) and over each manoeuvre's (``camera_group`` the scenario), each with
-    ``camera_group`` first; empty without camera cases.
+    ``camera_group`` first, on the first towed unit's figures; then, for each further steered unit with camera
+    figures (``unit<k>_…``), the same groups over its cells on its own rig's figures (``camera_group``
+    ``unit <k>: all``, ``unit <k>: <scenario>``); empty without camera cases.
 
     Parameters
     ----------
@@ -382,12 +385,23 @@ def camera_group_checks(table: pd.DataFrame) -> list[dict[str, Any]]:
     camera = table[table["feedback"] == CAMERA_FEEDBACK]
     if camera.empty:
         return []
-    groups = {"all": camera, **{str(s): part for s, part in camera.groupby("scenario", sort=False)}}
     out = []
-    for name, part in groups.items():
-        check = camera_check(part.to_dict("records"))
-        if check is not None:
-            out.append({"camera_group": name, **{k: _plain(v) for k, v in check.items()}})
+    for prefix in unit_prefixes(camera.columns):
+        if prefix:  # a further unit: its own rig's figures under the first unit's names, on the cells that have them
+            own = [prefix + key for key in UNIT_CAMERA_KEYS]
+            if not set(own) <= set(camera.columns):
+                continue
+            unit = camera.drop(columns=[k for k in UNIT_CAMERA_KEYS if k in camera.columns])
+            unit = unit.rename(columns=dict(zip(own, UNIT_CAMERA_KEYS, strict=True)))
+            unit = unit[unit[UNIT_CAMERA_KEYS[0]].notna()]
+        else:
+            unit = camera
+        label = f"unit {prefix[4:-1]}: " if prefix else ""
+        groups = {"all": unit, **{str(s): part for s, part in unit.groupby("scenario", sort=False)}}
+        for name, part in groups.items():
+            check = camera_check(part.to_dict("records"))
+            if check is not None:
+                out.append({"camera_group": label + name, **{k: _plain(v) for k, v in check.items()}})
     return out
 
 
