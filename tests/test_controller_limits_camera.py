@@ -56,6 +56,12 @@ def test_camera_cases_are_opt_in_and_carry_the_field_cell_settings():
 def test_the_camera_option_through_the_study_registry():
     assert len(study_cases("controller-limits", camera=True)) == 4
     assert len(study_cases("controller-limits")) == 3
+    # A combination with its camera cases: the default subset's cell on the B-double, each trailer on its own rig.
+    combined = study_cases("controller-limits", vehicle="au-b-double-steered", camera=True)
+    camera_case = next(c for c in combined if dict(c.labels)["feedback"] == CAMERA_FEEDBACK)
+    assert len(combined) == 4 and dict(camera_case.labels)["vehicle"] == "au-b-double-steered"
+    config = load_scenario(camera_case.scenario, dict(camera_case.overrides))
+    assert config.vehicle_params().n_units == 3 and config.feedback == CAMERA_FEEDBACK
     with pytest.raises(InputError, match="--camera: field-loop has no camera cases"):
         study_cases("field-loop", camera=True)
     # On the command line: one line naming the option, exit 2, before any case runs (no study directory).

@@ -108,11 +108,9 @@ def study_cases(
     if name not in STUDIES:
         raise InputError(f"unknown study {name!r}; choose one of {', '.join(sorted(STUDIES))}")
     check_study_vehicle(name, vehicle)
-    if camera and (not STUDIES[name].takes_camera or vehicle is not None):
+    if camera and not STUDIES[name].takes_camera:
         takes = ", ".join(n for n, study in STUDIES.items() if study.takes_camera)
-        raise InputError(
-            f"--camera: {name} has no camera cases" + (" with --vehicle" if vehicle else "") + f"; {takes} has"
-        )
+        raise InputError(f"--camera: {name} has no camera cases; {takes} has")
     cases = STUDIES[name].case_specs(full, vehicle, camera)
     if not settings:
         return cases

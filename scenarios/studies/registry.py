@@ -80,15 +80,13 @@ class Study:
     def case_specs(self, full: bool = False, vehicle: str | None = None, camera: bool = False) -> list[CaseSpec]:
         """The cases (a subset unless ``full``), on ``vehicle`` when given (only for :attr:`takes_vehicle`), with the
         camera cases when ``camera`` (only for :attr:`takes_camera`)."""
-        if camera:
-            if not self.takes_camera or vehicle is not None:
-                raise ValueError(f"{self.name} takes no camera option" + (" with a vehicle" if vehicle else ""))
-            return self.cases(full, camera=True)
-        if vehicle is None:
-            return self.cases(full)
-        if not self.takes_vehicle:
+        if camera and not self.takes_camera:
+            raise ValueError(f"{self.name} takes no camera option")
+        if vehicle is not None and not self.takes_vehicle:
             raise ValueError(f"{self.name} takes no vehicle")
-        return self.cases(full, vehicle)
+        if camera:
+            return self.cases(full, vehicle, camera=True) if vehicle is not None else self.cases(full, camera=True)
+        return self.cases(full) if vehicle is None else self.cases(full, vehicle)
 
 
 def _studies(*studies: Study) -> dict[str, Study]:
