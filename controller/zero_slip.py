@@ -20,7 +20,10 @@ Each control period it turns the kingpin's motion into an increment in the trail
 feeds the same :class:`~vehicle_model.offtracking.OfftrackingBuffer` as the ground truth. It is
 blind to slip by construction: tractor crab on a camber, sideslip on ice and the scrub of the tractor's
 drive and tag axles under a trailer's hitch force all go unseen (docs/vehicle_dynamics.md §6.4–6.6). That is
-the phenomenon the product exists to show. With the equivalent wheelbase and a trailer that pushes nothing
+the phenomenon the product exists to show. On a terrain (docs/terrain.md, "The zero-slip estimate on terrain") the
+wheel speed is measured along the ground and taken as horizontal, which moves a steady turn's estimate inwards by
+``L_fp²/(2·R5)·(1/cos θ − 1)`` (no signal gives the grade ``θ``); a crossfall's crab and a grade's drive or brake
+force through the hitch are slip it does not see. With the equivalent wheelbase and a trailer that pushes nothing
 through the hitch it follows the truth closely at walking pace (§6.6); the scrub of a fixed tri-axle, or of steered
 trailer axles at their lock, moves the tractor's true rear point 0.1–0.2 m along its axis, which a follow point
 12–14 m behind shows as 0.1–0.2 m of off-tracking error whichever point the estimator assumes.
