@@ -113,8 +113,9 @@ while every axle stays at its lock removing the error they left (``beyond_reach`
 ``<prefix>beyond_reach``); the run reports their share of the path. Off-tracking there measures the manoeuvre,
 not the controller.
 
-Where the path is beyond reach an outswing (``e·κ5 > 0``) is not integrated (``reach_freeze``), and
-``max_outswing`` (off by default) bounds it: :mod:`controller.reach_rules`.
+Where the path is beyond reach an outswing (``e·κ5 > 0``) is not integrated (``reach_freeze``; with
+``reach_freeze_at = "lock"`` only while the command with it still holds an axle past its lock, so that its push
+cannot reach the output), and ``max_outswing`` (off by default) bounds it: :mod:`controller.reach_rules`.
 
 Anti-windup
 -----------
