@@ -113,8 +113,9 @@ while every axle stays at its lock removing the error they left (``beyond_reach`
 ``<prefix>beyond_reach``); the run reports their share of the path. Off-tracking there measures the manoeuvre,
 not the controller.
 
-Where the path is beyond reach an outswing (``e·κ5 > 0``) is not integrated (``reach_freeze``), and
-``max_outswing`` (off by default) bounds it: :mod:`controller.reach_rules`.
+Where the path is beyond reach an outswing (``e·κ5 > 0``) is not integrated (``reach_freeze``; with
+``reach_freeze_at = "lock"`` only while the command with it still holds an axle past its lock, so that its push
+cannot reach the output), and ``max_outswing`` (off by default) bounds it: :mod:`controller.reach_rules`.
 
 Anti-windup
 -----------
@@ -404,15 +405,17 @@ class TrailerSteeringController:
         ki = self.gains.ki
         schedule = bandwidth_schedule(state.u, cfg.bandwidth_speed)
         integral_new = self.integral
-        frozen = cfg.reach_freeze and path_beyond_reach and is_outswing(error, self.kingpin_curvature)
+        reach_freeze = cfg.reach_freeze and path_beyond_reach and is_outswing(error, self.kingpin_curvature)
+        frozen = reach_freeze and cfg.reach_freeze_at == "feedforward"
         frozen = frozen or self.feedback_weight < 1.0  # a shrunk (uncertain) estimate does not wind the integrator
         if error is not None and ki > 0 and self.fade > 0 and not frozen:
             integral_new = self.integral + error * ds
 
         feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         push = ki * (integral_new - self.integral)
-        if (push > 0 and step.blocked_up) or (push < 0 and step.blocked_down):
-            integral_new = self.integral  # conditional integration: do not wind up
+        blocked = (push > 0 and step.blocked_up) or (push < 0 and step.blocked_down)
+        if blocked or (reach_freeze and self.output.held_at_lock(step, push)):
+            integral_new = self.integral  # conditional integration: do not wind up, nor gather behind the lock
             feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         self.integral = integral_new
         self.feedback_steer = feedback

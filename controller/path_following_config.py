@@ -29,6 +29,9 @@ FeedForward = Literal["path", "steady", "none"]
 UncertainFeedback = Literal["drop", "shrink"]
 """Type of :attr:`PathFollowingConfig.uncertain_feedback`."""
 
+ReachFreezeAt = Literal["feedforward", "lock"]
+"""Type of :attr:`PathFollowingConfig.reach_freeze_at`."""
+
 
 class PathFollowingGains(Settings):
     """PID gains on the off-tracking error, per unit distance travelled.
@@ -190,6 +193,12 @@ class PathFollowingConfig(Settings):
         Where the feed-forward is beyond the axles' reach, do not integrate an error on the outside of the turn
         (an outswing the lock's transient leaves, which the integral would otherwise carry into the cut-in that
         follows). Off: conditional integration on the limits only.
+    reach_freeze_at : {"feedforward", "lock"}
+        When the reach freeze holds an outswing's integral. ``feedforward``: wherever the feed-forward is beyond
+        reach. ``lock``: only while the command *with* that integral still holds an axle past its lock on the side
+        the integral pushes away from, so that the integral's push cannot reach the output and would only gather
+        behind the lock; where the feedback has brought the command back inside the lock the outswing is
+        integrated, as any error is (docs/controller_design.md §3.5, §3.7).
     max_outswing : float or None
         Bound [m] on the follow point's outswing (off-tracking on the outside of the kingpin's turn): the outward
         part of the virtual-axle command is scaled by ``clip((b − o)/b, 0, 1)`` for an outswing ``o`` of the estimate
@@ -223,6 +232,7 @@ class PathFollowingConfig(Settings):
     high_speed_crossover: tuple[float, float] | None = (35.0 / 3.6, 55.0 / 3.6)
     slip_window_holds_feedforward: bool = True
     reach_freeze: bool = True
+    reach_freeze_at: ReachFreezeAt = "feedforward"
     max_outswing: float | None = Field(None, gt=0.0, le=2.0)
     preview_distance: float | None = Field(None, ge=0.0, le=30.0)
 

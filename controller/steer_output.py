@@ -175,6 +175,22 @@ class TrailerSteerOutput:
             return True
         return bool(np.any(np.abs(self.distribution(math.tan(virtual), tan_kingpin)) > cfg.max_steer))
 
+    def held_at_lock(self, step: OutputStep, push: float) -> bool:
+        """Whether ``step`` holds an axle past its lock on the side a push of sign ``push`` moves away from: the
+        magnitude limit clips that axle's target (after the slip-angle limit) by more than the push could undo
+        within the step, so the push does not reach the axle's output.
+
+        Parameters
+        ----------
+        step
+            A proposed step (:meth:`propose`), made with the push.
+        push
+            The change of the virtual-axle angle the step's integral made, or its sign (zero: nothing held).
+        """
+        if push == 0.0:
+            return False
+        return bool(np.any(math.copysign(1.0, push) * step.bounded < -self.config.max_steer))
+
     def propose(
         self,
         virtual: float,

@@ -274,6 +274,34 @@ def test_no_integral_of_an_outswing_where_the_path_is_beyond_reach(freeze):
         assert ctrl.integral > 0.1  # 0.3 m over the ~4 m driven
 
 
+@pytest.mark.parametrize(
+    ("tractor_yaw_rate", "at", "integrated"),
+    [
+        (0.4, "feedforward", False),
+        (0.4, "lock", True),
+        (0.45, "lock", False),
+        (0.6, "feedforward", False),
+        (0.6, "lock", False),
+    ],
+)
+def test_reach_freeze_at_the_lock_integrates_an_outswing_the_command_can_still_remove(tractor_yaw_rate, at, integrated):
+    # Both turns need an axle past the LST's lock by the feed-forward. At r1 = 0.4 rad/s the command with the
+    # 0.3 m outswing's feedback is back inside the lock (no axle saturated): judged at the lock, the outswing is
+    # integrated (0.3 m over the ~4 m driven); judged on the feed-forward it is not. At 0.6 rad/s the axles stay
+    # past their lock whatever the integral adds: both rules hold the integral at zero. At 0.45 rad/s only the rear
+    # axle stays past its lock: one axle held is enough to freeze (the push would reach the front axle alone).
+    config = PathFollowingConfig(feedforward="steady", max_slip_angle=None, reach_freeze_at=at)
+    ctrl = TrailerSteeringController(lst_laden(), config)
+    for k in range(50):
+        ctrl(_left_turn(4.0, tractor_yaw_rate, 0.6, k), OfftrackingEstimate.of(0.3))
+    assert ctrl.beyond_reach
+    if integrated:
+        assert ctrl.integral > 1.0 and not ctrl.saturated.any()
+    else:
+        assert ctrl.integral == 0.0
+        assert ctrl.saturated.any() or at == "feedforward"  # judged at the lock: held only with an axle at it
+
+
 @pytest.mark.parametrize(("error", "share"), [(0.0, 1.0), (0.25, 0.5), (0.5, 0.0), (0.8, 0.0), (-0.3, 1.0)])
 def test_outswing_bound_scales_the_outward_command(error, share):
     # A left turn within reach: the outward (rightward, negative) virtual command is scaled by clip((b − o)/b, 0, 1)
