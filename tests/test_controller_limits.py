@@ -448,3 +448,17 @@ def test_the_pids_gap_on_each_steered_unit():
     assert gap["unit3_reference_holds"] is True and gap["unit3_gap_within_limit"] is False
     lst = optimal_gap({**rows, "optimal": {**optimum, "unit3_optimal_nlp_rms_m": math.nan}})
     assert lst is not None and "unit3_pid_gap_rms_ratio" not in lst
+
+
+def test_the_reach_freeze_rule_is_a_scenario_setting():
+    """``controller.reach_freeze_at`` reaches the controller's own settings; anything but its two rules is refused
+    naming the field."""
+    from scenarios.config import ConfigError, load_scenario
+
+    cfg = load_scenario("roundabout-3", {"vehicle": "lst", "controller": {"reach_freeze_at": "lock"}})
+    assert cfg.controller.path_following(50.0).reach_freeze_at == "lock"
+    assert load_scenario("roundabout-3", {"vehicle": "lst"}).controller.path_following(50.0).reach_freeze_at == (
+        "feedforward"
+    )
+    with pytest.raises(ConfigError, match=r"controller\.reach_freeze_at"):
+        load_scenario("roundabout-3", {"vehicle": "lst", "controller": {"reach_freeze_at": "never"}})

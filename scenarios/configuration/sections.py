@@ -443,6 +443,12 @@ class ControllerConfig(Settings):
         description="[m] preview of the chord feed-forward (controller.preview), null for none; needs feedforward "
         "path; 30 m is over two trailer lengths",
     )
+    reach_freeze_at: Literal["feedforward", "lock"] = Field(
+        "feedforward",
+        description="where the path is beyond reach, an outswing's integral is held wherever the feed-forward is "
+        "beyond the lock (feedforward) or only while the command with it still holds an axle at the lock (lock; "
+        "controller.path_following_config)",
+    )
     high_speed_crossover_kmh: tuple[float, float] | None = Field(
         (35.0, 55.0),
         description="[km/h] (start, end) of the fade from path following to the unsteered trailer at speed, null "
@@ -479,6 +485,7 @@ class ControllerConfig(Settings):
             max_slip_angle=None if self.max_slip_angle_deg is None else math.radians(self.max_slip_angle_deg),
             max_outswing=self.max_outswing_m,
             preview_distance=self.preview_m,
+            reach_freeze_at=self.reach_freeze_at,
             high_speed_crossover=None
             if self.high_speed_crossover_kmh is None
             else (self.high_speed_crossover_kmh[0] / 3.6, self.high_speed_crossover_kmh[1] / 3.6),
