@@ -70,3 +70,16 @@ def test_an_increment_the_camera_alone_measures_has_the_cameras_own_sensitivity(
     p = 0.04**2 * np.outer(j, j) + np.diag([1e-4, 0.0, 1e-6, 0.0])
     regression = AxialRegression([3]).regression(p)
     np.testing.assert_allclose(regression[:, 0], [0.0, a, 0.0], atol=1e-12)
+
+
+def test_a_rear_rig_is_the_same_to_the_bit_with_the_option() -> None:
+    """A rear rig has no axial states (a run gives them to side rigs only): ``posterior`` changes nothing of it."""
+    params = VEHICLE_PRESETS["field"]()
+    rear = StereoRig.from_degrees(psi_c2v_deg=180.0)
+    runs = [
+        drive(params, 1, rear, fused=True, ticks=250, noise=FusionNoise(vo_axial_effect=effect))
+        for effect in ("camera", "posterior")
+    ]
+    assert np.isfinite(runs[0][0]).sum() > 25
+    for a, b in zip(runs[0][:3], runs[1][:3], strict=True):
+        assert np.array_equal(a, b, equal_nan=True)
