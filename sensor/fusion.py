@@ -51,6 +51,7 @@ from vehicle_model.errors import InputError
 from vehicle_model.offtracking import OfftrackingBuffer, offtracking_from_path
 from vehicle_model.parameters import VehicleParams
 
+from .fusion_axial import AxialRegression
 from .fusion_coupling import CouplingMeasurement
 from .fusion_model import (
     BG,
@@ -228,6 +229,9 @@ class FusedVisoOt:
         self._ends = np.zeros((0, 2))
         self._covs = np.zeros((0, 3, 3))
         self._durations = np.zeros(0)
+        axial_states = [i for i in (self._sz, self._sf) if i is not None]  # (A1) of sensor.fusion_axial, when asked
+        posterior = n.vo_axial_effect == "posterior" and axial_states
+        self._axial_regression = AxialRegression(axial_states) if posterior else None
 
     # ------------------------------------------------------------------ propagation
 
@@ -461,6 +465,8 @@ class FusedVisoOt:
         starts = into_frame(starts, end)
         ends = into_frame(np.column_stack([ends, np.zeros(len(ends))]), end)[:, :2]
         keep = starts[:, 0] > -self.follow_point_offset - 2.0
+        if self._axial_regression is not None:  # the increment's regression on the axial states, before the reset
+            self._axial_regression.commit(p, keep)
         self._starts, self._ends, self._covs = starts[keep], ends[keep], covs[keep]
         self._durations = durations[keep]
         # The new anchor: Δ restarts from zero; the other states keep their covariance.
@@ -507,6 +513,8 @@ class FusedVisoOt:
         effects = np.array(  # (3'): s_z and s_f are coherent over the path too
             [*coherent[:2], *((axial,) if self._axial_state else ()), *((cross,) if self._flow_state else ())]
         )
+        if self._axial_regression is not None:  # (A2): at the fused increments' sensitivity instead
+            effects[2:] = self._axial_regression.effect(d, now.p, self._starts, self._ends, lfp)
         # the disagreement the kinematics' share carries into the slip velocity, coherent over the window
         evidence = max(self._evidence.evidence, 0.0)
         if self.noise.trailer_push_share > 0.0:  # (K4): the kinematics may err by the push they cannot see

@@ -10,7 +10,10 @@ from pydantic import Field
 from vehicle_model.kinematics import RearPoint
 from vehicle_model.settings import Settings
 
-__all__ = ["FusionNoise", "SideRigFusion"]
+__all__ = ["AxialEffect", "FusionNoise", "SideRigFusion"]
+
+AxialEffect = Literal["camera", "posterior"]
+"""How the axial states' uncertainty enters the off-tracking's std (:mod:`sensor.fusion_axial`)."""
 
 
 class SideRigFusion(Settings):
@@ -20,7 +23,7 @@ class SideRigFusion(Settings):
 
     Parameters
     ----------
-    vo_axial_flow, vo_axial_scale, vo_axial_scale_walk
+    vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect
         As :class:`FusionNoise`'s.
     kinematic_rear_point, kinematic_error_model, coupling_reference
         As :class:`FusionNoise`'s.
@@ -31,6 +34,7 @@ class SideRigFusion(Settings):
     vo_axial_scale_walk: float | None = Field(
         None, ge=0.0, le=0.1, description="[1/√m] their walk; 0.1 forgets in a metre"
     )
+    vo_axial_effect: AxialEffect | None = None
     kinematic_rear_point: RearPoint | None = None
     kinematic_error_model: Literal["inflated", "state"] | None = None
     coupling_reference: bool | None = None
@@ -87,6 +91,11 @@ class FusionNoise(Settings):
         through the calibration's residual; 0: no such state, the default). docs/field_bias.md §7.4.
     vo_axial_scale_walk : float
         The random walk of ``s_z`` and ``s_f`` per metre travelled [1/√m] (an error that follows the mount's flex).
+    vo_axial_effect : str
+        How the remaining uncertainty of ``s_z`` and ``s_f`` enters the off-tracking's std (eq (5)): ``camera``
+        (default: at the camera's own sensitivity, as if every increment were the camera's motion) or
+        ``posterior`` (at the sensitivity of the filter's fused increments, their regression on the states at
+        each frame: (A1)–(A2) of :mod:`sensor.fusion_axial`).
     kinematics : bool
         Fuse the zero-slip kinematics (K1) when the tractor's signals are given.
     kinematic_rear_point : str
@@ -208,6 +217,7 @@ class FusionNoise(Settings):
     vo_axial_scale_walk: float = Field(
         0.0, ge=0.0, le=0.1, description="[1/√m] its random walk per metre; 0.1 forgets a 3 % error in a few cm"
     )
+    vo_axial_effect: AxialEffect = "camera"
     kinematics: bool = True
     kinematic_rear_point: RearPoint = "axle_mean"
     tractor_stiffness_uncertainty: float = Field(
