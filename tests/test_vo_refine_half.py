@@ -2,7 +2,7 @@
 pixel rows.
 
 A texture of oblique edges (a band-limited noise blurred three times as much across one diagonal as along the
-other) is moved by (0.3, 0.5) px, an exact Fourier shift, and 300 matches on a 3 px grid start at the rounded true
+other) is moved by (0.3, 0.5) px, an exact Fourier shift, and 1012 matches on a 3 px grid start at the rounded true
 positions. The whole-pixel search (libviso2's) compares whole rows, each half a row off the truth: along the edges
 the lowest cost lies away from the true column, so the refined u1p is off by half a pixel or more for over 15 % of
 the matches (measured 24.5 %) and short on average by over 0.1 px (measured 0.18). The half-pixel grid leaves under
