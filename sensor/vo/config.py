@@ -66,6 +66,12 @@ class VOConfig(Settings):
         parabola, or a symmetric V (equiangular lines; Shimizu & Okutomi 2005), the shape of a sum of absolute
         differences near its minimum. A parabola through a V pulls the vertex towards the nearer integer
         ("pixel locking"); the V does not (docs/visual_odometry.md §8). Default "parabola".
+    subpixel_search : {"pixel", "half_pixel"}
+        Where ``refinement=2`` looks for the minimum: on whole pixels, the fit in u through the minimum's row and in v
+        through its column (libviso2's), or on a grid of half pixels of bilinearly interpolated Sobel responses, the
+        fits through the half-pixel neighbours and once more at the other coordinate's fitted position
+        (:mod:`sensor.vo.kernels_refine_half`): where a match's true row falls between two pixel rows, a whole
+        row's cost on an oblique edge can be lowest a pixel along the edge. Default "pixel".
     bucket_width, bucket_height : float
         Bucket size [px] of the final match selection. libviso2: 50 × 50.
     bucket_max_features : int
@@ -127,6 +133,7 @@ class VOConfig(Settings):
     half_resolution: Flag = True
     refinement: Count = Field(1, ge=0, le=2)
     subpixel: Literal["parabola", "equiangular"] = "parabola"
+    subpixel_search: Literal["pixel", "half_pixel"] = "pixel"
     bucket_width: Real = Field(50.0, gt=0.0)
     bucket_height: Real = Field(50.0, gt=0.0)
     bucket_max_features: Count = Field(2, ge=1)

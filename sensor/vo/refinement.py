@@ -7,6 +7,7 @@ import numpy as np
 from sensor.vo.config import VOConfig
 from sensor.vo.features import ImageFeatures
 from sensor.vo.kernels_match import EQUIANGULAR, PARABOLA, REFINEMENT_TAPS, refine
+from sensor.vo.kernels_refine_half import refine_half_pixel
 
 __all__ = ["refine_matches"]
 
@@ -18,7 +19,9 @@ def refine_matches(xy: np.ndarray, images: tuple[ImageFeatures, ...], config: VO
     dv at 4 of the 5×5 window) is compared (SAD) with the small descriptors of the other images within
     ±2 px at full resolution; ``refinement=1`` moves to the minimum, ``refinement=2`` searches ±3 px
     and fits, in u and in v, a parabola (``subpixel="parabola"``, libviso2's) or a symmetric V
-    (``subpixel="equiangular"``) through the cost around the inner minimum for sub-pixel positions.
+    (``subpixel="equiangular"``) through the cost around the inner minimum for sub-pixel positions; with
+    ``subpixel_search="half_pixel"`` it searches a half-pixel grid of interpolated responses instead
+    (:func:`sensor.vo.kernels_refine_half.refine_half_pixel`).
     The search is compiled (:func:`sensor.vo.kernels_match.refine`).
 
     Parameters
@@ -40,4 +43,6 @@ def refine_matches(xy: np.ndarray, images: tuple[ImageFeatures, ...], config: VO
     radius = 2 if config.refinement == 1 else 3
     sobel = tuple(np.ascontiguousarray(f.sobel_full) for f in images)
     fit = EQUIANGULAR if config.subpixel == "equiangular" else PARABOLA
+    if config.refinement == 2 and config.subpixel_search == "half_pixel":
+        return refine_half_pixel(np.ascontiguousarray(xy, dtype=np.float64), sobel, REFINEMENT_TAPS, fit)
     return refine(np.ascontiguousarray(xy, dtype=np.float64), sobel, radius, REFINEMENT_TAPS, fit)
