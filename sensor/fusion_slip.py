@@ -68,7 +68,8 @@ about where the unit goes, not their common slip: a trailer sliding sideways on 
 angle, which ``v_s`` and (K2) already carry, and no demand. With ``D`` > 0 the slip velocity's random walk widens by
 ``D·scrub_slip_walk``, and eq (3)'s coupling gives way to its uncertainty: the motion is taken with ``(1 − D)·κ``
 and the off-tracking's std carries the whole coupled correction as uncertain in proportion, eq (5)'s coupling term
-``β_ψ·G_κ·√((u_κ·(1 − D))² + D²)`` with ``G_κ`` at the full ``κ`` (:mod:`sensor.fusion_std`). A free-rolling unit
+``β_ψ·G_κ·√((u_κ·(1 − D))² + D²)`` with ``G_κ`` at the full ``κ`` (:mod:`sensor.fusion_std`; less with (K6)
+below). A free-rolling unit
 in an ordinary turn has slip angles of a degree or two and no demand.
 
 The odometry's systematic error released. While the tyres scrub the camera's motions disagree with the gyro in a way
