@@ -77,9 +77,9 @@ the odometry's slowly wandering yaw error ``β_ψ`` of eq (3) does not describe,
 disagreement cheapest to explain by ``β_ψ``, moves it and carries the wrong ``β_ψ`` into the path (and, through its
 coupled correction, into the std's coupling term). With ``scrub_bias_release`` ``r`` > 0 the frame's motion is
 taken with ``(1 − r·D)`` of the state's ``β_ψ`` — its yaw and its coupled translation alike — so the camera's
-turn goes to the heading and ``β_ψ`` is not learnt from the scrub; the filter then leans less on the coupled
-correction, and the std carries its release in proportion, the coupling term's share
-``√((u_κ·(1 − D))² + ((1 − r)·D)²)``::
+turn goes to the heading and ``β_ψ`` learns from the scrub only the ``1 − r·D`` it is still taken with (nothing at
+``r`` = 1); the filter leans less on the coupled correction, and the std's coupling term carries the demand's share
+less by ``r``, ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` of ``β_ψ·G_κ``::
 
     H_ψ,β = (1 − r·D)·d,   H_xy,β = (1 − r·D)·d·(1 − D)·κ·(c_x, c_y)                             (K6)
 
