@@ -1,10 +1,11 @@
-"""The fused filter at the steering's limits: the scrub demand (K5) of :mod:`sensor.fusion_slip`.
+"""The fused filter at the steering's limits: the scrub demand (K5) and the release (K6) of :mod:`sensor.fusion_slip`.
 
 The LST's trailer (a fixed axle ahead of two steerable ones) is propagated on its own signals, without a camera: on a
 straight road with its axles straight the demand is zero and the filter is the one without the demand, to the bit;
 with both steerable axles at 25° in the 11.5 m turn of the field figure-of-eight the fixed axle and the steered ones
 run far beyond their tyres' linear range, the demand is full and the slip velocity's variance grows by the scrub
-walk's share.
+walk's share. With camera frames that turn more than the gyro, at full demand (K6) puts the difference into the
+path's heading instead of the odometry's yaw error.
 """
 
 from __future__ import annotations
