@@ -68,7 +68,14 @@ from .fusion_model import (
     relative_pose,
 )
 from .fusion_noise import FusionNoise
-from .fusion_slip import ScrubDemand, ZeroSlipNoise, kinematic_lateral_step, push_variance
+from .fusion_slip import (
+    ScrubDemand,
+    ZeroSlipNoise,
+    kinematic_lateral_step,
+    push_variance,
+    scrub_bias_share,
+    scrub_coupling_share,
+)
 from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects
 from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics, unit_axles
 from .viso_ot import VisoOtEstimator
@@ -399,6 +406,8 @@ class FusedVisoOt:
                 coupling = coupling * (1.0 - entry.scrub)
             h[:2, BPSI] = x[0] * coupling  # the odometry's error per metre over the distance since the anchor
             h[2, BPSI] = x[0]
+            if entry.scrub > 0.0:  # (K6): the odometry's systematic error released while the tyres scrub
+                h[:, BPSI] *= scrub_bias_share(self.noise, entry.scrub)
             if self._sz is not None or self._sf is not None:  # (3'): the camera's displacement, along its axis
                 along, across = self._camera_displacement(x[:3])
                 if self._sz is not None:
@@ -524,7 +533,7 @@ class FusedVisoOt:
         coupling = self.noise.vo_bias_coupling_uncertainty * now.x[BPSI] * coherent[2]
         if self._coupling_scrub > 0.0:  # (K5): the correction applied with (1 − D)·κ, the whole of it uncertain
             scrub = self._coupling_scrub
-            share = math.hypot(self.noise.vo_bias_coupling_uncertainty * (1.0 - scrub), scrub)
+            share = scrub_coupling_share(self.noise, scrub)  # with (K6) less as the bias is released
             coupling = share * now.x[BPSI] * coherent[2]
             coherent = coherent - scrub * np.array([0.0, coherent[2], coherent[2]])
         self.std_parts = {

@@ -139,6 +139,10 @@ class FusionNoise(Settings):
         velocity's random walk widens by ``scrub_slip_walk`` (0: no scrub demand).
     scrub_slip_walk : float
         The slip velocity's random walk at full scrub demand [m/s/√s], added to ``slip_velocity_walk`` (K5).
+    scrub_bias_release : float
+        ``r`` of (K6) in :mod:`sensor.fusion_slip`: the share of the odometry's estimated systematic yaw error
+        ``β_ψ`` a frame's motion is no longer taken with at full scrub demand, so that the camera's turn goes to the
+        heading while the tyres scrub; the std's coupling term carries the demand's share less by it (0: off).
     gate : float
         Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
     max_gated : int
@@ -248,6 +252,9 @@ class FusionNoise(Settings):
     )
     scrub_slip_walk: float = Field(
         0.0, ge=0.0, le=5.0, description="[m/s/√s] added slip walk at full scrub demand; 5 spins in 1 s"
+    )
+    scrub_bias_release: float = Field(
+        0.0, ge=0.0, le=1.0, description="share of β_ψ released at full scrub demand (K6); 1 takes none of it"
     )
     gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
     max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")

@@ -68,8 +68,22 @@ about where the unit goes, not their common slip: a trailer sliding sideways on 
 angle, which ``v_s`` and (K2) already carry, and no demand. With ``D`` > 0 the slip velocity's random walk widens by
 ``D·scrub_slip_walk``, and eq (3)'s coupling gives way to its uncertainty: the motion is taken with ``(1 − D)·κ``
 and the off-tracking's std carries the whole coupled correction as uncertain in proportion, eq (5)'s coupling term
-``β_ψ·G_κ·√((u_κ·(1 − D))² + D²)`` with ``G_κ`` at the full ``κ`` (:mod:`sensor.fusion_std`). A free-rolling unit
+``β_ψ·G_κ·√((u_κ·(1 − D))² + D²)`` with ``G_κ`` at the full ``κ`` (:mod:`sensor.fusion_std`; less with (K6)
+below). A free-rolling unit
 in an ordinary turn has slip angles of a degree or two and no demand.
+
+The odometry's systematic error released. While the tyres scrub the camera's motions disagree with the gyro in a way
+the odometry's slowly wandering yaw error ``β_ψ`` of eq (3) does not describe, and the filter, finding the
+disagreement cheapest to explain by ``β_ψ``, moves it and carries the wrong ``β_ψ`` into the path (and, through its
+coupled correction, into the std's coupling term). With ``scrub_bias_release`` ``r`` > 0 the frame's motion is
+taken with ``(1 − r·D)`` of the state's ``β_ψ`` — its yaw and its coupled translation alike — so the camera's
+turn goes to the heading and ``β_ψ`` learns from the scrub only the ``1 − r·D`` it is still taken with (nothing at
+``r`` = 1); the filter leans less on the coupled correction, and the std's coupling term carries the demand's share
+less by ``r``, ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` of ``β_ψ·G_κ``::
+
+    H_ψ,β = (1 − r·D)·d,   H_xy,β = (1 − r·D)·d·(1 − D)·κ·(c_x, c_y)                             (K6)
+
+With ``r`` = 0 (the default) the filter is that of (K5) alone; with ``D`` = 0 it is the filter without either.
 """
 
 from __future__ import annotations
@@ -88,6 +102,8 @@ __all__ = [
     "kinematic_floor",
     "kinematic_lateral_step",
     "push_variance",
+    "scrub_bias_share",
+    "scrub_coupling_share",
 ]
 
 
@@ -95,6 +111,18 @@ def kinematic_floor(noise: FusionNoise, modelled_slip: float) -> float:
     """σ_k²'s floor of (K2), ``σ_0² + (u_C·v_m)²``, with the modelled rear slip ``v_m`` [m/s] → [m²/s²]."""
     modelled = noise.tractor_stiffness_uncertainty * modelled_slip
     return noise.tractor_slip**2 + modelled * modelled
+
+
+def scrub_bias_share(noise: FusionNoise, demand: float) -> float:
+    """(K6): the share ``1 − r·D`` of the odometry's estimated systematic error ``β_ψ`` a frame's motion is taken with
+    at the scrub demand ``demand`` (1 without a demand or a release)."""
+    return 1.0 - noise.scrub_bias_release * demand
+
+
+def scrub_coupling_share(noise: FusionNoise, demand: float) -> float:
+    """The share of the coupled correction ``β_ψ·G_κ`` the std's coupling term carries at the scrub demand
+    ``demand``: ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` of (K5)–(K6) (``u_κ`` without a demand)."""
+    return math.hypot(noise.vo_bias_coupling_uncertainty * (1.0 - demand), (1.0 - noise.scrub_bias_release) * demand)
 
 
 def push_variance(noise: FusionNoise, slip_velocity: float) -> float:

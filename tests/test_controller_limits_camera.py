@@ -77,7 +77,8 @@ def test_camera_columns_from_the_runs_metrics():
                 "viso_ot_fused": {"rms_error": 0.08, "max_abs_error": 0.23, "within_2sigma": 0.94, "mean_std": 0.05},
                 "viso_ot": {"rms_error": 0.11, "max_abs_error": 0.4},
             }
-        }
+        },
+        "feedback_fallback": {"fraction": 0.26, "seconds": 17.9},
     }
     assert camera_columns(metrics) == {
         "fused_rms_error_m": 0.08,
@@ -85,6 +86,7 @@ def test_camera_columns_from_the_runs_metrics():
         "fused_within_2sigma": 0.94,
         "fused_mean_std_m": 0.05,
         "viso_ot_rms_error_m": 0.11,
+        "feedback_fallback_share": 0.26,
     }
     assert all(math.isnan(v) for v in camera_columns({"offtracking": {"estimators": {}}}).values())
 

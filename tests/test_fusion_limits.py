@@ -1,10 +1,11 @@
-"""The fused filter at the steering's limits: the scrub demand (K5) of :mod:`sensor.fusion_slip`.
+"""The fused filter at the steering's limits: the scrub demand (K5) and the release (K6) of :mod:`sensor.fusion_slip`.
 
 The LST's trailer (a fixed axle ahead of two steerable ones) is propagated on its own signals, without a camera: on a
 straight road with its axles straight the demand is zero and the filter is the one without the demand, to the bit;
 with both steerable axles at 25° in the 11.5 m turn of the field figure-of-eight the fixed axle and the steered ones
 run far beyond their tyres' linear range, the demand is full and the slip velocity's variance grows by the scrub
-walk's share.
+walk's share. With camera frames that turn more than the gyro, at full demand (K6) puts the difference into the
+path's heading instead of the odometry's yaw error.
 """
 
 from __future__ import annotations
@@ -75,3 +76,53 @@ def test_at_the_lock_the_slip_velocitys_variance_grows_by_the_scrub_walk(lst) ->
     grown = on.covariance[3, 3] - off.covariance[3, 3]
     # no measurement: each tick after the first adds walk²·dt to v_s's variance (within 1 %)
     assert grown == pytest.approx(SCRUB["scrub_slip_walk"] ** 2 * DT * (TICKS - 1), rel=0.01)
+
+
+def _camera_motion(increment: np.ndarray, camera_in_trailer: np.ndarray) -> np.ndarray:
+    """The camera's motion ``T_prev←curr`` for a kingpin increment ``(dx, dy, dψ)`` (inverse of eqs (1)–(2))."""
+    t = np.eye(4)
+    c, s = math.cos(increment[2]), math.sin(increment[2])
+    t[:2, :2] = [[c, -s], [s, c]]
+    t[:2, 3] = increment[:2]
+    return np.linalg.inv(camera_in_trailer) @ t @ camera_in_trailer
+
+
+def _with_turning_camera(params, noise: FusionNoise, steer: float) -> FusedVisoOt:
+    """Straight ahead at :data:`SPEED` on the gyro, every fifth tick a camera frame that turns 1 mrad more than the
+    gyro says (with its steerable axles at ``steer``)."""
+    rig = StereoRig.from_degrees(psi_c2v_deg=180.0)
+    camera = rig.camera_in_trailer("left", params)
+    fused = FusedVisoOt(params, camera, noise)
+    steer_angles = np.full(fused.steer_weights.size, steer)
+    for k in range(TICKS):
+        fused.propagate(k, DT, 0.0, SPEED, steer_angles)
+        if k and k % 5 == 0:
+            fused.measure(k, _camera_motion(np.array([5 * DT * SPEED, 0.0, 1e-3]), camera), np.eye(6) * 1e-10)
+    return fused
+
+
+def test_scrubbing_the_cameras_turn_goes_to_the_heading_not_to_the_odometrys_yaw_error(lst) -> None:
+    lock = math.radians(25.0)  # full demand with the unit running straight (the test above)
+    released = _with_turning_camera(lst, FusionNoise(**SCRUB, scrub_bias_release=1.0), lock)
+    held = _with_turning_camera(lst, FusionNoise(**SCRUB), lock)
+    assert released.scrub_demand == held.scrub_demand == 1.0
+    # (K6) with r = 1: no frame moves β_ψ (exactly), while without it the disagreement is taken as β_ψ
+    assert released.state[6] == 0.0
+    assert abs(held.state[6]) > 1e-4  # [rad/m]: a tenth of the 1 mrad over the 0.42 m a frame
+
+    # and the camera's turns go to the path's heading instead: from the sixth frame on (tick 30; before it the path
+    # still settles) the committed path turns by most of the frames' 1 mrad each, and by a tenth of that without it
+    def turned(fused: FusedVisoOt) -> float:
+        steps = np.diff(fused.buffer.points, axis=0)
+        heading = np.unwrap(np.arctan2(steps[:, 1], steps[:, 0]))
+        return float(heading[-1] - heading[30])
+
+    frames = (TICKS - 30) / 5
+    assert 0.8e-3 * frames < turned(released) <= 1.2e-3 * frames
+    assert abs(turned(held)) < 0.1 * turned(released)
+    # free rolling the release is off: the filter is the one without it, to the bit
+    straight_on = _with_turning_camera(lst, FusionNoise(**SCRUB, scrub_bias_release=1.0), 0.0)
+    straight_off = _with_turning_camera(lst, FusionNoise(**SCRUB), 0.0)
+    assert straight_on.scrub_demand == 0.0
+    assert np.array_equal(straight_on.state, straight_off.state)
+    assert np.array_equal(straight_on.covariance, straight_off.covariance)

@@ -370,6 +370,9 @@ class FusionConfig(FusionNoise):
     scrub_slip_walk: float = Field(
         0.5, ge=0.0, le=5.0, description="[m/s/√s] added slip walk at full scrub demand; 5 spins in 1 s"
     )
+    scrub_bias_release: float = Field(
+        0.7, ge=0.0, le=1.0, description="share of β_ψ released at full scrub demand (K6); 1 takes none of it"
+    )
     side_rig: SideRigSettings = Field(
         default_factory=SideRigSettings,
         description="what a side rig's filter takes instead (the odometry's error along its optical axis as states)",

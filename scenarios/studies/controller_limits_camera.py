@@ -8,8 +8,9 @@ right camera: every on-board signal with its data sheet's noise and a bias drawn
 :data:`~scenarios.studies.section4.FIELD_CONDITIONS`, rotated as in de Saxe & Cebon 2018 §4.4
 (:data:`~scenarios.studies.field_loop.ALIGNMENTS`) and calibrating itself online
 (:data:`~scenarios.studies.field_loop.SELF_CALIBRATION`); the raw VISO-OT and zero-slip estimators run beside it.
-Its row adds the fused estimate's error (RMS, largest), the share of its errors within 2σ, its mean σ and the raw
-VISO-OT's RMS error in the same run (:func:`camera_columns`). The check over a group of camera cells
+Its row adds the fused estimate's error (RMS, largest), the share of its errors within 2σ, its mean σ, the raw
+VISO-OT's RMS error in the same run and the share of the ticks after warm-up on which the controller had no usable
+estimate and steered by feed-forward alone (:func:`camera_columns`). The check over a group of camera cells
 (:func:`camera_check`): the mean of the cells' shares within 2σ inside
 :data:`~scenarios.studies.field_loop.COVERAGE_BAND`, and on every cell the fused RMS no more than the raw camera's.
 """
@@ -49,6 +50,7 @@ CAMERA_COLUMNS = (
     "fused_within_2sigma",
     "fused_mean_std_m",
     "viso_ot_rms_error_m",
+    "feedback_fallback_share",
 )
 """The columns a camera case adds to the study's row (:func:`camera_columns`)."""
 
@@ -73,7 +75,8 @@ def camera_columns(metrics: dict[str, Any]) -> dict[str, float]:
     Parameters
     ----------
     metrics
-        The run's metrics (``offtracking.estimators.viso_ot_fused`` and ``.viso_ot``, errors over the whole run).
+        The run's metrics (``offtracking.estimators.viso_ot_fused`` and ``.viso_ot``, errors over the whole run;
+        ``feedback_fallback``, the ticks after warm-up without a usable estimate).
     """
     estimators = (metrics.get("offtracking") or {}).get("estimators") or {}
     fused = estimators.get(CAMERA_FEEDBACK) or {}
@@ -84,6 +87,7 @@ def camera_columns(metrics: dict[str, Any]) -> dict[str, float]:
         "fused_within_2sigma": metric_number(fused, "within_2sigma"),
         "fused_mean_std_m": metric_number(fused, "mean_std"),
         "viso_ot_rms_error_m": metric_number(raw, "rms_error"),
+        "feedback_fallback_share": metric_number(metrics.get("feedback_fallback") or {}, "fraction"),
     }
 
 
