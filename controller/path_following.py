@@ -145,7 +145,7 @@ from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
-from .preview import preview_tangent
+from .preview import chord_law, interpolated_chord_end, preview_tangent, straight_chord_end
 from .reach_rules import is_outswing, outswing_scale, window_holding
 from .steer_output import OutputStep, TrailerSteerOutput, high_speed_fade, speed_fade
 
@@ -159,12 +159,6 @@ def telemetry_prefix(unit: int) -> str:
     """The prefix of a steered unit's recorded internals: ``trailer_`` for the first towed unit, ``unit<k>_`` for
     unit ``k`` of the combination behind it (``unit3_`` for the second towed unit)."""
     return "trailer_" if unit == 1 else f"unit{unit + 1}_"
-
-
-def _wrap(angle: float) -> float:
-    """Angle wrapped to (−π, π], then clipped to ±1.4 rad (keeps tangents finite)."""
-    wrapped = math.atan2(math.sin(angle), math.cos(angle))
-    return min(max(wrapped, -1.4), 1.4)
 
 
 class TrailerSteeringController:
@@ -475,27 +469,17 @@ class TrailerSteeringController:
         (L_v/L_fp)(tan β_k* − tan φ_f*)`` with ``β_k* = θ_k − ψ2*``, ``φ_f* = θ_f − ψ2*``.
         """
         lfp = self.follow_point_offset
-        px, py = float(self._position[0]), float(self._position[1])
-        theta_k = self._path_direction
-        x0, y0, t0 = self._path[0]
-        d0 = math.hypot(x0 - px, y0 - py)
+        kingpin = (float(self._position[0]), float(self._position[1]), self._path_direction)
+        oldest = self._path[0]
+        d0 = math.hypot(oldest[0] - kingpin[0], oldest[1] - kingpin[1])
         if len(self._path) >= 2 and d0 >= lfp:
             # The oldest point is the last one at least L_fp away (pruning keeps one): interpolate to L_fp.
-            x1, y1, t1 = self._path[1]
-            d1 = math.hypot(x1 - px, y1 - py)
-            w = (d0 - lfp) / (d0 - d1) if d0 > d1 else 0.0
-            cx, cy, theta_f = x0 + w * (x1 - x0), y0 + w * (y1 - y0), t0 + w * (t1 - t0)
+            near = self._path[1]
+            d1 = math.hypot(near[0] - kingpin[0], near[1] - kingpin[1])
+            end = interpolated_chord_end(oldest, d0, near, d1, lfp)
         else:
-            # Less than one trailer length recorded: the path ran straight before the oldest point.
-            dx, dy = math.cos(t0), math.sin(t0)
-            wx, wy = x0 - px, y0 - py
-            along = wx * dx + wy * dy
-            t = along + math.sqrt(max(along * along - (wx * wx + wy * wy) + lfp * lfp, 0.0))
-            cx, cy, theta_f = x0 - t * dx, y0 - t * dy, t0
-        psi_chord = math.atan2(py - cy, px - cx)
-        tan_k = math.tan(_wrap(theta_k - psi_chord))
-        tan_f = math.tan(_wrap(theta_f - psi_chord))
-        return tan_k - (self.virtual_axle_distance / lfp) * (tan_k - tan_f)
+            end = straight_chord_end(oldest, kingpin, lfp)  # less than one trailer length recorded
+        return chord_law(kingpin, end, lfp, self.virtual_axle_distance)
 
     def _sample(self, estimate: OfftrackingEstimate | None) -> float | None:
         """Zero-order hold of the estimate; derivative on new samples only. ``None`` if missing.

@@ -27,13 +27,21 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-__all__ = ["arc_ahead", "chord_tangent", "preview_tangent"]
+__all__ = [
+    "arc_ahead",
+    "chord_law",
+    "chord_tangent",
+    "interpolated_chord_end",
+    "preview_tangent",
+    "straight_chord_end",
+    "wrap_clipped",
+]
 
 PathPoint = tuple[float, float, float]
 """A point of the kingpin's path: ``(x, y, θ)``, position [m] and direction of travel [rad]."""
 
 
-def _wrap(angle: float) -> float:
+def wrap_clipped(angle: float) -> float:
     """Angle wrapped to (−π, π], then clipped to ±1.4 rad (keeps tangents finite)."""
     wrapped = math.atan2(math.sin(angle), math.cos(angle))
     return min(max(wrapped, -1.4), 1.4)
@@ -97,7 +105,7 @@ def chord_tangent(path: Sequence[PathPoint], kingpin: PathPoint, follow_point_of
         ``tan β_k* − (L_v/L_fp)(tan β_k* − tan φ_f*)``.
     """
     lfp = follow_point_offset
-    px, py, theta_k = kingpin
+    px, py, _ = kingpin
     far = None
     newer = None
     for point in reversed(path):
@@ -107,23 +115,47 @@ def chord_tangent(path: Sequence[PathPoint], kingpin: PathPoint, follow_point_of
             break
         newer = (point, d)
     if far is not None and newer is not None:
-        (x0, y0, t0), d0 = far
-        (x1, y1, t1), d1 = newer
-        w = (d0 - lfp) / (d0 - d1) if d0 > d1 else 0.0
-        cx, cy, theta_f = x0 + w * (x1 - x0), y0 + w * (y1 - y0), t0 + w * (t1 - t0)
+        end = interpolated_chord_end(far[0], far[1], newer[0], newer[1], lfp)
     elif far is not None:
-        cx, cy, theta_f = far[0]
+        end = far[0]
     else:
-        # Less than one trailer length recorded: the path ran straight before the oldest point.
-        x0, y0, t0 = path[0]
-        dx, dy = math.cos(t0), math.sin(t0)
-        wx, wy = x0 - px, y0 - py
-        along = wx * dx + wy * dy
-        t = along + math.sqrt(max(along * along - (wx * wx + wy * wy) + lfp * lfp, 0.0))
-        cx, cy, theta_f = x0 - t * dx, y0 - t * dy, t0
+        end = straight_chord_end(path[0], kingpin, lfp)
+    return chord_law(kingpin, end, lfp, lv)
+
+
+def interpolated_chord_end(
+    far: PathPoint, far_distance: float, near: PathPoint, near_distance: float, lfp: float
+) -> PathPoint:
+    """The chord's far end ``(x, y, θ_f)``: the point at straight-line distance ``lfp`` from the kingpin,
+    interpolated between the path points ``far`` (at ``far_distance`` ≥ ``lfp``) and ``near`` (nearer the kingpin)."""
+    x0, y0, t0 = far
+    x1, y1, t1 = near
+    w = (far_distance - lfp) / (far_distance - near_distance) if far_distance > near_distance else 0.0
+    return x0 + w * (x1 - x0), y0 + w * (y1 - y0), t0 + w * (t1 - t0)
+
+
+def straight_chord_end(oldest: PathPoint, kingpin: PathPoint, lfp: float) -> PathPoint:
+    """The chord's far end ``(x, y, θ_f)`` on a path recorded for less than ``lfp``: the path taken as straight behind
+    its ``oldest`` point (the run starts straight), the point there at straight-line distance ``lfp`` from the
+    kingpin."""
+    x0, y0, t0 = oldest
+    px, py = kingpin[0], kingpin[1]
+    dx, dy = math.cos(t0), math.sin(t0)
+    wx, wy = x0 - px, y0 - py
+    along = wx * dx + wy * dy
+    t = along + math.sqrt(max(along * along - (wx * wx + wy * wy) + lfp * lfp, 0.0))
+    return x0 - t * dx, y0 - t * dy, t0
+
+
+def chord_law(kingpin: PathPoint, chord_end: PathPoint, lfp: float, lv: float) -> float:
+    """``tan δ_ff = tan β_k* − (L_v/L_fp)(tan β_k* − tan φ_f*)``: the chord law with the trailer on the chord from
+    ``chord_end`` ``(x, y, θ_f)`` to the ``kingpin`` ``(x, y, θ_k)``, ``β_k* = θ_k − ψ*``, ``φ_f* = θ_f − ψ*`` in the
+    chord's direction ``ψ*`` (:mod:`controller.path_following`, *Feed-forward*)."""
+    px, py, theta_k = kingpin
+    cx, cy, theta_f = chord_end
     psi_chord = math.atan2(py - cy, px - cx)
-    tan_k = math.tan(_wrap(theta_k - psi_chord))
-    tan_f = math.tan(_wrap(theta_f - psi_chord))
+    tan_k = math.tan(wrap_clipped(theta_k - psi_chord))
+    tan_f = math.tan(wrap_clipped(theta_f - psi_chord))
     return tan_k - (lv / lfp) * (tan_k - tan_f)
 
 
