@@ -8,20 +8,15 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from scenarios.config import load_scenario
-from scenarios.run.results import TIMESERIES_FILE
-from scenarios.run.runner import run_scenario
-from scenarios.setup.build import build_scenario
 from scenarios.studies.optimal_problem import _follow_function, interval_integrator, solve_optimal_steer
-from scenarios.studies.optimal_reference import pid_cost
+from scenarios.studies.optimal_reference import pid_cost, pid_run
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
 from vehicle_model.geometry import follow_point_from_kingpin, trailer_frames
 from vehicle_model.layout import Layout
-from vehicle_model.simulator import Simulator
 
 TINY = {"vehicle": "lst", "feedback": "truth", "path.entry_length": 1.0, "duration_s": 4.5}
 """4.5 s of the 50 m roundabout at 15 km/h: the kingpin drives the LST's follow-point offset (14 m) in about 3.4 s,
@@ -62,14 +57,8 @@ def test_interval_integrator_is_the_models_rk4_with_the_trailer_steer_linear_in_
 @pytest.fixture(scope="module")
 def tiny_case(tmp_path_factory):
     """The tiny run (the PID's, truth-fed), its columns, simulator and limits."""
-    run_dir: Path = tmp_path_factory.mktemp("optimal_tiny")
-    config = load_scenario("roundabout-3", TINY)
-    setup = build_scenario(config)
-    run_scenario(config, run_dir, plots=False, model=setup.model)
-    frame = pd.read_parquet(run_dir / TIMESERIES_FILE)
-    columns = {name: frame[name].to_numpy() for name in frame.columns}
-    simulator = Simulator(setup.params, setup.surface, dt=config.rates.dynamics_step_s, model=setup.model)
-    return setup.params, columns, simulator, config.controller.path_following(config.rates.control_hz)
+    pid = pid_run(load_scenario("roundabout-3", TINY), tmp_path_factory.mktemp("optimal_tiny"))
+    return pid.params, pid.recorded, pid.simulator, pid.limits
 
 
 @pytest.fixture(scope="module")
@@ -125,15 +114,10 @@ def test_a_combination_with_a_dolly_is_refused_in_one_line():
 def test_the_b_doubles_optimum_steers_both_trailers_within_the_limits():
     # The tiny case on the steered B-double: all four steered axles within lock, rate and slip angle, each steered
     # unit's follow point counted, and the optimum's cost (summed over both trailers) no more than the PID's.
-    config = load_scenario("roundabout-3", {**TINY, "vehicle": "au-b-double-steered"})
-    setup = build_scenario(config)
     with tempfile.TemporaryDirectory() as tmp:
-        run_scenario(config, Path(tmp), plots=False, model=setup.model)
-        frame = pd.read_parquet(Path(tmp) / TIMESERIES_FILE)
-    columns = {name: frame[name].to_numpy() for name in frame.columns}
-    simulator = Simulator(setup.params, setup.surface, dt=config.rates.dynamics_step_s, model=setup.model)
-    limits = config.controller.path_following(config.rates.control_hz)
-    solution = solve_optimal_steer(setup.params, columns, simulator, limits, step=COARSE_STEP)
+        pid = pid_run(load_scenario("roundabout-3", {**TINY, "vehicle": "au-b-double-steered"}), Path(tmp))
+    columns, limits = pid.recorded, pid.limits
+    solution = solve_optimal_steer(pid.params, columns, pid.simulator, limits, step=COARSE_STEP)
     assert solution.status == "solved" and solution.axles == ("lead2", "lead3", "rear2", "rear3")
     assert set(solution.further) == {3} and np.isfinite(solution.further[3]).sum() > 0
     assert np.all(np.abs(solution.steer) <= limits.max_steer + 1e-9)

@@ -16,15 +16,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
-
-from vehicle_model.simulator import Simulator
-
 from ..config import load_scenario
-from ..run.results import TIMESERIES_FILE
-from ..run.runner import run_scenario
-from ..setup.build import build_scenario
 from ..studies.optimal_problem import solve_optimal_steer
+from ..studies.optimal_reference import pid_run
 
 
 def bench_optimal(duration_s: float = 8.0) -> dict[str, Any]:
@@ -37,17 +31,12 @@ def bench_optimal(duration_s: float = 8.0) -> dict[str, Any]:
     """
     overrides = {"vehicle": "lst", "feedback": "truth", "path.entry_length": 1.0, "duration_s": duration_s}
     config = load_scenario("roundabout-3", overrides)
-    setup = build_scenario(config)
     with tempfile.TemporaryDirectory() as tmp:
-        run_scenario(config, Path(tmp), plots=False, model=setup.model)
-        frame = pd.read_parquet(Path(tmp) / TIMESERIES_FILE)
-    columns = {name: frame[name].to_numpy() for name in frame.columns}
-    simulator = Simulator(setup.params, setup.surface, dt=config.rates.dynamics_step_s, model=setup.model)
-    limits = config.controller.path_following(config.rates.control_hz)
+        pid = pid_run(config, Path(tmp))
     result: dict[str, Any] = {"case": {"scenario": "roundabout-3", **overrides}}
     for name, expand in (("mapped", False), ("expanded", True)):
         start = time.process_time()
-        solution = solve_optimal_steer(setup.params, columns, simulator, limits, expand=expand)
+        solution = solve_optimal_steer(pid.params, pid.recorded, pid.simulator, pid.limits, expand=expand)
         result[name] = {"cpu_s": time.process_time() - start, "status": solution.status, "cost_m2": solution.cost}
     result["expanded_over_mapped_cpu"] = result["expanded"]["cpu_s"] / result["mapped"]["cpu_s"]
     return result

@@ -17,23 +17,26 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from controller.path_following_config import PathFollowingConfig
 from vehicle_model.offtracking import OfftrackingEstimate
+from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import Simulator
 
 from ..config import ScenarioConfig
 from ..loop.participant import Column, TickInput
 from ..run.results import TIMESERIES_FILE
 from ..run.runner import run_scenario
-from ..setup.build import build_scenario
+from ..setup.build import ScenarioSetup, build_scenario
 from .optimal_problem import STEER_SMOOTHING, OptimalSteer, path_reference, solve_optimal_steer
 
-__all__ = ["OPTIMAL_FILE", "ScheduledSteer", "run_optimal_reference"]
+__all__ = ["OPTIMAL_FILE", "PidRun", "ScheduledSteer", "pid_run", "run_optimal_reference"]
 
 OPTIMAL_FILE = "optimal.json"
 """The optimal reference's own record in its run directory."""
@@ -74,6 +77,37 @@ class ScheduledSteer:
 def _columns(run_dir: Path) -> dict[str, np.ndarray]:
     frame = pd.read_parquet(run_dir / TIMESERIES_FILE)
     return {name: frame[name].to_numpy() for name in frame.columns}
+
+
+@dataclass(frozen=True)
+class PidRun:
+    """Step 1 of the module docstring: the scenario run as configured, and what the NLP takes over it."""
+
+    setup: ScenarioSetup
+    """The built scenario (:func:`scenarios.setup.build.build_scenario`): its parameters, surface and model."""
+    metrics: dict[str, Any]
+    """The run's ``metrics.json`` content."""
+    recorded: dict[str, np.ndarray]
+    """The run's time series, by column."""
+    simulator: Simulator
+    """The model at the run's dynamics step, for the NLP's shooting intervals."""
+    limits: PathFollowingConfig
+    """The controller's settings: the lock, rate and slip-angle limit the NLP keeps."""
+
+    @property
+    def params(self) -> VehicleParams:
+        """The combination's parameters."""
+        return self.setup.params
+
+
+def pid_run(config: ScenarioConfig, run_dir: Path) -> PidRun:
+    """Run ``config`` into ``run_dir`` (created by the caller) and return it with the NLP's inputs
+    (:func:`scenarios.studies.optimal_problem.solve_optimal_steer`'s model and limits)."""
+    setup = build_scenario(config)
+    metrics = run_scenario(config, run_dir, plots=False, model=setup.model)
+    rates = config.rates
+    simulator = Simulator(setup.params, setup.surface, dt=rates.dynamics_step_s, model=setup.model)
+    return PidRun(setup, metrics, _columns(run_dir), simulator, config.controller.path_following(rates.control_hz))
 
 
 def pid_offtracking(schedule: OptimalSteer, columns: dict[str, np.ndarray], unit: int | None = None) -> np.ndarray:
@@ -121,13 +155,9 @@ def run_optimal_reference(
     """
     pid_dir = run_dir / "pid"
     pid_dir.mkdir(parents=True, exist_ok=True)
-    setup = build_scenario(config)
-    pid_metrics = run_scenario(config, pid_dir, plots=False, model=setup.model)
-    recorded = _columns(pid_dir)
-    rates = config.rates
-    simulator = Simulator(setup.params, setup.surface, dt=rates.dynamics_step_s, model=setup.model)
-    limits = config.controller.path_following(rates.control_hz)
-    schedule = solve_optimal_steer(setup.params, recorded, simulator, limits, interval=interval)
+    pid = pid_run(config, pid_dir)
+    setup, pid_metrics, recorded = pid.setup, pid.metrics, pid.recorded
+    schedule = solve_optimal_steer(setup.params, recorded, pid.simulator, pid.limits, interval=interval)
     axles = tuple(
         n for n in setup.model.layout.steerable_axles if n not in {a.name for a in setup.params.tractor.axles}
     )
