@@ -115,7 +115,10 @@ not the controller.
 
 Where the path is beyond reach an outswing (``e·κ5 > 0``) is not integrated (``reach_freeze``; with
 ``reach_freeze_at = "lock"`` only while the command with it still holds an axle past its lock, so that its push
-cannot reach the output), and ``max_outswing`` (off by default) bounds it: :mod:`controller.reach_rules`.
+cannot reach the output; with ``"exit"`` as ``"lock"`` and also once the kingpin's curvature has fallen below
+:data:`EXIT_CURVATURE_SHARE` of its peak since the path went beyond reach: the turn is ending, and an outswing
+integrated there would unwind as a cut-in after it), and ``max_outswing`` (off by default) bounds it:
+:mod:`controller.reach_rules`.
 
 Anti-windup
 -----------
@@ -150,6 +153,10 @@ from .reach_rules import is_outswing, outswing_scale, window_holding
 from .steer_output import OutputStep, TrailerSteerOutput, high_speed_fade, speed_fade
 
 __all__ = ["TrailerSteeringController", "telemetry_prefix"]
+
+EXIT_CURVATURE_SHARE = 0.5
+"""Share of the peak kingpin curvature ``|κ5|`` since the path went beyond reach below which the turn counts as
+ending (``reach_freeze_at = "exit"``): the outswing's integral belongs to the turn, so it is held from there."""
 
 PATH_SPACING = 0.05
 """Spacing [m] of the stored points of the dead-reckoned kingpin path (chord feed-forward)."""
@@ -273,6 +280,7 @@ class TrailerSteeringController:
         self.new_sample = False
         self.kingpin_curvature = 0.0
         self.beyond_reach = False
+        self._reach_peak_curvature = 0.0  # largest |κ5| since the path went beyond reach (zero within reach)
         self.distance = 0.0
         self._derivative = 0.0
         self._last_sample: tuple[float, float] | None = None  # (value, distance) of the previous new sample
@@ -400,7 +408,12 @@ class TrailerSteeringController:
         schedule = bandwidth_schedule(state.u, cfg.bandwidth_speed)
         integral_new = self.integral
         reach_freeze = cfg.reach_freeze and path_beyond_reach and is_outswing(error, self.kingpin_curvature)
-        frozen = reach_freeze and cfg.reach_freeze_at == "feedforward"
+        curvature = abs(self.kingpin_curvature)
+        self._reach_peak_curvature = max(self._reach_peak_curvature, curvature) if path_beyond_reach else 0.0
+        turn_ending = curvature < EXIT_CURVATURE_SHARE * self._reach_peak_curvature
+        frozen = reach_freeze and (
+            cfg.reach_freeze_at == "feedforward" or (cfg.reach_freeze_at == "exit" and turn_ending)
+        )
         frozen = frozen or self.feedback_weight < 1.0  # a shrunk (uncertain) estimate does not wind the integrator
         if error is not None and ki > 0 and self.fade > 0 and not frozen:
             integral_new = self.integral + error * ds

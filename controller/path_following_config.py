@@ -29,7 +29,7 @@ FeedForward = Literal["path", "steady", "none"]
 UncertainFeedback = Literal["drop", "shrink"]
 """Type of :attr:`PathFollowingConfig.uncertain_feedback`."""
 
-ReachFreezeAt = Literal["feedforward", "lock"]
+ReachFreezeAt = Literal["feedforward", "lock", "exit"]
 """Type of :attr:`PathFollowingConfig.reach_freeze_at`."""
 
 
@@ -193,12 +193,15 @@ class PathFollowingConfig(Settings):
         Where the feed-forward is beyond the axles' reach, do not integrate an error on the outside of the turn
         (an outswing the lock's transient leaves, which the integral would otherwise carry into the cut-in that
         follows). Off: conditional integration on the limits only.
-    reach_freeze_at : {"feedforward", "lock"}
+    reach_freeze_at : {"feedforward", "lock", "exit"}
         When the reach freeze holds an outswing's integral. ``feedforward``: wherever the feed-forward is beyond
         reach. ``lock``: only while the command *with* that integral still holds an axle past its lock on the side
         the integral pushes away from, so that the integral's push cannot reach the output and would only gather
         behind the lock; where the feedback has brought the command back inside the lock the outswing is
-        integrated, as any error is (docs/controller_design.md §3.5, §3.7).
+        integrated, as any error is (docs/controller_design.md §3.5, §3.7). ``exit``: as ``lock``, and also
+        wherever the kingpin's curvature has fallen below half its peak since the path went beyond reach (the
+        turn's exit): where the axles never reach their lock (ice) ``lock`` integrates the outswing all round the
+        turn and it unwinds as a cut-in at the exit; the outswing's integral belongs to the turn.
     max_outswing : float or None
         Bound [m] on the follow point's outswing (off-tracking on the outside of the kingpin's turn): the outward
         part of the virtual-axle command is scaled by ``clip((b − o)/b, 0, 1)`` for an outswing ``o`` of the estimate

@@ -302,6 +302,30 @@ def test_reach_freeze_at_the_lock_integrates_an_outswing_the_command_can_still_r
         assert ctrl.saturated.any() or at == "feedforward"  # judged at the lock: held only with an axle at it
 
 
+@pytest.mark.parametrize(
+    ("peak_yaw_rate", "at", "integrated"),
+    [(0.4, "exit", True), (0.9, "exit", False), (0.9, "lock", True)],
+)
+def test_reach_freeze_at_the_exit_holds_an_outswing_once_the_turn_eases(peak_yaw_rate, at, integrated):
+    # A turn beyond reach at r1 = 0.9 rad/s (every rule holds the outswing: axles past their lock) eases to
+    # 0.4 rad/s, still beyond reach but with the command back inside the lock. The curvature is then under half its
+    # peak since the path went beyond reach: the exit rule holds the 0.3 m outswing's integral at zero where the
+    # lock rule integrates it (0.3 m over the ~4 m driven). In a steady 0.4 rad/s turn (its own peak) the exit rule
+    # integrates as the lock rule does.
+    config = PathFollowingConfig(feedforward="steady", max_slip_angle=None, reach_freeze_at=at)
+    ctrl = TrailerSteeringController(lst_laden(), config)
+    for k in range(20):
+        ctrl(_left_turn(4.0, peak_yaw_rate, 0.6, k), OfftrackingEstimate.of(0.3))
+    assert ctrl.integral == 0.0 or peak_yaw_rate == 0.4
+    for k in range(20, 70):
+        ctrl(_left_turn(4.0, 0.4, 0.6, k), OfftrackingEstimate.of(0.3))
+    assert ctrl.beyond_reach and not ctrl.saturated.any()
+    if integrated:
+        assert ctrl.integral > 1.0
+    else:
+        assert ctrl.integral == 0.0
+
+
 @pytest.mark.parametrize(("error", "share"), [(0.0, 1.0), (0.25, 0.5), (0.5, 0.0), (0.8, 0.0), (-0.3, 1.0)])
 def test_outswing_bound_scales_the_outward_command(error, share):
     # A left turn within reach: the outward (rightward, negative) virtual command is scaled by clip((b − o)/b, 0, 1)
@@ -451,12 +475,13 @@ def test_the_pids_gap_on_each_steered_unit():
 
 
 def test_the_reach_freeze_rule_is_a_scenario_setting():
-    """``controller.reach_freeze_at`` reaches the controller's own settings; anything but its two rules is refused
+    """``controller.reach_freeze_at`` reaches the controller's own settings; anything but its three rules is refused
     naming the field."""
     from scenarios.config import ConfigError, load_scenario
 
-    cfg = load_scenario("roundabout-3", {"vehicle": "lst", "controller": {"reach_freeze_at": "lock"}})
-    assert cfg.controller.path_following(50.0).reach_freeze_at == "lock"
+    for rule in ("lock", "exit"):
+        cfg = load_scenario("roundabout-3", {"vehicle": "lst", "controller": {"reach_freeze_at": rule}})
+        assert cfg.controller.path_following(50.0).reach_freeze_at == rule
     assert load_scenario("roundabout-3", {"vehicle": "lst"}).controller.path_following(50.0).reach_freeze_at == (
         "feedforward"
     )

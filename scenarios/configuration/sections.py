@@ -446,10 +446,11 @@ class ControllerConfig(Settings):
         description="[m] preview of the chord feed-forward (controller.preview), null for none; needs feedforward "
         "path; 30 m is over two trailer lengths",
     )
-    reach_freeze_at: Literal["feedforward", "lock"] = Field(
+    reach_freeze_at: Literal["feedforward", "lock", "exit"] = Field(
         "feedforward",
         description="where the path is beyond reach, an outswing's integral is held wherever the feed-forward is "
-        "beyond the lock (feedforward) or only while the command with it still holds an axle at the lock (lock; "
+        "beyond the lock (feedforward) or only while the command with it still holds an axle at the lock (lock), "
+        "or as lock and also from the turn's exit, the kingpin's curvature below half its peak (exit; "
         "controller.path_following_config)",
     )
     high_speed_crossover_kmh: tuple[float, float] | None = Field(
