@@ -26,7 +26,12 @@ motion's 3×3 covariance (:func:`~sensor.fusion_model.camera_increment`, the fol
 covariance) and the articulation sensors' white noise ``σ_Γ`` (``articulation_noise``) on each ``Γ⁰``, ``Γ¹``,
 mapped through the Jacobian of (C1)::
 
-    R_c = J_d·R_m·J_dᵀ + σ_Γ²·J_Γ·J_Γᵀ                                                                     (C2)
+    R_c = k_c·(J_d·R_m·J_dᵀ + σ_Γ²·J_Γ·J_Γᵀ)                                                               (C2)
+
+``k_c`` (``covariance_scale``, ``fusion.side_rig.coupling_covariance_scale``; 1 by default) widens it where the
+follower's odometry errors are correlated over frames: ``R_m`` is each frame's own, and a lateral error that persists
+over many frames sums in the lead's path linearly where white errors sum in quadrature, so a filter that takes the
+frames as independent weights the reference more than its errors allow (docs/field_bias.md §7.12).
 
 The follower's odometry has its own systematic yaw error ``β_ψ`` per metre, with the translation error that comes
 with it (eq (3) of :mod:`sensor.fusion_model`); where the follower's own filter estimates it (against its gyro, which
@@ -166,12 +171,14 @@ class CouplingReference:
         How the follower's camera motion is made horizontal, as the lead's filter makes its own: ``planar``
         (default, the level road) or ``accelerometer`` (the follower's tilt at the frame's start and end given to
         :meth:`measurement`; module notes).
+    covariance_scale
+        ``k_c`` of (C2), the factor on the measurement's covariance (1: as mapped).
 
     Raises
     ------
     InputError
-        ``follower`` not behind ``lead`` within the combination, a unit between them without a rear coupling, or
-        ``level_reference`` neither ``planar`` nor ``accelerometer``.
+        ``follower`` not behind ``lead`` within the combination, a unit between them without a rear coupling,
+        ``level_reference`` neither ``planar`` nor ``accelerometer``, or ``covariance_scale`` not in [1, 100].
     """
 
     def __init__(
@@ -182,7 +189,10 @@ class CouplingReference:
         camera_in_follower: np.ndarray,
         noise: FusionNoise,
         level_reference: str = "planar",
+        covariance_scale: float = 1.0,
     ) -> None:
+        if not 1.0 <= covariance_scale <= 100.0:  # NaN fails too
+            raise InputError(f"covariance_scale = {covariance_scale!r}: allowed 1–100 (a factor on (C2)'s covariance)")
         if level_reference not in ("planar", "accelerometer"):
             raise InputError(
                 f"level_reference = {level_reference!r}: a coupling reference needs 'planar' or 'accelerometer'"
@@ -199,6 +209,7 @@ class CouplingReference:
         self.rear_couplings = [float(x) for x in stations if x is not None]
         self.geometry = VisoOtEstimator(params, camera_in_follower, unit=follower, level_reference=level_reference)
         self.noise = noise
+        self.covariance_scale = float(covariance_scale)
 
     def articulations(self, articulations: Sequence[float]) -> tuple[float, ...]:
         """The articulations (C1) takes, ``Γ_{j+1} … Γ_m``, out of every coupling's from the tractor back
@@ -253,4 +264,6 @@ class CouplingReference:
             jac[:, i] = (moved - z) / h
         j_d, j_g = jac[:, :3], jac[:, 3:]
         r = j_d @ r_follower @ j_d.T + self.noise.articulation_noise**2 * (j_g @ j_g.T)  # (C2)
+        if self.covariance_scale != 1.0:  # k_c of (C2)
+            r = self.covariance_scale * r
         return z, 0.5 * (r + r.T)

@@ -16,6 +16,10 @@ AxialEffect = Literal["camera", "posterior"]
 """How the axial states' uncertainty enters the off-tracking's std (:mod:`sensor.fusion_axial`)."""
 
 
+REFERENCE_SETTINGS: tuple[str, ...] = ("coupling_covariance_scale",)
+"""The side-rig settings the coupling reference takes (:mod:`sensor.fusion_coupling`), not the filter."""
+
+
 class SideRigFusion(Settings):
     """The settings a camera that looks across its motion (a side rig) takes in place of the section's (``None``: the
     section's own): the odometry's error along its optical axis as states (eq (3') of :mod:`sensor.fusion_model`,
@@ -27,6 +31,10 @@ class SideRigFusion(Settings):
         As :class:`FusionNoise`'s.
     kinematic_rear_point, kinematic_error_model, coupling_reference
         As :class:`FusionNoise`'s.
+    coupling_covariance_scale
+        Factor on the covariance of the following unit's measurement, (C2) of :mod:`sensor.fusion_coupling`
+        (``None``: 1, the covariance as mapped). The reference takes it, not the filter: it is not among
+        :meth:`given`'s settings.
     """
 
     vo_axial_flow: float | None = Field(None, ge=0.0, le=1.0, description="[1/m] start std of s_f; 1 /m: 1 m per m²")
@@ -38,10 +46,20 @@ class SideRigFusion(Settings):
     kinematic_rear_point: RearPoint | None = None
     kinematic_error_model: Literal["inflated", "state"] | None = None
     coupling_reference: bool | None = None
+    coupling_covariance_scale: float | None = Field(
+        None,
+        ge=1.0,
+        le=100.0,
+        description="factor on (C2)'s covariance; below 1 claims a tighter sensor, 100 all but drops it",
+    )
 
     def given(self) -> dict[str, object]:
-        """The settings it gives (those not ``None``)."""
-        return {name: value for name in type(self).model_fields if (value := getattr(self, name)) is not None}
+        """The settings it gives the filter (those not ``None``, less the reference's own)."""
+        return {
+            name: value
+            for name in type(self).model_fields
+            if name not in REFERENCE_SETTINGS and (value := getattr(self, name)) is not None
+        }
 
 
 class FusionNoise(Settings):

@@ -131,13 +131,15 @@ def _shot(tick: int, motion: np.ndarray | None) -> SimpleNamespace:
     return SimpleNamespace(tick=tick, frame=SimpleNamespace(valid=motion is not None, vo=vo))
 
 
+REAR_ERROR_PERIOD = 4.0  # [s] of the follower camera's injected error across it
 FAILED = range(100, 120)  # the frames whose following odometry fails (4 s mid-run)
 
 
 @functools.lru_cache(maxsize=2)
-def _drive(reference: bool, failed: range = FAILED, ticks: int = 1500):
-    """The lead unit's filter over the sliding straight (the follower's frames ``failed`` fail); its errors, its
-    estimated s_z and s_f, and the filter. Computed once per case."""
+def _drive(reference: bool, failed: range = FAILED, ticks: int = 1500, rear_error: float = 0.0, scale: float = 1.0):
+    """The lead unit's filter over the sliding straight (the follower's frames ``failed`` fail; its camera's motion
+    off by ``rear_error`` [m] across it in every frame; ``k_c`` of (C2) ``scale``); its errors, its estimated s_z and
+    s_f, and the filter. Computed once per case."""
     params = VEHICLE_PRESETS["au-b-double"]()
     side = StereoRig.from_degrees(psi_c2v_deg=270.0, lateral=1.275, unit=1, station=-4.0)
     rear = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
@@ -146,7 +148,8 @@ def _drive(reference: bool, failed: range = FAILED, ticks: int = 1500):
     mount = fused.geometry.mount_rotation
     across_sign = math.copysign(1.0, float(mount[:2, 0] @ np.array([fused._optical_axis[1], -fused._optical_axis[0]])))
     follower = SimpleNamespace(released=[], camera_in_trailer=rear.camera_in_trailer("left", params))
-    following = FollowingCamera(CouplingReference(params, 1, 2, follower.camera_in_trailer, fused.noise), follower)
+    reference_ = CouplingReference(params, 1, 2, follower.camera_in_trailer, fused.noise, covariance_scale=scale)
+    following = FollowingCamera(reference_, follower)
     truth = OfftrackingBuffer(params.follow_point_offset_of(1))
     errors, previous, last = [], None, None
     for k in range(ticks):
@@ -166,6 +169,9 @@ def _drive(reference: bool, failed: range = FAILED, ticks: int = 1500):
                 across = across_sign * own[0, 3]
                 own[2, 3] += SCALE * own[2, 3] + FLOW * across * abs(across)  # eq (3')'s errors
                 rear_motion = None if k // EVERY in failed else np.linalg.inv(last[1]) @ worlds[1]
+                if rear_motion is not None:
+                    # the follower camera's own error, slowly varying: correlated over the frames of a swing
+                    rear_motion[0, 3] += rear_error * math.sin(2.0 * math.pi * t / REAR_ERROR_PERIOD)
                 follower.released = [_shot(k, rear_motion)]
             last = worlds
         following.observe(k, {"articulation": np.zeros(1), "rear_articulation": np.zeros(1)})
@@ -199,6 +205,50 @@ def test_a_following_camera_makes_the_axial_errors_observable_under_slip():
         injected = _axial(SCALE, FLOW, speed)
         assert abs(_axial(sz, sf, speed) - injected) < 1e-3, speed
         assert abs(_axial(sz_plain, sf_plain, speed) - injected) > 5e-3, speed
+
+
+def test_the_reference_covariance_scale_scales_c2_and_is_the_reference_setting():
+    """``k_c`` of (C2): the increment unchanged to the bit, the covariance ``k_c`` times the mapped one (to 1e-15
+    relative); 1 is the mapped covariance itself; outside [1, 100] or NaN refused. ``fusion.side_rig``'s
+    ``coupling_covariance_scale`` reaches the loop's reference, not the filter's settings."""
+    params = VEHICLE_PRESETS["au-b-double"]()
+    camera = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2).camera_in_trailer("left", params)
+    a, b = _swinging(1.0, 2), _swinging(1.2, 2)
+    rig = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
+    motion = np.linalg.inv(rig.camera_in_world(params, a, "left")) @ rig.camera_in_world(params, b, "left")
+    covariance = np.diag([1e-6, 4e-6, 1e-6, 1e-4, 1e-5, 1e-4])
+    plain = CouplingReference(params, 1, 2, camera, FusionNoise())
+    start, end = plain.articulations(a.angles), plain.articulations(b.angles)
+    z, r = plain.measurement(motion, covariance, start, end, (1e-3, 1e-6))
+    z4, r4 = CouplingReference(params, 1, 2, camera, FusionNoise(), covariance_scale=4.0).measurement(
+        motion, covariance, start, end, (1e-3, 1e-6)
+    )
+    np.testing.assert_array_equal(z4, z)
+    np.testing.assert_allclose(r4, 4.0 * r, rtol=1e-15, atol=0.0)
+    for bad in (0.5, 101.0, math.nan):
+        with pytest.raises(InputError, match="covariance_scale"):
+            CouplingReference(params, 1, 2, camera, FusionNoise(), covariance_scale=bad)
+    side = SIDE.replace(coupling_covariance_scale=4.0)
+    assert "coupling_covariance_scale" not in side.given()
+    noise = FusionNoise(side_rig=side).for_camera((0.0, 1.0))
+    cameras = {"viso_ot3": SimpleNamespace(camera_in_trailer=camera, released=[])}
+    assert following_camera(params, 1, cameras, noise, "planar").reference.covariance_scale == 4.0
+    assert following_camera(params, 1, cameras, FusionNoise(), "planar").reference.covariance_scale == 1.0
+
+
+def test_a_wider_reference_takes_less_of_the_followers_own_error():
+    """The follower's camera off across it by up to 2 mm a frame, swinging over 4 s (40 frames), an error correlated
+    over frames that its covariance takes as white: the lead's off-tracking takes it (over 5 mm RMS late in the run,
+    against the same filter without it); with ``k_c`` = 4 it takes under 0.75 of that."""
+    late = slice(-300, None)
+    taken = []
+    for scale in (1.0, 4.0):
+        off, *_ = _drive(True, FAILED, 1500, 2e-3, scale)
+        clean, *_ = _drive(True) if scale == 1.0 else _drive(True, FAILED, 1500, 0.0, scale)
+        n = min(len(off), len(clean))
+        taken.append(float(np.sqrt(np.mean((off[:n] - clean[:n])[late] ** 2))))
+    assert taken[0] > 0.005
+    assert taken[1] < 0.75 * taken[0]
 
 
 def test_the_lead_runs_on_when_the_following_frames_fail():

@@ -142,7 +142,10 @@ def following_camera(
             continue
         if getattr(getattr(camera, "feed", None), "level_reference", "planar") != level:
             return None
-        reference = CouplingReference(params, unit, follower, camera.camera_in_trailer, noise, level)
+        scale = getattr(getattr(noise, "side_rig", None), "coupling_covariance_scale", None)
+        reference = CouplingReference(
+            params, unit, follower, camera.camera_in_trailer, noise, level, 1.0 if scale is None else scale
+        )
         key = estimate_key("viso_ot_fused", follower)
 
         def yaw_bias(key: str = key) -> tuple[float, float] | None:
