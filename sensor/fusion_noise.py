@@ -53,6 +53,12 @@ class SideRigFusion(Settings):
         description="factor on (C2)'s covariance; below 1 claims a tighter sensor, 100 all but drops it",
     )
 
+    @property
+    def reference_covariance_scale(self) -> float:
+        """The factor the coupling reference applies to (C2)'s covariance: :attr:`coupling_covariance_scale`, 1
+        when unset."""
+        return 1.0 if self.coupling_covariance_scale is None else self.coupling_covariance_scale
+
     def given(self) -> dict[str, object]:
         """The settings it gives the filter (those not ``None``, less the reference's own)."""
         return {

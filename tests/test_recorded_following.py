@@ -34,7 +34,7 @@ def _pose(t: float) -> ChainPose:
     return ChainPose(3.0 * t + 0.4 * math.sin(t), 0.5 * t * t, 0.3 * t + 0.2 * math.sin(1.3 * t), angles)
 
 
-def _reference(missing: int | None, offset: float = OFFSET):
+def _reference(missing: int | None, offset: float = OFFSET, fusion: FusionConfig | None = None):
     """The lead's reference over 12 frames with a signals' row between each two (the follower's frame ``missing``
     not recorded, its frames ``offset`` after the lead's), the lead's rows and the B-double."""
     params = VEHICLE_PRESETS["au-b-double"]()
@@ -61,7 +61,7 @@ def _reference(missing: int | None, offset: float = OFFSET):
     lead = SimpleNamespace(
         rig=SimpleNamespace(unit=1, params=params), recording=SimpleNamespace(t0=T0, times=frames), signals=None
     )
-    reference = following_reference(lead, {2: trace}, times, slots, signals, FusionConfig())
+    reference = following_reference(lead, {2: trace}, times, slots, signals, fusion or FusionConfig())
     return reference, times, slots, params
 
 
@@ -89,6 +89,20 @@ def test_each_following_frame_gives_the_leads_exact_increment_over_the_same_fram
         np.testing.assert_allclose(measurement.increment, truth, rtol=0.0, atol=1e-9)
         assert np.all(np.linalg.eigvalsh(measurement.covariance) > 0.0)
     assert reference.following.measurements == rows.size - 1
+
+
+def test_the_recorded_reference_takes_the_side_rigs_covariance_scale() -> None:
+    """``fusion.side_rig.coupling_covariance_scale`` reaches an offline reference as it does a run's: each
+    measurement's covariance exactly that many times the unscaled one, its increment unchanged."""
+    plain, times, slots, _ = _reference(missing=None)
+    scaled, *_ = _reference(missing=None, fusion=FusionConfig(side_rig={"coupling_covariance_scale": 4.0}))
+    assert plain is not None and scaled is not None
+    found, wide = _measurements(plain, times, slots), _measurements(scaled, times, slots)
+    rows = [row for row, m in found.items() if m is not None]
+    assert rows and all(wide[row] is not None for row in rows)
+    for row in rows:
+        np.testing.assert_array_equal(wide[row].increment, found[row].increment)
+        np.testing.assert_allclose(wide[row].covariance, 4.0 * found[row].covariance, rtol=1e-12, atol=0.0)
 
 
 def test_a_missing_following_frame_gives_no_measurement_at_the_leads_anchor() -> None:

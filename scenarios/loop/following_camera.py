@@ -142,9 +142,8 @@ def following_camera(
             continue
         if getattr(getattr(camera, "feed", None), "level_reference", "planar") != level:
             return None
-        scale = getattr(getattr(noise, "side_rig", None), "coupling_covariance_scale", None)
         reference = CouplingReference(
-            params, unit, follower, camera.camera_in_trailer, noise, level, 1.0 if scale is None else scale
+            params, unit, follower, camera.camera_in_trailer, noise, level, noise.side_rig.reference_covariance_scale
         )
         key = estimate_key("viso_ot_fused", follower)
 

@@ -208,6 +208,11 @@ def following_reference(
         if abs(shared[nearest] - frame.time) <= tolerance:
             released[int(nearest)] = frame
     reference = CouplingReference(
-        lead.rig.params, lead.rig.unit, follower.inputs.rig.unit, follower.inputs.camera_in_trailer, noise
+        lead.rig.params,
+        lead.rig.unit,
+        follower.inputs.rig.unit,
+        follower.inputs.camera_in_trailer,
+        noise,
+        covariance_scale=noise.side_rig.reference_covariance_scale,
     )
     return RecordedFollowingCamera(reference, released, articulations)
