@@ -83,3 +83,16 @@ def test_a_rear_rig_is_the_same_to_the_bit_with_the_option() -> None:
     assert np.isfinite(runs[0][0]).sum() > 25
     for a, b in zip(runs[0][:3], runs[1][:3], strict=True):
         assert np.array_equal(a, b, equal_nan=True)
+
+
+def test_the_side_rigs_axial_effect_and_the_scrub_release_are_refused_outside_their_values() -> None:
+    """A scenario's ``fusion.side_rig.vo_axial_effect`` other than ``camera``/``posterior`` and a
+    ``fusion.scrub_bias_release`` outside [0, 1] are refused in one line naming the field, before any run."""
+    from scenarios.config import ConfigError, load_scenario
+
+    with pytest.raises(ConfigError, match=r"fusion\.side_rig\.vo_axial_effect"):
+        load_scenario("roundabout-3", {"vehicle": "lst", "fusion": {"side_rig": {"vo_axial_effect": "both"}}})
+    with pytest.raises(ConfigError, match=r"fusion\.scrub_bias_release"):
+        load_scenario("roundabout-3", {"vehicle": "lst", "fusion": {"scrub_bias_release": 1.5}})
+    cfg = load_scenario("roundabout-3", {"vehicle": "lst", "fusion": {"side_rig": {"vo_axial_effect": "posterior"}}})
+    assert cfg.fusion.side_rig.vo_axial_effect == "posterior" and cfg.fusion.scrub_bias_release == 0.7
