@@ -53,6 +53,21 @@ def crash_on_label(spec: CaseSpec, out_dir: Path) -> dict:
     return run_case(spec, out_dir)
 
 
+def run_once_both_workers_started(spec: CaseSpec, out_dir: Path) -> dict:
+    """A run function that waits (60 s at most) until two worker processes have each started a case, then runs it.
+
+    Without it one worker may take every short case before the other has started, and the sweep is right but
+    shows one process.
+    """
+    peers = out_dir / "peers"
+    peers.mkdir(exist_ok=True)
+    (peers / str(os.getpid())).touch()
+    deadline = time.monotonic() + 60.0
+    while len(list(peers.iterdir())) < 2 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return run_case(spec, out_dir)
+
+
 STOPS = {"KeyboardInterrupt": KeyboardInterrupt, "Terminated": Terminated}
 
 
@@ -127,7 +142,7 @@ def test_serial_sweep_writes_one_record_per_case_and_the_tables(serial: pd.DataF
 
 
 def test_two_local_workers_give_the_serial_table(serial: pd.DataFrame, tmp_path: Path) -> None:
-    result = run_sweep(CASES, tmp_path, workers=2)
+    result = run_sweep(CASES, tmp_path, run_once_both_workers_started, workers=2)
     assert result.executed == len(CASES)
     pd.testing.assert_frame_equal(_numbers(result.table), _numbers(serial))
     assert len({r.worker["pid"] for r in result.records}) == 2
