@@ -235,7 +235,7 @@ class PathFollowingConfig(Settings):
     high_speed_crossover: tuple[float, float] | None = (35.0 / 3.6, 55.0 / 3.6)
     slip_window_holds_feedforward: bool = True
     reach_freeze: bool = True
-    reach_freeze_at: ReachFreezeAt = "feedforward"
+    reach_freeze_at: ReachFreezeAt = "exit"
     max_outswing: float | None = Field(None, gt=0.0, le=2.0)
     preview_distance: float | None = Field(None, ge=0.0, le=30.0)
 

@@ -479,11 +479,11 @@ def test_the_reach_freeze_rule_is_a_scenario_setting():
     naming the field."""
     from scenarios.config import ConfigError, load_scenario
 
-    for rule in ("lock", "exit"):
+    for rule in ("feedforward", "lock"):
         cfg = load_scenario("roundabout-3", {"vehicle": "lst", "controller": {"reach_freeze_at": rule}})
         assert cfg.controller.path_following(50.0).reach_freeze_at == rule
-    assert load_scenario("roundabout-3", {"vehicle": "lst"}).controller.path_following(50.0).reach_freeze_at == (
-        "feedforward"
-    )
+    # The exit rule is the default, the scenario's and the controller's own alike.
+    assert load_scenario("roundabout-3", {"vehicle": "lst"}).controller.path_following(50.0).reach_freeze_at == "exit"
+    assert PathFollowingConfig().reach_freeze_at == "exit"
     with pytest.raises(ConfigError, match=r"controller\.reach_freeze_at"):
         load_scenario("roundabout-3", {"vehicle": "lst", "controller": {"reach_freeze_at": "never"}})

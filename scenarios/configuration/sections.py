@@ -447,7 +447,7 @@ class ControllerConfig(Settings):
         "path; 30 m is over two trailer lengths",
     )
     reach_freeze_at: Literal["feedforward", "lock", "exit"] = Field(
-        "feedforward",
+        "exit",
         description="where the path is beyond reach, an outswing's integral is held wherever the feed-forward is "
         "beyond the lock (feedforward) or only while the command with it still holds an axle at the lock (lock), "
         "or as lock and also from the turn's exit, the kingpin's curvature below half its peak (exit; "
