@@ -113,12 +113,12 @@ while every axle stays at its lock removing the error they left (``beyond_reach`
 ``<prefix>beyond_reach``); the run reports their share of the path. Off-tracking there measures the manoeuvre,
 not the controller.
 
-Where the path is beyond reach an outswing (``e·κ5 > 0``) is not integrated (``reach_freeze``; with
-``reach_freeze_at = "lock"`` only while the command with it still holds an axle past its lock, so that its push
-cannot reach the output; with ``"exit"`` as ``"lock"`` and also once the kingpin's curvature has fallen below
+Where the path is beyond reach an outswing (``e·κ5 > 0``) is not integrated while the command with it still holds
+an axle past its lock, so that its push cannot reach the output, nor once the kingpin's curvature has fallen below
 :data:`EXIT_CURVATURE_SHARE` of its peak since the path went beyond reach: the turn is ending, and an outswing
-integrated there would unwind as a cut-in after it), and ``max_outswing`` (off by default) bounds it:
-:mod:`controller.reach_rules`.
+integrated there would unwind as a cut-in after it (``reach_freeze``, ``reach_freeze_at = "exit"``, the default;
+``"lock"`` without the exit's hold; ``"feedforward"`` wherever the path is beyond reach), and ``max_outswing`` (off
+by default) bounds it: :mod:`controller.reach_rules`.
 
 Anti-windup
 -----------

@@ -194,9 +194,10 @@ class PathFollowingConfig(Settings):
         (an outswing the lock's transient leaves, which the integral would otherwise carry into the cut-in that
         follows). Off: conditional integration on the limits only.
     reach_freeze_at : {"feedforward", "lock", "exit"}
-        When the reach freeze holds an outswing's integral. ``feedforward``: wherever the feed-forward is beyond
-        reach. ``lock``: only while the command *with* that integral still holds an axle past its lock on the side
-        the integral pushes away from, so that the integral's push cannot reach the output and would only gather
+        When the reach freeze holds an outswing's integral (default ``exit``). ``feedforward``: wherever the
+        feed-forward is beyond reach, a guard against an outswing a sliding tractor's entry leaves at the lock.
+        ``lock``: only while the command *with* that integral still holds an axle past its lock on the side the
+        integral pushes away from, so that the integral's push cannot reach the output and would only gather
         behind the lock; where the feedback has brought the command back inside the lock the outswing is
         integrated, as any error is (docs/controller_design.md §3.5, §3.7). ``exit``: as ``lock``, and also
         wherever the kingpin's curvature has fallen below half its peak since the path went beyond reach (the
