@@ -531,9 +531,9 @@ class FusedVisoOt:
         disagreement = self.kinematic_share * math.sqrt(evidence) * self._lateral_lever
         # the coupling is known to vo_bias_coupling_uncertainty: so is the correction it applies for β_ψ
         coupling = self.noise.vo_bias_coupling_uncertainty * now.x[BPSI] * coherent[2]
-        if self._coupling_scrub > 0.0:  # (K5): the correction applied with (1 − D)·κ, the whole of it uncertain
+        if self._coupling_scrub > 0.0:  # (K5)–(K6): the correction applied in part, how much of it is real unknown
             scrub = self._coupling_scrub
-            share = scrub_coupling_share(self.noise, scrub)  # with (K6) less as the bias is released
+            share = scrub_coupling_share(self.noise, scrub)  # (K7)
             coupling = share * now.x[BPSI] * coherent[2]
             coherent = coherent - scrub * np.array([0.0, coherent[2], coherent[2]])
         self.std_parts = {

@@ -103,6 +103,7 @@ __all__ = [
     "kinematic_lateral_step",
     "push_variance",
     "scrub_bias_share",
+    "scrub_coupling_applied",
     "scrub_coupling_share",
 ]
 
@@ -119,10 +120,21 @@ def scrub_bias_share(noise: FusionNoise, demand: float) -> float:
     return 1.0 - noise.scrub_bias_release * demand
 
 
+def scrub_coupling_applied(noise: FusionNoise, demand: float) -> float:
+    """(K5)–(K6): the share ``a = (1 − r·D)·(1 − D)`` of the coupled correction ``β_ψ·G_κ`` a frame's motion is
+    taken with at the scrub demand ``demand`` (1 without a demand)."""
+    return scrub_bias_share(noise, demand) * (1.0 - demand)
+
+
 def scrub_coupling_share(noise: FusionNoise, demand: float) -> float:
-    """The share of the coupled correction ``β_ψ·G_κ`` the std's coupling term carries at the scrub demand
-    ``demand``: ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` of (K5)–(K6) (``u_κ`` without a demand)."""
-    return math.hypot(noise.vo_bias_coupling_uncertainty * (1.0 - demand), (1.0 - noise.scrub_bias_release) * demand)
+    """(K7): the share of the coupled correction ``β_ψ·G_κ`` the std's coupling term carries at the scrub demand
+    ``demand``, the RMS of ``k − a`` with ``a`` the share applied (:func:`scrub_coupling_applied`) and the true share
+    ``k`` at ``1 ± u_κ`` with weight ``1 − D`` and uniform on [0, 1] with weight ``D`` (``u_κ`` without a demand)."""
+    applied = scrub_coupling_applied(noise, demand)
+    u = noise.vo_bias_coupling_uncertainty
+    rolling = (1.0 - applied) ** 2 + u * u  # the coupling holds, known to u_κ
+    unknown = applied * applied - applied + 1.0 / 3.0  # E[(k − a)²] for k uniform on [0, 1]
+    return math.sqrt((1.0 - demand) * rolling + demand * unknown)
 
 
 def push_variance(noise: FusionNoise, slip_velocity: float) -> float:
