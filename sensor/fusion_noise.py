@@ -166,7 +166,7 @@ class FusionNoise(Settings):
     scrub_bias_release : float
         ``r`` of (K6) in :mod:`sensor.fusion_slip`: the share of the odometry's estimated systematic yaw error
         ``β_ψ`` a frame's motion is no longer taken with at full scrub demand, so that the camera's turn goes to the
-        heading while the tyres scrub; the std's coupling term carries the demand's share less by it (0: off).
+        heading while the tyres scrub (0: off); the std's coupling term then follows (K7).
     gate : float
         Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
     max_gated : int

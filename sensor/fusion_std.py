@@ -19,7 +19,8 @@ the motions are noisier than their covariances say and down (to a quarter at mos
 coupling ``κ`` of (3) is itself known only to a relative ``u_κ`` (``vo_bias_coupling_uncertainty``: the regression
 of the measured errors, docs/field_bias.md), so the translation the filter removes for the estimated ``β_ψ``,
 ``β_ψ·G_κ`` (``G_κ`` the coupled part of ``G``'s second entry), is uncertain by ``u_κ·β_ψ·G_κ``: a large
-estimated odometry error widens the std. A camera that looks across its motion (a side camera) has its weakest
+estimated odometry error widens the std (while the tyres scrub, by (K7) of :mod:`sensor.fusion_slip` instead).
+A camera that looks across its motion (a side camera) has its weakest
 direction along its optical axis ``o`` instead: a disparity offset scales its translation along ``o`` by a relative
 error, known to ``u_z`` (``vo_axial_scale_uncertainty``, 0 by default), which enters coherently over the path
 through ``A_z = Σ (o·Δ_c)·(g_xy·o)`` (``Δ_c`` each increment's camera displacement) and adds ``(u_z·A_z)²`` to
