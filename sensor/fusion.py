@@ -542,8 +542,11 @@ class FusedVisoOt:
         disagreement = self.kinematic_share * math.sqrt(evidence) * self._lateral_lever
         # the coupling is known to vo_bias_coupling_uncertainty: so is the correction it applies for β_ψ
         coupling = self.noise.vo_bias_coupling_uncertainty * now.x[BPSI] * coherent[2]
-        if effects_.coupled_demand > 0.0:  # (K7): taken in part while the tyres scrubbed, how much is real unknown
-            coupling = scrub_coupling_share(self.noise, effects_.coupled_demand) * now.x[BPSI] * coherent[2]
+        # (K5)–(K7): taken in part while the tyres scrubbed, how much of it is real unknown
+        uniform = self.noise.scrub_coupling_std == "uniform"  # (K7) at the demand over the path
+        demand = effects_.coupled_demand if uniform else self._coupling_scrub
+        if demand > 0.0:
+            coupling = scrub_coupling_share(self.noise, demand) * now.x[BPSI] * coherent[2]
         if self._coupling_scrub > 0.0:  # (K5): the biases' effect with the coupling given way
             scrub = self._coupling_scrub
             coherent = coherent - scrub * np.array([0.0, coherent[2], coherent[2]])

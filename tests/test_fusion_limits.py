@@ -133,7 +133,7 @@ def test_scrubbing_the_cameras_turn_goes_to_the_heading_not_to_the_odometrys_yaw
 def test_the_coupling_terms_share_covers_the_correction_left_out_at_every_demand() -> None:
     u = FusionNoise().vo_bias_coupling_uncertainty
     for release in np.linspace(0.0, 1.0, 11):
-        noise = FusionNoise(**SCRUB, scrub_bias_release=float(release))
+        noise = FusionNoise(**SCRUB, scrub_bias_release=float(release), scrub_coupling_std="uniform")
         assert scrub_coupling_share(noise, 0.0) == pytest.approx(u, abs=1e-15)  # rolling: eq (5)'s u_κ
         # at full demand none of it is applied and the share is the RMS of a uniform [0, 1]: 1/√3
         assert scrub_coupling_applied(noise, 1.0) == 0.0
@@ -174,7 +174,8 @@ def _with_coupled_yaw_error(params, noise: FusionNoise, switch: int, ticks: int 
 
 
 def test_while_the_tyres_scrub_the_std_covers_the_coupled_correction_left_out(lst) -> None:
-    noise = FusionNoise(scrub_slip_angle=0.04, scrub_bias_release=0.7)  # a run's configuration
+    # a run's configuration, with (K7)
+    noise = FusionNoise(scrub_slip_angle=0.04, scrub_bias_release=0.7, scrub_coupling_std="uniform")
     rolling = _with_coupled_yaw_error(lst, noise, switch=10**9)
     scrubbing = _with_coupled_yaw_error(lst, noise, switch=300)
     late = slice(320, None)  # from a second of frames after the demand went full (the follow point is 14 m back)
@@ -187,3 +188,22 @@ def test_while_the_tyres_scrub_the_std_covers_the_coupled_correction_left_out(ls
     # without the coupling term the std would not cover the estimate's error at the end
     others = np.sqrt(scrubbing[-1, 1] ** 2 - scrubbing[-1, 2] ** 2)
     assert abs(scrubbing[-1, 0]) > 2.0 * others
+    # with (K6)'s share instead (the default) the estimate is the same to the bit and the std's coupling term smaller
+    release = _with_coupled_yaw_error(lst, noise.model_copy(update={"scrub_coupling_std": "release"}), switch=300)
+    assert np.array_equal(release[:, 0], scrubbing[:, 0], equal_nan=True)
+    assert np.all(release[late, 2] < scrubbing[late, 2])
+    # rolling throughout the two shares are one filter, to the bit
+    rolling_release = _with_coupled_yaw_error(lst, noise.model_copy(update={"scrub_coupling_std": "release"}), 10**9)
+    assert np.array_equal(rolling_release, rolling, equal_nan=True)
+
+
+def test_the_scrub_coupling_std_is_refused_outside_its_values() -> None:
+    """A scenario's ``fusion.scrub_coupling_std`` other than ``release``/``uniform`` is refused in one line naming
+    the field, before any run; a run's configuration keeps ``release``."""
+    from scenarios.config import ConfigError, load_scenario
+
+    with pytest.raises(ConfigError, match=r"fusion\.scrub_coupling_std"):
+        load_scenario("roundabout-3", {"vehicle": "lst", "fusion": {"scrub_coupling_std": "normal"}})
+    assert load_scenario("roundabout-3", {"vehicle": "lst"}).fusion.scrub_coupling_std == "release"
+    uniform = load_scenario("roundabout-3", {"vehicle": "lst", "fusion": {"scrub_coupling_std": "uniform"}})
+    assert uniform.fusion.scrub_coupling_std == "uniform"
