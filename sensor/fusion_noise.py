@@ -10,11 +10,12 @@ from pydantic import Field
 from vehicle_model.kinematics import RearPoint
 from vehicle_model.settings import Settings
 
-__all__ = ["AxialEffect", "FusionNoise", "SideRigFusion"]
+__all__ = ["AxialEffect", "FusionNoise", "ScrubCouplingStd", "SideRigFusion"]
 
 AxialEffect = Literal["camera", "posterior"]
-ScrubCouplingStd = Literal["release", "uniform"]
 """How the axial states' uncertainty enters the off-tracking's std (:mod:`sensor.fusion_axial`)."""
+ScrubCouplingStd = Literal["release", "uniform"]
+"""How the std's coupling term carries the coupled correction while the tyres scrub (:mod:`sensor.fusion_slip`)."""
 
 
 REFERENCE_SETTINGS: tuple[str, ...] = ("coupling_covariance_scale",)
