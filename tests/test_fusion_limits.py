@@ -207,3 +207,32 @@ def test_the_scrub_coupling_std_is_refused_outside_its_values() -> None:
     assert load_scenario("roundabout-3", {"vehicle": "lst"}).fusion.scrub_coupling_std == "release"
     uniform = load_scenario("roundabout-3", {"vehicle": "lst", "fusion": {"scrub_coupling_std": "uniform"}})
     assert uniform.fusion.scrub_coupling_std == "uniform"
+
+
+def test_the_demand_over_the_path_weights_each_increment_by_its_coupled_sensitivity() -> None:
+    """``D̄`` of (K7): 0 with no demand anywhere, 1 with every increment and the current one at full demand, and with
+    the increments behind the current point half at full demand, their share of the coupled sensitivity ``Σ
+    |g·κc|·length`` (to 1e-12)."""
+    from sensor.fusion_std import IncrementWindow, path_effects
+
+    n, step, lfp = 10, 1.0, 8.0
+    starts = np.column_stack([-step * np.arange(n, 0, -1), np.zeros(n), np.zeros(n)])  # a straight path behind
+    ends = starts[:, :2] + [step, 0.0]
+    covariances, durations = np.repeat(np.eye(3)[None] * 1e-6, n, axis=0), np.full(n, 0.25)
+    coupling, pose = np.array([0.5, 12.0]), np.array([0.3, 0.0, 0.0])
+
+    def demand_over_path(demands: np.ndarray, now: float) -> float:
+        window = IncrementWindow(starts, ends, covariances, durations, demands)
+        args = (pose, np.eye(3) * 1e-6, 0.1, window, lfp, 9.0, coupling, None, np.zeros(2))
+        return path_effects(*args, now).coupled_demand
+
+    assert demand_over_path(np.zeros(n), 0.0) == 0.0
+    assert demand_over_path(np.ones(n), 1.0) == pytest.approx(1.0, abs=1e-12)
+    half = (np.arange(n) < n // 2).astype(float)  # the older half scrubbed
+    # the expected weights: each increment still ahead of the follow point, |g_x·c_x + g_y·c_y|·length (eq (4))
+    ahead = starts[:, 0] - pose[0] > -lfp
+    weights = np.abs(-np.sin(-pose[2]) * coupling[0] - np.cos(-pose[2]) * coupling[1]) * step * ahead
+    now = abs(math.cos(pose[2]) * -coupling[1] + math.sin(pose[2]) * coupling[0]) * math.hypot(*pose[:2])
+    expected = float(np.dot(half, weights)) / (float(np.sum(weights)) + now)
+    assert demand_over_path(half, 0.0) == pytest.approx(expected, abs=1e-12)
+    assert 0.0 < expected < 1.0
