@@ -236,6 +236,7 @@ class FusedVisoOt:
         self._ends = np.zeros((0, 2))
         self._covs = np.zeros((0, 3, 3))
         self._durations = np.zeros(0)
+        self._demands = np.zeros(0)  # D of (K5) each committed increment was taken at
         axial_states = [i for i in (self._sz, self._sf) if i is not None]  # (A1) of sensor.fusion_axial, when asked
         posterior = n.vo_axial_effect == "posterior" and axial_states
         self._axial_regression = AxialRegression(axial_states) if posterior else None
@@ -471,13 +472,14 @@ class FusedVisoOt:
         ends = np.vstack([self._ends, end[None, :2]])
         covs = np.concatenate([self._covs, p[None, :3, :3]])
         durations = np.append(self._durations, sum(t.inputs[0] for t in list(self._history)[1 : index + 1]))
+        demands = np.append(self._demands, self._history[index].scrub)
         starts = into_frame(starts, end)
         ends = into_frame(np.column_stack([ends, np.zeros(len(ends))]), end)[:, :2]
         keep = starts[:, 0] > -self.follow_point_offset - 2.0
         if self._axial_regression is not None:  # the increment's regression on the axial states, before the reset
             self._axial_regression.commit(p, keep)
         self._starts, self._ends, self._covs = starts[keep], ends[keep], covs[keep]
-        self._durations = durations[keep]
+        self._durations, self._demands = durations[keep], demands[keep]
         # The new anchor: Δ restarts from zero; the other states keep their covariance.
         anchor_x = x.copy()
         anchor_x[:3] = 0.0
@@ -507,14 +509,23 @@ class FusedVisoOt:
             self.std_parts = dict.fromkeys(STD_PARTS, math.nan)
             return
         elapsed = sum(t.inputs[0] for t in list(self._history)[1:])
-        window = IncrementWindow(self._starts, self._ends, self._covs, self._durations)
+        window = IncrementWindow(self._starts, self._ends, self._covs, self._durations, self._demands)
         axis = (
             self._optical_axis
             if self.noise.vo_axial_scale_uncertainty > 0.0 or self._axial_state or self._flow_state
             else None
         )
         effects_ = path_effects(
-            d, now.p[:3, :3], elapsed, window, lfp, self.slip_point, self._coupling, axis, self.geometry.camera_position
+            d,
+            now.p[:3, :3],
+            elapsed,
+            window,
+            lfp,
+            self.slip_point,
+            self._coupling,
+            axis,
+            self.geometry.camera_position,
+            self.scrub_demand,
         )
         independent, coherent, axial, cross = effects_.independent, effects_.coherent, effects_.axial, effects_.cross
         self._lateral_lever = effects_.lever
@@ -531,10 +542,13 @@ class FusedVisoOt:
         disagreement = self.kinematic_share * math.sqrt(evidence) * self._lateral_lever
         # the coupling is known to vo_bias_coupling_uncertainty: so is the correction it applies for β_ψ
         coupling = self.noise.vo_bias_coupling_uncertainty * now.x[BPSI] * coherent[2]
-        if self._coupling_scrub > 0.0:  # (K5): the correction applied with (1 − D)·κ, the whole of it uncertain
+        # (K5)–(K7): taken in part while the tyres scrubbed, how much of it is real unknown
+        uniform = self.noise.scrub_coupling_std == "uniform"  # (K7) at the demand over the path
+        demand = effects_.coupled_demand if uniform else self._coupling_scrub
+        if demand > 0.0:
+            coupling = scrub_coupling_share(self.noise, demand) * now.x[BPSI] * coherent[2]
+        if self._coupling_scrub > 0.0:  # (K5): the biases' effect with the coupling given way
             scrub = self._coupling_scrub
-            share = scrub_coupling_share(self.noise, scrub)  # with (K6) less as the bias is released
-            coupling = share * now.x[BPSI] * coherent[2]
             coherent = coherent - scrub * np.array([0.0, coherent[2], coherent[2]])
         self.std_parts = {
             "increments": self.innovation_ratio * independent,

@@ -10,10 +10,12 @@ from pydantic import Field
 from vehicle_model.kinematics import RearPoint
 from vehicle_model.settings import Settings
 
-__all__ = ["AxialEffect", "FusionNoise", "SideRigFusion"]
+__all__ = ["AxialEffect", "FusionNoise", "ScrubCouplingStd", "SideRigFusion"]
 
 AxialEffect = Literal["camera", "posterior"]
 """How the axial states' uncertainty enters the off-tracking's std (:mod:`sensor.fusion_axial`)."""
+ScrubCouplingStd = Literal["release", "uniform"]
+"""How the std's coupling term carries the coupled correction while the tyres scrub (:mod:`sensor.fusion_slip`)."""
 
 
 REFERENCE_SETTINGS: tuple[str, ...] = ("coupling_covariance_scale",)
@@ -166,7 +168,12 @@ class FusionNoise(Settings):
     scrub_bias_release : float
         ``r`` of (K6) in :mod:`sensor.fusion_slip`: the share of the odometry's estimated systematic yaw error
         ``β_ψ`` a frame's motion is no longer taken with at full scrub demand, so that the camera's turn goes to the
-        heading while the tyres scrub; the std's coupling term carries the demand's share less by it (0: off).
+        heading while the tyres scrub (0: off).
+    scrub_coupling_std : {"release", "uniform"}
+        The share of the coupled correction ``β_ψ·G_κ`` the std's coupling term carries while the tyres scrub
+        (:mod:`sensor.fusion_slip`): ``release`` ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` at the last frame's demand;
+        ``uniform`` (K7), the RMS of the share the frames applied less the real one, uniform on [0, 1] at full
+        demand, at the demand over the path.
     gate : float
         Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
     max_gated : int
@@ -280,6 +287,7 @@ class FusionNoise(Settings):
     scrub_bias_release: float = Field(
         0.0, ge=0.0, le=1.0, description="share of β_ψ released at full scrub demand (K6); 1 takes none of it"
     )
+    scrub_coupling_std: ScrubCouplingStd = "release"
     gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
     max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")
     max_std: float = Field(0.5, gt=0.0, le=10.0, description="[m] of off-tracking std; 10 m says nothing")

@@ -68,8 +68,8 @@ about where the unit goes, not their common slip: a trailer sliding sideways on 
 angle, which ``v_s`` and (K2) already carry, and no demand. With ``D`` > 0 the slip velocity's random walk widens by
 ``D·scrub_slip_walk``, and eq (3)'s coupling gives way to its uncertainty: the motion is taken with ``(1 − D)·κ``
 and the off-tracking's std carries the whole coupled correction as uncertain in proportion, eq (5)'s coupling term
-``β_ψ·G_κ·√((u_κ·(1 − D))² + D²)`` with ``G_κ`` at the full ``κ`` (:mod:`sensor.fusion_std`; less with (K6)
-below). A free-rolling unit
+``β_ψ·G_κ·√((u_κ·(1 − D))² + D²)`` with ``G_κ`` at the full ``κ`` (:mod:`sensor.fusion_std`; otherwise with (K6)
+and (K7) below). A free-rolling unit
 in an ordinary turn has slip angles of a degree or two and no demand.
 
 The odometry's systematic error released. While the tyres scrub the camera's motions disagree with the gyro in a way
@@ -78,12 +78,30 @@ disagreement cheapest to explain by ``β_ψ``, moves it and carries the wrong ``
 coupled correction, into the std's coupling term). With ``scrub_bias_release`` ``r`` > 0 the frame's motion is
 taken with ``(1 − r·D)`` of the state's ``β_ψ`` — its yaw and its coupled translation alike — so the camera's
 turn goes to the heading and ``β_ψ`` learns from the scrub only the ``1 − r·D`` it is still taken with (nothing at
-``r`` = 1); the filter leans less on the coupled correction, and the std's coupling term carries the demand's share
-less by ``r``, ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` of ``β_ψ·G_κ``::
+``r`` = 1); with ``scrub_coupling_std`` ``release`` (the default) the std's coupling term carries the demand's
+share less by ``r``, ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` of ``β_ψ·G_κ``::
 
     H_ψ,β = (1 − r·D)·d,   H_xy,β = (1 − r·D)·d·(1 − D)·κ·(c_x, c_y)                             (K6)
 
 With ``r`` = 0 (the default) the filter is that of (K5) alone; with ``D`` = 0 it is the filter without either.
+
+The coupled correction in the std, ``scrub_coupling_std`` ``uniform``. Of the coupled correction ``β_ψ·G_κ``
+(``G_κ`` at the full ``κ``, :mod:`sensor.fusion_std`) a frame taken at the demand ``D`` applies the share
+``a = (1 − r·D)·(1 − D)``; how much of it is real, ``k``, the filter cannot tell while the tyres scrub: where
+the coupling of eq (3) holds through the scrub (the odometry's error is its geometry's, and ``β_ψ``, held by (K6),
+is the one learnt rolling) all of it (``k`` = 1), where the scrubbing turn is not one the coupling was measured
+on (docs/field_bias.md §6.8) none. Rolling, ``k`` is 1 known to ``u_κ``; scrubbing, nothing favours any share
+between, so ``k`` is taken uniform on [0, 1] (the least informed law on that range). With weights ``1 − D`` and
+``D`` the coupling term of eq (5) is the RMS of ``(k − a)·β_ψ·G_κ``::
+
+    σ_κ² = (β_ψ·G_κ)²·((1 − D̄)·((1 − a)² + u_κ²) + D̄·(a² − a + 1/3)),   a = (1 − r·D̄)·(1 − D̄)          (K7)
+
+``D̄`` the demand over the path the std covers: the demands the increments ahead of the follow point (and the
+current one) were taken at, weighted by their shares of ``G_κ``, so that the term outlives the demand while the
+path still holds what the scrub left out. With ``D̄`` = 0 it is eq (5)'s ``u_κ·β_ψ·G_κ``; at ``D̄`` = 1 it is
+``β_ψ·G_κ/√3``, and at every demand twice it is at least the share left out, ``1 − a``, plus ``u_κ``. The term is
+larger than ``release``'s wherever the demand is, so the std more often exceeds what a controller that drops an
+uncertain estimate accepts (docs/field_bias.md §6.12).
 """
 
 from __future__ import annotations
@@ -103,6 +121,7 @@ __all__ = [
     "kinematic_lateral_step",
     "push_variance",
     "scrub_bias_share",
+    "scrub_coupling_applied",
     "scrub_coupling_share",
 ]
 
@@ -119,10 +138,25 @@ def scrub_bias_share(noise: FusionNoise, demand: float) -> float:
     return 1.0 - noise.scrub_bias_release * demand
 
 
+def scrub_coupling_applied(noise: FusionNoise, demand: float) -> float:
+    """(K5)–(K6): the share ``a = (1 − r·D)·(1 − D)`` of the coupled correction ``β_ψ·G_κ`` a frame's motion is
+    taken with at the scrub demand ``demand`` (1 without a demand)."""
+    return scrub_bias_share(noise, demand) * (1.0 - demand)
+
+
 def scrub_coupling_share(noise: FusionNoise, demand: float) -> float:
     """The share of the coupled correction ``β_ψ·G_κ`` the std's coupling term carries at the scrub demand
-    ``demand``: ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` of (K5)–(K6) (``u_κ`` without a demand)."""
-    return math.hypot(noise.vo_bias_coupling_uncertainty * (1.0 - demand), (1.0 - noise.scrub_bias_release) * demand)
+    ``demand`` (``u_κ`` without a demand). ``noise.scrub_coupling_std`` ``release``: ``√((u_κ·(1 − D))² +
+    ((1 − r)·D)²)`` of (K5)–(K6); ``uniform``: (K7), the RMS of ``k − a`` with ``a`` the share applied
+    (:func:`scrub_coupling_applied`) and the true share ``k`` at ``1 ± u_κ`` with weight ``1 − D`` and uniform on
+    [0, 1] with weight ``D``."""
+    u = noise.vo_bias_coupling_uncertainty
+    if noise.scrub_coupling_std == "release":
+        return math.hypot(u * (1.0 - demand), (1.0 - noise.scrub_bias_release) * demand)
+    applied = scrub_coupling_applied(noise, demand)
+    rolling = (1.0 - applied) ** 2 + u * u  # the coupling holds, known to u_κ
+    unknown = applied * applied - applied + 1.0 / 3.0  # E[(k − a)²] for k uniform on [0, 1]
+    return math.sqrt((1.0 - demand) * rolling + demand * unknown)
 
 
 def push_variance(noise: FusionNoise, slip_velocity: float) -> float:

@@ -19,7 +19,8 @@ the motions are noisier than their covariances say and down (to a quarter at mos
 coupling ``κ`` of (3) is itself known only to a relative ``u_κ`` (``vo_bias_coupling_uncertainty``: the regression
 of the measured errors, docs/field_bias.md), so the translation the filter removes for the estimated ``β_ψ``,
 ``β_ψ·G_κ`` (``G_κ`` the coupled part of ``G``'s second entry), is uncertain by ``u_κ·β_ψ·G_κ``: a large
-estimated odometry error widens the std. A camera that looks across its motion (a side camera) has its weakest
+estimated odometry error widens the std (while the tyres scrub, by (K7) of :mod:`sensor.fusion_slip` instead).
+A camera that looks across its motion (a side camera) has its weakest
 direction along its optical axis ``o`` instead: a disparity offset scales its translation along ``o`` by a relative
 error, known to ``u_z`` (``vo_axial_scale_uncertainty``, 0 by default), which enters coherently over the path
 through ``A_z = Σ (o·Δ_c)·(g_xy·o)`` (``Δ_c`` each increment's camera displacement) and adds ``(u_z·A_z)²`` to
@@ -110,12 +111,15 @@ class IncrementWindow:
         (n, 3, 3) each increment's covariance.
     durations : numpy.ndarray
         (n,) each increment's duration [s].
+    demands : numpy.ndarray or None
+        (n,) the scrub demand ``D`` of (K5) each increment was taken at (``None``: none anywhere).
     """
 
     starts: np.ndarray
     ends: np.ndarray
     covariances: np.ndarray
     durations: np.ndarray
+    demands: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -132,6 +136,9 @@ class PathEffects:
         ``Λ``: ∂e_tr/∂v_s, a slip velocity error held over the window [s].
     axial, cross : float
         ``A_z`` and ``A_f`` (0 when not asked for).
+    coupled_demand : float
+        ``D̄`` of (K7): the increments' scrub demands weighted by their shares of the coupled part of ``G`` (0 where
+        no increment was taken at a demand).
     """
 
     independent: float
@@ -139,6 +146,7 @@ class PathEffects:
     lever: float
     axial: float
     cross: float
+    coupled_demand: float = 0.0
 
 
 def path_effects(
@@ -151,6 +159,7 @@ def path_effects(
     coupling: np.ndarray,
     axis: np.ndarray | None,
     camera: np.ndarray,
+    demand: float = 0.0,
 ) -> PathEffects:
     """Eq (4)'s sensitivities summed over the committed increments ahead of the follow point and the current one.
 
@@ -174,12 +183,15 @@ def path_effects(
         The camera's optical axis in the unit's ground plane (``None``: ``A_z`` and ``A_f`` not needed, zero).
     camera
         The camera's position in the unit's frame [m].
+    demand
+        The scrub demand of (K5) the current increment is taken at (with the window's ``demands``, ``D̄`` of (K7)).
     """
     d, lfp = pose, follow_point_offset
     c, s = math.cos(d[2]), math.sin(d[2])
     independent = 0.0
     coherent = np.zeros(3)
     lever = axial = cross = 0.0
+    scrubbed = weight = 0.0  # Σ D_j·|coupled_j| and Σ |coupled_j| of (K7)
     if len(window.covariances):
         starts, ends = window.starts, window.ends
         ahead = c * (starts[:, 0] - d[0]) + s * (starts[:, 1] - d[1]) > -lfp
@@ -190,6 +202,9 @@ def path_effects(
             independent = float(np.einsum("ni,nij,nj->", g, window.covariances[ahead], g))
             length = np.hypot(ends[ahead, 0] - starts[ahead, 0], ends[ahead, 1] - starts[ahead, 1])
             coherent = bias_effect(g, length, window.durations[ahead], slip_point, coupling)
+            if window.demands is not None:
+                coupled = np.abs((g[:, 0] * coupling[0] + g[:, 1] * coupling[1]) * length)
+                scrubbed, weight = float(np.dot(window.demands[ahead], coupled)), float(np.sum(coupled))
             lever += float(np.sum(g[:, 1] * window.durations[ahead]))
             if axis is not None:
                 turns = np.diff(np.append(starts[:, 2], 0.0))[ahead]  # each increment's Δψ (it ends at the next)
@@ -202,7 +217,9 @@ def path_effects(
             g_now[None, :], np.zeros((1, 3)), d[None, :2], np.array([d[2]]), axis, camera
         )
         axial, cross = axial + now_axial, cross + now_cross
-    coherent += bias_effect(
-        g_now[None, :], np.array([math.hypot(d[0], d[1])]), np.array([elapsed]), slip_point, coupling
-    )
-    return PathEffects(independent, coherent, lever + g_now[1] * elapsed, axial, cross)
+    now = bias_effect(g_now[None, :], np.array([math.hypot(d[0], d[1])]), np.array([elapsed]), slip_point, coupling)
+    coherent += now
+    if scrubbed > 0.0 or demand > 0.0:  # (K7): the demand over the path, as the coupled correction is spread on it
+        scrubbed, weight = scrubbed + demand * abs(now[2]), weight + abs(now[2])
+    coupled_demand = scrubbed / weight if scrubbed > 0.0 and weight > 0.0 else 0.0
+    return PathEffects(independent, coherent, lever + g_now[1] * elapsed, axial, cross, coupled_demand)
