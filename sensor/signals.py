@@ -21,6 +21,9 @@ tractor_lateral_    the tractor's lateral accelerometer at its CG (the stability
 acceleration        specific force, acceleration less gravity, so on a cross slope it reads the share of
                     gravity the tyres carry [m/s²]
 ==================  ===============================================================
+
+An opt-in channel is sampled by an instance of its own with a generator of its own, so that a run without it draws
+what it always did: each towed unit's lateral accelerometer (:mod:`sensor.trailer_accelerometer`).
 """
 
 from __future__ import annotations

@@ -284,7 +284,9 @@ class RatesConfig(Settings):
 
 
 class SignalsConfig(Settings):
-    """On-board signals. Units: m/s for speed, rad and rad/s for angles and rates, m/s² for the accelerometer."""
+    """On-board signals. Units: m/s for speed, rad and rad/s for angles and rates, m/s² for the accelerometers.
+    ``trailer_lateral_acceleration`` is opt-in (``null``: none), one per towed unit drawn from its own random stream
+    (``sensor.trailer_accelerometer``); ``sensor.datasheet.trailer_accelerometer_fields`` gives its field errors."""
 
     wheel_speed: ChannelSpec = ChannelSpec()
     front_steer: ChannelSpec = ChannelSpec()
