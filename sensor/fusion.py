@@ -430,7 +430,9 @@ class FusedVisoOt:
             kinematic_y = kinematic_lateral_step(
                 [(t.inputs, t.tractor_lateral) for t in list(self._history)[1 : index + 1]], x
             )
-            if kinematic_y is not None:  # (K2): the camera's lateral motion against the tractor's kinematics
+            # (K2): the camera's lateral motion against the tractor's kinematics; not against the unit's own slip
+            # reference (T2), which measures the slip itself: the disagreement is then the camera's error, not slip
+            if kinematic_y is not None and self._own_reference is None:
                 camera_y = z[1] - h[1, BPSI] * x[BPSI]
                 for i in (self._sz, self._sf):  # less the estimated error along the optical axis, (3')
                     if i is not None:
