@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -145,3 +146,42 @@ def test_the_reference_without_the_accelerometer_is_refused_naming_the_field(tmp
         and "signals.trailer_lateral_acceleration" in result.output
     )
     assert not (tmp_path / "run").exists()
+
+
+def test_the_filter_takes_the_trailers_slip_from_its_own_accelerometer_and_no_evidence_against_it() -> None:
+    # 0.1 m/s of slip from t = 10 s in a left turn; the tractor's kinematics (its accelerometer's point) say none,
+    # the trailer's accelerometer reads what (T2) needs for it. Blinded for 7 s in the turn, the filter with the
+    # trailer's reference follows the truth within 1 cm; with the tractor's it does not (over 5 cm). A camera
+    # that disagrees by a steady 0.05 m/s leaves σ_k of the trailer's reference at its floor.
+    from sensor.fusion import FusedVisoOt, FusionNoise, TractorSignals
+    from tests.test_fusion import CAMERA, DT, PARAMS, drive_with_truth, run, tractor_signals
+    from vehicle_model.errors import InputError
+
+    r_m, w_m, incs, true = drive_with_truth(n=1500, slip=0.1)
+    reference = UnitSlipReference(PARAMS, 1)
+    lc = reference.slip_point
+    readings = [(r * reference.spread / lc - vs) / (reference.gradient * u) if u * r else 0.0 for u, r, vs in true]
+    tractor = [
+        replace(tractor_signals(u, r, r * lc, "lateral_acceleration", u * r), unit_lateral_acceleration=f)
+        for (u, r, _), f in zip(true, readings, strict=True)
+    ]
+    blind = (np.arange(1500) > 1000) & (np.arange(1500) < 1350)
+
+    def worst(point: str, frame_error=None) -> tuple[float, FusedVisoOt]:
+        fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(kinematic_rear_point=point))
+        est, _, ref = run(
+            fused, r_m, w_m, incs, drop=lambda frame: 200 < frame < 270, tractor=tractor, frame_error=frame_error
+        )
+        return float(np.max(np.abs(est[blind] - ref[blind]))), fused
+
+    own, _ = worst("trailer_lateral_acceleration")
+    assert own < 0.01
+    assert worst("lateral_acceleration")[0] > 0.05
+    error = np.tile([0.0, 0.05 * DT * 5, 0.0], (300, 1))  # 0.05 m/s to the left, every frame
+    _, fused = worst("trailer_lateral_acceleration", error)
+    floor = math.hypot(fused.noise.tractor_slip, fused.noise.tractor_stiffness_uncertainty * 0.1)
+    assert fused.kinematic_std <= floor + 1e-9
+    fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(kinematic_rear_point="trailer_lateral_acceleration"))
+    fused.propagate(0, DT, 0.0, 4.0)
+    with pytest.raises(InputError, match=r"signals\.trailer_lateral_acceleration"):
+        fused.propagate(1, DT, 0.0, 4.0, None, TractorSignals(4.0, 0.0, 0.0, 0.0))  # no reading: NaN
