@@ -55,7 +55,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DATASHEET_BIAS_LIMITS", "DATASHEET_NOISE", "datasheet_fields", "draw_biases"]
+from .trailer_accelerometer import STREAM
+
+__all__ = [
+    "DATASHEET_BIAS_LIMITS",
+    "DATASHEET_NOISE",
+    "datasheet_fields",
+    "draw_biases",
+    "trailer_accelerometer_fields",
+]
 
 DATASHEET_NOISE: dict[str, float] = {
     "wheel_speed": 0.02,
@@ -76,6 +84,18 @@ DATASHEET_BIAS_LIMITS: dict[str, float] = {
 }
 """Per-run bias, drawn uniformly within ± this [rad, rad/s or m/s²] (module docstring for the sources); a channel
 added later goes last, so the draws of those before it do not change."""
+
+
+def trailer_accelerometer_fields(seed: int) -> dict[str, dict[str, float]]:
+    """The towed units' accelerometer (``signals.trailer_lateral_acceleration``, :mod:`sensor.trailer_accelerometer`)
+    with the tractor's accelerometer's data-sheet errors: the same MEMS family, so its white noise and a bias drawn
+    uniformly within its limit, from a generator of its own (``default_rng([seed, STREAM])``) so that no other
+    channel's draw changes."""
+    name = "tractor_lateral_acceleration"
+    bias = float(
+        np.random.default_rng([seed, STREAM]).uniform(-DATASHEET_BIAS_LIMITS[name], DATASHEET_BIAS_LIMITS[name])
+    )
+    return {"signals.trailer_lateral_acceleration": {"noise_std": DATASHEET_NOISE[name], "bias": bias}}
 
 
 def draw_biases(rng: np.random.Generator) -> dict[str, float]:

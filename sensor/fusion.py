@@ -78,6 +78,7 @@ from .fusion_slip import (
 )
 from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects
 from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics, unit_axles
+from .unit_slip_reference import TRAILER_REFERENCE, UnitSlipReference
 from .viso_ot import VisoOtEstimator
 
 __all__ = [
@@ -173,7 +174,11 @@ class FusedVisoOt:
         self.unit = self.geometry.unit
         self.follow_point_offset = params.follow_point_offset_of(self.unit)
         self.slip_point, self.steer_weights = slip_kinematics(params, self.unit)
-        self._chain = ChainKinematics(params, self.unit, self.noise.kinematic_rear_point)  # (K1)'s z_c
+        point = self.noise.kinematic_rear_point
+        # (K1)'s z_c: the tractor's kinematics carried down the chain, or the unit's own accelerometer's slip (T2)
+        own = point == TRAILER_REFERENCE
+        self._own_reference = UnitSlipReference(params, self.unit) if own else None
+        self._chain = ChainKinematics(params, self.unit, "lateral_acceleration" if own else point)  # type: ignore[arg-type]
         self.buffer = OfftrackingBuffer(self.follow_point_offset)
         layout = StateLayout.of(self.noise)
         self._layout = layout
@@ -300,10 +305,15 @@ class FusedVisoOt:
         kinematic: tuple[tuple[np.ndarray, float, float], ...] = ()
         lateral = math.nan
         if tractor is not None and self.noise.kinematics and self._previous_input is not None:
-            lateral = self._chain.lateral(tractor, float(dt))
-            self._zero_slip.modelled_slip = (
-                self._chain.modelled_slip
-            )  # the rear slip the compensated points predict, (K2)
+            if self._own_reference is not None:  # (T2) of sensor.unit_slip_reference
+                own = tractor.unit_lateral_acceleration
+                lateral, slip = self._own_reference.lateral(float(yaw_rate), float(wheel_speed), steer, own)
+                self._zero_slip.modelled_slip = slip  # the slip it predicts, uncertain by the stiffnesses, (K2)
+            else:
+                lateral = self._chain.lateral(tractor, float(dt))
+                self._zero_slip.modelled_slip = (
+                    self._chain.modelled_slip
+                )  # the rear slip the compensated points predict, (K2)
             if math.isfinite(lateral):
                 kinematic = self._zero_slip.rows(sample, lateral, float(dt), x)
                 x, p = apply_rows(x, p, kinematic)
@@ -421,7 +431,9 @@ class FusedVisoOt:
             kinematic_y = kinematic_lateral_step(
                 [(t.inputs, t.tractor_lateral) for t in list(self._history)[1 : index + 1]], x
             )
-            if kinematic_y is not None:  # (K2): the camera's lateral motion against the tractor's kinematics
+            # (K2): the camera's lateral motion against the tractor's kinematics; not against the unit's own slip
+            # reference (T2), which measures the slip itself: the disagreement is then the camera's error, not slip
+            if kinematic_y is not None and self._own_reference is None:
                 camera_y = z[1] - h[1, BPSI] * x[BPSI]
                 for i in (self._sz, self._sf):  # less the estimated error along the optical axis, (3')
                     if i is not None:

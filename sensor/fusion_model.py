@@ -53,7 +53,10 @@ predicted from its speed. With the tractor's lateral accelerometer (``lateral_ac
 equivalent wheelbase moving sideways at ``−K·u_1·f_y`` (``f_y`` the specific force it reads:
 :meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_slip_velocity`), which is the same in a level steady
 turn (``f_y = u_1·r_1``) and also covers a cross slope's share of gravity. The rest (saturation, a scrubbing
-trailer's push, and for the fixed points the camber) is ``ε_k`` below. With (1) it measures the slip velocity::
+trailer's push, and for the fixed points the camber) is ``ε_k`` below. With ``trailer_lateral_acceleration``
+``z_c`` is not the tractor's at all: it is (1) at the slip the unit's own accelerometer asks of its axles, (T2) of
+:mod:`sensor.unit_slip_reference`, so ``ε_k`` is that model's error, not the tractor's slip, and the camera's
+disagreement is not weighed as evidence of slip against it. With (1) it measures the slip velocity::
 
     z_c − r_m·L_c − w_m·Σ w_j tan δ_j = v_s + ε_k                                               (K1)
 

@@ -10,7 +10,12 @@ from pydantic import Field
 from vehicle_model.kinematics import RearPoint
 from vehicle_model.settings import Settings
 
-__all__ = ["AxialEffect", "FusionNoise", "ScrubCouplingStd", "SideRigFusion"]
+__all__ = ["AxialEffect", "FusionNoise", "KinematicReference", "ScrubCouplingStd", "SideRigFusion"]
+
+KinematicReference = Literal[RearPoint, "trailer_lateral_acceleration"]
+"""Where (K1)'s lateral velocity comes from: the tractor's signals with its rear point as
+:data:`~vehicle_model.kinematics.RearPoint` says, or the unit's own accelerometer (:mod:`sensor.unit_slip_reference`,
+which needs :attr:`~sensor.unit_kinematics.ChainSignals.unit_lateral_acceleration`)."""
 
 AxialEffect = Literal["camera", "posterior"]
 """How the axial states' uncertainty enters the off-tracking's std (:mod:`sensor.fusion_axial`)."""
@@ -45,7 +50,7 @@ class SideRigFusion(Settings):
         None, ge=0.0, le=0.1, description="[1/√m] their walk; 0.1 forgets in a metre"
     )
     vo_axial_effect: AxialEffect | None = None
-    kinematic_rear_point: RearPoint | None = None
+    kinematic_rear_point: KinematicReference | None = None
     kinematic_error_model: Literal["inflated", "state"] | None = None
     coupling_reference: bool | None = None
     coupling_covariance_scale: float | None = Field(
@@ -129,8 +134,11 @@ class FusionNoise(Settings):
         rear axles' mean station, fixed, with which the filter's noise model was set and the field-loop grid
         measured), ``equivalent``, ``speed_compensated`` (where a steady turn's lateral acceleration puts it,
         ``L1 − K·u²``) or ``lateral_acceleration`` (moving sideways at the slip the tractor's accelerometer asks
-        of its rear tyres; it needs :attr:`~sensor.unit_kinematics.ChainSignals.lateral_acceleration`).
-        docs/field_bias.md §6.3–6.4 say what the compensated points change.
+        of its rear tyres; it needs :attr:`~sensor.unit_kinematics.ChainSignals.lateral_acceleration`), or
+        ``trailer_lateral_acceleration``: not the tractor's signals but the unit's own axles at the slip its own
+        accelerometer asks of them ((T2) of :mod:`sensor.unit_slip_reference`; it needs
+        :attr:`~sensor.unit_kinematics.ChainSignals.unit_lateral_acceleration`). docs/field_bias.md §6.3–6.4 say
+        what the compensated points change, §7.11.1 what the unit's accelerometer does.
     tractor_stiffness_uncertainty : float
         ``u_C`` of (K2): the relative uncertainty of the tractor's cornering stiffnesses, so of the rear slip the
         compensated rear points predict.
@@ -254,7 +262,7 @@ class FusionNoise(Settings):
     )
     vo_axial_effect: AxialEffect = "camera"
     kinematics: bool = True
-    kinematic_rear_point: RearPoint = "axle_mean"
+    kinematic_rear_point: KinematicReference = "axle_mean"
     tractor_stiffness_uncertainty: float = Field(
         0.2,
         ge=0.0,

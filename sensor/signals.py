@@ -21,6 +21,9 @@ tractor_lateral_    the tractor's lateral accelerometer at its CG (the stability
 acceleration        specific force, acceleration less gravity, so on a cross slope it reads the share of
                     gravity the tyres carry [m/s²]
 ==================  ===============================================================
+
+An opt-in channel is sampled by an instance of its own with a generator of its own, so that a run without it draws
+what it always did: each towed unit's lateral accelerometer (:mod:`sensor.trailer_accelerometer`).
 """
 
 from __future__ import annotations
@@ -69,19 +72,25 @@ class OnboardSignals:
     Parameters
     ----------
     specs
-        One :class:`ChannelSpec` per channel name in :data:`CHANNELS` (missing: ideal at 50 Hz).
+        One :class:`ChannelSpec` per channel name in ``channels`` (missing: ideal at 50 Hz).
     rng
         The run's random generator.
+    channels
+        The channels it samples, in the order their noise is drawn (default :data:`CHANNELS`; an opt-in channel,
+        :mod:`sensor.trailer_accelerometer`, is sampled by an instance of its own with its own generator).
     """
 
-    def __init__(self, specs: dict[str, ChannelSpec], rng: np.random.Generator) -> None:
-        unknown = set(specs) - set(CHANNELS)
+    def __init__(
+        self, specs: dict[str, ChannelSpec], rng: np.random.Generator, channels: tuple[str, ...] = CHANNELS
+    ) -> None:
+        unknown = set(specs) - set(channels)
         if unknown:
-            raise ValueError(f"unknown signal channels {sorted(unknown)}; channels are {list(CHANNELS)}")
-        self.specs = {name: specs.get(name, ChannelSpec()) for name in CHANNELS}
+            raise ValueError(f"unknown signal channels {sorted(unknown)}; channels are {list(channels)}")
+        self.channels = channels
+        self.specs = {name: specs.get(name, ChannelSpec()) for name in channels}
         self.rng = rng
         self._held: dict[str, np.ndarray] = {}
-        self._next_sample: dict[str, float] = dict.fromkeys(CHANNELS, -math.inf)
+        self._next_sample: dict[str, float] = dict.fromkeys(channels, -math.inf)
 
     def measure(self, time: float, truth: dict[str, float | np.ndarray]) -> dict[str, np.ndarray]:
         """Measurements at ``time`` of the true values ``truth`` (one entry per channel).
@@ -89,7 +98,7 @@ class OnboardSignals:
         A channel whose next sample time has come takes a new sample; otherwise it holds the last.
         """
         out: dict[str, np.ndarray] = {}
-        for name in CHANNELS:
+        for name in self.channels:
             spec = self.specs[name]
             if time + 1e-12 >= self._next_sample[name]:
                 value = np.atleast_1d(np.asarray(truth[name], dtype=float))

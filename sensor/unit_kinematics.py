@@ -61,6 +61,9 @@ class ChainSignals:
     towed_yaw_rates : tuple of float or None
         ``r_1 … r_{k−1}`` [rad/s] of the towed units ahead of unit ``k``, front to rear (their gyros). ``None``:
         derived from the tractor's yaw rate and the articulations' rates between two ticks (module notes).
+    unit_lateral_acceleration : float
+        Unit ``k``'s own lateral specific force at its accelerometer's mount [m/s²] (:mod:`sensor.
+        trailer_accelerometer`; NaN: none, needed by the ``trailer_lateral_acceleration`` reference only).
     """
 
     speed: float
@@ -68,23 +71,32 @@ class ChainSignals:
     articulations: tuple[float, ...]
     lateral_acceleration: float = math.nan
     towed_yaw_rates: tuple[float, ...] | None = None
+    unit_lateral_acceleration: float = math.nan
 
 
 @dataclass(frozen=True)
 class TractorSignals:
     """The tractor's signals the zero-slip kinematics (K2) of the first towed unit take: wheel speed [m/s], yaw rate
     [rad/s], articulation Γ = ψ1 − ψ2 [rad] and the lateral specific force its accelerometer reads [m/s²] (NaN:
-    none; needed by the ``lateral_acceleration`` rear point). :attr:`chain` is the same as :class:`ChainSignals`."""
+    none; needed by the ``lateral_acceleration`` rear point), and the semi-trailer's own accelerometer's
+    (``unit_lateral_acceleration``, as :class:`ChainSignals`'). :attr:`chain` is the same as :class:`ChainSignals`."""
 
     speed: float
     yaw_rate: float
     articulation: float
     lateral_acceleration: float = math.nan
+    unit_lateral_acceleration: float = math.nan
 
     @property
     def chain(self) -> ChainSignals:
         """These signals as :class:`ChainSignals` (one articulation)."""
-        return ChainSignals(self.speed, self.yaw_rate, (self.articulation,), self.lateral_acceleration)
+        return ChainSignals(
+            self.speed,
+            self.yaw_rate,
+            (self.articulation,),
+            self.lateral_acceleration,
+            unit_lateral_acceleration=self.unit_lateral_acceleration,
+        )
 
 
 def slip_kinematics(params: VehicleParams, unit: int = 1) -> tuple[float, np.ndarray]:

@@ -504,6 +504,17 @@ class Simulator:
         psi = float(self._x[2])
         return in_plane_gravity(float(slope[0]), float(slope[1]), math.cos(psi), math.sin(psi))
 
+    def unit_gravity(self, unit: int, heading: float) -> tuple[float, float]:
+        """Gravity's in-plane part per unit mass ``(g_x, g_y)`` [m/s²] at body ``unit`` (0 the tractor, 1 the first
+        towed unit, …), in the axes of a body heading ``heading`` [rad], from the road's slope the inputs hold (as
+        :meth:`tractor_gravity`, which is ``unit_gravity(0, ψ1)``)."""
+        if not self._surface_filled:
+            self._fill_surface()
+        slope = self._u[self.layout.slope_slice]
+        return in_plane_gravity(
+            float(slope[2 * unit]), float(slope[2 * unit + 1]), math.cos(heading), math.sin(heading)
+        )
+
     def _check(self, x_new: np.ndarray) -> None:
         if math.isfinite(float(x_new.sum())) and not (np.abs(x_new[self._limit_index]) > self._limit_value).any():
             return  # the common case, checked cheaply

@@ -9,6 +9,7 @@ from pydantic import Field, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 from controller.steer_input import SteerInputConfig
+from sensor.unit_slip_reference import TRAILER_REFERENCE
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.presets import VEHICLE_PRESETS
 from vehicle_model.settings import Settings
@@ -137,6 +138,16 @@ class ScenarioConfig(Settings):
                 f"terrain.look = unsealed is a roadside world's; allowed with camera.world = "
                 f"{self.camera.world}: sealed"
             )
+        references = (
+            ("fusion.kinematic_rear_point", self.fusion.kinematic_rear_point),
+            ("fusion.side_rig.kinematic_rear_point", self.fusion.side_rig.kinematic_rear_point),
+        )
+        for name, reference in references:
+            if reference == TRAILER_REFERENCE and self.signals.trailer_lateral_acceleration is None:
+                raise ValueError(
+                    f"{name} = {TRAILER_REFERENCE} needs the towed units' accelerometer: set "
+                    'signals.trailer_lateral_acceleration (e.g. {"noise_std": 0.009}), or another rear point'
+                )
         if self.roundabout_test and self.path.kind != "roundabout":
             raise ValueError("roundabout_test needs path.kind = roundabout")
         params = self.vehicle_params()

@@ -11,7 +11,7 @@ from pydantic_core import PydanticCustomError
 
 from controller.path_following_config import PathFollowingConfig, PathFollowingGains
 from sensor.fusion import FusionNoise
-from sensor.fusion_noise import SideRigFusion
+from sensor.fusion_noise import KinematicReference, SideRigFusion
 from sensor.signals import ChannelSpec
 from vehicle_model.kinematics import RearPoint
 from vehicle_model.settings import Settings
@@ -284,7 +284,9 @@ class RatesConfig(Settings):
 
 
 class SignalsConfig(Settings):
-    """On-board signals. Units: m/s for speed, rad and rad/s for angles and rates, m/s² for the accelerometer."""
+    """On-board signals. Units: m/s for speed, rad and rad/s for angles and rates, m/s² for the accelerometers.
+    ``trailer_lateral_acceleration`` is opt-in (``null``: none), one per towed unit drawn from its own random stream
+    (``sensor.trailer_accelerometer``); ``sensor.datasheet.trailer_accelerometer_fields`` gives its field errors."""
 
     wheel_speed: ChannelSpec = ChannelSpec()
     front_steer: ChannelSpec = ChannelSpec()
@@ -295,6 +297,11 @@ class SignalsConfig(Settings):
     trailer_steer: ChannelSpec = ChannelSpec()
     rear_articulation: ChannelSpec = ChannelSpec()
     tractor_lateral_acceleration: ChannelSpec = ChannelSpec()
+    trailer_lateral_acceleration: ChannelSpec | None = Field(
+        None,
+        description="a lateral accelerometer on every towed unit at its centre of percussion (sensor."
+        "trailer_accelerometer), drawn from its own random stream; null (default): none, every run as without it",
+    )
 
 
 class EstimatorsConfig(Settings):
@@ -342,7 +349,7 @@ class SideRigSettings(SideRigFusion):
     vo_axial_scale_walk: float | None = Field(
         0.001, ge=0.0, le=0.1, description="[1/√m] their walk; 0.1 forgets in a metre"
     )
-    kinematic_rear_point: RearPoint | None = "speed_compensated"
+    kinematic_rear_point: KinematicReference | None = "speed_compensated"
     kinematic_error_model: Literal["inflated", "state"] | None = "state"
     coupling_reference: bool | None = Field(
         True,

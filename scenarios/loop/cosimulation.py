@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from vehicle_model.errors import InputError, SimulationDivergedError
-from vehicle_model.geometry import kingpin_position
+from vehicle_model.geometry import kingpin_position, unit_frame
 from vehicle_model.kinematics import tractor_lateral_specific_force
 from vehicle_model.offtracking import OfftrackingEstimate
 from vehicle_model.simulator import Simulator, VehicleState
@@ -369,7 +369,7 @@ class CoSimulation:
         gravity = 0.0 if self.kinematic else self.sim.tractor_gravity()[1]
         previous = self.tick.state if index > 0 and not self.kinematic else None
         specific = tractor_lateral_specific_force(previous, state, gravity)
-        measured = self.signals.measure(time, state, self.steer, specific)
+        measured = self.signals.measure(time, state, self.steer, specific, self._unit_gravity(state))
         tick = TickInput(index, time, self.period, state, kingpin, measured, index % self._frame_every == 0, trajectory)
         self._input = tick
         self.vehicle.update(tick)
@@ -388,6 +388,19 @@ class CoSimulation:
         elif not self.kinematic:
             self.breach = self.limits.check(state.gamma, self.driver.kept_error, estimates["truth"].value)
         return Tick(index, time, state, kingpin, measured, estimates, command, tick.camera_frame)
+
+    def _unit_gravity(self, state: VehicleState) -> tuple[float, ...]:
+        """Gravity's in-plane lateral part at each towed unit [m/s²] for their accelerometers (none without them; zero
+        on a prescribed motion, as the tractor's)."""
+        if self.signals.accelerometers is None:
+            return ()
+        units = self.signals.accelerometers.units
+        if self.kinematic:
+            return (0.0,) * len(units)
+        pose = state.chain_pose
+        return tuple(
+            self.sim.unit_gravity(unit, float(unit_frame(self.setup.params, pose, unit)[1]))[1] for unit in units
+        )
 
     # ------------------------------------------------------------------ pickling
 

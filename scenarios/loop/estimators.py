@@ -19,6 +19,7 @@ import numpy as np
 from controller.zero_slip import ZeroSlipEstimator
 from sensor.fusion import STD_PARTS, ChainSignals, FusedVisoOt, FusionNoise, TractorSignals
 from sensor.signals import standstill_reading
+from sensor.trailer_accelerometer import channel_name
 from vehicle_model.geometry import kingpin_position
 from vehicle_model.offtracking import (
     BUFFER_FILLING,
@@ -285,16 +286,18 @@ class FusedVisoOtEstimator:
         """The unit's yaw rate, wheel speed and steer, and the zero-slip kinematics' signals, of this tick."""
         tractor_speed, tractor_rate = float(measured["wheel_speed"][0]), float(measured["tractor_yaw_rate"][0])
         lateral = float(measured["tractor_lateral_acceleration"][0])
+        own = measured.get(channel_name(self.unit))  # the unit's accelerometer, when the run has one
+        unit_lateral = math.nan if own is None else float(own[0])
         if self.unit == 1:
             articulation = float(measured["articulation"][0])
-            signals: object = TractorSignals(tractor_speed, tractor_rate, articulation, lateral)
+            signals: object = TractorSignals(tractor_speed, tractor_rate, articulation, lateral, unit_lateral)
             rate, speed = measured["trailer_yaw_rate"][0], measured["trailer_wheel_speed"][0]
             return float(rate), float(speed), measured["trailer_steer"], signals
         k = self._suffix
         articulations = (float(measured["articulation"][0]), *map(float, measured["rear_articulation"]))
         ahead = [float(measured["trailer_yaw_rate"][0])]
         ahead += [float(measured[f"trailer_yaw_rate{u + 1}"][0]) for u in range(2, self.unit)]
-        signals = ChainSignals(tractor_speed, tractor_rate, articulations, lateral, tuple(ahead))
+        signals = ChainSignals(tractor_speed, tractor_rate, articulations, lateral, tuple(ahead), unit_lateral)
         rate, speed = measured[f"trailer_yaw_rate{k}"][0], measured[f"trailer_wheel_speed{k}"][0]
         return float(rate), float(speed), measured[f"trailer_steer{k}"], signals
 

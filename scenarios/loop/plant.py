@@ -9,6 +9,7 @@ import casadi as ca
 import numpy as np
 
 from sensor.signals import CHANNELS, OnboardSignals
+from sensor.trailer_accelerometer import TrailerAccelerometers, channel_name
 from vehicle_model.geometry import follow_point_from_kingpin, unit_frame
 from vehicle_model.kinematics import coupling_velocity, kingpin_velocity, trailer_axle_speed
 from vehicle_model.parameters import VehicleParams
@@ -145,8 +146,20 @@ class SignalsParticipant:
 
     def __init__(self, setup: ScenarioSetup) -> None:
         cfg = setup.config
-        specs = {name: getattr(cfg.signals, name) for name in type(cfg.signals).model_fields}
+        specs = {name: getattr(cfg.signals, name) for name in CHANNELS}
         self.sensors = OnboardSignals(specs, np.random.default_rng(cfg.seed))
+        # the towed units' accelerometers, when asked for: their own generators, so the run's draws what it always did
+        accelerometer = cfg.signals.trailer_lateral_acceleration
+        self.accelerometers = (
+            None if accelerometer is None else TrailerAccelerometers(setup.params, accelerometer, cfg.seed)
+        )
+        self._accelerometer_names = (
+            () if self.accelerometers is None else tuple(channel_name(unit) for unit in self.accelerometers.units)
+        )
+        self.columns = type(self).columns + tuple(
+            Column(f"signal_{name}", "m/s²", f"measured {name}", role="signal", vehicle_unit=unit + 1)
+            for unit, name in enumerate(self._accelerometer_names, start=1)
+        )
         self.params = setup.params
         steerable = setup.model.layout.steerable_axles
         trailer = {a.name for a in setup.params.trailer.axles}
@@ -180,11 +193,18 @@ class SignalsParticipant:
         return float(along_slope_factor(self._terrain, point, heading)[0])
 
     def measure(
-        self, time: float, state: VehicleState, steer: np.ndarray, lateral_acceleration: float
+        self,
+        time: float,
+        state: VehicleState,
+        steer: np.ndarray,
+        lateral_acceleration: float,
+        unit_gravity: tuple[float, ...] = (),
     ) -> dict[str, np.ndarray]:
         """The signals at ``time`` of the true ``state``, the steer angles ``steer`` (every steerable axle) and the
         tractor's true lateral specific force ``lateral_acceleration`` [m/s²]
-        (:func:`~vehicle_model.kinematics.tractor_lateral_specific_force`)."""
+        (:func:`~vehicle_model.kinematics.tractor_lateral_specific_force`); with the towed units' accelerometers
+        (:mod:`sensor.trailer_accelerometer`) also theirs, ``unit_gravity`` gravity's in-plane lateral part at each
+        towed unit, front to rear [m/s²]."""
         index = self._trailer_index
         truth = {
             "wheel_speed": state.u * self._along_ground(state, 0),
@@ -206,12 +226,15 @@ class SignalsParticipant:
             }
             measured = sensors.measure(time, {**dict.fromkeys(CHANNELS, 0.0), **own})
             self.measured.update({f"{name}{unit + 1}": measured[name] for name in UNIT_CHANNELS})
+        if self.accelerometers is not None:
+            self.measured.update(self.accelerometers.measure(time, state, unit_gravity))
         return self.measured
 
     def record(self) -> Mapping[str, float]:
         """The recorded signals of the last measurement."""
         m = self.measured
-        return {f"signal_{n}": float(m[n][0]) for n, _ in RECORDED_SIGNALS}
+        names = (*(n for n, _ in RECORDED_SIGNALS), *self._accelerometer_names)
+        return {f"signal_{n}": float(m[n][0]) for n in names}
 
 
 STEER_TYRE_QUANTITIES: tuple[tuple[str, str, str], ...] = (

@@ -1,0 +1,107 @@
+"""A towed unit's slip velocity from its own lateral accelerometer: a kinematic reference the tractor's slip cannot
+feed (``kinematic_rear_point: trailer_lateral_acceleration`` of :class:`~sensor.fusion_noise.FusionNoise`).
+
+The zero-slip measurement (K1) of :mod:`sensor.fusion_model` takes the kingpin's lateral velocity from the tractor's
+signals, so the tractor's own slip — a steady crab on a camber, its tyres' saturation on ice — enters it as the
+trailer's. The unit's own accelerometer (:mod:`sensor.trailer_accelerometer`, at its centre of percussion about its
+front coupling) gives the slip of the unit's own axles instead, as the tractor's accelerometer gives the tractor's
+rear slip (:meth:`~vehicle_model.parameters.VehicleParams.tractor_rear_slip_velocity`, docs/vehicle_dynamics.md §2.3,
+§6.7), by the same two steps.
+
+The moment about the front coupling. The coupling carries no moment, so the axles' lateral forces ``F_j`` at
+``L_j`` behind it balance the unit's inertia and, for a unit that tows another, the pull at its fifth wheel
+(``L_5`` behind the coupling) taken as the tractor's balance takes the trailer's, ``F_5 = −m_5·f`` (``m_5`` the
+static vertical load on that fifth wheel over g)::
+
+    Σ F_j·L_j = (m·a + m_5·L_5)·f_p                                                               (T1)
+
+with ``f_p`` the specific force the accelerometer at the centre of percussion reads (the unit's yaw acceleration
+included, :mod:`sensor.trailer_accelerometer`; on a cross slope the share of gravity the tyres carry).
+
+Linear tyres. Axle ``j`` slips at ``α_j = −(v_k − r·L_j − u·tan δ_j)/u`` and carries ``F_j = C_j·α_j`` (static
+cornering stiffness). With the kingpin's lateral velocity of eq (1), ``v_k = r·L_c + u·T + v_s`` (``L_c = Σ w_j·L_j``,
+``T = Σ w_j·tan δ_j``, ``w_j = C_j/ΣC``), the moment of the axles is::
+
+    Σ F_j·L_j = −(ΣC/u)·(L_c·v_s − r·σ_L² − u·c_δ),   σ_L² = Σ w_j·L_j² − L_c²,   c_δ = Σ w_j·(L_j − L_c)·tan δ_j
+
+and with (T1)::
+
+    v̂_s = (r·σ_L² + u·c_δ)/L_c − G·u·f_p,      G = (m·a + m_5·L_5)/(ΣC·L_c)                        (T2)
+
+The first term is the axle group's own scrub at zero lateral demand (the unit turns about its equivalent wheelbase
+``L_c + σ_L²/L_c``, not about ``L_c``: docs/vehicle_dynamics.md §2.3), the second the slip its lateral demand asks.
+The reference is eq (1) at that slip, ``z_c = r·L_c + u·T + v̂_s``, so (K1) measures ``v_s`` against ``v̂_s``: the
+accelerometer's bias and noise times ``G·u``, and the linear model's residual (a tyre near its friction slips more).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from vehicle_model.errors import InputError
+from vehicle_model.parameters import GRAVITY, VehicleParams
+from vehicle_model.static_loads import solve_loads
+
+from .unit_kinematics import unit_axles
+
+__all__ = ["TRAILER_REFERENCE", "UnitSlipReference"]
+
+TRAILER_REFERENCE = "trailer_lateral_acceleration"
+"""The kinematic reference's name (``kinematic_rear_point``) that takes the unit's own accelerometer."""
+
+
+class UnitSlipReference:
+    """``z_c`` of (K1) from towed unit ``unit``'s own signals and accelerometer, (T2) of the module notes.
+
+    Parameters
+    ----------
+    params
+        The combination (the unit's axles, mass, inertia, and the load on its fifth wheel if it tows another).
+    unit
+        The towed unit (1 the first).
+
+    Attributes
+    ----------
+    gradient : float
+        ``G`` of (T2) [s²/m].
+    """
+
+    def __init__(self, params: VehicleParams, unit: int) -> None:
+        lengths, steerable, shares = unit_axles(params, unit)
+        towed = params.axle_table.unit == unit
+        total = float(params.axle_cornering_stiffness()[towed].sum())
+        trailer = params.trailers[unit - 1]
+        self.slip_point = float(np.dot(shares, lengths))  # L_c
+        self.spread = float(np.dot(shares, lengths * lengths)) - self.slip_point**2  # σ_L²
+        self._steer_shares = shares[steerable]
+        self._steer_levers = lengths[steerable] - self.slip_point
+        moment = trailer.mass * -trailer.cg_x
+        if unit < len(params.trailers):  # it tows another: the pull at its fifth wheel
+            pull = solve_loads(params.tractor, params.trailers, GRAVITY)[1][unit] / GRAVITY
+            moment += pull * -trailer.fifth_wheel_x
+        self.gradient = moment / (total * self.slip_point)
+
+    def slip_velocity(self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float) -> float:
+        """``v̂_s`` of (T2) [m/s] from the unit's yaw rate [rad/s], wheel speed [m/s], steer angles [rad] (layout
+        order; ``None`` or empty: none steer) and its accelerometer's reading ``lateral`` [m/s²]."""
+        if not math.isfinite(lateral):
+            raise InputError(
+                f"the towed unit's lateral acceleration is {lateral!r}; kinematic_rear_point "
+                f"'{TRAILER_REFERENCE}' needs its accelerometer (signals.trailer_lateral_acceleration)"
+            )
+        scrub = yaw_rate * self.spread
+        if steer is not None and self._steer_shares.size:
+            tangents = np.tan(np.asarray(steer, dtype=float).reshape(-1))
+            scrub += speed * float(np.dot(self._steer_shares * self._steer_levers, tangents))
+        return scrub / self.slip_point - self.gradient * speed * lateral
+
+    def lateral(self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float) -> tuple[float, float]:
+        """``(z_c, v̂_s)`` [m/s]: eq (1)'s lateral velocity of the front coupling at the slip (T2) predicts, and that
+        slip (arguments as :meth:`slip_velocity`)."""
+        slip = self.slip_velocity(yaw_rate, speed, steer, lateral)
+        steer_term = 0.0
+        if steer is not None and self._steer_shares.size:
+            steer_term = float(np.dot(self._steer_shares, np.tan(np.asarray(steer, dtype=float).reshape(-1))))
+        return yaw_rate * self.slip_point + speed * steer_term + slip, slip
