@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from analytic_terrains import TiltedPlane
 
+from scenarios.configuration.sections import FusionConfig
 from scenarios.loop.following_camera import FollowingCamera, following_camera
 from sensor.camera import StereoRig
 from sensor.fusion import FusedVisoOt, FusionNoise, TractorSignals
@@ -234,6 +235,14 @@ def test_the_reference_covariance_scale_scales_c2_and_is_the_reference_setting()
     cameras = {"viso_ot3": SimpleNamespace(camera_in_trailer=camera, released=[])}
     assert following_camera(params, 1, cameras, noise, "planar").reference.covariance_scale == 4.0
     assert following_camera(params, 1, cameras, FusionNoise(), "planar").reference.covariance_scale == 1.0
+
+
+def test_a_runs_side_rig_takes_the_reference_covariance_as_mapped_unless_set():
+    """A run's ``fusion.side_rig.coupling_covariance_scale`` is unset by default, so its reference keeps (C2)'s
+    covariance as mapped (``k_c`` 1; docs/field_bias.md §7.13 says why); a scenario's value reaches the reference."""
+    default = FusionConfig().side_rig
+    assert default.coupling_covariance_scale is None and default.reference_covariance_scale == 1.0
+    assert FusionConfig(side_rig={"coupling_covariance_scale": 4.0}).side_rig.reference_covariance_scale == 4.0
 
 
 def test_a_wider_reference_takes_less_of_the_followers_own_error():
