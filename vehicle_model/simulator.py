@@ -498,11 +498,7 @@ class Simulator:
     def tractor_gravity(self) -> tuple[float, float]:
         """Gravity's in-plane part per unit mass at the tractor ``(g_x, g_y)`` [m/s²], in its axes, from the road's
         slope the inputs hold (that of the last period; before the first, the surface at the current state)."""
-        if not self._surface_filled:
-            self._fill_surface()
-        slope = self._u[self.layout.slope_slice]
-        psi = float(self._x[2])
-        return in_plane_gravity(float(slope[0]), float(slope[1]), math.cos(psi), math.sin(psi))
+        return self.unit_gravity(0, float(self._x[2]))
 
     def unit_gravity(self, unit: int, heading: float) -> tuple[float, float]:
         """Gravity's in-plane part per unit mass ``(g_x, g_y)`` [m/s²] at body ``unit`` (0 the tractor, 1 the first
