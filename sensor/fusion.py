@@ -76,7 +76,7 @@ from .fusion_slip import (
     scrub_bias_share,
     scrub_coupling_share,
 )
-from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects
+from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects, reference_share
 from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics, unit_axles
 from .unit_slip_reference import TRAILER_REFERENCE, UnitSlipReference
 from .viso_ot import VisoOtEstimator
@@ -242,6 +242,7 @@ class FusedVisoOt:
         self._covs = np.zeros((0, 3, 3))
         self._durations = np.zeros(0)
         self._demands = np.zeros(0)  # D of (K5) each committed increment was taken at
+        self._shares = np.zeros((0, 3, 3))  # I − K_Δ of (4') each committed increment was left with
         axial_states = [i for i in (self._sz, self._sf) if i is not None]  # (A1) of sensor.fusion_axial, when asked
         posterior = n.vo_axial_effect == "posterior" and axial_states
         self._axial_regression = AxialRegression(axial_states) if posterior else None
@@ -449,9 +450,13 @@ class FusedVisoOt:
                 self.updates += 1
                 self._nis.append(min(nis, self.noise.gate))
                 self.innovation_ratio = max(MIN_INNOVATION_RATIO, float(np.mean(self._nis)) / 3.0)
+        share = np.eye(3)  # (4') of sensor.fusion_std: the increment's prior error the reference left in it
         if reference is not None and self.noise.coupling_reference and reference.start_tick == self._history[0].tick:
+            prior = p[:3, :3]
             x, p = self._couple(x, p, reference)
-        self._commit(index, x, p)
+            if self.noise.coupling_bias_share:
+                share = reference_share(prior, p[:3, :3])
+        self._commit(index, x, p, share)
         self._read()
         return used
 
@@ -472,8 +477,9 @@ class FusedVisoOt:
             self.coupling_updates += 1
         return x, p
 
-    def _commit(self, index: int, x: np.ndarray, p: np.ndarray) -> None:
-        """Push the increments up to history ``index`` (ending at ``x``) and make that tick the anchor."""
+    def _commit(self, index: int, x: np.ndarray, p: np.ndarray, share: np.ndarray) -> None:
+        """Push the increments up to history ``index`` (ending at ``x``, left with ``share`` of its prior error by a
+        reference, (4') of :mod:`sensor.fusion_std`) and make that tick the anchor."""
         poses = [h.x[:3] for h in list(self._history)[: index + 1]]
         poses[-1] = x[:3]
         for a, b in itertools.pairwise(poses):
@@ -485,13 +491,14 @@ class FusedVisoOt:
         covs = np.concatenate([self._covs, p[None, :3, :3]])
         durations = np.append(self._durations, sum(t.inputs[0] for t in list(self._history)[1 : index + 1]))
         demands = np.append(self._demands, self._history[index].scrub)
+        shares = np.concatenate([self._shares, share[None]])
         starts = into_frame(starts, end)
         ends = into_frame(np.column_stack([ends, np.zeros(len(ends))]), end)[:, :2]
         keep = starts[:, 0] > -self.follow_point_offset - 2.0
         if self._axial_regression is not None:  # the increment's regression on the axial states, before the reset
             self._axial_regression.commit(p, keep)
         self._starts, self._ends, self._covs = starts[keep], ends[keep], covs[keep]
-        self._durations, self._demands = durations[keep], demands[keep]
+        self._durations, self._demands, self._shares = durations[keep], demands[keep], shares[keep]
         # The new anchor: Δ restarts from zero; the other states keep their covariance.
         anchor_x = x.copy()
         anchor_x[:3] = 0.0
@@ -521,7 +528,8 @@ class FusedVisoOt:
             self.std_parts = dict.fromkeys(STD_PARTS, math.nan)
             return
         elapsed = sum(t.inputs[0] for t in list(self._history)[1:])
-        window = IncrementWindow(self._starts, self._ends, self._covs, self._durations, self._demands)
+        shares = self._shares if self.noise.coupling_bias_share else None
+        window = IncrementWindow(self._starts, self._ends, self._covs, self._durations, self._demands, shares)
         axis = (
             self._optical_axis
             if self.noise.vo_axial_scale_uncertainty > 0.0 or self._axial_state or self._flow_state
