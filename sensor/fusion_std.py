@@ -113,7 +113,10 @@ def bias_effect(
 
 def reference_share(prior: np.ndarray, posterior: np.ndarray) -> np.ndarray:
     """``I − K_Δ`` of eq (4'): the share of an increment's prior error a measurement of it left in it, from the
-    increment's 3×3 covariance before (``prior``) and after (``posterior``) the update (``P⁺·P⁻⁻¹``)."""
+    increment's 3×3 covariance before (``prior``) and after (``posterior``) the update (``P⁺·P⁻⁻¹``; the identity
+    exactly where the update was refused and left it as it was)."""
+    if np.array_equal(prior, posterior):
+        return np.eye(3)
     return np.linalg.solve(prior.T, posterior.T).T
 
 
