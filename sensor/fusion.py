@@ -237,12 +237,9 @@ class FusedVisoOt:
         self.innovation_ratio = 1.0
         # Committed increments still ahead of the follow point: start pose (x, y, ψ), end station x_e and
         # covariance, all in the anchor's frame.
-        self._starts = np.zeros((0, 3))
-        self._ends = np.zeros((0, 2))
-        self._covs = np.zeros((0, 3, 3))
+        self._starts, self._ends, self._covs = np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 3, 3))
         self._durations = np.zeros(0)
-        self._demands = np.zeros(0)  # D of (K5) each committed increment was taken at
-        self._shares = np.zeros((0, 3, 3))  # I − K_Δ of (4') each committed increment was left with
+        self._demands, self._shares = np.zeros(0), np.zeros((0, 3, 3))  # D of (K5) and (4')'s I − K_Δ of each
         axial_states = [i for i in (self._sz, self._sf) if i is not None]  # (A1) of sensor.fusion_axial, when asked
         posterior = n.vo_axial_effect == "posterior" and axial_states
         self._axial_regression = AxialRegression(axial_states) if posterior else None
@@ -405,7 +402,7 @@ class FusedVisoOt:
         self.frames += 1
         entry = self._history[index]
         x, p = entry.x.copy(), entry.p.copy()
-        used = False
+        used, share = False, np.eye(3)  # share: of the increment's prior error, what a reference left, (4')
         if camera_motion is not None and np.all(np.isfinite(camera_motion)):
             z, r = self.measurement(np.asarray(camera_motion, dtype=float), covariance, given)
             h = np.zeros((3, self._states))
@@ -450,36 +447,30 @@ class FusedVisoOt:
                 self.updates += 1
                 self._nis.append(min(nis, self.noise.gate))
                 self.innovation_ratio = max(MIN_INNOVATION_RATIO, float(np.mean(self._nis)) / 3.0)
-        share = np.eye(3)  # (4') of sensor.fusion_std: the increment's prior error the reference left in it
         if reference is not None and self.noise.coupling_reference and reference.start_tick == self._history[0].tick:
-            prior = p[:3, :3]
-            x, p = self._couple(x, p, reference)
-            if self.noise.coupling_bias_share:
-                share = reference_share(prior, p[:3, :3])
+            x, p, share = self._couple(x, p, reference)
         self._commit(index, x, p, share)
         self._read()
         return used
 
-    def _couple(self, x: np.ndarray, p: np.ndarray, coupling: CouplingMeasurement) -> tuple[np.ndarray, np.ndarray]:
+    def _couple(self, x: np.ndarray, p: np.ndarray, coupling: CouplingMeasurement) -> tuple[np.ndarray, ...]:
         """The following unit's measurement of ``(Δx, Δy, Δψ)`` ((C1) of :mod:`sensor.fusion_coupling`, ``H = [I₃ 0]``),
-        gated as the camera's motion."""
-        h = np.zeros((3, self._states))
-        h[:, :3] = np.eye(3)
+        gated as the camera's motion; the state, its covariance and (4')'s share of :mod:`sensor.fusion_std`."""
+        h = np.hstack([np.eye(3), np.zeros((3, self._states - 3))])
         innovation = np.asarray(coupling.increment, dtype=float) - x[:3]
         innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
         refuse = self._coupling_gated < self.noise.max_gated
-        x, p, _, used = gated_update(x, p, h, innovation, coupling.covariance, self.noise.gate, refuse)
+        x, posterior, _, used = gated_update(x, p, h, innovation, coupling.covariance, self.noise.gate, refuse)
         if not used:
             self._coupling_gated += 1
             self.coupling_rejected += 1
         else:
             self._coupling_gated = 0
             self.coupling_updates += 1
-        return x, p
+        return x, posterior, reference_share(p[:3, :3], posterior[:3, :3])
 
     def _commit(self, index: int, x: np.ndarray, p: np.ndarray, share: np.ndarray) -> None:
-        """Push the increments up to history ``index`` (ending at ``x``, left with ``share`` of its prior error by a
-        reference, (4') of :mod:`sensor.fusion_std`) and make that tick the anchor."""
+        """Push the increments up to history ``index`` (ending at ``x``, ``share`` its (4')) and make it the anchor."""
         poses = [h.x[:3] for h in list(self._history)[: index + 1]]
         poses[-1] = x[:3]
         for a, b in itertools.pairwise(poses):
