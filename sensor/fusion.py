@@ -76,7 +76,7 @@ from .fusion_slip import (
     scrub_bias_share,
     scrub_coupling_share,
 )
-from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects
+from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects, reference_share
 from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics, unit_axles
 from .unit_slip_reference import TRAILER_REFERENCE, UnitSlipReference
 from .viso_ot import VisoOtEstimator
@@ -237,11 +237,9 @@ class FusedVisoOt:
         self.innovation_ratio = 1.0
         # Committed increments still ahead of the follow point: start pose (x, y, ψ), end station x_e and
         # covariance, all in the anchor's frame.
-        self._starts = np.zeros((0, 3))
-        self._ends = np.zeros((0, 2))
-        self._covs = np.zeros((0, 3, 3))
+        self._starts, self._ends, self._covs = np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 3, 3))
         self._durations = np.zeros(0)
-        self._demands = np.zeros(0)  # D of (K5) each committed increment was taken at
+        self._demands, self._shares = np.zeros(0), np.zeros((0, 3, 3))  # D of (K5) and (4')'s I − K_Δ of each
         axial_states = [i for i in (self._sz, self._sf) if i is not None]  # (A1) of sensor.fusion_axial, when asked
         posterior = n.vo_axial_effect == "posterior" and axial_states
         self._axial_regression = AxialRegression(axial_states) if posterior else None
@@ -404,7 +402,7 @@ class FusedVisoOt:
         self.frames += 1
         entry = self._history[index]
         x, p = entry.x.copy(), entry.p.copy()
-        used = False
+        used, share = False, np.eye(3)  # share: of the increment's prior error, what a reference left, (4')
         if camera_motion is not None and np.all(np.isfinite(camera_motion)):
             z, r = self.measurement(np.asarray(camera_motion, dtype=float), covariance, given)
             h = np.zeros((3, self._states))
@@ -450,30 +448,29 @@ class FusedVisoOt:
                 self._nis.append(min(nis, self.noise.gate))
                 self.innovation_ratio = max(MIN_INNOVATION_RATIO, float(np.mean(self._nis)) / 3.0)
         if reference is not None and self.noise.coupling_reference and reference.start_tick == self._history[0].tick:
-            x, p = self._couple(x, p, reference)
-        self._commit(index, x, p)
+            x, p, share = self._couple(x, p, reference)
+        self._commit(index, x, p, share)
         self._read()
         return used
 
-    def _couple(self, x: np.ndarray, p: np.ndarray, coupling: CouplingMeasurement) -> tuple[np.ndarray, np.ndarray]:
+    def _couple(self, x: np.ndarray, p: np.ndarray, coupling: CouplingMeasurement) -> tuple[np.ndarray, ...]:
         """The following unit's measurement of ``(Δx, Δy, Δψ)`` ((C1) of :mod:`sensor.fusion_coupling`, ``H = [I₃ 0]``),
-        gated as the camera's motion."""
-        h = np.zeros((3, self._states))
-        h[:, :3] = np.eye(3)
+        gated as the camera's motion; the state, its covariance and (4')'s share of :mod:`sensor.fusion_std`."""
+        h = np.hstack([np.eye(3), np.zeros((3, self._states - 3))])
         innovation = np.asarray(coupling.increment, dtype=float) - x[:3]
         innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
         refuse = self._coupling_gated < self.noise.max_gated
-        x, p, _, used = gated_update(x, p, h, innovation, coupling.covariance, self.noise.gate, refuse)
+        x, posterior, _, used = gated_update(x, p, h, innovation, coupling.covariance, self.noise.gate, refuse)
         if not used:
             self._coupling_gated += 1
             self.coupling_rejected += 1
         else:
             self._coupling_gated = 0
             self.coupling_updates += 1
-        return x, p
+        return x, posterior, reference_share(p[:3, :3], posterior[:3, :3])
 
-    def _commit(self, index: int, x: np.ndarray, p: np.ndarray) -> None:
-        """Push the increments up to history ``index`` (ending at ``x``) and make that tick the anchor."""
+    def _commit(self, index: int, x: np.ndarray, p: np.ndarray, share: np.ndarray) -> None:
+        """Push the increments up to history ``index`` (ending at ``x``, ``share`` its (4')) and make it the anchor."""
         poses = [h.x[:3] for h in list(self._history)[: index + 1]]
         poses[-1] = x[:3]
         for a, b in itertools.pairwise(poses):
@@ -485,13 +482,14 @@ class FusedVisoOt:
         covs = np.concatenate([self._covs, p[None, :3, :3]])
         durations = np.append(self._durations, sum(t.inputs[0] for t in list(self._history)[1 : index + 1]))
         demands = np.append(self._demands, self._history[index].scrub)
+        shares = np.concatenate([self._shares, share[None]])
         starts = into_frame(starts, end)
         ends = into_frame(np.column_stack([ends, np.zeros(len(ends))]), end)[:, :2]
         keep = starts[:, 0] > -self.follow_point_offset - 2.0
         if self._axial_regression is not None:  # the increment's regression on the axial states, before the reset
             self._axial_regression.commit(p, keep)
         self._starts, self._ends, self._covs = starts[keep], ends[keep], covs[keep]
-        self._durations, self._demands = durations[keep], demands[keep]
+        self._durations, self._demands, self._shares = durations[keep], demands[keep], shares[keep]
         # The new anchor: Δ restarts from zero; the other states keep their covariance.
         anchor_x = x.copy()
         anchor_x[:3] = 0.0
@@ -521,7 +519,8 @@ class FusedVisoOt:
             self.std_parts = dict.fromkeys(STD_PARTS, math.nan)
             return
         elapsed = sum(t.inputs[0] for t in list(self._history)[1:])
-        window = IncrementWindow(self._starts, self._ends, self._covs, self._durations, self._demands)
+        shares = self._shares if self.noise.coupling_bias_share else None
+        window = IncrementWindow(self._starts, self._ends, self._covs, self._durations, self._demands, shares)
         axis = (
             self._optical_axis
             if self.noise.vo_axial_scale_uncertainty > 0.0 or self._axial_state or self._flow_state

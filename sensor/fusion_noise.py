@@ -36,7 +36,7 @@ class SideRigFusion(Settings):
     ----------
     vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect
         As :class:`FusionNoise`'s.
-    kinematic_rear_point, kinematic_error_model, coupling_reference
+    kinematic_rear_point, kinematic_error_model, coupling_reference, coupling_bias_share
         As :class:`FusionNoise`'s.
     coupling_covariance_scale
         Factor on the covariance of the following unit's measurement, (C2) of :mod:`sensor.fusion_coupling`
@@ -53,6 +53,7 @@ class SideRigFusion(Settings):
     kinematic_rear_point: KinematicReference | None = None
     kinematic_error_model: Literal["inflated", "state"] | None = None
     coupling_reference: bool | None = None
+    coupling_bias_share: bool | None = None
     coupling_covariance_scale: float | None = Field(
         None,
         ge=1.0,
@@ -197,6 +198,10 @@ class FusionNoise(Settings):
         Take a following unit's camera, carried forward through the couplings with the measured articulations, as a
         measurement of this unit's kingpin increment where the caller gives one (:mod:`sensor.fusion_coupling`;
         off by default, a run's side rigs take it).
+    coupling_bias_share : bool
+        Carry the biases into the off-tracking's std through only the share of each increment's error that the
+        following unit's measurement left in it, ``I − K_Δ`` of eq (4') of :mod:`sensor.fusion_std` (off: through
+        the whole increment, as if the camera alone had measured it; the same wherever no reference was taken).
     articulation_noise : float
         White noise of one articulation sample [rad], in the covariance of that measurement ((C2) of
         :mod:`sensor.fusion_coupling`).
@@ -309,6 +314,7 @@ class FusionNoise(Settings):
         50, ge=1, le=10000, description="camera motions in ρ of eq (5); one is no statistic, 10000 never adapts"
     )
     coupling_reference: bool = False
+    coupling_bias_share: bool = False
     articulation_noise: float = Field(
         8.7e-4, ge=0.0, le=0.1, description="[rad] per sample (sensor/datasheet.py); 0.1 rad is no articulation sensor"
     )

@@ -34,6 +34,19 @@ the odometry's error that changes with the scenery faster than ``β_ψ`` follows
 ``offtracking_bias_std`` ``σ_b``::
 
     σ_e² = (ρ/3)·(Σ gᵀ Q g + G·P_b·Gᵀ) + (u_κ·β_ψ·G_κ)² + (u_z·A_z)² + (s_k·m_k·Λ)² + σ_b²          (5)
+
+The sums of ``G``, ``A_z`` and ``A_f`` take each increment as the camera's motion corrected by the biases' estimate,
+so that a bias error moves it by the camera's whole sensitivity. Where a following unit's camera also measured the
+increment (:mod:`sensor.fusion_coupling`, ``H = [I₃ 0]``, its error independent of this unit's biases), the update
+left ``I − K_Δ`` of the increment's prior error in it and replaced the rest by the reference's (Gelb 1974, §4.2);
+the bias-driven part of the committed increment's error is that share of the camera's, and with
+``coupling_bias_share`` the coherent sums take ``g`` through it::
+
+    g' = (I − K_Δ)ᵀ g,    I − K_Δ = P⁺_ΔΔ·(P⁻_ΔΔ)⁻¹                                                          (4')
+
+(``P⁻_ΔΔ``, ``P⁺_ΔΔ`` the increment's covariance before and after the reference's update: ``R_c·S⁻¹`` for an
+update taken, the identity for one refused or absent, zero for a reference without error). The independent part
+keeps ``g`` and the posterior ``Q``, which holds the reference's share of the error already.
 """
 
 from __future__ import annotations
@@ -51,6 +64,7 @@ __all__ = [
     "axial_effect",
     "bias_effect",
     "path_effects",
+    "reference_share",
 ]
 
 #: The five terms of the off-tracking's variance, eq (5), in its order: the increments' own covariance, the
@@ -97,6 +111,15 @@ def bias_effect(
     return np.array([gyro, coupled + float(np.sum(g[:, 2] * length)), coupled])
 
 
+def reference_share(prior: np.ndarray, posterior: np.ndarray) -> np.ndarray:
+    """``I − K_Δ`` of eq (4'): the share of an increment's prior error a measurement of it left in it, from the
+    increment's 3×3 covariance before (``prior``) and after (``posterior``) the update (``P⁺·P⁻⁻¹``; the identity
+    exactly where the update was refused and left it as it was)."""
+    if np.array_equal(prior, posterior):
+        return np.eye(3)
+    return np.linalg.solve(prior.T, posterior.T).T
+
+
 @dataclass(frozen=True)
 class IncrementWindow:
     """The committed increments still ahead of the follow point, in the anchor's frame.
@@ -113,6 +136,9 @@ class IncrementWindow:
         (n,) each increment's duration [s].
     demands : numpy.ndarray or None
         (n,) the scrub demand ``D`` of (K5) each increment was taken at (``None``: none anywhere).
+    shares : numpy.ndarray or None
+        (n, 3, 3) ``I − K_Δ`` of eq (4') each increment was left with (``None``: the camera's sensitivity, eq (5)
+        as without a reference).
     """
 
     starts: np.ndarray
@@ -120,6 +146,7 @@ class IncrementWindow:
     covariances: np.ndarray
     durations: np.ndarray
     demands: np.ndarray | None = None
+    shares: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -201,14 +228,18 @@ def path_effects(
             g = np.column_stack([-np.sin(heading), -np.cos(heading), station + lfp])
             independent = float(np.einsum("ni,nij,nj->", g, window.covariances[ahead], g))
             length = np.hypot(ends[ahead, 0] - starts[ahead, 0], ends[ahead, 1] - starts[ahead, 1])
-            coherent = bias_effect(g, length, window.durations[ahead], slip_point, coupling)
+            if window.shares is not None:  # (4'): the share of the camera's error the reference left
+                g_biases = np.einsum("ni,nij->nj", g, window.shares[ahead])
+            else:
+                g_biases = g
+            coherent = bias_effect(g_biases, length, window.durations[ahead], slip_point, coupling)
             if window.demands is not None:
-                coupled = np.abs((g[:, 0] * coupling[0] + g[:, 1] * coupling[1]) * length)
+                coupled = np.abs((g_biases[:, 0] * coupling[0] + g_biases[:, 1] * coupling[1]) * length)
                 scrubbed, weight = float(np.dot(window.demands[ahead], coupled)), float(np.sum(coupled))
             lever += float(np.sum(g[:, 1] * window.durations[ahead]))
             if axis is not None:
                 turns = np.diff(np.append(starts[:, 2], 0.0))[ahead]  # each increment's Δψ (it ends at the next)
-                axial, cross = axial_effect(g, starts[ahead], ends[ahead], turns, axis, camera)
+                axial, cross = axial_effect(g_biases, starts[ahead], ends[ahead], turns, axis, camera)
     # ... and the current one, from the anchor (heading −Δψ in the current frame) to the kingpin.
     g_now = np.array([s, -c, lfp])
     independent += float(g_now @ current_covariance @ g_now)
