@@ -13,8 +13,9 @@ axles' lock, rate and slip-angle limit::
 ``δ_k`` to ``δ_{k+1}`` (so the rate limit holds at every instant), sampled at each control tick's start and held
 over the tick as the replay applies it, and the tractor's recorded inputs held over each tick as the run applied
 them: the model run is the co-simulation's, driven open loop (an input interpolated between ticks is applied half
-a tick early, and the tractor's path it drives is not the recorded one the cost measures against). ``α_j`` is the transient slip angle of steered axle ``j`` (the model's state). ``e_{u,k}`` is the signed
-distance of steered unit ``u``'s follow point from its front coupling's path (the first towed unit's kingpin, a
+a tick early, and the tractor's path it drives is not the recorded one the cost measures against). ``α_j`` is
+the transient slip angle of steered axle ``j`` (the model's state). ``e_{u,k}`` is the signed distance of steered
+unit ``u``'s follow point from its front coupling's path (the first towed unit's kingpin, a
 further unit's fifth wheel on the unit ahead, as the controller follows it): that path of the recorded run,
 linearised at the point nearest the follow point (each solve re-linearises at the last solution,
 :func:`solve_optimal_steer`). ``δ`` holds every steered axle of every towed unit (a B-double's four), the sum over

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from vehicle_model.geometry import kingpin_position
+from vehicle_model.geometry import follow_point_from_kingpin, kingpin_position
 from vehicle_model.offtracking import offtracking_series
 from vehicle_model.simulator import Simulator
 
@@ -45,8 +45,8 @@ def open_loop_replay(setup: ScenarioSetup, recorded: dict[str, np.ndarray], sche
     Returns
     -------
     dict
-        ``time``, ``kingpin_x``, ``kingpin_y`` and ``offtracking_truth`` [m] (NaN before one trailer length) of each
-        tick.
+        ``time``, ``kingpin_x``, ``kingpin_y``, ``follow_x``, ``follow_y`` and ``offtracking_truth`` [m] (NaN before
+        one trailer length) of each tick.
     """
     rates = setup.config.rates
     substeps = round(1.0 / (rates.control_hz * rates.dynamics_step_s))
@@ -67,11 +67,15 @@ def open_loop_replay(setup: ScenarioSetup, recorded: dict[str, np.ndarray], sche
         steer[slots] = schedule.at(float(t))
         state = sim.step_inputs(steer, float(recorded["drive_force"][k]))
     kingpin = kingpin_position(setup.params, pose[:, 0], pose[:, 1], pose[:, 2])
+    lfp = setup.params.follow_point_offset
+    follow = follow_point_from_kingpin(kingpin, pose[:, 3], lfp)
     return {
         "time": time,
         "kingpin_x": kingpin[:, 0],
         "kingpin_y": kingpin[:, 1],
-        "offtracking_truth": offtracking_series(kingpin, pose[:, 3], setup.params.follow_point_offset),
+        "follow_x": follow[..., 0],
+        "follow_y": follow[..., 1],
+        "offtracking_truth": offtracking_series(kingpin, pose[:, 3], lfp),
     }
 
 
@@ -89,5 +93,5 @@ def replay_figures(setup: ScenarioSetup, recorded: dict[str, np.ndarray], schedu
             "rms": rms,
             "max_abs": float(np.max(np.abs(own))) if own.size else float("nan"),
         },
-        "pid_over_replay_rms_ratio": run_rms / rms if rms > 0 else float("inf"),
+        "pid_over_replay_rms_ratio": run_rms / rms if rms > 0 else float("nan"),
     }
