@@ -26,10 +26,18 @@ at the command's operating point (with the fixed-axle compensation the sum is ``
 trailer's counterpart of the tractor's zero-slip point moving with speed
 (:attr:`vehicle_model.parameters.VehicleParams.tractor_rear_point_gradient`).
 
-Signals: the speed ``v`` and curvature ``κ`` are the kingpin's (the controller's dead-reckoned kinematics), the
-curvature taken where the trailer's centre of gravity now is, ``L_cg`` of path behind the kingpin (the trailer
-accelerates on the path its kingpin drove). No trailer state, no friction. The extra steer of each steered axle is
-bounded by the slip-angle limit (``max_slip_angle``); the lock is the output stage's.
+Outside a steady turn each part of the trailer accelerates on the curvature of the path under it. With the mass
+spread evenly over a length ``ℓ = 2·L_cg`` behind the kingpin (the same mass and centre of gravity; a laden
+semi-trailer's load is spread over its deck) and each point ``x`` behind the kingpin on the curvature of the kingpin
+path there, ``κ(s − x)`` (the trailer on the path its kingpin drove), the moment about the kingpin is::
+
+    m·v²·(1/ℓ)·∫₀^ℓ κ(s − x)·x dx  =  m·L_cg·v²·κ_m,    κ_m = (1/ℓ)∫₀^ℓ κ(s − x)·x dx / L_cg
+
+``κ_m`` is the path's curvature weighted by the distance behind the kingpin, equal to ``κ`` in a steady turn; it
+also carries the trailer's yaw acceleration as the turn begins or ends (the part of the trailer still in the turn
+still needs its force). Signals: the speed ``v`` and the curvature ``κ`` are the kingpin's (the controller's
+dead-reckoned kinematics, recorded by distance driven). No trailer state, no friction. The extra steer of each
+steered axle is bounded by the slip-angle limit (``max_slip_angle``); the lock is the output stage's.
 """
 
 from __future__ import annotations
@@ -44,6 +52,9 @@ from vehicle_model.parameters import VehicleParams
 from .axle_steer_distribution import AxleSteerDistribution
 
 __all__ = ["SlipFeedforward", "steady_slip_tangent"]
+
+MASS_POINTS = 32
+"""Points of the trailer's length at which the path's curvature is taken (midpoint rule of the moment's integral)."""
 
 LIMIT_ITERATIONS = 8
 """Rescalings of the extra tangent to the slip-angle limit: the distribution's curvature shrinks each excess by
@@ -96,6 +107,8 @@ class SlipFeedforward:
         towed = params.trailers[unit - 1]
         self.centre_distance = -float(towed.cg_x)
         self.moment_per_acceleration = float(towed.mass) * self.centre_distance
+        self.length = 2.0 * self.centre_distance
+        self._stations = self.length * (np.arange(MASS_POINTS) + 0.5) / MASS_POINTS  # behind the kingpin [m]
         self.distribution = distribution
         stiffness = np.asarray(distribution.stiffness, dtype=float)
         distances = np.asarray(distribution.distances, dtype=float)
@@ -110,22 +123,22 @@ class SlipFeedforward:
         self.tangent = 0.0
 
     def record(self, distance: float, curvature: float) -> None:
-        """Record the kingpin's curvature ``κ`` [1/m] at ``distance`` [m] driven; keep ``L_cg`` of path (and one
-        point before it)."""
+        """Record the kingpin's curvature ``κ`` [1/m] at ``distance`` [m] driven; keep the trailer's length ``2·L_cg``
+        of path (and one point before it)."""
         if not self._history or distance > self._history[-1][0]:
             self._history.append((distance, curvature))
-        while len(self._history) > 2 and self._history[1][0] <= distance - self.centre_distance:
+        while len(self._history) > 2 and self._history[1][0] <= distance - self.length:
             self._history.popleft()
 
-    def centre_curvature(self, distance: float) -> float:
-        """The kingpin path's curvature ``L_cg`` of path behind ``distance`` (the oldest recorded before that)."""
+    def moment_curvature(self, distance: float) -> float:
+        """The trailer's curvature ``κ_m`` [1/m]: the kingpin path's curvature under the trailer, weighted by each
+        point's distance behind the kingpin (module docstring); the oldest recorded before the path began."""
         if not self._history:
             return 0.0
-        station = distance - self.centre_distance
         stations = [s for s, _ in self._history]
-        if station <= stations[0]:
-            return self._history[0][1]
-        return float(np.interp(station, stations, [k for _, k in self._history]))
+        curvatures = [k for _, k in self._history]
+        under = np.interp(distance - self._stations, stations, curvatures)  # held at the ends
+        return float(np.mean(under * self._stations)) / self.centre_distance
 
     def gain(self, tan_virtual: float, tan_kingpin: float) -> float:
         """``G = Σ_s C_s·L_s·∂δ_s/∂tan δ_v`` [N·m] at the operating point, by central differences."""
@@ -148,7 +161,7 @@ class SlipFeedforward:
         tan_kingpin
             ``tan β_k``, the kingpin's direction in the trailer frame.
         """
-        self.curvature = self.centre_curvature(distance)
+        self.curvature = self.moment_curvature(distance)
         gain = self.gain(tan_virtual, tan_kingpin)
         if gain <= 0.0 or self.curvature == 0.0:
             self.tangent = 0.0
