@@ -27,7 +27,8 @@ steerable; a converter dolly or a drawbar trailer is not.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -180,6 +181,7 @@ def solve_optimal_steer(
     relinearisations: int = 2,
     max_iter: int = 300,
     expand: bool = False,
+    own_path: Callable[[OptimalSteer], np.ndarray] | None = None,
 ) -> OptimalSteer:
     """Solve the NLP of the module docstring over the recorded run ``columns``.
 
@@ -207,6 +209,12 @@ def solve_optimal_steer(
     expand
         Expand the whole NLP to one SX graph before the solve: the same problem, the interval's graph copied per
         node, slower to build and to differentiate (kept to compare the two, :mod:`scenarios.bench.optimal`).
+    own_path
+        The kingpin path ``(m, 2)`` a schedule drives (the schedule replayed through the simulator,
+        :func:`scenarios.studies.optimal_replay.open_loop_replay`): each solve after the first measures the first
+        towed unit's follow point from the kingpin path of the solution before it, its own path as the run's truth
+        does, instead of the recorded run's (the trailer's steer moves the tractor a little). ``None``: the recorded
+        path throughout.
 
     Raises
     ------
@@ -303,12 +311,17 @@ def solve_optimal_steer(
         cx, cy, fx, fy = _path_columns(u)
         paths[u] = np.column_stack([columns[cx], columns[cy]])
         points[u] = np.column_stack([np.interp(nodes, time, columns[fx]), np.interp(nodes, time, columns[fy])])
+    axles_of_steer = tuple(layout.steerable_axles[i] for i in steered)
     guess_x = x_nodes.copy()
     guess_d = np.column_stack(
         [np.interp(nodes, time, columns[f"steer_{layout.steerable_axles[i]}"]) for i in steered]
     ).T
     status = "not solved"
-    for _ in range(max(1, relinearisations)):
+    for solve in range(max(1, relinearisations)):
+        if solve > 0 and own_path is not None:  # the previous solution's own kingpin path
+            paths[1] = own_path(
+                OptimalSteer(nodes, guess_d.T, np.full(n + 1, np.nan), math.nan, status, axles_of_steer)
+            )
         for u in units:
             anchors, normals = path_reference(paths[u], points[u])
             opti.set_value(anchors_p[u], anchors.T)
