@@ -16,9 +16,10 @@ them: the model run is the co-simulation's, driven open loop (an input interpola
 a tick early, and the tractor's path it drives is not the recorded one the cost measures against). ``α_j`` is
 the transient slip angle of steered axle ``j`` (the model's state). ``e_{u,k}`` is the signed distance of steered
 unit ``u``'s follow point from its front coupling's path (the first towed unit's kingpin, a
-further unit's fifth wheel on the unit ahead, as the controller follows it): that path of the recorded run,
-linearised at the point nearest the follow point (each solve re-linearises at the last solution,
-:func:`solve_optimal_steer`). ``δ`` holds every steered axle of every towed unit (a B-double's four), the sum over
+further unit's fifth wheel on the unit ahead, as the controller follows it): that path of the recorded run (or,
+for the first towed unit, the previous solution's own kingpin path, ``own_path``), linearised at the point nearest
+the follow point (each solve re-linearises at the last solution, :func:`solve_optimal_steer`). ``δ`` holds every
+steered axle of every towed unit (a B-double's four), the sum over
 ``u`` every towed unit with a steerable axle, each counted once its coupling has driven its follow-point offset.
 The tractor is driven open loop as recorded; its own path barely depends on the trailers' steer.
 A combination of semi-trailers is handled (a tractor–semi-trailer, a B-double, a B-triple), its first towed unit
