@@ -21,7 +21,8 @@ for the first towed unit, the previous solution's own kingpin path, ``own_path``
 the follow point (each solve re-linearises at the last solution, :func:`solve_optimal_steer`). ``δ`` holds every
 steered axle of every towed unit (a B-double's four), the sum over
 ``u`` every towed unit with a steerable axle, each counted once its coupling has driven its follow-point offset.
-The tractor is driven open loop as recorded; its own path barely depends on the trailers' steer.
+The tractor is driven open loop as recorded; the trailers' steer moves its path a little through the coupling
+(more on a slippery loop), which is why the first unit's follow point is better measured from its own path.
 A combination of semi-trailers is handled (a tractor–semi-trailer, a B-double, a B-triple), its first towed unit
 steerable; a converter dolly or a drawbar trailer is not.
 """
