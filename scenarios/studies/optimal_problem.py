@@ -29,8 +29,7 @@ steerable; a converter dolly or a drawbar trailer is not.
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -92,6 +91,12 @@ def _follow_point(params: VehicleParams, x: Any, unit: int = 1, layout: Layout |
     return kx - lfp * ca.cos(heading), ky - lfp * ca.sin(heading)
 
 
+def _kingpin_point(params: VehicleParams, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Global kingpin position from states ``(n_states, …)`` (:func:`vehicle_model.geometry.kingpin_position`)."""
+    rel = params.tractor.fifth_wheel_x - params.tractor.cg_x
+    return x[0] + rel * np.cos(x[2]), x[1] + rel * np.sin(x[2])
+
+
 def _follow_function(params: VehicleParams, n_states: int, unit: int = 1) -> ca.Function:
     """``x → (x, y)`` of towed unit ``unit``'s follow point, an SX function."""
     xs = ca.SX.sym("x", n_states)
@@ -114,6 +119,7 @@ def interval_integrator(
     substeps: int,
     step: float,
     weights: Sequence[float] | None = None,
+    every_step: bool = False,
 ) -> ca.Function:
     """The shooting map ``Φ`` of one interval as one SX function ``(x_k, δ_k, δ_{k+1}, held) → x_{k+1}``.
 
@@ -121,7 +127,8 @@ def interval_integrator(
     right-hand side), unrolled; ``held`` ``(n_inputs, substeps)`` holds every input of each step, and the rows of
     the ``steered`` steer inputs are replaced by the trailer steer linear from ``δ_k`` to ``δ_{k+1}``: in step
     ``i`` the steer ``δ_k + w_i·(δ_{k+1} − δ_k)``, ``w_i`` from ``weights`` (one per step; by default the step's
-    middle, ``(i + ½)/substeps``).
+    middle, ``(i + ½)/substeps``). With ``every_step`` the function returns the state after each step instead,
+    ``(n_states, substeps)``.
     """
     layout = Layout.for_vehicle(params)
     sym = define_model(params)
@@ -129,6 +136,7 @@ def interval_integrator(
     x = x_start = ca.SX.sym("x", layout.n_states)
     d_start, d_end = ca.SX.sym("d0", len(steered)), ca.SX.sym("d1", len(steered))
     held = ca.SX.sym("held", layout.n_inputs, substeps)
+    states = []
     if weights is None:
         weights = [(i + 0.5) / substeps for i in range(substeps)]
     if len(weights) != substeps:
@@ -139,7 +147,8 @@ def interval_integrator(
         for j, row in enumerate(steered):
             rows[row] = d_start[j] + (d_end[j] - d_start[j]) * weight
         x = rk4_step_expr(rhs, x, ca.vertcat(*rows), step)
-    return ca.Function("interval", [x_start, d_start, d_end, held], [x])
+        states.append(x)
+    return ca.Function("interval", [x_start, d_start, d_end, held], [ca.horzcat(*states) if every_step else x])
 
 
 def held_steer_weights(tick_starts: np.ndarray, nodes: np.ndarray) -> list[float] | None:
@@ -183,7 +192,7 @@ def solve_optimal_steer(
     relinearisations: int = 2,
     max_iter: int = 300,
     expand: bool = False,
-    own_path: Callable[[OptimalSteer], np.ndarray] | None = None,
+    own_path: bool = False,
 ) -> OptimalSteer:
     """Solve the NLP of the module docstring over the recorded run ``columns``.
 
@@ -212,11 +221,10 @@ def solve_optimal_steer(
         Expand the whole NLP to one SX graph before the solve: the same problem, the interval's graph copied per
         node, slower to build and to differentiate (kept to compare the two, :mod:`scenarios.bench.optimal`).
     own_path
-        The kingpin path ``(m, 2)`` a schedule drives (the schedule replayed through the simulator,
-        :func:`scenarios.studies.optimal_replay.open_loop_replay`): each solve after the first measures the first
-        towed unit's follow point from the kingpin path of the solution before it, its own path as the run's truth
-        does, instead of the recorded run's (the trailer's steer moves the tractor a little). ``None``: the recorded
-        path throughout.
+        Each solve after the first measures the first towed unit's follow point from the previous solution's own
+        kingpin path (its states after every RK4 step of every interval, the NLP's own model run) instead of the
+        recorded run's: the trailer's steer moves the tractor a little, and a run's truth is measured from its own
+        path. ``False``: the recorded path throughout.
 
     Raises
     ------
@@ -262,7 +270,9 @@ def solve_optimal_steer(
         fixed[layout.slope_slice, k * m : (k + 1) * m] = slope[:, None]
 
     follows = {u: _follow_function(params, layout.n_states, u) for u in units}
-    shoot = interval_integrator(params, steered, m, h, held_steer_weights(time[tick].reshape(n, m), nodes)).map(n)
+    weights = held_steer_weights(time[tick].reshape(n, m), nodes)
+    shoot = interval_integrator(params, steered, m, h, weights).map(n)
+    dense = interval_integrator(params, steered, m, h, weights, every_step=True).map(n) if own_path else None
 
     opti = ca.Opti()
     X = opti.variable(layout.n_states, n + 1)
@@ -313,17 +323,16 @@ def solve_optimal_steer(
         cx, cy, fx, fy = _path_columns(u)
         paths[u] = np.column_stack([columns[cx], columns[cy]])
         points[u] = np.column_stack([np.interp(nodes, time, columns[fx]), np.interp(nodes, time, columns[fy])])
-    axles_of_steer = tuple(layout.steerable_axles[i] for i in steered)
     guess_x = x_nodes.copy()
     guess_d = np.column_stack(
         [np.interp(nodes, time, columns[f"steer_{layout.steerable_axles[i]}"]) for i in steered]
     ).T
     status = "not solved"
     for solve in range(max(1, relinearisations)):
-        if solve > 0 and own_path is not None:  # the previous solution's own kingpin path
-            paths[1] = own_path(
-                OptimalSteer(nodes, guess_d.T, np.full(n + 1, np.nan), math.nan, status, axles_of_steer)
-            )
+        if solve > 0 and own_path:  # the previous solution's own kingpin path, every RK4 step
+            states = np.asarray(dense(guess_x[:-1].T, guess_d[:, :-1], guess_d[:, 1:], ca.DM(fixed)))
+            states = np.column_stack([guess_x[0], states])
+            paths[1] = np.column_stack(_kingpin_point(params, states))
         for u in units:
             anchors, normals = path_reference(paths[u], points[u])
             opti.set_value(anchors_p[u], anchors.T)

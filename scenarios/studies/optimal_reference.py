@@ -40,7 +40,7 @@ from ..run.results import TIMESERIES_FILE
 from ..run.runner import run_scenario
 from ..setup.build import ScenarioSetup, build_scenario
 from .optimal_problem import STEER_SMOOTHING, OptimalSteer, path_reference, solve_optimal_steer
-from .optimal_replay import open_loop_replay, replay_figures
+from .optimal_replay import replay_figures
 
 __all__ = ["OPTIMAL_FILE", "PidRun", "ScheduledSteer", "pid_run", "run_optimal_reference"]
 
@@ -164,13 +164,7 @@ def run_optimal_reference(
     pid = pid_run(config, pid_dir)
     setup, pid_metrics, recorded = pid.setup, pid.metrics, pid.recorded
 
-    def own_path(steer: OptimalSteer) -> np.ndarray:
-        replay = open_loop_replay(setup, recorded, steer)
-        return np.column_stack([replay["kingpin_x"], replay["kingpin_y"]])
-
-    schedule = solve_optimal_steer(
-        setup.params, recorded, pid.simulator, pid.limits, interval=interval, own_path=own_path
-    )
+    schedule = solve_optimal_steer(setup.params, recorded, pid.simulator, pid.limits, interval=interval, own_path=True)
     axles = tuple(
         n for n in setup.model.layout.steerable_axles if n not in {a.name for a in setup.params.tractor.axles}
     )
