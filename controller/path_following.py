@@ -147,6 +147,7 @@ from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
+from .feedforward_slip import SlipFeedforward
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
 from .preview import chord_law, interpolated_chord_end, preview_tangent, straight_chord_end
 from .reach_rules import is_outswing, outswing_scale, window_holding
@@ -264,6 +265,9 @@ class TrailerSteeringController:
             )
         )
         self._steered_distances = self.distribution.distances[self.distribution.steerable]
+        self.slip_feedforward = (  # the axles' steady slip in the turn (controller.feedforward_slip), opt-in
+            SlipFeedforward(params, unit, self.distribution, cfg.max_slip_angle) if cfg.slip_feedforward else None
+        )
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -271,6 +275,8 @@ class TrailerSteeringController:
     def reset(self) -> None:
         """Straight axles, empty integrator, no held sample."""
         self.output.reset()
+        if self.slip_feedforward is not None:
+            self.slip_feedforward.reset()
         self.feedforward_steer = 0.0
         self.feedback_steer = 0.0
         self.integral = 0.0
@@ -398,6 +404,11 @@ class TrailerSteeringController:
                     PATH_SPACING,
                 )
             )
+        if self.slip_feedforward is not None and forward:  # plus the slip that carries the trailer's lateral force
+            self.slip_feedforward.record(self.distance, self.kingpin_curvature)
+            tan_ff = math.tan(self.feedforward_steer)
+            tan_ff += self.slip_feedforward(self.distance, speed, tan_ff, tan_kingpin)
+            self.feedforward_steer = math.atan(tan_ff)
         if slip_window is not None and cfg.slip_window_holds_feedforward:  # the path's own steer is never clipped
             virtual = min(max(self.feedforward_steer, -cfg.max_virtual_steer), cfg.max_virtual_steer)
             slip_window = window_holding(slip_window, self.fade * self.distribution(math.tan(virtual), tan_kingpin))

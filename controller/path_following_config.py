@@ -214,6 +214,10 @@ class PathFollowingConfig(Settings):
         the recorded kingpin path (:mod:`controller.preview`). ``None`` (default): the chord law of the present
         configuration. Needs ``feedforward = "path"``. The reach (``beyond_reach``) stays judged on the present
         chord law: it says what the path needs, not what the preview asks for.
+    slip_feedforward : bool
+        Add to the feed-forward the steered axles' steady slip that carries the trailer's lateral force in the turn
+        (:mod:`controller.feedforward_slip`). Off (default): the kinematic law alone. The reach stays judged on the
+        kinematic law.
     """
 
     gains: PathFollowingGains | None = None
@@ -239,6 +243,7 @@ class PathFollowingConfig(Settings):
     reach_freeze_at: ReachFreezeAt = "exit"
     max_outswing: float | None = Field(None, gt=0.0, le=2.0)
     preview_distance: float | None = Field(None, ge=0.0, le=30.0)
+    slip_feedforward: bool = False
 
     @model_validator(mode="after")
     def _ordered_fade_speeds(self) -> PathFollowingConfig:

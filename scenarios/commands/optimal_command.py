@@ -72,6 +72,8 @@ def optimal(
     pid = ref["pid_truth_after_warmup"]
     console.print(
         f"optimal reference ({ref['status']}): cost {ref['cost']:.4g} m² against the PID's {ref['pid_cost']:.4g} m² "
-        f"({ref['pid_feedback']}-fed, {pid['rms']:.3f} m RMS / {pid['max_abs']:.3f} m max after warm-up)"
+        f"({ref['pid_feedback']}-fed, {pid['rms']:.3f} m RMS / {pid['max_abs']:.3f} m max after warm-up); "
+        f"replayed open loop {1e3 * ref['replay_open_loop_after_warmup']['rms']:.3f} mm RMS after warm-up, the PID "
+        f"{ref['pid_over_replay_rms_ratio']:.3g}× that"
     )
     exit_for_status(metrics)

@@ -460,6 +460,11 @@ class ControllerConfig(Settings):
         "or as lock and also from the turn's exit, the kingpin's curvature below half its peak (exit; "
         "controller.path_following_config)",
     )
+    slip_feedforward: bool = Field(
+        False,
+        description="add the steered axles' steady slip angle that carries the trailer's lateral force in a turn to "
+        "the feed-forward (controller.feedforward_slip)",
+    )
     high_speed_crossover_kmh: tuple[float, float] | None = Field(
         (35.0, 55.0),
         description="[km/h] (start, end) of the fade from path following to the unsteered trailer at speed, null "
@@ -497,6 +502,7 @@ class ControllerConfig(Settings):
             max_outswing=self.max_outswing_m,
             preview_distance=self.preview_m,
             reach_freeze_at=self.reach_freeze_at,
+            slip_feedforward=self.slip_feedforward,
             high_speed_crossover=None
             if self.high_speed_crossover_kmh is None
             else (self.high_speed_crossover_kmh[0] / 3.6, self.high_speed_crossover_kmh[1] / 3.6),

@@ -10,20 +10,26 @@ axles' lock, rate and slip-angle limit::
          |δ_k| ≤ δ_max,  |δ_{k+1} − δ_k| ≤ δ̇_max·T,  |α_j(x_k)| ≤ α_max
 
 ``Φ`` is the model's RK4 over one shooting interval ``T`` in ``m`` steps, the trailer steer linear in time from
-``δ_k`` to ``δ_{k+1}`` (so the rate limit holds at every instant) and the tractor's recorded inputs interpolated at
-each step. ``α_j`` is the transient slip angle of steered axle ``j`` (the model's state). ``e_{u,k}`` is the signed
-distance of steered unit ``u``'s follow point from its front coupling's path (the first towed unit's kingpin, a
-further unit's fifth wheel on the unit ahead, as the controller follows it): that path of the recorded run,
-linearised at the point nearest the follow point (each solve re-linearises at the last solution,
-:func:`solve_optimal_steer`). ``δ`` holds every steered axle of every towed unit (a B-double's four), the sum over
+``δ_k`` to ``δ_{k+1}`` (so the rate limit holds at every instant), sampled at each control tick's start and held
+over the tick as the replay applies it, and the tractor's recorded inputs held over each tick as the run applied
+them: the model run is the co-simulation's, driven open loop (an input interpolated between ticks is applied half
+a tick early, and the tractor's path it drives is not the recorded one the cost measures against). ``α_j`` is
+the transient slip angle of steered axle ``j`` (the model's state). ``e_{u,k}`` is the signed distance of steered
+unit ``u``'s follow point from its front coupling's path (the first towed unit's kingpin, a
+further unit's fifth wheel on the unit ahead, as the controller follows it): that path of the recorded run (or,
+for the first towed unit, the previous solution's own kingpin path, ``own_path``), linearised at the point nearest
+the follow point (each solve re-linearises at the last solution, :func:`solve_optimal_steer`). ``δ`` holds every
+steered axle of every towed unit (a B-double's four), the sum over
 ``u`` every towed unit with a steerable axle, each counted once its coupling has driven its follow-point offset.
-The tractor is driven open loop as recorded; its own path barely depends on the trailers' steer.
+The tractor is driven open loop as recorded; the trailers' steer moves its path a little through the coupling
+(more on a slippery loop), which is why the first unit's follow point is better measured from its own path.
 A combination of semi-trailers is handled (a tractor–semi-trailer, a B-double, a B-triple), its first towed unit
 steerable; a converter dolly or a drawbar trailer is not.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -37,7 +43,7 @@ from vehicle_model.layout import BODY_STATES, Layout
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import Simulator
 
-__all__ = ["OptimalSteer", "interval_integrator", "path_reference", "solve_optimal_steer"]
+__all__ = ["OptimalSteer", "held_steer_weights", "interval_integrator", "path_reference", "solve_optimal_steer"]
 
 STEER_SMOOTHING = 1e-2
 """Weight ``w`` [m²/rad²] of the steer increments in the cost: small beside a centimetre of off-tracking, enough to
@@ -85,6 +91,12 @@ def _follow_point(params: VehicleParams, x: Any, unit: int = 1, layout: Layout |
     return kx - lfp * ca.cos(heading), ky - lfp * ca.sin(heading)
 
 
+def _kingpin_point(params: VehicleParams, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Global kingpin position from states ``(n_states, …)`` (:func:`vehicle_model.geometry.kingpin_position`)."""
+    rel = params.tractor.fifth_wheel_x - params.tractor.cg_x
+    return x[0] + rel * np.cos(x[2]), x[1] + rel * np.sin(x[2])
+
+
 def _follow_function(params: VehicleParams, n_states: int, unit: int = 1) -> ca.Function:
     """``x → (x, y)`` of towed unit ``unit``'s follow point, an SX function."""
     xs = ca.SX.sym("x", n_states)
@@ -101,13 +113,22 @@ def _path_columns(unit: int) -> tuple[str, str, str, str]:
     return f"coupling{k}_x", f"coupling{k}_y", f"follow{k}_x", f"follow{k}_y"
 
 
-def interval_integrator(params: VehicleParams, steered: list[int], substeps: int, step: float) -> ca.Function:
+def interval_integrator(
+    params: VehicleParams,
+    steered: list[int],
+    substeps: int,
+    step: float,
+    weights: Sequence[float] | None = None,
+    every_step: bool = False,
+) -> ca.Function:
     """The shooting map ``Φ`` of one interval as one SX function ``(x_k, δ_k, δ_{k+1}, held) → x_{k+1}``.
 
     ``substeps`` RK4 steps of length ``step`` (:func:`vehicle_model.dynamics.rk4_step_expr` on the model's own
-    right-hand side), unrolled; ``held`` ``(n_inputs, substeps)`` holds every input at each step's middle, and the
-    rows of the ``steered`` steer inputs are replaced by the trailer steer linear from ``δ_k`` to ``δ_{k+1}``,
-    taken at the step's middle.
+    right-hand side), unrolled; ``held`` ``(n_inputs, substeps)`` holds every input of each step, and the rows of
+    the ``steered`` steer inputs are replaced by the trailer steer linear from ``δ_k`` to ``δ_{k+1}``: in step
+    ``i`` the steer ``δ_k + w_i·(δ_{k+1} − δ_k)``, ``w_i`` from ``weights`` (one per step; by default the step's
+    middle, ``(i + ½)/substeps``). With ``every_step`` the function returns the state after each step instead,
+    ``(n_states, substeps)``.
     """
     layout = Layout.for_vehicle(params)
     sym = define_model(params)
@@ -115,13 +136,34 @@ def interval_integrator(params: VehicleParams, steered: list[int], substeps: int
     x = x_start = ca.SX.sym("x", layout.n_states)
     d_start, d_end = ca.SX.sym("d0", len(steered)), ca.SX.sym("d1", len(steered))
     held = ca.SX.sym("held", layout.n_inputs, substeps)
+    states = []
+    if weights is None:
+        weights = [(i + 0.5) / substeps for i in range(substeps)]
+    if len(weights) != substeps:
+        raise InputError(f"weights: {len(weights)} given, one per step ({substeps}) expected")
     for i in range(substeps):
-        weight = (i + 0.5) / substeps
+        weight = float(weights[i])
         rows = [held[j, i] for j in range(layout.n_inputs)]
         for j, row in enumerate(steered):
             rows[row] = d_start[j] + (d_end[j] - d_start[j]) * weight
         x = rk4_step_expr(rhs, x, ca.vertcat(*rows), step)
-    return ca.Function("interval", [x_start, d_start, d_end, held], [x])
+        states.append(x)
+    return ca.Function("interval", [x_start, d_start, d_end, held], [ca.horzcat(*states) if every_step else x])
+
+
+def held_steer_weights(tick_starts: np.ndarray, nodes: np.ndarray) -> list[float] | None:
+    """Weights ``w_i`` (:func:`interval_integrator`) of the trailer steer as a run replays the schedule: sampled at
+    each control tick's start and held over the tick (:class:`scenarios.studies.optimal_reference.ScheduledSteer`).
+
+    ``tick_starts`` ``(intervals, substeps)`` holds the start time [s] of the tick each RK4 step lies in, ``nodes``
+    the node times [s]. ``None`` (the step's middle) unless every interval has the same weights, as when the
+    interval is a whole number of ticks: the interval's function is one, mapped over the nodes.
+    """
+    span = np.diff(nodes)[:, None]
+    weights = (tick_starts - nodes[:-1, None]) / span
+    if not np.allclose(weights, weights[0], rtol=0.0, atol=1e-9):
+        return None
+    return [float(w) for w in np.clip(weights[0], 0.0, 1.0)]
 
 
 def path_reference(path: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -150,6 +192,7 @@ def solve_optimal_steer(
     relinearisations: int = 2,
     max_iter: int = 300,
     expand: bool = False,
+    own_path: bool = False,
 ) -> OptimalSteer:
     """Solve the NLP of the module docstring over the recorded run ``columns``.
 
@@ -177,6 +220,11 @@ def solve_optimal_steer(
     expand
         Expand the whole NLP to one SX graph before the solve: the same problem, the interval's graph copied per
         node, slower to build and to differentiate (kept to compare the two, :mod:`scenarios.bench.optimal`).
+    own_path
+        Each solve after the first measures the first towed unit's follow point from the previous solution's own
+        kingpin path (its states after every RK4 step of every interval, the NLP's own model run) instead of the
+        recorded run's: the trailer's steer moves the tractor a little, and a run's truth is measured from its own
+        path. ``False``: the recorded path throughout.
 
     Raises
     ------
@@ -199,10 +247,12 @@ def solve_optimal_steer(
     n, m = len(nodes) - 1, max(1, round(interval / step))
     h = interval / m
 
-    # The tractor's inputs at each RK4 step's middle, and the surface along the recorded states.
+    # The tractor's inputs of each RK4 step as the run applied them (each tick's, held over its control period),
+    # and the surface along the recorded states.
     mid = (nodes[:-1, None] + (np.arange(m)[None, :] + 0.5) * h).ravel()
-    recorded = {name: np.interp(mid, time, columns[f"steer_{name}"]) for name in layout.steerable_axles}
-    drive = np.interp(mid, time, columns["drive_force"])
+    tick = np.clip(np.searchsorted(time, mid, side="right") - 1, 0, time.size - 1)
+    recorded = {name: np.asarray(columns[f"steer_{name}"], dtype=float)[tick] for name in layout.steerable_axles}
+    drive = np.asarray(columns["drive_force"], dtype=float)[tick]
     states = np.column_stack([np.interp(nodes, time, columns[name]) for name in BODY_STATES])
     x_nodes = np.zeros((n + 1, layout.n_states))
     x_nodes[:, : len(BODY_STATES)] = states
@@ -220,7 +270,9 @@ def solve_optimal_steer(
         fixed[layout.slope_slice, k * m : (k + 1) * m] = slope[:, None]
 
     follows = {u: _follow_function(params, layout.n_states, u) for u in units}
-    shoot = interval_integrator(params, steered, m, h).map(n)
+    weights = held_steer_weights(time[tick].reshape(n, m), nodes)
+    shoot = interval_integrator(params, steered, m, h, weights).map(n)
+    dense = interval_integrator(params, steered, m, h, weights, every_step=True).map(n) if own_path else None
 
     opti = ca.Opti()
     X = opti.variable(layout.n_states, n + 1)
@@ -276,7 +328,11 @@ def solve_optimal_steer(
         [np.interp(nodes, time, columns[f"steer_{layout.steerable_axles[i]}"]) for i in steered]
     ).T
     status = "not solved"
-    for _ in range(max(1, relinearisations)):
+    for solve in range(max(1, relinearisations)):
+        if solve > 0 and own_path:  # the previous solution's own kingpin path, every RK4 step
+            states = np.asarray(dense(guess_x[:-1].T, guess_d[:, :-1], guess_d[:, 1:], ca.DM(fixed)))
+            states = np.column_stack([guess_x[0], states])
+            paths[1] = np.column_stack(_kingpin_point(params, states))
         for u in units:
             anchors, normals = path_reference(paths[u], points[u])
             opti.set_value(anchors_p[u], anchors.T)

@@ -11,6 +11,11 @@ Three steps, each in the output directory:
    co-simulation (:class:`ScheduledSteer`), the tractor's driver steering as in every run; ``optimal.json`` beside
    ``metrics.json`` holds the schedule, the NLP's status and cost, and the PID's cost on the same nodes (and for a
    combination each further steered unit's figures as ``unit<k>_…``).
+
+The NLP's own figures are on its nodes, against the PID run's kingpin path; the run's figure of the optimum is
+``replay_open_loop_after_warmup`` (:mod:`scenarios.studies.optimal_replay`: the schedule and the PID run's tractor
+inputs through the simulator, every tick, from its own kingpin path, after warm-up), and
+``pid_over_replay_rms_ratio`` the PID's true RMS after warm-up over it: the same quantity on the same ticks and window.
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from ..run.results import TIMESERIES_FILE
 from ..run.runner import run_scenario
 from ..setup.build import ScenarioSetup, build_scenario
 from .optimal_problem import STEER_SMOOTHING, OptimalSteer, path_reference, solve_optimal_steer
+from .optimal_replay import replay_figures
 
 __all__ = ["OPTIMAL_FILE", "PidRun", "ScheduledSteer", "pid_run", "run_optimal_reference"]
 
@@ -157,7 +163,8 @@ def run_optimal_reference(
     pid_dir.mkdir(parents=True, exist_ok=True)
     pid = pid_run(config, pid_dir)
     setup, pid_metrics, recorded = pid.setup, pid.metrics, pid.recorded
-    schedule = solve_optimal_steer(setup.params, recorded, pid.simulator, pid.limits, interval=interval)
+
+    schedule = solve_optimal_steer(setup.params, recorded, pid.simulator, pid.limits, interval=interval, own_path=True)
     axles = tuple(
         n for n in setup.model.layout.steerable_axles if n not in {a.name for a in setup.params.tractor.axles}
     )
@@ -175,6 +182,7 @@ def run_optimal_reference(
         "pid_nodes_offtracking_rms": float(np.sqrt(np.nanmean(pid_offtracking(schedule, recorded) ** 2))),
         "nlp_offtracking_max_abs": float(np.nanmax(np.abs(schedule.offtracking))),
         "nlp_max_abs_slip_deg": float(np.degrees(np.max(np.abs(schedule.slip)))) if schedule.slip is not None else None,
+        **replay_figures(setup, recorded, schedule),
         "times": schedule.times.tolist(),
         "steer_deg": {a: np.degrees(schedule.steer[:, i]).tolist() for i, a in enumerate(schedule.axles)},
     }
