@@ -38,10 +38,14 @@ with it (eq (3) of :mod:`sensor.fusion_model`); where the follower's own filter 
 no slip affects) the follower's increment is taken less that error before (C1), and the estimate's variance
 ``P_β`` is added to the follower's covariance::
 
-    z_m ← z_m − d·β̂_ψ·g,   R_m ← R_m + d²·P_β·g·gᵀ,   g = (κ·c_x, κ·c_y, 1),   d = z_m,x                 (C0)
+    z_m ← z_m − d·β̂_ψ·g,   R_m ← R_m + d²·P_β·g·gᵀ,   g = s·((1 − D)·κ·c_x, (1 − D)·κ·c_y, 1),   d = z_m,x   (C0)
 
 (``c`` the frame's yaw–translation regression from ``R_m``, ``κ`` = ``vo_bias_coupling``, as the follower's filter
-takes them).
+takes them). ``D`` is the follower's scrub demand at its last frame, where its own filter takes the frame's motion with
+only the share ``s = 1 − r·D`` of ``β̂_ψ`` ((K6), ``r`` = ``scrub_bias_release``) and the coupled translation at
+``(1 − r·D)·(1 − D)`` ((K5)–(K6), :mod:`sensor.fusion_slip`): the reference removes what the follower's filter holds
+to be the odometry's error in that motion, not the part it releases to the scrubbing tyres. Without a demand
+(``D = 0``) ``g = (κ·c_x, κ·c_y, 1)``.
 
 A follower camera that looks across its motion has the same axial errors as the lead's, so the follower is the
 nearest unit behind whose camera looks along its unit (a rear or front rig, :func:`looks_along`).
@@ -74,6 +78,7 @@ from vehicle_model.parameters import VehicleParams
 
 from .fusion_model import camera_increment
 from .fusion_noise import FusionNoise
+from .fusion_slip import scrub_bias_share
 from .viso_ot import VisoOtEstimator
 
 __all__ = ["CouplingMeasurement", "CouplingReference", "looks_along", "transport_increment"]
@@ -224,14 +229,15 @@ class CouplingReference:
         covariance: np.ndarray | None,
         start: Sequence[float],
         end: Sequence[float],
-        yaw_bias: tuple[float, float] | None = None,
+        yaw_bias: tuple[float, ...] | None = None,
         tilts: tuple[tuple[float, float], tuple[float, float]] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """The lead's kingpin increment ``z`` and its 3×3 covariance ``R_c`` (C1)–(C2) from one follower camera
         motion (as :meth:`~sensor.fusion.FusedVisoOt.measure` takes it, with its 6×6 odometry covariance or
         ``None``) and the articulations ``Γ_{j+1} … Γ_m`` at the frame's start and end (:meth:`articulations`);
         ``yaw_bias``: the follower's odometry yaw error ``β̂_ψ`` [rad/m] and its variance as its own filter
-        estimates them, taken out by (C0) (``None``: none). ``tilts``: the follower's (pitch, roll) [rad] at the
+        estimates them, and optionally its scrub demand ``D`` at its last frame (0 when not given), taken out by (C0)
+        (``None``: none). ``tilts``: the follower's (pitch, roll) [rad] at the
         frame's start and end, required with ``level_reference="accelerometer"`` (the increment is then the lead's
         in its level frame, module notes) and refused without it."""
         tilt = None
@@ -248,7 +254,13 @@ class CouplingReference:
             self.geometry, self.noise, np.asarray(camera_motion, dtype=float), covariance, tilt
         )
         if yaw_bias is not None and all(math.isfinite(v) for v in yaw_bias):  # (C0)
+            if not 2 <= len(yaw_bias) <= 3 or (len(yaw_bias) == 3 and not 0.0 <= yaw_bias[2] <= 1.0):
+                raise InputError(f"yaw_bias = {yaw_bias!r}: allowed (β̂_ψ, P_β) or (β̂_ψ, P_β, D) with D in [0, 1]")
             g = np.array([*(self.noise.vo_bias_coupling * r_follower[:2, 2] / r_follower[2, 2]), 1.0])
+            demand = float(yaw_bias[2]) if len(yaw_bias) == 3 else 0.0
+            if demand > 0.0:  # (K5)–(K6): the share of β̂_ψ the follower's filter took this motion with
+                g[:2] *= 1.0 - demand
+                g *= scrub_bias_share(self.noise, demand)
             d = float(follower[0])
             follower = follower - d * yaw_bias[0] * g
             r_follower = r_follower + d * d * yaw_bias[1] * np.outer(g, g)

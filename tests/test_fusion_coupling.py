@@ -93,6 +93,37 @@ def test_the_followers_yaw_error_is_taken_out_as_its_filter_estimates_it():
     assert widened[2, 2] - r[2, 2] == pytest.approx(follower[0] ** 2 * 1e-6, rel=1e-4)  # d²·P_β on the yaw
 
 
+def test_the_followers_yaw_error_is_taken_at_the_share_its_filter_applied():
+    """(C0) at the follower's scrub demand ``D``: at ``D = 0`` the reference is the one without a demand to the bit;
+    at ``D = 1`` with a release ``r`` the lead's yaw increment is less ``(1 − r)·d·β̂_ψ`` and the translation takes
+    none of the coupled correction (closed form, 1e-12); a demand outside [0, 1] is refused."""
+    params = VEHICLE_PRESETS["au-b-double"]()
+    rig = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
+    release = 0.7
+    noise = FusionNoise(scrub_bias_release=release)
+    reference = CouplingReference(params, 1, 2, rig.camera_in_trailer("left", params), noise)
+    a, b = _swinging(1.0, 2), _swinging(1.2, 2)
+    motion = np.linalg.inv(rig.camera_in_world(params, a, "left")) @ rig.camera_in_world(params, b, "left")
+    covariance = np.diag([1e-6, 4e-6, 1e-6, 1e-4, 1e-5, 1e-4])
+    start, end = reference.articulations(a.angles), reference.articulations(b.angles)
+    beta, p_beta = 1e-3, 1e-6
+    old = reference.measurement(motion, covariance, start, end, (beta, p_beta))
+    still = reference.measurement(motion, covariance, start, end, (beta, p_beta, 0.0))
+    np.testing.assert_array_equal(still[0], old[0])
+    np.testing.assert_array_equal(still[1], old[1])
+    follower, _ = camera_increment(reference.geometry, noise, motion, covariance)
+    d = follower[0]
+    scrubbed, _ = reference.measurement(motion, covariance, start, end, (beta, p_beta, 1.0))
+    corrected = follower - np.array([0.0, 0.0, (1.0 - release) * d * beta])
+    taken = transport_increment(corrected, reference.rear_couplings, start, end)
+    np.testing.assert_allclose(scrubbed, taken, rtol=0.0, atol=1e-12)
+    bare = reference.measurement(motion, covariance, start, end)[0]
+    assert scrubbed[2] - bare[2] == pytest.approx(-(1.0 - release) * d * beta, abs=1e-12)
+    assert abs(d * beta) > 1e-4  # the frame moves enough for the share to show
+    with pytest.raises(InputError, match="yaw_bias"):
+        reference.measurement(motion, covariance, start, end, (beta, p_beta, 1.5))
+
+
 def test_a_reference_needs_a_follower_behind_with_couplings():
     params = VEHICLE_PRESETS["au-b-double"]()
     camera = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2).camera_in_trailer("left", params)

@@ -39,12 +39,13 @@ def measured_articulations(measured: Mapping[str, np.ndarray]) -> tuple[float, .
     return (float(measured["articulation"][0]), *(map(float, rear) if rear is not None else ()))
 
 
-def filter_yaw_bias(fused: Any) -> tuple[float, float] | None:
-    """A fused filter's (:class:`sensor.fusion.FusedVisoOt`) estimate of its odometry's yaw error ``β̂_ψ`` [rad/m]
-    and its variance now, as (C0) of :mod:`sensor.fusion_coupling` takes them (``None``: no filter)."""
+def filter_yaw_bias(fused: Any) -> tuple[float, float, float] | None:
+    """A fused filter's (:class:`sensor.fusion.FusedVisoOt`) estimate of its odometry's yaw error ``β̂_ψ`` [rad/m],
+    its variance now and the scrub demand ``D`` of its last frame, as (C0) of :mod:`sensor.fusion_coupling` takes
+    them (``None``: no filter)."""
     if fused is None:
         return None
-    return float(fused.state[BPSI]), float(fused.covariance[BPSI, BPSI])
+    return float(fused.state[BPSI]), float(fused.covariance[BPSI, BPSI]), float(fused._coupling_scrub)
 
 
 class FollowingCamera:
@@ -73,7 +74,7 @@ class FollowingCamera:
         self,
         reference: CouplingReference,
         camera: Any,
-        yaw_bias: Callable[[], tuple[float, float] | None] | None = None,
+        yaw_bias: Callable[[], tuple[float, ...] | None] | None = None,
     ) -> None:
         self.reference = reference
         self.camera = camera
@@ -147,7 +148,7 @@ def following_camera(
         )
         key = estimate_key("viso_ot_fused", follower)
 
-        def yaw_bias(key: str = key) -> tuple[float, float] | None:
+        def yaw_bias(key: str = key) -> tuple[float, ...] | None:
             return filter_yaw_bias(getattr(unit_estimators.get(key), "filter", None))
 
         return FollowingCamera(reference, camera, yaw_bias)
