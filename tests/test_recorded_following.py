@@ -134,13 +134,15 @@ def test_a_follower_off_the_shared_instant_or_across_its_unit_gives_no_reference
 
 def test_the_loops_following_camera_reads_the_followers_filter_when_asked() -> None:
     """The run's follower yaw error (C0) comes from the follower's fused participant looked up when a frame is
-    measured (it may be built after the lead's), as the offline trace keeps it: ``β̂_ψ`` and its variance."""
+    measured (it may be built after the lead's), as the offline trace keeps it: ``β̂_ψ``, its variance and the scrub
+    demand of its last frame."""
     params = VEHICLE_PRESETS["au-b-double"]()
     rear = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
     cameras: dict = {"viso_ot3": SimpleNamespace(camera_in_trailer=rear.camera_in_trailer("left", params), released=[])}
     lead = following_camera(params, 1, cameras, FusionConfig(), "planar")
     assert lead is not None and lead.yaw_bias is not None and lead.yaw_bias() is None  # no follower filter yet
     state, covariance = np.arange(12.0), np.diag(np.arange(12.0) + 1.0)
-    cameras["viso_ot_fused3"] = SimpleNamespace(filter=SimpleNamespace(state=state, covariance=covariance))
-    assert lead.yaw_bias() == (state[BPSI], covariance[BPSI, BPSI])
+    fused = SimpleNamespace(state=state, covariance=covariance, _coupling_scrub=0.25)
+    cameras["viso_ot_fused3"] = SimpleNamespace(filter=fused)
+    assert lead.yaw_bias() == (state[BPSI], covariance[BPSI, BPSI], 0.25)
     assert filter_yaw_bias(cameras["viso_ot_fused3"].filter) == lead.yaw_bias()

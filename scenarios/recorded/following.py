@@ -64,14 +64,15 @@ class FollowerFrame:
         Its motion was accepted.
     vo : FollowerMotion or None
         The motion and covariance (``None`` when not accepted).
-    yaw_bias : (float, float) or None
-        The follower's fused filter's ``β̂_ψ`` [rad/m] and variance after the frame's row (``None``: no filter).
+    yaw_bias : (float, float, float) or None
+        The follower's fused filter's ``β̂_ψ`` [rad/m], variance and last frame's scrub demand after the frame's row
+        (``None``: no filter).
     """
 
     time: float
     valid: bool
     vo: FollowerMotion | None
-    yaw_bias: tuple[float, float] | None
+    yaw_bias: tuple[float, ...] | None
 
 
 @dataclass
@@ -131,7 +132,7 @@ class RecordedFollowingCamera:
         self.follower, self.matched = reference.follower, len(frames)
         self._frames = frames
         self._articulations = articulations
-        self._bias: tuple[float, float] | None = None
+        self._bias: tuple[float, ...] | None = None
         self.following = FollowingCamera(reference, self, lambda: self._bias)
 
     def observe(self, row: int) -> None:
