@@ -148,9 +148,10 @@ class FusedVisoOt:
     std_parts : dict[str, float]
         The five variance terms of eq (5) at the last tick [m²], keyed by :data:`STD_PARTS` (NaN without an
         estimate); :meth:`std_contributions` gives them as standard deviations.
-    scrub_demand : float
+    scrub_demand, frame_scrub_demand : float
         ``D`` of (K5) on the last tick (:mod:`sensor.fusion_slip`): 0 while every axle rolls within its tyres'
-        linear range, 1 where one runs at twice ``scrub_slip_angle``.
+        linear range, 1 where one runs at twice ``scrub_slip_angle``; ``frame_scrub_demand`` that of the last camera
+        frame's tick, which its motion and the coupled correction were taken at ((K5)–(K6)).
     noise : FusionNoise
         The settings it runs with: ``noise``, or for a camera that looks across its motion ``noise``'s
         :attr:`~sensor.fusion_noise.FusionNoise.side_rig` settings in their place.
@@ -231,7 +232,7 @@ class FusedVisoOt:
         self._zero_slip.reset()  # m_k, V_k, e_k and v_m of (K2)
         self._chain.reset()
         self._coupling = np.zeros(2)  # the last frame's (c_x, c_y)
-        self._coupling_scrub = 0.0  # D of (K5) at the last frame
+        self.frame_scrub_demand = 0.0
         self.scrub_demand = 0.0
         self._nis: deque[float] = deque(maxlen=n.innovation_window)
         self.innovation_ratio = 1.0
@@ -410,7 +411,7 @@ class FusedVisoOt:
             coupling = (
                 self.noise.vo_bias_coupling * r[:2, 2] / r[2, 2]
             )  # the yaw–translation ambiguity of this frame (eq (3) of :mod:`sensor.fusion_model`)
-            self._coupling, self._coupling_scrub = coupling, entry.scrub
+            self._coupling, self.frame_scrub_demand = coupling, entry.scrub
             if entry.scrub > 0.0:  # (K5): scrubbing tyres, the coupling gives way to its uncertainty
                 coupling = coupling * (1.0 - entry.scrub)
             h[:2, BPSI] = x[0] * coupling  # the odometry's error per metre over the distance since the anchor
@@ -555,11 +556,11 @@ class FusedVisoOt:
         coupling = self.noise.vo_bias_coupling_uncertainty * now.x[BPSI] * coherent[2]
         # (K5)–(K7): taken in part while the tyres scrubbed, how much of it is real unknown
         uniform = self.noise.scrub_coupling_std == "uniform"  # (K7) at the demand over the path
-        demand = effects_.coupled_demand if uniform else self._coupling_scrub
+        demand = effects_.coupled_demand if uniform else self.frame_scrub_demand
         if demand > 0.0:
             coupling = scrub_coupling_share(self.noise, demand) * now.x[BPSI] * coherent[2]
-        if self._coupling_scrub > 0.0:  # (K5): the biases' effect with the coupling given way
-            scrub = self._coupling_scrub
+        if self.frame_scrub_demand > 0.0:  # (K5): the biases' effect with the coupling given way
+            scrub = self.frame_scrub_demand
             coherent = coherent - scrub * np.array([0.0, coherent[2], coherent[2]])
         self.std_parts = {
             "increments": self.innovation_ratio * independent,

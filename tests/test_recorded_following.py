@@ -142,7 +142,7 @@ def test_the_loops_following_camera_reads_the_followers_filter_when_asked() -> N
     lead = following_camera(params, 1, cameras, FusionConfig(), "planar")
     assert lead is not None and lead.yaw_bias is not None and lead.yaw_bias() is None  # no follower filter yet
     state, covariance = np.arange(12.0), np.diag(np.arange(12.0) + 1.0)
-    fused = SimpleNamespace(state=state, covariance=covariance, _coupling_scrub=0.25)
+    fused = SimpleNamespace(state=state, covariance=covariance, frame_scrub_demand=0.25)
     cameras["viso_ot_fused3"] = SimpleNamespace(filter=fused)
     assert lead.yaw_bias() == (state[BPSI], covariance[BPSI, BPSI], 0.25)
     assert filter_yaw_bias(cameras["viso_ot_fused3"].filter) == lead.yaw_bias()

@@ -45,7 +45,7 @@ def filter_yaw_bias(fused: Any) -> tuple[float, float, float] | None:
     them (``None``: no filter)."""
     if fused is None:
         return None
-    return float(fused.state[BPSI]), float(fused.covariance[BPSI, BPSI]), float(fused._coupling_scrub)
+    return float(fused.state[BPSI]), float(fused.covariance[BPSI, BPSI]), float(fused.frame_scrub_demand)
 
 
 class FollowingCamera:
