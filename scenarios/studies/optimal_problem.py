@@ -39,6 +39,7 @@ import numpy as np
 from controller.path_following_config import PathFollowingConfig
 from vehicle_model.dynamics import define_model, rk4_step_expr
 from vehicle_model.errors import InputError
+from vehicle_model.geometry import kingpin_position
 from vehicle_model.layout import BODY_STATES, Layout
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import Simulator
@@ -89,12 +90,6 @@ def _follow_point(params: VehicleParams, x: Any, unit: int = 1, layout: Layout |
         heading = heading - x[layout.state_index(f"gamma{towed}")]
     lfp = params.follow_point_offset_of(unit)
     return kx - lfp * ca.cos(heading), ky - lfp * ca.sin(heading)
-
-
-def _kingpin_point(params: VehicleParams, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Global kingpin position from states ``(n_states, …)`` (:func:`vehicle_model.geometry.kingpin_position`)."""
-    rel = params.tractor.fifth_wheel_x - params.tractor.cg_x
-    return x[0] + rel * np.cos(x[2]), x[1] + rel * np.sin(x[2])
 
 
 def _follow_function(params: VehicleParams, n_states: int, unit: int = 1) -> ca.Function:
@@ -332,7 +327,7 @@ def solve_optimal_steer(
         if solve > 0 and own_path:  # the previous solution's own kingpin path, every RK4 step
             states = np.asarray(dense(guess_x[:-1].T, guess_d[:, :-1], guess_d[:, 1:], ca.DM(fixed)))
             states = np.column_stack([guess_x[0], states])
-            paths[1] = np.column_stack(_kingpin_point(params, states))
+            paths[1] = kingpin_position(params, states[0], states[1], states[2])
         for u in units:
             anchors, normals = path_reference(paths[u], points[u])
             opti.set_value(anchors_p[u], anchors.T)
