@@ -20,13 +20,15 @@ Each control period it turns the kingpin's motion into an increment in the trail
 feeds the same :class:`~vehicle_model.offtracking.OfftrackingBuffer` as the ground truth. It is
 blind to slip by construction: tractor crab on a camber, sideslip on ice and the scrub of the tractor's
 drive and tag axles under a trailer's hitch force all go unseen (docs/vehicle_dynamics.md §6.4–6.6). That is
-the phenomenon the product exists to show. On a terrain (docs/terrain.md, "The zero-slip estimate on terrain") the
-wheel speed is measured along the ground and taken as horizontal, which moves a steady turn's estimate inwards by
-``L_fp²/(2·R5)·(1/cos θ − 1)`` (no signal gives the grade ``θ``); a crossfall's crab and a grade's drive or brake
-force through the hitch are slip it does not see. With the equivalent wheelbase and a trailer that pushes nothing
-through the hitch it follows the truth closely at walking pace (§6.6); the scrub of a fixed tri-axle, or of steered
-trailer axles at their lock, moves the tractor's true rear point 0.1–0.2 m along its axis, which a follow point
-12–14 m behind shows as 0.1–0.2 m of off-tracking error whichever point the estimator assumes.
+the phenomenon the product exists to show. On a terrain (docs/terrain.md, "The zero-slip estimate on terrain") the wheel
+speed is measured along the ground and taken as horizontal, which moves a steady turn's estimate inwards by
+``L_fp²/(2·R5)·(1/cos θ − 1)``, unless the grade ``θ`` is estimated from the tractor's longitudinal accelerometer
+(``grade="accelerometer"``, :class:`~controller.grade_estimate.GradeEstimator`) and the wheel speed taken as
+``u·cos θ̂``; a crossfall's crab and a grade's drive or brake force through the hitch are slip it does not see. With the
+equivalent wheelbase and a trailer that pushes nothing through the hitch it follows the truth closely at walking pace
+(§6.6); the scrub of a fixed tri-axle, or of steered trailer axles at their lock, moves the tractor's true rear point
+0.1–0.2 m along its axis, which a follow point 12–14 m behind shows as 0.1–0.2 m of off-tracking error whichever point
+the estimator assumes.
 
 Variants: Cheng's estimator used the measured yaw rate of the tractor with the articulation
 angle (unverified: the thesis could not be consulted, docs/vehicle_dynamics.md §7.1); here ``yaw_rate`` is the default
@@ -45,7 +47,10 @@ from vehicle_model.kinematics import RearPoint, coupling_velocity, tractor_kingp
 from vehicle_model.offtracking import OfftrackingBuffer
 from vehicle_model.parameters import VehicleParams
 
+from .grade_estimate import GradeEstimator
+
 ZeroSlipVariant = Literal["yaw_rate", "steer_angle"]
+GradeSource = Literal["none", "accelerometer"]
 REAR_POINT_NOTES = """Which rear point (:data:`~vehicle_model.kinematics.RearPoint`) the zero-slip estimator is best
 with. A trailer in a turn pushes on the fifth wheel and moves the real point ahead of the equivalent wheelbase
 (docs/vehicle_dynamics.md §6.6, which gives the figures): at speed on a dry road the zero-slip-fed loop is closer
@@ -72,6 +77,10 @@ class ZeroSlipEstimator:
         ``lateral_acceleration`` (which needs the ``tractor_lateral_acceleration`` signal).
     unit
         The towed unit estimated: 1 the first (default), 2 the one it tows, … (module docstring).
+    grade
+        ``none`` (default): the wheel speed taken as horizontal; ``accelerometer``: made horizontal, ``u·cos θ̂``,
+        with the grade estimated from the ``tractor_longitudinal_acceleration`` signal and the wheel speed
+        (:class:`~controller.grade_estimate.GradeEstimator`).
     """
 
     def __init__(
@@ -80,6 +89,7 @@ class ZeroSlipEstimator:
         variant: ZeroSlipVariant = "yaw_rate",
         rear_point: RearPoint = "axle_mean",
         unit: int = 1,
+        grade: GradeSource = "none",
     ) -> None:
         if variant not in ("yaw_rate", "steer_angle"):
             raise ValueError(f"zero-slip variant {variant!r} must be 'yaw_rate' or 'steer_angle'")
@@ -87,6 +97,9 @@ class ZeroSlipEstimator:
             raise ValueError(f"zero-slip rear point {rear_point!r} must be one of {get_args(RearPoint)}")
         if not 1 <= unit < params.n_units:
             raise ValueError(f"unit {unit} is not a towed unit of {params.name!r} (1..{params.n_units - 1})")
+        if grade not in get_args(GradeSource):
+            raise ValueError(f"zero-slip grade source {grade!r} must be one of {get_args(GradeSource)}")
+        self.grade_estimator = GradeEstimator() if grade == "accelerometer" else None
         self.variant = variant
         self.params = params
         self.unit = unit
@@ -102,14 +115,20 @@ class ZeroSlipEstimator:
         """Forget the path."""
         self.buffer.reset()
         self._last = None
+        if self.grade_estimator is not None:
+            self.grade_estimator.reset()
 
     def update(self, signals: dict[str, np.ndarray], dt: float) -> float | None:
         """Feed one control period of signals; return the off-tracking estimate [m] or ``None``.
 
         ``signals`` holds at least ``wheel_speed``, ``front_steer``, ``tractor_yaw_rate`` and
-        ``articulation`` (see :mod:`sensor.signals`), and ``rear_articulation`` for a unit behind the first.
+        ``articulation`` (see :mod:`sensor.signals`), ``rear_articulation`` for a unit behind the first and
+        ``tractor_longitudinal_acceleration`` with the accelerometer's grade.
         """
         u = float(signals["wheel_speed"][0])
+        if self.grade_estimator is not None:
+            sine = self.grade_estimator.update(float(signals["tractor_longitudinal_acceleration"][0]), u, dt)
+            u = u * math.sqrt(1.0 - min(sine * sine, 1.0))  # the wheel's speed along the ground made horizontal
         f_y = float(signals["tractor_lateral_acceleration"][0]) if self.rear_point == "lateral_acceleration" else 0.0
         gammas = signals["articulation"][:1]
         if self.unit > 1:

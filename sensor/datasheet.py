@@ -47,6 +47,11 @@ Sources (typical values):
   that lean mostly one way in one country's traffic), so a residual of ±10 mg (±0.1 m/s², a 1 % slope) is taken.
   The body's roll in a turn (a few degrees per g for a laden tractor) reads as a gain error of a few per cent; it
   is not modelled (the yaw-plane model has no roll) and lies within the filter's cornering-stiffness uncertainty.
+* **Longitudinal accelerometer** (opt-in, ``signals.tractor_longitudinal_acceleration``,
+  :mod:`sensor.tractor_longitudinal_accelerometer`): the same MEMS family's x axis, so the same 0.009 m/s² of noise;
+  its offset is taken as the lateral one's residual, ±0.1 m/s² (±10 mg). Nothing on board tells that offset from a
+  grade (a steady 1 % grade reads the same), so it is a grade error of up to ±1 % for the grade estimate
+  (:mod:`controller.grade_estimate`). Drawn from a generator of its own, as the towed units' accelerometers.
 * Steer-angle feedback (tractor front axle, trailer axles) is the steering actuators' own position sensor,
   taken as exact (the zero-slip estimator uses the gyro, not the front steer).
 """
@@ -55,6 +60,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .tractor_longitudinal_accelerometer import STREAM as LONGITUDINAL_STREAM
 from .trailer_accelerometer import STREAM
 
 __all__ = [
@@ -62,6 +68,7 @@ __all__ = [
     "DATASHEET_NOISE",
     "datasheet_fields",
     "draw_biases",
+    "tractor_longitudinal_accelerometer_fields",
     "trailer_accelerometer_fields",
 ]
 
@@ -96,6 +103,17 @@ def trailer_accelerometer_fields(seed: int) -> dict[str, dict[str, float]]:
         np.random.default_rng([seed, STREAM]).uniform(-DATASHEET_BIAS_LIMITS[name], DATASHEET_BIAS_LIMITS[name])
     )
     return {"signals.trailer_lateral_acceleration": {"noise_std": DATASHEET_NOISE[name], "bias": bias}}
+
+
+def tractor_longitudinal_accelerometer_fields(seed: int) -> dict[str, dict[str, float]]:
+    """The tractor's longitudinal accelerometer (``signals.tractor_longitudinal_acceleration``,
+    :mod:`sensor.tractor_longitudinal_accelerometer`) with the lateral accelerometer's data-sheet errors (the same MEMS
+    family): its white noise and a bias drawn uniformly within its limit from a generator of its own
+    (``default_rng([seed, LONGITUDINAL_STREAM])``), so that no other channel's draw changes."""
+    name = "tractor_lateral_acceleration"
+    limit = DATASHEET_BIAS_LIMITS[name]
+    bias = float(np.random.default_rng([seed, LONGITUDINAL_STREAM]).uniform(-limit, limit))
+    return {"signals.tractor_longitudinal_acceleration": {"noise_std": DATASHEET_NOISE[name], "bias": bias}}
 
 
 def draw_biases(rng: np.random.Generator) -> dict[str, float]:

@@ -23,7 +23,9 @@ acceleration        specific force, acceleration less gravity, so on a cross slo
 ==================  ===============================================================
 
 An opt-in channel is sampled by an instance of its own with a generator of its own, so that a run without it draws
-what it always did: each towed unit's lateral accelerometer (:mod:`sensor.trailer_accelerometer`).
+what it always did: each towed unit's lateral accelerometer (:mod:`sensor.trailer_accelerometer`) and the tractor's
+longitudinal accelerometer, ``tractor_longitudinal_acceleration``, the specific force along its x axis, which reads
+``+g·sin θ`` up a grade θ (:mod:`sensor.tractor_longitudinal_accelerometer`).
 """
 
 from __future__ import annotations

@@ -148,6 +148,14 @@ class ScenarioConfig(Settings):
                     f"{name} = {TRAILER_REFERENCE} needs the towed units' accelerometer: set "
                     'signals.trailer_lateral_acceleration (e.g. {"noise_std": 0.009}), or another rear point'
                 )
+        if (
+            self.estimators.zero_slip_grade == "accelerometer"
+            and self.signals.tractor_longitudinal_acceleration is None
+        ):
+            raise ValueError(
+                "estimators.zero_slip_grade = accelerometer needs the tractor's longitudinal accelerometer: set "
+                'signals.tractor_longitudinal_acceleration (e.g. {"noise_std": 0.009}), or zero_slip_grade = none'
+            )
         if self.roundabout_test and self.path.kind != "roundabout":
             raise ValueError("roundabout_test needs path.kind = roundabout")
         params = self.vehicle_params()

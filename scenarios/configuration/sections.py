@@ -286,7 +286,9 @@ class RatesConfig(Settings):
 class SignalsConfig(Settings):
     """On-board signals. Units: m/s for speed, rad and rad/s for angles and rates, m/s² for the accelerometers.
     ``trailer_lateral_acceleration`` is opt-in (``null``: none), one per towed unit drawn from its own random stream
-    (``sensor.trailer_accelerometer``); ``sensor.datasheet.trailer_accelerometer_fields`` gives its field errors."""
+    (``sensor.trailer_accelerometer``); ``sensor.datasheet.trailer_accelerometer_fields`` gives its field errors.
+    ``tractor_longitudinal_acceleration`` is opt-in too (``sensor.tractor_longitudinal_accelerometer``;
+    ``sensor.datasheet.tractor_longitudinal_accelerometer_fields``)."""
 
     wheel_speed: ChannelSpec = ChannelSpec()
     front_steer: ChannelSpec = ChannelSpec()
@@ -302,6 +304,11 @@ class SignalsConfig(Settings):
         description="a lateral accelerometer on every towed unit at its centre of percussion (sensor."
         "trailer_accelerometer), drawn from its own random stream; null (default): none, every run as without it",
     )
+    tractor_longitudinal_acceleration: ChannelSpec | None = Field(
+        None,
+        description="the tractor's longitudinal accelerometer at its CG, reading u̇ − v·r + g·sin θ (sensor."
+        "tractor_longitudinal_accelerometer), drawn from its own random stream; null (default): none",
+    )
 
 
 class EstimatorsConfig(Settings):
@@ -312,17 +319,21 @@ class EstimatorsConfig(Settings):
     the mean station of the rear axles (``axle_mean``, default), their stiffness-weighted equivalent wheelbase
     (``equivalent``), that moved forwards with the speed (``speed_compensated``) or moving sideways with the slip
     the tractor's lateral accelerometer asks of its rear tyres (``lateral_acceleration``; ``vehicle_model.kinematics.
-    RearPoint``, ``controller.zero_slip.REAR_POINT_NOTES``). ``viso_ot``: render the trailer's stereo camera at the
-    camera rate and run visual odometry and VISO-OT (needs headless OpenGL). ``viso_ot_fused``: the Kalman filter
-    of the trailer's gyro, wheel speed and steer with the camera's motions (``sensor.fusion``, settings in
-    ``fusion``); it needs the camera, so it turns ``viso_ot`` on. Any other registered estimator's switch (or
-    settings) is taken under its name (:mod:`scenarios.estimator_settings`)."""
+    RearPoint``, ``controller.zero_slip.REAR_POINT_NOTES``). ``zero_slip_grade``: the wheel speed taken as horizontal
+    (``none``, default) or made horizontal with the grade estimated from the tractor's longitudinal accelerometer
+    (``accelerometer``, ``controller.grade_estimate``; needs ``signals.tractor_longitudinal_acceleration``).
+    ``viso_ot``: render the trailer's stereo camera at the camera rate and run visual odometry and VISO-OT (needs
+    headless OpenGL). ``viso_ot_fused``: the Kalman filter of the trailer's gyro, wheel speed and steer with the
+    camera's motions (``sensor.fusion``, settings in ``fusion``); it needs the camera, so it turns ``viso_ot`` on.
+    Any other registered estimator's switch (or settings) is taken under its name
+    (:mod:`scenarios.estimator_settings`)."""
 
     model_config = ConfigDict(extra="allow")
 
     zero_slip: bool = True
     zero_slip_variant: Literal["yaw_rate", "steer_angle"] = "yaw_rate"
     zero_slip_rear_point: RearPoint = "axle_mean"
+    zero_slip_grade: Literal["none", "accelerometer"] = "none"
     viso_ot: bool = False
     viso_ot_fused: bool = False
 

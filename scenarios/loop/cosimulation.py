@@ -366,10 +366,10 @@ class CoSimulation:
         time = self.sim.time
         kingpin = kingpin_position(setup.params, state.X, state.Y, state.psi1)
         # the accelerometer's truth: the specific force (a prescribed motion: its centripetal acceleration)
-        gravity = 0.0 if self.kinematic else self.sim.tractor_gravity()[1]
+        gravity_x, gravity = (0.0, 0.0) if self.kinematic else self.sim.tractor_gravity()
         previous = self.tick.state if index > 0 and not self.kinematic else None
         specific = tractor_lateral_specific_force(previous, state, gravity)
-        measured = self.signals.measure(time, state, self.steer, specific, self._unit_gravity(state))
+        measured = self.signals.measure(time, state, self.steer, specific, self._unit_gravity(state), gravity_x)
         tick = TickInput(index, time, self.period, state, kingpin, measured, index % self._frame_every == 0, trajectory)
         self._input = tick
         self.vehicle.update(tick)

@@ -180,15 +180,23 @@ class ZeroSlip:
         ``axle_mean`` or ``equivalent`` (:data:`controller.zero_slip.RearPoint`).
     unit
         The towed unit it estimates (1: the first; :class:`controller.zero_slip.ZeroSlipEstimator`).
+    grade
+        ``none`` or ``accelerometer`` (the wheel speed made horizontal;
+        :class:`controller.zero_slip.ZeroSlipEstimator`).
     """
 
     name = "zero_slip"
     columns: tuple[Column, ...] = (Column.estimate("zero_slip", "zero-slip (Cheng) off-tracking"),)
 
     def __init__(
-        self, params: VehicleParams, variant: str = "yaw_rate", rear_point: str = "axle_mean", unit: int = 1
+        self,
+        params: VehicleParams,
+        variant: str = "yaw_rate",
+        rear_point: str = "axle_mean",
+        unit: int = 1,
+        grade: str = "none",
     ) -> None:
-        self.estimator = ZeroSlipEstimator(params, variant, rear_point, unit)  # type: ignore[arg-type]
+        self.estimator = ZeroSlipEstimator(params, variant, rear_point, unit, grade)  # type: ignore[arg-type]
         self.estimate = OfftrackingEstimate.of(None)
 
     def update(self, tick: TickInput) -> OfftrackingEstimate:
@@ -340,13 +348,24 @@ def ground_truth(context: LoopContext) -> GroundTruth:
 def zero_slip(context: LoopContext) -> ZeroSlip:
     """The registry's builder of the zero-slip estimator (``estimators.zero_slip_variant`` and ``_rear_point``)."""
     settings = context.setup.config.estimators
-    return ZeroSlip(context.setup.params, settings.zero_slip_variant, settings.zero_slip_rear_point)
+    return ZeroSlip(
+        context.setup.params,
+        settings.zero_slip_variant,
+        settings.zero_slip_rear_point,
+        grade=settings.zero_slip_grade,
+    )
 
 
 def zero_slip_unit(context: LoopContext, unit: int) -> ZeroSlip:
     """The registry's builder of the zero-slip estimate of towed unit ``unit`` behind the first (its ``update``)."""
     settings = context.setup.config.estimators
-    return ZeroSlip(context.setup.params, settings.zero_slip_variant, settings.zero_slip_rear_point, unit)
+    return ZeroSlip(
+        context.setup.params,
+        settings.zero_slip_variant,
+        settings.zero_slip_rear_point,
+        unit,
+        settings.zero_slip_grade,
+    )
 
 
 GYRO_ZEROING_STREAM = 0x2E60

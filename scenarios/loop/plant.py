@@ -9,6 +9,8 @@ import casadi as ca
 import numpy as np
 
 from sensor.signals import CHANNELS, OnboardSignals
+from sensor.tractor_longitudinal_accelerometer import CHANNEL as LONGITUDINAL
+from sensor.tractor_longitudinal_accelerometer import TractorLongitudinalAccelerometer
 from sensor.trailer_accelerometer import TrailerAccelerometers, channel_name
 from vehicle_model.geometry import follow_point_from_kingpin, unit_frame
 from vehicle_model.kinematics import coupling_velocity, kingpin_velocity, trailer_axle_speed
@@ -160,6 +162,12 @@ class SignalsParticipant:
             Column(f"signal_{name}", "m/s²", f"measured {name}", role="signal", vehicle_unit=unit + 1)
             for unit, name in enumerate(self._accelerometer_names, start=1)
         )
+        # the tractor's longitudinal accelerometer, when asked for: its own generator too
+        longitudinal = cfg.signals.tractor_longitudinal_acceleration
+        self.longitudinal = None if longitudinal is None else TractorLongitudinalAccelerometer(longitudinal, cfg.seed)
+        if self.longitudinal is not None:
+            self.columns += (Column(f"signal_{LONGITUDINAL}", "m/s²", f"measured {LONGITUDINAL}", role="signal"),)
+            self._accelerometer_names += (LONGITUDINAL,)
         self.params = setup.params
         steerable = setup.model.layout.steerable_axles
         trailer = {a.name for a in setup.params.trailer.axles}
@@ -199,12 +207,14 @@ class SignalsParticipant:
         steer: np.ndarray,
         lateral_acceleration: float,
         unit_gravity: tuple[float, ...] = (),
+        gravity_longitudinal: float = 0.0,
     ) -> dict[str, np.ndarray]:
         """The signals at ``time`` of the true ``state``, the steer angles ``steer`` (every steerable axle) and the
         tractor's true lateral specific force ``lateral_acceleration`` [m/s²]
         (:func:`~vehicle_model.kinematics.tractor_lateral_specific_force`); with the towed units' accelerometers
         (:mod:`sensor.trailer_accelerometer`) also theirs, ``unit_gravity`` gravity's in-plane lateral part at each
-        towed unit, front to rear [m/s²]."""
+        towed unit, front to rear [m/s²]; with the tractor's longitudinal accelerometer
+        (:mod:`sensor.tractor_longitudinal_accelerometer`) also its, ``gravity_longitudinal`` the tractor's ``g_x``."""
         index = self._trailer_index
         truth = {
             "wheel_speed": state.u * self._along_ground(state, 0),
@@ -228,6 +238,8 @@ class SignalsParticipant:
             self.measured.update({f"{name}{unit + 1}": measured[name] for name in UNIT_CHANNELS})
         if self.accelerometers is not None:
             self.measured.update(self.accelerometers.measure(time, state, unit_gravity))
+        if self.longitudinal is not None:
+            self.measured.update(self.longitudinal.measure(time, state, gravity_longitudinal))
         return self.measured
 
     def record(self) -> Mapping[str, float]:
