@@ -13,9 +13,11 @@ wheel speed::
     V_k = V_(k-1) + dt·(f̄_x − g·s_(k-1))       s_k = s_(k-1) + w_s       measured: V_wheel = V + n     (G1)
 
 with ``s = sin θ`` (a random walk: the road's grade changes as it goes), ``f̄_x`` the mean of the period's two
-accelerometer samples, ``w_s`` of variance ``grade_rate_std²·dt`` and ``n`` of variance ``wheel_speed_std²``; the
-accelerometer's noise and what (G1) leaves out (``v·r``, a few mm/s² in a bend; the difference between the horizontal
-``u̇`` and the wheel's ``V̇``, ``u̇·(1/cos θ − 1)``) enter as ``acceleration_std``. In steady state it is a
+samples of the specific force less its ``−v·r`` (the caller's: :class:`~controller.zero_slip.ZeroSlipEstimator`
+takes the tractor's lateral velocity at its centre of gravity from its zero-slip kinematics), ``w_s`` of variance
+``grade_rate_std²·dt`` and ``n`` of variance ``wheel_speed_std²``; the accelerometer's noise and what (G1) leaves out
+(the slip's share of ``v·r``; the difference between the horizontal ``u̇`` and the wheel's ``V̇``,
+``u̇·(1/cos θ − 1)``) enter as ``acceleration_std``. In steady state it is a
 complementary filter: the grade from the accelerometer at high frequency, its drift held by the wheel speed.
 
 What it cannot see: the accelerometer's offset. A constant offset ``b`` reads as a grade ``b/g`` whichever way
@@ -89,7 +91,8 @@ class GradeEstimator:
         return math.asin(max(-1.0, min(1.0, self.sine)))
 
     def update(self, specific_force: float, wheel_speed: float, dt: float) -> float:
-        """Take one control period's accelerometer reading ``specific_force`` [m/s²] and wheel speed [m/s] after
+        """Take one control period's ``specific_force`` [m/s²] (the accelerometer's reading plus ``v·r``, module
+        notes) and wheel speed [m/s] after
         ``dt`` [s] (ignored on the first sample); return the grade's sine ``sin θ̂``."""
         if self._x is None:
             self._x = np.array([wheel_speed, 0.0])

@@ -107,6 +107,7 @@ class ZeroSlipEstimator:
         self.wheelbase = (
             params.tractor_wheelbase() if rear_point == "axle_mean" else params.tractor_equivalent_wheelbase()
         )
+        self._cg_ahead = self.wheelbase + params.tractor.cg_x  # the CG ahead of the rear point [m]
         self.buffer = OfftrackingBuffer(params.trailers[unit - 1].follow_point_offset)
         # (u, r1, f_y, articulations) of the previous sample
         self._last: tuple[float, float, float, np.ndarray] | None = None
@@ -127,7 +128,11 @@ class ZeroSlipEstimator:
         """
         u = float(signals["wheel_speed"][0])
         if self.grade_estimator is not None:
-            sine = self.grade_estimator.update(float(signals["tractor_longitudinal_acceleration"][0]), u, dt)
+            # the accelerometer reads u̇ − v·r + g·sin θ; without slip the CG moves sideways at v = b·r (b: the CG
+            # ahead of the rear point), so the grade filter takes the reading plus b·r²
+            gyro = float(signals["tractor_yaw_rate"][0])
+            f_x = float(signals["tractor_longitudinal_acceleration"][0]) + self._cg_ahead * gyro * gyro
+            sine = self.grade_estimator.update(f_x, u, dt)
             u = u * math.sqrt(1.0 - min(sine * sine, 1.0))  # the wheel's speed along the ground made horizontal
         f_y = float(signals["tractor_lateral_acceleration"][0]) if self.rear_point == "lateral_acceleration" else 0.0
         gammas = signals["articulation"][:1]
