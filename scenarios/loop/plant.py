@@ -166,7 +166,9 @@ class SignalsParticipant:
         longitudinal = cfg.signals.tractor_longitudinal_acceleration
         self.longitudinal = None if longitudinal is None else TractorLongitudinalAccelerometer(longitudinal, cfg.seed)
         if self.longitudinal is not None:
-            self.columns += (Column(f"signal_{LONGITUDINAL}", "m/s²", f"measured {LONGITUDINAL}", role="signal"),)
+            self.columns += (
+                Column(f"signal_{LONGITUDINAL}", "m/s²", f"measured {LONGITUDINAL}", role="signal", vehicle_unit=1),
+            )
             self._accelerometer_names += (LONGITUDINAL,)
         self.params = setup.params
         steerable = setup.model.layout.steerable_axles
