@@ -178,7 +178,7 @@ class FusedVisoOt:
         point = self.noise.kinematic_rear_point
         # (K1)'s z_c: the tractor's kinematics carried down the chain, or the unit's own accelerometer's slip (T2)
         own = point == TRAILER_REFERENCE
-        self._own_reference = UnitSlipReference(params, self.unit) if own else None
+        self._own_reference = UnitSlipReference(params, self.unit, self.noise.reference_friction) if own else None
         self._chain = ChainKinematics(params, self.unit, "lateral_acceleration" if own else point)  # type: ignore[arg-type]
         self.buffer = OfftrackingBuffer(self.follow_point_offset)
         layout = StateLayout.of(self.noise)
@@ -308,11 +308,10 @@ class FusedVisoOt:
                 own = tractor.unit_lateral_acceleration
                 lateral, slip = self._own_reference.lateral(float(yaw_rate), float(wheel_speed), steer, own)
                 self._zero_slip.modelled_slip = slip  # the slip it predicts, uncertain by the stiffnesses, (K2)
+                self._zero_slip.residual_variance = self._own_reference.residual_std(float(wheel_speed), own) ** 2
             else:
                 lateral = self._chain.lateral(tractor, float(dt))
-                self._zero_slip.modelled_slip = (
-                    self._chain.modelled_slip
-                )  # the rear slip the compensated points predict, (K2)
+                self._zero_slip.modelled_slip = self._chain.modelled_slip  # the compensated points' rear slip, (K2)
             if math.isfinite(lateral):
                 kinematic = self._zero_slip.rows(sample, lateral, float(dt), x)
                 x, p = apply_rows(x, p, kinematic)

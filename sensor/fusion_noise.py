@@ -25,6 +25,8 @@ ScrubCouplingStd = Literal["release", "uniform"]
 
 REFERENCE_SETTINGS: tuple[str, ...] = ("coupling_covariance_scale",)
 """The side-rig settings the coupling reference takes (:mod:`sensor.fusion_coupling`), not the filter."""
+FRICTION = "the lowest road μ the vehicle is specified for, (T3); 0.05 is glare ice, 1.5 a race track; null: none"
+"""``reference_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
 
 
 class SideRigFusion(Settings):
@@ -36,7 +38,7 @@ class SideRigFusion(Settings):
     ----------
     vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect
         As :class:`FusionNoise`'s.
-    kinematic_rear_point, kinematic_error_model, coupling_reference, coupling_bias_share
+    kinematic_rear_point, reference_friction, kinematic_error_model, coupling_reference, coupling_bias_share
         As :class:`FusionNoise`'s.
     coupling_covariance_scale
         Factor on the covariance of the following unit's measurement, (C2) of :mod:`sensor.fusion_coupling`
@@ -51,6 +53,7 @@ class SideRigFusion(Settings):
     )
     vo_axial_effect: AxialEffect | None = None
     kinematic_rear_point: KinematicReference | None = None
+    reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
     kinematic_error_model: Literal["inflated", "state"] | None = None
     coupling_reference: bool | None = None
     coupling_bias_share: bool | None = None
@@ -140,6 +143,10 @@ class FusionNoise(Settings):
         accelerometer asks of them ((T2) of :mod:`sensor.unit_slip_reference`; it needs
         :attr:`~sensor.unit_kinematics.ChainSignals.unit_lateral_acceleration`). docs/field_bias.md §6.3–6.4 say
         what the compensated points change, §7.11.1 what the unit's accelerometer does.
+    reference_friction : float or None
+        ``μ_min`` of (T3) of :mod:`sensor.unit_slip_reference`: the lowest road friction the vehicle is specified
+        for, at which the ``trailer_lateral_acceleration`` reference's linear tyres' residual joins σ_k's floor
+        (``None``: no such term, the default; docs/field_bias.md §7.11.2).
     tractor_stiffness_uncertainty : float
         ``u_C`` of (K2): the relative uncertainty of the tractor's cornering stiffnesses, so of the rear slip the
         compensated rear points predict.
@@ -268,6 +275,7 @@ class FusionNoise(Settings):
     vo_axial_effect: AxialEffect = "camera"
     kinematics: bool = True
     kinematic_rear_point: KinematicReference = "axle_mean"
+    reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
     tractor_stiffness_uncertainty: float = Field(
         0.2,
         ge=0.0,

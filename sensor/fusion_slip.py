@@ -227,6 +227,9 @@ class ZeroSlipNoise:
         (K2)'s disagreement of the camera with the kinematics.
     modelled_slip : float
         ``v_m`` of (K2), the rear slip the compensated rear points predict [m/s].
+    residual_variance : float
+        ``σ_m²`` of (T3) (:mod:`sensor.unit_slip_reference`): the unit's own reference's linear-tyre residual,
+        added to the floor [m²/s²] (0: none).
     kinematic_std : float
         σ_k at the last measurement [m/s] (NaN before the first).
     kinematic_share : float
@@ -244,12 +247,13 @@ class ZeroSlipNoise:
         """Forget the evidence and the modelled slip."""
         self.evidence.reset()
         self.modelled_slip = 0.0
+        self.residual_variance = 0.0
         self.kinematic_std = math.nan
         self.kinematic_share = 0.0
 
     def floor(self) -> float:
-        """σ_k²'s floor of (K2), ``σ_0² + (u_C·v_m)²`` [m²/s²]."""
-        return kinematic_floor(self.noise, self.modelled_slip)
+        """σ_k²'s floor of (K2), ``σ_0² + (u_C·v_m)²``, and (T3)'s ``σ_m²`` [m²/s²]."""
+        return kinematic_floor(self.noise, self.modelled_slip) + self.residual_variance
 
     def variance(self, x: np.ndarray) -> float:
         """σ_k² of (K2): the slip evidence so far, at least its floor and (K4)'s push of the state ``x`` [m²/s²]."""

@@ -32,6 +32,20 @@ The first term is the axle group's own scrub at zero lateral demand (the unit tu
 ``L_c + σ_L²/L_c``, not about ``L_c``: docs/vehicle_dynamics.md §2.3), the second the slip its lateral demand asks.
 The reference is eq (1) at that slip, ``z_c = r·L_c + u·T + v̂_s``, so (K1) measures ``v_s`` against ``v̂_s``: the
 accelerometer's bias and noise times ``G·u``, and the linear model's residual (a tyre near its friction slips more).
+
+The linear model's residual. The coupling's moment balance (T1) asks of the axle group a lateral force ``(m·a +
+m_5·L_5)·f_p/L_c`` on a vertical load ``(m·a + m_5·L_5)·g/L_c`` (the same balance with gravity, every load static),
+so its tyres run at the demand ``η = |f_p|/(μ·g)`` of the road's friction ``μ``. A brush tyre with a parabolic
+contact pressure carries ``F/(μ·F_z) = 1 − (1 − x)³`` at ``x = C·α/(3·μ·F_z)`` (Pacejka, *Tire and Vehicle
+Dynamics*, 3rd ed. 2012, §3.2.2), so at the demand ``η`` it slips ``1 + k(η)`` times what the linear tyre
+(``x = η/3``) would::
+
+    k(η) = 3·(1 − (1 − η)^(1/3))/η − 1,     k(η) ≈ η/3 + 5·η²/27 for small η,   k(1) = 2          (T3)
+
+No on-board signal gives ``μ``. With ``reference_friction`` ``μ_min``, the lowest friction the vehicle is specified
+for, ``σ_m = k(min(η_min, 1))·|G·u·f_p|`` at ``η_min = |f_p|/(μ_min·g)`` is the residual the road with that friction
+would leave, the most any specified road leaves; ``σ_m²`` joins σ_k²'s floor of (K2) (:mod:`sensor.fusion_slip`).
+On a road with more friction the residual is less and the term errs on the safe side.
 """
 
 from __future__ import annotations
@@ -46,10 +60,19 @@ from vehicle_model.static_loads import solve_loads
 
 from .unit_kinematics import unit_axles
 
-__all__ = ["TRAILER_REFERENCE", "UnitSlipReference"]
+__all__ = ["TRAILER_REFERENCE", "UnitSlipReference", "linear_slip_excess"]
 
 TRAILER_REFERENCE = "trailer_lateral_acceleration"
 """The kinematic reference's name (``kinematic_rear_point``) that takes the unit's own accelerometer."""
+
+
+def linear_slip_excess(demand: float) -> float:
+    """``k(η)`` of (T3): how much more than the linear tyre a brush tyre slips at the demand ``η`` (its lateral force
+    over its friction's; clipped to [0, 1], a tyre cannot carry more)."""
+    eta = min(max(float(demand), 0.0), 1.0)
+    if eta < 1e-6:  # the series: 3·(1 − (1 − η)^(1/3))/η loses its digits as η → 0
+        return eta / 3.0 + 5.0 * eta * eta / 27.0
+    return -3.0 * math.expm1(math.log1p(-eta) / 3.0) / eta - 1.0 if eta < 1.0 else 2.0
 
 
 class UnitSlipReference:
@@ -61,6 +84,8 @@ class UnitSlipReference:
         The combination (the unit's axles, mass, inertia, and the load on its fifth wheel if it tows another).
     unit
         The towed unit (1 the first).
+    friction
+        ``μ_min`` of (T3), the lowest road friction the vehicle is specified for (``None``: no residual term).
 
     Attributes
     ----------
@@ -68,7 +93,10 @@ class UnitSlipReference:
         ``G`` of (T2) [s²/m].
     """
 
-    def __init__(self, params: VehicleParams, unit: int) -> None:
+    def __init__(self, params: VehicleParams, unit: int, friction: float | None = None) -> None:
+        if friction is not None and not (math.isfinite(friction) and friction > 0.0):
+            raise InputError(f"reference_friction = {friction!r}; allowed: a friction coefficient > 0")
+        self.friction = friction
         lengths, steerable, shares = unit_axles(params, unit)
         towed = params.axle_table.unit == unit
         total = float(params.axle_cornering_stiffness()[towed].sum())
@@ -96,6 +124,14 @@ class UnitSlipReference:
             tangents = np.tan(np.asarray(steer, dtype=float).reshape(-1))
             scrub += speed * float(np.dot(self._steer_shares * self._steer_levers, tangents))
         return scrub / self.slip_point - self.gradient * speed * lateral
+
+    def residual_std(self, speed: float, lateral: float) -> float:
+        """``σ_m`` of (T3) [m/s]: the linear tyres' residual at the wheel speed ``speed`` [m/s] and the reading
+        ``lateral`` [m/s²] on a road of friction ``μ_min`` (0 without it)."""
+        if self.friction is None:
+            return 0.0
+        demand = abs(lateral) / (self.friction * GRAVITY)
+        return linear_slip_excess(demand) * abs(self.gradient * speed * lateral)
 
     def lateral(self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float) -> tuple[float, float]:
         """``(z_c, v̂_s)`` [m/s]: eq (1)'s lateral velocity of the front coupling at the slip (T2) predicts, and that
