@@ -1,4 +1,4 @@
-"""The stereo calibration's ``stereo_refinement``: what it fits, what it leaves in the rectified disparity, its file key.
+"""The stereo calibration's ``stereo_refinement``: what it fits, what it leaves in the disparity, its file key.
 
 The corners are the board's exact projections through the true distorted cameras (no rendering, so the test is
 fast) plus Gaussian corner noise; the rig is the default of de Saxe & Cebon 2018, §3.1 with two slightly different
