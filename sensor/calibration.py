@@ -283,7 +283,8 @@ def _stereo_refinement(fs: cv2.FileStorage, path: Path) -> str:
     n = fs.getNode("stereo_refinement")
     value = "extrinsics" if n.empty() else n.string()
     if value not in STEREO_REFINEMENTS:
-        raise InputError(f"calibration file {path}: stereo_refinement = {value!r}; allowed: {STEREO_REFINEMENTS}")
+        allowed = ", ".join(STEREO_REFINEMENTS)
+        raise InputError(f"calibration file {path}: stereo_refinement = {value!r}; allowed: {allowed}")
     return value
 
 
@@ -509,6 +510,9 @@ def solve_stereo_calibration(
     CalibrationResult
         Intrinsics, extrinsics, rectification and the per-view reprojection RMS of each camera and of the pair.
     """
+    if stereo_refinement not in STEREO_REFINEMENTS:
+        allowed = ", ".join(STEREO_REFINEMENTS)
+        raise InputError(f"stereo_refinement = {stereo_refinement!r} is not allowed; allowed: {allowed}")
     size = (int(image_size[0]), int(image_size[1]))
     objs = [np.asarray(o, dtype=np.float32).reshape(-1, 1, 3) for o in object_points]
     img_l = [np.asarray(c, dtype=np.float32).reshape(-1, 1, 2) for c in left_corners]

@@ -104,7 +104,7 @@ def test_the_setting_is_written_and_read(noisy: dict, tmp_path) -> None:
     assert CalibrationResult.read(old).stereo_refinement == "extrinsics"
     bad = tmp_path / "bad.yaml"
     bad.write_text("\n".join(line.replace("joint", "everything") for line in text) + "\n")
-    with pytest.raises(InputError, match="stereo_refinement = 'everything'"):
+    with pytest.raises(InputError, match="stereo_refinement = 'everything'; allowed: extrinsics, joint"):
         CalibrationResult.read(bad)
 
 
@@ -114,6 +114,9 @@ def test_a_bad_refinement_is_refused_by_name_before_any_work(rig: StereoRig) -> 
             rig, LEFT, RIGHT, views=15, target=(17, 6), square_size=0.05, corner_noise_px=0.1, seed=0,
             stereo_refinement="all",
         )  # fmt: skip
+    with pytest.raises(InputError, match=r"^stereo_refinement = 'all' is not allowed"):
+        solve_stereo_calibration([], [], [], (rig.width, rig.height), target=(17, 6), square_size=0.05, alpha=0.0,
+                                 stereo_refinement="all")  # fmt: skip
 
 
 def test_the_scenario_setting_reaches_the_calibration(monkeypatch: pytest.MonkeyPatch) -> None:
