@@ -55,7 +55,11 @@ class CalibrationConfig(Settings):
     calibration error reaches the estimate as on a truck. ``file``: an OpenCV YAML written by
     ``offtrack calibrate``. ``misalignment_deg`` is the right camera's rotation when it was calibrated: a
     calibration removes the rotation it sees, so only a change after it (``camera.right_misalignment_deg``
-    minus this, plus the mount flex) biases the run.
+    minus this, plus the mount flex) biases the run. ``stereo_refinement`` is what the stereo calibration fits
+    (:data:`sensor.calibration.STEREO_REFINEMENTS`): ``extrinsics`` (the default) the pair's rotation and
+    translation with each camera's own intrinsics fixed, ``joint`` both cameras' intrinsics and distortion with
+    them, which leaves the rectified disparity a smaller error that varies across the image (docs/studies.md,
+    "Off-highway").
     """
 
     mode: Literal["ideal", "estimated", "file"] = "ideal"
@@ -66,6 +70,9 @@ class CalibrationConfig(Settings):
     square_size: float = Field(0.05, ge=0.005, le=1.0, description="[m] printed square size")
     corner_noise_px: float = Field(0.1, ge=0.0, le=5.0, description="[px] corner-detection noise (std)")
     misalignment_deg: tuple[RigRotationDeg, RigRotationDeg, RigRotationDeg] = (0.0, 0.0, 0.0)
+    stereo_refinement: Literal["extrinsics", "joint"] = Field(
+        "extrinsics", description="what the stereo calibration fits: R, T alone, or both cameras' intrinsics too"
+    )
 
     @model_validator(mode="after")
     def _consistent(self) -> CalibrationConfig:

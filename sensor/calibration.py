@@ -10,9 +10,19 @@ de Saxe & Cebon 2018 calibrated each camera by Zhang's method (Zhang 2000) with 
    (:mod:`sensor.calibration_target`) with the rig's image noise;
 2. corners found by ``cv2.findChessboardCorners`` + ``cv2.cornerSubPix``, plus Gaussian corner noise
    ``corner_noise_px`` (per coordinate) standing for a poorer detector, target or focus;
-3. ``cv2.calibrateCamera`` per camera (k1, k2, p1, p2, k3 free, fx and fy free), ``cv2.stereoCalibrate`` with
-   the intrinsics fixed (R, T with ``X_right = R·X_left + T``), ``cv2.stereoRectify`` (zero disparity at
-   infinity, ``alpha`` = 0: the rectified images contain only valid pixels).
+3. ``cv2.calibrateCamera`` per camera (k1, k2, p1, p2, k3 free, fx and fy free), ``cv2.stereoCalibrate``
+   (R, T with ``X_right = R·X_left + T``), ``cv2.stereoRectify`` (zero disparity at infinity, ``alpha`` = 0: the
+   rectified images contain only valid pixels).
+
+``stereo_refinement`` says what ``cv2.stereoCalibrate`` solves for (:data:`STEREO_REFINEMENTS`). ``extrinsics``
+keeps each camera's own intrinsics and distortion fixed and fits R, T alone (``CALIB_FIX_INTRINSIC``): each camera's
+model then carries its own, independent error from its own corners, and the rectified disparity, which is the
+difference of the two cameras' rays, carries the difference of those errors — a disparity error that varies
+across the image. ``joint`` starts from the per-camera estimates and refines both cameras' intrinsics and
+distortion together with R, T on the pairs of views (``CALIB_USE_INTRINSIC_GUESS``, Bouguet's stereo calibration
+as in OpenCV's stereo calibration sample): the two models are then fitted to the same board poses seen by both
+cameras at once, and what is left in the disparity is what the pair's views do not constrain. The per-camera RMS
+(:attr:`CalibrationResult.rms_left`, ``rms_right``) stay those of the per-camera fits either way.
 
 The result (:class:`CalibrationResult`) writes and reads OpenCV YAML (``cv2.FileStorage``), builds the
 rectification maps (``cv2.initUndistortRectifyMap``) and says which focal length, principal point and baseline the
@@ -48,6 +58,11 @@ FORMAT = "offtrack-stereo-calibration-1"
 """Value of the ``format`` key of a calibration file."""
 
 _CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+
+STEREO_REFINEMENTS = ("extrinsics", "joint")
+"""What ``cv2.stereoCalibrate`` refines (module notes): R, T alone, or both cameras' intrinsics with them."""
+
+_STEREO_FLAGS = {"extrinsics": cv2.CALIB_FIX_INTRINSIC, "joint": cv2.CALIB_USE_INTRINSIC_GUESS}
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,7 +124,7 @@ class CalibrationResult:
         ``(n, 2)`` RMS reprojection error of each view (left, right) in the stereo calibration [px].
     rms_left, rms_right, rms_stereo : float
         Overall RMS reprojection errors [px].
-    views, target, square_size, corner_noise_px, seed, alpha
+    views, target, square_size, corner_noise_px, seed, alpha, stereo_refinement
         The settings it was made with.
     """
 
@@ -137,6 +152,7 @@ class CalibrationResult:
     corner_noise_px: float
     seed: int
     alpha: float = 0.0
+    stereo_refinement: str = "extrinsics"
     _maps: dict = field(default_factory=dict, repr=False)
 
     # -- files ----------------------------------------------------------------------------------------
@@ -169,6 +185,7 @@ class CalibrationResult:
             ):
                 fs.write(name, int(value))
             fs.write("seed", int(self.seed))
+            fs.write("stereo_refinement", str(self.stereo_refinement))
         finally:
             fs.release()
         return path
@@ -217,6 +234,7 @@ class CalibrationResult:
                 corner_noise_px=node("corner_noise_px").real(),
                 seed=int(node("seed").real()),
                 alpha=node("alpha").real(),
+                stereo_refinement=_stereo_refinement(fs, path),
                 **mats,
             )
         finally:
@@ -260,6 +278,16 @@ class CalibrationResult:
         )
 
 
+def _stereo_refinement(fs: cv2.FileStorage, path: Path) -> str:
+    """A file's ``stereo_refinement``: ``extrinsics`` when the key is absent (files written before it was stored)."""
+    n = fs.getNode("stereo_refinement")
+    value = "extrinsics" if n.empty() else n.string()
+    if value not in STEREO_REFINEMENTS:
+        allowed = ", ".join(STEREO_REFINEMENTS)
+        raise InputError(f"calibration file {path}: stereo_refinement = {value!r}; allowed: {allowed}")
+    return value
+
+
 def _yaml_path(path: str | Path) -> Path:
     path = Path(path)
     if path.suffix.lower() not in (".yaml", ".yml"):
@@ -273,9 +301,18 @@ def _yaml_path(path: str | Path) -> Path:
 
 # -- the procedure ----------------------------------------------------------------------------------------
 def _check_settings(
-    views: object, target: object, square_size: object, corner_noise_px: object, seed: object, alpha: object
+    views: object,
+    target: object,
+    square_size: object,
+    corner_noise_px: object,
+    seed: object,
+    alpha: object,
+    stereo_refinement: object = "extrinsics",
 ) -> Board:
     errors = []
+    if stereo_refinement not in STEREO_REFINEMENTS:
+        allowed = ", ".join(STEREO_REFINEMENTS)
+        errors.append(f"stereo_refinement = {stereo_refinement!r} is not allowed; allowed: {allowed}")
     if not (isinstance(views, int) and not isinstance(views, bool) and 5 <= views <= 100):
         errors.append(f"views = {views!r} is out of range; allowed: an integer in [5, 100]")
     if not (
@@ -306,6 +343,7 @@ def calibrate_rig(
     corner_noise_px: float,
     seed: int,
     alpha: float = 0.0,
+    stereo_refinement: str = "extrinsics",
 ) -> CalibrationResult:
     """Calibrate the rig's two distorted cameras from simulated views of a checkerboard (module docstring).
 
@@ -328,6 +366,8 @@ def calibrate_rig(
         Seed of the poses, the image noise and the corner noise (``numpy.random.default_rng``).
     alpha : float
         ``cv2.stereoRectify``'s free scaling: 0 keeps only valid pixels, 1 all source pixels.
+    stereo_refinement : str
+        What the stereo calibration refines (:data:`STEREO_REFINEMENTS`, module notes).
 
     Returns
     -------
@@ -338,9 +378,11 @@ def calibrate_rig(
     InputError
         A bad setting (named), no pose both cameras see, or too few detected views.
     """
-    board = _check_settings(views, target, square_size, corner_noise_px, seed, alpha)
+    board = _check_settings(views, target, square_size, corner_noise_px, seed, alpha, stereo_refinement)
     with one_opencv_thread():  # OpenCV's parallel loops sum in a varying order; on one thread a seed repeats exactly
-        return _calibrate(rig, lens_left, lens_right, board, views, square_size, corner_noise_px, seed, alpha)
+        return _calibrate(
+            rig, lens_left, lens_right, board, views, square_size, corner_noise_px, seed, alpha, stereo_refinement
+        )
 
 
 @contextlib.contextmanager
@@ -364,6 +406,7 @@ def _calibrate(
     corner_noise_px: float,
     seed: int,
     alpha: float,
+    stereo_refinement: str,
 ) -> CalibrationResult:
     """:func:`calibrate_rig` once its settings are checked: image the target, detect its corners, solve."""
     rng = np.random.default_rng([int(seed), 0xCA11B])
@@ -399,7 +442,7 @@ def _calibrate(
     if corner_noise_px > 0:
         found_left = [c + rng.normal(0.0, corner_noise_px, c.shape) for c in found_left]
         found_right = [c + rng.normal(0.0, corner_noise_px, c.shape) for c in found_right]
-    return _solve(rig, board, obj, found_left, found_right, views, corner_noise_px, seed, alpha)
+    return _solve(rig, board, obj, found_left, found_right, views, corner_noise_px, seed, alpha, stereo_refinement)
 
 
 def _solve(
@@ -412,6 +455,7 @@ def _solve(
     corner_noise_px: float,
     seed: int,
     alpha: float,
+    stereo_refinement: str,
 ) -> CalibrationResult:
     """The rendered views' corners solved by :func:`solve_stereo_calibration`."""
     return solve_stereo_calibration(
@@ -424,6 +468,7 @@ def _solve(
         alpha=alpha,
         corner_noise_px=corner_noise_px,
         seed=seed,
+        stereo_refinement=stereo_refinement,
     )
 
 
@@ -438,8 +483,9 @@ def solve_stereo_calibration(
     alpha: float,
     corner_noise_px: float = 0.0,
     seed: int = 0,
+    stereo_refinement: str = "extrinsics",
 ) -> CalibrationResult:
-    """Zhang per camera, stereo extrinsics with fixed intrinsics, Fusiello rectification (OpenCV calib3d).
+    """Zhang per camera, the stereo calibration, Fusiello rectification (OpenCV calib3d).
 
     Parameters
     ----------
@@ -455,12 +501,18 @@ def solve_stereo_calibration(
         ``cv2.stereoRectify``'s free scaling: 0 keeps only valid pixels, 1 keeps every source pixel.
     corner_noise_px, seed
         Recorded in the result: the noise added to rendered corners and its seed (0 for photos).
+    stereo_refinement
+        ``extrinsics``: R, T with each camera's intrinsics fixed; ``joint``: both cameras' intrinsics and
+        distortion refined with R, T from the per-camera estimates (:data:`STEREO_REFINEMENTS`, module notes).
 
     Returns
     -------
     CalibrationResult
         Intrinsics, extrinsics, rectification and the per-view reprojection RMS of each camera and of the pair.
     """
+    if stereo_refinement not in STEREO_REFINEMENTS:
+        allowed = ", ".join(STEREO_REFINEMENTS)
+        raise InputError(f"stereo_refinement = {stereo_refinement!r} is not allowed; allowed: {allowed}")
     size = (int(image_size[0]), int(image_size[1]))
     objs = [np.asarray(o, dtype=np.float32).reshape(-1, 1, 3) for o in object_points]
     img_l = [np.asarray(c, dtype=np.float32).reshape(-1, 1, 2) for c in left_corners]
@@ -476,7 +528,7 @@ def solve_stereo_calibration(
         )
         mono.append((float(rms), kk, dd.ravel(), np.asarray(per_view, dtype=float).ravel()))
     (rms_l, k1, d1, pv_l), (rms_r, k2, d2, pv_r) = mono
-    rms_s, _, _, _, _, r, t, _, _, _, _, per_view = cv2.stereoCalibrateExtended(
+    rms_s, k1_s, d1_s, k2_s, d2_s, r, t, _, _, _, _, per_view = cv2.stereoCalibrateExtended(
         objs,
         img_l,
         img_r,
@@ -487,9 +539,12 @@ def solve_stereo_calibration(
         size,
         np.eye(3),
         np.zeros((3, 1)),
-        flags=cv2.CALIB_FIX_INTRINSIC,
+        flags=_STEREO_FLAGS[stereo_refinement],
         criteria=_CRITERIA,
     )
+    if stereo_refinement == "joint":  # the pair's own intrinsics; with them fixed they are the per-camera ones
+        k1, k2 = k1_s, k2_s
+        d1, d2 = np.asarray(d1_s, dtype=float).ravel(), np.asarray(d2_s, dtype=float).ravel()
     r1, r2, p1, p2, q, _, _ = cv2.stereoRectify(
         k1, d1, k2, d2, size, r, t, flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha
     )  # Fusiello et al. 2000 / Bouguet
@@ -518,4 +573,5 @@ def solve_stereo_calibration(
         corner_noise_px=float(corner_noise_px),
         seed=int(seed),
         alpha=float(alpha),
+        stereo_refinement=stereo_refinement,
     )

@@ -46,7 +46,11 @@ def rectification_residuals(
     Known 3-D points (depths 3–60 m, log-uniform, over the whole left image) are projected through the true
     distorted cameras (``cv2.projectPoints``), kept where both see them, and mapped with ``cv2.undistortPoints``
     (estimated K, dist, R1/P1 and R2/P2). Returns ``v_diff_median_px``, ``v_diff_p95_px``, ``v_diff_max_px``
-    (|v_l − v_r|), ``depth_error_median`` (relative, depth from the rectified disparity ``f·b/d``) and ``points``.
+    (|v_l − v_r|), ``depth_error_median`` (relative, depth from the rectified disparity ``f·b/d``), the rectified
+    disparity's error against the estimated ``f·b/Z`` with ``Z`` the point's depth in the estimated rectified left
+    frame (``R1·X``, the frame the odometry triangulates in) — its median ``disparity_error_median_px`` (a constant
+    offset, which reads as a depth change or a yaw of the right camera) and its interquartile range
+    ``disparity_error_iqr_px`` (how much it varies across the image and with depth) — and ``points``.
     """
     rng = np.random.default_rng(seed)
     k = truth_rig.intrinsics()
@@ -67,11 +71,16 @@ def rectification_residuals(
     dv = np.abs(rl[:, 1] - rr[:, 1])
     par = result.rectified_rig_parameters()
     z_est = par.f * par.baseline / (rl[:, 0] - rr[:, 0])
+    z_rectified = xyz[seen] @ np.asarray(result.r1, dtype=float)[2]
+    disparity_error = (rl[:, 0] - rr[:, 0]) - par.f * par.baseline / z_rectified
+    q1, q3 = np.percentile(disparity_error, [25.0, 75.0])
     return {
         "v_diff_median_px": float(np.median(dv)),
         "v_diff_p95_px": float(np.percentile(dv, 95)),
         "v_diff_max_px": float(dv.max()),
         "depth_error_median": float(np.median(np.abs(z_est / depth[seen] - 1.0))),
+        "disparity_error_median_px": float(np.median(disparity_error)),
+        "disparity_error_iqr_px": float(q3 - q1),
         "points": int(seen.sum()),
     }
 

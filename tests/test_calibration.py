@@ -194,3 +194,5 @@ def test_the_ideal_calibration_passes_its_own_check(rig: StereoRig) -> None:
     )  # fmt: skip
     res = rectification_residuals(truth, rig, LENS_LEFT, LENS_RIGHT)
     assert res["v_diff_max_px"] < 1e-6 and res["depth_error_median"] < 1e-5
+    # the disparity against f·b/Z in the rectified frame: zero everywhere, so no offset and no spread (1e-6 px)
+    assert abs(res["disparity_error_median_px"]) < 1e-6 and res["disparity_error_iqr_px"] < 1e-6

@@ -196,6 +196,7 @@ def run_calibration(rig: StereoRig, config: ScenarioConfig, rig_index: int = 0) 
         square_size=cal.square_size,
         corner_noise_px=cal.corner_noise_px,
         seed=rig_seed(config.seed, rig_index),
+        stereo_refinement=cal.stereo_refinement,
     )
 
 
