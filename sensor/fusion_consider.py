@@ -4,9 +4,11 @@ A following unit's measurement of the lead's kingpin increment ((C1)–(C2) of :
 taken by the fused filter as white from frame to frame. Part of its lateral error is not: it persists over seconds
 (docs/field_bias.md §7.12), and the filter, whose states ``s_f``, ``s_z``, ``v_s`` and biases learn from every
 reference it takes, carries that part into the path through what the states learn from it. No term of eq (5) of
-:mod:`sensor.fusion_std` holds it. This module holds it as a *consider parameter* (Schmidt 1966; Bierman 1977,
-ch. VIII; Woodbury & Junkins 2010; Zanetti & D'Souza 2013): an error the filter does not estimate and whose gains it
-does not change, whose effect on the estimate's error is propagated with the filter's own transitions and gains.
+:mod:`sensor.fusion_std` holds it. This module holds it as a *consider parameter* (Schmidt 1966, the Schmidt–Kalman
+"consider" filter; Woodbury & Junkins 2010; Zanetti & D'Souza 2013, AAS 12-619): an error the filter neither
+estimates nor lets change its gains, whose effect on the estimate's error is propagated with the filter's own
+transitions and gains (a consider covariance analysis: the Schmidt–Kalman filter would also change the gains; this
+one leaves the estimate as it is and widens the std).
 
 The persisting error. Each reference's lateral component ``z_y`` (in the lead's axes at the frame's start) carries
 ``σ_c·ν`` beside its white error, ``ν`` a first-order Gauss–Markov process of unit variance in time with the
@@ -22,10 +24,12 @@ the filter used, ``ξ ← (I − K·H)·ξ``; the reference, which measured ``σ
 ``ξ ← (I − K_c·H_c)·ξ + m·ν`` with ``m = σ_c·K_c·e_y`` (``e_y`` its lateral row). So with ``A`` the step's
 ``F`` or ``I − K·H`` and ``m`` zero except at a reference, the moments ``Π = E[ξ·ξᵀ]`` and ``c = E[ξ·ν]`` go::
 
-    Π ← A·Π·Aᵀ + A·c·mᵀ + m·cᵀ·Aᵀ + m·mᵀ,    c ← φ·(A·c + m)                                             (P2)
+    Π ← A·Π·Aᵀ + A·c·mᵀ + m·cᵀ·Aᵀ + m·mᵀ,    c ← A·c + m        (an update)
+    Π ← F·Π·Fᵀ,                              c ← φ·F·c          (a control period of Δt)                  (P2)
 
-(the consider covariance of the references above: ``Π`` is what the filter's ``P`` would gain were ``ν`` a state
-it knew of and did not estimate, Zanetti & D'Souza 2013, eqs (24)–(27)). Between two frames nothing injects ``ν``,
+(the consider covariance: ``Π`` is what the error's covariance holds beyond the filter's ``P`` when ``ν`` is in the
+measurements and not in the model, and ``c`` the cross-covariance of the state with the consider parameter that the
+references cited carry through propagation and update). Between two frames nothing injects ``ν``,
 so the steps since the anchor compose into one transition ``Φ`` (the products of ``A``), kept per tick, and a frame
 applies ``Φ`` and the frame's updates to the moments kept at the anchor.
 
@@ -42,7 +46,8 @@ The term. With eq (4)'s sensitivities ``g_k`` of the increments ahead and ``g_no
 
     σ_P² = Σ_k Σ_l g_kᵀ·B_kl·g_l + 2·Σ_k g_kᵀ·(D_k·Φ_Δᵀ)·g_now + g_nowᵀ·(Φ_Δ·Π·Φ_Δᵀ)·g_now               (P3)
 
-added to eq (5)'s biases' term (it is the reference's error the states carry into the path; it is not scaled by
+(``g_k`` counts the increment the follow point lies in whole or not at all, as eq (4) does), added to eq (5)'s
+biases' term (it is the reference's error the states carry into the path; it is not scaled by
 ``ρ/3``, which measures the camera's motions). It is zero where no reference was taken, and the filter's estimate
 and ``P`` are those without it to the bit: only the std reads it. The white part of the reference's error is
 already in ``P``; ``σ_c`` is the persisting part on top. docs/field_bias.md §7.15 says how ``u`` and ``τ_c`` were
