@@ -1,41 +1,38 @@
 """Fused VISO-OT: a Kalman filter of the trailer's signals, the zero-slip kinematics and the stereo camera's odometry.
 
-VISO-OT (de Saxe & Cebon 2018, §2.2; :mod:`sensor.viso_ot`) gives the off-tracking at the camera rate, a camera
-latency late, and has nothing between frames or across failed ones; Cheng's zero-slip kinematics (Cheng 2009;
-docs/vehicle_dynamics.md §2.3, §7.2) give the kingpin's motion at every control tick from the tractor's signals,
-but are blind to tyre slip. The paper lists a Kalman filter as future work (§5). This one propagates at the control
-rate with the trailer's yaw-rate gyro, a wheel-speed sensor on an unsteered trailer axle and the trailer's own steer
-angles; takes Cheng's kinematics as a measurement whose noise follows the evidence of slip; and corrects with every
-visual-odometry motion, weighted by its Gauss–Newton covariance, with the odometry's own systematic yaw error as a
-state. The kingpin increments it produces feed the one path buffer
-(:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)). docs/field_bias.md says why each part is
-there and what it removes under field conditions.
+VISO-OT (de Saxe & Cebon 2018, §2.2; :mod:`sensor.viso_ot`) gives the off-tracking at the camera rate, a camera latency
+late, and has nothing between frames or across failed ones; Cheng's zero-slip kinematics (Cheng 2009;
+docs/vehicle_dynamics.md §2.3, §7.2) give the kingpin's motion at every control tick from the tractor's signals, but are
+blind to tyre slip. The paper lists a Kalman filter as future work (§5). This one propagates at the control rate with
+the trailer's yaw-rate gyro, a wheel-speed sensor on an unsteered trailer axle and the trailer's own steer angles; takes
+Cheng's kinematics as a measurement whose noise follows the evidence of slip; and corrects with every visual-odometry
+motion, weighted by its Gauss–Newton covariance, with the odometry's own systematic yaw error as a state. The kingpin
+increments it produces feed the one path buffer (:class:`~vehicle_model.offtracking.OfftrackingBuffer`, eqs (3)–(7)).
+docs/field_bias.md says why each part is there and what it removes under field conditions.
 
-Any towed unit. Everything below is written for the first towed unit (the semi-trailer behind the tractor), and
-holds for any towed unit ``k`` of a longer combination (``unit``): "the trailer" is unit ``k`` with its own gyro,
-wheel speed, steerable axles and follow point, "the kingpin" its front coupling (the fifth wheel of unit ``k − 1``,
-or a dolly's drawbar eye), and "the tractor's signals" of the zero-slip measurement are carried down the chain of
-units ahead of it (:mod:`sensor.unit_kinematics`).
+Any towed unit. Everything below is written for the first towed unit (the semi-trailer behind the tractor), and holds
+for any towed unit ``k`` of a longer combination (``unit``): "the trailer" is unit ``k`` with its own gyro, wheel speed,
+steerable axles and follow point, "the kingpin" its front coupling (the fifth wheel of unit ``k − 1``, or a dolly's
+drawbar eye), and "the tractor's signals" of the zero-slip measurement are carried down the chain of units ahead of it
+(:mod:`sensor.unit_kinematics`).
 
-The filter's model — its state, the propagation (1)–(2) with the trailer's signals, the zero-slip measurement (K1)
-and the camera's motion (3), (3') — is stated in :mod:`sensor.fusion_model`; the zero-slip measurement's noise, the
-evidence of slip (K2)–(K4), in :mod:`sensor.fusion_slip`; the off-tracking's standard deviation (4)–(5) in
-:mod:`sensor.fusion_std`. This module runs them: the history of ticks since the last camera frame, the delayed
-measurements and the commit into the path buffer.
+The model (state, propagation (1)–(2), zero-slip measurement (K1), camera's motion (3), (3')) is in
+:mod:`sensor.fusion_model`; the zero-slip noise, the evidence of slip (K2)–(K4), in :mod:`sensor.fusion_slip`; the std
+(4)–(5) in :mod:`sensor.fusion_std` (a following unit's persisting error: :mod:`sensor.fusion_consider`). This module
+runs them: the ticks since the last frame, the delayed measurements, the commit.
 
 Delayed measurements. A frame taken on tick ``k`` is released ``latency`` ticks later
-(:mod:`scenarios.camera.delivery`). The filter keeps the state, covariance, inputs and zero-slip measurements of
-every tick since the anchor; :meth:`FusedVisoOt.measure` updates the stored state of tick ``k`` and re-filters to
-the present with the stored inputs and measurements (an out-of-sequence update by re-filtering). With zero latency
-this is the ordinary update; with any latency it is exactly what the filter would have done had the motion come
-on tick ``k``, seen no earlier than its release.
+(:mod:`scenarios.camera.delivery`). The filter keeps the state, covariance, inputs and zero-slip measurements of every
+tick since the anchor; :meth:`FusedVisoOt.measure` updates the stored state of tick ``k`` and re-filters to the present
+with the stored inputs and measurements (an out-of-sequence update by re-filtering). With zero latency this is the
+ordinary update; with any latency it is exactly what the filter would have done had the motion come on tick ``k``, seen
+no earlier than its release.
 
-Commit. After each frame (measured or not) the increments from the anchor to the frame are pushed into the
-path buffer (the propagated per-tick increments, the last one carrying the correction, so the buffer keeps
-control-rate resolution), the frame becomes the anchor, ``(Δx, Δy, Δψ)`` restart from zero and only the
-covariance of the other states is carried on (the cross-covariance with the committed increment is dropped:
-the usual reset of a delta state). A failed, refused or dropped frame is committed from the prediction alone,
-so a gap is bridged with a covariance that grows with its length.
+Commit. After each frame (measured or not) the increments from the anchor to the frame are pushed into the path buffer
+(the propagated per-tick increments, the last one carrying the correction: control-rate resolution), the frame becomes
+the anchor, ``(Δx, Δy, Δψ)`` restart from zero and only the covariance of the other states is carried on (the usual
+reset of a delta state). A failed, refused or dropped frame is committed from the prediction alone: a gap is bridged
+with a covariance that grows with its length.
 """
 
 from __future__ import annotations
@@ -52,7 +49,8 @@ from vehicle_model.offtracking import OfftrackingBuffer, offtracking_from_path
 from vehicle_model.parameters import VehicleParams
 
 from .fusion_axial import AxialRegression
-from .fusion_coupling import CouplingMeasurement
+from .fusion_consider import Transition, consider_of
+from .fusion_coupling import CouplingMeasurement, coupled_update
 from .fusion_model import (
     BG,
     BPSI,
@@ -106,6 +104,7 @@ class _Tick:
     tractor_lateral: float = math.nan  # the kingpin's lateral velocity if no tractor tyre slips [m/s]
     kinematic_variance: float = 0.0  # σ_k² of (K3) on the step into this tick [m²/s²]
     scrub: float = 0.0  # the scrub demand D of (K5) on the step into this tick
+    transition: Transition | None = None  # Φ from the anchor, of sensor.fusion_consider (None: not kept)
 
 
 class FusedVisoOt:
@@ -192,6 +191,7 @@ class FusedVisoOt:
         self._zero_slip = ZeroSlipNoise(self.noise, layout, self.slip_point)
         self._evidence = self._zero_slip.evidence
         self._scrub = ScrubDemand(self.noise, *unit_axles(params, self.unit), self.slip_point, self.steer_weights)
+        self._consider = consider_of(layout.size, self.noise.coupling_persisting_error)  # the reference's, persisting
         self._gyro_zero: tuple[float, int] | None = None
         self.reset()
 
@@ -230,6 +230,7 @@ class FusedVisoOt:
             p0[BG, BG] = n.gyro_noise**2 / self._gyro_zero[1]
         self._start = (x0, p0)
         self._zero_slip.reset()  # m_k, V_k, e_k and v_m of (K2)
+        self._consider.reset()
         self._chain.reset()
         self._coupling = np.zeros(2)  # the last frame's (c_x, c_y)
         self.frame_scrub_demand = 0.0
@@ -295,12 +296,14 @@ class FusedVisoOt:
         if self._previous_input is None:
             x, p = self._start
             x, p = x.copy(), p.copy()
-            inputs = (0.0, *sample)
+            inputs, step = (0.0, *sample), None
         else:
             prev = self._previous_input
             inputs = (float(dt), *(0.5 * (a + b) for a, b in zip(prev, sample, strict=True)))
             last = self._history[-1]
             x, p = self._step(last.x, last.p, inputs, kinematic_variance, scrub)
+            step = (last.transition, self._model.transition)  # Φ before and F of sensor.fusion_consider
+        stepped = p
         kinematic: tuple[tuple[np.ndarray, float, float], ...] = ()
         lateral = math.nan
         if tractor is not None and self.noise.kinematics and self._previous_input is not None:
@@ -317,7 +320,8 @@ class FusedVisoOt:
                 x, p = apply_rows(x, p, kinematic)
         elif tractor is not None and self.noise.kinematics:
             self._chain.remember(tractor)
-        self._history.append(_Tick(tick, inputs, x, p, kinematic, lateral, kinematic_variance, scrub))
+        transition = self._consider.advance(step, stepped, kinematic, inputs[0])
+        self._history.append(_Tick(tick, inputs, x, p, kinematic, lateral, kinematic_variance, scrub, transition))
         self._previous_input = sample
         self._read()
 
@@ -401,6 +405,7 @@ class FusedVisoOt:
             raise InputError(f"frame of tick {tick} is ahead of the filter (last tick {self._history[-1].tick})")
         self.frames += 1
         entry = self._history[index]
+        self._consider.frame(entry.transition)
         x, p = entry.x.copy(), entry.p.copy()
         used, share = False, np.eye(3)  # share: of the increment's prior error, what a reference left, (4')
         if camera_motion is not None and np.all(np.isfinite(camera_motion)):
@@ -418,7 +423,7 @@ class FusedVisoOt:
             if entry.scrub > 0.0:  # (K6): the odometry's systematic error released while the tyres scrub
                 h[:, BPSI] *= scrub_bias_share(self.noise, entry.scrub)
             if self._sz is not None or self._sf is not None:  # (3'): the camera's displacement, along its axis
-                along, across = self._camera_displacement(x[:3])
+                along, across = camera_displacement(x[:3], self.geometry.camera_position, self._optical_axis)
                 if self._sz is not None:
                     h[:2, self._sz] = along * self._optical_axis
                 if self._sf is not None:
@@ -437,8 +442,9 @@ class FusedVisoOt:
                     if i is not None:
                         camera_y -= h[1, i] * x[i]
                 self._evidence.weigh(camera_y - kinematic_y, float(r[1, 1]), interval)
-            refuse = self._gated < self.noise.max_gated
+            refuse, prior = self._gated < self.noise.max_gated, p
             x, p, nis, used = gated_update(x, p, h, innovation, r, self.noise.gate, refuse)
+            self._consider.update(prior, h, r, nis, self.noise.gate, used)
             if not used:
                 self._gated += 1
                 self.rejected += 1
@@ -454,19 +460,13 @@ class FusedVisoOt:
         return used
 
     def _couple(self, x: np.ndarray, p: np.ndarray, coupling: CouplingMeasurement) -> tuple[np.ndarray, ...]:
-        """The following unit's measurement of ``(Δx, Δy, Δψ)`` ((C1) of :mod:`sensor.fusion_coupling`, ``H = [I₃ 0]``),
-        gated as the camera's motion; the state, its covariance and (4')'s share of :mod:`sensor.fusion_std`."""
-        h = np.hstack([np.eye(3), np.zeros((3, self._states - 3))])
-        innovation = np.asarray(coupling.increment, dtype=float) - x[:3]
-        innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
+        """The following unit's measurement (:func:`~sensor.fusion_coupling.coupled_update`), counted."""
         refuse = self._coupling_gated < self.noise.max_gated
-        x, posterior, _, used = gated_update(x, p, h, innovation, coupling.covariance, self.noise.gate, refuse)
-        if not used:
-            self._coupling_gated += 1
-            self.coupling_rejected += 1
-        else:
-            self._coupling_gated = 0
-            self.coupling_updates += 1
+        x, posterior, nis, used = coupled_update(x, p, coupling, self.noise.gate, refuse)
+        self._consider.reference(p, coupling, nis, self.noise.gate, used)
+        self._coupling_gated = 0 if used else self._coupling_gated + 1
+        self.coupling_updates += int(used)
+        self.coupling_rejected += int(not used)
         return x, posterior, reference_share(p[:3, :3], posterior[:3, :3])
 
     def _commit(self, index: int, x: np.ndarray, p: np.ndarray, share: np.ndarray) -> None:
@@ -488,6 +488,7 @@ class FusedVisoOt:
         keep = starts[:, 0] > -self.follow_point_offset - 2.0
         if self._axial_regression is not None:  # the increment's regression on the axial states, before the reset
             self._axial_regression.commit(p, keep)
+        self._consider.commit(keep)
         self._starts, self._ends, self._covs = starts[keep], ends[keep], covs[keep]
         self._durations, self._demands, self._shares = durations[keep], demands[keep], shares[keep]
         # The new anchor: Δ restarts from zero; the other states keep their covariance.
@@ -496,12 +497,14 @@ class FusedVisoOt:
         anchor_p = np.zeros_like(p)
         anchor_p[3:, 3:] = p[3:, 3:]
         rest = list(self._history)[index + 1 :]
-        self._history = deque([_Tick(self._history[index].tick, (0.0, 0.0, 0.0, 0.0), anchor_x, anchor_p)])
+        identity = self._consider.advance(None, anchor_p, (), 0.0)
+        self._history = deque([_Tick(self._history[index].tick, (0.0,) * 4, anchor_x, anchor_p, transition=identity)])
         for h in rest:  # re-filter to the present with the stored inputs and measurements (delayed measurement)
             last = self._history[-1]
-            nx, np_ = self._step(last.x, last.p, h.inputs, h.kinematic_variance, h.scrub)
-            nx, np_ = apply_rows(nx, np_, h.kinematic)
-            self._history.append(replace(h, x=nx, p=np_))
+            nx, stepped = self._step(last.x, last.p, h.inputs, h.kinematic_variance, h.scrub)
+            nx, np_ = apply_rows(nx, stepped, h.kinematic)
+            step = self._consider.advance((last.transition, self._model.transition), stepped, h.kinematic, h.inputs[0])
+            self._history.append(replace(h, x=nx, p=np_, transition=step))
 
     # ------------------------------------------------------------------ estimate
 
@@ -563,7 +566,8 @@ class FusedVisoOt:
             coherent = coherent - scrub * np.array([0.0, coherent[2], coherent[2]])
         self.std_parts = {
             "increments": self.innovation_ratio * independent,
-            "biases": self.innovation_ratio * float(effects @ biases @ effects),
+            "biases": self.innovation_ratio * float(effects @ biases @ effects)
+            + self._consider.variance(now.transition, d, self._starts, self._ends, lfp),  # sensor.fusion_consider
             "coupling": coupling**2 + (self.noise.vo_axial_scale_uncertainty * axial) ** 2,
             "kinematics": disagreement**2,
             "unexplained": self.noise.offtracking_bias_std**2,
@@ -582,10 +586,6 @@ class FusedVisoOt:
         odometry's increments, the biases, the bias coupling, the kinematics' disagreement, the constant).
         """
         return {part: math.sqrt(max(self.std_parts[part], 0.0)) for part in STD_PARTS}
-
-    def _camera_displacement(self, delta: np.ndarray) -> tuple[float, float]:
-        """The camera's displacement along and across its axis (:func:`~sensor.fusion_model.camera_displacement`)."""
-        return camera_displacement(delta, self.geometry.camera_position, self._optical_axis)
 
     @property
     def state(self) -> np.ndarray:

@@ -76,12 +76,12 @@ import numpy as np
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
 
-from .fusion_model import camera_increment
+from .fusion_model import camera_increment, gated_update
 from .fusion_noise import FusionNoise
 from .fusion_slip import scrub_bias_share
 from .viso_ot import VisoOtEstimator
 
-__all__ = ["CouplingMeasurement", "CouplingReference", "looks_along", "transport_increment"]
+__all__ = ["CouplingMeasurement", "CouplingReference", "coupled_update", "looks_along", "transport_increment"]
 
 
 @dataclass(frozen=True)
@@ -97,11 +97,26 @@ class CouplingMeasurement:
         ``(dx, dy, dψ)`` [m, m, rad] of the lead's kingpin, in its axes at the frame's start.
     covariance : numpy.ndarray
         Its 3×3 covariance ``R_c``.
+    covariance_scale : float
+        The ``k_c`` of (C2) it was taken with (1: the covariance as mapped): ``R_c / k_c`` is the reference's own
+        per-frame covariance.
     """
 
     start_tick: int
     increment: np.ndarray
     covariance: np.ndarray
+    covariance_scale: float = 1.0
+
+
+def coupled_update(
+    x: np.ndarray, p: np.ndarray, coupling: CouplingMeasurement, gate: float, refuse: bool
+) -> tuple[np.ndarray, np.ndarray, float, bool]:
+    """The filter's update with a following unit's measurement of ``(Δx, Δy, Δψ)`` ((C1), ``H = [I₃ 0]``), gated as
+    the camera's motion (:func:`~sensor.fusion_model.gated_update`): ``(x, p, nis, used)``."""
+    h = np.hstack([np.eye(3), np.zeros((3, len(x) - 3))])
+    innovation = np.asarray(coupling.increment, dtype=float) - x[:3]
+    innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
+    return gated_update(x, p, h, innovation, coupling.covariance, gate, refuse)
 
 
 def _rotate(angle: float, v: np.ndarray) -> np.ndarray:

@@ -258,6 +258,11 @@ class ProcessModel:
                 q[i, i] += self.noise.vo_axial_scale_walk**2 * abs(u) * dt
         return out, f @ p @ f.T + q
 
+    @property
+    def transition(self) -> np.ndarray:
+        """The Jacobian ``F`` of the last :meth:`step` (its work array: valid until the next step)."""
+        return self._f
+
 
 def camera_displacement(delta: np.ndarray, camera: np.ndarray, axis: np.ndarray) -> tuple[float, float]:
     """The camera's displacement along and across its optical axis ``axis`` over a kingpin increment

@@ -10,7 +10,14 @@ from pydantic import Field
 from vehicle_model.kinematics import RearPoint
 from vehicle_model.settings import Settings
 
-__all__ = ["AxialEffect", "FusionNoise", "KinematicReference", "ScrubCouplingStd", "SideRigFusion"]
+__all__ = [
+    "AxialEffect",
+    "FusionNoise",
+    "KinematicReference",
+    "PersistingReferenceError",
+    "ScrubCouplingStd",
+    "SideRigFusion",
+]
 
 KinematicReference = Literal[RearPoint, "trailer_lateral_acceleration"]
 """Where (K1)'s lateral velocity comes from: the tractor's signals with its rear point as
@@ -29,6 +36,26 @@ FRICTION = "the lowest road μ the vehicle is specified for, (T3); 0.05 is glare
 """``reference_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
 
 
+class PersistingReferenceError(Settings):
+    """The part of a following unit's measurement error that persists over frames, as a consider parameter of the
+    off-tracking's std (:mod:`sensor.fusion_consider`): a first-order Gauss–Markov lateral error of the reference's
+    increment.
+
+    Parameters
+    ----------
+    share
+        Its standard deviation as a share of the reference's own per-frame lateral standard deviation ((C2) of
+        :mod:`sensor.fusion_coupling` before ``k_c``).
+    correlation_time_s
+        Its correlation time [s].
+    """
+
+    share: float = Field(gt=0.0, le=1.0, description="of the per-frame lateral std; above 1 it is no longer a part")
+    correlation_time_s: float = Field(
+        gt=0.0, le=600.0, description="[s] of the Gauss–Markov error; 600 s is constant over any run"
+    )
+
+
 class SideRigFusion(Settings):
     """The settings a camera that looks across its motion (a side rig) takes in place of the section's (``None``: the
     section's own): the odometry's error along its optical axis as states (eq (3') of :mod:`sensor.fusion_model`,
@@ -38,7 +65,8 @@ class SideRigFusion(Settings):
     ----------
     vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect
         As :class:`FusionNoise`'s.
-    kinematic_rear_point, reference_friction, kinematic_error_model, coupling_reference, coupling_bias_share
+    kinematic_rear_point, reference_friction, kinematic_error_model, coupling_reference, coupling_bias_share,
+    coupling_persisting_error
         As :class:`FusionNoise`'s.
     coupling_covariance_scale
         Factor on the covariance of the following unit's measurement, (C2) of :mod:`sensor.fusion_coupling`
@@ -57,6 +85,7 @@ class SideRigFusion(Settings):
     kinematic_error_model: Literal["inflated", "state"] | None = None
     coupling_reference: bool | None = None
     coupling_bias_share: bool | None = None
+    coupling_persisting_error: PersistingReferenceError | None = None
     coupling_covariance_scale: float | None = Field(
         None,
         ge=1.0,
@@ -209,6 +238,10 @@ class FusionNoise(Settings):
         Carry the biases into the off-tracking's std through only the share of each increment's error that the
         following unit's measurement left in it, ``I − K_Δ`` of eq (4') of :mod:`sensor.fusion_std` (off: through
         the whole increment, as if the camera alone had measured it; the same wherever no reference was taken).
+    coupling_persisting_error : PersistingReferenceError or None
+        The following unit's measurement error that persists over frames, carried into the off-tracking's std
+        through the filter's own gains (a consider parameter, :mod:`sensor.fusion_consider`; ``None``: none, the
+        default, the std as without it).
     articulation_noise : float
         White noise of one articulation sample [rad], in the covariance of that measurement ((C2) of
         :mod:`sensor.fusion_coupling`).
@@ -323,6 +356,7 @@ class FusionNoise(Settings):
     )
     coupling_reference: bool = False
     coupling_bias_share: bool = False
+    coupling_persisting_error: PersistingReferenceError | None = None
     articulation_noise: float = Field(
         8.7e-4, ge=0.0, le=0.1, description="[rad] per sample (sensor/datasheet.py); 0.1 rad is no articulation sensor"
     )

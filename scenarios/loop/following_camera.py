@@ -112,7 +112,7 @@ class FollowingCamera:
                 tilts,
             )
             if np.all(np.isfinite(z)) and np.all(np.isfinite(r)):
-                self._pending[int(shot.tick)] = CouplingMeasurement(start, z, r)
+                self._pending[int(shot.tick)] = CouplingMeasurement(start, z, r, self.reference.covariance_scale)
                 self.measurements += 1
         if self._last_frame is not None:  # the next frame's interval starts at the last frame
             for old in [t for t in self._articulations if t < self._last_frame]:
