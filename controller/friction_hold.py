@@ -16,9 +16,13 @@ and the measured yaw rate ``r2`` falls short of it by the axle's slip::
     tan δ_j − tan β_j = (r2 − r_kin,j)·L_j/v_k2x,   β_j = atan(tan β_k − r2·L_j/v_k2x)
 
 so a yaw-rate deficit and a slip angle ``α_j = δ_j − β_j`` are one measurement. The axles are judged at their
-friction while any steered axle's ``|α_j|`` exceeds a threshold ``α_h``: the slip of the force peak on the lowest
-friction the controller is set up for (ice), beyond which, on that surface, more steer gives less force. On a
-surface of higher friction the peak lies at a larger slip, so there the hold acts early rather than late.
+friction while its ``|α_j|`` exceeds a threshold ``α_h``: the slip of the force peak on the lowest friction the
+controller is set up for (ice), beyond which, on that surface, more steer gives less force. On a surface of higher
+friction the peak lies at a larger slip, so there the hold acts early rather than late. The integral is held only
+where its push would steer such an axle further into its slip (:func:`deepens_slip`).
+
+The slip is the kinematics': ``β_k`` comes from the tractor's signals by zero-slip kinematics, so where the tractor
+itself slides (a cambered or icy road) ``β_j`` is off by the tractor's crab, and with it every ``α_j``.
 """
 
 from __future__ import annotations
@@ -72,21 +76,15 @@ def steered_slip_angles(
     return np.asarray(steer, dtype=float) - beta
 
 
-def at_friction(slip_angles: np.ndarray | None, threshold: float) -> bool:
-    """Whether the steered axles are judged at their friction: any ``|α_j|`` above ``threshold`` [rad].
+def deepens_slip(slip_angles: np.ndarray | None, threshold: float, push: float) -> bool:
+    """Whether a push of sign ``push`` on the steer would take an axle judged at its friction further into its slip.
 
-    ``None`` (no slip angle defined) is never at friction.
+    An axle is judged at its friction when its ``|α_j|`` exceeds ``threshold`` [rad]; more steer on the side of its
+    slip (``α_j·push > 0``, the distribution raising every axle's steer with the virtual axle's) then gives no more
+    force, only more slip. A slip on the other side (an axle held short of its velocity's direction, e.g. at its
+    lock) is reduced by the push, which is left alone. ``None`` (no slip angle defined) deepens nothing.
     """
-    if slip_angles is None:
+    if slip_angles is None or push == 0.0:
         return False
-    return bool(np.any(np.abs(slip_angles) > threshold))
-
-
-def held_integral(previous: float, proposed: float, holding: bool) -> float:
-    """The integral after a tick: ``previous`` where ``holding`` and ``proposed`` would grow its magnitude.
-
-    The hold only stops the integral growing at the axles' friction; it unwinds as before.
-    """
-    if holding and abs(proposed) > abs(previous):
-        return previous
-    return proposed
+    slips = np.asarray(slip_angles, dtype=float)
+    return bool(np.any((np.abs(slips) > threshold) & (slips * push > 0.0)))

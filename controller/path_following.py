@@ -148,7 +148,7 @@ from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
 from .feedforward_slip import SlipFeedforward
-from .friction_hold import at_friction, held_integral, steered_slip_angles
+from .friction_hold import deepens_slip, steered_slip_angles
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
 from .preview import chord_law, interpolated_chord_end, preview_tangent, straight_chord_end
 from .reach_rules import is_outswing, outswing_scale, window_holding
@@ -436,13 +436,12 @@ class TrailerSteeringController:
         if blocked or (reach_freeze and self.output.held_at_lock(step, push)):
             integral_new = self.integral  # conditional integration: do not wind up, nor gather behind the lock
             feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
-        elif cfg.friction_hold_slip is not None:  # nor grow while the steered axles are at their friction
+        elif cfg.friction_hold_slip is not None:  # nor push an axle at its friction further into its slip
             slips = steered_slip_angles(
                 self._steered_distances, self.output.commands, gamma, vx, vy, rate, cfg.fade_speeds[1]
             )
-            held = held_integral(self.integral, integral_new, at_friction(slips, cfg.friction_hold_slip))
-            if held != integral_new:
-                integral_new = held
+            if deepens_slip(slips, cfg.friction_hold_slip, push):
+                integral_new = self.integral
                 feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         self.integral = integral_new
         self.feedback_steer = feedback

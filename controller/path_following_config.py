@@ -219,11 +219,12 @@ class PathFollowingConfig(Settings):
         (:mod:`controller.feedforward_slip`). Off (default): the kinematic law alone. The reach stays judged on the
         kinematic law.
     friction_hold_slip : float or None
-        Hold the integral's growth while any steered axle's slip angle, from the kinematics and the trailer's gyro
-        (the measured yaw rate against the one its steer gives without slip), exceeds this [rad]: the axles are
-        judged at their friction (:mod:`controller.friction_hold`). ``None`` (default): no such hold. A value near
-        the ice tyre's force peak (2.8°, the lowest friction the controller is set up for) judges an axle at its
-        friction only past the slip beyond which, on ice, more steer gives less force.
+        Do not advance the integral where its push would steer further into its slip a steered axle whose slip
+        angle, from the kinematics and the trailer's gyro (the measured yaw rate against the one its steer gives
+        without slip), exceeds this [rad]: that axle is judged at its friction (:mod:`controller.friction_hold`).
+        ``None`` (default): no such hold. A value near the ice tyre's force peak (2.8°, the lowest friction the
+        controller is set up for) judges an axle at its friction only past the slip beyond which, on ice, more steer
+        gives less force. The slip is off by the tractor's crab where the tractor slides (zero-slip kinematics).
     """
 
     gains: PathFollowingGains | None = None

@@ -1,5 +1,5 @@
 """The friction hold (controller.friction_hold): the detector's closed form judges a rolling axle not at its friction
-and a stated yaw-rate deficit at it; the integral does not grow while it holds; off, the controller is unchanged;
+and a stated yaw-rate deficit at it; only a push deeper into that slip is held; off, the controller is unchanged;
 a threshold out of range is refused naming the field."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from controller.friction_hold import at_friction, held_integral, kinematic_yaw_rates, steered_slip_angles
+from controller.friction_hold import deepens_slip, kinematic_yaw_rates, steered_slip_angles
 from controller.path_following import TrailerSteeringController
 from controller.path_following_config import PathFollowingConfig
 from scenarios.config import ConfigError, load_scenario
@@ -44,7 +44,7 @@ def test_a_rolling_trailer_is_not_at_friction():
     np.testing.assert_allclose(kinematic_yaw_rates(DISTANCES, steer, tan_kingpin, forward), yaw_rate, atol=1e-12)
     slips = steered_slip_angles(DISTANCES, steer, GAMMA, VX, VY, yaw_rate, 1.0)
     np.testing.assert_allclose(slips, 0.0, atol=1e-12)
-    assert not at_friction(slips, THRESHOLD)
+    assert not deepens_slip(slips, THRESHOLD, 1.0) and not deepens_slip(slips, THRESHOLD, -1.0)
 
 
 @pytest.mark.parametrize(("deficit", "expected"), [(0.01, False), (0.05, True), (-0.05, True)])
@@ -56,19 +56,18 @@ def test_a_yaw_rate_deficit_is_at_friction_past_the_threshold(deficit, expected)
     slips = steered_slip_angles(DISTANCES, steer, GAMMA, VX, VY, 0.3 - deficit, 1.0)
     expected_tan = np.tan(steer) - (np.tan(steer) + deficit * DISTANCES / forward)
     np.testing.assert_allclose(np.tan(steer) - np.tan(steer - slips), expected_tan, atol=1e-12)
-    assert at_friction(slips, THRESHOLD) is expected
+    # The slip has the sign of −deficit: a push of that sign deepens it, the other does not.
+    assert deepens_slip(slips, THRESHOLD, -deficit) is expected
+    assert not deepens_slip(slips, THRESHOLD, deficit)
 
 
 def test_at_walking_pace_no_slip_is_defined_and_nothing_is_at_friction():
     slips = steered_slip_angles(DISTANCES, np.full(2, 0.3), GAMMA, 0.5, 0.0, 1.0, 1.0)
-    assert slips is None and not at_friction(slips, THRESHOLD)
+    assert slips is None and not deepens_slip(slips, THRESHOLD, 1.0)
 
 
-def test_the_hold_stops_growth_only():
-    assert held_integral(0.2, 0.25, True) == 0.2  # growing: held
-    assert held_integral(-0.2, -0.25, True) == -0.2
-    assert held_integral(0.2, 0.15, True) == 0.15  # unwinding: as before
-    assert held_integral(0.2, 0.25, False) == 0.25  # not at friction: as before
+def test_no_push_deepens_nothing():
+    assert not deepens_slip(np.radians([10.0, -10.0]), THRESHOLD, 0.0)
 
 
 def run(config: PathFollowingConfig, trailer_yaw_rate: float) -> TrailerSteeringController:

@@ -478,8 +478,9 @@ class ControllerConfig(Settings):
     )
     friction_hold: bool = Field(
         False,
-        description="hold the integral's growth while the steered axles are judged at their friction: a slip "
-        "angle, from the kinematics and the trailer's gyro, above friction_hold_slip_deg (controller.friction_hold)",
+        description="do not advance the integral where it would steer a steered axle judged at its friction (a slip "
+        "angle, from the kinematics and the trailer's gyro, above friction_hold_slip_deg) further into its slip "
+        "(controller.friction_hold)",
     )
     friction_hold_slip_deg: float = Field(
         2.8,
