@@ -436,7 +436,8 @@ class TrailerSteeringController:
         if blocked or (reach_freeze and self.output.held_at_lock(step, push)):
             integral_new = self.integral  # conditional integration: do not wind up, nor gather behind the lock
             feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
-        elif cfg.friction_hold_slip is not None:  # nor push an axle at its friction further into its slip
+        elif cfg.friction_hold_slip is not None and not np.any(self.output.saturated):  # nor push an axle at its
+            # friction further into its slip (at the lock the slip is the lock's geometry's, not the friction's)
             slips = steered_slip_angles(
                 self._steered_distances, self.output.commands, gamma, vx, vy, rate, cfg.fade_speeds[1]
             )
