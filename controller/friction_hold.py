@@ -19,7 +19,9 @@ so a yaw-rate deficit and a slip angle ``α_j = δ_j − β_j`` are one measurem
 friction while its ``|α_j|`` exceeds a threshold ``α_h``: the slip of the force peak on the lowest friction the
 controller is set up for (ice), beyond which, on that surface, more steer gives less force. On a surface of higher
 friction the peak lies at a larger slip, so there the hold acts early rather than late. The integral is held only
-where its push would steer such an axle further into its slip (:func:`deepens_slip`).
+where its push would steer such an axle further into its slip (:func:`deepens_slip`), and not while a steered axle
+is at its lock (:class:`~controller.path_following.TrailerSteeringController`): there the axles cannot follow the
+turn and slip by the lock's geometry, not at their friction.
 
 The slip is the kinematics': ``β_k`` comes from the tractor's signals by zero-slip kinematics, so where the tractor
 itself slides (a cambered or icy road) ``β_j`` is off by the tractor's crab, and with it every ``α_j``.

@@ -222,9 +222,10 @@ class PathFollowingConfig(Settings):
         Do not advance the integral where its push would steer further into its slip a steered axle whose slip
         angle, from the kinematics and the trailer's gyro (the measured yaw rate against the one its steer gives
         without slip), exceeds this [rad]: that axle is judged at its friction (:mod:`controller.friction_hold`).
-        ``None`` (default): no such hold. A value near the ice tyre's force peak (2.8°, the lowest friction the
-        controller is set up for) judges an axle at its friction only past the slip beyond which, on ice, more steer
-        gives less force. The slip is off by the tractor's crab where the tractor slides (zero-slip kinematics).
+        Not while a steered axle is at its lock. ``None`` (default): no such hold. A value near the ice tyre's force
+        peak (2.8°, the lowest friction the controller is set up for) judges an axle at its friction only past the
+        slip beyond which, on ice, more steer gives less force. The slip is off by the tractor's crab where the
+        tractor slides (zero-slip kinematics).
     """
 
     gains: PathFollowingGains | None = None
