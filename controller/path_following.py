@@ -148,6 +148,7 @@ from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
 from .feedforward_slip import SlipFeedforward
+from .friction_hold import deepens_slip, steered_slip_angles
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
 from .preview import chord_law, interpolated_chord_end, preview_tangent, straight_chord_end
 from .reach_rules import is_outswing, outswing_scale, window_holding
@@ -435,6 +436,14 @@ class TrailerSteeringController:
         if blocked or (reach_freeze and self.output.held_at_lock(step, push)):
             integral_new = self.integral  # conditional integration: do not wind up, nor gather behind the lock
             feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
+        elif cfg.friction_hold_slip is not None and not np.any(self.output.saturated):  # nor push an axle at its
+            # friction further into its slip (at the lock the slip is the lock's geometry's, not the friction's)
+            slips = steered_slip_angles(
+                self._steered_distances, self.output.commands, gamma, vx, vy, rate, cfg.fade_speeds[1]
+            )
+            if deepens_slip(slips, cfg.friction_hold_slip, push):
+                integral_new = self.integral
+                feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         self.integral = integral_new
         self.feedback_steer = feedback
         commands = self.output.commit(step)

@@ -218,6 +218,14 @@ class PathFollowingConfig(Settings):
         Add to the feed-forward the steered axles' steady slip that carries the trailer's lateral force in the turn
         (:mod:`controller.feedforward_slip`). Off (default): the kinematic law alone. The reach stays judged on the
         kinematic law.
+    friction_hold_slip : float or None
+        Do not advance the integral where its push would steer further into its slip a steered axle whose slip
+        angle, from the kinematics and the trailer's gyro (the measured yaw rate against the one its steer gives
+        without slip), exceeds this [rad]: that axle is judged at its friction (:mod:`controller.friction_hold`).
+        Not while a steered axle is at its lock. ``None`` (default): no such hold. A value near the ice tyre's force
+        peak (2.8°, the lowest friction the controller is set up for) judges an axle at its friction only past the
+        slip beyond which, on ice, more steer gives less force. The slip is off by the tractor's crab where the
+        tractor slides (zero-slip kinematics).
     """
 
     gains: PathFollowingGains | None = None
@@ -244,6 +252,7 @@ class PathFollowingConfig(Settings):
     max_outswing: float | None = Field(None, gt=0.0, le=2.0)
     preview_distance: float | None = Field(None, ge=0.0, le=30.0)
     slip_feedforward: bool = False
+    friction_hold_slip: float | None = Field(None, gt=0.0, le=math.radians(45.0))
 
     @model_validator(mode="after")
     def _ordered_fade_speeds(self) -> PathFollowingConfig:

@@ -476,6 +476,19 @@ class ControllerConfig(Settings):
         description="add the steered axles' steady slip angle that carries the trailer's lateral force in a turn to "
         "the feed-forward (controller.feedforward_slip)",
     )
+    friction_hold: bool = Field(
+        False,
+        description="do not advance the integral where it would steer a steered axle judged at its friction (a slip "
+        "angle, from the kinematics and the trailer's gyro, above friction_hold_slip_deg) further into its slip "
+        "(controller.friction_hold)",
+    )
+    friction_hold_slip_deg: float = Field(
+        2.8,
+        gt=0.0,
+        le=45.0,
+        description="[°] the steered axles' slip angle above which friction_hold judges them at their friction "
+        "(the ice tyre's force peak; controller.path_following_config)",
+    )
     high_speed_crossover_kmh: tuple[float, float] | None = Field(
         (35.0, 55.0),
         description="[km/h] (start, end) of the fade from path following to the unsteered trailer at speed, null "
@@ -514,6 +527,7 @@ class ControllerConfig(Settings):
             preview_distance=self.preview_m,
             reach_freeze_at=self.reach_freeze_at,
             slip_feedforward=self.slip_feedforward,
+            friction_hold_slip=math.radians(self.friction_hold_slip_deg) if self.friction_hold else None,
             high_speed_crossover=None
             if self.high_speed_crossover_kmh is None
             else (self.high_speed_crossover_kmh[0] / 3.6, self.high_speed_crossover_kmh[1] / 3.6),

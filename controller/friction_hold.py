@@ -1,0 +1,92 @@
+"""On-board detection of steered axles at their friction, for holding the PID's integral there.
+
+At its friction a tyre gives no more lateral force for more slip, so the off-tracking stops answering the steer and
+an integral of it winds up; when the tyres regain grip the wound-up integral overshoots the path
+(docs/controller_design.md §3.9). The controller knows neither μ nor the axles' forces, so it judges the axles by
+their slip, from the same kinematics as its slip-angle window (:func:`~controller.axle_steer_distribution.
+slip_angle_window`): the kingpin's velocity and the trailer's gyro.
+
+A steered axle at ``L_j`` behind the kingpin, steered to ``δ_j``, rolls without slip when the trailer yaws at its
+kinematic rate (docs/vehicle_dynamics.md §2.3)::
+
+    r_kin,j = v_k2x·(tan β_k − tan δ_j)/L_j
+
+and the measured yaw rate ``r2`` falls short of it by the axle's slip::
+
+    tan δ_j − tan β_j = (r2 − r_kin,j)·L_j/v_k2x,   β_j = atan(tan β_k − r2·L_j/v_k2x)
+
+so a yaw-rate deficit and a slip angle ``α_j = δ_j − β_j`` are one measurement. The axles are judged at their
+friction while its ``|α_j|`` exceeds a threshold ``α_h``: the slip of the force peak on the lowest friction the
+controller is set up for (ice), beyond which, on that surface, more steer gives less force. On a surface of higher
+friction the peak lies at a larger slip, so there the hold acts early rather than late. The integral is held only
+where its push would steer such an axle further into its slip (:func:`deepens_slip`), and not while a steered axle
+is at its lock (:class:`~controller.path_following.TrailerSteeringController`): there the axles cannot follow the
+turn and slip by the lock's geometry, not at their friction.
+
+The slip is the kinematics': ``β_k`` comes from the tractor's signals by zero-slip kinematics, so where the tractor
+itself slides (a cambered or icy road) ``β_j`` is off by the tractor's crab, and with it every ``α_j``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .axle_steer_distribution import axle_velocity_directions, tan_kingpin_direction
+
+
+def kinematic_yaw_rates(
+    distances: np.ndarray, steer: np.ndarray, tan_kingpin: float, kingpin_speed: float
+) -> np.ndarray:
+    """Yaw rate [rad/s] at which each steered axle would roll without slip, ``v_k2x·(tan β_k − tan δ_j)/L_j``.
+
+    Parameters
+    ----------
+    distances
+        ``L_j`` [m] of the steered axles behind the kingpin (> 0).
+    steer
+        ``δ_j`` [rad], the steer on those axles.
+    tan_kingpin
+        ``tan β_k = v_k2y/v_k2x`` (:func:`~controller.axle_steer_distribution.tan_kingpin_direction`).
+    kingpin_speed
+        ``v_k2x`` [m/s], the kingpin's forward velocity in the trailer frame.
+    """
+    return kingpin_speed * (tan_kingpin - np.tan(np.asarray(steer, dtype=float))) / np.asarray(distances, dtype=float)
+
+
+def steered_slip_angles(
+    distances: np.ndarray,
+    steer: np.ndarray,
+    gamma: float,
+    vx: float,
+    vy: float,
+    yaw_rate: float,
+    min_speed: float,
+) -> np.ndarray | None:
+    """Slip angles ``α_j = δ_j − β_j`` [rad] of the steered axles from the kinematics and the gyro, or ``None``.
+
+    ``None`` when the kingpin's forward speed in the trailer frame is below ``min_speed`` [m/s] (a slip angle is
+    not defined by the kinematics at walking pace). ``vx, vy``: kingpin velocity in tractor axes [m/s]; ``gamma``:
+    articulation [rad]; ``yaw_rate``: the trailer's measured yaw rate ``r2`` [rad/s].
+    """
+    cg, sg = math.cos(gamma), math.sin(gamma)
+    forward_speed = cg * vx - sg * vy  # v_k2x, as tan_kingpin_direction
+    if forward_speed < min_speed:
+        return None
+    beta = axle_velocity_directions(distances, tan_kingpin_direction(gamma, vx, vy), yaw_rate, forward_speed)
+    return np.asarray(steer, dtype=float) - beta
+
+
+def deepens_slip(slip_angles: np.ndarray | None, threshold: float, push: float) -> bool:
+    """Whether a push of sign ``push`` on the steer would take an axle judged at its friction further into its slip.
+
+    An axle is judged at its friction when its ``|α_j|`` exceeds ``threshold`` [rad]; more steer on the side of its
+    slip (``α_j·push > 0``, the distribution raising every axle's steer with the virtual axle's) then gives no more
+    force, only more slip. A slip on the other side (an axle held short of its velocity's direction, e.g. at its
+    lock) is reduced by the push, which is left alone. ``None`` (no slip angle defined) deepens nothing.
+    """
+    if slip_angles is None or push == 0.0:
+        return False
+    slips = np.asarray(slip_angles, dtype=float)
+    return bool(np.any((np.abs(slips) > threshold) & (slips * push > 0.0)))

@@ -1,0 +1,102 @@
+"""The friction hold (controller.friction_hold): the detector's closed form judges a rolling axle not at its friction
+and a stated yaw-rate deficit at it; only a push deeper into that slip is held; off, the controller is unchanged;
+a threshold out of range is refused naming the field."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from controller.friction_hold import deepens_slip, kinematic_yaw_rates, steered_slip_angles
+from controller.path_following import TrailerSteeringController
+from controller.path_following_config import PathFollowingConfig
+from scenarios.config import ConfigError, load_scenario
+from vehicle_model.offtracking import OfftrackingEstimate
+from vehicle_model.presets import lst_laden
+from vehicle_model.simulator import VehicleState
+
+DISTANCES = np.array([8.0, 9.5])  # two steered axles behind the kingpin [m]
+GAMMA, VX, VY = 0.2, 15.0 / 3.6, 0.3  # articulation [rad], kingpin velocity in tractor axes [m/s]
+THRESHOLD = math.radians(2.8)
+
+
+def kingpin() -> tuple[float, float]:
+    """``(tan β_k, v_k2x)`` of the kingpin velocity in the trailer frame."""
+    c, s = math.cos(GAMMA), math.sin(GAMMA)
+    forward = c * VX - s * VY
+    return (c * VY + s * VX) / forward, forward
+
+
+def rolling_steer(yaw_rate: float) -> np.ndarray:
+    """The steer at which every axle rolls without slip at ``yaw_rate``: ``tan δ_j = tan β_k − r2·L_j/v_k2x``."""
+    tan_kingpin, forward = kingpin()
+    return np.arctan(tan_kingpin - yaw_rate * DISTANCES / forward)
+
+
+def test_a_rolling_trailer_is_not_at_friction():
+    yaw_rate = 0.3
+    steer = rolling_steer(yaw_rate)
+    tan_kingpin, forward = kingpin()
+    # The kinematic yaw rate of the rolling steer is the measured one, on every axle (1e-12 rad/s: rounding).
+    np.testing.assert_allclose(kinematic_yaw_rates(DISTANCES, steer, tan_kingpin, forward), yaw_rate, atol=1e-12)
+    slips = steered_slip_angles(DISTANCES, steer, GAMMA, VX, VY, yaw_rate, 1.0)
+    np.testing.assert_allclose(slips, 0.0, atol=1e-12)
+    assert not deepens_slip(slips, THRESHOLD, 1.0) and not deepens_slip(slips, THRESHOLD, -1.0)
+
+
+@pytest.mark.parametrize(("deficit", "expected"), [(0.01, False), (0.05, True), (-0.05, True)])
+def test_a_yaw_rate_deficit_is_at_friction_past_the_threshold(deficit, expected):
+    # The steer asks for 0.3 rad/s; the gyro reads ``deficit`` less. Slip: tan δ − tan β = −deficit·L_j/v_k2x,
+    # so 0.01 rad/s is 1.1–1.3° (below 2.8°) and 0.05 rad/s is 5.5–6.5° (above).
+    steer = rolling_steer(0.3)
+    _, forward = kingpin()
+    slips = steered_slip_angles(DISTANCES, steer, GAMMA, VX, VY, 0.3 - deficit, 1.0)
+    expected_tan = np.tan(steer) - (np.tan(steer) + deficit * DISTANCES / forward)
+    np.testing.assert_allclose(np.tan(steer) - np.tan(steer - slips), expected_tan, atol=1e-12)
+    # The slip has the sign of −deficit: a push of that sign deepens it, the other does not.
+    assert deepens_slip(slips, THRESHOLD, -deficit) is expected
+    assert not deepens_slip(slips, THRESHOLD, deficit)
+
+
+def test_at_walking_pace_no_slip_is_defined_and_nothing_is_at_friction():
+    slips = steered_slip_angles(DISTANCES, np.full(2, 0.3), GAMMA, 0.5, 0.0, 1.0, 1.0)
+    assert slips is None and not deepens_slip(slips, THRESHOLD, 1.0)
+
+
+def test_no_push_deepens_nothing():
+    assert not deepens_slip(np.radians([10.0, -10.0]), THRESHOLD, 0.0)
+
+
+def run(config: PathFollowingConfig, trailer_yaw_rate: float) -> TrailerSteeringController:
+    """2 s of a left turn with a constant 5 cm error fed back and the trailer's gyro at ``trailer_yaw_rate``."""
+    params = lst_laden()
+    speed = 15.0 / 3.6
+    state = VehicleState(0.0, 0.0, 0.0, 0.0, speed, 0.0, speed / 11.5, 0.2, trailer_yaw_rate, slip=np.zeros(6))
+    controller = TrailerSteeringController(params, config)
+    for k in range(100):
+        controller(dataclasses.replace(state, time=0.02 * k), OfftrackingEstimate.of(0.05))
+    return controller
+
+
+def test_off_is_unchanged_and_on_holds_the_integral_while_sliding():
+    rate = 0.8  # far above the articulated turn's kinematic yaw rate: the steered axles slip by tens of degrees
+    default, off = run(PathFollowingConfig(), rate), run(PathFollowingConfig(friction_hold_slip=None), rate)
+    assert default.integral == off.integral and default.feedback_steer == off.feedback_steer
+    # Without the slip-angle window, which would hold the integral itself at such a slip.
+    default = run(PathFollowingConfig(max_slip_angle=None), rate)
+    held = run(PathFollowingConfig(max_slip_angle=None, friction_hold_slip=THRESHOLD), rate)
+    assert default.integral > 0.05 * 5.0 * 0.5  # 0.05 m over more than half the ~8 m driven
+    assert held.integral == 0.0  # never grown from zero
+
+
+def test_the_scenario_setting_reaches_the_controller_and_a_bad_threshold_is_refused():
+    on = load_scenario("roundabout-3", {"vehicle": "lst", "controller.friction_hold": True})
+    assert on.controller.path_following(on.rates.control_hz).friction_hold_slip == pytest.approx(THRESHOLD)
+    default = load_scenario("roundabout-3", {"vehicle": "lst"})
+    assert default.controller.path_following(default.rates.control_hz).friction_hold_slip is None
+    with pytest.raises(ConfigError) as info:
+        load_scenario("roundabout-3", {"controller.friction_hold_slip_deg": -1.0})
+    assert "controller.friction_hold_slip_deg" in str(info.value)
