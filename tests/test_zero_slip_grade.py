@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from test_zero_slip import kinematic_run, model_only_run
+from test_zero_slip_terrain import steady_turn_estimate
 from typer.testing import CliRunner
 
 from controller.grade_estimate import GradeEstimator
@@ -119,23 +120,17 @@ def test_the_grade_filter_converges_on_a_constant_grade_and_keeps_an_offset_as_g
 def _steady_turn(params, samples, speed: float, along_ground: float, grade: float, offset: float | None) -> float:
     """The zero-slip estimate at the end of the kinematic drive; with ``offset`` the accelerometer grade, its
     reading ``−b·r1² + g·sin θ + offset`` (the CG, ``b`` ahead of the rear point, moves sideways at ``b·r1``)."""
-    est = ZeroSlipEstimator(params, grade="none" if offset is None else "accelerometer")
+    if offset is None:
+        return steady_turn_estimate(params, samples, speed, along_ground)
     cg_ahead = params.tractor_wheelbase() + params.tractor.cg_x
-    dt = samples[1][0] - samples[0][0]
-    value = None
-    for _t, _kingpin, _psi2, r1, delta, gamma in samples:
-        signals = {
-            "wheel_speed": np.array([speed * along_ground]),
-            "front_steer": np.array([delta]),
-            "tractor_yaw_rate": np.array([r1]),
-            "articulation": np.array([gamma]),
+
+    def reading(r1: float) -> dict[str, np.ndarray]:
+        return {
+            "tractor_longitudinal_acceleration": np.array([-cg_ahead * r1 * r1 + GRAVITY * math.sin(grade) + offset])
         }
-        if offset is not None:
-            reading = -cg_ahead * r1 * r1 + GRAVITY * math.sin(grade) + offset
-            signals["tractor_longitudinal_acceleration"] = np.array([reading])
-        value = est.update(signals, dt)
-    assert value is not None
-    return value
+
+    estimator = ZeroSlipEstimator(params, grade="accelerometer")
+    return steady_turn_estimate(params, samples, speed, along_ground, estimator, reading)
 
 
 def test_the_accelerometer_grade_removes_the_wheel_speeds_steady_turn_shift_on_a_10_percent_grade() -> None:

@@ -14,10 +14,13 @@ from scenarios.run.metrics import estimator_errors
 from vehicle_model.presets import vehicle_preset
 
 
-def steady_turn_estimate(params, samples, speed: float, along_ground: float) -> float:
+def steady_turn_estimate(
+    params, samples, speed: float, along_ground: float, estimator: ZeroSlipEstimator | None = None, extra=None
+) -> float:
     """The zero-slip estimate at the end of the kinematic drive ``samples``, its wheel speed read ``along_ground``
-    times the horizontal speed."""
-    est = ZeroSlipEstimator(params)
+    times the horizontal speed; ``estimator`` (default: one with the defaults) and ``extra(r1)``, further signals of
+    a sample from the tractor's yaw rate."""
+    est = ZeroSlipEstimator(params) if estimator is None else estimator
     dt = samples[1][0] - samples[0][0]
     value = None
     for _t, _kingpin, _psi2, r1, delta, gamma in samples:
@@ -27,6 +30,8 @@ def steady_turn_estimate(params, samples, speed: float, along_ground: float) -> 
             "tractor_yaw_rate": np.array([r1]),
             "articulation": np.array([gamma]),
         }
+        if extra is not None:
+            signals.update(extra(r1))
         value = est.update(signals, dt)
     assert value is not None
     return value
