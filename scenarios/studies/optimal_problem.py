@@ -16,9 +16,11 @@ them: the model run is the co-simulation's, driven open loop (an input interpola
 a tick early, and the tractor's path it drives is not the recorded one the cost measures against). ``α_j`` is
 the transient slip angle of steered axle ``j`` (the model's state). ``e_{u,k}`` is the signed distance of steered
 unit ``u``'s follow point from its front coupling's path (the first towed unit's kingpin, a
-further unit's fifth wheel on the unit ahead, as the controller follows it): that path of the recorded run (or,
-for the first towed unit, the previous solution's own kingpin path, ``own_path``), linearised at the point nearest
-the follow point (each solve re-linearises at the last solution, :func:`solve_optimal_steer`). ``δ`` holds every
+further unit's fifth wheel on the unit ahead, as the controller follows it): that path of the recorded run,
+linearised at the point nearest the follow point (each solve re-linearises at the last solution,
+:func:`solve_optimal_steer`); with ``own_path`` the first towed unit's from its own kingpin path, a function of the
+node states inside the cost, as a run's truth measures it (:mod:`scenarios.studies.optimal_own_path`), each solve
+on the stations matched on the last solution until they hold. ``δ`` holds every
 steered axle of every towed unit (a B-double's four), the sum over
 ``u`` every towed unit with a steerable axle, each counted once its coupling has driven its follow-point offset.
 The tractor is driven open loop as recorded; the trailers' steer moves its path a little through the coupling
@@ -230,17 +232,20 @@ def solve_optimal_steer(
     step
         RK4 step [s] inside an interval (``T/step`` rounded).
     relinearisations
-        Solves, each on the kingpin path linearised at the previous solution's follow points.
+        Solves, each on the kingpin path linearised at the previous solution's follow points; with ``own_path`` the
+        most solves, fewer once the stations hold (:data:`OWN_PATH_TOLERANCE`).
     max_iter
         Ipopt's iteration limit per solve.
     expand
         Expand the whole NLP to one SX graph before the solve: the same problem, the interval's graph copied per
         node, slower to build and to differentiate (kept to compare the two, :mod:`scenarios.bench.optimal`).
     own_path
-        Each solve after the first measures the first towed unit's follow point from the previous solution's own
-        kingpin path (its states after every RK4 step of every interval, the NLP's own model run) instead of the
-        recorded run's: the trailer's steer moves the tractor a little, and a run's truth is measured from its own
-        path. ``False``: the recorded path throughout.
+        Measure the first towed unit's follow point from its own kingpin path, inside the cost: the kingpin's
+        Hermite path through the node states, at each node's station (where that path crosses the follow point's
+        station in the node's trailer frame) matched on the last trajectory (the PID run's, then each solution's)
+        and held in the solve (:mod:`scenarios.studies.optimal_own_path`); the solves stop once matching again moves
+        no node's figure (:data:`OWN_PATH_TOLERANCE`, ``fixed_point``). The reported off-tracking of that unit is
+        measured at the solution's own stations. ``False``: the recorded path throughout.
 
     Raises
     ------
