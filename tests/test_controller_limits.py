@@ -181,6 +181,18 @@ def test_the_pids_gap_to_the_optimal_reference(tmp_path: Path, reference, ratio,
     assert on_nodes is not None and on_nodes["pid_gap_rms_ratio"] == pytest.approx(ratio, rel=1e-12)
     assert on_nodes["replay_rms_ratio"] == pytest.approx(ratio, rel=1e-12)
     assert on_nodes["reference_holds"] is (reference / 2.0 <= 0.10)
+    # With the open-loop replay's figures the gap is the replayed ratio, the nodes' kept beside it.
+    replayed = optimal_gap(
+        {"truth": rows["truth"], "optimal": {**nlp, "optimal_replay_rms_m": 0.04, "pid_over_replay_rms_ratio": 2.5}}
+    )
+    assert replayed is not None and replayed["pid_gap_rms_ratio"] == pytest.approx(2.5, rel=1e-12)
+    assert replayed["nodes_rms_ratio"] == pytest.approx(ratio, rel=1e-12)
+    assert replayed["reference_holds"] is True and replayed["gap_within_limit"] is False
+    # A replayed optimum worse than the PID (ratio below 1) is no reference.
+    worse = optimal_gap(
+        {"truth": rows["truth"], "optimal": {**nlp, "optimal_replay_rms_m": 0.02, "pid_over_replay_rms_ratio": 0.8}}
+    )
+    assert worse is not None and worse["reference_holds"] is False and worse["gap_within_limit"] is None
     if not within:
         return  # the figures' json once (matplotlib is slow to start)
     cell = {"scenario": "roundabout-3", "surface": "dry", "vehicle": "lst", "status": "completed"}

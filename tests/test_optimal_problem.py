@@ -11,12 +11,13 @@ import numpy as np
 import pytest
 
 from scenarios.config import load_scenario
+from scenarios.studies.optimal_own_path import own_path_error, own_path_stations
 from scenarios.studies.optimal_problem import _follow_function, interval_integrator, solve_optimal_steer
 from scenarios.studies.optimal_reference import pid_cost, pid_run
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
 from vehicle_model.geometry import follow_point_from_kingpin, trailer_frames
-from vehicle_model.layout import Layout
+from vehicle_model.layout import BODY_STATES, Layout
 
 TINY = {"vehicle": "lst", "feedback": "truth", "path.entry_length": 1.0, "duration_s": 4.5}
 """4.5 s of the 50 m roundabout at 15 km/h: the kingpin drives the LST's follow-point offset (14 m) in about 3.4 s,
@@ -125,3 +126,34 @@ def test_the_b_doubles_optimum_steers_both_trailers_within_the_limits():
     assert np.all(rate <= limits.max_steer_rate * (1 + 1e-6))
     assert np.all(np.abs(solution.slip) <= limits.max_slip_angle + 1e-9)
     assert solution.cost <= pid_cost(solution, columns)
+
+
+def test_the_own_path_offtracking_is_the_runs_truth(tiny_case):
+    # The PID run's node states (every 0.2 s, on its ticks): the follow point from the kingpin's own Hermite path
+    # at the matched stations equals the run's truth (the buffer's geometry, opposite sign) to 0.05 mm, the
+    # truth's own linear interpolation between ticks 8 cm apart and the Hermite curve's error together.
+    params, columns, _, _ = tiny_case
+    time = columns["time"]
+    ticks = np.searchsorted(time, np.arange(time[0], time[-1] + 1e-9, 0.2) - 1e-9)
+    states = np.column_stack([columns[name][ticks] for name in BODY_STATES])
+    truth = columns["offtracking_truth"][ticks]
+    measured = np.flatnonzero(np.isfinite(truth))
+    assert measured.size >= 4 and np.max(np.abs(truth[measured])) > 5e-3  # [m] a turn's off-tracking, not zero
+    stations = own_path_stations(params, states, 0.2, measured)
+    j = stations.interval
+    own = own_path_error(params, states[measured].T, states[j].T, states[j + 1].T, stations.tau, 0.2)
+    assert own == pytest.approx(-truth[measured], abs=5e-5)
+
+
+def test_the_own_path_solution_is_a_fixed_point_within_the_limits(tiny_case):
+    params, columns, simulator, limits = tiny_case
+    solution = solve_optimal_steer(
+        params, columns, simulator, limits, step=COARSE_STEP, relinearisations=4, own_path=True
+    )
+    assert solution.status == "solved" and solution.fixed_point is True and solution.solves <= 4
+    assert np.all(np.abs(solution.steer) <= limits.max_steer + 1e-9)  # [rad] Ipopt's bound tolerance
+    rate = np.abs(np.diff(solution.steer, axis=0)) / np.diff(solution.times)[:, None]
+    assert np.all(rate <= limits.max_steer_rate * (1 + 1e-6))
+    assert np.all(np.abs(solution.slip) <= limits.max_slip_angle + 1e-9)
+    assert solution.cost <= pid_cost(solution, columns)
+    assert np.nanmax(np.abs(solution.offtracking)) < 1e-3  # [m] a turn within reach: the optimum is near zero

@@ -72,3 +72,20 @@ def test_the_nlps_predicted_offtracking_is_the_replays(tiny):
     # The NLP's model run is the simulator's, open loop: equal to a micrometre on the counted nodes (the RK4 step,
     # 10 ms against the run's 2 ms, and Ipopt's tolerance).
     assert on_nodes[counted] == pytest.approx(schedule.offtracking[counted], abs=1e-6)
+
+
+@pytest.mark.slow
+def test_the_own_path_optimums_offtracking_is_its_replays_truth(tiny):
+    setup, pid = tiny
+    schedule = solve_optimal_steer(
+        pid.params, pid.recorded, pid.simulator, pid.limits, relinearisations=4, own_path=True
+    )
+    assert schedule.status == "solved" and schedule.fixed_point is True
+    replay = open_loop_replay(setup, pid.recorded, schedule)
+    ticks = np.searchsorted(replay["time"], schedule.times - 1e-9)  # every node is a tick's start
+    truth = replay["offtracking_truth"][ticks]
+    counted = np.isfinite(schedule.offtracking) & np.isfinite(truth)
+    assert counted.sum() >= 10
+    # The NLP's own-path figure is the replay's truth at the nodes (opposite sign): to 0.05 mm, the Hermite path
+    # between nodes against the truth's ticks 8 cm apart.
+    assert schedule.offtracking[counted] == pytest.approx(-truth[counted], abs=5e-5)

@@ -16,8 +16,8 @@ and the UK roundabout test on dry, wet and ice, each on the LST and on the steer
 trailers steered, each on its own estimate of its own off-tracking; ``vehicle`` drives the cells on one other
 combination instead), and on every cell the optimal reference (``offtrack optimal``,
 :mod:`scenarios.studies.optimal_reference`: the NLP's steer replayed as a run, several CPU-minutes per cell). A
-cell's check then also holds the PID's gap to it: the truth-fed PID's RMS over the optimum's, both on the NLP's
-nodes (:func:`optimal_gap`).
+cell's check then also holds the PID's gap to it: the truth-fed PID's true RMS after warm-up over the optimum's
+open-loop replay's, the same ticks and window (:func:`optimal_gap`).
 
 With ``camera`` every cell also runs on the fused VISO-OT estimate under the field-loop study's field conditions
 (:mod:`scenarios.studies.controller_limits_camera`: a rendered camera, minutes per case): its row adds the fused
@@ -220,6 +220,8 @@ def run_controller_limits_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
                 "pid_nodes_rms_m": reference.get("pid_nodes_offtracking_rms"),
                 "optimal_cost_m2": reference["cost"],
                 "pid_cost_m2": reference["pid_cost"],
+                "optimal_replay_rms_m": (reference.get("replay_open_loop_after_warmup") or {}).get("rms"),
+                "pid_over_replay_rms_ratio": reference.get("pid_over_replay_rms_ratio"),
             }
         )
         for unit in units:  # each further steered unit's optimum and the PID's on the same nodes
@@ -454,13 +456,16 @@ def _figure(row: dict[str, Any], column: str) -> float:
 
 
 def optimal_gap(rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
-    """The truth-fed PID's gap to the cell's optimal reference, by the NLP's own measure.
+    """The truth-fed PID's gap to the cell's optimal reference, both replayed, after warm-up.
 
-    The optimum is the NLP's predicted off-tracking (``optimal_nlp_rms_m``); the PID's is its recorded run's
-    off-tracking on the same nodes by the same signed distance (``pid_nodes_rms_m``). The reference's replay through
-    the co-simulation is open loop and may drift away from the prediction where the axles work at their limits, so its
-    ratio (the truth-fed RMS after warm-up over the replay's) is kept beside it as ``replay_rms_ratio`` only; rows
-    without the NLP's figures fall back on it.
+    The optimum's figure is its open-loop replay's true RMS after warm-up (``optimal_replay_rms_m``,
+    :mod:`scenarios.studies.optimal_replay`: the schedule and the PID run's tractor inputs through the simulator,
+    every tick, from the replay's own kingpin path), the PID's its run's on the same ticks and window; the gap is
+    their ratio as ``optimal.json`` holds it (``pid_over_replay_rms_ratio``). Rows without the replay's figures
+    (written before it) fall back on the NLP's nodes (``pid_nodes_rms_m`` over ``optimal_nlp_rms_m``), and rows
+    without those on the co-simulation's replay run. Beside it: ``nodes_rms_ratio`` (the nodes' ratio, where the
+    row has it) and ``replay_rms_ratio`` (the truth-fed RMS after warm-up over the co-simulation replay run's, the
+    tractor's driver reacting to the schedule; a diagnostic).
 
     Parameters
     ----------
@@ -470,27 +475,33 @@ def optimal_gap(rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
     Returns
     -------
     dict or None
-        ``pid_gap_rms_ratio``, ``reference_holds`` (the optimum's RMS ≤ :data:`REFERENCE_HOLDS`),
-        ``gap_within_limit`` (the ratio ≤ :data:`GAP_LIMIT`, or ``None`` where the reference does not hold) and
-        ``replay_rms_ratio``; the first three as ``unit<k>_…`` for each further steered unit whose figures the
-        reference's row holds; ``None`` without both rows.
+        ``pid_gap_rms_ratio``, ``reference_holds`` (the optimum's RMS ≤ :data:`REFERENCE_HOLDS` and no more than
+        the PID's: a reference worse than the PID is none), ``gap_within_limit`` (the ratio ≤ :data:`GAP_LIMIT`,
+        or ``None`` where the reference does not hold), ``replay_rms_ratio`` and ``nodes_rms_ratio``; the first
+        three as ``unit<k>_…`` for each further steered unit whose figures the reference's row holds (on the NLP's
+        nodes: the replay follows the first towed unit only); ``None`` without both rows.
     """
     if not {"truth", OPTIMAL} <= rows.keys():
         return None
     column = "true_offtracking_rms_after_warmup_m"
     optimum = rows[OPTIMAL]
     replay = float(rows["truth"][column]) / float(optimum[column]) if float(optimum[column]) > 0 else float("inf")
-    if optimum.get("optimal_nlp_rms_m") is not None and optimum.get("pid_nodes_rms_m") is not None:
-        pid, reference = float(optimum["pid_nodes_rms_m"]), float(optimum["optimal_nlp_rms_m"])
+    nodes_pid, nodes_reference = _figure(optimum, "pid_nodes_rms_m"), _figure(optimum, "optimal_nlp_rms_m")
+    nodes = nodes_pid / nodes_reference if nodes_reference > 0 else float("nan")
+    replayed, replayed_ratio = _figure(optimum, "optimal_replay_rms_m"), _figure(optimum, "pid_over_replay_rms_ratio")
+    if np.isfinite(replayed) and np.isfinite(replayed_ratio):
+        ratio, reference = replayed_ratio, replayed
+    elif np.isfinite(nodes_pid) and np.isfinite(nodes_reference):
+        ratio, reference = (nodes if nodes_reference > 0 else float("inf")), nodes_reference
     else:
-        pid, reference = float(rows["truth"][column]), float(optimum[column])
-    ratio = pid / reference if reference > 0 else float("inf")
-    holds = reference <= REFERENCE_HOLDS
+        ratio, reference = replay, float(optimum[column])
+    holds = bool(reference <= REFERENCE_HOLDS and ratio >= 1.0)
     out: dict[str, Any] = {
         "pid_gap_rms_ratio": ratio,
         "reference_holds": holds,
         "gap_within_limit": ratio <= GAP_LIMIT if holds else None,
         "replay_rms_ratio": replay,
+        "nodes_rms_ratio": nodes,
     }
     for prefix in unit_prefixes(k.replace("optimal_nlp_rms_m", "true_offtracking_rms_after_warmup_m") for k in optimum)[
         1:
@@ -501,7 +512,7 @@ def optimal_gap(rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
         )
         if np.isfinite(unit_pid) and np.isfinite(unit_reference):  # a further steered unit, by the same measure
             unit_ratio = unit_pid / unit_reference if unit_reference > 0 else float("inf")
-            unit_holds = unit_reference <= REFERENCE_HOLDS
+            unit_holds = bool(unit_reference <= REFERENCE_HOLDS and unit_ratio >= 1.0)
             out[f"{prefix}pid_gap_rms_ratio"] = unit_ratio
             out[f"{prefix}reference_holds"] = unit_holds
             out[f"{prefix}gap_within_limit"] = unit_ratio <= GAP_LIMIT if unit_holds else None

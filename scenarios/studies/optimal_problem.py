@@ -16,9 +16,11 @@ them: the model run is the co-simulation's, driven open loop (an input interpola
 a tick early, and the tractor's path it drives is not the recorded one the cost measures against). ``α_j`` is
 the transient slip angle of steered axle ``j`` (the model's state). ``e_{u,k}`` is the signed distance of steered
 unit ``u``'s follow point from its front coupling's path (the first towed unit's kingpin, a
-further unit's fifth wheel on the unit ahead, as the controller follows it): that path of the recorded run (or,
-for the first towed unit, the previous solution's own kingpin path, ``own_path``), linearised at the point nearest
-the follow point (each solve re-linearises at the last solution, :func:`solve_optimal_steer`). ``δ`` holds every
+further unit's fifth wheel on the unit ahead, as the controller follows it): that path of the recorded run,
+linearised at the point nearest the follow point (each solve re-linearises at the last solution,
+:func:`solve_optimal_steer`); with ``own_path`` the first towed unit's from its own kingpin path, a function of the
+node states inside the cost, as a run's truth measures it (:mod:`scenarios.studies.optimal_own_path`), each solve
+on the stations matched on the last solution until they hold. ``δ`` holds every
 steered axle of every towed unit (a B-double's four), the sum over
 ``u`` every towed unit with a steerable axle, each counted once its coupling has driven its follow-point offset.
 The tractor is driven open loop as recorded; the trailers' steer moves its path a little through the coupling
@@ -39,10 +41,11 @@ import numpy as np
 from controller.path_following_config import PathFollowingConfig
 from vehicle_model.dynamics import define_model, rk4_step_expr
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import kingpin_position
 from vehicle_model.layout import BODY_STATES, Layout
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import Simulator
+
+from .optimal_own_path import OwnPathStations, own_path_error, own_path_error_function, own_path_stations
 
 __all__ = ["OptimalSteer", "held_steer_weights", "interval_integrator", "path_reference", "solve_optimal_steer"]
 
@@ -68,6 +71,10 @@ class OptimalSteer:
     """Slip angle [rad] of the steered axles at the nodes ``(nodes, axles)``, the model's transient slip state."""
     further: dict[int, np.ndarray] = field(default_factory=dict)
     """Off-tracking [m] at the nodes of each steered unit behind the first, by its number in the combination."""
+    solves: int = 1
+    """Ipopt solves made."""
+    fixed_point: bool | None = None
+    """With the own path: whether the last solve's stations held on its solution (``None``: not measured so)."""
 
     def at(self, time: float) -> np.ndarray:
         """The steer [rad] at ``time`` [s], linear between nodes, held beyond them."""
@@ -90,6 +97,22 @@ def _follow_point(params: VehicleParams, x: Any, unit: int = 1, layout: Layout |
         heading = heading - x[layout.state_index(f"gamma{towed}")]
     lfp = params.follow_point_offset_of(unit)
     return kx - lfp * ca.cos(heading), ky - lfp * ca.sin(heading)
+
+
+OWN_PATH_TOLERANCE = 1e-5
+"""[m] The own-path solves stop once matching the stations again on a solution moves no node's off-tracking by more
+than this (:mod:`scenarios.studies.optimal_own_path`): the stations the cost held are the solution's own."""
+
+
+def _own_path_offtracking(
+    params: VehicleParams, states: np.ndarray, span: float, measured: np.ndarray, stations: OwnPathStations
+) -> np.ndarray:
+    """The first towed unit's own-path off-tracking [m] of the nodes ``measured`` of the trajectory ``states``
+    ``(n + 1, n_states)`` at ``stations``."""
+    j = stations.interval
+    return np.asarray(
+        own_path_error(params, states[measured].T, states[j].T, states[j + 1].T, stations.tau, span), dtype=float
+    )
 
 
 def _follow_function(params: VehicleParams, n_states: int, unit: int = 1) -> ca.Function:
@@ -209,17 +232,20 @@ def solve_optimal_steer(
     step
         RK4 step [s] inside an interval (``T/step`` rounded).
     relinearisations
-        Solves, each on the kingpin path linearised at the previous solution's follow points.
+        Solves, each on the kingpin path linearised at the previous solution's follow points; with ``own_path`` the
+        most solves, fewer once the stations hold (:data:`OWN_PATH_TOLERANCE`).
     max_iter
         Ipopt's iteration limit per solve.
     expand
         Expand the whole NLP to one SX graph before the solve: the same problem, the interval's graph copied per
         node, slower to build and to differentiate (kept to compare the two, :mod:`scenarios.bench.optimal`).
     own_path
-        Each solve after the first measures the first towed unit's follow point from the previous solution's own
-        kingpin path (its states after every RK4 step of every interval, the NLP's own model run) instead of the
-        recorded run's: the trailer's steer moves the tractor a little, and a run's truth is measured from its own
-        path. ``False``: the recorded path throughout.
+        Measure the first towed unit's follow point from its own kingpin path, inside the cost: the kingpin's
+        Hermite path through the node states, at each node's station (where that path crosses the follow point's
+        station in the node's trailer frame) matched on the last trajectory (the PID run's, then each solution's)
+        and held in the solve (:mod:`scenarios.studies.optimal_own_path`); the solves stop once matching again moves
+        no node's figure (:data:`OWN_PATH_TOLERANCE`, ``fixed_point``). The reported off-tracking of that unit is
+        measured at the solution's own stations. ``False``: the recorded path throughout.
 
     Raises
     ------
@@ -267,7 +293,7 @@ def solve_optimal_steer(
     follows = {u: _follow_function(params, layout.n_states, u) for u in units}
     weights = held_steer_weights(time[tick].reshape(n, m), nodes)
     shoot = interval_integrator(params, steered, m, h, weights).map(n)
-    dense = interval_integrator(params, steered, m, h, weights, every_step=True).map(n) if own_path else None
+    own_error = own_path_error_function(params, layout.n_states, interval) if own_path else None
 
     opti = ca.Opti()
     X = opti.variable(layout.n_states, n + 1)
@@ -292,7 +318,6 @@ def solve_optimal_steer(
         cols = counted[u].tolist()
         follow_points = follows[u].map(len(cols))(X[:, cols])
         errors[u] = ca.sum1(normals_p[u][:, cols] * (follow_points - anchors_p[u][:, cols])).T
-    e = ca.vertcat(*errors.values())
     # Every interval in one mapped call: the interval's derivatives are built once, not once per node.
     opti.subject_to(X[:, 1:] == shoot(X[:, :-1], D[:, :-1], D[:, 1:], ca.DM(fixed)))
     increments = D[:, 1:] - D[:, :-1]
@@ -303,8 +328,6 @@ def solve_optimal_steer(
         slip_rows = [layout.slip_slice.start + i for i in axle_index]
         bound = float(np.tan(limits.max_slip_angle))
         opti.subject_to(opti.bounded(-bound, ca.vec(X[slip_rows, :]), bound))
-    cost = ca.sumsqr(e) + STEER_SMOOTHING * ca.sumsqr(increments)
-    opti.minimize(cost)
     # Not expanded as a whole by default: the mapped interval is already SX, and expanding the NLP would copy its
     # graph (and its derivatives' graphs) once per node.
     opti.solver(
@@ -323,15 +346,24 @@ def solve_optimal_steer(
         [np.interp(nodes, time, columns[f"steer_{layout.steerable_axles[i]}"]) for i in steered]
     ).T
     status = "not solved"
-    for solve in range(max(1, relinearisations)):
-        if solve > 0 and own_path:  # the previous solution's own kingpin path, every RK4 step
-            states = np.asarray(dense(guess_x[:-1].T, guess_d[:, :-1], guess_d[:, 1:], ca.DM(fixed)))
-            states = np.column_stack([guess_x[0], states])
-            paths[1] = kingpin_position(params, states[0], states[1], states[2])
+    stations = own_path_stations(params, guess_x, interval, counted[1]) if own_path else None
+    fixed_point, solves = (False if own_path else None), 0
+    for _ in range(max(1, relinearisations)):
+        solves += 1
+        if stations is not None:  # the own kingpin path, its stations matched on the last trajectory
+            own = own_error.map(stations.tau.size)
+            errors[1] = own(
+                X[:, counted[1].tolist()],
+                X[:, stations.interval.tolist()],
+                X[:, (stations.interval + 1).tolist()],
+                ca.DM(stations.tau).T,
+            ).T
         for u in units:
             anchors, normals = path_reference(paths[u], points[u])
             opti.set_value(anchors_p[u], anchors.T)
             opti.set_value(normals_p[u], normals.T)
+        cost = ca.sumsqr(ca.vertcat(*errors.values())) + STEER_SMOOTHING * ca.sumsqr(increments)
+        opti.minimize(cost)
         opti.set_initial(X, guess_x.T)
         opti.set_initial(D, guess_d)
         try:
@@ -342,9 +374,20 @@ def solve_optimal_steer(
             status = str(opti.stats().get("return_status", "failed"))
         guess_x, guess_d = np.asarray(sol.value(X)).T, np.atleast_2d(sol.value(D))
         points = {u: np.array([np.asarray(follows[u](x)).ravel() for x in guess_x]) for u in units}
+        if stations is not None:
+            matched = own_path_stations(params, guess_x, interval, counted[1])
+            moved = _own_path_offtracking(params, guess_x, interval, counted[1], matched) - _own_path_offtracking(
+                params, guess_x, interval, counted[1], stations
+            )
+            stations = matched
+            fixed_point = bool(np.max(np.abs(moved)) <= OWN_PATH_TOLERANCE)
+            if fixed_point:
+                break  # the stations hold on the solution: a fixed point
     offtracking_nodes = {u: np.full(n + 1, np.nan) for u in units}
     for u in units:
         offtracking_nodes[u][counted[u]] = np.atleast_1d(np.asarray(sol.value(errors[u])).ravel())
+    if stations is not None:  # measured on the solution's own path at its own stations
+        offtracking_nodes[1][counted[1]] = _own_path_offtracking(params, guess_x, interval, counted[1], stations)
     return OptimalSteer(
         times=nodes,
         steer=guess_d.T,
@@ -354,4 +397,6 @@ def solve_optimal_steer(
         axles=tuple(layout.steerable_axles[i] for i in steered),
         slip=np.arctan(guess_x[:, [layout.slip_slice.start + i for i in axle_index]]),
         further={u + 1: offtracking_nodes[u] for u in units if u > 1},
+        solves=solves,
+        fixed_point=fixed_point,
     )

@@ -47,6 +47,10 @@ __all__ = ["OPTIMAL_FILE", "PidRun", "ScheduledSteer", "pid_run", "run_optimal_r
 OPTIMAL_FILE = "optimal.json"
 """The optimal reference's own record in its run directory."""
 
+OWN_PATH_SOLVES = 4
+"""The most solves of the NLP, each on the kingpin's own path with its stations matched on the last solution; it
+stops earlier at a fixed point (:data:`scenarios.studies.optimal_problem.OWN_PATH_TOLERANCE`)."""
+
 
 class ScheduledSteer:
     """A trailer-steer source replaying a steer schedule: the optimum's steer at each tick's time, linear between
@@ -164,7 +168,15 @@ def run_optimal_reference(
     pid = pid_run(config, pid_dir)
     setup, pid_metrics, recorded = pid.setup, pid.metrics, pid.recorded
 
-    schedule = solve_optimal_steer(setup.params, recorded, pid.simulator, pid.limits, interval=interval, own_path=True)
+    schedule = solve_optimal_steer(
+        setup.params,
+        recorded,
+        pid.simulator,
+        pid.limits,
+        interval=interval,
+        relinearisations=OWN_PATH_SOLVES,
+        own_path=True,
+    )
     axles = tuple(
         n for n in setup.model.layout.steerable_axles if n not in {a.name for a in setup.params.tractor.axles}
     )
@@ -175,6 +187,8 @@ def run_optimal_reference(
         "status": schedule.status,
         "interval_s": interval,
         "cost": schedule.cost,
+        "solves": schedule.solves,
+        "own_path_fixed_point": schedule.fixed_point,
         "pid_cost": pid_cost(schedule, recorded),
         "pid_feedback": config.feedback,
         "pid_truth_after_warmup": pid_metrics["offtracking"]["truth_after_warmup"],
