@@ -304,7 +304,9 @@ def fields_table(rows: list[FieldRow], width: int, title: str | None = None) -> 
     rows : list of FieldRow
         The fields to show (:func:`section_fields`).
     width : int
-        The terminal's width: from :data:`WIDE` columns on a column each for unit, default and range, else one.
+        The terminal's width: from :data:`WIDE` columns on a column each for unit, default and range, else one
+        beside the name, or one column with each name heading its text when the longest name takes over half the
+        width.
     title : str or None
         The table's title.
 
@@ -314,8 +316,8 @@ def fields_table(rows: list[FieldRow], width: int, title: str | None = None) -> 
         The table, its text escaped (``[m]`` is a unit, not markup).
     """
     table = Table(title=title, box=box.SIMPLE_HEAD, width=width, pad_edge=False, expand=True)
-    table.add_column("field", no_wrap=True)
     if width >= WIDE:
+        table.add_column("field", no_wrap=True)
         table.add_column("unit", no_wrap=True)
         table.add_column("default", overflow="fold", max_width=24)
         table.add_column("allowed", overflow="fold", max_width=36)
@@ -323,10 +325,19 @@ def fields_table(rows: list[FieldRow], width: int, title: str | None = None) -> 
         for row in rows:
             table.add_row(*(escape(cell) for cell in (row.name, row.unit, row.default, row.allowed, row.description)))
         return table
-    table.add_column("default, allowed, description", ratio=1, overflow="fold")
+    # a name column as wide as the longest name leaves the text too little room: then each name heads its own text
+    beside = max((len(row.name) for row in rows), default=0) <= width // 2
+    if beside:
+        table.add_column("field", no_wrap=True)
+        table.add_column("default, allowed, description", ratio=1, overflow="fold")
+    else:
+        table.add_column("field, default, allowed, description", ratio=1, overflow="fold")
     for row in rows:
         unit = f" [{row.unit}]" if row.unit else ""
         allowed = f"; allowed {row.allowed}" if row.allowed else ""
         text = f"default {row.default}{unit}{allowed}" + (f"\n{row.description}" if row.description else "")
-        table.add_row(escape(row.name), escape(text))
+        if beside:
+            table.add_row(escape(row.name), escape(text))
+        else:
+            table.add_row(escape(f"{row.name}  {text}"))
     return table
