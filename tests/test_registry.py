@@ -124,7 +124,7 @@ def test_the_section_refuses_in_one_line_naming_the_field_and_the_choices(gnss: 
 def test_the_built_in_switches_load_as_before() -> None:
     old_form = {"zero_slip": False, "viso_ot": True, "viso_ot_fused": False, "zero_slip_variant": "steer_angle"}
     config = load_scenario("roundabout-3", {"estimators": old_form})
-    defaults = {"zero_slip_rear_point": "axle_mean", "zero_slip_grade": "none"}  # the fields added since, at their defaults
+    defaults = {"zero_slip_rear_point": "axle_mean", "zero_slip_grade": "none"}  # later fields, at their defaults
     assert config.estimators.model_dump() == {**old_form, **defaults}
     assert config.enabled_estimators() == ("viso_ot", "truth")
     assert load_scenario("roundabout-3", {"estimators.viso_ot_fused": True}).enabled_estimators() == (
