@@ -23,8 +23,13 @@ where its push would steer such an axle further into its slip (:func:`deepens_sl
 is at its lock (:class:`~controller.path_following.TrailerSteeringController`): there the axles cannot follow the
 turn and slip by the lock's geometry, not at their friction.
 
-The slip is the kinematics': ``β_k`` comes from the tractor's signals by zero-slip kinematics, so where the tractor
-itself slides (a cambered or icy road) ``β_j`` is off by the tractor's crab, and with it every ``α_j``.
+The slip is the kinematics': by default (``kingpin = "zero_slip"``) ``β_k`` comes from the controller's own kingpin
+velocity, by zero-slip kinematics from the tractor's signals, so where the tractor itself slides (a cambered or icy
+road) ``β_j`` is off by the tractor's crab, and with it every ``α_j``. With ``kingpin = "lateral_acceleration"`` the
+hold takes the kingpin velocity of the tractor's lateral-accelerometer rear point instead
+(:func:`accelerometer_coupling_velocity`): the equivalent rear point moving sideways at ``−K·u·f_y``, the slip the
+measured lateral specific force ``f_y`` asks of the rear tyres, a cross slope's share of gravity included
+(docs/vehicle_dynamics.md §2.3, §6.7). That crab of the kingpin turns ``tan β_k`` and with it every ``β_j``.
 """
 
 from __future__ import annotations
@@ -33,7 +38,40 @@ import math
 
 import numpy as np
 
+from vehicle_model.kinematics import coupling_velocity, tractor_kingpin_velocity
+from vehicle_model.parameters import VehicleParams
+from vehicle_model.simulator import VehicleState
+
 from .axle_steer_distribution import axle_velocity_directions, tan_kingpin_direction
+
+
+def accelerometer_coupling_velocity(
+    params: VehicleParams, unit: int, state: VehicleState, lateral_acceleration: float
+) -> tuple[float, float]:
+    """Velocity ``(v_x, v_y)`` [m/s] of the steered unit's coupling in the axes of the unit ahead, from the
+    tractor's lateral-accelerometer rear point (:func:`~vehicle_model.kinematics.tractor_kingpin_velocity` with
+    ``lateral_acceleration``) carried down the chain (:func:`~vehicle_model.kinematics.coupling_velocity`).
+
+    Parameters
+    ----------
+    params
+        The combination.
+    unit
+        The steered towed unit (1 the first).
+    state
+        The state the controller reads (``u``, ``r1``; the articulations and yaw rates of the units ahead).
+    lateral_acceleration
+        The tractor's lateral specific force ``f_y`` [m/s²] (signal ``tractor_lateral_acceleration``).
+
+    Raises
+    ------
+    InputError
+        ``lateral_acceleration`` is not finite (no accelerometer reading).
+    """
+    kingpin = tractor_kingpin_velocity(params, "lateral_acceleration", state.u, state.r1, lateral_acceleration)
+    if unit == 1:
+        return kingpin
+    return coupling_velocity(params, unit, kingpin, state.articulations, state.towed_yaw_rates)
 
 
 def kinematic_yaw_rates(

@@ -148,7 +148,7 @@ from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
 from .feedforward_slip import SlipFeedforward
-from .friction_hold import deepens_slip, steered_slip_angles
+from .friction_hold import accelerometer_coupling_velocity, deepens_slip, steered_slip_angles
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
 from .preview import chord_law, interpolated_chord_end, preview_tangent, straight_chord_end
 from .reach_rules import is_outswing, outswing_scale, window_holding
@@ -345,7 +345,9 @@ class TrailerSteeringController:
 
     # ------------------------------------------------------------------ the law
 
-    def __call__(self, state: VehicleState, estimate: OfftrackingEstimate | None) -> np.ndarray:
+    def __call__(
+        self, state: VehicleState, estimate: OfftrackingEstimate | None, lateral_acceleration: float = math.nan
+    ) -> np.ndarray:
         """Steer of every steerable trailer axle [rad] for the next control period.
 
         Parameters
@@ -356,6 +358,9 @@ class TrailerSteeringController:
             The off-tracking estimate fed back (``None``, or one without a value: feed-forward only, integrator
             frozen). An estimate whose standard deviation exceeds ``config.feedback_max_std`` is not used, or with
             ``config.uncertain_feedback = "shrink"`` is shrunk toward zero and the integrator frozen.
+        lateral_acceleration
+            The tractor's lateral specific force [m/s²] (signal ``tractor_lateral_acceleration``); read only by the
+            friction hold with ``config.friction_hold_kingpin = "lateral_acceleration"``, which refuses a NaN.
 
         Returns
         -------
@@ -438,8 +443,11 @@ class TrailerSteeringController:
             feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         elif cfg.friction_hold_slip is not None and not np.any(self.output.saturated):  # nor push an axle at its
             # friction further into its slip (at the lock the slip is the lock's geometry's, not the friction's)
+            hold_vx, hold_vy = vx, vy
+            if cfg.friction_hold_kingpin == "lateral_acceleration":  # the kingpin velocity that sees the crab
+                hold_vx, hold_vy = accelerometer_coupling_velocity(self.params, self.unit, state, lateral_acceleration)
             slips = steered_slip_angles(
-                self._steered_distances, self.output.commands, gamma, vx, vy, rate, cfg.fade_speeds[1]
+                self._steered_distances, self.output.commands, gamma, hold_vx, hold_vy, rate, cfg.fade_speeds[1]
             )
             if deepens_slip(slips, cfg.friction_hold_slip, push):
                 integral_new = self.integral

@@ -12,6 +12,7 @@ from vehicle_model.settings import Settings
 
 __all__ = [
     "FeedForward",
+    "HoldKingpin",
     "Kinematics",
     "PathFollowingConfig",
     "PathFollowingGains",
@@ -25,6 +26,9 @@ Kinematics = Literal["signals", "truth"]
 
 FeedForward = Literal["path", "steady", "none"]
 """Type of :attr:`PathFollowingConfig.feedforward`."""
+
+HoldKingpin = Literal["zero_slip", "lateral_acceleration"]
+"""Type of :attr:`PathFollowingConfig.friction_hold_kingpin`."""
 
 UncertainFeedback = Literal["drop", "shrink"]
 """Type of :attr:`PathFollowingConfig.uncertain_feedback`."""
@@ -226,6 +230,11 @@ class PathFollowingConfig(Settings):
         peak (2.8°, the lowest friction the controller is set up for) judges an axle at its friction only past the
         slip beyond which, on ice, more steer gives less force. The slip is off by the tractor's crab where the
         tractor slides (zero-slip kinematics).
+    friction_hold_kingpin : {"zero_slip", "lateral_acceleration"}
+        The kingpin velocity the hold judges the slip from: ``zero_slip`` (default), the controller's own (as
+        ``kinematics``); ``lateral_acceleration``, the tractor's lateral-accelerometer rear point's, which sees the
+        tractor's crab (:func:`~controller.friction_hold.accelerometer_coupling_velocity`; it needs the tractor's
+        lateral specific force on every call). Only the hold uses it.
     """
 
     gains: PathFollowingGains | None = None
@@ -253,6 +262,7 @@ class PathFollowingConfig(Settings):
     preview_distance: float | None = Field(None, ge=0.0, le=30.0)
     slip_feedforward: bool = False
     friction_hold_slip: float | None = Field(None, gt=0.0, le=math.radians(45.0))
+    friction_hold_kingpin: HoldKingpin = "zero_slip"
 
     @model_validator(mode="after")
     def _ordered_fade_speeds(self) -> PathFollowingConfig:

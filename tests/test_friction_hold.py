@@ -1,6 +1,7 @@
 """The friction hold (controller.friction_hold): the detector's closed form judges a rolling axle not at its friction
 and a stated yaw-rate deficit at it; only a push deeper into that slip is held; off, the controller is unchanged;
-a threshold out of range is refused naming the field."""
+a threshold out of range is refused naming the field; the accelerometer's kingpin option turns a stated crab into a
+stated slip change, is unchanged when not chosen, and a bad option is refused naming the field."""
 
 from __future__ import annotations
 
@@ -10,10 +11,16 @@ import math
 import numpy as np
 import pytest
 
-from controller.friction_hold import deepens_slip, kinematic_yaw_rates, steered_slip_angles
+from controller.friction_hold import (
+    accelerometer_coupling_velocity,
+    deepens_slip,
+    kinematic_yaw_rates,
+    steered_slip_angles,
+)
 from controller.path_following import TrailerSteeringController
 from controller.path_following_config import PathFollowingConfig
 from scenarios.config import ConfigError, load_scenario
+from vehicle_model.errors import InputError
 from vehicle_model.offtracking import OfftrackingEstimate
 from vehicle_model.presets import lst_laden
 from vehicle_model.simulator import VehicleState
@@ -100,3 +107,52 @@ def test_the_scenario_setting_reaches_the_controller_and_a_bad_threshold_is_refu
     with pytest.raises(ConfigError) as info:
         load_scenario("roundabout-3", {"controller.friction_hold_slip_deg": -1.0})
     assert "controller.friction_hold_slip_deg" in str(info.value)
+
+
+def straight(lateral_acceleration: float, config: PathFollowingConfig) -> TrailerSteeringController:
+    """2 s straight ahead at 15 km/h (no yaw, no articulation) with a constant 5 cm error fed back and the tractor's
+    accelerometer at ``lateral_acceleration``: a cross slope's share of gravity, the tractor crabbing."""
+    speed = 15.0 / 3.6
+    state = VehicleState(0.0, 0.0, 0.0, 0.0, speed, 0.0, 0.0, 0.0, 0.0, slip=np.zeros(6))
+    controller = TrailerSteeringController(lst_laden(), config)
+    for k in range(100):
+        controller(dataclasses.replace(state, time=0.02 * k), OfftrackingEstimate.of(0.05), lateral_acceleration)
+    return controller
+
+
+def test_the_accelerometer_kingpin_turns_a_crab_into_a_slip_change():
+    # Straight ahead, no yaw: the zero-slip kingpin moves straight, the accelerometer's crabs at −K·u·f_y, so every
+    # steered axle's slip grows by atan(K·f_y) (K = 0.0179 s²/m for the LST: f_y = 1 m/s² gives 1.02°).
+    params, speed, f_y = lst_laden(), 15.0 / 3.6, 1.0
+    state = VehicleState(0.0, 0.0, 0.0, 0.0, speed, 0.0, 0.0, 0.0, 0.0, slip=np.zeros(6))
+    vx, vy = accelerometer_coupling_velocity(params, 1, state, f_y)
+    gradient = params.tractor_rear_point_gradient
+    assert vx == speed and vy == pytest.approx(-gradient * speed * f_y, abs=1e-12)
+    steer = np.radians([1.0, -1.0])
+    zero_slip = steered_slip_angles(DISTANCES, steer, 0.0, speed, 0.0, 0.0, 1.0)
+    crabbed = steered_slip_angles(DISTANCES, steer, 0.0, vx, vy, 0.0, 1.0)
+    np.testing.assert_allclose(crabbed - zero_slip, math.atan(gradient * f_y), atol=1e-12)
+    assert math.degrees(math.atan(gradient * f_y)) == pytest.approx(1.02, abs=0.01)
+
+
+def test_the_accelerometer_kingpin_holds_where_the_zero_slip_one_does_not():
+    f_y = 4.0  # the crab's slip atan(K·f_y) = 4.1°, past 2.8° and on the side the PID pushes
+    hold = {"max_slip_angle": None, "friction_hold_slip": THRESHOLD}
+    default = straight(f_y, PathFollowingConfig(**hold))
+    zero_slip = straight(f_y, PathFollowingConfig(**hold, friction_hold_kingpin="zero_slip"))
+    crab = straight(f_y, PathFollowingConfig(**hold, friction_hold_kingpin="lateral_acceleration"))
+    unread = straight(math.nan, PathFollowingConfig(**hold))  # the default reads no accelerometer
+    assert default.integral == zero_slip.integral == unread.integral > 0.05 * 5.0 * 0.5  # the zero-slip never holds
+    assert crab.integral == 0.0  # never grown from zero
+    with pytest.raises(InputError, match="tractor_lateral_acceleration"):
+        straight(math.nan, PathFollowingConfig(**hold, friction_hold_kingpin="lateral_acceleration"))
+
+
+def test_the_kingpin_option_reaches_the_controller_and_a_bad_one_is_refused():
+    on = load_scenario("roundabout-3", {"controller.friction_hold_kingpin": "lateral_acceleration"})
+    assert on.controller.path_following(on.rates.control_hz).friction_hold_kingpin == "lateral_acceleration"
+    default = load_scenario("roundabout-3", {})
+    assert default.controller.path_following(default.rates.control_hz).friction_hold_kingpin == "zero_slip"
+    with pytest.raises(ConfigError) as info:
+        load_scenario("roundabout-3", {"controller.friction_hold_kingpin": "gyro"})
+    assert "controller.friction_hold_kingpin" in str(info.value)

@@ -9,7 +9,7 @@ from typing import Annotated, Any, Literal
 from pydantic import ConfigDict, Field, ValidationInfo, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
-from controller.path_following_config import PathFollowingConfig, PathFollowingGains
+from controller.path_following_config import HoldKingpin, PathFollowingConfig, PathFollowingGains
 from sensor.fusion import FusionNoise
 from sensor.fusion_noise import KinematicReference, SideRigFusion
 from sensor.signals import ChannelSpec
@@ -489,6 +489,12 @@ class ControllerConfig(Settings):
         description="[°] the steered axles' slip angle above which friction_hold judges them at their friction "
         "(the ice tyre's force peak; controller.path_following_config)",
     )
+    friction_hold_kingpin: HoldKingpin = Field(
+        "zero_slip",
+        description="the kingpin velocity friction_hold judges the slip from: zero_slip (the controller's own) or "
+        "lateral_acceleration (the tractor's accelerometer rear point, which sees the tractor's crab; "
+        "controller.friction_hold)",
+    )
     high_speed_crossover_kmh: tuple[float, float] | None = Field(
         (35.0, 55.0),
         description="[km/h] (start, end) of the fade from path following to the unsteered trailer at speed, null "
@@ -528,6 +534,7 @@ class ControllerConfig(Settings):
             reach_freeze_at=self.reach_freeze_at,
             slip_feedforward=self.slip_feedforward,
             friction_hold_slip=math.radians(self.friction_hold_slip_deg) if self.friction_hold else None,
+            friction_hold_kingpin=self.friction_hold_kingpin,
             high_speed_crossover=None
             if self.high_speed_crossover_kmh is None
             else (self.high_speed_crossover_kmh[0] / 3.6, self.high_speed_crossover_kmh[1] / 3.6),

@@ -14,6 +14,7 @@ and its own internals.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -166,8 +167,10 @@ class PathFollowingSteer:
     def command(self, tick: TickInput, estimates: Mapping[str, OfftrackingEstimate]) -> np.ndarray:
         """Each PID's commands on this tick's estimate of its unit."""
         commands = np.zeros(len(self.axles))
+        accelerometer = tick.measured.get("tractor_lateral_acceleration")  # for the friction hold's kingpin option
+        lateral = math.nan if accelerometer is None else float(accelerometer[0])
         for (ctrl, feedback), slots in zip(self.steered, self._slots, strict=True):
-            commands[slots] = ctrl(tick.state, estimates.get(feedback))  # type: ignore[arg-type]
+            commands[slots] = ctrl(tick.state, estimates.get(feedback), lateral)  # type: ignore[arg-type]
         self._commands = commands
         return commands.copy()
 
