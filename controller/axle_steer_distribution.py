@@ -217,6 +217,21 @@ def axle_velocity_directions(
     return np.arctan(tan_kingpin - yaw_rate * np.asarray(distances, dtype=float) / kingpin_speed)
 
 
+def axle_directions_above_speed(
+    distances: np.ndarray, gamma: float, vx: float, vy: float, yaw_rate: float, min_speed: float
+) -> np.ndarray | None:
+    """Velocity directions ``β_j`` [rad] of the axles ``distances`` behind the kingpin, or ``None`` at walking pace.
+
+    ``None`` when the kingpin's forward speed in the trailer frame is below ``min_speed`` [m/s] (a slip angle is not
+    defined by the kinematics there). ``vx, vy``: kingpin velocity in tractor axes [m/s]; ``gamma``: articulation
+    [rad]; ``yaw_rate``: trailer yaw rate [rad/s] (:func:`axle_velocity_directions`).
+    """
+    forward_speed = math.cos(gamma) * vx - math.sin(gamma) * vy  # v_k2x, as tan_kingpin_direction
+    if forward_speed < min_speed:
+        return None
+    return axle_velocity_directions(distances, tan_kingpin_direction(gamma, vx, vy), yaw_rate, forward_speed)
+
+
 def slip_angle_window(
     distances: np.ndarray,
     gamma: float,
@@ -238,11 +253,9 @@ def slip_angle_window(
     ``min_speed`` [m/s] (a slip angle is not defined by the kinematics at walking pace). ``vx, vy``: kingpin
     velocity in tractor axes [m/s]; ``gamma``: articulation [rad]; ``yaw_rate``: trailer yaw rate [rad/s].
     """
-    cg, sg = math.cos(gamma), math.sin(gamma)
-    forward_speed = cg * vx - sg * vy  # v_k2x, as tan_kingpin_direction
-    if max_slip is None or forward_speed < min_speed:
+    beta = None if max_slip is None else axle_directions_above_speed(distances, gamma, vx, vy, yaw_rate, min_speed)
+    if beta is None:
         return None
-    beta = axle_velocity_directions(distances, tan_kingpin_direction(gamma, vx, vy), yaw_rate, forward_speed)
     # Straight ahead is always inside the window: the limit never steers an axle across it against the command.
     return np.minimum(beta - max_slip, 0.0), np.maximum(beta + max_slip, 0.0)
 

@@ -34,15 +34,13 @@ measured lateral specific force ``f_y`` asks of the rear tyres, a cross slope's 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from vehicle_model.kinematics import coupling_velocity, tractor_kingpin_velocity
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import VehicleState
 
-from .axle_steer_distribution import axle_velocity_directions, tan_kingpin_direction
+from .axle_steer_distribution import axle_directions_above_speed
 
 
 def accelerometer_coupling_velocity(
@@ -74,25 +72,6 @@ def accelerometer_coupling_velocity(
     return coupling_velocity(params, unit, kingpin, state.articulations, state.towed_yaw_rates)
 
 
-def kinematic_yaw_rates(
-    distances: np.ndarray, steer: np.ndarray, tan_kingpin: float, kingpin_speed: float
-) -> np.ndarray:
-    """Yaw rate [rad/s] at which each steered axle would roll without slip, ``v_k2x·(tan β_k − tan δ_j)/L_j``.
-
-    Parameters
-    ----------
-    distances
-        ``L_j`` [m] of the steered axles behind the kingpin (> 0).
-    steer
-        ``δ_j`` [rad], the steer on those axles.
-    tan_kingpin
-        ``tan β_k = v_k2y/v_k2x`` (:func:`~controller.axle_steer_distribution.tan_kingpin_direction`).
-    kingpin_speed
-        ``v_k2x`` [m/s], the kingpin's forward velocity in the trailer frame.
-    """
-    return kingpin_speed * (tan_kingpin - np.tan(np.asarray(steer, dtype=float))) / np.asarray(distances, dtype=float)
-
-
 def steered_slip_angles(
     distances: np.ndarray,
     steer: np.ndarray,
@@ -108,12 +87,8 @@ def steered_slip_angles(
     not defined by the kinematics at walking pace). ``vx, vy``: kingpin velocity in tractor axes [m/s]; ``gamma``:
     articulation [rad]; ``yaw_rate``: the trailer's measured yaw rate ``r2`` [rad/s].
     """
-    cg, sg = math.cos(gamma), math.sin(gamma)
-    forward_speed = cg * vx - sg * vy  # v_k2x, as tan_kingpin_direction
-    if forward_speed < min_speed:
-        return None
-    beta = axle_velocity_directions(distances, tan_kingpin_direction(gamma, vx, vy), yaw_rate, forward_speed)
-    return np.asarray(steer, dtype=float) - beta
+    beta = axle_directions_above_speed(distances, gamma, vx, vy, yaw_rate, min_speed)
+    return None if beta is None else np.asarray(steer, dtype=float) - beta
 
 
 def deepens_slip(slip_angles: np.ndarray | None, threshold: float, push: float) -> bool:

@@ -14,7 +14,6 @@ import pytest
 from controller.friction_hold import (
     accelerometer_coupling_velocity,
     deepens_slip,
-    kinematic_yaw_rates,
     steered_slip_angles,
 )
 from controller.path_following import TrailerSteeringController
@@ -41,6 +40,26 @@ def rolling_steer(yaw_rate: float) -> np.ndarray:
     """The steer at which every axle rolls without slip at ``yaw_rate``: ``tan δ_j = tan β_k − r2·L_j/v_k2x``."""
     tan_kingpin, forward = kingpin()
     return np.arctan(tan_kingpin - yaw_rate * DISTANCES / forward)
+
+
+def kinematic_yaw_rates(
+    distances: np.ndarray, steer: np.ndarray, tan_kingpin: float, kingpin_speed: float
+) -> np.ndarray:
+    """Yaw rate [rad/s] at which each steered axle would roll without slip, ``v_k2x·(tan β_k − tan δ_j)/L_j``
+    (controller/friction_hold.py's module notes).
+
+    Parameters
+    ----------
+    distances
+        ``L_j`` [m] of the steered axles behind the kingpin (> 0).
+    steer
+        ``δ_j`` [rad], the steer on those axles.
+    tan_kingpin
+        ``tan β_k = v_k2y/v_k2x`` (:func:`~controller.axle_steer_distribution.tan_kingpin_direction`).
+    kingpin_speed
+        ``v_k2x`` [m/s], the kingpin's forward velocity in the trailer frame.
+    """
+    return kingpin_speed * (tan_kingpin - np.tan(np.asarray(steer, dtype=float))) / np.asarray(distances, dtype=float)
 
 
 def test_a_rolling_trailer_is_not_at_friction():
