@@ -279,19 +279,19 @@ def test_a_road_files_speed_and_mu_win_and_the_run_reports_them(tmp_path: Path) 
 def test_the_lateral_swept_width_walks_only_the_part_driven(monkeypatch: pytest.MonkeyPatch) -> None:
     import numpy as np
 
-    from scenarios.run import swept_geometry
+    from scenarios.run import swept_width
 
     front = np.linspace(10.0, 60.0, 201)  # a 10 m by 2.5 m box driven 50 m along a straight road
     box = np.array([[0.0, -1.25], [0.0, 1.25], [-10.0, 1.25], [-10.0, -1.25]])
     outlines = box[None] + np.column_stack([front, np.zeros_like(front)])[:, None, :]
     calls: list[int] = []
-    extent = swept_geometry._extent_along
-    monkeypatch.setattr(swept_geometry, "_extent_along", lambda *a: calls.append(1) or extent(*a))
+    extent = swept_width._extent_along
+    monkeypatch.setattr(swept_width, "_extent_along", lambda *a: calls.append(1) or extent(*a))
     widths = {}
     for length in (200.0, 20_000.0):  # the road driven, and a 20 km road of which the run drove 60 m
         road = np.column_stack([np.linspace(0.0, length, int(length / 0.05) + 1), np.zeros(int(length / 0.05) + 1)])
         calls.clear()
-        widths[length] = swept_geometry.lateral_width([outlines], front, road).width
+        widths[length] = swept_width.lateral_width([outlines], front, road).width
         assert len(calls) <= 20, (length, len(calls))  # 5 m chunks over the 60 m and the bodies' reach, not 4000
     assert widths[200.0] == widths[20_000.0] == pytest.approx(2.5, abs=1e-9)
 

@@ -1,4 +1,5 @@
-"""The swept path as geometry (:mod:`scenarios.run.swept_geometry`): areas and the swept-path width.
+"""The swept path as geometry: areas (:mod:`scenarios.run.swept_area`) and the swept-path width
+(:mod:`scenarios.run.swept_width`).
 
 * A rigid rectangle in a steady left turn about a fixed centre, its rear axle's middle on a 10 m circle and the
   turn centre on the rear axle line (no slip), posed every 3° (sparser than the outline spacing, so outlines are
@@ -31,7 +32,8 @@ from scenarios.config import load_scenario
 from scenarios.run.plots import load_run
 from scenarios.run.runner import run_scenario
 from scenarios.run.summary import run_summary
-from scenarios.run.swept_geometry import lateral_width, radial_width, swept_area
+from scenarios.run.swept_area import swept_area
+from scenarios.run.swept_width import lateral_width, radial_width
 
 
 def _body(front: float, rear: float, width: float) -> np.ndarray:

@@ -33,7 +33,8 @@ from vehicle_model.geometry import tractor_points
 from vehicle_model.parameters import VehicleParams
 
 from ..catalogue.vehicle_spec import overall_length
-from ..run.swept_geometry import radial_width, unit_swept_areas
+from ..run.swept_area import unit_swept_areas
+from ..run.swept_width import radial_width
 from ..run.unit_shapes import unit_names, unit_outlines
 from ..setup.build import outer_steer_tyre
 from ..setup.paths import ReferencePath
@@ -238,10 +239,10 @@ class SweptPath:
 def low_speed_swept_path(params: VehicleParams, columns: dict[str, np.ndarray], path: ReferencePath) -> SweptPath:
     """The low speed swept path: the largest width of road the combination sweeps in the turn.
 
-    The area each unit's body sweeps over the whole run (:func:`~scenarios.run.swept_geometry.unit_swept_areas`) is
+    The area each unit's body sweeps over the whole run (:func:`~scenarios.run.swept_area.unit_swept_areas`) is
     cut to the turn's sector (between the rays from the turn centre through the turn's start and end), and the
     width is the largest, over rays from the centre, of the outermost minus the innermost radius at which a ray
-    meets it (:func:`~scenarios.run.swept_geometry.radial_width`). The cut keeps the approach and departure
+    meets it (:func:`~scenarios.run.swept_width.radial_width`). The cut keeps the approach and departure
     straights out (a ray crossing a straight obliquely is no width of it) and keeps in the units that are still
     turning after the control point has left the arc. For a rigid unit in a steady turn it is the radius of its
     outer front corner minus that of the inner end of its rear axle.

@@ -1,5 +1,5 @@
 """Run metrics: off-tracking of the truth, estimator errors against it, the feedback's fallback, the roundabout-test
-verdict, the swept-path width (:mod:`.swept_geometry`) and the run's own verdict (:mod:`.verdicts`)."""
+verdict, the swept-path width (:mod:`.swept_width`) and the run's own verdict (:mod:`.verdicts`)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from vehicle_model.parameters import VehicleParams
 from ..loop.participant import estimate_column
 from ..loop.schema import FIRST_TOWED_UNIT, RecordedColumns, estimate_columns, estimator_names, schema_of, std_column
 from .path_offtracking import combination_offtracking, rear_point_columns
-from .swept_geometry import swept_path_metrics
+from .swept_width import swept_path_metrics
 from .verdicts import run_verdict, with_roundabout_test
 
 ROUNDABOUT_OUTER_RADIUS = 12.50
@@ -201,7 +201,7 @@ def compute_metrics(
     """The ``metrics.json`` content of a run (without timing and status).
 
     With the ``reference`` path ``(m, 2)`` it also holds ``swept_path``, the swept-path width over the assessed turn
-    (:func:`~scenarios.run.swept_geometry.swept_path_metrics`): radial about ``turn_centre`` (a roundabout's
+    (:func:`~scenarios.run.swept_width.swept_path_metrics`): radial about ``turn_centre`` (a roundabout's
     centre), or across the reference path when that is None.
 
     ``rear_feedback`` is the feedback of each unit behind the first towed one (``none`` where it is not steered,

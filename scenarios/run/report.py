@@ -29,7 +29,7 @@ from .metrics import after_warmup, compute_metrics, estimator_names
 from .notes import run_notes
 from .results import plot_files, read_config, read_metrics, read_timeseries, write_metrics
 from .stopping import deferred_stops, raise_pending_stop, stop_message, stop_signal_name
-from .swept_geometry import turn_centre
+from .swept_width import turn_centre
 
 if TYPE_CHECKING:
     from ..setup.build import ScenarioSetup

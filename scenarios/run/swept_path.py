@@ -10,7 +10,7 @@ What a vehicle engineer reads in an AutoTURN-style swept-path drawing:
   colours of their own, each in the legend and labelled where the run crowds least (outside the outer circle,
   inside the inner one: off the swept annulus), the extreme points marked and labelled with their radii and
   margins, and the verdict (PASS/FAIL) in the title (wrapped, never clipped);
-* the swept-path width (:mod:`.swept_geometry`) as a drawn dimension: a double-headed arrow across the swept
+* the swept-path width (:mod:`.swept_width`) as a drawn dimension: a double-headed arrow across the swept
   area where it is widest, labelled with the width and how it was measured;
 * a zoom panel on each critical point (roundabout test: the tractor's outermost and the trailer's
   innermost point; other runs: the follow point where the true off-tracking is largest), sized to the effect it
@@ -45,7 +45,8 @@ from vehicle_model.parameters import VehicleParams
 from .figure_scale import wrap_title, zoom_half_width, zoom_to
 from .metrics import ROUNDABOUT_INNER_RADIUS, ROUNDABOUT_OUTER_RADIUS, roundabout_verdict
 from .plan_marks import draw_circles, free_angle, mark_turn_centre, towards_turn_centre
-from .swept_geometry import ENVELOPE_SPACING, envelope_samples, swept_width
+from .swept_area import ENVELOPE_SPACING, envelope_samples
+from .swept_width import swept_width
 from .unit_shapes import articulation, pose_polygons, unit_names, unit_outlines
 
 TRACTOR_COLOUR = "tab:red"

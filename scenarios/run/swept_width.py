@@ -1,21 +1,14 @@
-"""The swept path of a run as geometry: each unit's swept area and the combination's, and the swept-path width.
-
-The swept area of a unit is the union of its body outlines over the manoeuvre, a shapely ``Polygon`` or
-``MultiPolygon``; the combination's is the union of its units'. A run records the outlines at the control rate;
-outlines are put in where a vertex moved more than :data:`SWEEP_SPACING` between two samples (:func:`densify`, on
-the arc of the body's displacement) and left out where it barely moved (:func:`envelope_samples`, the figures'
-thinning), and the notches a vertex leaves between two outlines are filled (:func:`swept_area`), so that the union
-is neither scalloped nor needlessly heavy: within ``spacing² / 8R`` of the true area.
+"""The swept-path width of a run: the combination's and each unit's, radial about a turn centre or across the path.
 
 The swept-path width follows the Low Speed Swept Path standard of the Australian Performance-Based Standards (PBS)
 scheme (National Transport Commission, *Performance Based Standards Scheme – The Standards and Vehicle Assessment
 Rules*; the NHVR's PBS resources describe the standard as limiting the road space a vehicle needs in low-speed turns
 at intersections): the greatest distance between the innermost and the outermost point of the vehicle during the
 prescribed low-speed turn. For a turn about a fixed centre it is measured here radially (``definition``
-``"radial"``): along each ray from the turn centre, the outermost radius the swept area reaches minus its innermost
-radius, and the largest of those over the rays (:func:`radial_width`). The standard's manoeuvre (a 90° turn of a
-given radius) and its level limits are not applied here: the width is measured on the run's own manoeuvre and no
-threshold is judged.
+``"radial"``): along each ray from the turn centre, the outermost radius the swept area (:mod:`.swept_area`)
+reaches minus its innermost radius, and the largest of those over the rays (:func:`radial_width`). The standard's
+manoeuvre (a 90° turn of a given radius) and its level limits are not applied here: the width is measured on the
+run's own manoeuvre and no threshold is judged.
 
 A run that is not a turn about one centre (a figure of eight, a straight or a lane change) has no such centre; its
 width is measured across the reference path instead (``definition`` ``"lateral"``): at stations along the path, the
@@ -23,10 +16,6 @@ extent of the swept area along the path's normal, from the samples near that sta
 the path crossing the normal, as at a figure of eight's crossing, is not counted), and the largest over the
 stations (:func:`lateral_width`). Only the part of the path the run drove is walked: a run stopped a minute into a
 long road measures that minute's part of it, and writes its metrics at once.
-
-Why this module is long: the swept areas, the radial and the lateral width share one set of primitives (the
-outlines put in and thinned, the edges of the pieces swept, the crossings of a line with them), which a split would
-export across modules for no other user.
 """
 
 from __future__ import annotations
@@ -40,31 +29,27 @@ from shapely.geometry.base import BaseGeometry
 
 from vehicle_model.parameters import VehicleParams
 
+from .swept_area import (
+    SWEEP_SPACING,
+    combination_swept_area,
+    densify_with_values,
+    envelope_samples,
+    sweep_edges,
+    swept_area,
+)
 from .unit_shapes import unit_names, unit_outlines
 
 __all__ = [
-    "ENVELOPE_SPACING",
     "LATERAL_STATION_SPACING",
     "RAY_STEP_DEG",
-    "SWEEP_SPACING",
     "SweptWidth",
-    "combination_swept_area",
-    "densify",
-    "envelope_samples",
     "lateral_width",
     "radial_width",
-    "swept_area",
     "swept_path_metrics",
     "swept_width",
     "turn_centre",
-    "unit_swept_areas",
 ]
 
-ENVELOPE_SPACING = 0.05
-"""Outlines closer than this [m] (largest corner movement) to the last one kept add nothing visible to an envelope."""
-SWEEP_SPACING = 0.25
-"""Vertex travel [m] between the outlines of a swept area (:func:`swept_area`): with the notches between them
-filled, the area is then within ``spacing² / 8R`` of the true one, 1.6 mm on a 5 m radius."""
 RAY_STEP_DEG = 0.5
 """Angle between the rays of :func:`radial_width` [deg]; the largest width is then refined between its neighbours."""
 LATERAL_STATION_SPACING = 0.25
@@ -74,153 +59,6 @@ DEFINITIONS = {
     "lateral": "largest width of the swept area along the reference path's normal (no single turn centre)",
 }
 """What each ``definition`` of :class:`SweptWidth` measures, in words (written to ``metrics.json``)."""
-
-
-def envelope_samples(polygons: np.ndarray, spacing: float = ENVELOPE_SPACING) -> np.ndarray:
-    """Indices of the outlines ``(n, k, 2)`` to keep: a new one each time some corner has moved ``spacing``.
-
-    The union of the kept outlines differs from the union of all by less than ``spacing``, for a fraction of the
-    drawing time: where a vertex's path is oblique to its edges the union of outlines is notched between them, a
-    tooth up to ``spacing`` times the sine of that angle deep (invisible in a plan view at the figures' 5 cm;
-    :func:`swept_area` fills the notches). First and last kept.
-    """
-    polys = np.asarray(polygons, dtype=float)
-    n = polys.shape[0]
-    if n <= 2 or spacing <= 0.0:
-        return np.arange(n)
-    step = np.nan_to_num(np.linalg.norm(np.diff(polys, axis=0), axis=-1).max(axis=-1), nan=0.0)
-    bucket = np.floor(np.concatenate([[0.0], np.cumsum(step)]) / spacing)
-    keep = np.concatenate([[True], np.diff(bucket) > 0])
-    keep[-1] = True
-    return np.flatnonzero(keep)
-
-
-def densify(polygons: np.ndarray, spacing: float = ENVELOPE_SPACING) -> np.ndarray:
-    """Outlines ``(n, k, 2)`` of one rigid body, with outlines put in wherever a vertex moved more than ``spacing``
-    between two.
-
-    Any plane displacement of a rigid body is a rotation about one point (its pole) or a translation; the outlines
-    put in follow it at a steady rate, so that every vertex moves on the arc of a steady turn between the two
-    samples (exactly so in a steady turn). Outlines with a non-finite vertex are dropped first.
-    """
-    return _densify(polygons, np.zeros(len(polygons)), spacing)[0]
-
-
-def _densify(polygons: np.ndarray, values: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`densify`, with a value per outline ``(n,)`` (non-finite ones dropped too) interpolated linearly."""
-    polys = np.asarray(polygons, dtype=float)
-    vals = np.asarray(values, dtype=float)
-    finite = np.all(np.isfinite(polys), axis=(1, 2)) & np.isfinite(vals)
-    polys, vals = polys[finite], vals[finite]
-    if len(polys) < 2 or spacing <= 0.0:
-        return polys, vals
-    a, b = polys[:-1], polys[1:]
-    step = np.linalg.norm(b - a, axis=-1).max(axis=-1)
-    parts = np.maximum(np.ceil(step / spacing).astype(int), 1)
-    # The rotation of each displacement, from the first edge, and its pole: b = R(a − c) + c.
-    edge_a, edge_b = a[:, 1] - a[:, 0], b[:, 1] - b[:, 0]
-    turn = np.arctan2(edge_a[:, 0] * edge_b[:, 1] - edge_a[:, 1] * edge_b[:, 0], np.sum(edge_a * edge_b, axis=1))
-    rotates = np.abs(turn) > 1e-7  # below, a translation: the arcs' sagitta is under step·1e-7
-    cos, sin = np.cos(turn), np.sin(turn)
-    versine = 2.0 * np.sin(0.5 * turn) ** 2  # 1 − cos, without cancellation
-    ca, cb = a.mean(axis=1), b.mean(axis=1)
-    rhs = cb - np.column_stack([cos * ca[:, 0] - sin * ca[:, 1], sin * ca[:, 0] + cos * ca[:, 1]])
-    det = np.where(rotates, 2.0 * versine, 1.0)
-    pole = np.column_stack(
-        [(versine * rhs[:, 0] - sin * rhs[:, 1]) / det, (sin * rhs[:, 0] + versine * rhs[:, 1]) / det]
-    )
-    start = np.repeat(np.arange(len(parts)), parts)
-    t = (np.arange(len(start)) - np.repeat(np.cumsum(parts) - parts, parts)) / np.repeat(parts, parts)
-    angle = (t * turn[start])[:, None]
-    rel = a[start] - pole[start][:, None, :]
-    rotated = pole[start][:, None, :] + np.stack(
-        [
-            np.cos(angle) * rel[..., 0] - np.sin(angle) * rel[..., 1],
-            np.sin(angle) * rel[..., 0] + np.cos(angle) * rel[..., 1],
-        ],
-        axis=-1,
-    )
-    shifted = a[start] + t[:, None, None] * (b[start] - a[start])
-    dense = np.where(rotates[start][:, None, None], rotated, shifted)
-    dense_vals = vals[start] + t * (vals[start + 1] - vals[start])
-    return np.concatenate([dense, polys[-1:]]), np.concatenate([dense_vals, vals[-1:]])
-
-
-def swept_area(polygons: np.ndarray, spacing: float = SWEEP_SPACING) -> BaseGeometry:
-    """The area swept by one rigid body of convex outlines ``(n, k, 2)`` over a manoeuvre: a shapely (Multi)Polygon.
-
-    Outlines are put in (:func:`densify`) and thinned (:func:`envelope_samples`) to one per ``spacing`` of vertex
-    travel, and the area is the union of those outlines and of the notches their vertices leave from one to the
-    next (:func:`_swept_pieces`). The union of outlines alone would be notched wherever a vertex moves obliquely to
-    its edges (a tooth up to ``spacing`` times the sine of that angle deep at every outline: 0.3 % short of a steady
-    turn's area at 5 cm, 1.6 % at 25 cm); with the notches filled it differs from the true area by the sagitta of a
-    vertex's chord, ``spacing² / 8R`` on a radius ``R``. An empty ``Polygon`` when no outline is finite.
-    """
-    dense = densify(polygons, spacing)
-    if not len(dense):
-        return shapely.Polygon()
-    kept = dense[envelope_samples(dense, spacing)]
-    return shapely.union_all(_swept_pieces(kept))
-
-
-def _swept_pieces(kept: np.ndarray) -> np.ndarray:
-    """Each outline of ``(m, k, 2)`` (convex) with the notches its vertices leave on the way to the next, as shapely
-    polygons.
-
-    A vertex that leaves its outline (it moves outward across one of its two edges) leaves a notch between its two
-    positions and the two outlines. The triangle of the outline's middle and the vertex's two positions covers it,
-    and for a step small against the body lies within the two outlines and the notch; its part outside the outline
-    is the triangle of the vertex, its next position and the point where the segment from the middle to that
-    position leaves the outline, which is put into the outline's boundary at the vertex (one polygon a step, not
-    five: the union is as fast as of the outlines alone).
-    """
-    polys = np.asarray(kept, dtype=float)
-    m, k = polys.shape[:2]
-    slots = np.repeat(polys, 3, axis=1).reshape(m, k, 3, 2)  # three boundary points a vertex: V, V, V by default
-    if m >= 2:
-        v, nxt = polys[:-1], polys[1:]
-        middle = v.mean(axis=1, keepdims=True)
-        orient = np.sign(np.sum(v[..., 0] * np.roll(v[..., 1], -1, 1) - np.roll(v[..., 0], -1, 1) * v[..., 1], axis=1))
-        after, before = np.roll(v, -1, axis=1) - v, v - np.roll(v, 1, axis=1)
-        step = nxt - v
-
-        def outward(edge: np.ndarray) -> np.ndarray:
-            return orient[:, None] * (edge[..., 1] * step[..., 0] - edge[..., 0] * step[..., 1])
-
-        leaves = (outward(after) > 1e-12) | (outward(before) > 1e-12)
-        ray = nxt - middle  # the segment middle → next position: where it crosses an edge next to the vertex
-
-        def crossing(start: np.ndarray, edge: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            rel = start - middle
-            denom = ray[..., 0] * edge[..., 1] - ray[..., 1] * edge[..., 0]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = (rel[..., 0] * edge[..., 1] - rel[..., 1] * edge[..., 0]) / denom
-                u = (rel[..., 0] * ray[..., 1] - rel[..., 1] * ray[..., 0]) / denom
-            return (t >= 0.0) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0), middle + t[..., None] * ray
-
-        on_after, x_after = crossing(v, after)
-        on_before, x_before = crossing(np.roll(v, 1, axis=1), before)
-        use_after = leaves & on_after
-        use_before = leaves & ~on_after & on_before
-        top = slots[:-1]
-        top[use_after] = np.stack([v[use_after], nxt[use_after], x_after[use_after]], axis=1)
-        top[use_before] = np.stack([x_before[use_before], nxt[use_before], v[use_before]], axis=1)
-    pieces = shapely.polygons(slots.reshape(m, 3 * k, 2))
-    bad = ~shapely.is_valid(pieces)
-    if bad.any():  # a step too large against the body: its notch left as the outline's
-        pieces[bad] = shapely.polygons(polys[bad])
-    return pieces
-
-
-def unit_swept_areas(
-    params: VehicleParams,
-    columns: dict[str, np.ndarray],
-    mask: np.ndarray | None = None,
-    spacing: float = SWEEP_SPACING,
-) -> dict[str, BaseGeometry]:
-    """Each unit's swept area over the samples of ``mask`` (all by default), by :func:`unit_names`."""
-    outlines = unit_outlines(params, columns)
-    return {unit: swept_area(poly if mask is None else poly[mask], spacing) for unit, poly in outlines.items()}
 
 
 @dataclass(frozen=True)
@@ -301,18 +139,6 @@ def _ring_edges(area: BaseGeometry) -> tuple[np.ndarray, np.ndarray]:
     coords, which = shapely.get_coordinates(rings, return_index=True)
     same = which[1:] == which[:-1]
     return coords[:-1][same], coords[1:][same]
-
-
-def _sweep_edges(kept: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The edges ``a → b`` of the pieces of :func:`_swept_pieces` (each outline's edges and each vertex's step to
-    the next outline), with the value ``(m,)`` of the outline each starts from: the boundary of every piece is
-    made of them, so a line's cut through the swept area ends on them."""
-    polys = np.asarray(kept, dtype=float)
-    k = polys.shape[1]
-    a = [polys.reshape(-1, 2), polys[:-1].reshape(-1, 2)]
-    b = [np.roll(polys, -1, axis=1).reshape(-1, 2), polys[1:].reshape(-1, 2)]
-    at = [np.repeat(values, k), np.repeat(values[:-1], k)]
-    return np.concatenate(a), np.concatenate(b), np.concatenate(at)
 
 
 def _ray_extent(edges: tuple[np.ndarray, np.ndarray], centre: np.ndarray, angles: np.ndarray) -> np.ndarray:
@@ -409,7 +235,7 @@ def lateral_width(
     span
         The arc-length interval whose stations count (all by default).
     spacing
-        Outline spacing (:func:`densify`, :func:`envelope_samples`).
+        Outline spacing (:func:`~.swept_area.densify`, :func:`~.swept_area.envelope_samples`).
     station_spacing
         Distance between stations [m].
 
@@ -431,7 +257,7 @@ def lateral_width(
     at = np.arange(0.0, s[-1] + 0.5 * station_spacing, station_spacing) if s[-1] > 0 else np.zeros(1)
     if span is not None:
         at = at[(at >= span[0]) & (at <= span[1])]
-    dense = [_densify(o, prog, spacing) for o in outlines]
+    dense = [densify_with_values(o, prog, spacing) for o in outlines]
     dense = [(p[envelope_samples(p, spacing)], v[envelope_samples(p, spacing)]) for p, v in dense if len(p)]
     if not dense or not len(at):
         return nan
@@ -450,7 +276,7 @@ def lateral_width(
         behind = max(behind, float(np.max(np.where(along <= 0.0, dist, 0.0))))
         reach = max(reach, float(np.max(dist)))
     ahead, behind, reach = REACH_MARGIN * ahead + 1.0, REACH_MARGIN * behind + 1.0, reach + 1.0
-    edge_a, edge_b, edge_at = (np.concatenate(e) for e in zip(*(_sweep_edges(p, v) for p, v in dense), strict=True))
+    edge_a, edge_b, edge_at = (np.concatenate(e) for e in zip(*(sweep_edges(p, v) for p, v in dense), strict=True))
     chunk_length = max(5.0, 20.0 * station_spacing)
     firsts = np.arange(at[0], at[-1] + 1e-9, chunk_length)
     # A chunk no edge is near has no width (NaN): only those the swept area reaches are measured.
@@ -504,11 +330,6 @@ def _turn_side(reference: np.ndarray, s: np.ndarray, at: np.ndarray) -> np.ndarr
     heading = _heading(reference)
     turning = np.gradient(heading, s) if len(s) > 1 else np.zeros(len(s))
     return np.where(np.interp(at, s, turning) < 0.0, -1.0, 1.0)
-
-
-def combination_swept_area(areas: dict[str, BaseGeometry]) -> BaseGeometry:
-    """The whole combination's swept area: the union of its units' (:func:`unit_swept_areas`)."""
-    return shapely.union_all(list(areas.values()))
 
 
 def turn_centre(centres: np.ndarray) -> tuple[float, float] | None:
