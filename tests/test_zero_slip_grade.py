@@ -12,6 +12,9 @@
   gone with an exact accelerometer (under 1 % of it left), and with a ±0.1 m/s² offset it is the closed form
   ``sagitta·tan θ·δθ`` of the offset's grade error ``δθ`` (within 15 %), about a fifth of it.
 * The grade source without the accelerometer is refused before any work, naming the field (exit 2).
+* Every towed unit's estimator the loop builds takes the grade filter when asked (an A-double's three), and (slow) a
+  steered B-double's rear trailer in a bend on −10 % is where its signals with the wheel speed made horizontal by the
+  true grade put it (within a fifth of the grade's share), away from it without the grade.
 """
 
 from __future__ import annotations
@@ -191,7 +194,7 @@ def test_every_towed_unit_of_a_b_double_takes_the_accelerometers_grade_in_the_lo
     # the accelerometer on, the grade from it: each unit's zero-slip estimator dead-reckons its coupling down the
     # chain from the tractor's wheel speed made horizontal, so the rear trailer's estimate is where the same signals
     # put it with the wheel speed divided by the along-slope factor at the tractor's centre of gravity (the oracle)
-    # within a fifth of the grade's share (measured 0.05 of 17 mm), and away from it without the grade.
+    # within a fifth of the grade's share (measured 0.05 mm of 17 mm), and away from it without the grade.
     from scenarios.run.drive import simulate
     from scenarios.setup.build import build_scenario
     from vehicle_model.terrain import along_slope_factor
