@@ -120,6 +120,13 @@ def estimate(
             "speed_compensated or lateral_acceleration (needs lateral_acceleration_m_s2 in --signals)."
         ),
     ] = "axle_mean",
+    zero_slip_grade: Annotated[
+        str,
+        typer.Option(
+            help="The zero-slip estimate's grade: none (the wheel speed taken as horizontal) or accelerometer "
+            "(needs longitudinal_acceleration_m_s2 in --signals)."
+        ),
+    ] = "none",
     plots: PlotsOption = True,
 ) -> None:
     """VISO-OT (and with --signals the fused and zero-slip estimates) on a recorded stereo sequence: a run directory
@@ -139,7 +146,7 @@ def estimate(
         given = [name for name, value in (("RECORDING", recording), ("--rig", rig), ("--signals", signals)) if value]
         if given:
             raise InputError(f"--rigs names each rig's recording and signals; {', '.join(given)}: not with --rigs")
-        _estimate_rigs(rigs, out, force, refinement, seed, rear_point, folder_poses, plots)
+        _estimate_rigs(rigs, out, force, refinement, seed, rear_point, zero_slip_grade, folder_poses, plots)
         return
     if recording is None or rig is None:
         raise InputError("offtrack estimate needs RECORDING and --rig RIG.yaml, or --rigs RIGS.yaml")
@@ -161,6 +168,7 @@ def estimate(
         refinement=refinement,
         seed=seed,
         rear_point=rear_point,
+        zero_slip_grade=zero_slip_grade,
     )
     run_dir = new_run_dir(out, f"recording-{recording.resolve().name}", force=force)
     with Progress(console=console, transient=True) as bar:
@@ -181,6 +189,7 @@ def _estimate_rigs(
     refinement: int,
     seed: int,
     rear_point: str,
+    zero_slip_grade: str,
     folder_poses: bool,
     plots: bool,
 ) -> None:
@@ -190,7 +199,14 @@ def _estimate_rigs(
     from scenarios.recorded.rigs import estimate_rigs, load_rigs, rigs_lines
     from scenarios.run.results import new_run_dir
 
-    inputs = load_rigs(rigs, refinement=refinement, seed=seed, rear_point=rear_point, use_folder_poses=folder_poses)
+    inputs = load_rigs(
+        rigs,
+        refinement=refinement,
+        seed=seed,
+        rear_point=rear_point,
+        zero_slip_grade=zero_slip_grade,
+        use_folder_poses=folder_poses,
+    )
     run_dir = new_run_dir(out, f"recording-{rigs.resolve().stem}", force=force)
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task(escape(f"estimating on {rigs.name}"), total=None)

@@ -43,7 +43,8 @@ __all__ = [
 ]
 
 SIGNAL_KEYS = ("speed", "yaw_rate", "articulation", "trailer_yaw_rate", "trailer_speed", "lateral_acceleration")
-"""The signals at the rows, by key (:meth:`sensor.recordings.signals.SignalSeries.at`)."""
+"""The signals at the rows, by key (:meth:`sensor.recordings.signals.SignalSeries.at`); where recorded,
+``longitudinal_acceleration`` besides."""
 
 
 @dataclass(frozen=True)
@@ -120,14 +121,19 @@ class _OnSignals:
 
 
 class OfflineZeroSlip(_OnSignals):
-    """Cheng's zero-slip estimate on the signals at the rows, with the tractor's rear point the inputs ask for."""
+    """Cheng's zero-slip estimate on the signals at the rows, with the tractor's rear point and the grade source the
+    inputs ask for (``accelerometer``: the estimator's own grade filter on the recorded longitudinal accelerometer,
+    as a run's ``estimators.zero_slip_grade``)."""
 
     name = "zero_slip"
     columns = ZeroSlip.columns
 
     def __init__(self, context: OfflineContext) -> None:
         super().__init__(context)
-        self.estimator = ZeroSlipEstimator(context.inputs.rig.params, rear_point=context.inputs.rear_point)
+        inputs = context.inputs
+        self.estimator = ZeroSlipEstimator(
+            inputs.rig.params, rear_point=inputs.rear_point, grade=inputs.zero_slip_grade
+        )
         self.value_m: float | None = None
 
     def update(self, row: int, frame: Any, reference: Mapping[str, float]) -> None:
@@ -142,6 +148,8 @@ class OfflineZeroSlip(_OnSignals):
             "tractor_lateral_acceleration": np.array([self.value(row, "lateral_acceleration")]),
             "front_steer": np.array([0.0]),
         }
+        if "longitudinal_acceleration" in self.signals:
+            sample["tractor_longitudinal_acceleration"] = np.array([self.value(row, "longitudinal_acceleration")])
         self.value_m = self.estimator.update(sample, dt)
 
     def record(self) -> Mapping[str, float]:

@@ -94,6 +94,12 @@ _SIGNAL_COLUMNS: tuple[Column, ...] = (
     ),
 )
 _SIGNALS = tuple(column.name for column in _SIGNAL_COLUMNS)
+_LONGITUDINAL_COLUMN = Column(
+    "tractor_longitudinal_acceleration",
+    "m/s²",
+    "the tractor's longitudinal accelerometer, the recorded signal at the row's time (only where recorded)",
+    **_SIGNAL,
+)
 _VISO_OT = {"role": "diagnostic", "vehicle_unit": 2, "estimator": "viso_ot"}
 _REFERENCE = {"role": "state", "vehicle_unit": 2}
 _RECORDING_COLUMNS: tuple[Column, ...] = (
@@ -180,6 +186,8 @@ def _columns(inputs: EstimateInputs, offline: list[OfflineEstimator]) -> list[Co
     own = [c for estimator in first for c in estimator.columns]
     if inputs.signals is not None:
         own += _SIGNAL_COLUMNS
+        if inputs.signals.longitudinal_acceleration is not None:
+            own.append(_LONGITUDINAL_COLUMN)
     own += [c for estimator in others for c in estimator.columns]
     return [declared[name] for name in names] + own
 
@@ -313,6 +321,8 @@ def estimate_recording(
             reference = {name: float(values[row]) for name, values in truth.items()}
             if signals is not None:
                 record.update({c: float(signals[k][row]) for k, c in zip(SIGNAL_KEYS, _SIGNALS, strict=True)})
+                if "longitudinal_acceleration" in signals:
+                    record[_LONGITUDINAL_COLUMN.name] = float(signals["longitudinal_acceleration"][row])
             for estimator in offline:
                 estimator.update(row, frame, reference)
                 record.update(estimator.record())

@@ -24,6 +24,7 @@ from typing import Any, get_args
 
 import numpy as np
 
+from controller.zero_slip import GradeSource
 from sensor.calibration import CalibrationResult
 from sensor.recordings.bag import BagPair, is_bag
 from sensor.recordings.kitti import KittiFolder, RectifiedCamera, read_kitti_calib
@@ -78,6 +79,9 @@ class EstimateInputs:
         (:data:`~vehicle_model.kinematics.RearPoint`).
     record : dict
         What was given, for ``recording.yaml``.
+    zero_slip_grade : str
+        The zero-slip estimate's grade (:data:`controller.zero_slip.GradeSource`): ``none``, or ``accelerometer``
+        from the signals' longitudinal accelerometer.
     """
 
     recording: StereoRecording
@@ -91,6 +95,7 @@ class EstimateInputs:
     seed: int
     rear_point: RearPoint
     record: dict[str, Any]
+    zero_slip_grade: GradeSource = "none"
 
 
 def open_recording(
@@ -258,6 +263,7 @@ def resolve_inputs(
     refinement: int = 2,
     seed: int = 0,
     rear_point: str = "axle_mean",
+    zero_slip_grade: str = "none",
 ) -> EstimateInputs:
     """Everything ``offtrack estimate`` is given, opened and checked (module notes); nothing decoded yet.
 
@@ -265,7 +271,9 @@ def resolve_inputs(
     and ``seed`` its RANSAC's seed (a run's ``seed``, 0 by default): with both as a run had them, the odometry
     repeats the run's. ``rear_point`` is the tractor's rear point of the zero-slip and fused estimators
     (:data:`~vehicle_model.kinematics.RearPoint`; a run's ``estimators.zero_slip_rear_point`` and
-    ``fusion.kinematic_rear_point``); ``lateral_acceleration`` needs the signals' accelerometer column. ``rig`` is a
+    ``fusion.kinematic_rear_point``); ``lateral_acceleration`` needs the signals' accelerometer column.
+    ``zero_slip_grade`` ``accelerometer`` (a run's ``estimators.zero_slip_grade``) needs, beside a rig on the first
+    towed unit (the one the zero-slip estimate runs for), the signals' longitudinal accelerometer column. ``rig`` is a
     rig file or a rig already read (one of a rigs file, :mod:`.rigs`).
 
     Raises
@@ -280,6 +288,8 @@ def resolve_inputs(
         raise InputError(f"--seed {seed!r}: allowed: an integer ≥ 0")
     if rear_point not in get_args(RearPoint):
         raise InputError(f"--rear-point {rear_point!r}: allowed: {', '.join(get_args(RearPoint))}")
+    if zero_slip_grade not in get_args(GradeSource):
+        raise InputError(f"--zero-slip-grade {zero_slip_grade!r}: allowed: {', '.join(get_args(GradeSource))}")
     rec = open_recording(
         Path(recording),
         right_video=right_video,
@@ -301,6 +311,15 @@ def resolve_inputs(
         raise InputError(
             "--rear-point lateral_acceleration needs the tractor's accelerometer: a --signals CSV with a "
             "lateral_acceleration_m_s2 column"
+        )
+    if (
+        zero_slip_grade == "accelerometer"
+        and rig_.unit == 1
+        and (series is None or series.longitudinal_acceleration is None)
+    ):
+        raise InputError(
+            "--zero-slip-grade accelerometer needs the tractor's longitudinal accelerometer: a --signals CSV with a "
+            "longitudinal_acceleration_m_s2 column"
         )
     poses, offtracking, reference_source = _reference(
         rec, reference, reference_format, reference_offtracking, use_folder_poses
@@ -325,6 +344,7 @@ def resolve_inputs(
         "refinement": refinement,
         "seed": seed,
         "rear_point": rear_point,
+        "zero_slip_grade": zero_slip_grade,
     }
     return EstimateInputs(
         recording=rec,
@@ -338,4 +358,5 @@ def resolve_inputs(
         seed=seed,
         rear_point=rear_point,  # checked above
         record=record,
+        zero_slip_grade=zero_slip_grade,  # checked above
     )

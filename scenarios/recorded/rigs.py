@@ -127,7 +127,7 @@ def _span(units: list[EstimateInputs], source: str) -> tuple[float, float]:
 
 def load_rigs(path: Path, **options: Any) -> RigsInputs:
     """Read and check a rigs file (module notes); ``options`` go to every rig's :func:`.inputs.resolve_inputs`
-    (``refinement``, ``seed``, ``rear_point``, ``use_folder_poses``).
+    (``refinement``, ``seed``, ``rear_point``, ``zero_slip_grade``, ``use_folder_poses``).
 
     Raises
     ------

@@ -2,20 +2,24 @@
 
 Columns (a header line, units in the names; degrees at this edge, SI inside):
 
-============================== ==========================================================================
-``time_s``                     time on the recording's clock [s], strictly increasing
-``speed_m_s``                  the tractor's wheel speed [m/s]
-``yaw_rate_deg_s``             the tractor's yaw rate [°/s] (or ``yaw_rate_rad_s``)
-``articulation_deg``           articulation Γ = ψ1 − ψ2 [°] (or ``articulation_rad``; positive in a left turn)
-``trailer_yaw_rate_deg_s``     optional: the trailer's gyro [°/s] (or ``_rad_s``)
-``trailer_speed_m_s``          optional: a wheel speed on an unsteered trailer axle [m/s]
-``lateral_acceleration_m_s2``  optional: the tractor's lateral accelerometer (specific force, left positive)
-                               [m/s²], for the ``lateral_acceleration`` rear point
-                               (:data:`vehicle_model.kinematics.RearPoint`)
-``articulation2_deg``, …       optional: the articulation of the couplings behind the first, Γ_k = ψ_k − ψ_{k+1}
-                               [°] (or ``_rad``; ``articulation2`` the coupling of the second towed unit, up to
-                               ``articulation4``), for a rig on a unit behind the first
-============================== ==========================================================================
+=================================== ==============================================================================
+``time_s``                          time on the recording's clock [s], strictly increasing
+``speed_m_s``                       the tractor's wheel speed [m/s]
+``yaw_rate_deg_s``                  the tractor's yaw rate [°/s] (or ``yaw_rate_rad_s``)
+``articulation_deg``                articulation Γ = ψ1 − ψ2 [°] (or ``articulation_rad``; positive in a left turn)
+``trailer_yaw_rate_deg_s``          optional: the trailer's gyro [°/s] (or ``_rad_s``)
+``trailer_speed_m_s``               optional: a wheel speed on an unsteered trailer axle [m/s]
+``lateral_acceleration_m_s2``       optional: the tractor's lateral accelerometer (specific force, left positive)
+                                    [m/s²], for the ``lateral_acceleration`` rear point
+                                    (:data:`vehicle_model.kinematics.RearPoint`)
+``longitudinal_acceleration_m_s2``  optional: the tractor's longitudinal accelerometer (specific force along its
+                                    x axis, ``+g·sin θ`` up a grade) [m/s²] (or
+                                    ``tractor_longitudinal_acceleration_m_s2``), for the zero-slip estimate's grade
+                                    (``--zero-slip-grade accelerometer``, :mod:`controller.grade_estimate`)
+``articulation2_deg``, …            optional: the articulation of the couplings behind the first, Γ_k = ψ_k − ψ_{k+1}
+                                    [°] (or ``_rad``; ``articulation2`` the coupling of the second towed unit, up to
+                                    ``articulation4``), for a rig on a unit behind the first
+=================================== ==============================================================================
 
 The signals beside a rig on towed unit ``k`` behind the first (``offtrack estimate --rigs``) are that unit's: the
 tractor's three, the articulations ``Γ_1 … Γ_k`` of every coupling down to the unit's own, and the unit's own gyro
@@ -52,6 +56,7 @@ SIGNAL_COLUMNS = {
     "trailer_yaw_rate": ("trailer_yaw_rate_deg_s", "trailer_yaw_rate_rad_s"),
     "trailer_speed": ("trailer_speed_m_s",),
     "lateral_acceleration": ("lateral_acceleration_m_s2",),
+    "longitudinal_acceleration": ("longitudinal_acceleration_m_s2", "tractor_longitudinal_acceleration_m_s2"),
     **{f"articulation{k}": (f"articulation{k}_deg", f"articulation{k}_rad") for k in range(2, 5)},
 }
 """Each signal and the column names it may have (the first unit given is the usual one)."""
@@ -64,12 +69,13 @@ SIGNAL_LIMITS = {
     "trailer_yaw_rate": STATE_LIMITS["r2"],
     "trailer_speed": STATE_LIMITS["u"],
     "lateral_acceleration": 50.0,
+    "longitudinal_acceleration": 50.0,
     **{f"articulation{k}": STATE_LIMITS["gamma"] for k in range(2, 5)},
 }
 """Largest magnitude of each signal, SI: the vehicle model's state limits
 (:data:`vehicle_model.simulator.STATE_LIMITS`: speed, yaw rates, articulation) and 50 m/s² (5 g, an
-accelerometer's full scale, several times any tyre's grip) for the lateral acceleration. A value beyond is a column
-in other units or a corrupt file, refused before any work."""
+accelerometer's full scale, several times any tyre's grip) for the lateral and longitudinal accelerations. A value
+beyond is a column in other units or a corrupt file, refused before any work."""
 
 
 @dataclass(frozen=True)
@@ -90,6 +96,8 @@ class SignalSeries:
         The file.
     rear_articulations : tuple of numpy.ndarray
         ``Γ_2, Γ_3, …`` [rad] of the couplings behind the first, as far as recorded without a gap.
+    longitudinal_acceleration : numpy.ndarray or None
+        The tractor's longitudinal specific force [m/s²], when recorded.
     """
 
     time: np.ndarray
@@ -101,11 +109,13 @@ class SignalSeries:
     lateral_acceleration: np.ndarray | None
     source: str
     rear_articulations: tuple[np.ndarray, ...] = ()
+    longitudinal_acceleration: np.ndarray | None = None
 
     def at(self, times: np.ndarray, params: VehicleParams) -> dict[str, np.ndarray]:
         """The signals at ``times`` (linear interpolation; NaN outside the recorded span): ``speed``, ``yaw_rate``,
         ``articulation``, ``trailer_yaw_rate`` and ``trailer_speed`` (derived as the module notes say when not
-        recorded), ``lateral_acceleration`` (NaN when not recorded) and ``articulation2``, … as recorded."""
+        recorded), ``lateral_acceleration`` (NaN when not recorded), ``longitudinal_acceleration`` and
+        ``articulation2``, … as recorded."""
         times = np.asarray(times, dtype=float)
         inside = (times >= self.time[0]) & (times <= self.time[-1])
 
@@ -127,6 +137,8 @@ class SignalSeries:
             out["trailer_speed"] = np.cos(gamma) * u1 - np.sin(gamma) * (lateral_per_rate * r1)
         recorded = self.lateral_acceleration
         out["lateral_acceleration"] = sample(recorded) if recorded is not None else np.full(times.shape, np.nan)
+        if self.longitudinal_acceleration is not None:
+            out["longitudinal_acceleration"] = sample(self.longitudinal_acceleration)
         for k, values in enumerate(self.rear_articulations, 2):
             out[f"articulation{k}"] = sample(values)
         return out
@@ -200,4 +212,5 @@ def read_signals(path: Path) -> SignalSeries:
         tuple(
             data[f"articulation{k}"] for k in range(2, 5) if all(f"articulation{j}" in data for j in range(2, k + 1))
         ),
+        data.get("longitudinal_acceleration"),
     )
