@@ -30,17 +30,37 @@ hold takes the kingpin velocity of the tractor's lateral-accelerometer rear poin
 (:func:`accelerometer_coupling_velocity`): the equivalent rear point moving sideways at ``−K·u·f_y``, the slip the
 measured lateral specific force ``f_y`` asks of the rear tyres, a cross slope's share of gravity included
 (docs/vehicle_dynamics.md §2.3, §6.7). That crab of the kingpin turns ``tan β_k`` and with it every ``β_j``.
+
+The accelerometer's crab is the linear tyres'; a tractor whose rear tyres slide at their friction crabs further. With
+``kingpin = "wheel_speeds"`` the hold measures the crab (:func:`wheel_speed_coupling_velocity`): the trailer is one
+rigid body, so every point of its centre line, the kingpin's included, moves along it at the speed its unsteered
+axle's wheels report (``trailer_wheel_speed``, free-rolling). The kingpin's velocity in the tractor's axes,
+``(u, v_k1y)`` with ``u`` the tractor's wheel speed, turned by the articulation ``Γ`` into the trailer's axes, has
+that forward component (vehicle_model/kinematics.py, ``trailer_axle_speed``)::
+
+    u2 = cos Γ·u − sin Γ·v_k1y   ⇒   v_k1y = (cos Γ·u − u2)/sin Γ
+
+which needs no tyre, friction or slope: it is the kingpin's lateral velocity whatever the tractor's tyres do. It is
+ill-conditioned near a straight articulation (a speed error ``ε`` gives ``ε/sin Γ`` of lateral velocity), so below
+:data:`MIN_ARTICULATION` the hold takes the accelerometer's kingpin instead.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from vehicle_model.errors import InputError
 from vehicle_model.kinematics import coupling_velocity, tractor_kingpin_velocity
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import axle_directions_above_speed
+
+MIN_ARTICULATION = math.radians(5.0)
+"""[rad] The articulation below which the wheel speeds do not judge the kingpin's lateral velocity: there a speed
+error reaches it more than ``1/sin Γ`` ≈ 11 times over (:func:`wheel_speed_kingpin_lateral_velocity`)."""
 
 
 def accelerometer_coupling_velocity(
@@ -67,6 +87,80 @@ def accelerometer_coupling_velocity(
         ``lateral_acceleration`` is not finite (no accelerometer reading).
     """
     kingpin = tractor_kingpin_velocity(params, "lateral_acceleration", state.u, state.r1, lateral_acceleration)
+    if unit == 1:
+        return kingpin
+    return coupling_velocity(params, unit, kingpin, state.articulations, state.towed_yaw_rates)
+
+
+def wheel_speed_kingpin_lateral_velocity(
+    articulation: float, tractor_speed: float, trailer_speed: float
+) -> float | None:
+    """The kingpin's lateral velocity ``v_k1y`` [m/s] in the tractor's axes from the two wheel speeds, or ``None``.
+
+    ``v_k1y = (cos Γ·u − u2)/sin Γ`` (module notes): the trailer's forward speed ``u2`` is the kingpin's velocity
+    ``(u, v_k1y)`` turned by the articulation ``Γ``. ``None`` when ``|Γ|`` is below :data:`MIN_ARTICULATION`.
+
+    Parameters
+    ----------
+    articulation
+        ``Γ = ψ1 − ψ2`` [rad] (signal ``articulation``).
+    tractor_speed
+        ``u`` [m/s], the tractor's forward speed (signal ``wheel_speed``).
+    trailer_speed
+        ``u2`` [m/s], the first towed unit's speed along its centre line (signal ``trailer_wheel_speed``).
+
+    Raises
+    ------
+    InputError
+        A wheel speed is not finite (no reading).
+    """
+    if not (math.isfinite(tractor_speed) and math.isfinite(trailer_speed)):
+        raise InputError(
+            f"the wheel speeds are {tractor_speed!r} and {trailer_speed!r} m/s; friction_hold_kingpin 'wheel_speeds' "
+            "needs signals wheel_speed and trailer_wheel_speed"
+        )
+    if abs(articulation) < MIN_ARTICULATION:
+        return None
+    return (math.cos(articulation) * tractor_speed - trailer_speed) / math.sin(articulation)
+
+
+def wheel_speed_coupling_velocity(
+    params: VehicleParams,
+    unit: int,
+    state: VehicleState,
+    wheel_speeds: tuple[float, float],
+    lateral_acceleration: float,
+) -> tuple[float, float]:
+    """Velocity ``(v_x, v_y)`` [m/s] of the steered unit's coupling in the axes of the unit ahead, from the kingpin
+    velocity the wheel speeds measure (:func:`wheel_speed_kingpin_lateral_velocity`, ``v_x = u``) carried down the
+    chain (:func:`~vehicle_model.kinematics.coupling_velocity`); below :data:`MIN_ARTICULATION`, the accelerometer's
+    (:func:`accelerometer_coupling_velocity`).
+
+    Parameters
+    ----------
+    params
+        The combination.
+    unit
+        The steered towed unit (1 the first).
+    state
+        The state the controller reads (``u``, ``r1``, ``Γ``; the articulations and yaw rates of the units ahead).
+    wheel_speeds
+        ``(u, u2)`` [m/s]: the tractor's wheel speed and the first towed unit's (signals ``wheel_speed``,
+        ``trailer_wheel_speed``).
+    lateral_acceleration
+        The tractor's lateral specific force ``f_y`` [m/s²], for the accelerometer's kingpin below
+        :data:`MIN_ARTICULATION`.
+
+    Raises
+    ------
+    InputError
+        A wheel speed is not finite, or the accelerometer's reading is not and the articulation is below
+        :data:`MIN_ARTICULATION`.
+    """
+    lateral = wheel_speed_kingpin_lateral_velocity(state.gamma, *wheel_speeds)
+    if lateral is None:
+        return accelerometer_coupling_velocity(params, unit, state, lateral_acceleration)
+    kingpin = (state.u, lateral)
     if unit == 1:
         return kingpin
     return coupling_velocity(params, unit, kingpin, state.articulations, state.towed_yaw_rates)

@@ -148,7 +148,12 @@ from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
 from .feedforward_slip import SlipFeedforward
-from .friction_hold import accelerometer_coupling_velocity, deepens_slip, steered_slip_angles
+from .friction_hold import (
+    accelerometer_coupling_velocity,
+    deepens_slip,
+    steered_slip_angles,
+    wheel_speed_coupling_velocity,
+)
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
 from .preview import chord_law, interpolated_chord_end, preview_tangent, straight_chord_end
 from .reach_rules import is_outswing, outswing_scale, window_holding
@@ -346,7 +351,11 @@ class TrailerSteeringController:
     # ------------------------------------------------------------------ the law
 
     def __call__(
-        self, state: VehicleState, estimate: OfftrackingEstimate | None, lateral_acceleration: float = math.nan
+        self,
+        state: VehicleState,
+        estimate: OfftrackingEstimate | None,
+        lateral_acceleration: float = math.nan,
+        wheel_speeds: tuple[float, float] = (math.nan, math.nan),
     ) -> np.ndarray:
         """Steer of every steerable trailer axle [rad] for the next control period.
 
@@ -360,7 +369,12 @@ class TrailerSteeringController:
             ``config.uncertain_feedback = "shrink"`` is shrunk toward zero and the integrator frozen.
         lateral_acceleration
             The tractor's lateral specific force [m/s²] (signal ``tractor_lateral_acceleration``); read only by the
-            friction hold with ``config.friction_hold_kingpin = "lateral_acceleration"``, which refuses a NaN.
+            friction hold with ``config.friction_hold_kingpin = "lateral_acceleration"``, which refuses a NaN (and
+            with ``"wheel_speeds"`` near a straight articulation).
+        wheel_speeds
+            The tractor's and the first towed unit's wheel speeds [m/s] (signals ``wheel_speed``,
+            ``trailer_wheel_speed``); read only by the friction hold with ``config.friction_hold_kingpin =
+            "wheel_speeds"``, which refuses a NaN.
 
         Returns
         -------
@@ -446,6 +460,10 @@ class TrailerSteeringController:
             hold_vx, hold_vy = vx, vy
             if cfg.friction_hold_kingpin == "lateral_acceleration":  # the kingpin velocity that sees the crab
                 hold_vx, hold_vy = accelerometer_coupling_velocity(self.params, self.unit, state, lateral_acceleration)
+            elif cfg.friction_hold_kingpin == "wheel_speeds":  # the crab the wheel speeds measure
+                hold_vx, hold_vy = wheel_speed_coupling_velocity(
+                    self.params, self.unit, state, wheel_speeds, lateral_acceleration
+                )
             slips = steered_slip_angles(
                 self._steered_distances, self.output.commands, gamma, hold_vx, hold_vy, rate, cfg.fade_speeds[1]
             )
