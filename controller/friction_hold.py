@@ -42,7 +42,11 @@ that forward component (vehicle_model/kinematics.py, ``trailer_axle_speed``)::
 
 which needs no tyre, friction or slope: it is the kingpin's lateral velocity whatever the tractor's tyres do. It is
 ill-conditioned near a straight articulation (a speed error ``ε`` gives ``ε/sin Γ`` of lateral velocity), so below
-:data:`MIN_ARTICULATION` the hold takes the accelerometer's kingpin instead.
+:data:`MIN_ARTICULATION` the hold takes the accelerometer's kingpin instead. A slip so measured is the axles'
+whatever its cause, and at walking pace a tight turn makes one without friction (axles just leaving their lock, the
+fixed axle's scrub), so with the wheel speeds the axles are judged at their friction only while the tractor's
+accelerometer reads a lateral specific force of at least :data:`FRICTION_SPECIFIC_FORCE` (:func:`asks_for_friction`):
+tyres at their friction carry ``μ·g``, and half the lowest friction's is the least a slide at it asks for.
 """
 
 from __future__ import annotations
@@ -53,10 +57,14 @@ import numpy as np
 
 from vehicle_model.errors import InputError
 from vehicle_model.kinematics import coupling_velocity, tractor_kingpin_velocity
-from vehicle_model.parameters import VehicleParams
+from vehicle_model.parameters import GRAVITY, VehicleParams
 from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import axle_directions_above_speed
+
+FRICTION_SPECIFIC_FORCE = 0.5 * 0.1 * GRAVITY
+"""[m/s²] The lateral specific force below which the wheel speeds' slip is not judged at friction: half of ``μ·g`` on
+ice (``μ`` 0.1, the lowest friction the controller is set up for, whose tyre's force peak sets the hold's slip)."""
 
 MIN_ARTICULATION = math.radians(5.0)
 """[rad] The articulation below which the wheel speeds do not judge the kingpin's lateral velocity: there a speed
@@ -164,6 +172,23 @@ def wheel_speed_coupling_velocity(
     if unit == 1:
         return kingpin
     return coupling_velocity(params, unit, kingpin, state.articulations, state.towed_yaw_rates)
+
+
+def asks_for_friction(lateral_acceleration: float) -> bool:
+    """Whether the tractor's lateral specific force ``f_y`` [m/s²] is one a slide at the tyres' friction needs,
+    ``|f_y|`` ≥ :data:`FRICTION_SPECIFIC_FORCE` (module notes).
+
+    Raises
+    ------
+    InputError
+        ``lateral_acceleration`` is not finite (no accelerometer reading).
+    """
+    if not math.isfinite(lateral_acceleration):
+        raise InputError(
+            f"the tractor's lateral acceleration is {lateral_acceleration!r}; friction_hold_kingpin 'wheel_speeds' "
+            "needs its accelerometer (signal tractor_lateral_acceleration)"
+        )
+    return abs(lateral_acceleration) >= FRICTION_SPECIFIC_FORCE
 
 
 def steered_slip_angles(

@@ -150,6 +150,7 @@ from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, ta
 from .feedforward_slip import SlipFeedforward
 from .friction_hold import (
     accelerometer_coupling_velocity,
+    asks_for_friction,
     deepens_slip,
     steered_slip_angles,
     wheel_speed_coupling_velocity,
@@ -370,7 +371,7 @@ class TrailerSteeringController:
         lateral_acceleration
             The tractor's lateral specific force [m/s²] (signal ``tractor_lateral_acceleration``); read only by the
             friction hold with ``config.friction_hold_kingpin = "lateral_acceleration"``, which refuses a NaN (and
-            with ``"wheel_speeds"`` near a straight articulation).
+            with ``"wheel_speeds"``, which judges the slip only where it asks for the tyres' friction).
         wheel_speeds
             The tractor's and the first towed unit's wheel speeds [m/s] (signals ``wheel_speed``,
             ``trailer_wheel_speed``); read only by the friction hold with ``config.friction_hold_kingpin =
@@ -457,16 +458,18 @@ class TrailerSteeringController:
             feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         elif cfg.friction_hold_slip is not None and not np.any(self.output.saturated):  # nor push an axle at its
             # friction further into its slip (at the lock the slip is the lock's geometry's, not the friction's)
-            hold_vx, hold_vy = vx, vy
+            hold_vx, hold_vy, judged = vx, vy, True
             if cfg.friction_hold_kingpin == "lateral_acceleration":  # the kingpin velocity that sees the crab
                 hold_vx, hold_vy = accelerometer_coupling_velocity(self.params, self.unit, state, lateral_acceleration)
-            elif cfg.friction_hold_kingpin == "wheel_speeds":  # the crab the wheel speeds measure
-                hold_vx, hold_vy = wheel_speed_coupling_velocity(
+            elif cfg.friction_hold_kingpin == "wheel_speeds":  # the crab the wheel speeds measure, where a slide
+                hold_vx, hold_vy = wheel_speed_coupling_velocity(  # at the friction is asked for
                     self.params, self.unit, state, wheel_speeds, lateral_acceleration
                 )
+                judged = asks_for_friction(lateral_acceleration)
             slips = steered_slip_angles(
                 self._steered_distances, self.output.commands, gamma, hold_vx, hold_vy, rate, cfg.fade_speeds[1]
             )
+            slips = slips if judged else None
             if deepens_slip(slips, cfg.friction_hold_slip, push):
                 integral_new = self.integral
                 feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)

@@ -236,8 +236,9 @@ class PathFollowingConfig(Settings):
         tractor's crab (:func:`~controller.friction_hold.accelerometer_coupling_velocity`; it needs the tractor's
         lateral specific force on every call); ``wheel_speeds``, the kingpin's lateral velocity the trailer's wheel
         speed against the tractor's measures through the articulation, which sees the tractor's crab at its friction
-        too (:func:`~controller.friction_hold.wheel_speed_coupling_velocity`; it needs both wheel speeds, and the
-        lateral specific force near a straight articulation). Only the hold uses it.
+        too (:func:`~controller.friction_hold.wheel_speed_coupling_velocity`; it needs both wheel speeds and the
+        lateral specific force, below half the ice's ``μ·g`` of which the slip is not judged at friction). Only the
+        hold uses it.
     """
 
     gains: PathFollowingGains | None = None

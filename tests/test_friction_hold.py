@@ -3,7 +3,8 @@ and a stated yaw-rate deficit at it; only a push deeper into that slip is held; 
 a threshold out of range is refused naming the field; the accelerometer's kingpin option turns a stated crab into a
 stated slip change, is unchanged when not chosen, and a bad option is refused naming the field; the wheel speeds'
 kingpin measures a stated crab from the trailer's wheel speed and turns it into a stated slip, falls back to the
-accelerometer's near a straight articulation, refuses a missing wheel speed and is unchanged when not chosen."""
+accelerometer's near a straight articulation, judges no slip at friction below the lateral specific force a slide at
+the ice's friction asks for, refuses a missing wheel speed or accelerometer and is unchanged when not chosen."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import numpy as np
 import pytest
 
 from controller.friction_hold import (
+    FRICTION_SPECIFIC_FORCE,
     MIN_ARTICULATION,
     accelerometer_coupling_velocity,
     deepens_slip,
@@ -216,9 +218,12 @@ def test_near_a_straight_articulation_the_accelerometer_judges_and_a_missing_whe
         wheel_speed_kingpin_lateral_velocity(0.2, 5.0, math.nan)
 
 
-def articulated(speeds: tuple[float, float], config: PathFollowingConfig) -> TrailerSteeringController:
+def articulated(
+    speeds: tuple[float, float], config: PathFollowingConfig, lateral_acceleration: float = 1.0
+) -> TrailerSteeringController:
     """2 s articulated 10° with no yaw, the trailer's gyro at the rate that rolls its steered axles on the zero-slip
-    kingpin, a constant 5 cm error fed back and the wheel speeds at ``speeds``."""
+    kingpin, a constant 5 cm error fed back, the wheel speeds at ``speeds`` and the tractor's accelerometer at
+    ``lateral_acceleration`` [m/s²]."""
     state, _ = crabbing(math.radians(10.0), 0.0)
     params = lst_laden()
     controller = TrailerSteeringController(params, config)
@@ -226,7 +231,9 @@ def articulated(speeds: tuple[float, float], config: PathFollowingConfig) -> Tra
     rolling = 5.0 * math.sin(math.radians(10.0)) / float(np.mean(distances))  # tan β_j ≈ 0 at the mean distance
     state = dataclasses.replace(state, r2=rolling)
     for k in range(100):
-        controller(dataclasses.replace(state, time=0.02 * k), OfftrackingEstimate.of(0.05), 0.0, speeds)
+        controller(
+            dataclasses.replace(state, time=0.02 * k), OfftrackingEstimate.of(0.05), lateral_acceleration, speeds
+        )
     return controller
 
 
@@ -239,8 +246,15 @@ def test_the_wheel_speeds_kingpin_holds_a_measured_crab_and_off_is_unchanged():
     wheels = articulated(crabbed, PathFollowingConfig(**hold, friction_hold_kingpin="wheel_speeds"))
     assert default.integral == unread.integral > 0.05 * 5.0 * 0.5  # 0.05 m over more than half the 10 m driven
     assert wheels.integral == 0.0  # never grown from zero
+    # The same slip with the accelerometer below half the ice's μ·g (0.49 m/s²) is a slip without friction: not held.
+    config = PathFollowingConfig(**hold, friction_hold_kingpin="wheel_speeds")
+    assert FRICTION_SPECIFIC_FORCE == pytest.approx(0.5 * 0.1 * 9.81, abs=0.01)
+    calm = articulated(crabbed, config, 0.99 * FRICTION_SPECIFIC_FORCE)
+    assert calm.integral == articulated(crabbed, PathFollowingConfig(max_slip_angle=None)).integral  # no hold
     with pytest.raises(InputError, match="wheel_speed"):
-        articulated((math.nan, math.nan), PathFollowingConfig(**hold, friction_hold_kingpin="wheel_speeds"))
+        articulated((math.nan, math.nan), config)
+    with pytest.raises(InputError, match="tractor_lateral_acceleration"):
+        articulated(crabbed, config, math.nan)
 
 
 def test_the_wheel_speeds_option_reaches_the_controller():
