@@ -42,11 +42,15 @@ that forward component (vehicle_model/kinematics.py, ``trailer_axle_speed``)::
 
 which needs no tyre, friction or slope: it is the kingpin's lateral velocity whatever the tractor's tyres do. It is
 ill-conditioned near a straight articulation (a speed error ``ε`` gives ``ε/sin Γ`` of lateral velocity), so below
-:data:`MIN_ARTICULATION` the hold takes the accelerometer's kingpin instead. A slip so measured is the axles'
-whatever its cause, and at walking pace a tight turn makes one without friction (axles just leaving their lock, the
-fixed axle's scrub), so with the wheel speeds the axles are judged at their friction only while the tractor's
-accelerometer reads a lateral specific force of at least :data:`FRICTION_SPECIFIC_FORCE` (:func:`asks_for_friction`):
-tyres at their friction carry ``μ·g``, and half the lowest friction's is the least a slide at it asks for.
+:data:`MIN_ARTICULATION` the hold takes the accelerometer's kingpin instead, and the controller low-passes the lateral
+velocity (:class:`WheelSpeedKingpin`, time constant :data:`WHEEL_SPEED_TIME_CONSTANT`): the wheel speeds' white
+noise reaches it ``1/sin Γ`` times over, while a slide at the friction builds over seconds.
+
+A slip so measured is the axles' whatever its cause, and at walking pace a tight turn makes one without friction
+(axles just leaving their lock, the fixed axle's scrub), so with the wheel speeds the axles are judged at their
+friction only while the tractor's accelerometer reads a lateral specific force of at least
+:data:`FRICTION_SPECIFIC_FORCE` (:func:`asks_for_friction`): tyres at their friction carry ``μ·g``, and half the
+lowest friction's is the least a slide at it asks for.
 """
 
 from __future__ import annotations
@@ -65,6 +69,9 @@ from .axle_steer_distribution import axle_directions_above_speed
 FRICTION_SPECIFIC_FORCE = 0.5 * 0.1 * GRAVITY
 """[m/s²] The lateral specific force below which the wheel speeds' slip is not judged at friction: half of ``μ·g`` on
 ice (``μ`` 0.1, the lowest friction the controller is set up for, whose tyre's force peak sets the hold's slip)."""
+
+WHEEL_SPEED_TIME_CONSTANT = 0.25
+"""[s] Time constant of :class:`WheelSpeedKingpin`'s first-order low-pass."""
 
 MIN_ARTICULATION = math.radians(5.0)
 """[rad] The articulation below which the wheel speeds do not judge the kingpin's lateral velocity: there a speed
@@ -165,13 +172,61 @@ def wheel_speed_coupling_velocity(
         A wheel speed is not finite, or the accelerometer's reading is not and the articulation is below
         :data:`MIN_ARTICULATION`.
     """
-    lateral = wheel_speed_kingpin_lateral_velocity(state.gamma, *wheel_speeds)
-    if lateral is None:
-        return accelerometer_coupling_velocity(params, unit, state, lateral_acceleration)
-    kingpin = (state.u, lateral)
+    kingpin = wheel_speed_kingpin_velocity(params, state, wheel_speeds, lateral_acceleration)
     if unit == 1:
         return kingpin
     return coupling_velocity(params, unit, kingpin, state.articulations, state.towed_yaw_rates)
+
+
+def wheel_speed_kingpin_velocity(
+    params: VehicleParams, state: VehicleState, wheel_speeds: tuple[float, float], lateral_acceleration: float
+) -> tuple[float, float]:
+    """The kingpin's velocity ``(u, v_k1y)`` [m/s] in the tractor's axes from the wheel speeds, or below
+    :data:`MIN_ARTICULATION` the accelerometer's (:func:`wheel_speed_coupling_velocity` for the parameters)."""
+    lateral = wheel_speed_kingpin_lateral_velocity(state.gamma, *wheel_speeds)
+    if lateral is None:
+        return tractor_kingpin_velocity(params, "lateral_acceleration", state.u, state.r1, lateral_acceleration)
+    return state.u, lateral
+
+
+class WheelSpeedKingpin:
+    """:func:`wheel_speed_coupling_velocity` with the kingpin's lateral velocity low-passed, first order, time
+    constant ``time_constant`` [s] (default :data:`WHEEL_SPEED_TIME_CONSTANT`); the first reading starts it.
+
+    Parameters
+    ----------
+    params
+        The combination.
+    unit
+        The steered towed unit (1 the first).
+    time_constant
+        ``τ`` [s] (> 0).
+    """
+
+    def __init__(self, params: VehicleParams, unit: int = 1, time_constant: float = WHEEL_SPEED_TIME_CONSTANT) -> None:
+        self.params = params
+        self.unit = unit
+        self.time_constant = time_constant
+        self.lateral: float | None = None
+
+    def reset(self) -> None:
+        """No reading yet."""
+        self.lateral = None
+
+    def update(
+        self, state: VehicleState, wheel_speeds: tuple[float, float], lateral_acceleration: float, dt: float
+    ) -> tuple[float, float]:
+        """Take this tick's reading, ``dt`` [s] after the last; the steered unit's coupling velocity ``(v_x, v_y)``
+        [m/s] (arguments and exceptions as :func:`wheel_speed_coupling_velocity`)."""
+        vx, vy = wheel_speed_kingpin_velocity(self.params, state, wheel_speeds, lateral_acceleration)
+        if self.lateral is None:
+            self.lateral = vy
+        else:
+            self.lateral += min(dt / self.time_constant, 1.0) * (vy - self.lateral)
+        kingpin = (vx, self.lateral)
+        if self.unit == 1:
+            return kingpin
+        return coupling_velocity(self.params, self.unit, kingpin, state.articulations, state.towed_yaw_rates)
 
 
 def asks_for_friction(lateral_acceleration: float) -> bool:

@@ -149,11 +149,11 @@ from vehicle_model.simulator import VehicleState
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
 from .feedforward_slip import SlipFeedforward
 from .friction_hold import (
+    WheelSpeedKingpin,
     accelerometer_coupling_velocity,
     asks_for_friction,
     deepens_slip,
     steered_slip_angles,
-    wheel_speed_coupling_velocity,
 )
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
 from .preview import chord_law, interpolated_chord_end, preview_tangent, straight_chord_end
@@ -275,6 +275,7 @@ class TrailerSteeringController:
         self.slip_feedforward = (  # the axles' steady slip in the turn (controller.feedforward_slip), opt-in
             SlipFeedforward(params, unit, self.distribution, cfg.max_slip_angle) if cfg.slip_feedforward else None
         )
+        self.wheel_speed_kingpin = WheelSpeedKingpin(params, unit)  # the friction hold's, with wheel_speeds
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -284,6 +285,7 @@ class TrailerSteeringController:
         self.output.reset()
         if self.slip_feedforward is not None:
             self.slip_feedforward.reset()
+        self.wheel_speed_kingpin.reset()
         self.feedforward_steer = 0.0
         self.feedback_steer = 0.0
         self.integral = 0.0
@@ -434,6 +436,10 @@ class TrailerSteeringController:
             virtual = min(max(self.feedforward_steer, -cfg.max_virtual_steer), cfg.max_virtual_steer)
             slip_window = window_holding(slip_window, self.fade * self.distribution(math.tan(virtual), tan_kingpin))
 
+        wheel_kingpin = (vx, vy)  # the friction hold's kingpin from the wheel speeds, low-passed every tick
+        if cfg.friction_hold_slip is not None and cfg.friction_hold_kingpin == "wheel_speeds":
+            wheel_kingpin = self.wheel_speed_kingpin.update(state, wheel_speeds, lateral_acceleration, dt)
+
         # Feedback on the held sample.
         error = self._sample(estimate)
         ki = self.gains.ki
@@ -462,9 +468,7 @@ class TrailerSteeringController:
             if cfg.friction_hold_kingpin == "lateral_acceleration":  # the kingpin velocity that sees the crab
                 hold_vx, hold_vy = accelerometer_coupling_velocity(self.params, self.unit, state, lateral_acceleration)
             elif cfg.friction_hold_kingpin == "wheel_speeds":  # the crab the wheel speeds measure, where a slide
-                hold_vx, hold_vy = wheel_speed_coupling_velocity(  # at the friction is asked for
-                    self.params, self.unit, state, wheel_speeds, lateral_acceleration
-                )
+                hold_vx, hold_vy = wheel_kingpin  # at the friction is asked for
                 judged = asks_for_friction(lateral_acceleration)
             slips = steered_slip_angles(
                 self._steered_distances, self.output.commands, gamma, hold_vx, hold_vy, rate, cfg.fade_speeds[1]
