@@ -3,8 +3,9 @@ and a stated yaw-rate deficit at it; only a push deeper into that slip is held; 
 a threshold out of range is refused naming the field; the accelerometer's kingpin option turns a stated crab into a
 stated slip change, is unchanged when not chosen, and a bad option is refused naming the field; the wheel speeds'
 kingpin measures a stated crab from the trailer's wheel speed and turns it into a stated slip, falls back to the
-accelerometer's near a straight articulation, judges no slip at friction below the lateral specific force a slide at
-the ice's friction asks for, refuses a missing wheel speed or accelerometer and is unchanged when not chosen."""
+accelerometer's near a straight articulation, is low-passed in the controller, judges no slip at friction below the
+lateral specific force a slide at the ice's friction asks for, refuses a missing wheel speed or accelerometer and is
+unchanged when not chosen."""
 
 from __future__ import annotations
 
@@ -17,6 +18,8 @@ import pytest
 from controller.friction_hold import (
     FRICTION_SPECIFIC_FORCE,
     MIN_ARTICULATION,
+    WHEEL_SPEED_TIME_CONSTANT,
+    WheelSpeedKingpin,
     accelerometer_coupling_velocity,
     deepens_slip,
     steered_slip_angles,
@@ -260,3 +263,20 @@ def test_the_wheel_speeds_kingpin_holds_a_measured_crab_and_off_is_unchanged():
 def test_the_wheel_speeds_option_reaches_the_controller():
     on = load_scenario("roundabout-3", {"controller.friction_hold_kingpin": "wheel_speeds"})
     assert on.controller.path_following(on.rates.control_hz).friction_hold_kingpin == "wheel_speeds"
+
+
+def test_the_controller_low_passes_the_wheel_speeds_kingpin():
+    # A crab stepping from 0 to −0.35 m/s: each 0.02 s tick takes dt/τ = 0.08 of the rest (τ = 0.25 s), so the first
+    # tick gives 0.08 of the step and 1 s (50 ticks) all but 0.92⁵⁰ = 1.5 % of it; the first reading starts it.
+    articulation = math.radians(10.0)
+    state, straight = crabbing(articulation, 0.0)
+    _, crabbed = crabbing(articulation, -0.35)
+    kingpin = WheelSpeedKingpin(lst_laden())
+    assert WHEEL_SPEED_TIME_CONSTANT == 0.25
+    assert kingpin.update(state, straight, math.nan, 0.02)[1] == pytest.approx(0.0, abs=1e-12)
+    assert kingpin.update(state, crabbed, math.nan, 0.02)[1] == pytest.approx(-0.35 * 0.08, abs=1e-12)
+    for _ in range(49):
+        vx, vy = kingpin.update(state, crabbed, math.nan, 0.02)
+    assert vx == 5.0 and vy == pytest.approx(-0.35 * (1.0 - 0.92**50), abs=1e-12)
+    kingpin.reset()
+    assert kingpin.update(state, crabbed, math.nan, 0.02)[1] == pytest.approx(-0.35, abs=1e-12)
