@@ -148,7 +148,13 @@ from vehicle_model.simulator import VehicleState
 
 from .axle_steer_distribution import slip_angle_window, steady_turn_tangents, tan_kingpin_direction
 from .feedforward_slip import SlipFeedforward
-from .friction_hold import accelerometer_coupling_velocity, deepens_slip, steered_slip_angles
+from .friction_hold import (
+    WheelSpeedKingpin,
+    accelerometer_coupling_velocity,
+    asks_for_friction,
+    deepens_slip,
+    steered_slip_angles,
+)
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
 from .preview import chord_law, interpolated_chord_end, preview_tangent, straight_chord_end
 from .reach_rules import is_outswing, outswing_scale, window_holding
@@ -269,6 +275,7 @@ class TrailerSteeringController:
         self.slip_feedforward = (  # the axles' steady slip in the turn (controller.feedforward_slip), opt-in
             SlipFeedforward(params, unit, self.distribution, cfg.max_slip_angle) if cfg.slip_feedforward else None
         )
+        self.wheel_speed_kingpin = WheelSpeedKingpin(params, unit)  # the friction hold's, with wheel_speeds
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -278,6 +285,7 @@ class TrailerSteeringController:
         self.output.reset()
         if self.slip_feedforward is not None:
             self.slip_feedforward.reset()
+        self.wheel_speed_kingpin.reset()
         self.feedforward_steer = 0.0
         self.feedback_steer = 0.0
         self.integral = 0.0
@@ -346,7 +354,11 @@ class TrailerSteeringController:
     # ------------------------------------------------------------------ the law
 
     def __call__(
-        self, state: VehicleState, estimate: OfftrackingEstimate | None, lateral_acceleration: float = math.nan
+        self,
+        state: VehicleState,
+        estimate: OfftrackingEstimate | None,
+        lateral_acceleration: float = math.nan,
+        wheel_speeds: tuple[float, float] = (math.nan, math.nan),
     ) -> np.ndarray:
         """Steer of every steerable trailer axle [rad] for the next control period.
 
@@ -360,7 +372,12 @@ class TrailerSteeringController:
             ``config.uncertain_feedback = "shrink"`` is shrunk toward zero and the integrator frozen.
         lateral_acceleration
             The tractor's lateral specific force [m/s²] (signal ``tractor_lateral_acceleration``); read only by the
-            friction hold with ``config.friction_hold_kingpin = "lateral_acceleration"``, which refuses a NaN.
+            friction hold with ``config.friction_hold_kingpin = "lateral_acceleration"``, which refuses a NaN (and
+            with ``"wheel_speeds"``, which judges the slip only where it asks for the tyres' friction).
+        wheel_speeds
+            The tractor's and the first towed unit's wheel speeds [m/s] (signals ``wheel_speed``,
+            ``trailer_wheel_speed``); read only by the friction hold with ``config.friction_hold_kingpin =
+            "wheel_speeds"``, which refuses a NaN.
 
         Returns
         -------
@@ -419,6 +436,10 @@ class TrailerSteeringController:
             virtual = min(max(self.feedforward_steer, -cfg.max_virtual_steer), cfg.max_virtual_steer)
             slip_window = window_holding(slip_window, self.fade * self.distribution(math.tan(virtual), tan_kingpin))
 
+        wheel_kingpin = (vx, vy)  # the friction hold's kingpin from the wheel speeds, low-passed every tick
+        if cfg.friction_hold_slip is not None and cfg.friction_hold_kingpin == "wheel_speeds":
+            wheel_kingpin = self.wheel_speed_kingpin.update(state, wheel_speeds, lateral_acceleration, dt)
+
         # Feedback on the held sample.
         error = self._sample(estimate)
         ki = self.gains.ki
@@ -443,12 +464,16 @@ class TrailerSteeringController:
             feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)
         elif cfg.friction_hold_slip is not None and not np.any(self.output.saturated):  # nor push an axle at its
             # friction further into its slip (at the lock the slip is the lock's geometry's, not the friction's)
-            hold_vx, hold_vy = vx, vy
+            hold_vx, hold_vy, judged = vx, vy, True
             if cfg.friction_hold_kingpin == "lateral_acceleration":  # the kingpin velocity that sees the crab
                 hold_vx, hold_vy = accelerometer_coupling_velocity(self.params, self.unit, state, lateral_acceleration)
+            elif cfg.friction_hold_kingpin == "wheel_speeds":  # the crab the wheel speeds measure, where a slide
+                hold_vx, hold_vy = wheel_kingpin  # at the friction is asked for
+                judged = asks_for_friction(lateral_acceleration)
             slips = steered_slip_angles(
                 self._steered_distances, self.output.commands, gamma, hold_vx, hold_vy, rate, cfg.fade_speeds[1]
             )
+            slips = slips if judged else None
             if deepens_slip(slips, cfg.friction_hold_slip, push):
                 integral_new = self.integral
                 feedback, step = self._command(integral_new, error, schedule, tan_kingpin, dt, slip_window)

@@ -27,7 +27,7 @@ Kinematics = Literal["signals", "truth"]
 FeedForward = Literal["path", "steady", "none"]
 """Type of :attr:`PathFollowingConfig.feedforward`."""
 
-HoldKingpin = Literal["zero_slip", "lateral_acceleration"]
+HoldKingpin = Literal["zero_slip", "lateral_acceleration", "wheel_speeds"]
 """Type of :attr:`PathFollowingConfig.friction_hold_kingpin`."""
 
 UncertainFeedback = Literal["drop", "shrink"]
@@ -230,11 +230,15 @@ class PathFollowingConfig(Settings):
         peak (2.8°, the lowest friction the controller is set up for) judges an axle at its friction only past the
         slip beyond which, on ice, more steer gives less force. The slip is off by the tractor's crab where the
         tractor slides (zero-slip kinematics).
-    friction_hold_kingpin : {"zero_slip", "lateral_acceleration"}
+    friction_hold_kingpin : {"zero_slip", "lateral_acceleration", "wheel_speeds"}
         The kingpin velocity the hold judges the slip from: ``zero_slip`` (default), the controller's own (as
         ``kinematics``); ``lateral_acceleration``, the tractor's lateral-accelerometer rear point's, which sees the
         tractor's crab (:func:`~controller.friction_hold.accelerometer_coupling_velocity`; it needs the tractor's
-        lateral specific force on every call). Only the hold uses it.
+        lateral specific force on every call); ``wheel_speeds``, the kingpin's lateral velocity the trailer's wheel
+        speed against the tractor's measures through the articulation, which sees the tractor's crab at its friction
+        too (:func:`~controller.friction_hold.wheel_speed_coupling_velocity`; it needs both wheel speeds and the
+        lateral specific force, below half the ice's ``μ·g`` of which the slip is not judged at friction). Only the
+        hold uses it.
     """
 
     gains: PathFollowingGains | None = None

@@ -1,7 +1,11 @@
 """The friction hold (controller.friction_hold): the detector's closed form judges a rolling axle not at its friction
 and a stated yaw-rate deficit at it; only a push deeper into that slip is held; off, the controller is unchanged;
 a threshold out of range is refused naming the field; the accelerometer's kingpin option turns a stated crab into a
-stated slip change, is unchanged when not chosen, and a bad option is refused naming the field."""
+stated slip change, is unchanged when not chosen, and a bad option is refused naming the field; the wheel speeds'
+kingpin measures a stated crab from the trailer's wheel speed and turns it into a stated slip, falls back to the
+accelerometer's near a straight articulation, is low-passed in the controller, judges no slip at friction below the
+lateral specific force a slide at the ice's friction asks for, refuses a missing wheel speed or accelerometer and is
+unchanged when not chosen."""
 
 from __future__ import annotations
 
@@ -12,9 +16,15 @@ import numpy as np
 import pytest
 
 from controller.friction_hold import (
+    FRICTION_SPECIFIC_FORCE,
+    MIN_ARTICULATION,
+    WHEEL_SPEED_TIME_CONSTANT,
+    WheelSpeedKingpin,
     accelerometer_coupling_velocity,
     deepens_slip,
     steered_slip_angles,
+    wheel_speed_coupling_velocity,
+    wheel_speed_kingpin_lateral_velocity,
 )
 from controller.path_following import TrailerSteeringController
 from controller.path_following_config import PathFollowingConfig
@@ -175,3 +185,98 @@ def test_the_kingpin_option_reaches_the_controller_and_a_bad_one_is_refused():
     with pytest.raises(ConfigError) as info:
         load_scenario("roundabout-3", {"controller.friction_hold_kingpin": "gyro"})
     assert "controller.friction_hold_kingpin" in str(info.value)
+
+
+def crabbing(articulation: float, crab: float) -> tuple[VehicleState, tuple[float, float]]:
+    """5 m/s, no yaw, articulated by ``articulation`` [rad], the kingpin crabbing at ``crab`` [m/s] in the tractor's
+    axes: the state and the wheel speeds ``(u, cos Γ·u − sin Γ·crab)`` the two units' sensors read."""
+    speed = 5.0
+    state = VehicleState(0.0, 0.0, 0.0, 0.0, speed, 0.0, 0.0, articulation, 0.0, slip=np.zeros(6))
+    return state, (speed, math.cos(articulation) * speed - math.sin(articulation) * crab)
+
+
+def test_the_wheel_speeds_measure_a_stated_crab_and_turn_it_into_a_stated_slip():
+    # Articulated 10°, no yaw: the zero-slip kingpin moves straight along the tractor, so every steered axle's
+    # velocity points 10° off the trailer's axis; a crab of −0.35 m/s at 5 m/s turns it by atan(0.07) = 4.00°.
+    articulation, crab = math.radians(10.0), -0.35
+    state, speeds = crabbing(articulation, crab)
+    assert wheel_speed_kingpin_lateral_velocity(articulation, *speeds) == pytest.approx(crab, abs=1e-12)
+    vx, vy = wheel_speed_coupling_velocity(lst_laden(), 1, state, speeds, math.nan)  # no accelerometer read
+    assert vx == 5.0 and vy == pytest.approx(crab, abs=1e-12)
+    steer = np.zeros(2)
+    zero_slip = steered_slip_angles(DISTANCES, steer, articulation, 5.0, 0.0, 0.0, 1.0)
+    measured = steered_slip_angles(DISTANCES, steer, articulation, vx, vy, 0.0, 1.0)
+    np.testing.assert_allclose(np.degrees(zero_slip), -10.0, atol=1e-9)
+    np.testing.assert_allclose(np.degrees(measured - zero_slip), 4.004, atol=1e-3)
+
+
+def test_near_a_straight_articulation_the_accelerometer_judges_and_a_missing_wheel_speed_is_refused():
+    params, articulation = lst_laden(), 0.5 * MIN_ARTICULATION
+    state, speeds = crabbing(articulation, -0.35)
+    assert wheel_speed_kingpin_lateral_velocity(articulation, *speeds) is None
+    assert wheel_speed_coupling_velocity(params, 1, state, speeds, 1.0) == accelerometer_coupling_velocity(
+        params, 1, state, 1.0
+    )
+    with pytest.raises(InputError, match="trailer_wheel_speed"):
+        wheel_speed_kingpin_lateral_velocity(0.2, 5.0, math.nan)
+
+
+def articulated(
+    speeds: tuple[float, float], config: PathFollowingConfig, lateral_acceleration: float = 1.0
+) -> TrailerSteeringController:
+    """2 s articulated 10° with no yaw, the trailer's gyro at the rate that rolls its steered axles on the zero-slip
+    kingpin, a constant 5 cm error fed back, the wheel speeds at ``speeds`` and the tractor's accelerometer at
+    ``lateral_acceleration`` [m/s²]."""
+    state, _ = crabbing(math.radians(10.0), 0.0)
+    params = lst_laden()
+    controller = TrailerSteeringController(params, config)
+    distances = controller._steered_distances
+    rolling = 5.0 * math.sin(math.radians(10.0)) / float(np.mean(distances))  # tan β_j ≈ 0 at the mean distance
+    state = dataclasses.replace(state, r2=rolling)
+    for k in range(100):
+        controller(
+            dataclasses.replace(state, time=0.02 * k), OfftrackingEstimate.of(0.05), lateral_acceleration, speeds
+        )
+    return controller
+
+
+def test_the_wheel_speeds_kingpin_holds_a_measured_crab_and_off_is_unchanged():
+    # The crab of −0.35 m/s adds 4° to slips the zero-slip kingpin puts near 0°, on the side the PID pushes.
+    _, crabbed = crabbing(math.radians(10.0), -0.35)
+    hold = {"max_slip_angle": None, "friction_hold_slip": THRESHOLD}
+    default = articulated(crabbed, PathFollowingConfig(**hold))
+    unread = articulated((math.nan, math.nan), PathFollowingConfig(**hold))  # the default reads no wheel speed
+    wheels = articulated(crabbed, PathFollowingConfig(**hold, friction_hold_kingpin="wheel_speeds"))
+    assert default.integral == unread.integral > 0.05 * 5.0 * 0.5  # 0.05 m over more than half the 10 m driven
+    assert wheels.integral == 0.0  # never grown from zero
+    # The same slip with the accelerometer below half the ice's μ·g (0.49 m/s²) is a slip without friction: not held.
+    config = PathFollowingConfig(**hold, friction_hold_kingpin="wheel_speeds")
+    assert FRICTION_SPECIFIC_FORCE == pytest.approx(0.5 * 0.1 * 9.81, abs=0.01)
+    calm = articulated(crabbed, config, 0.99 * FRICTION_SPECIFIC_FORCE)
+    assert calm.integral == articulated(crabbed, PathFollowingConfig(max_slip_angle=None)).integral  # no hold
+    with pytest.raises(InputError, match="wheel_speed"):
+        articulated((math.nan, math.nan), config)
+    with pytest.raises(InputError, match="tractor_lateral_acceleration"):
+        articulated(crabbed, config, math.nan)
+
+
+def test_the_wheel_speeds_option_reaches_the_controller():
+    on = load_scenario("roundabout-3", {"controller.friction_hold_kingpin": "wheel_speeds"})
+    assert on.controller.path_following(on.rates.control_hz).friction_hold_kingpin == "wheel_speeds"
+
+
+def test_the_controller_low_passes_the_wheel_speeds_kingpin():
+    # A crab stepping from 0 to −0.35 m/s: each 0.02 s tick takes dt/τ = 0.08 of the rest (τ = 0.25 s), so the first
+    # tick gives 0.08 of the step and 1 s (50 ticks) all but 0.92⁵⁰ = 1.5 % of it; the first reading starts it.
+    articulation = math.radians(10.0)
+    state, straight = crabbing(articulation, 0.0)
+    _, crabbed = crabbing(articulation, -0.35)
+    kingpin = WheelSpeedKingpin(lst_laden())
+    assert WHEEL_SPEED_TIME_CONSTANT == 0.25
+    assert kingpin.update(state, straight, math.nan, 0.02)[1] == pytest.approx(0.0, abs=1e-12)
+    assert kingpin.update(state, crabbed, math.nan, 0.02)[1] == pytest.approx(-0.35 * 0.08, abs=1e-12)
+    for _ in range(49):
+        vx, vy = kingpin.update(state, crabbed, math.nan, 0.02)
+    assert vx == 5.0 and vy == pytest.approx(-0.35 * (1.0 - 0.92**50), abs=1e-12)
+    kingpin.reset()
+    assert kingpin.update(state, crabbed, math.nan, 0.02)[1] == pytest.approx(-0.35, abs=1e-12)

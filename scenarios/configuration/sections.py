@@ -492,8 +492,9 @@ class ControllerConfig(Settings):
     friction_hold_kingpin: HoldKingpin = Field(
         "zero_slip",
         description="the kingpin velocity friction_hold judges the slip from: zero_slip (the controller's own) or "
-        "lateral_acceleration (the tractor's accelerometer rear point, which sees the tractor's crab; "
-        "controller.friction_hold)",
+        "lateral_acceleration (the tractor's accelerometer rear point, which sees the tractor's crab on linear "
+        "tyres) or wheel_speeds (the trailer's wheel speed against the tractor's through the articulation, which "
+        "measures the crab at the tyres' friction too; controller.friction_hold)",
     )
     high_speed_crossover_kmh: tuple[float, float] | None = Field(
         (35.0, 55.0),

@@ -169,8 +169,10 @@ class PathFollowingSteer:
         commands = np.zeros(len(self.axles))
         accelerometer = tick.measured.get("tractor_lateral_acceleration")  # for the friction hold's kingpin option
         lateral = math.nan if accelerometer is None else float(accelerometer[0])
+        speeds = (tick.measured.get(name) for name in ("wheel_speed", "trailer_wheel_speed"))  # and wheel_speeds
+        wheel = tuple(math.nan if v is None or len(v) == 0 else float(v[0]) for v in speeds)
         for (ctrl, feedback), slots in zip(self.steered, self._slots, strict=True):
-            commands[slots] = ctrl(tick.state, estimates.get(feedback), lateral)  # type: ignore[arg-type]
+            commands[slots] = ctrl(tick.state, estimates.get(feedback), lateral, wheel)  # type: ignore[arg-type]
         self._commands = commands
         return commands.copy()
 
