@@ -47,6 +47,17 @@ only the share ``s = 1 − r·D`` of ``β̂_ψ`` ((K6), ``r`` = ``scrub_bias_rel
 to be the odometry's error in that motion, not the part it releases to the scrubbing tyres. Without a demand
 (``D = 0``) ``g = (κ·c_x, κ·c_y, 1)``.
 
+Where the follower's own tyres scrub (its axles steered to or near their lock, its scrub demand ``D`` of (K5) at the
+frame high, :mod:`sensor.fusion_slip`) its camera's motion and its filter's (C0) carry the follower's own error, which
+persists as long as the scrub does and which (C2) does not hold. With ``follower_limit`` (``fusion.side_rig.
+coupling_follower_limit``; off by default) a frame whose ``D`` is at or above its ``demand`` is either widened by the
+follower's own off-tracking variance ``σ_f²`` (its fused filter's std squared) on the lead's lateral axis, or refused
+(the lead takes its own frame alone for that tick)::
+
+    R_c ← R_c + σ_f²·e_y·e_yᵀ   (inflate),     no measurement   (refuse)                                   (C3)
+
+A frame whose ``σ_f`` is not known (the follower's filter without an estimate) is refused under either action.
+
 A follower camera that looks across its motion has the same axial errors as the lead's, so the follower is the
 nearest unit behind whose camera looks along its unit (a rear or front rig, :func:`looks_along`).
 
@@ -77,11 +88,22 @@ from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
 
 from .fusion_model import camera_increment, gated_update
-from .fusion_noise import FusionNoise
+from .fusion_noise import FollowerLimit, FusionNoise
 from .fusion_slip import scrub_bias_share
 from .viso_ot import VisoOtEstimator
 
-__all__ = ["CouplingMeasurement", "CouplingReference", "coupled_update", "looks_along", "transport_increment"]
+__all__ = [
+    "FOLLOWER_SCRUBBING",
+    "CouplingMeasurement",
+    "CouplingReference",
+    "coupled_update",
+    "follower_limited",
+    "looks_along",
+    "transport_increment",
+]
+
+FOLLOWER_SCRUBBING = "follower scrubbing"
+"""The reason a frame is refused under (C3)."""
 
 
 @dataclass(frozen=True)
@@ -164,6 +186,23 @@ def transport_increment(
     return np.array([d[0], d[1], dpsi])
 
 
+def follower_limited(
+    covariance: np.ndarray, limit: FollowerLimit | None, demand: float, follower_std: float
+) -> tuple[np.ndarray | None, str | None]:
+    """(C3) of the module notes: the reference's covariance ``R_c`` (3×3) for a follower whose scrub demand at the frame
+    is ``demand`` and whose off-tracking std is ``follower_std`` [m], and the reason it was refused (``None``: taken).
+
+    Returns ``(R_c, None)`` unchanged without ``limit`` or below its demand; ``(R_c + σ_f²·e_y·e_yᵀ, None)`` for
+    ``inflate``; ``(None, FOLLOWER_SCRUBBING)`` for ``refuse``, or where ``follower_std`` is not finite."""
+    if limit is None or not demand >= limit.demand:  # NaN: no demand known, taken as (C2) gives it
+        return covariance, None
+    if limit.action == "refuse" or not math.isfinite(follower_std):
+        return None, FOLLOWER_SCRUBBING
+    widened = np.array(covariance, dtype=float)
+    widened[1, 1] += follower_std * follower_std
+    return widened, None
+
+
 def looks_along(camera_in_unit: np.ndarray) -> bool:
     """Whether a camera posed ``camera_in_unit`` (4×4, in its unit's frame) looks along its unit (a rear or front rig)
     rather than across it (a side rig): its optical axis's ground-plane part nearer the unit's x axis."""
@@ -193,6 +232,8 @@ class CouplingReference:
         :meth:`measurement`; module notes).
     covariance_scale
         ``k_c`` of (C2), the factor on the measurement's covariance (1: as mapped).
+    follower_limit
+        (C3): the measurement widened or refused while the follower's tyres scrub (``None``: off; :meth:`limited`).
 
     Raises
     ------
@@ -210,6 +251,7 @@ class CouplingReference:
         noise: FusionNoise,
         level_reference: str = "planar",
         covariance_scale: float = 1.0,
+        follower_limit: FollowerLimit | None = None,
     ) -> None:
         if not 1.0 <= covariance_scale <= 100.0:  # NaN fails too
             raise InputError(f"covariance_scale = {covariance_scale!r}: allowed 1–100 (a factor on (C2)'s covariance)")
@@ -230,6 +272,13 @@ class CouplingReference:
         self.geometry = VisoOtEstimator(params, camera_in_follower, unit=follower, level_reference=level_reference)
         self.noise = noise
         self.covariance_scale = float(covariance_scale)
+        self.follower_limit = follower_limit
+
+    def limited(
+        self, covariance: np.ndarray, demand: float, follower_std: float
+    ) -> tuple[np.ndarray | None, str | None]:
+        """(C3) with this reference's ``follower_limit`` (:func:`follower_limited`)."""
+        return follower_limited(covariance, self.follower_limit, demand, follower_std)
 
     def articulations(self, articulations: Sequence[float]) -> tuple[float, ...]:
         """The articulations (C1) takes, ``Γ_{j+1} … Γ_m``, out of every coupling's from the tractor back

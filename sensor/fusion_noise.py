@@ -12,6 +12,7 @@ from vehicle_model.settings import Settings
 
 __all__ = [
     "AxialEffect",
+    "FollowerLimit",
     "FusionNoise",
     "KinematicReference",
     "PersistingReferenceError",
@@ -30,7 +31,7 @@ ScrubCouplingStd = Literal["release", "uniform"]
 """How the std's coupling term carries the coupled correction while the tyres scrub (:mod:`sensor.fusion_slip`)."""
 
 
-REFERENCE_SETTINGS: tuple[str, ...] = ("coupling_covariance_scale",)
+REFERENCE_SETTINGS: tuple[str, ...] = ("coupling_covariance_scale", "coupling_follower_limit")
 """The side-rig settings the coupling reference takes (:mod:`sensor.fusion_coupling`), not the filter."""
 FRICTION = "the lowest road μ the vehicle is specified for, (T3); 0.05 is glare ice, 1.5 a race track; null: none"
 """``reference_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
@@ -56,6 +57,26 @@ class PersistingReferenceError(Settings):
     )
 
 
+class FollowerLimit(Settings):
+    """What a following unit's measurement becomes while the follower's own tyres scrub (its axles at or near their
+    lock), (C3) of :mod:`sensor.fusion_coupling`.
+
+    Parameters
+    ----------
+    action
+        ``inflate``: the follower's own off-tracking variance (its fused filter's std squared) added to the
+        reference's lateral variance; ``refuse``: no measurement, the lead takes its own frame alone.
+    demand
+        The follower's scrub demand ``D`` of (K5) (:mod:`sensor.fusion_slip`) at its frame from which the action is
+        taken.
+    """
+
+    action: Literal["inflate", "refuse"]
+    demand: float = Field(
+        gt=0.0, le=1.0, description="the follower's scrub demand D from which it acts; 1: an axle at twice the onset"
+    )
+
+
 class SideRigFusion(Settings):
     """The settings a camera that looks across its motion (a side rig) takes in place of the section's (``None``: the
     section's own): the odometry's error along its optical axis as states (eq (3') of :mod:`sensor.fusion_model`,
@@ -72,6 +93,10 @@ class SideRigFusion(Settings):
         Factor on the covariance of the following unit's measurement, (C2) of :mod:`sensor.fusion_coupling`
         (``None``: 1, the covariance as mapped). The reference takes it, not the filter: it is not among
         :meth:`given`'s settings.
+    coupling_follower_limit
+        The following unit's measurement widened by the follower's own error or refused while the follower's tyres
+        scrub, (C3) of :mod:`sensor.fusion_coupling` (``None``: taken as (C2) gives it). The reference's, like
+        ``coupling_covariance_scale``.
     """
 
     vo_axial_flow: float | None = Field(None, ge=0.0, le=1.0, description="[1/m] start std of s_f; 1 /m: 1 m per m²")
@@ -92,6 +117,7 @@ class SideRigFusion(Settings):
         le=100.0,
         description="factor on (C2)'s covariance; below 1 claims a tighter sensor, 100 all but drops it",
     )
+    coupling_follower_limit: FollowerLimit | None = None
 
     @property
     def reference_covariance_scale(self) -> float:

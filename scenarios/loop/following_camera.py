@@ -12,11 +12,15 @@ so the two frames of a tick are released on the same tick; the following unit's 
 filter (:class:`~.further_units.FurtherUnitsParticipant` before the first unit's estimators, and within it every
 unit's camera before any unit's fused filter, the registry's order), so its frames of the tick are there when the
 lead's filter takes its own. A following frame that failed, was refused, or whose
-interval does not start at the lead filter's anchor gives no measurement: the lead takes its own frame alone.
+interval does not start at the lead filter's anchor gives no measurement: the lead takes its own frame alone. With
+``fusion.side_rig.coupling_follower_limit`` a frame taken while the follower's tyres scrub is widened by the
+follower's own off-tracking variance or refused ((C3) of :mod:`sensor.fusion_coupling`), the refusals counted by
+their reason.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -29,7 +33,7 @@ from vehicle_model.parameters import VehicleParams
 
 from ..unit_feedback import estimate_key
 
-__all__ = ["FollowingCamera", "filter_yaw_bias", "following_camera", "measured_articulations"]
+__all__ = ["FollowingCamera", "filter_scrub", "filter_yaw_bias", "following_camera", "measured_articulations"]
 
 
 def measured_articulations(measured: Mapping[str, np.ndarray]) -> tuple[float, ...]:
@@ -48,6 +52,14 @@ def filter_yaw_bias(fused: Any) -> tuple[float, float, float] | None:
     return float(fused.state[BPSI]), float(fused.covariance[BPSI, BPSI]), float(fused.frame_scrub_demand)
 
 
+def filter_scrub(fused: Any) -> tuple[float, float]:
+    """A fused filter's scrub demand ``D`` at its last frame and its off-tracking std [m] now, as (C3) of
+    :mod:`sensor.fusion_coupling` takes them (NaN, NaN: no filter)."""
+    if fused is None:
+        return math.nan, math.nan
+    return float(fused.frame_scrub_demand), float(fused.std)
+
+
 class FollowingCamera:
     """The measurements a following unit's camera gives the lead unit's filter, frame by frame (module notes).
 
@@ -63,11 +75,16 @@ class FollowingCamera:
         (:func:`filter_yaw_bias`; ``None`` or a ``None`` result: none; asked on every frame, since the follower's
         filter may be built after the lead's): taken out of each following frame ((C0) of
         :mod:`sensor.fusion_coupling`).
+    scrub
+        Gives the follower's fused filter's scrub demand at its last frame and its off-tracking std
+        (:func:`filter_scrub`), asked only where the reference has a ``follower_limit`` ((C3)).
 
     Attributes
     ----------
     measurements : int
         Following frames turned into a measurement so far.
+    refused : dict[str, int]
+        Following frames refused by (C3), by their reason.
     """
 
     def __init__(
@@ -75,11 +92,14 @@ class FollowingCamera:
         reference: CouplingReference,
         camera: Any,
         yaw_bias: Callable[[], tuple[float, ...] | None] | None = None,
+        scrub: Callable[[], tuple[float, float]] | None = None,
     ) -> None:
         self.reference = reference
         self.camera = camera
         self.yaw_bias = yaw_bias
+        self.scrub = scrub
         self.measurements = 0
+        self.refused: dict[str, int] = {}
         self._articulations: dict[int, tuple[float, ...]] = {}  # Γ_{j+1} … Γ_m by tick, from the last frame on
         self._last_frame: int | None = None  # the tick of the follower's last released frame
         self._last_tilt: tuple[float, float] | None = None  # the follower's tilt at that frame (off the level road)
@@ -111,6 +131,13 @@ class FollowingCamera:
                 self.yaw_bias() if self.yaw_bias else None,
                 tilts,
             )
+            if self.reference.follower_limit is not None:  # (C3)
+                demand, follower_std = self.scrub() if self.scrub else (math.nan, math.nan)
+                limited, reason = self.reference.limited(r, demand, follower_std)
+                if limited is None:
+                    self.refused[str(reason)] = self.refused.get(str(reason), 0) + 1
+                    continue
+                r = limited
             if np.all(np.isfinite(z)) and np.all(np.isfinite(r)):
                 self._pending[int(shot.tick)] = CouplingMeasurement(start, z, r, self.reference.covariance_scale)
                 self.measurements += 1
@@ -143,13 +170,24 @@ def following_camera(
             continue
         if getattr(getattr(camera, "feed", None), "level_reference", "planar") != level:
             return None
+        side = noise.side_rig
         reference = CouplingReference(
-            params, unit, follower, camera.camera_in_trailer, noise, level, noise.side_rig.reference_covariance_scale
+            params,
+            unit,
+            follower,
+            camera.camera_in_trailer,
+            noise,
+            level,
+            side.reference_covariance_scale,
+            side.coupling_follower_limit,
         )
         key = estimate_key("viso_ot_fused", follower)
 
         def yaw_bias(key: str = key) -> tuple[float, ...] | None:
             return filter_yaw_bias(getattr(unit_estimators.get(key), "filter", None))
 
-        return FollowingCamera(reference, camera, yaw_bias)
+        def scrub(key: str = key) -> tuple[float, float]:
+            return filter_scrub(getattr(unit_estimators.get(key), "filter", None))
+
+        return FollowingCamera(reference, camera, yaw_bias, scrub)
     return None
