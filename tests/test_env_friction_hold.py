@@ -61,6 +61,6 @@ def test_the_hold_acts_on_the_icy_cell(icy_hold) -> None:
 def test_default_env_observations_are_those_without_the_signals(monkeypatch) -> None:
     """The default env (no hold) observes, tick for tick and to the bit, what it observes with no signals passed."""
     _, observations, _, _ = residual_rollout({})
-    monkeypatch.setattr(steering_env, "_hold_signals", lambda measured: (math.nan, (math.nan, math.nan)))
+    monkeypatch.setattr(steering_env, "hold_signals", lambda measured: (math.nan, (math.nan, math.nan)))
     _, observations_without, _, _ = residual_rollout({})
     np.testing.assert_array_equal(observations, observations_without)

@@ -17,7 +17,7 @@ from vehicle_model.offtracking import OfftrackingEstimate
 
 from ..loop.cosimulation import CoSimulation
 from ..loop.ends import ENVIRONMENT_LIMITS, Limits, StopReason
-from ..loop.trailer_steer import AgentSteer, trailer_axles
+from ..loop.trailer_steer import AgentSteer, hold_signals, trailer_axles
 from ..setup.models import rebuild_setup
 from ..unit_feedback import estimate_key
 from .env_config import configure, scenario_defaults
@@ -528,7 +528,7 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         cosim = self._cosim
         assert cosim is not None
         tick = cosim.tick
-        lateral, wheel = _hold_signals(tick.measured)
+        lateral, wheel = hold_signals(tick.measured)  # as the run's PathFollowingSteer passes them
         for i, (ctrl, (_, key)) in enumerate(zip(self._controllers, self._episode_units.steered, strict=False)):
             ctrl(tick.state, tick.estimates.get(key), lateral, wheel)
             self._pid_virtual[i] = ctrl.virtual_steer
@@ -592,14 +592,3 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
 def _value(estimate: OfftrackingEstimate | None) -> float | None:
     """An estimate's value, or ``None`` when it has none."""
     return estimate.value if estimate is not None and estimate.available else None
-
-
-def _hold_signals(measured: Mapping[str, np.ndarray]) -> tuple[float, tuple[float, float]]:
-    """The tractor's lateral specific force [m/s²] and the tractor's and trailer's wheel speeds [m/s] of a tick, as
-    :meth:`~scenarios.loop.trailer_steer.PathFollowingSteer.command` passes them to the friction hold (NaN where
-    a signal is missing)."""
-    accelerometer = measured.get("tractor_lateral_acceleration")
-    lateral = math.nan if accelerometer is None else float(accelerometer[0])
-    speeds = (measured.get(name) for name in ("wheel_speed", "trailer_wheel_speed"))
-    wheel = tuple(math.nan if v is None or len(v) == 0 else float(v[0]) for v in speeds)
-    return lateral, (wheel[0], wheel[1])
