@@ -17,7 +17,7 @@ from vehicle_model.offtracking import OfftrackingEstimate
 
 from ..loop.cosimulation import CoSimulation
 from ..loop.ends import ENVIRONMENT_LIMITS, Limits, StopReason
-from ..loop.trailer_steer import AgentSteer, trailer_axles
+from ..loop.trailer_steer import AgentSteer, hold_signals, trailer_axles
 from ..setup.models import rebuild_setup
 from ..unit_feedback import estimate_key
 from .env_config import configure, scenario_defaults
@@ -528,8 +528,9 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         cosim = self._cosim
         assert cosim is not None
         tick = cosim.tick
+        lateral, wheel = hold_signals(tick.measured)  # as the run's PathFollowingSteer passes them
         for i, (ctrl, (_, key)) in enumerate(zip(self._controllers, self._episode_units.steered, strict=False)):
-            ctrl(tick.state, tick.estimates.get(key))
+            ctrl(tick.state, tick.estimates.get(key), lateral, wheel)
             self._pid_virtual[i] = ctrl.virtual_steer
         if self.render_mode is not None:
             self._tracks[0].append(tick.kingpin)

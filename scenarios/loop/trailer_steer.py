@@ -32,7 +32,7 @@ from ..setup.build import ScenarioSetup
 from ..unit_feedback import steered_units
 from .participant import Column, TickInput, TrailerSteerSource
 
-__all__ = ["AgentSteer", "PathFollowingSteer", "UnsteeredTrailer", "trailer_axles", "trailer_steer_for"]
+__all__ = ["AgentSteer", "PathFollowingSteer", "UnsteeredTrailer", "hold_signals", "trailer_axles", "trailer_steer_for"]
 
 
 def trailer_axles(setup: ScenarioSetup) -> tuple[str, ...]:
@@ -86,6 +86,17 @@ class UnsteeredTrailer:
     def record(self) -> Mapping[str, float]:
         """Zero steer."""
         return self._row
+
+
+def hold_signals(measured: Mapping[str, np.ndarray]) -> tuple[float, tuple[float, float]]:
+    """A tick's signals for the friction hold's kingpin options: the tractor's lateral specific force [m/s²]
+    (``tractor_lateral_acceleration``) and the tractor's and first towed unit's wheel speeds [m/s] (``wheel_speed``,
+    ``trailer_wheel_speed``); NaN where a signal is missing."""
+    accelerometer = measured.get("tractor_lateral_acceleration")
+    lateral = math.nan if accelerometer is None else float(accelerometer[0])
+    speeds = [measured.get(name) for name in ("wheel_speed", "trailer_wheel_speed")]
+    u, u2 = (math.nan if v is None or len(v) == 0 else float(v[0]) for v in speeds)
+    return lateral, (u, u2)
 
 
 class PathFollowingSteer:
@@ -167,10 +178,7 @@ class PathFollowingSteer:
     def command(self, tick: TickInput, estimates: Mapping[str, OfftrackingEstimate]) -> np.ndarray:
         """Each PID's commands on this tick's estimate of its unit."""
         commands = np.zeros(len(self.axles))
-        accelerometer = tick.measured.get("tractor_lateral_acceleration")  # for the friction hold's kingpin option
-        lateral = math.nan if accelerometer is None else float(accelerometer[0])
-        speeds = (tick.measured.get(name) for name in ("wheel_speed", "trailer_wheel_speed"))  # and wheel_speeds
-        wheel = tuple(math.nan if v is None or len(v) == 0 else float(v[0]) for v in speeds)
+        lateral, wheel = hold_signals(tick.measured)  # for the friction hold's kingpin options
         for (ctrl, feedback), slots in zip(self.steered, self._slots, strict=True):
             commands[slots] = ctrl(tick.state, estimates.get(feedback), lateral, wheel)  # type: ignore[arg-type]
         self._commands = commands
