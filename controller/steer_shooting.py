@@ -8,7 +8,8 @@ and :mod:`controller.receding_horizon` (the MPC that solves a short version of i
 * :func:`follow_point` / :func:`follow_function` — a towed unit's follow point from the state vector;
 * :func:`path_reference` — the path linearised at the point nearest each follow point (the signed distance is
   ``normal·(point − anchor)``, positive with the point left of the path);
-* :func:`add_steer_limits` — the axles' lock, rate and slip-angle limit as constraints of a :class:`casadi.Opti`.
+* :func:`add_steer_limits` — the axles' lock, rate and slip-angle limit as constraints of a :class:`casadi.Opti`;
+* :data:`STEER_SMOOTHING` — the cost's weight on the steer increments.
 """
 
 from __future__ import annotations
@@ -26,7 +27,18 @@ from vehicle_model.parameters import VehicleParams
 
 from .path_following_config import PathFollowingConfig
 
-__all__ = ["add_steer_limits", "follow_function", "follow_point", "interval_integrator", "path_reference"]
+__all__ = [
+    "STEER_SMOOTHING",
+    "add_steer_limits",
+    "follow_function",
+    "follow_point",
+    "interval_integrator",
+    "path_reference",
+]
+
+STEER_SMOOTHING = 1e-2
+"""Weight ``w`` [m²/rad²] of the steer increments in the cost: small beside a centimetre of off-tracking, enough to
+make the optimum unique where the off-tracking does not depend on the steer (a straight)."""
 
 
 def follow_point(params: VehicleParams, x: Any, unit: int = 1, layout: Layout | None = None) -> tuple[Any, Any]:

@@ -38,7 +38,13 @@ import casadi as ca
 import numpy as np
 
 from controller.path_following_config import PathFollowingConfig
-from controller.steer_shooting import add_steer_limits, follow_function, interval_integrator, path_reference
+from controller.steer_shooting import (
+    STEER_SMOOTHING,
+    add_steer_limits,
+    follow_function,
+    interval_integrator,
+    path_reference,
+)
 from vehicle_model.errors import InputError
 from vehicle_model.layout import BODY_STATES, Layout
 from vehicle_model.parameters import VehicleParams
@@ -46,15 +52,18 @@ from vehicle_model.simulator import Simulator
 
 from .optimal_own_path import OwnPathStations, own_path_error, own_path_error_function, own_path_stations
 
-__all__ = ["OptimalSteer", "held_steer_weights", "interval_integrator", "path_reference", "solve_optimal_steer"]
+__all__ = [
+    "STEER_SMOOTHING",
+    "OptimalSteer",
+    "held_steer_weights",
+    "interval_integrator",
+    "path_reference",
+    "solve_optimal_steer",
+]
 
 _follow_function = follow_function
 """The first towed unit's (or a further unit's) follow point as an SX function (:func:`controller.steer_shooting.
 follow_function`)."""
-
-STEER_SMOOTHING = 1e-2
-"""Weight ``w`` [m²/rad²] of the steer increments in the cost: small beside a centimetre of off-tracking, enough to
-make the optimum unique where the off-tracking does not depend on the steer (a straight)."""
 
 
 @dataclass(frozen=True)
