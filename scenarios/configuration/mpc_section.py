@@ -43,8 +43,8 @@ class MpcConfig(Settings):
         5.0,
         gt=0.0,
         le=600.0,
-        description="[s] CPU time of one solve before it falls back to the last plan's move; 600 s is a whole-path "
-        "solve's",
+        description="[s] CPU time of one solve before it falls back to the last plan's move; ten minutes for one "
+        "tick is no controller",
     )
 
     def settings(self) -> HorizonSettings:
