@@ -209,7 +209,7 @@ class RecedingHorizonSteer:
         """The first towed unit's follow point ``(nodes, 2)`` of the states ``(n_states, nodes)``."""
         return np.asarray(self._follow.map(states.shape[1])(states)).T
 
-    def _guess(self, now: float, x0: np.ndarray, held: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    def _guess(self, now: float, previous: np.ndarray) -> np.ndarray:
         """The node steer of the last plan shifted to ``now`` (the last command held where there is none), within
         the lock and each increment within the rate limit."""
         times = now + self.interval * np.arange(self.settings.nodes + 1)
@@ -255,7 +255,7 @@ class RecedingHorizonSteer:
             The kingpin's recorded path up to now ``(m, 2)`` [m], oldest first.
         """
         previous = np.asarray(previous, dtype=float)
-        steer_guess = self._guess(now, x0, held, previous)
+        steer_guess = self._guess(now, previous)
         states_guess = self.rollout(x0, held, steer_guess)
         reference = np.vstack([path, self.kingpins(states_guess[:, 1:])])
         anchors, normals = path_reference(reference, self.follow_points(states_guess[:, 1:]))
