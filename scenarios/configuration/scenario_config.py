@@ -8,8 +8,10 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
+from controller.receding_horizon import mpc_steered_axles
 from controller.steer_input import SteerInputConfig
 from sensor.unit_slip_reference import TRAILER_REFERENCE
+from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.presets import VEHICLE_PRESETS
 from vehicle_model.settings import Settings
@@ -180,6 +182,15 @@ class ScenarioConfig(Settings):
                 f"axle on its first towed unit; use one of {steerable} or make one steerable "
                 f"(--set vehicle.units[1].axles[0].steerable=true){behind}"
             )
+        if self.controller.law == "mpc" and self.feedback != "truth":
+            raise ValueError(
+                f"controller.law = mpc steers on the true state: allowed with feedback = truth, not {self.feedback!r}"
+            )
+        if self.controller.law == "mpc":
+            try:
+                mpc_steered_axles(params)
+            except InputError as error:
+                raise ValueError(str(error)) from None
         if steered:  # unit_gains: one set per steered unit (unused by a run that steers none)
             self.controller.unit_settings(self.rates.control_hz, len(steered))
         if self.path.slip_deg is not None and steered:

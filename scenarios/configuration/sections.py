@@ -18,6 +18,7 @@ from vehicle_model.settings import Settings
 from vehicle_model.surface import FRICTION_PRESETS
 
 from ..estimator_settings import check_switches
+from .mpc_section import MpcConfig
 
 COORDINATE_LIMIT_M = 10_000.0
 """Largest |coordinate| of a friction patch [m]: beyond any path the schema allows (5 km straight + 2 × 1 km)."""
@@ -413,6 +414,12 @@ class ControllerConfig(Settings):
     both out to place each unit's poles at ``natural_frequency`` [1/m] and ``damping``.
     """
 
+    law: Literal["pid", "mpc"] = Field(
+        "pid",
+        description="the trailer steer: pid (path following on the feedback's estimate) or mpc (a receding-horizon "
+        "NLP on the true state; needs feedback truth; controller.receding_horizon)",
+    )
+    mpc: MpcConfig = Field(default_factory=MpcConfig, description="the receding-horizon MPC of law mpc")
     kp: float | None = Field(None, ge=0.0, le=10.0, description=_GAIN)
     ki: float | None = Field(None, ge=0.0, le=10.0, description=_GAIN)
     kd: float | None = Field(None, ge=0.0, le=10.0, description=_GAIN)

@@ -219,6 +219,9 @@ class CoSimulation:
                     f"{offered}"
                 )
         self.trailer_steer.reset()
+        bind = getattr(self.trailer_steer, "bind", None)
+        if callable(bind):  # a source that reads the simulator (the MPC: the tractor's applied inputs)
+            bind(self.sim)
         self.cast: tuple[Any, ...] = (
             self.vehicle,
             *((self.steer_tyres,) if self.steer_tyres is not None else ()),

@@ -4,6 +4,7 @@
 * :class:`PathFollowingSteer` — the path-following PID (:class:`controller.path_following.TrailerSteeringController`)
   on every steered towed unit, each fed by the estimate the configuration chooses for it (``feedback`` for the first
   towed unit, ``rear_feedback`` for those behind it: :mod:`scenarios.unit_feedback`);
+* :class:`~.mpc_steer.MpcTrailerSteer` — the receding-horizon MPC on the true state (``controller.law: mpc``);
 * :class:`AgentSteer` — an agent's virtual-axle angle per steered towed unit (the steering environment's action)
   through the controller's own output stage of that unit (:class:`controller.steer_output.TrailerSteerOutput`), so a
   zero correction of each PID's proposal gives the PIDs' commands exactly.
@@ -30,6 +31,7 @@ from vehicle_model.parameters import VehicleParams
 
 from ..setup.build import ScenarioSetup
 from ..unit_feedback import steered_units
+from .mpc_steer import MpcTrailerSteer
 from .participant import Column, TickInput, TrailerSteerSource
 
 __all__ = ["AgentSteer", "PathFollowingSteer", "UnsteeredTrailer", "hold_signals", "trailer_axles", "trailer_steer_for"]
@@ -334,10 +336,12 @@ class AgentSteer:
 
 
 def trailer_steer_for(setup: ScenarioSetup) -> TrailerSteerSource:
-    """The configured trailer-steer source: the PID of every steered unit on its feedback, or straight axles (no
-    unit steered, or a kinematic scenario)."""
+    """The configured trailer-steer source: the PID of every steered unit on its feedback, the receding-horizon MPC
+    on the true state (``controller.law: mpc``), or straight axles (no unit steered, or a kinematic scenario)."""
     axles = trailer_axles(setup)
     cfg = setup.config
     if setup.kinematic_slip is not None or not steered_units(setup.params, cfg.feedback, cfg.rear_feedback):
         return UnsteeredTrailer(axles)
+    if cfg.controller.law == "mpc":
+        return MpcTrailerSteer.configured(setup, axles)
     return PathFollowingSteer.configured(setup)

@@ -31,7 +31,6 @@ steerable; a converter dolly or a drawbar trailer is not.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -39,7 +38,13 @@ import casadi as ca
 import numpy as np
 
 from controller.path_following_config import PathFollowingConfig
-from vehicle_model.dynamics import define_model, rk4_step_expr
+from controller.steer_shooting import (
+    STEER_SMOOTHING,
+    add_steer_limits,
+    follow_function,
+    interval_integrator,
+    path_reference,
+)
 from vehicle_model.errors import InputError
 from vehicle_model.layout import BODY_STATES, Layout
 from vehicle_model.parameters import VehicleParams
@@ -47,11 +52,18 @@ from vehicle_model.simulator import Simulator
 
 from .optimal_own_path import OwnPathStations, own_path_error, own_path_error_function, own_path_stations
 
-__all__ = ["OptimalSteer", "held_steer_weights", "interval_integrator", "path_reference", "solve_optimal_steer"]
+__all__ = [
+    "STEER_SMOOTHING",
+    "OptimalSteer",
+    "held_steer_weights",
+    "interval_integrator",
+    "path_reference",
+    "solve_optimal_steer",
+]
 
-STEER_SMOOTHING = 1e-2
-"""Weight ``w`` [m²/rad²] of the steer increments in the cost: small beside a centimetre of off-tracking, enough to
-make the optimum unique where the off-tracking does not depend on the steer (a straight)."""
+_follow_function = follow_function
+"""The first towed unit's (or a further unit's) follow point as an SX function (:func:`controller.steer_shooting.
+follow_function`)."""
 
 
 @dataclass(frozen=True)
@@ -81,24 +93,6 @@ class OptimalSteer:
         return np.array([np.interp(time, self.times, column) for column in self.steer.T])
 
 
-def _follow_point(params: VehicleParams, x: Any, unit: int = 1, layout: Layout | None = None) -> tuple[Any, Any]:
-    """Global follow point of towed unit ``unit`` (1 the first) from the state vector (casadi or numbers): the
-    kingpin on the tractor's fifth wheel (vehicle_model.geometry.kingpin_position), each further unit's coupling on
-    the fifth wheel of the unit ahead (vehicle_model.geometry.trailer_frames), the follow point ``L_fp`` behind
-    the unit's own coupling."""
-    x_cg, y_cg, psi1 = x[0], x[1], x[2]
-    rel = params.tractor.fifth_wheel_x - params.tractor.cg_x
-    kx, ky = x_cg + rel * ca.cos(psi1), y_cg + rel * ca.sin(psi1)
-    heading = psi1 - x[6]
-    layout = layout if layout is not None or unit == 1 else Layout.for_vehicle(params)
-    for towed in range(2, unit + 1):  # the coupling of unit ``towed`` on the fifth wheel of the unit ahead
-        ahead = params.trailers[towed - 2].fifth_wheel_x
-        kx, ky = kx + ahead * ca.cos(heading), ky + ahead * ca.sin(heading)
-        heading = heading - x[layout.state_index(f"gamma{towed}")]
-    lfp = params.follow_point_offset_of(unit)
-    return kx - lfp * ca.cos(heading), ky - lfp * ca.sin(heading)
-
-
 OWN_PATH_TOLERANCE = 1e-5
 """[m] The own-path solves stop once matching the stations again on a solution moves no node's off-tracking by more
 than this (:mod:`scenarios.studies.optimal_own_path`): the stations the cost held are the solution's own."""
@@ -115,13 +109,6 @@ def _own_path_offtracking(
     )
 
 
-def _follow_function(params: VehicleParams, n_states: int, unit: int = 1) -> ca.Function:
-    """``x → (x, y)`` of towed unit ``unit``'s follow point, an SX function."""
-    xs = ca.SX.sym("x", n_states)
-    layout = Layout.for_vehicle(params)
-    return ca.Function(f"follow{unit}", [xs], [ca.vertcat(*_follow_point(params, xs, unit, layout))])
-
-
 def _path_columns(unit: int) -> tuple[str, str, str, str]:
     """The recorded columns of towed unit ``unit``'s front coupling and follow point (x, y each): ``kingpin_x``
     and ``follow_x`` for the first, ``coupling<k>_x`` and ``follow<k>_x`` for unit ``k`` of the combination."""
@@ -129,44 +116,6 @@ def _path_columns(unit: int) -> tuple[str, str, str, str]:
         return "kingpin_x", "kingpin_y", "follow_x", "follow_y"
     k = unit + 1
     return f"coupling{k}_x", f"coupling{k}_y", f"follow{k}_x", f"follow{k}_y"
-
-
-def interval_integrator(
-    params: VehicleParams,
-    steered: list[int],
-    substeps: int,
-    step: float,
-    weights: Sequence[float] | None = None,
-    every_step: bool = False,
-) -> ca.Function:
-    """The shooting map ``Φ`` of one interval as one SX function ``(x_k, δ_k, δ_{k+1}, held) → x_{k+1}``.
-
-    ``substeps`` RK4 steps of length ``step`` (:func:`vehicle_model.dynamics.rk4_step_expr` on the model's own
-    right-hand side), unrolled; ``held`` ``(n_inputs, substeps)`` holds every input of each step, and the rows of
-    the ``steered`` steer inputs are replaced by the trailer steer linear from ``δ_k`` to ``δ_{k+1}``: in step
-    ``i`` the steer ``δ_k + w_i·(δ_{k+1} − δ_k)``, ``w_i`` from ``weights`` (one per step; by default the step's
-    middle, ``(i + ½)/substeps``). With ``every_step`` the function returns the state after each step instead,
-    ``(n_states, substeps)``.
-    """
-    layout = Layout.for_vehicle(params)
-    sym = define_model(params)
-    rhs = ca.Function("rhs", [sym.x, sym.u], [sym.xdot])  # the model's own right-hand side, uncompiled
-    x = x_start = ca.SX.sym("x", layout.n_states)
-    d_start, d_end = ca.SX.sym("d0", len(steered)), ca.SX.sym("d1", len(steered))
-    held = ca.SX.sym("held", layout.n_inputs, substeps)
-    states = []
-    if weights is None:
-        weights = [(i + 0.5) / substeps for i in range(substeps)]
-    if len(weights) != substeps:
-        raise InputError(f"weights: {len(weights)} given, one per step ({substeps}) expected")
-    for i in range(substeps):
-        weight = float(weights[i])
-        rows = [held[j, i] for j in range(layout.n_inputs)]
-        for j, row in enumerate(steered):
-            rows[row] = d_start[j] + (d_end[j] - d_start[j]) * weight
-        x = rk4_step_expr(rhs, x, ca.vertcat(*rows), step)
-        states.append(x)
-    return ca.Function("interval", [x_start, d_start, d_end, held], [ca.horzcat(*states) if every_step else x])
 
 
 def held_steer_weights(tick_starts: np.ndarray, nodes: np.ndarray) -> list[float] | None:
@@ -182,22 +131,6 @@ def held_steer_weights(tick_starts: np.ndarray, nodes: np.ndarray) -> list[float
     if not np.allclose(weights, weights[0], rtol=0.0, atol=1e-9):
         return None
     return [float(w) for w in np.clip(weights[0], 0.0, 1.0)]
-
-
-def path_reference(path: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For each point ``(n, 2)``, the nearest point of the polyline ``path`` ``(m, 2)`` and the path's left normal
-    there: ``(anchors (n, 2), normals (n, 2))``; the signed distance is ``normal·(point − anchor)``."""
-    a, b = path[:-1], path[1:]
-    seg = b - a
-    length2 = np.maximum(np.sum(seg * seg, axis=1), 1e-12)
-    anchors, normals = np.empty_like(points), np.empty_like(points)
-    for i, p in enumerate(points):
-        t = np.clip(np.sum((p - a) * seg, axis=1) / length2, 0.0, 1.0)
-        near = a + t[:, None] * seg
-        j = int(np.argmin(np.sum((near - p) ** 2, axis=1)))
-        tangent = seg[j] / np.sqrt(length2[j])
-        anchors[i], normals[i] = near[j], (-tangent[1], tangent[0])
-    return anchors, normals
 
 
 def solve_optimal_steer(
@@ -290,7 +223,7 @@ def solve_optimal_steer(
         fixed[layout.mu_slice, k * m : (k + 1) * m] = mu[:, None]
         fixed[layout.slope_slice, k * m : (k + 1) * m] = slope[:, None]
 
-    follows = {u: _follow_function(params, layout.n_states, u) for u in units}
+    follows = {u: follow_function(params, layout.n_states, u) for u in units}
     weights = held_steer_weights(time[tick].reshape(n, m), nodes)
     shoot = interval_integrator(params, steered, m, h, weights).map(n)
     own_error = own_path_error_function(params, layout.n_states, interval) if own_path else None
@@ -320,14 +253,8 @@ def solve_optimal_steer(
         errors[u] = ca.sum1(normals_p[u][:, cols] * (follow_points - anchors_p[u][:, cols])).T
     # Every interval in one mapped call: the interval's derivatives are built once, not once per node.
     opti.subject_to(X[:, 1:] == shoot(X[:, :-1], D[:, :-1], D[:, 1:], ca.DM(fixed)))
-    increments = D[:, 1:] - D[:, :-1]
-    largest_increment = limits.max_steer_rate * interval
-    opti.subject_to(opti.bounded(-largest_increment, ca.vec(increments), largest_increment))
-    opti.subject_to(opti.bounded(-limits.max_steer, ca.vec(D), limits.max_steer))
-    if limits.max_slip_angle is not None:
-        slip_rows = [layout.slip_slice.start + i for i in axle_index]
-        bound = float(np.tan(limits.max_slip_angle))
-        opti.subject_to(opti.bounded(-bound, ca.vec(X[slip_rows, :]), bound))
+    slip_rows = [layout.slip_slice.start + i for i in axle_index]
+    increments = add_steer_limits(opti, D, X[slip_rows, :], limits, interval)
     # Not expanded as a whole by default: the mapped interval is already SX, and expanding the NLP would copy its
     # graph (and its derivatives' graphs) once per node.
     opti.solver(
