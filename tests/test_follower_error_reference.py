@@ -3,7 +3,9 @@
 
 On a hand-made frame: below the setting's demand (or without it) the covariance is (C2)'s to the bit; at or above it
 ``inflate`` adds exactly the follower's off-tracking variance to the lead's lateral variance and ``refuse`` gives no
-measurement, counted under its reason; a bad setting is refused naming the field, before any work (exit 2).
+measurement, counted under its reason; a bad setting is refused naming the field, before any work (exit 2). The
+counts reach ``metrics.json`` beside the lead unit's figures, in the recorded replay's shape; a run without a
+reference has no such key.
 """
 
 from __future__ import annotations
@@ -21,7 +23,11 @@ from typer.testing import CliRunner
 from scenarios.cli import app
 from scenarios.config import ConfigError, load_scenario
 from scenarios.configuration.sections import FusionConfig
-from scenarios.loop.following_camera import filter_scrub, following_camera
+from scenarios.loop.estimators import FusedVisoOtEstimator
+from scenarios.loop.following_camera import filter_scrub, following_camera, reference_counts
+from scenarios.recorded.following import coupling_summary
+from scenarios.run.metrics import COUPLING_REFERENCE, coupling_reference_reports, with_coupling_references
+from scenarios.run.runner import run_scenario
 from sensor.camera import StereoRig
 from sensor.fusion_coupling import FOLLOWER_SCRUBBING, follower_limited
 from sensor.fusion_noise import FollowerLimit, FusionNoise, SideRigFusion
@@ -134,3 +140,48 @@ def test_a_bad_setting_is_refused_naming_the_field(tmp_path: Path) -> None:
     assert result.exit_code == 2, result.output
     assert field in result.output
     assert not (tmp_path / "run").exists()
+
+
+def _unit_metrics() -> dict:
+    """The part of a B-double run's metrics the counts go beside: the first towed unit's and unit 3's figures."""
+    return {"offtracking": {"estimators": {"viso_ot_fused": {"rms_error": 0.1}}, "units": {"3": {"estimators": {}}}}}
+
+
+def test_the_counts_reach_the_metrics_beside_the_lead_units_figures() -> None:
+    """One frame refused at a scrubbing follower: its fused filter reports 0 measurements and 1 refusal under
+    ``follower scrubbing``, placed in ``offtracking`` (the first towed unit's) or ``offtracking.units["3"]`` by
+    the report's key, kept whole through a rebuilt report, in the recorded replay's shape."""
+    refusing, _ = _following(FollowerLimit(action="refuse", demand=0.5), 1.0, 0.04)
+    taking, _ = _following(FollowerLimit(action="refuse", demand=0.5), 0.2, 0.04)
+    params = VEHICLE_PRESETS["au-b-double"]()
+    noise = FusionNoise(side_rig=SIDE).for_camera((0.0, 1.0))
+    lead = FusedVisoOtEstimator(params, refusing.camera, noise, 1, refusing)
+    expected = {"measurements": 0, "refused": {FOLLOWER_SCRUBBING: 1}}
+    assert lead.report() == {COUPLING_REFERENCE: expected}
+    assert reference_counts(taking) == {"measurements": 1, "refused": {}}
+    metrics = with_coupling_references(_unit_metrics(), {"viso_ot_fused": lead.report(), "viso_ot": {"render": 1.0}})
+    assert metrics["offtracking"][COUPLING_REFERENCE] == expected
+    assert COUPLING_REFERENCE not in metrics["offtracking"]["units"]["3"]
+    assert COUPLING_REFERENCE not in metrics["offtracking"]["estimators"]["viso_ot_fused"]
+    further = with_coupling_references(_unit_metrics(), {"viso_ot_fused3": lead.report()})
+    assert further["offtracking"]["units"]["3"][COUPLING_REFERENCE] == expected
+    assert COUPLING_REFERENCE not in further["offtracking"]
+    assert coupling_reference_reports(further) == {"viso_ot_fused3": {COUPLING_REFERENCE: expected}}
+    recorded = SimpleNamespace(
+        fused=SimpleNamespace(noise=noise, coupling_updates=0, coupling_rejected=0),
+        reference=SimpleNamespace(follower=3, matched=2, following=refusing),
+    )
+    summary = coupling_summary(recorded)
+    assert summary is not None and {k: summary[k] for k in expected} == expected
+
+
+def test_without_a_reference_nothing_is_added(tmp_path: Path) -> None:
+    """A fused filter without a reference reports nothing and the metrics are unchanged; a short single-trailer
+    model-only run's ``metrics.json`` has no ``coupling_reference`` anywhere."""
+    refusing, _ = _following(None, 1.0, 0.04)
+    params = VEHICLE_PRESETS["au-b-double"]()
+    alone = FusedVisoOtEstimator(params, refusing.camera, FusionNoise().for_camera((0.0, 1.0)))
+    assert alone.report() == {}
+    assert with_coupling_references(_unit_metrics(), {"viso_ot_fused": {}, "viso_ot_fused3": {}}) == _unit_metrics()
+    run_scenario(load_scenario("roundabout-3", {"duration_s": 1.0}), tmp_path / "run", plots=False)
+    assert COUPLING_REFERENCE not in (tmp_path / "run" / "metrics.json").read_text()

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -30,7 +31,7 @@ from vehicle_model.offtracking import (
 )
 from vehicle_model.parameters import VehicleParams
 
-from .following_camera import FollowingCamera, following_camera
+from .following_camera import FollowingCamera, following_camera, reference_counts
 from .participant import Column, LoopContext, TickInput
 
 __all__ = [
@@ -328,6 +329,14 @@ class FusedVisoOtEstimator:
             reason = TOO_UNCERTAIN if math.isfinite(fused.std) else BUFFER_FILLING
             self.estimate = OfftrackingEstimate(math.nan, fused.std, reason)
         return self.estimate
+
+    def report(self) -> dict[str, Any]:
+        """What the run's ``metrics.json`` says of this filter beside its unit's figures: with a :attr:`reference`,
+        ``coupling_reference``, its following frames measured and refused (:func:`.following_camera.
+        reference_counts`); empty without one."""
+        if self.reference is None:
+            return {}
+        return {"coupling_reference": reference_counts(self.reference)}
 
     def record(self) -> Mapping[str, float]:
         """The estimate, its standard deviation, the kinematics' σ and the terms of the standard deviation."""

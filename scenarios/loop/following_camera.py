@@ -33,7 +33,14 @@ from vehicle_model.parameters import VehicleParams
 
 from ..unit_feedback import estimate_key
 
-__all__ = ["FollowingCamera", "filter_scrub", "filter_yaw_bias", "following_camera", "measured_articulations"]
+__all__ = [
+    "FollowingCamera",
+    "filter_scrub",
+    "filter_yaw_bias",
+    "following_camera",
+    "measured_articulations",
+    "reference_counts",
+]
 
 
 def measured_articulations(measured: Mapping[str, np.ndarray]) -> tuple[float, ...]:
@@ -151,6 +158,16 @@ class FollowingCamera:
         for old in [t for t in self._pending if t < tick]:
             del self._pending[old]
         return found
+
+
+def reference_counts(following: FollowingCamera | None) -> dict[str, Any]:
+    """``metrics.json``'s counts of a following unit's camera as a filter's reference: ``measurements``, the
+    following frames turned into a measurement, and ``refused``, those refused by (C3), by reason (in the reasons'
+    order; empty: none). ``None``: no following camera was found, zero of both. One shape for a run and a recorded
+    replay (:func:`scenarios.recorded.following.coupling_summary`)."""
+    if following is None:
+        return {"measurements": 0, "refused": {}}
+    return {"measurements": following.measurements, "refused": dict(sorted(following.refused.items()))}
 
 
 def following_camera(

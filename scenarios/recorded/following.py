@@ -26,7 +26,7 @@ import numpy as np
 
 from sensor.fusion_coupling import CouplingMeasurement, CouplingReference, looks_along
 
-from ..loop.following_camera import FollowingCamera, filter_yaw_bias
+from ..loop.following_camera import FollowingCamera, filter_yaw_bias, reference_counts
 from .inputs import EstimateInputs
 from .unit_fusion import chain_signal_keys
 
@@ -151,8 +151,9 @@ class RecordedFollowingCamera:
 def coupling_summary(estimator: Any) -> dict[str, Any] | None:
     """``metrics.json``'s ``coupling_reference`` of a fused adapter (:class:`scenarios.loop.offline.
     OfflineFusedVisoOt`) whose settings take a following unit's camera: the follower's unit (``None``: none was
-    estimated), its frames matched to the lead's rows, the measurements made of them, and those the filter used and
-    refused (``None`` for a filter whose settings do not take one)."""
+    estimated), its frames matched to the lead's rows, the measurements made of them and the frames refused by reason
+    (:func:`scenarios.loop.following_camera.reference_counts`, a run's shape), and the measurements the filter used
+    and rejected (``None`` for a filter whose settings do not take one)."""
     fused = getattr(estimator, "fused", None)
     if fused is None or not fused.noise.coupling_reference:
         return None
@@ -160,7 +161,7 @@ def coupling_summary(estimator: Any) -> dict[str, Any] | None:
     return {
         "follower_unit": None if reference is None else reference.follower,
         "frames_matched": 0 if reference is None else reference.matched,
-        "measurements": 0 if reference is None else reference.following.measurements,
+        **reference_counts(None if reference is None else reference.following),
         "updates": fused.coupling_updates,
         "rejected": fused.coupling_rejected,
     }

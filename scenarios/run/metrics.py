@@ -3,6 +3,7 @@ verdict, the swept-path width (:mod:`.swept_width`) and the run's own verdict (:
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -436,3 +437,37 @@ def unit_estimator_names(columns: dict[str, np.ndarray], unit: int) -> list[str]
     """The estimates of unit ``unit`` (behind the first towed one) recorded in a run's columns, as ``<name><k>``
     (``zero_slip3``: the zero-slip estimate of unit 3)."""
     return [f"{name}{unit}" for name in estimator_names(columns, unit)]
+
+
+COUPLING_REFERENCE = "coupling_reference"
+"""The key of a fused filter's following-camera counts in its participant's report and beside its unit's figures
+(:func:`scenarios.loop.following_camera.reference_counts`)."""
+_FUSED = "viso_ot_fused"
+
+
+def with_coupling_references(metrics: dict[str, Any], reports: Mapping[str, Any]) -> dict[str, Any]:
+    """``metrics`` with each fused filter's ``coupling_reference`` (``reports``: the loop's participants' reports by
+    estimate key, ``viso_ot_fused`` the first towed unit's, ``viso_ot_fused<k>`` unit ``k``'s) beside its unit's
+    figures: in ``offtracking`` for the first towed unit, in ``offtracking.units["<k>"]`` for unit ``k`` (left out
+    where the run has no figures of that unit). A filter without a reference reports none: nothing is added."""
+    for key, report in reports.items():
+        if not key.startswith(_FUSED) or not isinstance(report, Mapping) or COUPLING_REFERENCE not in report:
+            continue
+        unit = key.removeprefix(_FUSED)
+        offtracking = metrics["offtracking"]
+        section = offtracking if unit == "" else (offtracking.get("units") or {}).get(unit)
+        if section is not None:
+            section[COUPLING_REFERENCE] = report[COUPLING_REFERENCE]
+    return metrics
+
+
+def coupling_reference_reports(metrics: Mapping[str, Any]) -> dict[str, Any]:
+    """The reports :func:`with_coupling_references` placed in a run's ``metrics.json`` (by estimate key), for a
+    report rebuilt from the run's files, which cannot count them again."""
+    offtracking = metrics.get("offtracking") or {}
+    sections = {_FUSED: offtracking, **{f"{_FUSED}{u}": own for u, own in (offtracking.get("units") or {}).items()}}
+    return {
+        key: {COUPLING_REFERENCE: own[COUPLING_REFERENCE]}
+        for key, own in sections.items()
+        if isinstance(own, Mapping) and COUPLING_REFERENCE in own
+    }

@@ -17,6 +17,7 @@ import contextlib
 import datetime as dt
 import os
 import socket
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -25,7 +26,13 @@ import numpy as np
 from ..config import ScenarioConfig
 from ..loop.ends import RunStatus
 from ..unit_feedback import rear_feedbacks
-from .metrics import after_warmup, compute_metrics, estimator_names
+from .metrics import (
+    after_warmup,
+    compute_metrics,
+    coupling_reference_reports,
+    estimator_names,
+    with_coupling_references,
+)
 from .notes import run_notes
 from .results import plot_files, read_config, read_metrics, read_timeseries, write_metrics
 from .stopping import deferred_stops, raise_pending_stop, stop_message, stop_signal_name
@@ -160,6 +167,7 @@ def write_report(
     plots: bool = True,
     *,
     plot_format: str = "png",
+    reports: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Compute a run's metrics, write ``metrics.json`` and (``plots``, two rows or more) the plots.
 
@@ -180,6 +188,9 @@ def write_report(
         Draw ``plan_view.png`` and ``offtracking.png``.
     plot_format
         Their image format: ``png`` (default), ``svg`` or ``pdf`` (the suffix of the file names).
+    reports
+        The loop's participants' reports by name: a fused filter's following-camera counts go beside its unit's
+        figures (:func:`~scenarios.run.metrics.with_coupling_references`).
 
     Returns
     -------
@@ -202,6 +213,7 @@ def write_report(
             turn_centre=turn_centre(setup.path.centres),
             rear_feedback=rear_feedbacks(setup.params, config.feedback, config.rear_feedback),
         )
+        with_coupling_references(metrics, reports or {})
         metrics.update({key: None for key in RUN_FIELDS})
         metrics.update({"rows": len(time), "simulated_s": float(time[-1]) if len(time) else 0.0, **run})
         _flag_unfinished_path(metrics, config, setup.path.length, columns)
@@ -289,4 +301,5 @@ def rebuild_report(run_dir: Path, plots: bool = True, *, plot_format: str = "png
     else:
         run = {key: recorded.get(key) for key in RUN_FIELDS if key != "rows"}
     run["rebuilt_at"] = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
-    return write_report(run_dir, build_scenario(config), columns, run, plots, plot_format=plot_format)
+    reports = coupling_reference_reports(recorded)  # counted only while the run ran: kept as it recorded them
+    return write_report(run_dir, build_scenario(config), columns, run, plots, plot_format=plot_format, reports=reports)

@@ -90,7 +90,7 @@ def run_scenario(
         "stop_time": outcome.stop_time,
         "stop_signal": outcome.stop_signal,
     }
-    return write_report(run_dir, setup, columns, run, plots, plot_format=plot_format)
+    return write_report(run_dir, setup, columns, run, plots, plot_format=plot_format, reports=outcome.reports)
 
 
 def _cosimulation(setup: ScenarioSetup, source: TrailerSteerSource | None, writer: TimeSeriesWriter) -> CoSimulation:
