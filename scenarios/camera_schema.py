@@ -56,10 +56,10 @@ class CalibrationConfig(Settings):
     ``offtrack calibrate``. ``misalignment_deg`` is the right camera's rotation when it was calibrated: a
     calibration removes the rotation it sees, so only a change after it (``camera.right_misalignment_deg``
     minus this, plus the mount flex) biases the run. ``stereo_refinement`` is what the stereo calibration fits
-    (:data:`sensor.calibration.STEREO_REFINEMENTS`): ``extrinsics`` (the default) the pair's rotation and
-    translation with each camera's own intrinsics fixed, ``joint`` both cameras' intrinsics and distortion with
-    them, which leaves the rectified disparity a smaller error that varies across the image (docs/studies.md,
-    "Off-highway").
+    (:data:`sensor.calibration.STEREO_REFINEMENTS`): ``joint`` (the default) both cameras' intrinsics and
+    distortion with the pair's rotation and translation, which leaves the rectified disparity a smaller error that
+    varies across the image and turns the odometry's motion less (docs/studies.md, "Off-highway" and "`joint` is the
+    default"); ``extrinsics`` the rotation and translation alone, each camera's own intrinsics fixed.
     """
 
     mode: Literal["ideal", "estimated", "file"] = "ideal"
@@ -71,7 +71,7 @@ class CalibrationConfig(Settings):
     corner_noise_px: float = Field(0.1, ge=0.0, le=5.0, description="[px] corner-detection noise (std)")
     misalignment_deg: tuple[RigRotationDeg, RigRotationDeg, RigRotationDeg] = (0.0, 0.0, 0.0)
     stereo_refinement: Literal["extrinsics", "joint"] = Field(
-        "extrinsics", description="what the stereo calibration fits: R, T alone, or both cameras' intrinsics too"
+        "joint", description="what the stereo calibration fits: R, T alone, or both cameras' intrinsics too"
     )
 
     @model_validator(mode="after")
