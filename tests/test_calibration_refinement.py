@@ -129,6 +129,7 @@ def test_the_scenario_setting_reaches_the_calibration(monkeypatch: pytest.Monkey
         cfg = load_scenario("roundabout-test", {"camera.calibration.stereo_refinement": value})
         build.run_calibration(build.rig_from_config(cfg), cfg)
         assert seen["stereo_refinement"] == value
-    assert load_scenario("roundabout-test").camera.calibration.stereo_refinement == "joint"  # the default: both cameras refined with R, T
+    # the default: both cameras refined with R and T
+    assert load_scenario("roundabout-test").camera.calibration.stereo_refinement == "joint"
     with pytest.raises(Exception, match="stereo_refinement"):
         load_scenario("roundabout-test", {"camera.calibration.stereo_refinement": "all"})
