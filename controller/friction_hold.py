@@ -78,6 +78,17 @@ MIN_ARTICULATION = math.radians(5.0)
 error reaches it more than ``1/sin Γ`` ≈ 11 times over (:func:`wheel_speed_kingpin_lateral_velocity`)."""
 
 
+def _carried_to_unit(
+    params: VehicleParams, unit: int, kingpin: tuple[float, float], state: VehicleState
+) -> tuple[float, float]:
+    """The tractor's kingpin velocity ``kingpin`` (its axes) as the velocity of steered unit ``unit``'s coupling in
+    the axes of the unit ahead (:func:`~vehicle_model.kinematics.coupling_velocity`; the first
+    unit's is the kingpin's)."""
+    if unit == 1:
+        return kingpin
+    return coupling_velocity(params, unit, kingpin, state.articulations, state.towed_yaw_rates)
+
+
 def accelerometer_coupling_velocity(
     params: VehicleParams, unit: int, state: VehicleState, lateral_acceleration: float
 ) -> tuple[float, float]:
@@ -102,9 +113,7 @@ def accelerometer_coupling_velocity(
         ``lateral_acceleration`` is not finite (no accelerometer reading).
     """
     kingpin = tractor_kingpin_velocity(params, "lateral_acceleration", state.u, state.r1, lateral_acceleration)
-    if unit == 1:
-        return kingpin
-    return coupling_velocity(params, unit, kingpin, state.articulations, state.towed_yaw_rates)
+    return _carried_to_unit(params, unit, kingpin, state)
 
 
 def wheel_speed_kingpin_lateral_velocity(
@@ -173,9 +182,7 @@ def wheel_speed_coupling_velocity(
         :data:`MIN_ARTICULATION`.
     """
     kingpin = wheel_speed_kingpin_velocity(params, state, wheel_speeds, lateral_acceleration)
-    if unit == 1:
-        return kingpin
-    return coupling_velocity(params, unit, kingpin, state.articulations, state.towed_yaw_rates)
+    return _carried_to_unit(params, unit, kingpin, state)
 
 
 def wheel_speed_kingpin_velocity(
@@ -224,9 +231,7 @@ class WheelSpeedKingpin:
         else:
             self.lateral += min(dt / self.time_constant, 1.0) * (vy - self.lateral)
         kingpin = (vx, self.lateral)
-        if self.unit == 1:
-            return kingpin
-        return coupling_velocity(self.params, self.unit, kingpin, state.articulations, state.towed_yaw_rates)
+        return _carried_to_unit(self.params, self.unit, kingpin, state)
 
 
 def asks_for_friction(lateral_acceleration: float) -> bool:
