@@ -8,9 +8,11 @@ to SI where the configuration is used. :func:`load_scenario` and :func:`validate
 in for the command line, the studies and the environments.
 
 This module gathers the names of :mod:`scenarios.configuration`, where each job has its module: the sections
-(:mod:`~scenarios.configuration.sections`), the ``vehicle`` field (:mod:`~scenarios.configuration.vehicle_field`),
-:class:`ScenarioConfig` (:mod:`~scenarios.configuration.scenario_config`), the messages of a bad field
-(:mod:`~scenarios.configuration.field_errors`) and the loading and overrides (:mod:`~scenarios.configuration.loading`).
+(:mod:`~scenarios.configuration.road_sections`, :mod:`~scenarios.configuration.sections`), the ``vehicle`` field
+(:mod:`~scenarios.configuration.vehicle_field`), :class:`ScenarioConfig`
+(:mod:`~scenarios.configuration.scenario_config`), the messages of a bad field
+(:mod:`~scenarios.configuration.field_errors`) and the loading and overrides
+(:mod:`~scenarios.configuration.loading`).
 """
 
 from __future__ import annotations
@@ -26,19 +28,21 @@ from .configuration.loading import (
     set_dotted,
     validate_config,
 )
-from .configuration.scenario_config import ScenarioConfig
-from .configuration.sections import (
+from .configuration.road_sections import (
     COORDINATE_LIMIT_M,
     CamberConfig,
+    PatchConfig,
+    PathConfig,
+    SpeedConfig,
+    SurfaceConfig,
+)
+from .configuration.scenario_config import ScenarioConfig
+from .configuration.sections import (
     ControllerConfig,
     EstimatorsConfig,
     FusionConfig,
-    PatchConfig,
-    PathConfig,
     RatesConfig,
     SignalsConfig,
-    SpeedConfig,
-    SurfaceConfig,
 )
 from .configuration.vehicle_field import (
     VEHICLE_SUFFIXES,

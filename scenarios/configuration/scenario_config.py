@@ -20,16 +20,18 @@ from ..camera_schema import CameraConfig, rig_units
 from ..estimator_settings import switch_is_on, turn_on
 from ..registry import NO_FEEDBACK, estimator_entries, estimator_entry, feedback_sources
 from ..unit_feedback import check_unit_feedback, steered_units
-from .sections import (
+from .road_sections import (
     CamberConfig,
+    PathConfig,
+    SpeedConfig,
+    SurfaceConfig,
+)
+from .sections import (
     ControllerConfig,
     EstimatorsConfig,
     FusionConfig,
-    PathConfig,
     RatesConfig,
     SignalsConfig,
-    SpeedConfig,
-    SurfaceConfig,
 )
 from .terrain_section import TerrainConfig
 from .vehicle_field import Vehicle, check_vehicle, params_of, read_vehicle_file, vehicle_name
