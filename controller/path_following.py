@@ -8,9 +8,10 @@ law an independent off-tracking measurement, here the caller picks the estimate 
     δ_j ← f(u) · δ_j,  then per-axle saturation ±δ_max, then rate limit ±δ̇_max
 
 This module holds the per-tick controller (:class:`TrailerSteeringController`: hold, feed-forward, PID,
-anti-windup). Its settings, gains, kinematic pole placement and speed schedule are in
-:mod:`controller.path_following_config`; the virtual-axle distribution, the steady-turn steer and the per-axle
-limits are in :mod:`controller.axle_steer_distribution`.
+anti-windup). The kingpin's dead-reckoned path that the chord law reads is in :mod:`controller.kingpin_path`. Its
+settings, gains, kinematic pole placement and speed schedule are in :mod:`controller.path_following_config`; the
+virtual-axle distribution, the steady-turn steer and the per-axle limits are in
+:mod:`controller.axle_steer_distribution`.
 
 Sign convention (docs/design.md §6)
 -----------------------------------
@@ -136,7 +137,6 @@ feed-forward's own steer (:mod:`controller.reach_rules`), before the magnitude l
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
 
@@ -155,8 +155,9 @@ from .friction_hold import (
     deepens_slip,
     steered_slip_angles,
 )
+from .kingpin_path import PATH_SPACING, DeadReckonedKingpinPath
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
-from .preview import chord_law, interpolated_chord_end, preview_tangent, straight_chord_end
+from .preview import preview_tangent
 from .reach_rules import is_outswing, outswing_scale, window_holding
 from .steer_output import OutputStep, TrailerSteerOutput, high_speed_fade, speed_fade
 
@@ -165,9 +166,6 @@ __all__ = ["TrailerSteeringController", "telemetry_prefix"]
 EXIT_CURVATURE_SHARE = 0.5
 """Share of the peak kingpin curvature ``|κ5|`` since the path went beyond reach below which the turn counts as
 ending (``reach_freeze_at = "exit"``): the outswing's integral belongs to the turn, so it is held from there."""
-
-PATH_SPACING = 0.05
-"""Spacing [m] of the stored points of the dead-reckoned kingpin path (chord feed-forward)."""
 
 
 def telemetry_prefix(unit: int) -> str:
@@ -276,6 +274,7 @@ class TrailerSteeringController:
             SlipFeedforward(params, unit, self.distribution, cfg.max_slip_angle) if cfg.slip_feedforward else None
         )
         self.wheel_speed_kingpin = WheelSpeedKingpin(params, unit)  # the friction hold's, with wheel_speeds
+        self.kingpin_path = DeadReckonedKingpinPath(self.follow_point_offset)  # the chord law's
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -299,11 +298,7 @@ class TrailerSteeringController:
         self.distance = 0.0
         self._derivative = 0.0
         self._last_sample: tuple[float, float] | None = None  # (value, distance) of the previous new sample
-        self._heading = 0.0  # dead-reckoned tractor heading ψ̂1 [rad]
-        self._position = np.zeros(2)  # dead-reckoned kingpin position [m]
-        self._path: deque[tuple[float, float, float]] = deque()  # (x, y, θ) of the kingpin path, oldest first
-        self._path_direction = 0.0
-        self._last_motion: tuple[float, float, float] | None = None  # (r1, v_kx, v_ky) of the previous tick
+        self.kingpin_path.reset()
 
     @property
     def commands(self) -> np.ndarray:
@@ -403,23 +398,24 @@ class TrailerSteeringController:
         self.fade = speed_fade(state.u, cfg.fade_speeds) * high_speed_fade(state.u, cfg.high_speed_crossover)
 
         # Feed-forward (the steady law in its exact form, or the chord law).
-        self._record_path(motion.tow_yaw_rate, vx, vy, dt, forward)
+        self.kingpin_path.record(motion.tow_yaw_rate, vx, vy, dt, forward)
         if cfg.feedforward == "steady":
             tan_ff, _ = steady_turn_tangents(
                 self.kingpin_curvature, self.follow_point_offset, self.virtual_axle_distance
             )
             self.feedforward_steer = math.atan(tan_ff)
         elif cfg.feedforward == "path":
-            self.feedforward_steer = math.atan(self._chord_feedforward()) if self._path else 0.0
+            self.feedforward_steer = (
+                math.atan(self.kingpin_path.chord_tangent(self.virtual_axle_distance)) if self.kingpin_path else 0.0
+            )
         else:
             self.feedforward_steer = 0.0
         path_beyond_reach = self.fade > 0 and self.output.beyond_reach(self.feedforward_steer, tan_kingpin)
-        if cfg.preview_distance is not None and self._path:  # the chord law a preview distance ahead
-            kingpin = (float(self._position[0]), float(self._position[1]), self._path_direction)
+        if cfg.preview_distance is not None and self.kingpin_path:  # the chord law a preview distance ahead
             self.feedforward_steer = math.atan(
                 preview_tangent(
-                    self._path,
-                    kingpin,
+                    self.kingpin_path.points,
+                    self.kingpin_path.kingpin,
                     self.kingpin_curvature,
                     cfg.preview_distance,
                     self.follow_point_offset,
@@ -498,54 +494,6 @@ class TrailerSteeringController:
         fb = 0.0 if error is None else schedule * (gains.kp * error + gains.ki * integral + gains.kd * self._derivative)
         virtual = outswing_scale(self.feedforward_steer + fb, error, self.kingpin_curvature, self.config.max_outswing)
         return fb, self.output.propose(virtual, tan_kingpin, self.fade, dt, slip_window)
-
-    def _record_path(self, tow_yaw_rate: float, vx: float, vy: float, dt: float, forward: bool) -> None:
-        """Dead-reckon the kingpin path (the towing unit's yaw rate, kingpin velocity) over about one trailer length.
-
-        Heading and position are integrated every tick (trapezoidal rule); a point is stored every
-        :data:`PATH_SPACING` metres and points more than one trailer length back are dropped but one.
-        """
-        if not forward:
-            self._path.clear()
-            self._last_motion = None
-            return
-        if self._last_motion is not None:
-            r1_prev, vx_prev, vy_prev = self._last_motion
-            mid = self._heading + 0.25 * (r1_prev + tow_yaw_rate) * dt
-            self._heading += 0.5 * (r1_prev + tow_yaw_rate) * dt
-            c, s = math.cos(mid), math.sin(mid)
-            mx, my = 0.5 * (vx + vx_prev), 0.5 * (vy + vy_prev)
-            self._position += dt * np.array([c * mx - s * my, s * mx + c * my])
-        self._last_motion = (tow_yaw_rate, vx, vy)
-        self._path_direction = self._heading + math.atan2(vy, vx)  # direction θ_k of the kingpin path
-        px, py = float(self._position[0]), float(self._position[1])
-        if not self._path or math.hypot(px - self._path[-1][0], py - self._path[-1][1]) >= PATH_SPACING:
-            self._path.append((px, py, self._path_direction))
-        while len(self._path) > 2 and math.hypot(self._path[1][0] - px, self._path[1][1] - py) >= (
-            self.follow_point_offset
-        ):
-            self._path.popleft()
-
-    def _chord_feedforward(self) -> float:
-        """``tan δ_ff`` of the chord law on the dead-reckoned kingpin path (module docstring).
-
-        The trailer is placed on the chord from the path point ``L_fp`` behind the kingpin (in straight-line
-        distance) to the kingpin; the kingpin moves along the path direction ``θ_k`` and the follow point along
-        the path direction ``θ_f`` at the chord point, so in the chord's frame ``tan δ_ff = tan β_k* −
-        (L_v/L_fp)(tan β_k* − tan φ_f*)`` with ``β_k* = θ_k − ψ2*``, ``φ_f* = θ_f − ψ2*``.
-        """
-        lfp = self.follow_point_offset
-        kingpin = (float(self._position[0]), float(self._position[1]), self._path_direction)
-        oldest = self._path[0]
-        d0 = math.hypot(oldest[0] - kingpin[0], oldest[1] - kingpin[1])
-        if len(self._path) >= 2 and d0 >= lfp:
-            # The oldest point is the last one at least L_fp away (pruning keeps one): interpolate to L_fp.
-            near = self._path[1]
-            d1 = math.hypot(near[0] - kingpin[0], near[1] - kingpin[1])
-            end = interpolated_chord_end(oldest, d0, near, d1, lfp)
-        else:
-            end = straight_chord_end(oldest, kingpin, lfp)  # less than one trailer length recorded
-        return chord_law(kingpin, end, lfp, self.virtual_axle_distance)
 
     def _sample(self, estimate: OfftrackingEstimate | None) -> float | None:
         """Zero-order hold of the estimate; derivative on new samples only. ``None`` if missing.
