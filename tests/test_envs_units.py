@@ -33,7 +33,7 @@ from gymnasium.utils.env_checker import check_env
 from scenarios.config import ConfigError
 from scenarios.envs import register_envs
 from scenarios.envs.gain_tuning_env import episode_figures, unit_figures
-from scenarios.envs.steering_env import OBSERVATION_NAMES, unit_observation_names
+from scenarios.envs.steering_observation import OBSERVATION_NAMES, unit_observation_names
 from scenarios.loop.trailer_steer import trailer_steer_for
 from scenarios.run.drive import simulate
 from scenarios.run.metrics import after_warmup

@@ -24,16 +24,14 @@ from .env_config import configure, scenario_defaults
 from .plan_view import camera_strip, check_render_mode, draw_plan_view
 from .reward import OFFTRACKING_CLIP, OFFTRACKING_TOLERANCE, REWARD_WEIGHTS, SteeringReward, episode_summary
 from .scenario import ScenarioChoice
+from .steering_observation import observation_layout
 from .units import check_episode_units, check_units
 from .validation import check_choice
 
 __all__ = [
     "MAX_EPISODE_STEPS",
-    "OBSERVATION_NAMES",
     "REWARD_WEIGHTS",
-    "UNIT_OBSERVATION_NAMES",
     "TrailerSteeringEnv",
-    "unit_observation_names",
 ]
 
 MAX_EPISODE_STEPS = 5000
@@ -41,43 +39,6 @@ MAX_EPISODE_STEPS = 5000
 
 PREVIEW_DISTANCES: tuple[float, ...] = (0.0, 10.0, 20.0, 30.0)
 """Default path-curvature preview distances ahead of the driver's control point [m]."""
-
-_BASE_OBSERVATION: tuple[tuple[str, float], ...] = (
-    ("offtracking_estimate", 5.0),
-    ("estimate_valid", 1.0),
-    ("articulation", math.pi),
-    ("wheel_speed", 30.0),
-    ("tractor_yaw_rate", 6.0),
-    ("trailer_yaw_rate", 6.0),
-    ("previous_virtual_steer", math.pi / 2),
-    ("previous_action", 1.0),
-    ("pid_virtual_steer", math.pi / 2),
-)
-_CURVATURE_BOUND = 0.25  # [1/m]: the configuration's smallest path radius is 5 m
-
-_UNIT_OBSERVATION: tuple[tuple[str, float], ...] = (
-    ("offtracking_estimate", 5.0),
-    ("estimate_valid", 1.0),
-    ("articulation", math.pi),
-    ("yaw_rate", 6.0),
-    ("previous_virtual_steer", math.pi / 2),
-    ("previous_action", 1.0),
-    ("pid_virtual_steer", math.pi / 2),
-)
-
-OBSERVATION_NAMES: tuple[str, ...] = tuple(name for name, _ in _BASE_OBSERVATION)
-"""Names of the leading observation entries (the tractor and the first towed unit); for a longer combination
-:func:`unit_observation_names` of each unit behind the first towed one follow, then ``curvature_ahead_<d>m``
-entries, one per preview distance."""
-
-UNIT_OBSERVATION_NAMES: tuple[str, ...] = tuple(name for name, _ in _UNIT_OBSERVATION)
-"""The entries of each unit behind the first towed one, each prefixed ``unit<k>_`` (:func:`unit_observation_names`)."""
-
-
-def unit_observation_names(unit: int) -> tuple[str, ...]:
-    """The observation entries of unit ``unit`` of the combination (3 or 4: behind the first towed one),
-    ``unit3_offtracking_estimate``, …"""
-    return tuple(f"unit{unit}_{name}" for name in UNIT_OBSERVATION_NAMES)
 
 
 class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
@@ -141,8 +102,8 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
     | … | ``curvature_ahead_<d>m``: path curvature ``d`` metres ahead of the driver's control point | 1/m | ±0.25 |
 
     Entries 0, 1 and 6–8 are the first towed unit's (6–8 are 0 when it is not steered). Each unit ``k`` behind
-    it (:func:`unit_observation_names`; ``k`` numbers the combination's units from the tractor, as the recorded
-    columns do) adds:
+    it (:func:`~.steering_observation.unit_observation_names`; ``k`` numbers the combination's units from the
+    tractor, as the recorded columns do) adds:
 
     | name | unit | bound |
     |---|---|---|
@@ -336,23 +297,7 @@ class TrailerSteeringEnv(gym.Env[np.ndarray, np.ndarray]):
         self.render_span = float(cfg["render_span"])
 
         self.action_space = spaces.Box(-1.0, 1.0, shape=(self.n_steered,), dtype=np.float32)
-        further = self.units.further
-        bounds = (
-            [b for _, b in _BASE_OBSERVATION]
-            + [b for _ in further for _, b in _UNIT_OBSERVATION]
-            + [_CURVATURE_BOUND] * len(self.preview_distances)
-        )
-        high = np.array(bounds, dtype=np.float32)
-        low = -high
-        low[1] = 0.0
-        for i, _ in enumerate(further):
-            low[len(_BASE_OBSERVATION) + i * len(_UNIT_OBSERVATION) + 1] = 0.0  # unit<k>_estimate_valid
-        self.observation_space = spaces.Box(low, high, dtype=np.float32)
-        self.observation_names = (
-            OBSERVATION_NAMES
-            + tuple(name for unit in further for name in unit_observation_names(unit))
-            + tuple(f"curvature_ahead_{d:g}m" for d in self.preview_distances)
-        )
+        self.observation_space, self.observation_names = observation_layout(self.units.further, self.preview_distances)
 
         self._cosim: CoSimulation | None = None
         self._controllers: tuple[TrailerSteeringController, ...] = ()
