@@ -177,7 +177,8 @@ class FusedVisoOt:
         point = self.noise.kinematic_rear_point
         # (K1)'s z_c: the tractor's kinematics carried down the chain, or the unit's own accelerometer's slip (T2)
         own = point == TRAILER_REFERENCE
-        self._own_reference = UnitSlipReference(params, self.unit, self.noise.reference_friction) if own else None
+        frictions = (self.noise.reference_friction, self.noise.reference_road_friction)
+        self._own_reference = UnitSlipReference(params, self.unit, *frictions) if own else None
         self._chain = ChainKinematics(params, self.unit, "lateral_acceleration" if own else point)  # type: ignore[arg-type]
         self.buffer = OfftrackingBuffer(self.follow_point_offset)
         layout = StateLayout.of(self.noise)

@@ -35,6 +35,8 @@ REFERENCE_SETTINGS: tuple[str, ...] = ("coupling_covariance_scale", "coupling_fo
 """The side-rig settings the coupling reference takes (:mod:`sensor.fusion_coupling`), not the filter."""
 FRICTION = "the lowest road μ the vehicle is specified for, (T3); 0.05 is glare ice, 1.5 a race track; null: none"
 """``reference_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
+ROAD_FRICTION = "the road's μ as the run states it, (T4) in the reference's mean; 0.05 is glare ice; null: none"
+"""``reference_road_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
 
 
 class PersistingReferenceError(Settings):
@@ -86,8 +88,8 @@ class SideRigFusion(Settings):
     ----------
     vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect
         As :class:`FusionNoise`'s.
-    kinematic_rear_point, reference_friction, kinematic_error_model, coupling_reference, coupling_bias_share,
-    coupling_persisting_error
+    kinematic_rear_point, reference_friction, reference_road_friction, kinematic_error_model, coupling_reference,
+    coupling_bias_share, coupling_persisting_error
         As :class:`FusionNoise`'s.
     coupling_covariance_scale
         Factor on the covariance of the following unit's measurement, (C2) of :mod:`sensor.fusion_coupling`
@@ -107,6 +109,7 @@ class SideRigFusion(Settings):
     vo_axial_effect: AxialEffect | None = None
     kinematic_rear_point: KinematicReference | None = None
     reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
+    reference_road_friction: float | None = Field(None, ge=0.05, le=1.5, description=ROAD_FRICTION)
     kinematic_error_model: Literal["inflated", "state"] | None = None
     coupling_reference: bool | None = None
     coupling_bias_share: bool | None = None
@@ -202,6 +205,10 @@ class FusionNoise(Settings):
         ``μ_min`` of (T3) of :mod:`sensor.unit_slip_reference`: the lowest road friction the vehicle is specified
         for, at which the ``trailer_lateral_acceleration`` reference's linear tyres' residual joins σ_k's floor
         (``None``: no such term, the default; docs/field_bias.md §7.11.2).
+    reference_road_friction : float or None
+        ``μ_r`` of (T4) of :mod:`sensor.unit_slip_reference`: the road's friction as the run states it, at which
+        the ``trailer_lateral_acceleration`` reference's slip is the brush tyre's, not the linear tyre's (``None``:
+        the linear tyre's, the default; docs/field_bias.md §7.17).
     tractor_stiffness_uncertainty : float
         ``u_C`` of (K2): the relative uncertainty of the tractor's cornering stiffnesses, so of the rear slip the
         compensated rear points predict.
@@ -335,6 +342,7 @@ class FusionNoise(Settings):
     kinematics: bool = True
     kinematic_rear_point: KinematicReference = "axle_mean"
     reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
+    reference_road_friction: float | None = Field(None, ge=0.05, le=1.5, description=ROAD_FRICTION)
     tractor_stiffness_uncertainty: float = Field(
         0.2,
         ge=0.0,

@@ -46,6 +46,16 @@ No on-board signal gives ``μ``. With ``reference_friction`` ``μ_min``, the low
 for, ``σ_m = k(min(η_min, 1))·|G·u·f_p|`` at ``η_min = |f_p|/(μ_min·g)`` is the residual the road with that friction
 would leave, the most any specified road leaves; ``σ_m²`` joins σ_k²'s floor of (K2) (:mod:`sensor.fusion_slip`).
 On a road with more friction the residual is less and the term errs on the safe side.
+
+The residual in the mean. With ``reference_road_friction`` ``μ_r``, the road's friction as the run states it, (T2)'s
+demand term takes the brush tyre's slip in place of the linear tyre's::
+
+    v̂_s = (r·σ_L² + u·c_δ)/L_c − (1 + k(η_r))·G·u·f_p,      η_r = |f_p|/(μ_r·g)                       (T4)
+
+so (K1) is measured against the slip the road's friction asks, not the linear tyre's. It is steep in ``μ_r`` near
+the demand: a stated friction below the road's over-corrects (at ``η_r`` → 1 the slip triples), one above it leaves
+part of the residual, so a friction stated with a margin is the higher one. The on-board signals give only a lower
+bound on ``μ`` (the peak specific force over ``g``), so on the over-correcting side; it is not used.
 """
 
 from __future__ import annotations
@@ -86,6 +96,8 @@ class UnitSlipReference:
         The towed unit (1 the first).
     friction
         ``μ_min`` of (T3), the lowest road friction the vehicle is specified for (``None``: no residual term).
+    road_friction
+        ``μ_r`` of (T4), the road's friction as the run states it (``None``: the linear tyres' slip, (T2)).
 
     Attributes
     ----------
@@ -93,10 +105,14 @@ class UnitSlipReference:
         ``G`` of (T2) [s²/m].
     """
 
-    def __init__(self, params: VehicleParams, unit: int, friction: float | None = None) -> None:
-        if friction is not None and not (math.isfinite(friction) and friction > 0.0):
-            raise InputError(f"reference_friction = {friction!r}; allowed: a friction coefficient > 0")
+    def __init__(
+        self, params: VehicleParams, unit: int, friction: float | None = None, road_friction: float | None = None
+    ) -> None:
+        for name, value in (("reference_friction", friction), ("reference_road_friction", road_friction)):
+            if value is not None and not (math.isfinite(value) and value > 0.0):
+                raise InputError(f"{name} = {value!r}; allowed: a friction coefficient > 0")
         self.friction = friction
+        self.road_friction = road_friction
         lengths, steerable, shares = unit_axles(params, unit)
         towed = params.axle_table.unit == unit
         total = float(params.axle_cornering_stiffness()[towed].sum())
@@ -112,8 +128,9 @@ class UnitSlipReference:
         self.gradient = moment / (total * self.slip_point)
 
     def slip_velocity(self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float) -> float:
-        """``v̂_s`` of (T2) [m/s] from the unit's yaw rate [rad/s], wheel speed [m/s], steer angles [rad] (layout
-        order; ``None`` or empty: none steer) and its accelerometer's reading ``lateral`` [m/s²]."""
+        """``v̂_s`` of (T2), or (T4) with a road friction, [m/s] from the unit's yaw rate [rad/s], wheel speed [m/s],
+        steer angles [rad] (layout order; ``None`` or empty: none steer) and its accelerometer's reading ``lateral``
+        [m/s²]."""
         if not math.isfinite(lateral):
             raise InputError(
                 f"the towed unit's lateral acceleration is {lateral!r}; kinematic_rear_point "
@@ -123,7 +140,10 @@ class UnitSlipReference:
         if steer is not None and self._steer_shares.size:
             tangents = np.tan(np.asarray(steer, dtype=float).reshape(-1))
             scrub += speed * float(np.dot(self._steer_shares * self._steer_levers, tangents))
-        return scrub / self.slip_point - self.gradient * speed * lateral
+        demand = self.gradient * speed * lateral
+        if self.road_friction is not None:  # (T4): the brush tyre's slip at the stated road's demand
+            demand *= 1.0 + linear_slip_excess(abs(lateral) / (self.road_friction * GRAVITY))
+        return scrub / self.slip_point - demand
 
     def residual_std(self, speed: float, lateral: float) -> float:
         """``σ_m`` of (T3) [m/s]: the linear tyres' residual at the wheel speed ``speed`` [m/s] and the reading

@@ -143,19 +143,16 @@ class ScenarioConfig(Settings):
                 f"{self.camera.world}: sealed"
             )
         references = (
-            ("fusion.kinematic_rear_point", self.fusion.kinematic_rear_point, self.fusion.reference_friction),
-            (
-                "fusion.side_rig.kinematic_rear_point",
-                self.fusion.side_rig.kinematic_rear_point,
-                self.fusion.side_rig.reference_friction,
-            ),
+            ("fusion.kinematic_rear_point", self.fusion.kinematic_rear_point, self.fusion),
+            ("fusion.side_rig.kinematic_rear_point", self.fusion.side_rig.kinematic_rear_point, self.fusion.side_rig),
         )
-        for name, reference, friction in references:
-            if friction is not None and reference != TRAILER_REFERENCE:
-                raise ValueError(
-                    f"{name.replace('kinematic_rear_point', 'reference_friction')} = {friction:g} is the "
-                    f"{TRAILER_REFERENCE} reference's; allowed with {name} = {reference}: null"
-                )
+        for name, reference, section in references:
+            for field in ("reference_friction", "reference_road_friction"):
+                if (friction := getattr(section, field)) is not None and reference != TRAILER_REFERENCE:
+                    raise ValueError(
+                        f"{name.replace('kinematic_rear_point', field)} = {friction:g} is the "
+                        f"{TRAILER_REFERENCE} reference's; allowed with {name} = {reference}: null"
+                    )
             if reference == TRAILER_REFERENCE and self.signals.trailer_lateral_acceleration is None:
                 raise ValueError(
                     f"{name} = {TRAILER_REFERENCE} needs the towed units' accelerometer: set "
