@@ -57,6 +57,15 @@ follower's own off-tracking variance ``σ_f²`` (its fused filter's std squared)
     R_c ← R_c + σ_f²·e_y·e_yᵀ   (inflate),     no measurement   (refuse)                                   (C3)
 
 A frame whose ``σ_f`` is not known (the follower's filter without an estimate) is refused under either action.
+The follower's own error does not end with its scrub: where its axles pass through straight ahead between two turns
+its demand falls below any ``demand`` while the estimate it takes its frames with still carries what the scrub left
+(its odometry's coupled correction taken at nearly its full share while ``β̂_ψ`` is learnt again, docs/field_bias.md
+§7.18). With ``below: inflate`` every frame under the demand is widened as ``inflate`` widens one above it::
+
+    R_c ← R_c + σ_f²·e_y·e_yᵀ   (D < demand, below: inflate)                                              (C3')
+
+and one whose ``σ_f`` is not known is refused under :data:`FOLLOWER_UNKNOWN`; a frame whose ``D`` is not known
+(no follower filter) is taken as (C2) gives it. ``below: take`` (the default) is (C3) alone.
 
 A follower camera that looks across its motion has the same axial errors as the lead's, so the follower is the
 nearest unit behind whose camera looks along its unit (a rear or front rig, :func:`looks_along`).
@@ -94,6 +103,7 @@ from .viso_ot import VisoOtEstimator
 
 __all__ = [
     "FOLLOWER_SCRUBBING",
+    "FOLLOWER_UNKNOWN",
     "CouplingMeasurement",
     "CouplingReference",
     "coupled_update",
@@ -104,6 +114,8 @@ __all__ = [
 
 FOLLOWER_SCRUBBING = "follower scrubbing"
 """The reason a frame is refused under (C3)."""
+FOLLOWER_UNKNOWN = "follower without an estimate"
+"""The reason a frame below the demand is refused under (C3'): the follower's std is not known."""
 
 
 @dataclass(frozen=True)
@@ -193,10 +205,17 @@ def follower_limited(
     is ``demand`` and whose off-tracking std is ``follower_std`` [m], and the reason it was refused (``None``: taken).
 
     Returns ``(R_c, None)`` unchanged without ``limit`` or below its demand; ``(R_c + σ_f²·e_y·e_yᵀ, None)`` for
-    ``inflate``; ``(None, FOLLOWER_SCRUBBING)`` for ``refuse``, or where ``follower_std`` is not finite."""
-    if limit is None or not demand >= limit.demand:  # NaN: no demand known, taken as (C2) gives it
+    ``inflate``; ``(None, FOLLOWER_SCRUBBING)`` for ``refuse``, or where ``follower_std`` is not finite. Below the
+    demand with ``limit.below`` ``inflate`` (C3'): widened as ``inflate`` widens, or ``(None, FOLLOWER_UNKNOWN)``
+    where ``follower_std`` is not finite."""
+    if limit is None or math.isnan(demand):  # NaN: no demand known, taken as (C2) gives it
         return covariance, None
-    if limit.action == "refuse" or not math.isfinite(follower_std):
+    if not demand >= limit.demand:
+        if limit.below == "take":
+            return covariance, None
+        if not math.isfinite(follower_std):  # (C3')
+            return None, FOLLOWER_UNKNOWN
+    elif limit.action == "refuse" or not math.isfinite(follower_std):
         return None, FOLLOWER_SCRUBBING
     widened = np.array(covariance, dtype=float)
     widened[1, 1] += follower_std * follower_std

@@ -71,12 +71,17 @@ class FollowerLimit(Settings):
     demand
         The follower's scrub demand ``D`` of (K5) (:mod:`sensor.fusion_slip`) at its frame from which the action is
         taken.
+    below
+        What a frame below ``demand`` becomes: ``take`` (default: as (C2) gives it) or ``inflate`` (widened by the
+        follower's own off-tracking variance as ``inflate`` widens a scrubbing frame; (C3') of
+        :mod:`sensor.fusion_coupling`).
     """
 
     action: Literal["inflate", "refuse"]
     demand: float = Field(
         gt=0.0, le=1.0, description="the follower's scrub demand D from which it acts; 1: an axle at twice the onset"
     )
+    below: Literal["take", "inflate"] = "take"
 
 
 class SideRigFusion(Settings):

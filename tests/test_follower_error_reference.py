@@ -29,7 +29,7 @@ from scenarios.recorded.following import coupling_summary
 from scenarios.run.metrics import COUPLING_REFERENCE, coupling_reference_reports, with_coupling_references
 from scenarios.run.runner import run_scenario
 from sensor.camera import StereoRig
-from sensor.fusion_coupling import FOLLOWER_SCRUBBING, follower_limited
+from sensor.fusion_coupling import FOLLOWER_SCRUBBING, FOLLOWER_UNKNOWN, follower_limited
 from sensor.fusion_noise import FollowerLimit, FusionNoise, SideRigFusion
 from vehicle_model.presets import VEHICLE_PRESETS
 
@@ -67,6 +67,27 @@ def test_refuse_gives_no_measurement_with_its_reason() -> None:
     assert follower_limited(R_C, limit, 0.8, 0.05) == (None, FOLLOWER_SCRUBBING)
     r, reason = follower_limited(R_C, limit, 0.79, 0.05)
     assert reason is None and r is R_C
+
+
+def test_below_inflate_widens_every_frame_under_the_demand() -> None:
+    """(C3') ``below: inflate``: under the demand ``R_c + σ_f²·e_y·e_yᵀ`` exactly (to 1e-18 m², nothing elsewhere),
+    at or above it the action's (refuse); a follower without a std refused under its own reason; a demand not known
+    (NaN) taken as (C2) gives it. ``below: take`` is the default."""
+    assert FollowerLimit(action="refuse", demand=0.5).below == "take"
+    limit = FollowerLimit(action="refuse", demand=0.5, below="inflate")
+    for demand in (0.0, 0.3, 0.49):
+        r, reason = follower_limited(R_C, limit, demand, 0.05)
+        assert reason is None
+        expected = R_C.copy()
+        expected[1, 1] += 0.05**2
+        np.testing.assert_allclose(r, expected, rtol=0.0, atol=1e-18)
+        np.testing.assert_array_equal(np.delete(np.delete(r, 1, 0), 1, 1), np.delete(np.delete(R_C, 1, 0), 1, 1))
+    assert follower_limited(R_C, limit, 0.5, 0.05) == (None, FOLLOWER_SCRUBBING)
+    assert follower_limited(R_C, limit, 0.2, math.nan) == (None, FOLLOWER_UNKNOWN)
+    r, reason = follower_limited(R_C, limit, math.nan, 0.05)
+    assert reason is None and r is R_C
+    with pytest.raises(ValidationError, match="below"):
+        FollowerLimit(action="refuse", demand=0.5, below="drop")
 
 
 def _following(limit: FollowerLimit | None, demand: float, follower_std: float):
@@ -108,6 +129,8 @@ def test_the_loops_reference_applies_it_frame_by_frame() -> None:
     np.testing.assert_allclose(inflated.covariance, expected, rtol=0.0, atol=1e-15)
     _, calm = _following(FollowerLimit(action="refuse", demand=0.5), 0.2, 0.04)
     np.testing.assert_array_equal(calm.covariance, _following(None, 0.2, 0.04)[1].covariance)
+    _, widened = _following(FollowerLimit(action="refuse", demand=0.5, below="inflate"), 0.2, 0.04)
+    np.testing.assert_allclose(widened.covariance, _following(None, 0.2, 0.04)[1].covariance + np.diag([0, 0.04**2, 0]))
     refusing, none = _following(FollowerLimit(action="refuse", demand=0.5), 1.0, 0.04)
     assert none is None and refusing.refused == {FOLLOWER_SCRUBBING: 1} and refusing.measurements == 0
     assert all(math.isnan(v) for v in filter_scrub(None))
