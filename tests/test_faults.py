@@ -212,14 +212,7 @@ def test_loss_of_control_is_a_status_with_exit_3(tmp_path: Path) -> None:
 # --- stopped runs: 130 / 143, the data kept, metrics say interrupted ------------------------------------------
 
 
-@pytest.mark.parametrize(
-    ("sig", "code", "name"),
-    [
-        # SIGTERM's exit code, metrics and kept rows are checked by default on a pipelined camera run (below)
-        pytest.param(signal.SIGTERM, 143, "SIGTERM", marks=pytest.mark.slow),
-        (signal.SIGINT, 130, "SIGINT"),
-    ],
-)
+@pytest.mark.parametrize(("sig", "code", "name"), [(signal.SIGTERM, 143, "SIGTERM"), (signal.SIGINT, 130, "SIGINT")])
 def test_a_stopped_run_keeps_its_data(tmp_path: Path, sig: signal.Signals, code: int, name: str) -> None:
     out = tmp_path / "r"
     proc = start(*SLOW_RUN, "--no-plots", "--out", str(out))
@@ -269,7 +262,7 @@ EXIT_CODE_TESTS = {
     3: "test_loss_of_control_is_a_status_with_exit_3",
     4: "test_the_readme_exit_codes_0_2_and_4_are_what_the_command_does",
     130: "test_a_stopped_run_keeps_its_data",
-    143: "test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers",
+    143: "test_a_stopped_run_keeps_its_data",
 }
 """The default-suite test of this module that runs the command to each exit code of the README's table."""
 
@@ -376,7 +369,6 @@ FAILURE_TABLE_TESTS: dict[str, tuple[str, ...]] = {
     ),
     "Ctrl-C / SIGTERM during a run": (
         "test_faults.py::test_a_stopped_run_keeps_its_data",
-        "test_faults.py::test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers",
         "test_stop_faults.py::test_a_stop_that_comes_out_as_another_error_is_a_stop",
     ),
     "a run stopped early on a long road": (
