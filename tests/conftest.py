@@ -1,6 +1,13 @@
-"""Shared fixtures: models are built (and compiled) once per session."""
+"""Shared fixtures: models are built (and compiled) once per session, and the default UK roundabout test run once for
+all test workers."""
 
 from __future__ import annotations
+
+import fcntl
+import json
+import os
+import shutil
+from pathlib import Path
 
 import pytest
 
@@ -17,3 +24,31 @@ def reference() -> VehicleParams:
 @pytest.fixture(scope="session")
 def reference_model(reference: VehicleParams) -> VehicleModel:
     return VehicleModel(reference)
+
+
+@pytest.fixture(scope="session")
+def roundabout_test_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The run directory of ``roundabout-test`` with its defaults (the reference combination, unsteered, model only,
+    the zero-slip estimator), written without plots. Read only: a test that writes copies it first.
+
+    Several test files check this one run; the pytest-xdist workers of one session share it through their common
+    temporary directory, the first to need it making it under an exclusive lock.
+    """
+    from scenarios.config import load_scenario
+    from scenarios.run.runner import run_scenario
+
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    run_dir = shared / "shared-roundabout-test"
+    with open(shared / "shared-roundabout-test.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            done = run_dir / "metrics.json"
+            if not done.exists() or json.loads(done.read_text())["status"] != "completed":
+                shutil.rmtree(run_dir, ignore_errors=True)  # what a failed earlier attempt left
+                run_dir.mkdir()
+                metrics = run_scenario(load_scenario("roundabout-test"), run_dir, plots=False)
+                assert metrics["status"] == "completed"
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+    return run_dir

@@ -104,19 +104,23 @@ def run(
     covariance: np.ndarray = VO_COVARIANCE,
     yaw_error_per_m: float = 0.0,
     coupling_scale: float = 1.0,
+    states: dict[int, np.ndarray | None] | None = None,
 ):
     """Feed the filter; return its estimates and std and the true off-tracking per tick (NaN: none).
 
     ``frame_error``: per frame, an error ``(dx, dy, dψ)`` added to the increment the camera motion is made from.
     ``tractor``: per tick, the :class:`TractorSignals` (``None``: none). ``yaw_error_per_m``: a systematic odometry
     error of this yaw per metre along the frame's yaw–translation ambiguity (eq (3) of :mod:`sensor.fusion_model`),
-    whose translation is ``coupling_scale`` times the one the filter assumes.
+    whose translation is ``coupling_scale`` times the one the filter assumes. ``states``: its keys are ticks; each
+    value is set to the filter's state before that tick (what a run stopped there leaves).
     """
     truth = OfftrackingBuffer(PARAMS.follow_point_offset)
     est, std, ref = [], [], []
     frame_inc = np.zeros(3)
     pending: list[tuple[int, int, np.ndarray | None]] = []
     for k in range(len(r_m) if stop is None else stop):
+        if states is not None and k in states:
+            states[k] = fused.state
         if k > 0:
             truth.push(*incs[k])
             frame_inc = compose(frame_inc, incs[k])
@@ -426,11 +430,10 @@ def test_a_steady_kinematic_error_is_learned_and_carried_through_a_camera_gap() 
     blind = (np.arange(3000) > 2000) & (np.arange(3000) < 2250)
 
     def learned_and_worst_in_gap(model: str) -> tuple[np.ndarray, float]:
-        noise = FusionNoise(kinematic_error_model=model)
-        before = FusedVisoOt(PARAMS, CAMERA, noise)
-        run(before, r_m, w_m, incs, tractor=tractor, stop=2000)  # up to the gap
-        est, _, ref = run(FusedVisoOt(PARAMS, CAMERA, noise), r_m, w_m, incs, tractor=tractor, drop=lambda f: f in gap)
-        return before.state, float(np.max(np.abs(est[blind] - ref[blind])))
+        fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(kinematic_error_model=model))
+        before: dict[int, np.ndarray | None] = {2000: None}  # the state up to the gap
+        est, _, ref = run(fused, r_m, w_m, incs, tractor=tractor, drop=lambda f: f in gap, states=before)
+        return before[2000], float(np.max(np.abs(est[blind] - ref[blind])))
 
     learned, state_error = learned_and_worst_in_gap("state")
     inflated_state, inflated_error = learned_and_worst_in_gap("inflated")

@@ -53,8 +53,8 @@ def assert_same_series(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> No
 
 @pytest.mark.parametrize("workers", [1, pytest.param(2, marks=pytest.mark.slow)])  # one: the default
 def test_pipelined_and_serial_runs_are_identical_at_the_default_latency(workers: int) -> None:
-    serial_outcome, serial = camera_run(0)
-    piped_outcome, piped = camera_run(workers)
+    serial_outcome, serial = camera_run(0, **SMALL_CAMERA)  # the size does not enter the delivery
+    piped_outcome, piped = camera_run(workers, **SMALL_CAMERA)
     assert serial_outcome.status == piped_outcome.status == "completed"
     assert piped_outcome.camera["workers"] == workers and piped_outcome.camera["latency_ticks"] == 5
     assert_same_series(serial, piped)
@@ -132,7 +132,7 @@ def test_a_render_worker_that_dies_ends_the_run_with_a_clear_status(workers: int
             os.kill(worker.pid, signal.SIGKILL)
             killed.append(worker.pid)
 
-    outcome, columns = camera_run(workers, duration=30.0, progress=kill_a_worker)
+    outcome, columns = camera_run(workers, duration=30.0, progress=kill_a_worker, **SMALL_CAMERA)
     assert killed
     # the workers yield to the co-simulation process (the critical path)
     assert niceness == [min(os.getpriority(os.PRIO_PROCESS, 0) + RENDER_NICENESS, 19)]

@@ -63,8 +63,9 @@ def test_every_notebook_is_committed_without_outputs() -> None:
 
 
 SMALL_PARAMETERS = {
-    # one surface (ice: the one that fails the unsteered trailer) and one unsteered and one steered combination
-    "roundabout_test": 'SURFACES = ["ice"]\nCASES = [("reference", "none"), ("lst", "truth")]',
+    # one surface (ice: the one that fails the unsteered trailer), one unsteered and one steered combination, and
+    # twice the speed (half the simulated time of the circuit)
+    "roundabout_test": 'SPEED_KMH = 10.0\nSURFACES = ["ice"]\nCASES = [("reference", "none"), ("lst", "truth")]',
     # the designed gains and one Optuna proposal
     "controller_design_and_tuning": "TUNING_TRIALS = 2",
 }

@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -65,11 +66,12 @@ def test_a_figure_of_eight_is_measured_against_the_part_being_followed() -> None
 
 
 @pytest.fixture(scope="module")
-def reference_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, pd.DataFrame, object]:
+def reference_run(roundabout_test_run: Path) -> tuple[dict, pd.DataFrame, object]:
+    # the session's shared run of roundabout-test with its defaults (unsteered: feedback none)
     config = load_scenario("roundabout-test", {"feedback": "none"})
-    run_dir = tmp_path_factory.mktemp("reference")
-    metrics = run_scenario(config, run_dir, plots=False)
-    return metrics, pd.read_parquet(run_dir / "timeseries.parquet"), config
+    metrics = json.loads((roundabout_test_run / "metrics.json").read_text())
+    assert metrics["feedback"] == "none"
+    return metrics, pd.read_parquet(roundabout_test_run / "timeseries.parquet"), config
 
 
 def test_on_the_steady_circle_it_is_the_difference_of_the_radii(reference_run) -> None:

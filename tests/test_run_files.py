@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import signal
 import stat
 import subprocess
@@ -352,12 +353,30 @@ def _killed_at(run_dir: Path, at_s: float, rows_per_part: int = 25) -> pd.DataFr
     return pd.read_parquet(run_dir / TIMESERIES_FILE)
 
 
-@pytest.mark.parametrize("at_s", [2.4, 9.0])  # before the truth is defined (all NaN), and well into the run
-def test_report_after_sigkill_rebuilds_the_metrics_and_prints_the_summary(tmp_path: Path, at_s: float) -> None:
+EARLY_KILL_S = 2.4
+"""Simulated seconds at which :func:`killed_early` is killed: before the truth is defined (all NaN)."""
+
+
+@pytest.fixture(scope="module")
+def killed_early(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A run killed with SIGKILL at :data:`EARLY_KILL_S`, read only: a test copies it before it reports on it."""
+    run_dir = tmp_path_factory.mktemp("killed-early") / "run"
+    _killed_at(run_dir, EARLY_KILL_S)
+    return run_dir
+
+
+@pytest.mark.parametrize("at_s", [EARLY_KILL_S, 9.0])  # before the truth is defined (all NaN), and well into the run
+def test_report_after_sigkill_rebuilds_the_metrics_and_prints_the_summary(
+    tmp_path: Path, at_s: float, killed_early: Path
+) -> None:
     from test_faults import offtrack
 
     run_dir = tmp_path / "run"
-    frame = _killed_at(run_dir, at_s)
+    if at_s == EARLY_KILL_S:
+        shutil.copytree(killed_early, run_dir)
+        frame = pd.read_parquet(run_dir / TIMESERIES_FILE)
+    else:
+        frame = _killed_at(run_dir, at_s)
     assert json.loads((run_dir / "metrics.json").read_text())["status"] == "running"
     result = offtrack("report", str(run_dir))
     assert result.returncode == 0, result.stderr
@@ -369,7 +388,9 @@ def test_report_after_sigkill_rebuilds_the_metrics_and_prints_the_summary(tmp_pa
     assert (run_dir / "plan_view.png").is_file() and (run_dir / "offtracking.png").is_file()
 
 
-def test_the_summary_of_a_killed_run_read_back_from_its_json_shows_what_is_missing(tmp_path: Path) -> None:
+def test_the_summary_of_a_killed_run_read_back_from_its_json_shows_what_is_missing(
+    tmp_path: Path, killed_early: Path
+) -> None:
     # metrics.json stores what could not be computed as null (a truth not yet defined, no wall time): the summary
     # made from it shows "–" for each of them instead of failing on formatting None.
     from rich.console import Console
@@ -377,7 +398,7 @@ def test_the_summary_of_a_killed_run_read_back_from_its_json_shows_what_is_missi
     from scenarios.run.summary import run_summary
 
     run_dir = tmp_path / "run"
-    _killed_at(run_dir, 0.5)
+    shutil.copytree(killed_early, run_dir)  # killed before its truth is defined
     rebuild_report(run_dir, plots=False)
     metrics = json.loads((run_dir / "metrics.json").read_text())
     assert metrics["offtracking"]["truth"]["rms"] is None and metrics["wall_time_s"] is None
