@@ -144,6 +144,26 @@ def test_the_verdict_holds_the_fused_loop_to_the_target_only_where_the_truth_fed
     assert cell_verdict(math.nan, math.nan, 0.01, 0.01).startswith("n/a")
 
 
+def test_a_stalled_run_is_not_judged_on_the_part_it_drove() -> None:
+    """A run flagged ``path_not_driven`` covers only the stretch before it stalled (the LST on the forest road's mud
+    stops on the climb): a stalled truth-fed loop leaves the cell unjudged, a stalled fused-fed loop fails it, whatever
+    its off-tracking over the part it drove; other flags do not enter the cell's verdict."""
+    stalled = "path_not_driven"
+    assert cell_verdict(0.006, 0.016, 0.039, 0.069, truth_flags=stalled) == "n/a: truth-fed did not drive its path"
+    assert cell_verdict(0.006, 0.016, 0.039, 0.069, fused_flags=f"feedback_error;{stalled}") == "fail: path not driven"
+    assert cell_verdict(0.006, 0.016, 0.039, 0.169, fused_flags=stalled) == (
+        f"fail: path not driven; max 0.169 > {TARGET_MAX_M:.2f} m"
+    )
+    assert cell_verdict(0.006, 0.016, 0.039, 0.069, "offtracking_above_target", "feedback_error") == "pass"
+    table = _fake_rows()
+    table["verdict_flags"] = ""
+    table.loc[(table["conditions"] == "ideal") & (table["feedback"] == "viso_ot_fused"), "verdict_flags"] = stalled
+    table.loc[(table["conditions"] == "field") & (table["feedback"] == "truth"), "verdict_flags"] = stalled
+    cells = cell_table(table)
+    assert list(cells["cell_verdict"]) == ["n/a: truth-fed did not drive its path", "fail: path not driven"]
+    assert off_highway_terminal_rows(table)[1].startswith("0 of 1 cells")
+
+
 def _fake_rows() -> pd.DataFrame:
     rows = []
     true = {"viso_ot_fused": (0.08, 0.12), "zero_slip": (0.30, 0.45), "truth": (0.04, 0.09), "none": (0.9, 1.3)}

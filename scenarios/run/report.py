@@ -101,6 +101,9 @@ def mark_failed(run_dir: Path, config: ScenarioConfig, exc: BaseException) -> No
         )
 
 
+PATH_NOT_DRIVEN = "path_not_driven"
+"""The verdict flag of a run that completed without driving its path (:func:`_flag_unfinished_path`)."""
+
 PATH_END_TOLERANCE_M = 1.0
 """How far short of its path's end a run may stop and still count as having driven it [m]."""
 
@@ -120,7 +123,7 @@ def _flag_unfinished_path(
     verdict = metrics["verdict"]
     verdict["flags"].append(
         {
-            "flag": "path_not_driven",
+            "flag": PATH_NOT_DRIVEN,
             "reason": f"the combination reached {reached:.1f} m of its {length:.1f} m path when the run's time was "
             "up (stalled or crawling: see speed and drive_force)",
         }

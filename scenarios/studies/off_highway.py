@@ -47,6 +47,7 @@ import numpy as np
 import pandas as pd
 
 from ..loop.ends import RunStatus
+from ..run.report import PATH_NOT_DRIVEN
 from .cases import run_case
 from .field_loop import TARGET_MAX_M, TARGET_RMS_M, field_signals, metrics_columns
 from .field_loop_units import unit_columns
@@ -284,7 +285,14 @@ def run_off_highway_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
 # ------------------------------------------------------------------------------------------- the cells
 
 
-def cell_verdict(truth_rms_m: float, truth_max_m: float, fused_rms_m: float, fused_max_m: float) -> str:
+def cell_verdict(
+    truth_rms_m: float,
+    truth_max_m: float,
+    fused_rms_m: float,
+    fused_max_m: float,
+    truth_flags: str = "",
+    fused_flags: str = "",
+) -> str:
     """The study's verdict on one cell.
 
     Parameters
@@ -293,17 +301,23 @@ def cell_verdict(truth_rms_m: float, truth_max_m: float, fused_rms_m: float, fus
         RMS and largest magnitude of the true off-tracking after warm-up of the truth-fed loop [m].
     fused_rms_m, fused_max_m
         The same of the fused-fed loop [m].
+    truth_flags, fused_flags
+        The two runs' verdict flags (``verdict_flags``: names joined by ``;``, empty when none). A run flagged
+        ``path_not_driven`` stalled or crawled short of its path's end, so its figures cover only the part it drove.
 
     Returns
     -------
     str
-        ``n/a: truth-fed …`` when the truth-fed loop is not within :data:`TARGET_RMS_M` / :data:`TARGET_MAX_M`
-        (or has no value): the controller, not the estimate, sets the cell; else ``pass`` when the fused-fed loop
-        is within both, or ``fail:`` and what it exceeded (a missing value fails).
+        ``n/a: truth-fed …`` when the truth-fed loop did not drive its path, or is not within :data:`TARGET_RMS_M` /
+        :data:`TARGET_MAX_M` (or has no value): the vehicle or the controller, not the estimate, sets the cell; else
+        ``pass`` when the fused-fed loop drove its path within both, or ``fail:`` and what it missed (a missing
+        value fails).
     """
+    if PATH_NOT_DRIVEN in _flag_names(truth_flags):
+        return "n/a: truth-fed did not drive its path"
     if not (truth_rms_m <= TARGET_RMS_M and truth_max_m <= TARGET_MAX_M):
         return f"n/a: truth-fed {_m(truth_rms_m)} / {_m(truth_max_m)} m"
-    failed = []
+    failed = ["path not driven"] if PATH_NOT_DRIVEN in _flag_names(fused_flags) else []
     if not fused_rms_m <= TARGET_RMS_M:
         failed.append(f"RMS {_m(fused_rms_m)} > {TARGET_RMS_M:.2f} m")
     if not fused_max_m <= TARGET_MAX_M:
@@ -354,6 +368,8 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
             row["truth_true_max_m"],
             row["viso_ot_fused_true_rms_m"],
             row["viso_ot_fused_true_max_m"],
+            _flags(by_feedback.get("truth")),
+            _flags(fused),
         )
         rows.append(row)
     return pd.DataFrame(rows)
@@ -379,6 +395,17 @@ def _float(value: Any) -> float:
         return float(value) if value is not None else math.nan
     except (TypeError, ValueError):
         return math.nan
+
+
+def _flags(case: pd.Series | None) -> str:
+    """A case row's ``verdict_flags`` (empty when absent or not text)."""
+    flags = None if case is None else case.get("verdict_flags")
+    return flags if isinstance(flags, str) else ""
+
+
+def _flag_names(flags: str) -> set[str]:
+    """The flag names of ``verdict_flags`` (a further unit's flag, ``unit 3: name``, by its name)."""
+    return {part.split(":")[-1].strip() for part in flags.split(";") if part.strip()}
 
 
 def _get(case: pd.Series | None, column: str) -> float:
