@@ -15,8 +15,12 @@ transient slip states. Only ``δ_0`` is applied (clipped once more to the lock a
 ``δ_prev`` over one tick ``Δt``); the next tick solves again from the state it reached.
 
 Causal: the tractor's inputs (its steer and drive force, the surface under it) are held over the horizon at their
-present values; the driver's future steer is not known. The path the follow point is measured from is the kingpin's
-own recorded path up to now, extended ahead of the kingpin by the kingpin positions the plan predicts (needed only
+present values; the driver's future steer is not known. Optionally (``tractor_prediction = "driver"``) the tractor's
+steer is a prediction handed to each solve instead, one value per control tick (:mod:`controller.tractor_prediction`
+runs the driver's own law on the model); the drive force and the surface stay held.
+
+The path the follow point is measured from is the kingpin's own recorded path up to now, extended ahead of the
+kingpin by the kingpin positions the plan predicts (needed only
 where ``H·u`` exceeds the follow point's distance behind the kingpin).
 
 Each solve is warm-started from the last plan shifted to the present time (its steer, and the states of the model
@@ -28,7 +32,9 @@ fallback), counted in :attr:`RecedingHorizonSteer.failures`.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Literal
 
 import casadi as ca
 import numpy as np
@@ -60,6 +66,9 @@ class HorizonSettings(Settings):
         Ipopt's iteration limit per solve.
     max_solve_time : float
         Ipopt's CPU-time limit per solve [s]; a solve that reaches either limit falls back.
+    tractor_prediction : {"held", "driver"}
+        The tractor's steer over the horizon: held at its present value, or the prediction each solve is handed
+        (:meth:`RecedingHorizonSteer.step`'s ``tractor_steer``).
     """
 
     horizon: float = Field(2.0, gt=0.0, le=10.0)
@@ -67,6 +76,7 @@ class HorizonSettings(Settings):
     step: float = Field(0.05, gt=0.0, le=0.2)
     max_iter: int = Field(50, ge=1, le=3000)
     max_solve_time: float = Field(5.0, gt=0.0, le=600.0)
+    tractor_prediction: Literal["held", "driver"] = "held"
 
 
 @dataclass(frozen=True)
@@ -155,13 +165,14 @@ class RecedingHorizonSteer:
         self._X = opti.variable(layout.n_states, n + 1)
         self._D = opti.variable(n_d, n + 1)
         self._x0 = opti.parameter(layout.n_states)
-        self._held = opti.parameter(layout.n_inputs)
+        self._predicted = settings.tractor_prediction != "held"
+        self._held = opti.parameter(layout.n_inputs, n * m if self._predicted else 1)
         self._previous = opti.parameter(n_d)
         self._anchors = opti.parameter(2, n)
         self._normals = opti.parameter(2, n)
         opti.subject_to(self._X[:, 0] == self._x0)
         shoot = self._interval_map.map(n)
-        held = ca.repmat(self._held, 1, n * m)
+        held = self._held if self._predicted else ca.repmat(self._held, 1, n * m)
         opti.subject_to(self._X[:, 1:] == shoot(self._X[:, :-1], self._D[:, :-1], self._D[:, 1:], held))
         first_move = limits.max_steer_rate * self.tick
         opti.subject_to(opti.bounded(-first_move, self._D[:, 0] - self._previous, first_move))
@@ -193,12 +204,34 @@ class RecedingHorizonSteer:
 
     def rollout(self, x0: np.ndarray, held: np.ndarray, steer: np.ndarray) -> np.ndarray:
         """The model run forward from ``x0`` on the node steer ``steer`` ``(axles, N + 1)``, the inputs ``held``
-        held: the states at the nodes ``(n_states, N + 1)``."""
-        columns = np.repeat(np.asarray(held, dtype=float)[:, None], self._substeps, axis=1)
+        held (a vector), or each RK4 step's inputs (``(n_inputs, N·substeps)``): the states at the nodes
+        ``(n_states, N + 1)``."""
+        held = np.asarray(held, dtype=float)
+        m = self._substeps
+        if held.ndim == 1:
+            columns = np.repeat(held[:, None], m, axis=1)
+            per_interval = [columns] * (steer.shape[1] - 1)
+        else:
+            per_interval = [held[:, j * m : (j + 1) * m] for j in range(steer.shape[1] - 1)]
         states = [np.asarray(x0, dtype=float)]
-        for j in range(steer.shape[1] - 1):
+        for j, columns in enumerate(per_interval):
             states.append(np.asarray(self._interval_map(states[-1], steer[:, j], steer[:, j + 1], columns)).ravel())
         return np.column_stack(states)
+
+    @property
+    def prediction_ticks(self) -> int:
+        """Control ticks the horizon spans (the length of a tractor steer prediction)."""
+        return int(np.ceil(self.settings.horizon / self.tick - 1e-9))
+
+    def step_inputs(self, held: np.ndarray, tractor: np.ndarray) -> np.ndarray:
+        """Each RK4 step's inputs ``(n_inputs, N·substeps)``: ``held``, the tractor's steer (the first input) that
+        of the control tick ``tractor`` ``(ticks,)`` holds at the step's middle."""
+        m, n = self._substeps, self.settings.nodes
+        middles = (np.arange(n * m) + 0.5) * (self.interval / m)
+        ticks = np.minimum((middles / self.tick).astype(int), len(tractor) - 1)
+        columns = np.repeat(np.asarray(held, dtype=float)[:, None], n * m, axis=1)
+        columns[0] = np.asarray(tractor, dtype=float)[ticks]
+        return columns
 
     def kingpins(self, states: np.ndarray) -> np.ndarray:
         """The kingpin's global position ``(nodes, 2)`` of the states ``(n_states, nodes)``
@@ -237,7 +270,15 @@ class RecedingHorizonSteer:
             bool(stats.get("success", False)),
         )
 
-    def step(self, now: float, x0: np.ndarray, held: np.ndarray, previous: np.ndarray, path: np.ndarray) -> HorizonStep:
+    def step(
+        self,
+        now: float,
+        x0: np.ndarray,
+        held: np.ndarray,
+        previous: np.ndarray,
+        path: np.ndarray,
+        tractor_steer: Callable[[Callable[[float], np.ndarray]], np.ndarray] | None = None,
+    ) -> HorizonStep:
         """Solve from the present and return the first move.
 
         Parameters
@@ -253,9 +294,19 @@ class RecedingHorizonSteer:
             The steered axles' last command [rad] (the rate limit's start).
         path
             The kingpin's recorded path up to now ``(m, 2)`` [m], oldest first.
+        tractor_steer
+            With ``tractor_prediction = "driver"`` (required then): the trailer steer of the solve's guess, a
+            function of time [s], to the tractor's steer [rad] over each of :attr:`prediction_ticks` control ticks
+            from now.
         """
         previous = np.asarray(previous, dtype=float)
         steer_guess = self._guess(now, previous)
+        if self._predicted:
+            if tractor_steer is None:
+                raise InputError("tractor_prediction = driver: each solve needs the tractor's predicted steer")
+            times = now + self.interval * np.arange(self.settings.nodes + 1)
+            guess = HorizonPlan(times, steer_guess.T.copy(), np.empty((times.size, 0)))
+            held = self.step_inputs(held, tractor_steer(guess.steer_at))
         states_guess = self.rollout(x0, held, steer_guess)
         reference = np.vstack([path, self.kingpins(states_guess[:, 1:])])
         anchors, normals = path_reference(reference, self.follow_points(states_guess[:, 1:]))

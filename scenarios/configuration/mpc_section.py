@@ -3,6 +3,8 @@ range and the reason for the range beside it."""
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import Field
 
 from controller.receding_horizon import HorizonSettings
@@ -47,6 +49,12 @@ class MpcConfig(Settings):
         "tick is no controller",
     )
 
+    tractor_prediction: Literal["held", "driver"] = Field(
+        "held",
+        description="the tractor's steer over the horizon: held at its present value, or driver (the driver's own "
+        "law run on the plan's model along its path; the drive force and the surface stay held)",
+    )
+
     def settings(self) -> HorizonSettings:
         """The MPC's own settings."""
         return HorizonSettings(
@@ -55,4 +63,5 @@ class MpcConfig(Settings):
             step=self.rk4_step_s,
             max_iter=self.max_iter,
             max_solve_time=self.max_solve_cpu_s,
+            tractor_prediction=self.tractor_prediction,
         )

@@ -190,6 +190,12 @@ class ScenarioConfig(Settings):
                 mpc_steered_axles(params)
             except InputError as error:
                 raise ValueError(str(error)) from None
+        predicted = self.controller.law == "mpc" and self.controller.mpc.tractor_prediction == "driver"
+        if predicted and (self.driver.open_loop or self.path.slip_deg is not None):
+            raise ValueError(
+                "controller.mpc.tractor_prediction = driver predicts the path-following driver; this run's tractor "
+                "is steered open loop or moved kinematically: use tractor_prediction = held"
+            )
         if steered:  # unit_gains: one set per steered unit (unused by a run that steers none)
             self.controller.unit_settings(self.rates.control_hz, len(steered))
         if self.path.slip_deg is not None and steered:

@@ -8,6 +8,11 @@ every that many ticks and applies the last plan's steer in between. It solves on
 the follow point's distance (before that the follow point has no path behind it) and while the tractor moves faster
 than the controller's full-command speed (``fade_speeds[1]``); otherwise it holds its last command.
 
+With ``tractor_prediction: driver`` the tractor's steer over the horizon is predicted instead of held: a shadow of the
+driver (the same law on the same path, called on the same state every tick, so in the same state as the run's
+driver) is copied at each solve and steers the model forward (:class:`controller.tractor_prediction.
+DriverPrediction`).
+
 It reads the simulator, which the loop binds to it (:meth:`MpcTrailerSteer.bind`) when it builds the cast.
 """
 
@@ -17,12 +22,14 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from controller.driver import PathFollowingDriver
 from controller.path_following_config import PathFollowingConfig
 from controller.receding_horizon import HorizonSettings, HorizonStep, RecedingHorizonSteer
+from controller.tractor_prediction import DriverPrediction
 from vehicle_model.errors import InputError
 from vehicle_model.offtracking import OfftrackingEstimate
 from vehicle_model.parameters import VehicleParams
-from vehicle_model.simulator import Simulator
+from vehicle_model.simulator import Simulator, VehicleState
 
 from ..setup.build import ScenarioSetup
 from .participant import Column, TickInput
@@ -56,6 +63,9 @@ class MpcTrailerSteer:
     replan_ticks
         Solve every this many ticks; in between, apply the last plan's steer at the present time (within the lock
         and the rate).
+    driver
+        With ``settings.tractor_prediction = "driver"`` (required then): a driver like the run's and its initial
+        state, to shadow the run's driver.
     """
 
     name = "trailer_steer"
@@ -69,11 +79,16 @@ class MpcTrailerSteer:
         settings: HorizonSettings,
         tick: float,
         replan_ticks: int = 1,
+        driver: tuple[PathFollowingDriver, VehicleState] | None = None,
     ) -> None:
         if int(replan_ticks) != replan_ticks or replan_ticks < 1:
             raise InputError(f"controller.mpc.replan_ticks = {replan_ticks!r}: a whole number of ticks ≥ 1")
+        if settings.tractor_prediction == "driver" and driver is None:
+            raise InputError("controller.mpc.tractor_prediction = driver needs the run's driver to predict")
         self.replan_ticks = int(replan_ticks)
         self.mpc = RecedingHorizonSteer(params, limits, settings, tick)
+        self._driver = driver if settings.tractor_prediction == "driver" else None
+        self._prediction = DriverPrediction(params, self.mpc.steered, tick) if self._driver is not None else None
         layout = self.mpc.layout
         own = tuple(layout.steerable_axles[i] for i in self.mpc.steered)
         if tuple(axles) != own:
@@ -105,7 +120,16 @@ class MpcTrailerSteer:
         cfg = setup.config
         limits = cfg.controller.path_following(cfg.rates.control_hz)
         mpc = cfg.controller.mpc
-        return cls(setup.params, axles, limits, mpc.settings(), 1.0 / cfg.rates.control_hz, mpc.replan_ticks)
+        driver = None
+        if mpc.tractor_prediction == "driver":
+            if cfg.driver.open_loop or setup.kinematic_slip is not None:
+                raise InputError(
+                    "controller.mpc.tractor_prediction = driver predicts the path-following driver; this run's tractor "
+                    "is steered open loop or moved kinematically: use tractor_prediction = held"
+                )
+            shadow = PathFollowingDriver(setup.params, setup.path, setup.control_point, feedforward=setup.feedforward)
+            driver = (shadow, setup.initial_state)
+        return cls(setup.params, axles, limits, mpc.settings(), 1.0 / cfg.rates.control_hz, mpc.replan_ticks, driver)
 
     def bind(self, simulator: Simulator) -> None:
         """The loop's simulator: the tractor's applied inputs and the surface are read from it."""
@@ -119,6 +143,9 @@ class MpcTrailerSteer:
         self._driven = 0.0
         self._last: HorizonStep | None = None
         self._since_solve = 0
+        self._front = 0.0
+        if self._driver is not None:
+            self._driver[0].reset(self._driver[1])
 
     def _remember(self, kingpin: np.ndarray, reach: float) -> None:
         """Add the kingpin to the recorded path (every :data:`PATH_SPACING`), dropping what lies beyond ``reach``
@@ -137,6 +164,8 @@ class MpcTrailerSteer:
         """The first move of this tick's plan (or the held command, module docstring)."""
         state = tick.state
         settings = self.mpc.settings
+        if self._driver is not None:  # the shadow steers on every tick, as the run's driver does
+            self._front = self._driver[0].steer(state, tick.period)
         reach = PATH_KEPT_TRAILER_LENGTHS * self.follow_offset + settings.horizon * max(state.u, 0.0)
         self._remember(tick.kingpin, reach)
         self._last = None
@@ -151,7 +180,14 @@ class MpcTrailerSteer:
         x0 = state.to_vector()
         held = sim.input_vector
         held[self._mu], held[self._slope] = sim.surface_inputs(x0)
-        step = self.mpc.step(tick.time, x0, held, self._commands, np.array(self._path))
+        tractor_steer = None
+        if self._driver is not None and self._prediction is not None:
+            driver, prediction, ticks, front = self._driver[0], self._prediction, self.mpc.prediction_ticks, self._front
+
+            def tractor_steer(trailer_steer):
+                return prediction.steer(driver, front, tick.time, x0, held, ticks, trailer_steer)
+
+        step = self.mpc.step(tick.time, x0, held, self._commands, np.array(self._path), tractor_steer)
         self._since_solve = 0
         self._last = step
         self._commands = step.command
