@@ -36,6 +36,14 @@ from vehicle_model.presets import VEHICLE_PRESETS
 R_C = np.array([[4e-6, 1e-7, 2e-7], [1e-7, 9e-6, 3e-7], [2e-7, 3e-7, 1e-6]])  # a (C2) covariance [m², m·rad, rad²]
 
 
+def _assert_lateral_widened_by(r: np.ndarray, sigma: float) -> None:
+    """``r`` is ``R_C`` with ``sigma²`` added to its lateral entry (to 1e-18 m²) and every other entry unchanged."""
+    expected = R_C.copy()
+    expected[1, 1] += sigma**2
+    np.testing.assert_allclose(r, expected, rtol=0.0, atol=1e-18)
+    np.testing.assert_array_equal(np.delete(np.delete(r, 1, 0), 1, 1), np.delete(np.delete(R_C, 1, 0), 1, 1))
+
+
 def test_below_the_demand_or_without_the_setting_the_covariance_is_c2s() -> None:
     """No setting, a demand below the setting's or not known (NaN): ``R_c`` itself, no reason."""
     limit = FollowerLimit(action="inflate", demand=0.5)
@@ -53,10 +61,7 @@ def test_inflate_adds_the_followers_variance_on_the_lateral_axis() -> None:
     for demand in (0.5, 1.0):
         r, reason = follower_limited(R_C, limit, demand, 0.05)
         assert reason is None
-        expected = R_C.copy()
-        expected[1, 1] += 0.05**2
-        np.testing.assert_allclose(r, expected, rtol=0.0, atol=1e-18)
-        np.testing.assert_array_equal(np.delete(np.delete(r, 1, 0), 1, 1), np.delete(np.delete(R_C, 1, 0), 1, 1))
+        _assert_lateral_widened_by(r, 0.05)
     np.testing.assert_array_equal(R_C, before)
     assert follower_limited(R_C, limit, 1.0, math.nan) == (None, FOLLOWER_SCRUBBING)
 
@@ -78,10 +83,7 @@ def test_below_inflate_widens_every_frame_under_the_demand() -> None:
     for demand in (0.0, 0.3, 0.49):
         r, reason = follower_limited(R_C, limit, demand, 0.05)
         assert reason is None
-        expected = R_C.copy()
-        expected[1, 1] += 0.05**2
-        np.testing.assert_allclose(r, expected, rtol=0.0, atol=1e-18)
-        np.testing.assert_array_equal(np.delete(np.delete(r, 1, 0), 1, 1), np.delete(np.delete(R_C, 1, 0), 1, 1))
+        _assert_lateral_widened_by(r, 0.05)
     assert follower_limited(R_C, limit, 0.5, 0.05) == (None, FOLLOWER_SCRUBBING)
     assert follower_limited(R_C, limit, 0.2, math.nan) == (None, FOLLOWER_UNKNOWN)
     r, reason = follower_limited(R_C, limit, math.nan, 0.05)

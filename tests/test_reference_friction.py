@@ -17,6 +17,7 @@ import math
 import re
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
@@ -29,6 +30,9 @@ from vehicle_model.errors import InputError
 from vehicle_model.parameters import GRAVITY
 from vehicle_model.presets import vehicle_preset
 
+if TYPE_CHECKING:
+    from sensor.fusion import FusedVisoOt
+
 
 def _brush_excess(demand: float) -> float:
     """The brush tyre's slip at the force ``demand·μ·F_z`` over the linear tyre's, less one, by bisection on
@@ -38,6 +42,26 @@ def _brush_excess(demand: float) -> float:
         mid = 0.5 * (low + high)
         low, high = (mid, high) if 1.0 - (1.0 - mid) ** 3 < demand else (low, mid)
     return 0.5 * (low + high) / (demand / 3.0) - 1.0
+
+
+def trailer_reference_filter(
+    drive: tuple, reading: float, **fields: float | None
+) -> tuple[FusedVisoOt, np.ndarray, np.ndarray]:
+    """The fused filter with the ``trailer_lateral_acceleration`` reference and ``fields`` of its noise run over
+    ``drive`` (``tests.test_fusion.drive_with_truth``'s), every tick's trailer accelerometer reading ``reading``
+    [m/s²]: the filter, its estimates and stds."""
+    from sensor.fusion import FusedVisoOt, FusionNoise
+    from tests.test_fusion import CAMERA, PARAMS, run, tractor_signals
+
+    r_m, w_m, incs, true = drive
+    lc = UnitSlipReference(PARAMS, 1).slip_point
+    tractor = [
+        replace(tractor_signals(u, r, r * lc, "lateral_acceleration", u * r), unit_lateral_acceleration=reading)
+        for u, r, _ in true
+    ]
+    fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(kinematic_rear_point="trailer_lateral_acceleration", **fields))
+    est, std, _ = run(fused, r_m, w_m, incs, tractor=tractor)
+    return fused, np.asarray(est), np.asarray(std)
 
 
 def test_the_closed_form_is_the_brush_tyres_excess_slip() -> None:
@@ -66,22 +90,13 @@ def test_the_residual_std_at_a_given_demand() -> None:
 
 
 def test_it_joins_the_floor_exactly_and_is_nothing_without_demand() -> None:
-    from sensor.fusion import FusedVisoOt, FusionNoise
-    from tests.test_fusion import CAMERA, PARAMS, drive_with_truth, run, tractor_signals
+    from tests.test_fusion import PARAMS, drive_with_truth
 
     r_m, w_m, incs, true = drive_with_truth(n=250, slip=0.0)  # 5 s straight on
     reference = UnitSlipReference(PARAMS, 1)
-    lc = reference.slip_point
 
     def filter_with(friction: float | None, reading: float) -> tuple[FusedVisoOt, np.ndarray, np.ndarray]:
-        tractor = [
-            replace(tractor_signals(u, r, r * lc, "lateral_acceleration", u * r), unit_lateral_acceleration=reading)
-            for u, r, _ in true
-        ]
-        noise = FusionNoise(kinematic_rear_point="trailer_lateral_acceleration", reference_friction=friction)
-        fused = FusedVisoOt(PARAMS, CAMERA, noise)
-        est, std, _ = run(fused, r_m, w_m, incs, tractor=tractor)
-        return fused, np.asarray(est), np.asarray(std)
+        return trailer_reference_filter((r_m, w_m, incs, true), reading, reference_friction=friction)
 
     # no lateral demand: bit for bit the filter without the setting
     off, on = filter_with(None, 0.0), filter_with(0.1, 0.0)

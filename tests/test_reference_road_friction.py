@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +22,7 @@ from typer.testing import CliRunner
 from scenarios.cli import app
 from scenarios.config import ConfigError, load_scenario
 from sensor.unit_slip_reference import UnitSlipReference
-from tests.test_reference_friction import _brush_excess
+from tests.test_reference_friction import _brush_excess, trailer_reference_filter
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import GRAVITY
 from vehicle_model.presets import vehicle_preset
@@ -56,21 +55,13 @@ def test_the_mean_takes_the_brush_tyres_slip_at_the_stated_friction() -> None:
 
 
 def test_the_filter_measures_against_t4_and_is_unchanged_without_demand() -> None:
-    from sensor.fusion import FusedVisoOt, FusionNoise
-    from tests.test_fusion import CAMERA, PARAMS, drive_with_truth, run, tractor_signals
+    from sensor.fusion import FusedVisoOt
+    from tests.test_fusion import PARAMS, drive_with_truth
 
     r_m, w_m, incs, true = drive_with_truth(n=100, slip=0.0)  # 2 s straight on
-    lc = UnitSlipReference(PARAMS, 1).slip_point
 
     def filter_with(friction: float | None, reading: float) -> tuple[FusedVisoOt, np.ndarray, np.ndarray]:
-        tractor = [
-            replace(tractor_signals(u, r, r * lc, "lateral_acceleration", u * r), unit_lateral_acceleration=reading)
-            for u, r, _ in true
-        ]
-        noise = FusionNoise(kinematic_rear_point="trailer_lateral_acceleration", reference_road_friction=friction)
-        fused = FusedVisoOt(PARAMS, CAMERA, noise)
-        est, std, _ = run(fused, r_m, w_m, incs, tractor=tractor)
-        return fused, np.asarray(est), np.asarray(std)
+        return trailer_reference_filter((r_m, w_m, incs, true), reading, reference_road_friction=friction)
 
     off, on = filter_with(None, 0.0), filter_with(0.1, 0.0)
     assert np.array_equal(off[1], on[1], equal_nan=True) and np.array_equal(off[2], on[2], equal_nan=True)
