@@ -567,7 +567,7 @@ class FusedVisoOt:
             coherent = coherent - scrub * np.array([0.0, coherent[2], coherent[2]])
         self.std_parts = {
             "increments": self.innovation_ratio * independent,
-            "biases": self.innovation_ratio * float(effects @ biases @ effects)
+            "biases": self.innovation_ratio * self.noise.bias_std_scale**2 * float(effects @ biases @ effects)
             + self._consider.variance(now.transition, d, self._starts, self._ends, lfp),  # sensor.fusion_consider
             "coupling": coupling**2 + (self.noise.vo_axial_scale_uncertainty * axial) ** 2,
             "kinematics": disagreement**2,

@@ -37,6 +37,8 @@ FRICTION = "the lowest road μ the vehicle is specified for, (T3); 0.05 is glare
 """``reference_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
 ROAD_FRICTION = "the road's μ as the run states it, (T4) in the reference's mean; 0.05 is glare ice; null: none"
 """``reference_road_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
+BIAS_STD_SCALE = "factor on the std of eq (5)'s biases' term; 1: as the filter's P_b gives it, toward 0: none of it"
+"""``bias_std_scale``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
 
 
 class PersistingReferenceError(Settings):
@@ -91,7 +93,7 @@ class SideRigFusion(Settings):
 
     Parameters
     ----------
-    vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect
+    vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect, bias_std_scale
         As :class:`FusionNoise`'s.
     kinematic_rear_point, reference_friction, reference_road_friction, kinematic_error_model, coupling_reference,
     coupling_bias_share, coupling_persisting_error
@@ -112,6 +114,7 @@ class SideRigFusion(Settings):
         None, ge=0.0, le=0.1, description="[1/√m] their walk; 0.1 forgets in a metre"
     )
     vo_axial_effect: AxialEffect | None = None
+    bias_std_scale: float | None = Field(None, gt=0.0, le=1.0, description=BIAS_STD_SCALE)
     kinematic_rear_point: KinematicReference | None = None
     reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
     reference_road_friction: float | None = Field(None, ge=0.05, le=1.5, description=ROAD_FRICTION)
@@ -268,6 +271,11 @@ class FusionNoise(Settings):
         quadrature (0: none; a run's ``fusion`` settings add 0.005 m).
     innovation_window : int
         Camera motions over which the mean normalised innovation squared ``ρ`` of eq (5) is taken.
+    bias_std_scale : float
+        ``f_b`` of eq (5): a factor on the standard deviation of the biases' term (``G·P_b·Gᵀ`` with the axial
+        states' effects; 1, the default: as the filter's covariance gives it). Below 1 it says the biases' remaining
+        uncertainty, as the filter holds it, is wider than the error it leaves in the off-tracking; docs/field_bias.md
+        §7.19 sizes it for a side rig.
     coupling_reference : bool
         Take a following unit's camera, carried forward through the couplings with the measured articulations, as a
         measurement of this unit's kingpin increment where the caller gives one (:mod:`sensor.fusion_coupling`;
@@ -393,6 +401,7 @@ class FusionNoise(Settings):
     innovation_window: int = Field(
         50, ge=1, le=10000, description="camera motions in ρ of eq (5); one is no statistic, 10000 never adapts"
     )
+    bias_std_scale: float = Field(1.0, gt=0.0, le=1.0, description=BIAS_STD_SCALE)
     coupling_reference: bool = False
     coupling_bias_share: bool = False
     coupling_persisting_error: PersistingReferenceError | None = None

@@ -33,7 +33,11 @@ uncertainty is in the increments' own covariance, and this term is zero; with (K
 the odometry's error that changes with the scenery faster than ``β_ψ`` follows — is the constant
 ``offtracking_bias_std`` ``σ_b``::
 
-    σ_e² = (ρ/3)·(Σ gᵀ Q g + G·P_b·Gᵀ) + (u_κ·β_ψ·G_κ)² + (u_z·A_z)² + (s_k·m_k·Λ)² + σ_b²          (5)
+    σ_e² = (ρ/3)·(Σ gᵀ Q g + f_b²·G·P_b·Gᵀ) + (u_κ·β_ψ·G_κ)² + (u_z·A_z)² + (s_k·m_k·Λ)² + σ_b²     (5)
+
+``f_b`` (``bias_std_scale``, 1 unless set) is a factor on the biases' part: where the biases' remaining uncertainty
+as the filter holds it is measured to be wider than the error it leaves in the off-tracking, it narrows that part
+alone (docs/field_bias.md §7.19 for a side rig, where the state ``s_f`` makes nearly all of it).
 
 The sums of ``G``, ``A_z`` and ``A_f`` take each increment as the camera's motion corrected by the biases' estimate,
 so that a bias error moves it by the camera's whole sensitivity. Where a following unit's camera also measured the
