@@ -45,11 +45,12 @@ def test_viso_ot_meets_the_paper_accuracy_on_the_reference_case(reference_case):
 
 
 def test_same_seed_same_output(reference_case):
-    # A second run of the reference case's first 4 s records the reference run's rows, the timing columns aside
-    # (a run this short renders in-process, the reference run in worker processes).
-    a = constant_slip(duration_s=4.0)
+    # A second run of the reference case's first 2 s (21 frames) records the reference run's rows, the timing
+    # columns aside (a run this short renders in-process, the reference run in worker processes). Another seed
+    # changes the odometry's columns within those 2 s, so the check can fail.
+    a = constant_slip(duration_s=2.0)
     n = len(a["time"])
-    assert n == 201 and a.keys() == reference_case.keys()
+    assert n == 101 and a.keys() == reference_case.keys()
     differ = [
         k for k in a if k not in TIMING_COLUMNS and not np.array_equal(a[k], reference_case[k][:n], equal_nan=True)
     ]
