@@ -58,12 +58,12 @@ def test_same_seed_same_output(reference_case):
 
 
 @pytest.mark.parametrize(
-    "duration", [pytest.param(10.0, id="10-s"), pytest.param(20.0, id="whole-case", marks=pytest.mark.slow)]
+    "duration", [pytest.param(6.0, id="6-s"), pytest.param(20.0, id="whole-case", marks=pytest.mark.slow)]
 )
 def test_failed_frames_are_survived(monkeypatch, duration):
     # Every fifth frame of the odometry fails; the estimator bridges them and still meets the target (with the
-    # failures 0.048 m RMS in the first 10 s against 0.034 m without; a dropped estimate after a failure would
-    # show in the valid fraction).
+    # failures 0.029 m RMS and 97 % valid in the first 6 s, 0.048 m in the first 10 s against 0.034 m without; an
+    # estimator that drops its estimate after a failure instead of bridging is valid 0 % of the 6 s).
     from sensor.vo import StereoOdometry, VOResult
 
     original = StereoOdometry.process
