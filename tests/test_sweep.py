@@ -452,6 +452,21 @@ def _tiny_study(out: Path, *args: str, disk_full: bool = False, rendered: bool =
     return subprocess.run(command, capture_output=True, text=True, cwd=REPO, timeout=300, env=env)
 
 
+def _tiny_study_here(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], out: Path, *args: str
+) -> subprocess.CompletedProcess:
+    """``offtrack study tiny --out OUT ARGS`` through ``main()`` in this process, ``tiny`` and the part size set up
+    as :data:`_TINY_STUDY` sets them (without the disk-full hook or the rendered case)."""
+    from test_faults import offtrack_in_process
+
+    import scenarios.run.results as results
+
+    tiny = Study("tiny", "model-only cases", lambda full: list(TINY), lambda table, out: None)
+    monkeypatch.setitem(registry.STUDIES, "tiny", tiny)
+    monkeypatch.setattr(results, "FLUSH_ROWS", 50)
+    return offtrack_in_process(monkeypatch, capsys, "study", "tiny", "--out", str(out), *args)
+
+
 def test_a_case_whose_run_failed_for_lack_of_space_is_failed_and_retried_on_resume(tmp_path: Path) -> None:
     out = tmp_path / "study"
     first = _tiny_study(out, disk_full=True)
@@ -516,10 +531,15 @@ def _series(run_dir: Path) -> pd.DataFrame:
 
 
 @pytest.mark.parametrize("rendered", [False, pytest.param(True, marks=[pytest.mark.slow, pytest.mark.rendering])])
-def test_study_with_one_and_two_workers_gives_identical_tables_and_runs(tmp_path: Path, rendered: bool) -> None:
+def test_study_with_one_and_two_workers_gives_identical_tables_and_runs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], rendered: bool
+) -> None:
     one, two = tmp_path / "one", tmp_path / "two"
     for out, workers in ((one, "1"), (two, "2")):
-        result = _tiny_study(out, "--workers", workers, rendered=rendered)
+        if workers == "1" and not rendered:  # serial: through main() in this process
+            result = _tiny_study_here(monkeypatch, capsys, out, "--workers", workers)
+        else:  # a rendered case renders in its own process (one renderer per process)
+            result = _tiny_study(out, "--workers", workers, rendered=rendered)
         assert result.returncode == 0, result.stderr
     names = [spec.name for spec in TINY] + ([RENDERED_CASE] if rendered else [])
     records = [read_record(two, name) for name in names]
