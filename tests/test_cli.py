@@ -20,6 +20,14 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
     )
 
 
+def run_cli_here(monkeypatch, capsys, *args: str) -> subprocess.CompletedProcess:
+    """``offtrack ARGS`` through ``main()`` in this process, for a command refused before any work (the exit code a
+    process gets from ``main()`` is tested in test_faults.py)."""
+    from test_faults import offtrack_in_process
+
+    return offtrack_in_process(monkeypatch, capsys, *args)
+
+
 def test_list_shows_scenarios_and_presets():
     out = run_cli("list")
     assert out.returncode == 0
@@ -42,7 +50,7 @@ def test_vehicle_names_and_lengths_are_never_cut_at_80_columns():
         assert f"{name} " in text and f"{length:.2f}" in text, (name, text)
 
 
-def test_run_writes_the_run_directory(tmp_path):
+def test_run_writes_the_run_directory(tmp_path, monkeypatch, capsys):
     out = run_cli("run", "roundabout-test", "--surface", "dry", "--duration", "25", "--out", str(tmp_path / "r"))
     assert out.returncode == 0, out.stdout + out.stderr
     run_dir = tmp_path / "r"
@@ -57,22 +65,23 @@ def test_run_writes_the_run_directory(tmp_path):
     assert metrics["roundabout_test"] is None or set(metrics["roundabout_test"]) >= {"pass", "outer_radius_max"}
     frame = pd.read_parquet(run_dir / "timeseries.parquet")
     assert len(frame) == metrics["rows"] and frame["time"].iloc[-1] == pytest.approx(25.0, abs=0.05)
-    # A second run into the same directory is refused, not silently overwritten.
-    again = run_cli("run", "roundabout-test", "--duration", "5", "--out", str(run_dir))
+    # A second run into the same directory is refused, not silently overwritten (refusals: through main() here).
+    again = run_cli_here(monkeypatch, capsys, "run", "roundabout-test", "--duration", "5", "--out", str(run_dir))
     assert again.returncode == 2 and "already holds files" in again.stderr
 
 
-def test_bad_values_are_clear_errors(tmp_path):
-    out = run_cli("run", "roundabout-test", "--mu", "-0.2", "--camber", "40", "--out", str(tmp_path / "x"))
+def test_bad_values_are_clear_errors(tmp_path, monkeypatch, capsys):
+    args = ("run", "roundabout-test", "--mu", "-0.2", "--camber", "40", "--out", str(tmp_path / "x"))
+    out = run_cli_here(monkeypatch, capsys, *args)
     assert out.returncode == 2
     assert "surface.mu" in out.stderr and "camber.percent" in out.stderr and "Traceback" not in out.stderr
-    out = run_cli("run", "roundabout-7")
+    out = run_cli_here(monkeypatch, capsys, "run", "roundabout-7")
     assert out.returncode == 2 and "unknown scenario" in out.stderr
 
 
-def test_bench_optimal_refuses_a_case_too_short_for_a_trailer_length_before_any_work():
+def test_bench_optimal_refuses_a_case_too_short_for_a_trailer_length_before_any_work(monkeypatch, capsys):
     # Below 6 s of the roundabout the kingpin has not driven the follow point's offset: no node the NLP counts.
-    out = run_cli("bench", "optimal", "--duration", "2")
+    out = run_cli_here(monkeypatch, capsys, "bench", "optimal", "--duration", "2")
     assert out.returncode == 2 and "--duration" in out.stderr and "6" in out.stderr
     assert "Traceback" not in out.stderr and out.stdout == ""
 

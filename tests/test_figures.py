@@ -9,8 +9,6 @@ them all; the reference trailer fails the test (its innermost point enters the 5
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import imageio.v2 as imageio
@@ -281,19 +279,11 @@ def test_heat_maps_mark_the_target_show_mu_and_do_not_clip_the_largest_cell() ->
         plt.close(fig)
 
 
-def _offtrack(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-c", "from scenarios.cli import main; main()", *args],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-
-
 def test_format_svg_writes_svg_plots_and_a_bad_format_exits_2(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    # The refusals run in-process (the exit code a process gets from ``main()`` is tested in test_faults.py).
+    # Every command runs in-process through ``main()`` (the exit code a process gets from it is tested in
+    # test_faults.py).
     from test_faults import offtrack_in_process
 
     for command in (["run", "roundabout-test"], ["report", str(tmp_path)], ["compare", "roundabout-test"]):
@@ -305,11 +295,13 @@ def test_format_svg_writes_svg_plots_and_a_bad_format_exits_2(
         assert len(lines) == 1 and "--format" in lines[0] and "png, svg or pdf" in lines[0]
         assert not (tmp_path / "bad").exists()  # refused before any work
     out = tmp_path / "svg"
-    ran = _offtrack("run", "roundabout-test", "--duration", "3", "--format", "svg", "--out", str(out))
+    ran = offtrack_in_process(
+        monkeypatch, capsys, "run", "roundabout-test", "--duration", "3", "--format", "svg", "--out", str(out)
+    )
     assert ran.returncode == 0, ran.stdout + ran.stderr
     assert (out / "plan_view.svg").read_text().lstrip().startswith(("<?xml", "<svg"))
     assert (out / "offtracking.svg").is_file() and not list(out.glob("*.png"))
-    again = _offtrack("report", str(out), "--format", "pdf")
+    again = offtrack_in_process(monkeypatch, capsys, "report", str(out), "--format", "pdf")
     assert again.returncode == 0, again.stdout + again.stderr
     assert (out / "plan_view.pdf").read_bytes().startswith(b"%PDF") and (out / "offtracking.pdf").is_file()
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from test_faults import offtrack
+from test_faults import offtrack_in_process
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -129,9 +129,13 @@ def test_plots_that_cannot_be_written_are_one_line_naming_the_file_and_exit_3(tm
     _assert_no_plot_and_the_run_kept(out, "completed")  # the simulation did complete; `report` draws the plots
 
 
-def test_report_that_cannot_draw_its_plots_is_one_line_naming_the_file_and_exit_3(tmp_path: Path) -> None:
-    out = tmp_path / "r"
-    made = offtrack("run", "roundabout-test", "--duration", "4", "--no-plots", "--out", str(out))
+def test_report_that_cannot_draw_its_plots_is_one_line_naming_the_file_and_exit_3(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "r"  # the run to report made through main() in this process; the failing report in a process
+    made = offtrack_in_process(
+        monkeypatch, capsys, "run", "roundabout-test", "--duration", "4", "--no-plots", "--out", str(out)
+    )
     assert made.returncode == 0, made.stderr
     result = _failed(_DISK_FULL_IN_THE_PLOTS, "report", str(out))
     assert result.stderr.strip().splitlines()[-1] == (

@@ -138,12 +138,16 @@ def test_a_missing_levels_file_is_refused(tmp_path: Path) -> None:
         load_levels(tmp_path / "nope.yaml")
 
 
-def test_assess_refuses_a_bad_levels_file_with_exit_code_2_before_any_work(tmp_path: Path) -> None:
-    from test_faults import offtrack
+def test_assess_refuses_a_bad_levels_file_with_exit_code_2_before_any_work(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Through main() in this process (the exit code a process gets from it is tested in test_faults.py).
+    from test_faults import offtrack_in_process
 
     bad = tmp_path / "levels.yaml"
     bad.write_text(EXAMPLE.read_text().replace("direction: minimum", "direction: maximum"))
-    result = offtrack("assess", "reference", "--levels", str(bad), "--out", str(tmp_path / "a"))
+    command = ("assess", "reference", "--levels", str(bad), "--out", str(tmp_path / "a"))
+    result = offtrack_in_process(monkeypatch, capsys, *command)
     assert result.returncode == 2, result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and "yaw_damping_coefficient.direction" in result.stderr
     assert not (tmp_path / "a").exists()
@@ -282,10 +286,13 @@ def test_the_standards_a_yaw_plane_model_cannot_assess_are_listed_with_the_reaso
     assert "static rollover threshold" not in reports["plain"].split("## Steering")[0]  # no row of dashes
 
 
-def test_list_vehicle_prints_the_axle_group_loads() -> None:
-    from test_faults import offtrack
+def test_list_vehicle_prints_the_axle_group_loads(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from test_faults import offtrack_in_process
 
-    result = offtrack("list", "--vehicle", str(REPO / "tests" / "data" / "vehicles" / "b-double-steered.yaml"))
+    vehicle = str(REPO / "tests" / "data" / "vehicles" / "b-double-steered.yaml")
+    result = offtrack_in_process(monkeypatch, capsys, "list", "--vehicle", vehicle)  # main() in this process
     assert result.returncode == 0, result.stderr
     assert "b-double-steered: 3 units" in result.stdout and "Axle groups" in result.stdout
     spec_loads = [

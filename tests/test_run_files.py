@@ -367,9 +367,14 @@ def killed_early(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.mark.parametrize("at_s", [EARLY_KILL_S, 9.0])  # before the truth is defined (all NaN), and well into the run
 def test_report_after_sigkill_rebuilds_the_metrics_and_prints_the_summary(
-    tmp_path: Path, at_s: float, killed_early: Path
+    tmp_path: Path,
+    at_s: float,
+    killed_early: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
-    from test_faults import offtrack
+    # `offtrack report` through main() in this process (the exit code a process gets from it: test_faults.py).
+    from test_faults import offtrack_in_process
 
     run_dir = tmp_path / "run"
     if at_s == EARLY_KILL_S:
@@ -378,7 +383,7 @@ def test_report_after_sigkill_rebuilds_the_metrics_and_prints_the_summary(
     else:
         frame = _killed_at(run_dir, at_s)
     assert json.loads((run_dir / "metrics.json").read_text())["status"] == "running"
-    result = offtrack("report", str(run_dir))
+    result = offtrack_in_process(monkeypatch, capsys, "report", str(run_dir))
     assert result.returncode == 0, result.stderr
     assert "Traceback" not in result.stderr + result.stdout
     assert "incomplete" in result.stdout and "an unknown wall time" in result.stdout

@@ -13,8 +13,6 @@
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -143,16 +141,6 @@ def test_a_right_turn_mirrors_a_left_one_for_every_unit(study) -> None:
     assert np.isfinite(left["unit3_true_offtracking_rms_m"])
 
 
-def _offtrack(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-c", "from scenarios.cli import main; main()", *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=REPO,
-    )
-
-
 @pytest.mark.parametrize(
     ("study_name", "vehicle", "words"),
     [
@@ -161,10 +149,18 @@ def _offtrack(*args: str) -> subprocess.CompletedProcess:
     ],
 )
 def test_refusals_are_one_line_naming_the_vehicle_option_before_any_work(
-    tmp_path: Path, study_name: str, vehicle: str, words: tuple[str, ...]
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    study_name: str,
+    vehicle: str,
+    words: tuple[str, ...],
 ) -> None:
+    # Through main() in this process (the exit code a process gets from it is tested in test_faults.py).
+    from test_faults import offtrack_in_process
+
     out = tmp_path / "study"
-    result = _offtrack("study", study_name, "--vehicle", vehicle, "--out", str(out))
+    result = offtrack_in_process(monkeypatch, capsys, "study", study_name, "--vehicle", vehicle, "--out", str(out))
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"error: --vehicle {vehicle}:"), result.stderr

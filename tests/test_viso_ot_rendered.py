@@ -45,11 +45,12 @@ def test_viso_ot_meets_the_paper_accuracy_on_the_reference_case(reference_case):
 
 
 def test_same_seed_same_output(reference_case):
-    # A second run of the reference case's first 4 s records the reference run's rows, the timing columns aside
-    # (a run this short renders in-process, the reference run in worker processes).
-    a = constant_slip(duration_s=4.0)
+    # A second run of the reference case's first 2 s (21 frames) records the reference run's rows, the timing
+    # columns aside (a run this short renders in-process, the reference run in worker processes). Another seed
+    # changes the odometry's columns within those 2 s, so the check can fail.
+    a = constant_slip(duration_s=2.0)
     n = len(a["time"])
-    assert n == 201 and a.keys() == reference_case.keys()
+    assert n == 101 and a.keys() == reference_case.keys()
     differ = [
         k for k in a if k not in TIMING_COLUMNS and not np.array_equal(a[k], reference_case[k][:n], equal_nan=True)
     ]
@@ -57,12 +58,12 @@ def test_same_seed_same_output(reference_case):
 
 
 @pytest.mark.parametrize(
-    "duration", [pytest.param(10.0, id="10-s"), pytest.param(20.0, id="whole-case", marks=pytest.mark.slow)]
+    "duration", [pytest.param(6.0, id="6-s"), pytest.param(20.0, id="whole-case", marks=pytest.mark.slow)]
 )
 def test_failed_frames_are_survived(monkeypatch, duration):
     # Every fifth frame of the odometry fails; the estimator bridges them and still meets the target (with the
-    # failures 0.048 m RMS in the first 10 s against 0.034 m without; a dropped estimate after a failure would
-    # show in the valid fraction).
+    # failures 0.029 m RMS and 97 % valid in the first 6 s, 0.048 m in the first 10 s against 0.034 m without; an
+    # estimator that drops its estimate after a failure instead of bridging is valid 0 % of the 6 s).
     from sensor.vo import StereoOdometry, VOResult
 
     original = StereoOdometry.process

@@ -29,6 +29,7 @@ directory.
 
 from __future__ import annotations
 
+import functools
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -259,17 +260,18 @@ def _turning_circle_records(metrics: dict[str, Any]) -> list[dict[str, Any]]:
     ]
 
 
-def run_assessment_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
+def run_assessment_case(spec: CaseSpec, out_dir: Path, plots: bool = True) -> dict[str, Any]:
     """Run one manoeuvre into ``out_dir/<case name>/`` and return its row: labels, status and the records (JSON).
 
     A run that did not complete gives its records with no value (the note says why); a stopped or failed run
-    returns what :func:`scenarios.studies.cases.run_case` would (it is stopped or run again on resume).
+    returns what :func:`scenarios.studies.cases.run_case` would (it is stopped or run again on resume). ``plots``:
+    draw the run's own figures (the measures do not use them).
     """
     config = load_scenario(spec.scenario, dict(spec.overrides))
     run_dir = out_dir / spec.name
     run_dir.mkdir(parents=True, exist_ok=True)
     params = config.vehicle_params()
-    metrics = run_scenario(config, run_dir, plots=True, model=worker_models().model(params))
+    metrics = run_scenario(config, run_dir, plots=plots, model=worker_models().model(params))
     row: dict[str, Any] = {**dict(spec.labels), "status": metrics["status"], "run": spec.name}
     if metrics["status"] == RunStatus.INTERRUPTED:
         row["stop_signal"] = metrics.get("stop_signal")
@@ -305,6 +307,7 @@ def run_assessment(
     on_progress: ProgressCallback | None = None,
     plot_format: str = "png",
     levels: UserLevels | None = None,
+    run_plots: bool = True,
 ) -> pd.DataFrame:
     """Assess one combination: run every case (:func:`assessment_cases`) on the sweep runner, then write the
     assessment (:func:`write_assessment`).
@@ -324,6 +327,9 @@ def run_assessment(
         ``png``, ``svg`` or ``pdf``.
     levels
         The user's PBS levels (:func:`scenarios.assess.user_levels.load_levels`), checked before; None: not graded.
+    run_plots
+        Draw each manoeuvre's run figures (plan view, off-tracking) in its run directory; the measures and the
+        assessment's own figures do not depend on them.
 
     Returns
     -------
@@ -336,8 +342,9 @@ def run_assessment(
         A combination, feedback or surface it cannot run (one line, before any case runs).
     """
     cases = assessment_cases(vehicle, feedbacks, surfaces)
+    run_case = run_assessment_case if run_plots else functools.partial(run_assessment_case, plots=False)
     result = run_sweep(
-        cases, out_dir, run_assessment_case, workers=workers, scheduler=scheduler, resume=resume, progress=on_progress
+        cases, out_dir, run_case, workers=workers, scheduler=scheduler, resume=resume, progress=on_progress
     )
     table = result.table
     ok = table[table["status"] != RunStatus.FAILED] if "status" in table.columns else table
