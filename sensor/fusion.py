@@ -73,6 +73,7 @@ from .fusion_slip import (
     push_variance,
     scrub_bias_share,
     scrub_coupling_share,
+    scrub_coupling_yield,
 )
 from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects, reference_share
 from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics, unit_axles
@@ -417,8 +418,7 @@ class FusedVisoOt:
                 self.noise.vo_bias_coupling * r[:2, 2] / r[2, 2]
             )  # the yaw–translation ambiguity of this frame (eq (3) of :mod:`sensor.fusion_model`)
             self._coupling, self.frame_scrub_demand = coupling, entry.scrub
-            if entry.scrub > 0.0:  # (K5): scrubbing tyres, the coupling gives way to its uncertainty
-                coupling = coupling * (1.0 - entry.scrub)
+            coupling = coupling * scrub_coupling_yield(self.noise, entry.scrub)  # (K5): gives way while scrubbing
             h[:2, BPSI] = x[0] * coupling  # the odometry's error per metre over the distance since the anchor
             h[2, BPSI] = x[0]
             if entry.scrub > 0.0:  # (K6): the odometry's systematic error released while the tyres scrub

@@ -260,6 +260,10 @@ class FusionNoise(Settings):
         (:mod:`sensor.fusion_slip`): ``release`` ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` at the last frame's demand;
         ``uniform`` (K7), the RMS of the share the frames applied less the real one, uniform on [0, 1] at full
         demand, at the demand over the path.
+    scrub_coupling_kept : bool
+        Keep the odometry's coupled translation (eq (3)) under a scrub demand: a frame is taken with the share
+        ``1 − r·D`` of the coupled correction ``β_ψ·G_κ`` ((K6) alone) instead of ``(1 − r·D)·(1 − D)`` (False, the
+        default: (K5) lets the coupling give way as well; :func:`~sensor.fusion_slip.scrub_coupling_yield`).
     gate : float
         Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
     max_gated : int
@@ -389,6 +393,7 @@ class FusionNoise(Settings):
         0.0, ge=0.0, le=1.0, description="share of β_ψ released at full scrub demand (K6); 1 takes none of it"
     )
     scrub_coupling_std: ScrubCouplingStd = "release"
+    scrub_coupling_kept: bool = False
     gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
     max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")
     max_std: float = Field(0.5, gt=0.0, le=10.0, description="[m] of off-tracking std; 10 m says nothing")

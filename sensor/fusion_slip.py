@@ -123,6 +123,7 @@ __all__ = [
     "scrub_bias_share",
     "scrub_coupling_applied",
     "scrub_coupling_share",
+    "scrub_coupling_yield",
 ]
 
 
@@ -138,10 +139,18 @@ def scrub_bias_share(noise: FusionNoise, demand: float) -> float:
     return 1.0 - noise.scrub_bias_release * demand
 
 
+def scrub_coupling_yield(noise: FusionNoise, demand: float) -> float:
+    """(K5): the factor ``1 − D`` a frame's coupled translation ``κ·(c_x, c_y)`` of eq (3) is taken with at the scrub
+    demand ``demand``; 1 without a demand, and 1 with ``noise.scrub_coupling_kept`` (the coupling kept while the
+    tyres scrub, so that only (K6) acts on it)."""
+    return 1.0 if noise.scrub_coupling_kept or demand <= 0.0 else 1.0 - demand
+
+
 def scrub_coupling_applied(noise: FusionNoise, demand: float) -> float:
     """(K5)–(K6): the share ``a = (1 − r·D)·(1 − D)`` of the coupled correction ``β_ψ·G_κ`` a frame's motion is
-    taken with at the scrub demand ``demand`` (1 without a demand)."""
-    return scrub_bias_share(noise, demand) * (1.0 - demand)
+    taken with at the scrub demand ``demand`` (1 without a demand; ``1 − r·D`` with the coupling kept,
+    :func:`scrub_coupling_yield`)."""
+    return scrub_bias_share(noise, demand) * scrub_coupling_yield(noise, demand)
 
 
 def scrub_coupling_share(noise: FusionNoise, demand: float) -> float:
