@@ -69,10 +69,10 @@ from .fusion_noise import FusionNoise
 from .fusion_slip import (
     ScrubDemand,
     ZeroSlipNoise,
+    coupling_correction_std,
+    kinematic_disagreement,
     kinematic_lateral_step,
-    push_variance,
     scrub_bias_share,
-    scrub_coupling_share,
     scrub_coupling_yield,
 )
 from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects, reference_share
@@ -550,18 +550,10 @@ class FusedVisoOt:
         )
         if self._axial_regression is not None:  # (A2): at the fused increments' sensitivity instead
             effects[2:] = self._axial_regression.effect(d, now.p, self._starts, self._ends, lfp)
-        # the disagreement the kinematics' share carries into the slip velocity, coherent over the window
-        evidence = max(self._evidence.evidence, 0.0)
-        if self.noise.trailer_push_share > 0.0:  # (K4): the kinematics may err by the push they cannot see
-            evidence = max(evidence, push_variance(self.noise, float(now.x[VS])))
-        disagreement = self.kinematic_share * math.sqrt(evidence) * self._lateral_lever
-        # the coupling is known to vo_bias_coupling_uncertainty: so is the correction it applies for β_ψ
-        coupling = self.noise.vo_bias_coupling_uncertainty * now.x[BPSI] * coherent[2]
-        # (K5)–(K7): taken in part while the tyres scrubbed, how much of it is real unknown
-        uniform = self.noise.scrub_coupling_std == "uniform"  # (K7) at the demand over the path
-        demand = effects_.coupled_demand if uniform else self.frame_scrub_demand
-        if demand > 0.0:
-            coupling = scrub_coupling_share(self.noise, demand) * now.x[BPSI] * coherent[2]
+        evidence, share = self._evidence.evidence, self.kinematic_share
+        disagreement = kinematic_disagreement(self.noise, evidence, float(now.x[VS]), share, self._lateral_lever)
+        demands = (effects_.coupled_demand, self.frame_scrub_demand)
+        coupling = coupling_correction_std(self.noise, now.x[BPSI], coherent[2], *demands)
         if self.frame_scrub_demand > 0.0:  # (K5): the biases' effect with the coupling given way
             scrub = self.frame_scrub_demand
             coherent = coherent - scrub * np.array([0.0, coherent[2], coherent[2]])

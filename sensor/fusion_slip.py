@@ -117,6 +117,8 @@ __all__ = [
     "ScrubDemand",
     "SlipEvidence",
     "ZeroSlipNoise",
+    "coupling_correction_std",
+    "kinematic_disagreement",
     "kinematic_floor",
     "kinematic_lateral_step",
     "push_variance",
@@ -172,6 +174,31 @@ def push_variance(noise: FusionNoise, slip_velocity: float) -> float:
     """(K4): ``(u_p·v_s)²``, the tractor's rear slip a trailer slipping at ``v_s`` [m/s] pushes it into [m²/s²]."""
     push = noise.trailer_push_share * float(slip_velocity)
     return push * push
+
+
+def kinematic_disagreement(
+    noise: FusionNoise, evidence: float, slip_velocity: float, share: float, lever: float
+) -> float:
+    """Eq (5)'s kinematics term ``s_k·m_k·Λ`` [m]: the disagreement the kinematics' share ``share`` carries into the
+    slip velocity, coherent over the window of lateral lever ``lever`` [m·s/m]; ``evidence`` ``e_k`` of (K2) [m²/s²],
+    at least the push (K4) a trailer slipping at ``slip_velocity`` [m/s] hides from the kinematics."""
+    evidence = max(evidence, 0.0)
+    if noise.trailer_push_share > 0.0:  # (K4): the kinematics may err by the push they cannot see
+        evidence = max(evidence, push_variance(noise, slip_velocity))
+    return share * math.sqrt(evidence) * lever
+
+
+def coupling_correction_std(
+    noise: FusionNoise, bias: float, lever: float, path_demand: float, frame_demand: float
+) -> float:
+    """Eq (5)'s coupling term ``u_κ·β_ψ·G_κ`` [m]: the coupling is known to ``vo_bias_coupling_uncertainty``, so is the
+    correction it applies for the odometry's yaw error ``bias`` (``β_ψ``) through the lever ``lever`` (``G_κ``).
+    Taken in part while the tyres scrubbed ((K5)–(K7)), the share of it that is unknown
+    (:func:`scrub_coupling_share`) at the frame's demand ``frame_demand``, or with ``scrub_coupling_std: uniform``
+    at the demand over the path ``path_demand``."""
+    demand = path_demand if noise.scrub_coupling_std == "uniform" else frame_demand
+    share = scrub_coupling_share(noise, demand) if demand > 0.0 else noise.vo_bias_coupling_uncertainty
+    return share * bias * lever
 
 
 class SlipEvidence:
