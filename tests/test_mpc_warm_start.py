@@ -26,10 +26,10 @@ OFFSET = 0.3
 """[m] The follow point's start off the path: the plan steers towards it for several solves."""
 
 STEER_TOLERANCE = 2e-4
-"""[rad] Two starts of the same NLP end at the same optimum within Ipopt's ``tol`` = 1e-6 on the KKT error; the
-optimum is flat in the later nodes' steer (they reach the follow point through the last intervals only), and the plans'
-steer agree to this (0.011°; measured up to 7.5e-5 rad, the first moves to 5.8e-5 rad), against plans that steer by
-0.02–0.07 rad towards the path."""
+"""[rad] Two starts of the same NLP end at the same optimum within Ipopt's ``tol`` = 1e-6 on the KKT error; the cost
+is flat there (steer apart by 5.7e-5 rad moves the predicted off-tracking RMS by 0.4 µm), and the plans' steer agree to
+this (0.011°; measured up to 7.5e-5 rad, the first moves to 5.8e-5 rad), against plans that steer up to 0.06–0.21 rad
+towards the path."""
 
 RMS_TOLERANCE = 1e-6
 """[m] The plans' predicted off-tracking RMS agree to this (measured up to 4.3e-7 m, of 0.02–0.18 m)."""
