@@ -27,6 +27,14 @@ Each solve is warm-started from the last plan shifted to the present time (its s
 run forward on it from ``x_0``); the path is linearised at that guess's follow points. A solve that fails, or that
 reaches its iteration or CPU-time limit, is not applied: the last good plan's steer at the present time is (the
 fallback), counted in :attr:`RecedingHorizonSteer.failures`.
+
+With ``warm_start = "primal_dual"`` the solve after a successful one also starts from that solve's constraint
+multipliers, as they were (not shifted in time), with Ipopt's warm-start initialisation (``warm_start_init_point``, a
+small initial barrier parameter ``mu_init``; a second copy of the problem with those options, built at its first
+use). ``Opti`` gives Ipopt no bounds on the variables (every constraint, the lock and the rate too, is a row of ``g``),
+so the bound multipliers ``lam_x`` are zero and ``lam_g`` holds them all. The first solve, and the solve after a
+failed or capped one, start from the primal guess alone, as with ``warm_start = "primal"``: the multipliers of a
+solve that did not converge are not a point to start from (docs/controller_design.md §3.10, "The dual warm start").
 """
 
 from __future__ import annotations
@@ -48,7 +56,24 @@ from vehicle_model.settings import Settings
 from .path_following_config import PathFollowingConfig
 from .steer_shooting import STEER_SMOOTHING, add_steer_limits, follow_function, interval_integrator, path_reference
 
-__all__ = ["HorizonPlan", "HorizonSettings", "HorizonStep", "RecedingHorizonSteer", "mpc_steered_axles"]
+__all__ = [
+    "DUAL_WARM_START",
+    "HorizonPlan",
+    "HorizonSettings",
+    "HorizonStep",
+    "RecedingHorizonSteer",
+    "mpc_steered_axles",
+]
+
+DUAL_WARM_START: dict[str, str | float] = {
+    "warm_start_init_point": "yes",
+    "mu_init": 1e-4,
+    "warm_start_bound_push": 1e-6,
+    "warm_start_mult_bound_push": 1e-6,
+}
+"""Ipopt's options of a solve started from the last solve's multipliers (Ipopt's options reference, "Warm Start"):
+take the given primal point and multipliers as the start, begin the barrier parameter at 1e-4 (0.1 by default, where
+a start with no multipliers begins) and move the start only 1e-6 into the bounds' interior (1e-3 by default)."""
 
 
 class HorizonSettings(Settings):
@@ -69,6 +94,9 @@ class HorizonSettings(Settings):
     tractor_prediction : {"held", "driver"}
         The tractor's steer over the horizon: held at its present value, or the prediction each solve is handed
         (:meth:`RecedingHorizonSteer.step`'s ``tractor_steer``).
+    warm_start : {"primal", "primal_dual"}
+        Each solve's start: the shifted plan (primal), or that and the last successful solve's multipliers with
+        Ipopt's warm-start options (module docstring).
     """
 
     horizon: float = Field(2.0, gt=0.0, le=10.0)
@@ -77,6 +105,7 @@ class HorizonSettings(Settings):
     max_iter: int = Field(50, ge=1, le=3000)
     max_solve_time: float = Field(5.0, gt=0.0, le=600.0)
     tractor_prediction: Literal["held", "driver"] = "held"
+    warm_start: Literal["primal", "primal_dual"] = "primal"
 
 
 @dataclass(frozen=True)
@@ -95,14 +124,16 @@ class HorizonPlan:
 @dataclass(frozen=True)
 class HorizonStep:
     """What one tick did: the command applied [rad], whether the solve failed (the fallback applied), the solve's
-    thread CPU time [s], its status and the plan's predicted off-tracking RMS over the horizon [m] (NaN on a
-    failure)."""
+    thread CPU time [s], its status, the plan's predicted off-tracking RMS over the horizon [m] (NaN on a failure),
+    Ipopt's iterations (-1: none reported) and whether the solve started from the last solve's multipliers."""
 
     command: np.ndarray
     failed: bool
     cpu_time: float
     status: str
     predicted_rms: float
+    iterations: int = -1
+    dual_start: bool = False
 
 
 def mpc_steered_axles(params: VehicleParams) -> list[int]:
@@ -180,25 +211,28 @@ class RecedingHorizonSteer:
         follow = self._follow.map(n)(self._X[:, 1:])
         self._errors = ca.sum1(self._normals * (follow - self._anchors)).T
         opti.minimize(ca.sumsqr(self._errors) + STEER_SMOOTHING * ca.sumsqr(increments))
-        opti.solver(
-            "ipopt",
-            {"print_time": False, "expand": True},
-            {
-                "max_iter": settings.max_iter,
-                "max_cpu_time": settings.max_solve_time,
-                "print_level": 0,
-                "sb": "yes",
-                "tol": 1e-6,
-            },
-        )
-        self._opti = opti
+        plugin = {"print_time": False, "expand": True}
+        ipopt = {
+            "max_iter": settings.max_iter,
+            "max_cpu_time": settings.max_solve_time,
+            "print_level": 0,
+            "sb": "yes",
+            "tol": 1e-6,
+        }
+        opti.solver("ipopt", plugin, ipopt)
+        self._opti = self._active = opti
+        self._dual_opti: ca.Opti | None = None
+        if settings.warm_start == "primal_dual":  # the same problem, its own Ipopt with the warm-start options
+            self._dual_opti = opti.copy()
+            self._dual_opti.solver("ipopt", plugin, {**ipopt, **DUAL_WARM_START})
         self.reset()
 
     def reset(self) -> None:
-        """No plan, no counts."""
+        """No plan, no counts, no multipliers."""
         self.plan: HorizonPlan | None = None
         self.solves = 0
         self.failures = 0
+        self._duals: np.ndarray | None = None
 
     # ------------------------------------------------------------------ one tick
 
@@ -259,15 +293,24 @@ class RecedingHorizonSteer:
             )
         return np.clip(steer, -lock, lock)
 
-    def _solve(self) -> tuple[np.ndarray, np.ndarray, str, bool]:
-        """Ipopt on the problem as set: ``(steer, states, status, success)``; raises on a solver error."""
-        solution = self._opti.solve_limited()
-        stats = self._opti.stats()
+    def _solve(self) -> tuple[np.ndarray, np.ndarray, str, bool, int, np.ndarray | None]:
+        """Ipopt on the problem as set (the copy :meth:`step` chose): ``(steer, states, status, success, iterations,
+        multipliers)``, the multipliers ``lam_g`` of a successful solve with the dual warm start (else ``None``);
+        raises on a solver error."""
+        opti = self._active
+        solution = opti.solve_limited()
+        stats = opti.stats()
+        success = bool(stats.get("success", False))
+        duals = None
+        if success and self._dual_opti is not None:
+            duals = np.asarray(solution.value(opti.lam_g), dtype=float).ravel()
         return (
             np.atleast_2d(solution.value(self._D)),
             np.asarray(solution.value(self._X)),
             str(stats.get("return_status", "")),
-            bool(stats.get("success", False)),
+            success,
+            int(stats.get("iter_count", -1)),
+            duals,
         )
 
     def step(
@@ -310,7 +353,8 @@ class RecedingHorizonSteer:
         states_guess = self.rollout(x0, held, steer_guess)
         reference = np.vstack([path, self.kingpins(states_guess[:, 1:])])
         anchors, normals = path_reference(reference, self.follow_points(states_guess[:, 1:]))
-        opti = self._opti
+        dual = self._duals is not None  # the last solve succeeded, with the dual warm start
+        opti = self._active = self._dual_opti if dual and self._dual_opti is not None else self._opti
         opti.set_value(self._x0, x0)
         opti.set_value(self._held, held)
         opti.set_value(self._previous, previous)
@@ -318,13 +362,17 @@ class RecedingHorizonSteer:
         opti.set_value(self._normals, normals.T)
         opti.set_initial(self._X, states_guess)
         opti.set_initial(self._D, steer_guess)
+        if dual:
+            opti.set_initial(opti.lam_g, self._duals)
         start = time.thread_time()
         try:
-            steer, states, status, success = self._solve()
+            steer, states, status, success, iterations, duals = self._solve()
         except RuntimeError as error:
-            steer, states, status, success = steer_guess, states_guess, f"error: {error}".splitlines()[0], False
+            status = f"error: {error}".splitlines()[0]
+            steer, states, success, iterations, duals = steer_guess, states_guess, False, -1, None
         cpu = time.thread_time() - start
         self.solves += 1
+        self._duals = duals if success else None  # a failed or capped solve seeds nothing: a primal start next
         if success:
             times = now + self.interval * np.arange(self.settings.nodes + 1)
             self.plan = HorizonPlan(times, steer.T.copy(), states.T.copy())
@@ -334,7 +382,7 @@ class RecedingHorizonSteer:
             self.failures += 1
             move = self.plan.steer_at(now) if self.plan is not None else previous
             rms = float("nan")
-        return HorizonStep(self.clip(move, previous), not success, cpu, status, rms)
+        return HorizonStep(self.clip(move, previous), not success, cpu, status, rms, iterations, dual)
 
     def clip(self, command: np.ndarray, previous: np.ndarray) -> np.ndarray:
         """``command`` within the lock and within one tick's rate from ``previous``."""

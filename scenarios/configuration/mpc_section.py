@@ -54,6 +54,12 @@ class MpcConfig(Settings):
         description="the tractor's steer over the horizon: held at its present value, or driver (the driver's own "
         "law run on the plan's model along its path; the drive force and the surface stay held)",
     )
+    warm_start: Literal["primal", "primal_dual"] = Field(
+        "primal",
+        description="each solve's start: primal (the last plan shifted to the present, its states by the model) or "
+        "primal_dual (that and the last successful solve's multipliers, with Ipopt's warm-start options; a primal "
+        "start after a failed or capped solve)",
+    )
 
     def settings(self) -> HorizonSettings:
         """The MPC's own settings."""
@@ -64,4 +70,5 @@ class MpcConfig(Settings):
             max_iter=self.max_iter,
             max_solve_time=self.max_solve_cpu_s,
             tractor_prediction=self.tractor_prediction,
+            warm_start=self.warm_start,
         )
