@@ -3,9 +3,9 @@
 * The case list: the default subset and the full grid (counts, names, the default combination's steerable axles, each
   steering's ``feedback`` and ``rear_feedback``), and fewer steerings for a combination with one steerable unit.
 * Four shortened cases (a quarter of a 30 m roundabout, dry, the default B-double) run through the sweep: a row per
-  case with every towed unit's columns, the figures written; steering both trailers on the truth cuts the rear trailer's true
-  off-tracking to a small part of the unsteered run's; a right turn gives the left turn's per-unit figures within
-  1e-6 m.
+  case with every towed unit's columns, the figures written; steering both trailers on the truth cuts the rear
+  trailer's true off-tracking to a small part of the unsteered run's; a right turn gives the left turn's per-unit
+  figures within 1e-6 m.
 * Refusals, one line naming ``--vehicle`` and before any work: a vehicle without a steerable towed unit, a camera
   study given a longer combination; ``estimators-under-slip`` with a longer combination drops the camera feedbacks.
 """
