@@ -48,12 +48,13 @@ def test_a_single_loop_roundabout_is_unchanged_by_the_runoff() -> None:
 
 
 def test_the_truth_fed_figure_eight_on_ice_and_camber_stays_under_control() -> None:
-    cfg = load_scenario(
-        "figure-eight", {"vehicle": "lst", "feedback": "truth", "surface.preset": "ice", "camber.percent": 5.0}
-    )
+    # The first 120 s of the 171 s: the crossing between the loops (about 86 s in) and the second loop's first
+    # third, past where the crease made it leave the road.
+    overrides = {"vehicle": "lst", "feedback": "truth", "surface.preset": "ice", "camber.percent": 5.0}
+    cfg = load_scenario("figure-eight", {**overrides, "duration_s": 120.0})
     setup = build_scenario(cfg)
-    outcome, cols = simulate(setup)  # model only: ~4 s
+    outcome, cols = simulate(setup)  # model only
     assert outcome.status == "completed"  # with the crease: lost_control (left the road) at t ≈ 113 s
     e = cols["offtracking_truth"][after_warmup(cols, setup.params.follow_point_offset)]
-    assert np.sqrt(np.mean(e**2)) <= 0.05  # measured 0.014 m
-    assert np.abs(e).max() <= 0.15  # measured 0.095 m
+    assert np.sqrt(np.mean(e**2)) <= 0.05  # measured 0.016 m (the whole figure of eight: 0.014 m)
+    assert np.abs(e).max() <= 0.15  # measured 0.095 m (the same over the whole figure of eight)

@@ -552,7 +552,8 @@ def test_summary_table_names_the_columns_it_leaves_out() -> None:
 
 @pytest.mark.rendering
 def test_animation_of_a_camera_run_shows_the_left_image(tmp_path: Path) -> None:
-    """A 1 s VISO-OT run (made in a child process, which owns its renderer), animated here with the camera."""
+    """A 0.35 s VISO-OT run (four camera frames) at half the image size, made in a child process (which owns its
+    renderer), animated here with the camera."""
     import subprocess
     import sys
 
@@ -561,7 +562,8 @@ def test_animation_of_a_camera_run_shows_the_left_image(tmp_path: Path) -> None:
     code = (
         "from pathlib import Path; from scenarios.config import load_scenario; "
         "from scenarios.run.runner import run_scenario; "
-        "c = load_scenario('roundabout-3', {'estimators.viso_ot': True, 'duration_s': 1.0}); "
+        "c = load_scenario('roundabout-3', {'estimators.viso_ot': True, 'duration_s': 0.35, "
+        "'camera.width': 672, 'camera.height': 196}); "
         f"run_scenario(c, Path({str(run_dir)!r}), plots=False)"
     )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=300)

@@ -237,9 +237,9 @@ def test_the_bias_term_makes_the_std_honest_on_a_correlated_odometry_error() -> 
     assert 0.005 < bias < 0.2
     check_errors, check_std = errors_and_std((3, 4), bias)
     assert 0.85 <= np.mean(np.abs(check_errors) <= 2.0 * check_std) <= 1.0
-    # Only the std changes: the estimate is that of the filter without the term.
-    same_errors, _ = errors_and_std((3, 4), 0.0)
-    assert np.array_equal(same_errors, check_errors)
+    # Only the std changes: the estimate is that of the filter without the term (seed 3's run, the first part).
+    same_errors, _ = errors_and_std((3,), 0.0)
+    assert np.array_equal(same_errors, check_errors[: len(same_errors)])
 
 
 def test_a_gated_motion_is_refused() -> None:
@@ -348,8 +348,9 @@ def test_an_odometry_error_the_filter_cannot_observe_widens_its_std() -> None:
 
 
 def test_a_blinded_camera_falls_back_to_the_kinematics() -> None:
-    # 20 s without a frame in the turn: the kinematics (no tractor tyre slips here) carry the estimate through.
-    r_m, w_m, incs, true = drive_with_truth(n=2500)
+    # 20 s without a frame in the turn: the kinematics (no tractor tyre slips here) carry the estimate through. The
+    # drive ends with the gap (the filter and the truth are causal: a longer drive gives the same values up to it).
+    r_m, w_m, incs, true = drive_with_truth(n=1750)
     lc, _ = slip_kinematics(PARAMS)
     tractor = [tractor_signals(u, r, r * lc + vs) for u, r, vs in true]
     gap = range(250, 350)  # frames, ticks 1250–1750
@@ -387,11 +388,11 @@ def test_compensated_rear_points_take_the_tractors_rear_point_where_the_turn_and
     # 1 cm (measured 1e-15 m: the kinematics are then exact), the one that assumes the mean station does not
     # (0.069 m). On a 5 % cross slope the rear tyres also carry gravity's share, g·0.05 = 0.49 m/s², and the
     # tractor crabs at K·u·0.49 = 0.035 m/s: the accelerometer's rear point follows within 1 cm, the turn's alone
-    # does not.
-    r_m, w_m, incs, true = drive_with_truth(n=2500)
+    # does not. The drive ends with the gap.
+    r_m, w_m, incs, true = drive_with_truth(n=1750)
     lc, _ = slip_kinematics(PARAMS)
     gap = range(250, 350)
-    blind = (np.arange(2500) > 1300) & (np.arange(2500) < 1750)
+    blind = (np.arange(1750) > 1300) & (np.arange(1750) < 1750)
     slope = 9.81 * 0.05
 
     def worst(truth_point: RearPoint, filter_point: RearPoint, crossfall: float) -> float:
@@ -421,13 +422,13 @@ def test_a_steady_kinematic_error_is_learned_and_carried_through_a_camera_gap() 
     # rolling tyres' 0.02 m/s, so no evidence of slip) while the camera sees the truth, then 5 s without a frame in
     # the turn. With the error as a state, (K3), the filter has learned the offset (measured 0.0142 m/s) and keeps
     # correcting the kinematics for it in the gap: worst error 0.016 m, where the inflated white error, which
-    # ascribes the disagreement to the trailer's slip, follows the kinematics (0.054 m).
-    r_m, w_m, incs, true = drive_with_truth(n=3000)
+    # ascribes the disagreement to the trailer's slip, follows the kinematics (0.054 m). The drive ends with the gap.
+    r_m, w_m, incs, true = drive_with_truth(n=2250)
     lc, _ = slip_kinematics(PARAMS)
     offset = 0.015
     tractor = [tractor_signals(u, r, r * lc + vs + offset) for u, r, vs in true]
     gap = range(400, 450)  # frames, ticks 2000–2250
-    blind = (np.arange(3000) > 2000) & (np.arange(3000) < 2250)
+    blind = (np.arange(2250) > 2000) & (np.arange(2250) < 2250)
 
     def learned_and_worst_in_gap(model: str) -> tuple[np.ndarray, float]:
         fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(kinematic_error_model=model))
@@ -447,10 +448,10 @@ def test_held_slip_evidence_keeps_the_kinematics_de_weighted_through_a_change_of
     # way, a change of turn on ice); the camera sees the truth. (K2)'s signed mean passes through zero at the
     # change, so σ_k falls to its floor (0.02 m/s) just as the error flips; (K2') lets the evidence fall no faster
     # than a stopped slip's, so σ_k stays at least a third of the slip (worked out: 0.0267 m/s, the new evidence
-    # meeting the held one where 1 − 2x = x of the decay).
-    r_m, w_m, incs, true = drive_with_truth(n=3000)
+    # meeting the held one where 1 − 2x = x of the decay). The drive ends 40 s in, with the windows below.
+    r_m, w_m, incs, true = drive_with_truth(n=2000)
     lc, _ = slip_kinematics(PARAMS)
-    t = np.arange(3000) * DT
+    t = np.arange(2000) * DT
     error = np.where(t < 15.0, 0.0, np.where(t < 35.0, 0.08, -0.08))
     tractor = [tractor_signals(u, r, r * lc + vs + e) for (u, r, vs), e in zip(true, error, strict=True)]
 

@@ -66,8 +66,8 @@ SMALL_PARAMETERS = {
     # one surface (ice: the one that fails the unsteered trailer), one unsteered and one steered combination, and
     # twice the speed (half the simulated time of the circuit)
     "roundabout_test": 'SPEED_KMH = 10.0\nSURFACES = ["ice"]\nCASES = [("reference", "none"), ("lst", "truth")]',
-    # the designed gains and one Optuna proposal
-    "controller_design_and_tuning": "TUNING_TRIALS = 2",
+    # the designed gains and one Optuna proposal, compared on the first held-out condition, on a tenth of a turn
+    "controller_design_and_tuning": "TUNING_TRIALS = 2\nHELD_OUT_CONDITIONS = 1\nEPISODE_TURNS = 0.1",
 }
 """The default suite's parameters of the light notebooks, run after each one's own parameter cell."""
 

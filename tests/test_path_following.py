@@ -392,10 +392,13 @@ def test_closed_loop_all_steer_reference_truth_and_zero_slip(all_steer_model):
 def test_unsteered_trailer_offtracks_by_metres_on_the_roundabout_test_and_the_controller_removes_it(
     all_steer_model,
 ):
-    setup, cols, _ = closed_loop("roundabout-test", all_steer_model, "none")
+    # The settling turn and a quarter of the assessed circle (the whole circle: the same figures to a millimetre and
+    # a tenth of a degree; measured here −3.06 m unsteered, 5.7 mm steered, axle at −21.1°).
+    quarter = {"path.turns": 0.25}
+    setup, cols, _ = closed_loop("roundabout-test", all_steer_model, "none", **quarter)
     unsteered = after_warm_up(setup, cols)
     assert unsteered.min() < -2.5  # left turn: cuts in by metres (≈ 3 m at R5 ≈ 10 m)
-    setup, cols, ctrl = closed_loop("roundabout-test", all_steer_model, "truth")
+    setup, cols, ctrl = closed_loop("roundabout-test", all_steer_model, "truth", **quarter)
     steered = after_warm_up(setup, cols)
     assert np.abs(steered).max() <= 0.15
     assert np.sqrt(np.mean(steered**2)) <= 0.10

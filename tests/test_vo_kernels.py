@@ -81,7 +81,7 @@ _SMALL = (
 
 def _small_fingerprints() -> list[list]:
     """Fingerprints of a small sequence (fast enough for the interpreter), with every kernel involved."""
-    rig = StereoRig(width=320, height=160)
+    rig = StereoRig(width=256, height=128)
     seq = planar_sequence(3, step=0.4, rig=rig)
     out = []
     for overrides in ({"ransac_iters": 40}, {"ransac_iters": 40, "refinement": 2}):
