@@ -157,15 +157,22 @@ def test_bad_input_is_refused_before_any_work(tmp_path: Path) -> None:
     assert time.monotonic() - t0 < 30 and not (tmp_path / "r").exists()
 
 
-def test_a_study_setting_a_case_refuses_stops_before_any_work(tmp_path: Path) -> None:
-    result = offtrack("study", "field-loop", "--set", "fusion.tractor_slip=-1", "--out", str(tmp_path / "s"))
-    assert_one_line_error(result, "fusion.tractor_slip")
+def test_a_study_setting_a_case_refuses_stops_before_any_work(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = ("study", "field-loop", "--set", "fusion.tractor_slip=-1", "--out", str(tmp_path / "s"))
+    assert_one_line_error(offtrack_in_process(monkeypatch, capsys, *args), "fusion.tractor_slip")
     assert not (tmp_path / "s").exists()
 
 
 @pytest.mark.parametrize(
     ("where", "in_a_process"),
-    [("file", True), ("under_file", False), pytest.param("under_file", True, marks=pytest.mark.slow)],
+    [
+        ("file", False),
+        ("under_file", False),
+        pytest.param("file", True, marks=pytest.mark.slow),  # a process's exit 2: test_bad_input_is_one_line_…
+        pytest.param("under_file", True, marks=pytest.mark.slow),
+    ],
 )
 def test_an_unusable_out_is_named(
     tmp_path: Path,
