@@ -507,7 +507,13 @@ def test_every_row_of_the_readme_failure_table_is_checked_by_its_tests() -> None
 # --- files others can read; --force owns the directory --------------------------------------------------------
 
 
-def test_run_files_are_readable_by_others_and_force_clears_the_old_run(tmp_path: Path) -> None:
+def test_run_files_are_readable_by_others_and_force_clears_the_old_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Both runs through main() in this process (the exit code 0 a process gets: test_the_readme_exit_codes_…).
+    def offtrack(*args: str) -> subprocess.CompletedProcess:
+        return offtrack_in_process(monkeypatch, capsys, *args)
+
     out = tmp_path / "r"
     first = offtrack("run", "roundabout-test", "--duration", "8", "--out", str(out))
     assert first.returncode == 0, first.stderr
