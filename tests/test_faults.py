@@ -38,6 +38,10 @@ SLOW_RUN = [  # ~1× real time on this machine: long enough to be stopped mid-ru
 ]
 
 
+SMALL_CAMERA = ("--set", "camera.width=672", "--set", "camera.height=196")
+"""Half the default image size each way, for camera runs whose images are not what is checked."""
+
+
 def offtrack(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
     """Run ``offtrack ARGS`` the way the console script does."""
     return subprocess.run(
@@ -529,16 +533,19 @@ def test_run_files_are_readable_by_others_and_force_clears_the_old_run(
     assert json.loads((out / "metrics.json").read_text())["simulated_s"] == pytest.approx(4.0, abs=0.05)
 
 
+PIPELINED_CAMERA_RUN = ("run", "roundabout-3", "--set", "estimators.viso_ot=true", *SMALL_CAMERA, "--duration", "120")
+"""A camera run long enough to be pipelined (with ``OFFTRACK_CAMERA_WORKERS`` set, whatever its length) and to be
+stopped mid-run; the image size does not enter the workers' start, stop or end."""
+
+
 @pytest.mark.parametrize("count", [1, pytest.param(2, marks=pytest.mark.slow)])  # one: the default
 def test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, count: int
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], count: int
 ) -> None:
     # The camera rendered by spawned worker processes; SIGTERM stops them and keeps the rows.
     monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", str(count))
     out = tmp_path / "r"
-    proc = start(
-        "run", "roundabout-3", "--set", "estimators.viso_ot=true", "--duration", "120", "--no-plots", "--out", str(out)
-    )
+    proc = start(*PIPELINED_CAMERA_RUN, "--no-plots", "--out", str(out))
     wait_for_rows(out, proc, timeout=240.0)
     listed = subprocess.run(["ps", "-o", "pid=", "--ppid", str(proc.pid)], capture_output=True, text=True).stdout
     workers = [int(p) for p in listed.split()]
@@ -556,6 +563,14 @@ def test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers(
     for pid in workers:  # the workers are gone (reaped, or at worst reparented zombies on the way out)
         state = Path(f"/proc/{pid}/stat")
         assert not state.exists() or state.read_text().split()[2] == "Z"
+    # A camera run whose metrics are lost (as after a SIGKILL) gets them back from its series: its report through
+    # main() in this process (the report of a SIGKILLed camera run: the slow case of the next test).
+    (out / "metrics.json").unlink()
+    result = offtrack_in_process(monkeypatch, capsys, "report", str(out), "--no-plots")
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr and "incomplete" in result.stdout
+    rebuilt = json.loads((out / "metrics.json").read_text())
+    assert rebuilt["status"] == "incomplete" and rebuilt["rows"] == len(frame) and rebuilt["wall_time_s"] is None
 
 
 def _render_workers(proc: subprocess.Popen, count: int, busy_s: float, timeout: float = 120.0) -> list[psutil.Process]:
@@ -587,18 +602,23 @@ def _survivors(processes: list[psutil.Process], within: float) -> list[int]:
         time.sleep(0.05)
 
 
-@pytest.mark.parametrize("count", [1, pytest.param(2, marks=pytest.mark.slow)])  # one: the default
-@pytest.mark.parametrize("moment", ["while the workers start", "mid-run"])
+@pytest.mark.parametrize(
+    ("moment", "count"),
+    [
+        ("while the workers start", 1),  # the default: a worker ends by itself before it could read a closed pipe
+        pytest.param("while the workers start", 2, marks=pytest.mark.slow),
+        pytest.param("mid-run", 1, marks=pytest.mark.slow),  # its report: the default's SIGTERM test above
+        pytest.param("mid-run", 2, marks=pytest.mark.slow),
+    ],
+)
 def test_no_render_worker_survives_a_sigkill_of_its_pipelined_camera_run(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, moment: str, count: int
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], moment: str, count: int
 ) -> None:
     # SIGKILL gives the run no chance to stop its workers: they must end by themselves, also while they are still
     # building their world and OpenGL context (several seconds, in which an idle worker's closed pipe is not read).
     monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", str(count))
     out = tmp_path / "r"
-    proc = start(
-        "run", "roundabout-3", "--set", "estimators.viso_ot=true", "--duration", "120", "--no-plots", "--out", str(out)
-    )
+    proc = start(*PIPELINED_CAMERA_RUN, "--no-plots", "--out", str(out))
     try:
         workers = _render_workers(proc, count, busy_s=0.5)
         if moment == "mid-run":
@@ -614,8 +634,8 @@ def test_no_render_worker_survives_a_sigkill_of_its_pipelined_camera_run(
         proc.communicate(timeout=60)
     assert proc.returncode == -signal.SIGKILL
     assert survivors == [], "render workers outlived their run"
-    if moment == "mid-run":  # the killed camera run's report is rebuilt and summarised
-        result = offtrack("report", str(out), "--no-plots")
+    if moment == "mid-run":  # the killed camera run's report is rebuilt and summarised (through main() here)
+        result = offtrack_in_process(monkeypatch, capsys, "report", str(out), "--no-plots")
         assert result.returncode == 0, result.stderr
         assert "Traceback" not in result.stderr and "incomplete" in result.stdout
         metrics = json.loads((out / "metrics.json").read_text())
