@@ -19,6 +19,14 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from sweep_run_functions import (
+    STOPS,
+    crash_on_label,
+    run_once_both_workers_started,
+    signal_then_fail,
+    stop_on_label,
+)
+from sweep_run_functions import case_files as _case_files
 
 from scenarios.loop import cosimulation as cosim
 from scenarios.run.stopping import Terminated, handle_sigterm, stop_handled
@@ -40,58 +48,6 @@ REPO = Path(__file__).resolve().parents[1]
 def _numbers(table: pd.DataFrame) -> pd.DataFrame:
     """The table without the wall-clock column (the only one that differs from run to run)."""
     return table.drop(columns=["wall_time_s"], errors="ignore")
-
-
-def _case_files(out: Path) -> list[Path]:
-    return sorted((out / CASES_DIR).glob("*.json"))
-
-
-def crash_on_label(spec: CaseSpec, out_dir: Path) -> dict:
-    """A run function whose worker process dies (as in a segfault) on the case labelled ``crash``."""
-    if dict(spec.labels).get("crash"):
-        os._exit(13)
-    return run_case(spec, out_dir)
-
-
-def run_once_both_workers_started(spec: CaseSpec, out_dir: Path) -> dict:
-    """A run function that waits (60 s at most) until two worker processes have each started a case, then runs it.
-
-    Without it one worker may take every short case before the other has started, and the sweep is right but
-    shows one process.
-    """
-    peers = out_dir / "peers"
-    peers.mkdir(exist_ok=True)
-    (peers / str(os.getpid())).touch()
-    deadline = time.monotonic() + 60.0
-    while len(list(peers.iterdir())) < 2 and time.monotonic() < deadline:
-        time.sleep(0.02)
-    return run_case(spec, out_dir)
-
-
-STOPS = {"KeyboardInterrupt": KeyboardInterrupt, "Terminated": Terminated}
-
-
-def stop_on_label(spec: CaseSpec, out_dir: Path) -> dict:
-    """A run function that raises the stop labelled ``stop`` once another case is recorded; else runs the case."""
-    stop = dict(spec.labels).get("stop")
-    if stop is None:
-        return run_case(spec, out_dir)
-    deadline = time.monotonic() + 60.0
-    while not _case_files(out_dir) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    raise STOPS[stop](f"{stop} raised in case {spec.name}")
-
-
-def signal_then_fail(spec: CaseSpec, out_dir: Path) -> dict:
-    """A run function that gets a real stop signal during its set-up, catches it and then fails otherwise."""
-    if dict(spec.labels).get("signal") is None:
-        return run_case(spec, out_dir)
-    try:
-        os.kill(os.getpid(), getattr(signal, dict(spec.labels)["signal"]))
-        time.sleep(10.0)
-    except KeyboardInterrupt:
-        pass  # swallowed, as set-up code catching too much would
-    raise RuntimeError("set-up failed after the stop")
 
 
 @pytest.fixture
