@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+import tiny_study
 from sweep_run_functions import (
     STOPS,
     crash_on_label,
@@ -27,6 +28,8 @@ from sweep_run_functions import (
     stop_on_label,
 )
 from sweep_run_functions import case_files as _case_files
+from test_faults import offtrack_in_process
+from tiny_study import RENDERED_CASE, TINY
 
 from scenarios.loop import cosimulation as cosim
 from scenarios.run.stopping import Terminated, handle_sigterm, stop_handled
@@ -364,68 +367,31 @@ def test_duplicate_case_names_are_refused(tmp_path: Path) -> None:
 
 # --- a case whose run failed (no room for its files, a render worker lost) is a failed case, retried on resume ----
 
-_TINY_STUDY = """
-import errno, os
-import scenarios.run.results as results
-from scenarios.studies import registry
-from scenarios.studies.cases import model_only_cases
 
-from scenarios.studies.records import CaseSpec
-
-cases = model_only_cases(3, duration_s=2.0, study="tiny")  # TINY
-if os.environ.get("TINY_RENDERED"):  # and one rendered case (RENDERED_CASE)
-    camera = (("camera.width", 672), ("camera.height", 196), ("seed", 7))
-    overrides = (("duration_s", 1.5), ("estimators.viso_ot", True), ("estimators.zero_slip", True), *camera)
-    cases.append(CaseSpec("tiny", "constant-slip", overrides, (("case", 3), ("surface", "dry"), ("camber", 0.0))))
-registry.STUDIES["tiny"] = registry.Study("tiny", "model-only cases", lambda full: cases, lambda table, out: None)
-results.FLUSH_ROWS = 50  # two parts per case (100 rows)
-write_table = results.pq.write_table
-def fill_the_disk(table, where, **kwargs):  # while DISK_FULL is set, case 1's series finds no room after one part
-    name = str(getattr(where, "name", where))
-    if os.environ.get("DISK_FULL") and "case-1_" in name and ".part-000000." not in name:
-        raise OSError(errno.ENOSPC, "No space left on device")
-    return write_table(table, where, **kwargs)
-results.pq.write_table = fill_the_disk
-from scenarios.cli import main
-main()
-"""
-
-
-TINY = model_only_cases(3, duration_s=2.0, study="tiny")
-"""The cases of the study ``tiny`` that :data:`_TINY_STUDY` registers."""
-
-
-RENDERED_CASE = "case-3_surface-dry_camber-0.0"
-"""The rendered case ``tiny`` adds with ``rendered``."""
-
-
-def _tiny_study(out: Path, *args: str, disk_full: bool = False, rendered: bool = False) -> subprocess.CompletedProcess:
-    """``offtrack study tiny --out OUT ARGS`` (:data:`_TINY_STUDY`); ``disk_full``: case 1 finds no room;
-    ``rendered``: with a rendered case too (:data:`RENDERED_CASE`)."""
-    env = {k: v for k, v in os.environ.items() if k not in ("DISK_FULL", "TINY_RENDERED")}
-    env |= ({"DISK_FULL": "1"} if disk_full else {}) | ({"TINY_RENDERED": "1"} if rendered else {})
-    command = [sys.executable, "-c", _TINY_STUDY, "study", "tiny", "--out", str(out), *args]
-    return subprocess.run(command, capture_output=True, text=True, cwd=REPO, timeout=300, env=env)
+def _tiny_study(out: Path, *args: str, rendered: bool = False) -> subprocess.CompletedProcess:
+    """``offtrack study tiny --out OUT ARGS`` in a process of its own (:data:`tiny_study.STUDY_PROCESS`);
+    ``rendered``: with the rendered case too (:data:`RENDERED_CASE`)."""
+    kind = "rendered" if rendered else "model-only"
+    command = [sys.executable, "-c", tiny_study.STUDY_PROCESS, str(Path(__file__).parent), kind]
+    command += ["study", "tiny", "--out", str(out), *args]
+    return subprocess.run(command, capture_output=True, text=True, cwd=REPO, timeout=300)
 
 
 def _tiny_study_here(
-    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], out: Path, *args: str
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], out: Path, *args: str, disk_full: bool = False
 ) -> subprocess.CompletedProcess:
-    """``offtrack study tiny --out OUT ARGS`` through ``main()`` in this process, ``tiny`` and the part size set up
-    as :data:`_TINY_STUDY` sets them (without the disk-full hook or the rendered case)."""
-    from test_faults import offtrack_in_process
-
-    import scenarios.run.results as results
-
-    tiny = Study("tiny", "model-only cases", lambda full: list(TINY), lambda table, out: None)
-    monkeypatch.setitem(registry.STUDIES, "tiny", tiny)
-    monkeypatch.setattr(results, "FLUSH_ROWS", 50)
+    """``offtrack study tiny --out OUT ARGS`` through ``main()`` in this process (:func:`tiny_study.set_up`, undone
+    after the test); ``disk_full``: case 1 finds no room for its series after one part."""
+    tiny_study.set_up(monkeypatch.setattr, monkeypatch.setitem, disk_full=disk_full)
     return offtrack_in_process(monkeypatch, capsys, "study", "tiny", "--out", str(out), *args)
 
 
-def test_a_case_whose_run_failed_for_lack_of_space_is_failed_and_retried_on_resume(tmp_path: Path) -> None:
+def test_a_case_whose_run_failed_for_lack_of_space_is_failed_and_retried_on_resume(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Both studies through main() in this process (a real process's exit 3: test_output_faults.py).
     out = tmp_path / "study"
-    first = _tiny_study(out, disk_full=True)
+    first = _tiny_study_here(monkeypatch, capsys, out, disk_full=True)
     assert first.returncode == 3, first.stderr
     assert "Traceback" not in first.stderr
     assert first.stderr.strip().splitlines()[-1].startswith("1 case(s) failed")
@@ -439,7 +405,8 @@ def test_a_case_whose_run_failed_for_lack_of_space_is_failed_and_retried_on_resu
     assert "No space left on device" in table.loc[1, "error"]
     sessions = {r.name: r.session for r in records}
 
-    again = _tiny_study(out)  # room again: the failed case runs, the finished ones are kept
+    monkeypatch.undo()  # room again: the failed case runs, the finished ones are kept
+    again = _tiny_study_here(monkeypatch, capsys, out)
     assert again.returncode == 0, again.stderr
     assert "failed" not in again.stderr
     retried = [read_record(out, name) for name in names]
@@ -492,7 +459,7 @@ def test_study_with_one_and_two_workers_gives_identical_tables_and_runs(
 ) -> None:
     one, two = tmp_path / "one", tmp_path / "two"
     for out, workers in ((one, "1"), (two, "2")):
-        if workers == "1" and not rendered:  # serial: through main() in this process
+        if not rendered:  # through main() in this process; two workers are spawned processes
             result = _tiny_study_here(monkeypatch, capsys, out, "--workers", workers)
         else:  # a rendered case renders in its own process (one renderer per process)
             result = _tiny_study(out, "--workers", workers, rendered=rendered)
