@@ -13,6 +13,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -501,16 +502,8 @@ def test_the_same_seed_gives_a_bit_identical_rendered_run(tmp_path: Path, monkey
 
 # --- a Dask worker killed mid-study: a replacement finishes it, or its cases are failed and retried --------------
 
-_SWEEP_ON_DASK = """
-import json, sys
-from pathlib import Path
-from scenarios.studies.cases import model_only_cases
-from scenarios.studies.sweep import run_sweep
-cases = model_only_cases(3, duration_s=8.0, study="test-dask-kill")
-result = run_sweep(cases, Path(sys.argv[1]), scheduler=sys.argv[2])
-print(json.dumps({"executed": result.executed, "records": [[r.name, r.status, r.worker.get("pid"), (r.error or {}).get(
-    "type")] for r in result.records]}))
-"""
+DASK_CASES = model_only_cases(3, duration_s=8.0, study="test-dask-kill")
+"""The cases of the studies on a Dask cluster whose worker is killed mid-case."""
 
 
 @pytest.fixture
@@ -550,37 +543,40 @@ def dask_cluster(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str
 
 
 def _sweep_with_a_killed_worker(out: Path, address: str) -> tuple[dict, str, int]:
-    """Run :data:`_SWEEP_ON_DASK`; SIGKILL the Dask worker that runs the first case to start, mid-case.
+    """Run :data:`DASK_CASES` on the cluster at ``address`` (a sweep in a thread of this process); SIGKILL the Dask
+    worker that runs the first case to start, mid-case.
 
     Returns the sweep's summary, the killed case's name and the killed worker's pid.
     """
-    proc = subprocess.Popen(
-        [sys.executable, "-c", _SWEEP_ON_DASK, str(out), address],
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        deadline = time.monotonic() + 120.0
-        killed: tuple[str, int] | None = None
-        while killed is None:
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline, "no case started"
-            for marker in (out / CASES_DIR).glob(".*.running"):
-                with contextlib.suppress(OSError, ValueError):
-                    pid = json.loads(marker.read_text())["pid"]
-                    os.kill(pid, signal.SIGKILL)  # the worker process, in the middle of the case
-                    killed = (marker.name.removeprefix(".").removesuffix(".running"), pid)
-                    break
-            time.sleep(0.02)
-        stdout, stderr = proc.communicate(timeout=240)  # nothing hangs
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
-    assert proc.returncode == 0, stderr
-    return json.loads(stdout.strip().splitlines()[-1]), *killed
+    ended: dict[str, object] = {}
+
+    def sweep() -> None:
+        try:
+            ended["result"] = run_sweep(DASK_CASES, out, scheduler=address)
+        except BaseException as exc:
+            ended["error"] = exc
+
+    thread = threading.Thread(target=sweep, name="dask-sweep", daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 120.0
+    killed: tuple[str, int] | None = None
+    while killed is None:
+        assert thread.is_alive(), ended
+        assert time.monotonic() < deadline, "no case started"
+        for marker in (out / CASES_DIR).glob(".*.running"):
+            with contextlib.suppress(OSError, ValueError):
+                pid = json.loads(marker.read_text())["pid"]
+                os.kill(pid, signal.SIGKILL)  # the worker process, in the middle of the case
+                killed = (marker.name.removeprefix(".").removesuffix(".running"), pid)
+                break
+        time.sleep(0.02)
+    thread.join(240)
+    assert not thread.is_alive(), "the sweep hangs"  # nothing hangs
+    if "error" in ended:
+        raise ended["error"]
+    result = ended["result"]
+    records = [[r.name, r.status, r.worker.get("pid"), (r.error or {}).get("type")] for r in result.records]
+    return {"executed": result.executed, "records": records}, *killed
 
 
 @pytest.mark.parametrize("dask_cluster", [3], indirect=True)
@@ -600,8 +596,7 @@ def test_a_dask_worker_killed_mid_study_fails_its_cases_and_resume_retries_them(
     records = {row[0]: row for row in summary["records"]}
     assert records[name][1] == "failed" and records[name][3] == "KilledWorker", summary
     failed = sorted(row[0] for row in summary["records"] if row[1] == "failed")
-    cases = model_only_cases(3, duration_s=8.0, study="test-dask-kill")
-    again = run_sweep(cases, tmp_path, scheduler=dask_cluster)  # resume on the replacement
+    again = run_sweep(DASK_CASES, tmp_path, scheduler=dask_cluster)  # resume on the replacement
     assert again.executed == len(failed) and not again.failures
     assert all(r.worker["pid"] != pid for r in again.records if r.name in failed)
 
