@@ -506,22 +506,19 @@ DASK_CASES = model_only_cases(3, duration_s=8.0, study="test-dask-kill")
 """The cases of the studies on a Dask cluster whose worker is killed mid-case."""
 
 
-@pytest.fixture
-def dask_cluster(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
-    """A Dask scheduler and one worker (one thread, under a nanny that replaces it) on 127.0.0.1; its address.
-
-    ``request.param``: the scheduler's ``allowed-failures`` (how many worker deaths a task survives).
-    """
+@pytest.fixture(scope="module")
+def dask_processes(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """A Dask scheduler and one worker (one thread, under a nanny that replaces it) on 127.0.0.1, for this module's
+    tests; its address."""
     pytest.importorskip("distributed")
     dask = Path(sys.executable).with_name("dask")
     if not dask.exists():
         pytest.skip("the dask command is not installed")
-    scheduler_file = tmp_path / "scheduler.json"
-    env = {**os.environ, "DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES": str(request.param)}
+    scheduler_file = tmp_path_factory.mktemp("dask") / "scheduler.json"
     quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "cwd": REPO, "start_new_session": True}
     local = ["--host", "127.0.0.1", "--no-dashboard"]
     scheduler = subprocess.Popen(
-        [str(dask), "scheduler", *local, "--port", "0", "--scheduler-file", str(scheduler_file)], env=env, **quiet
+        [str(dask), "scheduler", *local, "--port", "0", "--scheduler-file", str(scheduler_file)], **quiet
     )
     processes = [scheduler]
     try:
@@ -540,6 +537,19 @@ def dask_cluster(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(process.pid, signal.SIGKILL)
             process.wait(10)
+
+
+@pytest.fixture
+def dask_cluster(request: pytest.FixtureRequest, dask_processes: str) -> str:
+    """The module's Dask cluster (:func:`dask_processes`), its address; ``request.param``: the scheduler's
+    ``allowed-failures`` (how many worker deaths a task survives), set on the running scheduler for the test."""
+    from distributed import Client
+
+    allowed = request.param
+    with Client(dask_processes, timeout=30) as client:
+        client.run_on_scheduler(lambda dask_scheduler: setattr(dask_scheduler, "allowed_failures", allowed))
+        assert client.run_on_scheduler(lambda dask_scheduler: dask_scheduler.allowed_failures) == allowed
+    return dask_processes
 
 
 def _sweep_with_a_killed_worker(out: Path, address: str) -> tuple[dict, str, int]:
