@@ -9,6 +9,7 @@ import sys
 
 import pandas as pd
 import pytest
+from test_faults import offtrack_in_process
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
@@ -18,14 +19,6 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
         text=True,
         timeout=600,
     )
-
-
-def run_cli_here(monkeypatch, capsys, *args: str) -> subprocess.CompletedProcess:
-    """``offtrack ARGS`` through ``main()`` in this process, for a command refused before any work (the exit code a
-    process gets from ``main()`` is tested in test_faults.py)."""
-    from test_faults import offtrack_in_process
-
-    return offtrack_in_process(monkeypatch, capsys, *args)
 
 
 def test_list_shows_scenarios_and_presets():
@@ -51,7 +44,9 @@ def test_vehicle_names_and_lengths_are_never_cut_at_80_columns():
 
 
 def test_run_writes_the_run_directory(tmp_path, monkeypatch, capsys):
-    out = run_cli("run", "roundabout-test", "--surface", "dry", "--duration", "25", "--out", str(tmp_path / "r"))
+    # Through main() in this process, as the refusals below (the exit codes a process gets: test_faults.py).
+    args = ("run", "roundabout-test", "--surface", "dry", "--duration", "25", "--out", str(tmp_path / "r"))
+    out = offtrack_in_process(monkeypatch, capsys, *args)
     assert out.returncode == 0, out.stdout + out.stderr
     run_dir = tmp_path / "r"
     for name in ("config.yaml", "metrics.json", "plan_view.png", "offtracking.png"):
@@ -65,23 +60,23 @@ def test_run_writes_the_run_directory(tmp_path, monkeypatch, capsys):
     assert metrics["roundabout_test"] is None or set(metrics["roundabout_test"]) >= {"pass", "outer_radius_max"}
     frame = pd.read_parquet(run_dir / "timeseries.parquet")
     assert len(frame) == metrics["rows"] and frame["time"].iloc[-1] == pytest.approx(25.0, abs=0.05)
-    # A second run into the same directory is refused, not silently overwritten (refusals: through main() here).
-    again = run_cli_here(monkeypatch, capsys, "run", "roundabout-test", "--duration", "5", "--out", str(run_dir))
+    # A second run into the same directory is refused, not silently overwritten.
+    again = offtrack_in_process(monkeypatch, capsys, "run", "roundabout-test", "--duration", "5", "--out", str(run_dir))
     assert again.returncode == 2 and "already holds files" in again.stderr
 
 
 def test_bad_values_are_clear_errors(tmp_path, monkeypatch, capsys):
     args = ("run", "roundabout-test", "--mu", "-0.2", "--camber", "40", "--out", str(tmp_path / "x"))
-    out = run_cli_here(monkeypatch, capsys, *args)
+    out = offtrack_in_process(monkeypatch, capsys, *args)
     assert out.returncode == 2
     assert "surface.mu" in out.stderr and "camber.percent" in out.stderr and "Traceback" not in out.stderr
-    out = run_cli_here(monkeypatch, capsys, "run", "roundabout-7")
+    out = offtrack_in_process(monkeypatch, capsys, "run", "roundabout-7")
     assert out.returncode == 2 and "unknown scenario" in out.stderr
 
 
 def test_bench_optimal_refuses_a_case_too_short_for_a_trailer_length_before_any_work(monkeypatch, capsys):
     # Below 6 s of the roundabout the kingpin has not driven the follow point's offset: no node the NLP counts.
-    out = run_cli_here(monkeypatch, capsys, "bench", "optimal", "--duration", "2")
+    out = offtrack_in_process(monkeypatch, capsys, "bench", "optimal", "--duration", "2")
     assert out.returncode == 2 and "--duration" in out.stderr and "6" in out.stderr
     assert "Traceback" not in out.stderr and out.stdout == ""
 

@@ -38,6 +38,10 @@ SLOW_RUN = [  # ~1× real time on this machine: long enough to be stopped mid-ru
 ]
 
 
+SMALL_CAMERA = ("--set", "camera.width=672", "--set", "camera.height=196")
+"""Half the default image size each way, for camera runs whose images are not what is checked."""
+
+
 def offtrack(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
     """Run ``offtrack ARGS`` the way the console script does."""
     return subprocess.run(
@@ -157,15 +161,22 @@ def test_bad_input_is_refused_before_any_work(tmp_path: Path) -> None:
     assert time.monotonic() - t0 < 30 and not (tmp_path / "r").exists()
 
 
-def test_a_study_setting_a_case_refuses_stops_before_any_work(tmp_path: Path) -> None:
-    result = offtrack("study", "field-loop", "--set", "fusion.tractor_slip=-1", "--out", str(tmp_path / "s"))
-    assert_one_line_error(result, "fusion.tractor_slip")
+def test_a_study_setting_a_case_refuses_stops_before_any_work(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = ("study", "field-loop", "--set", "fusion.tractor_slip=-1", "--out", str(tmp_path / "s"))
+    assert_one_line_error(offtrack_in_process(monkeypatch, capsys, *args), "fusion.tractor_slip")
     assert not (tmp_path / "s").exists()
 
 
 @pytest.mark.parametrize(
     ("where", "in_a_process"),
-    [("file", True), ("under_file", False), pytest.param("under_file", True, marks=pytest.mark.slow)],
+    [
+        ("file", False),
+        ("under_file", False),
+        pytest.param("file", True, marks=pytest.mark.slow),  # a process's exit 2: test_bad_input_is_one_line_…
+        pytest.param("under_file", True, marks=pytest.mark.slow),
+    ],
 )
 def test_an_unusable_out_is_named(
     tmp_path: Path,
@@ -183,11 +194,19 @@ def test_an_unusable_out_is_named(
         assert_one_line_error(result, "--out")
 
 
-def test_an_unreachable_scheduler_is_named_quickly(tmp_path: Path) -> None:
+def test_an_unreachable_scheduler_is_named_quickly(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Through main() with a 1 s connection timeout (the default's bound: test_sweep.py); the command waits out the
+    # timeout, retrying, before it names the address.
+    pytest.importorskip("distributed")
+    from scenarios.studies import executors
+
+    monkeypatch.setattr(executors, "CONNECT_TIMEOUT_S", 1.0)
     t0 = time.monotonic()
-    result = offtrack("study", "paper-section3", "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "s"))
-    assert_one_line_error(result, "--scheduler")
-    assert time.monotonic() - t0 < 25
+    args = ("study", "paper-section3", "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "s"))
+    assert_one_line_error(offtrack_in_process(monkeypatch, capsys, *args), "--scheduler tcp://127.0.0.1:1", "1 s")
+    assert time.monotonic() - t0 < 10 and not (tmp_path / "s").exists()
 
 
 # --- failures: exit 3, the reason in words, the data kept -----------------------------------------------------
@@ -492,7 +511,13 @@ def test_every_row_of_the_readme_failure_table_is_checked_by_its_tests() -> None
 # --- files others can read; --force owns the directory --------------------------------------------------------
 
 
-def test_run_files_are_readable_by_others_and_force_clears_the_old_run(tmp_path: Path) -> None:
+def test_run_files_are_readable_by_others_and_force_clears_the_old_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Both runs through main() in this process (the exit code 0 a process gets: test_the_readme_exit_codes_…).
+    def offtrack(*args: str) -> subprocess.CompletedProcess:
+        return offtrack_in_process(monkeypatch, capsys, *args)
+
     out = tmp_path / "r"
     first = offtrack("run", "roundabout-test", "--duration", "8", "--out", str(out))
     assert first.returncode == 0, first.stderr
@@ -508,16 +533,19 @@ def test_run_files_are_readable_by_others_and_force_clears_the_old_run(tmp_path:
     assert json.loads((out / "metrics.json").read_text())["simulated_s"] == pytest.approx(4.0, abs=0.05)
 
 
+PIPELINED_CAMERA_RUN = ("run", "roundabout-3", "--set", "estimators.viso_ot=true", *SMALL_CAMERA, "--duration", "120")
+"""A camera run long enough to be pipelined (with ``OFFTRACK_CAMERA_WORKERS`` set, whatever its length) and to be
+stopped mid-run; the image size does not enter the workers' start, stop or end."""
+
+
 @pytest.mark.parametrize("count", [1, pytest.param(2, marks=pytest.mark.slow)])  # one: the default
 def test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, count: int
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], count: int
 ) -> None:
     # The camera rendered by spawned worker processes; SIGTERM stops them and keeps the rows.
     monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", str(count))
     out = tmp_path / "r"
-    proc = start(
-        "run", "roundabout-3", "--set", "estimators.viso_ot=true", "--duration", "120", "--no-plots", "--out", str(out)
-    )
+    proc = start(*PIPELINED_CAMERA_RUN, "--no-plots", "--out", str(out))
     wait_for_rows(out, proc, timeout=240.0)
     listed = subprocess.run(["ps", "-o", "pid=", "--ppid", str(proc.pid)], capture_output=True, text=True).stdout
     workers = [int(p) for p in listed.split()]
@@ -535,6 +563,14 @@ def test_a_stopped_pipelined_camera_run_keeps_its_data_and_stops_its_workers(
     for pid in workers:  # the workers are gone (reaped, or at worst reparented zombies on the way out)
         state = Path(f"/proc/{pid}/stat")
         assert not state.exists() or state.read_text().split()[2] == "Z"
+    # A camera run whose metrics are lost (as after a SIGKILL) gets them back from its series: its report through
+    # main() in this process (the report of a SIGKILLed camera run: the slow case of the next test).
+    (out / "metrics.json").unlink()
+    result = offtrack_in_process(monkeypatch, capsys, "report", str(out), "--no-plots")
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr and "incomplete" in result.stdout
+    rebuilt = json.loads((out / "metrics.json").read_text())
+    assert rebuilt["status"] == "incomplete" and rebuilt["rows"] == len(frame) and rebuilt["wall_time_s"] is None
 
 
 def _render_workers(proc: subprocess.Popen, count: int, busy_s: float, timeout: float = 120.0) -> list[psutil.Process]:
@@ -566,18 +602,23 @@ def _survivors(processes: list[psutil.Process], within: float) -> list[int]:
         time.sleep(0.05)
 
 
-@pytest.mark.parametrize("count", [1, pytest.param(2, marks=pytest.mark.slow)])  # one: the default
-@pytest.mark.parametrize("moment", ["while the workers start", "mid-run"])
+@pytest.mark.parametrize(
+    ("moment", "count"),
+    [
+        ("while the workers start", 1),  # the default: a worker ends by itself before it could read a closed pipe
+        pytest.param("while the workers start", 2, marks=pytest.mark.slow),
+        pytest.param("mid-run", 1, marks=pytest.mark.slow),  # its report: the default's SIGTERM test above
+        pytest.param("mid-run", 2, marks=pytest.mark.slow),
+    ],
+)
 def test_no_render_worker_survives_a_sigkill_of_its_pipelined_camera_run(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, moment: str, count: int
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], moment: str, count: int
 ) -> None:
     # SIGKILL gives the run no chance to stop its workers: they must end by themselves, also while they are still
     # building their world and OpenGL context (several seconds, in which an idle worker's closed pipe is not read).
     monkeypatch.setenv("OFFTRACK_CAMERA_WORKERS", str(count))
     out = tmp_path / "r"
-    proc = start(
-        "run", "roundabout-3", "--set", "estimators.viso_ot=true", "--duration", "120", "--no-plots", "--out", str(out)
-    )
+    proc = start(*PIPELINED_CAMERA_RUN, "--no-plots", "--out", str(out))
     try:
         workers = _render_workers(proc, count, busy_s=0.5)
         if moment == "mid-run":
@@ -593,8 +634,8 @@ def test_no_render_worker_survives_a_sigkill_of_its_pipelined_camera_run(
         proc.communicate(timeout=60)
     assert proc.returncode == -signal.SIGKILL
     assert survivors == [], "render workers outlived their run"
-    if moment == "mid-run":  # the killed camera run's report is rebuilt and summarised
-        result = offtrack("report", str(out), "--no-plots")
+    if moment == "mid-run":  # the killed camera run's report is rebuilt and summarised (through main() here)
+        result = offtrack_in_process(monkeypatch, capsys, "report", str(out), "--no-plots")
         assert result.returncode == 0, result.stderr
         assert "Traceback" not in result.stderr and "incomplete" in result.stdout
         metrics = json.loads((out / "metrics.json").read_text())

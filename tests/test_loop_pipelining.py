@@ -53,8 +53,8 @@ def assert_same_series(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> No
 
 @pytest.mark.parametrize("workers", [1, pytest.param(2, marks=pytest.mark.slow)])  # one: the default
 def test_pipelined_and_serial_runs_are_identical_at_the_default_latency(workers: int) -> None:
-    serial_outcome, serial = camera_run(0, **SMALL_CAMERA)  # the size does not enter the delivery
-    piped_outcome, piped = camera_run(workers, **SMALL_CAMERA)
+    serial_outcome, serial = camera_run(0, duration=3.0, **SMALL_CAMERA)  # the size does not enter the delivery
+    piped_outcome, piped = camera_run(workers, duration=3.0, **SMALL_CAMERA)
     assert serial_outcome.status == piped_outcome.status == "completed"
     assert piped_outcome.camera["workers"] == workers and piped_outcome.camera["latency_ticks"] == 5
     assert_same_series(serial, piped)

@@ -8,6 +8,7 @@ write, Pillow's image data), or on a real tmpfs that is full.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import shutil
@@ -15,6 +16,7 @@ import subprocess
 import sys
 import textwrap
 from pathlib import Path
+from typing import BinaryIO
 
 import pandas as pd
 import pytest
@@ -102,15 +104,27 @@ def test_a_series_that_cannot_be_made_is_one_line_and_exit_3(tmp_path: Path) -> 
     assert last.startswith("error: cannot write ") and "timeseries.parquet: No space left on device" in last
 
 
-# Pillow writes the image data of a PNG through ImageFile._save: the disk fills up after the first bytes of it.
-_DISK_FULL_IN_THE_PLOTS = """
-import errno
-import PIL.ImageFile as image_file
-def fill_the_disk(im, fp, *args, **kwargs):
-    fp.write(b"the first bytes of the image data")
-    raise OSError(errno.ENOSPC, "No space left on device")
-image_file._save = fill_the_disk
-"""
+def _fill_the_disk_in_the_plots(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Pillow writes the image data of a PNG through ImageFile._save: the disk fills up after the first bytes of it
+    (in this process, until the test ends)."""
+    import PIL.ImageFile as image_file
+
+    def fill_the_disk(im: object, fp: BinaryIO, *args: object, **kwargs: object) -> None:
+        fp.write(b"the first bytes of the image data")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(image_file, "_save", fill_the_disk)
+
+
+def _failed_here(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], *args: str
+) -> subprocess.CompletedProcess:
+    """``offtrack ARGS`` through ``main()`` in this process (a process's exit 3: the tests above); it must fail with
+    exit 3, no traceback."""
+    result = offtrack_in_process(monkeypatch, capsys, *args)
+    assert result.returncode == 3, result.stderr
+    assert "Traceback" not in result.stderr
+    return result
 
 
 def _assert_no_plot_and_the_run_kept(out: Path, status: str) -> None:
@@ -121,9 +135,14 @@ def _assert_no_plot_and_the_run_kept(out: Path, status: str) -> None:
     assert len(pd.read_parquet(out / "timeseries.parquet")) == metrics["rows"] > 0
 
 
-def test_plots_that_cannot_be_written_are_one_line_naming_the_file_and_exit_3(tmp_path: Path) -> None:
+def test_plots_that_cannot_be_written_are_one_line_naming_the_file_and_exit_3(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "r"
-    result = _failed_run(_DISK_FULL_IN_THE_PLOTS, 4, out, plots=True)
+    _fill_the_disk_in_the_plots(monkeypatch)
+    result = _failed_here(
+        monkeypatch, capsys, "run", "roundabout-test", "--duration", "4", "--plots", "--out", str(out)
+    )
     last = result.stderr.strip().splitlines()[-1]
     assert last == f"error: cannot write {out / 'plan_view.png'}: No space left on device"
     _assert_no_plot_and_the_run_kept(out, "completed")  # the simulation did complete; `report` draws the plots
@@ -132,12 +151,13 @@ def test_plots_that_cannot_be_written_are_one_line_naming_the_file_and_exit_3(tm
 def test_report_that_cannot_draw_its_plots_is_one_line_naming_the_file_and_exit_3(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    out = tmp_path / "r"  # the run to report made through main() in this process; the failing report in a process
+    out = tmp_path / "r"  # the run to report, and its failing report, through main() in this process
     made = offtrack_in_process(
         monkeypatch, capsys, "run", "roundabout-test", "--duration", "4", "--no-plots", "--out", str(out)
     )
     assert made.returncode == 0, made.stderr
-    result = _failed(_DISK_FULL_IN_THE_PLOTS, "report", str(out))
+    _fill_the_disk_in_the_plots(monkeypatch)
+    result = _failed_here(monkeypatch, capsys, "report", str(out))
     assert result.stderr.strip().splitlines()[-1] == (
         f"error: cannot write {out / 'plan_view.png'}: No space left on device"
     )

@@ -13,12 +13,24 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pandas as pd
 import pytest
+import tiny_study
+from sweep_run_functions import (
+    STOPS,
+    crash_on_label,
+    run_once_both_workers_started,
+    signal_then_fail,
+    stop_on_label,
+)
+from sweep_run_functions import case_files as _case_files
+from test_faults import offtrack_in_process
+from tiny_study import RENDERED_CASE, TINY
 
 from scenarios.loop import cosimulation as cosim
 from scenarios.run.stopping import Terminated, handle_sigterm, stop_handled
@@ -40,58 +52,6 @@ REPO = Path(__file__).resolve().parents[1]
 def _numbers(table: pd.DataFrame) -> pd.DataFrame:
     """The table without the wall-clock column (the only one that differs from run to run)."""
     return table.drop(columns=["wall_time_s"], errors="ignore")
-
-
-def _case_files(out: Path) -> list[Path]:
-    return sorted((out / CASES_DIR).glob("*.json"))
-
-
-def crash_on_label(spec: CaseSpec, out_dir: Path) -> dict:
-    """A run function whose worker process dies (as in a segfault) on the case labelled ``crash``."""
-    if dict(spec.labels).get("crash"):
-        os._exit(13)
-    return run_case(spec, out_dir)
-
-
-def run_once_both_workers_started(spec: CaseSpec, out_dir: Path) -> dict:
-    """A run function that waits (60 s at most) until two worker processes have each started a case, then runs it.
-
-    Without it one worker may take every short case before the other has started, and the sweep is right but
-    shows one process.
-    """
-    peers = out_dir / "peers"
-    peers.mkdir(exist_ok=True)
-    (peers / str(os.getpid())).touch()
-    deadline = time.monotonic() + 60.0
-    while len(list(peers.iterdir())) < 2 and time.monotonic() < deadline:
-        time.sleep(0.02)
-    return run_case(spec, out_dir)
-
-
-STOPS = {"KeyboardInterrupt": KeyboardInterrupt, "Terminated": Terminated}
-
-
-def stop_on_label(spec: CaseSpec, out_dir: Path) -> dict:
-    """A run function that raises the stop labelled ``stop`` once another case is recorded; else runs the case."""
-    stop = dict(spec.labels).get("stop")
-    if stop is None:
-        return run_case(spec, out_dir)
-    deadline = time.monotonic() + 60.0
-    while not _case_files(out_dir) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    raise STOPS[stop](f"{stop} raised in case {spec.name}")
-
-
-def signal_then_fail(spec: CaseSpec, out_dir: Path) -> dict:
-    """A run function that gets a real stop signal during its set-up, catches it and then fails otherwise."""
-    if dict(spec.labels).get("signal") is None:
-        return run_case(spec, out_dir)
-    try:
-        os.kill(os.getpid(), getattr(signal, dict(spec.labels)["signal"]))
-        time.sleep(10.0)
-    except KeyboardInterrupt:
-        pass  # swallowed, as set-up code catching too much would
-    raise RuntimeError("set-up failed after the stop")
 
 
 @pytest.fixture
@@ -408,68 +368,31 @@ def test_duplicate_case_names_are_refused(tmp_path: Path) -> None:
 
 # --- a case whose run failed (no room for its files, a render worker lost) is a failed case, retried on resume ----
 
-_TINY_STUDY = """
-import errno, os
-import scenarios.run.results as results
-from scenarios.studies import registry
-from scenarios.studies.cases import model_only_cases
 
-from scenarios.studies.records import CaseSpec
-
-cases = model_only_cases(3, duration_s=2.0, study="tiny")  # TINY
-if os.environ.get("TINY_RENDERED"):  # and one rendered case (RENDERED_CASE)
-    camera = (("camera.width", 672), ("camera.height", 196), ("seed", 7))
-    overrides = (("duration_s", 1.5), ("estimators.viso_ot", True), ("estimators.zero_slip", True), *camera)
-    cases.append(CaseSpec("tiny", "constant-slip", overrides, (("case", 3), ("surface", "dry"), ("camber", 0.0))))
-registry.STUDIES["tiny"] = registry.Study("tiny", "model-only cases", lambda full: cases, lambda table, out: None)
-results.FLUSH_ROWS = 50  # two parts per case (100 rows)
-write_table = results.pq.write_table
-def fill_the_disk(table, where, **kwargs):  # while DISK_FULL is set, case 1's series finds no room after one part
-    name = str(getattr(where, "name", where))
-    if os.environ.get("DISK_FULL") and "case-1_" in name and ".part-000000." not in name:
-        raise OSError(errno.ENOSPC, "No space left on device")
-    return write_table(table, where, **kwargs)
-results.pq.write_table = fill_the_disk
-from scenarios.cli import main
-main()
-"""
-
-
-TINY = model_only_cases(3, duration_s=2.0, study="tiny")
-"""The cases of the study ``tiny`` that :data:`_TINY_STUDY` registers."""
-
-
-RENDERED_CASE = "case-3_surface-dry_camber-0.0"
-"""The rendered case ``tiny`` adds with ``rendered``."""
-
-
-def _tiny_study(out: Path, *args: str, disk_full: bool = False, rendered: bool = False) -> subprocess.CompletedProcess:
-    """``offtrack study tiny --out OUT ARGS`` (:data:`_TINY_STUDY`); ``disk_full``: case 1 finds no room;
-    ``rendered``: with a rendered case too (:data:`RENDERED_CASE`)."""
-    env = {k: v for k, v in os.environ.items() if k not in ("DISK_FULL", "TINY_RENDERED")}
-    env |= ({"DISK_FULL": "1"} if disk_full else {}) | ({"TINY_RENDERED": "1"} if rendered else {})
-    command = [sys.executable, "-c", _TINY_STUDY, "study", "tiny", "--out", str(out), *args]
-    return subprocess.run(command, capture_output=True, text=True, cwd=REPO, timeout=300, env=env)
+def _tiny_study(out: Path, *args: str, rendered: bool = False) -> subprocess.CompletedProcess:
+    """``offtrack study tiny --out OUT ARGS`` in a process of its own (:data:`tiny_study.STUDY_PROCESS`);
+    ``rendered``: with the rendered case too (:data:`RENDERED_CASE`)."""
+    kind = "rendered" if rendered else "model-only"
+    command = [sys.executable, "-c", tiny_study.STUDY_PROCESS, str(Path(__file__).parent), kind]
+    command += ["study", "tiny", "--out", str(out), *args]
+    return subprocess.run(command, capture_output=True, text=True, cwd=REPO, timeout=300)
 
 
 def _tiny_study_here(
-    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], out: Path, *args: str
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], out: Path, *args: str, disk_full: bool = False
 ) -> subprocess.CompletedProcess:
-    """``offtrack study tiny --out OUT ARGS`` through ``main()`` in this process, ``tiny`` and the part size set up
-    as :data:`_TINY_STUDY` sets them (without the disk-full hook or the rendered case)."""
-    from test_faults import offtrack_in_process
-
-    import scenarios.run.results as results
-
-    tiny = Study("tiny", "model-only cases", lambda full: list(TINY), lambda table, out: None)
-    monkeypatch.setitem(registry.STUDIES, "tiny", tiny)
-    monkeypatch.setattr(results, "FLUSH_ROWS", 50)
+    """``offtrack study tiny --out OUT ARGS`` through ``main()`` in this process (:func:`tiny_study.set_up`, undone
+    after the test); ``disk_full``: case 1 finds no room for its series after one part."""
+    tiny_study.set_up(monkeypatch.setattr, monkeypatch.setitem, disk_full=disk_full)
     return offtrack_in_process(monkeypatch, capsys, "study", "tiny", "--out", str(out), *args)
 
 
-def test_a_case_whose_run_failed_for_lack_of_space_is_failed_and_retried_on_resume(tmp_path: Path) -> None:
+def test_a_case_whose_run_failed_for_lack_of_space_is_failed_and_retried_on_resume(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Both studies through main() in this process (a real process's exit 3: test_output_faults.py).
     out = tmp_path / "study"
-    first = _tiny_study(out, disk_full=True)
+    first = _tiny_study_here(monkeypatch, capsys, out, disk_full=True)
     assert first.returncode == 3, first.stderr
     assert "Traceback" not in first.stderr
     assert first.stderr.strip().splitlines()[-1].startswith("1 case(s) failed")
@@ -483,7 +406,8 @@ def test_a_case_whose_run_failed_for_lack_of_space_is_failed_and_retried_on_resu
     assert "No space left on device" in table.loc[1, "error"]
     sessions = {r.name: r.session for r in records}
 
-    again = _tiny_study(out)  # room again: the failed case runs, the finished ones are kept
+    monkeypatch.undo()  # room again: the failed case runs, the finished ones are kept
+    again = _tiny_study_here(monkeypatch, capsys, out)
     assert again.returncode == 0, again.stderr
     assert "failed" not in again.stderr
     retried = [read_record(out, name) for name in names]
@@ -536,7 +460,7 @@ def test_study_with_one_and_two_workers_gives_identical_tables_and_runs(
 ) -> None:
     one, two = tmp_path / "one", tmp_path / "two"
     for out, workers in ((one, "1"), (two, "2")):
-        if workers == "1" and not rendered:  # serial: through main() in this process
+        if not rendered:  # through main() in this process; two workers are spawned processes
             result = _tiny_study_here(monkeypatch, capsys, out, "--workers", workers)
         else:  # a rendered case renders in its own process (one renderer per process)
             result = _tiny_study(out, "--workers", workers, rendered=rendered)
@@ -578,34 +502,23 @@ def test_the_same_seed_gives_a_bit_identical_rendered_run(tmp_path: Path, monkey
 
 # --- a Dask worker killed mid-study: a replacement finishes it, or its cases are failed and retried --------------
 
-_SWEEP_ON_DASK = """
-import json, sys
-from pathlib import Path
-from scenarios.studies.cases import model_only_cases
-from scenarios.studies.sweep import run_sweep
-cases = model_only_cases(3, duration_s=8.0, study="test-dask-kill")
-result = run_sweep(cases, Path(sys.argv[1]), scheduler=sys.argv[2])
-print(json.dumps({"executed": result.executed, "records": [[r.name, r.status, r.worker.get("pid"), (r.error or {}).get(
-    "type")] for r in result.records]}))
-"""
+DASK_CASES = model_only_cases(3, duration_s=8.0, study="test-dask-kill")
+"""The cases of the studies on a Dask cluster whose worker is killed mid-case."""
 
 
-@pytest.fixture
-def dask_cluster(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
-    """A Dask scheduler and one worker (one thread, under a nanny that replaces it) on 127.0.0.1; its address.
-
-    ``request.param``: the scheduler's ``allowed-failures`` (how many worker deaths a task survives).
-    """
+@pytest.fixture(scope="module")
+def dask_processes(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """A Dask scheduler and one worker (one thread, under a nanny that replaces it) on 127.0.0.1, for this module's
+    tests; its address."""
     pytest.importorskip("distributed")
     dask = Path(sys.executable).with_name("dask")
     if not dask.exists():
         pytest.skip("the dask command is not installed")
-    scheduler_file = tmp_path / "scheduler.json"
-    env = {**os.environ, "DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES": str(request.param)}
+    scheduler_file = tmp_path_factory.mktemp("dask") / "scheduler.json"
     quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "cwd": REPO, "start_new_session": True}
     local = ["--host", "127.0.0.1", "--no-dashboard"]
     scheduler = subprocess.Popen(
-        [str(dask), "scheduler", *local, "--port", "0", "--scheduler-file", str(scheduler_file)], env=env, **quiet
+        [str(dask), "scheduler", *local, "--port", "0", "--scheduler-file", str(scheduler_file)], **quiet
     )
     processes = [scheduler]
     try:
@@ -626,38 +539,54 @@ def dask_cluster(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str
             process.wait(10)
 
 
+@pytest.fixture
+def dask_cluster(request: pytest.FixtureRequest, dask_processes: str) -> str:
+    """The module's Dask cluster (:func:`dask_processes`), its address; ``request.param``: the scheduler's
+    ``allowed-failures`` (how many worker deaths a task survives), set on the running scheduler for the test."""
+    from distributed import Client
+
+    allowed = request.param
+    with Client(dask_processes, timeout=30) as client:
+        client.run_on_scheduler(lambda dask_scheduler: setattr(dask_scheduler, "allowed_failures", allowed))
+        assert client.run_on_scheduler(lambda dask_scheduler: dask_scheduler.allowed_failures) == allowed
+    return dask_processes
+
+
 def _sweep_with_a_killed_worker(out: Path, address: str) -> tuple[dict, str, int]:
-    """Run :data:`_SWEEP_ON_DASK`; SIGKILL the Dask worker that runs the first case to start, mid-case.
+    """Run :data:`DASK_CASES` on the cluster at ``address`` (a sweep in a thread of this process); SIGKILL the Dask
+    worker that runs the first case to start, mid-case.
 
     Returns the sweep's summary, the killed case's name and the killed worker's pid.
     """
-    proc = subprocess.Popen(
-        [sys.executable, "-c", _SWEEP_ON_DASK, str(out), address],
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        deadline = time.monotonic() + 120.0
-        killed: tuple[str, int] | None = None
-        while killed is None:
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline, "no case started"
-            for marker in (out / CASES_DIR).glob(".*.running"):
-                with contextlib.suppress(OSError, ValueError):
-                    pid = json.loads(marker.read_text())["pid"]
-                    os.kill(pid, signal.SIGKILL)  # the worker process, in the middle of the case
-                    killed = (marker.name.removeprefix(".").removesuffix(".running"), pid)
-                    break
-            time.sleep(0.02)
-        stdout, stderr = proc.communicate(timeout=240)  # nothing hangs
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
-    assert proc.returncode == 0, stderr
-    return json.loads(stdout.strip().splitlines()[-1]), *killed
+    ended: dict[str, object] = {}
+
+    def sweep() -> None:
+        try:
+            ended["result"] = run_sweep(DASK_CASES, out, scheduler=address)
+        except BaseException as exc:
+            ended["error"] = exc
+
+    thread = threading.Thread(target=sweep, name="dask-sweep", daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 120.0
+    killed: tuple[str, int] | None = None
+    while killed is None:
+        assert thread.is_alive(), ended
+        assert time.monotonic() < deadline, "no case started"
+        for marker in (out / CASES_DIR).glob(".*.running"):
+            with contextlib.suppress(OSError, ValueError):
+                pid = json.loads(marker.read_text())["pid"]
+                os.kill(pid, signal.SIGKILL)  # the worker process, in the middle of the case
+                killed = (marker.name.removeprefix(".").removesuffix(".running"), pid)
+                break
+        time.sleep(0.02)
+    thread.join(240)
+    assert not thread.is_alive(), "the sweep hangs"  # nothing hangs
+    if "error" in ended:
+        raise ended["error"]
+    result = ended["result"]
+    records = [[r.name, r.status, r.worker.get("pid"), (r.error or {}).get("type")] for r in result.records]
+    return {"executed": result.executed, "records": records}, *killed
 
 
 @pytest.mark.parametrize("dask_cluster", [3], indirect=True)
@@ -677,8 +606,7 @@ def test_a_dask_worker_killed_mid_study_fails_its_cases_and_resume_retries_them(
     records = {row[0]: row for row in summary["records"]}
     assert records[name][1] == "failed" and records[name][3] == "KilledWorker", summary
     failed = sorted(row[0] for row in summary["records"] if row[1] == "failed")
-    cases = model_only_cases(3, duration_s=8.0, study="test-dask-kill")
-    again = run_sweep(cases, tmp_path, scheduler=dask_cluster)  # resume on the replacement
+    again = run_sweep(DASK_CASES, tmp_path, scheduler=dask_cluster)  # resume on the replacement
     assert again.executed == len(failed) and not again.failures
     assert all(r.worker["pid"] != pid for r in again.records if r.name in failed)
 
