@@ -76,15 +76,29 @@ KILLED_RUN = textwrap.dedent(
     import sys, time
     from pathlib import Path
 
+    import pandas as pd
+
     import scenarios.run.results as results
 
     results.FLUSH_ROWS = int(sys.argv[2])  # documented knob: a part file every so many rows
     from scenarios.config import load_scenario
     from scenarios.run.runner import run_scenario
 
+    out, hold_at = Path(sys.argv[1]), float(sys.argv[3])
+    parts = []
+
+    def progress(t, f):
+        # 2 ms of wall time per tick makes the 3000 ticks last > 6 s. Once a part file reaches ``hold_at`` the run
+        # waits there to be killed, so the rows on disk end at that part whatever the machine's load.
+        time.sleep(0.002)
+        written = sorted((out / results.TIMESERIES_FILE).glob("part-*.parquet"))
+        if len(written) > len(parts):
+            parts[:] = written
+            if pd.read_parquet(written[-1])["time"].iloc[-1] >= hold_at:
+                time.sleep(3600.0)
+
     config = load_scenario("roundabout-3", {"duration_s": 60.0})
-    # 2 ms of wall time per tick makes the 3000 ticks last > 6 s, long enough to be killed mid-run.
-    run_scenario(config, Path(sys.argv[1]), progress=lambda t, f: time.sleep(0.002), plots=False)
+    run_scenario(config, out, progress=progress, plots=False)
     """
 )
 
@@ -298,7 +312,9 @@ def test_a_run_killed_with_sigkill_keeps_its_series_to_the_last_flush(tmp_path: 
     run_dir.mkdir()
     rows_per_part = 25
     proc = subprocess.Popen(
-        [sys.executable, "-c", KILLED_RUN, str(run_dir), str(rows_per_part)], cwd=REPO, stderr=subprocess.PIPE
+        [sys.executable, "-c", KILLED_RUN, str(run_dir), str(rows_per_part), "inf"],  # never held
+        cwd=REPO,
+        stderr=subprocess.PIPE,
     )
     try:
         deadline = time.monotonic() + 120.0
@@ -329,10 +345,13 @@ def test_a_run_killed_with_sigkill_keeps_its_series_to_the_last_flush(tmp_path: 
 
 
 def _killed_at(run_dir: Path, at_s: float, rows_per_part: int = 25) -> pd.DataFrame:
-    """Run :data:`KILLED_RUN` into ``run_dir`` and SIGKILL it once its series reaches ``at_s`` simulated seconds."""
+    """Run :data:`KILLED_RUN` into ``run_dir`` and SIGKILL it once its series reaches ``at_s`` simulated seconds
+    (where the run waits: the rows on disk end with the first part file that reaches ``at_s``)."""
     run_dir.mkdir()
     proc = subprocess.Popen(
-        [sys.executable, "-c", KILLED_RUN, str(run_dir), str(rows_per_part)], cwd=REPO, stderr=subprocess.PIPE
+        [sys.executable, "-c", KILLED_RUN, str(run_dir), str(rows_per_part), str(at_s)],
+        cwd=REPO,
+        stderr=subprocess.PIPE,
     )
     try:
         deadline = time.monotonic() + 120.0
