@@ -137,7 +137,7 @@ def model_only_run(scenario: str, overrides: dict):
     from scenarios.run.drive import simulate
     from scenarios.setup.build import build_scenario
 
-    key = (scenario, tuple(sorted(overrides.items())))
+    key = (scenario, repr(sorted(overrides.items())))  # values may be lists or mappings
     if key in _RUNS:
         return _RUNS[key]
     run = simulate(build_scenario(load_scenario(scenario, overrides)))
