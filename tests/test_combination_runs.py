@@ -1,11 +1,11 @@
 """Runs of a combination of more than two units (unsteered): every unit's true off-tracking, the roundabout verdict
 over every unit, the swept-path figure, and the flag of a run that did not drive its path.
 
-* The B-double test layout (``tests/data/combinations/b-double.yaml``) in the UK roundabout test: the rear trailer
-  (unit 3) comes nearest the centre; the verdict's inner radius is the smallest distance of any towed unit's outline
-  from the centre, recomputed here from the recorded poses (to 1e-9 m); unit 3's true off-tracking from its buffer
-  agrees with the same quantity found geometrically from its recorded coupling path (within 2 cm: the path is
-  recorded at the control rate).
+* The B-double test layout (``tests/data/combinations/b-double.yaml``) in the UK roundabout test (a quarter of its
+  assessed circle): the rear trailer (unit 3) comes nearest the centre; the verdict's inner radius is the smallest
+  distance of any towed unit's outline from the centre, recomputed here from the recorded poses (to 1e-9 m); unit
+  3's true off-tracking from its buffer agrees with the same quantity found geometrically from its recorded coupling
+  path (within 2 cm: the path is recorded at the control rate).
 * A run whose time was up before the end of its path is flagged ``path_not_driven`` (not held); one limited by
   ``duration_s`` or one that ended at the path's end is not.
 """
@@ -34,7 +34,9 @@ B_DOUBLE = Path(__file__).parent / "data" / "combinations" / "b-double.yaml"
 @pytest.fixture(scope="module")
 def b_double_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, pd.DataFrame, object]:
     vehicle = {"name": "b-double", **yaml.safe_load(B_DOUBLE.read_text(encoding="utf-8"))}
-    config = load_scenario("roundabout-test", {"vehicle": vehicle, "feedback": "none"})
+    # The settling turn and a quarter of the assessed circle (measured: unit 3 inner 2.563 m, truth 3.647 m max
+    # after warm-up against unit 2's 1.923 m; the whole circle: 2.267, 3.822 and 1.936 m).
+    config = load_scenario("roundabout-test", {"vehicle": vehicle, "feedback": "none", "path.turns": 0.25})
     run_dir = tmp_path_factory.mktemp("b-double")
     metrics = run_scenario(config, run_dir, plots=False)
     return metrics, pd.read_parquet(run_dir / "timeseries.parquet"), config

@@ -167,11 +167,16 @@ REAR_ERROR_PERIOD = 4.0  # [s] of the follower camera's injected error across it
 FAILED = range(100, 120)  # the frames whose following odometry fails (4 s mid-run)
 
 
-@functools.lru_cache(maxsize=2)
 def _drive(reference: bool, failed: range = FAILED, ticks: int = 1500, rear_error: float = 0.0, scale: float = 1.0):
     """The lead unit's filter over the sliding straight (the follower's frames ``failed`` fail; its camera's motion
     off by ``rear_error`` [m] across it in every frame; ``k_c`` of (C2) ``scale``); its errors, its estimated s_z and
-    s_f, and the filter. Computed once per case."""
+    s_f, and the filter (read only). Computed once per case, however the arguments are given."""
+    return _drive_case(reference, failed, ticks, rear_error, scale)
+
+
+@functools.cache
+def _drive_case(reference: bool, failed: range, ticks: int, rear_error: float, scale: float):
+    """:func:`_drive` with every argument given by position (one cache entry per case)."""
     params = VEHICLE_PRESETS["au-b-double"]()
     side = StereoRig.from_degrees(psi_c2v_deg=270.0, lateral=1.275, unit=1, station=-4.0)
     rear = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)

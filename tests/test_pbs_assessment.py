@@ -10,11 +10,13 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
+from scenarios.config import load_scenario
 from scenarios.studies.pbs_assessment import (
     MANOEUVRES,
     assessment_cases,
@@ -31,9 +33,28 @@ STEERED_B_DOUBLE = str(B_DOUBLE.parents[1] / "vehicles" / "b-double-steered.yaml
 
 
 @pytest.fixture(scope="module")
-def reference(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, pd.DataFrame, pd.DataFrame]:
+def reference(
+    tmp_path_factory: pytest.TempPathFactory, roundabout_test_run: Path
+) -> tuple[Path, pd.DataFrame, pd.DataFrame]:
+    """The reference combination's assessment. Its turning circle is ``roundabout-test`` with the scenario's defaults
+    (the same configuration; the run's series is the one of the session's shared run to the bit): that run is the
+    session's shared one, copied into the case's directory, and the rest of the case (its records) as always."""
+    import scenarios.studies.pbs_assessment as assessment
+
+    real_run, defaults, shared = assessment.run_scenario, load_scenario("roundabout-test"), []
+
+    def run_scenario(config, run_dir: Path, **options):
+        if config != defaults:
+            return real_run(config, run_dir, **options)
+        shutil.copytree(roundabout_test_run, run_dir, dirs_exist_ok=True)
+        shared.append(run_dir.name)
+        return json.loads((run_dir / "metrics.json").read_text())
+
     out = tmp_path_factory.mktemp("assess")
-    table = run_assessment("reference", out, run_plots=False)  # the measures do not use the runs' own figures
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(assessment, "run_scenario", run_scenario)
+        table = run_assessment("reference", out, run_plots=False)  # the measures do not use the runs' own figures
+    assert shared == [table.set_index("manoeuvre").loc["turning_circle", "run"]]
     return out, table, pd.read_csv(out / "assessment.csv")
 
 

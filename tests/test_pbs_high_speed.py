@@ -259,11 +259,11 @@ def test_grading_takes_the_most_demanding_level_met(measure: Standard, value: fl
     assert got_margin == (None if margin is None else pytest.approx(margin))
 
 
-def _steady_turn(speed_kmh: float, direction: str) -> dict:
+def _steady_turn(speed_kmh: float, direction: str, turns: float) -> dict:
     data = {
         "vehicle": "reference",
         "direction": direction,
-        "path": {"kind": "roundabout", "radius": 200.0, "turns": 0.5, "entry_length": 30.0, "exit_length": 10.0},
+        "path": {"kind": "roundabout", "radius": 200.0, "turns": turns, "entry_length": 30.0, "exit_length": 10.0},
         "speed": {"cornering_kmh": speed_kmh},
     }
     setup = build_scenario(validate_config(data))
@@ -275,9 +275,11 @@ def _steady_turn(speed_kmh: float, direction: str) -> dict:
 
 def test_steady_offtracking_grows_outward_with_speed_and_mirrors() -> None:
     # On a 200 m circle the path follower holds the steer axle on the path; at 80 km/h (0.25 g) the trailer's
-    # rear axle runs outside it, at 20 km/h inside it (the low-speed cut-in), the same either way round.
-    fast_left, fast_right = _steady_turn(80.0, "left"), _steady_turn(80.0, "right")
-    slow = _steady_turn(20.0, "left")
+    # rear axle runs outside it, at 20 km/h inside it (the low-speed cut-in), the same either way round. A quarter
+    # of the circle at 80 km/h, 0.15 of it at 20 km/h: both steady well before (measured +0.3811 and -0.1497 m, as
+    # over half the circle to 1e-4 and 1e-6 m).
+    fast_left, fast_right = _steady_turn(80.0, "left", 0.25), _steady_turn(80.0, "right", 0.25)
+    slow = _steady_turn(20.0, "left", 0.15)
     assert fast_left["value"] == pytest.approx(fast_right["value"], abs=1e-6)
     assert fast_left["value"] > 0.1 and slow["value"] < 0.0
     assert "radius 200 m at 0.25 g" in fast_left["note"]
