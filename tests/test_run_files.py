@@ -306,7 +306,15 @@ def test_a_run_says_running_while_it_runs(tmp_path: Path) -> None:
     assert metrics["stop_time"] is None and metrics["stop_signal"] is None
 
 
-@pytest.mark.parametrize("moment", ["started", "first part", "ten parts", "between parts"])
+@pytest.mark.parametrize(
+    "moment",
+    [
+        "started",
+        "first part",
+        pytest.param("ten parts", marks=pytest.mark.slow),  # by default: killed after several parts, between parts
+        "between parts",
+    ],
+)
 def test_a_run_killed_with_sigkill_keeps_its_series_to_the_last_flush(tmp_path: Path, moment: str) -> None:
     run_dir = tmp_path / "run"
     run_dir.mkdir()
