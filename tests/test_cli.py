@@ -1,28 +1,18 @@
-"""Command line end to end."""
+"""Command line end to end, through ``main()`` in the test's process (the exit codes a process gets:
+``test_faults.py``)."""
 
 from __future__ import annotations
 
 import io
 import json
-import subprocess
-import sys
 
 import pandas as pd
 import pytest
 from test_faults import offtrack_in_process
 
 
-def run_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-c", "from scenarios.cli import main; main()", *args],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-
-
-def test_list_shows_scenarios_and_presets():
-    out = run_cli("list")
+def test_list_shows_scenarios_and_presets(monkeypatch, capsys):
+    out = offtrack_in_process(monkeypatch, capsys, "list")  # a process's exit 0: test_faults.py
     assert out.returncode == 0
     for name in ("roundabout-test", "roundabout-3", "figure-eight", "constant-slip", "reference", "lst", "ice"):
         assert name in out.stdout
@@ -81,8 +71,8 @@ def test_bench_optimal_refuses_a_case_too_short_for_a_trailer_length_before_any_
     assert "Traceback" not in out.stderr and out.stdout == ""
 
 
-def test_bench_model_prints_json():
-    out = run_cli("bench", "model", "--json", "--duration", "5")
+def test_bench_model_prints_json(monkeypatch, capsys):
+    out = offtrack_in_process(monkeypatch, capsys, "bench", "model", "--json", "--duration", "5")
     assert out.returncode == 0, out.stderr
     result = json.loads(out.stdout)
     assert result["realtime_factor"] > 0 and result["step_s"] == pytest.approx(0.002)

@@ -10,11 +10,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 import yaml
-from typer.testing import CliRunner
+from cli_runner import invoke as invoke_offtrack
 
 import scenarios.envs.tuning as tuning
 from controller.path_following_config import PathFollowingGains
-from scenarios.cli import app
 from scenarios.config import load_scenario, parse_assignment, validate_config
 from scenarios.envs.tuning import TuningResult
 from scenarios.envs.tuning_report import set_options, write_tuning
@@ -23,7 +22,7 @@ NARROW = {"COLUMNS": "80"}
 
 
 def invoke(*args: str):
-    return CliRunner().invoke(app, list(args), env=NARROW, prog_name="offtrack")
+    return invoke_offtrack(list(args), env=NARROW, prog_name="offtrack")
 
 
 def test_compare_prints_a_table_within_80_columns(tmp_path: Path) -> None:

@@ -8,7 +8,7 @@ import re
 import pytest
 import typer.main
 import yaml
-from typer.testing import CliRunner
+from cli_runner import invoke as invoke_offtrack
 
 from scenarios.cli import app
 from scenarios.cli_format import offtrack_version
@@ -20,7 +20,7 @@ WIDE = {"COLUMNS": "160"}
 
 
 def invoke(*args: str, env: dict[str, str] | None = None):
-    return CliRunner().invoke(app, list(args), env=env, prog_name="offtrack")
+    return invoke_offtrack(list(args), env=env, prog_name="offtrack")
 
 
 def test_config_prints_the_yaml_a_run_would_use() -> None:

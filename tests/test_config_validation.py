@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from test_faults import REPO, assert_one_line_error, offtrack
+from test_faults import REPO, assert_one_line_error, offtrack_in_process
 
 from scenarios.config import ConfigError, catalogue_names, load_scenario, parse_assignment
 from scenarios.studies.registry import STUDIES
@@ -237,25 +237,32 @@ def test_an_alias_bomb_given_with_set_is_refused_naming_the_option() -> None:
     assert parse_assignment("path.radius=not: [valid") == ("path.radius", "not: [valid")  # not YAML: kept as text
 
 
-def test_a_file_that_is_not_utf8_is_refused_naming_it(tmp_path: Path) -> None:
+def test_a_file_that_is_not_utf8_is_refused_naming_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     path = tmp_path / "latin1.yaml"
     path.write_bytes("name: café\n".encode("latin-1"))
     with pytest.raises(ConfigError) as info:
         load_scenario(str(path))
     _one_line(info, f"scenario file {path}", "is not UTF-8", "0xe9")
-    assert_one_line_error(offtrack("run", str(path), "--out", str(tmp_path / "r")), str(path), "UTF-8")
+    # the command through main() in this process (a process's exit 2: test_faults.py)
+    refused = offtrack_in_process(monkeypatch, capsys, "run", str(path), "--out", str(tmp_path / "r"))
+    assert_one_line_error(refused, str(path), "UTF-8")
     assert not (tmp_path / "r").exists()
 
 
 @pytest.mark.parametrize("text", ["", "\n\n", "# nothing but a comment\n", "---\n"])
-def test_an_empty_yaml_file_is_refused_not_run_as_a_default_scenario(tmp_path: Path, text: str) -> None:
+def test_an_empty_yaml_file_is_refused_not_run_as_a_default_scenario(
+    tmp_path: Path, text: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     path = tmp_path / "empty.yaml"
     path.write_text(text)
     with pytest.raises(ConfigError) as info:
         load_scenario(str(path))
     _one_line(info, f"scenario file {path} is empty")
     if text == "":
-        assert_one_line_error(offtrack("run", str(path), "--out", str(tmp_path / "r")), str(path), "is empty")
+        refused = offtrack_in_process(monkeypatch, capsys, "run", str(path), "--out", str(tmp_path / "r"))
+        assert_one_line_error(refused, str(path), "is empty")  # through main() here
         assert not (tmp_path / "r").exists()
 
 

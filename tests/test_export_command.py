@@ -14,10 +14,9 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
+from cli_runner import invoke
 from scipy.io import loadmat
-from typer.testing import CliRunner
 
-from scenarios.cli import app
 from scenarios.config import catalogue_names, load_scenario
 from scenarios.export import table
 from scenarios.export.kitti import render_summary
@@ -41,7 +40,7 @@ def _series(run_dir: Path) -> pd.DataFrame:
 
 
 def _invoke(*args: str) -> tuple[int, str]:
-    result = CliRunner().invoke(app, [*args])
+    result = invoke([*args])
     return result.exit_code, result.output
 
 

@@ -11,9 +11,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 import yaml
-from typer.testing import CliRunner
+from cli_runner import invoke as invoke_offtrack
 
-from scenarios.cli import app
 from scenarios.extras import require
 from vehicle_model.errors import InputError
 
@@ -65,7 +64,7 @@ def _hide(monkeypatch: pytest.MonkeyPatch, *names: str) -> None:
 
 
 def _error_line(args: list[str]) -> str:
-    result = CliRunner().invoke(app, args)
+    result = invoke_offtrack(args)
     assert result.exit_code == 2, result.output
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr

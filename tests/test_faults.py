@@ -276,31 +276,32 @@ def readme_exit_codes() -> dict[int, str]:
 
 
 EXIT_CODE_TESTS = {
-    0: "test_the_readme_exit_codes_0_2_and_4_are_what_the_command_does",
-    2: "test_the_readme_exit_codes_0_2_and_4_are_what_the_command_does",
+    0: "test_the_readme_exit_codes_0_and_4_are_what_the_command_does",
+    2: "test_bad_input_is_one_line_and_exit_2",  # by default, in a process: its cases in IN_A_PROCESS_BY_DEFAULT
     3: "test_loss_of_control_is_a_status_with_exit_3",
-    4: "test_the_readme_exit_codes_0_2_and_4_are_what_the_command_does",
+    4: "test_the_readme_exit_codes_0_and_4_are_what_the_command_does",
     130: "test_a_stopped_run_keeps_its_data",
     143: "test_a_stopped_run_keeps_its_data",
 }
 """The default-suite test of this module that runs the command to each exit code of the README's table."""
 
 
-def test_the_readme_exit_codes_0_2_and_4_are_what_the_command_does(tmp_path: Path) -> None:
-    # The small version of the next test: the codes without a loss of control or a signal run here, the others in
-    # the tests EXIT_CODE_TESTS names, which must exist in the default suite.
+def test_the_readme_exit_codes_0_and_4_are_what_the_command_does(tmp_path: Path) -> None:
+    # The small version of the next test: the codes without a bad input, a loss of control or a signal run here, the
+    # others in the tests EXIT_CODE_TESTS names, which must exist in the default suite.
     table = readme_exit_codes()
     assert set(table) == set(EXIT_CODE_TESTS)
     tree = ast.parse(Path(__file__).read_text(encoding="utf-8"))
     tests = {node.name: node for node in tree.body if isinstance(node, ast.FunctionDef)}
-    for name in set(EXIT_CODE_TESTS.values()):
+    for name in set(EXIT_CODE_TESTS.values()) - {EXIT_CODE_TESTS[2]}:
         assert name in tests, name
         assert "slow" not in ast.unparse(tests[name].decorator_list), name
+    # exit 2: the bad-input cases of IN_A_PROCESS_BY_DEFAULT run in a process in the default suite (--mu abc one)
+    assert EXIT_CODE_TESTS[2] in tests and "--mu" in IN_A_PROCESS_BY_DEFAULT
     assert offtrack("list").returncode == 0
     short = ("run", "roundabout-3", "--vehicle", "lst", "--feedback", "truth", "--duration", "5", "--no-plots")
     missed = offtrack(*short, "--check", "--out", str(tmp_path / "c"))
     assert missed.returncode == 4 and "check: the run missed 1" in missed.stderr, missed.stderr
-    assert offtrack("run", "roundabout-test", "--mu", "abc").returncode == 2
 
 
 @pytest.mark.slow

@@ -14,16 +14,14 @@ import sys
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
-
-from scenarios.cli import app
+from cli_runner import invoke as invoke_offtrack
 
 REPO = Path(__file__).resolve().parents[1]
 CLI = [sys.executable, "-c", "from scenarios.cli import main; main()"]
 
 
 def invoke(*args: str):
-    return CliRunner().invoke(app, list(args), prog_name="offtrack")
+    return invoke_offtrack(list(args), prog_name="offtrack")
 
 
 # --- one process per --out -------------------------------------------------------------------------------------

@@ -15,10 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import typer
-from typer.testing import CliRunner
-
-from scenarios.cli import app
+from cli_runner import invoke, offtrack_command
 
 REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
@@ -64,7 +61,7 @@ def _option_names(command: Any) -> set[str]:
 
 def _resolve(words: list[str]) -> list[tuple[str, Any]]:
     """The commands a line names, each with its path: ``bench model\\|vo`` names two."""
-    command = typer.main.get_command(app)
+    command = offtrack_command()
     found: list[tuple[str, Any]] = [("offtrack", command)]
     for word in words:
         subcommands = _subcommands(found[0][1])
@@ -93,7 +90,7 @@ def test_the_readme_shows_commands() -> None:
 def test_every_offtrack_line_in_a_code_block_parses(line: str) -> None:
     args = shlex.split(line, comments=True)[1:]
     _resolve(args)  # a clear message for an unknown command
-    done = CliRunner().invoke(app, [*args, "--help"])
+    done = invoke([*args, "--help"])
     assert done.exit_code == 0, f"{line!r} does not parse: {done.output}"
     assert "Usage:" in done.output
 
@@ -134,5 +131,5 @@ def test_every_relative_link_names_a_file_and_section_that_exist(page: Path) -> 
 def test_a_bogus_command_or_option_is_caught() -> None:
     with pytest.raises(AssertionError, match="no command"):
         _resolve(["simulate"])
-    assert CliRunner().invoke(app, ["run", "roundabout-3", "--no-such-option", "--help"]).exit_code == 2
+    assert invoke(["run", "roundabout-3", "--no-such-option", "--help"]).exit_code == 2
     assert "--no-such-option" not in _option_names(dict(_resolve(["run"]))["offtrack run"])

@@ -12,9 +12,8 @@ import re
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
+from cli_runner import invoke as invoke_offtrack
 
-from scenarios.cli import app
 from scenarios.config import load_scenario
 from scenarios.run.runner import run_scenario
 from vehicle_model.combination import catalogue_vehicle_names, combination_summary
@@ -123,5 +122,5 @@ def test_make_runs_verdict_is_one_everywhere(roundabout_runs) -> None:
     run_dir, metrics = roundabout_runs["reference"]
     assert metrics["verdict"]["held"] is False
     assert [f["flag"] for f in metrics["verdict"]["flags"]] == ["roundabout_test_failed"]
-    checked = CliRunner().invoke(app, ["report", str(run_dir), "--no-plots", "--check"])
+    checked = invoke_offtrack(["report", str(run_dir), "--no-plots", "--check"])
     assert checked.exit_code == 4 and "not held: 1 miss(es)" in checked.stdout, checked.output

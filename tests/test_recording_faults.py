@@ -17,10 +17,9 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
+from cli_runner import invoke
 from test_recordings import _images, _kitti, _write_bag
-from typer.testing import CliRunner
 
-from scenarios.cli import app
 from scenarios.export.table import export_run
 from scenarios.loop.participant import Column
 from scenarios.recorded.plausibility import SCALE_FACTOR, motion_flags
@@ -31,7 +30,7 @@ RIG = "vehicle: lst\npsi_c2v_deg: 180\nlever_arm_m: [-14.05, 0.0, 3.0]\n"
 
 def _refused(args: list[str]) -> str:
     """The one line of a refusal (exit 2, no traceback)."""
-    result = CliRunner().invoke(app, [str(a) for a in args])
+    result = invoke([str(a) for a in args])
     assert result.exit_code == 2, result.output
     lines = [line for line in result.output.splitlines() if line.strip()]
     assert len(lines) == 1 and lines[0].startswith("error: "), result.output
@@ -229,7 +228,7 @@ def test_ctrl_c_in_tune_keeps_the_finished_trials_without_a_traceback(
 
     monkeypatch.setattr(GainTuningEnv, "evaluate", evaluate)
     out = tmp_path / "tune"
-    result = CliRunner().invoke(app, ["tune", "--trials", "5", "--draws", "1", "--out", str(out)])
+    result = invoke(["tune", "--trials", "5", "--draws", "1", "--out", str(out)])
     assert result.exit_code == 130, result.output
     assert "Traceback" not in result.output and "Trial" not in result.output
     assert "2 finished trial(s)" in result.output and "interrupted by the user (Ctrl-C)" in result.output

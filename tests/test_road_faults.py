@@ -11,9 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from typer.testing import CliRunner
+from cli_runner import invoke as invoke_offtrack
 
-from scenarios.cli import app
 from scenarios.config import load_scenario
 from scenarios.setup.roads import RoadFileError, load_road
 
@@ -176,7 +175,7 @@ def test_a_bad_road_is_refused_before_the_run_directory_and_by_config_render_and
         ],
     ]
     for args in commands:
-        result = CliRunner().invoke(app, args)
+        result = invoke_offtrack(args)
         assert result.exit_code == 2, (args, result.output)
         lines = result.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith(f"error: road file {road}"), (args, result.stderr)

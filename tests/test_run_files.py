@@ -306,7 +306,15 @@ def test_a_run_says_running_while_it_runs(tmp_path: Path) -> None:
     assert metrics["stop_time"] is None and metrics["stop_signal"] is None
 
 
-@pytest.mark.parametrize("moment", ["started", "first part", "ten parts", "between parts"])
+@pytest.mark.parametrize(
+    "moment",
+    [
+        "started",
+        "first part",
+        pytest.param("ten parts", marks=pytest.mark.slow),  # by default: killed after several parts, between parts
+        "between parts",
+    ],
+)
 def test_a_run_killed_with_sigkill_keeps_its_series_to_the_last_flush(tmp_path: Path, moment: str) -> None:
     run_dir = tmp_path / "run"
     run_dir.mkdir()
@@ -475,11 +483,15 @@ def immutable_file(tmp_path: Path) -> Iterator[Path]:
         subprocess.run(["chattr", "-i", str(path)], check=False)
 
 
-def test_force_on_an_immutable_file_is_one_line_and_exit_2(immutable_file: Path) -> None:
-    from test_faults import assert_one_line_error, offtrack
+def test_force_on_an_immutable_file_is_one_line_and_exit_2(
+    immutable_file: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Through main() in this process: the refusal comes before any work (a process's exit 2: test_faults.py).
+    from test_faults import assert_one_line_error, offtrack_in_process
 
     out = immutable_file.parent
-    result = offtrack("run", "roundabout-test", "--duration", "2", "--force", "--out", str(out))
+    args = ("run", "roundabout-test", "--duration", "2", "--force", "--out", str(out))
+    result = offtrack_in_process(monkeypatch, capsys, *args)
     assert_one_line_error(result, f"--force cannot remove {immutable_file}", "Operation not permitted")
     assert len(result.stderr.strip().splitlines()) == 1
     assert immutable_file.read_text() == "{}"  # nothing was run

@@ -4,10 +4,9 @@ scenario options and the environments' named settings set the field the table gi
 from __future__ import annotations
 
 import yaml
+from cli_runner import invoke as invoke_offtrack
 from pydantic import BaseModel
-from typer.testing import CliRunner
 
-from scenarios.cli import app
 from scenarios.config import ScenarioConfig
 from scenarios.envs.scenario import NAMED_FIELDS
 from scenarios.scenario_shortcuts import SCENARIO_SHORTCUTS, shortcut_pairs
@@ -60,7 +59,7 @@ def test_shortcut_pairs_keep_the_order_given_and_refuse_an_unknown_name() -> Non
 def test_each_scenario_option_of_the_command_line_sets_the_tables_field() -> None:
     assert set(OPTION_OF) == set(SCENARIO_SHORTCUTS)
     args = [item for option, text, _ in OPTION_OF.values() for item in (option, text)]
-    result = CliRunner().invoke(app, ["config", "roundabout-3", *args], prog_name="offtrack")
+    result = invoke_offtrack(["config", "roundabout-3", *args], prog_name="offtrack")
     assert result.exit_code == 0, result.output
     printed = yaml.safe_load(result.stdout)
     for shortcut, (_, _, expected) in OPTION_OF.items():

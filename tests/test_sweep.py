@@ -259,15 +259,20 @@ def test_an_unreachable_scheduler_is_a_one_line_input_error(monkeypatch: pytest.
     assert not _case_files(tmp_path)
 
 
+KILLED_CASES = 6
+"""Cases of the killed sweep (3 s each): enough that it is still running when it is killed, once two are recorded."""
+
+
 def test_killed_sweep_process_resumes_without_losing_cases(tmp_path: Path) -> None:
     psutil = pytest.importorskip("psutil")
-    cases = model_only_cases(10, duration_s=8.0, study="test-sweep-kill")
+    cases = model_only_cases(KILLED_CASES, duration_s=3.0, study="test-sweep-kill")
     script = textwrap.dedent(
         f"""
         from pathlib import Path
         from scenarios.studies.cases import model_only_cases
         from scenarios.studies.sweep import run_sweep
-        run_sweep(model_only_cases(10, duration_s=8.0, study="test-sweep-kill"), Path({str(tmp_path)!r}), workers=2)
+        cases = model_only_cases({KILLED_CASES}, duration_s=3.0, study="test-sweep-kill")
+        run_sweep(cases, Path({str(tmp_path)!r}), workers=2)
         """
     )
     proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO)
