@@ -25,10 +25,12 @@ A worker that raises sends the traceback back; one that dies or stops answering 
 
 from __future__ import annotations
 
+import ctypes
 import math
 import multiprocessing
 import os
 import signal
+import sys
 import threading
 import time
 import traceback
@@ -79,6 +81,25 @@ def _exit_with_parent(parent: int) -> None:
         time.sleep(PARENT_CHECK_S)
 
 
+def _die_with_parent(parent: int) -> None:
+    """Have the kernel SIGKILL this process when the thread that started it ends (Linux's ``PR_SET_PDEATHSIG``,
+    ``prctl(2)``), so that the worker ends with its co-simulation process even while its own Python threads cannot
+    run (a long C call holding the interpreter's lock, e.g. while its world or OpenGL context is built); exits at
+    once if ``parent`` is already gone. Elsewhere, or where ``prctl`` is not found, it does nothing: the thread of
+    :func:`_exit_with_parent` remains."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return
+    pr_set_pdeathsig = 1  # <linux/prctl.h>
+    if prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0) != 0:
+        return
+    if os.getppid() != parent:  # it died before the request was made
+        os._exit(1)
+
+
 def _worker_main(
     config: Any,
     conn: Connection,
@@ -86,10 +107,14 @@ def _worker_main(
     parent: int | None = None,
     rig_index: int = 0,
     terrain: Any = None,
+    die_with_parent: bool = False,
 ) -> None:
     """Body of one render worker (runs in the spawned process); ``threads``: llvmpipe's, unless set; ``parent``: the
-    process id of the co-simulation process, whose death ends the worker (:func:`_exit_with_parent`)."""
+    process id of the co-simulation process, whose death ends the worker (:func:`_exit_with_parent`, and
+    :func:`_die_with_parent` when ``die_with_parent``: the worker was started by that process's main thread)."""
     if parent is not None:  # first of all: a world being built, or a frame being rendered, is no one's any more
+        if die_with_parent:
+            _die_with_parent(parent)
         threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True, name="offtrack-parent-watch").start()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the co-simulation process handles Ctrl-C and stops us
     if hasattr(signal, "pthread_sigmask"):
@@ -185,7 +210,8 @@ class RenderWorkers:
         # SIGINT before it unblocks it), so that a Ctrl-C at the terminal cannot kill a worker that is still
         # importing. A Ctrl-C meant for this process is held meanwhile and arrives when the block ends —
         # never lost (ignoring it here instead would let a run go on after Ctrl-C).
-        block = threading.current_thread() is threading.main_thread() and hasattr(signal, "pthread_sigmask")
+        on_main_thread = threading.current_thread() is threading.main_thread()
+        block = on_main_thread and hasattr(signal, "pthread_sigmask")
         previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if block else None
         try:
             try:
@@ -194,7 +220,8 @@ class RenderWorkers:
                     threads = RENDER_THREADS if workers >= 2 else None
                     proc = ctx.Process(
                         target=_worker_main,
-                        args=(config, there, threads, os.getpid(), rig_index, terrain),
+                        # the kernel's death signal follows the starting thread: only the main thread's lasts the run
+                        args=(config, there, threads, os.getpid(), rig_index, terrain, on_main_thread),
                         name=f"offtrack-render-{i}",
                         daemon=True,
                     )
