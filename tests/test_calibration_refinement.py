@@ -9,6 +9,8 @@ mild wide-angle lenses (the field conditions' lens and a neighbour). The dispari
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -25,6 +27,7 @@ VIEWS = 12
 SEEDS = (0, 1, 2)
 
 
+@functools.cache  # the board's poses are most of a solve's time: each draw is made once and fitted both ways
 def _corners(rig: StereoRig, seed: int, noise_px: float) -> tuple[list, list, list]:
     k = rig.intrinsics()
     left, right = Camera.build(k, LEFT, rig.width, rig.height), Camera.build(k, RIGHT, rig.width, rig.height)

@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from field_camera_run import FIELD, field_camera_run
 
 from scenarios.camera.build import stereo_camera
 from scenarios.config import load_scenario
@@ -25,11 +24,6 @@ from vehicle_model.geometry import CombinationPose
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = {"camera.width": 336, "camera.height": 98}
-FIELD = {
-    "camera.lighting.sun": True,  # a low sun, shadows, sky, glare and the lagging auto-exposure
-    "camera.flex.vibration_rms_deg": [0.05, 0.05, 0.05],
-    "camera.lens.k1": -0.05,
-}
 
 
 def test_stereo_renderer_is_built_in_one_source_module() -> None:
@@ -135,22 +129,14 @@ def test_kitti_export_renders_the_runs_lighting_as_the_runs_camera(tmp_path: Pat
 
 
 @pytest.mark.rendering
-def test_animation_draws_the_matches_the_runs_odometry_recorded(tmp_path: Path) -> None:
+def test_animation_draws_the_matches_the_runs_odometry_recorded(tmp_path_factory: pytest.TempPathFactory) -> None:
     """A field-conditions run (lens, low sun with auto-exposure, mount vibration) of five camera frames, made in a
-    child process (which owns its renderer); its animation's camera panel draws, frame by frame, as many matches and
-    inliers as the run's odometry recorded."""
+    child process (which owns its renderer; ``field_camera_run.py``, shared with test_figures.py); its animation's
+    camera panel draws, frame by frame, as many matches and inliers as the run's odometry recorded."""
     from scenarios.export.animation import CameraPanel
     from scenarios.run.plots import load_run
 
-    run_dir = tmp_path / "field"
-    overrides = {"estimators.viso_ot": True, "duration_s": 0.45, "camera.width": 672, "camera.height": 196, **FIELD}
-    code = (
-        "import sys; from pathlib import Path; from scenarios.config import load_scenario; "
-        "from scenarios.run.runner import run_scenario; "
-        f"run_scenario(load_scenario('roundabout-3', {overrides!r}), Path(sys.argv[1]), plots=False)"
-    )
-    subprocess.run([sys.executable, "-c", code, str(run_dir)], check=True, timeout=600, cwd=REPO)
-    run = load_run(run_dir)
+    run = load_run(field_camera_run(tmp_path_factory))
     cols = run.columns
     panel = CameraPanel(run)
     assert len(panel.rows) >= 4

@@ -11,8 +11,6 @@ condition on record the same series as serial ones.
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import cv2
@@ -23,7 +21,6 @@ from scenarios.camera.build import pair_developer, rig_from_config
 from scenarios.config import load_scenario
 from vehicle_model.errors import InputError
 
-REPO = Path(__file__).resolve().parents[1]
 SMALL = {"camera.width": 672, "camera.height": 196}
 LENS = {"camera.lens.k1": -0.2, "camera.lens.k2": 0.05}
 
@@ -86,62 +83,41 @@ def test_the_flex_warp_rotates_the_right_camera_like_re_posing_it() -> None:
     # de Saxe & Cebon 2018, eq (8): a rotation about the optical centre is the homography K·Rᵀ·K⁻¹. Rendering
     # the right camera re-posed by R and warping the aligned render must give the same image (inside the border
     # strip).
-    code = """
-import json, numpy as np
-from scenarios.config import load_scenario
-from vehicle_model.errors import InputError
-from scenarios.setup.build import build_scenario
-from scenarios.camera.build import pair_developer, rig_from_config, world_for_scenario
-from sensor.camera import Misalignment
-from sensor.renderer import StereoRenderer
-over = {"estimators.viso_ot": True, "camera.width": 672, "camera.height": 196,
-        "camera.flex.vibration_rms_deg": [0.5, 0.5, 0.5]}
-setup = build_scenario(load_scenario("roundabout-3", over))
-rig = rig_from_config(setup.config)
-optics = pair_developer(setup.config).optics
-rotation = Misalignment.from_degrees(0.4, -0.3, 0.5)
-renderer = StereoRenderer(world_for_scenario(setup), rig, setup.params)
-s = setup.initial_state
-aligned = renderer.render(s.pose, frame=0).right
-_, warped = optics.prepare(aligned, aligned, right_rotation=rotation, seed=0, frame=0)
-renderer.rig = rig.replace(misalignment=rotation)
-posed = renderer.render(s.pose, frame=0).right
-inner = (slice(12, -12), slice(12, -12))
-d = np.abs(warped.astype(float) - posed.astype(float))[inner]
-back = Misalignment.from_degrees(-0.4, 0.3, -0.5)
-opposite = optics.prepare(aligned, aligned, right_rotation=back, seed=0, frame=0)[1]
-e = np.abs(opposite.astype(float) - posed.astype(float))[inner]
-print(json.dumps({"same": float(np.median(d)), "opposite": float(np.median(e))}))
-"""
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=300)
-    assert out.returncode == 0, out.stderr
-    result = json.loads(out.stdout.strip().splitlines()[-1])
-    assert result["same"] < 3.0  # grey levels: interpolation only
-    assert result["opposite"] > 2.0 * result["same"]  # and the sign matters
+    from scenarios.camera.build import world_for_scenario
+    from scenarios.setup.build import build_scenario
+    from sensor.camera import Misalignment
+    from sensor.renderer import StereoRenderer
+
+    over = {"estimators.viso_ot": True, **SMALL, "camera.flex.vibration_rms_deg": [0.5, 0.5, 0.5]}
+    setup = build_scenario(load_scenario("roundabout-3", over))
+    rig = rig_from_config(setup.config)
+    optics = pair_developer(setup.config).optics
+    rotation = Misalignment.from_degrees(0.4, -0.3, 0.5)
+    renderer = StereoRenderer(world_for_scenario(setup), rig, setup.params)
+    pose = setup.initial_state.pose
+    aligned = renderer.render(pose, frame=0).right
+    _, warped = optics.prepare(aligned, aligned, right_rotation=rotation, seed=0, frame=0)
+    renderer.rig = rig.replace(misalignment=rotation)
+    posed = renderer.render(pose, frame=0).right
+    inner = (slice(12, -12), slice(12, -12))
+    same = float(np.median(np.abs(warped.astype(float) - posed.astype(float))[inner]))
+    back = Misalignment.from_degrees(-0.4, 0.3, -0.5)
+    opposite = optics.prepare(aligned, aligned, right_rotation=back, seed=0, frame=0)[1]
+    other = float(np.median(np.abs(opposite.astype(float) - posed.astype(float))[inner]))
+    assert same < 3.0  # grey levels: interpolation only
+    assert other > 2.0 * same  # and the sign matters
 
 
 def test_a_calibration_from_offtrack_calibrate_is_what_a_run_loads(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from scenarios.cli import app
     from sensor.calibration import CalibrationResult
 
     out = tmp_path / "cal"
     sets = [f"--set={k}={v}" for k, v in {**SMALL, **LENS, "camera.calibration.views": 20}.items()]
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-c",
-            "from scenarios.cli import main; main()",
-            "calibrate",
-            "roundabout-3",
-            "--out",
-            str(out),
-            *sets,
-        ],
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=300,
-    )
-    assert done.returncode == 0, done.stderr
+    done = CliRunner().invoke(app, ["calibrate", "roundabout-3", "--out", str(out), *sets])  # in this process
+    assert done.exit_code == 0, done.output
     residuals = json.loads((out / "residuals.json").read_text())
     assert residuals["rms_px"]["stereo"] < 0.3
     assert abs(residuals["baseline_m"]["error"]) < 2e-3

@@ -3,11 +3,13 @@ the study summary that fits a terminal.
 
 Checked by what they show (the figure's artists, the video's frame count and size, the rendered text), never
 pixel by pixel. One model-only UK roundabout test with the reference trailer (5 km/h, a few seconds) feeds
-them all; the reference trailer fails the test (its innermost point enters the 5.30 m circle).
+them all; the reference trailer fails the test (its innermost point enters the 5.30 m circle). The checks of a
+figure's layout draw every 10th sample of it (:data:`THIN`); those of its verdict's radii and marked points, all.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -42,6 +44,15 @@ def roundabout_run(roundabout_test_run: Path) -> Path:
     the session's shared run, read only."""
     assert json.loads((roundabout_test_run / "metrics.json").read_text())["status"] == "completed"
     return roundabout_test_run
+
+
+THIN = 10
+"""Every 10th sample of the run (5 Hz): enough for the checks of a figure's layout, a tenth of the envelopes'
+vertices to draw."""
+
+
+def _thinned(columns) -> dict[str, np.ndarray]:
+    return {k: np.asarray(v)[::THIN] for k, v in dict(columns).items()}
 
 
 def _texts(fig) -> list[str]:
@@ -119,7 +130,7 @@ def test_verdict_computed_without_metrics_matches_the_metrics(roundabout_run: Pa
 def test_plan_view_keeps_its_positional_signature(roundabout_run: Path, tmp_path: Path) -> None:
     run = load_run(roundabout_run)
     out = tmp_path / "plan_view.png"
-    fig = plot_plan_view(out, run.params, run.columns, run.setup.path.points, None, "no test circles")
+    fig = plot_plan_view(out, run.params, _thinned(run.columns), run.setup.path.points, None, "no test circles")
     assert out.stat().st_size > 10_000
     assert not _gids(fig, "extreme:")  # no roundabout test: no radii, one zoom on the largest off-tracking
     assert len(fig.axes) == 2 and "largest true off-tracking" in fig.axes[1].get_title()
@@ -138,7 +149,7 @@ def test_envelope_samples_keep_the_ends_and_thin_the_rest(roundabout_run: Path) 
 
 def test_comparison_figure_overlays_trailer_envelopes(roundabout_run: Path) -> None:
     run = load_run(roundabout_run)
-    frame = pd.read_parquet(roundabout_run / "timeseries.parquet")
+    frame = pd.read_parquet(roundabout_run / "timeseries.parquet").iloc[::THIN]
     shifted = frame.copy()
     shifted["X"] += 0.3  # a second, distinguishable run
     traces = {"none": frame, "truth": shifted}
@@ -171,6 +182,7 @@ def test_comparison_figure_shows_the_units_behind_the_first(roundabout_run: Path
 
 def test_limit_circles_have_their_own_colours_and_labels_off_the_swept_annulus(roundabout_run: Path) -> None:
     run = load_run(roundabout_run)
+    run = dataclasses.replace(run, columns=_thinned(run.columns))
     fig = run.swept_path_figure(instants=2)
     try:
         main = fig.axes[0]
@@ -194,7 +206,7 @@ def test_limit_circles_have_their_own_colours_and_labels_off_the_swept_annulus(r
 
 def test_a_small_effect_on_a_large_roundabout_gets_a_zoom_of_its_size_and_a_scale_bar(roundabout_run: Path) -> None:
     run = load_run(roundabout_run)
-    columns = dict(run.columns)
+    columns = _thinned(run.columns)
     columns["offtracking_truth"] = np.where(np.isfinite(columns["offtracking_truth"]), 0.05, np.nan)
     fig = swept_path_figure(run.params, columns, run.setup.path.points, None, "5 cm of off-tracking", instants=0)
     try:
@@ -211,7 +223,7 @@ def test_a_small_effect_on_a_large_roundabout_gets_a_zoom_of_its_size_and_a_scal
 def test_a_long_title_is_not_clipped(roundabout_run: Path, tmp_path: Path) -> None:
     run = load_run(roundabout_run)
     long_title = run.title + " " + "and a very long remark about the run " * 6
-    fig = swept_path_figure(run.params, run.columns, run.setup.path.points, None, long_title, instants=0)
+    fig = swept_path_figure(run.params, _thinned(run.columns), run.setup.path.points, None, long_title, instants=0)
     try:
         fig.savefig(tmp_path / "plan.png", dpi=40, bbox_inches="tight")
         box = fig._suptitle.get_window_extent(fig.canvas.get_renderer())
@@ -225,7 +237,7 @@ def test_comparison_figure_legend_has_rms_and_puts_a_dominant_unsteered_run_on_i
     roundabout_run: Path,
 ) -> None:
     run = load_run(roundabout_run)
-    frame = pd.read_parquet(roundabout_run / "timeseries.parquet")
+    frame = pd.read_parquet(roundabout_run / "timeseries.parquet").iloc[::THIN]
     steered = frame.copy()
     steered["offtracking_truth"] = 0.01 * np.sign(frame["offtracking_truth"])  # a run steered to 1 cm
     steered["X"] += 0.02
@@ -551,22 +563,18 @@ def test_summary_table_names_the_columns_it_leaves_out() -> None:
 
 
 @pytest.mark.rendering
-def test_animation_of_a_camera_run_shows_the_left_image(tmp_path: Path) -> None:
-    """A 0.35 s VISO-OT run (four camera frames) at half the image size, made in a child process (which owns its
-    renderer), animated here with the camera."""
-    import subprocess
-    import sys
+def test_animation_of_a_camera_run_shows_the_left_image(
+    tmp_path: Path, tmp_path_factory: pytest.TempPathFactory
+) -> None:
+    """A 0.45 s VISO-OT run (five camera frames) at half the image size under field conditions, made in a child
+    process (which owns its renderer; ``field_camera_run.py``, shared with test_camera_assembly.py), animated here
+    with the camera."""
+    import shutil
+
+    from field_camera_run import field_camera_run
 
     run_dir = tmp_path / "viso"
-    run_dir.mkdir()
-    code = (
-        "from pathlib import Path; from scenarios.config import load_scenario; "
-        "from scenarios.run.runner import run_scenario; "
-        "c = load_scenario('roundabout-3', {'estimators.viso_ot': True, 'duration_s': 0.35, "
-        "'camera.width': 672, 'camera.height': 196}); "
-        f"run_scenario(c, Path({str(run_dir)!r}), plots=False)"
-    )
-    subprocess.run([sys.executable, "-c", code], check=True, timeout=300)
+    shutil.copytree(field_camera_run(tmp_path_factory), run_dir)  # the animation is written into the run
     out = animate_run(run_dir, fps=10.0, speed=1.0, max_frames=4, size=(640, 360))
     assert out == run_dir / "animation.mp4"
     reader = imageio.get_reader(out)

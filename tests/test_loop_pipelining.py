@@ -79,15 +79,17 @@ def test_pipelined_and_serial_runs_are_identical_at_any_latency(latency: float, 
 
 
 def test_the_estimate_reaches_the_controller_exactly_one_latency_after_its_frame() -> None:
-    # Truth feedback: the motion does not depend on the camera, so the series only shift.
+    # Truth feedback: the motion does not depend on the camera, so the series only shift. One latency, not a whole
+    # number of ticks: the shift is the same code for every latency, and the default's 5 ticks (a frame period) are
+    # checked in test_latency_ticks_round_up_to_control_ticks.
     _, now = camera_run(0, duration=3.0, feedback="truth", **SMALL_CAMERA, **{"camera.latency_s": 0.0})
-    _, late = camera_run(0, duration=3.0, feedback="truth", **SMALL_CAMERA)  # default: one frame period
     _, later = camera_run(0, duration=3.0, feedback="truth", **SMALL_CAMERA, **{"camera.latency_s": 0.23})
-    np.testing.assert_array_equal(now["X"], late["X"])
-    for series, ticks in ((late, 5), (later, 12)):  # 0.23 s is released on the first 20 ms tick after it: 12
-        used = series["offtracking_viso_ot"]
-        np.testing.assert_array_equal(used[ticks:], now["offtracking_viso_ot"][:-ticks])
-        assert np.isnan(used[:ticks]).all()
+    np.testing.assert_array_equal(now["X"], later["X"])
+    ticks = 12  # 0.23 s is released on the first 20 ms tick after it
+    used = later["offtracking_viso_ot"]
+    assert np.isfinite(now["offtracking_viso_ot"][:-ticks]).sum() > 20  # the shift is of estimates, not NaN only
+    np.testing.assert_array_equal(used[ticks:], now["offtracking_viso_ot"][:-ticks])
+    assert np.isnan(used[:ticks]).all()
     # the frames' own records stay on the rows they were taken on
     np.testing.assert_array_equal(now["vo_inliers"], later["vo_inliers"])
 

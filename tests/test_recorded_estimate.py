@@ -153,7 +153,7 @@ def test_jittered_times_leave_the_estimate_as_it_was(rendered: SimpleNamespace) 
 def test_a_dropped_frame_and_jittered_times_stay_within_the_runs_own_error(rendered: SimpleNamespace) -> None:
     folder, times = _jittered(rendered, "dropped", 20)
     out = rendered.tmp / "dropped-estimate"
-    printed = _cli("estimate", str(folder), "--rig", str(rendered.rig), "--out", str(out))
+    printed = _cli("estimate", str(folder), "--rig", str(rendered.rig), "--out", str(out), "--no-plots")
     assert "missing: 20 at" in printed and "image_missing" in printed
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["recording"]["missing"]["frames"] == [[20, pytest.approx(times[20] - times[0]), "image_missing"]]
@@ -249,7 +249,15 @@ def test_the_runs_own_signals_give_its_fused_and_zero_slip_series(rendered: Simp
     signals = _signals_csv(rendered, "signals.csv")
     out = rendered.tmp / "with-signals"
     printed = _cli(
-        "estimate", str(rendered.folder), "--rig", str(rendered.rig), "--out", str(out), "--signals", str(signals)
+        "estimate",
+        str(rendered.folder),
+        "--rig",
+        str(rendered.rig),
+        "--out",
+        str(out),
+        "--signals",
+        str(signals),
+        "--no-plots",
     )
     assert "viso_ot_fused error" in printed and "zero_slip error" in printed
     motion = json.loads((out / "metrics.json").read_text())["motion"]  # the odometry's distance is the wheels'
@@ -314,6 +322,7 @@ def test_the_accelerometers_rear_point_takes_the_recorded_accelerometer(rendered
         str(signals),
         "--rear-point",
         "lateral_acceleration",
+        "--no-plots",
     )
     series = pd.read_parquet(out / "timeseries.parquet")
     np.testing.assert_allclose(series["time"], cols["time"], atol=1e-9)
@@ -353,7 +362,17 @@ def test_raw_images_are_rectified_with_a_calibration_file(rendered: SimpleNamesp
     )  # fmt: skip
     path = calibration.write(rendered.tmp / "calibration.yaml")
     out = rendered.tmp / "raw"
-    _cli("estimate", str(rendered.folder), "--rig", str(rendered.rig), "--calibration", str(path), "--out", str(out))
+    _cli(
+        "estimate",
+        str(rendered.folder),
+        "--rig",
+        str(rendered.rig),
+        "--calibration",
+        str(path),
+        "--out",
+        str(out),
+        "--no-plots",
+    )
     ours = pd.read_parquet(out / "timeseries.parquet")["offtracking_viso_ot"].to_numpy()
     expected = rendered.series["offtracking_viso_ot"].to_numpy()
     assert np.array_equal(np.isnan(ours), np.isnan(expected))

@@ -62,23 +62,25 @@ def _ring_state(path, s: float) -> CombinationPose:
 # World (no rendering)
 
 
-def test_world_is_reproducible_and_density_selects_a_subset(roundabout) -> None:
-    a = build_world(roundabout, seed=7)
-    b = build_world(roundabout, seed=7)
+def test_world_is_reproducible_and_density_selects_a_subset(roundabout, default_world: World) -> None:
+    # Seeds 0 and 1 are those of the module's worlds: a process builds a seed's textures once (cached), so the
+    # worlds here cost their layout only.
+    a = default_world  # seed 0
+    b = build_world(roundabout, seed=0)
     assert [p.name for p in a.parts] == [p.name for p in b.parts]
     for pa, pb in zip(a.parts, b.parts, strict=True):
         np.testing.assert_array_equal(pa.positions, pb.positions)
         np.testing.assert_array_equal(pa.texcoords, pb.texcoords)
         if pa.poses is not None:
             np.testing.assert_array_equal(pa.poses, pb.poses)
-    c = build_world(roundabout, seed=8)
+    c = build_world(roundabout, seed=1)
     assert any(
         pa.poses is not None and (pa.poses.shape != pc.poses.shape or not np.allclose(pa.poses, pc.poses))
         for pa, pc in zip(a.parts, c.parts, strict=False)
         if pc.poses is not None and pa.name == pc.name
     )
-    half = build_world(roundabout, seed=7, scenery_density=0.5)
-    none = build_world(roundabout, seed=7, scenery_density=0.0)
+    half = build_world(roundabout, seed=0, scenery_density=0.5)
+    none = build_world(roundabout, seed=0, scenery_density=0.0)
     full_n = sum(a.object_counts.values())
     half_n = sum(half.object_counts.values())
     assert 0.4 * full_n <= half_n <= 0.6 * full_n + 2
@@ -214,7 +216,7 @@ def test_same_seed_same_images_other_seed_different(roundabout) -> None:
     state = _ring_state(roundabout, 140.0)
     rig = StereoRig(noise_std=2.0, exposure_std=0.03)
     images, renderers = [], []
-    for seed in (3, 3, 4):
+    for seed in (0, 0, 1):  # the module's seeds (their textures are built once in a process)
         world = build_world(roundabout, seed=seed, scenery_density=0.5)
         renderers.append(StereoRenderer(world, rig, params))
         images.append(renderers[-1].render(state, frame=5))
@@ -269,12 +271,12 @@ def test_right_camera_misalignment_is_the_homography(default_world: World, round
 
 @rendering
 @pytest.mark.parametrize("density", [1.0, 0.5, 0.0])
-def test_images_have_hundreds_of_features(roundabout, density: float) -> None:
+def test_images_have_hundreds_of_features(roundabout, default_world: World, density: float) -> None:
     from sensor.renderer import StereoRenderer
     from vehicle_model.presets import vehicle_preset
 
     params = vehicle_preset("reference")
-    world = build_world(roundabout, scenery_density=density)
+    world = default_world if density == 1.0 else build_world(roundabout, scenery_density=density)
     renderer = StereoRenderer(world, StereoRig(), params)
     for s in (20.0, 150.0):
         pair = renderer.render(_ring_state(roundabout, s))

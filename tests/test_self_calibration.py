@@ -174,7 +174,8 @@ def test_the_configuration_is_off_by_default_and_bounded() -> None:
 @pytest.mark.rendering
 def test_a_rendered_run_converges_from_a_large_misalignment() -> None:
     # 0.5° about every axis on half-size images (the matcher's ±2 px row band is 2.5 px of pitch at f = 282 px):
-    # corrected online from the frames before, the estimate lands on the truth within a few seconds.
+    # corrected online from the frames before, the estimate lands on the truth within a second (measured: 0.024° off
+    # at 0.6 s, at most 0.009° from 1.5 s to 6 s; 0.0085° at 2 s).
     from scenarios.config import load_scenario
     from scenarios.run.drive import simulate
     from scenarios.setup.build import build_scenario
@@ -182,7 +183,7 @@ def test_a_rendered_run_converges_from_a_large_misalignment() -> None:
     truth = (0.5, -0.5, 0.5)
     overrides = {
         "estimators.viso_ot": True,
-        "duration_s": 6.0,
+        "duration_s": 2.0,
         "camera.width": 672,
         "camera.height": 196,
         "camera.right_misalignment_deg": list(truth),
