@@ -3,13 +3,10 @@ all test workers."""
 
 from __future__ import annotations
 
-import fcntl
-import json
-import os
-import shutil
 from pathlib import Path
 
 import pytest
+from shared_runs import shared_run
 
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.parameters import VehicleParams
@@ -37,18 +34,8 @@ def roundabout_test_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from scenarios.config import load_scenario
     from scenarios.run.runner import run_scenario
 
-    base = tmp_path_factory.getbasetemp()
-    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
-    run_dir = shared / "shared-roundabout-test"
-    with open(shared / "shared-roundabout-test.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        try:
-            done = run_dir / "metrics.json"
-            if not done.exists() or json.loads(done.read_text())["status"] != "completed":
-                shutil.rmtree(run_dir, ignore_errors=True)  # what a failed earlier attempt left
-                run_dir.mkdir()
-                metrics = run_scenario(load_scenario("roundabout-test"), run_dir, plots=False)
-                assert metrics["status"] == "completed"
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
-    return run_dir
+    def make(run_dir: Path) -> None:
+        run_dir.mkdir()
+        run_scenario(load_scenario("roundabout-test"), run_dir, plots=False)
+
+    return shared_run(tmp_path_factory, "shared-roundabout-test", make)

@@ -4,20 +4,17 @@
 auto-exposure and mount vibration (:data:`FIELD`). The animation's camera panel re-renders the run's frames in the
 test's own process, so the run is made in a child process (which owns its renderer). It is made once a session: the
 pytest-xdist workers share it through their common temporary directory, the first to need it making it under an
-exclusive lock (as ``conftest.py``'s ``roundabout_test_run``). Read only: a test that writes into it copies it first.
+exclusive lock (``shared_runs.py``). Read only: a test that writes into it copies it first.
 """
 
 from __future__ import annotations
 
-import fcntl
-import json
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from shared_runs import shared_run
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -34,22 +31,13 @@ OVERRIDES = {"estimators.viso_ot": True, "duration_s": 0.45, "camera.width": 672
 
 def field_camera_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The run directory (made on the first call of the session, in a child process)."""
-    base = tmp_path_factory.getbasetemp()
-    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
-    run_dir = shared / "shared-field-camera-run"
-    with open(shared / "shared-field-camera-run.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        try:
-            done = run_dir / "metrics.json"
-            if not done.exists() or json.loads(done.read_text())["status"] != "completed":
-                shutil.rmtree(run_dir, ignore_errors=True)  # what a failed earlier attempt left
-                code = (
-                    "import sys; from pathlib import Path; from scenarios.config import load_scenario; "
-                    "from scenarios.run.runner import run_scenario; "
-                    f"run_scenario(load_scenario('roundabout-3', {OVERRIDES!r}), Path(sys.argv[1]), plots=False)"
-                )
-                subprocess.run([sys.executable, "-c", code, str(run_dir)], check=True, timeout=600, cwd=REPO)
-                assert json.loads(done.read_text())["status"] == "completed"
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
-    return run_dir
+
+    def make(run_dir: Path) -> None:
+        code = (
+            "import sys; from pathlib import Path; from scenarios.config import load_scenario; "
+            "from scenarios.run.runner import run_scenario; "
+            f"run_scenario(load_scenario('roundabout-3', {OVERRIDES!r}), Path(sys.argv[1]), plots=False)"
+        )
+        subprocess.run([sys.executable, "-c", code, str(run_dir)], check=True, timeout=600, cwd=REPO)
+
+    return shared_run(tmp_path_factory, "shared-field-camera-run", make)
