@@ -1,7 +1,8 @@
 """``offtrack`` through typer's test runner with its command built once per process.
 
 :class:`typer.testing.CliRunner` builds the command of the app (every subcommand and option of ``offtrack``) anew on
-each ``invoke``, about 0.06 s of CPU; :func:`invoke` is that runner with the command built on the first call only.
+each ``invoke`` (most of a short command's time); :func:`invoke` is that runner with the command built on the first
+call only.
 """
 
 from __future__ import annotations

@@ -252,7 +252,7 @@ def draw_envelopes(
 def _add_envelope(ax: Axes, patch: PathPatch) -> None:
     """Add an envelope's patch (straight segments in data coordinates, :func:`envelope_path`) and grow the data
     limits by its vertices: the limits ``Axes.add_patch`` gives, without its walk over every segment's curve
-    extrema (seconds of CPU on an envelope of tens of thousands of vertices)."""
+    extrema (slow on an envelope of tens of thousands of vertices; figure in CHANGELOG.md)."""
     ax.add_artist(patch)
     ax.update_datalim(patch.get_path().vertices)
 
