@@ -124,8 +124,11 @@ def circle(
         bin_of[i] = bv * n_bu + bu
     lo_all = lo_bins.reshape((n_bv * n_bu, 4, 2))
     hi_all = hi_bins.reshape((n_bv * n_bu, 4, 2))
+    # The step numbers and modes go in as int64 values, not literal constants: numba compiles a called kernel
+    # once per literal argument, which would give four copies of _step and three of search_step
+    # (docs/visual_odometry.md §16).
     # 1p → 2p (stereo)
-    i2p = _step(0, STEREO_TO_RIGHT, tol, col_cell, alive, alive, bin_of, lo_all, hi_all,
+    i2p = _step(np.int64(0), np.int64(STEREO_TO_RIGHT), tol, col_cell, alive, alive, bin_of, lo_all, hi_all,
                 u1p, v1p, c1p, d1p, u2p, v2p, c2p, d2p, none, none, none)  # fmt: skip
     keep = i2p >= 0
     alive, i2p = alive[keep], i2p[keep]
@@ -133,12 +136,12 @@ def circle(
     pu, pv, pw = none, none, none
     if has_prior:
         pu, pv, pw = predict_right(u1p[alive], v1p[alive], u2p[i2p], motion, f, cu, cv, b, prior_weight)
-    i2c = _step(1, FLOW, tol, col_cell, alive, i2p, bin_of, lo_all, hi_all,
+    i2c = _step(np.int64(1), np.int64(FLOW), tol, col_cell, alive, i2p, bin_of, lo_all, hi_all,
                 u2p, v2p, c2p, d2p, u2c, v2c, c2c, d2c, pu, pv, pw)  # fmt: skip
     keep = i2c >= 0
     alive, i2p, i2c = alive[keep], i2p[keep], i2c[keep]
     # 2c → 1c (stereo)
-    i1c = _step(2, STEREO_TO_LEFT, tol, col_cell, alive, i2c, bin_of, lo_all, hi_all,
+    i1c = _step(np.int64(2), np.int64(STEREO_TO_LEFT), tol, col_cell, alive, i2c, bin_of, lo_all, hi_all,
                 u2c, v2c, c2c, d2c, u1c, v1c, c1c, d1c, none, none, none)  # fmt: skip
     keep = i1c >= 0
     alive, i2p, i2c, i1c = alive[keep], i2p[keep], i2c[keep], i1c[keep]
@@ -148,7 +151,7 @@ def circle(
         pu = u1p[alive].astype(np.float64)
         pv = v1p[alive].astype(np.float64)
         pw = np.full(alive.shape[0], prior_weight)
-    back = _step(3, FLOW, tol, col_cell, alive, i1c, bin_of, lo_all, hi_all,
+    back = _step(np.int64(3), np.int64(FLOW), tol, col_cell, alive, i1c, bin_of, lo_all, hi_all,
                  u1c, v1c, c1c, d1c, u1p, v1p, c1p, d1p, pu, pv, pw)  # fmt: skip
     closed = back == alive
     out = np.empty((closed.sum(), 4), dtype=np.int64)

@@ -391,7 +391,7 @@ def refine(xy: np.ndarray, sobel: tuple, radius: int, taps: np.ndarray, fit: int
                 _prefetch_window(planes[image], u, v, width, plane_size, reach, span)
             u = min(max(np.int64(np.rint(xy[ahead, 4])), reach), width - 1 - reach)
             v = min(max(np.int64(np.rint(xy[ahead, 5])), reach), height - 1 - reach)
-            _prefetch_window(s1c, u, v, width, plane_size, 2, 5)
+            _prefetch_window(s1c, u, v, width, plane_size, np.int64(2), np.int64(5))  # int64, not literals: one copy
         uc = min(max(np.int64(np.rint(xy[m, 4])), reach), width - 1 - reach)
         vc = min(max(np.int64(np.rint(xy[m, 5])), reach), height - 1 - reach)
         for k in range(n_taps):

@@ -48,18 +48,22 @@ def rotations(rx: float, ry: float, rz: float, out: np.ndarray) -> None:
     """
     cx, cy, cz = math.cos(rx), math.cos(ry), math.cos(rz)
     sx, sy, sz = math.sin(rx), math.sin(ry), math.sin(rz)
+    # Target matrices and columns as int64 values, not literal constants: numba compiles a called kernel once per
+    # literal argument, which would give nine copies of _rotate_rows (docs/visual_odometry.md §16).
+    t0, t2, t3 = np.int64(0), np.int64(2), np.int64(3)
+    c0, c1, c2 = np.int64(0), np.int64(1), np.int64(2)
     # R (from row 0 of M)
-    _rotate_rows(out, 0, 0, cy * cz, sz, -sy * cz, cx, sx)
-    _rotate_rows(out, 0, 1, -cy * sz, cz, sy * sz, cx, sx)
-    _rotate_rows(out, 0, 2, sy, 0.0, cy, cx, sx)
+    _rotate_rows(out, t0, c0, cy * cz, sz, -sy * cz, cx, sx)
+    _rotate_rows(out, t0, c1, -cy * sz, cz, sy * sz, cx, sx)
+    _rotate_rows(out, t0, c2, sy, 0.0, cy, cx, sx)
     # ∂R/∂ry (row 1 of M)
-    _rotate_rows(out, 2, 0, -sy * cz, 0.0, -cy * cz, cx, sx)
-    _rotate_rows(out, 2, 1, sy * sz, 0.0, cy * sz, cx, sx)
-    _rotate_rows(out, 2, 2, cy, 0.0, -sy, cx, sx)
+    _rotate_rows(out, t2, c0, -sy * cz, 0.0, -cy * cz, cx, sx)
+    _rotate_rows(out, t2, c1, sy * sz, 0.0, cy * sz, cx, sx)
+    _rotate_rows(out, t2, c2, cy, 0.0, -sy, cx, sx)
     # ∂R/∂rz (row 2 of M)
-    _rotate_rows(out, 3, 0, -cy * sz, cz, sy * sz, cx, sx)
-    _rotate_rows(out, 3, 1, -cy * cz, -sz, sy * cz, cx, sx)
-    _rotate_rows(out, 3, 2, 0.0, 0.0, 0.0, cx, sx)
+    _rotate_rows(out, t3, c0, -cy * sz, cz, sy * sz, cx, sx)
+    _rotate_rows(out, t3, c1, -cy * cz, -sz, sy * cz, cx, sx)
+    _rotate_rows(out, t3, c2, 0.0, 0.0, 0.0, cx, sx)
     # ∂R/∂rx = ∂Rx·M: from the b and c entries of row 0 of M
     for i, a, b in ((0, sz, -sy * cz), (1, cz, sy * sz), (2, 0.0, cy)):
         out[1, 0, i] = 0.0
