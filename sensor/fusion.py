@@ -66,7 +66,6 @@ from .fusion_model import (
     relative_pose,
 )
 from .fusion_noise import FusionNoise
-from .fusion_scrub_signal import CouplingEvidence
 from .fusion_slip import (
     ScrubDemand,
     ZeroSlipNoise,
@@ -74,6 +73,7 @@ from .fusion_slip import (
     kinematic_disagreement,
     kinematic_lateral_step,
     scrub_bias_share,
+    scrub_coupling_yield,
 )
 from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects, reference_share
 from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics, unit_axles
@@ -235,8 +235,8 @@ class FusedVisoOt:
         self._consider.reset()
         self._chain.reset()
         self._coupling = np.zeros(2)  # the last frame's (c_x, c_y)
-        self.frame_scrub_demand = self.scrub_demand = 0.0
-        self._signal = CouplingEvidence(n)  # whether the coupling holds under the scrub, sensor.fusion_scrub_signal
+        self.frame_scrub_demand = 0.0
+        self.scrub_demand = 0.0
         self._nis: deque[float] = deque(maxlen=n.innovation_window)
         self.innovation_ratio = 1.0
         # Committed increments still ahead of the follow point: start pose (x, y, ψ), end station x_e and
@@ -418,7 +418,7 @@ class FusedVisoOt:
                 self.noise.vo_bias_coupling * r[:2, 2] / r[2, 2]
             )  # the yaw–translation ambiguity of this frame (eq (3) of :mod:`sensor.fusion_model`)
             self._coupling, self.frame_scrub_demand = coupling, entry.scrub
-            coupling = coupling * self._signal.factor(entry.scrub)  # (K5): gives way while scrubbing, or (S3)
+            coupling = coupling * scrub_coupling_yield(self.noise, entry.scrub)  # (K5): gives way while scrubbing
             h[:2, BPSI] = x[0] * coupling  # the odometry's error per metre over the distance since the anchor
             h[2, BPSI] = x[0]
             if entry.scrub > 0.0:  # (K6): the odometry's systematic error released while the tyres scrub
@@ -431,7 +431,6 @@ class FusedVisoOt:
                     h[:2, self._sf] = across * abs(across) * self._optical_axis
             innovation = z - h @ x
             innovation[2] = math.remainder(innovation[2], 2.0 * math.pi)
-            self._signal.weigh(x, p, h, innovation, r)  # (S1)–(S2) of sensor.fusion_scrub_signal
             interval = sum(t.inputs[0] for t in list(self._history)[1 : index + 1])
             kinematic_y = kinematic_lateral_step(
                 [(t.inputs, t.tractor_lateral) for t in list(self._history)[1 : index + 1]], x

@@ -264,13 +264,6 @@ class FusionNoise(Settings):
         Keep the odometry's coupled translation (eq (3)) under a scrub demand: a frame is taken with the share
         ``1 − r·D`` of the coupled correction ``β_ψ·G_κ`` ((K6) alone) instead of ``(1 − r·D)·(1 − D)`` (False, the
         default: (K5) lets the coupling give way as well; :func:`~sensor.fusion_slip.scrub_coupling_yield`).
-    scrub_coupling_evidence : bool
-        Weigh, frame by frame under a scrub demand, whether the coupled translation holds or gives way, and take it
-        with the expected yield (:mod:`sensor.fusion_scrub_signal`, (S1)–(S3)); it takes precedence over
-        ``scrub_coupling_kept`` in the estimate (False, the default: not weighed).
-    scrub_coupling_switch : float
-        ``q`` of (S2) in :mod:`sensor.fusion_scrub_signal`: the probability a frame that the coupling's hypothesis
-        switches, which also bounds its weight to ``[q, 1 − q]``.
     gate : float
         Largest normalised innovation squared accepted (χ²₃ at 0.999 is 16.3).
     max_gated : int
@@ -401,10 +394,6 @@ class FusionNoise(Settings):
     )
     scrub_coupling_std: ScrubCouplingStd = "release"
     scrub_coupling_kept: bool = False
-    scrub_coupling_evidence: bool = False
-    scrub_coupling_switch: float = Field(
-        0.02, gt=0.0, le=0.5, description="per frame under a scrub demand; 0.5 forgets every frame"
-    )
     gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
     max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")
     max_std: float = Field(0.5, gt=0.0, le=10.0, description="[m] of off-tracking std; 10 m says nothing")
