@@ -158,12 +158,13 @@ def test_same_seed_same_numbers_with_noisy_signals():
 
 def test_truth_fed_steering_removes_the_offtracking_on_the_dry_roundabout():
     # Target (docs/design.md §11): dry, flat, truth feedback → true off-tracking RMS ≤ 0.10 m and max ≤ 0.15 m
-    # after warm-up, where the unsteered trailer shows about half a metre on this 50 m roundabout.
+    # after warm-up, where the unsteered trailer shows about half a metre on this 50 m roundabout. The unsteered run
+    # drives a quarter turn (its steady off-tracking is reached by then: measured 0.667 m max, half a turn 0.668 m).
     from scenarios.run.metrics import after_warmup
 
     results = {}
-    for feedback in ("none", "truth"):
-        cfg = load_scenario("roundabout-3", {"vehicle": "lst", "feedback": feedback, "path.turns": 0.5})
+    for feedback, turns in (("none", 0.25), ("truth", 0.5)):
+        cfg = load_scenario("roundabout-3", {"vehicle": "lst", "feedback": feedback, "path.turns": turns})
         setup = build_scenario(cfg)
         outcome, cols = simulate(setup)
         settled = after_warmup(cols, setup.params.follow_point_offset)

@@ -127,6 +127,7 @@ def run(
     yaw_error_per_m: float = 0.0,
     coupling_scale: float = 1.0,
     states: dict[int, np.ndarray | None] | None = None,
+    read_from: int = 0,
 ):
     """Feed the filter; return its estimates and std and the true off-tracking per tick (NaN: none).
 
@@ -134,33 +135,43 @@ def run(
     ``tractor``: per tick, the :class:`TractorSignals` (``None``: none). ``yaw_error_per_m``: a systematic odometry
     error of this yaw per metre along the frame's yaw–translation ambiguity (eq (3) of :mod:`sensor.fusion_model`),
     whose translation is ``coupling_scale`` times the one the filter assumes. ``states``: its keys are ticks; each
-    value is set to the filter's state before that tick (what a run stopped there leaves).
+    value is set to the filter's state before that tick (what a run stopped there leaves). ``read_from``: the first
+    tick whose estimate and std are returned (before it, NaN). The filter reads both off its state at the end of
+    each propagate and measure (:meth:`FusedVisoOt._read`, which sets nothing else): here it reads them once a tick
+    from ``read_from`` on, and at the end, the same values with less work.
     """
     ticks = len(r_m) if stop is None else stop
-    est, std = [], []
+    est, std = np.full(ticks, math.nan), np.full(ticks, math.nan)
     frame_inc = np.zeros(3)
     pending: list[tuple[int, int, np.ndarray | None]] = []
-    for k in range(ticks):
-        if states is not None and k in states:
-            states[k] = fused.state
-        if k > 0:
-            frame_inc = compose(frame_inc, incs[k])
-        fused.propagate(k, DT, r_m[k], w_m[k], np.zeros(2), None if tractor is None else tractor[k])
-        if k % EVERY == 0:
+    fused._read = lambda: None  # read below, where it is used
+    try:
+        for k in range(ticks):
+            if states is not None and k in states:
+                states[k] = fused.state
             if k > 0:
-                seen = frame_inc if frame_error is None else frame_inc + frame_error[k // EVERY]
-                if yaw_error_per_m:
-                    r = fused.measurement(camera_motion(seen), covariance)[1]
-                    coupling = coupling_scale * fused.noise.vo_bias_coupling * r[:2, 2] / r[2, 2]
-                    seen = seen + yaw_error_per_m * seen[0] * np.array([*coupling, 1.0])
-                pending.append((k + latency, k, None if drop(k // EVERY) else camera_motion(seen)))
-            frame_inc = np.zeros(3)
-        while pending and pending[0][0] <= k:
-            _, taken, motion = pending.pop(0)
-            fused.measure(taken, motion, covariance if motion is not None else None)
-        est.append(math.nan if fused.estimate is None else fused.estimate)
-        std.append(fused.std)
-    return np.array(est), np.array(std), true_offtracking(incs, ticks)
+                frame_inc = compose(frame_inc, incs[k])
+            fused.propagate(k, DT, r_m[k], w_m[k], np.zeros(2), None if tractor is None else tractor[k])
+            if k % EVERY == 0:
+                if k > 0:
+                    seen = frame_inc if frame_error is None else frame_inc + frame_error[k // EVERY]
+                    if yaw_error_per_m:
+                        r = fused.measurement(camera_motion(seen), covariance)[1]
+                        coupling = coupling_scale * fused.noise.vo_bias_coupling * r[:2, 2] / r[2, 2]
+                        seen = seen + yaw_error_per_m * seen[0] * np.array([*coupling, 1.0])
+                    pending.append((k + latency, k, None if drop(k // EVERY) else camera_motion(seen)))
+                frame_inc = np.zeros(3)
+            while pending and pending[0][0] <= k:
+                _, taken, motion = pending.pop(0)
+                fused.measure(taken, motion, covariance if motion is not None else None)
+            if k >= read_from:
+                FusedVisoOt._read(fused)
+                est[k] = math.nan if fused.estimate is None else fused.estimate
+                std[k] = fused.std
+    finally:
+        del fused._read
+    fused._read()
+    return est, std, true_offtracking(incs, ticks)
 
 
 def test_the_synthetic_camera_motion_gives_back_the_increment() -> None:
@@ -180,7 +191,7 @@ def test_the_exact_kingpin_path_is_recovered_without_noise() -> None:
 def test_slip_and_biases_are_estimated_and_the_path_follows() -> None:
     r_m, w_m, incs = drive(slip=0.1, wheel_bias=0.1)
     fused = FusedVisoOt(PARAMS, CAMERA)
-    est, _, ref = run(fused, r_m, w_m, incs, latency=5)
+    est, _, ref = run(fused, r_m, w_m, incs, latency=5, read_from=1001)
     x = fused.state
     assert x[3] == pytest.approx(0.1, abs=2e-3)  # slip velocity [m/s]
     assert abs(x[4]) < 2e-5  # gyro bias [rad/s]: none
@@ -194,14 +205,14 @@ def test_the_covariance_grows_across_a_gap_and_shrinks_after_a_measurement() -> 
     gap = range(200, 215)  # frames 200–214 (ticks 1000–1070) are lost
     fused = FusedVisoOt(PARAMS, CAMERA)
     fused.zero_gyro(0.0, 500)  # as a run does: the gyro's offset then adds little to the std
-    _, std, _ = run(fused, r_m, w_m, incs, drop=lambda frame: frame in gap, stop=1071)
+    _, std, _ = run(fused, r_m, w_m, incs, drop=lambda frame: frame in gap, stop=1071, read_from=995)
     trace_in_gap = np.trace(fused.covariance)
     std_before, std_in_gap = std[995], std[1070]
     assert std_in_gap > 3.0 * std_before
     assert np.all(np.diff(std[1001:1071]) > 0)  # grows steadily across the gap
     fused_on = FusedVisoOt(PARAMS, CAMERA)
     fused_on.zero_gyro(0.0, 500)
-    run(fused_on, r_m, w_m, incs, drop=lambda frame: frame in gap, stop=1081)  # frame 215 arrives at tick 1075
+    run(fused_on, r_m, w_m, incs, drop=lambda frame: frame in gap, stop=1081, read_from=1081)  # frame 215: tick 1075
     assert np.trace(fused_on.covariance) < 0.1 * trace_in_gap
     assert fused_on.covariance[3, 3] < fused.covariance[3, 3]  # slip velocity known again
 
@@ -266,7 +277,7 @@ def test_the_bias_term_makes_the_std_honest_on_a_correlated_odometry_error() -> 
 def test_a_gated_motion_is_refused() -> None:
     r_m, w_m, incs = drive()
     fused = FusedVisoOt(PARAMS, CAMERA)
-    run(fused, r_m, w_m, incs, stop=600)
+    run(fused, r_m, w_m, incs, stop=600, read_from=600)
     k = 600
     fused.propagate(k, DT, r_m[k], w_m[k], np.zeros(2))
     wrong = camera_motion(np.array([0.4, 0.5, 0.0]))  # half a metre sideways in 0.1 s: implausible here
@@ -310,9 +321,10 @@ def test_the_odometrys_yaw_error_is_found_against_the_gyro_and_removed() -> None
     r_m, w_m, incs = drive(n=2500)
     error = 5e-4
     fused = FusedVisoOt(PARAMS, CAMERA)
-    est, std, ref = run(fused, r_m, w_m, incs, covariance=ambiguous_covariance(), yaw_error_per_m=error)
+    options = {"covariance": ambiguous_covariance(), "yaw_error_per_m": error, "read_from": 1501}
+    est, std, ref = run(fused, r_m, w_m, incs, **options)
     blind = FusedVisoOt(PARAMS, CAMERA, FusionNoise(vo_yaw_bias=0.0, vo_yaw_bias_walk=0.0))
-    est_blind, _, _ = run(blind, r_m, w_m, incs, covariance=ambiguous_covariance(), yaw_error_per_m=error)
+    est_blind, _, _ = run(blind, r_m, w_m, incs, **options)
     late = np.isfinite(est) & np.isfinite(ref) & (np.arange(len(est)) > 1500)
     assert fused.state[6] == pytest.approx(error, rel=0.1)  # β_ψ [rad/m]
     assert np.max(np.abs(est[late] - ref[late])) < 0.01
@@ -330,14 +342,15 @@ def test_a_zeroed_gyro_tells_its_offset_from_the_odometrys_error() -> None:
     zeroed = FusedVisoOt(PARAMS, CAMERA)
     zeroed.zero_gyro(reading, samples)
     assert zeroed.state[4] == reading and math.sqrt(zeroed.covariance[4, 4]) == pytest.approx(1.2e-3 / math.sqrt(500))
-    est, std, ref = run(zeroed, r_m, w_m, incs, covariance=ambiguous_covariance(), yaw_error_per_m=error)
+    options = {"covariance": ambiguous_covariance(), "yaw_error_per_m": error, "read_from": 1501}
+    est, std, ref = run(zeroed, r_m, w_m, incs, **options)
     late = np.isfinite(est) & np.isfinite(ref) & (np.arange(len(est)) > 1500)
     assert zeroed.state[6] == pytest.approx(error, rel=0.1) and zeroed.state[4] == pytest.approx(bias, abs=1e-4)
     assert np.max(np.abs(est[late] - ref[late])) < 0.01
     assert np.mean(np.abs(est[late] - ref[late]) <= 2.0 * std[late]) > 0.95
     # not zeroed, the offset is known only to the data sheet's 1 mrad/s: the std says so
     unzeroed = FusedVisoOt(PARAMS, CAMERA)
-    est_u, std_u, _ = run(unzeroed, r_m, w_m, incs, covariance=ambiguous_covariance(), yaw_error_per_m=error)
+    est_u, std_u, _ = run(unzeroed, r_m, w_m, incs, **options)
     assert np.mean(std_u[late]) > 1.5 * np.mean(std[late])
     assert np.mean(np.abs(est_u[late] - ref[late]) <= 2.0 * std_u[late]) > 0.85
 
@@ -346,7 +359,7 @@ def test_an_odometry_error_the_filter_cannot_observe_widens_its_std() -> None:
     # The odometry's translation error per unit of its yaw error (1 mrad/m) is 30 % larger than the filter's model:
     # no state can see that, so only the coupling's uncertainty in eq (5) can keep the std honest.
     r_m, w_m, incs = drive(n=2500)
-    options = {"covariance": ambiguous_covariance(), "yaw_error_per_m": 1e-3, "coupling_scale": 1.3}
+    options = {"covariance": ambiguous_covariance(), "yaw_error_per_m": 1e-3, "coupling_scale": 1.3, "read_from": 1501}
     honest = FusedVisoOt(PARAMS, CAMERA)
     honest.zero_gyro(0.0, 500)
     est, std, ref = run(honest, r_m, w_m, incs, **options)
@@ -376,9 +389,9 @@ def test_a_blinded_camera_falls_back_to_the_kinematics() -> None:
     tractor = [tractor_signals(u, r, r * lc + vs) for u, r, vs in true]
     gap = range(250, 350)  # frames, ticks 1250–1750
     fused = FusedVisoOt(PARAMS, CAMERA)
-    est, std, ref = run(fused, r_m, w_m, incs, drop=lambda frame: frame in gap, tractor=tractor)
+    est, std, ref = run(fused, r_m, w_m, incs, drop=lambda frame: frame in gap, tractor=tractor, read_from=1301)
     alone = FusedVisoOt(PARAMS, CAMERA)
-    _, std_alone, _ = run(alone, r_m, w_m, incs, drop=lambda frame: frame in gap)
+    _, std_alone, _ = run(alone, r_m, w_m, incs, drop=lambda frame: frame in gap, read_from=1301)
     blind = (np.arange(len(est)) > 1300) & (np.arange(len(est)) < 1750)
     assert np.all(np.isfinite(est[blind])) and np.max(np.abs(est[blind] - ref[blind])) < 0.01
     assert np.max(std[blind]) < 0.05
@@ -393,9 +406,9 @@ def test_slip_that_the_kinematics_cannot_see_is_taken_from_the_camera() -> None:
     lc, _ = slip_kinematics(PARAMS)
     tractor = [tractor_signals(u, r, r * lc) for u, r, _ in true]
     fused = FusedVisoOt(PARAMS, CAMERA)
-    est, std, ref = run(fused, r_m, w_m, incs, tractor=tractor)
+    est, std, ref = run(fused, r_m, w_m, incs, tractor=tractor, read_from=1501)
     kinematics_only = FusedVisoOt(PARAMS, CAMERA)
-    est_k, _, _ = run(kinematics_only, r_m, w_m, incs, drop=lambda frame: frame > 100, tractor=tractor)
+    est_k, _, _ = run(kinematics_only, r_m, w_m, incs, drop=lambda frame: frame > 100, tractor=tractor, read_from=1501)
     late = np.isfinite(est) & np.isfinite(ref) & (np.arange(len(est)) > 1500)
     assert np.max(np.abs(est[late] - ref[late])) < 0.02
     assert np.max(np.abs(est_k[late] - ref[late])) > 0.1  # what the kinematics alone would steer on
@@ -419,7 +432,7 @@ def test_compensated_rear_points_take_the_tractors_rear_point_where_the_turn_and
     def worst(truth_point: RearPoint, filter_point: RearPoint, crossfall: float) -> float:
         tractor = [tractor_signals(u, r, r * lc + vs, truth_point, u * r + crossfall) for u, r, vs in true]
         fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(kinematic_rear_point=filter_point))
-        est, _, ref = run(fused, r_m, w_m, incs, drop=lambda frame: frame in gap, tractor=tractor)
+        est, _, ref = run(fused, r_m, w_m, incs, drop=lambda frame: frame in gap, tractor=tractor, read_from=1301)
         return float(np.max(np.abs(est[blind] - ref[blind])))
 
     level = worst("speed_compensated", "speed_compensated", 0.0)
@@ -454,7 +467,9 @@ def test_a_steady_kinematic_error_is_learned_and_carried_through_a_camera_gap() 
     def learned_and_worst_in_gap(model: str) -> tuple[np.ndarray, float]:
         fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(kinematic_error_model=model))
         before: dict[int, np.ndarray | None] = {2000: None}  # the state up to the gap
-        est, _, ref = run(fused, r_m, w_m, incs, tractor=tractor, drop=lambda f: f in gap, states=before)
+        est, _, ref = run(
+            fused, r_m, w_m, incs, tractor=tractor, drop=lambda f: f in gap, states=before, read_from=2001
+        )
         return before[2000], float(np.max(np.abs(est[blind] - ref[blind])))
 
     learned, state_error = learned_and_worst_in_gap("state")
@@ -478,6 +493,7 @@ def test_held_slip_evidence_keeps_the_kinematics_de_weighted_through_a_change_of
 
     def kinematic_std(hold: bool) -> np.ndarray:
         fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(slip_evidence_hold=hold))
+        fused._read = lambda: None  # the estimate, not read here (the state does not depend on it: see run)
         out = np.empty(len(t))
         frame_inc = np.zeros(3)
         for k in range(len(t)):
@@ -518,7 +534,8 @@ def test_a_trailer_slip_widens_the_kinematics_where_its_push_is_below_the_camera
 
     def errors(share: float) -> tuple[np.ndarray, np.ndarray, float]:
         fused = FusedVisoOt(PARAMS, CAMERA, FusionNoise(trailer_push_share=share))
-        est, std, ref = run(fused, r_m, w_m, incs, tractor=tractor, frame_error=frame_error, covariance=covariance)
+        options = {"tractor": tractor, "frame_error": frame_error, "covariance": covariance, "read_from": n // 2 + 1}
+        est, std, ref = run(fused, r_m, w_m, incs, **options)
         ok = late & np.isfinite(est) & np.isfinite(ref)
         return est[ok] - ref[ok], std[ok], fused.kinematic_std
 

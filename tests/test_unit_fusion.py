@@ -257,6 +257,8 @@ def test_a_blinded_rear_unit_is_carried_by_the_chains_kinematics():
     rig = StereoRig(unit=unit)
     camera = rig.camera_in_trailer("left", params)
     filters = {"chain": FusedVisoOt(params, camera, unit=unit), "alone": FusedVisoOt(params, camera, unit=unit)}
+    for fused in filters.values():  # the estimate is read in the gap only (the state does not depend on it)
+        fused._read = lambda: None
     truth = OfftrackingBuffer(params.follow_point_offset_of(unit))
     r1 = SPEED / RADIUS
     errors: dict[str, list[float]] = {name: [] for name in filters}
@@ -279,6 +281,8 @@ def test_a_blinded_rear_unit_is_carried_by_the_chains_kinematics():
             if world is not None and last_world is not None:
                 blind = 450 <= k < 650
                 fused.measure(k, None if blind else np.linalg.inv(last_world) @ world, np.eye(6) * 1e-10)
+            if 450 <= k < 650:
+                FusedVisoOt._read(fused)
             if 450 <= k < 650 and fused.estimate is not None and truth.offtracking() is not None:
                 errors[name].append(abs(fused.estimate - truth.offtracking()))
         if world is not None:
