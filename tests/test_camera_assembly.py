@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 import pytest
 from field_camera_run import FIELD, field_camera_run
+from world_once import one_world_per_road
 
 from scenarios.camera.build import stereo_camera
 from scenarios.config import load_scenario
@@ -169,13 +170,14 @@ def test_a_run_through_the_frame_cache_records_the_same_series(tmp_path: Path, m
 
     # the run without the cache renders in-process too (a pipelined run records the same series:
     # test_loop_pipelining.py), so the comparison isolates the cache
-    plain = series(0, 0)
-    monkeypatch.setenv(FRAME_CACHE_ENV, str(tmp_path))
-    first = series(2, 0)  # with a frame cache: rendered here, whatever the workers asked for
-    frames = sorted(tmp_path.glob("*/*.npz"))
-    assert len(frames) == int(np.sum(plain["camera_frame"] > 0.5)) >= 3
-    stamps = [f.stat().st_mtime_ns for f in frames]
-    second = series(2, 0)
+    with one_world_per_road():  # the three runs' world built once
+        plain = series(0, 0)
+        monkeypatch.setenv(FRAME_CACHE_ENV, str(tmp_path))
+        first = series(2, 0)  # with a frame cache: rendered here, whatever the workers asked for
+        frames = sorted(tmp_path.glob("*/*.npz"))
+        assert len(frames) == int(np.sum(plain["camera_frame"] > 0.5)) >= 3
+        stamps = [f.stat().st_mtime_ns for f in frames]
+        second = series(2, 0)
     assert [f.stat().st_mtime_ns for f in frames] == stamps  # read back, not written again
     for run in (first, second):
         assert run.keys() == plain.keys()

@@ -15,6 +15,7 @@ import itertools
 
 import numpy as np
 import pytest
+from world_once import one_world_per_road
 
 from scenarios.config import load_scenario
 from scenarios.loop.trailer_steer import UnsteeredTrailer, trailer_axles
@@ -141,8 +142,9 @@ def test_misalignment_shifts_the_right_turns_offtracking_error_at_half_size() ->
     # −0.036 and +0.234 m, +0.27 m). Half-size images carry more error of their own (both runs' RMS over 0.2 m),
     # so the misalignment is measured against the aligned run, not against zero: it fails if the rotation does
     # nothing (the two runs then record the same series).
-    aligned = _short("field-roundabout-right", "aligned", 11.0, **HALF_SIZE)
-    misaligned = _short("field-roundabout-right", "misaligned", 11.0, **HALF_SIZE)
+    with one_world_per_road():  # the two runs' airfield built once
+        aligned = _short("field-roundabout-right", "aligned", 11.0, **HALF_SIZE)
+        misaligned = _short("field-roundabout-right", "misaligned", 11.0, **HALF_SIZE)
     assert aligned["pos_samples"] > 200 and misaligned["pos_samples"] > 200
     assert aligned["neg_samples"] == misaligned["neg_samples"] == 0
     assert misaligned["pos_mean_error_m"] - aligned["pos_mean_error_m"] > 0.15  # the rotation's bias of +e_tr
