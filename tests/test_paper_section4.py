@@ -3,10 +3,8 @@
 The asymmetry test runs two of the study's own misaligned cases (field conditions, rear camera, 0.5 m) shortened
 to 14 s from the start of the turn: with the paper's right-camera rotation (φ −0.15°, ψ +0.10°) applied after the
 calibration, the error is biased for one sign of e_tr (the right turn) much more than for the other (de Saxe &
-Cebon 2018 §4.2–4.4). It fails if the misalignment does nothing. Its right turn alone (the bias), shortened to 11 s,
-and the left turn's comparison (the other sign) run under ``make test-all``; the default suite runs the right turn's
-aligned and misaligned cases at half the image size (a quarter of the pixels), where the misalignment's shift of
-the +e_tr error is measured against the aligned rig of the same seed.
+Cebon 2018 §4.2–4.4). It fails if the misalignment does nothing. The default suite runs its right turn (the bias),
+shortened to 11 s; the left turn's comparison (the other sign) runs under ``make test-all``.
 """
 
 from __future__ import annotations
@@ -15,7 +13,6 @@ import itertools
 
 import numpy as np
 import pytest
-from world_once import one_world_per_road
 
 from scenarios.config import load_scenario
 from scenarios.loop.trailer_steer import UnsteeredTrailer, trailer_axles
@@ -118,49 +115,26 @@ SHORT_RUN = {
 }
 
 
-HALF_SIZE = {"camera.width": 672, "camera.height": 196}
-"""Half the study's 1344 × 391 px images: a quarter of the pixels to render, match and calibrate on."""
-
-
-def _short(
-    scenario: str, alignment: str, duration_s: float = SHORT_RUN["duration_s"], **camera: int
-) -> dict[str, float]:
+def _short(scenario: str, alignment: str, duration_s: float = SHORT_RUN["duration_s"]) -> dict[str, float]:
     (case,) = (
         c for c in paper_section4_cases(False) if c.scenario == scenario and dict(c.labels)["alignment"] == alignment
     )
-    overrides = {**dict(case.overrides), **SHORT_RUN, "duration_s": duration_s, **camera}
+    overrides = {**dict(case.overrides), **SHORT_RUN, "duration_s": duration_s}
     setup = build_scenario(load_scenario(scenario, overrides))
     cols = simulate(setup, UnsteeredTrailer(trailer_axles(setup)))[1]
     return sign_conditioned_errors(cols["offtracking_truth"], cols["offtracking_viso_ot"])
 
 
 @pytest.mark.rendering
-def test_misalignment_shifts_the_right_turns_offtracking_error_at_half_size() -> None:
-    # The default suite's version of the next two: the right turn over 11 s at half the image size, aligned and
-    # misaligned (the same seed: the same images but the right camera's rotation). Measured mean error where
-    # e_tr > 0.5 m (226 samples each): aligned −0.148 m, misaligned +0.153 m, a shift of +0.30 m (at full size
-    # −0.036 and +0.234 m, +0.27 m). Half-size images carry more error of their own (both runs' RMS over 0.2 m),
-    # so the misalignment is measured against the aligned run, not against zero: it fails if the rotation does
-    # nothing (the two runs then record the same series).
-    with one_world_per_road():  # the two runs' airfield built once
-        aligned = _short("field-roundabout-right", "aligned", 11.0, **HALF_SIZE)
-        misaligned = _short("field-roundabout-right", "misaligned", 11.0, **HALF_SIZE)
-    assert aligned["pos_samples"] > 200 and misaligned["pos_samples"] > 200
-    assert aligned["neg_samples"] == misaligned["neg_samples"] == 0
-    assert misaligned["pos_mean_error_m"] - aligned["pos_mean_error_m"] > 0.15  # the rotation's bias of +e_tr
-
-
-@pytest.mark.slow  # the default suite's version: its half-size shift against the aligned rig, above
-@pytest.mark.rendering
 def test_misalignment_biases_the_right_turns_offtracking() -> None:
-    # The right turn's +e_tr bias alone over 11 s at full size (measured +0.234 m over 226 samples; the aligned
-    # rig's over the same 11 s −0.036 m, in the study's one-turn case +0.01 m).
+    # The small version of the next test: the right turn's +e_tr bias alone over 11 s (measured +0.234 m over 226
+    # samples; the aligned rig's over the same 11 s −0.036 m, in the study's one-turn case +0.01 m).
     right = _short("field-roundabout-right", "misaligned", 11.0)
     assert right["pos_samples"] > 200 and right["neg_samples"] == 0
     assert right["pos_mean_error_m"] > 0.15  # the bias for one sign of e_tr
 
 
-@pytest.mark.slow  # its right turn runs in the default suite at half size (the shift against the aligned rig)
+@pytest.mark.slow  # its right turn's bias runs in the default suite
 @pytest.mark.rendering
 def test_misalignment_biases_one_sign_of_offtracking() -> None:
     # Measured (the study's one-turn cases, mean error where |e_tr| > 0.5 m): aligned −0.14 m in the left turn
