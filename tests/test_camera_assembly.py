@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
@@ -25,6 +26,14 @@ from vehicle_model.geometry import CombinationPose
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = {"camera.width": 336, "camera.height": 98}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_world() -> Iterator[None]:
+    """A scenario camera's world built once per road and settings in this module (tests/world_once.py): the tests
+    here build roundabout-3's and roundabout-test's cameras many times."""
+    with one_world_per_road():
+        yield
 
 
 def test_stereo_renderer_is_built_in_one_source_module() -> None:
@@ -170,14 +179,13 @@ def test_a_run_through_the_frame_cache_records_the_same_series(tmp_path: Path, m
 
     # the run without the cache renders in-process too (a pipelined run records the same series:
     # test_loop_pipelining.py), so the comparison isolates the cache
-    with one_world_per_road():  # the three runs' world built once
-        plain = series(0, 0)
-        monkeypatch.setenv(FRAME_CACHE_ENV, str(tmp_path))
-        first = series(2, 0)  # with a frame cache: rendered here, whatever the workers asked for
-        frames = sorted(tmp_path.glob("*/*.npz"))
-        assert len(frames) == int(np.sum(plain["camera_frame"] > 0.5)) >= 3
-        stamps = [f.stat().st_mtime_ns for f in frames]
-        second = series(2, 0)
+    plain = series(0, 0)
+    monkeypatch.setenv(FRAME_CACHE_ENV, str(tmp_path))
+    first = series(2, 0)  # with a frame cache: rendered here, whatever the workers asked for
+    frames = sorted(tmp_path.glob("*/*.npz"))
+    assert len(frames) == int(np.sum(plain["camera_frame"] > 0.5)) >= 3
+    stamps = [f.stat().st_mtime_ns for f in frames]
+    second = series(2, 0)
     assert [f.stat().st_mtime_ns for f in frames] == stamps  # read back, not written again
     for run in (first, second):
         assert run.keys() == plain.keys()
