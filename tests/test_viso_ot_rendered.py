@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from scenarios.camera.frame_cache import FRAME_CACHE_ENV
 from scenarios.config import load_scenario
 from scenarios.loop.trailer_steer import UnsteeredTrailer, trailer_axles
 from scenarios.run.drive import simulate
@@ -20,10 +22,22 @@ pytestmark = pytest.mark.rendering
 TIMING_COLUMNS = {"render_ms", "vo_ms"}
 
 
-def constant_slip(**overrides):
+def constant_slip(frame_cache: Path | None = None, **overrides):
+    """The constant-slip case's columns; with ``frame_cache`` its frames kept there, or taken back from there when a
+    run of the same camera kept them at the same poses (the frame cache gives back what a run renders:
+    test_camera_assembly.py)."""
     cfg = load_scenario("constant-slip", {"estimators.viso_ot": True, "estimators.zero_slip": False, **overrides})
     setup = build_scenario(cfg)
-    return simulate(setup, UnsteeredTrailer(trailer_axles(setup)))[1]
+    with pytest.MonkeyPatch.context() as patch:
+        if frame_cache is not None:
+            patch.setenv(FRAME_CACHE_ENV, str(frame_cache))
+        return simulate(setup, UnsteeredTrailer(trailer_axles(setup)))[1]
+
+
+@pytest.fixture(scope="module")
+def frame_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The reference case's frames, kept by :func:`reference_start` for the runs of the same camera after it."""
+    return tmp_path_factory.mktemp("frames")
 
 
 @pytest.fixture(scope="module")
@@ -33,9 +47,10 @@ def reference_case():
 
 
 @pytest.fixture(scope="module")
-def reference_start():
-    # The reference case's first 6 s (61 frames, rendered in-process): the default suite's version of it.
-    return constant_slip(duration_s=6.0)
+def reference_start(frame_cache: Path):
+    # The reference case's first 6 s (61 frames, rendered in-process): the default suite's version of it. Its frames
+    # are kept for the failed-frames run, which takes the same frames (the motion does not depend on the camera).
+    return constant_slip(frame_cache, duration_s=6.0)
 
 
 def _meets_the_paper_accuracy(cols, duration: float) -> None:
@@ -88,7 +103,7 @@ def test_the_reference_case_rendered_in_workers_records_the_in_process_rows(refe
 @pytest.mark.parametrize(
     "duration", [pytest.param(6.0, id="6-s"), pytest.param(20.0, id="whole-case", marks=pytest.mark.slow)]
 )
-def test_failed_frames_are_survived(monkeypatch, duration):
+def test_failed_frames_are_survived(monkeypatch, duration, reference_start, frame_cache: Path):
     # Every fifth frame of the odometry fails; the estimator bridges them and still meets the target (with the
     # failures 0.029 m RMS and 97 % valid in the first 6 s, 0.048 m in the first 10 s against 0.034 m without; an
     # estimator that drops its estimate after a failure instead of bridging is valid 0 % of the 6 s).
@@ -105,7 +120,10 @@ def test_failed_frames_are_survived(monkeypatch, duration):
         return result
 
     monkeypatch.setattr(StereoOdometry, "process", flaky)
-    cols = constant_slip(duration_s=duration)
+    # the first 6 s's frames taken back from the reference run's (the odometry is what fails, not the rendering)
+    kept = {f: f.stat().st_mtime_ns for f in frame_cache.glob("*/*.npz")}
+    cols = constant_slip(frame_cache, duration_s=duration)
+    assert len(kept) == 61 and all(f.stat().st_mtime_ns == stamp for f, stamp in kept.items())  # read, not rendered
     frames = cols["camera_frame"] > 0.5
     assert frames.sum() == pytest.approx(10.0 * duration + 1, abs=1)
     assert (cols["vo_valid"][frames] < 0.5).sum() >= 0.17 * frames.sum()  # every fifth frame but the first
