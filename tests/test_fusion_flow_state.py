@@ -6,7 +6,7 @@ couples only ``κ·c_y`` of it to ``β_ψ`` (the frame covariance's regression),
 indistinguishable from the flow state's ``s_f·t·|t|``, which takes it. (3'') couples the lever along the optical axis
 instead (docs/field_bias.md §7.24).
 
-The LST drives kinematically (no tyre slips): its tractor's rear point straight for 10 s, then 12 s on a 30 m left
+The LST drives kinematically (no tyre slips): its tractor's rear point straight for 10 s, then 10 s on a 30 m left
 turn, at 3.5 m/s; the semi-trailer's heading keeps its zero-slip point (``L_c`` of eq (1)) without lateral velocity. Its
 left side rig's motions are exact but for the injected error: (a) a yaw error of 1 mrad per metre, a rotation about
 the camera, and no error along the optical axis; (b) no yaw error and an error ``0.03·t·|t|`` along the optical axis
@@ -30,7 +30,7 @@ from vehicle_model.presets import VEHICLE_PRESETS
 
 DT, EVERY = 0.02, 5  # control period [s], ticks per camera frame
 SPEED, RADIUS = 3.5, 30.0  # the tractor's rear point [m/s], the turn's radius [m]
-STRAIGHT, TICKS = 500, 1100  # 10 s straight, then 12 s of the turn
+STRAIGHT, TICKS = 500, 1000  # 10 s straight, then 10 s of the turn
 YAW_ERROR = 1e-3  # [rad/m] (a)
 SUBSTEPS = 2  # of the kinematics per control period
 FLOW_ERROR = 0.03  # [1/m] (b)
@@ -147,7 +147,7 @@ def test_with_the_lever_the_flow_state_takes_no_yaw_error(yaw_runs) -> None:
     assert np.min(np.abs(plain["s_f"][STRAIGHT:])) > 0.015
     assert np.max(np.abs(lever["s_f"][STRAIGHT // 2 :])) < 0.002
     e_plain, e_lever = _turn_error(plain), _turn_error(lever)
-    assert e_plain.size > 300 and e_lever.size == e_plain.size
+    assert e_plain.size > 200 and e_lever.size == e_plain.size
     rms_plain, rms_lever = np.sqrt(np.mean(e_plain**2)), np.sqrt(np.mean(e_lever**2))
     assert rms_plain > 0.005  # [m]
     assert rms_lever < 0.25 * rms_plain
