@@ -64,6 +64,7 @@ from .fusion_model import (
     gated_update,
     into_frame,
     relative_pose,
+    yaw_coupling,
 )
 from .fusion_noise import FusionNoise
 from .fusion_slip import (
@@ -414,9 +415,8 @@ class FusedVisoOt:
             z, r = self.measurement(np.asarray(camera_motion, dtype=float), covariance, given)
             h = np.zeros((3, self._states))
             h[:, :3] = np.eye(3)
-            coupling = (
-                self.noise.vo_bias_coupling * r[:2, 2] / r[2, 2]
-            )  # the yaw–translation ambiguity of this frame (eq (3) of :mod:`sensor.fusion_model`)
+            # eq (3)'s translation coupled to the yaw error (the lever's along the optical axis with (3''))
+            coupling = yaw_coupling(self.noise, r, self.geometry.camera_position, self._optical_axis)
             self._coupling, self.frame_scrub_demand = coupling, entry.scrub
             coupling = coupling * scrub_coupling_yield(self.noise, entry.scrub)  # (K5): gives way while scrubbing
             h[:2, BPSI] = x[0] * coupling  # the odometry's error per metre over the distance since the anchor

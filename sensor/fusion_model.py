@@ -92,6 +92,18 @@ camera at ``p_c``) and ``t = (o_y, −o_x)``::
 Both are random walks in distance (``vo_axial_scale_walk``) and are found against the zero-slip kinematics (K1)
 where those are trusted (the disagreement of (K2) is taken less their estimated part): a side camera on a straight
 road must report no lateral motion. Both are off by default (no such states).
+
+Eq (3) couples to ``β_ψ`` the translation of the odometry's own yaw–translation ambiguity. A yaw error that is a
+rotation of the camera about its own position (a mount's twist, a misaligned or self-calibrated stereo pair) moves
+the kingpin's increment by the lever instead: ``ℓ·δψ`` with ``ℓ = (p_c,y, −p_c,x)``, the kingpin's displacement per
+radian of a rotation about the camera at ``p_c``. With ``vo_yaw_lever`` the coupled translation's part along the
+optical axis ``o`` is the lever's; across the axis it stays eq (3)'s::
+
+    c' = κ·c + (o·ℓ − o·κ·c)·o,    z = (Δx, Δy, Δψ) + d·β_ψ·(c'_x, c'_y, 1)                      (3'')
+
+For a side rig ``o·ℓ`` is the camera's distance behind the kingpin; without it the part of the lever ``o·κ·c`` leaves
+out is left to ``s_f`` on a straight road, where the two are not told apart (docs/field_bias.md §7.24). Off by
+default (eq (3)).
 """
 
 from __future__ import annotations
@@ -122,6 +134,7 @@ __all__ = [
     "camera_increment",
     "into_frame",
     "relative_pose",
+    "yaw_coupling",
 ]
 
 STATES = 7
@@ -273,6 +286,18 @@ def camera_displacement(delta: np.ndarray, camera: np.ndarray, axis: np.ndarray)
     my = delta[1] + st * camera[0] + (ct - 1.0) * camera[1]
     o = axis
     return float(mx * o[0] + my * o[1]), float(mx * o[1] - my * o[0])
+
+
+def yaw_coupling(noise: FusionNoise, r: np.ndarray, camera: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """The translation coupled to the odometry's yaw error per radian, ``κ·(c_x, c_y)`` of eq (3) from the frame's
+    covariance ``r`` (3×3), or with ``noise.vo_yaw_lever`` ``c'`` of (3''): along the optical axis ``axis`` the lever of
+    a rotation about the camera at ``camera`` [m] (``axis`` a unit vector in the unit's ground plane)."""
+    coupling = noise.vo_bias_coupling * r[:2, 2] / r[2, 2]  # eq (3)
+    if not noise.vo_yaw_lever:
+        return coupling
+    o = np.asarray(axis, dtype=float)
+    lever = np.array([camera[1], -camera[0]], dtype=float)  # (R(δψ) − I)·(−p_c) per radian, to first order
+    return coupling + (float(o @ lever) - float(o @ coupling)) * o  # (3'')
 
 
 def camera_increment(

@@ -93,7 +93,7 @@ class SideRigFusion(Settings):
 
     Parameters
     ----------
-    vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect, bias_std_scale
+    vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect, vo_yaw_lever, bias_std_scale
         As :class:`FusionNoise`'s.
     kinematic_rear_point, reference_friction, reference_road_friction, kinematic_error_model, coupling_reference,
     coupling_bias_share, coupling_persisting_error
@@ -114,6 +114,7 @@ class SideRigFusion(Settings):
         None, ge=0.0, le=0.1, description="[1/√m] their walk; 0.1 forgets in a metre"
     )
     vo_axial_effect: AxialEffect | None = None
+    vo_yaw_lever: bool | None = None
     bias_std_scale: float | None = Field(None, gt=0.0, le=1.0, description=BIAS_STD_SCALE)
     kinematic_rear_point: KinematicReference | None = None
     reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
@@ -197,6 +198,11 @@ class FusionNoise(Settings):
         (default: at the camera's own sensitivity, as if every increment were the camera's motion) or
         ``posterior`` (at the sensitivity of the filter's fused increments, their regression on the states at
         each frame: (A1)–(A2) of :mod:`sensor.fusion_axial`).
+    vo_yaw_lever : bool
+        Take the translation coupled to the odometry's yaw error along the camera's optical axis as the lever of a
+        rotation about the camera, (3'') of :mod:`sensor.fusion_model`, instead of eq (3)'s ``κ·c`` (False, the
+        default: eq (3)). For a side rig (``side_rig.vo_yaw_lever``), whose yaw error from its mount moves the
+        kingpin's increment through the camera's distance behind it; docs/field_bias.md §7.24.
     kinematics : bool
         Fuse the zero-slip kinematics (K1) when the tractor's signals are given.
     kinematic_rear_point : str
@@ -356,6 +362,7 @@ class FusionNoise(Settings):
         0.0, ge=0.0, le=0.1, description="[1/√m] its random walk per metre; 0.1 forgets a 3 % error in a few cm"
     )
     vo_axial_effect: AxialEffect = "camera"
+    vo_yaw_lever: bool = False
     kinematics: bool = True
     kinematic_rear_point: KinematicReference = "axle_mean"
     reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
