@@ -26,7 +26,6 @@ REPO = Path(__file__).resolve().parents[1]
 TINY = {"camera.width": 336, "camera.height": 98}
 
 
-
 def test_stereo_renderer_is_built_in_one_source_module() -> None:
     built = re.compile(r"^[^\"'#]*\bStereoRenderer\(", re.MULTILINE)  # a call in code, not in a message
     modules = [

@@ -28,7 +28,6 @@ TIMING_COLUMNS = {"render_ms", "vo_ms"}
 SMALL_CAMERA = {"camera.width": 672, "camera.height": 196}
 
 
-
 def camera_run(workers: int, duration: float = 4.0, feedback: str = "viso_ot", progress=None, **overrides):
     """A short LST run on roundabout-3 at 25 km/h (the VISO-OT buffer fills in ~2 s), steered by ``feedback``."""
     cfg = load_scenario(
