@@ -151,7 +151,8 @@ def world_for_scenario(
     terrain: Terrain | None = None,
     **world_settings: Any,
 ) -> World:
-    """The procedural world around a scenario's reference path.
+    """The procedural world around a scenario's reference path, built once per process for a road and settings (the
+    last :data:`WORLDS_KEPT` kept, :func:`_world_key`; a world on a terrain is built every time).
 
     Parameters
     ----------
