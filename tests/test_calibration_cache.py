@@ -172,6 +172,16 @@ def test_a_folder_that_cannot_be_written_leaves_the_result_uncached(
     assert blocker.read_text() == "not a folder"
 
 
+def test_no_home_folder_leaves_the_result_uncached(
+    monkeypatch: pytest.MonkeyPatch, counted: list[int], computed: CalibrationResult
+) -> None:
+    def no_home() -> Path:
+        raise RuntimeError("Could not determine home directory.")
+
+    monkeypatch.setattr(calibration_cache, "cache_dir", no_home)
+    assert cached_calibrate_rig(RIG, LEFT, RIGHT, **SETTINGS) is computed and counted == [1]
+
+
 def test_the_scenarios_estimated_calibration_goes_through_the_cache(
     cache: Path, counted: list[int], computed: CalibrationResult
 ) -> None:

@@ -156,7 +156,10 @@ def cached_calibrate_rig(rig: StereoRig, lens_left: Lens, lens_right: Lens, **se
     (a result is cached only once computed).
     """
     key = calibration_key(rig, lens_left, lens_right, **settings)
-    path = cache_dir() / f"{key[:32]}.npz"
+    try:
+        path = cache_dir() / f"{key[:32]}.npz"
+    except RuntimeError:  # no home folder to put the cache in: computed, not kept
+        return _calibration.calibrate_rig(rig, lens_left, lens_right, **settings)
     result = _read(path, key)
     if result is None:
         result = _calibration.calibrate_rig(rig, lens_left, lens_right, **settings)
