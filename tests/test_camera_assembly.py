@@ -9,14 +9,12 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 from field_camera_run import FIELD, field_camera_run
-from world_once import one_world_per_road
 
 from scenarios.camera.build import stereo_camera
 from scenarios.config import load_scenario
@@ -26,14 +24,6 @@ from vehicle_model.geometry import CombinationPose
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = {"camera.width": 336, "camera.height": 98}
-
-
-@pytest.fixture(scope="module", autouse=True)
-def one_world() -> Iterator[None]:
-    """A scenario camera's world built once per road and settings in this module (tests/world_once.py): the tests
-    here build roundabout-3's and roundabout-test's cameras many times."""
-    with one_world_per_road():
-        yield
 
 
 def test_stereo_renderer_is_built_in_one_source_module() -> None:

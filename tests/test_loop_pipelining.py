@@ -12,11 +12,9 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from world_once import one_world_per_road
 
 from scenarios.camera.delivery import latency_ticks
 from scenarios.camera.workers import DEFAULT_WORKERS, RENDER_NICENESS, default_workers
@@ -28,13 +26,6 @@ pytestmark = pytest.mark.rendering
 
 TIMING_COLUMNS = {"render_ms", "vo_ms"}
 SMALL_CAMERA = {"camera.width": 672, "camera.height": 196}
-
-
-@pytest.fixture(scope="module", autouse=True)
-def one_world() -> Iterator[None]:
-    """The in-process runs' world (roundabout-3's, whatever the latency, feedback or duration) built once."""
-    with one_world_per_road():
-        yield
 
 
 def camera_run(workers: int, duration: float = 4.0, feedback: str = "viso_ot", progress=None, **overrides):

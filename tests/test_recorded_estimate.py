@@ -26,7 +26,6 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
-from world_once import one_world_per_road
 
 from scenarios.camera.build import rig_from_config
 from scenarios.cli import app
@@ -74,14 +73,13 @@ def rendered(tmp_path_factory: pytest.TempPathFactory) -> SimpleNamespace:
         return frame
 
     setup = build_scenario(config)
-    with one_world_per_road():  # the run's and the export's world built once
-        with pytest.MonkeyPatch.context() as patch:
-            patch.setattr(FrameOdometry, "process", spy)
-            outcome, cols = simulate(setup, camera_workers=0)
-        assert outcome.status == "completed"
-        folder = tmp / "kitti"
-        sets = [f"--set={k}={v}" for k, v in OVERRIDES.items()]
-        _cli("render", "roundabout-3", "--out", str(folder), *sets)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(FrameOdometry, "process", spy)
+        outcome, cols = simulate(setup, camera_workers=0)
+    assert outcome.status == "completed"
+    folder = tmp / "kitti"
+    sets = [f"--set={k}={v}" for k, v in OVERRIDES.items()]
+    _cli("render", "roundabout-3", "--out", str(folder), *sets)  # the run's world (world_for_scenario keeps it)
     rig = tmp / "rig.yaml"
     rig.write_text(RIG)
     frames = np.flatnonzero(cols["camera_frame"] > 0.5)

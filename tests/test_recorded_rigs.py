@@ -22,7 +22,6 @@ import pandas as pd
 import pytest
 import yaml
 from typer.testing import CliRunner
-from world_once import one_world_per_road
 
 from scenarios.cli import app
 from scenarios.config import FusionConfig, load_scenario
@@ -83,9 +82,8 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> SimpleNamespace:
     size = {"width": 672, "height": 196}
     side = StereoRig(**size, station=-4.0, lateral=1.3, mount_height=2.5, psi_c2v=math.radians(270.0), unit=1)
     rear = StereoRig(**size, station=None, mount_height=3.0, psi_c2v=math.pi, unit=2)
-    with one_world_per_road():  # the two exports' world built once
-        export_kitti(config, tmp / "lead", rig=side)
-        export_kitti(config, tmp / "rear", rig=rear)
+    export_kitti(config, tmp / "lead", rig=side)  # the two exports' world built once (world_for_scenario keeps it)
+    export_kitti(config, tmp / "rear", rig=rear)
     setup = build_scenario(config)
     outcome, cols = simulate(setup, UnsteeredTrailer(trailer_axles(setup)))
     assert outcome.status == "completed"

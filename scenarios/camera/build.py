@@ -7,9 +7,10 @@ noise and exposure, mount flex and odometry — are seeded by :func:`rig_seed`, 
 
 * :func:`rig_from_config` — the :class:`~sensor.camera.StereoRig` (:func:`rigs_from_config`: every one);
 * :func:`world_for_scenario` — the procedural :class:`~sensor.world.World` around the reference path (the
-  scenario's seed, ``camera.scenery_density`` and ``camera.world``);
-* :func:`lenses`, :func:`calibration_for` (``camera.calibration``: ideal, estimated once per
-  process by :func:`run_calibration`, or read from a file), :func:`lighting_from_config`, :func:`mount_flex`;
+  scenario's seed, ``camera.scenery_density`` and ``camera.world``), built once per process for a road and settings;
+* :func:`lenses`, :func:`calibration_for` (``camera.calibration``: ideal, estimated by :func:`run_calibration` once
+  per machine through a disk cache (:mod:`.calibration_cache`), or read from a file), :func:`lighting_from_config`,
+  :func:`mount_flex`;
 * :func:`stereo_camera` — the :class:`~sensor.stereo_camera.StereoCamera` of a built scenario: the one place a
   camera (and its :class:`~sensor.renderer.StereoRenderer`) is assembled, as the run has it or as an ideal pinhole
   rig (``ideal=True``), optionally through a frame cache (:mod:`.frame_cache`); :func:`pair_developer` its
@@ -40,6 +41,7 @@ from vehicle_model.terrain import Terrain
 from ..camera_schema import RigConfig, rig_configs
 from ..config import ScenarioConfig
 from ..setup.build import ScenarioSetup, build_scenario
+from .calibration_cache import cached_calibrate_rig
 
 if TYPE_CHECKING:
     from sensor.field_optics import FieldOptics
@@ -149,7 +151,8 @@ def world_for_scenario(
     terrain: Terrain | None = None,
     **world_settings: Any,
 ) -> World:
-    """The procedural world around a scenario's reference path.
+    """The procedural world around a scenario's reference path, built once per process for a road and settings (the
+    last :data:`WORLDS_KEPT` kept, :func:`_world_key`; a world on a terrain is built every time).
 
     Parameters
     ----------
@@ -169,7 +172,42 @@ def world_for_scenario(
     setup = setup_or_config if isinstance(setup_or_config, ScenarioSetup) else build_scenario(setup_or_config)
     seed = setup.config.seed if seed is None else seed
     density = resolve_scenery_density(setup.config, scenery_density)
-    return build_world(setup.path, scenery_density=density, seed=int(seed), terrain=terrain, **world_settings)
+    settings = {"scenery_density": density, "seed": int(seed), **world_settings}
+    key = _world_key(setup.path, settings) if terrain is None else None
+    if key is None:  # a world on a terrain, or a setting without an exact text: built every time
+        return build_world(setup.path, terrain=terrain, **settings)
+    world = _WORLDS.pop(key, None)
+    if world is None:
+        world = build_world(setup.path, terrain=None, **settings)
+    _WORLDS[key] = world  # the most recently used last
+    while len(_WORLDS) > WORLDS_KEPT:
+        _WORLDS.pop(next(iter(_WORLDS)))
+    return world
+
+
+WORLDS_KEPT: Final = 4
+"""Worlds :func:`world_for_scenario` keeps per process (the most recently used), by road and settings."""
+
+_WORLDS: dict[tuple, World] = {}
+
+
+def _world_key(path: Any, settings: dict[str, Any]) -> tuple | None:
+    """The key of a level world: a digest of the road path's geometry (its centre line, loop centres and curvature)
+    and the exact settings; ``None`` when a setting is not a plain number, string, flag or tuple of them.
+
+    A world is a function of its road and settings (:func:`sensor.world.build_world`: same inputs, identical world)
+    and no caller modifies one once built (a lit world or a world with a marker is a new world), so one build serves
+    every camera of the process that asks for the same road and settings.
+    """
+    plain = (bool, int, float, str, type(None))
+    for value in settings.values():
+        if not (isinstance(value, plain) or (isinstance(value, tuple) and all(isinstance(v, plain) for v in value))):
+            return None
+    digest = hashlib.sha256()
+    for name in ("x", "y", "heading", "centres", "curvature"):
+        value = getattr(path, name, None)
+        digest.update(name.encode() + (b"-" if value is None else np.ascontiguousarray(value, float).tobytes()))
+    return (digest.hexdigest(), tuple(sorted((k, type(v).__name__, repr(v)) for k, v in settings.items())))
 
 
 def lenses(config: ScenarioConfig, rig_index: int = 0) -> tuple[Lens, Lens]:
@@ -183,11 +221,15 @@ def calibration_target_rig(rig: StereoRig, config: ScenarioConfig, rig_index: in
     return rig.replace(misalignment=Misalignment.from_degrees(*misalignment))
 
 
-def run_calibration(rig: StereoRig, config: ScenarioConfig, rig_index: int = 0) -> CalibrationResult:
-    """Calibrate the rig as configured (its ``calibration``; seeded by the rig's seed, :func:`rig_seed`)."""
+def run_calibration(
+    rig: StereoRig, config: ScenarioConfig, rig_index: int = 0, *, disk_cache: bool = False
+) -> CalibrationResult:
+    """Calibrate the rig as configured (its ``calibration``; seeded by the rig's seed, :func:`rig_seed`);
+    ``disk_cache``: read from or kept in the disk cache of calibrations (:mod:`.calibration_cache`, the same result
+    to the bit)."""
     cal = rig_settings(config, rig_index).calibration
     left, right = lenses(config, rig_index)
-    return calibrate_rig(
+    return (cached_calibrate_rig if disk_cache else calibrate_rig)(
         calibration_target_rig(rig, config, rig_index),
         left,
         right,
@@ -203,12 +245,13 @@ def run_calibration(rig: StereoRig, config: ScenarioConfig, rig_index: int = 0) 
 @functools.lru_cache(maxsize=4)
 def _calibration_cached(config_json: str, rig_index: int) -> CalibrationResult:
     config = ScenarioConfig.model_validate(json.loads(config_json))
-    return run_calibration(rig_from_config(config, rig_index), config, rig_index)
+    return run_calibration(rig_from_config(config, rig_index), config, rig_index, disk_cache=True)
 
 
 def calibration_for(rig: StereoRig, config: ScenarioConfig, rig_index: int = 0) -> CalibrationResult | None:
-    """The calibration the odometry of rig ``rig_index`` uses (``None``: ideal). Estimated once per process,
-    configuration and rig."""
+    """The calibration the odometry of rig ``rig_index`` uses (``None``: ideal). Estimated once per machine for the
+    same rig, settings and code (the disk cache of :mod:`.calibration_cache`) and kept once per process, configuration
+    and rig."""
     cal = rig_settings(config, rig_index).calibration
     if cal.mode == "ideal":
         return None

@@ -1,0 +1,167 @@
+"""Estimated stereo calibrations kept on disk: computed once per machine for the same rig, settings and code.
+
+:func:`cached_calibrate_rig` takes exactly the arguments of :func:`sensor.calibration.calibrate_rig` and returns its
+result, read from ``$OFFTRACK_CACHE_DIR/calibration`` (or ``~/.cache/offtrack/calibration``, beside the compiled
+vehicle models and the odometry kernels) when an entry for the same inputs is there, else computed and written there.
+
+An entry is named by :func:`calibration_key`: the SHA-256 of every argument (the rig's geometry, image size, noise and
+misalignment, both lenses, the views, target, square size, corner noise, seed, ``alpha`` and stereo refinement; each
+float by its exact hexadecimal value), of the sources of the modules that compute it (:data:`SOURCES`, names and
+contents) and of the OpenCV and numpy versions. The same key gives the same result to the bit: the calibration runs
+OpenCV on one thread (:func:`sensor.calibration.one_opencv_thread`) and is seeded.
+
+An entry is an ``.npz`` (no pickled objects) holding every array of the result with its dtype and every scalar, and
+the key it was made for; it is written to a temporary file in the folder and moved into place with
+:func:`os.replace`, so a reader never sees half a file. An entry that cannot be read or is not a complete result for
+its key (truncated, corrupt, another key's) is computed afresh and replaced; a folder that cannot be created or
+written leaves the result uncached. Either way the result is the computed one. Delete the folder to clear the cache.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Final
+
+import cv2
+import numpy as np
+
+from sensor import calibration as _calibration
+from sensor.calibration import CalibrationResult
+from sensor.camera import Lens, StereoRig
+
+__all__ = ["SOURCES", "cache_dir", "cached_calibrate_rig", "calibration_key"]
+
+_SENSOR: Final = Path(_calibration.__file__).resolve().parent
+SOURCES: Final[tuple[Path, ...]] = (
+    _SENSOR / "calibration.py",
+    _SENSOR / "calibration_target.py",
+    _SENSOR / "camera.py",
+    _SENSOR / "lens.py",
+    _SENSOR / "vo" / "config.py",
+    Path(__file__).resolve(),
+)
+"""The sources whose contents enter every key: the calibration and what it takes from the project (the rig, the
+lenses and their distortion, the rectified parameters' odometry settings), and this module (the entry's format)."""
+
+_ARRAYS: Final = CalibrationResult._MATRICES + CalibrationResult._PER_VIEW
+_FLOATS: Final = ("rms_left", "rms_right", "rms_stereo", "square_size", "corner_noise_px", "alpha")
+_INTS: Final = ("views", "seed")
+
+
+def cache_dir() -> Path:
+    """The folder of the cached calibrations: ``$OFFTRACK_CACHE_DIR/calibration``, else
+    ``~/.cache/offtrack/calibration``."""
+    root = os.environ.get("OFFTRACK_CACHE_DIR")
+    return (Path(root) if root else Path.home() / ".cache" / "offtrack") / "calibration"
+
+
+def _canonical(value: Any) -> str:
+    """An exact text of a setting: floats by :meth:`float.hex`, dataclasses and pydantic models field by field."""
+    if isinstance(value, bool | None | str):
+        return repr(value)
+    if isinstance(value, int | np.integer):
+        return f"i{int(value)}"
+    if isinstance(value, float | np.floating):
+        return float(value).hex()
+    if isinstance(value, tuple | list):
+        return "(" + ",".join(_canonical(v) for v in value) + ")"
+    if isinstance(value, np.ndarray):
+        return f"a{value.dtype.str}{value.shape}{np.ascontiguousarray(value).tobytes().hex()}"
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        fields = ",".join(f"{f.name}={_canonical(getattr(value, f.name))}" for f in dataclasses.fields(value))
+        return f"{type(value).__name__}({fields})"
+    if hasattr(value, "model_dump"):  # a pydantic model (Lens)
+        fields = ",".join(f"{k}={_canonical(getattr(value, k))}" for k in type(value).model_fields)
+        return f"{type(value).__name__}({fields})"
+    raise TypeError(f"no exact text for a {type(value).__name__} in a calibration key")
+
+
+def _sources_digest() -> str:
+    digest = hashlib.sha256()
+    for path in SOURCES:
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def calibration_key(rig: StereoRig, lens_left: Lens, lens_right: Lens, **settings: Any) -> str:
+    """The SHA-256 (hex) of everything that decides :func:`~sensor.calibration.calibrate_rig`'s result for these
+    arguments (module notes)."""
+    digest = hashlib.sha256()
+    for part in (
+        f"rig={_canonical(rig)}",
+        f"left={_canonical(lens_left)}",
+        f"right={_canonical(lens_right)}",
+        *(f"{name}={_canonical(settings[name])}" for name in sorted(settings)),
+        f"sources={_sources_digest()}",
+        f"opencv={cv2.__version__}",
+        f"numpy={np.__version__}",
+    ):
+        digest.update(part.encode())
+        digest.update(b"\n")
+    return digest.hexdigest()
+
+
+def _read(path: Path, key: str) -> CalibrationResult | None:
+    """The entry at ``path`` if it is a complete result for ``key``, else ``None`` (any failure to read it)."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if str(data["key"][()]) != key:
+                return None
+            arrays = {name: np.array(data[name]) for name in _ARRAYS}
+            result = CalibrationResult(
+                image_size=(int(data["image_size"][0]), int(data["image_size"][1])),
+                target=(int(data["target"][0]), int(data["target"][1])),
+                stereo_refinement=str(data["stereo_refinement"][()]),
+                **{name: float(data[name][()]) for name in _FLOATS},
+                **{name: int(data[name][()]) for name in _INTS},
+                **arrays,
+            )
+    except Exception:  # truncated, corrupt or foreign entry: computed afresh
+        return None
+    return result
+
+
+def _write(path: Path, key: str, result: CalibrationResult) -> None:
+    """Write the entry atomically (a temporary file in the folder, then :func:`os.replace`); silently nothing when
+    the folder cannot be written."""
+    entries: dict[str, np.ndarray] = {name: np.asarray(getattr(result, name)) for name in _ARRAYS}
+    entries |= {name: np.float64(getattr(result, name)) for name in _FLOATS}
+    entries |= {name: np.int64(getattr(result, name)) for name in _INTS}
+    entries["image_size"] = np.asarray(result.image_size, dtype=np.int64)
+    entries["target"] = np.asarray(result.target, dtype=np.int64)
+    entries["stereo_refinement"] = np.str_(result.stereo_refinement)
+    entries["key"] = np.str_(key)
+    temporary = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=".tmp-", suffix=".npz", delete=False) as handle:
+            temporary = Path(handle.name)
+            np.savez(handle, **entries)
+        os.replace(temporary, path)
+    except OSError:
+        if temporary is not None:
+            temporary.unlink(missing_ok=True)
+
+
+def cached_calibrate_rig(rig: StereoRig, lens_left: Lens, lens_right: Lens, **settings: Any) -> CalibrationResult:
+    """:func:`sensor.calibration.calibrate_rig` (same arguments, same result to the bit), read from the cache when it
+    was computed before for the same inputs and code (module notes).
+
+    Bad settings raise :class:`~vehicle_model.errors.InputError` as :func:`~sensor.calibration.calibrate_rig` does
+    (a result is cached only once computed).
+    """
+    key = calibration_key(rig, lens_left, lens_right, **settings)
+    try:
+        path = cache_dir() / f"{key[:32]}.npz"
+    except RuntimeError:  # no home folder to put the cache in: computed, not kept
+        return _calibration.calibrate_rig(rig, lens_left, lens_right, **settings)
+    result = _read(path, key)
+    if result is None:
+        result = _calibration.calibrate_rig(rig, lens_left, lens_right, **settings)
+        _write(path, key, result)
+    return result
