@@ -37,15 +37,14 @@ __all__ = ["SOURCES", "cache_dir", "cached_calibrate_rig", "calibration_key"]
 
 _SENSOR: Final = Path(_calibration.__file__).resolve().parent
 SOURCES: Final[tuple[Path, ...]] = (
-    _SENSOR / "calibration.py",
-    _SENSOR / "calibration_target.py",
-    _SENSOR / "camera.py",
-    _SENSOR / "lens.py",
-    _SENSOR / "vo" / "config.py",
+    *sorted(_SENSOR.rglob("*.py")),
+    *sorted((_SENSOR.parent / "vehicle_model").rglob("*.py")),
     Path(__file__).resolve(),
 )
-"""The sources whose contents enter every key: the calibration and what it takes from the project (the rig, the
-lenses and their distortion, the rectified parameters' odometry settings), and this module (the entry's format)."""
+"""The sources whose contents enter every key: every module of the ``sensor`` and ``vehicle_model`` packages (the
+calibration, the rig, the lenses and their distortion, the odometry settings of the rectified parameters, and
+whatever they import from the project: an edit anywhere there computes the calibrations again, never a stale one),
+and this module (the entry's format)."""
 
 _ARRAYS: Final = CalibrationResult._MATRICES + CalibrationResult._PER_VIEW
 _FLOATS: Final = ("rms_left", "rms_right", "rms_stereo", "square_size", "corner_noise_px", "alpha")
