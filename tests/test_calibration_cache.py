@@ -119,6 +119,10 @@ def test_every_input_and_the_code_change_the_key(monkeypatch: pytest.MonkeyPatch
     monkeypatch.setattr(cv2, "__version__", cv2.__version__ + "-other")
     changed.append(calibration_key(RIG, LEFT, RIGHT, **SETTINGS))
     monkeypatch.undo()
+    supported = cv2.checkHardwareSupport
+    monkeypatch.setattr(cv2, "checkHardwareSupport", lambda feature: feature == 1 and supported(feature))
+    changed.append(calibration_key(RIG, LEFT, RIGHT, **SETTINGS))  # another CPU (or OPENCV_CPU_DISABLE)
+    monkeypatch.undo()
     edited = tmp_path / "calibration.py"
     edited.write_bytes(calibration_cache.SOURCES[0].read_bytes() + b"\n# edited\n")
     monkeypatch.setattr(calibration_cache, "SOURCES", (edited, *calibration_cache.SOURCES[1:]))

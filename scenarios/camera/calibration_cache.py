@@ -7,7 +7,8 @@ vehicle models and the odometry kernels) when an entry for the same inputs is th
 An entry is named by :func:`calibration_key`: the SHA-256 of every argument (the rig's geometry, image size, noise and
 misalignment, both lenses, the views, target, square size, corner noise, seed, ``alpha`` and stereo refinement; each
 float by its exact hexadecimal value), of the sources of the modules that compute it (:data:`SOURCES`, names and
-contents) and of the OpenCV and numpy versions. The same key gives the same result to the bit: the calibration runs
+contents), of the OpenCV and numpy versions and of the CPU features OpenCV dispatches to at run time (another CPU,
+or ``OPENCV_CPU_DISABLE``, rounds differently). The same key gives the same result to the bit: the calibration runs
 OpenCV on one thread (:func:`sensor.calibration.one_opencv_thread`) and is seeded.
 
 An entry is an ``.npz`` (no pickled objects) holding every array of the result with its dtype and every scalar, and
@@ -32,6 +33,7 @@ import numpy as np
 from sensor import calibration as _calibration
 from sensor.calibration import CalibrationResult
 from sensor.camera import Lens, StereoRig
+from vehicle_model.codegen import cache_dir as cache_root
 
 __all__ = ["SOURCES", "cache_dir", "cached_calibrate_rig", "calibration_key"]
 
@@ -52,10 +54,18 @@ _INTS: Final = ("views", "seed")
 
 
 def cache_dir() -> Path:
-    """The folder of the cached calibrations: ``$OFFTRACK_CACHE_DIR/calibration``, else
-    ``~/.cache/offtrack/calibration``."""
-    root = os.environ.get("OFFTRACK_CACHE_DIR")
-    return (Path(root) if root else Path.home() / ".cache" / "offtrack") / "calibration"
+    """The folder of the cached calibrations: ``calibration`` in the project's cache
+    (:func:`vehicle_model.codegen.cache_dir`: ``$OFFTRACK_CACHE_DIR``, else ``~/.cache/offtrack``)."""
+    return cache_root() / "calibration"
+
+
+OPENCV_FEATURES: Final = range(1, 512)
+"""OpenCV's CPU feature ids (``cv::CpuFeatures``, below ``CV_HARDWARE_MAX_FEATURE``) asked of
+:func:`cv2.checkHardwareSupport`, which answers for the code paths OpenCV will dispatch to in this process."""
+
+
+def _opencv_cpu() -> str:
+    return ",".join(str(i) for i in OPENCV_FEATURES if cv2.checkHardwareSupport(i))
 
 
 def _canonical(value: Any) -> str:
@@ -99,6 +109,7 @@ def calibration_key(rig: StereoRig, lens_left: Lens, lens_right: Lens, **setting
         f"sources={_sources_digest()}",
         f"opencv={cv2.__version__}",
         f"numpy={np.__version__}",
+        f"opencv_cpu={_opencv_cpu()}",
     ):
         digest.update(part.encode())
         digest.update(b"\n")
