@@ -7,9 +7,11 @@ arithmetic", has the trace). With the environment variable :data:`ENV` set to ``
 calls OpenCV (the command line's process, a study's spawned workers, the render workers) calls
 :func:`cv2.setUseOptimized` with ``False`` before its first OpenCV operation: OpenCV then dispatches to no vector
 extension beyond its compiled baseline (SSE3 in the pip wheels; :func:`cv2.checkHardwareSupport` answers ``False``
-for every feature) and IPP is switched off. The other CPU-dispatching layers of a camera run (numpy's SIMD loops,
-numba's kernels compiled for the host, Mesa llvmpipe's vector width) gave the same bits with their own switches on
-the machine that was traced, so the mode leaves them as they are.
+for every feature) and IPP is switched off. OpenCV also runs on one thread there (:func:`cv2.setNumThreads`): its
+baseline code is not the same to the bit from call to call on several (a ``float32`` :func:`cv2.GaussianBlur` of
+a world texture; docs/usage.md). The other CPU-dispatching layers of a camera run (numpy's SIMD loops, numba's
+kernels compiled for the host, Mesa llvmpipe's vector width) gave the same bits with their own switches on the
+machine that was traced, so the mode leaves them as they are.
 
 The setting is an environment variable, not a scenario field: it is a property of the processes (how they do
 arithmetic), like ``OMP_NUM_THREADS``; spawned workers inherit it; and a scenario's configuration and its hash
@@ -51,7 +53,8 @@ def enabled(environ: dict[str, str] | None = None) -> bool:
 
 
 def apply() -> bool:
-    """Switch OpenCV's CPU-dependent code paths off in this process when the mode is on (idempotent).
+    """Switch OpenCV's CPU-dependent code paths off and hold it to one thread in this process when the mode is on
+    (idempotent).
 
     Returns
     -------
@@ -68,14 +71,19 @@ def apply() -> bool:
     import cv2
 
     cv2.setUseOptimized(False)  # no dispatched vector code, no IPP (OpenCV's documented switch)
+    cv2.setNumThreads(1)  # OpenCV's baseline code is not the same to the bit on several threads (module notes)
     return True
 
 
 def record() -> dict[str, Any]:
     """What a run adds to its ``metrics.json`` about the mode: ``{"portable_arithmetic": True}`` when it is on
-    (with ``opencv_optimized``, which must then be ``False``), else nothing."""
+    (with ``opencv_optimized`` and ``opencv_threads``, then ``False`` and 1), else nothing."""
     if not enabled():
         return {}
     import cv2
 
-    return {"portable_arithmetic": True, "opencv_optimized": bool(cv2.useOptimized())}
+    return {
+        "portable_arithmetic": True,
+        "opencv_optimized": bool(cv2.useOptimized()),
+        "opencv_threads": int(cv2.getNumThreads()),
+    }
