@@ -111,6 +111,19 @@ def test_off_by_default_and_nothing_recorded(monkeypatch: pytest.MonkeyPatch) ->
     assert enabled({ENV: "1"}) and not enabled({ENV: "0"}) and not enabled({ENV: ""})
 
 
+def test_apply_switches_opencv_to_its_baseline_on_one_thread(monkeypatch: pytest.MonkeyPatch) -> None:
+    threads = cv2.getNumThreads()
+    monkeypatch.setenv(ENV, "1")
+    try:
+        assert apply() and apply()  # idempotent
+        assert not cv2.useOptimized() and cv2.getNumThreads() == 1 and not cv2.ipp.useIPP()
+        assert record() == {"portable_arithmetic": True, "opencv_optimized": False, "opencv_threads": 1}
+    finally:
+        cv2.setUseOptimized(True)
+        cv2.setNumThreads(threads)
+    assert cv2.useOptimized()
+
+
 def test_the_calibration_key_differs_with_the_mode() -> None:
     rig, lens = StereoRig(width=160, height=48), Lens(k1=-0.05)
     settings = {"views": 8, "seed": 1}
