@@ -28,6 +28,8 @@ from scenarios.commands.optimal_command import optimal
 from scenarios.commands.run_commands import config_command, export, list_presets, report, run
 from scenarios.commands.study_commands import assess, compare, study, tune
 from scenarios.commands.terminal import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_MISSED
+from scenarios.portable_arithmetic import PortableArithmeticError
+from scenarios.portable_arithmetic import apply as apply_portable_arithmetic
 from scenarios.run.stopping import handle_sigterm
 
 __all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_MISSED", "app", "main"]
@@ -84,11 +86,17 @@ def _options(
 def main() -> None:
     """Entry point of ``offtrack``: SIGTERM is handled like Ctrl-C, then typer runs the command.
 
-    Typer's standalone mode prints usage errors (unknown option or command, a value of the wrong type or out
-    of an option's range; in offtrack's style, :mod:`scenarios.cli_format`) with exit code 2 and turns
-    ``typer.Exit`` into the process's exit code.
+    ``OFFTRACK_PORTABLE_ARITHMETIC`` is checked and applied first (:mod:`scenarios.portable_arithmetic`; a bad
+    value is one ``error:`` line and exit code 2). Typer's standalone mode prints usage errors (unknown option or
+    command, a value of the wrong type or out of an option's range; in offtrack's style,
+    :mod:`scenarios.cli_format`) with exit code 2 and turns ``typer.Exit`` into the process's exit code.
     """
     handle_sigterm()
+    try:
+        apply_portable_arithmetic()  # OFFTRACK_PORTABLE_ARITHMETIC=1: before any OpenCV operation
+    except PortableArithmeticError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise SystemExit(EXIT_BAD_INPUT) from None
     app(prog_name="offtrack")
 
 

@@ -27,6 +27,7 @@ ALLOWED_PACKAGE_IMPORTS: dict[str, set[str]] = {
 """docs/design.md §2: which of the four packages each may import."""
 
 SCENARIO_ROOMS: tuple[str, ...] = (
+    "portable_arithmetic",
     "extras",
     "yaml_input",
     "camera_schema",

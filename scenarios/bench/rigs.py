@@ -58,7 +58,9 @@ lazily built state) and would weigh on the first repetition alone."""
 def _render_main(scenario: str, vehicle: str, rigs: tuple[StereoRig, ...], conn: Connection) -> None:
     """The render process: one world, one camera per rig, every rig of a frame rendered on request."""
     from ..camera.build import stereo_camera, world_for_scenario
+    from ..portable_arithmetic import apply as apply_portable_arithmetic
 
+    apply_portable_arithmetic()  # OFFTRACK_PORTABLE_ARITHMETIC=1 (inherited): as the benchmark's own process
     setup = build_scenario(load_scenario(scenario, {"vehicle": vehicle}))
     world = world_for_scenario(setup)
     cameras = [stereo_camera(setup, ideal=True, rig=rig, world=world) for rig in rigs]

@@ -7,9 +7,11 @@ vehicle models and the odometry kernels) when an entry for the same inputs is th
 An entry is named by :func:`calibration_key`: the SHA-256 of every argument (the rig's geometry, image size, noise and
 misalignment, both lenses, the views, target, square size, corner noise, seed, ``alpha`` and stereo refinement; each
 float by its exact hexadecimal value), of the sources of the modules that compute it (:data:`SOURCES`, names and
-contents), of the OpenCV and numpy versions and of the CPU features OpenCV dispatches to at run time (another CPU,
-or ``OPENCV_CPU_DISABLE``, rounds differently). The same key gives the same result to the bit: the calibration runs
-OpenCV on one thread (:func:`sensor.calibration.one_opencv_thread`) and is seeded.
+contents), of the OpenCV and numpy versions, of the CPU features OpenCV dispatches to at run time (another CPU,
+or ``OPENCV_CPU_DISABLE``, rounds differently; none under the portable arithmetic of
+:mod:`scenarios.portable_arithmetic`) and of whether OpenCV uses Intel IPP and which CPU path IPP dispatches to.
+The same key gives the same result to the bit: the calibration runs OpenCV on one thread
+(:func:`sensor.calibration.one_opencv_thread`) and is seeded.
 
 An entry is an ``.npz`` (no pickled objects) holding every array of the result with its dtype and every scalar, and
 the key it was made for; it is written to a temporary file in the folder and moved into place with
@@ -68,6 +70,18 @@ def _opencv_cpu() -> str:
     return ",".join(str(i) for i in OPENCV_FEATURES if cv2.checkHardwareSupport(i))
 
 
+def _opencv_ipp() -> str:
+    """Whether OpenCV calls Intel IPP in this process and, if so, IPP's version with the CPU code path IPP
+    dispatches to (its own choice, e.g. ``AVX2 (l9)``: neither ``OPENCV_CPU_DISABLE`` nor
+    :func:`cv2.checkHardwareSupport` sees it, and ``OPENCV_IPP=sse42`` rounds ``cv2.warpPerspective``
+    differently); ``off`` when OpenCV does not use IPP (:func:`cv2.setUseOptimized` with ``False``, the
+    portable arithmetic of :mod:`scenarios.portable_arithmetic`)."""
+    ipp = getattr(cv2, "ipp", None)
+    if ipp is None or not ipp.useIPP():
+        return "off"
+    return str(ipp.getIppVersion())
+
+
 def _canonical(value: Any) -> str:
     """An exact text of a setting: floats by :meth:`float.hex`, dataclasses and pydantic models field by field."""
     if isinstance(value, bool | None | str):
@@ -110,6 +124,7 @@ def calibration_key(rig: StereoRig, lens_left: Lens, lens_right: Lens, **setting
         f"opencv={cv2.__version__}",
         f"numpy={np.__version__}",
         f"opencv_cpu={_opencv_cpu()}",
+        f"opencv_ipp={_opencv_ipp()}",
     ):
         digest.update(part.encode())
         digest.update(b"\n")

@@ -127,8 +127,11 @@ def _worker_main(
         except OSError:
             pass
     try:
+        from ..portable_arithmetic import apply as apply_portable_arithmetic
         from ..setup.build import build_scenario
         from .build import stereo_camera
+
+        apply_portable_arithmetic()  # OFFTRACK_PORTABLE_ARITHMETIC=1 (inherited): as the co-simulation process
 
         camera = stereo_camera(build_scenario(config), rig_index=rig_index, terrain=terrain)
     except BaseException:

@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING, Any
 from ..config import ScenarioConfig
 from ..loop.cosimulation import CoSimulation
 from ..loop.participant import TrailerSteerSource
+from ..portable_arithmetic import apply as apply_portable_arithmetic
+from ..portable_arithmetic import record as portable_arithmetic_record
 from ..setup.build import build_scenario
 from .drive import ProgressCallback, run_loop
 from .report import mark_failed, mark_interrupted, mark_running, write_report
@@ -61,6 +63,7 @@ def run_scenario(
         The content of ``metrics.json``.
     """
     plot_format = check_plot_format(plot_format)
+    apply_portable_arithmetic()  # OFFTRACK_PORTABLE_ARITHMETIC=1: also when called from Python, not the CLI
     for fmt in PLOT_FORMATS:  # never leave an earlier run's plots (in any format) beside this run's metrics
         for name in plot_files(fmt):
             (run_dir / name).unlink(missing_ok=True)
@@ -89,6 +92,7 @@ def run_scenario(
         "wall_time_s": outcome.wall_time_s,
         "stop_time": outcome.stop_time,
         "stop_signal": outcome.stop_signal,
+        **portable_arithmetic_record(),  # nothing unless the mode is on
     }
     return write_report(run_dir, setup, columns, run, plots, plot_format=plot_format, reports=outcome.reports)
 

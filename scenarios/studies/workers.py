@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..loop.ends import RunStatus
+from ..portable_arithmetic import apply as apply_portable_arithmetic
 from ..run.files import write_atomic
 from ..run.json_output import native_value
 from ..run.stopping import Terminated
@@ -66,12 +67,14 @@ def worker_models() -> ModelRegistry:
 
 
 def setup_process() -> None:
-    """Limit this worker process to one thread per library (once per process)."""
+    """Limit this worker process to one thread per library and apply the portable arithmetic when it is on
+    (:mod:`scenarios.portable_arithmetic`); once per process."""
     if _WORKER["ready"]:
         return
     if _WORKER["numpy_preloaded"] is None:
         _WORKER["numpy_preloaded"] = "numpy" in sys.modules
     os.environ.update(THREAD_LIMITS)  # for whatever loads from now on
+    apply_portable_arithmetic()  # OFFTRACK_PORTABLE_ARITHMETIC=1 (inherited): before the cases' first OpenCV call
     try:
         import cv2
 
@@ -109,7 +112,8 @@ def worker_info() -> dict[str, Any]:
     Returns
     -------
     dict
-        ``host``, ``pid``, the thread environment variables, ``cv2_threads``, ``numpy_preloaded``
+        ``host``, ``pid``, the thread environment variables, ``cv2_threads``, ``cv2_optimized`` (False under
+        the portable arithmetic), ``numpy_preloaded``
         (True if numpy was imported before the worker's thread limits were set), ``ready`` (the worker
         set-up ran) and ``models_built`` (vehicle models this process has built for its cases).
     """
@@ -121,6 +125,7 @@ def worker_info() -> dict[str, Any]:
         "pid": os.getpid(),
         **{k: os.environ.get(k) for k in THREAD_LIMITS},
         "cv2_threads": cv2.getNumThreads(),
+        "cv2_optimized": cv2.useOptimized(),
         "numpy_preloaded": _WORKER["numpy_preloaded"],
         "ready": _WORKER["ready"],
         "models_built": 0 if models is None else models.built,
