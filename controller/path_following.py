@@ -223,8 +223,8 @@ class TrailerSteeringController:
     estimate : float or None
         The held off-tracking sample in use [m] (``None``: no estimate).
     feedback_weight : float
-        Weight ``w`` in (0, 1] the last estimate was multiplied by (``config.uncertain_feedback = "shrink"``; 1 when
-        it was used as given or there was none).
+        Weight ``w`` in (0, 1] the last estimate was multiplied by (``config.uncertain_feedback`` ``"shrink"`` or
+        ``"taper"``; 1 when it was used as given or there was none).
     new_sample : bool
         Whether the last tick received a new sample.
     kingpin_curvature : float
@@ -364,7 +364,8 @@ class TrailerSteeringController:
         estimate
             The off-tracking estimate fed back (``None``, or one without a value: feed-forward only, integrator
             frozen). An estimate whose standard deviation exceeds ``config.feedback_max_std`` is not used, or with
-            ``config.uncertain_feedback = "shrink"`` is shrunk toward zero and the integrator frozen.
+            ``config.uncertain_feedback = "shrink"`` is shrunk toward zero and the integrator frozen, or with
+            ``"taper"`` weighted by ``(σ_max/σ)²``, the integrator advancing on the weighted error.
         lateral_acceleration
             The tractor's lateral specific force [m/s²] (signal ``tractor_lateral_acceleration``); read only by the
             friction hold with ``config.friction_hold_kingpin = "lateral_acceleration"``, which refuses a NaN (and
@@ -448,7 +449,8 @@ class TrailerSteeringController:
         frozen = reach_freeze and (
             cfg.reach_freeze_at == "feedforward" or (cfg.reach_freeze_at == "exit" and turn_ending)
         )
-        frozen = frozen or self.feedback_weight < 1.0  # a shrunk (uncertain) estimate does not wind the integrator
+        # A shrunk (uncertain) estimate does not wind the integrator; a tapered one winds it by its weighted error.
+        frozen = frozen or (self.feedback_weight < 1.0 and cfg.uncertain_feedback == "shrink")
         if error is not None and ki > 0 and self.fade > 0 and not frozen:
             integral_new = self.integral + error * ds
 
@@ -499,9 +501,10 @@ class TrailerSteeringController:
         """Zero-order hold of the estimate; derivative on new samples only. ``None`` if missing.
 
         An estimate whose std ``σ`` exceeds ``σ_max = config.feedback_max_std`` is dropped (``uncertain_feedback =
-        "drop"``) or shrunk (``"shrink"``) to the posterior mean ``w·e``, ``w = σ_max²/(σ_max² + σ²)``, of the
+        "drop"``), shrunk (``"shrink"``) to the posterior mean ``w·e``, ``w = σ_max²/(σ_max² + σ²)``, of the
         product of the estimate's Gaussian (mean ``e``, std ``σ``) and a prior of zero off-tracking with std
-        ``σ_max`` (:class:`~.path_following_config.PathFollowingConfig`); the hold and the derivative see ``w·e``.
+        ``σ_max``, or tapered (``"taper"``) to ``w·e``, ``w = σ_max²/σ²``
+        (:class:`~.path_following_config.PathFollowingConfig`); the hold and the derivative see ``w·e``.
         """
         self.new_sample = False
         self.feedback_weight = 1.0
@@ -511,6 +514,8 @@ class TrailerSteeringController:
         if math.isfinite(std) and std > max_std:
             if self.config.uncertain_feedback == "shrink":
                 self.feedback_weight = max_std**2 / (max_std**2 + std**2)
+            elif self.config.uncertain_feedback == "taper":
+                self.feedback_weight = max_std**2 / std**2  # inverse-variance weight (PathFollowingConfig)
             else:
                 value = None  # too uncertain (PathFollowingConfig.feedback_max_std): feed-forward only
         if value is None or not math.isfinite(value):

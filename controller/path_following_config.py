@@ -30,7 +30,7 @@ FeedForward = Literal["path", "steady", "none"]
 HoldKingpin = Literal["zero_slip", "lateral_acceleration", "wheel_speeds"]
 """Type of :attr:`PathFollowingConfig.friction_hold_kingpin`."""
 
-UncertainFeedback = Literal["drop", "shrink"]
+UncertainFeedback = Literal["drop", "shrink", "taper"]
 """Type of :attr:`PathFollowingConfig.uncertain_feedback`."""
 
 ReachFreezeAt = Literal["feedforward", "lock", "exit"]
@@ -167,7 +167,12 @@ class PathFollowingConfig(Settings):
         and zero off-tracking as a prior with std ``σ_max`` (the trailer on the path, as likely off as the largest
         error the controller trusts). The proportional and derivative terms act on ``w·e`` and the integrator is
         frozen while ``w < 1``, so an uncertain error does not wind it up. At and below the limit ``w = 1``; just
-        above it ``w`` starts at 1/2. An estimate with no value is dropped in both.
+        above it ``w`` starts at 1/2. ``taper``: the estimate is kept as ``w·e`` with the inverse-variance weight
+        ``w = σ_max²/σ²`` (its weight as a measurement relative to one at the limit; docs/studies.md, *The fused-fed
+        loop at the limit of the estimate's std*), and the integrator advances on ``w·e``: the command is continuous in
+        ``σ`` across the limit (``w = 1`` there, no step), so an std that crosses the limit by a rounding moves the
+        command by as little, and an estimate far off zero keeps steering while its std is above the limit. An
+        estimate with no value is dropped in all three.
     high_speed_crossover : tuple of float or None
         ``(u_a, u_b)`` [m/s]: the command is full up to ``u_a`` and fades linearly to zero at ``u_b``, above which
         the trailer runs unsteered (:mod:`controller.path_following`, *Speed and objective*); ``None``: path
