@@ -14,6 +14,7 @@ from vehicle_model.parameters import VehicleParams
 
 from ..loop.participant import estimate_column
 from ..loop.schema import FIRST_TOWED_UNIT, RecordedColumns, estimate_columns, estimator_names, schema_of, std_column
+from .feedback_use import feedback_fallback, feedback_weighted
 from .path_offtracking import combination_offtracking, rear_point_columns
 from .swept_width import swept_path_metrics
 from .verdicts import run_verdict, with_roundabout_test
@@ -72,68 +73,6 @@ def estimator_errors(truth: np.ndarray, estimate: np.ndarray, std: np.ndarray | 
         sigma = np.asarray(std, dtype=float)[both]
         out["within_2sigma"] = float(np.mean(np.abs(err) <= 2.0 * sigma)) if err.size else float("nan")
         out["mean_std"] = float(np.mean(sigma)) if err.size else float("nan")
-    return out
-
-
-def feedback_fallback(
-    columns: dict[str, np.ndarray], settled: np.ndarray, used_column: str = "trailer_estimate_used"
-) -> dict[str, float] | None:
-    """Share and seconds of the ticks after warm-up on which a unit's controller had no usable estimate
-    (``used_column`` NaN: none, or its std above ``controller.feedback_max_std_m``; ``unit<k>_estimate_used`` for
-    unit ``k`` behind the first towed one); ``None`` when the run recorded no such column (an unsteered unit)."""
-    used = columns.get(used_column)
-    if used is None or not settled.any():
-        return None
-    time = columns["time"]
-    period = float(np.median(np.diff(time))) if len(time) > 1 else 0.0
-    missing = settled & ~np.isfinite(used)
-    return {"fraction": float(missing.sum() / settled.sum()), "seconds": float(missing.sum() * period)}
-
-
-def feedback_weighted(
-    columns: dict[str, np.ndarray],
-    settled: np.ndarray,
-    weight_column: str = "trailer_feedback_weight",
-    uncertain_feedback: str | None = None,
-) -> dict[str, Any] | None:
-    """Share and seconds of the ticks after warm-up on which a unit's controller steered on a weighted-down
-    estimate (``weight_column`` below 1: its std above ``controller.feedback_max_std_m`` under
-    ``controller.uncertain_feedback`` ``shrink`` or ``taper``), and the mean and least weight over them.
-
-    Parameters
-    ----------
-    columns
-        The run's time series.
-    settled
-        The ticks after warm-up.
-    weight_column
-        The unit's recorded weight (``trailer_feedback_weight``; ``unit<k>_feedback_weight`` for unit ``k`` behind
-        the first towed one), recorded only when ``uncertain_feedback`` is not ``drop``.
-    uncertain_feedback
-        The setting, written beside the figures when given.
-
-    Returns
-    -------
-    dict or None
-        ``fraction``, ``seconds`` [s], ``mean_weight`` and ``min_weight`` (NaN, written null, when no tick was
-        weighted down), and ``uncertain_feedback`` when given; ``None`` when the run recorded no such column (a
-        ``drop`` run, an unsteered unit).
-    """
-    weight = columns.get(weight_column)
-    if weight is None or not settled.any():
-        return None
-    time = columns["time"]
-    period = float(np.median(np.diff(time))) if len(time) > 1 else 0.0
-    w = np.asarray(weight, dtype=float)
-    down = settled & (w < 1.0)  # NaN compares False: not weighted down
-    out: dict[str, Any] = {
-        "fraction": float(down.sum() / settled.sum()),
-        "seconds": float(down.sum() * period),
-        "mean_weight": float(np.mean(w[down])) if down.any() else float("nan"),
-        "min_weight": float(np.min(w[down])) if down.any() else float("nan"),
-    }
-    if uncertain_feedback is not None:
-        out["uncertain_feedback"] = uncertain_feedback
     return out
 
 
@@ -259,7 +198,8 @@ def compute_metrics(
     its own off-tracking, and its flags are merged into the run's, each reason naming the unit.
 
     ``uncertain_feedback`` (``controller.uncertain_feedback``) is written beside ``feedback_weighted``, the ticks
-    steered on a weighted-down estimate (:func:`feedback_weighted`), which a run records unless it is ``drop``.
+    steered on a weighted-down estimate (:func:`~.feedback_use.feedback_weighted`), which a run records unless it
+    is ``drop``.
 
     ``valid_fraction`` means one thing everywhere: the share of the ticks *on which the truth exists* (it
     starts once the kingpin has driven one trailer length) on which that source had a value; for the truth

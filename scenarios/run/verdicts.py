@@ -64,10 +64,10 @@ def run_verdict(
         The estimators' errors (:func:`~scenarios.run.metrics.estimator_errors`) by name.
     fallback
         ``fraction`` and ``seconds`` of the ticks after warm-up without a usable feedback estimate
-        (:func:`~scenarios.run.metrics.feedback_fallback`); ``None`` without feedback.
+        (:func:`~scenarios.run.feedback_use.feedback_fallback`); ``None`` without feedback.
     weighted
         ``fraction``, ``seconds``, ``mean_weight`` (and ``uncertain_feedback``) of the ticks after warm-up steered on
-        a weighted-down estimate (:func:`~scenarios.run.metrics.feedback_weighted`); ``None`` under ``drop``. Over
+        a weighted-down estimate (:func:`~scenarios.run.feedback_use.feedback_weighted`); ``None`` under ``drop``. Over
         :data:`FALLBACK_LIMIT` it raises ``feedback_weighted_down``, as the fallback raises ``feedback_fell_back``.
     """
     flags: list[dict[str, str]] = []
