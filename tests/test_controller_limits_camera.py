@@ -79,6 +79,7 @@ def test_camera_columns_from_the_runs_metrics():
             }
         },
         "feedback_fallback": {"fraction": 0.26, "seconds": 17.9},
+        "feedback_weighted": {"fraction": 0.12, "seconds": 8.3, "mean_weight": 0.7, "min_weight": 0.4},
     }
     assert camera_columns(metrics) == {
         "fused_rms_error_m": 0.08,
@@ -87,6 +88,8 @@ def test_camera_columns_from_the_runs_metrics():
         "fused_mean_std_m": 0.05,
         "viso_ot_rms_error_m": 0.11,
         "feedback_fallback_share": 0.26,
+        "feedback_weighted_share": 0.12,
+        "feedback_weighted_mean_weight": 0.7,
     }
     assert all(math.isnan(v) for v in camera_columns({"offtracking": {"estimators": {}}}).values())
 

@@ -133,14 +133,20 @@ def test_metrics_columns_read_what_is_there_and_nan_the_rest() -> None:
             }
         },
         "feedback_fallback": {"fraction": 0.02, "seconds": 1.5},
+        "feedback_weighted": {"fraction": 0.25, "seconds": 4.0, "mean_weight": 0.55, "min_weight": 0.3},
         "verdict": {"held": False, "flags": [{"flag": "a", "reason": "x"}, {"flag": "b", "reason": "y"}]},
     }
     row = metrics_columns(metrics)
     assert row["fused_rms_error_m"] == 0.03 and row["fused_within_2sigma"] == 0.91 and row["fused_mean_std_m"] == 0.02
     assert row["fallback_s"] == 1.5 and row["verdict_held"] is False and row["verdict_flags"] == "a;b"
+    assert row["weighted_fraction"] == 0.25 and row["weighted_mean_weight"] == 0.55
     empty = metrics_columns({"offtracking": {"estimators": {"viso_ot_fused": {"rms_error": 0.1}}}})
     assert empty["fused_rms_error_m"] == 0.1
-    assert all(math.isnan(empty[k]) for k in ROW_KEYS if k.startswith(("fallback", "verdict")) or k.endswith("std_m"))
+    assert all(
+        math.isnan(empty[k])
+        for k in ROW_KEYS
+        if k.startswith(("fallback", "weighted", "verdict")) or k.endswith("std_m")
+    )
     trust = kinematic_trust(np.array([0.01, 0.02, np.nan, 0.5]))
     assert trust["kinematic_trusted_fraction"] == pytest.approx(2 / 3)
     assert trust["kinematic_std_median_mps"] == pytest.approx(0.02)
@@ -385,6 +391,7 @@ def test_unit_columns_read_each_further_unit() -> None:
                         "viso_ot": {"rms_error": 0.05, "mean_error": -0.03, "max_abs_error": 0.14},
                     },
                     "feedback_fallback": {"fraction": 0.0, "seconds": 0.0},
+                    "feedback_weighted": {"fraction": 0.3, "seconds": 6.0, "mean_weight": 0.6, "min_weight": 0.5},
                 }
             }
         }
@@ -402,5 +409,7 @@ def test_unit_columns_read_each_further_unit() -> None:
         "unit3_viso_ot_mean_error_m": -0.03,
         "unit3_viso_ot_max_abs_error_m": 0.14,
         "unit3_fallback_s": 0.0,
+        "unit3_weighted_fraction": 0.3,
+        "unit3_weighted_mean_weight": 0.6,
     }
     assert unit_columns({}) == {}

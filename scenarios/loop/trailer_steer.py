@@ -149,6 +149,10 @@ class PathFollowingSteer:
                 Column(f"{p}estimate_used", "m", "the held estimate the PID used (NaN: none)", **internal),
                 Column(f"{p}beyond_reach", "-", "1 when the feed-forward needed an axle past its lock", **internal),
             ]
+            if ctrl.config.uncertain_feedback != "drop":  # a default run records exactly the columns it did
+                columns.append(
+                    Column(f"{p}feedback_weight", "-", "weight w the last estimate was multiplied by", **internal)
+                )
         for ctrl, _ in self.steered:
             columns += [
                 column
@@ -191,6 +195,8 @@ class PathFollowingSteer:
         row = {f"steer_{name}": float(v) for name, v in zip(self.axles, self._commands, strict=True)}
         for ctrl, _ in self.steered:
             row.update(ctrl.telemetry())
+            if ctrl.config.uncertain_feedback != "drop":
+                row[f"{ctrl.prefix}feedback_weight"] = float(ctrl.feedback_weight)
         return row
 
 

@@ -1,4 +1,5 @@
-"""Run metrics: off-tracking of the truth, estimator errors against it, the feedback's fallback, the roundabout-test
+"""Run metrics: off-tracking of the truth, estimator errors against it, the feedback's fallback and weighting, the
+roundabout-test
 verdict, the swept-path width (:mod:`.swept_width`) and the run's own verdict (:mod:`.verdicts`)."""
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from vehicle_model.parameters import VehicleParams
 
 from ..loop.participant import estimate_column
 from ..loop.schema import FIRST_TOWED_UNIT, RecordedColumns, estimate_columns, estimator_names, schema_of, std_column
+from .feedback_use import feedback_fallback, feedback_weighted
 from .path_offtracking import combination_offtracking, rear_point_columns
 from .swept_width import swept_path_metrics
 from .verdicts import run_verdict, with_roundabout_test
@@ -72,21 +74,6 @@ def estimator_errors(truth: np.ndarray, estimate: np.ndarray, std: np.ndarray | 
         out["within_2sigma"] = float(np.mean(np.abs(err) <= 2.0 * sigma)) if err.size else float("nan")
         out["mean_std"] = float(np.mean(sigma)) if err.size else float("nan")
     return out
-
-
-def feedback_fallback(
-    columns: dict[str, np.ndarray], settled: np.ndarray, used_column: str = "trailer_estimate_used"
-) -> dict[str, float] | None:
-    """Share and seconds of the ticks after warm-up on which a unit's controller had no usable estimate
-    (``used_column`` NaN: none, or its std above ``controller.feedback_max_std_m``; ``unit<k>_estimate_used`` for
-    unit ``k`` behind the first towed one); ``None`` when the run recorded no such column (an unsteered unit)."""
-    used = columns.get(used_column)
-    if used is None or not settled.any():
-        return None
-    time = columns["time"]
-    period = float(np.median(np.diff(time))) if len(time) > 1 else 0.0
-    missing = settled & ~np.isfinite(used)
-    return {"fraction": float(missing.sum() / settled.sum()), "seconds": float(missing.sum() * period)}
 
 
 def roundabout_verdict(
@@ -198,6 +185,7 @@ def compute_metrics(
     reference: np.ndarray | None = None,
     turn_centre: tuple[float, float] | None = None,
     rear_feedback: tuple[str, ...] = (),
+    uncertain_feedback: str | None = None,
 ) -> dict[str, Any]:
     """The ``metrics.json`` content of a run (without timing and status).
 
@@ -208,6 +196,10 @@ def compute_metrics(
     ``rear_feedback`` is the feedback of each unit behind the first towed one (``none`` where it is not steered,
     :func:`scenarios.unit_feedback.rear_feedbacks`): a steered one is judged by the same verdict as the first, on
     its own off-tracking, and its flags are merged into the run's, each reason naming the unit.
+
+    ``uncertain_feedback`` (``controller.uncertain_feedback``) is written beside ``feedback_weighted``, the ticks
+    steered on a weighted-down estimate (:func:`~.feedback_use.feedback_weighted`), which a run records unless it
+    is ``drop``.
 
     ``valid_fraction`` means one thing everywhere: the share of the ticks *on which the truth exists* (it
     starts once the kingpin has driven one trailer length) on which that source had a value; for the truth
@@ -253,8 +245,17 @@ def compute_metrics(
     fallback = feedback_fallback(columns, settled) if feedback != "none" else None
     if fallback is not None:
         metrics["feedback_fallback"] = fallback
+    weighted = (
+        feedback_weighted(columns, settled, uncertain_feedback=uncertain_feedback) if feedback != "none" else None
+    )
+    if weighted is not None:
+        metrics["feedback_weighted"] = weighted
     verdict = run_verdict(
-        feedback, metrics["offtracking"]["truth_after_warmup"], metrics["offtracking"]["estimators"], fallback
+        feedback,
+        metrics["offtracking"]["truth_after_warmup"],
+        metrics["offtracking"]["estimators"],
+        fallback,
+        weighted,
     )
     for unit, unit_feedback in enumerate(rear_feedback, start=3):
         unit_metrics = units.get(str(unit))
@@ -263,8 +264,13 @@ def compute_metrics(
         unit_fallback = feedback_fallback(columns, settled, f"unit{unit}_estimate_used")
         if unit_fallback is not None:
             unit_metrics["feedback_fallback"] = unit_fallback
+        unit_weighted = feedback_weighted(columns, settled, f"unit{unit}_feedback_weight", uncertain_feedback)
+        if unit_weighted is not None:
+            unit_metrics["feedback_weighted"] = unit_weighted
         settled_truth = {"rms": unit_metrics["rms_after_warmup"], "max_abs": unit_metrics["max_abs_after_warmup"]}
-        unit_verdict = run_verdict(unit_feedback, settled_truth, unit_metrics["estimators"], unit_fallback)
+        unit_verdict = run_verdict(
+            unit_feedback, settled_truth, unit_metrics["estimators"], unit_fallback, unit_weighted
+        )
         unit_metrics["feedback"] = unit_feedback
         unit_metrics["verdict"] = unit_verdict
         verdict["flags"] += [{**f, "reason": f"unit {unit}: {f['reason']}"} for f in unit_verdict["flags"]]

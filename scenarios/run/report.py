@@ -215,6 +215,7 @@ def write_report(
             reference=setup.path.points,
             turn_centre=turn_centre(setup.path.centres),
             rear_feedback=rear_feedbacks(setup.params, config.feedback, config.rear_feedback),
+            uncertain_feedback=config.controller.uncertain_feedback,
         )
         with_coupling_references(metrics, reports or {})
         metrics.update({key: None for key in RUN_FIELDS})

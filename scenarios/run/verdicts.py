@@ -50,6 +50,7 @@ def run_verdict(
     settled_truth: dict[str, float],
     estimators: dict[str, dict[str, float]],
     fallback: dict[str, float] | None,
+    weighted: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The verdict of a run: ``{"held": bool, "flags": [{"flag", "reason"}, …]}``.
 
@@ -63,7 +64,11 @@ def run_verdict(
         The estimators' errors (:func:`~scenarios.run.metrics.estimator_errors`) by name.
     fallback
         ``fraction`` and ``seconds`` of the ticks after warm-up without a usable feedback estimate
-        (:func:`~scenarios.run.metrics.feedback_fallback`); ``None`` without feedback.
+        (:func:`~scenarios.run.feedback_use.feedback_fallback`); ``None`` without feedback.
+    weighted
+        ``fraction``, ``seconds``, ``mean_weight`` (and ``uncertain_feedback``) of the ticks after warm-up steered on
+        a weighted-down estimate (:func:`~scenarios.run.feedback_use.feedback_weighted`); ``None`` under ``drop``. Over
+        :data:`FALLBACK_LIMIT` it raises ``feedback_weighted_down``, as the fallback raises ``feedback_fell_back``.
     """
     flags: list[dict[str, str]] = []
     if feedback != "none":
@@ -92,6 +97,17 @@ def run_verdict(
                     f"the controller had no usable {feedback} estimate (none, or its std above "
                     f"controller.feedback_max_std_m) on {fallback['fraction']:.0%} of the ticks after warm-up "
                     f"({fallback['seconds']:.1f} s) and steered by feed-forward alone there",
+                )
+            )
+        if weighted is not None and weighted["fraction"] > FALLBACK_LIMIT:
+            setting = weighted.get("uncertain_feedback", "shrink or taper")
+            flags.append(
+                _flag(
+                    "feedback_weighted_down",
+                    f"the controller steered on a weighted-down {feedback} estimate (its std above "
+                    f"controller.feedback_max_std_m, controller.uncertain_feedback = {setting}) on "
+                    f"{weighted['fraction']:.0%} of the ticks after warm-up ({weighted['seconds']:.1f} s), "
+                    f"mean weight {weighted['mean_weight']:.2f}",
                 )
             )
         errors = estimators.get(feedback)

@@ -51,6 +51,8 @@ CAMERA_COLUMNS = (
     "fused_mean_std_m",
     "viso_ot_rms_error_m",
     "feedback_fallback_share",
+    "feedback_weighted_share",
+    "feedback_weighted_mean_weight",
 )
 """The columns a camera case adds to the study's row (:func:`camera_columns`)."""
 
@@ -76,11 +78,13 @@ def camera_columns(metrics: dict[str, Any]) -> dict[str, float]:
     ----------
     metrics
         The run's metrics (``offtracking.estimators.viso_ot_fused`` and ``.viso_ot``, errors over the whole run;
-        ``feedback_fallback``, the ticks after warm-up without a usable estimate).
+        ``feedback_fallback``, the ticks after warm-up without a usable estimate; ``feedback_weighted``, those
+        steered on a weighted-down one under ``controller.uncertain_feedback`` ``shrink`` or ``taper``).
     """
     estimators = (metrics.get("offtracking") or {}).get("estimators") or {}
     fused = estimators.get(CAMERA_FEEDBACK) or {}
     raw = estimators.get("viso_ot") or {}
+    weighted = metrics.get("feedback_weighted") or {}
     return {
         "fused_rms_error_m": metric_number(fused, "rms_error"),
         "fused_max_abs_error_m": metric_number(fused, "max_abs_error"),
@@ -88,6 +92,8 @@ def camera_columns(metrics: dict[str, Any]) -> dict[str, float]:
         "fused_mean_std_m": metric_number(fused, "mean_std"),
         "viso_ot_rms_error_m": metric_number(raw, "rms_error"),
         "feedback_fallback_share": metric_number(metrics.get("feedback_fallback") or {}, "fraction"),
+        "feedback_weighted_share": metric_number(weighted, "fraction"),
+        "feedback_weighted_mean_weight": metric_number(weighted, "mean_weight"),
     }
 
 

@@ -1,9 +1,9 @@
 """The columns a field-loop case adds to its row, read from its run's ``metrics.json`` and time series.
 
-:func:`metrics_columns` takes the fused filter's errors and coverage, the feedback's fallback and the run's verdict
-(each flag named with its unit, :func:`~.field_loop_units.verdict_flag_names`); :func:`kinematic_trust` how far the
-filter trusted the zero-slip kinematics. :func:`scenarios.studies.field_loop.run_field_loop_case` adds both, and each
-further unit's figures (:func:`~.field_loop_units.unit_columns`), to the common row.
+:func:`metrics_columns` takes the fused filter's errors and coverage, the feedback's fallback and weighting and the
+run's verdict (each flag named with its unit, :func:`~.field_loop_units.verdict_flag_names`); :func:`kinematic_trust`
+how far the filter trusted the zero-slip kinematics. :func:`scenarios.studies.field_loop.run_field_loop_case` adds
+both, and each further unit's figures (:func:`~.field_loop_units.unit_columns`), to the common row.
 """
 
 from __future__ import annotations
@@ -28,6 +28,8 @@ ROW_KEYS = (
     "fused_mean_std_m",
     "fallback_fraction",
     "fallback_s",
+    "weighted_fraction",
+    "weighted_mean_weight",
     "verdict_held",
     "verdict_flags",
     "kinematic_std_median_mps",
@@ -50,12 +52,14 @@ def metrics_columns(metrics: dict[str, Any]) -> dict[str, Any]:
     dict
         ``fused_rms_error_m``, ``fused_mean_error_m``, ``fused_max_abs_error_m`` [m], ``fused_within_2sigma``
         (share), ``fused_mean_std_m`` [m] of ``offtracking.estimators.viso_ot_fused``; ``fallback_fraction`` and
-        ``fallback_s`` [s] of ``feedback_fallback``; ``verdict_held`` (bool) and ``verdict_flags`` (the flag
-        names joined by ``;``, a further unit's named with it, :func:`verdict_flag_names`; empty when it held) of
-        ``verdict``.
+        ``fallback_s`` [s] of ``feedback_fallback``; ``weighted_fraction`` and ``weighted_mean_weight`` of
+        ``feedback_weighted`` (``controller.uncertain_feedback`` ``shrink`` or ``taper``); ``verdict_held`` (bool)
+        and ``verdict_flags`` (the flag names joined by ``;``, a further unit's named with it,
+        :func:`verdict_flag_names`; empty when it held) of ``verdict``.
     """
     fused = ((metrics.get("offtracking") or {}).get("estimators") or {}).get("viso_ot_fused") or {}
     fallback = metrics.get("feedback_fallback") or {}
+    weighted = metrics.get("feedback_weighted") or {}
     verdict = metrics.get("verdict")
     row: dict[str, Any] = {
         "fused_rms_error_m": metric_number(fused, "rms_error"),
@@ -65,6 +69,8 @@ def metrics_columns(metrics: dict[str, Any]) -> dict[str, Any]:
         "fused_mean_std_m": metric_number(fused, "mean_std"),
         "fallback_fraction": metric_number(fallback, "fraction"),
         "fallback_s": metric_number(fallback, "seconds"),
+        "weighted_fraction": metric_number(weighted, "fraction"),
+        "weighted_mean_weight": metric_number(weighted, "mean_weight"),
         "verdict_held": math.nan,
         "verdict_flags": math.nan,
     }

@@ -40,6 +40,8 @@ UNIT_KEYS = (
     "viso_ot_max_abs_error_m",
     "zero_slip_rms_error_m",
     "fallback_s",
+    "weighted_fraction",
+    "weighted_mean_weight",
     "steered",
 )
 """The columns ``unit<k>_<key>`` :func:`unit_columns` gives for every unit ``k`` behind the first towed one."""
@@ -67,9 +69,10 @@ def unit_columns(metrics: dict[str, Any]) -> dict[str, float]:
         ``_fused_rms_error_m``, ``_fused_mean_error_m``, ``_fused_max_abs_error_m`` [m] and ``_fused_within_2sigma``;
         the raw VISO-OT estimate's ``_viso_ot_rms_error_m``, ``_viso_ot_mean_error_m``, ``_viso_ot_max_abs_error_m``
         and the zero-slip estimate's ``_zero_slip_rms_error_m`` [m] (both open loop beside the feedback); and
-        ``_fallback_s`` [s]; ``_steered`` (1.0 when the run steered the unit on a feedback, 0.0 when its
-        ``rear_feedback`` entry is ``none``, e.g. an A-double's converter dolly; NaN when not said). NaN where
-        absent; nothing for a tractor–semi-trailer.
+        ``_fallback_s`` [s]; ``_weighted_fraction`` and ``_weighted_mean_weight`` of its ``feedback_weighted``
+        (``controller.uncertain_feedback`` ``shrink`` or ``taper``); ``_steered`` (1.0 when the run steered the
+        unit on a feedback, 0.0 when its ``rear_feedback`` entry is ``none``, e.g. an A-double's converter dolly;
+        NaN when not said). NaN where absent; nothing for a tractor–semi-trailer.
     """
     out: dict[str, float] = {}
     for unit, figures in sorted(((metrics.get("offtracking") or {}).get("units") or {}).items()):
@@ -82,6 +85,9 @@ def unit_columns(metrics: dict[str, Any]) -> dict[str, float]:
             values.update({f"{prefix}_{key}_m": metric_number(estimators.get(name) or {}, key) for key in keys})
         values["fused_within_2sigma"] = metric_number(estimators.get("viso_ot_fused") or {}, "within_2sigma")
         values["fallback_s"] = metric_number(figures.get("feedback_fallback") or {}, "seconds")
+        weighted = figures.get("feedback_weighted") or {}
+        values["weighted_fraction"] = metric_number(weighted, "fraction")
+        values["weighted_mean_weight"] = metric_number(weighted, "mean_weight")
         values["steered"] = _steered(metrics, int(unit))
         out.update({f"unit{unit}_{key}": values[key] for key in UNIT_KEYS})
     return out
