@@ -76,24 +76,28 @@ def test_the_command_line_runs_a_plugin_estimator_records_measures_and_feeds_it_
 
 
 SWEEP = """
+import os
 import sys
 from pathlib import Path
 from scenarios.run.metrics import estimator_names
 from scenarios.run.plots import offtracking_figure
+from scenarios.studies.executors import local_executor
 from scenarios.studies.records import CaseSpec
 from scenarios.studies.sweep import run_sweep
 
 if __name__ == "__main__":
     out = Path(sys.argv[1])
-    base = (("vehicle", "lst"), ("feedback", "shifted_truth"), ("duration_s", 14.0))
+    base = (("vehicle", "lst"), ("feedback", "shifted_truth"), ("duration_s", 12.0))
     cases = [
         CaseSpec("plugin", "roundabout-test", base, (("shift", "default"),)),
         CaseSpec(
             "plugin", "roundabout-test", base + (("estimators.shifted_truth", {"shift_m": 0.1}),), (("shift", "0.1"),)
         ),
     ]
-    result = run_sweep(cases, out, workers=2)
-    print(*(r.status for r in result.records))
+    with local_executor(1) as pool:  # one spawned worker runs both cases
+        result = run_sweep(cases, out, executor=pool)
+    pids = {r.worker["pid"] for r in result.records}
+    print(*(r.status for r in result.records), len(pids), os.getpid() in pids)
     import pandas as pd
     series = pd.read_parquet(out / "shift-default" / "timeseries.parquet")
     columns = {c: series[c].to_numpy(dtype=float) for c in series.columns}
@@ -110,7 +114,7 @@ def test_spawned_sweep_workers_run_a_plugin_estimator_with_its_settings_and_figu
     done = _python(SWEEP, PLUGIN, args=(str(tmp_path),))
     assert done.returncode == 0, done.stderr
     statuses, *lines = done.stdout.strip().splitlines()
-    assert statuses == "done done"
+    assert statuses == "done done 1 False"  # both cases on the one spawned worker, not in the sweep's process
     _shifted(tmp_path / "shift-default", SHIFT)
     _shifted(tmp_path / "shift-0.1", 0.1)  # its settings, validated by its own model, reached the worker
     colours = {label.split(":")[0]: colour for label, colour in (line.split("|") for line in lines)}
