@@ -131,9 +131,10 @@ BAD_INPUT = [
 ]
 """Bad command lines and the option or field each error must name."""
 
-IN_A_PROCESS_BY_DEFAULT = {"--mu", "frobnicate", "rates.camera_hz", "fusion.kinematic_error_model"}
-"""The cases also run through a fresh ``offtrack`` process in the default suite (an option, a command, a field of
-a run and one of a study); every case does under ``make test-all``, and every case runs in-process by default."""
+IN_A_PROCESS_BY_DEFAULT = {"--mu", "rates.camera_hz"}
+"""The cases also run through a fresh ``offtrack`` process in the default suite (one of typer's usage errors, an
+option's value; and a field of a run's configuration); every case does under ``make test-all``, and every case runs
+in-process by default (``main()`` exits through typer as the process does)."""
 
 
 @pytest.mark.parametrize(

@@ -120,9 +120,23 @@ def _parts(run_dir: Path) -> list[Path]:
     return sorted((run_dir / TIMESERIES_FILE).glob("part-*.parquet"))
 
 
-def test_every_file_a_run_writes_is_0644_and_its_directories_0755(tmp_path: Path, umask_022: None) -> None:
-    run_dir = new_run_dir(tmp_path / "run", "x")
-    run_scenario(load_scenario("roundabout-3", SHORT), run_dir)
+@pytest.fixture(scope="module")
+def completed_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    """A completed run of ``roundabout-3`` into the turn (20 s: a non-zero off-tracking) with its plots, made under
+    umask 022, and its metrics as :func:`run_scenario` returned them; read only: a test that changes it copies it."""
+    old = os.umask(0o022)
+    try:
+        run_dir = new_run_dir(tmp_path_factory.mktemp("completed") / "run", "x")
+        metrics = jsonable(run_scenario(load_scenario("roundabout-3", {"duration_s": 20.0}), run_dir))
+    finally:
+        os.umask(old)
+    return run_dir, metrics
+
+
+def test_every_file_a_run_writes_is_0644_and_its_directories_0755(
+    tmp_path: Path, umask_022: None, completed_run: tuple[Path, dict]
+) -> None:
+    run_dir = completed_run[0]  # written under umask 022
     files = [run_dir / "config.yaml", run_dir / "metrics.json", run_dir / "plan_view.png", run_dir / "offtracking.png"]
     assert _parts(run_dir) and all(p.is_file() for p in files)
     for path in [*files, *_parts(run_dir)]:
@@ -180,9 +194,11 @@ def test_a_slow_run_flushes_after_the_wall_time_interval(tmp_path: Path) -> None
     assert writer.parts == 1 and len(pd.read_parquet(tmp_path / TIMESERIES_FILE)) == 2
 
 
-def test_force_clears_the_previous_run_so_no_old_metrics_or_plots_remain(tmp_path: Path) -> None:
+def test_force_clears_the_previous_run_so_no_old_metrics_or_plots_remain(
+    tmp_path: Path, completed_run: tuple[Path, dict]
+) -> None:
     out = tmp_path / "run"
-    run_scenario(load_scenario("roundabout-3", SHORT), new_run_dir(out, "x"))
+    shutil.copytree(completed_run[0], out)  # a completed run with its plots
     assert (out / "plan_view.png").is_file()
     with pytest.raises(InputError, match=r"already holds files.*--force"):
         new_run_dir(out, "x")
@@ -268,11 +284,13 @@ def test_render_checks_its_output_directory_before_simulating(tmp_path: Path, mo
     assert simulated and 2.0 / hz < simulated[0] <= 2.0 / hz + 3.0 / config.rates.control_hz
 
 
-def test_rebuilding_the_report_of_a_completed_run_reproduces_its_metrics(tmp_path: Path) -> None:
-    run_dir = new_run_dir(tmp_path / "run", "x")
-    config = load_scenario("roundabout-3", {"duration_s": 20.0})  # into the turn: a non-zero off-tracking
-    metrics = jsonable(run_scenario(config, run_dir, plots=False))
-    (run_dir / "metrics.json").unlink()  # the plots and metrics come back from config.yaml and the series
+def test_rebuilding_the_report_of_a_completed_run_reproduces_its_metrics(
+    tmp_path: Path, completed_run: tuple[Path, dict]
+) -> None:
+    run_dir, metrics = tmp_path / "run", completed_run[1]  # into the turn: a non-zero off-tracking
+    shutil.copytree(completed_run[0], run_dir)
+    for name in ("metrics.json", "plan_view.png", "offtracking.png"):  # they come back from config.yaml and the series
+        (run_dir / name).unlink()
     rebuilt = rebuild_report(run_dir)
     assert rebuilt["status"] == "incomplete" and "without writing its metrics" in rebuilt["message"]
     assert (run_dir / "plan_view.png").is_file() and (run_dir / "offtracking.png").is_file()

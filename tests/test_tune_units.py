@@ -30,7 +30,9 @@ from scenarios.loop.trailer_steer import PathFollowingSteer
 from scenarios.setup.models import rebuild_setup
 
 B_DOUBLE = str(Path(__file__).parent / "data" / "vehicles" / "b-double-steered.yaml")
-SHORT = {"path.turns": 0.1, "path.entry_length": 10.0, "path.exit_length": 5.0}
+SHORT = {"path.turns": 0.05, "path.entry_length": 5.0, "path.exit_length": 2.0}
+"""A twentieth of the roundabout, 5 m in and 2 m out: an episode of a few seconds (measured: the held-out rear
+trailer's RMS off-tracking 5.5 mm; over a tenth, 10 m in and 5 m out: 4.2 mm)."""
 FIGURES = {"rms_offtracking": 0.02, "max_offtracking": 0.05, "saturated_fraction": 0.0, "status": "completed"}
 
 

@@ -2,7 +2,7 @@
 
 * The case list: the default subset and the full grid (counts, names, the default combination's steerable axles, each
   steering's ``feedback`` and ``rear_feedback``), and fewer steerings for a combination with one steerable unit.
-* Four shortened cases (a quarter of a 30 m roundabout, dry, the default B-double) run through the sweep: a row per
+* Four shortened cases (a quarter of a 20 m roundabout, dry, the default B-double) run through the sweep: a row per
   case with every towed unit's columns, the figures written; steering both trailers on the truth cuts the rear
   trailer's true off-tracking to a small part of the unsteered run's; a right turn gives the left turn's per-unit
   figures within 1e-6 m.
@@ -33,9 +33,10 @@ from scenarios.studies.unit_steering import (
 from vehicle_model.errors import InputError
 
 REPO = Path(__file__).resolve().parents[1]
-SHORT = (("path.radius", 30.0), ("path.turns", 0.25), ("path.entry_length", 15.0), ("path.exit_length", 5.0))
-"""A quarter of a 30 m roundabout instead of the study's 50 m one (measured: the unsteered trailers' true off-tracking
-0.43 and 0.56 m RMS, on the truth 3 mm; half a turn: 0.50 and 0.79 m, 2 mm)."""
+SHORT = (("path.radius", 20.0), ("path.turns", 0.25), ("path.entry_length", 10.0), ("path.exit_length", 2.0))
+"""A quarter of a 20 m roundabout instead of the study's 50 m one, 10 m in and 2 m out (measured: the unsteered
+trailers' true off-tracking 0.56 and 0.46 m RMS, on the truth 6 mm each; a quarter of a 30 m one, 15 m in and 5 m
+out: 0.43 and 0.56 m, 3 mm; half a turn of it: 0.50 and 0.79 m, 2 mm)."""
 UNIT_COLUMNS = (
     "feedback",
     "true_offtracking_rms_m",
