@@ -157,22 +157,23 @@ class PathFollowingConfig(Settings):
         Period [s] assumed on the first call (later ones use the difference of ``state.time``).
     feedback_max_std : float
         Largest standard deviation [m] of the fed-back estimate (the estimates' ``<feedback>_std``, given by the
-        fused VISO-OT) at which it is used; above it the controller steers by feed-forward only, integrator
-        frozen. At 0.075 m an estimate's 2σ reaches the 0.15 m largest off-tracking of the target (docs/design.md
-        §11): less certain than that, it would steer the trailer by as much error as it removes.
-    uncertain_feedback : {"drop", "shrink"}
-        What the controller does with an estimate whose std ``σ`` exceeds ``feedback_max_std`` (``σ_max``).
-        ``drop``: feed-forward only, integrator frozen. ``shrink``: the estimate ``e`` is kept as the posterior mean
-        ``w·e``, ``w = σ_max²/(σ_max² + σ²)``, of the product of two Gaussians: the estimate (mean ``e``, std ``σ``)
-        and zero off-tracking as a prior with std ``σ_max`` (the trailer on the path, as likely off as the largest
-        error the controller trusts). The proportional and derivative terms act on ``w·e`` and the integrator is
-        frozen while ``w < 1``, so an uncertain error does not wind it up. At and below the limit ``w = 1``; just
-        above it ``w`` starts at 1/2. ``taper``: the estimate is kept as ``w·e`` with the inverse-variance weight
-        ``w = σ_max²/σ²`` (its weight as a measurement relative to one at the limit; docs/studies.md, *The fused-fed
-        loop at the limit of the estimate's std*), and the integrator advances on ``w·e``: the command is continuous in
-        ``σ`` across the limit (``w = 1`` there, no step), so an std that crosses the limit by a rounding moves the
-        command by as little, and an estimate far off zero keeps steering while its std is above the limit. An
-        estimate with no value is dropped in all three.
+        fused VISO-OT) at which it is used as given; above it ``uncertain_feedback`` says what is done with it. At
+        0.075 m an estimate's 2σ reaches the 0.15 m largest off-tracking of the target (docs/design.md §11): less
+        certain than that, it would steer the trailer by as much error as it removes.
+    uncertain_feedback : {"taper", "drop", "shrink"}
+        What the controller does with an estimate whose std ``σ`` exceeds ``feedback_max_std`` (``σ_max``); ``taper`` by
+        default (no step in the command at the limit, so the loop's result does not turn on a rounding of ``σ``:
+        docs/controller_design.md §3.3). ``drop``: feed-forward only, integrator frozen. ``shrink``: the estimate ``e``
+        is kept as the posterior mean ``w·e``, ``w = σ_max²/(σ_max² + σ²)``, of the product of two Gaussians: the
+        estimate (mean ``e``, std ``σ``) and zero off-tracking as a prior with std ``σ_max`` (the trailer on the path,
+        as likely off as the largest error the controller trusts). The proportional and derivative terms act on ``w·e``
+        and the integrator is frozen while ``w < 1``, so an uncertain error does not wind it up. At and below the limit
+        ``w = 1``; just above it ``w`` starts at 1/2. ``taper``: the estimate is kept as ``w·e`` with the
+        inverse-variance weight ``w = σ_max²/σ²`` (its weight as a measurement relative to one at the limit;
+        docs/studies.md, *The fused-fed loop at the limit of the estimate's std*), and the integrator advances on
+        ``w·e``: the command is continuous in ``σ`` across the limit (``w = 1`` there, no step), so an std that crosses
+        the limit by a rounding moves the command by as little, and an estimate far off zero keeps steering while its
+        std is above the limit. An estimate with no value is dropped in all three.
     high_speed_crossover : tuple of float or None
         ``(u_a, u_b)`` [m/s]: the command is full up to ``u_a`` and fades linearly to zero at ``u_b``, above which
         the trailer runs unsteered (:mod:`controller.path_following`, *Speed and objective*); ``None``: path
@@ -261,7 +262,7 @@ class PathFollowingConfig(Settings):
     derivative_min_distance: float = Field(0.05, ge=0.0)
     control_period: float = Field(0.02, gt=0.0, le=1.0)
     feedback_max_std: float = Field(0.075, gt=0.0)
-    uncertain_feedback: UncertainFeedback = "drop"
+    uncertain_feedback: UncertainFeedback = "taper"
     max_slip_angle: float | None = Field(math.radians(8.0), gt=0.0, le=math.radians(45.0))
     high_speed_crossover: tuple[float, float] | None = (35.0 / 3.6, 55.0 / 3.6)
     slip_window_holds_feedforward: bool = True

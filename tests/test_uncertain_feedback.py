@@ -1,4 +1,4 @@
-"""An uncertain estimate (std above ``feedback_max_std``): dropped by default, or shrunk toward zero off-tracking."""
+"""An uncertain estimate (std above ``feedback_max_std``): tapered by default, dropped, or shrunk toward zero."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import pytest
 from controller.path_following import TrailerSteeringController
 from controller.path_following_config import PathFollowingConfig, PathFollowingGains
 from scenarios.config import ConfigError, load_scenario
+from scenarios.configuration.sections import ControllerConfig
 from scenarios.loop.trailer_steer import trailer_steer_for
 from scenarios.setup.build import build_scenario
 from vehicle_model.errors import InputError
@@ -50,17 +51,20 @@ def steer(params, config: PathFollowingConfig, sequence) -> tuple[np.ndarray, li
     return np.array(commands), integrals
 
 
-def test_drop_is_the_default_and_steers_as_if_the_uncertain_estimate_were_missing(params) -> None:
+def test_taper_is_the_default_and_drop_steers_as_if_the_uncertain_estimate_were_missing(params) -> None:
     sequence = estimates()
-    assert PathFollowingConfig().uncertain_feedback == "drop"
+    assert PathFollowingConfig().uncertain_feedback == "taper"
+    assert ControllerConfig().uncertain_feedback == "taper"  # the run's setting has the controller's default
     default, _ = steer(params, PathFollowingConfig(gains=GAINS), sequence)
+    taper, _ = steer(params, PathFollowingConfig(gains=GAINS, uncertain_feedback="taper"), sequence)
+    assert np.array_equal(default, taper)  # bit for bit
     drop, _ = steer(params, PathFollowingConfig(gains=GAINS, uncertain_feedback="drop"), sequence)
     missing = [e if e.std <= MAX_STD else OfftrackingEstimate.of(None) for e in sequence]
-    as_missing, _ = steer(params, PathFollowingConfig(gains=GAINS), missing)
-    assert np.array_equal(default, drop)  # bit for bit
-    assert np.array_equal(default, as_missing)
+    as_missing, _ = steer(params, PathFollowingConfig(gains=GAINS, uncertain_feedback="drop"), missing)
+    assert np.array_equal(drop, as_missing)  # bit for bit
     shrink, _ = steer(params, PathFollowingConfig(gains=GAINS, uncertain_feedback="shrink"), sequence)
-    assert not np.array_equal(default, shrink)  # the sequence does exercise the uncertain branch
+    assert not np.array_equal(drop, shrink)  # the sequence does exercise the uncertain branch
+    assert not np.array_equal(default, drop)
 
 
 @pytest.mark.parametrize("std", [0.076, 0.1, 0.3])

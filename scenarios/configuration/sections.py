@@ -265,14 +265,15 @@ class ControllerConfig(Settings):
         0.075,
         gt=0.0,
         le=1.0,
-        description="[m] std of the fed-back estimate above which the trailer is steered by feed-forward only: an "
-        "estimate whose 2σ reaches the 0.15 m max target is not steered on; 1 m is ten times the 0.10 m RMS target",
+        description="[m] std of the fed-back estimate above which it is weighted down or dropped "
+        "(uncertain_feedback): an estimate whose 2σ reaches the 0.15 m max target is not steered on as given; 1 m is "
+        "ten times the 0.10 m RMS target",
     )
     uncertain_feedback: Literal["drop", "shrink", "taper"] = Field(
-        "drop",
-        description="an estimate whose std is above feedback_max_std_m: drop (feed-forward only), shrink (kept as "
-        "w·e, w = σ_max²/(σ_max² + σ²), zero off-tracking as a prior with std σ_max; integrator frozen) or taper "
-        "(kept as w·e, w = σ_max²/σ², continuous at the limit; the integrator advances on w·e)",
+        "taper",
+        description="an estimate whose std is above feedback_max_std_m: taper (the default: kept as w·e, w = "
+        "σ_max²/σ², continuous at the limit; the integrator advances on w·e), drop (feed-forward only) or shrink (kept "
+        "as w·e, w = σ_max²/(σ_max² + σ²), zero off-tracking as a prior with std σ_max; integrator frozen)",
     )
     max_slip_angle_deg: float | None = Field(
         math.degrees(PathFollowingConfig.model_fields["max_slip_angle"].default),

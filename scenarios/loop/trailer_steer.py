@@ -149,7 +149,7 @@ class PathFollowingSteer:
                 Column(f"{p}estimate_used", "m", "the held estimate the PID used (NaN: none)", **internal),
                 Column(f"{p}beyond_reach", "-", "1 when the feed-forward needed an axle past its lock", **internal),
             ]
-            if ctrl.config.uncertain_feedback != "drop":  # a default run records exactly the columns it did
+            if ctrl.config.uncertain_feedback != "drop":  # drop never weights: its runs carry no weight column
                 columns.append(
                     Column(f"{p}feedback_weight", "-", "weight w the last estimate was multiplied by", **internal)
                 )
