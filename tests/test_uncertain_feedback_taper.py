@@ -7,28 +7,20 @@ import math
 
 import numpy as np
 import pytest
+from uncertain_feedback_setup import DT, GAINS, MAX_STD, state
 
 from controller.path_following import TrailerSteeringController
-from controller.path_following_config import PathFollowingConfig, PathFollowingGains
+from controller.path_following_config import PathFollowingConfig
 from scenarios.config import ConfigError, load_scenario
 from scenarios.loop.trailer_steer import trailer_steer_for
 from scenarios.setup.build import build_scenario
 from vehicle_model.offtracking import OfftrackingEstimate
 from vehicle_model.presets import lst_laden
-from vehicle_model.simulator import VehicleState
-
-DT = 0.02
-MAX_STD = 0.075
-GAINS = PathFollowingGains(kp=0.3, ki=0.05, kd=0.2)
 
 
 @pytest.fixture(scope="module")
 def params():
     return lst_laden()
-
-
-def state(time: float, speed: float = 3.0, r1: float = 0.05, gamma: float = 0.1) -> VehicleState:
-    return VehicleState(time, 0.0, 0.0, 0.0, speed, 0.0, r1, gamma, r1, slip=np.zeros(6))
 
 
 def hovering(nudge: float) -> list[OfftrackingEstimate]:
