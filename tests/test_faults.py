@@ -629,7 +629,9 @@ def test_no_render_worker_survives_a_sigkill_of_its_pipelined_camera_run(
             assert len(frame) > 0
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=30)  # not communicate(): the workers hold its output pipes open while they live
-        survivors = _survivors(workers, within=4.0)
+        # A worker notices within PARENT_CHECK_S (0.2 s) and exits; tearing down its OpenGL context took over 4 s at a
+        # load average of 14-19 on two cores (the machine shared with rendered runs), so the bound is 10 s.
+        survivors = _survivors(workers, within=10.0)
     finally:
         if proc.poll() is None:
             proc.kill()
