@@ -11,19 +11,24 @@ import numpy as np
 __all__ = ["feedback_fallback", "feedback_weighted"]
 
 
+def _tick_period(columns: dict[str, np.ndarray]) -> float:
+    """The run's control period [s]: the median step of its ``time`` column (0 with fewer than two ticks)."""
+    time = columns["time"]
+    return float(np.median(np.diff(time))) if len(time) > 1 else 0.0
+
+
 def feedback_fallback(
     columns: dict[str, np.ndarray], settled: np.ndarray, used_column: str = "trailer_estimate_used"
 ) -> dict[str, float] | None:
     """Share and seconds of the ticks after warm-up on which a unit's controller had no usable estimate
-    (``used_column`` NaN: none, or its std above ``controller.feedback_max_std_m``; ``unit<k>_estimate_used`` for
-    unit ``k`` behind the first towed one); ``None`` when the run recorded no such column (an unsteered unit)."""
+    (``used_column`` NaN: none, or under ``controller.uncertain_feedback`` ``drop`` its std above
+    ``controller.feedback_max_std_m``; ``unit<k>_estimate_used`` for unit ``k`` behind the first towed one); ``None``
+    when the run recorded no such column (an unsteered unit)."""
     used = columns.get(used_column)
     if used is None or not settled.any():
         return None
-    time = columns["time"]
-    period = float(np.median(np.diff(time))) if len(time) > 1 else 0.0
     missing = settled & ~np.isfinite(used)
-    return {"fraction": float(missing.sum() / settled.sum()), "seconds": float(missing.sum() * period)}
+    return {"fraction": float(missing.sum() / settled.sum()), "seconds": float(missing.sum() * _tick_period(columns))}
 
 
 def feedback_weighted(
@@ -58,13 +63,11 @@ def feedback_weighted(
     weight = columns.get(weight_column)
     if weight is None or not settled.any():
         return None
-    time = columns["time"]
-    period = float(np.median(np.diff(time))) if len(time) > 1 else 0.0
     w = np.asarray(weight, dtype=float)
     down = settled & (w < 1.0)  # NaN compares False: not weighted down
     out: dict[str, Any] = {
         "fraction": float(down.sum() / settled.sum()),
-        "seconds": float(down.sum() * period),
+        "seconds": float(down.sum() * _tick_period(columns)),
         "mean_weight": float(np.mean(w[down])) if down.any() else float("nan"),
         "min_weight": float(np.min(w[down])) if down.any() else float("nan"),
     }

@@ -1,6 +1,6 @@
-"""Run metrics: off-tracking of the truth, estimator errors against it, the feedback's fallback and weighting, the
-roundabout-test
-verdict, the swept-path width (:mod:`.swept_width`) and the run's own verdict (:mod:`.verdicts`)."""
+"""Run metrics: off-tracking of the truth, estimator errors against it, the feedback's fallback and weighting
+(:mod:`.feedback_use`), the roundabout-test verdict, the swept-path width (:mod:`.swept_width`) and the run's own
+verdict (:mod:`.verdicts`)."""
 
 from __future__ import annotations
 
