@@ -98,12 +98,17 @@ def _watch_parent(ppid: int) -> None:
 
 
 def init_worker() -> None:
-    """Initializer of a local worker process (spawned: nothing heavy has been imported yet)."""
+    """Initializer of a local worker process (spawned: nothing heavy has been imported yet).
+
+    The run stack (numpy, pandas, casadi, the model) is not imported here but by the first case: a task's run
+    function is imported when the task reaches the worker (the default, :func:`scenarios.studies.cases.run_case`,
+    imports it all), so a worker pays it once either way, and one whose run function needs none of it (a test's
+    fault) never does.
+    """
     _WORKER["numpy_preloaded"] = "numpy" in sys.modules
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the sweep's to handle: it terminates the workers
     threading.Thread(target=_watch_parent, args=(os.getppid(),), daemon=True, name="offtrack-parent-watch").start()
     setup_process()
-    import scenarios.run.runner  # noqa: F401  (pay the imports once, at start-up)
 
 
 def worker_info() -> dict[str, Any]:
