@@ -9,6 +9,7 @@ import contextlib
 import json
 import multiprocessing
 import os
+import pickle
 import signal
 import subprocess
 import sys
@@ -195,6 +196,17 @@ def test_a_stop_swallowed_in_a_case_and_followed_by_an_error_is_still_a_stop(
     assert set(_assert_stopped_cleanly(tmp_path, stopped)) == {CASES[0].name}
 
 
+def _sweep_process(cases: list[CaseSpec], out: Path) -> str:
+    """The set-up of a sweep in a process of its own, one line: ``cases``, ``out``, ``run_sweep`` and ``run_case``
+    (:func:`sweep_run_functions.run_case`, the study's own run function imported when a case first runs), so that
+    the sweep process imports only the sweep, not the run stack its workers import."""
+    return (
+        f"import pickle, sys; from pathlib import Path; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
+        "from sweep_run_functions import run_case; from scenarios.studies.sweep import run_sweep; "
+        f"cases = pickle.loads(bytes.fromhex({pickle.dumps(cases).hex()!r})); out = Path({str(out)!r})"
+    )
+
+
 def _as_from_a_terminal() -> None:
     """In the child before it runs: SIGINT at its default and unblocked, as a shell starts a command.
 
@@ -215,13 +227,9 @@ def test_ctrl_c_to_the_process_group_stops_a_parallel_sweep_without_failed_recor
     # ignore it, the sweep process stops them; nothing is recorded as failed.
     script = textwrap.dedent(
         f"""
-        import sys
-        from pathlib import Path
-        from scenarios.studies.cases import model_only_cases
-        from scenarios.studies.sweep import run_sweep
-        cases = model_only_cases({SIGINT_CASES}, duration_s=6.0, study="test-sweep-sigint")
+        {_sweep_process(model_only_cases(SIGINT_CASES, duration_s=6.0, study="test-sweep-sigint"), tmp_path)}
         try:
-            run_sweep(cases, Path({str(tmp_path)!r}), workers=2)
+            run_sweep(cases, out, run_case, workers=2)
         except KeyboardInterrupt:
             sys.exit(130)
         """
@@ -268,11 +276,8 @@ def test_killed_sweep_process_resumes_without_losing_cases(tmp_path: Path) -> No
     cases = model_only_cases(KILLED_CASES, duration_s=3.0, study="test-sweep-kill")
     script = textwrap.dedent(
         f"""
-        from pathlib import Path
-        from scenarios.studies.cases import model_only_cases
-        from scenarios.studies.sweep import run_sweep
-        cases = model_only_cases({KILLED_CASES}, duration_s=3.0, study="test-sweep-kill")
-        run_sweep(cases, Path({str(tmp_path)!r}), workers=2)
+        {_sweep_process(cases, tmp_path)}
+        run_sweep(cases, out, run_case, workers=2)
         """
     )
     proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO)
