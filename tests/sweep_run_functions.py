@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -27,6 +28,11 @@ def run_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
     from scenarios.studies.cases import run_case as run
 
     return run(spec, out_dir)
+
+
+def loaded(modules: tuple[str, ...]) -> list[str]:
+    """Which of ``modules`` the process this runs in has imported (submit it to a worker)."""
+    return [name for name in modules if name in sys.modules]
 
 
 def case_files(out: Path) -> list[Path]:

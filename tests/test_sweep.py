@@ -25,6 +25,7 @@ import tiny_study
 from sweep_run_functions import (
     STOPS,
     crash_on_label,
+    loaded,
     run_once_both_workers_started,
     signal_then_fail,
     stop_on_label,
@@ -123,6 +124,19 @@ def test_a_worker_has_one_thread_per_library_and_builds_the_model_once(tmp_path:
     assert info["cv2_threads"] == 1
     assert info["numpy_preloaded"] is False, "the thread limits must be set before numpy is imported"
     assert {k: os.environ.get(k) for k in before} == before, "this process's environment is restored"
+
+
+def test_a_started_worker_has_not_imported_the_run_stack() -> None:
+    # A worker imports the run stack with its first case's run function, not at start-up: one whose run function
+    # needs none of it (a crash, a stop) starts in a fraction of the time. (numpy comes with OpenCV, which the
+    # worker's set-up holds to one thread.)
+    heavy = ("pandas", "scipy", "casadi", "numba", "scenarios.run.runner", "vehicle_model.simulator")
+    with local_executor(1) as pool:
+        assert pool.submit(loaded, heavy).result() == []
+        assert pool.submit(loaded, ("scenarios.studies.workers", "cv2")).result() == [
+            "scenarios.studies.workers",
+            "cv2",
+        ]
 
 
 def test_interrupted_sweep_resumes_only_the_missing_cases(serial: pd.DataFrame, tmp_path: Path) -> None:
