@@ -67,6 +67,7 @@ from .fusion_model import (
     yaw_coupling,
 )
 from .fusion_noise import FusionNoise
+from .fusion_reference import OwnReference
 from .fusion_slip import (
     ScrubDemand,
     ZeroSlipNoise,
@@ -78,7 +79,7 @@ from .fusion_slip import (
 )
 from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects, reference_share
 from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics, unit_axles
-from .unit_slip_reference import TRAILER_REFERENCE, UnitSlipReference
+from .unit_slip_reference import TRAILER_REFERENCE
 from .viso_ot import VisoOtEstimator
 
 __all__ = [
@@ -179,8 +180,7 @@ class FusedVisoOt:
         point = self.noise.kinematic_rear_point
         # (K1)'s z_c: the tractor's kinematics carried down the chain, or the unit's own accelerometer's slip (T2)
         own = point == TRAILER_REFERENCE
-        frictions = (self.noise.reference_friction, self.noise.reference_road_friction)
-        self._own_reference = UnitSlipReference(params, self.unit, *frictions) if own else None
+        self._own_reference = OwnReference(params, self.unit, self.noise) if own else None  # (T2), (R1)
         self._chain = ChainKinematics(params, self.unit, "lateral_acceleration" if own else point)  # type: ignore[arg-type]
         self.buffer = OfftrackingBuffer(self.follow_point_offset)
         layout = StateLayout.of(self.noise)
@@ -314,7 +314,7 @@ class FusedVisoOt:
                 own = tractor.unit_lateral_acceleration
                 lateral, slip = self._own_reference.lateral(float(yaw_rate), float(wheel_speed), steer, own)
                 self._zero_slip.modelled_slip = slip  # the slip it predicts, uncertain by the stiffnesses, (K2)
-                self._zero_slip.residual_variance = self._own_reference.residual_std(float(wheel_speed), own) ** 2
+                self._zero_slip.residual_variance = self._own_reference.floor_variance(float(wheel_speed), own)
             else:
                 lateral = self._chain.lateral(tractor, float(dt))
                 self._zero_slip.modelled_slip = self._chain.modelled_slip  # the compensated points' rear slip, (K2)

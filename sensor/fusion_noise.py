@@ -37,6 +37,8 @@ FRICTION = "the lowest road μ the vehicle is specified for, (T3); 0.05 is glare
 """``reference_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
 ROAD_FRICTION = "the road's μ as the run states it, (T4) in the reference's mean; 0.05 is glare ice; null: none"
 """``reference_road_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
+REFERENCE_BIAS = "[m/s²] std of the unit's accelerometer bias, (R1)'s floor in place of tractor_slip; null: none"
+"""``reference_accelerometer_bias``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
 BIAS_STD_SCALE = "factor on the std of eq (5)'s biases' term; 1: as the filter's P_b gives it, toward 0: none of it"
 """``bias_std_scale``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
 
@@ -95,8 +97,8 @@ class SideRigFusion(Settings):
     ----------
     vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect, vo_yaw_lever, bias_std_scale
         As :class:`FusionNoise`'s.
-    kinematic_rear_point, reference_friction, reference_road_friction, kinematic_error_model, coupling_reference,
-    coupling_bias_share, coupling_persisting_error
+    kinematic_rear_point, reference_friction, reference_road_friction, reference_accelerometer_bias,
+    kinematic_error_model, coupling_reference, coupling_bias_share, coupling_persisting_error
         As :class:`FusionNoise`'s.
     coupling_covariance_scale
         Factor on the covariance of the following unit's measurement, (C2) of :mod:`sensor.fusion_coupling`
@@ -119,6 +121,7 @@ class SideRigFusion(Settings):
     kinematic_rear_point: KinematicReference | None = None
     reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
     reference_road_friction: float | None = Field(None, ge=0.05, le=1.5, description=ROAD_FRICTION)
+    reference_accelerometer_bias: float | None = Field(None, gt=0.0, le=1.0, description=REFERENCE_BIAS)
     kinematic_error_model: Literal["inflated", "state"] | None = None
     coupling_reference: bool | None = None
     coupling_bias_share: bool | None = None
@@ -223,6 +226,12 @@ class FusionNoise(Settings):
         ``μ_r`` of (T4) of :mod:`sensor.unit_slip_reference`: the road's friction as the run states it, at which
         the ``trailer_lateral_acceleration`` reference's slip is the brush tyre's, not the linear tyre's (``None``:
         the linear tyre's, the default; docs/field_bias.md §7.17).
+    reference_accelerometer_bias : float or None
+        The standard deviation of the unit's accelerometer bias [m/s²] (a data sheet's: a bias uniform within ``±b``
+        has ``b/√3``). With the ``trailer_lateral_acceleration`` reference, σ_k's floor takes that bias through the
+        reference's own slip, (R1) of :mod:`sensor.fusion_reference`, in place of ``tractor_slip`` (the tractor's
+        tyres, which that reference does not carry; ``None``: ``tractor_slip``, the default; docs/field_bias.md
+        §7.29).
     tractor_stiffness_uncertainty : float
         ``u_C`` of (K2): the relative uncertainty of the tractor's cornering stiffnesses, so of the rear slip the
         compensated rear points predict.
@@ -367,6 +376,7 @@ class FusionNoise(Settings):
     kinematic_rear_point: KinematicReference = "axle_mean"
     reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
     reference_road_friction: float | None = Field(None, ge=0.05, le=1.5, description=ROAD_FRICTION)
+    reference_accelerometer_bias: float | None = Field(None, gt=0.0, le=1.0, description=REFERENCE_BIAS)
     tractor_stiffness_uncertainty: float = Field(
         0.2,
         ge=0.0,

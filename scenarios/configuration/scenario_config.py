@@ -147,7 +147,7 @@ class ScenarioConfig(Settings):
             ("fusion.side_rig.kinematic_rear_point", self.fusion.side_rig.kinematic_rear_point, self.fusion.side_rig),
         )
         for name, reference, section in references:
-            for field in ("reference_friction", "reference_road_friction"):
+            for field in ("reference_friction", "reference_road_friction", "reference_accelerometer_bias"):
                 if (friction := getattr(section, field)) is not None and reference != TRAILER_REFERENCE:
                     raise ValueError(
                         f"{name.replace('kinematic_rear_point', field)} = {friction:g} is the "
