@@ -272,9 +272,9 @@ class FusionNoise(Settings):
         heading while the tyres scrub (0: off).
     scrub_coupling_std : {"release", "uniform"}
         The share of the coupled correction ``β_ψ·G_κ`` the std's coupling term carries while the tyres scrub
-        (:mod:`sensor.fusion_slip`): ``release`` ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` at the last frame's demand;
-        ``uniform`` (K7), the RMS of the share the frames applied less the real one, uniform on [0, 1] at full
-        demand, at the demand over the path.
+        (:mod:`sensor.fusion_slip`): ``uniform`` (K7, the default), the RMS of the share the frames applied less the
+        real one, uniform on [0, 1] at full demand, at the demand over the path; ``release``
+        ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` at the last frame's demand.
     scrub_coupling_kept : bool
         Keep the odometry's coupled translation (eq (3)) under a scrub demand: a frame is taken with the share
         ``1 − r·D`` of the coupled correction ``β_ψ·G_κ`` ((K6) alone) instead of ``(1 − r·D)·(1 − D)`` (False, the
@@ -409,7 +409,7 @@ class FusionNoise(Settings):
     scrub_bias_release: float = Field(
         0.0, ge=0.0, le=1.0, description="share of β_ψ released at full scrub demand (K6); 1 takes none of it"
     )
-    scrub_coupling_std: ScrubCouplingStd = "release"
+    scrub_coupling_std: ScrubCouplingStd = "uniform"
     scrub_coupling_kept: bool = False
     gate: float = Field(16.3, gt=0.0, le=1e6, description="normalised innovation squared; 1e6 gates nothing")
     max_gated: int = Field(3, ge=0, le=1000, description="refusals in a row before one is accepted")

@@ -78,8 +78,8 @@ disagreement cheapest to explain by ``β_ψ``, moves it and carries the wrong ``
 coupled correction, into the std's coupling term). With ``scrub_bias_release`` ``r`` > 0 the frame's motion is
 taken with ``(1 − r·D)`` of the state's ``β_ψ`` — its yaw and its coupled translation alike — so the camera's
 turn goes to the heading and ``β_ψ`` learns from the scrub only the ``1 − r·D`` it is still taken with (nothing at
-``r`` = 1); with ``scrub_coupling_std`` ``release`` (the default) the std's coupling term carries the demand's
-share less by ``r``, ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` of ``β_ψ·G_κ``::
+``r`` = 1); with ``scrub_coupling_std`` ``release`` (the default is (K7), below) the std's coupling term carries
+the demand's share less by ``r``, ``√((u_κ·(1 − D))² + ((1 − r)·D)²)`` of ``β_ψ·G_κ``::
 
     H_ψ,β = (1 − r·D)·d,   H_xy,β = (1 − r·D)·d·(1 − D)·κ·(c_x, c_y)                             (K6)
 

@@ -199,12 +199,12 @@ def test_while_the_tyres_scrub_the_std_covers_the_coupled_correction_left_out(ls
 
 def test_the_scrub_coupling_std_is_refused_outside_its_values() -> None:
     """A scenario's ``fusion.scrub_coupling_std`` other than ``release``/``uniform`` is refused in one line naming
-    the field, before any run; a run's configuration keeps ``release``."""
+    the field, before any run; a run's configuration takes ``uniform`` (K7) by default."""
     from scenarios.config import ConfigError, load_scenario
 
     with pytest.raises(ConfigError, match=r"fusion\.scrub_coupling_std"):
         load_scenario("roundabout-3", {"vehicle": "lst", "fusion": {"scrub_coupling_std": "normal"}})
-    assert load_scenario("roundabout-3", {"vehicle": "lst"}).fusion.scrub_coupling_std == "release"
+    assert load_scenario("roundabout-3", {"vehicle": "lst"}).fusion.scrub_coupling_std == "uniform"
     uniform = load_scenario("roundabout-3", {"vehicle": "lst", "fusion": {"scrub_coupling_std": "uniform"}})
     assert uniform.fusion.scrub_coupling_std == "uniform"
 
