@@ -266,6 +266,11 @@ class ZeroSlipNoise:
     residual_variance : float
         ``σ_m²`` of (T3) (:mod:`sensor.unit_slip_reference`): the unit's own reference's linear-tyre residual,
         added to the floor [m²/s²] (0: none).
+    rate_sensitivity : tuple of float or None
+        ``(∂z/∂r_m, ∂z/∂w_m)`` of (K1) with the unit's own reference: its ``z_c`` is formed from the unit's own
+        measured rates, so their biases cancel out of eq (1)'s terms and enter through (T2)'s slip alone
+        (:meth:`sensor.fusion_reference.OwnReference.rate_sensitivity`); ``None``: the tractor's kinematics, whose
+        ``z_c`` carries no bias of the unit's rates, so they enter through eq (1).
     kinematic_std : float
         σ_k at the last measurement [m/s] (NaN before the first).
     kinematic_share : float
@@ -284,6 +289,7 @@ class ZeroSlipNoise:
         self.evidence.reset()
         self.modelled_slip = 0.0
         self.residual_variance = 0.0
+        self.rate_sensitivity: tuple[float, float] | None = None
         self.kinematic_std = math.nan
         self.kinematic_share = 0.0
 
@@ -306,6 +312,8 @@ class ZeroSlipNoise:
         h[VS] = 1.0
         h[BG] = -self.slip_point  # (K1) is taken with the measured rates: their biases enter it through (1)
         h[BW] = -tan_steer
+        if self.rate_sensitivity is not None:  # the own reference's z_c has the same rates: through (T2) alone
+            h[BG], h[BW] = self.rate_sensitivity  # z = v̂_s(r + b_g, u + b_w), docs/field_bias.md §7.32
         z = lateral - (r_m * self.slip_point + w_m * tan_steer)  # (K1): the slip velocity the tractor implies
         n = self.noise
         variance = self.variance(x)
