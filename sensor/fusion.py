@@ -315,7 +315,7 @@ class FusedVisoOt:
                 lateral, slip = self._own_reference.lateral(float(yaw_rate), float(wheel_speed), steer, own)
                 self._zero_slip.modelled_slip = slip  # the slip it predicts, uncertain by the stiffnesses, (K2)
                 self._zero_slip.residual_variance = self._own_reference.floor_variance(float(wheel_speed), own)
-                self._zero_slip.rate_sensitivity = self._own_reference.rate_sensitivity(*sample[:2], steer, own)
+                self._zero_slip.rate_sensitivity = self._own_reference.rate_sensitivity(steer, own)
             else:
                 lateral = self._chain.lateral(tractor, float(dt))
                 self._zero_slip.modelled_slip = self._chain.modelled_slip  # the compensated points' rear slip, (K2)

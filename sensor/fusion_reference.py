@@ -65,17 +65,11 @@ class OwnReference(UnitSlipReference):
         low = self.slip_velocity(0.0, speed, None, lateral - sigma)
         return max(0.5 * abs(high - low), MIN_REFERENCE_STD)
 
-    def rate_sensitivity(
-        self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float
-    ) -> tuple[float, float]:
-        """``(∂v̂_s/∂r, ∂v̂_s/∂u)`` of (T2)/(T4) [m and m/s per m/s] at the unit's yaw rate, wheel speed, steer and
-        reading (arguments as :meth:`slip_velocity`): how the biases ``b_g``, ``b_w`` of the measured rates enter
-        (K1) when ``z_c`` is this reference's. ``v̂_s`` is linear in each rate, so a unit step gives them exactly."""
-        base = self.slip_velocity(yaw_rate, speed, steer, lateral)
-        return (
-            self.slip_velocity(yaw_rate + 1.0, speed, steer, lateral) - base,
-            self.slip_velocity(yaw_rate, speed + 1.0, steer, lateral) - base,
-        )
+    def rate_sensitivity(self, steer: np.ndarray | None, lateral: float) -> tuple[float, float]:
+        """``(∂v̂_s/∂r, ∂v̂_s/∂u)`` of (T2)/(T4) [m and m/s per m/s] at the unit's steer and reading (arguments as
+        :meth:`slip_velocity`): how the biases ``b_g``, ``b_w`` of the measured rates enter (K1) when ``z_c`` is this
+        reference's. ``v̂_s`` is linear in each rate and 0 at both zero, so a unit rate alone gives each exactly."""
+        return self.slip_velocity(1.0, 0.0, steer, lateral), self.slip_velocity(0.0, 1.0, steer, lateral)
 
     def floor_variance(self, speed: float, lateral: float) -> float:
         """What the reference adds to (K2)'s floor ``σ_0² + (u_C·v_m)²`` [m²/s²]: (T3)'s ``σ_m²``, and with

@@ -38,7 +38,7 @@ def test_the_rows_h_forms_the_biased_rates_measurement() -> None:
     measured = (yaw_rate + b_g, speed + b_w, tan_steer)
     z_c, _ = reference.lateral(measured[0], measured[1], steer, lateral)
     zero_slip = ZeroSlipNoise(noise, StateLayout.of(noise), fused.slip_point)
-    zero_slip.rate_sensitivity = reference.rate_sensitivity(measured[0], measured[1], steer, lateral)
+    zero_slip.rate_sensitivity = reference.rate_sensitivity(steer, lateral)
     ((h, z, _),) = zero_slip.rows(measured, z_c, DT, np.zeros(StateLayout.of(noise).size))
     x = np.zeros(h.size)
     x[VS], x[BG], x[BW] = true_slip, b_g, b_w
