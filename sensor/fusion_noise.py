@@ -37,6 +37,9 @@ FRICTION = "the lowest road μ the vehicle is specified for, (T3); 0.05 is glare
 """``reference_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
 ROAD_FRICTION = "the road's μ as the run states it, (T4) in the reference's mean; 0.05 is glare ice; null: none"
 """``reference_road_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
+ReferenceAxles = Literal["group", "each"]
+"""How the ``trailer_lateral_acceleration`` reference's axles share the demand (:mod:`sensor.unit_slip_reference`):
+the group at its demand ((T2)/(T4)) or each axle's brush tyre at its own slip angle ((T5))."""
 REFERENCE_BIAS = "[m/s²] std of the unit's accelerometer bias, (R1)'s floor in place of tractor_slip; null: none"
 """``reference_accelerometer_bias``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
 BIAS_STD_SCALE = "factor on the std of eq (5)'s biases' term; 1: as the filter's P_b gives it, toward 0: none of it"
@@ -97,8 +100,9 @@ class SideRigFusion(Settings):
     ----------
     vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect, vo_yaw_lever, bias_std_scale
         As :class:`FusionNoise`'s.
-    kinematic_rear_point, reference_friction, reference_road_friction, reference_accelerometer_bias,
-    kinematic_error_model, coupling_reference, coupling_bias_share, coupling_persisting_error
+    kinematic_rear_point, reference_friction, reference_road_friction, reference_axles,
+    reference_accelerometer_bias, kinematic_error_model, coupling_reference, coupling_bias_share,
+    coupling_persisting_error
         As :class:`FusionNoise`'s.
     coupling_covariance_scale
         Factor on the covariance of the following unit's measurement, (C2) of :mod:`sensor.fusion_coupling`
@@ -121,6 +125,7 @@ class SideRigFusion(Settings):
     kinematic_rear_point: KinematicReference | None = None
     reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
     reference_road_friction: float | None = Field(None, ge=0.05, le=1.5, description=ROAD_FRICTION)
+    reference_axles: ReferenceAxles | None = None
     reference_accelerometer_bias: float | None = Field(None, gt=0.0, le=1.0, description=REFERENCE_BIAS)
     kinematic_error_model: Literal["inflated", "state"] | None = None
     coupling_reference: bool | None = None
@@ -226,6 +231,10 @@ class FusionNoise(Settings):
         ``μ_r`` of (T4) of :mod:`sensor.unit_slip_reference`: the road's friction as the run states it, at which
         the ``trailer_lateral_acceleration`` reference's slip is the brush tyre's, not the linear tyre's (``None``:
         the linear tyre's, the default; docs/field_bias.md §7.17).
+    reference_axles : str
+        How that reference's axles share the demand: ``group`` (default: every axle at the group's demand, (T2)/(T4)
+        of :mod:`sensor.unit_slip_reference`) or ``each`` (each axle's brush tyre at its own slip angle, (T5); it
+        needs ``reference_road_friction``; docs/field_bias.md §7.34, §7.36).
     reference_accelerometer_bias : float or None
         The standard deviation of the unit's accelerometer bias [m/s²] (a data sheet's: a bias uniform within ``±b``
         has ``b/√3``). With the ``trailer_lateral_acceleration`` reference, σ_k's floor takes that bias through the
@@ -376,6 +385,7 @@ class FusionNoise(Settings):
     kinematic_rear_point: KinematicReference = "axle_mean"
     reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
     reference_road_friction: float | None = Field(None, ge=0.05, le=1.5, description=ROAD_FRICTION)
+    reference_axles: ReferenceAxles = "group"
     reference_accelerometer_bias: float | None = Field(None, gt=0.0, le=1.0, description=REFERENCE_BIAS)
     tractor_stiffness_uncertainty: float = Field(
         0.2,

@@ -56,6 +56,27 @@ so (K1) is measured against the slip the road's friction asks, not the linear ty
 the demand: a stated friction below the road's over-corrects (at ``η_r`` → 1 the slip triples), one above it leaves
 part of the residual, so a friction stated with a margin is the higher one. The on-board signals give only a lower
 bound on ``μ`` (the peak specific force over ``g``), so on the over-correcting side; it is not used.
+
+Each axle at its own slip angle. (T3)/(T4) put every axle of the group at the group's demand ``η``. On a steered
+unit in a turn the axles' slip angles differ (the steered ones steer toward the turn's centre and slip little, a
+fixed one carries most of the force), and the brush tyre is not linear, so the group's slip is not the slip of its
+mean demand. With ``reference_axles: each`` (it needs ``reference_road_friction``) the slip solves (T1) with each
+axle's brush tyre of (T3) at its own slip angle of eq (1)'s geometry above (``α_j`` at ``v_k = r·L_c + u·T + v_s``,
+the measured steer), its static load ``F_zj`` and ``μ_r``::
+
+    Σ_j L_j·μ_r·F_zj·b(C_j·α_j/(3·μ_r·F_zj)) = (m·a + m_5·L_5)·f_p,
+    α_j = −(v_s + r·(L_c − L_j) + u·(T − tan δ_j))/u,   b(x) = sign(x)·(1 − (1 − min(|x|, 1))³)     (T5)
+
+for ``v̂_s`` (``z_c`` as with (T2)). Each axle's force falls with ``v_s`` (``u > 0``), so the left side is
+monotone and its root unique, bracketed by the two slips at which every axle saturates, one way and the other
+(``v_s = −r·(L_c − L_j) − u·(T − tan δ_j) ± |u|·3·μ_r·F_zj/C_j``, the least and the most over the axles), and
+found there by Brent's method. A demand beyond what the axles can give (``|(m·a + m_5·L_5)·f_p| ≥ Σ L_j·μ_r·F_zj``)
+takes the bracket's end on the demand's side: the least slip at which every axle is at its friction, finite and
+the limit of the root as the demand nears the axles' most. With every axle at one slip angle (no yaw rate, no
+steer) and each axle's stiffness in proportion to its load, (T5) is (T4): the static balance gives ``Σ F_zj·L_j =
+(m·a + m_5·L_5)·g``. Below the wheel speed ``u_0`` (:data:`EACH_AXLE_MIN_SPEED`) the slip angles are no longer
+small and at a standstill undefined, so the slip there is (T4)'s and (T5)'s blended by ``|u|/u_0``, continuous in
+``u`` and (T4)'s at ``u = 0``.
 """
 
 from __future__ import annotations
@@ -63,6 +84,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.optimize import brentq
 
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import GRAVITY, VehicleParams
@@ -70,10 +92,14 @@ from vehicle_model.static_loads import solve_loads
 
 from .unit_kinematics import unit_axles
 
-__all__ = ["TRAILER_REFERENCE", "UnitSlipReference", "linear_slip_excess"]
+__all__ = ["EACH_AXLE_MIN_SPEED", "REFERENCE_AXLES", "TRAILER_REFERENCE", "UnitSlipReference", "linear_slip_excess"]
 
 TRAILER_REFERENCE = "trailer_lateral_acceleration"
 """The kinematic reference's name (``kinematic_rear_point``) that takes the unit's own accelerometer."""
+REFERENCE_AXLES: tuple[str, ...] = ("group", "each")
+"""``reference_axles``: the group at its demand ((T2)/(T4)) or each axle at its own slip angle ((T5))."""
+EACH_AXLE_MIN_SPEED = 1.0
+"""``u_0`` of (T5) [m/s]: below it the slip blends to (T4)'s, which is (T5)'s at a standstill's limit of no slip."""
 
 
 def linear_slip_excess(demand: float) -> float:
@@ -98,6 +124,9 @@ class UnitSlipReference:
         ``μ_min`` of (T3), the lowest road friction the vehicle is specified for (``None``: no residual term).
     road_friction
         ``μ_r`` of (T4), the road's friction as the run states it (``None``: the linear tyres' slip, (T2)).
+    axles
+        ``group`` ((T2)/(T4), the group at its demand) or ``each`` ((T5), each axle's brush tyre at its own slip
+        angle; it needs ``road_friction``).
 
     Attributes
     ----------
@@ -106,11 +135,22 @@ class UnitSlipReference:
     """
 
     def __init__(
-        self, params: VehicleParams, unit: int, friction: float | None = None, road_friction: float | None = None
+        self,
+        params: VehicleParams,
+        unit: int,
+        friction: float | None = None,
+        road_friction: float | None = None,
+        axles: str = "group",
     ) -> None:
         for name, value in (("reference_friction", friction), ("reference_road_friction", road_friction)):
             if value is not None and not (math.isfinite(value) and value > 0.0):
                 raise InputError(f"{name} = {value!r}; allowed: a friction coefficient > 0")
+        if axles not in REFERENCE_AXLES or (axles == "each" and road_friction is None):
+            raise InputError(
+                f"reference_axles = {axles!r}; allowed: group, or each with reference_road_friction set (the axles' "
+                "brush tyres' μ_r of (T5))"
+            )
+        self.axles = axles
         self.friction = friction
         self.road_friction = road_friction
         lengths, steerable, shares = unit_axles(params, unit)
@@ -126,16 +166,27 @@ class UnitSlipReference:
             pull = solve_loads(params.tractor, params.trailers, GRAVITY)[1][unit] / GRAVITY
             moment += pull * -trailer.fifth_wheel_x
         self.gradient = moment / (total * self.slip_point)
+        self._lengths = lengths
+        self._steerable = steerable
+        self._stiffness = params.axle_cornering_stiffness()[towed]  # C_j
+        self._loads = params.axle_table.static_load[towed]  # F_zj
+        self._moment = moment  # m·a + m_5·L_5 of (T1)
 
     def slip_velocity(self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float) -> float:
-        """``v̂_s`` of (T2), or (T4) with a road friction, [m/s] from the unit's yaw rate [rad/s], wheel speed [m/s],
-        steer angles [rad] (layout order; ``None`` or empty: none steer) and its accelerometer's reading ``lateral``
-        [m/s²]."""
+        """``v̂_s`` of (T2), or (T4) with a road friction, or (T5) with ``axles`` ``each``, [m/s] from the unit's yaw
+        rate [rad/s], wheel speed [m/s], steer angles [rad] (layout order; ``None`` or empty: none steer) and its
+        accelerometer's reading ``lateral`` [m/s²]."""
         if not math.isfinite(lateral):
             raise InputError(
                 f"the towed unit's lateral acceleration is {lateral!r}; kinematic_rear_point "
                 f"'{TRAILER_REFERENCE}' needs its accelerometer (signals.trailer_lateral_acceleration)"
             )
+        if self.axles == "each":
+            return self._each_axle_slip(yaw_rate, speed, steer, lateral)
+        return self._group_slip(yaw_rate, speed, steer, lateral)
+
+    def _group_slip(self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float) -> float:
+        """``v̂_s`` of (T2), or (T4) with a road friction [m/s] (arguments as :meth:`slip_velocity`)."""
         scrub = yaw_rate * self.spread
         if steer is not None and self._steer_shares.size:
             tangents = np.tan(np.asarray(steer, dtype=float).reshape(-1))
@@ -144,6 +195,41 @@ class UnitSlipReference:
         if self.road_friction is not None:  # (T4): the brush tyre's slip at the stated road's demand
             demand *= 1.0 + linear_slip_excess(abs(lateral) / (self.road_friction * GRAVITY))
         return scrub / self.slip_point - demand
+
+    def _each_axle_slip(self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float) -> float:
+        """``v̂_s`` of (T5) [m/s], blended to (T4)'s below ``u_0`` (arguments as :meth:`slip_velocity`)."""
+        weight = min(abs(speed) / EACH_AXLE_MIN_SPEED, 1.0)
+        if weight == 1.0:
+            return self._brush_root(yaw_rate, speed, steer, lateral)
+        group = self._group_slip(yaw_rate, speed, steer, lateral)
+        if weight == 0.0:
+            return group
+        return (1.0 - weight) * group + weight * self._brush_root(yaw_rate, speed, steer, lateral)
+
+    def _brush_root(self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float) -> float:
+        """The root ``v_s`` of (T5) [m/s] at a wheel speed ``speed`` ≠ 0, or the saturation slip past the axles'
+        most (module notes)."""
+        tangents = np.zeros(self._lengths.size)
+        if steer is not None and self._steer_shares.size:
+            tangents[self._steerable] = np.tan(np.asarray(steer, dtype=float).reshape(-1))
+        mean_tangent = float(np.dot(self._steer_shares, tangents[self._steerable]))  # T of eq (1)
+        # (T5): α_j = −(v_s + offset_j)/u
+        offset = yaw_rate * (self.slip_point - self._lengths) + speed * (mean_tangent - tangents)
+        grip = self.road_friction * self._loads  # μ_r·F_zj
+        span = abs(speed) * 3.0 * grip / self._stiffness  # |u|·α_sj, the slip angle at which axle j saturates
+        scale = self._stiffness / (3.0 * grip)
+        levers = self._lengths * grip
+        target = self._moment * lateral  # (T1)
+
+        def excess(slip: float) -> float:
+            x = np.clip(-(slip + offset) / speed * scale, -1.0, 1.0)  # Pacejka 2012 §3.2.2, (T3)'s brush
+            return float(np.dot(levers, np.sign(x) * (1.0 - (1.0 - np.abs(x)) ** 3))) - target
+
+        low, high = float(np.min(-offset - span)), float(np.max(-offset + span))
+        at_low, at_high = excess(low), excess(high)
+        if at_low == 0.0 or at_high == 0.0 or (at_low > 0.0) == (at_high > 0.0):  # a root at an end, or saturated
+            return low if abs(at_low) <= abs(at_high) else high
+        return float(brentq(excess, low, high, xtol=1e-14))
 
     def residual_std(self, speed: float, lateral: float) -> float:
         """``σ_m`` of (T3) [m/s]: the linear tyres' residual at the wheel speed ``speed`` [m/s] and the reading

@@ -153,6 +153,14 @@ class ScenarioConfig(Settings):
                         f"{name.replace('kinematic_rear_point', field)} = {friction:g} is the "
                         f"{TRAILER_REFERENCE} reference's; allowed with {name} = {reference}: null"
                     )
+            if section.reference_axles == "each" and (
+                reference != TRAILER_REFERENCE or section.reference_road_friction is None
+            ):
+                raise ValueError(
+                    f"{name.replace('kinematic_rear_point', 'reference_axles')} = each needs {name} = "
+                    f"{TRAILER_REFERENCE} and {name.replace('kinematic_rear_point', 'reference_road_friction')} set; "
+                    "allowed otherwise: group"
+                )
             if reference == TRAILER_REFERENCE and self.signals.trailer_lateral_acceleration is None:
                 raise ValueError(
                     f"{name} = {TRAILER_REFERENCE} needs the towed units' accelerometer: set "
