@@ -67,6 +67,18 @@ its demand falls below any ``demand`` while the estimate it takes its frames wit
 and one whose ``σ_f`` is not known is refused under :data:`FOLLOWER_UNKNOWN`; a frame whose ``D`` is not known
 (no follower filter) is taken as (C2) gives it. ``below: take`` (the default) is (C3) alone.
 
+The follower's own scrub in (C2) itself. While the follower's tyres scrub its camera's motion has errors its
+odometry covariance ``R_m`` does not hold (the scrubbing turn is not one the coupling of eq (3) was measured on,
+docs/field_bias.md §6.8; the lead's reference measured against the truth, docs/field_bias.md §7.37). With
+``scrub_scale`` ``k_s`` (``fusion.side_rig.coupling_scrub_scale``; off by default) (C2) grows with the follower's
+scrub demand ``D`` at the frame, the one (C0) takes::
+
+    R_c ← (1 + k_s·D)·R_c                                                                                  (C2')
+
+``D = 0`` (or ``k_s = 0``, or no demand known) leaves (C2) as it is; at ``D = 1`` it is ``1 + k_s`` times (C2). It
+acts on every frame, unlike (C3)'s threshold, and in proportion to the frame's own covariance, unlike (C3)'s
+follower's off-tracking variance.
+
 A follower camera that looks across its motion has the same axial errors as the lead's, so the follower is the
 nearest unit behind whose camera looks along its unit (a rear or front rig, :func:`looks_along`).
 
@@ -253,12 +265,16 @@ class CouplingReference:
         ``k_c`` of (C2), the factor on the measurement's covariance (1: as mapped).
     follower_limit
         (C3): the measurement widened or refused while the follower's tyres scrub (``None``: off; :meth:`limited`).
+    scrub_scale
+        ``k_s`` of (C2'), the covariance widened by ``1 + k_s·D`` at the follower's scrub demand ``D`` (``None``:
+        ``noise.side_rig.coupling_scrub_scale``, 0 when unset: off).
 
     Raises
     ------
     InputError
         ``follower`` not behind ``lead`` within the combination, a unit between them without a rear coupling,
-        ``level_reference`` neither ``planar`` nor ``accelerometer``, or ``covariance_scale`` not in [1, 100].
+        ``level_reference`` neither ``planar`` nor ``accelerometer``, ``covariance_scale`` not in [1, 100], or
+        ``scrub_scale`` not in [0, 100].
     """
 
     def __init__(
@@ -271,7 +287,12 @@ class CouplingReference:
         level_reference: str = "planar",
         covariance_scale: float = 1.0,
         follower_limit: FollowerLimit | None = None,
+        scrub_scale: float | None = None,
     ) -> None:
+        if scrub_scale is None:
+            scrub_scale = getattr(getattr(noise, "side_rig", None), "reference_scrub_scale", 0.0)
+        if not 0.0 <= scrub_scale <= 100.0:  # NaN fails too
+            raise InputError(f"scrub_scale = {scrub_scale!r}: allowed 0–100 (k_s of (C2'), a factor per unit of D)")
         if not 1.0 <= covariance_scale <= 100.0:  # NaN fails too
             raise InputError(f"covariance_scale = {covariance_scale!r}: allowed 1–100 (a factor on (C2)'s covariance)")
         if level_reference not in ("planar", "accelerometer"):
@@ -292,6 +313,7 @@ class CouplingReference:
         self.noise = noise
         self.covariance_scale = float(covariance_scale)
         self.follower_limit = follower_limit
+        self.scrub_scale = float(scrub_scale)
 
     def limited(
         self, covariance: np.ndarray, demand: float, follower_std: float
@@ -324,6 +346,7 @@ class CouplingReference:
         frame's start and end, required with ``level_reference="accelerometer"`` (the increment is then the lead's
         in its level frame, module notes) and refused without it."""
         tilt = None
+        demand = 0.0
         if self.geometry.level_reference == "planar":
             if tilts is not None:
                 raise InputError(f"tilts = {tilts!r} given with level_reference = 'planar'; allowed: None")
@@ -361,4 +384,6 @@ class CouplingReference:
         r = j_d @ r_follower @ j_d.T + self.noise.articulation_noise**2 * (j_g @ j_g.T)  # (C2)
         if self.covariance_scale != 1.0:  # k_c of (C2)
             r = self.covariance_scale * r
+        if self.scrub_scale > 0.0 and demand > 0.0:  # (C2') of the module notes
+            r = (1.0 + self.scrub_scale * demand) * r
         return z, 0.5 * (r + r.T)

@@ -31,7 +31,7 @@ ScrubCouplingStd = Literal["release", "uniform"]
 """How the std's coupling term carries the coupled correction while the tyres scrub (:mod:`sensor.fusion_slip`)."""
 
 
-REFERENCE_SETTINGS: tuple[str, ...] = ("coupling_covariance_scale", "coupling_follower_limit")
+REFERENCE_SETTINGS: tuple[str, ...] = ("coupling_covariance_scale", "coupling_follower_limit", "coupling_scrub_scale")
 """The side-rig settings the coupling reference takes (:mod:`sensor.fusion_coupling`), not the filter."""
 FRICTION = "the lowest road μ the vehicle is specified for, (T3); 0.05 is glare ice, 1.5 a race track; null: none"
 """``reference_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
@@ -112,6 +112,10 @@ class SideRigFusion(Settings):
         The following unit's measurement widened by the follower's own error or refused while the follower's tyres
         scrub, (C3) of :mod:`sensor.fusion_coupling` (``None``: taken as (C2) gives it). The reference's, like
         ``coupling_covariance_scale``.
+    coupling_scrub_scale
+        ``k_s`` of (C2') of :mod:`sensor.fusion_coupling`: the following unit's measurement's covariance widened by
+        ``1 + k_s·D`` at the follower's scrub demand ``D`` (``None``: 0, off). The reference's, like
+        ``coupling_covariance_scale``.
     """
 
     vo_axial_flow: float | None = Field(None, ge=0.0, le=1.0, description="[1/m] start std of s_f; 1 /m: 1 m per m²")
@@ -138,12 +142,20 @@ class SideRigFusion(Settings):
         description="factor on (C2)'s covariance; below 1 claims a tighter sensor, 100 all but drops it",
     )
     coupling_follower_limit: FollowerLimit | None = None
+    coupling_scrub_scale: float | None = Field(
+        None, ge=0.0, le=100.0, description="(C2')'s k_s: the covariance × (1 + k_s·D); 100 all but drops it"
+    )
 
     @property
     def reference_covariance_scale(self) -> float:
         """The factor the coupling reference applies to (C2)'s covariance: :attr:`coupling_covariance_scale`, 1
         when unset."""
         return 1.0 if self.coupling_covariance_scale is None else self.coupling_covariance_scale
+
+    @property
+    def reference_scrub_scale(self) -> float:
+        """``k_s`` of (C2') the coupling reference takes: :attr:`coupling_scrub_scale`, 0 (off) when unset."""
+        return 0.0 if self.coupling_scrub_scale is None else self.coupling_scrub_scale
 
     def given(self) -> dict[str, object]:
         """The settings it gives the filter (those not ``None``, less the reference's own)."""
