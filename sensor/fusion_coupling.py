@@ -266,8 +266,7 @@ class CouplingReference:
     follower_limit
         (C3): the measurement widened or refused while the follower's tyres scrub (``None``: off; :meth:`limited`).
     scrub_scale
-        ``k_s`` of (C2'), the covariance widened by ``1 + k_s·D`` at the follower's scrub demand ``D`` (``None``:
-        ``noise.side_rig.coupling_scrub_scale``, 0 when unset: off).
+        ``k_s`` of (C2'), the covariance widened by ``1 + k_s·D`` at the follower's scrub demand ``D`` (0: off).
 
     Raises
     ------
@@ -287,10 +286,8 @@ class CouplingReference:
         level_reference: str = "planar",
         covariance_scale: float = 1.0,
         follower_limit: FollowerLimit | None = None,
-        scrub_scale: float | None = None,
+        scrub_scale: float = 0.0,
     ) -> None:
-        if scrub_scale is None:
-            scrub_scale = getattr(getattr(noise, "side_rig", None), "reference_scrub_scale", 0.0)
         if not 0.0 <= scrub_scale <= 100.0:  # NaN fails too
             raise InputError(f"scrub_scale = {scrub_scale!r}: allowed 0–100 (k_s of (C2'), a factor per unit of D)")
         if not 1.0 <= covariance_scale <= 100.0:  # NaN fails too

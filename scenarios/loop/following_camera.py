@@ -197,6 +197,7 @@ def following_camera(
             level,
             side.reference_covariance_scale,
             side.coupling_follower_limit,
+            side.reference_scrub_scale,
         )
         key = estimate_key("viso_ot_fused", follower)
 

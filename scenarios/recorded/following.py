@@ -216,5 +216,6 @@ def following_reference(
         follower.inputs.camera_in_trailer,
         noise,
         covariance_scale=noise.side_rig.reference_covariance_scale,
+        scrub_scale=noise.side_rig.reference_scrub_scale,
     )
     return RecordedFollowingCamera(reference, released, articulations)
