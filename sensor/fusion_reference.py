@@ -77,14 +77,11 @@ class OwnReference(UnitSlipReference):
         sigma = self.noise.reference_accelerometer_bias
         if sigma is None:
             return 0.0
-        if self.axles == "each":  # (R1) at the tick's operating point: (T5)'s axles share by their slip angles
-            yaw_rate, _, steer = self._operating_point()
-            high = self.slip_velocity(yaw_rate, speed, steer, lateral + sigma)
-            low = self.slip_velocity(yaw_rate, speed, steer, lateral - sigma)
-            return max(0.5 * abs(high - low), MIN_REFERENCE_STD)
-        # (R1): the demand term alone moves with the reading; the scrub term and the steer cancel
-        high = self.slip_velocity(0.0, speed, None, lateral + sigma)
-        low = self.slip_velocity(0.0, speed, None, lateral - sigma)
+        # (R1): (T2)/(T4)'s demand term alone moves with the reading (the scrub term and the steer cancel); (T5)'s
+        # axles share it by their slip angles, so it is taken at the tick's operating point
+        yaw_rate, steer = (0.0, None) if self.axles == "group" else self._operating_point()[::2]
+        high = self.slip_velocity(yaw_rate, speed, steer, lateral + sigma)
+        low = self.slip_velocity(yaw_rate, speed, steer, lateral - sigma)
         return max(0.5 * abs(high - low), MIN_REFERENCE_STD)
 
     def rate_sensitivity(self, steer: np.ndarray | None, lateral: float) -> tuple[float, float]:
