@@ -84,6 +84,8 @@ is the axle's force from the vehicle's declared tyre, (S1) of :mod:`sensor.refer
 peak held beyond it), and the bracket's ends are the slips at which every axle is at its peak slip ``α_pj``::
 
     Σ_j L_j·F_j(α_j) = (m·a + m_5·L_5)·f_p,      v_s = −r·(L_c − L_j) − u·(T − tan δ_j) ± |u|·α_pj         (T6)
+
+with (T5)'s slip angles ``α_j``; below ``u_0`` it blends to (T4)'s as (T5) does.
 """
 
 from __future__ import annotations
@@ -205,9 +207,9 @@ class UnitSlipReference:
             self._curve = StatedTyreCurve(tyres, self._loads, table.n_tyres[towed], lengths, road_friction)
 
     def slip_velocity(self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float) -> float:
-        """``v̂_s`` of (T2), or (T4) with a road friction, or (T5) with ``axles`` ``each``, [m/s] from the unit's yaw
-        rate [rad/s], wheel speed [m/s], steer angles [rad] (layout order; ``None`` or empty: none steer) and its
-        accelerometer's reading ``lateral`` [m/s²]."""
+        """``v̂_s`` of (T2), or (T4) with a road friction, or (T5) with ``axles`` ``each`` ((T6) with ``tyre``
+        ``stated``), [m/s] from the unit's yaw rate [rad/s], wheel speed [m/s], steer angles [rad] (layout order;
+        ``None`` or empty: none steer) and its accelerometer's reading ``lateral`` [m/s²]."""
         if not math.isfinite(lateral):
             raise InputError(
                 f"the towed unit's lateral acceleration is {lateral!r}; kinematic_rear_point "
