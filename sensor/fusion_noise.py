@@ -16,6 +16,7 @@ __all__ = [
     "FusionNoise",
     "KinematicReference",
     "PersistingReferenceError",
+    "ReferenceTyre",
     "ScrubCouplingStd",
     "SideRigFusion",
 ]
@@ -40,6 +41,9 @@ ROAD_FRICTION = "the road's μ as the run states it, (T4) in the reference's mea
 ReferenceAxles = Literal["group", "each"]
 """How the ``trailer_lateral_acceleration`` reference's axles share the demand (:mod:`sensor.unit_slip_reference`):
 the group at its demand ((T2)/(T4)) or each axle's brush tyre at its own slip angle ((T5))."""
+ReferenceTyre = Literal["brush", "stated"]
+"""The tyre of that reference's (T5) (:mod:`sensor.unit_slip_reference`): the brush tyre ((T3)) or the vehicle's
+declared tyre ((T6), :mod:`sensor.reference_tyre`)."""
 REFERENCE_BIAS = "[m/s²] std of the unit's accelerometer bias, (R1)'s floor in place of tractor_slip; null: none"
 """``reference_accelerometer_bias``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
 BIAS_STD_SCALE = "factor on the std of eq (5)'s biases' term; 1: as the filter's P_b gives it, toward 0: none of it"
@@ -100,7 +104,7 @@ class SideRigFusion(Settings):
     ----------
     vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect, vo_yaw_lever, bias_std_scale
         As :class:`FusionNoise`'s.
-    kinematic_rear_point, reference_friction, reference_road_friction, reference_axles,
+    kinematic_rear_point, reference_friction, reference_road_friction, reference_axles, reference_tyre,
     reference_accelerometer_bias, kinematic_error_model, coupling_reference, coupling_bias_share,
     coupling_persisting_error
         As :class:`FusionNoise`'s.
@@ -130,6 +134,7 @@ class SideRigFusion(Settings):
     reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
     reference_road_friction: float | None = Field(None, ge=0.05, le=1.5, description=ROAD_FRICTION)
     reference_axles: ReferenceAxles | None = None
+    reference_tyre: ReferenceTyre | None = None
     reference_accelerometer_bias: float | None = Field(None, gt=0.0, le=1.0, description=REFERENCE_BIAS)
     kinematic_error_model: Literal["inflated", "state"] | None = None
     coupling_reference: bool | None = None
@@ -247,6 +252,11 @@ class FusionNoise(Settings):
         How that reference's axles share the demand: ``group`` (default: every axle at the group's demand, (T2)/(T4)
         of :mod:`sensor.unit_slip_reference`) or ``each`` (each axle's brush tyre at its own slip angle, (T5); it
         needs ``reference_road_friction``; docs/field_bias.md §7.34, §7.36).
+    reference_tyre : str
+        The tyre of ``each``'s axles: ``brush`` (default: (T3)'s brush tyre at the axle's cornering stiffness, static
+        load and ``reference_road_friction``) or ``stated`` (the lateral force curve of the tyre the vehicle declares
+        on each axle, at its static load and ``reference_road_friction``, (T6) of :mod:`sensor.unit_slip_reference`;
+        it needs ``reference_axles: each``; docs/field_bias.md §7.40).
     reference_accelerometer_bias : float or None
         The standard deviation of the unit's accelerometer bias [m/s²] (a data sheet's: a bias uniform within ``±b``
         has ``b/√3``). With the ``trailer_lateral_acceleration`` reference, σ_k's floor takes that bias through the
@@ -398,6 +408,7 @@ class FusionNoise(Settings):
     reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
     reference_road_friction: float | None = Field(None, ge=0.05, le=1.5, description=ROAD_FRICTION)
     reference_axles: ReferenceAxles = "group"
+    reference_tyre: ReferenceTyre = "brush"
     reference_accelerometer_bias: float | None = Field(None, gt=0.0, le=1.0, description=REFERENCE_BIAS)
     tractor_stiffness_uncertainty: float = Field(
         0.2,

@@ -50,13 +50,20 @@ class OwnReference(UnitSlipReference):
     unit
         The towed unit (1 the first).
     noise
-        The filter's settings: ``reference_friction``, ``reference_road_friction``, ``reference_axles`` and
-        ``reference_accelerometer_bias`` are the reference's; ``tractor_slip`` the floor's ``σ_0`` that (R1)
-        replaces.
+        The filter's settings: ``reference_friction``, ``reference_road_friction``, ``reference_axles``,
+        ``reference_tyre`` and ``reference_accelerometer_bias`` are the reference's; ``tractor_slip`` the floor's
+        ``σ_0`` that (R1) replaces.
     """
 
     def __init__(self, params: VehicleParams, unit: int, noise: FusionNoise) -> None:
-        super().__init__(params, unit, noise.reference_friction, noise.reference_road_friction, noise.reference_axles)
+        super().__init__(
+            params,
+            unit,
+            noise.reference_friction,
+            noise.reference_road_friction,
+            noise.reference_axles,
+            noise.reference_tyre,
+        )
         self.noise = noise
         self._tick: tuple[float, float, np.ndarray | None] | None = None  # the last lateral()'s r, u and steer
 

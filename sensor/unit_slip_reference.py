@@ -77,6 +77,15 @@ steer) and each axle's stiffness in proportion to its load, (T5) is (T4): the st
 (m·a + m_5·L_5)·g``. Below the wheel speed ``u_0`` (:data:`EACH_AXLE_MIN_SPEED`) the slip angles are no longer
 small and at a standstill undefined, so the slip there is (T4)'s and (T5)'s blended by ``|u|/u_0``, continuous in
 ``u`` and (T4)'s at ``u = 0``.
+
+The tyre the user states. (T5)'s brush tyre is fixed by the axle's stiffness, load and ``μ_r``; near the friction's
+peak it slips more than a real tyre does. With ``reference_tyre: stated`` (it needs ``each``) (T5)'s ``μ_r·F_zj·b(·)``
+is the axle's force from the vehicle's declared tyre, (S1) of :mod:`sensor.reference_tyre` (its rising branch, the
+peak held beyond it), and the bracket's ends are the slips at which every axle is at its peak slip ``α_pj``::
+
+    Σ_j L_j·F_j(α_j) = (m·a + m_5·L_5)·f_p,      v_s = −r·(L_c − L_j) − u·(T − tan δ_j) ± |u|·α_pj         (T6)
+
+with (T5)'s slip angles ``α_j``; below ``u_0`` it blends to (T4)'s as (T5) does.
 """
 
 from __future__ import annotations
@@ -90,14 +99,24 @@ from vehicle_model.errors import InputError
 from vehicle_model.parameters import GRAVITY, VehicleParams
 from vehicle_model.static_loads import solve_loads
 
+from .reference_tyre import StatedTyreCurve
 from .unit_kinematics import unit_axles
 
-__all__ = ["EACH_AXLE_MIN_SPEED", "REFERENCE_AXLES", "TRAILER_REFERENCE", "UnitSlipReference", "linear_slip_excess"]
+__all__ = [
+    "EACH_AXLE_MIN_SPEED",
+    "REFERENCE_AXLES",
+    "REFERENCE_TYRES",
+    "TRAILER_REFERENCE",
+    "UnitSlipReference",
+    "linear_slip_excess",
+]
 
 TRAILER_REFERENCE = "trailer_lateral_acceleration"
 """The kinematic reference's name (``kinematic_rear_point``) that takes the unit's own accelerometer."""
 REFERENCE_AXLES: tuple[str, ...] = ("group", "each")
 """``reference_axles``: the group at its demand ((T2)/(T4)) or each axle at its own slip angle ((T5))."""
+REFERENCE_TYRES: tuple[str, ...] = ("brush", "stated")
+"""``reference_tyre``: (T5)'s axles as brush tyres ((T3)) or as the vehicle's declared tyres ((T6), (S1))."""
 EACH_AXLE_MIN_SPEED = 1.0
 """``u_0`` of (T5) [m/s]: below it the slip blends to (T4)'s, which is (T5)'s at a standstill's limit of no slip."""
 
@@ -127,6 +146,9 @@ class UnitSlipReference:
     axles
         ``group`` ((T2)/(T4), the group at its demand) or ``each`` ((T5), each axle's brush tyre at its own slip
         angle; it needs ``road_friction``).
+    tyre
+        ``brush`` ((T5) with (T3)'s brush tyre) or ``stated`` ((T6), the vehicle's declared tyres; it needs ``axles``
+        ``each``).
 
     Attributes
     ----------
@@ -141,6 +163,7 @@ class UnitSlipReference:
         friction: float | None = None,
         road_friction: float | None = None,
         axles: str = "group",
+        tyre: str = "brush",
     ) -> None:
         for name, value in (("reference_friction", friction), ("reference_road_friction", road_friction)):
             if value is not None and not (math.isfinite(value) and value > 0.0):
@@ -150,7 +173,13 @@ class UnitSlipReference:
                 f"reference_axles = {axles!r}; allowed: group, or each with reference_road_friction set (the axles' "
                 "brush tyres' μ_r of (T5))"
             )
+        if tyre not in REFERENCE_TYRES or (tyre == "stated" and axles != "each"):
+            raise InputError(
+                f"reference_tyre = {tyre!r}; allowed: brush, or stated with reference_axles = each (the axles' own "
+                "slip angles of (T5))"
+            )
         self.axles = axles
+        self.tyre = tyre
         self.friction = friction
         self.road_friction = road_friction
         lengths, steerable, shares = unit_axles(params, unit)
@@ -171,11 +200,16 @@ class UnitSlipReference:
         self._stiffness = params.axle_cornering_stiffness()[towed]  # C_j
         self._loads = params.axle_table.static_load[towed]  # F_zj
         self._moment = moment  # m·a + m_5·L_5 of (T1)
+        self._curve = None
+        if tyre == "stated":  # (T6): the declared tyres' curve, (S1)
+            table = params.axle_table
+            tyres = [t for t, on in zip(table.tyres, towed, strict=True) if on]
+            self._curve = StatedTyreCurve(tyres, self._loads, table.n_tyres[towed], lengths, road_friction)
 
     def slip_velocity(self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float) -> float:
-        """``v̂_s`` of (T2), or (T4) with a road friction, or (T5) with ``axles`` ``each``, [m/s] from the unit's yaw
-        rate [rad/s], wheel speed [m/s], steer angles [rad] (layout order; ``None`` or empty: none steer) and its
-        accelerometer's reading ``lateral`` [m/s²]."""
+        """``v̂_s`` of (T2), or (T4) with a road friction, or (T5) with ``axles`` ``each`` ((T6) with ``tyre``
+        ``stated``), [m/s] from the unit's yaw rate [rad/s], wheel speed [m/s], steer angles [rad] (layout order;
+        ``None`` or empty: none steer) and its accelerometer's reading ``lateral`` [m/s²]."""
         if not math.isfinite(lateral):
             raise InputError(
                 f"the towed unit's lateral acceleration is {lateral!r}; kinematic_rear_point "
@@ -200,30 +234,38 @@ class UnitSlipReference:
         """``v̂_s`` of (T5) [m/s], blended to (T4)'s below ``u_0`` (arguments as :meth:`slip_velocity`)."""
         weight = min(abs(speed) / EACH_AXLE_MIN_SPEED, 1.0)
         if weight == 1.0:
-            return self._brush_root(yaw_rate, speed, steer, lateral)
+            return self._axle_root(yaw_rate, speed, steer, lateral)
         group = self._group_slip(yaw_rate, speed, steer, lateral)
         if weight == 0.0:
             return group
-        return (1.0 - weight) * group + weight * self._brush_root(yaw_rate, speed, steer, lateral)
+        return (1.0 - weight) * group + weight * self._axle_root(yaw_rate, speed, steer, lateral)
 
-    def _brush_root(self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float) -> float:
-        """The root ``v_s`` of (T5) [m/s] at a wheel speed ``speed`` ≠ 0, or the saturation slip past the axles'
-        most (module notes)."""
+    def _axle_root(self, yaw_rate: float, speed: float, steer: np.ndarray | None, lateral: float) -> float:
+        """The root ``v_s`` of (T5), or (T6) with the stated tyre, [m/s] at a wheel speed ``speed`` ≠ 0, or the
+        saturation slip past the axles' most (module notes)."""
         tangents = np.zeros(self._lengths.size)
         if steer is not None and self._steer_shares.size:
             tangents[self._steerable] = np.tan(np.asarray(steer, dtype=float).reshape(-1))
         mean_tangent = float(np.dot(self._steer_shares, tangents[self._steerable]))  # T of eq (1)
         # (T5): α_j = −(v_s + offset_j)/u
         offset = yaw_rate * (self.slip_point - self._lengths) + speed * (mean_tangent - tangents)
-        grip = self.road_friction * self._loads  # μ_r·F_zj
-        span = abs(speed) * 3.0 * grip / self._stiffness  # |u|·α_sj, the slip angle at which axle j saturates
-        scale = self._stiffness / (3.0 * grip)
-        levers = self._lengths * grip
         target = self._moment * lateral  # (T1)
+        curve = self._curve
+        if curve is None:
+            grip = self.road_friction * self._loads  # μ_r·F_zj
+            span = abs(speed) * 3.0 * grip / self._stiffness  # |u|·α_sj, the slip angle at which axle j saturates
+            scale = self._stiffness / (3.0 * grip)
+            levers = self._lengths * grip
 
-        def excess(slip: float) -> float:
-            x = np.clip(-(slip + offset) / speed * scale, -1.0, 1.0)  # Pacejka 2012 §3.2.2, (T3)'s brush
-            return float(np.dot(levers, np.sign(x) * (1.0 - (1.0 - np.abs(x)) ** 3))) - target
+            def excess(slip: float) -> float:
+                x = np.clip(-(slip + offset) / speed * scale, -1.0, 1.0)  # Pacejka 2012 §3.2.2, (T3)'s brush
+                return float(np.dot(levers, np.sign(x) * (1.0 - (1.0 - np.abs(x)) ** 3))) - target
+
+        else:
+            span = abs(speed) * curve.peak_slip  # |u|·α_pj of (T6)
+
+            def excess(slip: float) -> float:
+                return curve.moment(-(slip + offset) / speed) - target  # (T6) with (S1)'s forces
 
         low, high = float(np.min(-offset - span)), float(np.max(-offset + span))
         at_low, at_high = excess(low), excess(high)

@@ -161,6 +161,11 @@ class ScenarioConfig(Settings):
                     f"{TRAILER_REFERENCE} and {name.replace('kinematic_rear_point', 'reference_road_friction')} set; "
                     "allowed otherwise: group"
                 )
+            if section.reference_tyre == "stated" and section.reference_axles != "each":
+                raise ValueError(
+                    f"{name.replace('kinematic_rear_point', 'reference_tyre')} = stated needs "
+                    f"{name.replace('kinematic_rear_point', 'reference_axles')} = each; allowed otherwise: brush"
+                )
             if reference == TRAILER_REFERENCE and self.signals.trailer_lateral_acceleration is None:
                 raise ValueError(
                     f"{name} = {TRAILER_REFERENCE} needs the towed units' accelerometer: set "
