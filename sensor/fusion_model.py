@@ -67,8 +67,7 @@ Camera measurement. Each frame's camera motion becomes a kingpin increment ``z =
 interval through the camera's pose on the trailer (eqs (1)–(2), :meth:`VisoOtEstimator.kingpin_increment`). Its
 covariance ``R`` is the odometry's ``Σ = (JᵀJ)⁻¹σ̂²`` of the 6 motion parameters mapped through that function
 (numerical Jacobian), scaled by ``vo_covariance_scale`` (the Gauss–Newton covariance is a floor of the true one,
-:mod:`sensor.vo.quality`; with ``vo_tilt_reference`` set, grown with the frame's tilt by eq (V1) of
-:mod:`sensor.fusion_adaptive`) plus a floor; so a frame with few or noisy inliers counts for less. The odometry's
+:mod:`sensor.vo.quality`) plus a floor; so a frame with few or noisy inliers counts for less. The odometry's
 systematic error lies along its weakest direction, the yaw–translation ambiguity of a camera looking along its
 motion: a yaw error comes with the translation error that keeps the far features in place. So the motion measures::
 
@@ -116,7 +115,6 @@ import numpy as np
 
 from vehicle_model.rigid import invert_rigid
 
-from .fusion_adaptive import covariance_scale
 from .fusion_noise import FusionNoise
 from .viso_ot import VisoOtEstimator
 from .vo.motion import params_to_transform, transform_to_params
@@ -313,8 +311,7 @@ def camera_increment(
     (1)–(2) of :mod:`sensor.viso_ot`) and its 3×3 covariance ``R`` (the camera measurement above).
 
     ``covariance`` is the odometry's 6×6 covariance of ``(rx, ry, rz, tx, ty, tz)`` of Tr_delta, whose inverse is
-    ``camera_motion``, mapped through a numerical Jacobian and scaled by ``vo_covariance_scale`` (by eq (V1) of
-    :mod:`sensor.fusion_adaptive` with ``vo_tilt_reference`` set); ``None``: the
+    ``camera_motion``, mapped through a numerical Jacobian and scaled by ``vo_covariance_scale``; ``None``: the
     floor alone. Off the level road (``geometry.level_reference`` not ``planar``) the increment is in the level
     frame (:meth:`~sensor.viso_ot.VisoOtEstimator.level_increment`, ``tilt`` the unit's at this frame or ``None``
     to integrate it), from the tilt ``geometry`` holds for the frame before.
@@ -337,8 +334,7 @@ def camera_increment(
             d = theta.copy()
             d[i] += h
             jac[:, i] = (np.array(increment(invert_rigid(params_to_transform(d)))) - z) / h
-        scale = covariance_scale(n, geometry.mount_rotation, camera_motion)  # vo_covariance_scale, (V1) when set
-        r = r + scale * (jac @ np.asarray(covariance, dtype=float) @ jac.T)
+        r = r + n.vo_covariance_scale * (jac @ np.asarray(covariance, dtype=float) @ jac.T)
     return z, r
 
 

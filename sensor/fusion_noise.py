@@ -187,12 +187,14 @@ class FusionNoise(Settings):
         The standstill before the run over which a run zeroes the trailer's gyro [s] (0: it does not).
     vo_covariance_scale : float
         Variance factor on the odometry's Gauss–Newton covariance (≥ 1: it is a floor).
-    vo_tilt_reference : float
-        ``θ₀`` of eq (V1) of :mod:`sensor.fusion_adaptive` [rad per frame]: a frame whose unit tilts by ``θ`` over it
-        takes ``vo_covariance_scale`` times ``(θ/θ₀)²`` (at least 1), the camera's covariance grown where the ground
-        it measures is rough (0, the default: off, ``vo_covariance_scale`` for every frame).
-    vo_tilt_max_factor : float
-        ``f_max`` of (V1): the ceiling of that factor over ``vo_covariance_scale``.
+    vo_covariance_adaptive : bool
+        Grow each camera motion's covariance by the median normalised innovation squared of the motions before it
+        over its expectation, ``m`` of eq (V1) of :mod:`sensor.fusion_adaptive`, between ``vo_covariance_scale`` (the
+        floor) and ``vo_adaptive_max_factor`` times it (False, the default: ``vo_covariance_scale`` alone).
+    vo_adaptive_window : int
+        ``N`` of (V1): the camera motions the median is taken over.
+    vo_adaptive_max_factor : float
+        ``f_max`` of (V1): the ceiling of ``m``.
     vo_translation_floor, vo_rotation_floor : float
         Standard deviations added to every frame's increment [m, rad].
     vo_yaw_bias : float
@@ -364,11 +366,12 @@ class FusionNoise(Settings):
     )
     initial_wheel_speed_bias: float = Field(0.2, ge=0.0, le=10.0, description="[m/s]; 10 m/s is no wheel speed")
     vo_covariance_scale: float = Field(4.0, ge=1.0, le=1e4, description="on the VO covariance (a floor); 1e4: no VO")
-    vo_tilt_reference: float = Field(
-        0.0, ge=0.0, le=0.1, description="[rad] per frame, θ₀ of (V1); 0: off, 0.1 rad (6°) grows almost nothing"
+    vo_covariance_adaptive: bool = False
+    vo_adaptive_window: int = Field(
+        100, ge=10, le=10000, description="camera motions in (V1)'s median; below 10 it is no statistic"
     )
-    vo_tilt_max_factor: float = Field(
-        64.0, ge=1.0, le=1e4, description="ceiling of (V1)'s factor on vo_covariance_scale; 1: no growth"
+    vo_adaptive_max_factor: float = Field(
+        4.0, ge=1.0, le=100.0, description="ceiling of (V1)'s factor on the covariance; 1: no growth, 100 drops the VO"
     )
     vo_translation_floor: float = Field(1e-3, ge=0.0, le=1.0, description="[m] per frame; 1 m is no translation")
     vo_rotation_floor: float = Field(1e-4, ge=0.0, le=0.1, description="[rad] per frame; 0.1 rad is no rotation")
