@@ -48,6 +48,7 @@ from vehicle_model.errors import InputError
 from vehicle_model.offtracking import OfftrackingBuffer, offtracking_from_path
 from vehicle_model.parameters import VehicleParams
 
+from .fusion_adaptive import AdaptiveCovariance
 from .fusion_axial import AxialRegression
 from .fusion_consider import Transition, consider_of
 from .fusion_coupling import CouplingMeasurement, coupled_update
@@ -239,6 +240,7 @@ class FusedVisoOt:
         self.frame_scrub_demand = 0.0
         self.scrub_demand = 0.0
         self._nis: deque[float] = deque(maxlen=n.innovation_window)
+        self._adaptive = AdaptiveCovariance(n)  # m of (V1): the camera's covariance grown by its innovations
         self.innovation_ratio = 1.0
         # Committed increments still ahead of the follow point: start pose (x, y, ψ), end station x_e and
         # covariance, all in the anchor's frame.
@@ -414,6 +416,7 @@ class FusedVisoOt:
         used, share = False, np.eye(3)  # share: of the increment's prior error, what a reference left, (4')
         if camera_motion is not None and np.all(np.isfinite(camera_motion)):
             z, r = self.measurement(np.asarray(camera_motion, dtype=float), covariance, given)
+            r_floor, r = r, self._adaptive.scaled(r)  # (V1) of sensor.fusion_adaptive; off: r itself
             h = np.zeros((3, self._states))
             h[:, :3] = np.eye(3)
             # eq (3)'s translation coupled to the yaw error (the lever's along the optical axis with (3''))
@@ -447,6 +450,7 @@ class FusedVisoOt:
             refuse, prior = self._gated < self.noise.max_gated, p
             x, p, nis, used = gated_update(x, p, h, innovation, r, self.noise.gate, refuse)
             self._consider.update(prior, h, r, nis, self.noise.gate, used)
+            self._adaptive.observe(h, prior, innovation, r_floor)
             if not used:
                 self._gated += 1
                 self.rejected += 1

@@ -192,6 +192,14 @@ class FusionNoise(Settings):
         The standstill before the run over which a run zeroes the trailer's gyro [s] (0: it does not).
     vo_covariance_scale : float
         Variance factor on the odometry's Gauss–Newton covariance (≥ 1: it is a floor).
+    vo_covariance_adaptive : bool
+        Grow each camera motion's covariance by the median normalised innovation squared of the motions before it
+        over its expectation, ``m`` of eq (V1) of :mod:`sensor.fusion_adaptive`, between ``vo_covariance_scale`` (the
+        floor) and ``vo_adaptive_max_factor`` times it (False, the default: ``vo_covariance_scale`` alone).
+    vo_adaptive_window : int
+        ``N`` of (V1): the camera motions the median is taken over.
+    vo_adaptive_max_factor : float
+        ``f_max`` of (V1): the ceiling of ``m``.
     vo_translation_floor, vo_rotation_floor : float
         Standard deviations added to every frame's increment [m, rad].
     vo_yaw_bias : float
@@ -368,6 +376,13 @@ class FusionNoise(Settings):
     )
     initial_wheel_speed_bias: float = Field(0.2, ge=0.0, le=10.0, description="[m/s]; 10 m/s is no wheel speed")
     vo_covariance_scale: float = Field(4.0, ge=1.0, le=1e4, description="on the VO covariance (a floor); 1e4: no VO")
+    vo_covariance_adaptive: bool = False
+    vo_adaptive_window: int = Field(
+        100, ge=10, le=10000, description="camera motions in (V1)'s median; below 10 it is no statistic"
+    )
+    vo_adaptive_max_factor: float = Field(
+        4.0, ge=1.0, le=100.0, description="ceiling of (V1)'s factor on the covariance; 1: no growth, 100 drops the VO"
+    )
     vo_translation_floor: float = Field(1e-3, ge=0.0, le=1.0, description="[m] per frame; 1 m is no translation")
     vo_rotation_floor: float = Field(1e-4, ge=0.0, le=0.1, description="[rad] per frame; 0.1 rad is no rotation")
     vo_yaw_bias: float = Field(
