@@ -99,8 +99,9 @@ def test_the_full_grid_is_every_scenario_surface_roughness_condition_and_feedbac
             assert "camera.world" not in camera and "camera.lens" in camera  # the airfield world is level
             assert overrides["camera.self_calibration.enabled"] is True
             assert overrides["camera.self_calibration.scale"] == "vertical_only"  # no road plane on a rutted track
+            assert overrides["fusion.vo_covariance_scale"] == 8.0  # the rough ground's camera covariance
         else:
-            assert not camera
+            assert not camera and "fusion.vo_covariance_scale" not in overrides
         if labels["scenario"] == "haul-road":  # the unladen field combination climbs it, one trailer axle steered
             assert overrides["vehicle"] == "field" and overrides["vehicle.units[1].axles[1].steerable"] is True
 

@@ -17,7 +17,8 @@ scenario's) × two camera conditions (:data:`CONDITIONS`) × the feedbacks of :d
 ``field`` is the field-loop study's camera under every field condition of
 :data:`~scenarios.studies.section4.FIELD_CONDITIONS` except its world (the airfield is level and refuses a terrain:
 the roadside world is draped on the terrain instead), aligned, with the online self-calibration from the vertical
-disparities (:data:`SELF_CALIBRATION`), and every on-board signal with its data sheet's noise and a bias drawn from
+disparities (:data:`SELF_CALIBRATION`) and the odometry's covariance widened for rough ground
+(:data:`OFF_HIGHWAY_CAMERA_COVARIANCE`), and every on-board signal with its data sheet's noise and a bias drawn from
 the seed (:func:`~scenarios.studies.field_loop.field_signals`); ``ideal`` is the paper's simulated camera and the
 catalogue's ideal signals.
 
@@ -124,6 +125,14 @@ OFF_HIGHWAY_FIELD_CONDITIONS: tuple[tuple[str, Any], ...] = tuple(
 )
 """:data:`~scenarios.studies.section4.FIELD_CONDITIONS` without its airfield world, which is level."""
 
+OFF_HIGHWAY_CAMERA_COVARIANCE: tuple[tuple[str, Any], ...] = (("fusion.vo_covariance_scale", 8.0),)
+"""The rendered field cases take the odometry's Gauss–Newton covariance times 8 (the fused filter's default, 4, is a
+floor for a paved road): on rough ground the camera's motions err by more than 4 times it says, the filter's χ² gate
+refuses them in runs of one sign and the estimate leaves its inputs (docs/studies.md, "Off-highway": "Why the
+estimate sits below its inputs at the rough clay's circle entry"). With 8 every judged off-highway cell holds the
+project's targets at seeds 0 and 1 (with 4 the rough wet-clay yard fails at seed 0), at a cost on the smooth wet-clay
+yard at seed 0 and a share within 2σ of 99–100 % (docs/studies.md, "The off-highway study's field setting")."""
+
 DEFAULT_CELLS: tuple[tuple[str, str, str, str], ...] = (
     ("forest-road", "dirt", "rough", "field"),
     ("forest-road", "dirt", "rough", "ideal"),
@@ -200,7 +209,7 @@ def off_highway_case(
     if feedback == RENDERED_FEEDBACK:
         overrides += (("estimators.viso_ot", True),)
         if conditions == "field":
-            overrides += (*OFF_HIGHWAY_FIELD_CONDITIONS, *SELF_CALIBRATION)
+            overrides += (*OFF_HIGHWAY_FIELD_CONDITIONS, *SELF_CALIBRATION, *OFF_HIGHWAY_CAMERA_COVARIANCE)
     if not full:
         overrides += (("duration_s", SHORT_DURATION_S),)
     labels = (
