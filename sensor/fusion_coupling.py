@@ -47,6 +47,21 @@ only the share ``s = 1 − r·D`` of ``β̂_ψ`` ((K6), ``r`` = ``scrub_bias_rel
 to be the odometry's error in that motion, not the part it releases to the scrubbing tyres. Without a demand
 (``D = 0``) ``g = (κ·c_x, κ·c_y, 1)``.
 
+The follower's odometry may also misjudge its travel along its own optical axis ``o`` (a rear camera's weakest
+direction: the far scenery fixes motion across the image better than along it, docs/field_bias.md §7.38); where the
+follower's filter holds that error as its state ``s_z`` (eq (3') of :mod:`sensor.fusion_model`, ``z_xy = Δ_xy +
+s_z·a(Δ)·o`` with ``a(Δ) = o·Δ_c`` the camera's displacement along ``o``), with ``axial_scale``
+(``fusion.side_rig.coupling_axial_scale``; off by default) its estimate ``ŝ`` is taken out of the increment (C0) left,
+``f``, before (C1), and its variance ``P_s`` added along the axis. ``a`` is linear in ``Δ_xy`` at a given ``Δψ``
+(which ``s_z`` does not move), so ``a(f) = (1 + s_z)·a(Δ)`` and the model inverts exactly::
+
+    f_xy ← f_xy − ŝ/(1 + ŝ)·a(f)·o,   R_m ← R_m + (d/(1 + ŝ))²·P_s·o·oᵀ,   d = a(f)/(1 + ŝ)              (C0'')
+
+(``d`` the camera's travel along its axis as corrected; ``−d/(1 + ŝ)·o`` is the corrected increment's derivative in
+``s_z``). (C1) rotates the axis by ``−Γ⁰`` into the lead's axes, so an along-axis error of a follower looking along its
+unit lands in the lead's lateral as ``sin Γ⁰`` of it, and (C2)'s Jacobian carries ``P_s`` there by ``sin²Γ⁰``.
+Without ``ŝ`` (no follower filter yet) the frame is taken as (C0) leaves it.
+
 Where the follower's own tyres scrub (its axles steered to or near their lock, its scrub demand ``D`` of (K5) at the
 frame high, :mod:`sensor.fusion_slip`) its camera's motion and its filter's (C0) carry the follower's own error, which
 persists as long as the scrub does and which (C2) does not hold. With ``follower_limit`` (``fusion.side_rig.
@@ -108,7 +123,7 @@ import numpy as np
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
 
-from .fusion_model import camera_increment, gated_update
+from .fusion_model import camera_displacement, camera_increment, gated_update
 from .fusion_noise import FollowerLimit, FusionNoise
 from .fusion_slip import scrub_bias_share
 from .viso_ot import VisoOtEstimator
@@ -267,6 +282,8 @@ class CouplingReference:
         (C3): the measurement widened or refused while the follower's tyres scrub (``None``: off; :meth:`limited`).
     scrub_scale
         ``k_s`` of (C2'), the covariance widened by ``1 + k_s·D`` at the follower's scrub demand ``D`` (0: off).
+    axial_scale
+        (C0''): the follower's ``ŝ`` given to :meth:`measurement` taken out along its camera's axis (``False``: off).
 
     Raises
     ------
@@ -287,6 +304,7 @@ class CouplingReference:
         covariance_scale: float = 1.0,
         follower_limit: FollowerLimit | None = None,
         scrub_scale: float = 0.0,
+        axial_scale: bool = False,
     ) -> None:
         if not 0.0 <= scrub_scale <= 100.0:  # NaN fails too
             raise InputError(f"scrub_scale = {scrub_scale!r}: allowed 0–100 (k_s of (C2'), a factor per unit of D)")
@@ -311,6 +329,9 @@ class CouplingReference:
         self.covariance_scale = float(covariance_scale)
         self.follower_limit = follower_limit
         self.scrub_scale = float(scrub_scale)
+        self.axial_scale = bool(axial_scale)
+        axis = self.geometry.mount_rotation[:2, 2]  # the follower camera's optical axis in its unit's ground plane
+        self.optical_axis = axis / max(float(np.hypot(*axis)), 1e-12)
 
     def limited(
         self, covariance: np.ndarray, demand: float, follower_std: float
@@ -333,6 +354,7 @@ class CouplingReference:
         end: Sequence[float],
         yaw_bias: tuple[float, ...] | None = None,
         tilts: tuple[tuple[float, float], tuple[float, float]] | None = None,
+        axial: tuple[float, float] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """The lead's kingpin increment ``z`` and its 3×3 covariance ``R_c`` (C1)–(C2) from one follower camera
         motion (as :meth:`~sensor.fusion.FusedVisoOt.measure` takes it, with its 6×6 odometry covariance or
@@ -341,7 +363,8 @@ class CouplingReference:
         estimates them, and optionally its scrub demand ``D`` at its last frame (0 when not given), taken out by (C0)
         (``None``: none). ``tilts``: the follower's (pitch, roll) [rad] at the
         frame's start and end, required with ``level_reference="accelerometer"`` (the increment is then the lead's
-        in its level frame, module notes) and refused without it."""
+        in its level frame, module notes) and refused without it. ``axial``: the follower's ``ŝ`` (its filter's
+        ``s_z``) and its variance ``P_s``, taken out by (C0'') where :attr:`axial_scale` is on (``None``: none)."""
         tilt = None
         demand = 0.0
         if self.geometry.level_reference == "planar":
@@ -367,6 +390,8 @@ class CouplingReference:
             d = float(follower[0])
             follower = follower - d * yaw_bias[0] * g
             r_follower = r_follower + d * d * yaw_bias[1] * np.outer(g, g)
+        if self.axial_scale and axial is not None:
+            follower, r_follower = self._axial(follower, r_follower, axial)
         start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
         z = transport_increment(follower, self.rear_couplings, start, end)
         n = len(start)
@@ -384,3 +409,18 @@ class CouplingReference:
         if self.scrub_scale > 0.0 and demand > 0.0:  # (C2') of the module notes
             r = (1.0 + self.scrub_scale * demand) * r
         return z, 0.5 * (r + r.T)
+
+    def _axial(
+        self, follower: np.ndarray, r_follower: np.ndarray, axial: tuple[float, float]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(C0'') of the module notes: the follower's increment less its along-axis error ``ŝ`` and its covariance
+        plus ``P_s`` along the axis."""
+        if len(axial) != 2 or not (-1.0 < axial[0] < 1.0 and 0.0 <= axial[1] < math.inf):  # NaN fails too
+            raise InputError(f"axial = {axial!r}: allowed (ŝ, P_s) with ŝ in (−1, 1) and P_s finite, at least 0")
+        s, variance = float(axial[0]), float(axial[1])
+        o = self.optical_axis
+        along = camera_displacement(follower, self.geometry.camera_position, o)[0]  # a(f) = (1 + s_z)·a(Δ)
+        corrected = np.array(follower, dtype=float)
+        corrected[:2] -= s / (1.0 + s) * along * o  # (C0'')
+        g = np.array([*(-along / (1.0 + s) ** 2 * o), 0.0])  # ∂f/∂s_z = −d/(1 + ŝ)·o, d = a(f)/(1 + ŝ)
+        return corrected, r_follower + variance * np.outer(g, g)

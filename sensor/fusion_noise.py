@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from vehicle_model.kinematics import RearPoint
 from vehicle_model.settings import Settings
@@ -32,7 +32,12 @@ ScrubCouplingStd = Literal["release", "uniform"]
 """How the std's coupling term carries the coupled correction while the tyres scrub (:mod:`sensor.fusion_slip`)."""
 
 
-REFERENCE_SETTINGS: tuple[str, ...] = ("coupling_covariance_scale", "coupling_follower_limit", "coupling_scrub_scale")
+REFERENCE_SETTINGS: tuple[str, ...] = (
+    "coupling_covariance_scale",
+    "coupling_follower_limit",
+    "coupling_scrub_scale",
+    "coupling_axial_scale",
+)
 """The side-rig settings the coupling reference takes (:mod:`sensor.fusion_coupling`), not the filter."""
 FRICTION = "the lowest road μ the vehicle is specified for, (T3); 0.05 is glare ice, 1.5 a race track; null: none"
 """``reference_friction``'s description (:class:`FusionNoise`, :class:`SideRigFusion`)."""
@@ -120,6 +125,12 @@ class SideRigFusion(Settings):
         ``k_s`` of (C2') of :mod:`sensor.fusion_coupling`: the following unit's measurement's covariance widened by
         ``1 + k_s·D`` at the follower's scrub demand ``D`` (``None``: 0, off). The reference's, like
         ``coupling_covariance_scale``.
+    coupling_axial_scale
+        (C0'') of :mod:`sensor.fusion_coupling`: the follower's estimate ``ŝ`` of its odometry's relative error along
+        its optical axis (its filter's ``s_z``, eq (3') of :mod:`sensor.fusion_model`) taken out of each following
+        frame before (C1), its variance added along the axis (``None``: off). Needs the follower's filter to hold
+        ``s_z``: :class:`FusionNoise`'s ``vo_axial_scale`` above 0 (a following camera looks along its unit, so its
+        filter takes the section's settings). The reference's, like ``coupling_covariance_scale``.
     """
 
     vo_axial_flow: float | None = Field(None, ge=0.0, le=1.0, description="[1/m] start std of s_f; 1 /m: 1 m per m²")
@@ -150,6 +161,7 @@ class SideRigFusion(Settings):
     coupling_scrub_scale: float | None = Field(
         None, ge=0.0, le=100.0, description="(C2')'s k_s: the covariance × (1 + k_s·D); 100 all but drops it"
     )
+    coupling_axial_scale: bool | None = None
 
     @property
     def reference_covariance_scale(self) -> float:
@@ -161,6 +173,12 @@ class SideRigFusion(Settings):
     def reference_scrub_scale(self) -> float:
         """``k_s`` of (C2') the coupling reference takes: :attr:`coupling_scrub_scale`, 0 (off) when unset."""
         return 0.0 if self.coupling_scrub_scale is None else self.coupling_scrub_scale
+
+    @property
+    def reference_axial_scale(self) -> bool:
+        """Whether the coupling reference takes the follower's ``ŝ`` out, (C0''): :attr:`coupling_axial_scale`, off
+        when unset."""
+        return bool(self.coupling_axial_scale)
 
     def given(self) -> dict[str, object]:
         """The settings it gives the filter (those not ``None``, less the reference's own)."""
@@ -479,6 +497,15 @@ class FusionNoise(Settings):
         8.7e-4, ge=0.0, le=0.1, description="[rad] per sample (sensor/datasheet.py); 0.1 rad is no articulation sensor"
     )
     side_rig: SideRigFusion = Field(default_factory=SideRigFusion)
+
+    @model_validator(mode="after")
+    def _follower_axial_state(self) -> FusionNoise:  # (C0'') takes the follower's s_z: its filter must hold one
+        if self.side_rig.coupling_axial_scale and not self.vo_axial_scale > 0.0:
+            raise ValueError(
+                f"side_rig.coupling_axial_scale = true needs the following camera's filter to hold s_z: "
+                f"vo_axial_scale = {self.vo_axial_scale:g}, allowed (0, 0.5] with it (or coupling_axial_scale unset)"
+            )
+        return self
 
     def for_camera(self, optical_axis: tuple[float, float]) -> FusionNoise:
         """The settings of a filter whose camera's optical axis is ``optical_axis`` in the unit's ground plane: a

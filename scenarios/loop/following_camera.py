@@ -15,7 +15,8 @@ lead's filter takes its own. A following frame that failed, was refused, or whos
 interval does not start at the lead filter's anchor gives no measurement: the lead takes its own frame alone. With
 ``fusion.side_rig.coupling_follower_limit`` a frame taken while the follower's tyres scrub is widened by the
 follower's own off-tracking variance or refused ((C3) of :mod:`sensor.fusion_coupling`), the refusals counted by
-their reason.
+their reason. With ``fusion.side_rig.coupling_axial_scale`` the follower's filter's estimate of its odometry's error
+along its optical axis is taken out of each frame ((C0'') of :mod:`sensor.fusion_coupling`).
 """
 
 from __future__ import annotations
@@ -28,13 +29,15 @@ import numpy as np
 
 from sensor.fusion import CouplingMeasurement
 from sensor.fusion_coupling import CouplingReference, looks_along
-from sensor.fusion_model import BPSI
+from sensor.fusion_model import BPSI, StateLayout
+from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
 
 from ..unit_feedback import estimate_key
 
 __all__ = [
     "FollowingCamera",
+    "filter_axial_scale",
     "filter_scrub",
     "filter_yaw_bias",
     "following_camera",
@@ -57,6 +60,21 @@ def filter_yaw_bias(fused: Any) -> tuple[float, float, float] | None:
     if fused is None:
         return None
     return float(fused.state[BPSI]), float(fused.covariance[BPSI, BPSI]), float(fused.frame_scrub_demand)
+
+
+def filter_axial_scale(fused: Any) -> tuple[float, float] | None:
+    """A fused filter's estimate ``ŝ`` of its odometry's relative error along its optical axis (``s_z`` of eq (3') of
+    :mod:`sensor.fusion_model`) and its variance now, as (C0'') of :mod:`sensor.fusion_coupling` takes them
+    (``None``: no filter). A filter without the state is refused: its settings' ``vo_axial_scale`` is 0."""
+    if fused is None:
+        return None
+    sz = StateLayout.of(fused.noise).sz
+    if sz is None:
+        raise InputError(
+            f"fusion.side_rig.coupling_axial_scale needs the following unit {fused.unit}'s filter to hold s_z: "
+            f"its vo_axial_scale is {fused.noise.vo_axial_scale:g}, allowed (0, 0.5]"
+        )
+    return float(fused.state[sz]), float(fused.covariance[sz, sz])
 
 
 def filter_scrub(fused: Any) -> tuple[float, float]:
@@ -85,6 +103,9 @@ class FollowingCamera:
     scrub
         Gives the follower's fused filter's scrub demand at its last frame and its off-tracking std
         (:func:`filter_scrub`), asked only where the reference has a ``follower_limit`` ((C3)).
+    axial
+        Gives the follower's fused filter's ``ŝ`` and its variance (:func:`filter_axial_scale`), asked on every frame
+        where the reference has ``axial_scale`` on ((C0'')).
 
     Attributes
     ----------
@@ -100,11 +121,13 @@ class FollowingCamera:
         camera: Any,
         yaw_bias: Callable[[], tuple[float, ...] | None] | None = None,
         scrub: Callable[[], tuple[float, float]] | None = None,
+        axial: Callable[[], tuple[float, float] | None] | None = None,
     ) -> None:
         self.reference = reference
         self.camera = camera
         self.yaw_bias = yaw_bias
         self.scrub = scrub
+        self.axial = axial
         self.measurements = 0
         self.refused: dict[str, int] = {}
         self._articulations: dict[int, tuple[float, ...]] = {}  # Γ_{j+1} … Γ_m by tick, from the last frame on
@@ -137,6 +160,7 @@ class FollowingCamera:
                 after,
                 self.yaw_bias() if self.yaw_bias else None,
                 tilts,
+                self.axial() if self.axial and self.reference.axial_scale else None,
             )
             if self.reference.follower_limit is not None:  # (C3)
                 demand, follower_std = self.scrub() if self.scrub else (math.nan, math.nan)
@@ -198,6 +222,7 @@ def following_camera(
             side.reference_covariance_scale,
             side.coupling_follower_limit,
             side.reference_scrub_scale,
+            side.reference_axial_scale,
         )
         key = estimate_key("viso_ot_fused", follower)
 
@@ -207,5 +232,8 @@ def following_camera(
         def scrub(key: str = key) -> tuple[float, float]:
             return filter_scrub(getattr(unit_estimators.get(key), "filter", None))
 
-        return FollowingCamera(reference, camera, yaw_bias, scrub)
+        def axial(key: str = key) -> tuple[float, float] | None:
+            return filter_axial_scale(getattr(unit_estimators.get(key), "filter", None))
+
+        return FollowingCamera(reference, camera, yaw_bias, scrub, axial)
     return None
