@@ -11,10 +11,10 @@ small beside it). So with ``vo_covariance_adaptive`` each motion's covariance is
 
 (docs/fusion.md eq (V1)): the median over the ``N`` = ``vo_adaptive_window`` motions before it (the motion itself is
 not among them: a motion does not widen its own covariance; the median, so a few wild motions do not widen the
-rest), ``med χ²₃`` = 2.366 the median of a χ²₃ variable, ``f_max`` = ``vo_adaptive_max_factor``; 1 (today's
-covariance, the floor) until ``N`` motions have been seen. Where ``H P Hᵀ`` is not small beside ``R_k`` the median
-under-states ``m`` (the prediction's share of ``ν`` is not widened): it errs towards today's covariance. Off (the
-default) the covariance is today's, the same array.
+rest), ``med χ²₃`` = 2.366 the median of a χ²₃ variable, ``f_max`` = ``vo_adaptive_max_factor``; 1 (the covariance at
+``s₀``, the floor) until ``N`` motions have been seen. Where ``H P Hᵀ`` is not small beside ``R_k`` the median
+under-states ``m`` (the prediction's share of ``ν`` is not widened): it errs towards the covariance at ``s₀``. Off
+(the default) the covariance is the one at ``s₀``, the same array.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ from sensor.fusion import FusedVisoOt, FusionNoise
 from sensor.fusion_adaptive import AdaptiveCovariance
 from tests.test_fusion import CAMERA, PARAMS, drive_with_truth, run
 
-R = np.array([[9e-6, 2e-6, 1e-7], [2e-6, 1.6e-5, -2e-7], [1e-7, -2e-7, 4e-8]])  # a motion's covariance, today's
+R = np.array([[9e-6, 2e-6, 1e-7], [2e-6, 1.6e-5, -2e-7], [1e-7, -2e-7, 4e-8]])  # a motion's covariance at s₀
 H = np.hstack([np.eye(3), np.zeros((3, 4))])
 P = np.zeros((7, 7))
 P[:3, :3] = 0.05 * R  # the prediction's covariance, small beside the motion's
@@ -51,7 +51,7 @@ def test_the_factor_converges_to_a_known_under_statement() -> None:
     adaptive = AdaptiveCovariance(ON)
     factors = feed(adaptive, rng, 2.5, 700)
     assert np.all(factors[:100] == 1.0)  # the floor until N motions
-    expected = (0.05 + 2.5) / 1.05  # the NIS's scale against today's S
+    expected = (0.05 + 2.5) / 1.05  # the NIS's scale against the unscaled S
     assert np.mean(factors[200:]) == pytest.approx(expected, rel=0.03)
     assert np.all((factors >= 1.0) & (factors <= ON.vo_adaptive_max_factor))
     before = adaptive.factor
