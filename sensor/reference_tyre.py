@@ -94,8 +94,4 @@ class StatedTyreCurve:
 
     def moment(self, slip: np.ndarray) -> float:
         """``Σ_j L_j·F_j`` of (T6) with (S1)'s forces [N·m] at the axles' slip angles ``slip`` [rad]."""
-        clipped = np.clip(slip, -self.peak_slip, self.peak_slip)
-        return sum(
-            length * n * pure_lateral_force(tyre, float(a), load, self.friction)
-            for a, (tyre, load, n, length) in zip(clipped, self._axles, strict=True)
-        )
+        return sum(length * force for (_, _, _, length), force in zip(self._axles, self.forces(slip), strict=True))
