@@ -11,8 +11,8 @@ the paper's eq (9))::
     angle_i(t) = static_i + k_i·a_y(t) + n_i(t)
 
 * ``static_i`` — the quasi-static misalignment of the mount (:class:`~sensor.camera.Misalignment`);
-* ``k_i·a_y`` — frame twist proportional to the trailer's lateral acceleration ``a_y`` [m/s²], left
-  positive (ISO 8855; :func:`vehicle_model.kinematics.trailer_lateral_acceleration`), so a left and a
+* ``k_i·a_y`` — frame twist proportional to the lateral acceleration ``a_y`` [m/s²] of the unit the rig is on,
+  left positive (ISO 8855; :func:`vehicle_model.kinematics.towed_unit_lateral_acceleration`), so a left and a
   right turn twist the mount by opposite amounts: with φ_static = −0.15° a positive ``k_roll``
   reduces the roll in left turns and amplifies it in right turns, the paper's hypothesis;
 * ``n_i`` — vibration: white noise through a second-order Butterworth low-pass of cut-off
@@ -60,7 +60,7 @@ import numpy as np
 from pydantic import Field
 
 from vehicle_model.errors import InputError
-from vehicle_model.kinematics import trailer_lateral_acceleration
+from vehicle_model.kinematics import towed_unit_lateral_acceleration
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.settings import Settings
 from vehicle_model.simulator import VehicleState
@@ -239,7 +239,7 @@ class MountFlexModel:
 
 
 class FlexSchedule:
-    """The right camera's mount flex frame by frame, from the trailer's lateral acceleration.
+    """The right camera's mount flex frame by frame, from the lateral acceleration of the rig's own unit.
 
     The twist needs the acceleration between consecutive frames and the vibration a sequence of draws, so the
     schedule runs where the frames are taken, in order, and hands each frame's rotation to the renderer.
@@ -251,12 +251,15 @@ class FlexSchedule:
     params : VehicleParams
         The combination.
     station : float or None
-        Station of the trailer point whose lateral acceleration twists the mount [m] (from the kingpin, negative
-        behind it); None: the trailer CG (:func:`vehicle_model.kinematics.trailer_lateral_acceleration`).
+        Station of the point of the rig's unit whose lateral acceleration twists the mount [m] (from the unit's
+        front coupling, negative behind it); None: the unit's CG
+        (:func:`vehicle_model.kinematics.towed_unit_lateral_acceleration`).
     frame_interval : float
         Time between frames [s].
     rng : numpy.random.Generator
         The vibration's draws (a child of the run's seed).
+    unit : int
+        The towed unit the rig is mounted on (1 the first): its own lateral acceleration twists the mount.
     """
 
     def __init__(
@@ -266,10 +269,12 @@ class FlexSchedule:
         station: float | None,
         frame_interval: float,
         rng: np.random.Generator,
+        unit: int = 1,
     ) -> None:
         self.params = params
         self.dt = frame_interval
         self.station = station
+        self.unit = unit
         self.model = None if flex.is_zero else MountFlexModel(flex, None, rng)
         self._previous: VehicleState | None = None
 
@@ -280,7 +285,7 @@ class FlexSchedule:
         previous, self._previous = self._previous, state
         a_y = 0.0
         if previous is not None and state.time > previous.time:
-            a_y = trailer_lateral_acceleration(self.params, previous, state, station=self.station)
+            a_y = towed_unit_lateral_acceleration(self.params, previous, state, self.unit, station=self.station)
         if not math.isfinite(a_y):
             a_y = 0.0
         return self.model.rotation_at(a_y, self.dt)

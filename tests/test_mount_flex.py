@@ -12,9 +12,15 @@ from scipy.signal import welch
 
 from sensor.camera import Misalignment
 from sensor.mount_flex import DAMPING, FlexSchedule, MountFlex, MountFlexModel, vibration_transition
+from sensor.trailer_accelerometer import point_velocity
 from vehicle_model.errors import InputError
-from vehicle_model.kinematics import steady_lateral_acceleration, trailer_lateral_acceleration, trailer_point_velocity
-from vehicle_model.presets import field
+from vehicle_model.kinematics import (
+    steady_lateral_acceleration,
+    towed_unit_lateral_acceleration,
+    trailer_lateral_acceleration,
+    trailer_point_velocity,
+)
+from vehicle_model.presets import field, vehicle_preset
 from vehicle_model.simulator import VehicleState
 
 STATIC = Misalignment.from_degrees(roll=-0.15, yaw=0.10)  # de Saxe & Cebon 2018, §4.4
@@ -168,3 +174,35 @@ def test_invalid_frame_inputs_are_refused():
         model.rotation_at(0.0, -0.1)
     with pytest.raises(InputError, match="lateral_acceleration"):
         model.rotation_at(math.inf, 0.1)
+
+
+def rigid_b_double_turn(t: float, r: float = 0.3, gammas: tuple[float, float] = (0.35, 0.2)) -> VehicleState:
+    """The steered B-double turning as one rigid body (every yaw rate ``r``, articulations constant) at ``t``."""
+    trailing = np.array([gammas[1], r])  # the slip states play no part in the kinematics
+    return VehicleState(t, 0.0, 0.0, r * t, 4.0, 0.15, r, gammas[0], r, slip=np.zeros(1), trailing=trailing)
+
+
+def test_a_rear_units_mount_twists_with_its_own_units_acceleration_not_the_first_trailers():
+    # A rigid rotation turns every body-fixed velocity by r·dt between the frames, so a point's lateral acceleration
+    # over the interval, in the unit's axes at its mean heading, is exactly v_x·2·sin(r·dt/2)/dt (v_x its forward
+    # velocity in the unit's axes); the first unit's value is trailer_lateral_acceleration's to the bit.
+    params = vehicle_preset("au-b-double")
+    a, b = rigid_b_double_turn(1.0), rigid_b_double_turn(1.1)
+    factor = 2.0 * math.sin(0.3 * 0.1 / 2.0) / 0.1
+    for unit, station in [(1, -3.0), (2, -5.0), (2, None)]:
+        vx = point_velocity(params, a, unit, -(params.trailers[unit - 1].cg_x if station is None else station))[0]
+        got = towed_unit_lateral_acceleration(params, a, b, unit, station)
+        assert got == pytest.approx(vx * factor, rel=1e-12)
+    assert towed_unit_lateral_acceleration(params, a, b, 1, -3.0) == trailer_lateral_acceleration(params, a, b, -3.0)
+    # The rear unit's point is not the first trailer's at the same station (different v_x in a turn).
+    assert (
+        abs(towed_unit_lateral_acceleration(params, a, b, 2, -5.0) - trailer_lateral_acceleration(params, a, b, -5.0))
+        > 0.05
+    )
+    twist = (0.0, 0.0, -0.03)
+    rear = FlexSchedule(MountFlex(twist_deg_per_mps2=twist), params, -5.0, 0.1, np.random.default_rng(0), unit=2)
+    rear.rotation(a)
+    yaw = rear.rotation(b).yaw
+    assert yaw == pytest.approx(math.radians(-0.03) * towed_unit_lateral_acceleration(params, a, b, 2, -5.0), rel=1e-12)
+    with pytest.raises(InputError, match="unit = 3"):
+        towed_unit_lateral_acceleration(params, a, b, 3)

@@ -281,3 +281,57 @@ def trailer_lateral_acceleration(
         math.sin(previous.psi2) + math.sin(current.psi2), math.cos(previous.psi2) + math.cos(current.psi2)
     )
     return float(-math.sin(heading) * accel[0] + math.cos(heading) * accel[1])
+
+
+def towed_unit_lateral_acceleration(
+    params: VehicleParams, previous: VehicleState, current: VehicleState, unit: int, station: float | None = None
+) -> float:
+    """Lateral acceleration ``a_y = v̇_y + r·v_x`` [m/s²] of a point of towed unit ``unit`` between two states.
+
+    :func:`trailer_lateral_acceleration` for any unit of the chain: the point's velocity is the unit's front
+    coupling's (:func:`coupling_velocity`) turned by the unit's articulation into its axes, plus its yaw rate times
+    the point's station (docs/vehicle_dynamics.md §1.1), differenced in the global frame over ``current.time −
+    previous.time`` and expressed in the unit's axes at its mean heading; positive to the left.
+
+    Parameters
+    ----------
+    params
+        The combination.
+    previous, current
+        Two states of one run, ``current`` later (e.g. consecutive camera frames).
+    unit
+        The towed unit: 1 the first (exactly :func:`trailer_lateral_acceleration`), 2 the one behind it, …
+    station
+        Station of the point from the unit's front coupling [m], negative behind it; None: the unit's CG.
+
+    Raises
+    ------
+    InputError
+        When ``unit`` is not a towed unit of ``params`` or ``current`` is not later than ``previous``.
+    """
+    if not 1 <= unit <= len(params.trailers):
+        raise InputError(f"unit = {unit}: a towed unit of {params.name!r}, 1 to {len(params.trailers)}")
+    if unit == 1:
+        return trailer_lateral_acceleration(params, previous, current, station)
+    dt = current.time - previous.time
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise InputError(f"towed_unit_lateral_acceleration needs a later current state; got dt = {dt!r} s")
+    x = float(params.trailers[unit - 1].cg_x if station is None else station)
+
+    def heading(state: VehicleState) -> float:
+        return state.psi1 - sum(state.articulations[:unit])
+
+    def global_velocity(state: VehicleState) -> np.ndarray:
+        rates = state.towed_yaw_rates
+        vx, vy = coupling_velocity(
+            params, unit, kingpin_velocity(params, state.u, state.v1, state.r1), state.articulations, rates
+        )
+        c, s = math.cos(state.articulations[unit - 1]), math.sin(state.articulations[unit - 1])
+        vx, vy = c * vx - s * vy, s * vx + c * vy + rates[unit - 1] * x
+        ch, sh = math.cos(heading(state)), math.sin(heading(state))
+        return np.array([ch * vx - sh * vy, sh * vx + ch * vy])
+
+    accel = (global_velocity(current) - global_velocity(previous)) / dt
+    before, after = heading(previous), heading(current)
+    mean = math.atan2(math.sin(before) + math.sin(after), math.cos(before) + math.cos(after))
+    return float(-math.sin(mean) * accel[0] + math.cos(mean) * accel[1])

@@ -280,12 +280,14 @@ def mount_flex(config: ScenarioConfig, rig_index: int = 0) -> MountFlex:
 
 
 def flex_schedule(setup: ScenarioSetup, rig_index: int = 0) -> FlexSchedule:
-    """The right camera's flex frame by frame: the rig's ``flex`` at its ``station``, vibration seeded by
-    ``(rig seed, 0xF1E8)``."""
+    """The right camera's flex frame by frame: the rig's ``flex``, twisted by its own unit's lateral acceleration at
+    the rig's ``station``, vibration seeded by ``(rig seed, 0xF1E8)``."""
     cfg = setup.config
     rng = np.random.default_rng([rig_seed(cfg.seed, rig_index), 0xF1E8])
-    station = rig_settings(cfg, rig_index).station
-    return FlexSchedule(mount_flex(cfg, rig_index), setup.params, station, cfg.rates.frame_interval_s, rng)
+    rig = rig_settings(cfg, rig_index)
+    return FlexSchedule(
+        mount_flex(cfg, rig_index), setup.params, rig.station, cfg.rates.frame_interval_s, rng, unit=rig.unit
+    )
 
 
 def _camera_settings(config: ScenarioConfig, rig_index: int = 0) -> dict[str, Any]:
