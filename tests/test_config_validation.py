@@ -276,3 +276,14 @@ def test_the_slip_angle_limit_reaches_the_controller_in_radians_and_null_turns_i
     assert off.max_slip_angle is None
     line = _line(_refused("controller.max_slip_angle_deg=50"), "controller.max_slip_angle_deg")
     assert "45" in line
+
+
+def test_a_dotted_override_inside_a_mapping_override_leaves_the_callers_mapping_as_it_was() -> None:
+    # A study hands the same mapping (e.g. a field-conditions constant) to every case; a case that then overrides a
+    # field inside it must not change what the next case gets.
+    calibration = {"mode": "estimated", "views": 40, "corner_noise_px": 0.1}
+    first = load_scenario("roundabout-3", {"camera.calibration": calibration, "camera.calibration.views": 12})
+    assert first.camera.calibration.views == 12
+    assert calibration == {"mode": "estimated", "views": 40, "corner_noise_px": 0.1}
+    second = load_scenario("roundabout-3", {"camera.calibration": calibration})
+    assert second.camera.calibration.views == 40

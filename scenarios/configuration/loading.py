@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import itertools
 import re
 from importlib import resources
@@ -173,7 +174,8 @@ def load_scenario(name_or_path: str, overrides: dict[str, Any] | None = None) ->
 
     A road file is read and checked here (:func:`check_road_file`), with the configuration, so a bad road is refused
     before any command writes anything; :func:`validate_config` alone does not open it (a finished run's
-    ``config.yaml`` is read back without its road).
+    ``config.yaml`` is read back without its road). Each override's value is copied in, so a later override of a
+    field inside it (``camera.calibration`` then ``camera.calibration.mode``) leaves the caller's mapping as it was.
     """
     data = load_scenario_data(name_or_path)
     data.setdefault("name", Path(name_or_path).stem)
@@ -181,7 +183,7 @@ def load_scenario(name_or_path: str, overrides: dict[str, Any] | None = None) ->
     for key, value in (overrides or {}).items():
         if key.startswith(("vehicle.", "vehicle[")):  # a field of the vehicle: its preset or file as a mapping
             data["vehicle"] = vehicle_data(data.get("vehicle", default_vehicle))
-        set_dotted(data, key, value)
+        set_dotted(data, key, copy.deepcopy(value))  # a later dotted override must not edit the caller's mapping
     config = validate_config(data)
     check_road_file(config)
     check_terrain_file(config)
