@@ -206,3 +206,16 @@ def test_a_rear_units_mount_twists_with_its_own_units_acceleration_not_the_first
     assert yaw == pytest.approx(math.radians(-0.03) * towed_unit_lateral_acceleration(params, a, b, 2, -5.0), rel=1e-12)
     with pytest.raises(InputError, match="unit = 3"):
         towed_unit_lateral_acceleration(params, a, b, 3)
+
+
+def test_a_rear_units_point_feels_its_units_yaw_acceleration_times_its_lever():
+    # Over a short interval in which the rear unit alone starts to yaw faster (ṙ3 = 0.5 rad/s², the rest rigid), a
+    # point 5 m behind its coupling reads a_y = ṙ3·station + r·v_x (station negative behind): a wrong lever sign
+    # would be off by 2·0.5·5 = 5 m/s².
+    params = vehicle_preset("au-b-double")
+    dt, yaw_acceleration, station = 1e-5, 0.5, -5.0
+    a = rigid_b_double_turn(1.0)
+    b = dataclasses.replace(rigid_b_double_turn(1.0 + dt), trailing=np.array([0.2, 0.3 + yaw_acceleration * dt]))
+    vx = point_velocity(params, a, 2, -station)[0]
+    expected = yaw_acceleration * station + 0.3 * vx
+    assert towed_unit_lateral_acceleration(params, a, b, 2, station) == pytest.approx(expected, abs=1e-3)
