@@ -19,6 +19,7 @@ part ``r2·v_x`` alone, exact in a steady turn.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from typing import Literal, get_args
 
 import numpy as np
@@ -266,21 +267,38 @@ def trailer_lateral_acceleration(
     InputError
         When ``current`` is not later than ``previous``.
     """
+    return _lateral_at_mean_heading(
+        previous,
+        current,
+        lambda state: trailer_point_velocity(params, state, station),
+        lambda state: state.psi2,
+        "trailer_lateral_acceleration",
+    )
+
+
+def _lateral_at_mean_heading(
+    previous: VehicleState,
+    current: VehicleState,
+    body_velocity: Callable[[VehicleState], Sequence[float]],
+    heading: Callable[[VehicleState], float],
+    caller: str,
+) -> float:
+    """``a_y`` of a point from its velocity in its body's axes at two states: the global velocity differenced over
+    ``current.time − previous.time``, in the body's axes at its mean heading; positive to the left."""
     dt = current.time - previous.time
     if not (math.isfinite(dt) and dt > 0.0):
-        raise InputError(f"trailer_lateral_acceleration needs a later current state; got dt = {dt!r} s")
+        raise InputError(f"{caller} needs a later current state; got dt = {dt!r} s")
 
     def global_velocity(state: VehicleState) -> np.ndarray:
-        vx, vy = trailer_point_velocity(params, state, station)
-        c, s = math.cos(state.psi2), math.sin(state.psi2)
+        vx, vy = body_velocity(state)
+        c, s = math.cos(heading(state)), math.sin(heading(state))
         return np.array([c * vx - s * vy, s * vx + c * vy])
 
     accel = (global_velocity(current) - global_velocity(previous)) / dt
     # Mean heading as the direction of the summed unit vectors: safe for wrapped headings too.
-    heading = math.atan2(
-        math.sin(previous.psi2) + math.sin(current.psi2), math.cos(previous.psi2) + math.cos(current.psi2)
-    )
-    return float(-math.sin(heading) * accel[0] + math.cos(heading) * accel[1])
+    before, after = heading(previous), heading(current)
+    mean = math.atan2(math.sin(before) + math.sin(after), math.cos(before) + math.cos(after))
+    return float(-math.sin(mean) * accel[0] + math.cos(mean) * accel[1])
 
 
 def towed_unit_lateral_acceleration(
@@ -313,25 +331,20 @@ def towed_unit_lateral_acceleration(
         raise InputError(f"unit = {unit}: a towed unit of {params.name!r}, 1 to {len(params.trailers)}")
     if unit == 1:
         return trailer_lateral_acceleration(params, previous, current, station)
-    dt = current.time - previous.time
-    if not (math.isfinite(dt) and dt > 0.0):
-        raise InputError(f"towed_unit_lateral_acceleration needs a later current state; got dt = {dt!r} s")
     x = float(params.trailers[unit - 1].cg_x if station is None else station)
 
-    def heading(state: VehicleState) -> float:
-        return state.psi1 - sum(state.articulations[:unit])
-
-    def global_velocity(state: VehicleState) -> np.ndarray:
+    def body_velocity(state: VehicleState) -> tuple[float, float]:
         rates = state.towed_yaw_rates
         vx, vy = coupling_velocity(
             params, unit, kingpin_velocity(params, state.u, state.v1, state.r1), state.articulations, rates
         )
         c, s = math.cos(state.articulations[unit - 1]), math.sin(state.articulations[unit - 1])
-        vx, vy = c * vx - s * vy, s * vx + c * vy + rates[unit - 1] * x
-        ch, sh = math.cos(heading(state)), math.sin(heading(state))
-        return np.array([ch * vx - sh * vy, sh * vx + ch * vy])
+        return c * vx - s * vy, s * vx + c * vy + rates[unit - 1] * x
 
-    accel = (global_velocity(current) - global_velocity(previous)) / dt
-    before, after = heading(previous), heading(current)
-    mean = math.atan2(math.sin(before) + math.sin(after), math.cos(before) + math.cos(after))
-    return float(-math.sin(mean) * accel[0] + math.cos(mean) * accel[1])
+    return _lateral_at_mean_heading(
+        previous,
+        current,
+        body_velocity,
+        lambda state: state.psi1 - sum(state.articulations[:unit]),
+        "towed_unit_lateral_acceleration",
+    )
