@@ -157,3 +157,16 @@ def test_the_regressor_is_the_rig_units_gyro_times_its_wheel_speed() -> None:
     assert measured_lateral_acceleration(measured, 2) == pytest.approx(-0.4)  # the second's: suffix 3
     assert measured_lateral_acceleration({"trailer_yaw_rate": np.array([0.2])}, 1) is None  # no wheel speed
     assert measured_lateral_acceleration(None, 1) is None
+
+
+def test_the_odometry_builds_the_twist_term_only_when_asked() -> None:
+    from sensor.frame_odometry import self_calibration
+    from sensor.vo import VOConfig
+
+    camera = np.eye(4)
+    camera[:3, :3] = [[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]  # looking ahead, level
+    camera[2, 3] = 3.0
+    config = VOConfig(f=F, cu=CU, cv=CV, baseline=B)
+    plain = self_calibration(config, camera, SelfCalibrationSettings())
+    twist = self_calibration(config, camera, SelfCalibrationSettings(twist_regressor="lateral_acceleration"))
+    assert type(plain) is StereoSelfCalibration and isinstance(twist, TwistSelfCalibration)
