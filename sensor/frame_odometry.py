@@ -37,6 +37,7 @@ from .vo.self_calibration import (
     SelfCalibrationSettings,
     StereoSelfCalibration,
 )
+from .vo.twist_calibration import TwistSelfCalibration
 
 __all__ = [
     "QUALITY_COLUMNS",
@@ -122,10 +123,12 @@ def self_calibration(
     vo_config: VOConfig, camera_in_trailer: np.ndarray, settings: SelfCalibrationSettings
 ) -> StereoSelfCalibration:
     """The online self-calibration on the odometry's images: their camera matrix and baseline (``vo_config``), and
-    the road plane below their left camera (``camera_in_trailer``: its pose on the trailer, ``T_trailer←camera``)."""
+    the road plane below their left camera (``camera_in_trailer``: its pose on the trailer, ``T_trailer←camera``);
+    with ``settings.twist_regressor`` the twist term of :mod:`sensor.vo.twist_calibration`."""
     k = np.array([[vo_config.f, 0.0, vo_config.cu], [0.0, vo_config.f, vo_config.cv], [0.0, 0.0, 1.0]])
     plane = RoadPlane.from_camera_pose(camera_in_trailer)
-    return StereoSelfCalibration(k, vo_config.baseline, plane, settings)
+    kind = StereoSelfCalibration if settings.twist_regressor == "none" else TwistSelfCalibration
+    return kind(k, vo_config.baseline, plane, settings)
 
 
 def disparity_offset(
@@ -200,19 +203,22 @@ class FrameOdometry:
         render_s: float = math.nan,
         masks: tuple[np.ndarray | None, np.ndarray | None] | None = None,
         tilt: tuple[float, float] | None = None,
+        regressor: float | None = None,
     ) -> CameraFrame:
         """Odometry and VISO-OT on the next pair; ``render_s`` is what rendering it took [s] (for the record).
 
         ``masks``: the left and right images' regions where the odometry takes no features (True; the other units of
         the combination, :func:`sensor.vehicle_bodies.exclusion_masks`); None: every feature. ``tilt``: the unit's
-        (pitch, roll) [rad] at this frame, with ``level_reference="accelerometer"`` (else None).
+        (pitch, roll) [rad] at this frame, with ``level_reference="accelerometer"`` (else None). ``regressor``: the
+        rig's unit's measured lateral acceleration [m/s²] at this frame, for the self-calibration's twist term
+        (:mod:`sensor.vo.twist_calibration`; ignored without one).
         """
         t1 = wallclock.perf_counter()
         cpu1 = wallclock.thread_time()
         calibration = self.self_calibration
         if calibration is not None:
-            used = calibration.angles
-            warp = calibration.correction_homography()
+            used = calibration.angles_at(regressor)
+            warp = calibration.correction_homography(regressor)
             if warp is not None:  # the estimate of the frames before this one (causal)
                 size = (right.shape[1], right.shape[0])
                 right = cv2.warpPerspective(right, warp, size, flags=cv2.INTER_LINEAR)
@@ -223,7 +229,7 @@ class FrameOdometry:
         calibrated = dict.fromkeys(SELF_CALIBRATION_COLUMNS, math.nan)
         if calibration is not None:
             inliers = result.inliers if result.n_inliers > 0 else None
-            calibrated = calibration.update(result.stereo_matches, used, inliers).record()
+            calibrated = calibration.update(result.stereo_matches, used, inliers, regressor).record()
         t2 = wallclock.perf_counter()
         cpu2 = wallclock.thread_time()
         step = dict.fromkeys(STEP_COLUMNS, math.nan)

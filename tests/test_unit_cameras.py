@@ -42,7 +42,7 @@ class StandInFeed:
     released: list = field(default_factory=list)
     _taken: list = field(default_factory=list)
 
-    def capture(self, tick: int, state: object) -> SimpleNamespace:
+    def capture(self, tick: int, state: object, measured: object = None) -> SimpleNamespace:
         frame = SimpleNamespace(
             valid=not self.blind,
             reason="too_few_matches" if self.blind else "",

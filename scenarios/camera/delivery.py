@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 import time as wallclock
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,7 +47,7 @@ from .build import flex_schedule, frame_odometry, pair_developer, rig_seed, rig_
 from .frame_cache import frame_cache_from_env
 from .workers import CameraWorkerError, RenderWorkers
 
-__all__ = ["CameraFeed", "CameraWorkerError", "CapturedFrame", "latency_ticks"]
+__all__ = ["CameraFeed", "CameraWorkerError", "CapturedFrame", "latency_ticks", "measured_lateral_acceleration"]
 
 
 def latency_ticks(setup: ScenarioSetup) -> int:
@@ -55,6 +56,20 @@ def latency_ticks(setup: ScenarioSetup) -> int:
     if cfg.camera.latency_s is None:
         return cfg.rates.ticks_per_frame  # one frame period
     return max(0, math.ceil(cfg.camera.latency_s * cfg.rates.control_hz - 1e-6))
+
+
+def measured_lateral_acceleration(measured: Mapping[str, np.ndarray] | None, unit: int) -> float | None:
+    """Towed unit ``unit``'s lateral acceleration as its own sensors give it, ``u·r`` [m/s²]: its gyro's yaw rate
+    times its wheel speed (``trailer_yaw_rate``, ``trailer_wheel_speed``; suffix ``k + 1`` for unit ``k`` ≥ 2,
+    :mod:`scenarios.loop.plant`), the regressor of the self-calibration's twist term
+    (:mod:`sensor.vo.twist_calibration`); ``None`` when the signals do not carry them."""
+    if measured is None:
+        return None
+    suffix = "" if unit == 1 else str(unit + 1)
+    rate, speed = measured.get(f"trailer_yaw_rate{suffix}"), measured.get(f"trailer_wheel_speed{suffix}")
+    if rate is None or speed is None or np.size(rate) == 0 or np.size(speed) == 0:
+        return None
+    return float(np.ravel(rate)[0]) * float(np.ravel(speed)[0])
 
 
 @dataclass
@@ -76,6 +91,9 @@ class CapturedFrame:
         ``None``: nowhere).
     tilt : (float, float) or None
         The (pitch, roll) [rad] the unit's accelerometer read when it was taken (``level_reference`` accelerometer).
+    regressor : float or None
+        The unit's measured lateral acceleration [m/s²] when it was taken, for the self-calibration's twist term
+        (``camera.self_calibration.twist_regressor``; ``None`` without it).
     """
 
     index: int
@@ -84,6 +102,7 @@ class CapturedFrame:
     frame: CameraFrame | None = None
     masks: tuple[np.ndarray, ...] | None = None
     tilt: tuple[float, float] | None = None
+    regressor: float | None = None
 
 
 class CameraFeed:
@@ -177,6 +196,8 @@ class CameraFeed:
         self.released: list[CapturedFrame] = []
         self.last_pair: tuple[np.ndarray, np.ndarray] | None = None
         self._flex = flex_schedule(setup, rig_index)
+        calibration = self._odometry.self_calibration
+        self._twist_regressor = calibration is not None and calibration.settings.twist_regressor != "none"
         self._captured: deque[CapturedFrame] = deque()  # taken, not yet released
         self._unprocessed: deque[CapturedFrame] = deque()  # taken, not yet processed (pipelined)
         self._count = 0
@@ -207,16 +228,21 @@ class CameraFeed:
         """Wall time spent waiting for the render workers [s]."""
         return self._workers.wait_s if self._workers is not None else 0.0
 
-    def capture(self, tick: int, state: VehicleState) -> CapturedFrame:
-        """Take a frame at ``state`` on control tick ``tick``."""
+    def capture(
+        self, tick: int, state: VehicleState, measured: Mapping[str, np.ndarray] | None = None
+    ) -> CapturedFrame:
+        """Take a frame at ``state`` on control tick ``tick``; ``measured``: the tick's on-board signals (the
+        self-calibration's twist regressor, :func:`measured_lateral_acceleration`, when it has a twist term)."""
         shot = CapturedFrame(self._count, tick, tick + self.latency_ticks)
+        if self._twist_regressor:
+            shot.regressor = measured_lateral_acceleration(measured, self.rig.unit)
         self._count += 1
         flex = self._flex.rotation(state)  # in frame order, in this process: the twist and the seeded vibration
         pose = state.chain_pose
         shot.masks = self.masks(pose)
         shot.tilt = self.tilt(pose)
         if self._workers is None:
-            shot.frame = self._frame(pose, shot.index, flex, shot.masks, shot.tilt)
+            shot.frame = self._frame(pose, shot.index, flex, shot.masks, shot.tilt, shot.regressor)
             self._account(shot.frame)
         else:
             self._workers.submit(shot.index, pose, right_rotation=flex)
@@ -304,6 +330,7 @@ class CameraFeed:
         flex: Misalignment | None,
         masks: tuple[np.ndarray, ...] | None = None,
         tilt: tuple[float, float] | None = None,
+        regressor: float | None = None,
     ) -> CameraFrame:
         """Render, develop and process frame ``index`` in this process (serial)."""
         assert self._camera is not None
@@ -313,7 +340,7 @@ class CameraFeed:
         self.last_pair = (left, right)
         render_s = wallclock.perf_counter() - t0
         render_cpu_s = wallclock.process_time() - cpu0
-        frame = self._odometry.process(left, right, render_s, masks=masks, tilt=tilt)
+        frame = self._odometry.process(left, right, render_s, masks=masks, tilt=tilt, regressor=regressor)
         frame.render_cpu_s = render_cpu_s
         return frame
 
@@ -323,7 +350,9 @@ class CameraFeed:
         left, right, render_s, render_cpu_s = self._workers.result(shot.index)
         if self._developer.develops_in_order:  # the workers leave the exposure to the frames' order
             left, right = self._developer.develop(RawStereoPair(left, right, exposed=False), shot.index)
-        frame = self._odometry.process(left, right, render_s, masks=shot.masks, tilt=shot.tilt)
+        frame = self._odometry.process(
+            left, right, render_s, masks=shot.masks, tilt=shot.tilt, regressor=shot.regressor
+        )
         frame.render_cpu_s = render_cpu_s
         shot.frame = frame
         if self._processed < self._startup_frames:

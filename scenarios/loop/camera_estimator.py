@@ -172,7 +172,7 @@ class VisoOt:
     def update(self, tick: TickInput) -> OfftrackingEstimate:
         """Take a frame on a camera tick; release what the latency allows; the held estimate."""
         feed = self.feed
-        self.shot = feed.capture(tick.index, tick.state) if tick.camera_frame else None
+        self.shot = feed.capture(tick.index, tick.state, tick.measured) if tick.camera_frame else None
         value = feed.deliver(tick.index)  # released by the latency, then held
         if feed.released:
             latest = feed.released[-1].frame

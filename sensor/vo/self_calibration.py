@@ -49,6 +49,8 @@ on residuals scaled by a robust (MAD) scale per row kind, found by a few IRLS pa
 floor ``noise_px`` (so a frame after a step change carries its full information), and rows beyond
 ``reject_sigma`` scales get weight 0. ``sqrt(diag Λ⁻¹)`` is the quality figure (the angles' standard
 deviation under the model).
+
+The mount's twist as a term of the model (``twist_regressor``, opt-in) is :mod:`sensor.vo.twist_calibration`.
 """
 
 from __future__ import annotations
@@ -85,6 +87,9 @@ RMS vertical-disparity residual of the used matches [px], the rows used and how 
 
 MAD_SIGMA = 1.4826  # MAD → standard deviation of a normal distribution
 
+MAX_TWIST_DEG_PER_MPS2 = 1.0
+"""The gain estimate is clipped to ± this per axis [°/(m/s²)] (the bound of :mod:`sensor.mount_flex`'s twist)."""
+
 
 class SelfCalibrationSettings(Settings):
     """Parameters of :class:`StereoSelfCalibration`, each with its range and the reason for it.
@@ -117,6 +122,13 @@ class SelfCalibrationSettings(Settings):
     road_half_width : float
         Road points must lie within ± this of the trailer's centreline [m] (its own track; the verges and
         fields beside it lie at other heights).
+    twist_regressor : {"none", "lateral_acceleration"}
+        ``lateral_acceleration``: the angles are an offset plus a gain times the rig's unit's measured lateral
+        acceleration, (SC4)–(SC6); ``none``: (SC3) alone.
+    twist_forgetting : float
+        λ_g of (SC5), the gains' forgetting per frame.
+    twist_prior_std_deg_per_mps2 : float
+        Standard deviation of the gains' zero start and floor of their uncertainty, (SC5) [°/(m/s²)].
     """
 
     forgetting: float = Field(
@@ -140,6 +152,16 @@ class SelfCalibrationSettings(Settings):
     irls_iterations: int = Field(3, ge=1, le=20, description="IRLS passes per frame; 20 converges any frame")
     road_half_width: float = Field(
         2.5, gt=0.0, le=20.0, description="[m] road points within this of the trailer's centreline; 20 takes fields"
+    )
+    twist_regressor: Literal["none", "lateral_acceleration"] = "none"
+    twist_forgetting: float = Field(
+        0.998, ge=0.9, le=1.0, description="gains' forgetting per frame (SC5); memory 10 frames at 0.9, none at 1"
+    )
+    twist_prior_std_deg_per_mps2: float = Field(
+        0.1,
+        gt=0.0,
+        le=MAX_TWIST_DEG_PER_MPS2,
+        description="[°/(m/s²)] gains' prior std and uncertainty floor; above 1° per m/s² no mount holds a camera",
     )
 
 
@@ -349,27 +371,32 @@ class StereoSelfCalibration:
         d = np.sqrt(np.diag(np.linalg.inv(self._info)))
         return (float(d[0]), float(d[1]), float(d[2]))
 
-    def rotation(self) -> np.ndarray:
-        """``R̂ = R_z(φ)·R_y(ψ)·R_x(θ)`` of the estimate (de Saxe & Cebon 2018, eq (9))."""
-        roll, pitch, yaw = self.angles
+    def angles_at(self, regressor: float | None = None) -> tuple[float, float, float]:
+        """The estimate (roll, pitch, yaw) [rad] for a frame at ``regressor``; :attr:`angles` here (no twist term)."""
+        return self.angles
+
+    def rotation(self, regressor: float | None = None) -> np.ndarray:
+        """``R̂ = R_z(φ)·R_y(ψ)·R_x(θ)`` of the estimate at ``regressor`` (de Saxe & Cebon 2018, eq (9))."""
+        roll, pitch, yaw = self.angles_at(regressor)
         cf, sf, cp, sp, ct, st = (f(a) for a in (roll, yaw, pitch) for f in (math.cos, math.sin))
         rz = np.array([[cf, -sf, 0.0], [sf, cf, 0.0], [0.0, 0.0, 1.0]])
         ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
         rx = np.array([[1.0, 0.0, 0.0], [0.0, ct, -st], [0.0, st, ct]])
         return rz @ ry @ rx
 
-    def correction_homography(self) -> np.ndarray | None:
-        """``K·R̂·K⁻¹``, the warp of the right image that removes the estimate (de Saxe & Cebon 2018, eqs (8)–(9));
-        None at zero."""
-        if not self._omega.any():
+    def correction_homography(self, regressor: float | None = None) -> np.ndarray | None:
+        """``K·R̂·K⁻¹``, the warp of the right image that removes the estimate at ``regressor`` (de Saxe & Cebon
+        2018, eqs (8)–(9)); None at zero."""
+        if not np.any(self.angles_at(regressor)):
             return None
-        return self.k @ self.rotation() @ np.linalg.inv(self.k)
+        return self.k @ self.rotation(regressor) @ np.linalg.inv(self.k)
 
     def update(
         self,
         matches: np.ndarray,
         used: tuple[float, float, float] | None = None,
         inliers: np.ndarray | None = None,
+        regressor: float | None = None,
     ) -> SelfCalibrationStep:
         """Take one frame's stereo matches of the corrected images (SC3).
 
@@ -378,10 +405,12 @@ class StereoSelfCalibration:
         matches : numpy.ndarray
             (n, 4) (u_l, v_l, u_r, v_r) [px] of the images the odometry saw (right image corrected by ``used``).
         used : tuple[float, float, float] | None
-            The angles [rad] the right image was corrected with; None: the current estimate.
+            The angles [rad] the right image was corrected with; None: the current estimate at ``regressor``.
         inliers : numpy.ndarray | None
             Boolean mask over ``matches`` (e.g. the odometry's RANSAC inliers); used when it keeps at least
             ``min_rows`` matches, else every match is used (the robust weights still apply).
+        regressor : float | None
+            The frame's measured regressor of a twist term (:mod:`sensor.vo.twist_calibration`); ignored here.
 
         Returns
         -------
@@ -392,12 +421,13 @@ class StereoSelfCalibration:
         if inliers is not None and len(inliers) == len(m) and int(np.sum(inliers)) >= s.min_rows:
             m = m[np.asarray(inliers, dtype=bool)]
         if len(m) < s.min_rows:
-            return SelfCalibrationStep(False, self.angles, self.sigma)
+            return SelfCalibrationStep(False, self.angles_at(regressor), self.sigma_at(regressor))
         plane = self.plane if s.scale == "mount_height" else None
-        a, z, ground = stereo_rows(m, self.k, self.baseline, plane, s)
-        omega0 = self._omega.copy() if used is None else np.asarray(used, dtype=float)
-        y = z + a @ omega0  # pseudo-measurements of the absolute angles
-        info0, eta0 = s.forgetting * self._info, s.forgetting * self._eta
+        a3, z, ground = stereo_rows(m, self.k, self.baseline, plane, s)
+        omega0 = np.asarray(self.angles_at(regressor) if used is None else used, dtype=float)
+        y = z + a3 @ omega0  # pseudo-measurements of the absolute angles
+        a = self._design(a3, regressor)
+        info0, eta0 = self._forget()
         omega, w = self._omega.copy(), np.ones(len(z))
         for iteration in range(s.irls_iterations + 1):
             r = y - a @ omega
@@ -419,16 +449,33 @@ class StereoSelfCalibration:
         aw = a * w[:, None]
         self._info = info0 + a.T @ aw
         self._eta = eta0 + aw.T @ y
-        limit = math.radians(s.max_angle_deg)
-        self._omega = np.clip(np.linalg.solve(self._info, self._eta), -limit, limit)
+        self._omega = self._clip(np.linalg.solve(self._info, self._eta))
         kept = w > 0
         vertical = kept & ~ground
         res = (y - a @ self._omega)[vertical]
         return SelfCalibrationStep(
             True,
-            self.angles,
-            self.sigma,
+            self.angles_at(regressor),
+            self.sigma_at(regressor),
             residual_px=float(np.sqrt(np.mean(res**2))) if res.size else math.nan,
             rows=int(kept.sum()),
             ground=int((kept & ground).sum()),
         )
+
+    def sigma_at(self, regressor: float | None = None) -> tuple[float, float, float]:
+        """Standard deviations [rad] of :meth:`angles_at` ``regressor``; :attr:`sigma` here."""
+        return self.sigma
+
+    def _design(self, a: np.ndarray, regressor: float | None) -> np.ndarray:
+        """The rows over the parameters from the rows over the angles (SC1)–(SC2): the angles themselves here."""
+        return a
+
+    def _forget(self) -> tuple[np.ndarray, np.ndarray]:
+        """The information and its vector after forgetting, before the frame's rows (SC3)."""
+        s = self.settings
+        return s.forgetting * self._info, s.forgetting * self._eta
+
+    def _clip(self, x: np.ndarray) -> np.ndarray:
+        """The parameters clipped to their bounds (``max_angle_deg``)."""
+        limit = math.radians(self.settings.max_angle_deg)
+        return np.clip(x, -limit, limit)
