@@ -59,7 +59,9 @@ class CalibrationConfig(Settings):
     (:data:`sensor.calibration.STEREO_REFINEMENTS`): ``joint`` (the default) both cameras' intrinsics and
     distortion with the pair's rotation and translation, which leaves the rectified disparity a smaller error that
     varies across the image and turns the odometry's motion less (docs/studies.md, "Off-highway" and "`joint` is the
-    default"); ``extrinsics`` the rotation and translation alone, each camera's own intrinsics fixed.
+    default"); ``extrinsics`` the rotation and translation alone, each camera's own intrinsics fixed;
+    ``joint_same_focal`` ``joint`` with one focal length for the two cameras (a pair of the same camera and lens;
+    docs/field_bias.md, "The pair's focal-length difference turns the rear camera's motion").
     """
 
     mode: Literal["ideal", "estimated", "file"] = "ideal"
@@ -70,8 +72,10 @@ class CalibrationConfig(Settings):
     square_size: float = Field(0.05, ge=0.005, le=1.0, description="[m] printed square size")
     corner_noise_px: float = Field(0.1, ge=0.0, le=5.0, description="[px] corner-detection noise (std)")
     misalignment_deg: tuple[RigRotationDeg, RigRotationDeg, RigRotationDeg] = (0.0, 0.0, 0.0)
-    stereo_refinement: Literal["extrinsics", "joint"] = Field(
-        "joint", description="what the stereo calibration fits: R, T alone, or both cameras' intrinsics too"
+    stereo_refinement: Literal["extrinsics", "joint", "joint_same_focal"] = Field(
+        "joint",
+        description="what the stereo calibration fits: R, T alone, or both cameras' intrinsics too (one focal length"
+        " for the pair: joint_same_focal)",
     )
 
     @model_validator(mode="after")

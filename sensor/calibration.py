@@ -21,7 +21,13 @@ difference of the two cameras' rays, carries the difference of those errors — 
 across the image. ``joint`` starts from the per-camera estimates and refines both cameras' intrinsics and
 distortion together with R, T on the pairs of views (``CALIB_USE_INTRINSIC_GUESS``, Bouguet's stereo calibration
 as in OpenCV's stereo calibration sample): the two models are then fitted to the same board poses seen by both
-cameras at once, and what is left in the disparity is what the pair's views do not constrain. The per-camera RMS
+cameras at once, and what is left in the disparity is what the pair's views do not constrain. ``joint_same_focal``
+is ``joint`` with the two cameras' focal lengths one parameter (``CALIB_SAME_FOCAL_LENGTH``), for a pair of the same
+camera and lens: the difference of the two estimated focal lengths is the least constrained part of ``joint``, and
+a difference ``Δf`` puts a disparity error ``Δf·x`` that changes sign across the image (``x`` the normalised column),
+which a camera moving along its axis reads as a turn of its translation (docs/field_bias.md, "The pair's
+focal-length difference turns the rear camera's motion"). A pair whose lenses really differ in focal length keeps
+that difference in its rectification with this mode. The per-camera RMS
 (:attr:`CalibrationResult.rms_left`, ``rms_right``) stay those of the per-camera fits either way.
 
 The result (:class:`CalibrationResult`) writes and reads OpenCV YAML (``cv2.FileStorage``), builds the
@@ -59,10 +65,15 @@ FORMAT = "offtrack-stereo-calibration-1"
 
 _CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
 
-STEREO_REFINEMENTS = ("extrinsics", "joint")
-"""What ``cv2.stereoCalibrate`` refines (module notes): R, T alone, or both cameras' intrinsics with them."""
+STEREO_REFINEMENTS = ("extrinsics", "joint", "joint_same_focal")
+"""What ``cv2.stereoCalibrate`` refines (module notes): R, T alone, or both cameras' intrinsics with them (with one
+focal length for the two cameras: ``joint_same_focal``)."""
 
-_STEREO_FLAGS = {"extrinsics": cv2.CALIB_FIX_INTRINSIC, "joint": cv2.CALIB_USE_INTRINSIC_GUESS}
+_STEREO_FLAGS = {
+    "extrinsics": cv2.CALIB_FIX_INTRINSIC,
+    "joint": cv2.CALIB_USE_INTRINSIC_GUESS,
+    "joint_same_focal": cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_SAME_FOCAL_LENGTH,
+}
 
 
 @dataclass(frozen=True, eq=False)
@@ -503,7 +514,8 @@ def solve_stereo_calibration(
         Recorded in the result: the noise added to rendered corners and its seed (0 for photos).
     stereo_refinement
         ``extrinsics``: R, T with each camera's intrinsics fixed; ``joint``: both cameras' intrinsics and
-        distortion refined with R, T from the per-camera estimates (:data:`STEREO_REFINEMENTS`, module notes).
+        distortion refined with R, T from the per-camera estimates; ``joint_same_focal``: ``joint`` with one focal
+        length for both cameras (:data:`STEREO_REFINEMENTS`, module notes).
 
     Returns
     -------
@@ -542,7 +554,7 @@ def solve_stereo_calibration(
         flags=_STEREO_FLAGS[stereo_refinement],
         criteria=_CRITERIA,
     )
-    if stereo_refinement == "joint":  # the pair's own intrinsics; with them fixed they are the per-camera ones
+    if stereo_refinement != "extrinsics":  # the pair's own intrinsics; with them fixed they are the per-camera ones
         k1, k2 = k1_s, k2_s
         d1, d2 = np.asarray(d1_s, dtype=float).ravel(), np.asarray(d2_s, dtype=float).ravel()
     r1, r2, p1, p2, q, _, _ = cv2.stereoRectify(

@@ -128,7 +128,7 @@ def test_the_scenario_setting_reaches_the_calibration(monkeypatch: pytest.Monkey
 
     seen: dict = {}
     monkeypatch.setattr(build, "calibrate_rig", lambda *args, **kwargs: seen.update(kwargs))
-    for value in ("joint", "extrinsics"):
+    for value in ("joint", "extrinsics", "joint_same_focal"):
         cfg = load_scenario("roundabout-test", {"camera.calibration.stereo_refinement": value})
         build.run_calibration(build.rig_from_config(cfg), cfg)
         assert seen["stereo_refinement"] == value
@@ -136,3 +136,20 @@ def test_the_scenario_setting_reaches_the_calibration(monkeypatch: pytest.Monkey
     assert load_scenario("roundabout-test").camera.calibration.stereo_refinement == "joint"
     with pytest.raises(Exception, match="stereo_refinement"):
         load_scenario("roundabout-test", {"camera.calibration.stereo_refinement": "all"})
+
+
+def test_joint_same_focal_fits_one_focal_length_for_the_pair(noisy: dict, rig: StereoRig, tmp_path) -> None:
+    # the same corners fitted jointly leave the two focal lengths apart by the draw's error (the least constrained
+    # part of the pair); with one focal length for the two cameras they are equal, and the disparity stays as good
+    apart = [abs(noisy[(s, "joint")].k_right[0, 0] - noisy[(s, "joint")].k_left[0, 0]) for s in SEEDS]
+    assert max(apart) > 0.01, apart  # px: without the constraint the draws do differ
+    for seed in SEEDS:
+        same = _solve(rig, seed, 0.15, "joint_same_focal")
+        assert same.stereo_refinement == "joint_same_focal"
+        assert abs(same.k_right[0, 0] - same.k_left[0, 0]) < 1e-9 and abs(same.k_right[1, 1] - same.k_left[1, 1]) < 1e-9
+        assert _iqr(same, rig) < 0.25  # px, the joint fit's bound above
+        # the per-camera fits are the same corners' as joint's, and the pair's fit is not worse than 0.01 px
+        assert same.rms_left == noisy[(seed, "joint")].rms_left
+        assert same.rms_stereo <= noisy[(seed, "joint")].rms_stereo + 0.01
+    back = CalibrationResult.read(same.write(tmp_path / "same.yaml"))
+    assert back.stereo_refinement == "joint_same_focal"
