@@ -340,3 +340,19 @@ def test_the_unsealed_look_is_the_worlds_of_the_runs_camera_and_a_bad_look_exits
         assert sum(line in row for row in result.stderr.splitlines()) == 1, result.stderr
     assert "allowed with camera.world = airfield: sealed" in result.stderr
     assert not any(tmp_path.glob("run*"))
+
+
+def test_the_setup_cache_keeps_a_rough_builds_seed_and_shares_a_smooth_one():
+    """A rough terrain's potholes are drawn from the seed: a cached build at one seed is not another seed's (the
+    potholes of each equal a fresh build's, and differ between the seeds); a smooth build is shared across seeds."""
+    from scenarios.setup.models import SetupCache
+
+    cache = SetupCache()
+    rough = {"terrain.kind": "path", "terrain.potholes_per_100m": 4.0}
+    first, second = (cache.setup(load_scenario("pbs-low-speed-turn", {**rough, "seed": s})) for s in (3, 5))
+    for built, seed in ((first, 3), (second, 5)):
+        fresh = build_terrain(load_scenario("pbs-low-speed-turn", {**rough, "seed": seed}), built.path)
+        assert np.array_equal(built.terrain._potholes, fresh._potholes) and len(fresh._potholes) > 0
+    assert not np.allclose(first.terrain._potholes, second.terrain._potholes)
+    smooth = [cache.setup(load_scenario("pbs-low-speed-turn", {"terrain.kind": "path", "seed": s})) for s in (3, 5)]
+    assert smooth[0].path is smooth[1].path and smooth[1].config.seed == 5  # one build, each its own configuration

@@ -161,6 +161,13 @@ def _profile(pairs: tuple[tuple[float, float], ...], constant: float) -> tuple[n
     return table[:, 0], table[:, 1]
 
 
+def build_draws_from_seed(config: ScenarioConfig) -> bool:
+    """Whether :func:`build_scenario` draws from ``config.seed``: a path terrain with potholes places them from it
+    (:meth:`vehicle_model.terrain.PathTerrain`); every other part of a build is the same at every seed."""
+    spec = config.terrain
+    return spec.kind == "path" and spec.potholes_per_100m > 0.0 and spec.pothole_depth_m > 0.0
+
+
 def build_terrain(config: ScenarioConfig, path: ReferencePath) -> Terrain:
     """The terrain a configuration's ``terrain`` section describes, over the scenario's reference path.
 

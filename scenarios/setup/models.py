@@ -65,12 +65,15 @@ class ModelRegistry:
 
 
 class SetupCache:
-    """Built scenarios by configuration (the seed aside), least recently used dropped first, on one model registry.
+    """Built scenarios by configuration (the seed aside where the build does not draw from it), least recently used
+    dropped first, on one model registry.
 
-    The seed does not enter a build (it seeds the signals and the camera at run time), so setups are cached by
-    the rest of the configuration and returned with the given configuration attached. Building a scenario
-    solves the driver's steady feed-forward with the model's trim and loads the compiled model: seconds that
-    every episode of an environment and every unpickled co-simulation would otherwise pay again.
+    The seed seeds the signals and the camera at run time; a build draws from it only to place a rough terrain's
+    potholes (:func:`~scenarios.setup.build.build_draws_from_seed`). Setups are cached by the rest of the
+    configuration (with the seed where the build draws from it) and returned with the given configuration
+    attached. Building a scenario solves the driver's steady feed-forward with the model's trim and loads the
+    compiled model: seconds that every episode of an environment and every unpickled co-simulation would otherwise
+    pay again.
 
     Parameters
     ----------
@@ -87,9 +90,9 @@ class SetupCache:
 
     def setup(self, config: ScenarioConfig) -> ScenarioSetup:
         """The built scenario of ``config`` (:func:`~scenarios.setup.build.build_scenario`)."""
-        from .build import build_scenario
+        from .build import build_draws_from_seed, build_scenario
 
-        key = config.model_copy(update={"seed": 0}).model_dump_json()
+        key = (config if build_draws_from_seed(config) else config.model_copy(update={"seed": 0})).model_dump_json()
         setup = self._setups.get(key)
         if setup is None:
             setup = build_scenario(config, model=self.models.model(config.vehicle_params()))
