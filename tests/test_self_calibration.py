@@ -45,7 +45,11 @@ def synthetic_matches(
 
 def corrected(m: np.ndarray, calibration: StereoSelfCalibration) -> np.ndarray:
     """The matches as the odometry sees them once the right image is warped by the current estimate."""
-    h = calibration.correction_homography()
+    return warped(m, calibration.correction_homography())
+
+
+def warped(m: np.ndarray, h: np.ndarray | None) -> np.ndarray:
+    """The matches as the odometry sees them once the right image is warped by ``h`` (None: not warped)."""
     if h is None:
         return m
     p = np.column_stack([m[:, 2], m[:, 3], np.ones(len(m))]) @ h.T

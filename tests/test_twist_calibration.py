@@ -14,48 +14,22 @@ import math
 
 import numpy as np
 import pytest
+from test_self_calibration import CU, CV, LEVEL, B, F, K, synthetic_matches  # the same synthetic pair and road
+from test_self_calibration import warped as corrected
 
 from scenarios.camera.delivery import measured_lateral_acceleration
 from sensor.camera import rotation_rpy
-from sensor.vo.self_calibration import RoadPlane, SelfCalibrationSettings, StereoSelfCalibration
+from sensor.vo.self_calibration import SelfCalibrationSettings, StereoSelfCalibration
 from sensor.vo.twist_calibration import TwistSelfCalibration
 
-F, CU, CV, B, H, W, HT = 564.0, 671.5, 195.0, 0.5, 3.0, 1344, 391
-K = np.array([[F, 0.0, CU], [0.0, F, CV], [0.0, 0.0, 1.0]])
-LEVEL = RoadPlane(np.array([0.0, 1.0, 0.0]), H)
 OFFSET_DEG = np.array([-0.15, 0.0, 0.10])  # roll, pitch, yaw: the paper's static rotation (§4.4)
 TWIST_DEG = np.array([0.05, 0.0, -0.03])  # per m/s²: the field conditions' camera.flex twist
-
-
-def synthetic_matches(rng: np.random.Generator, rotation: np.ndarray, n: int = 200, noise: float = 0.3) -> np.ndarray:
-    """Stereo matches (u_l, v_l, u_r, v_r) of random points, most of the lower half on the road ``y = H``, seen by a
-    right camera rotated by ``rotation`` about its optical centre, with pixel noise ``noise``."""
-    u, v = rng.uniform(0, W, n), rng.uniform(0, HT, n)
-    x, y = (u - CU) / F, (v - CV) / F
-    z = rng.uniform(5.0, 60.0, n)
-    road = (y > 0.03) & (rng.random(n) < 0.7)
-    z[road] = H / y[road]
-    points = np.column_stack([x * z, y * z, z])
-    in_right = (points - np.array([B, 0.0, 0.0])) @ rotation  # Rᵀ·(X − B·e_x), row by row
-    pixels = in_right @ K.T
-    m = np.column_stack([u, v, pixels[:, 0] / pixels[:, 2], pixels[:, 1] / pixels[:, 2]])
-    return m + rng.normal(0.0, noise, m.shape)
 
 
 def lateral_acceleration(t: float) -> float:
     """A figure-of-eight's lateral acceleration [m/s²]: 0 → +1.5 at 4 s (the left loop), +1.5 → −1.5 through 25 s
     (the change of turn, 6 s), the right loop after."""
     return 0.75 * (1.0 + math.tanh((t - 4.0) / 1.0)) if t < 15.0 else 1.5 * math.tanh((25.0 - t) / 2.0)
-
-
-def corrected(m: np.ndarray, h: np.ndarray | None) -> np.ndarray:
-    """The matches as the odometry sees them once the right image is warped by ``h``."""
-    if h is None:
-        return m
-    p = np.column_stack([m[:, 2], m[:, 3], np.ones(len(m))]) @ h.T
-    out = m.copy()
-    out[:, 2], out[:, 3] = p[:, 0] / p[:, 2], p[:, 1] / p[:, 2]
-    return out
 
 
 def drive(calibration: StereoSelfCalibration, seed: int, frames: int = 400, dt: float = 0.1) -> np.ndarray:
@@ -69,7 +43,7 @@ def drive(calibration: StereoSelfCalibration, seed: int, frames: int = 400, dt: 
         truth = OFFSET_DEG + TWIST_DEG * a
         measured = a + rng.normal(0.0, 0.03)
         used = calibration.angles_at(measured)
-        m = synthetic_matches(rng, rotation_rpy(*np.radians(truth)))
+        m = synthetic_matches(rng, n=200, noise=0.3, rotation=rotation_rpy(*np.radians(truth)))
         calibration.update(corrected(m, calibration.correction_homography(measured)), used, regressor=measured)
         rows.append((t, *truth, *np.degrees(used)))
     return np.array(rows)
@@ -116,7 +90,7 @@ def test_none_reproduces_the_estimator_as_it_was_to_the_bit() -> None:
         a = lateral_acceleration(0.5 * i)  # the regressor is handed over and must change nothing
         rotation = rotation_rpy(*np.radians(OFFSET_DEG + TWIST_DEG * a))
         used = calibration.angles_at(a)
-        m = corrected(synthetic_matches(rng, rotation), calibration.correction_homography(a))
+        m = corrected(synthetic_matches(rng, n=200, noise=0.3, rotation=rotation), calibration.correction_homography(a))
         step = calibration.update(m, used, regressor=a)
         history.append((*step.angles, *step.sigma, step.residual_px))
     values = np.array(history)
@@ -141,7 +115,7 @@ def test_a_bad_twist_setting_is_refused_with_its_field_and_range() -> None:
 
 def test_a_non_finite_regressor_is_refused() -> None:
     twist = TwistSelfCalibration(K, B, LEVEL, SelfCalibrationSettings(twist_regressor="lateral_acceleration"))
-    m = synthetic_matches(np.random.default_rng(0), np.eye(3))
+    m = synthetic_matches(np.random.default_rng(0), np.eye(3), n=200, noise=0.3)
     with pytest.raises(ValueError, match="regressor"):
         twist.update(m, regressor=math.nan)
 
