@@ -67,9 +67,10 @@ def test_the_twist_term_follows_the_change_of_turn_where_the_plain_estimator_lag
     assert np.abs(np.degrees(twist.offsets) - OFFSET_DEG).max() < 0.003  # [°]
 
 
-# The plain estimator's output before the twist term existed (commit bfd9e6b), in this environment: the 60 frames
-# below, (roll, pitch, yaw, three sigmas, residual) per frame; the last frame's floats and the sha256 of all.
-NONE_SHA256 = "a89f6b95bb03bc7ec5bfc845ffdb656919e295ce682118fda462878db0d0e6fb"
+# The plain estimator's output before the twist term existed (commit bfd9e6b): the last of the 60 frames below, (roll,
+# pitch, yaw, three sigmas, residual). Equal to the bit in the environment it was generated in; another build of
+# numpy's BLAS or another CPU rounds the least-squares solves differently in the last bits (seen: 3 ulp), so across
+# environments the check is to 1e-12 relative, and the bit-for-bit check is the regressor's below, in one process.
 NONE_LAST = (
     "-0x1.0ff99e6fcbc44p-9",
     "0x1.1033ec7f34b9ep-18",
@@ -81,21 +82,33 @@ NONE_LAST = (
 )
 
 
-def test_none_reproduces_the_estimator_as_it_was_to_the_bit() -> None:
+def _plain_history(handed_regressor: bool) -> np.ndarray:
+    """60 frames of the plain estimator (``twist_regressor`` none) on the synthetic pair, the regressor handed over
+    or not; per frame (roll, pitch, yaw, three sigmas, residual)."""
     calibration = StereoSelfCalibration(K, B, LEVEL)  # twist_regressor none (the default)
-    assert SelfCalibrationSettings().twist_regressor == "none"
     rng = np.random.default_rng(11)
     history = []
     for i in range(60):
-        a = lateral_acceleration(0.5 * i)  # the regressor is handed over and must change nothing
+        a = lateral_acceleration(0.5 * i)
+        given = a if handed_regressor else None
         rotation = rotation_rpy(*np.radians(OFFSET_DEG + TWIST_DEG * a))
-        used = calibration.angles_at(a)
-        m = corrected(synthetic_matches(rng, n=200, noise=0.3, rotation=rotation), calibration.correction_homography(a))
-        step = calibration.update(m, used, regressor=a)
+        used = calibration.angles_at(given)
+        m = corrected(
+            synthetic_matches(rng, n=200, noise=0.3, rotation=rotation), calibration.correction_homography(given)
+        )
+        step = calibration.update(m, used, regressor=given)
         history.append((*step.angles, *step.sigma, step.residual_px))
-    values = np.array(history)
-    assert tuple(float(v).hex() for v in values[-1]) == NONE_LAST
-    assert hashlib.sha256(values.tobytes()).hexdigest() == NONE_SHA256
+    return np.array(history)
+
+
+def test_none_reproduces_the_estimator_as_it_was() -> None:
+    assert SelfCalibrationSettings().twist_regressor == "none"
+    with_regressor, without = _plain_history(True), _plain_history(False)
+    # the regressor handed over changes nothing, to the bit
+    assert hashlib.sha256(with_regressor.tobytes()).hexdigest() == hashlib.sha256(without.tobytes()).hexdigest()
+    # and the estimator is the one from before the twist term (a changed update would move these by far more)
+    before = np.array([float.fromhex(v) for v in NONE_LAST])
+    np.testing.assert_allclose(with_regressor[-1], before, rtol=1e-12, atol=0.0)
 
 
 def test_a_bad_twist_setting_is_refused_with_its_field_and_range() -> None:
