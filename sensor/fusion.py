@@ -52,6 +52,7 @@ from .fusion_adaptive import AdaptiveCovariance
 from .fusion_axial import AxialRegression
 from .fusion_consider import Transition, consider_of
 from .fusion_coupling import CouplingMeasurement, coupled_update
+from .fusion_coupling_ratio import CouplingRatio
 from .fusion_model import (
     BG,
     BPSI,
@@ -223,8 +224,7 @@ class FusedVisoOt:
         self.estimate: float | None = None
         self.std = math.nan
         self.std_parts = dict.fromkeys(STD_PARTS, math.nan)
-        self.frames = self.updates = self.rejected = 0
-        self.coupling_updates = self.coupling_rejected = 0
+        self.frames = self.updates = self.rejected = self.coupling_updates = self.coupling_rejected = 0
         self._gated = self._coupling_gated = 0
         self._history: deque[_Tick] = deque()
         self._previous_input: tuple[float, float, float] | None = None
@@ -241,6 +241,7 @@ class FusedVisoOt:
         self.scrub_demand = 0.0
         self._nis: deque[float] = deque(maxlen=n.innovation_window)
         self._adaptive = AdaptiveCovariance(n)  # m of (V1): the camera's covariance grown by its innovations
+        self._ratio = CouplingRatio(n)  # ρ̂ of (L2): the lasting coupling's ratio to eq (3)'s (off: 1)
         self.innovation_ratio = 1.0
         # Committed increments still ahead of the follow point: start pose (x, y, ψ), end station x_e and
         # covariance, all in the anchor's frame.
@@ -421,6 +422,7 @@ class FusedVisoOt:
             h[:, :3] = np.eye(3)
             # eq (3)'s translation coupled to the yaw error (the lever's along the optical axis with (3''))
             coupling = yaw_coupling(self.noise, r, self.geometry.camera_position, self._optical_axis)
+            coupling = self._ratio.coupled(coupling)  # (L3) of sensor.fusion_coupling_ratio; off: the same array
             self._coupling, self.frame_scrub_demand = coupling, entry.scrub
             coupling = coupling * scrub_coupling_yield(self.noise, entry.scrub)  # (K5): gives way while scrubbing
             h[:2, BPSI] = x[0] * coupling  # the odometry's error per metre over the distance since the anchor
@@ -447,6 +449,7 @@ class FusedVisoOt:
                     if i is not None:
                         camera_y -= h[1, i] * x[i]
                 self._evidence.weigh(camera_y - kinematic_y, float(r[1, 1]), interval)
+            self._ratio.observe(z, x, r, kinematic_y, self.kinematic_std * interval)  # (L1)–(L2); off: nothing
             refuse, prior = self._gated < self.noise.max_gated, p
             x, p, nis, used = gated_update(x, p, h, innovation, r, self.noise.gate, refuse)
             self._consider.update(prior, h, r, nis, self.noise.gate, used)

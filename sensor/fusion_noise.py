@@ -230,6 +230,15 @@ class FusionNoise(Settings):
     vo_bias_coupling_uncertainty : float
         Relative standard deviation of ``vo_bias_coupling``: the off-tracking's std carries this share of the
         correction the coupling applies for the estimated ``β_ψ`` (eq (5)).
+    vo_coupling_learned : bool
+        Take the lasting part of eq (3)'s coupling at ``ρ̂·vo_bias_coupling``, the ratio ``ρ̂`` estimated online from
+        the frames' lateral against the zero-slip kinematics regressed on their yaw against the gyro, (L1)–(L3) of
+        :mod:`sensor.fusion_coupling_ratio` (False, the default: eq (3) as it is).
+    vo_coupling_memory : float
+        ``D`` of (L2): the distance over which the frames are forgotten [m].
+    vo_coupling_prior : float
+        ``σ_ρ`` of (L2): the standard deviation of the prior on ``ρ`` about 1 (the default, 0.15, that of
+        ``vo_bias_coupling_uncertainty``: the coupling's stated uncertainty).
     vo_axial_scale_uncertainty : float
         Relative standard deviation of the odometry's translation along the camera's optical axis ``u_z`` (the
         depth scale a disparity offset gives: a side camera's drift along its optical axis, docs/field_bias.md §7),
@@ -416,6 +425,11 @@ class FusionNoise(Settings):
         le=1.0,
         description="relative std of vo_bias_coupling, carried into the off-tracking's std; 1: the coupling unknown",
     )
+    vo_coupling_learned: bool = False
+    vo_coupling_memory: float = Field(
+        100.0, ge=1.0, le=1e5, description="[m] (L2)'s forgetting distance; below 1 m no frame counts"
+    )
+    vo_coupling_prior: float = Field(0.15, ge=0.01, le=10.0, description="std of (L2)'s prior on the ratio about 1")
     vo_axial_scale_uncertainty: float = Field(
         0.0,
         ge=0.0,
