@@ -123,12 +123,12 @@ class SelfCalibrationSettings(Settings):
         Road points must lie within ± this of the trailer's centreline [m] (its own track; the verges and
         fields beside it lie at other heights).
     twist_regressor : {"none", "lateral_acceleration"}
-        ``lateral_acceleration``: the angles are an offset plus a gain times the rig's unit's measured lateral
-        acceleration, (SC4)–(SC6); ``none``: (SC3) alone.
+        ``lateral_acceleration``: the angles are a level plus a gain times the rig's unit's measured lateral
+        acceleration less its recent mean, (SC4)–(SC7); ``none``: (SC3) alone.
     twist_forgetting : float
-        λ_g of (SC5), the gains' forgetting per frame.
+        λ_g of (SC6), the gains' forgetting per frame.
     twist_prior_std_deg_per_mps2 : float
-        Standard deviation of the gains' zero start and floor of their uncertainty, (SC5) [°/(m/s²)].
+        Standard deviation of the gains' zero start and floor of their uncertainty, (SC6) [°/(m/s²)].
     """
 
     forgetting: float = Field(
@@ -155,7 +155,7 @@ class SelfCalibrationSettings(Settings):
     )
     twist_regressor: Literal["none", "lateral_acceleration"] = "none"
     twist_forgetting: float = Field(
-        0.998, ge=0.9, le=1.0, description="gains' forgetting per frame (SC5); memory 10 frames at 0.9, none at 1"
+        0.998, ge=0.9, le=1.0, description="gains' forgetting per frame (SC6); memory 10 frames at 0.9, none at 1"
     )
     twist_prior_std_deg_per_mps2: float = Field(
         0.1,
