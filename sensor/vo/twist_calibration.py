@@ -99,15 +99,19 @@ class TwistSelfCalibration(StereoSelfCalibration):
         """``ĝ``: the twist per axis (roll, pitch, yaw) [rad/(m/s²)]."""
         return (float(self._omega[3]), float(self._omega[4]), float(self._omega[5]))
 
+    def _centred(self, regressor: float | None) -> float:
+        """``a − ā`` of (SC4) [m/s²] for the regressor ``a`` (None: 0)."""
+        return (0.0 if regressor is None else float(regressor)) - self.regressor_mean
+
     def angles_at(self, regressor: float | None = None) -> tuple[float, float, float]:
         """``ω̂_c + ĝ·(a − ā)`` (SC7) [rad] at the regressor ``a`` [m/s²] (None: 0)."""
-        a = (0.0 if regressor is None else float(regressor)) - self.regressor_mean
+        a = self._centred(regressor)
         w = self._omega[:3] + a * self._omega[3:]
         return (float(w[0]), float(w[1]), float(w[2]))
 
     def sigma_at(self, regressor: float | None = None) -> tuple[float, float, float]:
         """``sqrt(diag J·Λ⁻¹·Jᵀ)``, ``J = [I₃, (a − ā)·I₃]`` (SC7) [rad]."""
-        a = (0.0 if regressor is None else float(regressor)) - self.regressor_mean
+        a = self._centred(regressor)
         jacobian = np.hstack([np.eye(3), a * np.eye(3)])
         d = np.sqrt(np.diag(jacobian @ np.linalg.solve(self._info, jacobian.T)))
         return (float(d[0]), float(d[1]), float(d[2]))
@@ -143,7 +147,7 @@ class TwistSelfCalibration(StereoSelfCalibration):
 
     def _design(self, a: np.ndarray, regressor: float | None) -> np.ndarray:
         """``[A, (a_k − ā_k)·A]`` (SC5)."""
-        return np.hstack([a, ((0.0 if regressor is None else float(regressor)) - self.regressor_mean) * a])
+        return np.hstack([a, self._centred(regressor) * a])
 
     def _forget(self) -> tuple[np.ndarray, np.ndarray]:
         """(SC6): each block at its own rate, the gains' information kept at least their prior's."""
