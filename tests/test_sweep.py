@@ -281,8 +281,30 @@ def test_an_unreachable_scheduler_is_a_one_line_input_error(monkeypatch: pytest.
     assert not _case_files(tmp_path)
 
 
-KILLED_CASES = 6
-"""Cases of the killed sweep (3 s each): enough that it is still running when it is killed, once two are recorded."""
+KILLED_CASES = 8
+"""Cases of the killed sweep (3 s each): enough that it is still running when it is killed, once two are recorded
+(its two workers may finish the cases they hold, but start no other)."""
+
+
+def test_a_worker_whose_sweep_died_starts_no_queued_case(tmp_path: Path) -> None:
+    # A task already in a local pool's queue when the sweep process died: the worker exits before the case
+    # begins (no marker, no record), instead of computing it for nobody until its watcher's next poll.
+    spec = model_only_cases(1, duration_s=3.0, study="test-sweep-orphan")[0]
+    script = textwrap.dedent(
+        f"""
+        import os, pickle, sys; from pathlib import Path
+        from scenarios.studies import workers
+        from scenarios.studies.cases import run_case
+        spec = pickle.loads(bytes.fromhex({pickle.dumps(spec).hex()!r}))
+        workers._WORKER["sweep_pid"] = os.getppid() + 1  # the process that spawned it is no longer its parent
+        task = workers.Task(run_case, spec, 0, {str(tmp_path)!r}, "s", ("elsewhere", 0))
+        workers.execute(task)
+        sys.exit(7)  # reached only if the orphan ran the case
+        """
+    )
+    proc = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1, proc.stderr
+    assert not list(tmp_path.rglob("*.json")) and not list(tmp_path.rglob(".*"))
 
 
 def test_killed_sweep_process_resumes_without_losing_cases(tmp_path: Path) -> None:

@@ -48,8 +48,9 @@ THREAD_LIMITS = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_T
 RunFunction = Callable[[CaseSpec, Path], dict[str, Any]]
 """``run(spec, out_dir) -> table row``; must be a module-level function (it is pickled by reference)."""
 
-_WORKER: dict[str, Any] = {"ready": False, "numpy_preloaded": None}
-"""This process's set-up as a worker (thread limits set; whether numpy came first): per process, like the limits."""
+_WORKER: dict[str, Any] = {"ready": False, "numpy_preloaded": None, "sweep_pid": None}
+"""This process's set-up as a worker (thread limits set; whether numpy came first; the local sweep process that
+spawned it, None elsewhere): per process, like the limits."""
 _CASE_LOCK = threading.Lock()  # one case at a time per process: a process has one GL context
 
 
@@ -93,8 +94,13 @@ def _watch_parent(ppid: int) -> None:
     """End this worker if the sweep process that spawned it dies (no orphans computing for nobody)."""
     while True:
         time.sleep(0.5)
-        if os.getppid() != ppid:
-            os._exit(1)
+        _end_if_orphaned(ppid)
+
+
+def _end_if_orphaned(ppid: int | None) -> None:
+    """Exit at once if this is a local worker whose sweep process has died (its parent changed)."""
+    if ppid is not None and os.getppid() != ppid:
+        os._exit(1)
 
 
 def init_worker() -> None:
@@ -106,6 +112,7 @@ def init_worker() -> None:
     fault) never does.
     """
     _WORKER["numpy_preloaded"] = "numpy" in sys.modules
+    _WORKER["sweep_pid"] = os.getppid()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the sweep's to handle: it terminates the workers
     threading.Thread(target=_watch_parent, args=(os.getppid(),), daemon=True, name="offtrack-parent-watch").start()
     setup_process()
@@ -232,6 +239,9 @@ def execute(task: Task) -> dict[str, Any]:
         The case was stopped (Ctrl-C, or :class:`~scenarios.run.stopping.Terminated` on SIGTERM), also when it
         caught the stop and ended ``interrupted`` or failed afterwards: no record is written.
     """
+    # a task already queued to a local worker when its sweep process died is not started (the watcher's poll
+    # would let a short case begin and write a record nobody asked for)
+    _end_if_orphaned(_WORKER["sweep_pid"])
     if whoami() != task.origin:  # a worker (never the caller's own process)
         setup_process()
     out_dir = Path(task.out_dir)
