@@ -271,8 +271,18 @@ def test_the_command_over_two_seeds_writes_the_pooled_table(tmp_path: Path, monk
     assert (out / "table.md").read_text().startswith("## Cells")
 
 
-def test_run_study_takes_the_seeds_as_integers(tmp_path: Path, monkeypatch) -> None:
-    monkeypatch.setitem(STUDIES, "off-highway", dataclasses.replace(STUDIES["off-highway"], run_case=made_up_case))
+def test_run_study_takes_the_seeds_as_integers_and_runs_only_new_seeds_again(tmp_path: Path, monkeypatch) -> None:
+    ran: list[str] = []
+
+    def counted(spec, out_dir: Path) -> dict:
+        ran.append(spec.name)
+        return made_up_case(spec, out_dir)
+
+    monkeypatch.setitem(STUDIES, "off-highway", dataclasses.replace(STUDIES["off-highway"], run_case=counted))
     table = run_study("off-highway", tmp_path, seeds=(2, 7))
-    assert sorted(set(table["seed"])) == [2, 7] and len(table) == 16
+    assert sorted(set(table["seed"])) == [2, 7] and len(table) == len(ran) == 16
     assert seed_table(table)["seeds"].tolist() == ["2,7", "2,7"]
+    ran.clear()
+    table = run_study("off-highway", tmp_path, seeds="2,7,9")  # the same directory, one seed more
+    assert len(table) == 24 and len(ran) == 8 and all("_seed-9_" in name for name in ran)
+    assert seed_table(table)["seeds"].tolist() == ["2,7,9", "2,7,9"]
