@@ -229,6 +229,7 @@ def test_where_the_truth_fed_loop_misses_every_seed_the_cell_is_not_judged() -> 
     assert pooled_verdict({0: "pass", 1: "n/a: truth-fed 0.020 / 0.170 m"}) == (
         "held in 1 of 2 seeds (seed 1 n/a: truth-fed 0.020 / 0.170 m)"
     )
+    assert pooled_verdict({4: "pass"}) == "held in 1 of 1 seed"
     assert TARGET_RMS_M > 0.06  # the made-up RMS figures are within it
 
 

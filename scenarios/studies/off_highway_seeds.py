@@ -143,7 +143,7 @@ def pooled_verdict(verdicts: dict[int, str]) -> str:
     if verdicts and all(_kind(v) == "n/a" for v in verdicts.values()):
         return f"n/a in every seed ({others})"
     passed = sum(v == "pass" for v in verdicts.values())
-    held = f"held in {passed} of {len(verdicts)} seeds"
+    held = f"held in {passed} of {len(verdicts)} seed{'' if len(verdicts) == 1 else 's'}"
     return held if not others else f"{held} ({others})"
 
 

@@ -1,10 +1,9 @@
 """The studies offtrack ships, each one :class:`Study` record in one registry, :data:`STUDIES`.
 
 A study is its cases (a function of ``full``, and of ``vehicle`` for a study that takes another combination, of
-``seeds`` for one that takes seeds), the
-function that runs one case into a table row, and the function that draws its figures from the table. Everything
-that lists, runs or describes the studies (the ``study`` command, :func:`scenarios.studies.definitions.run_study`,
-the behaviour fingerprint) reads this registry.
+``seeds`` for one that takes seeds), the function that runs one case into a table row, and the function that draws
+its figures from the table. Everything that lists, runs or describes the studies (the ``study`` command,
+:func:`scenarios.studies.definitions.run_study`, the behaviour fingerprint) reads this registry.
 """
 
 from __future__ import annotations
