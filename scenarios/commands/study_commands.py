@@ -185,12 +185,20 @@ def study(
     camera: Annotated[
         bool, typer.Option(help="controller-limits: add each cell's fused camera case under field conditions.")
     ] = False,
+    seeds: Annotated[
+        str | None,
+        typer.Option(
+            help="off-highway: run every cell at each of these seeds, e.g. 0-7, 0,1,5 or 3 (at most 64), and pool "
+            "them per cell into seeds.md / seeds.csv (default: the study's own seed).",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Run a study: every case into its own directory, then one table and the figures."""
     from scenarios.config import parse_assignment
     from scenarios.run.claim import claim_directory
     from scenarios.run.results import new_run_dir
-    from scenarios.studies.definitions import STUDIES, check_study_vehicle, run_study, study_cases
+    from scenarios.studies.definitions import STUDIES, check_study_seeds, check_study_vehicle, run_study, study_cases
     from scenarios.studies.progress import rich_progress
     from scenarios.studies.records import CASES_DIR
     from vehicle_model.errors import InputError
@@ -199,11 +207,12 @@ def study(
         raise InputError(f"unknown study {name!r}; choose one of {', '.join(sorted(STUDIES))}")
     for note in check_study_vehicle(name, vehicle):  # a vehicle it cannot drive: refused before any work
         errors.print(f"note: {note}", markup=False)
+    chosen_seeds = check_study_seeds(name, seeds)  # one line naming --seeds, before any work
     if scheduler is not None:
         require("distributed", "cluster", "--scheduler")
     settings = dict(parse_assignment(item) for item in set_ or [])
     if settings or camera:
-        study_cases(name, full, vehicle, settings, camera)  # settings a case refuses: one line, before any work
+        study_cases(name, full, vehicle, settings, camera, chosen_seeds)  # a case refusing them: one line, no work
     with scheduler_client(scheduler) as client:
         if out is not None and resume and (out / CASES_DIR).is_dir():
             claim_directory(out)  # one process resumes it: a second is refused before any case runs
@@ -222,6 +231,7 @@ def study(
                 vehicle=vehicle,
                 settings=settings,
                 camera=camera,
+                seeds=chosen_seeds,
             )
     print_study_summary(table, run_dir, name)
     exit_if_cases_failed(table, run_dir)

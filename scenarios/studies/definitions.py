@@ -5,13 +5,14 @@ the ``vehicle`` and run ``settings`` given; :func:`run_study` runs them with
 :func:`scenarios.studies.sweep.run_sweep`: serially, on local worker processes (``workers``) or on a Dask cluster
 (``scheduler``); every finished case is recorded in ``OUT/cases/`` as it completes, so running the study again into
 the same directory only runs what is missing or failed. The studies that take another combination (``vehicle``,
-:func:`check_study_vehicle`) are those whose record says so; the camera studies keep their own vehicle.
+:func:`check_study_vehicle`) are those whose record says so; the camera studies keep their own vehicle. Likewise a
+study whose record says so runs its cells at the seeds given (``seeds``, :func:`check_study_seeds`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -27,10 +28,11 @@ from ..unit_feedback import one_semi_trailer, uses_camera
 from .progress import ProgressCallback, SweepProgress
 from .records import CaseSpec
 from .registry import STUDIES, vehicle_studies
+from .seeds import parse_seeds
 from .sweep import run_sweep
 from .unit_steering import study_vehicle, vehicle_problem
 
-__all__ = ["STUDIES", "check_study_vehicle", "run_study", "study_cases", "study_vehicle_params"]
+__all__ = ["STUDIES", "check_study_seeds", "check_study_vehicle", "run_study", "study_cases", "study_vehicle_params"]
 
 
 def check_study_vehicle(name: str, vehicle: str | None) -> list[str]:
@@ -86,24 +88,46 @@ def study_vehicle_params(vehicle: str) -> VehicleParams:
         raise InputError(f"--vehicle {vehicle}: {vehicle_problem(exc)}") from None
 
 
+def check_study_seeds(name: str, seeds: str | Sequence[int] | None) -> tuple[int, ...] | None:
+    """The seeds of ``--seeds`` for study ``name`` (:func:`~scenarios.studies.seeds.parse_seeds` when given as
+    text), checked before any work; ``None`` (the study's own seed) when not given.
+
+    Raises
+    ------
+    InputError
+        One line naming ``--seeds``: a study that does not take seeds
+        (:attr:`~scenarios.studies.registry.Study.takes_seeds`), or seeds outside
+        :data:`~scenarios.studies.seeds.ALLOWED`.
+    """
+    if seeds is None:
+        return None
+    text = seeds if isinstance(seeds, str) else ",".join(str(seed) for seed in seeds)
+    if not STUDIES[name].takes_seeds:
+        takes = ", ".join(n for n, study in STUDIES.items() if study.takes_seeds)
+        raise InputError(f"--seeds {text}: {name} takes no --seeds (it runs at its own seeds); {takes} takes one")
+    return parse_seeds(text)
+
+
 def study_cases(
     name: str,
     full: bool = False,
     vehicle: str | None = None,
     settings: Mapping[str, Any] | None = None,
     camera: bool = False,
+    seeds: str | Sequence[int] | None = None,
 ) -> list[CaseSpec]:
     """The cases of study ``name`` (a subset unless ``full``), for ``vehicle`` where it takes one
     (:func:`check_study_vehicle`), with ``settings`` (dotted run settings, e.g. the fused filter's) appended to
-    every case's own overrides, and with ``camera`` its fused camera cases
-    (:attr:`~scenarios.studies.registry.Study.takes_camera`).
+    every case's own overrides, with ``camera`` its fused camera cases
+    (:attr:`~scenarios.studies.registry.Study.takes_camera`), and at ``seeds`` (:func:`check_study_seeds`) every
+    cell once per seed.
 
     Raises
     ------
     InputError
-        An unknown study, a ``vehicle`` it does not take, ``camera`` for a study without camera cases, or
-        ``settings`` that make some case's configuration invalid (one line naming the field, from the
-        configuration's own validation; before any case runs).
+        An unknown study, a ``vehicle`` it does not take, ``camera`` for a study without camera cases, ``seeds``
+        it does not take or outside their range, or ``settings`` that make some case's configuration invalid (one
+        line naming the field, from the configuration's own validation; before any case runs).
     """
     if name not in STUDIES:
         raise InputError(f"unknown study {name!r}; choose one of {', '.join(sorted(STUDIES))}")
@@ -111,7 +135,7 @@ def study_cases(
     if camera and not STUDIES[name].takes_camera:
         takes = ", ".join(n for n, study in STUDIES.items() if study.takes_camera)
         raise InputError(f"--camera: {name} has no camera cases; {takes} has")
-    cases = STUDIES[name].case_specs(full, vehicle, camera)
+    cases = STUDIES[name].case_specs(full, vehicle, camera, check_study_seeds(name, seeds))
     if not settings:
         return cases
     extra = tuple(settings.items())
@@ -134,6 +158,7 @@ def run_study(
     vehicle: str | None = None,
     settings: Mapping[str, Any] | None = None,
     camera: bool = False,
+    seeds: str | Sequence[int] | None = None,
 ) -> pd.DataFrame:
     """Run every case of a study; write ``table.parquet``, ``table.csv``, ``table.md`` and the figures.
 
@@ -167,6 +192,10 @@ def run_study(
     camera
         Add the study's fused camera cases (:attr:`~scenarios.studies.registry.Study.takes_camera`; refused for the
         others, before any case runs).
+    seeds
+        Run every cell at each of these seeds (``"0-7"``, ``"0,1,5"`` or a sequence of integers) for a study that
+        takes seeds (:func:`check_study_seeds`, refused for the others before any case runs); default the study's
+        own.
 
     Returns
     -------
@@ -177,15 +206,15 @@ def run_study(
     Raises
     ------
     InputError
-        An unknown study, a ``vehicle`` it does not take, or ``settings`` a case's configuration refuses (one line,
-        before any case runs).
+        An unknown study, a ``vehicle``, ``camera`` or ``seeds`` it does not take or outside their range, or
+        ``settings`` a case's configuration refuses (one line, before any case runs).
     KeyboardInterrupt
         Ctrl-C, or :class:`~scenarios.run.stopping.Terminated` on SIGTERM, anywhere in the study (also in a
         case or a worker): the study stops at once, the finished cases stay recorded, no table or figure
         is written, and running it again into ``out_dir`` runs the rest
         (:func:`~scenarios.studies.sweep.run_sweep`).
     """
-    cases = study_cases(name, full, vehicle, settings, camera)
+    cases = study_cases(name, full, vehicle, settings, camera, seeds)
     by_name = {spec.name: spec for spec in cases}
 
     def report(p: SweepProgress) -> None:

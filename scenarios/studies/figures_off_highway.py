@@ -8,7 +8,9 @@
 * ``off_highway_errors.png`` — per cell the RMS and largest error against the truth of the fused and raw VISO-OT
   and the zero-slip estimate on the fused-fed run, and of the zero-slip estimate on the zero-slip-fed run;
 * ``cells.csv`` and ``table.md`` — one row per cell with its verdict (:func:`~.off_highway.cell_table`), then every
-  case.
+  case;
+* ``seeds.md`` and ``seeds.csv`` (over more than one seed, also first in ``table.md``) — one row per cell pooled over
+  the seeds with its verdict ``held in k of N seeds`` (:func:`~.off_highway_seeds.seed_table`).
 
 ``off-highway-roughness``: ``roughness_error.png`` — VISO-OT's error against the road's undulation amplitude, in the
 level frame (true tilt, accelerometer) and with the planar eqs, RMS and largest, one line per wavelength; the
@@ -27,6 +29,7 @@ from ..registry import source_colour
 from ..run.files import write_atomic
 from .field_loop import TARGET_MAX_M, TARGET_RMS_M
 from .off_highway import FEEDBACKS, cell_table
+from .off_highway_seeds import SEEDS_FILES, seed_table, seeds_in, seeds_markdown
 
 FEEDBACK_STYLE = {
     "viso_ot_fused": ("fused VISO-OT", source_colour("viso_ot_fused"), "o"),
@@ -52,9 +55,10 @@ ROUGHNESS_STYLE = (
 """Estimate, legend name, colour and marker in ``roughness_error.png``."""
 
 
-def cell_label(row: pd.Series | dict[str, Any]) -> str:
-    """``forest-road, dirt, rough, field camera``."""
-    return f"{row['scenario']}, {row['surface']}, {row['roughness']}, {row['conditions']} camera"
+def cell_label(row: pd.Series | dict[str, Any], seed: bool = False) -> str:
+    """``forest-road, dirt, rough, field camera`` (with ``seed``: ``…, seed 3``)."""
+    label = f"{row['scenario']}, {row['surface']}, {row['roughness']}, {row['conditions']} camera"
+    return f"{label}, seed {row['seed']}" if seed else label
 
 
 def _plt() -> Any:
@@ -75,7 +79,9 @@ def _cells_axes(plt: Any, cells: pd.DataFrame) -> tuple[Any, Any, np.ndarray]:
     fig, axes = plt.subplots(2, 1, figsize=(width, 9.0), squeeze=False, sharex=True)
     axes = axes[:, 0]
     x = np.arange(len(cells))
-    axes[-1].set_xticks(x, [cell_label(r) for _, r in cells.iterrows()], rotation=50, ha="right", fontsize=8)
+    seeds = "seed" in cells.columns and cells["seed"].nunique() > 1
+    labels = [cell_label(r, seed=seeds) for _, r in cells.iterrows()]
+    axes[-1].set_xticks(x, labels, rotation=50, ha="right", fontsize=8)
     axes[-1].set_xlim(-0.6, len(cells) - 0.4)
     return fig, axes, x
 
@@ -139,7 +145,8 @@ def off_highway_markdown(cells: pd.DataFrame) -> str:
 
 def off_highway_figures(table: pd.DataFrame, out_dir: Path) -> None:
     """Draw the off-highway study's figures into ``out_dir``, write ``cells.csv`` and rewrite ``table.md`` as the
-    cells, then every case.
+    cells, then every case; over more than one seed, write the cells pooled over seeds
+    (:func:`~.off_highway_seeds.seed_table`) as ``seeds.md`` and ``seeds.csv`` and put them first in ``table.md``.
 
     Parameters
     ----------
@@ -157,7 +164,16 @@ def off_highway_figures(table: pd.DataFrame, out_dir: Path) -> None:
     errors_figure(cells, out_dir, plt)
     write_atomic(out_dir / "cells.csv", cells.to_csv(index=False))
     full = table.to_markdown(index=False, floatfmt=".3f")
-    write_atomic(out_dir / "table.md", off_highway_markdown(cells) + "\n## Every case\n\n" + full + "\n")
+    pooled = ""
+    if len(seeds_in(table)) > 1:
+        over_seeds = seed_table(table)
+        pooled = seeds_markdown(over_seeds) + "\n"
+        write_atomic(out_dir / SEEDS_FILES[0], pooled)
+        write_atomic(out_dir / SEEDS_FILES[1], over_seeds.to_csv(index=False))
+    else:  # a directory run again at one seed keeps no pooled table of an earlier run
+        for name in SEEDS_FILES:
+            (out_dir / name).unlink(missing_ok=True)
+    write_atomic(out_dir / "table.md", pooled + off_highway_markdown(cells) + "\n## Every case\n\n" + full + "\n")
 
 
 def roughness_figures(table: pd.DataFrame, out_dir: Path) -> None:

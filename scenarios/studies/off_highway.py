@@ -29,7 +29,9 @@ combination; on a longer one each further unit's true off-tracking and fused err
 (``unit<k>_…``) as in the field-loop study, and the cell's verdict is the first towed unit's.
 
 The default subset (:data:`DEFAULT_CELLS`) is ``forest-road`` on dirt, rough, under field and ideal conditions,
-:data:`SHORT_DURATION_S` long: 8 cases, 2 rendered. ``full`` drives the complete scenarios.
+:data:`SHORT_DURATION_S` long: 8 cases, 2 rendered. ``full`` drives the complete scenarios. Every case runs at
+:data:`SEED`; ``seeds`` (``--seeds``) runs every cell at each seed given, a cell of its own, and
+:mod:`~scenarios.studies.off_highway_seeds` pools a cell's seeds.
 
 :func:`run_off_highway_case` adds to the common row each estimator's error against the truth and the run's verdict;
 :func:`cell_table` gathers one row per cell with :func:`cell_verdict`: the fused-fed loop within
@@ -41,6 +43,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -147,7 +150,7 @@ CELL_LABELS = ("scenario", "surface", "roughness", "conditions", "seed")
 """The labels that make a cell; ``feedback`` tells a cell's cases apart."""
 
 SEED = 0
-"""``seed`` of every case (signal noise, field-condition draws, potholes)."""
+"""``seed`` of every case (signal noise, field-condition draws, potholes) unless ``seeds`` are given."""
 
 OFF_HIGHWAY_COLUMNS = (
     "viso_ot_fused_true_rms_m",
@@ -236,7 +239,9 @@ def off_highway_cells(full: bool) -> list[tuple[str, str, str, str]]:
     ]
 
 
-def off_highway_cases(full: bool = False, vehicle: str | None = None) -> list[CaseSpec]:
+def off_highway_cases(
+    full: bool = False, vehicle: str | None = None, seeds: Sequence[int] | None = None
+) -> list[CaseSpec]:
     """Cases of the off-highway study (the default subset unless ``full``).
 
     Parameters
@@ -246,16 +251,22 @@ def off_highway_cases(full: bool = False, vehicle: str | None = None) -> list[Ca
         scenarios) instead of the 8 of :data:`DEFAULT_CELLS` (:data:`SHORT_DURATION_S` long).
     vehicle
         Another combination for every scenario (:func:`off_highway_vehicle`; default :func:`scenario_vehicle`).
+    seeds
+        The seeds to run every cell at (``--seeds``, :func:`~scenarios.studies.seeds.parse_seeds`), each a cell of
+        its own; default :data:`SEED` alone.
 
     Returns
     -------
     list of CaseSpec
         Labelled by ``scenario``, ``surface``, ``roughness``, ``conditions``, ``seed`` and ``feedback``, a cell's
-        feedbacks next to each other; the ``viso_ot_fused`` cases render.
+        feedbacks next to each other, every cell of a seed before the next seed's; the ``viso_ot_fused`` cases
+        render.
     """
     combination = off_highway_vehicle(vehicle)
+    chosen = (SEED,) if seeds is None else tuple(seeds)
     return [
-        off_highway_case(*cell, feedback, full, combination)
+        off_highway_case(*cell, feedback, full, combination, seed)
+        for seed in chosen
         for cell in off_highway_cells(full)
         for feedback in FEEDBACKS
     ]

@@ -1,16 +1,17 @@
 """The studies offtrack ships, each one :class:`Study` record in one registry, :data:`STUDIES`.
 
-A study is its cases (a function of ``full``, and of ``vehicle`` for a study that takes another combination), the
-function that runs one case into a table row, and the function that draws its figures from the table. Everything
-that lists, runs or describes the studies (the ``study`` command, :func:`scenarios.studies.definitions.run_study`,
-the behaviour fingerprint) reads this registry.
+A study is its cases (a function of ``full``, and of ``vehicle`` for a study that takes another combination, of
+``seeds`` for one that takes seeds), the function that runs one case into a table row, and the function that draws
+its figures from the table. Everything that lists, runs or describes the studies (the ``study`` command,
+:func:`scenarios.studies.definitions.run_study`, the behaviour fingerprint) reads this registry.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
@@ -25,8 +26,9 @@ from .figures_field_loop import field_loop_figures
 from .figures_off_highway import off_highway_figures, roughness_figures
 from .figures_section4 import section4_figures
 from .figures_unit_steering import unit_steering_figures
-from .off_highway import OFF_HIGHWAY_COLUMNS, off_highway_cases, off_highway_terminal_rows, run_off_highway_case
+from .off_highway import OFF_HIGHWAY_COLUMNS, off_highway_cases, run_off_highway_case
 from .off_highway_roughness import ROUGHNESS_COLUMNS, roughness_cases, run_roughness_case
+from .off_highway_seeds import terminal_rows_over_seeds
 from .records import CaseSpec
 from .section3 import SECTION3_COLUMNS, paper_section3_cases
 from .section4 import paper_section4_cases, run_section4_case
@@ -45,8 +47,8 @@ class Study:
     summary : str
         One line saying what the study compares.
     cases : callable
-        ``cases(full)`` (or ``cases(full, vehicle)`` when :attr:`takes_vehicle`): the case specs, the default
-        subset unless ``full``.
+        ``cases(full)`` (or ``cases(full, vehicle)`` when :attr:`takes_vehicle`; ``camera=`` and ``seeds=`` when
+        :attr:`takes_camera` / :attr:`takes_seeds`): the case specs, the default subset unless ``full``.
     figures : callable
         ``figures(table, out_dir)``: draws the study's figures from the rows of the cases that did not fail.
     run_case : callable
@@ -65,6 +67,9 @@ class Study:
         ``terminal_rows(table) -> (rows, note)``: the rows the terminal shows instead of the cases (field-loop: one
         per cell with its acceptance, as its ``table.md``) and a note for the title (e.g. how many cells pass);
         None: the cases.
+    takes_seeds : bool
+        The study runs its cells at the seeds given (``cases(full, seeds=…)``, ``--seeds``,
+        :func:`~scenarios.studies.seeds.parse_seeds`), each seed a cell of its own; without them, at its own seed.
     """
 
     name: str
@@ -76,17 +81,30 @@ class Study:
     columns: tuple[str, ...] = ()
     terminal_rows: Callable[[pd.DataFrame], tuple[pd.DataFrame, str]] | None = None
     takes_camera: bool = False
+    takes_seeds: bool = False
 
-    def case_specs(self, full: bool = False, vehicle: str | None = None, camera: bool = False) -> list[CaseSpec]:
+    def case_specs(
+        self,
+        full: bool = False,
+        vehicle: str | None = None,
+        camera: bool = False,
+        seeds: Sequence[int] | None = None,
+    ) -> list[CaseSpec]:
         """The cases (a subset unless ``full``), on ``vehicle`` when given (only for :attr:`takes_vehicle`), with the
-        camera cases when ``camera`` (only for :attr:`takes_camera`)."""
+        camera cases when ``camera`` (only for :attr:`takes_camera`), at ``seeds`` when given (only for
+        :attr:`takes_seeds`)."""
         if camera and not self.takes_camera:
             raise ValueError(f"{self.name} takes no camera option")
         if vehicle is not None and not self.takes_vehicle:
             raise ValueError(f"{self.name} takes no vehicle")
+        if seeds is not None and not self.takes_seeds:
+            raise ValueError(f"{self.name} takes no seeds")
+        options: dict[str, Any] = {}
         if camera:
-            return self.cases(full, vehicle, camera=True) if vehicle is not None else self.cases(full, camera=True)
-        return self.cases(full) if vehicle is None else self.cases(full, vehicle)
+            options["camera"] = True
+        if seeds is not None:
+            options["seeds"] = tuple(seeds)
+        return self.cases(full, **options) if vehicle is None else self.cases(full, vehicle, **options)
 
 
 def _studies(*studies: Study) -> dict[str, Study]:
@@ -186,8 +204,9 @@ STUDIES: dict[str, Study] = _studies(
         off_highway_figures,
         run_off_highway_case,
         columns=OFF_HIGHWAY_COLUMNS,
-        terminal_rows=off_highway_terminal_rows,
+        terminal_rows=terminal_rows_over_seeds,
         takes_vehicle=True,
+        takes_seeds=True,
     ),
     Study(
         "off-highway-roughness",
