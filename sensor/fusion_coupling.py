@@ -94,6 +94,11 @@ scrub demand ``D`` at the frame, the one (C0) takes::
 acts on every frame, unlike (C3)'s threshold, and in proportion to the frame's own covariance, unlike (C3)'s
 follower's off-tracking variance.
 
+The follower's scrub in the share its own filter gives it: with ``follower_share``
+(``fusion.side_rig.coupling_follower_share``; off by default) each frame's lateral variance takes the follower's
+off-tracking variance ``σ_f²`` times its scrub demand ``D``, (C4) of :mod:`sensor.fusion_coupling_share` (the
+reasoning there).
+
 A follower camera that looks across its motion has the same axial errors as the lead's, so the follower is the
 nearest unit behind whose camera looks along its unit (a rear or front rig, :func:`looks_along`).
 
@@ -123,6 +128,7 @@ import numpy as np
 from vehicle_model.errors import InputError
 from vehicle_model.parameters import VehicleParams
 
+from .fusion_coupling_share import follower_shared
 from .fusion_model import camera_displacement, camera_increment, gated_update
 from .fusion_noise import FollowerLimit, FusionNoise
 from .fusion_slip import scrub_bias_share
@@ -284,6 +290,9 @@ class CouplingReference:
         ``k_s`` of (C2'), the covariance widened by ``1 + k_s·D`` at the follower's scrub demand ``D`` (0: off).
     axial_scale
         (C0''): the follower's ``ŝ`` given to :meth:`measurement` taken out along its camera's axis (``False``: off).
+    follower_share
+        (C4) of :mod:`sensor.fusion_coupling_share`: the lateral variance widened by the follower's off-tracking
+        variance in the share of its scrub demand (``False``: off; :meth:`shared`).
 
     Raises
     ------
@@ -305,6 +314,7 @@ class CouplingReference:
         follower_limit: FollowerLimit | None = None,
         scrub_scale: float = 0.0,
         axial_scale: bool = False,
+        follower_share: bool = False,
     ) -> None:
         if not 0.0 <= scrub_scale <= 100.0:  # NaN fails too
             raise InputError(f"scrub_scale = {scrub_scale!r}: allowed 0–100 (k_s of (C2'), a factor per unit of D)")
@@ -330,6 +340,7 @@ class CouplingReference:
         self.follower_limit = follower_limit
         self.scrub_scale = float(scrub_scale)
         self.axial_scale = bool(axial_scale)
+        self.follower_share = bool(follower_share)
         axis = self.geometry.mount_rotation[:2, 2]  # the follower camera's optical axis in its unit's ground plane
         self.optical_axis = axis / max(float(np.hypot(*axis)), 1e-12)
 
@@ -338,6 +349,11 @@ class CouplingReference:
     ) -> tuple[np.ndarray | None, str | None]:
         """(C3) with this reference's ``follower_limit`` (:func:`follower_limited`)."""
         return follower_limited(covariance, self.follower_limit, demand, follower_std)
+
+    def shared(self, covariance: np.ndarray, demand: float, follower_std: float) -> np.ndarray:
+        """(C4) with this reference's ``follower_share`` (:func:`~sensor.fusion_coupling_share.follower_shared`);
+        ``covariance`` itself where it is off."""
+        return follower_shared(covariance, demand, follower_std) if self.follower_share else covariance
 
     def articulations(self, articulations: Sequence[float]) -> tuple[float, ...]:
         """The articulations (C1) takes, ``Γ_{j+1} … Γ_m``, out of every coupling's from the tractor back

@@ -37,6 +37,7 @@ REFERENCE_SETTINGS: tuple[str, ...] = (
     "coupling_follower_limit",
     "coupling_scrub_scale",
     "coupling_axial_scale",
+    "coupling_follower_share",
 )
 """The side-rig settings the coupling reference takes (:mod:`sensor.fusion_coupling`), not the filter."""
 FRICTION = "the lowest road μ the vehicle is specified for, (T3); 0.05 is glare ice, 1.5 a race track; null: none"
@@ -131,6 +132,10 @@ class SideRigFusion(Settings):
         frame before (C1), its variance added along the axis (``None``: off). Needs the follower's filter to hold
         ``s_z``: :class:`FusionNoise`'s ``vo_axial_scale`` above 0 (a following camera looks along its unit, so its
         filter takes the section's settings). The reference's, like ``coupling_covariance_scale``.
+    coupling_follower_share
+        (C4) of :mod:`sensor.fusion_coupling_share`: the following unit's measurement's lateral variance widened by
+        the follower's own off-tracking variance in the share ``D`` (its scrub demand) its filter gives its tyres
+        (``None``: off). The reference's, like ``coupling_covariance_scale``.
     """
 
     vo_axial_flow: float | None = Field(None, ge=0.0, le=1.0, description="[1/m] start std of s_f; 1 /m: 1 m per m²")
@@ -162,6 +167,7 @@ class SideRigFusion(Settings):
         None, ge=0.0, le=100.0, description="(C2')'s k_s: the covariance × (1 + k_s·D); 100 all but drops it"
     )
     coupling_axial_scale: bool | None = None
+    coupling_follower_share: bool | None = None
 
     @property
     def reference_covariance_scale(self) -> float:
@@ -179,6 +185,12 @@ class SideRigFusion(Settings):
         """Whether the coupling reference takes the follower's ``ŝ`` out, (C0''): :attr:`coupling_axial_scale`, off
         when unset."""
         return bool(self.coupling_axial_scale)
+
+    @property
+    def reference_follower_share(self) -> bool:
+        """Whether the coupling reference takes the follower's variance in its scrub's share, (C4):
+        :attr:`coupling_follower_share`, off when unset."""
+        return bool(self.coupling_follower_share)
 
     def given(self) -> dict[str, object]:
         """The settings it gives the filter (those not ``None``, less the reference's own)."""

@@ -15,7 +15,9 @@ lead's filter takes its own. A following frame that failed, was refused, or whos
 interval does not start at the lead filter's anchor gives no measurement: the lead takes its own frame alone. With
 ``fusion.side_rig.coupling_follower_limit`` a frame taken while the follower's tyres scrub is widened by the
 follower's own off-tracking variance or refused ((C3) of :mod:`sensor.fusion_coupling`), the refusals counted by
-their reason. With ``fusion.side_rig.coupling_axial_scale`` the follower's filter's estimate of its odometry's error
+their reason. With ``fusion.side_rig.coupling_follower_share`` every frame's lateral variance takes the follower's
+off-tracking variance in the share of its scrub demand ((C4) of :mod:`sensor.fusion_coupling_share`). With
+``fusion.side_rig.coupling_axial_scale`` the follower's filter's estimate of its odometry's error
 along its optical axis is taken out of each frame ((C0'') of :mod:`sensor.fusion_coupling`).
 """
 
@@ -102,7 +104,8 @@ class FollowingCamera:
         :mod:`sensor.fusion_coupling`).
     scrub
         Gives the follower's fused filter's scrub demand at its last frame and its off-tracking std
-        (:func:`filter_scrub`), asked only where the reference has a ``follower_limit`` ((C3)).
+        (:func:`filter_scrub`), asked only where the reference has a ``follower_limit`` ((C3)) or ``follower_share``
+        ((C4) of :mod:`sensor.fusion_coupling_share`, applied before (C3)).
     axial
         Gives the follower's fused filter's ``ŝ`` and its variance (:func:`filter_axial_scale`), asked on every frame
         where the reference has ``axial_scale`` on ((C0'')).
@@ -162,8 +165,11 @@ class FollowingCamera:
                 tilts,
                 self.axial() if self.axial and self.reference.axial_scale else None,
             )
-            if self.reference.follower_limit is not None:  # (C3)
-                demand, follower_std = self.scrub() if self.scrub else (math.nan, math.nan)
+            limit, share = self.reference.follower_limit is not None, self.reference.follower_share
+            demand, follower_std = self.scrub() if self.scrub and (limit or share) else (math.nan, math.nan)
+            if share:  # (C4) of sensor.fusion_coupling_share
+                r = self.reference.shared(r, demand, follower_std)
+            if limit:  # (C3)
                 limited, reason = self.reference.limited(r, demand, follower_std)
                 if limited is None:
                     self.refused[str(reason)] = self.refused.get(str(reason), 0) + 1
@@ -223,6 +229,7 @@ def following_camera(
             side.coupling_follower_limit,
             side.reference_scrub_scale,
             side.reference_axial_scale,
+            side.reference_follower_share,
         )
         key = estimate_key("viso_ot_fused", follower)
 

@@ -1,0 +1,169 @@
+"""(C4) of sensor/fusion_coupling_share.py: the following unit's measurement's lateral variance widened by the
+follower's own off-tracking variance in the share ``D`` of its scrub (``fusion.side_rig.coupling_follower_share``).
+
+The function on hand-made covariances; the default (unset) loop's reference bit for bit as without the setting, the
+follower's filter not even asked; and the lead's filter on a straight where the follower's camera is off across its
+motion while its axles are at their lock (``D`` = 1): with the setting the lead's off-tracking stays with its own
+(exact) camera and its std covers its error; without it the lead takes the follower's error.
+"""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from scenarios.configuration.sections import FusionConfig
+from scenarios.loop.following_camera import FollowingCamera, following_camera
+from sensor.camera import StereoRig
+from sensor.fusion import FusedVisoOt, FusionNoise, TractorSignals
+from sensor.fusion_coupling import CouplingReference
+from sensor.fusion_coupling_share import follower_shared
+from sensor.fusion_noise import SideRigFusion
+from vehicle_model.errors import InputError
+from vehicle_model.geometry import ChainPose, unit_frame
+from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses
+from vehicle_model.presets import VEHICLE_PRESETS
+
+PARAMS = VEHICLE_PRESETS["au-b-double"]()
+SIDE_RIG = StereoRig.from_degrees(psi_c2v_deg=270.0, lateral=1.275, unit=1, station=-4.0)
+REAR_RIG = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
+REAR_CAMERA = REAR_RIG.camera_in_trailer("left", PARAMS)
+R_C = np.array([[2e-4, 1e-5, 3e-6], [1e-5, 1.5e-4, -2e-6], [3e-6, -2e-6, 1.6e-6]])  # a (C2) covariance
+SIDE = SideRigFusion(kinematic_rear_point="speed_compensated", kinematic_error_model="state", coupling_reference=True)
+
+DT, EVERY, SPEED = 0.02, 5, 5.0  # control period [s], ticks a frame, forward speed [m/s]
+TICKS = 1500  # 30 s
+LOCK = (500, 1000)  # the ticks [10 s, 20 s) the follower's axles are at their lock (D = 1)
+REAR_ERROR = 5e-3  # [m] the follower camera's error across its motion in every frame while at lock
+FOLLOWER_STD = (0.03, 0.10)  # [m] the follower's off-tracking std rolling and at lock, as its filter gives it
+
+
+def test_the_function_widens_the_lateral_variance_by_the_share_of_the_followers() -> None:
+    """``R_c + D·σ_f²·e_y·e_yᵀ`` to 1e-15 relative; every other entry to the bit; ``D`` = 0 and an unknown ``D`` or
+    ``σ_f`` leave ``R_c`` to the bit; the argument is not changed; bad ``D`` or ``σ_f`` refused naming them."""
+    before = R_C.copy()
+    for demand in (0.0, 0.3, 1.0):
+        widened = follower_shared(R_C, demand, 0.08)
+        expected = R_C.copy()
+        expected[1, 1] += demand * 0.08**2
+        np.testing.assert_allclose(widened, expected, rtol=1e-15, atol=0.0)
+        mask = np.ones((3, 3), dtype=bool)
+        mask[1, 1] = False
+        np.testing.assert_array_equal(widened[mask], R_C[mask])
+    np.testing.assert_array_equal(follower_shared(R_C, 0.0, 0.08), R_C)
+    np.testing.assert_array_equal(follower_shared(R_C, math.nan, 0.08), R_C)
+    np.testing.assert_array_equal(follower_shared(R_C, 1.0, math.nan), R_C)
+    np.testing.assert_array_equal(R_C, before)
+    for demand, std, field in ((1.2, 0.1, "demand"), (-0.1, 0.1, "demand"), (0.5, -0.1, "follower_std")):
+        with pytest.raises(InputError, match=field):
+            follower_shared(R_C, demand, std)
+
+
+def test_the_setting_is_the_references_off_by_default_and_reaches_the_loop() -> None:
+    """Unset by default (off); set, it is not among the filter's settings; the loop's reference takes it; a bad value
+    is refused naming the field."""
+    assert FusionConfig().side_rig.coupling_follower_share is None
+    assert not FusionConfig().side_rig.reference_follower_share
+    assert FusionConfig(side_rig={"coupling_follower_share": True}).side_rig.reference_follower_share
+    side = SIDE.replace(coupling_follower_share=True)
+    assert "coupling_follower_share" not in side.given()
+    cameras = {"viso_ot3": SimpleNamespace(camera_in_trailer=REAR_CAMERA, released=[])}
+    noise = FusionNoise(side_rig=side).for_camera((0.0, 1.0))
+    assert following_camera(PARAMS, 1, cameras, noise, "planar").reference.follower_share
+    assert not following_camera(PARAMS, 1, cameras, FusionNoise(), "planar").reference.follower_share
+    with pytest.raises(ValidationError, match="coupling_follower_share"):
+        SideRigFusion(coupling_follower_share="sometimes")
+
+
+def _shot(tick: int, motion: np.ndarray) -> SimpleNamespace:
+    vo = SimpleNamespace(camera_motion=motion, covariance=np.eye(6) * 1e-8)
+    return SimpleNamespace(tick=tick, frame=SimpleNamespace(valid=True, vo=vo))
+
+
+def _follower(k: int) -> tuple[float, float]:
+    """The follower's filter's scrub demand ``D`` and off-tracking std at tick ``k``: at its lock in :data:`LOCK`."""
+    at_lock = LOCK[0] <= k < LOCK[1]
+    return (1.0, FOLLOWER_STD[1]) if at_lock else (0.0, FOLLOWER_STD[0])
+
+
+def _drive(share: bool, asked: list[int] | None = None, given: bool = True) -> tuple[np.ndarray, ...]:
+    """The lead unit's filter on a straight at :data:`SPEED` (no slip: the truth's off-tracking is 0 and the lead's
+    own camera exact), the follower's camera off by :data:`REAR_ERROR` across its motion in every frame of
+    :data:`LOCK`; the lead's fused error and std at every tick with an estimate, and the ticks' times [s]. ``asked``
+    collects the ticks the follower's demand was asked on; ``given`` False: the following camera built without it."""
+    noise = FusionNoise(side_rig=SIDE.replace(coupling_follower_share=share or None))
+    fused = FusedVisoOt(PARAMS, SIDE_RIG.camera_in_trailer("left", PARAMS), noise)
+    follower = SimpleNamespace(released=[], camera_in_trailer=REAR_CAMERA)
+    reference = CouplingReference(PARAMS, 1, 2, REAR_CAMERA, fused.noise, follower_share=share)
+    tick = [0]
+
+    def scrub() -> tuple[float, float]:
+        if asked is not None:
+            asked.append(tick[0])
+        return _follower(tick[0])
+
+    following = FollowingCamera(reference, follower, scrub=scrub if given else None)
+    truth = OfftrackingBuffer(PARAMS.follow_point_offset_of(1))
+    errors, stds, times, previous, last = [], [], [], None, None
+    for k in range(TICKS):
+        tick[0] = k
+        pose = ChainPose(SPEED * k * DT, 0.0, 0.0, (0.0, 0.0))
+        frame = unit_frame(PARAMS, pose, 1)
+        if previous is not None:
+            truth.push(*increments_from_poses(np.vstack([previous[0], frame[0]]), np.array([previous[1], frame[1]]))[0])
+        previous = frame
+        fused.propagate(k, DT, 0.0, SPEED, None, TractorSignals(SPEED, 0.0, 0.0))
+        follower.released, own = [], None
+        if k % EVERY == 0:
+            worlds = (SIDE_RIG.camera_in_world(PARAMS, pose, "left"), REAR_RIG.camera_in_world(PARAMS, pose, "left"))
+            if last is not None:
+                own = np.linalg.inv(last[0]) @ worlds[0]
+                rear = np.linalg.inv(last[1]) @ worlds[1]
+                if LOCK[0] <= k < LOCK[1]:
+                    rear[0, 3] += REAR_ERROR  # across the follower camera's motion, persisting through the lock
+                follower.released = [_shot(k, rear)]
+            last = worlds
+        following.observe(k, {"articulation": np.zeros(1), "rear_articulation": np.zeros(1)})
+        if own is not None:
+            fused.measure(k, own, np.eye(6) * 1e-6, coupling=following.take(k))
+        value = truth.offtracking()
+        if fused.estimate is not None and value is not None:
+            errors.append(fused.estimate - value)
+            stds.append(fused.std)
+            times.append(k * DT)
+    return np.array(errors), np.array(stds), np.array(times)
+
+
+def test_a_reference_wrong_while_the_follower_is_at_lock_is_not_taken_for_the_leads_path() -> None:
+    """The follower's camera off by 5 mm a frame across its motion through its 10 s at lock (100 frames), its filter
+    giving ``D`` = 1 and a 0.10 m std there. The lead's own camera is exact, so its raw off-tracking error is 0.
+    With (C4) the lead's fused error stays under 2 mm over the run and within 2σ on every tick from the lock's start;
+    without it the lead takes the follower's error (over 2.5 cm by the lock's end) and its std covers under 60 % of
+    the same ticks."""
+    shared, shared_std, times = _drive(True)
+    plain, plain_std, plain_times = _drive(False)
+    np.testing.assert_array_equal(times, plain_times)
+    late = times >= LOCK[0] * DT
+    assert np.max(np.abs(shared)) < 0.002
+    assert np.all(np.abs(shared[late]) <= 2.0 * shared_std[late])
+    assert np.max(np.abs(plain[late])) > 0.025
+    assert np.mean(np.abs(plain[late]) <= 2.0 * plain_std[late]) < 0.6
+
+
+def test_off_by_default_the_loops_reference_is_unchanged_to_the_bit() -> None:
+    """Without the setting the follower's filter is not asked for its demand (no (C3) either) and the lead's filter
+    runs as with a following camera that has no way to ask it, to the bit; with it the follower is asked."""
+    asked: list[int] = []
+    plain, plain_std, _ = _drive(False, asked)
+    assert asked == []
+    errors, stds, _ = _drive(False, given=False)
+    np.testing.assert_array_equal(plain, errors)
+    np.testing.assert_array_equal(plain_std, stds)
+    reference = CouplingReference(PARAMS, 1, 2, REAR_CAMERA, FusionNoise())
+    assert reference.follower_share is False and reference.shared(R_C, 1.0, 0.1) is R_C
+    _drive(True, asked)
+    assert len(asked) > 100
