@@ -123,6 +123,20 @@ def combination_grade_feedforward(
     shorter than the combination) it is the load the grade puts on the combination, which the tractor's slope alone
     is not.
 
+    Parameters
+    ----------
+    masses
+        Each unit's mass [kg], the tractor first.
+    gravity_along
+        Gravity's in-plane part along each unit's own heading [m/s²] (negative uphill).
+    articulations
+        Each coupling's articulation angle, front to rear [rad] (one fewer than the units).
+
+    Returns
+    -------
+    float
+        The drive force [N]: positive uphill, a braking force downhill.
+
     Raises
     ------
     ValueError
