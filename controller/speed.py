@@ -3,6 +3,8 @@ negative."""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 
@@ -105,3 +107,49 @@ def grade_feedforward(mass: float, gravity_along: float) -> float:
     ``tractor_gravity()[0]``), so the force is ``−m·g_x``: ``m·g·sin θ`` up a grade θ, a braking force down one.
     """
     return -mass * gravity_along
+
+
+def combination_grade_feedforward(
+    masses: Sequence[float], gravity_along: Sequence[float], articulations: Sequence[float]
+) -> float:
+    """Drive force [N] that holds a combination against gravity where its units stand on different slopes.
+
+    ``F = −Σ_k m_k·g_x,k·cos(Σ_{i<k} Γ_i)``: unit ``k`` (0 the tractor) of mass ``m_k`` [kg] is pulled along its own
+    heading by gravity's in-plane part ``g_x,k`` [m/s²] (in-plane gravity per body, docs/vehicle_dynamics.md §1.3;
+    the simulator's ``unit_gravity(k, ψ_k)[0]``), and a towed unit's pull reaches the tractor through the couplings
+    along the tractor's axis by the cosine of its heading against the tractor's, the sum of the articulation angles
+    ``Γ_i`` [rad] ahead of it (its lateral part is the tyres'). With every unit on one slope and in line it is
+    :func:`grade_feedforward` of the combination's mass; where the units stand on different slopes (undulations
+    shorter than the combination) it is the load the grade puts on the combination, which the tractor's slope alone
+    is not.
+
+    Parameters
+    ----------
+    masses
+        Each unit's mass [kg], the tractor first.
+    gravity_along
+        Gravity's in-plane part along each unit's own heading [m/s²] (negative uphill).
+    articulations
+        Each coupling's articulation angle, front to rear [rad] (one fewer than the units).
+
+    Returns
+    -------
+    float
+        The drive force [N]: positive uphill, a braking force downhill.
+
+    Raises
+    ------
+    ValueError
+        ``gravity_along`` not one value per mass, or ``articulations`` not one fewer.
+    """
+    if len(gravity_along) != len(masses) or len(articulations) != len(masses) - 1:
+        raise ValueError(
+            f"gravity_along ({len(gravity_along)}) must give one value per unit ({len(masses)}) and articulations "
+            f"({len(articulations)}) one per coupling ({len(masses) - 1})"
+        )
+    force = -masses[0] * gravity_along[0]
+    relative = 0.0
+    for mass, along, angle in zip(masses[1:], gravity_along[1:], articulations, strict=True):
+        relative += angle
+        force -= mass * along * math.cos(relative)
+    return force

@@ -165,6 +165,30 @@ def test_a_stalled_run_is_not_judged_on_the_part_it_drove() -> None:
     assert off_highway_terminal_rows(table)[1].startswith("0 of 1 cells")
 
 
+def test_a_stalled_loop_the_verdict_does_not_use_is_named_beside_its_figures() -> None:
+    """A stalled unsteered loop (the LST on the rough wet-clay yard stops on an undulation's climb) leaves the
+    verdict as it is, but its cell names it: its figures cover only the part it drove, NaN when it stalled before its
+    warm-up ended; a cell whose loops all drove their path says ``—``."""
+    stalled = "path_not_driven"
+    table = _fake_rows()
+    table["verdict_flags"] = ""
+    field = table["conditions"] == "field"
+    table.loc[field & (table["feedback"] == "none"), "verdict_flags"] = f"feedback_error;{stalled}"
+    table.loc[field & (table["feedback"] == "none"), "true_offtracking_rms_after_warmup_m"] = math.nan
+    cells = cell_table(table)
+    field_cell, ideal_cell = cells.iloc[0], cells.iloc[1]
+    assert field_cell["paths_not_driven"] == "unsteered" and math.isnan(field_cell["none_true_rms_m"])
+    assert ideal_cell["paths_not_driven"] == "—"
+    assert list(cells["cell_verdict"]) == list(cell_table(_fake_rows())["cell_verdict"])  # not judged
+    table.loc[field & (table["feedback"] == "truth"), "verdict_flags"] = stalled
+    table.loc[field & (table["feedback"] == "zero_slip"), "verdict_flags"] = "offtracking_above_target"
+    cells = cell_table(table)
+    assert cells.iloc[0]["paths_not_driven"] == "truth-fed, unsteered"
+    assert cells.iloc[0]["cell_verdict"] == "n/a: truth-fed did not drive its path"
+    shown, _ = off_highway_terminal_rows(table)
+    assert list(shown["paths_not_driven"]) == ["truth-fed, unsteered", "—"]
+
+
 def _fake_rows() -> pd.DataFrame:
     rows = []
     true = {"viso_ot_fused": (0.08, 0.12), "zero_slip": (0.30, 0.45), "truth": (0.04, 0.09), "none": (0.9, 1.3)}

@@ -186,3 +186,10 @@ class SpeedConfig(Settings):
         "lateral acceleration, acceleration and braking stay within share·μ·g of the least μ on the path; unset: the "
         "profile as given",
     )
+    grade_feedforward: Literal["tractor", "units"] = Field(
+        "tractor",
+        description="the speed controller's grade feed-forward on a terrain: 'tractor' the combination's mass times "
+        "gravity's in-plane part along the tractor; 'units' each unit's mass times gravity along its own heading, "
+        "carried to the tractor's axis through the articulation (the grade's load where the units stand on "
+        "different slopes, e.g. undulations shorter than the combination); ignored on flat ground",
+    )

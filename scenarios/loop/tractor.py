@@ -17,7 +17,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from controller.driver import PathFollowingDriver
-from controller.speed import SpeedController, grade_feedforward, service_brake_limit, traction_limit
+from controller.speed import (
+    SpeedController,
+    combination_grade_feedforward,
+    grade_feedforward,
+    service_brake_limit,
+    traction_limit,
+)
 from vehicle_model.simulator import Simulator, VehicleState
 
 from ..setup.build import ScenarioSetup
@@ -64,6 +70,8 @@ class DriverParticipant:
         self.speed_control = SpeedController(params.tractor.mass + params.trailer.mass)
         # On a terrain the speed controller foresees the grade's load on the whole combination (docs/terrain.md).
         self._grade_mass = sum(unit.mass for unit in params.units) if setup.config.terrain.kind != "flat" else None
+        self._unit_masses = tuple(unit.mass for unit in params.units)
+        self._grade_by_unit = setup.config.speed.grade_feedforward == "units"
         driven = np.flatnonzero(params.axle_table.driven)
         self._driven = driven
         self._driven_load = float(params.axle_table.static_load[driven].sum())
@@ -137,10 +145,24 @@ class DriverParticipant:
         brake = service_brake_limit(mu_brake, self._total_load)  # every axle brakes
         grade = 0.0
         if self._grade_mass is not None:
-            grade = grade_feedforward(self._grade_mass, self.simulator.tractor_gravity()[0])
+            if self._grade_by_unit:
+                grade = self._grade_by_units(state)
+            else:
+                grade = grade_feedforward(self._grade_mass, self.simulator.tractor_gravity()[0])
         drive = self.speed_control(target, state.u, period, limit, grade, brake)
         self.command = TractorCommand(front, drive, target)
         return self.command
+
+    def _grade_by_units(self, state: VehicleState) -> float:
+        """The grade's feed-forward from each unit's own gravity along its heading
+        (:func:`controller.speed.combination_grade_feedforward`)."""
+        articulations = state.articulations
+        heading = state.psi1
+        gravity = [self.simulator.unit_gravity(0, heading)[0]]
+        for k, angle in enumerate(articulations, start=1):
+            heading -= angle
+            gravity.append(self.simulator.unit_gravity(k, heading)[0])
+        return combination_grade_feedforward(self._unit_masses, gravity, articulations)
 
     def record(self) -> Mapping[str, float]:
         """The commands and the driver's progress and error."""

@@ -96,6 +96,14 @@ FEEDBACKS = ("viso_ot_fused", "zero_slip", "truth", "none")
 RENDERED_FEEDBACK = "viso_ot_fused"
 """The feedback whose cases render the stereo camera."""
 
+FEEDBACK_NAMES = {
+    "viso_ot_fused": "fused-fed",
+    "zero_slip": "zero-slip-fed",
+    "truth": "truth-fed",
+    "none": "unsteered",
+}
+"""Each feedback's loop as the tables and verdicts name it."""
+
 CONDITIONS = ("field", "ideal")
 """The camera and signal conditions (module notes)."""
 
@@ -162,6 +170,7 @@ OFF_HIGHWAY_COLUMNS = (
     "fused_within_2sigma",
     "zero_slip_loop_error_rms_m",
     "cell_verdict",
+    "paths_not_driven",
 )
 """The study's terminal columns, one row per cell (:func:`off_highway_terminal_rows`)."""
 
@@ -361,7 +370,9 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
         fused-fed run each estimator's ``{name}_rms_error_m``, ``{name}_max_abs_error_m`` [m] (the fused filter's
         named ``fused``) and its ``fused_within_2sigma`` (share within 2σ); from the zero-slip-fed run its
         estimate's error ``zero_slip_loop_error_rms_m`` and ``zero_slip_loop_error_max_m`` [m]; the fused-fed
-        run's verdict ``run_verdict``; and ``cell_verdict`` (:func:`cell_verdict`). In the table's order of cells.
+        run's verdict ``run_verdict``; ``cell_verdict`` (:func:`cell_verdict`); and ``paths_not_driven``
+        (:func:`paths_not_driven`), the loops whose figures cover only the part of the path they drove. In the
+        table's order of cells.
     """
     rows = []
     labels = [label for label in CELL_LABELS if label in table.columns]
@@ -391,8 +402,29 @@ def cell_table(table: pd.DataFrame) -> pd.DataFrame:
             _flags(by_feedback.get("truth")),
             _flags(fused),
         )
+        row["paths_not_driven"] = paths_not_driven(by_feedback)
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def paths_not_driven(by_feedback: dict[str, pd.Series]) -> str:
+    """The loops of one cell flagged ``path_not_driven`` (stalled or crawled short of the path's end), named as in
+    :data:`FEEDBACK_NAMES` in the order of :data:`FEEDBACKS` and joined by ``, ``; ``—`` when every loop drove it.
+
+    A stalled loop's true off-tracking covers only the part of the path it drove, and is NaN when it stalled before
+    its warm-up ended; this says so beside the figures, whether or not the verdict uses the loop.
+
+    Parameters
+    ----------
+    by_feedback
+        The cell's case rows by feedback (a row's ``verdict_flags``: flag names joined by ``;``).
+    """
+    stalled = [
+        FEEDBACK_NAMES[feedback]
+        for feedback in FEEDBACKS
+        if PATH_NOT_DRIVEN in _flag_names(_flags(by_feedback.get(feedback)))
+    ]
+    return ", ".join(stalled) if stalled else "—"
 
 
 def off_highway_terminal_rows(table: pd.DataFrame) -> tuple[pd.DataFrame, str]:

@@ -18,13 +18,13 @@ import numpy as np
 import pandas as pd
 
 from ..loop.ends import RunStatus
-from .off_highway import CELL_LABELS, RENDERED_FEEDBACK, cell_table, off_highway_terminal_rows
+from .off_highway import CELL_LABELS, FEEDBACK_NAMES, RENDERED_FEEDBACK, cell_table, off_highway_terminal_rows
 from .seeds import seeds_text
 
 POOLED_LABELS = tuple(label for label in CELL_LABELS if label != "seed")
 """The labels of a pooled cell: a cell's labels without its seed."""
 
-VERDICT_CASES = ((RENDERED_FEEDBACK, "fused-fed"), ("truth", "truth-fed"))
+VERDICT_CASES = tuple((feedback, FEEDBACK_NAMES[feedback]) for feedback in (RENDERED_FEEDBACK, "truth"))
 """The feedbacks whose cases the verdict needs, and their names in the pooled verdict."""
 
 SEED_COLUMNS = (

@@ -133,6 +133,7 @@ HEADERS = {
     "fused_max_abs_error_m": "fused err max [m]",
     "zero_slip_loop_error_rms_m": "zero-slip-fed run's zero-slip err RMS all ticks [m]",
     "cell_verdict": "cell verdict",
+    "paths_not_driven": "path not driven (stalled loops)",
     "amplitude_m": "amplitude [m]",
     "wavelength_m": "wavelength [m]",
     "potholes_per_100m": "potholes per 100 m",
