@@ -1,5 +1,6 @@
-"""The speed controller's grade feed-forward from each unit's own slope (``speed.grade_feedforward: units``,
-:func:`controller.speed.combination_grade_feedforward`).
+"""The speed controller's grade feed-forward from each unit's own slope (``speed.grade_feedforward: units``, the
+default; :func:`controller.speed.combination_grade_feedforward`), against the tractor's slope for the whole mass
+(``tractor``).
 
 * With every unit on one slope and in line it is the default feed-forward (the combination's mass times gravity along
   the tractor) to 1e-12; a trailer climbing behind a level tractor adds its own ``m·g·sinθ`` through the
@@ -56,7 +57,7 @@ def _yard(seed: int, feedforward: str | None = None) -> dict:
 
 def test_on_the_rough_yard_the_units_feedforward_is_the_models_gravity_load_and_the_tractors_is_not() -> None:
     config = load_scenario("gravel-yard", _yard(1))
-    assert config.speed.grade_feedforward == "tractor"  # the default
+    assert config.speed.grade_feedforward == "units"  # the default
     setup = build_scenario(config)
     sim = Simulator(setup.params, setup.surface, model=setup.model)
     start = setup.initial_state

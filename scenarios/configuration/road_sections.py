@@ -187,7 +187,7 @@ class SpeedConfig(Settings):
         "profile as given",
     )
     grade_feedforward: Literal["tractor", "units"] = Field(
-        "tractor",
+        "units",
         description="the speed controller's grade feed-forward on a terrain: 'tractor' the combination's mass times "
         "gravity's in-plane part along the tractor; 'units' each unit's mass times gravity along its own heading, "
         "carried to the tractor's axis through the articulation (the grade's load where the units stand on "
