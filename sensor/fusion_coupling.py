@@ -95,7 +95,7 @@ acts on every frame, unlike (C3)'s threshold, and in proportion to the frame's o
 follower's off-tracking variance.
 
 The follower's scrub in the share its own filter gives it: with ``follower_share``
-(``fusion.side_rig.coupling_follower_share``; off by default) each frame's lateral variance takes the follower's
+(``fusion.side_rig.coupling_follower_share``; on by default) each frame's lateral variance takes the follower's
 off-tracking variance ``σ_f²`` times its scrub demand ``D``, (C4) of :mod:`sensor.fusion_coupling_share` (the
 reasoning there).
 

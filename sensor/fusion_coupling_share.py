@@ -11,8 +11,8 @@ what the filter keeps. The rest of the follower's camera error reaches the lead'
 long as the scrub does (docs/field_bias.md §7.37), while (C2) takes each frame's error as white. What the follower
 knows of that error is its own off-tracking variance ``σ_f²`` (its fused filter's std squared): its position across
 its path is known no better, whatever its camera's per-frame covariance says. With ``follower_share``
-(``fusion.side_rig.coupling_follower_share``; off by default) the reference's lateral variance takes ``σ_f²`` in the
-same share ``D`` the follower's filter gives the scrub::
+(``fusion.side_rig.coupling_follower_share``; on by default, ``false`` turns it off) the reference's lateral
+variance takes ``σ_f²`` in the same share ``D`` the follower's filter gives the scrub::
 
     R_c ← R_c + D·σ_f²·e_y·e_yᵀ                                                                            (C4)
 

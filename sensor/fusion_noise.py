@@ -135,7 +135,8 @@ class SideRigFusion(Settings):
     coupling_follower_share
         (C4) of :mod:`sensor.fusion_coupling_share`: the following unit's measurement's lateral variance widened by
         the follower's own off-tracking variance in the share ``D`` (its scrub demand) its filter gives its tyres
-        (``None``: off). The reference's, like ``coupling_covariance_scale``.
+        (``None``: on, the default; ``False``: off, the reference of (C2) alone). The reference's, like
+        ``coupling_covariance_scale``.
     """
 
     vo_axial_flow: float | None = Field(None, ge=0.0, le=1.0, description="[1/m] start std of s_f; 1 /m: 1 m per m²")
@@ -189,8 +190,8 @@ class SideRigFusion(Settings):
     @property
     def reference_follower_share(self) -> bool:
         """Whether the coupling reference takes the follower's variance in its scrub's share, (C4):
-        :attr:`coupling_follower_share`, off when unset."""
-        return bool(self.coupling_follower_share)
+        :attr:`coupling_follower_share`, on unless set ``False``."""
+        return self.coupling_follower_share is not False
 
     def given(self) -> dict[str, object]:
         """The settings it gives the filter (those not ``None``, less the reference's own)."""

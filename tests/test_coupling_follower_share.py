@@ -1,8 +1,8 @@
 """(C4) of sensor/fusion_coupling_share.py: the following unit's measurement's lateral variance widened by the
 follower's own off-tracking variance in the share ``D`` of its scrub (``fusion.side_rig.coupling_follower_share``).
 
-The function on hand-made covariances; the default (unset) loop's reference bit for bit as without the setting, the
-follower's filter not even asked; and the lead's filter on a straight where the follower's camera is off across its
+The function on hand-made covariances; the setting on by default and, set ``false``, the loop's reference bit for bit
+as without it, the follower's filter not even asked; and the lead's filter on a straight where the follower's camera is off across its
 motion while its axles are at their lock (``D`` = 1): with the setting the lead's off-tracking stays with its own
 (exact) camera and its std covers its error; without it the lead takes the follower's error.
 """
@@ -63,18 +63,19 @@ def test_the_function_widens_the_lateral_variance_by_the_share_of_the_followers(
             follower_shared(R_C, demand, std)
 
 
-def test_the_setting_is_the_references_off_by_default_and_reaches_the_loop() -> None:
-    """Unset by default (off); set, it is not among the filter's settings; the loop's reference takes it; a bad value
-    is refused naming the field."""
+def test_the_setting_is_the_references_on_by_default_and_reaches_the_loop() -> None:
+    """Unset by default, which is on; ``false`` turns it off; it is not among the filter's settings; the loop's
+    reference takes it; a bad value is refused naming the field."""
     assert FusionConfig().side_rig.coupling_follower_share is None
-    assert not FusionConfig().side_rig.reference_follower_share
-    assert FusionConfig(side_rig={"coupling_follower_share": True}).side_rig.reference_follower_share
+    assert FusionConfig().side_rig.reference_follower_share
+    assert not FusionConfig(side_rig={"coupling_follower_share": False}).side_rig.reference_follower_share
     side = SIDE.replace(coupling_follower_share=True)
     assert "coupling_follower_share" not in side.given()
     cameras = {"viso_ot3": SimpleNamespace(camera_in_trailer=REAR_CAMERA, released=[])}
     noise = FusionNoise(side_rig=side).for_camera((0.0, 1.0))
     assert following_camera(PARAMS, 1, cameras, noise, "planar").reference.follower_share
-    assert not following_camera(PARAMS, 1, cameras, FusionNoise(), "planar").reference.follower_share
+    off = FusionNoise(side_rig=SIDE.replace(coupling_follower_share=False)).for_camera((0.0, 1.0))
+    assert not following_camera(PARAMS, 1, cameras, off, "planar").reference.follower_share
     with pytest.raises(ValidationError, match="coupling_follower_share"):
         SideRigFusion(coupling_follower_share="sometimes")
 
@@ -95,7 +96,7 @@ def _drive(share: bool, asked: list[int] | None = None, given: bool = True) -> t
     own camera exact), the follower's camera off by :data:`REAR_ERROR` across its motion in every frame of
     :data:`LOCK`; the lead's fused error and std at every tick with an estimate, and the ticks' times [s]. ``asked``
     collects the ticks the follower's demand was asked on; ``given`` False: the following camera built without it."""
-    noise = FusionNoise(side_rig=SIDE.replace(coupling_follower_share=share or None))
+    noise = FusionNoise(side_rig=SIDE.replace(coupling_follower_share=share))
     fused = FusedVisoOt(PARAMS, SIDE_RIG.camera_in_trailer("left", PARAMS), noise)
     follower = SimpleNamespace(released=[], camera_in_trailer=REAR_CAMERA)
     reference = CouplingReference(PARAMS, 1, 2, REAR_CAMERA, fused.noise, follower_share=share)
@@ -154,8 +155,8 @@ def test_a_reference_wrong_while_the_follower_is_at_lock_is_not_taken_for_the_le
     assert np.mean(np.abs(plain[late]) <= 2.0 * plain_std[late]) < 0.6
 
 
-def test_off_by_default_the_loops_reference_is_unchanged_to_the_bit() -> None:
-    """Without the setting the follower's filter is not asked for its demand (no (C3) either) and the lead's filter
+def test_turned_off_the_loops_reference_is_unchanged_to_the_bit() -> None:
+    """With the setting off the follower's filter is not asked for its demand (no (C3) either) and the lead's filter
     runs as with a following camera that has no way to ask it, to the bit; with it the follower is asked."""
     asked: list[int] = []
     plain, plain_std, _ = _drive(False, asked)

@@ -15,6 +15,7 @@ import math
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from scenarios.config import FusionConfig
 from scenarios.loop.following_camera import filter_yaw_bias, following_camera
@@ -34,9 +35,12 @@ def _pose(t: float) -> ChainPose:
     return ChainPose(3.0 * t + 0.4 * math.sin(t), 0.5 * t * t, 0.3 * t + 0.2 * math.sin(1.3 * t), angles)
 
 
-def _reference(missing: int | None, offset: float = OFFSET, fusion: FusionConfig | None = None):
+def _reference(
+    missing: int | None, offset: float = OFFSET, fusion: FusionConfig | None = None, scrub: tuple[float, float] = ()
+):
     """The lead's reference over 12 frames with a signals' row between each two (the follower's frame ``missing``
-    not recorded, its frames ``offset`` after the lead's), the lead's rows and the B-double."""
+    not recorded, its frames ``offset`` after the lead's), the lead's rows and the B-double. ``scrub``: the follower's
+    filter's scrub demand and off-tracking std at every frame (its ``β̂_ψ`` 0); empty: no follower filter."""
     params = VEHICLE_PRESETS["au-b-double"]()
     rear = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
     camera = rear.camera_in_trailer("left", params)
@@ -45,15 +49,19 @@ def _reference(missing: int | None, offset: float = OFFSET, fusion: FusionConfig
     slots = np.where(np.isin(times, frames), np.searchsorted(frames, times), -1)
     follower = SimpleNamespace(rig=SimpleNamespace(unit=2, params=params), camera_in_trailer=camera, signals=None)
     trace = FollowerTrace(follower)
+    fused = None
+    if scrub:
+        state, covariance = np.zeros(BPSI + 1), np.eye(BPSI + 1) * 1e-12
+        fused = SimpleNamespace(state=state, covariance=covariance, frame_scrub_demand=scrub[0], std=scrub[1])
     last = None
     for k, t in enumerate(frames):
         world = rear.camera_in_world(params, _pose(t), "left")
         if last is not None and k != missing:
             motion = np.linalg.inv(last) @ world
             frame = SimpleNamespace(valid=True, vo=SimpleNamespace(camera_motion=motion, covariance=None))
-            trace.add(T0 + t + offset, frame, None)
+            trace.add(T0 + t + offset, frame, fused)
         elif k == 0:
-            trace.add(T0 + t + offset, SimpleNamespace(valid=False, vo=None), None)
+            trace.add(T0 + t + offset, SimpleNamespace(valid=False, vo=None), fused)
         if k != missing:
             last = world
     angles = np.array([_pose(t).angles for t in times])
@@ -103,6 +111,31 @@ def test_the_recorded_reference_takes_the_side_rigs_covariance_scale() -> None:
     for row in rows:
         np.testing.assert_array_equal(wide[row].increment, found[row].increment)
         np.testing.assert_allclose(wide[row].covariance, 4.0 * found[row].covariance, rtol=1e-12, atol=0.0)
+
+
+def test_the_recorded_reference_takes_the_followers_scrub_share_as_a_run_does() -> None:
+    """(C4), on by default: each offline measurement's lateral variance is the one with the setting off plus the
+    recorded follower's ``D·σ_f²`` (1e-12 relative), every other entry and the increment unchanged; at ``D`` = 0 the
+    two are equal to the bit."""
+    demand, std = 0.6, 0.07
+    on, times, slots, _ = _reference(missing=None, scrub=(demand, std))
+    off_fusion = FusionConfig(side_rig={"coupling_follower_share": False})
+    off, *_ = _reference(missing=None, fusion=off_fusion, scrub=(demand, std))
+    rolling, *_ = _reference(missing=None, scrub=(0.0, std))
+    rolling_off, *_ = _reference(missing=None, fusion=off_fusion, scrub=(0.0, std))
+    assert on is not None and off is not None and rolling is not None and rolling_off is not None
+    found_on, found_off = _measurements(on, times, slots), _measurements(off, times, slots)
+    found_rolling, found_rolling_off = _measurements(rolling, times, slots), _measurements(rolling_off, times, slots)
+    rows = [row for row, m in found_off.items() if m is not None]
+    assert len(rows) == 11
+    for row in rows:
+        widened, plain = found_on[row].covariance, found_off[row].covariance
+        np.testing.assert_array_equal(found_on[row].increment, found_off[row].increment)
+        assert widened[1, 1] == pytest.approx(plain[1, 1] + demand * std**2, rel=1e-12)
+        mask = np.ones(widened.shape, dtype=bool)
+        mask[1, 1] = False
+        np.testing.assert_array_equal(widened[mask], plain[mask])
+        np.testing.assert_array_equal(found_rolling[row].covariance, found_rolling_off[row].covariance)
 
 
 def test_a_missing_following_frame_gives_no_measurement_at_the_leads_anchor() -> None:

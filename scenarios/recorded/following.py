@@ -9,7 +9,8 @@ covariance when accepted, and its fused filter's ``β̂_ψ`` and variance once t
 A unit ahead of it then gets :class:`RecordedFollowingCamera`: each following frame is released on the lead's frame
 row of the same instant (within :data:`SYNC_FRACTION` of the lead's median frame interval) and goes through the
 loop's :class:`~scenarios.loop.following_camera.FollowingCamera` — the same transport (C1)–(C2), the same (C0) with
-the follower's ``β̂_ψ`` at that row, the same rule that a following frame whose interval does not start at the lead
+the follower's ``β̂_ψ`` at that row, the same (C3) and (C4) with its scrub demand and off-tracking std at that row,
+the same rule that a following frame whose interval does not start at the lead
 filter's anchor (a follower frame missing or refused, a lead frame missing) gives no measurement.
 
 The articulations ``Γ_1 … Γ_m`` down to the follower's front coupling at each lead row are the lead's signals'
@@ -26,7 +27,7 @@ import numpy as np
 
 from sensor.fusion_coupling import CouplingMeasurement, CouplingReference, looks_along
 
-from ..loop.following_camera import FollowingCamera, filter_yaw_bias, reference_counts
+from ..loop.following_camera import FollowingCamera, filter_scrub, filter_yaw_bias, reference_counts
 from .inputs import EstimateInputs
 from .unit_fusion import chain_signal_keys
 
@@ -67,12 +68,16 @@ class FollowerFrame:
     yaw_bias : (float, float, float) or None
         The follower's fused filter's ``β̂_ψ`` [rad/m], variance and last frame's scrub demand after the frame's row
         (``None``: no filter).
+    scrub : (float, float)
+        The follower's fused filter's last frame's scrub demand and its off-tracking std [m] after the frame's row,
+        as (C3) and (C4) take them (NaN, NaN: no filter).
     """
 
     time: float
     valid: bool
     vo: FollowerMotion | None
     yaw_bias: tuple[float, ...] | None
+    scrub: tuple[float, float] = (float("nan"), float("nan"))
 
 
 @dataclass
@@ -94,7 +99,9 @@ class FollowerTrace:
         """Keep a processed frame (:class:`sensor.frame_odometry.CameraFrame`) at ``time`` on the shared clock and
         the unit's fused filter (:class:`sensor.fusion.FusedVisoOt`, ``None``: none) after its row."""
         motion = FollowerMotion(np.array(frame.vo.camera_motion), frame.vo.covariance) if frame.valid else None
-        self.frames.append(FollowerFrame(float(time), bool(frame.valid), motion, filter_yaw_bias(fused)))
+        self.frames.append(
+            FollowerFrame(float(time), bool(frame.valid), motion, filter_yaw_bias(fused), filter_scrub(fused))
+        )
 
 
 @dataclass(frozen=True)
@@ -133,13 +140,15 @@ class RecordedFollowingCamera:
         self._frames = frames
         self._articulations = articulations
         self._bias: tuple[float, ...] | None = None
-        self.following = FollowingCamera(reference, self, lambda: self._bias)
+        self._scrub: tuple[float, float] = (float("nan"), float("nan"))
+        self.following = FollowingCamera(reference, self, lambda: self._bias, lambda: self._scrub)
 
     def observe(self, row: int) -> None:
         """Keep the row's articulations; turn the following frame released on it, if any, into a measurement."""
         frame = self._frames.get(row)
         self.released = [] if frame is None else [_Shot(row, frame)]
         self._bias = None if frame is None else frame.yaw_bias
+        self._scrub = (float("nan"), float("nan")) if frame is None else frame.scrub
         gammas = self._articulations[row]
         self.following.observe(row, {"articulation": gammas[:1], "rear_articulation": gammas[1:]})
 
@@ -216,6 +225,8 @@ def following_reference(
         follower.inputs.camera_in_trailer,
         noise,
         covariance_scale=noise.side_rig.reference_covariance_scale,
+        follower_limit=noise.side_rig.coupling_follower_limit,
         scrub_scale=noise.side_rig.reference_scrub_scale,
+        follower_share=noise.side_rig.reference_follower_share,
     )
     return RecordedFollowingCamera(reference, released, articulations)
