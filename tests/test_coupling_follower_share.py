@@ -2,9 +2,9 @@
 follower's own off-tracking variance in the share ``D`` of its scrub (``fusion.side_rig.coupling_follower_share``).
 
 The function on hand-made covariances; the setting on by default and, set ``false``, the loop's reference bit for bit
-as without it, the follower's filter not even asked; and the lead's filter on a straight where the follower's camera is off across its
-motion while its axles are at their lock (``D`` = 1): with the setting the lead's off-tracking stays with its own
-(exact) camera and its std covers its error; without it the lead takes the follower's error.
+as without it, the follower's filter not even asked; and the lead's filter on a straight where the follower's camera
+is off across its motion while its axles are at their lock (``D`` = 1): with the setting the lead's off-tracking
+stays with its own (exact) camera and its std covers its error; without it the lead takes the follower's error.
 """
 
 from __future__ import annotations
