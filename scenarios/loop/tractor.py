@@ -69,8 +69,8 @@ class DriverParticipant:
         self._sign = setup.direction_sign
         self.speed_control = SpeedController(params.tractor.mass + params.trailer.mass)
         # On a terrain the speed controller foresees the grade's load on the whole combination (docs/terrain.md).
-        self._grade_mass = sum(unit.mass for unit in params.units) if setup.config.terrain.kind != "flat" else None
         self._unit_masses = tuple(unit.mass for unit in params.units)
+        self._grade_mass = sum(self._unit_masses) if setup.config.terrain.kind != "flat" else None
         self._grade_by_unit = setup.config.speed.grade_feedforward == "units"
         driven = np.flatnonzero(params.axle_table.driven)
         self._driven = driven

@@ -32,6 +32,7 @@ from .inputs import EstimateInputs
 from .unit_fusion import chain_signal_keys
 
 __all__ = [
+    "NO_SCRUB",
     "SYNC_FRACTION",
     "FollowerFrame",
     "FollowerTrace",
@@ -39,6 +40,10 @@ __all__ = [
     "coupling_summary",
     "following_reference",
 ]
+
+NO_SCRUB = (float("nan"), float("nan"))
+"""A following frame's scrub demand and off-tracking std where its unit has no fused filter (as
+:func:`~scenarios.loop.following_camera.filter_scrub` gives them)."""
 
 SYNC_FRACTION = 0.1
 """A following frame is the lead's frame of the same instant when their times on the shared clock differ by at most
@@ -77,7 +82,7 @@ class FollowerFrame:
     valid: bool
     vo: FollowerMotion | None
     yaw_bias: tuple[float, ...] | None
-    scrub: tuple[float, float] = (float("nan"), float("nan"))
+    scrub: tuple[float, float] = NO_SCRUB
 
 
 @dataclass
@@ -140,7 +145,7 @@ class RecordedFollowingCamera:
         self._frames = frames
         self._articulations = articulations
         self._bias: tuple[float, ...] | None = None
-        self._scrub: tuple[float, float] = (float("nan"), float("nan"))
+        self._scrub: tuple[float, float] = NO_SCRUB
         self.following = FollowingCamera(reference, self, lambda: self._bias, lambda: self._scrub)
 
     def observe(self, row: int) -> None:
@@ -148,7 +153,7 @@ class RecordedFollowingCamera:
         frame = self._frames.get(row)
         self.released = [] if frame is None else [_Shot(row, frame)]
         self._bias = None if frame is None else frame.yaw_bias
-        self._scrub = (float("nan"), float("nan")) if frame is None else frame.scrub
+        self._scrub = NO_SCRUB if frame is None else frame.scrub
         gammas = self._articulations[row]
         self.following.observe(row, {"articulation": gammas[:1], "rear_articulation": gammas[1:]})
 
