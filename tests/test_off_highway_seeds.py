@@ -287,3 +287,25 @@ def test_run_study_takes_the_seeds_as_integers_and_runs_only_new_seeds_again(tmp
     table = run_study("off-highway", tmp_path, seeds="2,7,9")  # the same directory, one seed more
     assert len(table) == 24 and len(ran) == 8 and all("_seed-9_" in name for name in ran)
     assert seed_table(table)["seeds"].tolist() == ["2,7,9", "2,7,9"]
+
+
+def test_a_case_that_failed_is_said_failed_in_the_pooled_table_the_command_writes(tmp_path: Path, monkeypatch) -> None:
+    def failing(spec, out_dir: Path) -> dict:
+        labels = dict(spec.labels)
+        if labels["feedback"] == "viso_ot_fused" and labels["conditions"] == "field" and labels["seed"] == 1:
+            raise RuntimeError("the renderer stopped")  # the case runs and fails: its row is recorded as failed
+        return made_up_case(spec, out_dir)
+
+    monkeypatch.setitem(STUDIES, "off-highway", dataclasses.replace(STUDIES["off-highway"], run_case=failing))
+    out = tmp_path / "oh"
+    table = run_study("off-highway", out, seeds=(0, 1))
+    assert (table["status"] == "failed").sum() == 1
+    pooled = pd.read_csv(out / "seeds.csv")
+    # failed, not "no fused-fed case" (never run): the pooled table reads every case, the figures the others
+    assert list(pooled["pooled_verdict"]) == [
+        "held in 1 of 2 seeds (seed 1 missing: fused-fed case failed)",
+        "held in 2 of 2 seeds",
+    ]
+    assert "fused-fed case failed" in (out / "table.md").read_text()
+    cells = pd.read_csv(out / "cells.csv")
+    assert len(cells) == 4  # the failed case is in no cell row

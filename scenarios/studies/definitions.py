@@ -201,7 +201,8 @@ def run_study(
     -------
     pandas.DataFrame
         One row per case in the study's order; a failed case has ``status`` ``failed`` and its ``error``.
-        The figures are drawn from the cases that did not fail.
+        The figures are drawn from the cases that did not fail (a study that counts failed cases in its own tables
+        is given them too, :attr:`~scenarios.studies.registry.Study.figures_take_failed`).
 
     Raises
     ------
@@ -230,5 +231,5 @@ def run_study(
     table = result.table
     ok = table[table["status"] != RunStatus.FAILED] if "status" in table.columns else table
     if not ok.empty:
-        study.figures(ok.reset_index(drop=True), out_dir)
+        study.figures((table if study.figures_take_failed else ok).reset_index(drop=True), out_dir)
     return table

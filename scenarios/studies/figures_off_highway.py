@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..loop.ends import RunStatus
 from ..registry import source_colour
 from ..run.files import write_atomic
 from .field_loop import TARGET_MAX_M, TARGET_RMS_M
@@ -151,11 +152,15 @@ def off_highway_figures(table: pd.DataFrame, out_dir: Path) -> None:
     Parameters
     ----------
     table
-        The study's case rows (:func:`~.off_highway.run_off_highway_case`), failed ones left out.
+        The study's case rows (:func:`~.off_highway.run_off_highway_case`), failed ones included: the figures,
+        ``cells.csv`` and the cases of ``table.md`` leave them out, the pooled table says which seed's case failed.
     out_dir
         The study directory.
     """
     out_dir = Path(out_dir)
+    every = table
+    if "status" in table.columns:
+        table = table[table["status"] != RunStatus.FAILED].reset_index(drop=True)
     cells = cell_table(table)
     if cells.empty:
         return
@@ -165,8 +170,8 @@ def off_highway_figures(table: pd.DataFrame, out_dir: Path) -> None:
     write_atomic(out_dir / "cells.csv", cells.to_csv(index=False))
     full = table.to_markdown(index=False, floatfmt=".3f")
     pooled = ""
-    if len(seeds_in(table)) > 1:
-        over_seeds = seed_table(table)
+    if len(seeds_in(every)) > 1:
+        over_seeds = seed_table(every)
         pooled = seeds_markdown(over_seeds) + "\n"
         write_atomic(out_dir / SEEDS_FILES[0], pooled)
         write_atomic(out_dir / SEEDS_FILES[1], over_seeds.to_csv(index=False))

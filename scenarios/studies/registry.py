@@ -50,7 +50,8 @@ class Study:
         ``cases(full)`` (or ``cases(full, vehicle)`` when :attr:`takes_vehicle`; ``camera=`` and ``seeds=`` when
         :attr:`takes_camera` / :attr:`takes_seeds`): the case specs, the default subset unless ``full``.
     figures : callable
-        ``figures(table, out_dir)``: draws the study's figures from the rows of the cases that did not fail.
+        ``figures(table, out_dir)``: draws the study's figures from the rows of the cases that did not fail (every
+        row, failed ones included, when :attr:`figures_take_failed`).
     run_case : callable
         ``run_case(spec, out_dir) -> row``, a module-level function (it is pickled for the workers); default
         :func:`scenarios.studies.cases.run_case`, a study's own adds its columns.
@@ -70,6 +71,10 @@ class Study:
     takes_seeds : bool
         The study runs its cells at the seeds given (``cases(full, seeds=…)``, ``--seeds``,
         :func:`~scenarios.studies.seeds.parse_seeds`), each seed a cell of its own; without them, at its own seed.
+    figures_take_failed : bool
+        :attr:`figures` is given every case's row, failed ones included, and leaves them out of what it draws
+        itself: a table it writes counts a failed case as failed (the off-highway study's cells pooled over
+        seeds), not as one that never ran.
     """
 
     name: str
@@ -82,6 +87,7 @@ class Study:
     terminal_rows: Callable[[pd.DataFrame], tuple[pd.DataFrame, str]] | None = None
     takes_camera: bool = False
     takes_seeds: bool = False
+    figures_take_failed: bool = False
 
     def case_specs(
         self,
@@ -207,6 +213,7 @@ STUDIES: dict[str, Study] = _studies(
         terminal_rows=terminal_rows_over_seeds,
         takes_vehicle=True,
         takes_seeds=True,
+        figures_take_failed=True,
     ),
     Study(
         "off-highway-roughness",
