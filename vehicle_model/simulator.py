@@ -16,7 +16,8 @@ from .layout import BODY_STATES, Layout
 from .parameters import VehicleParams
 from .period import BAD_INPUT, DIVERGED, OK, context_views, load_period, new_context
 from .surface import Surface, UniformFriction
-from .terrain_pose import half_track
+from .terrain import TerrainSlope
+from .terrain_pose import body_slope_vectors, half_track
 
 STATE_LIMITS: dict[str, float] = {"u": 60.0, "v1": 30.0, "r1": 6.0, "r2": 6.0, "gamma": 3.5}
 """Magnitudes beyond which a state is taken as diverged (the model is meaningless there)."""
@@ -277,8 +278,12 @@ class Simulator:
         self.time = 0.0
         self._surface_filled = False  # uniform surfaces are looked up once
         self._surface_uniform = self.surface.is_uniform
-        # A slope field asked per axle (a terrain's): each body takes its axles' vectors weighted by static load.
-        self._axle_weights = axle_weights(params) if getattr(self.surface.slope, "per_axle", False) else None
+        # A terrain's slope field (TerrainSlope) names how each body's slope is taken: from the contact plane of its
+        # supports, or from its axles' vectors weighted by static load.
+        field_ = self.surface.slope
+        body = field_.body if isinstance(field_, TerrainSlope) else None
+        self._plane_terrain = field_.terrain if isinstance(field_, TerrainSlope) and body == "contact_plane" else None
+        self._axle_weights = axle_weights(params) if body == "axles" else None
         if self._axle_weights is not None:  # each axle's slope from its two wheels (TerrainSlope.under_axles)
             units = [params.tractor, *params.trailers]
             self._axle_unit = np.repeat(np.arange(len(units)), [len(u.axles) for u in units])
@@ -356,13 +361,17 @@ class Simulator:
     def surface_inputs(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """μ per axle and the slope vector per body at state vector ``x``.
 
-        The slope is the field's at each body's centre of gravity or, for a field with ``per_axle`` set (a terrain's,
-        :class:`vehicle_model.terrain.TerrainSlope`), the mean of the field under the body's axles weighted by their
-        static loads (:func:`axle_weights`).
+        The slope is the field's at each body's centre of gravity or, for a terrain's field
+        (:class:`vehicle_model.terrain.TerrainSlope`), as its ``body`` says: the horizontal part of the unit normal of
+        the body's contact plane (:func:`vehicle_model.terrain_pose.body_slope_vectors`), or the mean of the field
+        under the body's axles weighted by their static loads (:func:`axle_weights`).
         """
         units = self._ground_points(x)
         axles = np.concatenate([p[:-1] for p in units])
         mu = self.surface.friction(axles)
+        if self._plane_terrain is not None:
+            pose = ChainPose(x[0], x[1], x[2], (x[6], *x[self.layout.trailing_slice][0::2]))
+            return mu, body_slope_vectors(self.params, pose, self._plane_terrain).ravel()
         if self._axle_weights is not None:
             angles = [x[6], *x[self.layout.trailing_slice][0::2]]
             headings = np.array([x[2], *(h for _, h in trailer_frames(self.params, x[0], x[1], x[2], angles))])

@@ -69,16 +69,26 @@ def along_slope_factor(terrain: Terrain, points: np.ndarray, heading: np.ndarray
     return np.sqrt(1.0 + rise * rise)
 
 
+BODY_SLOPES = ("contact_plane", "axles")
+"""How the simulator takes each body's slope vector on a terrain (:class:`TerrainSlope`)."""
+
+
 @dataclass(frozen=True)
 class TerrainSlope:
     """The slope field of a terrain (:class:`vehicle_model.surface.SlopeField`): ``slope_vectors(∇z)`` at points.
 
-    ``per_axle`` tells the simulator to look the slope up under every axle and give each body the load-weighted
-    mean of its axles' vectors (docs/terrain.md), instead of the slope under its centre of gravity.
+    ``body`` tells the simulator how each body's slope vector is taken (docs/terrain.md): ``"contact_plane"`` the
+    horizontal part of the upward unit normal of the plane through the body's supports, the plane its attitude is
+    taken from (:func:`vehicle_model.terrain_pose.body_slope_vectors`); ``"axles"`` the mean of the slopes under its
+    axles (:meth:`under_axles`) weighted by their static loads.
     """
 
     terrain: Terrain
-    per_axle: bool = True
+    body: str = "contact_plane"
+
+    def __post_init__(self) -> None:
+        if self.body not in BODY_SLOPES:
+            raise ValueError(f"body = {self.body!r} must be one of {', '.join(BODY_SLOPES)}")
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         return slope_vectors(self.terrain.gradient(np.asarray(points, dtype=float)))
