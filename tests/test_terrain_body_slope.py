@@ -1,0 +1,186 @@
+"""Each body's slope in the vehicle model from the contact plane of its supports (``terrain.body_slope:
+contact_plane``, the default on terrain; :func:`vehicle_model.terrain_pose.body_slope_vectors`): the plane's slope
+on a plane, the chord between a unit's supports on an undulation shorter than the combination (a semi-trailer's
+kingpin riding on the tractor, a converter dolly on its own axles), the same plane the camera's attitude is taken
+from, and ``axles`` the per-axle form it replaces."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from analytic_terrains import TiltedPlane
+
+from scenarios.config import ConfigError, load_scenario
+from scenarios.setup.build import build_scenario
+from vehicle_model.dynamics import in_plane_gravity
+from vehicle_model.geometry import ChainPose, tractor_points, unit_frame
+from vehicle_model.presets import reference_laden, vehicle_preset
+from vehicle_model.simulator import Simulator, axle_weights
+from vehicle_model.surface import Surface
+from vehicle_model.terrain import PlaneTerrain, TerrainSlope, slope_vectors
+from vehicle_model.terrain_pose import body_slope_vectors, half_track, unit_attitudes
+
+
+class Undulation:
+    """``z = A·sin(2π s/λ)`` with ``s = p·t`` the distance along the azimuth ``heading``; level across it."""
+
+    def __init__(self, amplitude: float, wavelength: float, heading: float) -> None:
+        self.a, self.k = amplitude, 2.0 * math.pi / wavelength
+        self.t = np.array([math.cos(heading), math.sin(heading)])
+
+    def along(self, points) -> np.ndarray:
+        return np.asarray(points, dtype=float) @ self.t
+
+    def profile(self, s):
+        return self.a * np.sin(self.k * np.asarray(s, dtype=float))
+
+    def height(self, points):
+        return self.profile(self.along(points))
+
+    def gradient(self, points):
+        rate = self.a * self.k * np.cos(self.k * self.along(points))
+        return rate[:, None] * self.t
+
+
+def _sim(params, terrain, body: str, pose: ChainPose) -> Simulator:
+    sim = Simulator(params, Surface(slope=TerrainSlope(terrain, body)))
+    x = sim.state_vector
+    x[0], x[1], x[2], x[6] = pose.x, pose.y, pose.psi1, pose.angles[0]
+    x[sim.layout.trailing_slice][0::2] = pose.angles[1:]  # a view of the state vector
+    sim.reset(sim.state.__class__.from_vector(x, 0.0, len(sim.layout.axles)))
+    return sim
+
+
+def _model_slopes(sim: Simulator) -> np.ndarray:
+    return sim.surface_inputs(sim.state_vector)[1].reshape(-1, 2)
+
+
+@pytest.mark.parametrize("vehicle", ["reference", "au-a-double"])
+@pytest.mark.parametrize("grade, crossfall", [(10.0, 0.0), (8.0, 5.0), (-6.0, -4.0)])
+def test_on_a_plane_every_body_has_the_planes_slope_to_1e_12(vehicle, grade, crossfall):
+    """A constant grade and planes tilted in both axes, articulated poses: every body's slope vector is
+    ``−∇z / sqrt(1 + |∇z|²)`` (1e-12), in :func:`body_slope_vectors` and in the simulator's inputs."""
+    params = reference_laden() if vehicle == "reference" else vehicle_preset(vehicle)
+    plane = PlaneTerrain(grade, crossfall, heading=0.4)
+    expected = slope_vectors(plane.gradient(np.zeros((1, 2))))[0]
+    angles = (0.3, -0.2, 0.25)[: params.n_units - 1]
+    for pose in (ChainPose(12.0, -3.0, 0.4, angles), ChainPose(-5.0, 8.0, -2.2, tuple(-a for a in angles))):
+        slopes = body_slope_vectors(params, pose, plane)
+        assert slopes.shape == (params.n_units, 2)
+        np.testing.assert_allclose(slopes, np.tile(expected, (params.n_units, 1)), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(_model_slopes(_sim(params, plane, "contact_plane", pose)), slopes, rtol=0, atol=0)
+
+
+def _supports_along(params, pose: ChainPose, terrain: Undulation) -> list[tuple[float, float, float]]:
+    """Each unit's front and rear support's distance along the undulation and the front's height, on a straight
+    combination along it, from the supports the camera's pose names (vehicle_model/terrain_pose.py): the tractor's
+    steer axle and rear axle group; a loaded coupling on the plane of the unit ahead (here the chord's line); a
+    two-axle converter dolly's first axle and second axle."""
+    tractor = params.tractor
+    origin = tractor_points(params, pose.x, pose.y, pose.psi1, np.zeros((1, 2)))[0]
+    s0 = float(terrain.along(origin))
+    stations = [a.x for a in tractor.axles]
+    rear = float(np.mean([a.x for a in tractor.axles if not a.steerable]))
+    front = s0 + stations[0]
+    out = [(front, s0 + rear, float(terrain.profile(front)))]
+    for k, body in enumerate(params.trailers, start=1):
+        s_k = float(terrain.along(unit_frame(params, pose, k)[0]))
+        x = [a.x for a in body.axles]
+        if body.front_load:
+            ahead_front, ahead_rear, ahead_z = out[-1]
+            rise = (ahead_z - float(terrain.profile(ahead_rear))) / (ahead_front - ahead_rear)
+            out.append((s_k, s_k + float(np.mean(x)), ahead_z + rise * (s_k - ahead_front)))
+        else:
+            out.append((s_k + x[0], s_k + float(np.mean(x[1:])), float(terrain.profile(s_k + x[0]))))
+    return out
+
+
+def _chord_slopes(supports, terrain: Undulation) -> np.ndarray:
+    """The slope vector of each chord: on ``z = m·s`` along ``t`` the unit normal is ``(−m·t, 1)/sqrt(1 + m²)``."""
+    out = []
+    for front, rear, z_front in supports:
+        m = (z_front - float(terrain.profile(rear))) / (front - rear)
+        out.append(-m * terrain.t / math.sqrt(1.0 + m * m))
+    return np.array(out)
+
+
+def test_a_semi_trailer_on_short_undulations_takes_the_chord_from_its_kingpin_to_its_tri_axle():
+    """The LST on 0.15 m undulations of 12 m (the rough yard's), heading 0.6 rad: its tri-axle centred on a trough, its
+    kingpin 9.3 m ahead on the tractor's plane. Each body's slope is its chord's (1e-12): the tractor's from its steer
+    axle to its drive axles, the trailer's from the kingpin's height on that plane to the tri-axle's ground; not the
+    slope under the trailer's axles (near zero about a trough), by more than 1 % of g (1.5 % here)."""
+    params = vehicle_preset("lst")
+    heading = 0.6
+    terrain = Undulation(0.15, 12.0, heading)
+    kingpin_to_axles = float(np.mean([a.x for a in params.trailer.axles]))
+    # the pose puts the tri-axle's centre at s = 9 m, a trough of sin(2π s/12)
+    probe = ChainPose(0.0, 0.0, heading, (0.0,))
+    s_axles = float(terrain.along(unit_frame(params, probe, 1)[0])) + kingpin_to_axles
+    shift = (9.0 - s_axles) * terrain.t
+    pose = ChainPose(float(shift[0]), float(shift[1]), heading, (0.0,))
+    supports = _supports_along(params, pose, terrain)
+    assert supports[1][1] == pytest.approx(9.0, abs=1e-12)
+    expected = _chord_slopes(supports, terrain)
+    slopes = body_slope_vectors(params, pose, terrain)
+    np.testing.assert_allclose(slopes, expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(_model_slopes(_sim(params, terrain, "contact_plane", pose)), slopes, rtol=0, atol=0)
+    per_axle = _model_slopes(_sim(params, terrain, "axles", pose))
+    assert np.linalg.norm(per_axle[1]) < 0.002  # about the trough the tri-axle's slopes cancel
+    assert np.linalg.norm(slopes[1] - per_axle[1]) > 0.01
+
+
+def test_a_converter_dolly_and_the_trailer_on_it_take_their_own_supports_chords():
+    """The A-double on 0.12 m undulations of 9 m along 0.3 rad, straight: the tractor's chord from its steer axle to
+    its drive axles, the lead trailer's from its kingpin on the tractor's plane, the converter dolly's (drawbar
+    unloaded) from its first axle to its second, the rear trailer's from its kingpin on the dolly's plane (1e-12)."""
+    params = vehicle_preset("au-a-double")
+    assert [getattr(u, "front_load", None) for u in params.units] == [None, True, False, True]
+    heading = 0.3
+    terrain = Undulation(0.12, 9.0, heading)
+    for offset in (0.0, 2.3, 5.1):
+        start = offset * terrain.t
+        pose = ChainPose(float(start[0]), float(start[1]), heading, (0.0, 0.0, 0.0))
+        expected = _chord_slopes(_supports_along(params, pose, terrain), terrain)
+        np.testing.assert_allclose(body_slope_vectors(params, pose, terrain), expected, rtol=0, atol=1e-12)
+
+
+def test_the_model_reads_the_cameras_plane_and_its_gravity_follows():
+    """On an undulation and an articulated pose, the model's slope inputs are the horizontal part of the normal the
+    camera's attitude takes (exactly: one plane), ``unit_gravity`` is gravity along that plane, and the normal loads
+    fall with its ``n_z``; ``axles`` is the static-load-weighted mean of the slopes under the axles' wheels."""
+    params = vehicle_preset("lst")
+    terrain = Undulation(0.15, 12.0, 0.2)
+    pose = ChainPose(3.0, 1.0, 0.5, (0.35,))
+    sim = _sim(params, terrain, "contact_plane", pose)
+    slopes = _model_slopes(sim)
+    normals = [att.rotation[:, 2] for att in unit_attitudes(params, pose, terrain)]
+    for k, n in enumerate(normals):
+        assert slopes[k, 0] == n[0] and slopes[k, 1] == n[1]
+        heading = pose.psi1 - sum(pose.angles[:k])
+        assert sim.unit_gravity(k, heading) == pytest.approx(
+            in_plane_gravity(n[0], n[1], math.cos(heading), math.sin(heading)), rel=1e-15, abs=1e-15
+        )
+    static = params.axle_table.static_load
+    unit = np.asarray(params.axle_table.unit)
+    fz = sim.outputs()["fz"]
+    np.testing.assert_allclose(fz, static * np.array([normals[k][2] for k in unit]), rtol=1e-12)
+    old = _sim(params, terrain, "axles", pose)
+    headings = np.array([pose.psi1, pose.psi1 - pose.angles[0]])[unit]
+    points = np.concatenate([p[:-1] for p in old._ground_points(old.state_vector)])
+    under = old.surface.slope.under_axles(points, headings, np.array([half_track(params.units[k]) for k in unit]))
+    np.testing.assert_allclose(_model_slopes(old), axle_weights(params) @ under, rtol=0, atol=1e-15)
+
+
+def test_body_slope_setting_defaults_to_the_contact_plane_and_refuses_other_values():
+    rough = {"terrain.kind": "path", "terrain.undulation_amplitude_m": 0.1}
+    assert build_scenario(load_scenario("pbs-low-speed-turn", rough)).surface.slope.body == "contact_plane"
+    old = build_scenario(load_scenario("pbs-low-speed-turn", {**rough, "terrain.body_slope": "axles"}))
+    assert old.surface.slope.body == "axles"
+    with pytest.raises(ConfigError, match=r"terrain\.body_slope.*'contact_plane' or 'axles'"):
+        load_scenario("pbs-low-speed-turn", {**rough, "terrain.body_slope": "cg"})
+    with pytest.raises(ValueError, match=r"body = 'cg' must be one of contact_plane, axles"):
+        TerrainSlope(TiltedPlane(0.1, 0.0), "cg")
+    flat = Simulator(reference_laden(), build_scenario(load_scenario("pbs-low-speed-turn")).surface)
+    assert flat._plane_terrain is None and flat._axle_weights is None  # flat ground: no terrain look-up
