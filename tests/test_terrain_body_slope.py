@@ -2,7 +2,7 @@
 contact_plane``, the default on terrain; :func:`vehicle_model.terrain_pose.body_slope_vectors`): the plane's slope
 on a plane, the chord between a unit's supports on an undulation shorter than the combination (a semi-trailer's
 kingpin riding on the tractor, a converter dolly on its own axles), the same plane the camera's attitude is taken
-from, and ``axles`` the per-axle form it replaces."""
+from, ``axles`` the per-axle form it replaces, and ``supports`` each body pushed by its supports' normal reactions."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from scenarios.config import ConfigError, load_scenario
 from scenarios.setup.build import build_scenario
 from vehicle_model.dynamics import in_plane_gravity
 from vehicle_model.geometry import ChainPose, tractor_points, unit_frame
+from vehicle_model.parameters import GRAVITY
 from vehicle_model.presets import reference_laden, vehicle_preset
 from vehicle_model.simulator import Simulator, axle_weights
 from vehicle_model.surface import Surface
@@ -173,14 +174,56 @@ def test_the_model_reads_the_cameras_plane_and_its_gravity_follows():
     np.testing.assert_allclose(_model_slopes(old), axle_weights(params) @ under, rtol=0, atol=1e-15)
 
 
+def test_supports_push_each_body_by_its_supports_reactions_and_the_combination_by_its_wheels():
+    """``supports``: on the LST straight over 0.15 m undulations of 12 m, each body's slope is the horizontal part of
+    its supports' normal reactions at their static loads over its weight (closed form, 1e-12): the trailer's axles on
+    the slope under each axle, its kingpin on the tractor's plane (the chord from the steer axle to the drive axles);
+    the tractor's axles less the kingpin on its own plane. Summed over the units, mass-weighted, the couplings cancel
+    and the push is the wheels' alone; on planes tilted both ways every body has the plane's slope (1e-12)."""
+    params = vehicle_preset("lst")
+    heading = 0.6
+    terrain = Undulation(0.15, 12.0, heading)
+    table = params.axle_table
+    unit = np.asarray(table.unit)
+    kingpin = params.kingpin_load
+    weight = np.array([u.mass for u in params.units]) * GRAVITY
+    assert params.units[0].mass * GRAVITY == pytest.approx(table.static_load[unit == 0].sum() - kingpin, rel=1e-12)
+    for offset in (0.0, 3.7, 8.2):
+        start = offset * terrain.t
+        pose = ChainPose(float(start[0]), float(start[1]), heading, (0.0,))
+        sim = _sim(params, terrain, "supports", pose)
+        slopes = _model_slopes(sim)
+        origin = tractor_points(params, pose.x, pose.y, pose.psi1, np.zeros((1, 2)))[0]
+        s0 = float(terrain.along(origin))
+        s_k = float(terrain.along(unit_frame(params, pose, 1)[0]))
+        stations = np.r_[[s0 + a.x for a in params.tractor.axles], [s_k + a.x for a in params.trailer.axles]]
+        rate = terrain.a * terrain.k * np.cos(terrain.k * stations)
+        under = -(rate / np.sqrt(1.0 + rate**2))[:, None] * terrain.t  # each axle level across: its slope along
+        plate = _chord_slopes(_supports_along(params, pose, terrain), terrain)[0]  # the tractor's plane
+        wheels = table.static_load[:, None] * under
+        expected = (
+            np.array([wheels[unit == 0].sum(axis=0) - kingpin * plate, wheels[unit == 1].sum(axis=0) + kingpin * plate])
+            / weight[:, None]
+        )
+        np.testing.assert_allclose(slopes, expected, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(weight @ slopes, wheels.sum(axis=0), rtol=1e-12, atol=1e-9)
+    for vehicle in ("lst", "au-a-double"):
+        params = vehicle_preset(vehicle)
+        plane = PlaneTerrain(8.0, -5.0, heading=1.1)
+        expected = slope_vectors(plane.gradient(np.zeros((1, 2))))[0]
+        pose = ChainPose(4.0, -6.0, 0.2, (0.4, -0.3, 0.2)[: params.n_units - 1])
+        slopes = _model_slopes(_sim(params, plane, "supports", pose))
+        np.testing.assert_allclose(slopes, np.tile(expected, (params.n_units, 1)), rtol=0, atol=1e-12)
+
+
 def test_body_slope_setting_defaults_to_the_contact_plane_and_refuses_other_values():
     rough = {"terrain.kind": "path", "terrain.undulation_amplitude_m": 0.1}
     assert build_scenario(load_scenario("pbs-low-speed-turn", rough)).surface.slope.body == "contact_plane"
     old = build_scenario(load_scenario("pbs-low-speed-turn", {**rough, "terrain.body_slope": "axles"}))
     assert old.surface.slope.body == "axles"
-    with pytest.raises(ConfigError, match=r"terrain\.body_slope.*'contact_plane' or 'axles'"):
+    with pytest.raises(ConfigError, match=r"terrain\.body_slope.*'contact_plane', 'axles' or 'supports'"):
         load_scenario("pbs-low-speed-turn", {**rough, "terrain.body_slope": "cg"})
-    with pytest.raises(ValueError, match=r"body = 'cg' must be one of contact_plane, axles"):
+    with pytest.raises(ValueError, match=r"body = 'cg' must be one of contact_plane, axles, supports"):
         TerrainSlope(TiltedPlane(0.1, 0.0), "cg")
     flat = Simulator(reference_laden(), build_scenario(load_scenario("pbs-low-speed-turn")).surface)
     assert flat._plane_terrain is None and flat._axle_weights is None  # flat ground: no terrain look-up

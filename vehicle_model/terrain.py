@@ -69,7 +69,7 @@ def along_slope_factor(terrain: Terrain, points: np.ndarray, heading: np.ndarray
     return np.sqrt(1.0 + rise * rise)
 
 
-BODY_SLOPES = ("contact_plane", "axles")
+BODY_SLOPES = ("contact_plane", "axles", "supports")
 """How the simulator takes each body's slope vector on a terrain (:class:`TerrainSlope`)."""
 
 
@@ -80,7 +80,9 @@ class TerrainSlope:
     ``body`` tells the simulator how each body's slope vector is taken (docs/terrain.md): ``"contact_plane"`` the
     horizontal part of the upward unit normal of the plane through the body's supports, the plane its attitude is
     taken from (:func:`vehicle_model.terrain_pose.body_slope_vectors`); ``"axles"`` the mean of the slopes under its
-    axles (:meth:`under_axles`) weighted by their static loads.
+    axles (:meth:`under_axles`) weighted by their static loads; ``"supports"`` the horizontal part of its supports'
+    normal reactions per unit weight, its axles' on the slopes under them and its couplings' on the planes of the
+    fifth wheels (:func:`vehicle_model.simulator.support_weights`).
     """
 
     terrain: Terrain
