@@ -129,7 +129,7 @@ def _run(sim: Simulator, steer: float, periods: int) -> np.ndarray:
     return sim.state_vector
 
 
-@pytest.mark.parametrize("body", ["contact_plane", "axles"])
+@pytest.mark.parametrize("body", ["supports", "axles"])
 def test_a_constant_crossfall_terrain_drives_as_the_camber_to_1e_9(reference, reference_model, body):
     start = reference_model.layout
     camber = Simulator(
@@ -145,7 +145,7 @@ def test_a_constant_crossfall_terrain_drives_as_the_camber_to_1e_9(reference, re
     assert np.max(np.abs(a - b)) <= 1e-9 * np.max(np.abs(a))
 
 
-@pytest.mark.parametrize("body", ["contact_plane", "axles"])
+@pytest.mark.parametrize("body", ["supports", "axles"])
 def test_constant_grade_gravity_and_loads_are_the_closed_form(reference, reference_model, body):
     grade = 0.10
     sim = Simulator(reference, Surface(slope=TerrainSlope(PlaneTerrain(grade_percent=100 * grade, heading=0.3), body)),

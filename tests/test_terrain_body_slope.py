@@ -1,8 +1,9 @@
-"""Each body's slope in the vehicle model from the contact plane of its supports (``terrain.body_slope:
-contact_plane``, the default on terrain; :func:`vehicle_model.terrain_pose.body_slope_vectors`): the plane's slope
-on a plane, the chord between a unit's supports on an undulation shorter than the combination (a semi-trailer's
-kingpin riding on the tractor, a converter dolly on its own axles), the same plane the camera's attitude is taken
-from, ``axles`` the per-axle form it replaces, and ``supports`` each body pushed by its supports' normal reactions."""
+"""Each body's slope in the vehicle model (``terrain.body_slope``) and what its accelerometers read: ``supports`` (the
+default on terrain) pushes each body by its supports' normal reactions (closed form on undulations, the plane's slope
+on planes), ``axles`` the static-load-weighted slope under its axles; the accelerometers read gravity through each
+body's attitude, the contact plane of its supports (:func:`vehicle_model.terrain_pose.body_slope_vectors`: the chord
+between a unit's supports on an undulation shorter than the combination), the plane the camera's attitude is taken
+from (:meth:`vehicle_model.simulator.Simulator.sensed_gravity`)."""
 
 from __future__ import annotations
 
@@ -61,8 +62,9 @@ def _model_slopes(sim: Simulator) -> np.ndarray:
 @pytest.mark.parametrize("vehicle", ["reference", "au-a-double"])
 @pytest.mark.parametrize("grade, crossfall", [(10.0, 0.0), (8.0, 5.0), (-6.0, -4.0)])
 def test_on_a_plane_every_body_has_the_planes_slope_to_1e_12(vehicle, grade, crossfall):
-    """A constant grade and planes tilted in both axes, articulated poses: every body's slope vector is
-    ``−∇z / sqrt(1 + |∇z|²)`` (1e-12), in :func:`body_slope_vectors` and in the simulator's inputs."""
+    """A constant grade and planes tilted in both axes, articulated poses: every body's contact-plane slope vector is
+    ``−∇z / sqrt(1 + |∇z|²)`` (1e-12, :func:`body_slope_vectors`), and each body's accelerometers read the gravity
+    the model moves it by (``sensed_gravity`` against ``unit_gravity``, 1e-12 m/s²)."""
     params = reference_laden() if vehicle == "reference" else vehicle_preset(vehicle)
     plane = PlaneTerrain(grade, crossfall, heading=0.4)
     expected = slope_vectors(plane.gradient(np.zeros((1, 2))))[0]
@@ -71,7 +73,13 @@ def test_on_a_plane_every_body_has_the_planes_slope_to_1e_12(vehicle, grade, cro
         slopes = body_slope_vectors(params, pose, plane)
         assert slopes.shape == (params.n_units, 2)
         np.testing.assert_allclose(slopes, np.tile(expected, (params.n_units, 1)), rtol=0, atol=1e-12)
-        np.testing.assert_allclose(_model_slopes(_sim(params, plane, "contact_plane", pose)), slopes, rtol=0, atol=0)
+        sim = _sim(params, plane, "supports", pose)
+        for k, heading in enumerate(_headings(pose)):
+            np.testing.assert_allclose(sim.sensed_gravity(k, heading), sim.unit_gravity(k, heading), rtol=0, atol=1e-12)
+
+
+def _headings(pose: ChainPose) -> list[float]:
+    return [pose.psi1 - sum(pose.angles[:k]) for k in range(len(pose.angles) + 1)]
 
 
 def _supports_along(params, pose: ChainPose, terrain: Undulation) -> list[tuple[float, float, float]]:
@@ -109,9 +117,11 @@ def _chord_slopes(supports, terrain: Undulation) -> np.ndarray:
 
 def test_a_semi_trailer_on_short_undulations_takes_the_chord_from_its_kingpin_to_its_tri_axle():
     """The LST on 0.15 m undulations of 12 m (the rough yard's), heading 0.6 rad: its tri-axle centred on a trough, its
-    kingpin 9.3 m ahead on the tractor's plane. Each body's slope is its chord's (1e-12): the tractor's from its steer
-    axle to its drive axles, the trailer's from the kingpin's height on that plane to the tri-axle's ground; not the
-    slope under the trailer's axles (near zero about a trough), by more than 1 % of g (1.5 % here)."""
+    kingpin 9.3 m ahead on the tractor's plane. Each body's contact-plane slope is its chord's (1e-12): the tractor's
+    from its steer axle to its drive axles, the trailer's from the kingpin's height on that plane to the tri-axle's
+    ground; its accelerometers read gravity along the chord (1e-12 m/s²) while the model pushes it by its supports'
+    reactions (closed form, 1e-12 m/s²), more than 1 % of g apart along the trailer. The chord is not the slope under
+    the trailer's axles (near zero about a trough) by more than 1 % of g (1.5 % here)."""
     params = vehicle_preset("lst")
     heading = 0.6
     terrain = Undulation(0.15, 12.0, heading)
@@ -126,7 +136,14 @@ def test_a_semi_trailer_on_short_undulations_takes_the_chord_from_its_kingpin_to
     expected = _chord_slopes(supports, terrain)
     slopes = body_slope_vectors(params, pose, terrain)
     np.testing.assert_allclose(slopes, expected, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(_model_slopes(_sim(params, terrain, "contact_plane", pose)), slopes, rtol=0, atol=0)
+    sim = _sim(params, terrain, "supports", pose)
+    pushed = _supports_closed_form(params, pose, terrain)
+    for k, psi in enumerate(_headings(pose)):
+        c, s = math.cos(psi), math.sin(psi)
+        chord = in_plane_gravity(expected[k, 0], expected[k, 1], c, s)
+        np.testing.assert_allclose(sim.sensed_gravity(k, psi), chord, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(sim.unit_gravity(k, psi), in_plane_gravity(*pushed[k], c, s), rtol=0, atol=1e-12)
+    assert abs(sim.sensed_gravity(1, heading)[0] - sim.unit_gravity(1, heading)[0]) > 0.01 * GRAVITY
     per_axle = _model_slopes(_sim(params, terrain, "axles", pose))
     assert np.linalg.norm(per_axle[1]) < 0.002  # about the trough the tri-axle's slopes cancel
     assert np.linalg.norm(slopes[1] - per_axle[1]) > 0.01
@@ -147,31 +164,59 @@ def test_a_converter_dolly_and_the_trailer_on_it_take_their_own_supports_chords(
         np.testing.assert_allclose(body_slope_vectors(params, pose, terrain), expected, rtol=0, atol=1e-12)
 
 
-def test_the_model_reads_the_cameras_plane_and_its_gravity_follows():
-    """On an undulation and an articulated pose, the model's slope inputs are the horizontal part of the normal the
-    camera's attitude takes (exactly: one plane), ``unit_gravity`` is gravity along that plane, and the normal loads
-    fall with its ``n_z``; ``axles`` is the static-load-weighted mean of the slopes under the axles' wheels."""
+def test_the_accelerometers_read_the_cameras_plane_and_axles_reads_as_before():
+    """On an undulation and an articulated pose, with ``supports`` ``sensed_gravity`` is gravity along the normal the
+    camera's attitude takes (one plane: to rounding) and the normal loads fall with the model's own slope,
+    ``cos θ = sqrt(1 − |s|²)`` (1e-12); with ``axles`` the model's slope is the static-load-weighted mean of the
+    slopes under the axles' wheels and the accelerometers read it, ``sensed_gravity`` is ``unit_gravity`` to the bit;
+    on flat ground there is no terrain look-up and the two are the same."""
     params = vehicle_preset("lst")
     terrain = Undulation(0.15, 12.0, 0.2)
     pose = ChainPose(3.0, 1.0, 0.5, (0.35,))
-    sim = _sim(params, terrain, "contact_plane", pose)
+    sim = _sim(params, terrain, "supports", pose)
     slopes = _model_slopes(sim)
     normals = [att.rotation[:, 2] for att in unit_attitudes(params, pose, terrain)]
-    for k, n in enumerate(normals):
-        assert slopes[k, 0] == n[0] and slopes[k, 1] == n[1]
-        heading = pose.psi1 - sum(pose.angles[:k])
+    for k, (n, heading) in enumerate(zip(normals, _headings(pose), strict=True)):
+        c, s = math.cos(heading), math.sin(heading)
+        sensed = sim.sensed_gravity(k, heading)
+        assert sensed == pytest.approx(in_plane_gravity(n[0], n[1], c, s), rel=1e-15, abs=1e-15)
         assert sim.unit_gravity(k, heading) == pytest.approx(
-            in_plane_gravity(n[0], n[1], math.cos(heading), math.sin(heading)), rel=1e-15, abs=1e-15
+            in_plane_gravity(slopes[k, 0], slopes[k, 1], c, s), rel=1e-15, abs=1e-15
         )
     static = params.axle_table.static_load
     unit = np.asarray(params.axle_table.unit)
     fz = sim.outputs()["fz"]
-    np.testing.assert_allclose(fz, static * np.array([normals[k][2] for k in unit]), rtol=1e-12)
+    np.testing.assert_allclose(fz, static * np.sqrt(1.0 - (slopes**2).sum(axis=1))[unit], rtol=1e-12)
     old = _sim(params, terrain, "axles", pose)
-    headings = np.array([pose.psi1, pose.psi1 - pose.angles[0]])[unit]
+    headings = np.array(_headings(pose))[unit]
     points = np.concatenate([p[:-1] for p in old._ground_points(old.state_vector)])
     under = old.surface.slope.under_axles(points, headings, np.array([half_track(params.units[k]) for k in unit]))
     np.testing.assert_allclose(_model_slopes(old), axle_weights(params) @ under, rtol=0, atol=1e-15)
+    flat = Simulator(params)
+    for k, heading in enumerate(_headings(pose)):
+        assert old.sensed_gravity(k, heading) == old.unit_gravity(k, heading)
+        assert flat.sensed_gravity(k, heading) == flat.unit_gravity(k, heading)
+
+
+def _supports_closed_form(params, pose: ChainPose, terrain: Undulation) -> np.ndarray:
+    """The LST's bodies' slope vectors from their supports' static reactions on an undulation, straight along it:
+    each axle level across, its slope along; the kingpin on the tractor's plane (its chord)."""
+    table = params.axle_table
+    unit = np.asarray(table.unit)
+    kingpin = params.kingpin_load
+    weight = np.array([u.mass for u in params.units]) * GRAVITY
+    origin = tractor_points(params, pose.x, pose.y, pose.psi1, np.zeros((1, 2)))[0]
+    s0 = float(terrain.along(origin))
+    s_k = float(terrain.along(unit_frame(params, pose, 1)[0]))
+    stations = np.r_[[s0 + a.x for a in params.tractor.axles], [s_k + a.x for a in params.trailer.axles]]
+    rate = terrain.a * terrain.k * np.cos(terrain.k * stations)
+    under = -(rate / np.sqrt(1.0 + rate**2))[:, None] * terrain.t  # each axle level across: its slope along
+    plate = _chord_slopes(_supports_along(params, pose, terrain), terrain)[0]  # the tractor's plane
+    wheels = table.static_load[:, None] * under
+    pushed = np.array(
+        [wheels[unit == 0].sum(axis=0) - kingpin * plate, wheels[unit == 1].sum(axis=0) + kingpin * plate]
+    )
+    return pushed / weight[:, None]
 
 
 def test_supports_push_each_body_by_its_supports_reactions_and_the_combination_by_its_wheels():
@@ -191,21 +236,14 @@ def test_supports_push_each_body_by_its_supports_reactions_and_the_combination_b
     for offset in (0.0, 3.7, 8.2):
         start = offset * terrain.t
         pose = ChainPose(float(start[0]), float(start[1]), heading, (0.0,))
-        sim = _sim(params, terrain, "supports", pose)
-        slopes = _model_slopes(sim)
+        slopes = _model_slopes(_sim(params, terrain, "supports", pose))
+        np.testing.assert_allclose(slopes, _supports_closed_form(params, pose, terrain), rtol=0, atol=1e-12)
         origin = tractor_points(params, pose.x, pose.y, pose.psi1, np.zeros((1, 2)))[0]
         s0 = float(terrain.along(origin))
         s_k = float(terrain.along(unit_frame(params, pose, 1)[0]))
         stations = np.r_[[s0 + a.x for a in params.tractor.axles], [s_k + a.x for a in params.trailer.axles]]
         rate = terrain.a * terrain.k * np.cos(terrain.k * stations)
-        under = -(rate / np.sqrt(1.0 + rate**2))[:, None] * terrain.t  # each axle level across: its slope along
-        plate = _chord_slopes(_supports_along(params, pose, terrain), terrain)[0]  # the tractor's plane
-        wheels = table.static_load[:, None] * under
-        expected = (
-            np.array([wheels[unit == 0].sum(axis=0) - kingpin * plate, wheels[unit == 1].sum(axis=0) + kingpin * plate])
-            / weight[:, None]
-        )
-        np.testing.assert_allclose(slopes, expected, rtol=0, atol=1e-12)
+        wheels = table.static_load[:, None] * (-(rate / np.sqrt(1.0 + rate**2))[:, None] * terrain.t)
         np.testing.assert_allclose(weight @ slopes, wheels.sum(axis=0), rtol=1e-12, atol=1e-9)
     for vehicle in ("lst", "au-a-double"):
         params = vehicle_preset(vehicle)
@@ -216,14 +254,16 @@ def test_supports_push_each_body_by_its_supports_reactions_and_the_combination_b
         np.testing.assert_allclose(slopes, np.tile(expected, (params.n_units, 1)), rtol=0, atol=1e-12)
 
 
-def test_body_slope_setting_defaults_to_the_contact_plane_and_refuses_other_values():
+def test_body_slope_setting_defaults_to_supports_and_refuses_other_values():
     rough = {"terrain.kind": "path", "terrain.undulation_amplitude_m": 0.1}
-    assert build_scenario(load_scenario("pbs-low-speed-turn", rough)).surface.slope.body == "contact_plane"
+    assert build_scenario(load_scenario("pbs-low-speed-turn", rough)).surface.slope.body == "supports"
+    assert TerrainSlope(TiltedPlane(0.1, 0.0)).body == "supports"
     old = build_scenario(load_scenario("pbs-low-speed-turn", {**rough, "terrain.body_slope": "axles"}))
     assert old.surface.slope.body == "axles"
-    with pytest.raises(ConfigError, match=r"terrain\.body_slope.*'contact_plane', 'axles' or 'supports'"):
-        load_scenario("pbs-low-speed-turn", {**rough, "terrain.body_slope": "cg"})
-    with pytest.raises(ValueError, match=r"body = 'cg' must be one of contact_plane, axles, supports"):
-        TerrainSlope(TiltedPlane(0.1, 0.0), "cg")
+    for bad in ("cg", "contact_plane"):
+        with pytest.raises(ConfigError, match=r"terrain\.body_slope.*'supports' or 'axles'"):
+            load_scenario("pbs-low-speed-turn", {**rough, "terrain.body_slope": bad})
+        with pytest.raises(ValueError, match=rf"body = '{bad}' must be one of supports, axles"):
+            TerrainSlope(TiltedPlane(0.1, 0.0), bad)
     flat = Simulator(reference_laden(), build_scenario(load_scenario("pbs-low-speed-turn")).surface)
-    assert flat._plane_terrain is None and flat._axle_weights is None  # flat ground: no terrain look-up
+    assert flat._attitude_terrain is None and flat._axle_weights is None and flat._supports is None

@@ -18,7 +18,7 @@ from .period import BAD_INPUT, DIVERGED, OK, context_views, load_period, new_con
 from .static_loads import solve_loads
 from .surface import Surface, UniformFriction
 from .terrain import TerrainSlope
-from .terrain_pose import body_slope_vectors, contact_planes, half_track
+from .terrain_pose import ContactPlane, contact_planes, half_track
 
 STATE_LIMITS: dict[str, float] = {"u": 60.0, "v1": 30.0, "r1": 6.0, "r2": 6.0, "gamma": 3.5}
 """Magnitudes beyond which a state is taken as diverged (the model is meaningless there)."""
@@ -312,13 +312,14 @@ class Simulator:
         self.time = 0.0
         self._surface_filled = False  # uniform surfaces are looked up once
         self._surface_uniform = self.surface.is_uniform
-        # A terrain's slope field (TerrainSlope) names how each body's slope is taken: from the contact plane of its
-        # supports, from its axles' vectors weighted by static load, or from its supports' reactions.
+        # A terrain's slope field (TerrainSlope) names how each body's slope is taken: from its axles' vectors
+        # weighted by static load, or from its supports' reactions (whose accelerometers read its contact plane).
         field_ = self.surface.slope
         body = field_.body if isinstance(field_, TerrainSlope) else None
-        self._plane_terrain = field_.terrain if isinstance(field_, TerrainSlope) and body == "contact_plane" else None
         self._axle_weights = axle_weights(params) if body == "axles" else None
         self._supports = support_weights(params) if body == "supports" else None
+        self._attitude_terrain = field_.terrain if isinstance(field_, TerrainSlope) and body == "supports" else None
+        self._planes: tuple[bytes, list[ContactPlane]] | None = None  # a state and its bodies' contact planes
         if body in ("axles", "supports"):  # each axle's slope from its two wheels (TerrainSlope.under_axles)
             units = [params.tractor, *params.trailers]
             self._axle_unit = np.repeat(np.arange(len(units)), [len(u.axles) for u in units])
@@ -397,17 +398,13 @@ class Simulator:
         """μ per axle and the slope vector per body at state vector ``x``.
 
         The slope is the field's at each body's centre of gravity or, for a terrain's field
-        (:class:`vehicle_model.terrain.TerrainSlope`), as its ``body`` says: the horizontal part of the unit normal of
-        the body's contact plane (:func:`vehicle_model.terrain_pose.body_slope_vectors`), the mean of the field
-        under the body's axles weighted by their static loads (:func:`axle_weights`), or the horizontal part of its
-        supports' normal reactions per unit weight (:func:`support_weights`).
+        (:class:`vehicle_model.terrain.TerrainSlope`), as its ``body`` says: the mean of the field under the body's
+        axles weighted by their static loads (:func:`axle_weights`), or the horizontal part of its supports' normal
+        reactions per unit weight (:func:`support_weights`).
         """
         units = self._ground_points(x)
         axles = np.concatenate([p[:-1] for p in units])
         mu = self.surface.friction(axles)
-        if self._plane_terrain is not None:
-            pose = ChainPose(x[0], x[1], x[2], (x[6], *x[self.layout.trailing_slice][0::2]))
-            return mu, body_slope_vectors(self.params, pose, self._plane_terrain).ravel()
         if self._axle_weights is not None:
             angles = [x[6], *x[self.layout.trailing_slice][0::2]]
             headings = np.array([x[2], *(h for _, h in trailer_frames(self.params, x[0], x[1], x[2], angles))])
@@ -433,14 +430,24 @@ class Simulator:
         """
         slope_field = self.surface.slope
         assert isinstance(slope_field, TerrainSlope) and self._supports is not None
-        pose = ChainPose(x[0], x[1], x[2], (x[6], *x[self.layout.trailing_slice][0::2]))
-        planes = [plane for plane in contact_planes(self.params, pose, slope_field.terrain) if plane is not None]
+        planes = self._contact_planes(x)
         normals = np.array([plane.normal[:2] for plane in planes])
         headings = np.array([float(plane.heading) for plane in planes])
         under = slope_field.under_axles(axles, headings[self._axle_unit], self._axle_half_track)
         ahead = np.vstack([np.zeros((1, 2)), normals[:-1]])
         w = self._supports
         return w.axles @ under + w.coupling[:, None] * ahead - w.carried[:, None] * normals
+
+    def _contact_planes(self, x: np.ndarray) -> list[ContactPlane]:
+        """Each body's contact plane at state vector ``x`` (:func:`contact_planes`), kept for the last state asked:
+        the accelerometers read them at a tick's state and the next period's slopes are taken there."""
+        assert self._attitude_terrain is not None
+        key = x.tobytes()
+        if self._planes is None or self._planes[0] != key:
+            pose = ChainPose(x[0], x[1], x[2], (x[6], *x[self.layout.trailing_slice][0::2]))
+            planes = contact_planes(self.params, pose, self._attitude_terrain)
+            self._planes = (key, [plane for plane in planes if plane is not None])
+        return self._planes[1]
 
     def min_friction(self, axles: np.ndarray) -> float:
         """Smallest μ under the axles ``axles`` (layout indices) at the current state.
@@ -581,6 +588,23 @@ class Simulator:
         return in_plane_gravity(
             float(slope[2 * unit]), float(slope[2 * unit + 1]), math.cos(heading), math.sin(heading)
         )
+
+    def sensed_gravity(self, unit: int, heading: float) -> tuple[float, float]:
+        """Gravity's in-plane part per unit mass ``(g_x, g_y)`` [m/s²] that an accelerometer fixed to body ``unit``
+        reads, in the axes of a body heading ``heading`` [rad] (the tractor's and the trailers' accelerometers).
+
+        An accelerometer reads specific force in the axes of the body it is fixed to, so it reads gravity through
+        the body's attitude: with ``terrain.body_slope: supports`` the horizontal part of the upward unit normal of
+        the body's contact plane (:func:`vehicle_model.terrain_pose.body_slope_vectors`, the plane the camera's
+        attitude is taken from) at the current state. That differs from :meth:`unit_gravity`, the in-plane push of
+        the body's supports' normal reactions that moves it, where the ground's slope changes within the body's
+        length; on a plane the two are the same. On other surfaces (flat ground, a camber, a terrain with ``axles``)
+        it is :meth:`unit_gravity`.
+        """
+        if self._attitude_terrain is None:
+            return self.unit_gravity(unit, heading)
+        normal = self._contact_planes(self._x)[unit].normal
+        return in_plane_gravity(float(normal[0]), float(normal[1]), math.cos(heading), math.sin(heading))
 
     def _check(self, x_new: np.ndarray) -> None:
         if math.isfinite(float(x_new.sum())) and not (np.abs(x_new[self._limit_index]) > self._limit_value).any():

@@ -14,7 +14,8 @@ not a plane each unit is a rigid body resting on three supports (docs/terrain_ca
 
 The three points are placed horizontally by the planar model and lifted by the terrain's height; the plane through
 them is the unit's contact plane (:func:`contact_planes`). The camera takes the unit's attitude from it
-(:func:`unit_attitudes`) and the vehicle model the unit's gravity (:func:`body_slope_vectors`). The unit's body
+(:func:`unit_attitudes`), its accelerometers the gravity they read (:func:`body_slope_vectors`) and the vehicle
+model the normal of a fifth wheel its supports' reactions push on (``terrain.body_slope: supports``). The unit's body
 axes: z the plane's upward normal, x the horizontal heading ψ projected onto the plane, y = z × x. Pitch θ and roll φ
 are that rotation's ISO angles, ``R = R_z(ψ)·R_y(θ)·R_x(φ)`` (pitch positive nose down, roll positive left side
 up), and the unit's frame origin (the ground point of station 0 on the centre line) lies on the contact plane below
@@ -170,8 +171,8 @@ def contact_planes(
     params: VehicleParams, pose: CombinationPose | ChainPose, terrain: Terrain
 ) -> list[ContactPlane | None]:
     """The contact plane of every unit at ``pose`` on ``terrain``, the tractor first (module docstring): the plane
-    through its three supports, from which the camera takes the unit's attitude (:func:`unit_attitudes`) and the
-    vehicle model its gravity (:func:`body_slope_vectors`).
+    through its three supports, from which the camera takes the unit's attitude (:func:`unit_attitudes`), its
+    accelerometers their gravity (:func:`body_slope_vectors`) and the vehicle model its fifth wheel's normal.
 
     A :class:`~vehicle_model.geometry.CombinationPose` places the tractor and the first towed unit; the units it
     does not place get ``None``.
@@ -191,30 +192,29 @@ def contact_planes(
         One per unit, front to rear.
     """
     full = chain_pose(pose)
-    tractor = params.tractor
-    front_x, rear_x = _supports(params, 0)
-    h = half_track(tractor)
-    pts = tractor_points(params, full.x, full.y, full.psi1, np.array([[front_x, 0.0], [rear_x, h], [rear_x, -h]]))
-    origin = tractor_points(params, full.x, full.y, full.psi1, np.zeros((1, 2)))[..., 0, :]
-    lifted = _lift(terrain, pts)
-    ahead = _plane(lifted[..., 0, :], lifted[..., 1, :], lifted[..., 2, :], origin, full.psi1)
-    out: list[ContactPlane | None] = [ahead]
-    for k in range(1, len(params.trailers) + 1):
-        if len(full.angles) < k:
-            out.append(None)
-            continue
-        body = params.units[k]
-        origin, heading = unit_frame(params, full, k)
+    placed = [(0, tractor_points(params, full.x, full.y, full.psi1, np.zeros((1, 2)))[..., 0, :], full.psi1)]
+    placed += [(k, *unit_frame(params, full, k)) for k in range(1, min(len(full.angles), len(params.trailers)) + 1)]
+    pts = []
+    for k, origin, heading in placed:
         front_x, rear_x = _supports(params, k)
-        h = half_track(body)
+        h = half_track(params.units[k])
         local = np.array([[front_x, 0.0], [rear_x, h], [rear_x, -h]])
-        pts = place_points(origin, heading, local)
-        lifted = _lift(terrain, pts)
-        if isinstance(body, TrailerParams) and body.front_load:  # the coupling rides on the unit ahead
-            lifted[..., 0, 2] = _plane_height(ahead.support, ahead.normal, pts[..., 0, :])
-        ahead = _plane(lifted[..., 0, :], lifted[..., 1, :], lifted[..., 2, :], origin, heading)
+        if k == 0:
+            pts.append(tractor_points(params, full.x, full.y, full.psi1, local))
+        else:
+            pts.append(place_points(origin, heading, local))
+    lifted = _lift(terrain, np.concatenate(pts, axis=-2))  # every unit's supports in one look-up
+    out: list[ContactPlane | None] = []
+    ahead: ContactPlane | None = None
+    for n, (k, origin, heading) in enumerate(placed):
+        unit = lifted[..., 3 * n : 3 * n + 3, :]
+        body = params.units[k]
+        if ahead is not None and isinstance(body, TrailerParams) and body.front_load:
+            # the coupling rides on the unit ahead
+            unit[..., 0, 2] = _plane_height(ahead.support, ahead.normal, unit[..., 0, :2])
+        ahead = _plane(unit[..., 0, :], unit[..., 1, :], unit[..., 2, :], origin, heading)
         out.append(ahead)
-    return out
+    return out + [None] * (len(params.trailers) + 1 - len(out))
 
 
 def unit_attitudes(
@@ -243,12 +243,15 @@ def unit_attitudes(
 
 def body_slope_vectors(params: VehicleParams, pose: ChainPose, terrain: Terrain) -> np.ndarray:
     """Each unit's slope vector ``(units, 2)``: the horizontal part ``(n_x, n_y)`` of its contact plane's upward unit
-    normal (:func:`contact_planes`), the vehicle model's per-body input (docs/vehicle_dynamics.md §1.3).
+    normal (:func:`contact_planes`): gravity's in-plane part in the unit's own axes, what an accelerometer fixed to it
+    reads (:meth:`vehicle_model.simulator.Simulator.sensed_gravity`; docs/vehicle_dynamics.md §1.3).
 
     On a plane ``z = a·x + b·y + c`` the normal is ``(−a, −b, 1)/sqrt(1 + a² + b²)``, so its horizontal part is the
     slope vector ``−∇z / sqrt(1 + |∇z|²)`` (:func:`vehicle_model.terrain.slope_vectors`) and the normal-load factor
     ``cos θ = sqrt(1 − n_x² − n_y²)`` is ``n_z``: a rigid body's gravity in its own axes is set by its attitude, the
-    same the camera takes (:func:`unit_attitudes`). ``pose`` must place every unit (scalar fields).
+    same the camera takes (:func:`unit_attitudes`). It is not the in-plane push that moves the body where the
+    ground's slope changes within its length (docs/terrain.md, "Per body"). ``pose`` must place every unit (scalar
+    fields).
     """
     planes = contact_planes(params, pose, terrain)
     normals = [plane.normal for plane in planes if plane is not None]

@@ -98,13 +98,13 @@ class TerrainConfig(Settings):
         Annotated[float, Field(ge=-1e8, le=1e8, description="[m] northing; beyond any projected system")],
     ] = Field((0.0, 0.0), description="[m] the file's coordinates of the scenario's origin")
 
-    body_slope: Literal["contact_plane", "axles", "supports"] = Field(
-        "contact_plane",
-        description="each body's gravity and normal-load factor in the vehicle model: 'contact_plane' from the plane "
-        "through its supports, the plane its camera's attitude is taken from (a semi-trailer's kingpin on the tractor, "
-        "its rear axle group's wheels); 'axles' the static-load-weighted mean of the slopes under its axles' wheels; "
-        "'supports' its supports' normal reactions at their static loads, its axles' on the slopes under their wheels, "
-        "its kingpin's on the fifth wheel of the unit ahead, less the unit behind's on its own; ignored on flat ground",
+    body_slope: Literal["supports", "axles"] = Field(
+        "supports",
+        description="each body's in-plane gravity and normal-load factor in the vehicle model: 'supports' the "
+        "horizontal part of its supports' normal reactions at their static loads, its axles' on the slopes under "
+        "their wheels, its kingpin's on the fifth wheel of the unit ahead, less the unit behind's on its own; 'axles' "
+        "the static-load-weighted mean of the slopes under its axles' wheels, which the accelerometers read too (with "
+        "'supports' they read gravity through the body's attitude, its contact plane); ignored on flat ground",
     )
     look: Literal["sealed", "unsealed"] = Field(
         "sealed", description="the rendered road and ground: asphalt and fields, or gravel, dirt and scrub"
