@@ -164,7 +164,7 @@ def test_a_converter_dolly_and_the_trailer_on_it_take_their_own_supports_chords(
         np.testing.assert_allclose(body_slope_vectors(params, pose, terrain), expected, rtol=0, atol=1e-12)
 
 
-def test_the_accelerometers_read_the_cameras_plane_and_axles_reads_as_before():
+def test_the_accelerometers_read_the_cameras_plane_and_with_axles_the_models_slope():
     """On an undulation and an articulated pose, with ``supports`` ``sensed_gravity`` is gravity along the normal the
     camera's attitude takes (one plane: to rounding) and the normal loads fall with the model's own slope,
     ``cos θ = sqrt(1 − |s|²)`` (1e-12); with ``axles`` the model's slope is the static-load-weighted mean of the
