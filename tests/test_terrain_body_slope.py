@@ -267,3 +267,27 @@ def test_body_slope_setting_defaults_to_supports_and_refuses_other_values():
             TerrainSlope(TiltedPlane(0.1, 0.0), bad)
     flat = Simulator(reference_laden(), build_scenario(load_scenario("pbs-low-speed-turn")).surface)
     assert flat._attitude_terrain is None and flat._axle_weights is None and flat._supports is None
+
+
+@pytest.mark.parametrize("body", ["supports", "axles"])
+def test_the_co_simulations_accelerometers_read_the_sensed_gravity(monkeypatch, body):
+    """The rough yard for 8 s, the tractor's lateral accelerometer recorded: the co-simulation takes its gravity from
+    ``sensed_gravity``. With ``supports`` the signal changes when ``sensed_gravity`` is made the model's push
+    (``unit_gravity``), by more than 0.05 m/s² somewhere, and nothing else does; with ``axles`` the two are one
+    reading and the runs are identical."""
+    from scenarios.run.drive import simulate
+
+    overrides = {"vehicle": "lst", "duration_s": 8.0, "terrain.body_slope": body}
+
+    def recorded() -> dict:
+        return simulate(build_scenario(load_scenario("gravel-yard", overrides)))[1]
+
+    sensed = recorded()
+    monkeypatch.setattr(Simulator, "sensed_gravity", Simulator.unit_gravity)
+    pushed = recorded()
+    signal = "signal_tractor_lateral_acceleration"
+    assert signal in sensed and len(sensed["time"]) == len(pushed["time"]) > 300
+    gap = np.max(np.abs(np.asarray(sensed[signal]) - np.asarray(pushed[signal])))
+    assert gap > 0.05 if body == "supports" else gap == 0.0
+    for name in ("X", "Y", "psi1", "gamma"):
+        np.testing.assert_array_equal(sensed[name], pushed[name])
