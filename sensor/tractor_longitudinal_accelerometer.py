@@ -15,11 +15,12 @@ The truth it reads: the specific force along the tractor's x axis, acceleration 
 ``u̇`` the mean over the control period (an accelerometer's anti-alias filter, as the lateral one's ``v̇1``,
 :func:`vehicle_model.kinematics.tractor_lateral_specific_force`), ``u̇ − v1·r1`` the acceleration of the centre of
 gravity along the tractor's x axis in the model's own states, and ``g_x`` gravity's in-plane longitudinal part at
-the tractor (:meth:`vehicle_model.simulator.Simulator.tractor_gravity`), ``−g·sin θ`` up a grade ``θ`` along the
-heading (docs/terrain.md). So ``f_x = u̇ − v1·r1 + g·sin θ``: standing or driving steadily uphill it reads
-``+g·sin θ``, the reading of an accelerometer whose nose is tilted up (its proof mass pushed back); downhill it reads
-negative. This is the sum the model's equations of motion hold as the tyres' and the hitch's forces over the mass, so
-it is what the body's accelerometer would sense.
+the tractor through its attitude (:meth:`vehicle_model.simulator.Simulator.sensed_gravity`), ``−g·sin θ`` up a
+grade ``θ`` along the heading (docs/terrain.md). So ``f_x = u̇ − v1·r1 + g·sin θ``: standing or driving steadily
+uphill it reads ``+g·sin θ``, the reading of an accelerometer whose nose is tilted up (its proof mass pushed back);
+downhill it reads negative. On a plane this is the sum the model's equations of motion hold as the tyres' and the
+hitch's forces over the mass; where the ground's slope changes within the tractor's length the model's gravity is its
+supports' push (:meth:`~vehicle_model.simulator.Simulator.unit_gravity`) and the accelerometer's the attitude's.
 """
 
 from __future__ import annotations

@@ -25,8 +25,8 @@ included, without a differentiated gyro. For a semi-trailer it lies by the axle 
 The truth it reads: the point's specific force, ``a_y − g_y`` in the unit's axes (left positive), ``a_y = v̇_y +
 r·v_x`` of the point's velocity ``(v_x, v_y)`` in the unit's axes, ``v̇_y`` the mean over the control period (as the
 tractor's accelerometer, :func:`vehicle_model.kinematics.tractor_lateral_specific_force`), ``g_y`` gravity's
-in-plane lateral part at the unit (:meth:`vehicle_model.simulator.Simulator.unit_gravity`): on a cross slope it
-reads the share of gravity the tyres carry.
+in-plane lateral part through the unit's attitude (:meth:`vehicle_model.simulator.Simulator.sensed_gravity`): on a
+cross slope it reads the share of gravity the tyres carry.
 """
 
 from __future__ import annotations

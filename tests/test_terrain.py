@@ -129,13 +129,14 @@ def _run(sim: Simulator, steer: float, periods: int) -> np.ndarray:
     return sim.state_vector
 
 
-def test_a_constant_crossfall_terrain_drives_as_the_camber_to_1e_9(reference, reference_model):
+@pytest.mark.parametrize("body", ["supports", "axles"])
+def test_a_constant_crossfall_terrain_drives_as_the_camber_to_1e_9(reference, reference_model, body):
     start = reference_model.layout
     camber = Simulator(
         reference, Surface(UniformFriction(0.5), UniformCrossfall(4.0, -math.pi / 2)), model=reference_model
     )
-    terrain = Simulator(reference, Surface(UniformFriction(0.5), TerrainSlope(PlaneTerrain(crossfall_percent=4.0))),
-                        model=reference_model)  # fmt: skip
+    slope = TerrainSlope(PlaneTerrain(crossfall_percent=4.0), body)
+    terrain = Simulator(reference, Surface(UniformFriction(0.5), slope), model=reference_model)
     for sim in (camber, terrain):
         sim.reset(
             sim.state.__class__.from_vector(np.r_[0, 0, 0, 5.0, np.zeros(start.n_states - 4)], 0.0, len(start.axles))
@@ -144,9 +145,10 @@ def test_a_constant_crossfall_terrain_drives_as_the_camber_to_1e_9(reference, re
     assert np.max(np.abs(a - b)) <= 1e-9 * np.max(np.abs(a))
 
 
-def test_constant_grade_gravity_and_loads_are_the_closed_form(reference, reference_model):
+@pytest.mark.parametrize("body", ["supports", "axles"])
+def test_constant_grade_gravity_and_loads_are_the_closed_form(reference, reference_model, body):
     grade = 0.10
-    sim = Simulator(reference, Surface(slope=TerrainSlope(PlaneTerrain(grade_percent=100 * grade, heading=0.3))),
+    sim = Simulator(reference, Surface(slope=TerrainSlope(PlaneTerrain(grade_percent=100 * grade, heading=0.3), body)),
                     model=reference_model)  # fmt: skip
     state = sim.state.__class__.from_vector(
         np.r_[0, 0, 0.3, 0, np.zeros(sim.layout.n_states - 4)], 0.0, len(sim.layout.axles)

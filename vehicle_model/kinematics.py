@@ -234,7 +234,7 @@ def tractor_lateral_specific_force(
         Two states of one run, ``current`` later (consecutive control ticks), or ``None`` and the first state.
     gravity_lateral
         Gravity's in-plane lateral part per unit mass at the tractor [m/s²]
-        (:meth:`~vehicle_model.simulator.Simulator.tractor_gravity`).
+        (:meth:`~vehicle_model.simulator.Simulator.sensed_gravity`).
     """
     rate = 0.0
     if previous is not None:

@@ -69,16 +69,29 @@ def along_slope_factor(terrain: Terrain, points: np.ndarray, heading: np.ndarray
     return np.sqrt(1.0 + rise * rise)
 
 
+BODY_SLOPES = ("supports", "axles")
+"""How the simulator takes each body's slope vector on a terrain (:class:`TerrainSlope`)."""
+
+
 @dataclass(frozen=True)
 class TerrainSlope:
     """The slope field of a terrain (:class:`vehicle_model.surface.SlopeField`): ``slope_vectors(∇z)`` at points.
 
-    ``per_axle`` tells the simulator to look the slope up under every axle and give each body the load-weighted
-    mean of its axles' vectors (docs/terrain.md), instead of the slope under its centre of gravity.
+    ``body`` tells the simulator how each body's slope vector is taken (docs/terrain.md, "Per body"): ``"supports"``
+    the horizontal part of its supports' normal reactions per unit weight, its axles' on the slopes under them
+    (:meth:`under_axles`) and its couplings' on the planes of the fifth wheels
+    (:func:`vehicle_model.simulator.support_weights`); ``"axles"`` the mean of the slopes under its axles weighted by
+    their static loads. With ``"supports"`` the body's accelerometers read gravity through its attitude, its contact
+    plane (:meth:`vehicle_model.simulator.Simulator.sensed_gravity`), not the push that moves it; with ``"axles"``
+    they read that form's slope.
     """
 
     terrain: Terrain
-    per_axle: bool = True
+    body: str = "supports"
+
+    def __post_init__(self) -> None:
+        if self.body not in BODY_SLOPES:
+            raise ValueError(f"body = {self.body!r} must be one of {', '.join(BODY_SLOPES)}")
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         return slope_vectors(self.terrain.gradient(np.asarray(points, dtype=float)))
@@ -94,9 +107,11 @@ class TerrainSlope:
         w = np.asarray(half_tracks, dtype=float)[:, None]
         along = np.column_stack([np.cos(h), np.sin(h)])
         across = np.column_stack([-np.sin(h), np.cos(h)])
-        left, right = p + w * across, p - w * across
-        rise = (self.terrain.height(left) - self.terrain.height(right)) / (2.0 * w[:, 0])
-        grade = 0.5 * ((self.terrain.gradient(left) + self.terrain.gradient(right)) * along).sum(axis=1)
+        n = len(p)
+        wheels = np.concatenate([p + w * across, p - w * across])  # left wheels, then right: one look-up each
+        z, gradient = self.terrain.height(wheels), self.terrain.gradient(wheels)
+        rise = (z[:n] - z[n:]) / (2.0 * w[:, 0])
+        grade = 0.5 * ((gradient[:n] + gradient[n:]) * along).sum(axis=1)
         return slope_vectors(grade[:, None] * along + rise[:, None] * across)
 
 

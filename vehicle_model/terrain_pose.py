@@ -13,10 +13,13 @@ not a plane each unit is a rigid body resting on three supports (docs/terrain_ca
   the front support) at :func:`half_track` either side of the centre line.
 
 The three points are placed horizontally by the planar model and lifted by the terrain's height; the plane through
-them is the unit's contact plane. The unit's body axes: z the plane's upward normal, x the horizontal heading ψ
-projected onto the plane, y = z × x. Pitch θ and roll φ are that rotation's ISO angles,
-``R = R_z(ψ)·R_y(θ)·R_x(φ)`` (pitch positive nose down, roll positive left side up), and the unit's frame origin
-(the ground point of station 0 on the centre line) lies on the contact plane below its horizontal position. On a
+them is the unit's contact plane (:func:`contact_planes`). The camera takes the unit's attitude from it
+(:func:`unit_attitudes`), its accelerometers the gravity they read (:func:`body_slope_vectors`) and the vehicle
+model the normal of a fifth wheel its supports' reactions push on (``terrain.body_slope: supports``). The unit's body
+axes: z the plane's upward normal, x the horizontal heading ψ projected onto the plane, y = z × x. Pitch θ and roll φ
+are that rotation's ISO angles, ``R = R_z(ψ)·R_y(θ)·R_x(φ)`` (pitch positive nose down, roll positive left side
+up), and the unit's frame origin (the ground point of station 0 on the centre line) lies on the contact plane below
+its horizontal position. On a
 plane ``z = a·x + b·y + c`` every support lies on it, so the pose is exact there:
 ``θ = −atan(a·cos ψ + b·sin ψ)`` and ``φ = atan((b·cos ψ − a·sin ψ)·cos θ)``.
 
@@ -34,7 +37,17 @@ from .geometry import ChainPose, CombinationPose, chain_pose, place_points, trac
 from .parameters import TractorParams, TrailerParams, VehicleParams
 from .terrain import FlatTerrain, Terrain
 
-__all__ = ["DUAL_WHEEL_INSET", "UnitAttitude", "half_track", "is_flat", "unit_attitude", "unit_attitudes"]
+__all__ = [
+    "DUAL_WHEEL_INSET",
+    "ContactPlane",
+    "UnitAttitude",
+    "body_slope_vectors",
+    "contact_planes",
+    "half_track",
+    "is_flat",
+    "unit_attitude",
+    "unit_attitudes",
+]
 
 DUAL_WHEEL_INSET = 0.3
 """Distance from a unit's body side in to the centre of its outer wheels [m] (half a dual-tyre wheel's width)."""
@@ -60,6 +73,27 @@ class UnitAttitude(NamedTuple):
     pitch: np.ndarray
     roll: np.ndarray
     rotation: np.ndarray
+
+
+class ContactPlane(NamedTuple):
+    """The plane through a unit's three supports and where the unit's frame is (each of the pose's shape ``S``).
+
+    Attributes
+    ----------
+    support : numpy.ndarray
+        ``S + (3,)``: the front support on the plane [m].
+    normal : numpy.ndarray
+        ``S + (3,)``: the plane's upward unit normal.
+    origin : numpy.ndarray
+        ``S + (2,)``: the unit's frame origin (station 0 on the centre line) in the horizontal plane [m].
+    heading : numpy.ndarray
+        ``S``: the unit's horizontal heading ψ [rad].
+    """
+
+    support: np.ndarray
+    normal: np.ndarray
+    origin: np.ndarray
+    heading: np.ndarray
 
 
 def is_flat(terrain: Terrain | None) -> bool:
@@ -94,12 +128,18 @@ def _plane_height(front: np.ndarray, normal: np.ndarray, xy: np.ndarray) -> np.n
     return front[..., 2] - (normal[..., 0] * d[..., 0] + normal[..., 1] * d[..., 1]) / normal[..., 2]
 
 
-def _attitude(front: np.ndarray, left: np.ndarray, right: np.ndarray, origin: np.ndarray, heading) -> UnitAttitude:
-    """The unit's attitude from its three supports ``S + (3,)``, its origin ``S + (2,)`` and heading ``S``."""
+def _plane(front: np.ndarray, left: np.ndarray, right: np.ndarray, origin: np.ndarray, heading) -> ContactPlane:
+    """The contact plane through three supports ``S + (3,)`` of a unit at ``origin`` ``S + (2,)`` heading ``S``."""
     normal = np.cross(left - front, right - front)
     normal = normal * np.sign(normal[..., 2:3])  # upward
     normal = normal / np.linalg.norm(normal, axis=-1, keepdims=True)
-    psi = np.asarray(heading, dtype=float)
+    return ContactPlane(front, normal, origin, np.asarray(heading, dtype=float))
+
+
+def _attitude(plane: ContactPlane) -> UnitAttitude:
+    """The unit's attitude on its contact plane (module docstring)."""
+    normal = plane.normal
+    psi = plane.heading
     c, s = np.cos(psi), np.sin(psi)
     rise = -(normal[..., 0] * c + normal[..., 1] * s) / normal[..., 2]  # the plane's slope along the heading
     x_axis = np.stack([c, s, rise], axis=-1) / np.sqrt(1.0 + rise * rise)[..., None]
@@ -107,7 +147,7 @@ def _attitude(front: np.ndarray, left: np.ndarray, right: np.ndarray, origin: np
     rotation = np.stack([x_axis, y_axis, normal], axis=-1)
     pitch = -np.arcsin(np.clip(x_axis[..., 2], -1.0, 1.0))
     roll = np.arctan2(y_axis[..., 2], normal[..., 2])
-    z = _plane_height(front, normal, origin)
+    z = _plane_height(plane.support, normal, plane.origin)
     return UnitAttitude(z, pitch, roll, rotation)
 
 
@@ -127,10 +167,12 @@ def _supports(params: VehicleParams, unit: int) -> tuple[float, float]:
     return 0.0, float(np.mean(stations))
 
 
-def unit_attitudes(
+def contact_planes(
     params: VehicleParams, pose: CombinationPose | ChainPose, terrain: Terrain
-) -> list[UnitAttitude | None]:
-    """The attitude of every unit at ``pose`` on ``terrain``, the tractor first (module docstring).
+) -> list[ContactPlane | None]:
+    """The contact plane of every unit at ``pose`` on ``terrain``, the tractor first (module docstring): the plane
+    through its three supports, from which the camera takes the unit's attitude (:func:`unit_attitudes`), its
+    accelerometers their gravity (:func:`body_slope_vectors`) and the vehicle model its fifth wheel's normal.
 
     A :class:`~vehicle_model.geometry.CombinationPose` places the tractor and the first towed unit; the units it
     does not place get ``None``.
@@ -142,45 +184,82 @@ def unit_attitudes(
     pose : CombinationPose or ChainPose
         Where the combination is in the horizontal plane; fields may be arrays of one shape ``S``.
     terrain : Terrain
-        Ground height and gradient.
+        Ground height.
+
+    Returns
+    -------
+    list of ContactPlane or None
+        One per unit, front to rear.
+    """
+    full = chain_pose(pose)
+    placed = [(0, tractor_points(params, full.x, full.y, full.psi1, np.zeros((1, 2)))[..., 0, :], full.psi1)]
+    placed += [(k, *unit_frame(params, full, k)) for k in range(1, min(len(full.angles), len(params.trailers)) + 1)]
+    pts = []
+    for k, origin, heading in placed:
+        front_x, rear_x = _supports(params, k)
+        h = half_track(params.units[k])
+        local = np.array([[front_x, 0.0], [rear_x, h], [rear_x, -h]])
+        if k == 0:
+            pts.append(tractor_points(params, full.x, full.y, full.psi1, local))
+        else:
+            pts.append(place_points(origin, heading, local))
+    lifted = _lift(terrain, np.concatenate(pts, axis=-2))  # every unit's supports in one look-up
+    out: list[ContactPlane | None] = []
+    ahead: ContactPlane | None = None
+    for n, (k, origin, heading) in enumerate(placed):
+        unit = lifted[..., 3 * n : 3 * n + 3, :]
+        body = params.units[k]
+        if ahead is not None and isinstance(body, TrailerParams) and body.front_load:
+            # the coupling rides on the unit ahead
+            unit[..., 0, 2] = _plane_height(ahead.support, ahead.normal, unit[..., 0, :2])
+        ahead = _plane(unit[..., 0, :], unit[..., 1, :], unit[..., 2, :], origin, heading)
+        out.append(ahead)
+    return out + [None] * (len(params.trailers) + 1 - len(out))
+
+
+def unit_attitudes(
+    params: VehicleParams, pose: CombinationPose | ChainPose, terrain: Terrain
+) -> list[UnitAttitude | None]:
+    """The attitude of every unit at ``pose`` on ``terrain``, the tractor first: its body axes on its contact plane
+    (:func:`contact_planes`, module docstring).
+
+    Parameters
+    ----------
+    params : VehicleParams
+        The combination (axle stations, widths, couplings).
+    pose : CombinationPose or ChainPose
+        Where the combination is in the horizontal plane; fields may be arrays of one shape ``S``.
+    terrain : Terrain
+        Ground height.
 
     Returns
     -------
     list of UnitAttitude or None
-        One per unit, front to rear.
+        One per unit, front to rear (``None`` where a :class:`~vehicle_model.geometry.CombinationPose` does not place
+        the unit).
     """
-    full = chain_pose(pose)
-    tractor = params.tractor
-    front_x, rear_x = _supports(params, 0)
-    h = half_track(tractor)
-    pts = tractor_points(params, full.x, full.y, full.psi1, np.array([[front_x, 0.0], [rear_x, h], [rear_x, -h]]))
-    origin = tractor_points(params, full.x, full.y, full.psi1, np.zeros((1, 2)))[..., 0, :]
-    lifted = _lift(terrain, pts)
-    out: list[UnitAttitude | None] = [
-        _attitude(lifted[..., 0, :], lifted[..., 1, :], lifted[..., 2, :], origin, full.psi1)
-    ]
-    ahead_front, ahead_normal = lifted[..., 0, :], _normal_of(out[0])
-    for k in range(1, len(params.trailers) + 1):
-        if len(full.angles) < k:
-            out.append(None)
-            continue
-        body = params.units[k]
-        origin, heading = unit_frame(params, full, k)
-        front_x, rear_x = _supports(params, k)
-        h = half_track(body)
-        local = np.array([[front_x, 0.0], [rear_x, h], [rear_x, -h]])
-        pts = place_points(origin, heading, local)
-        lifted = _lift(terrain, pts)
-        if isinstance(body, TrailerParams) and body.front_load:  # the coupling rides on the unit ahead
-            lifted[..., 0, 2] = _plane_height(ahead_front, ahead_normal, pts[..., 0, :])
-        att = _attitude(lifted[..., 0, :], lifted[..., 1, :], lifted[..., 2, :], origin, heading)
-        out.append(att)
-        ahead_front, ahead_normal = lifted[..., 0, :], _normal_of(att)
-    return out
+    return [None if plane is None else _attitude(plane) for plane in contact_planes(params, pose, terrain)]
 
 
-def _normal_of(attitude: UnitAttitude) -> np.ndarray:
-    return attitude.rotation[..., :, 2]
+def body_slope_vectors(params: VehicleParams, pose: ChainPose, terrain: Terrain) -> np.ndarray:
+    """Each unit's slope vector ``(units, 2)``: the horizontal part ``(n_x, n_y)`` of its contact plane's upward unit
+    normal (:func:`contact_planes`): gravity's in-plane part in the unit's own axes, what an accelerometer fixed to it
+    reads (:meth:`vehicle_model.simulator.Simulator.sensed_gravity`; docs/vehicle_dynamics.md §1.3).
+
+    On a plane ``z = a·x + b·y + c`` the normal is ``(−a, −b, 1)/sqrt(1 + a² + b²)``, so its horizontal part is the
+    slope vector ``−∇z / sqrt(1 + |∇z|²)`` (:func:`vehicle_model.terrain.slope_vectors`) and the normal-load factor
+    ``cos θ = sqrt(1 − n_x² − n_y²)`` is ``n_z``: a rigid body's gravity in its own axes is set by its attitude, the
+    same the camera takes (:func:`unit_attitudes`). It is not the in-plane push that moves the body where the
+    ground's slope changes within its length (docs/terrain.md, "Per body"). ``pose`` must place every unit (scalar
+    fields).
+    """
+    planes = contact_planes(params, pose, terrain)
+    normals = [plane.normal for plane in planes if plane is not None]
+    if len(normals) != len(planes):
+        raise ValueError(
+            f"the pose has {len(pose.angles)} articulation angle(s); {params.name!r} needs {len(planes) - 1}"
+        )
+    return np.array([n[:2] for n in normals], dtype=float)
 
 
 def unit_attitude(

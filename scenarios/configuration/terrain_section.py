@@ -43,6 +43,8 @@ class TerrainConfig(Settings):
     ASCII (``.asc``) or CSV (``x,y,z``), bilinear between its nodes, its coordinates less ``origin_m`` (the file's
     coordinates of the scenario's origin); the path must lie on it.
 
+    ``body_slope`` is how the vehicle model takes each body's slope (docs/terrain.md, "The vehicle on it").
+
     ``look`` is how the rendered world's road and ground look on it (docs/terrain_camera.md §3): ``sealed`` (the
     default: asphalt, paint, grass verges and farm fields) or ``unsealed`` (gravel with wheel ruts, scrub verges, dirt
     and stony ground, rock cut faces and boulders; :mod:`sensor.world.unsealed`). It sets the world only; the tyres'
@@ -96,6 +98,14 @@ class TerrainConfig(Settings):
         Annotated[float, Field(ge=-1e8, le=1e8, description="[m] northing; beyond any projected system")],
     ] = Field((0.0, 0.0), description="[m] the file's coordinates of the scenario's origin")
 
+    body_slope: Literal["supports", "axles"] = Field(
+        "supports",
+        description="each body's in-plane gravity and normal-load factor in the vehicle model: 'supports' the "
+        "horizontal part of its supports' normal reactions at their static loads, its axles' on the slopes under "
+        "their wheels, its kingpin's on the fifth wheel of the unit ahead, less the unit behind's on its own; 'axles' "
+        "the static-load-weighted mean of the slopes under its axles' wheels, which the accelerometers read too (with "
+        "'supports' they read gravity through the body's attitude, its contact plane); ignored on flat ground",
+    )
     look: Literal["sealed", "unsealed"] = Field(
         "sealed", description="the rendered road and ground: asphalt and fields, or gravel, dirt and scrub"
     )

@@ -368,8 +368,9 @@ class CoSimulation:
         setup = self.setup
         time = self.sim.time
         kingpin = kingpin_position(setup.params, state.X, state.Y, state.psi1)
-        # the accelerometer's truth: the specific force (a prescribed motion: its centripetal acceleration)
-        gravity_x, gravity = (0.0, 0.0) if self.kinematic else self.sim.tractor_gravity()
+        # the accelerometer's truth: the specific force (a prescribed motion: its centripetal acceleration), gravity
+        # through the tractor's attitude (Simulator.sensed_gravity)
+        gravity_x, gravity = (0.0, 0.0) if self.kinematic else self.sim.sensed_gravity(0, float(state.psi1))
         previous = self.tick.state if index > 0 and not self.kinematic else None
         specific = tractor_lateral_specific_force(previous, state, gravity)
         measured = self.signals.measure(time, state, self.steer, specific, self._unit_gravity(state), gravity_x)
@@ -393,8 +394,9 @@ class CoSimulation:
         return Tick(index, time, state, kingpin, measured, estimates, command, tick.camera_frame)
 
     def _unit_gravity(self, state: VehicleState) -> tuple[float, ...]:
-        """Gravity's in-plane lateral part at each towed unit [m/s²] for their accelerometers (none without them; zero
-        on a prescribed motion, as the tractor's)."""
+        """Gravity's in-plane lateral part at each towed unit [m/s²] for their accelerometers, through the unit's
+        attitude (:meth:`vehicle_model.simulator.Simulator.sensed_gravity`; none without them; zero on a prescribed
+        motion, as the tractor's)."""
         if self.signals.accelerometers is None:
             return ()
         units = self.signals.accelerometers.units
@@ -402,7 +404,7 @@ class CoSimulation:
             return (0.0,) * len(units)
         pose = state.chain_pose
         return tuple(
-            self.sim.unit_gravity(unit, float(unit_frame(self.setup.params, pose, unit)[1]))[1] for unit in units
+            self.sim.sensed_gravity(unit, float(unit_frame(self.setup.params, pose, unit)[1]))[1] for unit in units
         )
 
     # ------------------------------------------------------------------ pickling

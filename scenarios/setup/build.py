@@ -244,7 +244,7 @@ def _slope(
             raise RoadFileError(f"road file {config.path.file} gives a crossfall; terrain.kind must be flat with it")
         return StationCrossfall(path.points, path.heading, road.crossfall)
     if terrain is not None and not isinstance(terrain, FlatTerrain):
-        return TerrainSlope(terrain)
+        return TerrainSlope(terrain, config.terrain.body_slope)
     if camber.percent == 0.0:
         return FlatRoad()
     if len(path.centres):
