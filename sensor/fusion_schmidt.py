@@ -7,9 +7,9 @@ state error it carries with the filter's own gains, as the moments ``Π = E[ξ·
 filter's gains there are those of a reference taken as white, so a reference whose error persists teaches the states
 (and through them the path) as much as one whose error averages out. The Schmidt–Kalman filter (Schmidt 1966,
 "Application of state-space methods to navigation problems", Advances in Control Systems 3; Zanetti & D'Souza 2013,
-"Recursive implementations of the consider filter", AAS 12-619, eqs (14)–(16); Woodbury & Junkins 2010) takes the
-same consider parameter into the gain: the gain that minimises the state error's covariance given the cross-covariance
-of the state with ``ν``, without estimating ``ν``. This module computes that gain for the reference's update.
+"Recursive implementations of the consider filter", AAS 12-619; Woodbury & Junkins 2010) takes the same consider
+parameter into the gain: the gain that minimises the state error's covariance given the cross-covariance of the state
+with ``ν``, without estimating ``ν``. This module computes that gain for the reference's update.
 
 The reference ``z = H_c·x + σ_c·ν·e_y + v`` (``H_c = [I₃ 0]``, ``e_y`` its lateral row, ``v`` white of covariance
 ``R_c``, ``ν`` of unit variance), the state error ``e = x̂ − x`` with the covariance ``P + Π`` (``P`` the filter's, the
@@ -23,10 +23,11 @@ and the update ``x̂ ← x̂ + K·y``, whose error is ``(I − K·H_c)·e + K·(
 
     K = M·S⁻¹                                                                                             (S3)
 
-(Zanetti & D'Souza 2013, eq (14); the filter's own gain ``P·H_cᵀ·(H_c·P·H_cᵀ + R_c)⁻¹`` where ``Π`` and ``c`` are
-zero, as before the first reference). ``ν`` itself is not estimated: it is the consider parameter, and the next
-reference's ``ν`` is the same process faded by ``exp(−Δt/τ_c)``, which (P2) of :mod:`sensor.fusion_consider` keeps in
-``c``. The error's two parts are then carried apart, each once::
+(the Schmidt–Kalman gain of Zanetti & D'Souza 2013, with the white and the persisting parts of the error apart; the
+filter's own gain ``P·H_cᵀ·(H_c·P·H_cᵀ + R_c)⁻¹`` where ``Π`` and ``c`` are zero, as before the first reference). ``ν``
+itself is not estimated: it is the consider parameter, and the next reference's ``ν`` is the same process faded by
+``exp(−Δt/τ_c)``, which (P2) of :mod:`sensor.fusion_consider` keeps in ``c``. The error's two parts are then carried
+apart, each once::
 
     P ← (I − K·H_c)·P·(I − K·H_c)ᵀ + K·R_c·Kᵀ                                                             (S4)
 
