@@ -51,7 +51,7 @@ from vehicle_model.parameters import VehicleParams
 from .fusion_adaptive import AdaptiveCovariance
 from .fusion_axial import AxialRegression
 from .fusion_consider import Transition, consider_of
-from .fusion_coupling import CouplingMeasurement, coupled_update
+from .fusion_coupling import CouplingMeasurement
 from .fusion_coupling_ratio import CouplingRatio
 from .fusion_model import (
     BG,
@@ -469,10 +469,10 @@ class FusedVisoOt:
         return used
 
     def _couple(self, x: np.ndarray, p: np.ndarray, coupling: CouplingMeasurement) -> tuple[np.ndarray, ...]:
-        """The following unit's measurement (:func:`~sensor.fusion_coupling.coupled_update`), counted."""
+        """The following unit's measurement (:meth:`~sensor.fusion_consider.NoConsider.coupled`: the filter's own
+        gain, or the Schmidt–Kalman gain of :mod:`sensor.fusion_schmidt`), counted."""
         refuse = self._coupling_gated < self.noise.max_gated
-        x, posterior, nis, used = coupled_update(x, p, coupling, self.noise.gate, refuse)
-        self._consider.reference(p, coupling, nis, self.noise.gate, used)
+        x, posterior, _nis, used = self._consider.coupled(x, p, coupling, self.noise.gate, refuse)
         self._coupling_gated = 0 if used else self._coupling_gated + 1
         self.coupling_updates += int(used)
         self.coupling_rejected += int(not used)

@@ -61,8 +61,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fusion_coupling import CouplingMeasurement
+from .fusion_coupling import CouplingMeasurement, coupled_update
 from .fusion_noise import PersistingReferenceError
+from .fusion_schmidt import schmidt_update
 
 __all__ = ["NoConsider", "PersistingReference", "Transition", "consider_of", "update_gain"]
 
@@ -126,6 +127,15 @@ class NoConsider:
     def reference(self, *_args: object) -> None:
         """Nothing to carry."""
 
+    def coupled(
+        self, x: np.ndarray, p: np.ndarray, coupling: CouplingMeasurement, gate: float, refuse: bool
+    ) -> tuple[np.ndarray, np.ndarray, float, bool]:
+        """The following unit's measurement taken (:func:`~sensor.fusion_coupling.coupled_update`, the filter's own
+        gain) and carried by :meth:`reference`: ``(x, p, nis, used)``."""
+        x_new, p_new, nis, used = coupled_update(x, p, coupling, gate, refuse)
+        self.reference(p, coupling, nis, gate, used)
+        return x_new, p_new, nis, used
+
     def commit(self, *_args: object) -> None:
         """Nothing to commit."""
 
@@ -149,6 +159,7 @@ class PersistingReference(NoConsider):
         self.size = size
         self.share = float(error.share)
         self.correlation_time = float(error.correlation_time_s)
+        self.gain = bool(getattr(error, "gain", False))
         self.reset()
 
     def reset(self) -> None:
@@ -191,16 +202,42 @@ class PersistingReference(NoConsider):
         if used:
             self._apply(np.eye(self.size) - update_gain(p, h, r, nis, gate) @ h, None)
 
-    def reference(self, p: np.ndarray, coupling: CouplingMeasurement, nis: float, gate: float, used: bool) -> None:
+    def reference(
+        self,
+        p: np.ndarray,
+        coupling: CouplingMeasurement,
+        nis: float,
+        gate: float,
+        used: bool,
+        gain: np.ndarray | None = None,
+    ) -> None:
         """The following unit's measurement ``coupling`` (``H_c = [I₃ 0]``, ``R_c`` taken with ``k_c``) the filter
-        took from the covariance ``p``: it injects ``m = σ_c·K_c·e_y`` of (P2)."""
+        took from the covariance ``p``: it injects ``m = σ_c·K_c·e_y`` of (P2). ``gain``: the ``K_c`` it was taken
+        with (``None``: the filter's own, recomputed from ``p``)."""
         if not used:
             return
         h = np.hstack([np.eye(3), np.zeros((3, self.size - 3))])
-        r = np.asarray(coupling.covariance, dtype=float)
-        k = update_gain(p, h, r, nis, gate)
-        sigma = self.share * math.sqrt(max(float(r[1, 1]) / coupling.covariance_scale, 0.0))
-        self._apply(np.eye(self.size) - k @ h, sigma * k[:, 1])
+        k = update_gain(p, h, np.asarray(coupling.covariance, dtype=float), nis, gate) if gain is None else gain
+        self._apply(np.eye(self.size) - k @ h, self.sigma(coupling) * k[:, 1])
+
+    def sigma(self, coupling: CouplingMeasurement) -> float:
+        """``σ_c = u·sqrt(R_c,yy / k_c)`` [m] of the reference ``coupling``."""
+        r_yy = float(np.asarray(coupling.covariance, dtype=float)[1, 1])
+        return self.share * math.sqrt(max(r_yy / coupling.covariance_scale, 0.0))
+
+    def coupled(
+        self, x: np.ndarray, p: np.ndarray, coupling: CouplingMeasurement, gate: float, refuse: bool
+    ) -> tuple[np.ndarray, np.ndarray, float, bool]:
+        """The following unit's measurement taken and carried by :meth:`reference`: with the Schmidt–Kalman gain of
+        :mod:`sensor.fusion_schmidt` where the error's ``gain`` is on, else with the filter's own."""
+        if not self.gain:
+            return super().coupled(x, p, coupling, gate, refuse)
+        moments = (self.pi, self.c)
+        x_new, p_new, nis, used, k = schmidt_update(
+            x, p, moments, coupling.increment, coupling.covariance, self.sigma(coupling), gate, refuse
+        )
+        self.reference(p, coupling, nis, gate, used, k)
+        return x_new, p_new, nis, used
 
     def _apply(self, a: np.ndarray, m: np.ndarray | None) -> None:
         """(P2) with ``A`` = ``a`` and the injection ``m`` (``None``: none), no time passing."""

@@ -68,12 +68,16 @@ class PersistingReferenceError(Settings):
         :mod:`sensor.fusion_coupling` before ``k_c``).
     correlation_time_s
         Its correlation time [s].
+    gain
+        Take the reference with the Schmidt–Kalman gain of this error (:mod:`sensor.fusion_schmidt`: less of a
+        reference whose error persists); ``False`` (default): the filter's own gain, the error in the std alone.
     """
 
     share: float = Field(gt=0.0, le=1.0, description="of the per-frame lateral std; above 1 it is no longer a part")
     correlation_time_s: float = Field(
         gt=0.0, le=600.0, description="[s] of the Gauss–Markov error; 600 s is constant over any run"
     )
+    gain: bool = False
 
 
 class FollowerLimit(Settings):
