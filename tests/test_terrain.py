@@ -13,9 +13,10 @@ from controller.speed import SpeedController, grade_feedforward
 from scenarios.config import ConfigError, load_scenario
 from scenarios.setup.build import build_scenario, build_terrain
 from scenarios.setup.paths import roundabout_path, straight_path
+from vehicle_model.body_slope import axle_weights
 from vehicle_model.dynamics import AIR_DENSITY, in_plane_gravity
 from vehicle_model.parameters import GRAVITY
-from vehicle_model.simulator import Controls, Simulator, axle_weights
+from vehicle_model.simulator import Controls, Simulator
 from vehicle_model.surface import FlatRoad, Surface, UniformCrossfall, UniformFriction
 from vehicle_model.terrain import (
     FlatTerrain,
@@ -204,7 +205,7 @@ def test_a_plane_tilted_both_ways_holds_a_straight_steady_state_whose_forces_sum
 def test_flat_terrain_is_todays_road_object_for_object(reference):
     setup = build_scenario(load_scenario("pbs-low-speed-turn"))
     assert setup.terrain == FlatTerrain() and isinstance(setup.surface.slope, FlatRoad)
-    assert Simulator(reference, setup.surface, model=setup.model)._axle_weights is None  # the old look-up
+    assert Simulator(reference, setup.surface, model=setup.model).body_slopes is None  # the old look-up
 
 
 def test_terrain_kinds_build_and_refuse_the_camber_with_them():

@@ -15,11 +15,12 @@ from analytic_terrains import TiltedPlane
 
 from scenarios.config import ConfigError, load_scenario
 from scenarios.setup.build import build_scenario
+from vehicle_model.body_slope import axle_weights
 from vehicle_model.dynamics import in_plane_gravity
 from vehicle_model.geometry import ChainPose, tractor_points, unit_frame
 from vehicle_model.parameters import GRAVITY
 from vehicle_model.presets import reference_laden, vehicle_preset
-from vehicle_model.simulator import Simulator, axle_weights
+from vehicle_model.simulator import Simulator
 from vehicle_model.surface import Surface
 from vehicle_model.terrain import PlaneTerrain, TerrainSlope, slope_vectors
 from vehicle_model.terrain_pose import body_slope_vectors, half_track, unit_attitudes
@@ -266,7 +267,7 @@ def test_body_slope_setting_defaults_to_supports_and_refuses_other_values():
         with pytest.raises(ValueError, match=rf"body = '{bad}' must be one of supports, axles"):
             TerrainSlope(TiltedPlane(0.1, 0.0), bad)
     flat = Simulator(reference_laden(), build_scenario(load_scenario("pbs-low-speed-turn")).surface)
-    assert flat._attitude_terrain is None and flat._axle_weights is None and flat._supports is None
+    assert flat.body_slopes is None
 
 
 @pytest.mark.parametrize("body", ["supports", "axles"])

@@ -5,20 +5,19 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import NamedTuple, NoReturn
+from typing import NoReturn
 
 import numpy as np
 
+from .body_slope import TerrainBodySlopes
 from .dynamics import VehicleModel, in_plane_gravity
 from .errors import InputError, SimulationDivergedError
 from .geometry import ChainPose, CombinationPose, place_points, tractor_points, trailer_frames, trailer_points
 from .layout import BODY_STATES, Layout
-from .parameters import GRAVITY, VehicleParams
+from .parameters import VehicleParams
 from .period import BAD_INPUT, DIVERGED, OK, context_views, load_period, new_context
-from .static_loads import solve_loads
 from .surface import Surface, UniformFriction
 from .terrain import TerrainSlope
-from .terrain_pose import ContactPlane, contact_planes, half_track
 
 STATE_LIMITS: dict[str, float] = {"u": 60.0, "v1": 30.0, "r1": 6.0, "r2": 6.0, "gamma": 3.5}
 """Magnitudes beyond which a state is taken as diverged (the model is meaningless there)."""
@@ -188,52 +187,6 @@ class SimulatorSnapshot:
     surface_filled: bool
 
 
-def axle_weights(params: VehicleParams) -> np.ndarray:
-    """``(units, axles)`` matrix whose row ``k`` averages per-axle values over unit ``k``'s axles, weighted by their
-    static loads (each row sums to 1)."""
-    table = params.axle_table
-    load = np.asarray(table.static_load, dtype=float)
-    unit = np.asarray(table.unit)
-    weights = np.zeros((params.n_units, len(load)))
-    for k in range(params.n_units):
-        on = unit == k
-        weights[k, on] = load[on] / load[on].sum()
-    return weights
-
-
-class SupportWeights(NamedTuple):
-    """Each unit's supports' static loads over its weight (:func:`support_weights`).
-
-    Attributes
-    ----------
-    axles : numpy.ndarray
-        ``(units, axles)``: row ``k`` each of unit ``k``'s axles' static load over its weight, zero elsewhere.
-    coupling : numpy.ndarray
-        ``(units,)``: the static load on the unit's front coupling (its kingpin) over its weight; zero for the tractor
-        and a coupling that carries none (a converter dolly's drawbar).
-    carried : numpy.ndarray
-        ``(units,)``: the static load the unit behind puts on its fifth wheel, over its weight.
-    """
-
-    axles: np.ndarray
-    coupling: np.ndarray
-    carried: np.ndarray
-
-
-def support_weights(params: VehicleParams) -> SupportWeights:
-    """Each unit's supports' static loads over its weight (docs/terrain.md, "Per body", ``supports``): its axles',
-    its kingpin's, and that of the unit behind on its fifth wheel (:func:`vehicle_model.static_loads.solve_loads`;
-    ``Σ axles + coupling − carried = 1`` per unit)."""
-    table = params.axle_table
-    load = np.asarray(table.static_load, dtype=float)
-    unit = np.asarray(table.unit)
-    weight = np.array([u.mass for u in params.units]) * GRAVITY
-    kingpins = np.r_[0.0, solve_loads(params.tractor, params.trailers, GRAVITY)[1], 0.0]
-    axles = np.zeros((params.n_units, len(load)))
-    axles[unit, np.arange(len(load))] = load / weight[unit]
-    return SupportWeights(axles, kingpins[:-1] / weight, kingpins[1:] / weight)
-
-
 class Simulator:
     """Advance the model with fixed RK4 steps; surface look-ups held over one control period.
 
@@ -312,18 +265,9 @@ class Simulator:
         self.time = 0.0
         self._surface_filled = False  # uniform surfaces are looked up once
         self._surface_uniform = self.surface.is_uniform
-        # A terrain's slope field (TerrainSlope) names how each body's slope is taken: from its axles' vectors
-        # weighted by static load, or from its supports' reactions (whose accelerometers read its contact plane).
+        # A terrain's slope field (TerrainSlope) names how each body's slope is taken (vehicle_model.body_slope).
         field_ = self.surface.slope
-        body = field_.body if isinstance(field_, TerrainSlope) else None
-        self._axle_weights = axle_weights(params) if body == "axles" else None
-        self._supports = support_weights(params) if body == "supports" else None
-        self._attitude_terrain = field_.terrain if isinstance(field_, TerrainSlope) and body == "supports" else None
-        self._planes: tuple[bytes, list[ContactPlane]] | None = None  # a state and its bodies' contact planes
-        if body in ("axles", "supports"):  # each axle's slope from its two wheels (TerrainSlope.under_axles)
-            units = [params.tractor, *params.trailers]
-            self._axle_unit = np.repeat(np.arange(len(units)), [len(u.axles) for u in units])
-            self._axle_half_track = np.repeat([half_track(u) for u in units], [len(u.axles) for u in units])
+        self.body_slopes = TerrainBodySlopes(params, field_) if isinstance(field_, TerrainSlope) else None
         friction = self.surface.friction
         self._uniform_mu = float(friction.mu) if isinstance(friction, UniformFriction) else None
         self.reset(state)
@@ -398,56 +342,20 @@ class Simulator:
         """μ per axle and the slope vector per body at state vector ``x``.
 
         The slope is the field's at each body's centre of gravity or, for a terrain's field
-        (:class:`vehicle_model.terrain.TerrainSlope`), as its ``body`` says: the mean of the field under the body's
-        axles weighted by their static loads (:func:`axle_weights`), or the horizontal part of its supports' normal
-        reactions per unit weight (:func:`support_weights`).
+        (:class:`vehicle_model.terrain.TerrainSlope`), as its ``body`` says (:class:`~vehicle_model.body_slope.
+        TerrainBodySlopes`: its supports' normal reactions, or the slopes under its axles).
         """
         units = self._ground_points(x)
         axles = np.concatenate([p[:-1] for p in units])
         mu = self.surface.friction(axles)
-        if self._axle_weights is not None:
-            angles = [x[6], *x[self.layout.trailing_slice][0::2]]
-            headings = np.array([x[2], *(h for _, h in trailer_frames(self.params, x[0], x[1], x[2], angles))])
-            slope = self.surface.slope.under_axles(axles, headings[self._axle_unit], self._axle_half_track)
-            return mu, (self._axle_weights @ slope).ravel()
-        if self._supports is not None:
-            return mu, self._support_slopes(x, axles).ravel()
+        if self.body_slopes is not None:
+            return mu, self.body_slopes.slopes(self._pose(x), axles, x.tobytes()).ravel()
         slope = self.surface.slope(np.stack([p[-1] for p in units]))
         return mu, slope.ravel()
 
-    def _support_slopes(self, x: np.ndarray, axles: np.ndarray) -> np.ndarray:
-        """Each body's slope vector ``(units, 2)`` from its supports' normal reactions (docs/terrain.md, "Per body").
-
-        Each support pushes along the normal of the surface it stands on with its static load ``F``; the horizontal
-        part of a unit normal is the slope vector ``s``, so per unit weight ``m_k·g`` ::
-
-            s_k = Σ_j F_j·s_j / (m_k·g) + F_c,k·n_(k−1) / (m_k·g) − F_c,(k+1)·n_k / (m_k·g)
-
-        over unit ``k``'s axles ``j`` (``s_j`` under the axle's wheels, :meth:`TerrainSlope.under_axles`), its kingpin's
-        load ``F_c,k`` on the fifth wheel of the unit ahead and the kingpin load ``F_c,(k+1)`` of the unit behind on its
-        own, each fifth wheel's normal ``n`` that of its unit's contact plane (:func:`contact_planes`, horizontal
-        part). Summed over the units the couplings cancel: the combination's push is its wheels'.
-        """
-        slope_field = self.surface.slope
-        assert isinstance(slope_field, TerrainSlope) and self._supports is not None
-        planes = self._contact_planes(x)
-        normals = np.array([plane.normal[:2] for plane in planes])
-        headings = np.array([float(plane.heading) for plane in planes])
-        under = slope_field.under_axles(axles, headings[self._axle_unit], self._axle_half_track)
-        ahead = np.vstack([np.zeros((1, 2)), normals[:-1]])
-        w = self._supports
-        return w.axles @ under + w.coupling[:, None] * ahead - w.carried[:, None] * normals
-
-    def _contact_planes(self, x: np.ndarray) -> list[ContactPlane]:
-        """Each body's contact plane at state vector ``x`` (:func:`contact_planes`), kept for the last state asked:
-        the accelerometers read them at a tick's state and the next period's slopes are taken there."""
-        assert self._attitude_terrain is not None
-        key = x.tobytes()
-        if self._planes is None or self._planes[0] != key:
-            pose = ChainPose(x[0], x[1], x[2], (x[6], *x[self.layout.trailing_slice][0::2]))
-            planes = contact_planes(self.params, pose, self._attitude_terrain)
-            self._planes = (key, [plane for plane in planes if plane is not None])
-        return self._planes[1]
+    def _pose(self, x: np.ndarray) -> ChainPose:
+        """The combination's pose at state vector ``x``."""
+        return ChainPose(x[0], x[1], x[2], (x[6], *x[self.layout.trailing_slice][0::2]))
 
     def min_friction(self, axles: np.ndarray) -> float:
         """Smallest μ under the axles ``axles`` (layout indices) at the current state.
@@ -601,9 +509,9 @@ class Simulator:
         length; on a plane the two are the same. On other surfaces (flat ground, a camber, a terrain with ``axles``)
         it is :meth:`unit_gravity`.
         """
-        if self._attitude_terrain is None:
+        if self.body_slopes is None or not self.body_slopes.senses_attitude:
             return self.unit_gravity(unit, heading)
-        normal = self._contact_planes(self._x)[unit].normal
+        normal = self.body_slopes.contact_planes(self._pose(self._x), self._x.tobytes())[unit].normal
         return in_plane_gravity(float(normal[0]), float(normal[1]), math.cos(heading), math.sin(heading))
 
     def _check(self, x_new: np.ndarray) -> None:

@@ -80,7 +80,7 @@ class TerrainSlope:
     ``body`` tells the simulator how each body's slope vector is taken (docs/terrain.md, "Per body"): ``"supports"``
     the horizontal part of its supports' normal reactions per unit weight, its axles' on the slopes under them
     (:meth:`under_axles`) and its couplings' on the planes of the fifth wheels
-    (:func:`vehicle_model.simulator.support_weights`); ``"axles"`` the mean of the slopes under its axles weighted by
+    (:func:`vehicle_model.body_slope.support_weights`); ``"axles"`` the mean of the slopes under its axles weighted by
     their static loads. With ``"supports"`` the body's accelerometers read gravity through its attitude, its contact
     plane (:meth:`vehicle_model.simulator.Simulator.sensed_gravity`), not the push that moves it; with ``"axles"``
     they read that form's slope.
