@@ -14,29 +14,19 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from lead_follower_straight import DT, PARAMS, REAR_CAMERA, SIDE, SIDE_RIG, drive_straight
 from pydantic import ValidationError
 
 from scenarios.configuration.sections import FusionConfig
 from scenarios.loop.following_camera import FollowingCamera, following_camera
-from sensor.camera import StereoRig
-from sensor.fusion import FusedVisoOt, FusionNoise, TractorSignals
+from sensor.fusion import FusedVisoOt, FusionNoise
 from sensor.fusion_coupling import CouplingReference
 from sensor.fusion_coupling_share import follower_shared
 from sensor.fusion_noise import SideRigFusion
 from vehicle_model.errors import InputError
-from vehicle_model.geometry import ChainPose, unit_frame
-from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses
-from vehicle_model.presets import VEHICLE_PRESETS
 
-PARAMS = VEHICLE_PRESETS["au-b-double"]()
-SIDE_RIG = StereoRig.from_degrees(psi_c2v_deg=270.0, lateral=1.275, unit=1, station=-4.0)
-REAR_RIG = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
-REAR_CAMERA = REAR_RIG.camera_in_trailer("left", PARAMS)
 R_C = np.array([[2e-4, 1e-5, 3e-6], [1e-5, 1.5e-4, -2e-6], [3e-6, -2e-6, 1.6e-6]])  # a (C2) covariance
-SIDE = SideRigFusion(kinematic_rear_point="speed_compensated", kinematic_error_model="state", coupling_reference=True)
 
-DT, EVERY, SPEED = 0.02, 5, 5.0  # control period [s], ticks a frame, forward speed [m/s]
-TICKS = 1500  # 30 s
 LOCK = (500, 1000)  # the ticks [10 s, 20 s) the follower's axles are at their lock (D = 1)
 REAR_ERROR = 5e-3  # [m] the follower camera's error across its motion in every frame while at lock
 FOLLOWER_STD = (0.03, 0.10)  # [m] the follower's off-tracking std rolling and at lock, as its filter gives it
@@ -80,11 +70,6 @@ def test_the_setting_is_the_references_on_by_default_and_reaches_the_loop() -> N
         SideRigFusion(coupling_follower_share="sometimes")
 
 
-def _shot(tick: int, motion: np.ndarray) -> SimpleNamespace:
-    vo = SimpleNamespace(camera_motion=motion, covariance=np.eye(6) * 1e-8)
-    return SimpleNamespace(tick=tick, frame=SimpleNamespace(valid=True, vo=vo))
-
-
 def _follower(k: int) -> tuple[float, float]:
     """The follower's filter's scrub demand ``D`` and off-tracking std at tick ``k``: at its lock in :data:`LOCK`."""
     at_lock = LOCK[0] <= k < LOCK[1]
@@ -92,10 +77,9 @@ def _follower(k: int) -> tuple[float, float]:
 
 
 def _drive(share: bool, asked: list[int] | None = None, given: bool = True) -> tuple[np.ndarray, ...]:
-    """The lead unit's filter on a straight at :data:`SPEED` (no slip: the truth's off-tracking is 0 and the lead's
-    own camera exact), the follower's camera off by :data:`REAR_ERROR` across its motion in every frame of
-    :data:`LOCK`; the lead's fused error and std at every tick with an estimate, and the ticks' times [s]. ``asked``
-    collects the ticks the follower's demand was asked on; ``given`` False: the following camera built without it."""
+    """The lead's fused error and std on the straight of :func:`lead_follower_straight.drive_straight`, the follower's
+    camera off by :data:`REAR_ERROR` in every frame of :data:`LOCK`, and the ticks' times [s]. ``asked`` collects the
+    ticks the follower's demand was asked on; ``given`` False: the following camera built without it."""
     noise = FusionNoise(side_rig=SIDE.replace(coupling_follower_share=share))
     fused = FusedVisoOt(PARAMS, SIDE_RIG.camera_in_trailer("left", PARAMS), noise)
     follower = SimpleNamespace(released=[], camera_in_trailer=REAR_CAMERA)
@@ -107,36 +91,11 @@ def _drive(share: bool, asked: list[int] | None = None, given: bool = True) -> t
             asked.append(tick[0])
         return _follower(tick[0])
 
-    following = FollowingCamera(reference, follower, scrub=scrub if given else None)
-    truth = OfftrackingBuffer(PARAMS.follow_point_offset_of(1))
-    errors, stds, times, previous, last = [], [], [], None, None
-    for k in range(TICKS):
+    def at_tick(k: int) -> None:
         tick[0] = k
-        pose = ChainPose(SPEED * k * DT, 0.0, 0.0, (0.0, 0.0))
-        frame = unit_frame(PARAMS, pose, 1)
-        if previous is not None:
-            truth.push(*increments_from_poses(np.vstack([previous[0], frame[0]]), np.array([previous[1], frame[1]]))[0])
-        previous = frame
-        fused.propagate(k, DT, 0.0, SPEED, None, TractorSignals(SPEED, 0.0, 0.0))
-        follower.released, own = [], None
-        if k % EVERY == 0:
-            worlds = (SIDE_RIG.camera_in_world(PARAMS, pose, "left"), REAR_RIG.camera_in_world(PARAMS, pose, "left"))
-            if last is not None:
-                own = np.linalg.inv(last[0]) @ worlds[0]
-                rear = np.linalg.inv(last[1]) @ worlds[1]
-                if LOCK[0] <= k < LOCK[1]:
-                    rear[0, 3] += REAR_ERROR  # across the follower camera's motion, persisting through the lock
-                follower.released = [_shot(k, rear)]
-            last = worlds
-        following.observe(k, {"articulation": np.zeros(1), "rear_articulation": np.zeros(1)})
-        if own is not None:
-            fused.measure(k, own, np.eye(6) * 1e-6, coupling=following.take(k))
-        value = truth.offtracking()
-        if fused.estimate is not None and value is not None:
-            errors.append(fused.estimate - value)
-            stds.append(fused.std)
-            times.append(k * DT)
-    return np.array(errors), np.array(stds), np.array(times)
+
+    following = FollowingCamera(reference, follower, scrub=scrub if given else None)
+    return drive_straight(fused, following, follower, LOCK, REAR_ERROR, at_tick)
 
 
 def test_a_reference_wrong_while_the_follower_is_at_lock_is_not_taken_for_the_leads_path() -> None:

@@ -17,29 +17,18 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from lead_follower_straight import DT, PARAMS, REAR_CAMERA, SIDE, SIDE_RIG, drive_straight
 from pydantic import ValidationError
 
 from scenarios.configuration.sections import FusionConfig
 from scenarios.loop.following_camera import FollowingCamera
-from sensor.camera import StereoRig
-from sensor.fusion import FusedVisoOt, FusionNoise, TractorSignals
+from sensor.fusion import FusedVisoOt, FusionNoise
 from sensor.fusion_consider import NoConsider, PersistingReference
 from sensor.fusion_coupling import CouplingMeasurement, CouplingReference, coupled_update
 from sensor.fusion_model import gated_update
-from sensor.fusion_noise import PersistingReferenceError, SideRigFusion
+from sensor.fusion_noise import PersistingReferenceError
 from sensor.fusion_schmidt import schmidt_update
-from vehicle_model.geometry import ChainPose, unit_frame
-from vehicle_model.offtracking import OfftrackingBuffer, increments_from_poses
-from vehicle_model.presets import VEHICLE_PRESETS
 
-PARAMS = VEHICLE_PRESETS["au-b-double"]()
-SIDE_RIG = StereoRig.from_degrees(psi_c2v_deg=270.0, lateral=1.275, unit=1, station=-4.0)
-REAR_RIG = StereoRig.from_degrees(psi_c2v_deg=180.0, lateral=0.0, unit=2)
-REAR_CAMERA = REAR_RIG.camera_in_trailer("left", PARAMS)
-SIDE = SideRigFusion(kinematic_rear_point="speed_compensated", kinematic_error_model="state", coupling_reference=True)
-
-DT, EVERY, SPEED = 0.02, 5, 5.0  # control period [s], ticks a frame, forward speed [m/s]
-TICKS = 1500  # 30 s
 WRONG = (500, 1000)  # the ticks [10 s, 20 s) the follower's camera is off
 REAR_ERROR = 2e-3  # [m] its error across its motion in every frame there (a fifth of its per-frame lateral std)
 PERSISTING = {"share": 0.5, "correlation_time_s": 10.0}
@@ -133,47 +122,14 @@ def test_off_by_default_and_off_the_reference_update_is_the_filters_own_to_the_b
         PersistingReferenceError(**PERSISTING, gain="sometimes")
 
 
-def _shot(tick: int, motion: np.ndarray) -> SimpleNamespace:
-    vo = SimpleNamespace(camera_motion=motion, covariance=np.eye(6) * 1e-8)
-    return SimpleNamespace(tick=tick, frame=SimpleNamespace(valid=True, vo=vo))
-
-
 def _drive(persisting: PersistingReferenceError | None) -> tuple[np.ndarray, ...]:
-    """The lead unit's filter on a straight at :data:`SPEED` (no slip: the truth's off-tracking is 0 and the lead's
-    own camera exact), the follower's camera off by :data:`REAR_ERROR` across its motion in every frame of
-    :data:`WRONG`; the lead's fused error and std at every tick with an estimate, and the ticks' times [s]."""
+    """The lead's fused error and std on the straight of :func:`lead_follower_straight.drive_straight`, the follower's
+    camera off by :data:`REAR_ERROR` in every frame of :data:`WRONG`, and the ticks' times [s]."""
     noise = FusionNoise(side_rig=SIDE.replace(coupling_persisting_error=persisting))
     fused = FusedVisoOt(PARAMS, SIDE_RIG.camera_in_trailer("left", PARAMS), noise)
     follower = SimpleNamespace(released=[], camera_in_trailer=REAR_CAMERA)
     following = FollowingCamera(CouplingReference(PARAMS, 1, 2, REAR_CAMERA, fused.noise), follower)
-    truth = OfftrackingBuffer(PARAMS.follow_point_offset_of(1))
-    errors, stds, times, previous, last = [], [], [], None, None
-    for k in range(TICKS):
-        pose = ChainPose(SPEED * k * DT, 0.0, 0.0, (0.0, 0.0))
-        frame = unit_frame(PARAMS, pose, 1)
-        if previous is not None:
-            truth.push(*increments_from_poses(np.vstack([previous[0], frame[0]]), np.array([previous[1], frame[1]]))[0])
-        previous = frame
-        fused.propagate(k, DT, 0.0, SPEED, None, TractorSignals(SPEED, 0.0, 0.0))
-        follower.released, own = [], None
-        if k % EVERY == 0:
-            worlds = (SIDE_RIG.camera_in_world(PARAMS, pose, "left"), REAR_RIG.camera_in_world(PARAMS, pose, "left"))
-            if last is not None:
-                own = np.linalg.inv(last[0]) @ worlds[0]
-                rear = np.linalg.inv(last[1]) @ worlds[1]
-                if WRONG[0] <= k < WRONG[1]:
-                    rear[0, 3] += REAR_ERROR  # across the follower camera's motion, the same in every frame
-                follower.released = [_shot(k, rear)]
-            last = worlds
-        following.observe(k, {"articulation": np.zeros(1), "rear_articulation": np.zeros(1)})
-        if own is not None:
-            fused.measure(k, own, np.eye(6) * 1e-6, coupling=following.take(k))
-        value = truth.offtracking()
-        if fused.estimate is not None and value is not None:
-            errors.append(fused.estimate - value)
-            stds.append(fused.std)
-            times.append(k * DT)
-    return np.array(errors), np.array(stds), np.array(times)
+    return drive_straight(fused, following, follower, WRONG, REAR_ERROR)
 
 
 def test_a_reference_whose_error_persists_is_not_taken_for_the_leads_path() -> None:
