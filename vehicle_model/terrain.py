@@ -50,8 +50,21 @@ def slope_vectors(gradient: np.ndarray) -> np.ndarray:
 
 
 def heights_and_gradients(terrain: Terrain, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``terrain.height`` ``(N,)`` and ``terrain.gradient`` ``(N, 2)`` at ``points`` ``(N, 2)``: one look-up where
-    the terrain has ``height_and_gradient`` (:meth:`PathTerrain.height_and_gradient`), else the two."""
+    """``terrain.height`` and ``terrain.gradient`` at once: one look-up where the terrain has ``height_and_gradient``
+    (:meth:`PathTerrain.height_and_gradient`), else the two calls.
+
+    Parameters
+    ----------
+    terrain : Terrain
+        Any terrain.
+    points : numpy.ndarray
+        ``(N, 2)`` horizontal points [m].
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        Heights ``(N,)`` [m] and gradients ``(N, 2)``.
+    """
     pts = np.asarray(points, dtype=float)
     both = getattr(terrain, "height_and_gradient", None)
     if both is not None:

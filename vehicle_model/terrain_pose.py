@@ -23,8 +23,11 @@ its horizontal position. On a
 plane ``z = a·x + b·y + c`` every support lies on it, so the pose is exact there:
 ``θ = −atan(a·cos ψ + b·sin ψ)`` and ``φ = atan((b·cos ψ − a·sin ψ)·cos θ)``.
 
-Every function is vectorised over the pose's shape ``S`` as :mod:`vehicle_model.geometry` is. This module imports no
-terrain implementation: anything with ``height`` and ``gradient`` (:class:`vehicle_model.terrain.Terrain`) will do.
+Every function is vectorised over the pose's shape ``S`` as :mod:`vehicle_model.geometry` is. A combination's
+supports in its units' own frames are its :class:`SupportLayout` (:func:`support_layout`): the vehicle model keeps it
+and, every tick, places all the supports in one array operation and takes the planes in scalar arithmetic (one pose).
+This module imports no terrain implementation: anything with ``height`` and ``gradient``
+(:class:`vehicle_model.terrain.Terrain`) will do.
 """
 
 from __future__ import annotations
@@ -189,8 +192,20 @@ class SupportLayout(NamedTuple):
     axle_unit: np.ndarray
 
     def place(self, pose: CombinationPose | ChainPose) -> PlacedSupports:
-        """Where every placed unit and its supports are in the horizontal plane at ``pose`` (fields of one shape
-        ``S``, or scalars)."""
+        """Where the units and their supports are in the horizontal plane at ``pose``.
+
+        Parameters
+        ----------
+        pose : CombinationPose or ChainPose
+            Fields of one shape ``S``, or scalars (one pose: Python floats, the per-tick case); it places the
+            tractor and as many towed units as it has articulation angles.
+
+        Returns
+        -------
+        PlacedSupports
+            The placed units' supports, frame origins and headings (:func:`vehicle_model.geometry.place_points`
+            term for term, so the points are those of the geometry module's functions to the bit).
+        """
         full = chain_pose(pose)
         n = 1 + min(len(full.angles), len(self.couplings))
         fields = (full.x, full.y, full.psi1, *full.angles[: n - 1])
@@ -227,8 +242,18 @@ class SupportLayout(NamedTuple):
         return PlacedSupports(points, origins, headings, centre_x[..., 0], centre_y[..., 0], c[..., 0], s[..., 0])
 
     def axle_points(self, placed: PlacedSupports) -> np.ndarray:
-        """Every axle's centre ``S + (axles, 2)`` in the horizontal plane, in the layout's order, where ``placed``
-        places every unit (:func:`vehicle_model.geometry.place_points`, term for term)."""
+        """Every axle's centre in the horizontal plane (:func:`vehicle_model.geometry.place_points`, term for term).
+
+        Parameters
+        ----------
+        placed : PlacedSupports
+            :meth:`place`'s result at a pose that places every unit.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``S + (axles, 2)`` [m], in the layout's order (:attr:`VehicleParams.axle_table`).
+        """
         if len(placed.headings) < len(self.rides):
             raise ValueError(f"the pose places {len(placed.headings)} of {len(self.rides)} units; the axles need all")
         u, lx, ly = self.axle_unit, self.axles[:, 0], self.axles[:, 1]
@@ -236,8 +261,21 @@ class SupportLayout(NamedTuple):
         return np.stack([placed.centre_x[..., u] + lx * c - ly * s, placed.centre_y[..., u] + lx * s + ly * c], axis=-1)
 
     def planes(self, placed: PlacedSupports, heights: np.ndarray) -> list[ContactPlane]:
-        """Each placed unit's contact plane from its supports ``placed.points`` and their terrain heights ``heights``
-        (``S + (units, 3)``), front to rear: a riding unit's front support on the plane of the unit ahead."""
+        """Each placed unit's contact plane, front to rear (module docstring): a riding unit's front support on the
+        plane of the unit ahead, the normal that of the plane through the three supports, upward, of unit length.
+
+        Parameters
+        ----------
+        placed : PlacedSupports
+            :meth:`place`'s result.
+        heights : numpy.ndarray
+            ``S + (units, 3)``: the terrain's height under each of ``placed.points`` [m].
+
+        Returns
+        -------
+        list of ContactPlane
+            One per placed unit; on one pose each field a small array, as :func:`contact_planes` gives them.
+        """
         points, n = placed.points, len(placed.headings)
         scalar = points.ndim == 3
         if scalar:
@@ -303,8 +341,18 @@ def _sign(value: float) -> float:
 
 
 def support_layout(params: VehicleParams) -> SupportLayout:
-    """Each unit's supports in its own frame and how the units hang together (:class:`SupportLayout`, module
-    docstring): computed once a combination, used every time its contact planes are asked."""
+    """Each unit's supports and axles in its own frame and how the units hang together (module docstring).
+
+    Parameters
+    ----------
+    params : VehicleParams
+        The combination.
+
+    Returns
+    -------
+    SupportLayout
+        Its constants, computed once a combination and used every time its contact planes are asked.
+    """
     cg = float(params.tractor.cg_x)
     local, couplings, rides, axles, axle_unit = [], [], [], [], []
     for k, body in enumerate(params.units):
