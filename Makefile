@@ -45,6 +45,7 @@ lint: setup
 ## Benchmarks, one JSON object per line.
 bench: setup
 	$(BIN)/offtrack bench model --json
+	$(BIN)/offtrack bench terrain --json
 	$(BIN)/offtrack bench render --json
 	$(BIN)/offtrack bench vo --json
 	$(BIN)/offtrack bench loop --json

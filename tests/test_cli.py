@@ -77,3 +77,14 @@ def test_bench_model_prints_json(monkeypatch, capsys):
     result = json.loads(out.stdout)
     assert result["realtime_factor"] > 0 and result["step_s"] == pytest.approx(0.002)
     assert result["final_state_finite"]
+
+
+def test_bench_terrain_prints_one_json_object_with_both_forms_and_their_ratio(monkeypatch, capsys):
+    out = offtrack_in_process(
+        monkeypatch, capsys, "bench", "terrain", "--json", "--vehicle", "au-b-double", "--ticks", "50", "--rounds", "1"
+    )
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout)
+    assert result["benchmark"] == "terrain" and result["units"] == 3 and result["ticks"] == 50
+    supports, axles = result["ms_per_tick_supports_cpu"], result["ms_per_tick_axles_cpu"]
+    assert supports > 0 and axles > 0 and result["supports_to_axles_cpu"] == pytest.approx(supports / axles)

@@ -22,8 +22,8 @@ import numpy as np
 from .geometry import ChainPose, trailer_frames
 from .parameters import GRAVITY, VehicleParams
 from .static_loads import solve_loads
-from .terrain import TerrainSlope
-from .terrain_pose import ContactPlane, contact_planes, half_track
+from .terrain import TerrainSlope, axle_wheels, heights_and_gradients
+from .terrain_pose import ContactPlane, half_track, support_layout
 
 __all__ = ["SupportWeights", "TerrainBodySlopes", "axle_weights", "support_weights"]
 
@@ -93,7 +93,9 @@ class TerrainBodySlopes:
         units = [params.tractor, *params.trailers]
         self._axle_unit = np.repeat(np.arange(len(units)), [len(u.axles) for u in units])
         self._axle_half_track = np.repeat([half_track(u) for u in units], [len(u.axles) for u in units])
-        self._planes: tuple[bytes, list[ContactPlane]] | None = None  # a state and its bodies' contact planes
+        self._layout = support_layout(params) if field.body == "supports" else None
+        # a state, its bodies' contact planes and the slopes under its axles
+        self._state: tuple[bytes, list[ContactPlane], np.ndarray] | None = None
 
     @property
     def senses_attitude(self) -> bool:
@@ -113,7 +115,9 @@ class TerrainBodySlopes:
         kingpin's load ``F_c,k`` on the fifth wheel of the unit ahead and the kingpin load ``F_c,(k+1)`` of the unit
         behind on its own, each fifth wheel's normal ``n`` that of its unit's contact plane (horizontal part). Summed
         over the units the couplings cancel: the combination's push is its wheels'. With ``axles``, the static-load
-        weighted mean of ``s_j`` over each unit's axles.
+        weighted mean of ``s_j`` over each unit's axles. With ``supports`` the axles are placed with the supports at
+        ``pose`` (:meth:`~vehicle_model.terrain_pose.SupportLayout.axle_points`, the same points as ``axles``) and the
+        terrain's heights and gradients under the supports and the wheels are one look-up (:meth:`contact_planes`).
         """
         if self.axle_weights is not None:
             frames = trailer_frames(self.params, pose.x, pose.y, pose.psi1, list(pose.angles))
@@ -121,10 +125,8 @@ class TerrainBodySlopes:
             slope = self.field.under_axles(axles, headings[self._axle_unit], self._axle_half_track)
             return self.axle_weights @ slope
         assert self.supports is not None
-        planes = self.contact_planes(pose, key)
+        planes, under = self._at(pose, key)
         normals = np.array([plane.normal[:2] for plane in planes])
-        headings = np.array([float(plane.heading) for plane in planes])
-        under = self.field.under_axles(axles, headings[self._axle_unit], self._axle_half_track)
         ahead = np.vstack([np.zeros((1, 2)), normals[:-1]])
         w = self.supports
         return w.axles @ under + w.coupling[:, None] * ahead - w.carried[:, None] * normals
@@ -133,7 +135,20 @@ class TerrainBodySlopes:
         """Each body's contact plane at ``pose`` (:func:`~vehicle_model.terrain_pose.contact_planes`), kept for the
         last state ``key`` asked: the accelerometers read them at a tick's state and the next period's slopes are
         taken there."""
-        if self._planes is None or self._planes[0] != key:
-            planes = contact_planes(self.params, pose, self.field.terrain)
-            self._planes = (key, [plane for plane in planes if plane is not None])
-        return self._planes[1]
+        return self._at(pose, key)[0]
+
+    def _at(self, pose: ChainPose, key: bytes) -> tuple[list[ContactPlane], np.ndarray]:
+        """The contact planes and the slopes under the axles (:meth:`TerrainSlope.under_axles`) at state ``key``:
+        the supports and the axles placed at once, the terrain's heights and gradients under the supports and the
+        wheels in one look-up (:func:`~vehicle_model.terrain.heights_and_gradients`)."""
+        if self._state is None or self._state[0] != key:
+            layout = self._layout if self._layout is not None else support_layout(self.params)
+            placed = layout.place(pose)
+            headings = np.array(placed.headings)
+            wheels = axle_wheels(layout.axle_points(placed), headings[self._axle_unit], self._axle_half_track)
+            supports = placed.points.reshape(-1, 2)
+            z, gradient = heights_and_gradients(self.field.terrain, np.concatenate([supports, wheels.points]))
+            planes = layout.planes(placed, z[: len(supports)].reshape(placed.points.shape[:-1]))
+            under = wheels.slopes(z[len(supports) :], gradient[len(supports) :])
+            self._state = (key, planes, under)
+        return self._state[1], self._state[2]

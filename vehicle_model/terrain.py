@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -47,6 +47,29 @@ def slope_vectors(gradient: np.ndarray) -> np.ndarray:
     """
     g = np.asarray(gradient, dtype=float)
     return -g / np.sqrt(1.0 + (g * g).sum(axis=1))[:, None]
+
+
+def heights_and_gradients(terrain: Terrain, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``terrain.height`` and ``terrain.gradient`` at once: one look-up where the terrain has ``height_and_gradient``
+    (:meth:`PathTerrain.height_and_gradient`), else the two calls.
+
+    Parameters
+    ----------
+    terrain : Terrain
+        Any terrain.
+    points : numpy.ndarray
+        ``(N, 2)`` horizontal points [m].
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        Heights ``(N,)`` [m] and gradients ``(N, 2)``.
+    """
+    pts = np.asarray(points, dtype=float)
+    both = getattr(terrain, "height_and_gradient", None)
+    if both is not None:
+        return both(pts)
+    return terrain.height(pts), terrain.gradient(pts)
 
 
 def surface_length(terrain: Terrain, points: np.ndarray) -> float:
@@ -102,17 +125,47 @@ class TerrainSlope:
         two wheels' contact points, along it the mean of the two wheels' gradients. On a plane it is the plane's; a
         feature narrower than the track (a rut under one wheel, a pothole) tilts the axle as its wheels feel it,
         not as the ground under its centre point slopes."""
-        p = np.asarray(points, dtype=float)
-        h = np.asarray(headings, dtype=float)
-        w = np.asarray(half_tracks, dtype=float)[:, None]
-        along = np.column_stack([np.cos(h), np.sin(h)])
-        across = np.column_stack([-np.sin(h), np.cos(h)])
-        n = len(p)
-        wheels = np.concatenate([p + w * across, p - w * across])  # left wheels, then right: one look-up each
-        z, gradient = self.terrain.height(wheels), self.terrain.gradient(wheels)
+        wheels = axle_wheels(points, headings, half_tracks)
+        return wheels.slopes(*heights_and_gradients(self.terrain, wheels.points))
+
+
+class AxleWheels(NamedTuple):
+    """The outer wheels of axles (:func:`axle_wheels`), where :meth:`TerrainSlope.under_axles` looks the terrain up.
+
+    Attributes
+    ----------
+    points : numpy.ndarray
+        ``(2N, 2)``: the left wheels' contact points, then the right wheels' [m].
+    along, across : numpy.ndarray
+        ``(N, 2)``: each axle's heading and its left.
+    half_tracks : numpy.ndarray
+        ``(N, 1)``: the wheels' distance from the axle's centre [m].
+    """
+
+    points: np.ndarray
+    along: np.ndarray
+    across: np.ndarray
+    half_tracks: np.ndarray
+
+    def slopes(self, z: np.ndarray, gradient: np.ndarray) -> np.ndarray:
+        """Slope vectors ``(N, 2)`` under the axles from the terrain's heights ``(2N,)`` and gradients ``(2N, 2)``
+        at :attr:`points` (:meth:`TerrainSlope.under_axles`)."""
+        n, w = len(self.along), self.half_tracks
         rise = (z[:n] - z[n:]) / (2.0 * w[:, 0])
-        grade = 0.5 * ((gradient[:n] + gradient[n:]) * along).sum(axis=1)
-        return slope_vectors(grade[:, None] * along + rise[:, None] * across)
+        grade = 0.5 * ((gradient[:n] + gradient[n:]) * self.along).sum(axis=1)
+        return slope_vectors(grade[:, None] * self.along + rise[:, None] * self.across)
+
+
+def axle_wheels(points: np.ndarray, headings: np.ndarray, half_tracks: np.ndarray) -> AxleWheels:
+    """The outer wheels of axles centred at ``points`` ``(N, 2)`` heading ``headings`` [rad], ``half_tracks`` [m]
+    either side (:meth:`TerrainSlope.under_axles`)."""
+    p = np.asarray(points, dtype=float)
+    h = np.asarray(headings, dtype=float)
+    w = np.asarray(half_tracks, dtype=float)[:, None]
+    along = np.column_stack([np.cos(h), np.sin(h)])
+    across = np.column_stack([-np.sin(h), np.cos(h)])
+    wheels = np.concatenate([p + w * across, p - w * across])  # left wheels, then right
+    return AxleWheels(wheels, along, across, w)
 
 
 @dataclass(frozen=True)
@@ -326,14 +379,7 @@ class PathTerrain:
 
     def height(self, points: np.ndarray) -> np.ndarray:
         """``z`` [m] at ``points`` ``(N, 2)``."""
-        pts = np.asarray(points, dtype=float)
-        _, s, d, _ = self._local(pts)
-        z = self._profile(s, d)[0]
-        point, _, rho = self._near_potholes(pts)
-        if len(point):
-            dip = _cosine_dip(rho, self.roughness.pothole_radius)[0]
-            z = z - self.roughness.pothole_depth * np.bincount(point, dip, minlength=len(pts))
-        return z
+        return self._evaluate(points, gradient=False)[0]
 
     def _near_potholes(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every (point, pothole) pair closer than the radius: the point's index, its offset from the pothole's
@@ -350,18 +396,31 @@ class PathTerrain:
 
     def gradient(self, points: np.ndarray) -> np.ndarray:
         """``∇z`` at ``points`` ``(N, 2)``: ``∂z/∂s · t/(1 − κd) + ∂z/∂d · n`` plus the potholes'."""
+        return self._evaluate(points, gradient=True)[1]
+
+    def height_and_gradient(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`height` and :meth:`gradient` at ``points`` ``(N, 2)`` from one look-up of the path and the
+        potholes near the points."""
+        return self._evaluate(points, gradient=True)
+
+    def _evaluate(self, points: np.ndarray, gradient: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Heights ``(N,)`` and, if ``gradient``, gradients ``(N, 2)`` (else an empty array) at ``points``."""
         pts = np.asarray(points, dtype=float)
         i, s, d, t = self._local(pts)
-        _, dz_ds, dz_dd = self._profile(s, d)
+        z, dz_ds, dz_dd = self._profile(s, d)
+        point, rel, rho = self._near_potholes(pts)
+        if len(point):
+            dip, rate = _cosine_dip(rho, self.roughness.pothole_radius)
+            z = z - self.roughness.pothole_depth * np.bincount(point, dip, minlength=len(pts))
+        if not gradient:
+            return z, np.zeros((0, 2))
         stretch = self._stretch(i, d)
         normal = np.column_stack([-t[:, 1], t[:, 0]])
         grad = t * (dz_ds / stretch)[:, None] + normal * dz_dd[:, None]
-        point, rel, rho = self._near_potholes(pts)
         if len(point):
-            rate = _cosine_dip(rho, self.roughness.pothole_radius)[1]
             pull = self.roughness.pothole_depth * (rate / np.maximum(rho, 1e-12))[:, None] * rel
             grad = grad - np.column_stack([np.bincount(point, pull[:, k], minlength=len(pts)) for k in (0, 1)])
-        return grad
+        return z, grad
 
 
 def _rate(s: np.ndarray, stations: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -23,28 +23,35 @@ its horizontal position. On a
 plane ``z = a·x + b·y + c`` every support lies on it, so the pose is exact there:
 ``θ = −atan(a·cos ψ + b·sin ψ)`` and ``φ = atan((b·cos ψ − a·sin ψ)·cos θ)``.
 
-Every function is vectorised over the pose's shape ``S`` as :mod:`vehicle_model.geometry` is. This module imports no
-terrain implementation: anything with ``height`` and ``gradient`` (:class:`vehicle_model.terrain.Terrain`) will do.
+Every function is vectorised over the pose's shape ``S`` as :mod:`vehicle_model.geometry` is. A combination's
+supports in its units' own frames are its :class:`SupportLayout` (:func:`support_layout`): the vehicle model keeps it
+and, every tick, places all the supports in one array operation and takes the planes in scalar arithmetic (one pose).
+This module imports no terrain implementation: anything with ``height`` and ``gradient``
+(:class:`vehicle_model.terrain.Terrain`) will do.
 """
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
 
-from .geometry import ChainPose, CombinationPose, chain_pose, place_points, tractor_points, unit_frame
+from .geometry import ChainPose, CombinationPose, chain_pose
 from .parameters import TractorParams, TrailerParams, VehicleParams
 from .terrain import FlatTerrain, Terrain
 
 __all__ = [
     "DUAL_WHEEL_INSET",
     "ContactPlane",
+    "PlacedSupports",
+    "SupportLayout",
     "UnitAttitude",
     "body_slope_vectors",
     "contact_planes",
     "half_track",
     "is_flat",
+    "support_layout",
     "unit_attitude",
     "unit_attitudes",
 ]
@@ -117,23 +124,10 @@ def _heights(terrain: Terrain, points: np.ndarray) -> np.ndarray:
     return z.reshape(np.shape(points)[:-1])
 
 
-def _lift(terrain: Terrain, points: np.ndarray) -> np.ndarray:
-    """Points ``S + (2,)`` with their terrain height: ``S + (3,)``."""
-    return np.concatenate([points, _heights(terrain, points)[..., None]], axis=-1)
-
-
 def _plane_height(front: np.ndarray, normal: np.ndarray, xy: np.ndarray) -> np.ndarray:
     """Height of the plane through ``front`` with upward ``normal`` (``S + (3,)``) above ``xy`` (``S + (2,)``)."""
     d = xy - front[..., :2]
     return front[..., 2] - (normal[..., 0] * d[..., 0] + normal[..., 1] * d[..., 1]) / normal[..., 2]
-
-
-def _plane(front: np.ndarray, left: np.ndarray, right: np.ndarray, origin: np.ndarray, heading) -> ContactPlane:
-    """The contact plane through three supports ``S + (3,)`` of a unit at ``origin`` ``S + (2,)`` heading ``S``."""
-    normal = np.cross(left - front, right - front)
-    normal = normal * np.sign(normal[..., 2:3])  # upward
-    normal = normal / np.linalg.norm(normal, axis=-1, keepdims=True)
-    return ContactPlane(front, normal, origin, np.asarray(heading, dtype=float))
 
 
 def _attitude(plane: ContactPlane) -> UnitAttitude:
@@ -167,6 +161,216 @@ def _supports(params: VehicleParams, unit: int) -> tuple[float, float]:
     return 0.0, float(np.mean(stations))
 
 
+class SupportLayout(NamedTuple):
+    """A combination's supports in each unit's own frame, the constants of :func:`contact_planes` (module
+    docstring), from :func:`support_layout`.
+
+    Attributes
+    ----------
+    local : numpy.ndarray
+        ``(units, 3, 2)``: each unit's front support and its rear axle group's left and right wheels (forward, left)
+        [m]; the tractor's from its centre of gravity, a towed unit's from its coupling.
+    couplings : tuple of float
+        One per unit but the last: the station of the next unit's coupling in the unit's frame (the tractor's from
+        its centre of gravity) [m].
+    origin : float
+        The tractor's frame origin (station 0 on its centre line) from its centre of gravity [m].
+    rides : tuple of bool
+        One per unit: its front support (a loaded coupling) lies on the contact plane of the unit ahead.
+    axles : numpy.ndarray
+        ``(axles, 2)``: every axle's centre in its unit's frame, in the layout's order (the tractor's from its centre
+        of gravity).
+    axle_unit : numpy.ndarray
+        ``(axles,)``: each axle's unit.
+    """
+
+    local: np.ndarray
+    couplings: tuple[float, ...]
+    origin: float
+    rides: tuple[bool, ...]
+    axles: np.ndarray
+    axle_unit: np.ndarray
+
+    def place(self, pose: CombinationPose | ChainPose) -> PlacedSupports:
+        """Where the units and their supports are in the horizontal plane at ``pose``.
+
+        Parameters
+        ----------
+        pose : CombinationPose or ChainPose
+            Fields of one shape ``S``, or scalars (one pose: Python floats, the per-tick case); it places the
+            tractor and as many towed units as it has articulation angles.
+
+        Returns
+        -------
+        PlacedSupports
+            The placed units' supports, frame origins and headings (:func:`vehicle_model.geometry.place_points`
+            term for term, so the points are those of the geometry module's functions to the bit).
+        """
+        full = chain_pose(pose)
+        n = 1 + min(len(full.angles), len(self.couplings))
+        fields = (full.x, full.y, full.psi1, *full.angles[: n - 1])
+        if all(np.ndim(v) == 0 for v in fields):  # one pose (every control tick): Python floats
+            x, y, psi, *angles = (float(v) for v in fields)
+            headings = [psi]
+            for gamma in angles:
+                headings.append(headings[-1] - gamma)
+            h = np.array(headings)
+            c, s = np.cos(h), np.sin(h)
+            cos, sin = c.tolist(), s.tolist()
+        else:
+            x, y, psi, *angles = (np.asarray(v, dtype=float) for v in fields)
+            headings = [psi]
+            for gamma in angles:
+                headings.append(headings[-1] - gamma)
+            h = np.stack(np.broadcast_arrays(*headings), axis=-1)
+            c, s = np.cos(h), np.sin(h)
+            cos, sin = [c[..., k] for k in range(n)], [s[..., k] for k in range(n)]
+        # each unit's placing point: the tractor's centre of gravity, then each coupling on the unit ahead
+        # (vehicle_model.geometry.place_points, term for term)
+        cx, cy = [x], [y]
+        for k in range(n - 1):
+            lx = self.couplings[k]
+            cx.append(cx[k] + lx * cos[k] - 0.0 * sin[k])
+            cy.append(cy[k] + lx * sin[k] + 0.0 * cos[k])
+        origins = [(x + self.origin * cos[0] - 0.0 * sin[0], y + self.origin * sin[0] + 0.0 * cos[0])]
+        origins += list(zip(cx[1:], cy[1:], strict=True))
+        stack = np.array if np.ndim(c) == 1 else _stack_last
+        centre_x, centre_y = stack(cx)[..., None], stack(cy)[..., None]
+        lx, ly = self.local[:n, :, 0], self.local[:n, :, 1]
+        c, s = c[..., None], s[..., None]
+        points = np.stack([centre_x + lx * c - ly * s, centre_y + lx * s + ly * c], axis=-1)
+        return PlacedSupports(points, origins, headings, centre_x[..., 0], centre_y[..., 0], c[..., 0], s[..., 0])
+
+    def axle_points(self, placed: PlacedSupports) -> np.ndarray:
+        """Every axle's centre in the horizontal plane (:func:`vehicle_model.geometry.place_points`, term for term).
+
+        Parameters
+        ----------
+        placed : PlacedSupports
+            :meth:`place`'s result at a pose that places every unit.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``S + (axles, 2)`` [m], in the layout's order (:attr:`VehicleParams.axle_table`).
+        """
+        if len(placed.headings) < len(self.rides):
+            raise ValueError(f"the pose places {len(placed.headings)} of {len(self.rides)} units; the axles need all")
+        u, lx, ly = self.axle_unit, self.axles[:, 0], self.axles[:, 1]
+        c, s = placed.cos[..., u], placed.sin[..., u]
+        return np.stack([placed.centre_x[..., u] + lx * c - ly * s, placed.centre_y[..., u] + lx * s + ly * c], axis=-1)
+
+    def planes(self, placed: PlacedSupports, heights: np.ndarray) -> list[ContactPlane]:
+        """Each placed unit's contact plane, front to rear (module docstring): a riding unit's front support on the
+        plane of the unit ahead, the normal that of the plane through the three supports, upward, of unit length.
+
+        Parameters
+        ----------
+        placed : PlacedSupports
+            :meth:`place`'s result.
+        heights : numpy.ndarray
+            ``S + (units, 3)``: the terrain's height under each of ``placed.points`` [m].
+
+        Returns
+        -------
+        list of ContactPlane
+            One per placed unit; on one pose each field a small array, as :func:`contact_planes` gives them.
+        """
+        points, n = placed.points, len(placed.headings)
+        scalar = points.ndim == 3
+        if scalar:
+            px, py, pz = points[..., 0].tolist(), points[..., 1].tolist(), heights.tolist()
+            sqrt, stack = math.sqrt, np.array
+        else:
+            px, py, pz = points[..., 0], points[..., 1], heights
+            sqrt, stack = np.sqrt, _stack_last
+        out: list[ContactPlane] = []
+        ax = ay = az = nx = ny = nz = 0.0  # the plane of the unit ahead
+        for k in range(n):
+            fx, lx, rx = px[k] if scalar else (px[..., k, j] for j in range(3))
+            fy, ly, ry = py[k] if scalar else (py[..., k, j] for j in range(3))
+            fz, lz, rz = pz[k] if scalar else (pz[..., k, j] for j in range(3))
+            if self.rides[k]:  # the coupling rides on the unit ahead (_plane_height)
+                fz = az - (nx * (fx - ax) + ny * (fy - ay)) / nz
+            # the upward unit normal of the plane through the three supports (numpy.cross's terms)
+            ux, uy, uz, vx, vy, vz = lx - fx, ly - fy, lz - fz, rx - fx, ry - fy, rz - fz
+            nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+            up = _sign(nz) if scalar else np.sign(nz)
+            nx, ny, nz = nx * up, ny * up, nz * up
+            norm = sqrt((nx * nx + ny * ny) + nz * nz)
+            nx, ny, nz = nx / norm, ny / norm, nz / norm
+            ax, ay, az = fx, fy, fz
+            origin = placed.origins[k]
+            heading = np.asarray(placed.headings[k], dtype=float)
+            out.append(ContactPlane(stack([fx, fy, fz]), stack([nx, ny, nz]), stack(list(origin)), heading))
+        return out
+
+
+class PlacedSupports(NamedTuple):
+    """Where a combination's placed units and their supports are at a pose (:meth:`SupportLayout.place`).
+
+    Attributes
+    ----------
+    points : numpy.ndarray
+        ``S + (units, 3, 2)``: each unit's supports in the horizontal plane [m].
+    origins : list of tuple
+        Each unit's frame origin ``(x, y)`` (floats, or arrays of shape ``S``) [m].
+    headings : list
+        Each unit's heading ψ (a float, or an array of shape ``S``) [rad].
+    centre_x, centre_y, cos, sin : numpy.ndarray
+        ``S + (units,)``: the point each unit's local points are placed from (the tractor's centre of gravity, a
+        towed unit's coupling) and the cosine and sine of its heading.
+    """
+
+    points: np.ndarray
+    origins: list[tuple]
+    headings: list
+    centre_x: np.ndarray
+    centre_y: np.ndarray
+    cos: np.ndarray
+    sin: np.ndarray
+
+
+def _stack_last(parts: list) -> np.ndarray:
+    return np.stack(np.broadcast_arrays(*parts), axis=-1)
+
+
+def _sign(value: float) -> float:
+    """``numpy.sign`` of a float."""
+    return 1.0 if value > 0.0 else -1.0 if value < 0.0 else value * 0.0
+
+
+def support_layout(params: VehicleParams) -> SupportLayout:
+    """Each unit's supports and axles in its own frame and how the units hang together (module docstring).
+
+    Parameters
+    ----------
+    params : VehicleParams
+        The combination.
+
+    Returns
+    -------
+    SupportLayout
+        Its constants, computed once a combination and used every time its contact planes are asked.
+    """
+    cg = float(params.tractor.cg_x)
+    local, couplings, rides, axles, axle_unit = [], [], [], [], []
+    for k, body in enumerate(params.units):
+        front_x, rear_x = _supports(params, k)
+        h = half_track(body)
+        points = np.array([[front_x, 0.0], [rear_x, h], [rear_x, -h]])
+        local.append(points - [cg, 0.0] if k == 0 else points)
+        if k < params.n_units - 1:
+            fifth = float(body.fifth_wheel_x)  # a unit that tows has its fifth wheel (VehicleParams)
+            couplings.append(fifth - cg if k == 0 else fifth)
+        rides.append(k > 0 and isinstance(body, TrailerParams) and body.front_load)
+        axles += [[a.x - cg if k == 0 else a.x, 0.0] for a in body.axles]
+        axle_unit += [k] * len(body.axles)
+    return SupportLayout(
+        np.array(local), tuple(couplings), 0.0 - cg, tuple(rides), np.array(axles), np.array(axle_unit, dtype=int)
+    )
+
+
 def contact_planes(
     params: VehicleParams, pose: CombinationPose | ChainPose, terrain: Terrain
 ) -> list[ContactPlane | None]:
@@ -191,30 +395,10 @@ def contact_planes(
     list of ContactPlane or None
         One per unit, front to rear.
     """
-    full = chain_pose(pose)
-    placed = [(0, tractor_points(params, full.x, full.y, full.psi1, np.zeros((1, 2)))[..., 0, :], full.psi1)]
-    placed += [(k, *unit_frame(params, full, k)) for k in range(1, min(len(full.angles), len(params.trailers)) + 1)]
-    pts = []
-    for k, origin, heading in placed:
-        front_x, rear_x = _supports(params, k)
-        h = half_track(params.units[k])
-        local = np.array([[front_x, 0.0], [rear_x, h], [rear_x, -h]])
-        if k == 0:
-            pts.append(tractor_points(params, full.x, full.y, full.psi1, local))
-        else:
-            pts.append(place_points(origin, heading, local))
-    lifted = _lift(terrain, np.concatenate(pts, axis=-2))  # every unit's supports in one look-up
-    out: list[ContactPlane | None] = []
-    ahead: ContactPlane | None = None
-    for n, (k, origin, heading) in enumerate(placed):
-        unit = lifted[..., 3 * n : 3 * n + 3, :]
-        body = params.units[k]
-        if ahead is not None and isinstance(body, TrailerParams) and body.front_load:
-            # the coupling rides on the unit ahead
-            unit[..., 0, 2] = _plane_height(ahead.support, ahead.normal, unit[..., 0, :2])
-        ahead = _plane(unit[..., 0, :], unit[..., 1, :], unit[..., 2, :], origin, heading)
-        out.append(ahead)
-    return out + [None] * (len(params.trailers) + 1 - len(out))
+    layout = support_layout(params)
+    placed = layout.place(pose)
+    planes: list[ContactPlane | None] = list(layout.planes(placed, _heights(terrain, placed.points)))
+    return planes + [None] * (len(params.trailers) + 1 - len(planes))
 
 
 def unit_attitudes(

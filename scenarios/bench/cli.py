@@ -79,6 +79,20 @@ def bench_model_cmd(
     _print_bench(bench_model(duration=duration, vehicle=vehicle), as_json, "Model benchmark")
 
 
+@bench_app.command("terrain", cls=OfftrackCommand)
+def bench_terrain_cmd(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    vehicle: Annotated[str, typer.Option(help="The combination (a catalogue name).")] = "lst",
+    ticks: Annotated[int, typer.Option(help="States a round, each a new tick.", min=50)] = 1000,
+    rounds: Annotated[int, typer.Option(help="Rounds; the figures are their medians.", min=1)] = 3,
+) -> None:
+    """The model's surface look-up on the rough yard: thread CPU ms a tick with each body's slope from its supports
+    against its axles, side by side, and their ratio."""
+    from scenarios.bench.terrain import bench_terrain
+
+    _print_bench(bench_terrain(vehicle, ticks, rounds), as_json, "Terrain surface benchmark")
+
+
 @bench_app.command("loop", cls=OfftrackCommand)
 def bench_loop_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
