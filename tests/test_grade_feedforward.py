@@ -80,15 +80,25 @@ def test_on_the_rough_yard_the_units_feedforward_is_the_models_gravity_load_and_
 
 
 @pytest.mark.slow
-def test_the_unsteered_lst_stalls_on_the_rough_wet_clay_yard_only_with_the_tractors_slope(tmp_path: Path) -> None:
+def test_the_unsteered_lst_falls_behind_on_the_wet_clay_yard_with_the_tractors_slope_alone(
+    tmp_path: Path,
+) -> None:
+    # docs/terrain.md, "The unsteered LST on the rough wet-clay yard", seed 1, 30 s, ideal signals. With each body's
+    # gravity from its axles (`terrain.body_slope: axles`) the feed-forward on the tractor's slope alone brakes the
+    # combination into a stall on the circle's first climb (measured 27.6 m, rolling back at 1.2 m/s) where each
+    # unit's own slope drives on (53.3 m, least speed 0.97 m/s). With the default `supports` (the trailer's kingpin
+    # share pushed on the tractor's plane) the tractor's slope is nearer the combination's load: no stall, but it
+    # still falls behind (measured 42.7 m, least 0.64 m/s, against 56.3 m and 1.01 m/s).
     reached = {}
-    for feedforward in ("tractor", "units"):
+    for form, feedforward in (("axles", "tractor"), ("axles", "units"), ("supports", "tractor"), ("supports", "units")):
         spec = off_highway_case("gravel-yard", "wet_clay", "rough", "ideal", "none", True, seed=1)
-        extra = (("speed.grade_feedforward", feedforward), ("duration_s", 30.0))
+        extra = (("speed.grade_feedforward", feedforward), ("duration_s", 30.0), ("terrain.body_slope", form))
         spec = type(spec)(spec.study, spec.scenario, (*spec.overrides, *extra), spec.labels)
-        row = run_off_highway_case(spec, tmp_path / feedforward)
+        row = run_off_highway_case(spec, tmp_path / form / feedforward)
         assert row["status"] == "completed"
-        series = pd.read_parquet(tmp_path / feedforward / spec.name / "timeseries.parquet")
-        reached[feedforward] = (float(series["path_progress"].max()), float(series["u"].min()))
-    assert reached["tractor"][0] < 30.0 and reached["tractor"][1] < 0.0  # stalled on the circle's first climb
-    assert reached["units"][0] > 45.0 and reached["units"][1] > 0.5
+        series = pd.read_parquet(tmp_path / form / feedforward / spec.name / "timeseries.parquet")
+        reached[form, feedforward] = (float(series["path_progress"].max()), float(series["u"].min()))
+    assert reached["axles", "tractor"][0] < 30.0 and reached["axles", "tractor"][1] < 0.0  # stalled, rolled back
+    assert reached["axles", "units"][0] > 45.0 and reached["axles", "units"][1] > 0.5
+    assert reached["supports", "tractor"][0] < 0.85 * reached["supports", "units"][0]
+    assert reached["supports", "tractor"][1] < 0.8 < 0.9 < reached["supports", "units"][1]
