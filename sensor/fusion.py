@@ -157,8 +157,8 @@ class FusedVisoOt:
         linear range, 1 where one runs at twice ``scrub_slip_angle``; ``frame_scrub_demand`` that of the last camera
         frame's tick, which its motion and the coupled correction were taken at ((K5)–(K6)).
     noise : FusionNoise
-        The settings it runs with: ``noise``, or for a camera that looks across its motion ``noise``'s
-        :attr:`~sensor.fusion_noise.FusionNoise.side_rig` settings in their place.
+        The settings it runs with: ``noise``, with a side rig's or a linked rig's in their place
+        (:meth:`~sensor.fusion_noise.FusionNoise.for_camera`).
     """
 
     def __init__(
@@ -175,8 +175,8 @@ class FusedVisoOt:
         axis = self.geometry.mount_rotation[:2, 2]  # the optical axis in the unit's ground plane
         self._optical_axis = axis / max(float(np.hypot(*axis)), 1e-12)
         noise = noise if noise is not None else FusionNoise()
-        self.noise = noise.for_camera((float(self._optical_axis[0]), float(self._optical_axis[1])))  # a side rig's
-        self.unit = self.geometry.unit
+        self.unit = self.geometry.unit  # a side rig's settings, or a linked rig's on unit 2 or further:
+        self.noise = noise.for_camera((float(self._optical_axis[0]), float(self._optical_axis[1])), self.unit)
         self.follow_point_offset = params.follow_point_offset_of(self.unit)
         self.slip_point, self.steer_weights = slip_kinematics(params, self.unit)
         point = self.noise.kinematic_rear_point

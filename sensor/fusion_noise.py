@@ -10,11 +10,14 @@ from pydantic import Field, model_validator
 from vehicle_model.kinematics import RearPoint
 from vehicle_model.settings import Settings
 
+from .fusion_linked_rig import LinkedRigFusion
+
 __all__ = [
     "AxialEffect",
     "FollowerLimit",
     "FusionNoise",
     "KinematicReference",
+    "LinkedRigFusion",
     "PersistingReferenceError",
     "ReferenceTyre",
     "ScrubCouplingStd",
@@ -396,6 +399,9 @@ class FusionNoise(Settings):
     side_rig : SideRigFusion
         What a camera looking across its motion takes instead (:meth:`for_camera`; none by default, a run's
         ``fusion`` settings give the side camera's states).
+    linked_rig : LinkedRigFusion
+        What a camera looking along its unit takes instead on a unit whose front coupling rides on another towed
+        unit (:meth:`for_camera`, :mod:`sensor.fusion_linked_rig`; none by default).
     """
 
     gyro_noise: float = Field(
@@ -528,6 +534,7 @@ class FusionNoise(Settings):
         8.7e-4, ge=0.0, le=0.1, description="[rad] per sample (sensor/datasheet.py); 0.1 rad is no articulation sensor"
     )
     side_rig: SideRigFusion = Field(default_factory=SideRigFusion)
+    linked_rig: LinkedRigFusion = Field(default_factory=LinkedRigFusion)
 
     @model_validator(mode="after")
     def _follower_axial_state(self) -> FusionNoise:  # (C0'') takes the follower's s_z: its filter must hold one
@@ -538,11 +545,16 @@ class FusionNoise(Settings):
             )
         return self
 
-    def for_camera(self, optical_axis: tuple[float, float]) -> FusionNoise:
-        """The settings of a filter whose camera's optical axis is ``optical_axis`` in the unit's ground plane: a
-        camera that looks across its motion (``|o_y| > |o_x|``, a side rig) takes :attr:`side_rig`'s, any other
-        these settings unchanged (the same object)."""
-        given = self.side_rig.given()
-        if not given or abs(optical_axis[1]) <= abs(optical_axis[0]):
-            return self
-        return self.replace(**given)
+    def for_camera(self, optical_axis: tuple[float, float], unit: int = 1) -> FusionNoise:
+        """The settings of a filter whose camera's optical axis is ``optical_axis`` in the ground plane of towed unit
+        ``unit`` (1 the first, on the tractor's coupling; each further one on the coupling of the towed unit ahead).
+
+        A camera that looks across its motion (``|o_y| > |o_x|``, a side rig) takes :attr:`side_rig`'s, any other
+        camera on unit 2 or further (a linked rig, :mod:`sensor.fusion_linked_rig`) :attr:`linked_rig`'s, and any
+        other these settings unchanged (the same object, as where the section taken gives nothing).
+        """
+        if abs(optical_axis[1]) > abs(optical_axis[0]):
+            given = self.side_rig.given()
+        else:
+            given = self.linked_rig.given() if unit >= 2 else {}
+        return self.replace(**given) if given else self

@@ -198,7 +198,8 @@ class FusionConfig(FusionNoise):
     ``signals``). A run's filter takes the scrub demand of (K5) (``sensor.fusion_slip``) and, for a camera that looks
     across its motion, ``side_rig``'s settings: the odometry's error along its optical axis as states, found against
     the speed-compensated zero-slip kinematics with their error as a state (docs/field_bias.md §7.5); a rear rig's
-    filter is the section's alone."""
+    filter is the section's alone, but on a unit whose coupling rides on another towed unit it takes ``linked_rig``'s
+    (none by default, :mod:`sensor.fusion_linked_rig`)."""
 
     offtracking_bias_std: float = Field(
         0.005,
