@@ -123,15 +123,20 @@ def _enclosing_radius(a, b, c):
     return np.where(acute, circum, edges[:, 2] / 2.0)
 
 
-def test_shadows_on_a_terrain_lie_just_above_it_everywhere(ring) -> None:
+@pytest.fixture(scope="module")
+def swell_world(ring):
+    return build_world(ring, scenery_density=0.5, terrain=Swell(), horizon=False, landscape=False)
+
+
+def test_shadows_on_a_terrain_lie_just_above_it_everywhere(swell_world) -> None:
     """Every point of every decal triangle lies ``z ± κ·R²/2`` above the terrain (linear interpolation on a triangle
     held by a circle of radius ``R`` errs by at most ``R²/2`` times the largest second directional derivative ``κ``:
     Waldron 1998, SIAM J. Numer. Anal. 35(3)), and that bound is below ``z``; float32 vertices add 1e-4 m. A fan
     draped at its outline only misses by centimetres here."""
     from sensor.lighting import shadow_part, shadow_spacing
 
-    terrain = Swell()
-    world = build_world(ring, scenery_density=0.5, terrain=terrain, horizon=False, landscape=False)
+    world = swell_world
+    terrain = world.terrain
     z = 0.01
     part = shadow_part(world, Lighting(sun=True, sun_elevation_deg=10.0), z=z)
     pos = part.positions.astype(np.float64)
@@ -180,3 +185,14 @@ def test_shadows_on_the_level_road_are_one_fan_per_polygon(ring) -> None:
             n += m
     assert np.array_equal(part.positions, np.vstack(pos).astype(part.positions.dtype))
     assert np.array_equal(part.indices.reshape(-1, 3), np.vstack(idx).astype(part.indices.dtype))
+
+
+def test_too_many_shadow_vertices_are_refused_first(swell_world, monkeypatch) -> None:
+    """Decals above the vertex cap are refused with one line naming the mesh spacing, before they are made."""
+    import sensor.lighting as lighting
+    from vehicle_model.errors import InputError
+
+    monkeypatch.setattr(lighting, "MAX_SHADOW_VERTICES", 1000)
+    monkeypatch.setattr(lighting, "_drape_points", lambda *a: pytest.fail("decal built before the size check"))
+    with pytest.raises(InputError, match=r"^world\.terrain_mesh_spacing = 1 m gives shadow decals of up to \d+ "):
+        lighting.shadow_part(swell_world, Lighting(sun=True, sun_elevation_deg=10.0))
