@@ -33,7 +33,15 @@ from vehicle_model.settings import Settings
 if TYPE_CHECKING:
     from .world import World
 
-__all__ = ["SHADOW_TEXTURE", "Lighting", "light_world", "shadow_part", "sun_direction"]
+__all__ = [
+    "MAX_SHADOW_VERTICES",
+    "SHADOW_TEXTURE",
+    "Lighting",
+    "light_world",
+    "shadow_part",
+    "shadow_spacing",
+    "sun_direction",
+]
 
 SHADOW_TEXTURE = "shadow"
 """Texture name of the shadow decals (a 1 × 1 white texel; the shade is in the vertex alpha)."""
@@ -139,8 +147,49 @@ def _shade(normals: np.ndarray, sun: np.ndarray, lighting: Lighting) -> np.ndarr
     return np.clip(e, 0.02, 1.0) ** 2.2
 
 
+MAX_SHADOW_VERTICES = 2_000_000
+"""Most vertices the shadow decals on a terrain may have (about 50 MB of vertex data)."""
+
+
+def shadow_spacing(terrain_mesh_spacing: float) -> float:
+    """Grid step [m] of a shadow decal draped on a terrain: no coarser than the road's half-metre lanes nor the
+    ground grid (docs/terrain_camera.md §3)."""
+    return min(terrain_mesh_spacing, 0.5)
+
+
+def _drape_points(ring: np.ndarray, step: float) -> np.ndarray:
+    """The points a convex polygon ``ring`` (counter-clockwise, ``(m, 2)``) is triangulated on: its corners, its
+    edges split into pieces of at most ``step``, and the world-aligned grid of ``step`` inside it, grid points
+    closer than ``step/4`` to an edge left out (no slivers)."""
+    nxt = np.roll(ring, -1, axis=0)
+    edge = nxt - ring
+    length = np.hypot(edge[:, 0], edge[:, 1])
+    pieces = np.maximum(1, np.ceil(length / step - 1e-9)).astype(int)
+    outline = [ring[i] + edge[i] * (np.arange(pieces[i])[:, None] / pieces[i]) for i in range(len(ring))]
+    lo, hi = ring.min(axis=0), ring.max(axis=0)
+    gx = np.arange(np.ceil(lo[0] / step), np.floor(hi[0] / step) + 1) * step
+    gy = np.arange(np.ceil(lo[1] / step), np.floor(hi[1] / step) + 1) * step
+    grid = np.column_stack([a.ravel() for a in np.meshgrid(gx, gy)])
+    normal = np.column_stack([edge[:, 1], -edge[:, 0]]) / np.maximum(length, 1e-12)[:, None]  # outward
+    inside = ((grid[:, None, :] - ring[None, :, :]) * normal[None, :, :]).sum(axis=2).max(axis=1)
+    return np.vstack([*outline, grid[inside < -0.25 * step]])
+
+
+def _drape_count(ring: np.ndarray, step: float) -> int:
+    """An upper bound of ``len(_drape_points(ring, step))``, known before the points are made."""
+    edge = np.roll(ring, -1, axis=0) - ring
+    boundary = int(np.maximum(1, np.ceil(np.hypot(edge[:, 0], edge[:, 1]) / step - 1e-9)).sum())
+    span = ring.max(axis=0) - ring.min(axis=0)
+    return boundary + int(np.prod(np.floor(span / step) + 2.0))
+
+
 def shadow_part(world: World, lighting: Lighting, z: float | None = None):
     """The shadow decals of the world's scenery: one convex polygon per object part and copy.
+
+    On a terrain each polygon is draped like the ground: its corners, its edges split and a grid inside it every
+    :func:`shadow_spacing` are triangulated (Delaunay) and every vertex lifted to the terrain's height plus ``z``,
+    so the decal follows the ground between its outline (docs/terrain_camera.md §3). On the level road it is one
+    fan at ``z``.
 
     Parameters
     ----------
@@ -149,15 +198,22 @@ def shadow_part(world: World, lighting: Lighting, z: float | None = None):
     lighting : Lighting
         The sun.
     z : float, optional
-        Height of the decals (default just above the road paint).
+        Height of the decals above the ground (default just above the road paint).
 
     Returns
     -------
     Part or None
         Category ``shadow``, texture :data:`SHADOW_TEXTURE`, vertex alpha = the shadow level; None
         when nothing casts a shadow.
+
+    Raises
+    ------
+    InputError
+        On a terrain, decals of more than :data:`MAX_SHADOW_VERTICES` vertices (refused before they are made).
     """
-    from scipy.spatial import ConvexHull, QhullError  # the world's geometry only where it is lit
+    from scipy.spatial import ConvexHull, Delaunay, QhullError  # the world's geometry only where it is lit
+
+    from vehicle_model.errors import InputError
 
     from .world.types import LEVELS, make_part
 
@@ -165,7 +221,7 @@ def shadow_part(world: World, lighting: Lighting, z: float | None = None):
     z = LEVELS["paint"] + 0.004 if z is None else z
     shift = sun[:2] / sun[2]
     terrain = getattr(world, "terrain", None)  # on a terrain: heights above the ground, decals at its height
-    pos_all, idx_all, n = [], [], 0
+    rings = []
     for part in world.parts:
         if part.category != "scenery" or part.name == "horizon":
             continue
@@ -180,15 +236,40 @@ def shadow_part(world: World, lighting: Lighting, z: float | None = None):
                 hull = ConvexHull(flat)
             except (QhullError, ValueError):
                 continue
-            ring = flat[hull.vertices]
-            m = len(ring)
-            lift = 0.0 if terrain is None else terrain.height(ring)
-            pos_all.append(np.column_stack([ring, np.full(m, z) + lift]))
-            fan = np.column_stack([np.zeros(m - 2, int), np.arange(1, m - 1), np.arange(2, m)]) + n
-            idx_all.append(fan)
-            n += m
-    if not pos_all:
+            rings.append(flat[hull.vertices])
+    if not rings:
         return None
+    pos_all, idx_all, n = [], [], 0
+    if terrain is None:
+        for ring in rings:
+            m = len(ring)
+            pos_all.append(np.column_stack([ring, np.full(m, z)]))
+            idx_all.append(np.column_stack([np.zeros(m - 2, int), np.arange(1, m - 1), np.arange(2, m)]) + n)
+            n += m
+    else:
+        spacing = world.config.terrain_mesh_spacing
+        step = shadow_spacing(spacing)
+        count = sum(_drape_count(ring, step) for ring in rings)
+        if count > MAX_SHADOW_VERTICES:
+            raise InputError(
+                f"world.terrain_mesh_spacing = {spacing:g} m gives shadow decals of up to {count} vertices; "
+                f"allowed at most {MAX_SHADOW_VERTICES}: raise the spacing or set camera.lighting.shadows to false"
+            )
+        for ring in rings:
+            pts = _drape_points(ring, step)
+            try:
+                tri = Delaunay(pts).simplices
+            except (QhullError, ValueError):
+                continue
+            a, b, c = (pts[tri[:, k]] for k in range(3))
+            area = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+            keep = np.abs(area) > 1e-9 * step**2  # no flat triangle
+            tri = np.where((area < 0.0)[:, None], tri[:, [0, 2, 1]], tri)[keep]  # counter-clockwise, facing up
+            pos_all.append(np.column_stack([pts, z + np.asarray(terrain.height(pts), dtype=float)]))
+            idx_all.append(tri + n)
+            n += len(pts)
+        if not pos_all:
+            return None
     pos = np.vstack(pos_all)
     colours = np.ones((len(pos), 4))
     colours[:, 3] = lighting.shadow_level
