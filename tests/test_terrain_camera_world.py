@@ -265,3 +265,18 @@ def test_frame_cache_tags_name_the_terrain_by_its_heights() -> None:
     eight, _ = tag({"terrain.kind": "plane", "terrain.grade_percent": 8.0})
     ten, ten_without = tag({"terrain.kind": "plane", "terrain.grade_percent": 10.0})
     assert len({flat_with, eight, ten}) == 3 and flat == ten_without
+
+
+def test_frame_cache_tags_name_the_renderers_revision(monkeypatch) -> None:
+    """A frame cache filled by other rendering code is never read: the camera tag changes with
+    :data:`~scenarios.camera.frame_cache.FRAME_REVISION`, on a terrain and on the level road."""
+    from scenarios.camera import frame_cache
+    from scenarios.camera.build import camera_tag
+    from scenarios.config import load_scenario
+    from scenarios.setup.build import build_scenario
+
+    setup = build_scenario(load_scenario("pbs-low-speed-turn", {"terrain.kind": "plane", "terrain.grade_percent": 8.0}))
+    before = camera_tag(setup, terrain=setup.terrain), camera_tag(setup)
+    monkeypatch.setattr(frame_cache, "FRAME_REVISION", frame_cache.FRAME_REVISION + 1)
+    after = camera_tag(setup, terrain=setup.terrain), camera_tag(setup)
+    assert before[0] != after[0] and before[1] != after[1]

@@ -320,9 +320,13 @@ def _ideal_developer(
 
 def camera_tag(setup: ScenarioSetup, **settings: Any) -> str:
     """A name for the frames of the camera :func:`stereo_camera` builds for ``setup`` with ``settings``: a hash of the
-    configuration's camera section, seed and camera rate, the reference path, the vehicle and the settings."""
+    configuration's camera section, seed and camera rate, the reference path, the vehicle, the settings and the
+    renderer's :data:`~.frame_cache.FRAME_REVISION`."""
+    from .frame_cache import FRAME_REVISION
+
     cfg = setup.config
     described = {
+        "frame_revision": FRAME_REVISION,
         "camera": cfg.camera.model_dump(mode="json"),
         "seed": cfg.seed,
         "camera_hz": cfg.rates.camera_hz,

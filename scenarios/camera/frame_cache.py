@@ -5,8 +5,9 @@ A camera built with a frame cache (:func:`.build.stereo_camera`, ``frame_cache=`
 frame at the same pose and mount flex, reads it back instead of rendering it. ``TAG`` names the camera (its
 configuration, rig, world and vehicle, :func:`.build.camera_tag`), so one directory serves several scenarios; a stored
 frame of another pose or flex is rendered again and replaced. ``OFFTRACK_FRAME_CACHE`` sets the directory of every
-camera run that is not given one (:func:`frame_cache_from_env`). The key holds the camera and its settings, not
-the renderer's code: clear the directory after changing the renderer.
+camera run that is not given one (:func:`frame_cache_from_env`). The key holds the camera and its settings and
+:data:`FRAME_REVISION`, not the renderer's code itself: a change to what a camera sees under the same settings raises
+the revision, so that no cache serves frames the current code would not render.
 """
 
 from __future__ import annotations
@@ -20,10 +21,14 @@ from sensor.camera import Misalignment
 from sensor.stereo_camera import CachedPair
 from vehicle_model.geometry import ChainPose, CombinationPose, chain_pose
 
-__all__ = ["FRAME_CACHE_ENV", "FrameCache", "frame_cache_from_env"]
+__all__ = ["FRAME_CACHE_ENV", "FRAME_REVISION", "FrameCache", "frame_cache_from_env"]
 
 FRAME_CACHE_ENV = "OFFTRACK_FRAME_CACHE"
 """Environment variable naming the frame cache directory of camera runs (unset or empty: none)."""
+
+FRAME_REVISION = 2
+"""The revision of what the world, its lighting and the renderer draw for a given camera description, part of every
+frame's key (:func:`.build.camera_tag`): raised with any change to the rendered images of an unchanged configuration."""
 
 
 def frame_cache_from_env() -> Path | None:
