@@ -93,7 +93,7 @@ class TerrainBodySlopes:
         units = [params.tractor, *params.trailers]
         self._axle_unit = np.repeat(np.arange(len(units)), [len(u.axles) for u in units])
         self._axle_half_track = np.repeat([half_track(u) for u in units], [len(u.axles) for u in units])
-        self._layout = support_layout(params) if field.body == "supports" else None
+        self._layout = support_layout(params)  # the supports' and axles' constants, for the contact planes
         # a state, its bodies' contact planes and the slopes under its axles
         self._state: tuple[bytes, list[ContactPlane], np.ndarray] | None = None
 
@@ -142,7 +142,7 @@ class TerrainBodySlopes:
         the supports and the axles placed at once, the terrain's heights and gradients under the supports and the
         wheels in one look-up (:func:`~vehicle_model.terrain.heights_and_gradients`)."""
         if self._state is None or self._state[0] != key:
-            layout = self._layout if self._layout is not None else support_layout(self.params)
+            layout = self._layout
             placed = layout.place(pose)
             headings = np.array(placed.headings)
             wheels = axle_wheels(layout.axle_points(placed), headings[self._axle_unit], self._axle_half_track)

@@ -209,21 +209,16 @@ class SupportLayout(NamedTuple):
         full = chain_pose(pose)
         n = 1 + min(len(full.angles), len(self.couplings))
         fields = (full.x, full.y, full.psi1, *full.angles[: n - 1])
-        if all(np.ndim(v) == 0 for v in fields):  # one pose (every control tick): Python floats
-            x, y, psi, *angles = (float(v) for v in fields)
-            headings = [psi]
-            for gamma in angles:
-                headings.append(headings[-1] - gamma)
-            h = np.array(headings)
-            c, s = np.cos(h), np.sin(h)
+        scalar = all(np.ndim(v) == 0 for v in fields)  # one pose (every control tick): Python floats
+        x, y, psi, *angles = (float(v) if scalar else np.asarray(v, dtype=float) for v in fields)
+        headings = [psi]
+        for gamma in angles:
+            headings.append(headings[-1] - gamma)
+        h = np.array(headings) if scalar else _stack_last(headings)
+        c, s = np.cos(h), np.sin(h)
+        if scalar:
             cos, sin = c.tolist(), s.tolist()
         else:
-            x, y, psi, *angles = (np.asarray(v, dtype=float) for v in fields)
-            headings = [psi]
-            for gamma in angles:
-                headings.append(headings[-1] - gamma)
-            h = np.stack(np.broadcast_arrays(*headings), axis=-1)
-            c, s = np.cos(h), np.sin(h)
             cos, sin = [c[..., k] for k in range(n)], [s[..., k] for k in range(n)]
         # each unit's placing point: the tractor's centre of gravity, then each coupling on the unit ahead
         # (vehicle_model.geometry.place_points, term for term)
