@@ -25,18 +25,19 @@ lateral accelerations, which the steer reaches directly, free of a white-noise f
 The cost is the closed loop's H2 norm from ``w`` to ``z``, the variance of ``z`` under the white-noise steer
 (Zhou, Doyle & Glover, *Robust and Optimal Control*, 1996: ``‖G‖₂² = tr(C P Cᵀ)``, ``A P + P Aᵀ + B Bᵀ = 0``)::
 
-    z = [ (a_y2 − a_y1)/a_ref,  q_Γ̇·(r1 − r2)/r_ref,  q_δ·δ_c ]
+    z = [ (a_y2 − a_y1)/a_ref,  q_Γ̇·(r1 − r2)/r_ref,  q_δ·δ_c,  q_δ̇·δ̇_s/ω_w ]
 
 ``a_y1 = v̇1 + u r1`` and ``a_y2 = v̇1 − h1 ṙ1 − h2 ṙ2 + u r1`` are the two units' lateral accelerations at their
 CGs (the time derivative of the trailer CG's lateral velocity ``v2 = v1 − h1 r1 − h2 r2 + uΓ`` of the linear model,
 plus ``u r2``); ``a_ref`` and ``r_ref`` are the tractor's steady lateral acceleration and yaw rate per radian of its
 steer at that speed, so each term is relative to what the tractor does: the first is the trailer's lateral
 acceleration relative to the tractor's (rearward amplification above one, a sway that goes on after the tractor's
-has stopped), the second the articulation rate, the third the steer effort per radian of the tractor's steer.
-The static output-feedback gain that minimises it is found numerically from zero (the unsteered trailer, stable at
-every speed of the grid), as in Levine & Athans (1970, IEEE Trans. Automatic Control 15(1)), here by a quasi-Newton
-search and a simplex polish; an unstable closed loop costs :data:`UNSTABLE_COST`. The actuator lag makes the problem
-well posed: without it the cost falls without bound as the gain grows along the direction that holds ``K y`` finite.
+has stopped), the second the articulation rate, the third and fourth the steer effort and its rate per radian of the
+tractor's steer (the rate over the disturbance's bandwidth). The static output-feedback gain that minimises it is
+found numerically from zero (the unsteered trailer, stable at every speed of the grid), as in Levine & Athans (1970,
+IEEE Trans. Automatic Control 15(1)), here by a quasi-Newton search (BFGS, numerical gradient); an unstable closed
+loop costs :data:`UNSTABLE_COST`. The actuator lag and the rate term make the problem well posed: without them the
+cost falls without bound as the gain grows along the direction that holds ``K y`` finite.
 Why this cost and not an LQR gain projected on the outputs: docs/controller_design.md §3.5 (*The stability mode*).
 """
 
@@ -257,26 +258,19 @@ def design_gain(params: VehicleParams, speed: float, weights: StabilityWeights |
     open_loop = h2_cost(start, plant, weights)
     if open_loop >= UNSTABLE_COST:
         raise InputError(f"the unsteered combination is unstable at {speed:.1f} m/s: no stability steer designed")
-    coarse = scipy.optimize.minimize(h2_cost, start, args=(plant, weights), method="BFGS")
-    fine = scipy.optimize.minimize(
-        h2_cost,
-        coarse.x,
-        args=(plant, weights),
-        method="Nelder-Mead",
-        options={"xatol": 1e-8, "fatol": 1e-14, "maxiter": 1500},
-    )
-    if not fine.fun < open_loop:
+    found = scipy.optimize.minimize(h2_cost, start, args=(plant, weights), method="BFGS")
+    if not found.fun < open_loop:
         return start
-    return np.asarray(fine.x, dtype=float)
+    return np.asarray(found.x, dtype=float)
 
 
 def design_speeds(crossover_start: float) -> np.ndarray:
-    """The design speeds [m/s]: the crossover's lower speed, then every :data:`GRID_STEP` above it up to
-    :data:`GRID_TOP` (multiples of the step)."""
+    """The design speeds [m/s]: the crossover's lower speed, then the multiples of :data:`GRID_STEP` more than half a
+    step above it, up to :data:`GRID_TOP`."""
     if not (math.isfinite(crossover_start) and 0.0 < crossover_start < GRID_TOP):
         raise InputError(f"crossover start = {crossover_start!r} m/s must be in (0, {GRID_TOP}) for the design grid")
-    above = np.arange(math.floor(crossover_start / GRID_STEP) + 1, math.floor(GRID_TOP / GRID_STEP) + 1) * GRID_STEP
-    return np.concatenate([[crossover_start], above])
+    multiples = np.arange(1, math.floor(GRID_TOP / GRID_STEP) + 1) * GRID_STEP
+    return np.concatenate([[crossover_start], multiples[multiples > crossover_start + 0.5 * GRID_STEP]])
 
 
 class StabilitySteer:
