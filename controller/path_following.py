@@ -93,7 +93,9 @@ amplification; Cheng et al. 2011 and Jujnovich & Cebon 2013 in full were not ava
 high-speed mode is the unsteered trailer: between the two speeds of ``high_speed_crossover`` the whole command
 (feed-forward and feedback) fades linearly to zero, and above it the axles stay straight, so at speed the trailer
 is never worse than unsteered; the integrator stops with the fade. The crossover's default and the measurements
-behind it are in docs/controller_design.md (*Speed: the crossover*).
+behind it are in docs/controller_design.md (*Speed: the crossover*). With ``high_speed_mode = "stability"`` (opt-in,
+tractor–semi-trailer) a stability steer of the gyros and the articulation fades in on the same schedule, added to
+every axle's target before the limits (:mod:`controller.high_speed`).
 
 Measurement timing: HOLD
 ------------------------
@@ -155,6 +157,7 @@ from .friction_hold import (
     deepens_slip,
     steered_slip_angles,
 )
+from .high_speed import StabilitySteer
 from .kingpin_path import PATH_SPACING, DeadReckonedKingpinPath
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
 from .preview import preview_tangent
@@ -217,6 +220,9 @@ class TrailerSteeringController:
         Per axle: the slip-angle limit (``config.max_slip_angle``) clipped the command on the last tick.
     integral : float
         ``∫e ds`` [m²].
+    stability_steer : float or None
+        Last high-speed stability steer [rad] added to every axle's target, faded (``config.high_speed_mode =
+        "stability"`` above the crossover's lower speed; ``None`` otherwise).
     fade : float
         Last speed fade factor in [0, 1]: ``f(u)`` times the high-speed crossover's share
         (:func:`~.steer_output.high_speed_fade`).
@@ -275,6 +281,11 @@ class TrailerSteeringController:
         )
         self.wheel_speed_kingpin = WheelSpeedKingpin(params, unit)  # the friction hold's, with wheel_speeds
         self.kingpin_path = DeadReckonedKingpinPath(self.follow_point_offset)  # the chord law's
+        self.stability = (  # the high-speed stability steer (controller.high_speed), opt-in
+            StabilitySteer(params, cfg.high_speed_crossover[0])
+            if cfg.high_speed_mode == "stability" and cfg.high_speed_crossover is not None
+            else None
+        )
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -289,6 +300,7 @@ class TrailerSteeringController:
         self.feedback_steer = 0.0
         self.integral = 0.0
         self.fade = 0.0
+        self.stability_steer: float | None = None
         self.estimate: float | None = None
         self.feedback_weight = 1.0
         self.new_sample = False
@@ -397,6 +409,10 @@ class TrailerSteeringController:
         ds = speed * dt if forward else 0.0
         self.distance += ds
         self.fade = speed_fade(state.u, cfg.fade_speeds) * high_speed_fade(state.u, cfg.high_speed_crossover)
+        self.stability_steer = None
+        if self.stability is not None and state.u > cfg.high_speed_crossover[0]:  # fades in as path following out
+            share = speed_fade(state.u, cfg.fade_speeds) * (1.0 - high_speed_fade(state.u, cfg.high_speed_crossover))
+            self.stability_steer = share * self.stability(state.u, motion.tow_yaw_rate, rate, gamma)
 
         # Feed-forward (the steady law in its exact form, or the chord law).
         self.kingpin_path.record(motion.tow_yaw_rate, vx, vy, dt, forward)
@@ -495,7 +511,7 @@ class TrailerSteeringController:
         gains = self.gains
         fb = 0.0 if error is None else schedule * (gains.kp * error + gains.ki * integral + gains.kd * self._derivative)
         virtual = outswing_scale(self.feedforward_steer + fb, error, self.kingpin_curvature, self.config.max_outswing)
-        return fb, self.output.propose(virtual, tan_kingpin, self.fade, dt, slip_window)
+        return fb, self.output.propose(virtual, tan_kingpin, self.fade, dt, slip_window, self.stability_steer)
 
     def _sample(self, estimate: OfftrackingEstimate | None) -> float | None:
         """Zero-order hold of the estimate; derivative on new samples only. ``None`` if missing.

@@ -12,6 +12,7 @@ from vehicle_model.settings import Settings
 
 __all__ = [
     "FeedForward",
+    "HighSpeedMode",
     "HoldKingpin",
     "Kinematics",
     "PathFollowingConfig",
@@ -32,6 +33,9 @@ HoldKingpin = Literal["zero_slip", "lateral_acceleration", "wheel_speeds"]
 
 UncertainFeedback = Literal["drop", "shrink", "taper"]
 """Type of :attr:`PathFollowingConfig.uncertain_feedback`."""
+
+HighSpeedMode = Literal["unsteered", "stability"]
+"""Type of :attr:`PathFollowingConfig.high_speed_mode`."""
 
 ReachFreezeAt = Literal["feedforward", "lock", "exit"]
 """Type of :attr:`PathFollowingConfig.reach_freeze_at`."""
@@ -180,6 +184,12 @@ class PathFollowingConfig(Settings):
         following at every speed. The default, 35 to 55 km/h, starts above the speeds the catalogue's low-speed
         manoeuvres reach and ends where path following has raised rearward amplification well above the
         unsteered trailer's in the single lane change (docs/controller_design.md §3.5, *Speed: the crossover*).
+    high_speed_mode : {"unsteered", "stability"}
+        What the trailer's steering does above the crossover's lower speed, where path following fades out.
+        ``unsteered`` (default): nothing, the axles go straight. ``stability``: a stability steer fades in on the
+        same schedule, a gain-scheduled static feedback of the two yaw-rate gyros and the articulation designed
+        on the linear tractor–semi-trailer to lower rearward amplification and raise yaw damping
+        (:mod:`controller.high_speed`); it needs ``high_speed_crossover`` and a tractor–semi-trailer.
     max_slip_angle : float or None
         Largest slip angle ``|δ_j − β_j|`` [rad] a steerable axle is commanded to, ``β_j`` the direction of its
         velocity from the same kinematics as the feed-forward (:func:`~controller.axle_steer_distribution.
@@ -265,6 +275,7 @@ class PathFollowingConfig(Settings):
     uncertain_feedback: UncertainFeedback = "taper"
     max_slip_angle: float | None = Field(math.radians(8.0), gt=0.0, le=math.radians(45.0))
     high_speed_crossover: tuple[float, float] | None = (35.0 / 3.6, 55.0 / 3.6)
+    high_speed_mode: HighSpeedMode = "unsteered"
     slip_window_holds_feedforward: bool = True
     reach_freeze: bool = True
     reach_freeze_at: ReachFreezeAt = "exit"
@@ -287,4 +298,6 @@ class PathFollowingConfig(Settings):
                 raise ValueError(
                     f"high_speed_crossover = {self.high_speed_crossover!r} must satisfy fade_speeds[1] ≤ u_a < u_b"
                 )
+        elif self.high_speed_mode != "unsteered":
+            raise ValueError(f"high_speed_mode = {self.high_speed_mode!r} needs a high_speed_crossover, not None")
         return self

@@ -198,6 +198,7 @@ class TrailerSteerOutput:
         fade: float,
         dt: float,
         slip_window: tuple[np.ndarray, np.ndarray] | None = None,
+        added: float | None = None,
     ) -> OutputStep:
         """The commands for the virtual-axle angle ``virtual`` [rad], without making them current.
 
@@ -213,10 +214,15 @@ class TrailerSteerOutput:
             Time since the last command [s] (for the rate limit).
         slip_window
             Per-axle bounds of the slip-angle limit, or ``None``.
+        added
+            An angle [rad] added to every axle's faded target before the limits (the high-speed stability steer,
+            :mod:`controller.high_speed`), or ``None``.
         """
         cfg = self.config
         clamped = min(max(virtual, -cfg.max_virtual_steer), cfg.max_virtual_steer)
         target = fade * self.distribution(math.tan(clamped), tan_kingpin)
+        if added is not None:
+            target = target + added
         slipping = np.zeros(target.shape, dtype=bool)
         bounded = target
         if slip_window is not None:  # never past the tyre's peak

@@ -335,6 +335,13 @@ class ControllerConfig(Settings):
         "for path following at every speed (why: controller.path_following_config)",
     )
 
+    high_speed_mode: Literal["unsteered", "stability"] = Field(
+        "unsteered",
+        description="above the crossover's start: unsteered (the axles go straight as path following fades out) "
+        "or stability (a gain-scheduled steer of the gyros and the articulation fades in for rearward "
+        "amplification and yaw damping; tractor–semi-trailer only; controller.high_speed)",
+    )
+
     @field_validator("high_speed_crossover_kmh")
     @classmethod
     def _ordered_crossover(cls, crossover: tuple[float, float] | None) -> tuple[float, float] | None:
@@ -372,6 +379,7 @@ class ControllerConfig(Settings):
             high_speed_crossover=None
             if self.high_speed_crossover_kmh is None
             else (self.high_speed_crossover_kmh[0] / 3.6, self.high_speed_crossover_kmh[1] / 3.6),
+            high_speed_mode=self.high_speed_mode,
         )
 
     @model_validator(mode="after")
