@@ -80,6 +80,7 @@ from .fusion_slip import (
     scrub_coupling_yield,
 )
 from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects, reference_share
+from .level_reference import horizontal_speed
 from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics, unit_axles
 from .unit_slip_reference import TRAILER_REFERENCE
 from .viso_ot import VisoOtEstimator
@@ -281,14 +282,14 @@ class FusedVisoOt:
             Time since the previous tick [s] (ignored on the first).
         yaw_rate, wheel_speed
             Measured yaw rate [rad/s] and wheel speed [m/s] of the unit (its own gyro, and an unsteered axle's
-            wheel-speed sensor).
+            wheel-speed sensor, along the ground: made horizontal with the tilt of the last frame, ``u·cos θ``).
         steer
             Measured steer of the unit's steerable axles [rad] (layout order; empty or ``None`` for none).
         tractor
             The signals of the zero-slip measurement (K1) (``None``: none this tick): :class:`TractorSignals` for
             the first towed unit, :class:`ChainSignals` for any (:mod:`sensor.unit_kinematics`).
         """
-        sample = (float(yaw_rate), float(wheel_speed), self._steer_term(steer))
+        sample = (float(yaw_rate), horizontal_speed(float(wheel_speed), self.geometry.tilt), self._steer_term(steer))
         if not all(math.isfinite(v) for v in sample):
             raise InputError(f"trailer signals {sample} must be finite")
         # σ_k² of (K3) on this step, kept for re-filtering (the inflated model has no such state)
@@ -315,9 +316,9 @@ class FusedVisoOt:
         if tractor is not None and self.noise.kinematics and self._previous_input is not None:
             if self._own_reference is not None:  # (T2) of sensor.unit_slip_reference
                 own = tractor.unit_lateral_acceleration
-                lateral, slip = self._own_reference.lateral(float(yaw_rate), float(wheel_speed), steer, own)
+                lateral, slip = self._own_reference.lateral(float(yaw_rate), sample[1], steer, own)
                 self._zero_slip.modelled_slip = slip  # the slip it predicts, uncertain by the stiffnesses, (K2)
-                self._zero_slip.residual_variance = self._own_reference.floor_variance(float(wheel_speed), own)
+                self._zero_slip.residual_variance = self._own_reference.floor_variance(sample[1], own)
                 self._zero_slip.rate_sensitivity = self._own_reference.rate_sensitivity(steer, own)
             else:
                 lateral = self._chain.lateral(tractor, float(dt))
@@ -382,14 +383,10 @@ class FusedVisoOt:
         starts at the anchor (otherwise, or ``None``, none).
         """
         given = self.geometry.given_tilt(tilt)
+        level_tilt = given
         if camera_motion is not None and np.all(np.isfinite(camera_motion)) and given is None:
-            level_tilt = (
-                None
-                if self.geometry.level_reference == "planar"
-                else self.geometry.level_increment(np.asarray(camera_motion, dtype=float))[1]
-            )
-        else:
-            level_tilt = given
+            planar = self.geometry.level_reference == "planar"
+            level_tilt = None if planar else self.geometry.level_increment(np.asarray(camera_motion, dtype=float))[1]
         try:
             return self._measure(tick, camera_motion, covariance, given, coupling)
         finally:

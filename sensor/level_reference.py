@@ -40,6 +40,7 @@ __all__ = [
     "TRAILER_TILT_BIAS",
     "TRAILER_TILT_NOISE",
     "AccelerometerTilt",
+    "horizontal_speed",
     "split_yaw",
     "tilt_angles",
     "tilt_rotation",
@@ -67,6 +68,13 @@ def tilt_rotation(pitch: float, roll: float) -> np.ndarray:
 def tilt_angles(tilt: np.ndarray) -> tuple[float, float]:
     """Pitch and roll [rad] of a tilt ``A = R_y(pitch)·R_x(roll)``."""
     return -math.asin(max(-1.0, min(1.0, float(tilt[2, 0])))), math.atan2(float(tilt[2, 1]), float(tilt[2, 2]))
+
+
+def horizontal_speed(speed: float, tilt: np.ndarray) -> float:
+    """A speed along the unit's x axis (a wheel's, along the ground) made horizontal with the unit's tilt ``A``:
+    ``u·cos θ``, the norm of the x axis's horizontal part (``A = R_y(θ)·R_x(φ)``: its first column ``(cos θ, 0,
+    −sin θ)``, so the roll does not enter). A level tilt gives ``speed`` unchanged, bit for bit."""
+    return speed * math.sqrt(max(0.0, 1.0 - float(tilt[2, 0]) ** 2))
 
 
 def split_yaw(rotation: np.ndarray) -> tuple[float, np.ndarray]:
