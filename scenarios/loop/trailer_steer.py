@@ -153,6 +153,10 @@ class PathFollowingSteer:
                 columns.append(
                     Column(f"{p}feedback_weight", "-", "weight w the last estimate was multiplied by", **internal)
                 )
+            if ctrl.stability is not None:  # only the opt-in high-speed mode has one (controller.high_speed)
+                columns.append(
+                    Column(f"{p}stability_steer", "rad", "high-speed stability steer added to each axle", **internal)
+                )
         for ctrl, _ in self.steered:
             columns += [
                 column
@@ -197,6 +201,8 @@ class PathFollowingSteer:
             row.update(ctrl.telemetry())
             if ctrl.config.uncertain_feedback != "drop":
                 row[f"{ctrl.prefix}feedback_weight"] = float(ctrl.feedback_weight)
+            if ctrl.stability is not None:  # 0 below the crossover's start, where the mode does not act
+                row[f"{ctrl.prefix}stability_steer"] = float(ctrl.stability_steer or 0.0)
         return row
 
 
