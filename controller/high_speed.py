@@ -91,6 +91,8 @@ class StabilityWeights:
         ``q_Γ̇``, weight of the articulation rate relative to the tractor's steady yaw rate.
     steer : float
         ``q_δ``, weight of the commanded steer per radian of the tractor's steer.
+    steer_rate : float
+        ``q_δ̇``, weight of the steer's rate per radian of the tractor's steer over the disturbance's bandwidth.
     disturbance_bandwidth : float
         ``ω_w`` [rad/s] of the tractor's steer disturbance (1 Hz: above the lane change's 0.4 Hz and the trailer's
         yaw mode near 2.4 rad/s).
@@ -131,6 +133,8 @@ class StabilityPlant:
         ``(6,)`` the lateral acceleration of the trailer's CG minus the tractor's, ``a_y2 − a_y1`` [m/s²].
     c_articulation_rate : numpy.ndarray
         ``(6,)`` ``Γ̇ = r1 − r2``.
+    c_steer : numpy.ndarray
+        ``(6,)`` the actuator's steer ``δ_s``.
     reference_acceleration, reference_yaw_rate : float
         The tractor's steady lateral acceleration [m/s²] and yaw rate [rad/s] per radian of its steer.
     """
@@ -178,12 +182,9 @@ def stability_plant(params: VehicleParams, speed: float, weights: StabilityWeigh
     a4, b4 = np.asarray(model.A), np.asarray(model.B)
     labels = list(model.input_labels)
     table = params.axle_table
-    tractor = [
-        f"steer_{n}" for n, unit, s in zip(table.names, table.unit, table.steerable, strict=True) if s and unit == 0
-    ]
-    trailer = [
-        f"steer_{n}" for n, unit, s in zip(table.names, table.unit, table.steerable, strict=True) if s and unit == 1
-    ]
+    steered = [(f"steer_{n}", unit) for n, unit, s in zip(table.names, table.unit, table.steerable, strict=True) if s]
+    tractor = [name for name, unit in steered if unit == 0]
+    trailer = [name for name, unit in steered if unit == 1]
     if not tractor or not trailer:
         raise InputError(f"vehicle {params.name!r} needs a steerable tractor axle and a steerable trailer axle")
     b1 = b4[:, [labels.index(n) for n in tractor]].sum(axis=1)
@@ -250,8 +251,9 @@ def h2_cost(gain: np.ndarray, plant: StabilityPlant, weights: StabilityWeights |
 def design_gain(params: VehicleParams, speed: float, weights: StabilityWeights | None = None) -> np.ndarray:
     """The static output-feedback gain ``K`` on :data:`MEASURED` that minimises :func:`h2_cost` at ``speed`` [m/s].
 
-    Found from ``K = 0`` (module docstring). Raises :class:`~vehicle_model.errors.InputError` when the unsteered
-    trailer is itself unstable at that speed (no stable start) or the search ends on a cost no lower than it.
+    Found from ``K = 0`` (module docstring); ``K = 0`` (the unsteered trailer) when the search ends on a cost no lower
+    than it. Raises :class:`~vehicle_model.errors.InputError` when the unsteered trailer is itself unstable at that
+    speed (no stable start).
     """
     plant = stability_plant(params, speed, weights)
     start = np.zeros(len(MEASURED))

@@ -408,10 +408,11 @@ class TrailerSteeringController:
         tan_kingpin = tan_kingpin_direction(gamma, vx, vy)
         ds = speed * dt if forward else 0.0
         self.distance += ds
-        self.fade = speed_fade(state.u, cfg.fade_speeds) * high_speed_fade(state.u, cfg.high_speed_crossover)
+        low_speed = speed_fade(state.u, cfg.fade_speeds)
+        self.fade = low_speed * high_speed_fade(state.u, cfg.high_speed_crossover)
         self.stability_steer = None
         if self.stability is not None and state.u > cfg.high_speed_crossover[0]:  # fades in as path following out
-            share = speed_fade(state.u, cfg.fade_speeds) * (1.0 - high_speed_fade(state.u, cfg.high_speed_crossover))
+            share = low_speed * (1.0 - high_speed_fade(state.u, cfg.high_speed_crossover))
             self.stability_steer = share * self.stability(state.u, motion.tow_yaw_rate, rate, gamma)
 
         # Feed-forward (the steady law in its exact form, or the chord law).
