@@ -287,7 +287,8 @@ class FusedVisoOt:
             Measured steer of the unit's steerable axles [rad] (layout order; empty or ``None`` for none).
         tractor
             The signals of the zero-slip measurement (K1) (``None``: none this tick): :class:`TractorSignals` for
-            the first towed unit, :class:`ChainSignals` for any (:mod:`sensor.unit_kinematics`).
+            the first towed unit, :class:`ChainSignals` for any (:mod:`sensor.unit_kinematics`); the tractor's wheel
+            speed made horizontal with this unit's tilt, as the unit's own (the filter knows no other pitch).
         """
         sample = (float(yaw_rate), horizontal_speed(float(wheel_speed), self.geometry.tilt), self._steer_term(steer))
         if not all(math.isfinite(v) for v in sample):
@@ -321,7 +322,8 @@ class FusedVisoOt:
                 self._zero_slip.residual_variance = self._own_reference.floor_variance(sample[1], own)
                 self._zero_slip.rate_sensitivity = self._own_reference.rate_sensitivity(steer, own)
             else:
-                lateral = self._chain.lateral(tractor, float(dt))
+                level = replace(tractor, speed=horizontal_speed(tractor.speed, self.geometry.tilt))  # the unit's θ
+                lateral = self._chain.lateral(level, float(dt))
                 self._zero_slip.modelled_slip = self._chain.modelled_slip  # the compensated points' rear slip, (K2)
             if math.isfinite(lateral):
                 kinematic = self._zero_slip.rows(sample, lateral, float(dt), x)

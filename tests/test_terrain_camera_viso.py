@@ -232,3 +232,34 @@ def test_the_fused_filter_takes_the_wheel_speed_along_a_grade_as_horizontal(grad
 
     assert abs(float(fused.state[BW])) < 0.005, fused.state[BW]
     assert along_ground - speed > 0.035
+
+
+def test_the_zero_slip_measurement_takes_the_tractors_wheel_speed_made_horizontal():
+    """The tractor's wheel speed, read along the ground, enters the zero-slip kinematics (K1) as ``u·cos θ`` with
+    the unit's pitch (to 1e-15, whatever the roll) and unchanged, bit for bit, on a level unit: a measurement that
+    took the along-ground speed would put ``u·(1 − cos θ)·sin Γ`` (0.7 % of the speed at 12 %) into the kingpin's
+    lateral velocity in a turn."""
+    from sensor.fusion import FusedVisoOt
+    from sensor.unit_kinematics import TractorSignals
+
+    params, rig = reference_laden(), StereoRig(width=64, height=32)
+    for pitch, roll in ((math.atan(0.12), 0.03), (math.atan(-0.10), -0.05), (0.0, 0.0)):
+        fused = FusedVisoOt(params, rig.camera_in_trailer("left", params), level_reference="accelerometer")
+        assert fused.noise.kinematics
+        fused.geometry.tilt = tilt_rotation(pitch, roll)
+        taken: list[float] = []
+        measure = fused._chain.lateral
+
+        def spy(signals, dt, measure=measure, taken=taken):
+            taken.append(signals.speed)
+            return measure(signals, dt)
+
+        fused._chain.lateral = spy
+        for k in range(3):
+            fused.propagate(k, 0.02, 0.1, 8.0, None, TractorSignals(8.0, 0.12, 0.2))
+        assert len(taken) == 2
+        for speed in taken:
+            if pitch == 0.0:
+                assert speed == 8.0
+            else:
+                assert speed == pytest.approx(8.0 * math.cos(pitch), abs=1e-15)
