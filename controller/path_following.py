@@ -93,9 +93,9 @@ amplification; Cheng et al. 2011 and Jujnovich & Cebon 2013 in full were not ava
 high-speed mode is the unsteered trailer: between the two speeds of ``high_speed_crossover`` the whole command
 (feed-forward and feedback) fades linearly to zero, and above it the axles stay straight, so at speed the trailer
 is never worse than unsteered; the integrator stops with the fade. The crossover's default and the measurements
-behind it are in docs/controller_design.md (*Speed: the crossover*). With ``high_speed_mode = "stability"`` (opt-in,
-tractor–semi-trailer) a stability steer of the gyros and the articulation fades in on the same schedule, added to
-every axle's target before the limits (:mod:`controller.high_speed`).
+behind it are in docs/controller_design.md (*Speed: the crossover*). With ``high_speed_mode = "stability"`` (opt-in)
+a stability steer of the gyros and the articulations fades in on the same schedule, added to every axle's target
+before the limits (:mod:`controller.high_speed`; on a longer combination :mod:`controller.high_speed_chain`).
 
 Measurement timing: HOLD
 ------------------------
