@@ -10,7 +10,8 @@ command, which fades in on the same schedule::
 
 ``y`` is what the combination measures: the tractor's and the trailer's yaw-rate gyros and the articulation angle
 (its rate is ``Γ̇ = r1 − r2``, so it adds nothing to a static feedback of ``y``). ``K(u)`` is interpolated linearly in
-speed between gains designed at :func:`design_speeds` (held at the ends).
+speed between gains designed at :func:`design_speeds` (held at the ends). A combination with more towed units has
+its own design, on the nonlinear model's Jacobian (:mod:`controller.high_speed_chain`).
 
 Design (:func:`design_gain`)
 ----------------------------
@@ -153,8 +154,8 @@ class StabilityPlant:
 def _semitrailer(params: VehicleParams) -> None:
     if params.n_units != 2:
         raise InputError(
-            f"high_speed_mode = 'stability' is designed on the tractor–semi-trailer's linear model; vehicle "
-            f"{params.name!r} has {params.n_units} units (use high_speed_mode = 'unsteered')"
+            f"StabilitySteer is designed on the tractor–semi-trailer's linear model; vehicle {params.name!r} has "
+            f"{params.n_units} units (controller.high_speed_chain.ChainStabilitySteer designs for it)"
         )
 
 

@@ -93,9 +93,9 @@ amplification; Cheng et al. 2011 and Jujnovich & Cebon 2013 in full were not ava
 high-speed mode is the unsteered trailer: between the two speeds of ``high_speed_crossover`` the whole command
 (feed-forward and feedback) fades linearly to zero, and above it the axles stay straight, so at speed the trailer
 is never worse than unsteered; the integrator stops with the fade. The crossover's default and the measurements
-behind it are in docs/controller_design.md (*Speed: the crossover*). With ``high_speed_mode = "stability"`` (opt-in,
-tractor–semi-trailer) a stability steer of the gyros and the articulation fades in on the same schedule, added to
-every axle's target before the limits (:mod:`controller.high_speed`).
+behind it are in docs/controller_design.md (*Speed: the crossover*). With ``high_speed_mode = "stability"`` (opt-in)
+a stability steer of the gyros and the articulations fades in on the same schedule, added to every axle's target
+before the limits (:mod:`controller.high_speed`; on a longer combination :mod:`controller.high_speed_chain`).
 
 Measurement timing: HOLD
 ------------------------
@@ -158,6 +158,7 @@ from .friction_hold import (
     steered_slip_angles,
 )
 from .high_speed import StabilitySteer
+from .high_speed_chain import ChainStabilitySteer
 from .kingpin_path import PATH_SPACING, DeadReckonedKingpinPath
 from .path_following_config import PathFollowingConfig, bandwidth_schedule, kinematic_pole_placement
 from .preview import preview_tangent
@@ -281,11 +282,10 @@ class TrailerSteeringController:
         )
         self.wheel_speed_kingpin = WheelSpeedKingpin(params, unit)  # the friction hold's, with wheel_speeds
         self.kingpin_path = DeadReckonedKingpinPath(self.follow_point_offset)  # the chord law's
-        self.stability = (  # the high-speed stability steer (controller.high_speed), opt-in
-            StabilitySteer(params, cfg.high_speed_crossover[0])
-            if cfg.high_speed_mode == "stability" and cfg.high_speed_crossover is not None
-            else None
-        )
+        self.stability: StabilitySteer | ChainStabilitySteer | None = None  # the high-speed stability steer, opt-in
+        if cfg.high_speed_mode == "stability" and cfg.high_speed_crossover is not None:
+            kind = StabilitySteer if params.n_units == 2 else ChainStabilitySteer  # controller.high_speed(_chain)
+            self.stability = kind(params, cfg.high_speed_crossover[0])
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -413,7 +413,7 @@ class TrailerSteeringController:
         self.stability_steer = None
         if self.stability is not None and state.u > cfg.high_speed_crossover[0]:  # fades in as path following out
             share = low_speed * (1.0 - high_speed_fade(state.u, cfg.high_speed_crossover))
-            self.stability_steer = share * self.stability(state.u, motion.tow_yaw_rate, rate, gamma)
+            self.stability_steer = share * self._stability_command(state, motion.tow_yaw_rate, rate, gamma)
 
         # Feed-forward (the steady law in its exact form, or the chord law).
         self.kingpin_path.record(motion.tow_yaw_rate, vx, vy, dt, forward)
@@ -498,6 +498,16 @@ class TrailerSteeringController:
         # Beyond reach: the path needs more than the lock, or the axles are still at their lock recovering from it.
         self.beyond_reach = path_beyond_reach or (self.beyond_reach and bool(np.all(self.output.saturated)))
         return commands
+
+    def _stability_command(self, state: VehicleState, tow_yaw_rate: float, rate: float, gamma: float) -> float:
+        """The unfaded stability steer [rad] of this unit: the semi-trailer's from its gyros ``r1`` (``tow_yaw_rate``),
+        ``r2`` (``rate``) and ``Γ`` (``gamma``); a longer combination's, its row of every unit's gyro and
+        articulation."""
+        if isinstance(self.stability, StabilitySteer):
+            return self.stability(state.u, tow_yaw_rate, rate, gamma)
+        chain = self.stability
+        steers = chain(state.u, [state.r1, *state.towed_yaw_rates], state.articulations)
+        return float(steers[chain.units.index(self.unit)])
 
     def _command(
         self,

@@ -189,7 +189,8 @@ class PathFollowingConfig(Settings):
         ``unsteered`` (default): nothing, the axles go straight. ``stability``: a stability steer fades in on the
         same schedule, a gain-scheduled static feedback of the two yaw-rate gyros and the articulation designed
         on the linear tractor–semi-trailer to lower rearward amplification and raise yaw damping
-        (:mod:`controller.high_speed`); it needs ``high_speed_crossover`` and a tractor–semi-trailer.
+        (:mod:`controller.high_speed`); on a longer combination one steer per steered unit from every unit's gyro and
+        every articulation (:mod:`controller.high_speed_chain`). It needs ``high_speed_crossover``.
     max_slip_angle : float or None
         Largest slip angle ``|δ_j − β_j|`` [rad] a steerable axle is commanded to, ``β_j`` the direction of its
         velocity from the same kinematics as the feed-forward (:func:`~controller.axle_steer_distribution.

@@ -8,6 +8,7 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
+from controller.high_speed_chain import steered_units as steerable_units
 from controller.receding_horizon import mpc_steered_axles
 from controller.steer_input import SteerInputConfig
 from sensor.unit_slip_reference import TRAILER_REFERENCE
@@ -194,6 +195,8 @@ class ScenarioConfig(Settings):
                 f"axle on its first towed unit; use one of {steerable} or make one steerable "
                 f"(--set vehicle.units[1].axles[0].steerable=true){behind}"
             )
+        if self.controller.high_speed_mode == "stability":
+            self._check_stability_mode(params, [unit for unit, _ in steered])
         if self.controller.law == "mpc" and self.feedback != "truth":
             raise ValueError(
                 f"controller.law = mpc steers on the true state: allowed with feedback = truth, not {self.feedback!r}"
@@ -219,3 +222,21 @@ class ScenarioConfig(Settings):
                 "use none"
             )
         return self
+
+    def _check_stability_mode(self, params: VehicleParams, steered: list[int]) -> None:
+        """Refuse ``controller.high_speed_mode = stability`` on a combination without a steerable towed axle, or with a
+        steerable towed unit left unsteered while others are steered (the design steers every one,
+        :mod:`controller.high_speed_chain`)."""
+        steerable = steerable_units(params)
+        if not steerable:
+            raise ValueError(
+                f"controller.high_speed_mode = stability steers the towed units' steerable axles; vehicle "
+                f"{self.vehicle_name!r} has none: allowed unsteered"
+            )
+        idle = [unit for unit in steerable if unit not in steered]
+        if steered and idle:
+            raise ValueError(
+                f"controller.high_speed_mode = stability is designed with every steerable towed unit steered; "
+                f"{', '.join(f'unit {u + 1}' for u in idle)} of {self.vehicle_name!r} is left unsteered "
+                "(rear_feedback none): steer it or use high_speed_mode = unsteered"
+            )

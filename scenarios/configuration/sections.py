@@ -339,7 +339,8 @@ class ControllerConfig(Settings):
         "unsteered",
         description="above the crossover's start: unsteered (the axles go straight as path following fades out) "
         "or stability (a gain-scheduled steer of the gyros and the articulation fades in for rearward "
-        "amplification and yaw damping; tractor–semi-trailer only; controller.high_speed)",
+        "amplification and yaw damping; every towed unit with a steerable axle steered; controller.high_speed, "
+        "controller.high_speed_chain)",
     )
 
     @field_validator("high_speed_crossover_kmh")
