@@ -78,6 +78,18 @@ def pole_margins(gain: np.ndarray, plant: Any) -> np.ndarray:
     ``(ζ − ζ_min)/(1 − ζ_min)`` of the damping ratio ``ζ`` and ``min(1, (σ − σ_min)/σ_min)`` of the decay rate
     ``σ = −Re λ`` (``σ_min`` = :data:`MIN_DECAY_RATE`), of both closed loops (with and without the actuator lag);
     the gain is admissible when all are positive.
+
+    Parameters
+    ----------
+    gain
+        ``K``, ``(n_steered, n_measured)`` or flattened row by row: ``δ_c = −K y``.
+    plant
+        The design plant (:class:`~controller.high_speed_chain.ChainPlant`).
+
+    Returns
+    -------
+    numpy.ndarray
+        The damping margins of every pole of both loops, then their decay margins.
     """
     poles = _poles(gain, plant)
     damping = -poles.real / np.maximum(np.abs(poles), 1e-12)
