@@ -176,6 +176,7 @@ def test_b_double_lane_change_at_88_kmh_lower_rearward_amplification_with_the_st
         assert np.max(np.abs(frame[column])) > np.radians(0.1)
 
 
+@pytest.mark.slow  # the A-double's design (about 20 s a process) and its lane change
 def test_a_double_lane_change_at_88_kmh_lower_rearward_amplification_with_the_stability_steer():
     # A-double truth-fed: unsteered 1.739, with the continued design 0.461 (docs/controller_design.md §3.5, the
     # A-double; the design from K = 0 alone gave 1.706); asserted below 0.6.
