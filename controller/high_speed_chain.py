@@ -54,6 +54,16 @@ on the stability boundary at 15–20 m/s: a mode near 3.5 Hz that the disturbanc
 (damping ratio 0.001, gains of 16 rad per rad/s). The floor is 0.3 where the unsteered combination is better damped
 and nine tenths of its damping where it is not, so that ``K = 0`` lies inside the admissible gains.
 
+Where the unsteered combination's least damped pole lies close to the floor, every descent direction from ``K = 0``
+leaves the admissible gains within a step and the search stalls (the steered A-double at 25 m/s ends on ``K = 0``).
+When the search from ``K = 0`` leaves any design speed's cost above :data:`STALL_SHARE` of the unsteered one, the
+schedule is designed again by :func:`~controller.high_speed_chain_search.continued_schedule` (continuation over
+speed, a logarithmic barrier at the pole region's boundary, a gain-norm guard; the region also bounds the decay
+rate and holds for an actuator without lag) and that schedule is used if its interpolated gains stay in the region
+between the design speeds (:func:`~controller.high_speed_chain_search.schedule_admissible`); otherwise the search
+from ``K = 0`` is kept. On the steered B-double the search from ``K = 0`` lowers every speed's cost by more than a
+tenth and is used unchanged.
+
 The design assumes every towed unit with a steerable axle is steered with this mode (the configuration refuses a
 steerable unit left unsteered, ``scenarios.configuration``).
 """
@@ -76,6 +86,7 @@ from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import initial_state
 
 from .high_speed import STABILITY_MARGIN, UNSTABLE_COST, StabilityWeights, design_speeds
+from .high_speed_chain_search import continued_schedule, schedule_admissible
 
 __all__ = [
     "INNER_ACCELERATION_WEIGHT",
@@ -100,6 +111,10 @@ MIN_DAMPING = 0.3
 OPEN_LOOP_DAMPING_SHARE = 0.9
 """Share of the unsteered combination's least damping ratio a design's poles must keep where it is below
 :data:`MIN_DAMPING` (below one, so that ``K = 0`` lies inside the admissible gains and the search can leave it)."""
+
+STALL_SHARE = 0.9
+"""Share of the unsteered cost above which a design speed's search from ``K = 0`` counts as stalled (module
+docstring)."""
 
 DESIGN_FRICTION = 0.8
 """Road friction of the design's operating point (dry)."""
@@ -331,6 +346,13 @@ def _scheduled_gains(
     controller shares them)."""
     speeds = design_speeds(crossover_start)
     gains = np.array([design_chain_gain(params, float(u), weights) for u in speeds])
+    plants = [chain_plant(params, float(u), weights) for u in speeds]
+    unsteered = np.array([chain_h2_cost(np.zeros_like(gains[0]), plant, weights) for plant in plants])
+    designed = np.array([chain_h2_cost(gain, plant, weights) for gain, plant in zip(gains, plants, strict=True)])
+    if np.any(designed > STALL_SHARE * unsteered):  # the search from K = 0 stalled: the continued design
+        continued = continued_schedule(plants, chain_h2_cost, weights)
+        if schedule_admissible(speeds, continued, lambda u: chain_plant(params, u, weights)):
+            gains = continued
     speeds.flags.writeable = False
     gains.flags.writeable = False
     return speeds, gains
