@@ -64,6 +64,7 @@ __all__ = [
     "design_speeds",
     "h2_cost",
     "stability_plant",
+    "weighted_h2",
 ]
 
 MEASURED = ("r1", "r2", "gamma")
@@ -237,15 +238,38 @@ def h2_cost(gain: np.ndarray, plant: StabilityPlant, weights: StabilityWeights |
     a_cl = plant.a + np.outer(plant.b_c, feedback)
     if not np.all(np.isfinite(a_cl)) or np.max(np.linalg.eigvals(a_cl).real) > -STABILITY_MARGIN:
         return UNSTABLE_COST
+    relative = plant.c_relative / plant.reference_acceleration
+    rate, reference = plant.c_articulation_rate, plant.reference_yaw_rate
+    return weighted_h2(a_cl, plant.b_w, w, relative, rate, reference, feedback, plant.c_steer)
+
+
+def weighted_h2(
+    a_cl: np.ndarray,
+    b_w: np.ndarray,
+    weights: StabilityWeights,
+    relative_acceleration: np.ndarray,
+    c_articulation_rate: np.ndarray,
+    reference_yaw_rate: float,
+    feedback: np.ndarray,
+    c_steer: np.ndarray,
+) -> float:
+    """``tr(C_z P C_zᵀ)`` with ``A_cl P + P A_clᵀ + b_w b_wᵀ = 0``: the squared H2 norm of the closed loop ``a_cl``
+    from the disturbance ``b_w`` to the weighted outputs ``z`` (module docstring; Zhou, Doyle & Glover 1996).
+
+    The rows of ``z`` per state: ``relative_acceleration`` (the units' lateral accelerations relative to the
+    tractor's, over ``a_ref``), ``c_articulation_rate`` (the couplings' rates, weighted and over ``r_ref`` here),
+    ``feedback`` (``−K·C_y``, the commanded steer) and the steer's rate from ``c_steer`` (the applied steer's row).
+    """
+    w = weights
     c_z = np.vstack(
         [
-            plant.c_relative / plant.reference_acceleration,
-            w.articulation_rate * plant.c_articulation_rate / plant.reference_yaw_rate,
+            relative_acceleration,
+            w.articulation_rate * c_articulation_rate / reference_yaw_rate,
             w.steer * feedback,
-            w.steer_rate * (feedback - plant.c_steer) / (w.actuator_lag * w.disturbance_bandwidth),
+            w.steer_rate * (feedback - c_steer) / (w.actuator_lag * w.disturbance_bandwidth),
         ]
     )
-    covariance = scipy.linalg.solve_continuous_lyapunov(a_cl, -np.outer(plant.b_w, plant.b_w))
+    covariance = scipy.linalg.solve_continuous_lyapunov(a_cl, -np.outer(b_w, b_w))
     return float(np.trace(c_z @ covariance @ c_z.T))
 
 

@@ -76,7 +76,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 import scipy.optimize
 
 from vehicle_model.dynamics import VehicleModel
@@ -85,7 +84,7 @@ from vehicle_model.linearise import linearise
 from vehicle_model.parameters import VehicleParams
 from vehicle_model.simulator import initial_state
 
-from .high_speed import STABILITY_MARGIN, UNSTABLE_COST, StabilityWeights, design_speeds
+from .high_speed import STABILITY_MARGIN, UNSTABLE_COST, StabilityWeights, design_speeds, weighted_h2
 from .high_speed_chain_search import continued_schedule, schedule_admissible
 
 __all__ = [
@@ -306,16 +305,9 @@ def chain_h2_cost(gain: np.ndarray, plant: ChainPlant, weights: StabilityWeights
     poles = np.linalg.eigvals(a_cl)
     if np.max(poles.real) > -STABILITY_MARGIN or np.min(-poles.real / np.abs(poles)) < plant.min_damping:
         return UNSTABLE_COST
-    c_z = np.vstack(
-        [
-            plant.c_acceleration / plant.reference_acceleration,
-            w.articulation_rate * plant.c_articulation_rate / plant.reference_yaw_rate,
-            w.steer * feedback,
-            w.steer_rate * (feedback - plant.c_steer) / (w.actuator_lag * w.disturbance_bandwidth),
-        ]
-    )
-    covariance = scipy.linalg.solve_continuous_lyapunov(a_cl, -np.outer(plant.b_w, plant.b_w))
-    return float(np.trace(c_z @ covariance @ c_z.T))
+    relative = plant.c_acceleration / plant.reference_acceleration
+    rate, reference = plant.c_articulation_rate, plant.reference_yaw_rate
+    return weighted_h2(a_cl, plant.b_w, w, relative, rate, reference, feedback, plant.c_steer)
 
 
 def design_chain_gain(params: VehicleParams, speed: float, weights: StabilityWeights | None = None) -> np.ndarray:

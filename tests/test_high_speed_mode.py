@@ -129,9 +129,11 @@ def test_stability_mode_refuses_a_combination_it_was_not_designed_for():
         StabilitySteer(b_double, CROSSOVER_START)
 
 
-def _lane_change(mode: str) -> tuple[float, pd.DataFrame]:
+def lane_change(mode: str, vehicle: str = "lst") -> tuple[float, pd.DataFrame]:
+    """The catalogue's single lane change (88 km/h), truth-fed, in ``mode``: the rearmost unit's rearward
+    amplification and the run's time series."""
     config = load_scenario(
-        "single-lane-change", {"vehicle": "lst", "feedback": "truth", "controller.high_speed_mode": mode}
+        "single-lane-change", {"vehicle": vehicle, "feedback": "truth", "controller.high_speed_mode": mode}
     )
     with tempfile.TemporaryDirectory() as tmp:
         run_scenario(config, Path(tmp), plots=False)
@@ -160,7 +162,7 @@ def test_only_the_stability_mode_records_its_steer():
 @pytest.mark.slow
 def test_lane_change_at_88_kmh_rearward_amplification_no_worse_with_the_stability_steer():
     # The catalogue's single lane change, LST truth-fed: unsteered above the crossover 1.093, stability mode lower.
-    (unsteered, _), (stability, frame) = _lane_change("unsteered"), _lane_change("stability")
+    (unsteered, _), (stability, frame) = lane_change("unsteered"), lane_change("stability")
     assert unsteered == pytest.approx(1.093, abs=0.005)
     assert stability <= unsteered - 0.05
     # the recorded stability steer acts (0.69° at the axles in this run, docs/controller_design.md §3.5)
