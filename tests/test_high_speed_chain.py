@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from test_high_speed_mode import lane_change
 
-from controller.high_speed import StabilitySteer
+from controller.high_speed import StabilitySteer, StabilityWeights
 from controller.high_speed_chain import (
     MIN_DAMPING,
     STALL_SHARE,
@@ -18,7 +18,7 @@ from controller.high_speed_chain import (
     design_chain_gain,
     measured_signals,
 )
-from controller.high_speed_chain_search import MIN_DECAY_RATE, pole_margins, schedule_admissible
+from controller.high_speed_chain_search import MIN_DECAY_RATE, continued_schedule, pole_margins, schedule_admissible
 from controller.path_following import TrailerSteeringController
 from controller.path_following_config import PathFollowingConfig
 from scenarios.config import ConfigError, load_scenario
@@ -73,6 +73,22 @@ def test_b_double_keeps_the_search_from_zero_bit_for_bit(b_double, steer):
     np.testing.assert_array_equal(steer.gains, from_zero)
 
 
+def test_where_the_search_from_zero_stalls_the_barrier_search_finds_a_cheaper_admissible_gain():
+    """The A-double at 25 m/s alone (the schedule's continuation is the slow test below): the search from K = 0
+    ends on the unsteered combination's cost (to 1 %), the barrier search from zero at 0.43 of it; asserted ≤ 0.9,
+    every pole admissible with the actuator lag and without, and the guard's norm under 5 (0.89)."""
+    a_double = VEHICLE_PRESETS[A_DOUBLE]()
+    plant = chain_plant(a_double, 25.0)
+    stalled = design_chain_gain(a_double, 25.0)
+    unsteered = chain_h2_cost(np.zeros_like(stalled), plant)
+    assert chain_h2_cost(stalled, plant) > 0.99 * unsteered
+    (gain,) = continued_schedule([plant], chain_h2_cost, StabilityWeights())
+    assert chain_h2_cost(gain, plant) <= STALL_SHARE * unsteered
+    assert np.all(pole_margins(gain, plant) > 0.0)
+    assert np.linalg.norm(gain) < 5.0
+
+
+@pytest.mark.slow  # the A-double's whole schedule: about 20 s
 def test_a_double_continued_design_stable_damped_and_cheaper_at_every_speed():
     a_double = VEHICLE_PRESETS[A_DOUBLE]()
     # The search from K = 0 stalls at 25 m/s: it ends on the unsteered combination's cost (to 1 %).
