@@ -50,9 +50,10 @@ quasi-Newton search (BFGS, numerical gradient); an unstable closed loop costs
 ``min(MIN_DAMPING, OPEN_LOOP_DAMPING_SHARE·ζ_open)`` (a conic sector of the left half-plane, the pole region of
 Chilali & Gahinet 1996, IEEE Trans. Automatic Control 41(3); ``ζ_open`` the unsteered combination's least damping
 ratio). Without the sector the H2 optimum of this plant, whose tyres' transient slip and actuator lag are states, sits
-on the stability boundary at 15–20 m/s: a mode near 3.5 Hz that the disturbance barely excites is left undamped
-(damping ratio 0.001, gains of 16 rad per rad/s). The floor is 0.3 where the unsteered combination is better damped
-and nine tenths of its damping where it is not, so that ``K = 0`` lies inside the admissible gains.
+on the stability boundary: an actuator–tyre mode that the disturbance barely excites is left undamped
+(docs/controller_design.md §3.5, *The stability mode on the B-double*, gives the measured case). The floor is 0.3
+where the unsteered combination is better damped and nine tenths of its damping where it is not, so that ``K = 0``
+lies inside the admissible gains.
 
 Where the unsteered combination's least damped pole lies close to the floor, every descent direction from ``K = 0``
 leaves the admissible gains within a step and the search stalls (the steered A-double at 25 m/s ends on ``K = 0``).

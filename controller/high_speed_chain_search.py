@@ -2,7 +2,8 @@
 
 :func:`controller.high_speed_chain.design_chain_gain` searches each design speed from ``K = 0`` with the closed
 loops outside the admissible pole region costed as unstable. Where the unsteered combination's least damped pole
-lies close to the damping floor (the steered A-double at 25 m/s: ζ 0.33 against 0.30) every descent direction
+lies close to the damping floor (the steered A-double at speed; docs/controller_design.md §3.5, *The stability mode on
+the A-double*, gives the figures of every part below) every descent direction
 leaves the region within a step and that search ends at or near ``K = 0``. :func:`continued_schedule` designs the
 whole schedule instead:
 
@@ -16,9 +17,9 @@ whole schedule instead:
   the margins of every closed-loop pole from the region's boundary (:func:`pole_margins`). The barrier grows as a
   pole nears the boundary, so the line search can approach the floor instead of falling off a cliff.
 * **A gain-norm guard** ``J(0)·‖K‖²/K_g²`` (:data:`GAIN_SCALE`) added to the cost: the H2 cost is nearly flat
-  along gain directions the tractor's steer barely excites, and without the guard the search from 9.7 to 20 m/s
-  ends on gains of norm 18–77 (the steered B-double and A-double) whose interpolation between design speeds is
-  unstable; at the norms of the search from ``K = 0`` on the B-double (1.5–3) it costs 2–9 % of ``J(0)``.
+  along gain directions the tractor's steer barely excites, and without the guard the search at the lower design
+  speeds ends on large gains whose interpolation between design speeds is unstable; at the norms the search from
+  ``K = 0`` finds it costs a few per cent of ``J(0)``.
 * **The region** (Chilali & Gahinet 1996, IEEE Trans. Automatic Control 41(3): a conic sector intersected with a
   shifted half-plane) holds every pole's damping ratio at least the plant's floor
   (:attr:`~controller.high_speed_chain.ChainPlant.min_damping`) and its decay rate at least
@@ -53,8 +54,8 @@ BARRIER_WEIGHTS = (0.1, 0.01, 0.001)
 """The barrier's weights ``μ`` [share of the unsteered cost], in turn (module docstring)."""
 
 MIN_DECAY_RATE = 0.5
-"""Decay rate [1/s] every closed-loop pole of a continued design must reach (a 2 s time constant: the slowest
-unsteered pole of the steered B-double and A-double decays at 0.78–1.96 1/s over the design speeds)."""
+"""Decay rate [1/s] every closed-loop pole of a continued design must reach (a 2 s time constant, slower than the
+unsteered combinations' slowest poles over the design speeds, so that ``K = 0`` stays admissible)."""
 
 GAIN_SCALE = 10.0
 """``K_g`` of the gain-norm guard ``J(0)·‖K‖²/K_g²`` [rad per rad/s, rad per rad] added to the continued search's

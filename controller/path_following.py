@@ -409,10 +409,11 @@ class TrailerSteeringController:
         ds = speed * dt if forward else 0.0
         self.distance += ds
         low_speed = speed_fade(state.u, cfg.fade_speeds)
-        self.fade = low_speed * high_speed_fade(state.u, cfg.high_speed_crossover)
+        path_share = high_speed_fade(state.u, cfg.high_speed_crossover)
+        self.fade = low_speed * path_share
         self.stability_steer = None
         if self.stability is not None and state.u > cfg.high_speed_crossover[0]:  # fades in as path following out
-            share = low_speed * (1.0 - high_speed_fade(state.u, cfg.high_speed_crossover))
+            share = low_speed * (1.0 - path_share)
             self.stability_steer = share * self._stability_command(state, motion.tow_yaw_rate, rate, gamma)
 
         # Feed-forward (the steady law in its exact form, or the chord law).
