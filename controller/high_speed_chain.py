@@ -67,18 +67,29 @@ tenth and is used unchanged.
 
 The design assumes every towed unit with a steerable axle is steered with this mode (the configuration refuses a
 steerable unit left unsteered, ``scenarios.configuration``).
+
+A schedule is designed once per machine and kept in the project's cache (:func:`schedule_key`,
+:mod:`vehicle_model.disk_cache`): a combination's design takes seconds (docs/controller_design.md §3.5).
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
 import math
+import platform
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Final
 
+import casadi
 import numpy as np
+import scipy
 import scipy.optimize
 
+import vehicle_model
+from vehicle_model.disk_cache import entry_path, exact_text, numpy_runtime, read_entry, sources_digest, write_entry
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
 from vehicle_model.linearise import linearise
@@ -331,12 +342,10 @@ def design_chain_gain(params: VehicleParams, speed: float, weights: StabilityWei
     return np.asarray(found.x, dtype=float).reshape(shape)
 
 
-@functools.lru_cache(maxsize=8)
-def _scheduled_gains(
+def _designed_schedule(
     params: VehicleParams, crossover_start: float, weights: StabilityWeights
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The design speeds and their gains, designed once per combination, crossover and weights (every steered unit's
-    controller shares them)."""
+    """The design speeds and their gains (module docstring, *Design*)."""
     speeds = design_speeds(crossover_start)
     gains = np.array([design_chain_gain(params, float(u), weights) for u in speeds])
     plants = [chain_plant(params, float(u), weights) for u in speeds]
@@ -346,6 +355,60 @@ def _scheduled_gains(
         continued = continued_schedule(plants, chain_h2_cost, weights)
         if schedule_admissible(speeds, continued, lambda u: chain_plant(params, u, weights)):
             gains = continued
+    return speeds, gains
+
+
+DESIGN_SOURCES: Final[tuple[Path, ...]] = (
+    *sorted(Path(__file__).resolve().parent.glob("*.py")),
+    *sorted(Path(vehicle_model.__file__).resolve().parent.glob("*.py")),
+)
+"""The sources whose contents enter a schedule's cache key: every module of the ``controller`` and ``vehicle_model``
+packages (the design, its search, the model it linearises; an edit anywhere there designs the schedules again)."""
+
+
+def schedule_key(params: VehicleParams, crossover_start: float, weights: StabilityWeights) -> str:
+    """The SHA-256 (hex) of everything that decides a schedule (:mod:`vehicle_model.disk_cache`): the combination,
+    the crossover's start, the weights, :data:`DESIGN_SOURCES`, and the numerical libraries' versions and code paths
+    (numpy's SIMD paths, scipy, casadi, the machine)."""
+    digest = hashlib.sha256()
+    for part in (
+        f"params={exact_text(params)}",
+        f"crossover_start={exact_text(float(crossover_start))}",
+        f"weights={exact_text(weights)}",
+        f"sources={sources_digest(DESIGN_SOURCES)}",
+        f"numpy={numpy_runtime()}",
+        f"scipy={scipy.__version__}",
+        f"casadi={casadi.__version__}",
+        f"machine={platform.machine()}",
+    ):
+        digest.update(part.encode())
+        digest.update(b"\n")
+    return digest.hexdigest()
+
+
+@functools.lru_cache(maxsize=8)
+def _scheduled_gains(
+    params: VehicleParams, crossover_start: float, weights: StabilityWeights
+) -> tuple[np.ndarray, np.ndarray]:
+    """The design speeds and their gains, designed once per combination, crossover and weights (every steered unit's
+    controller shares them) and kept on disk in the cache's ``stability`` folder (:func:`schedule_key`); an entry
+    whose speeds are not the design speeds or whose gains are not finite of the right shape is designed again."""
+    key = schedule_key(params, crossover_start, weights)
+    path = entry_path("stability", key)
+    stored = None if path is None else read_entry(path, key, ("speeds", "gains"))
+    speeds = design_speeds(crossover_start)
+    shape = (len(speeds), len(steered_units(params)), len(measured_signals(params)))
+    if (
+        stored is not None
+        and np.array_equal(stored["speeds"], speeds)
+        and stored["gains"].shape == shape
+        and np.all(np.isfinite(stored["gains"]))
+    ):
+        gains = stored["gains"].astype(float)
+    else:
+        speeds, gains = _designed_schedule(params, crossover_start, weights)
+        if path is not None:
+            write_entry(path, key, {"speeds": speeds, "gains": gains})
     speeds.flags.writeable = False
     gains.flags.writeable = False
     return speeds, gains

@@ -13,19 +13,15 @@ or ``OPENCV_CPU_DISABLE``, rounds differently; none under the portable arithmeti
 The same key gives the same result to the bit: the calibration runs OpenCV on one thread
 (:func:`sensor.calibration.one_opencv_thread`) and is seeded.
 
-An entry is an ``.npz`` (no pickled objects) holding every array of the result with its dtype and every scalar, and
-the key it was made for; it is written to a temporary file in the folder and moved into place with
-:func:`os.replace`, so a reader never sees half a file. An entry that cannot be read or is not a complete result for
-its key (truncated, corrupt, another key's) is computed afresh and replaced; a folder that cannot be created or
-written leaves the result uncached. Either way the result is the computed one. Delete the folder to clear the cache.
+An entry is an ``.npz`` holding every array of the result with its dtype and every scalar, read and written as
+:mod:`vehicle_model.disk_cache` says (whole or not at all; an unreadable or foreign entry is computed afresh and
+replaced; a folder that cannot be written leaves the result uncached). Either way the result is the computed one.
+Delete the folder to clear the cache.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
-import os
-import tempfile
 from pathlib import Path
 from typing import Any, Final
 
@@ -36,6 +32,7 @@ from sensor import calibration as _calibration
 from sensor.calibration import CalibrationResult
 from sensor.camera import Lens, StereoRig
 from vehicle_model.codegen import cache_dir as cache_root
+from vehicle_model.disk_cache import exact_text, read_entry, sources_digest, write_entry
 
 __all__ = ["SOURCES", "cache_dir", "cached_calibrate_rig", "calibration_key"]
 
@@ -82,45 +79,16 @@ def _opencv_ipp() -> str:
     return str(ipp.getIppVersion())
 
 
-def _canonical(value: Any) -> str:
-    """An exact text of a setting: floats by :meth:`float.hex`, dataclasses and pydantic models field by field."""
-    if isinstance(value, bool | None | str):
-        return repr(value)
-    if isinstance(value, int | np.integer):
-        return f"i{int(value)}"
-    if isinstance(value, float | np.floating):
-        return float(value).hex()
-    if isinstance(value, tuple | list):
-        return "(" + ",".join(_canonical(v) for v in value) + ")"
-    if isinstance(value, np.ndarray):
-        return f"a{value.dtype.str}{value.shape}{np.ascontiguousarray(value).tobytes().hex()}"
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        fields = ",".join(f"{f.name}={_canonical(getattr(value, f.name))}" for f in dataclasses.fields(value))
-        return f"{type(value).__name__}({fields})"
-    if hasattr(value, "model_dump"):  # a pydantic model (Lens)
-        fields = ",".join(f"{k}={_canonical(getattr(value, k))}" for k in type(value).model_fields)
-        return f"{type(value).__name__}({fields})"
-    raise TypeError(f"no exact text for a {type(value).__name__} in a calibration key")
-
-
-def _sources_digest() -> str:
-    digest = hashlib.sha256()
-    for path in SOURCES:
-        digest.update(path.name.encode())
-        digest.update(path.read_bytes())
-    return digest.hexdigest()
-
-
 def calibration_key(rig: StereoRig, lens_left: Lens, lens_right: Lens, **settings: Any) -> str:
     """The SHA-256 (hex) of everything that decides :func:`~sensor.calibration.calibrate_rig`'s result for these
     arguments (module notes)."""
     digest = hashlib.sha256()
     for part in (
-        f"rig={_canonical(rig)}",
-        f"left={_canonical(lens_left)}",
-        f"right={_canonical(lens_right)}",
-        *(f"{name}={_canonical(settings[name])}" for name in sorted(settings)),
-        f"sources={_sources_digest()}",
+        f"rig={exact_text(rig)}",
+        f"left={exact_text(lens_left)}",
+        f"right={exact_text(lens_right)}",
+        *(f"{name}={exact_text(settings[name])}" for name in sorted(settings)),
+        f"sources={sources_digest(SOURCES)}",
         f"opencv={cv2.__version__}",
         f"numpy={np.__version__}",
         f"opencv_cpu={_opencv_cpu()}",
@@ -133,44 +101,32 @@ def calibration_key(rig: StereoRig, lens_left: Lens, lens_right: Lens, **setting
 
 def _read(path: Path, key: str) -> CalibrationResult | None:
     """The entry at ``path`` if it is a complete result for ``key``, else ``None`` (any failure to read it)."""
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            if str(data["key"][()]) != key:
-                return None
-            arrays = {name: np.array(data[name]) for name in _ARRAYS}
-            result = CalibrationResult(
-                image_size=(int(data["image_size"][0]), int(data["image_size"][1])),
-                target=(int(data["target"][0]), int(data["target"][1])),
-                stereo_refinement=str(data["stereo_refinement"][()]),
-                **{name: float(data[name][()]) for name in _FLOATS},
-                **{name: int(data[name][()]) for name in _INTS},
-                **arrays,
-            )
-    except Exception:  # truncated, corrupt or foreign entry: computed afresh
+    names = (*_ARRAYS, *_FLOATS, *_INTS, "image_size", "target", "stereo_refinement")
+    data = read_entry(path, key, names)
+    if data is None:
         return None
-    return result
+    try:
+        return CalibrationResult(
+            image_size=(int(data["image_size"][0]), int(data["image_size"][1])),
+            target=(int(data["target"][0]), int(data["target"][1])),
+            stereo_refinement=str(data["stereo_refinement"][()]),
+            **{name: float(data[name][()]) for name in _FLOATS},
+            **{name: int(data[name][()]) for name in _INTS},
+            **{name: data[name] for name in _ARRAYS},
+        )
+    except Exception:  # an entry of another shape: computed afresh
+        return None
 
 
-def _write(path: Path, key: str, result: CalibrationResult) -> None:
-    """Write the entry atomically (a temporary file in the folder, then :func:`os.replace`); silently nothing when
-    the folder cannot be written."""
-    entries: dict[str, np.ndarray] = {name: np.asarray(getattr(result, name)) for name in _ARRAYS}
+def _entries(result: CalibrationResult) -> dict[str, Any]:
+    """Every array and scalar of ``result`` as an entry's fields."""
+    entries: dict[str, Any] = {name: np.asarray(getattr(result, name)) for name in _ARRAYS}
     entries |= {name: np.float64(getattr(result, name)) for name in _FLOATS}
     entries |= {name: np.int64(getattr(result, name)) for name in _INTS}
     entries["image_size"] = np.asarray(result.image_size, dtype=np.int64)
     entries["target"] = np.asarray(result.target, dtype=np.int64)
     entries["stereo_refinement"] = np.str_(result.stereo_refinement)
-    entries["key"] = np.str_(key)
-    temporary = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=".tmp-", suffix=".npz", delete=False) as handle:
-            temporary = Path(handle.name)
-            np.savez(handle, **entries)
-        os.replace(temporary, path)
-    except OSError:
-        if temporary is not None:
-            temporary.unlink(missing_ok=True)
+    return entries
 
 
 def cached_calibrate_rig(rig: StereoRig, lens_left: Lens, lens_right: Lens, **settings: Any) -> CalibrationResult:
@@ -188,5 +144,5 @@ def cached_calibrate_rig(rig: StereoRig, lens_left: Lens, lens_right: Lens, **se
     result = _read(path, key)
     if result is None:
         result = _calibration.calibrate_rig(rig, lens_left, lens_right, **settings)
-        _write(path, key, result)
+        write_entry(path, key, _entries(result))
     return result
