@@ -75,7 +75,6 @@ A schedule is designed once per machine and kept in the project's cache (:func:`
 from __future__ import annotations
 
 import functools
-import hashlib
 import math
 import platform
 from collections.abc import Sequence
@@ -89,7 +88,15 @@ import scipy
 import scipy.optimize
 
 import vehicle_model
-from vehicle_model.disk_cache import entry_path, exact_text, numpy_runtime, read_entry, sources_digest, write_entry
+from vehicle_model.disk_cache import (
+    entry_path,
+    exact_text,
+    key_of,
+    numpy_runtime,
+    read_entry,
+    sources_digest,
+    write_entry,
+)
 from vehicle_model.dynamics import VehicleModel
 from vehicle_model.errors import InputError
 from vehicle_model.linearise import linearise
@@ -370,20 +377,18 @@ def schedule_key(params: VehicleParams, crossover_start: float, weights: Stabili
     """The SHA-256 (hex) of everything that decides a schedule (:mod:`vehicle_model.disk_cache`): the combination,
     the crossover's start, the weights, :data:`DESIGN_SOURCES`, and the numerical libraries' versions and code paths
     (numpy's SIMD paths, scipy, casadi, the machine)."""
-    digest = hashlib.sha256()
-    for part in (
-        f"params={exact_text(params)}",
-        f"crossover_start={exact_text(float(crossover_start))}",
-        f"weights={exact_text(weights)}",
-        f"sources={sources_digest(DESIGN_SOURCES)}",
-        f"numpy={numpy_runtime()}",
-        f"scipy={scipy.__version__}",
-        f"casadi={casadi.__version__}",
-        f"machine={platform.machine()}",
-    ):
-        digest.update(part.encode())
-        digest.update(b"\n")
-    return digest.hexdigest()
+    return key_of(
+        (
+            f"params={exact_text(params)}",
+            f"crossover_start={exact_text(float(crossover_start))}",
+            f"weights={exact_text(weights)}",
+            f"sources={sources_digest(DESIGN_SOURCES)}",
+            f"numpy={numpy_runtime()}",
+            f"scipy={scipy.__version__}",
+            f"casadi={casadi.__version__}",
+            f"machine={platform.machine()}",
+        )
+    )
 
 
 @functools.lru_cache(maxsize=8)

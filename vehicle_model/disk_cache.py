@@ -32,7 +32,7 @@ import numpy as np
 
 from .codegen import cache_dir
 
-__all__ = ["entry_path", "exact_text", "numpy_runtime", "read_entry", "sources_digest", "write_entry"]
+__all__ = ["entry_path", "exact_text", "key_of", "numpy_runtime", "read_entry", "sources_digest", "write_entry"]
 
 
 def exact_text(value: Any) -> str:
@@ -61,6 +61,15 @@ def exact_text(value: Any) -> str:
         fields = ",".join(f"{k}={exact_text(getattr(value, k))}" for k in type(value).model_fields)
         return f"{type(value).__name__}({fields})"
     raise TypeError(f"no exact text for a {type(value).__name__} in a cache key")
+
+
+def key_of(parts: Iterable[str]) -> str:
+    """An entry's key: the SHA-256 (hex) of ``parts``, each a line (``name=exact text``) of what decides the result."""
+    digest = hashlib.sha256()
+    for part in parts:
+        digest.update(part.encode())
+        digest.update(b"\n")
+    return digest.hexdigest()
 
 
 def sources_digest(paths: Iterable[Path]) -> str:

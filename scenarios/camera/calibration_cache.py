@@ -21,7 +21,6 @@ Delete the folder to clear the cache.
 
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 from typing import Any, Final
 
@@ -32,7 +31,7 @@ from sensor import calibration as _calibration
 from sensor.calibration import CalibrationResult
 from sensor.camera import Lens, StereoRig
 from vehicle_model.codegen import cache_dir as cache_root
-from vehicle_model.disk_cache import exact_text, read_entry, sources_digest, write_entry
+from vehicle_model.disk_cache import exact_text, key_of, read_entry, sources_digest, write_entry
 
 __all__ = ["SOURCES", "cache_dir", "cached_calibrate_rig", "calibration_key"]
 
@@ -82,21 +81,19 @@ def _opencv_ipp() -> str:
 def calibration_key(rig: StereoRig, lens_left: Lens, lens_right: Lens, **settings: Any) -> str:
     """The SHA-256 (hex) of everything that decides :func:`~sensor.calibration.calibrate_rig`'s result for these
     arguments (module notes)."""
-    digest = hashlib.sha256()
-    for part in (
-        f"rig={exact_text(rig)}",
-        f"left={exact_text(lens_left)}",
-        f"right={exact_text(lens_right)}",
-        *(f"{name}={exact_text(settings[name])}" for name in sorted(settings)),
-        f"sources={sources_digest(SOURCES)}",
-        f"opencv={cv2.__version__}",
-        f"numpy={np.__version__}",
-        f"opencv_cpu={_opencv_cpu()}",
-        f"opencv_ipp={_opencv_ipp()}",
-    ):
-        digest.update(part.encode())
-        digest.update(b"\n")
-    return digest.hexdigest()
+    return key_of(
+        (
+            f"rig={exact_text(rig)}",
+            f"left={exact_text(lens_left)}",
+            f"right={exact_text(lens_right)}",
+            *(f"{name}={exact_text(settings[name])}" for name in sorted(settings)),
+            f"sources={sources_digest(SOURCES)}",
+            f"opencv={cv2.__version__}",
+            f"numpy={np.__version__}",
+            f"opencv_cpu={_opencv_cpu()}",
+            f"opencv_ipp={_opencv_ipp()}",
+        )
+    )
 
 
 def _read(path: Path, key: str) -> CalibrationResult | None:
