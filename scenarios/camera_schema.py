@@ -253,6 +253,10 @@ class _RigChoice(Settings):
         return {k: v for k, v in handler(self).items() if v is not None}
 
 
+ODOMETRY_ONLY = ("vo_bucket_max_features", "vo_ransac_iters")
+"""Fields of the camera section that set the odometry alone, not the images: a frame cache's name leaves them out
+(:func:`scenarios.camera.build.camera_tag`), so runs that differ only in them share their frames."""
+
 RUN_WIDE = ("world", "scenery_density", "antialias", "latency_s")
 """Fields of the camera section that are the run's, not a rig's: every rig sees one world and releases its frames
 after one latency."""

@@ -38,7 +38,7 @@ from sensor.world import World, build_world
 from vehicle_model.errors import InputError
 from vehicle_model.terrain import Terrain
 
-from ..camera_schema import RigConfig, StereoRigConfig, rig_configs
+from ..camera_schema import ODOMETRY_ONLY, RigConfig, StereoRigConfig, rig_configs
 from ..config import ScenarioConfig
 from ..setup.build import ScenarioSetup, build_scenario
 from .calibration_cache import cached_calibrate_rig
@@ -322,14 +322,15 @@ def _ideal_developer(
 
 def camera_tag(setup: ScenarioSetup, **settings: Any) -> str:
     """A name for the frames of the camera :func:`stereo_camera` builds for ``setup`` with ``settings``: a hash of the
-    configuration's camera section, seed and camera rate, the reference path, the vehicle, the settings and the
+    configuration's camera section (without its odometry's :data:`~scenarios.camera_schema.ODOMETRY_ONLY` fields, which
+    do not change the images), seed and camera rate, the reference path, the vehicle, the settings and the
     renderer's :data:`~.frame_cache.FRAME_REVISION`."""
     from .frame_cache import FRAME_REVISION
 
     cfg = setup.config
     described = {
         "frame_revision": FRAME_REVISION,
-        "camera": cfg.camera.model_dump(mode="json"),
+        "camera": cfg.camera.model_dump(mode="json", exclude=set(ODOMETRY_ONLY)),
         "seed": cfg.seed,
         "camera_hz": cfg.rates.camera_hz,
         "vehicle": repr(setup.params),
