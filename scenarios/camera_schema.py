@@ -25,6 +25,7 @@ from pydantic.fields import FieldInfo
 from sensor.camera import MAX_RENDER_PX, Lens
 from sensor.lighting import Lighting
 from sensor.mount_flex import MountFlex
+from sensor.vo.config import VOConfig
 from sensor.vo.disparity_offset import DisparityOffsetSettings
 from sensor.vo.self_calibration import SelfCalibrationSettings
 from vehicle_model.parameters import VehicleParams
@@ -42,6 +43,12 @@ RigRotationDeg = Annotated[
         "§4.4 needs a few",
     ),
 ]
+
+
+def odometry_field(name: str, description: str) -> Any:
+    """A field of :class:`sensor.vo.config.VOConfig` as a rig's setting: the odometry's own type, default and range,
+    with ``description``."""
+    return FieldInfo.merge_field_infos(VOConfig.model_fields[name], description=description)
 
 
 class CalibrationConfig(Settings):
@@ -120,7 +127,10 @@ class StereoRigConfig(Settings):
     ``right_correction_deg`` is the *estimated misalignment* (same convention as
     ``right_misalignment_deg``) whose rotation is removed from the right images before odometry (the paper's eqs
     (8)–(9)): the paper's correction φ = +0.15°, ψ = −0.10° of a misalignment φ = −0.15°, ψ = +0.10° is given
-    here as ``[-0.15, 0, 0.10]``. ``vo_refinement`` is the odometry's match refinement (sub-pixel by default).
+    here as ``[-0.15, 0, 0.10]``. ``vo_refinement`` is the odometry's match refinement (sub-pixel by default);
+    ``vo_bucket_max_features`` and ``vo_ransac_iters`` are the odometry's matches kept a bucket and its RANSAC
+    hypotheses (:class:`sensor.vo.config.VOConfig`'s ``bucket_max_features`` and ``ransac_iters``, whose types,
+    defaults and ranges they are: libviso2's).
     ``latency_s`` delays each frame's estimate before the controller sees
     it (default: one frame period).
     """
@@ -184,6 +194,14 @@ class StereoRigConfig(Settings):
         description="the odometry's match refinement: 0 none, 1 pixel (libviso2's default), 2 sub-pixel; matches "
         "located to the pixel lock onto the pixel grid, which on ground texture biases the yaw (docs/field_bias.md)",
     )
+    vo_bucket_max_features: int = odometry_field(
+        "bucket_max_features",
+        "matches the odometry keeps in each bucket of the image (a random choice; libviso2's by default); more keep "
+        "more of the dense matches, so the motion is less a draw of which survive (docs/terrain.md)",
+    )
+    vo_ransac_iters: int = odometry_field(
+        "ransac_iters", "RANSAC hypotheses (3-point samples) of the odometry's motion (libviso2's by default)"
+    )
     world: Literal["roadside", "airfield"] = "roadside"
     latency_s: float | None = Field(
         None,
@@ -234,6 +252,10 @@ class _RigChoice(Settings):
         """Only what the rig sets (a field left out is the camera section's)."""
         return {k: v for k, v in handler(self).items() if v is not None}
 
+
+ODOMETRY_ONLY = ("vo_bucket_max_features", "vo_ransac_iters")
+"""Fields of the camera section that set the odometry alone, not the images: a frame cache's name leaves them out
+(:func:`scenarios.camera.build.camera_tag`), so runs that differ only in them share their frames."""
 
 RUN_WIDE = ("world", "scenery_density", "antialias", "latency_s")
 """Fields of the camera section that are the run's, not a rig's: every rig sees one world and releases its frames

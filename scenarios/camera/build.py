@@ -38,7 +38,7 @@ from sensor.world import World, build_world
 from vehicle_model.errors import InputError
 from vehicle_model.terrain import Terrain
 
-from ..camera_schema import RigConfig, rig_configs
+from ..camera_schema import ODOMETRY_ONLY, RigConfig, StereoRigConfig, rig_configs
 from ..config import ScenarioConfig
 from ..setup.build import ScenarioSetup, build_scenario
 from .calibration_cache import cached_calibrate_rig
@@ -47,6 +47,7 @@ if TYPE_CHECKING:
     from sensor.field_optics import FieldOptics
     from sensor.frame_odometry import FrameOdometry
     from sensor.stereo_camera import PairDeveloper, StereoCamera
+    from sensor.vo.config import VOConfig
 
 __all__ = [
     "CONFIGURED",
@@ -58,6 +59,7 @@ __all__ = [
     "lenses",
     "lighting_from_config",
     "mount_flex",
+    "odometry_config",
     "pair_developer",
     "resolve_scenery_density",
     "rig_from_config",
@@ -320,14 +322,15 @@ def _ideal_developer(
 
 def camera_tag(setup: ScenarioSetup, **settings: Any) -> str:
     """A name for the frames of the camera :func:`stereo_camera` builds for ``setup`` with ``settings``: a hash of the
-    configuration's camera section, seed and camera rate, the reference path, the vehicle, the settings and the
+    configuration's camera section (without its odometry's :data:`~scenarios.camera_schema.ODOMETRY_ONLY` fields, which
+    do not change the images), seed and camera rate, the reference path, the vehicle, the settings and the
     renderer's :data:`~.frame_cache.FRAME_REVISION`."""
     from .frame_cache import FRAME_REVISION
 
     cfg = setup.config
     described = {
         "frame_revision": FRAME_REVISION,
-        "camera": cfg.camera.model_dump(mode="json"),
+        "camera": cfg.camera.model_dump(mode="json", exclude=set(ODOMETRY_ONLY)),
         "seed": cfg.seed,
         "camera_hz": cfg.rates.camera_hz,
         "vehicle": repr(setup.params),
@@ -444,13 +447,26 @@ def pair_developer(config: ScenarioConfig, rig_index: int = 0) -> PairDeveloper:
     return PairDeveloper(rig_from_config(config, rig_index), **_camera_settings(config, rig_index))
 
 
+def odometry_config(optics: FieldOptics, rig: StereoRigConfig) -> VOConfig:
+    """The odometry's settings of a rig: the camera model and stereo search of the images ``optics`` gives
+    (:meth:`~sensor.field_optics.FieldOptics.vo_config`) with the rig's ``vo_refinement``,
+    ``vo_bucket_max_features`` and ``vo_ransac_iters`` (validated by the schema with the odometry's own ranges)."""
+    return optics.vo_config().model_copy(
+        update={
+            "refinement": rig.vo_refinement,
+            "bucket_max_features": rig.vo_bucket_max_features,
+            "ransac_iters": rig.vo_ransac_iters,
+        }
+    )
+
+
 def frame_odometry(
     setup: ScenarioSetup, optics: FieldOptics, rig_index: int = 0, level_reference: str = "planar"
 ) -> FrameOdometry:
-    """The per-frame estimator of rig ``rig_index`` on the images ``optics`` gives (the rig's
-    ``self_calibration`` and ``vo_refinement``, rates, the rig's seed), estimating the off-tracking of the towed
-    unit the rig is on; ``level_reference`` how VISO-OT finds the level on terrain (:mod:`sensor.level_reference`,
-    default the level road)."""
+    """The per-frame estimator of rig ``rig_index`` on the images ``optics`` gives (the rig's ``self_calibration``
+    and :func:`odometry_config`, rates, the rig's seed), estimating the off-tracking of the towed unit the rig is on;
+    ``level_reference`` how VISO-OT finds the level on terrain (:mod:`sensor.level_reference`, default the level
+    road)."""
     from sensor.frame_odometry import FrameOdometry
 
     cfg = setup.config
@@ -461,7 +477,7 @@ def frame_odometry(
     unit = {"unit": rig.unit} if rig.unit != 1 else {}  # the first towed unit is the odometry's default
     return FrameOdometry(
         setup.params,
-        optics.vo_config().model_copy(update={"refinement": rig.vo_refinement}),
+        odometry_config(optics, rig),
         optics.left_in_trailer(setup.params),
         cfg.rates.frame_interval_s,
         rig_seed(cfg.seed, rig_index),
