@@ -79,7 +79,7 @@ from .fusion_slip import (
     scrub_bias_share,
     scrub_coupling_yield,
 )
-from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects, reference_share
+from .fusion_std import MIN_INNOVATION_RATIO, STD_PARTS, IncrementWindow, path_effects, reference_share, window_nis
 from .level_reference import horizontal_speed
 from .unit_kinematics import ChainKinematics, ChainSignals, TractorSignals, slip_kinematics, unit_axles
 from .unit_slip_reference import TRAILER_REFERENCE
@@ -459,7 +459,7 @@ class FusedVisoOt:
             else:
                 self._gated = 0
                 self.updates += 1
-                self._nis.append(min(nis, self.noise.gate))
+                self._nis.append(window_nis(self.noise, nis, innovation, h, prior, r))
                 self.innovation_ratio = max(MIN_INNOVATION_RATIO, float(np.mean(self._nis)) / 3.0)
         if reference is not None and self.noise.coupling_reference and reference.start_tick == self._history[0].tick:
             x, p, share = self._couple(x, p, reference)

@@ -16,6 +16,7 @@ __all__ = [
     "AxialEffect",
     "FollowerLimit",
     "FusionNoise",
+    "InnovationRatioFrom",
     "KinematicReference",
     "LinkedRigFusion",
     "PersistingReferenceError",
@@ -33,6 +34,11 @@ AxialEffect = Literal["camera", "posterior"]
 """How the axial states' uncertainty enters the off-tracking's std (:mod:`sensor.fusion_axial`)."""
 ScrubCouplingStd = Literal["release", "uniform"]
 """How the std's coupling term carries the coupled correction while the tyres scrub (:mod:`sensor.fusion_slip`)."""
+
+InnovationRatioFrom = Literal["all", "lateral"]
+"""What ``ρ`` of eq (5) (:mod:`sensor.fusion_std`) is the mean of over the window: ``"all"``, each motion's
+normalised innovation squared over its three components; ``"lateral"``, three times that of its lateral component
+given the other two (:func:`~sensor.fusion_std.lateral_nis`)."""
 
 
 REFERENCE_SETTINGS: tuple[str, ...] = (
@@ -376,6 +382,11 @@ class FusionNoise(Settings):
         quadrature (0: none; a run's ``fusion`` settings add 0.005 m).
     innovation_window : int
         Camera motions over which the mean normalised innovation squared ``ρ`` of eq (5) is taken.
+    innovation_ratio_from : {"all", "lateral"}
+        What ``ρ`` is the mean of: each motion's 3-D normalised innovation squared (``"all"``, the default), or
+        three times that of its lateral component given the other two, whose expectation is 1
+        (``"lateral"``; :func:`~sensor.fusion_std.window_nis`). Both are capped at ``gate`` and floored as
+        :data:`~sensor.fusion_std.MIN_INNOVATION_RATIO` says; docs/fusion.md says when the two differ.
     bias_std_scale : float
         ``f_b`` of eq (5): a factor on the standard deviation of the biases' term (``G·P_b·Gᵀ`` with the axial
         states' effects; 1, the default: as the filter's covariance gives it). Below 1 it says the biases' remaining
@@ -526,6 +537,7 @@ class FusionNoise(Settings):
     innovation_window: int = Field(
         50, ge=1, le=10000, description="camera motions in ρ of eq (5); one is no statistic, 10000 never adapts"
     )
+    innovation_ratio_from: InnovationRatioFrom = "all"
     bias_std_scale: float = Field(1.0, gt=0.0, le=1.0, description=BIAS_STD_SCALE)
     coupling_reference: bool = False
     coupling_bias_share: bool = False

@@ -15,7 +15,10 @@ through ``G``, the change of ``e_tr`` per unit bias summed over the increments (
 duration and, through (1), moves it by ``L_c`` times that; the odometry's error per metre along (3) by its length).
 Both parts follow the camera's evidence: ``ρ``, the mean normalised innovation squared of its recent motions, is 3
 when they agree with their covariances (Bar-Shalom, Li & Kirubarajan 2001, ch. 5), so ``ρ/3`` scales them up where
-the motions are noisier than their covariances say and down (to a quarter at most) where they are quieter. The
+the motions are noisier than their covariances say and down (to a quarter at most) where they are quieter. With
+``innovation_ratio_from: lateral`` each motion enters ``ρ`` as three times the NIS of its lateral innovation given
+the other two (:func:`lateral_nis`, expectation 1), which the lateral–yaw direction the gyro corrects does not
+rule (docs/field_bias.md §7.63). The
 coupling ``κ`` of (3) is itself known only to a relative ``u_κ`` (``vo_bias_coupling_uncertainty``: the regression
 of the measured errors, docs/field_bias.md), so the translation the filter removes for the estimated ``β_ψ``,
 ``β_ψ·G_κ`` (``G_κ`` the coupled part of ``G``'s second entry), is uncertain by ``u_κ·β_ψ·G_κ``: a large
@@ -57,8 +60,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .fusion_noise import FusionNoise
 
 __all__ = [
     "MIN_INNOVATION_RATIO",
@@ -67,8 +74,10 @@ __all__ = [
     "PathEffects",
     "axial_effect",
     "bias_effect",
+    "lateral_nis",
     "path_effects",
     "reference_share",
+    "window_nis",
 ]
 
 #: The five terms of the off-tracking's variance, eq (5), in its order: the increments' own covariance, the
@@ -122,6 +131,33 @@ def reference_share(prior: np.ndarray, posterior: np.ndarray) -> np.ndarray:
     if np.array_equal(prior, posterior):
         return np.eye(3)
     return np.linalg.solve(prior.T, posterior.T).T
+
+
+def lateral_nis(innovation: np.ndarray, s: np.ndarray) -> float:
+    """The normalised innovation squared of the lateral component of a motion's innovation ``ν = (ν_x, ν_y, ν_ψ)``
+    given the other two, against its covariance ``S`` (3×3)::
+
+        ν_y|r = ν_y − S_yr·S_rr⁻¹·ν_r,    S_y|r = S_yy − S_yr·S_rr⁻¹·S_ry,    NIS_y|r = ν_y|r² / S_y|r
+
+    (``r`` = ``(x, ψ)``; the conditional mean and variance of a Gaussian, Bar-Shalom, Li & Kirubarajan 2001,
+    §3.2.1): a χ²₁ variable, expectation 1, where ``S`` describes the innovation. It does not change with the units
+    (or any invertible mix) of the other two components."""
+    rest = [0, 2]
+    s_rr, s_ry = s[np.ix_(rest, rest)], s[rest, 1]
+    weights = np.linalg.solve(s_rr, s_ry)
+    residual = float(innovation[1] - weights @ innovation[rest])
+    return residual**2 / float(s[1, 1] - s_ry @ weights)
+
+
+def window_nis(
+    noise: FusionNoise, nis: float, innovation: np.ndarray, h: np.ndarray, prior: np.ndarray, r: np.ndarray
+) -> float:
+    """An accepted motion's entry in the window of ``ρ`` (eq (5)), capped at ``noise.gate``: its 3-D normalised
+    innovation squared ``nis``, or with ``noise.innovation_ratio_from`` ``"lateral"`` three times
+    :func:`lateral_nis` against ``S = H·P⁻·Hᵀ + R`` (``prior`` = ``P⁻``), so that both have expectation 3."""
+    if noise.innovation_ratio_from == "lateral":
+        nis = 3.0 * lateral_nis(innovation, h @ prior @ h.T + r)
+    return min(nis, noise.gate)
 
 
 @dataclass(frozen=True)
