@@ -107,6 +107,12 @@ class VOConfig(Settings):
         Default 0.004 rad (0.23°): a heading random walk over N frames of a trailer length L
         moves the far end of the path by ``σ·L·√(N/3)`` ≈ 34·σ for L = 12 m, N = 24, again
         against 0.15 m. Ideal frames: 0.1–0.6 mrad.
+    covariance_model : {"gauss_newton", "sandwich"}
+        The motion's covariance (:func:`sensor.vo.quality.motion_quality`): ``"gauss_newton"`` (default),
+        ``σ̂²·(JᵀJ)⁻¹`` of the weighted rows, which takes the reweighting's weights for inverse noise levels;
+        ``"sandwich"``, the covariance of the same weighted estimate under pixel noise of one level per image
+        coordinate (u and v of the current left and right image), each from its own unweighted residuals, with
+        the weights as the estimator's choice only. Default "gauss_newton".
     kalman_smoothing : bool
         Constant-acceleration Kalman filter on the six per-frame motion parameters (mentioned in the
         StereoScan paper, absent from libviso2). Default off.
@@ -145,6 +151,7 @@ class VOConfig(Settings):
     quality_max_residual: Real = Field(1.75, gt=0.0)
     quality_max_translation_sigma: Real = Field(0.03, gt=0.0)
     quality_max_rotation_sigma: Real = Field(0.004, gt=0.0)
+    covariance_model: Literal["gauss_newton", "sandwich"] = "gauss_newton"
     kalman_smoothing: Flag = False
     kalman_rotation_process_std: Real = Field(1e-4, gt=0.0)
     kalman_translation_process_std: Real = Field(1e-3, gt=0.0)

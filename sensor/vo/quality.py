@@ -17,7 +17,13 @@ Measures (all over the final RANSAC inliers, at the refined parameters θ̂):
   ``translation_sigma_m`` (square root of the largest eigenvalue: the worst direction) and its
   rotation block ``rotation_sigma_rad``. It assumes independent pixel errors and so is optimistic
   for correlated (systematic) errors; it is a floor of the true uncertainty, which is what a
-  rejection threshold needs.
+  rejection threshold needs. It also takes the reweighting's weights w for inverse noise levels.
+  With ``VOConfig.covariance_model="sandwich"`` the covariance is instead that of the same weighted
+  estimate under pixel noise of one level σ_k per image coordinate k ∈ (u1c, v1c, u2c, v2c), the
+  weights only the estimator's choice (the sandwich form of White 1980, Econometrica 48(4), 817–838):
+  ``Σ = N⁻¹·(Σ_k σ̂_k²·J_kᵀ W² J_k)·N⁻¹`` with ``N = JᵀJ`` of the weighted rows, ``J_k`` the weighted
+  rows of coordinate k, ``W = diag(w)`` and ``σ̂_k² = 4·‖r_k‖²/(4n − 6)`` from the unweighted
+  residuals of coordinate k. With unit weights and equal ``‖r_k‖`` it is ``σ̂²·(JᵀJ)⁻¹``.
 
 Reason codes of a refused frame are the keys of :data:`VO_REASONS`. :data:`REJECTION_REASONS` is the
 whole table of the camera estimator — these, VISO-OT's plausibility failures and the reasons for a
@@ -174,11 +180,24 @@ def motion_quality(params: np.ndarray, xy: np.ndarray, inliers: np.ndarray, conf
     normal = j.T @ j
     try:
         cov = sigma2 * np.linalg.inv(normal)
+        if config.covariance_model == "sandwich":
+            cov = _sandwich(np.linalg.inv(normal), jac[0], plain[0], weights, dof)
     except np.linalg.LinAlgError:
         cov = np.full((6, 6), np.inf)
     if not np.all(np.isfinite(cov)) or np.linalg.cond(normal) > 1e14:
         cov = np.full((6, 6), np.inf)
     return MotionQuality(n, residual, cov)
+
+
+def _sandwich(inverse: np.ndarray, jac: np.ndarray, plain: np.ndarray, weights: np.ndarray, dof: int) -> np.ndarray:
+    """``N⁻¹·(Σ_k σ̂_k²·J_kᵀ W² J_k)·N⁻¹`` of the module notes: ``inverse`` N⁻¹, ``jac`` the (n, 4, 6) weighted
+    rows, ``plain`` the (n, 4) unweighted residuals, ``weights`` w (n), ``dof`` 4n − 6."""
+    meat = np.zeros((6, 6))
+    for k in range(4):
+        rows = jac[:, k, :]
+        scale = 4.0 * float(plain[:, k] @ plain[:, k]) / dof
+        meat += scale * (rows.T * weights**2) @ rows
+    return inverse @ meat @ inverse  # type: ignore[no-any-return]
 
 
 def quality_failure(quality: MotionQuality, config: VOConfig) -> tuple[str, str]:
