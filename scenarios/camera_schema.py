@@ -25,7 +25,7 @@ from pydantic.fields import FieldInfo
 from sensor.camera import MAX_RENDER_PX, Lens
 from sensor.lighting import Lighting
 from sensor.mount_flex import MountFlex
-from sensor.vo.config import VOConfig
+from sensor.vo.config import CovarianceModel, VOConfig
 from sensor.vo.disparity_offset import DisparityOffsetSettings
 from sensor.vo.self_calibration import SelfCalibrationSettings
 from vehicle_model.parameters import VehicleParams
@@ -130,7 +130,8 @@ class StereoRigConfig(Settings):
     here as ``[-0.15, 0, 0.10]``. ``vo_refinement`` is the odometry's match refinement (sub-pixel by default);
     ``vo_bucket_max_features`` and ``vo_ransac_iters`` are the odometry's matches kept a bucket and its RANSAC
     hypotheses (:class:`sensor.vo.config.VOConfig`'s ``bucket_max_features`` and ``ransac_iters``, whose types,
-    defaults and ranges they are: libviso2's).
+    defaults and ranges they are: libviso2's), ``vo_covariance_model`` the form of its motion's covariance
+    (``covariance_model``'s values and default).
     ``latency_s`` delays each frame's estimate before the controller sees
     it (default: one frame period).
     """
@@ -202,6 +203,11 @@ class StereoRigConfig(Settings):
     vo_ransac_iters: int = odometry_field(
         "ransac_iters", "RANSAC hypotheses (3-point samples) of the odometry's motion (libviso2's by default)"
     )
+    vo_covariance_model: CovarianceModel = odometry_field(
+        "covariance_model",
+        "the odometry's motion covariance: gauss_newton (the weighted fit's own) or sandwich (the weights as the "
+        "estimator's choice, one noise level per image coordinate; docs/field_bias.md)",
+    )
     world: Literal["roadside", "airfield"] = "roadside"
     latency_s: float | None = Field(
         None,
@@ -253,7 +259,7 @@ class _RigChoice(Settings):
         return {k: v for k, v in handler(self).items() if v is not None}
 
 
-ODOMETRY_ONLY = ("vo_bucket_max_features", "vo_ransac_iters")
+ODOMETRY_ONLY = ("vo_bucket_max_features", "vo_ransac_iters", "vo_covariance_model")
 """Fields of the camera section that set the odometry alone, not the images: a frame cache's name leaves them out
 (:func:`scenarios.camera.build.camera_tag`), so runs that differ only in them share their frames."""
 

@@ -1,5 +1,5 @@
-"""The odometry's matching settings in the camera section (``camera.vo_bucket_max_features``,
-``camera.vo_ransac_iters``): left out, the run's odometry is the one built from the optics with libviso2's
+"""The odometry's settings in the camera section (``camera.vo_bucket_max_features``, ``camera.vo_ransac_iters``,
+``camera.vo_covariance_model``): left out, the run's odometry is the one built from the optics with libviso2's
 matching, field for field; a rig's own value is its odometry's and the section's is every other rig's; a value out
 of the odometry's range is refused naming the field and the range before any work."""
 
@@ -36,6 +36,7 @@ def test_left_out_the_odometry_is_the_optics_one_with_libviso2s_matching_and_sub
         ).model_dump()
     )
     assert (built.bucket_max_features, built.ransac_iters) == (2, 200)  # libviso2's
+    assert built.covariance_model == "gauss_newton"
 
 
 def test_a_rigs_own_matching_settings_are_its_odometrys_and_the_sections_the_others() -> None:
@@ -48,9 +49,29 @@ def test_a_rigs_own_matching_settings_are_its_odometrys_and_the_sections_the_oth
 
 
 def test_the_setting_reaches_the_runs_odometry() -> None:
-    config = load_scenario("roundabout-3", {**CAMERA, "camera.vo_bucket_max_features": 6, "camera.vo_ransac_iters": 75})
+    config = load_scenario(
+        "roundabout-3",
+        {
+            **CAMERA,
+            "camera.vo_bucket_max_features": 6,
+            "camera.vo_ransac_iters": 75,
+            "camera.vo_covariance_model": "sandwich",
+        },
+    )
     odometry = frame_odometry(build_scenario(config), pair_developer(config).optics)
-    assert (odometry.vo.config.bucket_max_features, odometry.vo.config.ransac_iters) == (6, 75)
+    vo = odometry.vo.config
+    assert (vo.bucket_max_features, vo.ransac_iters, vo.covariance_model) == (6, 75, "sandwich")
+
+
+def test_a_covariance_model_that_is_not_one_is_refused_naming_the_field_and_the_values(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    refused = offtrack_in_process(
+        monkeypatch, capsys, "run", "roundabout-test", "--set", "camera.vo_covariance_model=hessian", "--out", str(out)
+    )
+    assert_one_line_error(refused, "camera.vo_covariance_model = ", "'gauss_newton' or 'sandwich'")
+    assert not out.exists()
 
 
 @pytest.mark.parametrize(
@@ -94,4 +115,5 @@ def test_the_frames_are_named_without_the_odometrys_settings() -> None:
 
     default = tag({})
     assert tag({"camera.vo_bucket_max_features": 6, "camera.vo_ransac_iters": 50}) == default
+    assert tag({"camera.vo_covariance_model": "sandwich"}) == default
     assert tag({"camera.width": 640}) != default

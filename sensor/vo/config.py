@@ -15,7 +15,11 @@ from pydantic import Field
 
 from vehicle_model.settings import Count, Flag, Real, Settings
 
-__all__ = ["VOConfig"]
+CovarianceModel = Literal["gauss_newton", "sandwich"]
+"""The form of a motion's covariance (:func:`sensor.vo.quality.motion_quality`; :class:`VOConfig`'s
+``covariance_model``)."""
+
+__all__ = ["CovarianceModel", "VOConfig"]
 
 #: Largest ``nms_n`` accepted: the detector breaks ties between equal filter responses with a
 #: sub-integer offset pattern whose period is 2·max(nms_n, 10) + 1, which must stay resolvable in float32.
@@ -151,7 +155,7 @@ class VOConfig(Settings):
     quality_max_residual: Real = Field(1.75, gt=0.0)
     quality_max_translation_sigma: Real = Field(0.03, gt=0.0)
     quality_max_rotation_sigma: Real = Field(0.004, gt=0.0)
-    covariance_model: Literal["gauss_newton", "sandwich"] = "gauss_newton"
+    covariance_model: CovarianceModel = "gauss_newton"
     kalman_smoothing: Flag = False
     kalman_rotation_process_std: Real = Field(1e-4, gt=0.0)
     kalman_translation_process_std: Real = Field(1e-3, gt=0.0)
