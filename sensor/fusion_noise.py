@@ -35,10 +35,11 @@ AxialEffect = Literal["camera", "posterior"]
 ScrubCouplingStd = Literal["release", "uniform"]
 """How the std's coupling term carries the coupled correction while the tyres scrub (:mod:`sensor.fusion_slip`)."""
 
-InnovationRatioFrom = Literal["all", "lateral"]
+InnovationRatioFrom = Literal["all", "lateral", "rear_lateral"]
 """What ``ρ`` of eq (5) (:mod:`sensor.fusion_std`) is the mean of over the window: ``"all"``, each motion's
 normalised innovation squared over its three components; ``"lateral"``, three times that of its lateral component
-given the other two (:func:`~sensor.fusion_std.lateral_nis`)."""
+given the other two (:func:`~sensor.fusion_std.lateral_nis`); ``"rear_lateral"``, ``"lateral"`` on a rig that looks
+back along its unit and ``"all"`` on every other (:meth:`FusionNoise.for_camera` decides where the filter is built)."""
 
 
 REFERENCE_SETTINGS: tuple[str, ...] = (
@@ -382,11 +383,13 @@ class FusionNoise(Settings):
         quadrature (0: none; a run's ``fusion`` settings add 0.005 m).
     innovation_window : int
         Camera motions over which the mean normalised innovation squared ``ρ`` of eq (5) is taken.
-    innovation_ratio_from : {"all", "lateral"}
+    innovation_ratio_from : {"all", "lateral", "rear_lateral"}
         What ``ρ`` is the mean of: each motion's 3-D normalised innovation squared (``"all"``, the default), or
         three times that of its lateral component given the other two, whose expectation is 1
-        (``"lateral"``; :func:`~sensor.fusion_std.window_nis`). Both are capped at ``gate`` and floored as
-        :data:`~sensor.fusion_std.MIN_INNOVATION_RATIO` says; docs/fusion.md says when the two differ.
+        (``"lateral"``; :func:`~sensor.fusion_std.window_nis`); ``"rear_lateral"`` takes ``"lateral"`` on a rig
+        that looks back along its unit and ``"all"`` on every other (:meth:`for_camera`). Both are capped at
+        ``gate`` and floored as :data:`~sensor.fusion_std.MIN_INNOVATION_RATIO` says; docs/fusion.md says when
+        the two differ.
     bias_std_scale : float
         ``f_b`` of eq (5): a factor on the standard deviation of the biases' term (``G·P_b·Gᵀ`` with the axial
         states' effects; 1, the default: as the filter's covariance gives it). Below 1 it says the biases' remaining
@@ -563,10 +566,15 @@ class FusionNoise(Settings):
 
         A camera that looks across its motion (``|o_y| > |o_x|``, a side rig) takes :attr:`side_rig`'s, any other
         camera on unit 2 or further (a linked rig, :mod:`sensor.fusion_linked_rig`) :attr:`linked_rig`'s, and any
-        other these settings unchanged (the same object, as where the section taken gives nothing).
+        other these settings unchanged (the same object, as where the section taken gives nothing). With
+        :attr:`innovation_ratio_from` ``"rear_lateral"`` a camera that looks back along its unit (``o_x < 0``,
+        ``|o_x| ≥ |o_y|``) takes ``"lateral"`` and any other ``"all"``.
         """
         if abs(optical_axis[1]) > abs(optical_axis[0]):
             given = self.side_rig.given()
         else:
             given = self.linked_rig.given() if unit >= 2 else {}
+        if self.innovation_ratio_from == "rear_lateral":
+            rear = optical_axis[0] < 0.0 and -optical_axis[0] >= abs(optical_axis[1])
+            given = {**given, "innovation_ratio_from": "lateral" if rear else "all"}
         return self.replace(**given) if given else self

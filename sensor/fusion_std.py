@@ -154,7 +154,8 @@ def window_nis(
 ) -> float:
     """An accepted motion's entry in the window of ``ρ`` (eq (5)), capped at ``noise.gate``: its 3-D normalised
     innovation squared ``nis``, or with ``noise.innovation_ratio_from`` ``"lateral"`` three times
-    :func:`lateral_nis` against ``S = H·P⁻·Hᵀ + R`` (``prior`` = ``P⁻``), so that both have expectation 3."""
+    :func:`lateral_nis` against ``S = H·P⁻·Hᵀ + R`` (``prior`` = ``P⁻``), so that both have expectation 3
+    (``"rear_lateral"`` is one of the two once :meth:`~sensor.fusion_noise.FusionNoise.for_camera` has taken it)."""
     if noise.innovation_ratio_from == "lateral":
         nis = 3.0 * lateral_nis(innovation, h @ prior @ h.T + r)
     return min(nis, noise.gate)
