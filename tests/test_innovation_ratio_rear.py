@@ -119,8 +119,9 @@ def test_for_camera_decides_on_the_optical_axis() -> None:
 
 def test_a_bad_value_is_refused_on_one_line() -> None:
     field = "fusion.innovation_ratio_from"
-    assert load_scenario("roundabout-3", {field: "rear_lateral"}).fusion.innovation_ratio_from == "rear_lateral"
-    for bad in ("rear", "rear-lateral", 2):
+    for value in ("all", "lateral", "rear_lateral"):
+        assert load_scenario("roundabout-3", {field: value}).fusion.innovation_ratio_from == value
+    for bad in ("rear", "rear-lateral", "lat", "", 2):
         with pytest.raises(ConfigError, match=re.escape(field)) as caught:
             load_scenario("roundabout-3", {field: bad})
         lines = [line for line in str(caught.value).splitlines() if field in line]
