@@ -4,9 +4,9 @@ Public API: :class:`VOConfig` (parameters, libviso2 defaults), :class:`StereoOdo
 (``process(left, right) -> VOResult``, ``reset()``) and :class:`VOResult`. The building blocks live in
 :mod:`sensor.vo.features` (detection, descriptors), :mod:`sensor.vo.matching` (circular matching of two
 stereo pairs) with its stages :mod:`sensor.vo.prior_ranges`, :mod:`sensor.vo.outliers`,
-:mod:`sensor.vo.bucketing` and :mod:`sensor.vo.refinement` (match array columns in
-:mod:`sensor.vo.match_columns`), :mod:`sensor.vo.motion` and :mod:`sensor.vo.kalman`; the tests' ``vo_synthetic``
-makes test data with exact ground truth. The hot loops are compiled with
+:mod:`sensor.vo.bucketing`, :mod:`sensor.vo.refinement` and :mod:`sensor.vo.gradient_refinement` (match array
+columns in :mod:`sensor.vo.match_columns`), :mod:`sensor.vo.motion` and :mod:`sensor.vo.kalman`; the tests'
+``vo_synthetic`` makes test data with exact ground truth. The hot loops are compiled with
 numba (:mod:`sensor.vo.jit`, cached on disk): :mod:`sensor.vo.kernels_features`,
 :mod:`sensor.vo.kernels_search` and :mod:`sensor.vo.kernels_circle` (the candidate search and the
 circle), :mod:`sensor.vo.kernels_match` (positions, Delaunay support, refinement) and

@@ -76,6 +76,12 @@ class VOConfig(Settings):
         fits through the half-pixel neighbours and once more at the other coordinate's fitted position
         (:mod:`sensor.vo.kernels_refine_half`): where a match's true row falls between two pixel rows, a whole
         row's cost on an oblique edge can be lowest a pixel along the edge. Default "pixel".
+    gradient_refinement : {"off", "lucas_kanade"}
+        After the refinement, ``"lucas_kanade"`` moves the 1p, 2p and 2c positions once more, to the minimum of the
+        squared grey-level differences of a window around the fixed 1c position, solved by Gauss–Newton iterations
+        on the grey images (Lucas & Kanade 1981; :mod:`sensor.vo.gradient_refinement`): no grid of candidate
+        positions for the sub-pixel estimate to be drawn towards. It assumes one exposure for the four images.
+        Default "off" (libviso2's positions).
     bucket_width, bucket_height : float
         Bucket size [px] of the final match selection. libviso2: 50 × 50.
     bucket_max_features : int
@@ -144,6 +150,7 @@ class VOConfig(Settings):
     refinement: Count = Field(1, ge=0, le=2)
     subpixel: Literal["parabola", "equiangular"] = "parabola"
     subpixel_search: Literal["pixel", "half_pixel"] = "pixel"
+    gradient_refinement: Literal["off", "lucas_kanade"] = "off"
     bucket_width: Real = Field(50.0, gt=0.0)
     bucket_height: Real = Field(50.0, gt=0.0)
     bucket_max_features: Count = Field(2, ge=1)

@@ -130,12 +130,15 @@ class ImageFeatures:
         (2, H, W) uint8 full-resolution Sobel responses (du, dv) for the refinement, or None.
     shape : tuple[int, int]
         Full-resolution image shape (H, W).
+    grey : numpy.ndarray | None
+        A copy of the (H, W) uint8 image for the gradient refinement (``gradient_refinement``), or None.
     """
 
     dense: FeatureSet
     sparse: FeatureSet | None
     sobel_full: np.ndarray | None
     shape: tuple[int, int]
+    grey: np.ndarray | None = None
 
 
 def half_resolution(image: np.ndarray) -> np.ndarray:
@@ -327,7 +330,7 @@ def extract_features(image: np.ndarray, config: VOConfig) -> ImageFeatures:
     -------
     ImageFeatures
         Dense (and sparse) features in full-resolution coordinates, plus the full-resolution Sobel
-        responses when the matcher refines.
+        responses when the matcher refines and a copy of the image for the gradient refinement.
     """
     if image.ndim != 2 or image.dtype != np.uint8:
         raise ValueError(f"expected an (H, W) uint8 grey image, got {image.dtype} {image.shape}")
@@ -340,4 +343,5 @@ def extract_features(image: np.ndarray, config: VOConfig) -> ImageFeatures:
     radii = (config.nms_n, config.nms_n_sparse) if config.multi_stage else (config.nms_n,)
     detected = _detect(_keys(work), radii, config.nms_tau, BORDER_MARGIN)
     dense, sparse = _feature_sets(sobel, detected, scale, config.multi_stage)
-    return ImageFeatures(dense=dense, sparse=sparse, sobel_full=sobel_full, shape=image.shape)
+    grey = image.copy() if config.gradient_refinement != "off" else None
+    return ImageFeatures(dense=dense, sparse=sparse, sobel_full=sobel_full, shape=image.shape, grey=grey)

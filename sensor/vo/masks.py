@@ -40,5 +40,9 @@ def mask_features(features: ImageFeatures, excluded: np.ndarray | None) -> Image
         raise ValueError(f"mask shape {excluded.shape} differs from the image shape {tuple(features.shape)}")
     sparse = None if features.sparse is None else _keep(features.sparse, excluded)
     return ImageFeatures(
-        dense=_keep(features.dense, excluded), sparse=sparse, sobel_full=features.sobel_full, shape=features.shape
+        dense=_keep(features.dense, excluded),
+        sparse=sparse,
+        sobel_full=features.sobel_full,
+        shape=features.shape,
+        grey=features.grey,
     )

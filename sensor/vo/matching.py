@@ -30,6 +30,7 @@ import numpy as np
 from sensor.vo.bucketing import bucket_matches
 from sensor.vo.config import VOConfig
 from sensor.vo.features import FeatureSet, ImageFeatures
+from sensor.vo.gradient_refinement import refine_gradient
 from sensor.vo.kernels_circle import circle
 from sensor.vo.kernels_match import positions
 from sensor.vo.outliers import remove_outliers
@@ -129,10 +130,10 @@ def match_frames(
     """libviso2's ``matchFeatures(method=2)`` followed by ``bucketFeatures``.
 
     Sparse pass (``multi_stage``) → outlier removal → prior ranges → dense pass → outlier removal
-    → bucketing → refinement. Refining after bucketing gives exactly what refining before it gives
-    (bucketing looks only at the current-left positions, which the refinement keeps fixed) at a
-    fraction of the cost. libviso2 refines *before* the dense outlier removal; here the Delaunay
-    check sees the unrefined (pixel-grid) positions.
+    → bucketing → refinement (→ the gradient refinement with ``gradient_refinement``). Refining after bucketing
+    gives exactly what refining before it gives (bucketing looks only at the current-left positions, which the
+    refinements keep fixed) at a fraction of the cost. libviso2 refines *before* the dense outlier removal; here the
+    Delaunay check sees the unrefined (pixel-grid) positions.
 
     Parameters
     ----------
@@ -167,4 +168,9 @@ def match_frames(
     xy = xy[bucket_matches(xy, config, rng)]
     if config.refinement > 0:
         xy = refine_matches(xy, (l_p, r_p, l_c, r_c), config)
+    if config.gradient_refinement == "lucas_kanade":
+        greys = tuple(f.grey for f in (l_p, r_p, l_c, r_c))
+        if any(g is None for g in greys):
+            raise ValueError("gradient_refinement 'lucas_kanade' needs the features' grey images (extract_features)")
+        xy = refine_gradient(xy, greys)  # type: ignore[arg-type]
     return MatchResult(matches=xy, n_first_pass=n_first, n_dense=n_dense)
