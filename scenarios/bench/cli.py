@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from typing import Annotated
 
 import typer
@@ -11,6 +12,7 @@ from rich.table import Table
 
 from ..camera.workers import DEFAULT_WORKERS
 from ..cli_format import OfftrackCommand, OfftrackGroup
+from ..commands.terminal import handled
 from ..run.json_output import strict_json
 
 bench_app = typer.Typer(
@@ -23,6 +25,7 @@ console = Console()
 
 
 @bench_app.command("render", cls=OfftrackCommand)
+@handled
 def bench_render_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     frames: Annotated[int, typer.Option(help="Stereo pairs to render.", min=5)] = 50,
@@ -40,19 +43,42 @@ def bench_render_cmd(
 
 
 @bench_app.command("vo", cls=OfftrackCommand)
+@handled
 def bench_vo_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     frames: Annotated[int, typer.Option(help="Rendered frames to process (cached after the first run).", min=5)] = 30,
     seed: Annotated[int, typer.Option(help="Scenario seed of the rendered sequence.")] = 0,
     passes: Annotated[int, typer.Option(help="Timed passes; per frame the fastest counts.", min=1)] = 3,
+    compare: Annotated[
+        list[str] | None,
+        typer.Option(
+            help="An odometry setting KEY=VALUE (repeatable; VALUE as JSON, else text) of a second odometry timed "
+            "beside the default in the same passes, e.g. gradient_refinement=lucas_kanade: its figures and the CPU "
+            "ratio."
+        ),
+    ] = None,
 ) -> None:
-    """Visual odometry alone at 1344×391, one thread: thread CPU ms per frame (median, p90), wall ms, stages."""
+    """Visual odometry alone at 1344×391, one thread: thread CPU ms per frame (median, p90), wall ms, stages, and
+    the mean per-frame error against the true motion; with ``--compare`` a second odometry beside it."""
     from scenarios.bench.vo import bench_vo
 
-    _print_bench(bench_vo(frames, seed=seed, passes=passes), as_json, "Visual odometry benchmark")
+    changes = None if not compare else dict(_setting(item) for item in compare)
+    _print_bench(bench_vo(frames, seed=seed, passes=passes, compare=changes), as_json, "Visual odometry benchmark")
+
+
+def _setting(item: str) -> tuple[str, object]:
+    """``KEY=VALUE`` of ``--compare``: the value read as JSON, else taken as text."""
+    key, sep, text = item.partition("=")
+    if not sep or not key:
+        raise ValueError(f"--compare {item!r}: give KEY=VALUE, e.g. gradient_refinement=lucas_kanade")
+    try:
+        return key, json.loads(text)
+    except json.JSONDecodeError:
+        return key, text
 
 
 @bench_app.command("sweep", cls=OfftrackCommand)
+@handled
 def bench_sweep_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     workers: Annotated[int, typer.Option(help="Worker processes to compare with one.", min=2)] = 2,
@@ -66,6 +92,7 @@ def bench_sweep_cmd(
 
 
 @bench_app.command("model", cls=OfftrackCommand)
+@handled
 def bench_model_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     duration: Annotated[float, typer.Option(help="Simulated seconds.", min=1.0)] = 60.0,
@@ -80,6 +107,7 @@ def bench_model_cmd(
 
 
 @bench_app.command("terrain", cls=OfftrackCommand)
+@handled
 def bench_terrain_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     vehicle: Annotated[str, typer.Option(help="The combination (a catalogue name).")] = "lst",
@@ -94,6 +122,7 @@ def bench_terrain_cmd(
 
 
 @bench_app.command("loop", cls=OfftrackCommand)
+@handled
 def bench_loop_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     duration: Annotated[float, typer.Option(help="Simulated seconds per run.", min=4.0)] = 15.0,
@@ -109,6 +138,7 @@ def bench_loop_cmd(
 
 
 @bench_app.command("rigs", cls=OfftrackCommand)
+@handled
 def bench_rigs_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     frames: Annotated[int, typer.Option(help="Frames (every rig rendered in each).", min=5)] = 30,
@@ -124,6 +154,7 @@ def bench_rigs_cmd(
 
 
 @bench_app.command("optimal", cls=OfftrackCommand)
+@handled
 def bench_optimal_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     duration: Annotated[
@@ -139,6 +170,7 @@ def bench_optimal_cmd(
 
 
 @bench_app.command("env", cls=OfftrackCommand)
+@handled
 def bench_env_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     feedback: Annotated[str, typer.Option(help="Model-based feedback source: truth or zero_slip.")] = "truth",

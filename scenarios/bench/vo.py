@@ -17,6 +17,7 @@ import json
 import os
 import platform
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,7 +32,15 @@ from ..loop.trailer_steer import UnsteeredTrailer, trailer_axles
 from ..run.drive import simulate
 from ..setup.build import build_scenario
 
-__all__ = ["RenderedSequence", "bench_vo", "relative_motions", "rendered_sequence", "vo_calibration"]
+__all__ = [
+    "RenderedSequence",
+    "bench_vo",
+    "compared_settings",
+    "frame_errors",
+    "relative_motions",
+    "rendered_sequence",
+    "vo_calibration",
+]
 
 _CACHE_VERSION = 1  # bump when the rendering of the sequence changes
 
@@ -127,7 +136,51 @@ def relative_motions(poses: np.ndarray) -> np.ndarray:
     return np.linalg.solve(poses[1:], poses[:-1])
 
 
-def bench_vo(frames: int = 30, scenario: str = "roundabout-3", seed: int = 0, passes: int = 3) -> dict[str, Any]:
+def compared_settings(compare: Mapping[str, Any] | None) -> dict[str, Any]:
+    """``compare``'s :class:`~sensor.vo.VOConfig` fields, checked before any work.
+
+    Raises
+    ------
+    ValueError
+        One line naming ``--compare``, the field and its allowed values: a name that is not a field, or a value
+        outside the field's range.
+    """
+    from pydantic import ValidationError
+
+    from sensor.vo import VOConfig
+
+    changes = dict(compare or {})
+    fields = sorted(VOConfig.model_fields)
+    for name in changes:
+        if name not in VOConfig.model_fields:
+            raise ValueError(f"--compare {name}: not an odometry setting; one of {', '.join(fields)}")
+    try:
+        VOConfig.from_horizontal_fov(1344, 391, 1.5, 0.5).replace(**changes)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        name = ".".join(str(part) for part in first["loc"])
+        raise ValueError(f"--compare {name}={changes.get(name)!r}: {first['msg']}") from None
+    return changes
+
+
+def frame_errors(results: list, truth: np.ndarray) -> np.ndarray:
+    """(n − 1, 2) translation [m] and rotation [rad] error of each frame's estimated ``Tr_delta`` after the first
+    against ``truth`` (:func:`relative_motions`), NaN for a frame without one."""
+    errors = np.full((len(truth), 2), np.nan)
+    for k, (result, true) in enumerate(zip(results[1:], truth, strict=True)):
+        if result.motion is not None:
+            err = np.linalg.solve(true, result.motion)
+            errors[k] = np.linalg.norm(err[:3, 3]), np.arccos(np.clip((np.trace(err[:3, :3]) - 1.0) / 2.0, -1.0, 1.0))
+    return errors
+
+
+def bench_vo(
+    frames: int = 30,
+    scenario: str = "roundabout-3",
+    seed: int = 0,
+    passes: int = 3,
+    compare: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
     """Visual odometry alone, one thread, on a scenario's cached rendered frames (1344×391 by default).
 
     Parameters
@@ -141,6 +194,9 @@ def bench_vo(frames: int = 30, scenario: str = "roundabout-3", seed: int = 0, pa
     passes : int
         Timed passes over the sequence after one warm-up pass (JIT compilation, caches); per frame the
         fastest pass counts.
+    compare : mapping, optional
+        :class:`~sensor.vo.VOConfig` fields (e.g. ``{"gradient_refinement": "lucas_kanade"}``) of a second odometry
+        timed beside the default in the same passes, the two alternating (:func:`compared_settings`).
 
     Returns
     -------
@@ -149,7 +205,9 @@ def bench_vo(frames: int = 30, scenario: str = "roundabout-3", seed: int = 0, pa
         ``wall_ms_median``, the stage medians ``cpu_ms_features``, ``cpu_ms_matching`` (matching,
         bucketing and refinement) and ``cpu_ms_motion`` (thread CPU time), ``first_call_s`` (the
         warm-up pass's first two frames: import-time compilation or cache load), ``fps`` (one over the
-        median CPU time), matches, inliers and the valid fraction.
+        median CPU time), matches, inliers, the valid fraction and the mean per-frame error against the true
+        motion, ``t_rpe_mm`` and ``r_rpe_mrad``. With ``compare``: ``compare`` (its settings), the same figures
+        prefixed ``compare_`` and ``cpu_ratio`` (its median CPU time over the default's).
     """
     import cv2
 
@@ -157,54 +215,81 @@ def bench_vo(frames: int = 30, scenario: str = "roundabout-3", seed: int = 0, pa
 
     if passes < 1:
         raise ValueError(f"passes must be at least 1, got {passes}")
+    changes = compared_settings(compare)
     sequence = rendered_sequence(frames, seed, scenario)
     config = VOConfig.from_horizontal_fov(*vo_calibration(sequence))
+    configs = {"": config} | ({"compare_": config.replace(**changes)} if compare is not None else {})
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)
     try:
-        vo = StereoOdometry(config, seed=0)
-        n = len(sequence)
-        cpu = np.full(n, np.inf)
-        wall = np.full(n, np.inf)
-        stages = np.full((n, 3), np.inf)
-        first_call = 0.0
+        timings = {prefix: _Timing(StereoOdometry(c, seed=0), len(sequence)) for prefix, c in configs.items()}
         for k in range(passes + 1):
-            vo.reset()
-            results = []
-            for i in range(n):
-                c0, w0 = time.thread_time(), time.perf_counter()
-                results.append(vo.process(sequence.left[i], sequence.right[i]))
-                c1, w1 = time.thread_time(), time.perf_counter()
-                if k == 0:
-                    first_call += (w1 - w0) if i < 2 else 0.0
-                    continue
-                cpu[i] = min(cpu[i], c1 - c0)
-                wall[i] = min(wall[i], w1 - w0)
-                r = results[-1]
-                stages[i] = np.minimum(stages[i], [r.cpu_features, r.cpu_matching, r.cpu_motion])
+            for timing in timings.values():  # the two odometries alternate, pass by pass
+                timing.run(sequence, warm_up=k == 0)
     finally:
         cv2.setNumThreads(threads)
-    steady = slice(1, None)
-    med = float(np.median(cpu[steady]))
-    return {
+    truth = relative_motions(sequence.poses)
+    out: dict[str, Any] = {
         "benchmark": "vo",
         "scenario": scenario,
         "seed": seed,
-        "frames": n,
+        "frames": len(sequence),
         "width": int(sequence.calibration["width"]),
         "height": int(sequence.calibration["height"]),
         "passes": passes,
-        "cpu_ms_median": 1e3 * med,
-        "cpu_ms_p90": 1e3 * float(np.percentile(cpu[steady], 90)),
-        "wall_ms_median": 1e3 * float(np.median(wall[steady])),
-        "cpu_ms_features": 1e3 * float(np.median(stages[steady, 0])),
-        "cpu_ms_matching": 1e3 * float(np.median(stages[steady, 1])),
-        "cpu_ms_motion": 1e3 * float(np.median(stages[steady, 2])),
-        "first_call_s": first_call,
-        "fps": 1.0 / med,
-        "mean_matches": float(np.mean([r.n_matches for r in results[1:]])),
-        "mean_inliers": float(np.mean([r.n_inliers for r in results[1:]])),
-        "valid_fraction": float(np.mean([r.valid for r in results[1:]])),
-        "opencv_threads": 1,
-        "python": platform.python_version(),
     }
+    for prefix, timing in timings.items():
+        out.update({prefix + key: value for key, value in timing.figures(truth).items()})
+    if compare is not None:
+        out["compare"] = changes
+        out["cpu_ratio"] = out["compare_cpu_ms_median"] / out["cpu_ms_median"]
+    out.update({"opencv_threads": 1, "python": platform.python_version()})
+    return out
+
+
+class _Timing:
+    """One odometry's per-frame times over the passes: the fastest pass per frame (thread CPU, wall, stages)."""
+
+    def __init__(self, vo: Any, n: int) -> None:
+        self.vo = vo
+        self.cpu = np.full(n, np.inf)
+        self.wall = np.full(n, np.inf)
+        self.stages = np.full((n, 3), np.inf)
+        self.first_call = 0.0
+        self.results: list = []
+
+    def run(self, sequence: RenderedSequence, warm_up: bool) -> None:
+        self.vo.reset()
+        self.results = []
+        for i in range(len(sequence)):
+            c0, w0 = time.thread_time(), time.perf_counter()
+            self.results.append(self.vo.process(sequence.left[i], sequence.right[i]))
+            c1, w1 = time.thread_time(), time.perf_counter()
+            if warm_up:
+                self.first_call += (w1 - w0) if i < 2 else 0.0
+                continue
+            self.cpu[i] = min(self.cpu[i], c1 - c0)
+            self.wall[i] = min(self.wall[i], w1 - w0)
+            r = self.results[-1]
+            self.stages[i] = np.minimum(self.stages[i], [r.cpu_features, r.cpu_matching, r.cpu_motion])
+
+    def figures(self, truth: np.ndarray) -> dict[str, float]:
+        steady = slice(1, None)
+        med = float(np.median(self.cpu[steady]))
+        errors = frame_errors(self.results, truth)
+        results = self.results[1:]
+        return {
+            "cpu_ms_median": 1e3 * med,
+            "cpu_ms_p90": 1e3 * float(np.percentile(self.cpu[steady], 90)),
+            "wall_ms_median": 1e3 * float(np.median(self.wall[steady])),
+            "cpu_ms_features": 1e3 * float(np.median(self.stages[steady, 0])),
+            "cpu_ms_matching": 1e3 * float(np.median(self.stages[steady, 1])),
+            "cpu_ms_motion": 1e3 * float(np.median(self.stages[steady, 2])),
+            "first_call_s": self.first_call,
+            "fps": 1.0 / med,
+            "mean_matches": float(np.mean([r.n_matches for r in results])),
+            "mean_inliers": float(np.mean([r.n_inliers for r in results])),
+            "valid_fraction": float(np.mean([r.valid for r in results])),
+            "t_rpe_mm": 1e3 * float(np.nanmean(errors[:, 0])) if np.isfinite(errors[:, 0]).any() else float("nan"),
+            "r_rpe_mrad": 1e3 * float(np.nanmean(errors[:, 1])) if np.isfinite(errors[:, 1]).any() else float("nan"),
+        }
