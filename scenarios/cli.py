@@ -27,7 +27,7 @@ from scenarios.commands.camera_commands import animate, calibrate, estimate, ren
 from scenarios.commands.optimal_command import optimal
 from scenarios.commands.run_commands import config_command, export, list_presets, report, run
 from scenarios.commands.study_commands import assess, compare, study, tune
-from scenarios.commands.terminal import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_MISSED
+from scenarios.commands.terminal import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_MISSED, handled
 from scenarios.portable_arithmetic import PortableArithmeticError
 from scenarios.portable_arithmetic import apply as apply_portable_arithmetic
 from scenarios.run.stopping import handle_sigterm
@@ -42,6 +42,8 @@ app = typer.Typer(
     rich_markup_mode=None,  # help texts are plain: "[km/h]" is a unit, not markup
     pretty_exceptions_enable=False,
 )
+for _command in bench_app.registered_commands:  # the benchmarks' bad input too: one line, exit 2
+    _command.callback = handled(_command.callback)
 app.add_typer(bench_app, name="bench")
 
 COMMANDS = (

@@ -12,7 +12,6 @@ from rich.table import Table
 
 from ..camera.workers import DEFAULT_WORKERS
 from ..cli_format import OfftrackCommand, OfftrackGroup
-from ..commands.terminal import handled
 from ..run.json_output import strict_json
 
 bench_app = typer.Typer(
@@ -25,7 +24,6 @@ console = Console()
 
 
 @bench_app.command("render", cls=OfftrackCommand)
-@handled
 def bench_render_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     frames: Annotated[int, typer.Option(help="Stereo pairs to render.", min=5)] = 50,
@@ -43,7 +41,6 @@ def bench_render_cmd(
 
 
 @bench_app.command("vo", cls=OfftrackCommand)
-@handled
 def bench_vo_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     frames: Annotated[int, typer.Option(help="Rendered frames to process (cached after the first run).", min=5)] = 30,
@@ -78,7 +75,6 @@ def _setting(item: str) -> tuple[str, object]:
 
 
 @bench_app.command("sweep", cls=OfftrackCommand)
-@handled
 def bench_sweep_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     workers: Annotated[int, typer.Option(help="Worker processes to compare with one.", min=2)] = 2,
@@ -92,7 +88,6 @@ def bench_sweep_cmd(
 
 
 @bench_app.command("model", cls=OfftrackCommand)
-@handled
 def bench_model_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     duration: Annotated[float, typer.Option(help="Simulated seconds.", min=1.0)] = 60.0,
@@ -107,7 +102,6 @@ def bench_model_cmd(
 
 
 @bench_app.command("terrain", cls=OfftrackCommand)
-@handled
 def bench_terrain_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     vehicle: Annotated[str, typer.Option(help="The combination (a catalogue name).")] = "lst",
@@ -122,7 +116,6 @@ def bench_terrain_cmd(
 
 
 @bench_app.command("loop", cls=OfftrackCommand)
-@handled
 def bench_loop_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     duration: Annotated[float, typer.Option(help="Simulated seconds per run.", min=4.0)] = 15.0,
@@ -138,7 +131,6 @@ def bench_loop_cmd(
 
 
 @bench_app.command("rigs", cls=OfftrackCommand)
-@handled
 def bench_rigs_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     frames: Annotated[int, typer.Option(help="Frames (every rig rendered in each).", min=5)] = 30,
@@ -154,7 +146,6 @@ def bench_rigs_cmd(
 
 
 @bench_app.command("optimal", cls=OfftrackCommand)
-@handled
 def bench_optimal_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     duration: Annotated[
@@ -170,7 +161,6 @@ def bench_optimal_cmd(
 
 
 @bench_app.command("env", cls=OfftrackCommand)
-@handled
 def bench_env_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     feedback: Annotated[str, typer.Option(help="Model-based feedback source: truth or zero_slip.")] = "truth",
