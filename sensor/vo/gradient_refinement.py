@@ -16,13 +16,13 @@ levels agree (one exposure for the four): a brightness change between them moves
 ``"lucas_kanade_affine"`` drops that assumption: each window's grey levels may differ from the 1c window's by a gain
 and an offset of their own, ``g(x + p) = a·f(x) + b`` (f the 1c window, g the other image), solved with the
 displacement. The offset and gain are projected out of the residual and of the steepest-descent images (the
-"project-out" inverse compositional algorithm, Baker, Gross & Matthews 2003, "Lucas-Kanade 20 Years On: A Unifying
-Framework: Part 3", §4.2, with the appearance images 1 and f): the 2×2 normal matrix is taken once, on the 1c
-window's gradient with its components along 1 and f removed, and each Gauss–Newton step is that matrix's solve of
-the projected residual, divided by the window's least-squares gain â (the chain rule at the solution,
-∇g = a·∇f; :func:`_affine_track`). Its minimum is that of the zero-mean normalised sum of squared differences
-(ZNSSD, the criterion of digital image correlation's inverse compositional Gauss–Newton; Pan, Li & Tong 2013), which
-a gain and an offset between the windows do not move.
+project-out inverse compositional algorithm, with the appearance images 1 and f; Baker, Gross & Matthews 2003,
+"Lucas-Kanade 20 Years On: A Unifying Framework: Part 3", CMU-RI-TR-03-35): the 2×2 normal matrix is taken once, on
+the 1c window's gradient with its components along 1 and f removed, and each Gauss–Newton step is that matrix's solve
+of the projected residual divided by the window's gain (the chain rule at the solution, ∇g = a·∇f;
+:func:`_affine_track`). Its minimum is that of the zero-mean normalised sum of squared differences (ZNSSD, the
+criterion of digital image correlation's inverse compositional Gauss–Newton; Pan, Li & Tong 2013), which a gain and
+an offset between the windows do not move.
 
 A position whose window is too flat (OpenCV's smallest-eigenvalue test; the affine variant's on its projected
 normal matrix, and a 1c window of no grey-level spread), whose iterations leave the image, whose fitted gain is not
@@ -117,7 +117,7 @@ def _window_offsets() -> tuple[np.ndarray, np.ndarray]:
 
 def _affine_templates(template: np.ndarray, fixed: np.ndarray) -> _Templates:
     """The 1c windows, their projected steepest-descent images and normal matrices (Baker, Gross & Matthews 2003,
-    Part 3, §4.2, eq (40)–(42), the warp a translation): with P⊥ the projection off the window's constant and f̃,
+    Part 3, the project-out algorithm, the warp a translation): with P⊥ the projection off the window's constant and f̃,
     SD = P⊥·∇f and H = SDᵀ·SD; the windows too flat to track dropped."""
     du, dv = _window_offsets()
     image = template.astype(np.float64)
@@ -146,9 +146,12 @@ def _affine_track(templates: _Templates, target: np.ndarray, start: np.ndarray) 
     """(N, 2) positions in ``target`` of the 1c windows up to a gain and an offset of the grey levels per window,
     iterated from ``start`` [px] (module docstring).
 
-    Each iteration samples the target window g at p and steps p ← p − H⁻¹·SDᵀ·g / â, with â = ⟨g, f̃⟩ / ⟨f̃, f̃⟩ the
-    window's least-squares gain (SDᵀ·P⊥·g = SDᵀ·g, SD being orthogonal to 1 and f̃; Baker, Gross & Matthews 2003,
-    Part 3, §4.2). The offset b never enters: it lies along the projected-out constant.
+    Each iteration samples the target window g at p and steps p ← p − H⁻¹·SDᵀ·g / â (SDᵀ·P⊥·g = SDᵀ·g, SD being
+    orthogonal to 1 and f̃; Baker, Gross & Matthews 2003, Part 3), with â = √(⟨g̃, g̃⟩ / ⟨f̃, f̃⟩) the ratio of the two
+    windows' grey-level spreads (ZNSSD's normalisation, Pan, Li & Tong 2013; at the solution the gain a, and unlike
+    the regression ⟨g̃, f̃⟩ / ⟨f̃, f̃⟩ not shrunk by the misalignment, so the steps do not overshoot). The step's scale
+    does not move the solution, where SDᵀ·g = 0. The offset b never enters: it lies along the projected-out constant.
+    A window anti-correlated with the 1c window (⟨g̃, f̃⟩ ≤ 0) is no match and keeps its position.
     """
     du, dv = _window_offsets()
     result = np.array(start, dtype=np.float64, copy=True)
