@@ -25,7 +25,7 @@ from pydantic.fields import FieldInfo
 from sensor.camera import MAX_RENDER_PX, Lens
 from sensor.lighting import Lighting
 from sensor.mount_flex import MountFlex
-from sensor.vo.config import CovarianceModel, VOConfig
+from sensor.vo.config import CovarianceModel, GradientRefinement, VOConfig
 from sensor.vo.disparity_offset import DisparityOffsetSettings
 from sensor.vo.self_calibration import SelfCalibrationSettings
 from vehicle_model.parameters import VehicleParams
@@ -131,7 +131,8 @@ class StereoRigConfig(Settings):
     ``vo_bucket_max_features`` and ``vo_ransac_iters`` are the odometry's matches kept a bucket and its RANSAC
     hypotheses (:class:`sensor.vo.config.VOConfig`'s ``bucket_max_features`` and ``ransac_iters``, whose types,
     defaults and ranges they are: libviso2's), ``vo_covariance_model`` the form of its motion's covariance
-    (``covariance_model``'s values and default).
+    (``covariance_model``'s values and default) and ``vo_gradient_refinement`` its refinement of the matched positions
+    on the grey images (``gradient_refinement``'s values and default).
     ``latency_s`` delays each frame's estimate before the controller sees
     it (default: one frame period).
     """
@@ -208,6 +209,12 @@ class StereoRigConfig(Settings):
         "the odometry's motion covariance: gauss_newton (the weighted fit's own) or sandwich (the weights as the "
         "estimator's choice, one noise level per image coordinate; docs/field_bias.md)",
     )
+    vo_gradient_refinement: GradientRefinement = odometry_field(
+        "gradient_refinement",
+        "the odometry's refinement of the matched positions on the grey images after the descriptor's: off, "
+        "lucas_kanade (one exposure for the four images) or lucas_kanade_affine (a gain and an offset per window; "
+        "docs/visual_odometry.md §8)",
+    )
     world: Literal["roadside", "airfield"] = "roadside"
     latency_s: float | None = Field(
         None,
@@ -259,7 +266,7 @@ class _RigChoice(Settings):
         return {k: v for k, v in handler(self).items() if v is not None}
 
 
-ODOMETRY_ONLY = ("vo_bucket_max_features", "vo_ransac_iters", "vo_covariance_model")
+ODOMETRY_ONLY = ("vo_bucket_max_features", "vo_ransac_iters", "vo_covariance_model", "vo_gradient_refinement")
 """Fields of the camera section that set the odometry alone, not the images: a frame cache's name leaves them out
 (:func:`scenarios.camera.build.camera_tag`), so runs that differ only in them share their frames."""
 

@@ -1,7 +1,7 @@
 """The odometry's settings in the camera section (``camera.vo_bucket_max_features``, ``camera.vo_ransac_iters``,
-``camera.vo_covariance_model``): left out, the run's odometry is the one built from the optics with libviso2's
-matching, field for field; a rig's own value is its odometry's and the section's is every other rig's; a value out
-of the odometry's range is refused naming the field and the range before any work."""
+``camera.vo_covariance_model``, ``camera.vo_gradient_refinement``): left out, the run's odometry is the one built
+from the optics with libviso2's matching, field for field; a rig's own value is its odometry's and the section's is
+every other rig's; a value out of the odometry's range is refused naming the field and the range before any work."""
 
 from __future__ import annotations
 
@@ -36,16 +36,22 @@ def test_left_out_the_odometry_is_the_optics_one_with_libviso2s_matching_and_sub
         ).model_dump()
     )
     assert (built.bucket_max_features, built.ransac_iters) == (2, 200)  # libviso2's
-    assert built.covariance_model == "gauss_newton"
+    assert (built.covariance_model, built.gradient_refinement) == ("gauss_newton", "off")
 
 
 def test_a_rigs_own_matching_settings_are_its_odometrys_and_the_sections_the_others() -> None:
-    rigs = [{"unit": 1}, {"unit": 2, "facing": "rear", "vo_bucket_max_features": 6}]
+    rigs = [
+        {"unit": 1},
+        {"unit": 2, "facing": "rear", "vo_bucket_max_features": 6, "vo_gradient_refinement": "lucas_kanade_affine"},
+    ]
     config = load_scenario(
         "roundabout-3", {**CAMERA, "vehicle": "au-b-double", "camera.vo_ransac_iters": 50, "camera.rigs": rigs}
     )
     built = [odometry_config(pair_developer(config, i).optics, rig_settings(config, i)) for i in range(2)]
-    assert [(vo.bucket_max_features, vo.ransac_iters) for vo in built] == [(2, 50), (6, 50)]
+    assert [(vo.bucket_max_features, vo.ransac_iters, vo.gradient_refinement) for vo in built] == [
+        (2, 50, "off"),
+        (6, 50, "lucas_kanade_affine"),
+    ]
 
 
 def test_the_setting_reaches_the_runs_odometry() -> None:
@@ -56,11 +62,13 @@ def test_the_setting_reaches_the_runs_odometry() -> None:
             "camera.vo_bucket_max_features": 6,
             "camera.vo_ransac_iters": 75,
             "camera.vo_covariance_model": "sandwich",
+            "camera.vo_gradient_refinement": "lucas_kanade_affine",
         },
     )
     odometry = frame_odometry(build_scenario(config), pair_developer(config).optics)
     vo = odometry.vo.config
     assert (vo.bucket_max_features, vo.ransac_iters, vo.covariance_model) == (6, 75, "sandwich")
+    assert vo.gradient_refinement == "lucas_kanade_affine"
 
 
 @pytest.mark.parametrize(
@@ -74,6 +82,11 @@ def test_the_setting_reaches_the_runs_odometry() -> None:
             "greater than or equal to 1",
         ),
         ("camera.vo_covariance_model=hessian", "camera.vo_covariance_model", "'gauss_newton' or 'sandwich'"),
+        (
+            "camera.vo_gradient_refinement=bicubic",
+            "camera.vo_gradient_refinement",
+            "'off', 'lucas_kanade' or 'lucas_kanade_affine'",
+        ),
     ],
 )
 def test_a_value_out_of_the_odometrys_range_is_refused_naming_the_field_before_any_work(
@@ -110,5 +123,5 @@ def test_the_frames_are_named_without_the_odometrys_settings() -> None:
 
     default = tag({})
     assert tag({"camera.vo_bucket_max_features": 6, "camera.vo_ransac_iters": 50}) == default
-    assert tag({"camera.vo_covariance_model": "sandwich"}) == default
+    assert tag({"camera.vo_covariance_model": "sandwich", "camera.vo_gradient_refinement": "lucas_kanade"}) == default
     assert tag({"camera.width": 640}) != default

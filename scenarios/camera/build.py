@@ -450,14 +450,15 @@ def pair_developer(config: ScenarioConfig, rig_index: int = 0) -> PairDeveloper:
 def odometry_config(optics: FieldOptics, rig: StereoRigConfig) -> VOConfig:
     """The odometry's settings of a rig: the camera model and stereo search of the images ``optics`` gives
     (:meth:`~sensor.field_optics.FieldOptics.vo_config`) with the rig's ``vo_refinement``,
-    ``vo_bucket_max_features``, ``vo_ransac_iters`` and ``vo_covariance_model`` (validated by the schema with the
-    odometry's own ranges and values)."""
+    ``vo_bucket_max_features``, ``vo_ransac_iters``, ``vo_covariance_model`` and ``vo_gradient_refinement``
+    (validated by the schema with the odometry's own ranges and values)."""
     return optics.vo_config().model_copy(
         update={
             "refinement": rig.vo_refinement,
             "bucket_max_features": rig.vo_bucket_max_features,
             "ransac_iters": rig.vo_ransac_iters,
             "covariance_model": rig.vo_covariance_model,
+            "gradient_refinement": rig.vo_gradient_refinement,
         }
     )
 

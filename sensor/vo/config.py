@@ -19,7 +19,11 @@ CovarianceModel = Literal["gauss_newton", "sandwich"]
 """The form of a motion's covariance (:func:`sensor.vo.quality.motion_quality`; :class:`VOConfig`'s
 ``covariance_model``)."""
 
-__all__ = ["CovarianceModel", "VOConfig"]
+GradientRefinement = Literal["off", "lucas_kanade", "lucas_kanade_affine"]
+"""The refinement of the matched positions on the grey images (:mod:`sensor.vo.gradient_refinement`;
+:class:`VOConfig`'s ``gradient_refinement``)."""
+
+__all__ = ["CovarianceModel", "GradientRefinement", "VOConfig"]
 
 #: Largest ``nms_n`` accepted: the detector breaks ties between equal filter responses with a
 #: sub-integer offset pattern whose period is 2·max(nms_n, 10) + 1, which must stay resolvable in float32.
@@ -76,11 +80,14 @@ class VOConfig(Settings):
         fits through the half-pixel neighbours and once more at the other coordinate's fitted position
         (:mod:`sensor.vo.kernels_refine_half`): where a match's true row falls between two pixel rows, a whole
         row's cost on an oblique edge can be lowest a pixel along the edge. Default "pixel".
-    gradient_refinement : {"off", "lucas_kanade"}
+    gradient_refinement : {"off", "lucas_kanade", "lucas_kanade_affine"}
         After the refinement, ``"lucas_kanade"`` moves the 1p, 2p and 2c positions once more, to the minimum of the
         squared grey-level differences of a window around the fixed 1c position, solved by Gauss–Newton iterations
         on the grey images (Lucas & Kanade 1981; :mod:`sensor.vo.gradient_refinement`): no grid of candidate
         positions for the sub-pixel estimate to be drawn towards. It assumes one exposure for the four images.
+        ``"lucas_kanade_affine"`` lets each window's grey levels differ from the 1c window's by a gain and an offset
+        of their own, solved with the displacement (the gain and offset projected out; Baker, Gross & Matthews
+        2003), so that an exposure, a vignetting or a camera's gain of its own does not move the position.
         Default "off" (libviso2's positions).
     bucket_width, bucket_height : float
         Bucket size [px] of the final match selection. libviso2: 50 × 50.
@@ -150,7 +157,7 @@ class VOConfig(Settings):
     refinement: Count = Field(1, ge=0, le=2)
     subpixel: Literal["parabola", "equiangular"] = "parabola"
     subpixel_search: Literal["pixel", "half_pixel"] = "pixel"
-    gradient_refinement: Literal["off", "lucas_kanade"] = "off"
+    gradient_refinement: GradientRefinement = "off"
     bucket_width: Real = Field(50.0, gt=0.0)
     bucket_height: Real = Field(50.0, gt=0.0)
     bucket_max_features: Count = Field(2, ge=1)

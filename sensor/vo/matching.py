@@ -168,9 +168,11 @@ def match_frames(
     xy = xy[bucket_matches(xy, config, rng)]
     if config.refinement > 0:
         xy = refine_matches(xy, (l_p, r_p, l_c, r_c), config)
-    if config.gradient_refinement == "lucas_kanade":
+    if config.gradient_refinement != "off":
         greys = tuple(f.grey for f in (l_p, r_p, l_c, r_c))
         if any(g is None for g in greys):
-            raise ValueError("gradient_refinement 'lucas_kanade' needs the features' grey images (extract_features)")
-        xy = refine_gradient(xy, greys)  # type: ignore[arg-type]
+            raise ValueError(
+                f"gradient_refinement {config.gradient_refinement!r} needs the features' grey images (extract_features)"
+            )
+        xy = refine_gradient(xy, greys, config.gradient_refinement)  # type: ignore[arg-type]
     return MatchResult(matches=xy, n_first_pass=n_first, n_dense=n_dense)
