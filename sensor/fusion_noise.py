@@ -124,6 +124,9 @@ class SideRigFusion(Settings):
     ----------
     vo_axial_flow, vo_axial_scale, vo_axial_scale_walk, vo_axial_effect, vo_yaw_lever, bias_std_scale
         As :class:`FusionNoise`'s.
+    vo_covariance_scale
+        As :class:`FusionNoise`'s: the factor on a side rig's motion covariance (``None``: the section's), for a
+        side rig whose covariance model (``camera.rigs``' ``vo_covariance_model``) is not the other rigs'.
     kinematic_rear_point, reference_friction, reference_road_friction, reference_axles, reference_tyre,
     reference_accelerometer_bias, kinematic_error_model, coupling_reference, coupling_bias_share,
     coupling_persisting_error
@@ -161,6 +164,9 @@ class SideRigFusion(Settings):
     vo_axial_effect: AxialEffect | None = None
     vo_yaw_lever: bool | None = None
     bias_std_scale: float | None = Field(None, gt=0.0, le=1.0, description=BIAS_STD_SCALE)
+    vo_covariance_scale: float | None = Field(
+        None, ge=1.0, le=1e4, description="on the side rig's VO covariance (a floor); 1e4: no VO"
+    )
     kinematic_rear_point: KinematicReference | None = None
     reference_friction: float | None = Field(None, ge=0.05, le=1.5, description=FRICTION)
     reference_road_friction: float | None = Field(None, ge=0.05, le=1.5, description=ROAD_FRICTION)
