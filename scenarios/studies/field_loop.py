@@ -175,7 +175,7 @@ def field_loop_vehicle(vehicle: str | None) -> Any:
     return camera_study_vehicle(vehicle, STUDY, SCENARIOS[0], RENDERED_FEEDBACK)
 
 
-def _case(
+def field_loop_case(
     scenario: str,
     surface: str,
     camber: float,
@@ -186,6 +186,32 @@ def _case(
     full: bool,
     vehicle: Any = VEHICLE,
 ) -> CaseSpec:
+    """One case of the study: a cell (also one outside :data:`SEEDS` or the grid's scenarios) with one feedback.
+
+    Parameters
+    ----------
+    scenario, surface
+        Catalogue scenario and surface preset.
+    camber
+        Adverse camber [%].
+    conditions
+        ``field`` (the field conditions on every rig and the data-sheet signals drawn from ``seed``) or ``ideal``.
+    alignment
+        A key of :data:`ALIGNMENTS` (the right camera's misalignment under field conditions).
+    seed
+        The run's seed.
+    feedback
+        One of :data:`FEEDBACKS`.
+    full
+        The complete manoeuvre instead of :data:`SHORT_DURATION_S`.
+    vehicle
+        The combination (:func:`field_loop_vehicle`; default the LST).
+
+    Returns
+    -------
+    CaseSpec
+        Labelled as :func:`field_loop_cases` labels its cases.
+    """
     overrides: tuple[tuple[str, Any], ...] = (
         ("vehicle", vehicle),
         ("surface.preset", surface),
@@ -249,7 +275,7 @@ def field_loop_cases(full: bool = False, vehicle: str | None = None) -> list[Cas
     else:
         cells = list(DEFAULT_CELLS)
     combination = field_loop_vehicle(vehicle)
-    return [_case(*cell, feedback, full, combination) for cell in cells for feedback in FEEDBACKS]
+    return [field_loop_case(*cell, feedback, full, combination) for cell in cells for feedback in FEEDBACKS]
 
 
 def run_field_loop_case(spec: CaseSpec, out_dir: Path) -> dict[str, Any]:
