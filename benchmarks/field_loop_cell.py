@@ -2,9 +2,10 @@
 docs/studies.md give for a cell the study's own grid does not select (another seed, one feedback, an opt-in setting).
 
 The case is :func:`scenarios.studies.field_loop.field_loop_case` with each ``KEY=VALUE`` appended to its overrides
-(``VALUE`` read as JSON, else as text), run by :func:`scenarios.studies.field_loop.run_field_loop_case` into
-``OUT_DIR/<case name>/`` (the run directory every run writes), and its row — the study's columns, each further unit's
-``unit<k>_…`` — written to ``OUT_DIR/row-<VEHICLE>_<SCENARIO>_…_s<SEED>_<FEEDBACK>.json`` and printed.
+(read as ``--set`` reads it, :func:`scenarios.config.parse_assignment`), run by
+:func:`scenarios.studies.field_loop.run_field_loop_case` into ``OUT_DIR/<case name>/`` (the run directory every run
+writes), and its row — the study's columns, each further unit's ``unit<k>_…`` — written to
+``OUT_DIR/row-<VEHICLE>_<SCENARIO>_…_s<SEED>_<FEEDBACK>.json`` and printed.
 
 Usage::
 
@@ -28,8 +29,9 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import NoReturn
 
+from scenarios.config import parse_assignment
 from scenarios.studies.field_loop import (
     ALIGNMENTS,
     CONDITIONS,
@@ -49,16 +51,6 @@ class _OneLineParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def _setting(item: str) -> tuple[str, Any]:
-    key, sep, text = item.partition("=")
-    if not sep or not key:
-        raise ValueError(f"setting {item!r}: give KEY=VALUE, e.g. fusion.vo_covariance_scale=1.0")
-    try:
-        return key, json.loads(text)
-    except json.JSONDecodeError:
-        return key, text
 
 
 def case_from_arguments(argv: list[str]) -> tuple[CaseSpec, Path, str]:
@@ -83,7 +75,7 @@ def case_from_arguments(argv: list[str]) -> tuple[CaseSpec, Path, str]:
     parser.add_argument("settings", nargs="*", metavar="KEY=VALUE")
     args = parser.parse_args(argv)
     try:
-        extra = tuple(_setting(item) for item in args.settings)
+        extra = tuple(parse_assignment(item) for item in args.settings)
         vehicle = field_loop_vehicle(None if args.vehicle == "lst" else args.vehicle)
     except ValueError as exc:
         parser.error(str(exc))

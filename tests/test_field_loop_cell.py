@@ -11,7 +11,7 @@ from scenarios.studies.field_loop import field_loop_cases
 
 def test_a_grid_cell_is_the_studys_own_case_with_the_settings_appended() -> None:
     """For the default subset's icy field cell, the case's overrides are the study's case's, then the settings
-    (JSON values read as JSON, others as text), and its name and labels the study's."""
+    (read as ``--set`` reads them), and its name and labels the study's."""
     study = next(
         case
         for case in field_loop_cases()
@@ -39,7 +39,7 @@ def test_a_grid_cell_is_the_studys_own_case_with_the_settings_appended() -> None
         ({4: "foggy"}, "argument conditions: invalid choice: 'foggy'"),
         ({7: "radar"}, "argument feedback: invalid choice: 'radar'"),
         ({8: "2"}, "argument full: invalid choice: 2"),
-        ({10: "novalue"}, "setting 'novalue': give KEY=VALUE"),
+        ({10: "novalue"}, "--set 'novalue' must look like field.sub=value"),
         ({0: "no-such-vehicle"}, "--vehicle"),
     ],
 )

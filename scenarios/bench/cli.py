@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from typing import Annotated
 
 import typer
@@ -49,7 +48,7 @@ def bench_vo_cmd(
     compare: Annotated[
         list[str] | None,
         typer.Option(
-            help="An odometry setting KEY=VALUE (repeatable; VALUE as JSON, else text) of a second odometry timed "
+            help="An odometry setting KEY=VALUE (repeatable; VALUE read as --set reads it) of a second odometry timed "
             "beside the default in the same passes, e.g. gradient_refinement=lucas_kanade: its figures and the CPU "
             "ratio."
         ),
@@ -59,19 +58,17 @@ def bench_vo_cmd(
     the mean per-frame error against the true motion; with ``--compare`` a second odometry beside it."""
     from scenarios.bench.vo import bench_vo
 
-    changes = None if not compare else dict(_setting(item) for item in compare)
+    changes = None if not compare else dict(_comparison(item) for item in compare)
     _print_bench(bench_vo(frames, seed=seed, passes=passes, compare=changes), as_json, "Visual odometry benchmark")
 
 
-def _setting(item: str) -> tuple[str, object]:
-    """``KEY=VALUE`` of ``--compare``: the value read as JSON, else taken as text."""
-    key, sep, text = item.partition("=")
-    if not sep or not key:
+def _comparison(item: str) -> tuple[str, object]:
+    """``KEY=VALUE`` of ``--compare``, its value read as ``--set`` reads one."""
+    from scenarios.config import parse_assignment
+
+    if "=" not in item:
         raise ValueError(f"--compare {item!r}: give KEY=VALUE, e.g. gradient_refinement=lucas_kanade")
-    try:
-        return key, json.loads(text)
-    except json.JSONDecodeError:
-        return key, text
+    return parse_assignment(item)
 
 
 @bench_app.command("sweep", cls=OfftrackCommand)
