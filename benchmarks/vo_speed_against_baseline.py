@@ -70,15 +70,6 @@ def load_baseline(folder: Path, commit: str = BASELINE) -> tuple[ModuleType, Mod
     return odometry, config
 
 
-def _pose_errors(motion: np.ndarray | None, truth: np.ndarray) -> tuple[float, float]:
-    """Translation [m] and rotation [rad] error of one estimated Tr_delta (NaN when there is none)."""
-    if motion is None:
-        return math.nan, math.nan
-    err = np.linalg.solve(truth, motion)
-    cos = np.clip((np.trace(err[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)
-    return float(np.linalg.norm(err[:3, 3])), float(math.acos(cos))
-
-
 def _run(vo: Any, sequence: Any) -> tuple[np.ndarray, list]:
     vo.reset()
     cpu, results = [], []
@@ -90,7 +81,9 @@ def _run(vo: Any, sequence: Any) -> tuple[np.ndarray, list]:
 
 
 def _accuracy(results: list, truth: np.ndarray) -> dict[str, Any]:
-    errors = np.array([_pose_errors(r.motion, t) for r, t in zip(results[1:], truth, strict=True)])
+    from scenarios.bench.vo import frame_errors
+
+    errors = frame_errors(results, truth)
     valid = np.isfinite(errors[:, 0])
     return {
         "t_rpe_mm": 1e3 * float(np.mean(errors[valid, 0])) if valid.any() else math.nan,

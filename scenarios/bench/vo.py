@@ -155,7 +155,7 @@ def compared_settings(compare: Mapping[str, Any] | None) -> dict[str, Any]:
         if name not in VOConfig.model_fields:
             raise ValueError(f"--compare {name}: not an odometry setting; one of {', '.join(fields)}")
     try:
-        VOConfig.from_horizontal_fov(1344, 391, 1.5, 0.5).replace(**changes)
+        VOConfig.from_horizontal_fov(1344, 391, 1.5, 0.5).replace(**changes)  # any camera: the changes are checked
     except ValidationError as exc:
         first = exc.errors()[0]
         name = ".".join(str(part) for part in first["loc"])
